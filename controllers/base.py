@@ -1,0 +1,128 @@
+"""What every controller shares: observation, forecast, objective, protocol, fallback.
+
+The objective is the same for every controller so comparisons are fair: over the horizon,
+energy cost (price x delivered energy) plus ``comfort_weight`` x discomfort [K h], where the
+discomfort of step j is the band violation of the room temperature at the end of interval j
+(against the band of interval j) times the interval length in hours.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import NamedTuple, Protocol, runtime_checkable
+
+import numpy as np
+
+from pinn_mpc.errors import InputError
+
+
+class Forecast(NamedTuple):
+    """Exogenous inputs for the next H control intervals, each an array (H,)."""
+
+    time_of_day_h: np.ndarray  # start of each interval, hours since midnight
+    t_a_c: np.ndarray  # outdoor temperature [C]
+    g_w_per_m2: np.ndarray  # global horizontal irradiance [W/m2]
+    i_g_w: np.ndarray  # internal gains [W]
+    price_eur_per_kwh: np.ndarray
+    t_min_c: np.ndarray  # comfort band, lower [C]
+    t_max_c: np.ndarray  # comfort band, upper [C]
+
+    @property
+    def horizon(self) -> int:
+        return len(self.t_a_c)
+
+
+class Observation(NamedTuple):
+    """What a controller sees at the start of interval k.
+
+    ``history`` holds the past in the data format's names: ``T_r`` (k+1,) measured room
+    temperatures up to and including now; ``u`` and ``u_phys`` (k,) demanded and delivered power
+    of past intervals [W]; ``T_a``, ``G``, ``I_g``, ``time_of_day_h`` (k+1,) up to now.
+    ``t_m_true_c`` is the simulator's hidden thermal-mass temperature: only ``oracle`` may use it.
+    """
+
+    k: int
+    t_r_c: float
+    history: dict[str, np.ndarray]
+    t_m_true_c: float
+
+
+class SolveStats(NamedTuple):
+    time_s: float
+    status: str
+    iterations: int
+    fallback: bool
+
+
+@dataclass(frozen=True, kw_only=True)
+class ControlSpec:
+    """Actuator and objective settings shared by all controllers of a run."""
+
+    u_max_w: float
+    dt_s: float = 1800.0
+    horizon_steps: int = 48
+    comfort_weight_eur_per_kh: float = 1.0
+    heating: bool = True
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.u_max_w) and self.u_max_w > 0):
+            raise InputError(f"ControlSpec.u_max_w must be positive, got {self.u_max_w!r}")
+        if self.horizon_steps < 1:
+            raise InputError(f"ControlSpec.horizon_steps must be >= 1, got {self.horizon_steps}")
+        if not (self.comfort_weight_eur_per_kh >= 0):
+            raise InputError(
+                f"ControlSpec.comfort_weight_eur_per_kh must be >= 0, got {self.comfort_weight_eur_per_kh}"
+            )
+
+    @property
+    def dt_h(self) -> float:
+        return self.dt_s / 3600.0
+
+
+def band_violation_k(
+    t_r_c: np.ndarray, t_min_c: np.ndarray, t_max_c: np.ndarray
+) -> np.ndarray:
+    """Elementwise violation of the comfort band [K], broadcasting."""
+    return np.maximum(t_min_c - t_r_c, 0.0) + np.maximum(t_r_c - t_max_c, 0.0)
+
+
+def plan_cost(
+    u_phys_w: np.ndarray, t_r_next_c: np.ndarray, forecast: Forecast, spec: ControlSpec
+) -> np.ndarray:
+    """Objective of plans: arrays (..., H) of delivered power and end-of-interval T_r -> (...,) [EUR]."""
+    h = u_phys_w.shape[-1]
+    energy_kwh = u_phys_w / 1000.0 * spec.dt_h
+    cost = energy_kwh * forecast.price_eur_per_kwh[:h]
+    violation = band_violation_k(t_r_next_c, forecast.t_min_c[:h], forecast.t_max_c[:h])
+    return np.sum(cost + spec.comfort_weight_eur_per_kh * violation * spec.dt_h, axis=-1)
+
+
+@runtime_checkable
+class Controller(Protocol):
+    """``reset`` then ``act`` once per control interval; ``act`` returns demanded power [W]."""
+
+    name: str
+
+    def reset(self, seed: int | None = None) -> None: ...
+
+    def act(self, obs: Observation, forecast: Forecast) -> float: ...
+
+    @property
+    def last_plan(self) -> np.ndarray | None: ...
+
+    @property
+    def last_stats(self) -> SolveStats: ...
+
+
+def fallback_power(obs: Observation, forecast: Forecast, spec: ControlSpec) -> float:
+    """The documented safe action when a solver fails or a model output is not finite.
+
+    A band-keeping rule on the measured room temperature: full power when the room is in the
+    lower (heating) or upper (cooling) quarter of the band or beyond it, otherwise off.
+    """
+    t_min, t_max = float(forecast.t_min_c[0]), float(forecast.t_max_c[0])
+    quarter = 0.25 * (t_max - t_min)
+    if spec.heating:
+        return spec.u_max_w if obs.t_r_c < t_min + quarter else 0.0
+    return spec.u_max_w if obs.t_r_c > t_max - quarter else 0.0

@@ -1,0 +1,159 @@
+"""The time-series format: one row per control interval (see DESIGN.md).
+
+Columns: ``time`` (start of the interval, ISO 8601 or numeric seconds), ``T_r`` [C] at the
+start of the interval, optional ``T_m`` [C] (simulated data only), ``u`` [W] demanded during
+the interval, ``u_phys`` [W] mean delivered during the interval, ``T_a`` [C]; optional
+``G`` [W/m2], ``I_g`` [W], ``price`` [EUR/kWh], ``T_min``/``T_max`` [C] comfort band.
+
+:func:`read_timeseries` validates a file and returns a DataFrame whose ``time`` column is
+``datetime64[ns]`` (numeric seconds are taken as seconds since 1970-01-01) with a uniform
+step, stored in ``df.attrs["dt_s"]``. Every problem raises :class:`InputError` naming the
+file, column, row and fix.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from pinn_mpc.errors import InputError
+from pinn_mpc.io import atomic_write
+
+REQUIRED = ("time", "T_r", "u", "u_phys", "T_a")
+OPTIONAL = ("T_m", "G", "I_g", "price", "T_min", "T_max")
+COLUMNS = REQUIRED + OPTIONAL
+NUMERIC = tuple(c for c in COLUMNS if c != "time")
+#: Physically plausible range of each temperature column [C], to catch unit mix-ups (K, F).
+TEMPERATURE_RANGE_C = (-60.0, 90.0)
+
+
+def parse_column_map(text: str | None) -> dict[str, str]:
+    """``"T_r=T_int,u_phys=P_hea"`` -> ``{"T_r": "T_int", "u_phys": "P_hea"}`` (ours = theirs)."""
+    if not text:
+        return {}
+    mapping: dict[str, str] = {}
+    for item in text.split(","):
+        item = item.strip()
+        if not item:
+            continue
+        ours, sep, theirs = item.partition("=")
+        ours, theirs = ours.strip(), theirs.strip()
+        if not sep or not ours or not theirs:
+            raise InputError(
+                f"--columns item {item!r} is not NAME=COLUMN; e.g. --columns T_r=T_int,u_phys=P_hea"
+            )
+        if ours not in COLUMNS:
+            raise InputError(f"--columns names unknown column {ours!r}; known: {', '.join(COLUMNS)}")
+        mapping[ours] = theirs
+    return mapping
+
+
+def _parse_time(values: pd.Series, source: str) -> pd.Series:
+    numeric = pd.to_numeric(values, errors="coerce")
+    if numeric.notna().all():
+        return pd.to_datetime(numeric.astype(float), unit="s")
+    parsed = pd.to_datetime(values, errors="coerce", format="ISO8601")
+    bad = parsed.isna()
+    if bad.any():
+        row = int(np.flatnonzero(bad.to_numpy())[0])
+        raise InputError(
+            f"{source}: column 'time' row {row + 1} has {values.iloc[row]!r}, "
+            "neither ISO 8601 nor numeric seconds"
+        )
+    if parsed.dt.tz is not None:
+        parsed = parsed.dt.tz_convert("UTC").dt.tz_localize(None)
+    return parsed
+
+
+def validate_timeseries(
+    df: pd.DataFrame, *, source: str = "data", require: tuple[str, ...] = REQUIRED
+) -> pd.DataFrame:
+    """Check and normalise a DataFrame in the format; returns a new frame with ``attrs['dt_s']``."""
+    missing = [c for c in require if c not in df.columns]
+    if "u" in missing and "u_phys" in df.columns:
+        missing.remove("u")  # one power column: u = u_phys
+    if missing:
+        raise InputError(
+            f"{source}: missing column(s) {', '.join(missing)}; have {', '.join(map(str, df.columns))}"
+            " (map yours with --columns, e.g. --columns T_r=T_int,u_phys=P_hea,T_a=T_ext)"
+        )
+    if len(df) < 2:
+        raise InputError(f"{source}: needs at least 2 rows, has {len(df)}")
+    out = pd.DataFrame({"time": _parse_time(df["time"].reset_index(drop=True), source)})
+    for col in NUMERIC:
+        if col not in df.columns:
+            continue
+        values = pd.to_numeric(df[col].reset_index(drop=True), errors="coerce")
+        bad = ~np.isfinite(values.to_numpy(dtype=float))
+        if bad.any():
+            row = int(np.flatnonzero(bad)[0])
+            raise InputError(
+                f"{source}: column {col!r} row {row + 1} has {df[col].iloc[row]!r}, not a finite "
+                "number; fill or drop such rows first"
+            )
+        out[col] = values.astype(float)
+    if "u" not in out.columns:
+        out["u"] = out["u_phys"]
+    for col in ("T_r", "T_m", "T_a", "T_min", "T_max"):
+        if col in out.columns:
+            lo, hi = TEMPERATURE_RANGE_C
+            outside = (out[col] < lo) | (out[col] > hi)
+            if outside.any():
+                row = int(np.flatnonzero(outside.to_numpy())[0])
+                raise InputError(
+                    f"{source}: column {col!r} row {row + 1} is {out[col].iloc[row]}, outside "
+                    f"[{lo}, {hi}] C; is it in kelvin or Fahrenheit?"
+                )
+    steps = np.diff(out["time"].to_numpy().astype("datetime64[ns]").astype(np.int64)) / 1e9
+    dt_s = float(np.median(steps))
+    irregular = np.abs(steps - dt_s) > 1e-6
+    if dt_s <= 0 or irregular.any():
+        row = int(np.flatnonzero(irregular)[0]) + 1 if irregular.any() else 1
+        raise InputError(
+            f"{source}: time step is not uniform at row {row + 1} "
+            f"({steps[row - 1]:g} s against {dt_s:g} s); resample to a uniform step first"
+        )
+    ordered = [c for c in COLUMNS if c in out.columns]
+    out = out[ordered]
+    out.attrs["dt_s"] = dt_s
+    return out
+
+
+def read_timeseries(
+    path: str | os.PathLike[str],
+    *,
+    columns: Mapping[str, str] | str | None = None,
+    require: tuple[str, ...] = REQUIRED,
+) -> pd.DataFrame:
+    """Read and validate a CSV in the format; ``columns`` maps our names to the file's."""
+    source = str(path)
+    mapping = parse_column_map(columns) if isinstance(columns, str) or columns is None else dict(columns)
+    if not Path(path).is_file():
+        raise InputError(f"{source}: no such file; check --data")
+    try:
+        raw = pd.read_csv(path)
+    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise InputError(f"{source}: not a readable CSV ({first})") from exc
+    absent = [theirs for theirs in mapping.values() if theirs not in raw.columns]
+    if absent:
+        raise InputError(
+            f"{source}: --columns refers to {', '.join(absent)}, not in the file; "
+            f"have {', '.join(map(str, raw.columns))}"
+        )
+    renamed = raw.rename(columns={theirs: ours for ours, theirs in mapping.items()})
+    return validate_timeseries(renamed, source=source, require=require)
+
+
+def write_timeseries(df: pd.DataFrame, path: str | os.PathLike[str]) -> Path:
+    """Write atomically: ``time`` as ISO 8601, numbers with fixed precision (byte-stable)."""
+    out = df.copy()
+    if pd.api.types.is_datetime64_any_dtype(out["time"]):
+        out["time"] = out["time"].dt.strftime("%Y-%m-%dT%H:%M:%S")
+    ordered = [c for c in COLUMNS if c in out.columns] + [c for c in out.columns if c not in COLUMNS]
+    out = out[ordered]
+    return atomic_write(path, lambda tmp: out.to_csv(tmp, index=False, float_format="%.6f"))

@@ -1,0 +1,266 @@
+"""2R2C building physics: parameters, coefficient form, state space, discretisation.
+
+The single source of truth for the model of the paper (Eq. 2r2c)::
+
+    C_r dT_r/dt = (T_a - T_r)/R_ra + (T_m - T_r)/R_rm + eta*u + alpha*A_sol*G + beta*I_g
+    C_m dT_m/dt = (T_r - T_m)/R_rm + (1-alpha)*A_sol*G + (1-beta)*I_g
+
+State ``x = (T_r, T_m)`` [C]; input ``d = (u [W], T_a [C], G [W/m2], I_g [W])``.
+``eta`` is the heat delivered to the room air per watt of actuator power: positive for a
+heater, negative (minus the COP) for a cooling machine.
+
+Coefficient form (paper Eq. pinn-phy-block), all per second::
+
+    a11 = 1/(C_r R_ra) + 1/(C_r R_rm)   a12 = 1/(C_r R_rm)   a21 = a22 = 1/(C_m R_rm)
+    b = eta/C_r   c13 = 1/(C_r R_ra)
+    c11 = alpha A_sol/C_r   c12 = beta/C_r   c21 = (1-alpha) A_sol/C_m   c22 = (1-beta)/C_m
+
+Simulator, physics loss, grey-box identification and both RC MPCs build their matrices from
+:func:`state_space_entries`, which works for floats, numpy arrays, torch tensors and CasADi
+symbols alike.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, fields
+from typing import Any
+
+import numpy as np
+import scipy.linalg
+
+from pinn_mpc.errors import InputError
+
+N_STATES = 2
+N_INPUTS = 4
+INPUT_NAMES = ("u", "T_a", "G", "I_g")
+
+
+@dataclass(frozen=True, kw_only=True)
+class RCParams:
+    """Physical 2R2C parameters, SI units in the names."""
+
+    r_ra_k_per_w: float
+    r_rm_k_per_w: float
+    c_r_j_per_k: float
+    c_m_j_per_k: float
+    eta: float = 1.0
+    solar_aperture_m2: float = 0.0
+    solar_to_air_fraction: float = 0.0
+    gain_to_air_fraction: float = 1.0
+
+    def __post_init__(self) -> None:
+        for name in ("r_ra_k_per_w", "r_rm_k_per_w", "c_r_j_per_k", "c_m_j_per_k"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise InputError(f"RCParams.{name} must be a positive finite number, got {value!r}")
+        if not math.isfinite(self.eta) or self.eta == 0:
+            raise InputError(f"RCParams.eta must be finite and non-zero, got {self.eta!r}")
+        if not (math.isfinite(self.solar_aperture_m2) and self.solar_aperture_m2 >= 0):
+            raise InputError(
+                f"RCParams.solar_aperture_m2 must be >= 0, got {self.solar_aperture_m2!r}"
+            )
+        for name in ("solar_to_air_fraction", "gain_to_air_fraction"):
+            value = getattr(self, name)
+            if not (0.0 <= value <= 1.0):
+                raise InputError(f"RCParams.{name} must lie in [0, 1], got {value!r}")
+
+    @property
+    def heating(self) -> bool:
+        """True when the actuator heats (eta > 0), False for cooling."""
+        return self.eta > 0
+
+    def to_dict(self) -> dict[str, float]:
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> RCParams:
+        names = {f.name for f in fields(cls)}
+        unknown = set(data) - names
+        if unknown:
+            raise InputError(f"unknown RC parameter(s) {sorted(unknown)}; expected {sorted(names)}")
+        return cls(**{k: float(v) for k, v in data.items()})
+
+
+@dataclass(frozen=True, kw_only=True)
+class Coefficients:
+    """The paper's coefficient form, per second (b in K/(W s)). Fields may be any scalar type."""
+
+    a11: Any
+    a12: Any
+    a21: Any
+    a22: Any
+    b: Any
+    c13: Any
+    c11: Any = 0.0
+    c12: Any = 0.0
+    c21: Any = 0.0
+    c22: Any = 0.0
+
+    def to_dict(self) -> dict[str, float]:
+        return {f.name: float(getattr(self, f.name)) for f in fields(self)}
+
+
+#: The paper's household ("paper_household"), from its published code.
+PAPER_HOUSEHOLD = RCParams(
+    r_ra_k_per_w=3.75e-3,
+    r_rm_k_per_w=7.5e-4,
+    c_r_j_per_k=4.0e6,
+    c_m_j_per_k=1.0 / (2.0e-5 * 7.5e-4),  # a21 = 2e-5 /s
+)
+
+
+def to_coefficients(p: RCParams) -> Coefficients:
+    """R/C values -> the paper's coefficients."""
+    a12 = 1.0 / (p.c_r_j_per_k * p.r_rm_k_per_w)
+    c13 = 1.0 / (p.c_r_j_per_k * p.r_ra_k_per_w)
+    a21 = 1.0 / (p.c_m_j_per_k * p.r_rm_k_per_w)
+    return Coefficients(
+        a11=a12 + c13,
+        a12=a12,
+        a21=a21,
+        a22=a21,
+        b=p.eta / p.c_r_j_per_k,
+        c13=c13,
+        c11=p.solar_to_air_fraction * p.solar_aperture_m2 / p.c_r_j_per_k,
+        c12=p.gain_to_air_fraction / p.c_r_j_per_k,
+        c21=(1.0 - p.solar_to_air_fraction) * p.solar_aperture_m2 / p.c_m_j_per_k,
+        c22=(1.0 - p.gain_to_air_fraction) / p.c_m_j_per_k,
+    )
+
+
+def from_coefficients(c: Coefficients, *, eta: float = 1.0) -> RCParams:
+    """The paper's coefficients -> R/C values.
+
+    ``b = eta/C_r`` does not separate eta from C_r, so eta must be given (1 for an
+    electric heater, the COP for a heat pump, minus the COP for a cooling machine).
+    ``a11`` is redundant with ``a12 + c13`` and ``a22`` with ``a21``; when learned
+    independently they may disagree slightly, and ``a12``, ``c13``, ``a21`` are used.
+    """
+    values = {k: float(v) for k, v in c.to_dict().items()}
+    for name in ("a12", "a21", "c13"):
+        if not (math.isfinite(values[name]) and values[name] > 0):
+            raise InputError(f"coefficient {name} must be positive to map to R/C, got {values[name]}")
+    if not math.isfinite(values["b"]) or values["b"] == 0 or (values["b"] > 0) != (eta > 0):
+        raise InputError(f"coefficient b={values['b']} must be non-zero with the sign of eta={eta}")
+    c_r = eta / values["b"]
+    r_ra = 1.0 / (c_r * values["c13"])
+    r_rm = 1.0 / (c_r * values["a12"])
+    c_m = 1.0 / (r_rm * values["a21"])
+    solar_air = values["c11"] * c_r
+    solar_mass = values["c21"] * c_m
+    aperture = max(solar_air + solar_mass, 0.0)
+    alpha = min(max(solar_air / aperture, 0.0), 1.0) if aperture > 0 else 0.0
+    gain_air, gain_mass = values["c12"] * c_r, values["c22"] * c_m
+    gains = gain_air + gain_mass
+    beta = min(max(gain_air / gains, 0.0), 1.0) if gains > 0 else 1.0
+    return RCParams(
+        r_ra_k_per_w=r_ra,
+        r_rm_k_per_w=r_rm,
+        c_r_j_per_k=c_r,
+        c_m_j_per_k=c_m,
+        eta=eta,
+        solar_aperture_m2=aperture,
+        solar_to_air_fraction=alpha,
+        gain_to_air_fraction=beta,
+    )
+
+
+def state_space_entries(c: Coefficients) -> tuple[list[list[Any]], list[list[Any]]]:
+    """Entries of the continuous-time ``A`` (2x2) and ``B`` (2x4), as nested lists.
+
+    Works for any scalar type (float, numpy, torch, CasADi): stack them with the
+    backend's own function. Input order is ``(u, T_a, G, I_g)``.
+    """
+    zero = 0.0 * c.b
+    a = [[-c.a11, c.a12], [c.a21, -c.a22]]
+    b = [[c.b, c.c13, c.c11, c.c12], [zero, zero, c.c21, c.c22]]
+    return a, b
+
+
+def continuous_matrices(p: RCParams | Coefficients) -> tuple[np.ndarray, np.ndarray]:
+    """Continuous ``A`` (2, 2) [1/s] and ``B`` (2, 4) for ``dx/dt = A x + B d``."""
+    coef = to_coefficients(p) if isinstance(p, RCParams) else p
+    a, b = state_space_entries(coef)
+    return np.array(a, dtype=float), np.array(b, dtype=float)
+
+
+def discretise(p: RCParams | Coefficients, dt_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """Exact zero-order-hold discretisation: ``x[k+1] = Ad x[k] + Bd d[k]``, d held over dt_s."""
+    if not (math.isfinite(dt_s) and dt_s > 0):
+        raise InputError(f"dt_s must be a positive number of seconds, got {dt_s!r}")
+    a, b = continuous_matrices(p)
+    m = np.zeros((N_STATES + N_INPUTS, N_STATES + N_INPUTS))
+    m[:N_STATES, :N_STATES] = a * dt_s
+    m[:N_STATES, N_STATES:] = b * dt_s
+    e = scipy.linalg.expm(m)
+    return e[:N_STATES, :N_STATES], e[:N_STATES, N_STATES:]
+
+
+def discretise_euler(p: RCParams | Coefficients, dt_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """The paper's explicit (forward) Euler: ``Ad = I + A dt``, ``Bd = B dt``."""
+    a, b = continuous_matrices(p)
+    return np.eye(N_STATES) + a * dt_s, b * dt_s
+
+
+def step(x: np.ndarray, d: np.ndarray, ad: np.ndarray, bd: np.ndarray) -> np.ndarray:
+    """One discrete step for a batch: x (B, 2) [C], d (B, 4) -> (B, 2)."""
+    return x @ ad.T + d @ bd.T
+
+
+def steady_state(
+    p: RCParams, *, u_w: float, t_a_c: float, g_w_per_m2: float = 0.0, i_g_w: float = 0.0
+) -> np.ndarray:
+    """Equilibrium ``(T_r, T_m)`` [C] for constant inputs: solves ``A x + B d = 0``."""
+    a, b = continuous_matrices(p)
+    d = np.array([u_w, t_a_c, g_w_per_m2, i_g_w], dtype=float)
+    return np.linalg.solve(a, -b @ d)
+
+
+def time_constants_h(p: RCParams | Coefficients) -> tuple[float, float]:
+    """The two time constants (fast, slow) in hours, ``-1/eigenvalue`` of A."""
+    a, _ = continuous_matrices(p)
+    eig = np.sort(np.real(np.linalg.eigvals(a)))
+    slow, fast = -1.0 / eig[1] / 3600.0, -1.0 / eig[0] / 3600.0
+    return float(fast), float(slow)
+
+
+def rc_summary(p: RCParams, *, source: str) -> dict[str, Any]:
+    """The RC JSON schema shared by ``export-rc`` and ``identify``."""
+    coef = to_coefficients(p)
+    fast, slow = time_constants_h(p)
+    return {
+        "R_ra_K_per_W": p.r_ra_k_per_w,
+        "R_rm_K_per_W": p.r_rm_k_per_w,
+        "C_r_J_per_K": p.c_r_j_per_k,
+        "C_m_J_per_K": p.c_m_j_per_k,
+        "eta": p.eta,
+        "solar_aperture_m2": p.solar_aperture_m2,
+        "solar_to_air_fraction": p.solar_to_air_fraction,
+        "gain_to_air_fraction": p.gain_to_air_fraction,
+        "coefficients_per_s": coef.to_dict(),
+        "time_constants_h": {"fast": fast, "slow": slow},
+        "source": source,
+    }
+
+
+def params_from_summary(data: dict[str, Any]) -> RCParams:
+    """Inverse of :func:`rc_summary` (the keys it needs); raises InputError naming a missing key."""
+    keys = {
+        "R_ra_K_per_W": "r_ra_k_per_w",
+        "R_rm_K_per_W": "r_rm_k_per_w",
+        "C_r_J_per_K": "c_r_j_per_k",
+        "C_m_J_per_K": "c_m_j_per_k",
+        "eta": "eta",
+        "solar_aperture_m2": "solar_aperture_m2",
+        "solar_to_air_fraction": "solar_to_air_fraction",
+        "gain_to_air_fraction": "gain_to_air_fraction",
+    }
+    required = list(keys)[:4]
+    missing = [k for k in required if k not in data]
+    if missing:
+        raise InputError(f"RC JSON lacks key(s) {missing}; expected the schema of export-rc")
+    try:
+        return RCParams(**{keys[k]: float(data[k]) for k in keys if k in data})
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"RC JSON has a non-numeric parameter: {exc}") from exc
