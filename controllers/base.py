@@ -80,9 +80,7 @@ class ControlSpec:
         return self.dt_s / 3600.0
 
 
-def band_violation_k(
-    t_r_c: np.ndarray, t_min_c: np.ndarray, t_max_c: np.ndarray
-) -> np.ndarray:
+def band_violation_k(t_r_c: np.ndarray, t_min_c: np.ndarray, t_max_c: np.ndarray) -> np.ndarray:
     """Elementwise violation of the comfort band [K], broadcasting."""
     return np.maximum(t_min_c - t_r_c, 0.0) + np.maximum(t_r_c - t_max_c, 0.0)
 

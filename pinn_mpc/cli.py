@@ -40,7 +40,9 @@ def _horizons(text: str) -> list[int]:
     try:
         values = [int(v) for v in text.split(",") if v.strip()]
     except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a comma-separated list of steps") from None
+        raise argparse.ArgumentTypeError(
+            f"{text!r} is not a comma-separated list of steps"
+        ) from None
     if not values or min(values) < 1:
         raise argparse.ArgumentTypeError(f"horizons must be whole numbers >= 1, got {text!r}")
     return values
@@ -50,7 +52,12 @@ def _simulate(a: argparse.Namespace) -> str:
     from scenarios.datagen import simulate_to_csv
 
     return simulate_to_csv(
-        scenario=a.scenario, days=a.days, seed=a.seed, policy=a.policy, buildings=a.buildings, out=a.out
+        scenario=a.scenario,
+        days=a.days,
+        seed=a.seed,
+        policy=a.policy,
+        buildings=a.buildings,
+        out=a.out,
     )
 
 
@@ -135,7 +142,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"pinn-mpc {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
-    def add(name: str, handler: Callable[[argparse.Namespace], str], help_: str) -> argparse.ArgumentParser:
+    def add(
+        name: str, handler: Callable[[argparse.Namespace], str], help_: str
+    ) -> argparse.ArgumentParser:
         p = sub.add_parser(name, help=help_, description=help_)
         p.set_defaults(handler=handler)
         return p
@@ -155,11 +164,22 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seeds", type=_positive_int, default=20, help="ensemble members")
     p.add_argument("--seed", type=int, default=0, help="first seed")
     p.add_argument("--epochs", type=_positive_int, default=None, help="default: recipe's")
-    p.add_argument("--lambda", dest="lam", type=_non_negative_float, default=None,
-                   help="physics-loss weight (default: recipe's)")
-    p.add_argument("--recipe", choices=["converged", "paper"], default="converged",
-                   help="'paper': 75 epochs of batch 2048 as published; 'converged': trains to convergence")
-    p.add_argument("--columns", default=None, help="column mapping, e.g. T_r=T_int,u_phys=P_hea,T_a=T_ext")
+    p.add_argument(
+        "--lambda",
+        dest="lam",
+        type=_non_negative_float,
+        default=None,
+        help="physics-loss weight (default: recipe's)",
+    )
+    p.add_argument(
+        "--recipe",
+        choices=["converged", "paper"],
+        default="converged",
+        help="'paper': 75 epochs of batch 2048 as published; 'converged': trains to convergence",
+    )
+    p.add_argument(
+        "--columns", default=None, help="column mapping, e.g. T_r=T_int,u_phys=P_hea,T_a=T_ext"
+    )
     p.add_argument("--out", required=True, help="model directory to write")
 
     p = add("evaluate", _evaluate, "one-step and recursive multi-step errors of a model on data")
@@ -173,17 +193,26 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--model", required=True)
     p.add_argument("--out", required=True)
 
-    p = add("identify", _identify, "grey-box identification of 2R2C parameters from data (T_m hidden)")
+    p = add(
+        "identify", _identify, "grey-box identification of 2R2C parameters from data (T_m hidden)"
+    )
     p.add_argument("--data", required=True)
     p.add_argument("--columns", default=None)
-    p.add_argument("--eta", type=float, default=None,
-                   help="heat per W of actuator power (default: 1 heating; give -COP for cooling)")
+    p.add_argument(
+        "--eta",
+        type=float,
+        default=None,
+        help="heat per W of actuator power (default: 1 heating; give -COP for cooling)",
+    )
     p.add_argument("--out", required=True)
 
     p = add("closed-loop", _closed_loop, "run one controller against the simulator")
     p.add_argument("--scenario", required=True)
-    p.add_argument("--controller", required=True,
-                   help="thermostat, random-shooting, cem, casadi-mpc, qp-mpc, oracle, clairvoyant")
+    p.add_argument(
+        "--controller",
+        required=True,
+        help="thermostat, random-shooting, cem, casadi-mpc, qp-mpc, oracle, clairvoyant",
+    )
     p.add_argument("--model", default=None, help="model directory (random-shooting, cem)")
     p.add_argument("--rc", default=None, help="RC JSON (casadi-mpc, qp-mpc)")
     p.add_argument("--days", type=_positive_int, required=True)

@@ -47,16 +47,24 @@ def parse_column_map(text: str | None) -> dict[str, str]:
                 f"--columns item {item!r} is not NAME=COLUMN; e.g. --columns T_r=T_int,u_phys=P_hea"
             )
         if ours not in COLUMNS:
-            raise InputError(f"--columns names unknown column {ours!r}; known: {', '.join(COLUMNS)}")
+            raise InputError(
+                f"--columns names unknown column {ours!r}; known: {', '.join(COLUMNS)}"
+            )
         mapping[ours] = theirs
     return mapping
 
 
 def _parse_time(values: pd.Series, source: str) -> pd.Series:
-    numeric = pd.to_numeric(values, errors="coerce")
-    if numeric.notna().all():
-        return pd.to_datetime(numeric.astype(float), unit="s")
-    parsed = pd.to_datetime(values, errors="coerce", format="ISO8601")
+    if pd.api.types.is_datetime64_any_dtype(values):
+        parsed = pd.to_datetime(values)
+    else:
+        numeric = pd.to_numeric(values, errors="coerce")
+        if numeric.notna().all():
+            seconds = numeric.to_numpy(dtype=float)
+            if not np.all(np.abs(seconds) < 1e11):
+                raise InputError(f"{source}: column 'time' has numeric values beyond 1e11 s")
+            return pd.Series(pd.to_datetime(seconds, unit="s"))
+        parsed = pd.to_datetime(values, errors="coerce", format="ISO8601")
     bad = parsed.isna()
     if bad.any():
         row = int(np.flatnonzero(bad.to_numpy())[0])
@@ -108,7 +116,8 @@ def validate_timeseries(
                     f"{source}: column {col!r} row {row + 1} is {out[col].iloc[row]}, outside "
                     f"[{lo}, {hi}] C; is it in kelvin or Fahrenheit?"
                 )
-    steps = np.diff(out["time"].to_numpy().astype("datetime64[ns]").astype(np.int64)) / 1e9
+    ns = out["time"].to_numpy().astype("datetime64[ns]").astype(np.int64)
+    steps = np.diff(ns).astype(float) / 1e9
     dt_s = float(np.median(steps))
     irregular = np.abs(steps - dt_s) > 1e-6
     if dt_s <= 0 or irregular.any():
@@ -131,7 +140,9 @@ def read_timeseries(
 ) -> pd.DataFrame:
     """Read and validate a CSV in the format; ``columns`` maps our names to the file's."""
     source = str(path)
-    mapping = parse_column_map(columns) if isinstance(columns, str) or columns is None else dict(columns)
+    mapping = (
+        parse_column_map(columns) if isinstance(columns, str) or columns is None else dict(columns)
+    )
     if not Path(path).is_file():
         raise InputError(f"{source}: no such file; check --data")
     try:
@@ -154,6 +165,8 @@ def write_timeseries(df: pd.DataFrame, path: str | os.PathLike[str]) -> Path:
     out = df.copy()
     if pd.api.types.is_datetime64_any_dtype(out["time"]):
         out["time"] = out["time"].dt.strftime("%Y-%m-%dT%H:%M:%S")
-    ordered = [c for c in COLUMNS if c in out.columns] + [c for c in out.columns if c not in COLUMNS]
+    ordered = [c for c in COLUMNS if c in out.columns] + [
+        c for c in out.columns if c not in COLUMNS
+    ]
     out = out[ordered]
     return atomic_write(path, lambda tmp: out.to_csv(tmp, index=False, float_format="%.6f"))

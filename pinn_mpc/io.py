@@ -22,7 +22,7 @@ def _check_parent(path: Path) -> None:
         raise InputError(f"cannot write {path}: directory {parent} is not writable")
 
 
-def atomic_write(path: str | os.PathLike[str], writer: Callable[[Path], None]) -> Path:
+def atomic_write(path: str | os.PathLike[str], writer: Callable[[Path], object]) -> Path:
     """Call ``writer(tmp_path)`` then rename the temporary file onto ``path``."""
     target = Path(path)
     _check_parent(target)
@@ -46,7 +46,9 @@ def atomic_write_text(path: str | os.PathLike[str], text: str) -> Path:
 
 
 def atomic_write_json(path: str | os.PathLike[str], data: Any) -> Path:
-    return atomic_write_text(path, json.dumps(data, indent=2, sort_keys=False, allow_nan=False) + "\n")
+    return atomic_write_text(
+        path, json.dumps(data, indent=2, sort_keys=False, allow_nan=False) + "\n"
+    )
 
 
 @contextlib.contextmanager

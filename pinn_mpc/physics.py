@@ -140,7 +140,9 @@ def from_coefficients(c: Coefficients, *, eta: float = 1.0) -> RCParams:
     values = {k: float(v) for k, v in c.to_dict().items()}
     for name in ("a12", "a21", "c13"):
         if not (math.isfinite(values[name]) and values[name] > 0):
-            raise InputError(f"coefficient {name} must be positive to map to R/C, got {values[name]}")
+            raise InputError(
+                f"coefficient {name} must be positive to map to R/C, got {values[name]}"
+            )
     if not math.isfinite(values["b"]) or values["b"] == 0 or (values["b"] > 0) != (eta > 0):
         raise InputError(f"coefficient b={values['b']} must be non-zero with the sign of eta={eta}")
     c_r = eta / values["b"]

@@ -129,7 +129,10 @@ class Simulator:
             raise InputError("Simulator.step: demanded power u_w has non-finite values")
         u = np.clip(u, 0.0, self.config.u_max_w)
         exog = np.stack(
-            [np.broadcast_to(np.asarray(v, dtype=float), shape) for v in (t_a_c, g_w_per_m2, i_g_w)],
+            [
+                np.broadcast_to(np.asarray(v, dtype=float), shape)
+                for v in (t_a_c, g_w_per_m2, i_g_w)
+            ],
             axis=1,
         )
         # Exogenous part of the input is constant over the interval: precompute its effect.

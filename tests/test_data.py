@@ -1,0 +1,83 @@
+"""The time-series format: writer, validating reader, column mapping."""
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from pinn_mpc.data import parse_column_map, read_timeseries, validate_timeseries, write_timeseries
+from pinn_mpc.errors import InputError
+
+
+def frame(n=6):
+    t = pd.date_range("2024-01-01", periods=n, freq="30min")
+    return pd.DataFrame(
+        {
+            "time": t,
+            "T_r": np.linspace(18, 19, n),
+            "T_m": np.linspace(17, 18, n),
+            "u": np.tile([0.0, 5000.0], n // 2),
+            "u_phys": np.tile([0.0, 4500.0], n // 2),
+            "T_a": np.linspace(5, 6, n),
+        }
+    )
+
+
+def test_round_trip_and_step(tmp_path):
+    path = write_timeseries(frame(), tmp_path / "d.csv")
+    back = read_timeseries(path)
+    assert list(back.columns) == ["time", "T_r", "u", "u_phys", "T_a", "T_m"]
+    assert back.attrs["dt_s"] == 1800.0
+    np.testing.assert_allclose(back["u_phys"], frame()["u_phys"])
+    assert not list(tmp_path.glob("*.tmp"))
+
+
+def test_column_mapping_and_single_power_column(tmp_path):
+    raw = pd.DataFrame(
+        {
+            "Time": np.arange(4) * 1800.0,
+            "T_int": [20, 20.5, 21, 21.2],
+            "P_hea": [0, 1000, 0, 0],
+            "T_ext": [5, 5, 6, 6],
+        }
+    )
+    raw.to_csv(tmp_path / "real.csv", index=False)
+    df = read_timeseries(
+        tmp_path / "real.csv", columns="time=Time,T_r=T_int,u_phys=P_hea,T_a=T_ext"
+    )
+    np.testing.assert_allclose(df["u"], df["u_phys"])
+    assert df["time"].iloc[1] - df["time"].iloc[0] == pd.Timedelta(minutes=30)
+
+
+@pytest.mark.parametrize(
+    "mutate, match",
+    [
+        (
+            lambda d: d.assign(T_r=d["T_r"].where(d.index != 3)),
+            r"'T_r' row 4 .*not a finite number",
+        ),
+        (lambda d: d.drop(columns="T_a"), "missing column.*T_a"),
+        (lambda d: d.assign(T_a=d["T_a"] + 273.15), "kelvin"),
+        (lambda d: d.drop(index=2), "not uniform at row 3"),
+    ],
+)
+def test_bad_data_names_column_row_and_fix(mutate, match):
+    with pytest.raises(InputError, match=match):
+        validate_timeseries(mutate(frame()).reset_index(drop=True))
+
+
+def test_mapping_errors(tmp_path):
+    with pytest.raises(InputError, match="not NAME=COLUMN"):
+        parse_column_map("T_r")
+    with pytest.raises(InputError, match="unknown column 'X'"):
+        parse_column_map("X=y")
+    frame().to_csv(tmp_path / "d.csv", index=False)
+    with pytest.raises(InputError, match="refers to nope"):
+        read_timeseries(tmp_path / "d.csv", columns="T_r=nope")
+    with pytest.raises(InputError, match="no such file"):
+        read_timeseries(tmp_path / "missing.csv")
+
+
+def test_unwritable_target_leaves_nothing(tmp_path):
+    with pytest.raises(InputError, match="does not exist"):
+        write_timeseries(frame(), tmp_path / "no" / "d.csv")
+    assert list(tmp_path.iterdir()) == []
