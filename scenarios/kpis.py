@@ -1,0 +1,99 @@
+"""Closed-loop key performance indicators, following BOPTEST's definitions.
+
+- ``energy_kwh``: actuator energy, the delivered power ``u_phys`` integrated over the run.
+- ``cost_eur``: price x delivered energy, interval by interval.
+- ``discomfort_kh``: integral over time of the comfort-band violation [K h]. The room
+  temperature is the simulator's at the end of every substep (1 min by default), held over that
+  substep and compared with the band of its control interval.
+- ``peak_kw``: the largest interval-mean delivered power.
+- ``objective``: ``cost_eur + comfort_weight x discomfort_kh``, the objective every controller
+  optimises (see :mod:`controllers.base`), here measured on the true trajectory.
+- ``decision_ms_median/mean/p95``: wall-clock time of the controller's decisions.
+- ``time_ratio``: total decision time / simulated time (BOPTEST's computational time ratio).
+- ``backup_overrides``: intervals in which the backup thermostat changed the demand.
+- ``fallbacks``: intervals in which the controller's documented fallback acted.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from controllers.base import band_violation_k
+from pinn_mpc.errors import InputError
+
+#: The KPI JSON keys, in order.
+KPI_KEYS = (
+    "energy_kwh",
+    "cost_eur",
+    "discomfort_kh",
+    "peak_kw",
+    "objective",
+    "decision_ms_median",
+    "decision_ms_mean",
+    "decision_ms_p95",
+    "time_ratio",
+    "backup_overrides",
+    "fallbacks",
+)
+
+
+def compute_kpis(
+    *,
+    u_phys_w: np.ndarray,
+    price_eur_per_kwh: np.ndarray,
+    t_r_sub_c: np.ndarray,
+    t_min_c: np.ndarray,
+    t_max_c: np.ndarray,
+    decision_s: np.ndarray,
+    overridden: np.ndarray,
+    fallback: np.ndarray,
+    dt_s: float,
+    comfort_weight_eur_per_kh: float,
+) -> dict[str, Any]:
+    """KPIs of N control intervals of one building.
+
+    ``u_phys_w``, ``price_eur_per_kwh``, ``t_min_c``, ``t_max_c``, ``decision_s`` [s],
+    ``overridden`` and ``fallback`` (bool) are arrays (N,); ``t_r_sub_c`` is (N, S), the true
+    room temperature at the end of each of the S substeps of every interval. Returns a dict with
+    the keys :data:`KPI_KEYS` (floats, counts as ints).
+    """
+    u = np.asarray(u_phys_w, dtype=float)
+    n = len(u)
+    sub = np.asarray(t_r_sub_c, dtype=float)
+    if n == 0:
+        raise InputError("compute_kpis: no control intervals; run at least one step")
+    if sub.ndim != 2 or sub.shape[0] != n:
+        raise InputError(f"compute_kpis: t_r_sub_c must be (N={n}, S), got shape {sub.shape}")
+    for name, arr in (
+        ("price_eur_per_kwh", price_eur_per_kwh),
+        ("t_min_c", t_min_c),
+        ("t_max_c", t_max_c),
+        ("decision_s", decision_s),
+        ("overridden", overridden),
+        ("fallback", fallback),
+    ):
+        if np.shape(arr) != (n,):
+            raise InputError(f"compute_kpis: {name} must be ({n},), got shape {np.shape(arr)}")
+    dt_h = dt_s / 3600.0
+    energy_kwh_k = u / 1000.0 * dt_h
+    violation = band_violation_k(
+        sub, np.asarray(t_min_c, dtype=float)[:, None], np.asarray(t_max_c, dtype=float)[:, None]
+    )
+    discomfort_kh = float(np.sum(violation) * dt_h / sub.shape[1])
+    cost_eur = float(np.sum(energy_kwh_k * np.asarray(price_eur_per_kwh, dtype=float)))
+    decision_ms = np.asarray(decision_s, dtype=float) * 1000.0
+    return {
+        "energy_kwh": float(np.sum(energy_kwh_k)),
+        "cost_eur": cost_eur,
+        "discomfort_kh": discomfort_kh,
+        "peak_kw": float(np.max(u) / 1000.0),
+        "objective": cost_eur + comfort_weight_eur_per_kh * discomfort_kh,
+        "decision_ms_median": float(np.median(decision_ms)),
+        "decision_ms_mean": float(np.mean(decision_ms)),
+        "decision_ms_p95": float(np.percentile(decision_ms, 95)),
+        "time_ratio": float(np.sum(decision_s) / (n * dt_s)),
+        "backup_overrides": int(np.count_nonzero(overridden)),
+        "fallbacks": int(np.count_nonzero(fallback)),
+    }
