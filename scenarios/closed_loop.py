@@ -1,0 +1,269 @@
+"""The closed loop: a controller against the simulator, do-mpc style.
+
+Every control interval k::
+
+    obs = measure(sim)                 # Observation: measured T_r, the past, hidden T_m
+    u = controller.act(obs, forecast)  # timed; an exception or non-finite u -> fallback
+    result = sim.step(u, T_a, G, I_g)  # minute substeps with the backup thermostat
+
+Warm-up: learned models need a history of at least ``depth + 1`` steps and observers need
+time to settle, so every run starts with ``warmup_steps`` intervals (default one day) driven by
+the thermostat. They are not counted in the KPIs nor written to the trajectory; the counted
+steps are the ``days`` that follow, and observations keep the whole past, warm-up included, with
+``Observation.k`` counting from the start of the warm-up.
+
+Forecasts are perfect by default: at step k the controller gets every known future row, from k
+to the end of the run plus ``scenario.horizon_steps`` lead rows. ``forecast_noise_std_c`` adds
+seeded Gaussian noise to the future outdoor temperature (rows after the current one); the noise
+depends only on ``seed``, so every controller sees the same forecasts.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from controllers.base import Controller, ControlSpec, Forecast, Observation, fallback_power
+from pinn_mpc.data import write_timeseries
+from pinn_mpc.errors import InputError
+from pinn_mpc.io import atomic_write_json
+from pinn_mpc.simulator import Simulator
+from scenarios.inputs import time_of_day_h
+from scenarios.kpis import compute_kpis
+from scenarios.registry import Scenario, check_seed, get_scenario
+
+#: Columns the trajectory adds to the data format.
+EXTRA_COLUMNS = ("overridden", "fallback", "decision_ms")
+_FORECAST_NOISE_STREAM = 1
+
+
+@dataclass(frozen=True, kw_only=True)
+class ClosedLoopResult:
+    """One run: ``trajectory`` has one row per counted interval (data format + EXTRA_COLUMNS,
+    ``attrs['dt_s']``); ``kpis`` the KPI dict (see :mod:`scenarios.kpis`) plus ``controller``,
+    ``scenario``, ``days``, ``seed``; ``errors`` one line per controller exception."""
+
+    trajectory: pd.DataFrame
+    kpis: dict[str, Any]
+    errors: tuple[str, ...]
+
+
+def _read_only(a: np.ndarray) -> np.ndarray:
+    view = a.view()
+    view.flags.writeable = False
+    return view
+
+
+def _decide(
+    controller: Controller, obs: Observation, forecast: Forecast, spec: ControlSpec
+) -> tuple[float, float, bool, str | None]:
+    """Call ``act`` once, timed: (demand [W], decision time [s], fallback used, error line)."""
+    error = None
+    start = time.perf_counter()
+    try:
+        action = np.asarray(controller.act(obs, forecast), dtype=float)
+        if action.size != 1 or not math.isfinite(float(action.reshape(-1)[0])):
+            error = f"act returned {action!r}, not one finite number"
+    except Exception as exc:  # a controller failure must not end the run: fall back, count it
+        error = f"{type(exc).__name__}: {exc}"
+    elapsed = time.perf_counter() - start
+    if error is not None:
+        return fallback_power(obs, forecast, spec), elapsed, True, error
+    try:
+        own_fallback = bool(controller.last_stats.fallback)
+    except Exception as exc:
+        own_fallback, error = True, f"last_stats: {type(exc).__name__}: {exc}"
+    u = float(np.clip(float(action.reshape(-1)[0]), 0.0, spec.u_max_w))
+    return u, elapsed, own_fallback, error
+
+
+def run_closed_loop(
+    scenario: Scenario,
+    controller: Controller,
+    *,
+    days: int,
+    seed: int,
+    forecast_noise_std_c: float = 0.0,
+    warmup_steps: int | None = None,
+    label: str | None = None,
+) -> ClosedLoopResult:
+    """Run ``controller`` on ``scenario`` for ``days`` counted days after the warm-up.
+
+    ``seed`` fixes the weather/price draw of the scenario, the sensor noise and the forecast
+    noise, so two runs with the same seed see the same disturbances. ``warmup_steps`` defaults
+    to one day of intervals. ``label`` names the controller in the KPIs (default its ``name``).
+    """
+    if days < 1:
+        raise InputError(f"closed loop: days must be >= 1, got {days}")
+    check_seed(seed)
+    if not (math.isfinite(forecast_noise_std_c) and forecast_noise_std_c >= 0):
+        raise InputError(f"forecast_noise_std_c must be >= 0, got {forecast_noise_std_c!r}")
+    sim_config = scenario.sim
+    spec: ControlSpec = scenario.control_spec()
+    spd = scenario.steps_per_day
+    warmup = spd if warmup_steps is None else warmup_steps
+    if warmup < 0:
+        raise InputError(f"closed loop: warmup_steps must be >= 0, got {warmup}")
+    n_run = days * spd
+    total = warmup + n_run
+    horizon = scenario.horizon_steps
+    exo = scenario.exogenous(days=days + math.ceil(warmup / spd), seed=seed, lead_steps=horizon)
+    if len(exo) < total + horizon:
+        raise InputError(
+            f"scenario {scenario.name!r} gave {len(exo)} exogenous rows, need {total + horizon}"
+        )
+    exo = exo.iloc[: total + horizon].reset_index(drop=True)
+    cols = {c: exo[c].to_numpy(dtype=float) for c in ("T_a", "G", "I_g", "price", "T_min", "T_max")}
+    tod = time_of_day_h(exo["time"])
+
+    from controllers.thermostat import Thermostat  # the warm-up policy
+
+    warmup_controller = Thermostat(spec)
+    warmup_controller.reset(seed)
+    controller.reset(seed)
+    sim = Simulator(sim_config, n_buildings=1, seed=seed)
+    sim.reset(scenario.initial_t_r_c, scenario.initial_t_m_c)
+    forecast_rng = np.random.default_rng([seed, _FORECAST_NOISE_STREAM])
+
+    t_r_meas = np.zeros(total)
+    t_m_true = np.zeros(total)
+    u_dem = np.zeros(total)
+    u_phys = np.zeros(total)
+    overridden = np.zeros(total, dtype=bool)
+    fallback = np.zeros(total, dtype=bool)
+    decision_s = np.zeros(total)
+    t_r_sub = np.zeros((total, sim_config.n_substeps))
+    errors: list[str] = []
+    history_src = {"T_a": cols["T_a"], "G": cols["G"], "I_g": cols["I_g"], "time_of_day_h": tod}
+    for k in range(total):
+        t_r_meas[k] = sim.measure()[0]
+        t_m_true[k] = sim.state[0, 1]
+        history = {name: _read_only(src[: k + 1]) for name, src in history_src.items()}
+        history["T_r"] = _read_only(t_r_meas[: k + 1])
+        history["u"] = _read_only(u_dem[:k])
+        history["u_phys"] = _read_only(u_phys[:k])
+        obs = Observation(k=k, t_r_c=float(t_r_meas[k]), history=history, t_m_true_c=t_m_true[k])
+        t_a_forecast = cols["T_a"][k:].copy()
+        noise = forecast_rng.normal(0.0, 1.0, size=len(t_a_forecast) - 1)
+        t_a_forecast[1:] += forecast_noise_std_c * noise
+        forecast = Forecast(
+            time_of_day_h=_read_only(tod[k:]),
+            t_a_c=_read_only(t_a_forecast),
+            g_w_per_m2=_read_only(cols["G"][k:]),
+            i_g_w=_read_only(cols["I_g"][k:]),
+            price_eur_per_kwh=_read_only(cols["price"][k:]),
+            t_min_c=_read_only(cols["T_min"][k:]),
+            t_max_c=_read_only(cols["T_max"][k:]),
+        )
+        acting = warmup_controller if k < warmup else controller
+        u_dem[k], decision_s[k], fallback[k], error = _decide(acting, obs, forecast, spec)
+        if error is not None:
+            errors.append(f"step {k}: {error}")
+        step = sim.step(u_dem[k], cols["T_a"][k], cols["G"][k], cols["I_g"][k])
+        u_phys[k] = step.u_phys_w[0]
+        overridden[k] = bool(step.overridden[0])
+        t_r_sub[k] = step.t_r_sub_c[0]
+
+    counted = slice(warmup, total)
+    trajectory = pd.DataFrame(
+        {
+            "time": exo["time"].iloc[counted].reset_index(drop=True),
+            "T_r": t_r_meas[counted],
+            "T_m": t_m_true[counted],
+            "u": u_dem[counted],
+            "u_phys": u_phys[counted],
+            **{c: cols[c][counted] for c in ("T_a", "G", "I_g", "price", "T_min", "T_max")},
+            "overridden": overridden[counted].astype(int),
+            "fallback": fallback[counted].astype(int),
+            "decision_ms": decision_s[counted] * 1000.0,
+        }
+    )
+    trajectory.attrs["dt_s"] = float(sim_config.dt_s)
+    kpis = compute_kpis(
+        u_phys_w=u_phys[counted],
+        price_eur_per_kwh=cols["price"][counted],
+        t_r_sub_c=t_r_sub[counted],
+        t_min_c=cols["T_min"][counted],
+        t_max_c=cols["T_max"][counted],
+        decision_s=decision_s[counted],
+        overridden=overridden[counted],
+        fallback=fallback[counted],
+        dt_s=sim_config.dt_s,
+        comfort_weight_eur_per_kh=spec.comfort_weight_eur_per_kh,
+    )
+    kpis.update(
+        controller=label or controller.name, scenario=scenario.name, days=days, seed=seed
+    )
+    return ClosedLoopResult(trajectory=trajectory, kpis=kpis, errors=tuple(errors))
+
+
+def check_writable(*paths: str | None) -> None:
+    """Fail before any work if an output file cannot be written (its folder missing or read-only)."""
+    for path in paths:
+        if path is None:
+            continue
+        target = Path(path)
+        parent = target.parent
+        if target.is_dir():
+            raise InputError(f"cannot write {target}: it is a directory; give a file name")
+        if not parent.is_dir():
+            raise InputError(f"cannot write {target}: directory {parent} does not exist; create it")
+        if not os.access(parent, os.W_OK):
+            raise InputError(f"cannot write {target}: directory {parent} is not writable")
+
+
+def write_trajectory(result: ClosedLoopResult, path: str | Path) -> Path:
+    """The trajectory CSV: the data format's columns, then :data:`EXTRA_COLUMNS`."""
+    return write_timeseries(result.trajectory, path)
+
+
+def closed_loop_command(
+    *,
+    scenario: str,
+    controller: str,
+    model: str | None,
+    rc: str | None,
+    days: int,
+    seed: int,
+    json_path: str,
+    csv_path: str | None,
+    plot_path: str | None,
+) -> str:
+    """``pinn-mpc closed-loop``: run, write KPI JSON (and CSV, plot), return a one-line summary."""
+    from scenarios.factory import make_controller
+    from scenarios.plots import plot_trajectory
+
+    check_writable(json_path, csv_path, plot_path)
+    scen = get_scenario(scenario)
+    ctrl = make_controller(
+        controller,
+        scen,
+        model_dir=model,
+        rc_path=rc,
+        n_steps=days * scen.steps_per_day,
+    )
+    result = run_closed_loop(scen, ctrl, days=days, seed=seed)
+    if csv_path is not None:
+        write_trajectory(result, csv_path)
+    if plot_path is not None:
+        plot_trajectory(result.trajectory, plot_path, title=f"{controller} on {scenario}")
+    atomic_write_json(json_path, result.kpis)
+    return format_kpis(result.kpis) + f"\nwrote {json_path}"
+
+
+def format_kpis(kpis: dict[str, Any]) -> str:
+    """One line: the main KPIs of a run."""
+    return (
+        f"{kpis['controller']} on {kpis['scenario']}, {kpis['days']} d: "
+        f"energy {kpis['energy_kwh']:.2f} kWh, cost {kpis['cost_eur']:.2f} EUR, "
+        f"discomfort {kpis['discomfort_kh']:.2f} K h, peak {kpis['peak_kw']:.2f} kW, "
+        f"objective {kpis['objective']:.2f} EUR, decision {kpis['decision_ms_median']:.1f} ms "
+        f"(median), overrides {kpis['backup_overrides']}, fallbacks {kpis['fallbacks']}"
+    )

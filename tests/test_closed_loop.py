@@ -1,0 +1,253 @@
+"""The closed-loop runner and the ``closed-loop`` command, on paper_household."""
+
+import dataclasses
+import json
+import math
+
+import numpy as np
+import pytest
+
+from controllers.base import Forecast, Observation, SolveStats, fallback_power
+from controllers.thermostat import Thermostat
+from pinn_mpc.cli import main
+from pinn_mpc.data import read_timeseries
+from scenarios.closed_loop import EXTRA_COLUMNS, run_closed_loop
+from scenarios.kpis import KPI_KEYS
+from scenarios.registry import get_scenario
+
+TIME_KEYS = {"decision_ms_median", "decision_ms_mean", "decision_ms_p95", "time_ratio"}
+
+
+class ConstantPower:
+    """Demands the same power every interval; records what it was shown."""
+
+    name = "constant"
+
+    def __init__(self, power_w: float):
+        self.power_w = power_w
+        self.seen: list[tuple[Observation, Forecast]] = []
+
+    def reset(self, seed=None):
+        self.seen.clear()
+
+    def act(self, obs, forecast):
+        self.seen.append((obs, forecast))
+        return self.power_w
+
+    @property
+    def last_plan(self):
+        return None
+
+    @property
+    def last_stats(self):
+        return SolveStats(time_s=0.0, status="ok", iterations=0, fallback=False)
+
+
+class Failing(ConstantPower):
+    """Raises on every ``every``-th call, returns NaN on the others when ``nan``."""
+
+    name = "failing"
+
+    def __init__(self, *, every=1, nan=False):
+        super().__init__(0.0)
+        self.every, self.nan, self.calls = every, nan, 0
+
+    def act(self, obs, forecast):
+        self.calls += 1
+        if self.calls % self.every == 0:
+            raise RuntimeError("solver exploded")
+        return float("nan") if self.nan else 1000.0
+
+
+@pytest.fixture(scope="module")
+def scenario():
+    return get_scenario("paper_household")
+
+
+@pytest.fixture(scope="module")
+def thermostat_runs(scenario):
+    return [
+        run_closed_loop(scenario, Thermostat(scenario.control_spec()), days=2, seed=3)
+        for _ in range(2)
+    ]
+
+
+def test_thermostat_run_is_deterministic_and_timed(scenario, thermostat_runs):
+    first, second = thermostat_runs
+    steps = 2 * 48
+    assert len(first.trajectory) == steps
+    for key in KPI_KEYS:
+        assert key in first.kpis
+        if key not in TIME_KEYS:
+            assert first.kpis[key] == second.kpis[key], key
+    np.testing.assert_array_equal(first.trajectory["T_r"], second.trajectory["T_r"])
+    assert (first.trajectory["decision_ms"] > 0).all()
+    assert first.kpis["decision_ms_median"] > 0
+    dt_h = scenario.sim.dt_s / 3600
+    total_decision_s = first.trajectory["decision_ms"].sum() / 1000
+    assert first.kpis["time_ratio"] == pytest.approx(total_decision_s / (steps * scenario.sim.dt_s))
+    assert first.kpis["energy_kwh"] == pytest.approx(first.trajectory["u_phys"].sum() * dt_h / 1000)
+    assert first.kpis["controller"] == "thermostat" and first.kpis["days"] == 2
+    assert set(EXTRA_COLUMNS) <= set(first.trajectory.columns)
+    assert first.errors == ()
+
+
+def test_other_seed_gives_other_run(scenario, thermostat_runs):
+    other = run_closed_loop(scenario, Thermostat(scenario.control_spec()), days=2, seed=4)
+    assert not np.array_equal(other.trajectory["T_a"], thermostat_runs[0].trajectory["T_a"])
+
+
+def test_constant_power_energy_is_analytic_without_backup(scenario):
+    # Backup limits far away: the demand is delivered exactly, P for 48 h -> P * 48 / 1000 kWh.
+    wide = dataclasses.replace(
+        scenario, sim=dataclasses.replace(scenario.sim, backup_low_c=-50.0, backup_high_c=80.0)
+    )
+    run = run_closed_loop(wide, ConstantPower(1500.0), days=2, seed=0)
+    assert run.kpis["energy_kwh"] == pytest.approx(1500.0 * 48 / 1000, rel=1e-12)
+    assert run.kpis["peak_kw"] == pytest.approx(1.5, rel=1e-12)
+    assert run.kpis["backup_overrides"] == 0
+    price = run.trajectory["price"].to_numpy()
+    assert run.kpis["cost_eur"] == pytest.approx(float(np.sum(1.5 * 0.5 * price)), rel=1e-12)
+
+
+def test_backup_overrides_are_counted(scenario):
+    # Full power all the time overheats the room: the backup cuts it above 20.5 C.
+    u_max = scenario.sim.u_max_w
+    run = run_closed_loop(scenario, ConstantPower(u_max), days=2, seed=0)
+    traj = run.trajectory
+    over = traj["overridden"].to_numpy(bool)
+    assert run.kpis["backup_overrides"] == int(over.sum()) > 0
+    np.testing.assert_allclose(traj["u_phys"][~over], traj["u"][~over], rtol=0, atol=1e-9)
+    assert (traj["u_phys"][over] < u_max).all()
+
+
+def test_observation_and_forecast_contents(scenario):
+    ctrl = ConstantPower(0.0)
+    run_closed_loop(scenario, ctrl, days=1, seed=0, warmup_steps=10)
+    horizon = scenario.horizon_steps
+    assert len(ctrl.seen) == 48
+    for i, (obs, forecast) in enumerate(ctrl.seen):
+        k = 10 + i
+        assert obs.k == k
+        assert len(obs.history["T_r"]) == k + 1 and obs.history["T_r"][-1] == obs.t_r_c
+        for name in ("u", "u_phys"):
+            assert len(obs.history[name]) == k
+        for name in ("T_a", "G", "I_g", "time_of_day_h"):
+            assert len(obs.history[name]) == k + 1
+        assert forecast.horizon == 10 + 48 + horizon - k
+        assert forecast.t_a_c[0] == obs.history["T_a"][-1]
+        assert math.isfinite(obs.t_m_true_c)
+    # The past the controller saw is what happened: its own (zero) demand after the warm-up.
+    last_obs = ctrl.seen[-1][0]
+    assert (last_obs.history["u"][10:] == 0.0).all()
+
+
+def test_forecast_noise_is_seeded_and_spares_the_present(scenario):
+    def forecasts(seed):
+        ctrl = ConstantPower(0.0)
+        run_closed_loop(scenario, ctrl, days=1, seed=seed, forecast_noise_std_c=1.0)
+        return ctrl.seen
+
+    exact = ConstantPower(0.0)
+    run_closed_loop(scenario, exact, days=1, seed=0)
+    noisy, again = forecasts(0), forecasts(0)
+    f_exact, f_noisy = exact.seen[0][1], noisy[0][1]
+    assert f_noisy.t_a_c[0] == f_exact.t_a_c[0]
+    error = f_noisy.t_a_c[1:] - f_exact.t_a_c[1:]
+    assert 0.8 < float(np.std(error)) < 1.2
+    np.testing.assert_array_equal(f_noisy.t_a_c, again[0][1].t_a_c)
+
+
+@pytest.mark.parametrize(
+    ("controller", "expected"),
+    [(Failing(every=1), 48), (Failing(every=3), 16), (Failing(every=1000, nan=True), 48)],
+    ids=["always-raises", "raises-every-third", "returns-nan"],
+)
+def test_failures_fall_back_and_are_counted(scenario, controller, expected):
+    run = run_closed_loop(scenario, controller, days=1, seed=0)
+    assert run.kpis["fallbacks"] == expected
+    assert len(run.errors) == expected
+    fb = run.trajectory["fallback"].to_numpy(bool)
+    assert int(fb.sum()) == expected
+    # Fallback steps applied the documented band rule: all or nothing.
+    u_max = scenario.sim.u_max_w
+    assert set(np.unique(run.trajectory["u"][fb])) <= {0.0, u_max}
+
+
+def test_fallback_matches_the_documented_rule(scenario):
+    spec = scenario.control_spec()
+    ctrl = Failing(every=1)
+    run = run_closed_loop(scenario, ctrl, days=1, seed=0)
+    traj = run.trajectory
+    for row in traj.itertuples():
+        obs = Observation(k=0, t_r_c=row.T_r, history={}, t_m_true_c=float("nan"))
+        one = np.array([row.T_min]), np.array([row.T_max])
+        forecast = Forecast(*(np.zeros(1),) * 5, t_min_c=one[0], t_max_c=one[1])
+        assert row.u == fallback_power(obs, forecast, spec)
+
+
+# ----------------------------------------------------------------------- the CLI command
+
+
+def _cli(tmp_path, *extra):
+    return main(
+        ["closed-loop", "--scenario", "paper_household", "--days", "1", "--seed", "1", *extra]
+    )
+
+
+def test_cli_writes_json_csv_png(tmp_path, capsys):
+    paths = {ext: tmp_path / f"run.{ext}" for ext in ("json", "csv", "png")}
+    code = _cli(tmp_path, "--controller", "thermostat", "--json", str(paths["json"]),
+                "--csv", str(paths["csv"]), "--plot", str(paths["png"]))
+    assert code == 0
+    out = capsys.readouterr().out
+    assert "energy" in out and str(paths["json"]) in out
+    kpis = json.loads(paths["json"].read_text())
+    assert set(KPI_KEYS) <= set(kpis)
+    assert kpis["scenario"] == "paper_household" and kpis["seed"] == 1
+    traj = read_timeseries(paths["csv"])
+    assert len(traj) == 48
+    assert traj.attrs["dt_s"] == 1800.0
+    dt_h = 0.5
+    assert kpis["energy_kwh"] == pytest.approx(traj["u_phys"].sum() * dt_h / 1000, rel=1e-5)
+    assert paths["png"].read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run.csv", "run.json", "run.png"]
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--controller", "pid"], "unknown controller 'pid'"),
+        (["--controller", "qp-mpc"], "--rc rc.json"),
+        (["--controller", "casadi-mpc"], "--rc rc.json"),
+        (["--controller", "cem"], "--model MODEL_DIR"),
+        (["--controller", "random-shooting"], "--model MODEL_DIR"),
+        (["--controller", "thermostat", "--rc", "rc.json"], "--rc is not used"),
+    ],
+)
+def test_cli_bad_controller_input_exits_2_with_one_line(tmp_path, capsys, args, message):
+    json_path = tmp_path / "k.json"
+    assert _cli(tmp_path, *args, "--json", str(json_path)) == 2
+    err = capsys.readouterr().err
+    assert message in err and len(err.strip().splitlines()) == 1
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_cli_unreadable_rc_file_exits_2(tmp_path, capsys):
+    rc = tmp_path / "rc.json"
+    rc.write_text('{"R_ra_K_per_W": 0.01}')
+    assert _cli(tmp_path, "--controller", "qp-mpc", "--rc", str(rc),
+                "--json", str(tmp_path / "k.json")) == 2
+    err = capsys.readouterr().err
+    assert "RC JSON lacks key(s)" in err and len(err.strip().splitlines()) == 1
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["rc.json"]
+
+
+def test_cli_unwritable_json_leaves_nothing(tmp_path, capsys):
+    csv_path = tmp_path / "traj.csv"
+    code = _cli(tmp_path, "--controller", "thermostat",
+                "--json", str(tmp_path / "missing" / "k.json"), "--csv", str(csv_path))
+    assert code == 2
+    err = capsys.readouterr().err
+    assert "does not exist" in err and len(err.strip().splitlines()) == 1
+    assert list(tmp_path.iterdir()) == []
