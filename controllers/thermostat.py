@@ -1,0 +1,77 @@
+"""Hysteresis thermostat on the comfort band: the everyday baseline.
+
+Heating: full power when the measured room temperature falls below ``c - hysteresis_k/2``,
+off when it rises above ``c + hysteresis_k/2``, unchanged in between, where the centre
+``c = T_min + offset_fraction * (T_max - T_min)`` (default a quarter of the band above its
+lower edge, like :func:`controllers.base.fallback_power`). Cooling mirrors this on ``T_max``.
+The band is the forecast's first interval, ``forecast.t_min_c[0]`` / ``forecast.t_max_c[0]``.
+Deciding once per control interval at full power, it overshoots by up to the temperature
+change of one interval; that is the baseline's nature, not a bug.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from controllers.base import ControlSpec, Forecast, Observation, SolveStats
+from pinn_mpc.errors import InputError
+
+
+class Thermostat:
+    """On/off rule; ``act`` returns 0 or ``spec.u_max_w`` [W]. Deterministic; keeps one bit of
+    state (on or off) between calls, cleared by ``reset``."""
+
+    name = "thermostat"
+
+    def __init__(
+        self, spec: ControlSpec, *, offset_fraction: float = 0.25, hysteresis_k: float = 0.5
+    ):
+        if not (0.0 <= offset_fraction <= 0.5):
+            raise InputError(f"Thermostat offset_fraction must lie in [0, 0.5], got {offset_fraction!r}")
+        if not (math.isfinite(hysteresis_k) and hysteresis_k >= 0):
+            raise InputError(f"Thermostat hysteresis_k must be >= 0, got {hysteresis_k!r}")
+        self.spec = spec
+        self.offset_fraction = offset_fraction
+        self.hysteresis_k = hysteresis_k
+        self._on = False
+        self._plan: np.ndarray | None = None
+        self._stats = SolveStats(time_s=0.0, status="not run", iterations=0, fallback=False)
+
+    def reset(self, seed: int | None = None) -> None:
+        self._on = False
+        self._plan = None
+        self._stats = SolveStats(time_s=0.0, status="not run", iterations=0, fallback=False)
+
+    def thresholds_c(self, t_min_c: float, t_max_c: float) -> tuple[float, float]:
+        """(switch-on, switch-off) room temperatures [C] for this band."""
+        half = 0.5 * self.hysteresis_k
+        offset = self.offset_fraction * (t_max_c - t_min_c)
+        if self.spec.heating:
+            return t_min_c + offset - half, t_min_c + offset + half
+        return t_max_c - offset + half, t_max_c - offset - half
+
+    def act(self, obs: Observation, forecast: Forecast) -> float:
+        start = time.perf_counter()
+        on_at, off_at = self.thresholds_c(float(forecast.t_min_c[0]), float(forecast.t_max_c[0]))
+        t_r = obs.t_r_c
+        if self.spec.heating:
+            self._on = t_r < on_at or (self._on and t_r <= off_at)
+        else:
+            self._on = t_r > on_at or (self._on and t_r >= off_at)
+        power = self.spec.u_max_w if self._on else 0.0
+        self._plan = np.array([power])
+        self._stats = SolveStats(
+            time_s=time.perf_counter() - start, status="rule", iterations=0, fallback=False
+        )
+        return power
+
+    @property
+    def last_plan(self) -> np.ndarray | None:
+        return self._plan
+
+    @property
+    def last_stats(self) -> SolveStats:
+        return self._stats
