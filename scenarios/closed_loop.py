@@ -55,12 +55,6 @@ class ClosedLoopResult:
     errors: tuple[str, ...]
 
 
-def _read_only(a: np.ndarray) -> np.ndarray:
-    view = a.view()
-    view.flags.writeable = False
-    return view
-
-
 def _decide(
     controller: Controller, obs: Observation, forecast: Forecast, spec: ControlSpec
 ) -> tuple[float, float, bool, str | None]:
@@ -145,22 +139,23 @@ def run_closed_loop(
     for k in range(total):
         t_r_meas[k] = sim.measure()[0]
         t_m_true[k] = sim.state[0, 1]
-        history = {name: _read_only(src[: k + 1]) for name, src in history_src.items()}
-        history["T_r"] = _read_only(t_r_meas[: k + 1])
-        history["u"] = _read_only(u_dem[:k])
-        history["u_phys"] = _read_only(u_phys[:k])
+        # Copies: a controller may keep or change what it is given without touching the run.
+        history = {name: np.array(src[: k + 1]) for name, src in history_src.items()}
+        history["T_r"] = np.array(t_r_meas[: k + 1])
+        history["u"] = np.array(u_dem[:k])
+        history["u_phys"] = np.array(u_phys[:k])
         obs = Observation(k=k, t_r_c=float(t_r_meas[k]), history=history, t_m_true_c=t_m_true[k])
         t_a_forecast = cols["T_a"][k:].copy()
         noise = forecast_rng.normal(0.0, 1.0, size=len(t_a_forecast) - 1)
         t_a_forecast[1:] += forecast_noise_std_c * noise
         forecast = Forecast(
-            time_of_day_h=_read_only(tod[k:]),
-            t_a_c=_read_only(t_a_forecast),
-            g_w_per_m2=_read_only(cols["G"][k:]),
-            i_g_w=_read_only(cols["I_g"][k:]),
-            price_eur_per_kwh=_read_only(cols["price"][k:]),
-            t_min_c=_read_only(cols["T_min"][k:]),
-            t_max_c=_read_only(cols["T_max"][k:]),
+            time_of_day_h=np.array(tod[k:]),
+            t_a_c=t_a_forecast,
+            g_w_per_m2=np.array(cols["G"][k:]),
+            i_g_w=np.array(cols["I_g"][k:]),
+            price_eur_per_kwh=np.array(cols["price"][k:]),
+            t_min_c=np.array(cols["T_min"][k:]),
+            t_max_c=np.array(cols["T_max"][k:]),
         )
         acting = warmup_controller if k < warmup else controller
         u_dem[k], decision_s[k], fallback[k], error = _decide(acting, obs, forecast, spec)
@@ -204,15 +199,18 @@ def run_closed_loop(
     return ClosedLoopResult(trajectory=trajectory, kpis=kpis, errors=tuple(errors))
 
 
-def check_writable(*paths: str | None) -> None:
-    """Fail before any work if an output file cannot be written (its folder missing or read-only)."""
+def check_writable(*paths: str | None, create_parents: bool = False) -> None:
+    """Fail before any work if an output file cannot be written: its folder is missing (unless
+    ``create_parents``, then the nearest existing ancestor counts) or read-only."""
     for path in paths:
         if path is None:
             continue
         target = Path(path)
-        parent = target.parent
         if target.is_dir():
             raise InputError(f"cannot write {target}: it is a directory; give a file name")
+        parent = target.parent
+        while create_parents and not parent.exists() and parent != parent.parent:
+            parent = parent.parent
         if not parent.is_dir():
             raise InputError(f"cannot write {target}: directory {parent} does not exist; create it")
         if not os.access(parent, os.W_OK):

@@ -1,0 +1,132 @@
+"""Text and markdown renderings of a controller comparison (see :mod:`scenarios.compare`)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+#: (row key, column header, format) of the KPI tables.
+KPI_COLUMNS = (
+    ("objective", "objective EUR", "{:.3f}"),
+    ("objective_to_oracle", "/ oracle", "{:.3f}"),
+    ("cost_eur", "cost EUR", "{:.3f}"),
+    ("energy_kwh", "energy kWh", "{:.2f}"),
+    ("discomfort_kh", "discomfort K h", "{:.3f}"),
+    ("peak_kw", "peak kW", "{:.2f}"),
+    ("decision_ms_median", "decision ms (median)", "{:.3g}"),
+    ("decision_ms_p95", "decision ms (p95)", "{:.3g}"),
+    ("time_ratio", "time ratio", "{:.2e}"),
+    ("backup_overrides", "overrides", "{}"),
+    ("fallbacks", "fallbacks", "{}"),
+)
+
+#: (rc_summary key, label, scale, unit) of the RC parameter table.
+RC_ROWS = (
+    ("R_ra_K_per_W", "R_ra", 1e3, "mK/W"),
+    ("R_rm_K_per_W", "R_rm", 1e3, "mK/W"),
+    ("C_r_J_per_K", "C_r", 1e-6, "MJ/K"),
+    ("C_m_J_per_K", "C_m", 1e-6, "MJ/K"),
+    ("eta", "eta", 1.0, "-"),
+    ("solar_aperture_m2", "solar aperture", 1.0, "m2"),
+)
+
+
+def _cell(value: Any, fmt: str) -> str:
+    if value is None or (isinstance(value, float) and not math.isfinite(value)):
+        return "n/a"
+    return fmt.format(value)
+
+
+def objective_ratios(rows: Sequence[Mapping[str, Any]], *, reference: str) -> list[float | None]:
+    """Each row's objective divided by that of the row labelled ``reference`` (None if absent
+    or not positive)."""
+    ref = next((r["objective"] for r in rows if r["controller"] == reference), None)
+    if ref is None or not ref > 0:
+        return [None] * len(rows)
+    return [float(r["objective"]) / ref for r in rows]
+
+
+def kpi_table_text(rows: Sequence[Mapping[str, Any]]) -> str:
+    """Fixed-width KPI table for a terminal, one line per controller."""
+    headers = ["controller", *(h for _, h, _ in KPI_COLUMNS)]
+    body = [
+        [str(r["controller"]), *(_cell(r.get(k), f) for k, _, f in KPI_COLUMNS)] for r in rows
+    ]
+    widths = [max(len(line[i]) for line in [headers, *body]) for i in range(len(headers))]
+
+    def fmt(line: list[str]) -> str:
+        first = line[0].ljust(widths[0])
+        return "  ".join([first, *(c.rjust(w) for c, w in zip(line[1:], widths[1:], strict=True))])
+
+    return "\n".join([fmt(headers), *(fmt(line) for line in body)])
+
+
+def _markdown_table(headers: Sequence[str], body: Sequence[Sequence[str]]) -> list[str]:
+    lines = ["| " + " | ".join(headers) + " |", "|" + "---|" * len(headers)]
+    lines += ["| " + " | ".join(line) + " |" for line in body]
+    return lines
+
+
+def rc_table_markdown(rc: Mapping[str, Mapping[str, Any]]) -> list[str]:
+    """RC parameters of each source (columns) against each other, plus time constants."""
+    sources = list(rc)
+    body = []
+    for key, label, scale, unit in RC_ROWS:
+        cells = [_cell(float(rc[s][key]) * scale if key in rc[s] else None, "{:.4g}") for s in sources]
+        body.append([f"{label} [{unit}]", *cells])
+    for which in ("fast", "slow"):
+        cells = [_cell(rc[s].get("time_constants_h", {}).get(which), "{:.3g}") for s in sources]
+        body.append([f"time constant, {which} [h]", *cells])
+    return _markdown_table(["parameter", *sources], body)
+
+
+def render_report(
+    *,
+    scenario: str,
+    description: str,
+    rows: Sequence[Mapping[str, Any]],
+    rc: Mapping[str, Mapping[str, Any]],
+    settings: Mapping[str, Any],
+    figure_name: str,
+    notes: Sequence[str] = (),
+) -> str:
+    """The markdown report of a comparison."""
+    lines = [
+        f"# Closed-loop comparison on `{scenario}`",
+        "",
+        description,
+        "",
+        "Every controller ran on the same test days (same weather, prices, comfort band and "
+        "perfect forecasts) after the same one-day thermostat warm-up, which is not counted. "
+        "KPIs follow BOPTEST: discomfort is the time integral of the comfort-band violation "
+        "(1-min resolution), cost is price x delivered energy, the objective is cost + comfort "
+        "weight x discomfort, the time ratio is decision time / simulated time. `/ oracle` "
+        "divides each objective by the oracle's (true parameters, true T_m, perfect forecasts).",
+        "",
+        "## KPIs",
+        "",
+    ]
+    headers = ["controller", *(h for _, h, _ in KPI_COLUMNS)]
+    body = [[f"`{r['controller']}`", *(_cell(r.get(k), f) for k, _, f in KPI_COLUMNS)] for r in rows]
+    lines += _markdown_table(headers, body)
+    lines += [
+        "",
+        "## RC parameters",
+        "",
+        "The true building, the parameters identified from the training data (grey-box, T_m "
+        "hidden) and those exported from the trained PhysNet ensemble (mean over members).",
+        "",
+        *rc_table_markdown(rc),
+        "",
+        "## Trajectories",
+        "",
+        f"![room temperature and delivered power of every controller]({figure_name})",
+        "",
+        "## Settings",
+        "",
+    ]
+    lines += _markdown_table(["setting", "value"], [[k, f"`{v}`"] for k, v in settings.items()])
+    if notes:
+        lines += ["", "## Notes", "", *(f"- {n}" for n in notes)]
+    return "\n".join(lines) + "\n"
