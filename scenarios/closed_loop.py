@@ -211,6 +211,8 @@ def check_writable(*paths: str | None, create_parents: bool = False) -> None:
         parent = target.parent
         while create_parents and not parent.exists() and parent != parent.parent:
             parent = parent.parent
+        if parent.exists() and not parent.is_dir():
+            raise InputError(f"cannot write {target}: {parent} is a file, not a directory")
         if not parent.is_dir():
             raise InputError(f"cannot write {target}: directory {parent} does not exist; create it")
         if not os.access(parent, os.W_OK):
