@@ -20,9 +20,11 @@ depends only on ``seed``, so every controller sees the same forecasts.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -35,6 +37,7 @@ from pinn_mpc.data import write_timeseries
 from pinn_mpc.errors import InputError
 from pinn_mpc.io import atomic_write_json
 from pinn_mpc.simulator import Simulator
+from scenarios.factory import MODEL_CONTROLLERS, make_controller
 from scenarios.inputs import time_of_day_h
 from scenarios.kpis import compute_kpis
 from scenarios.registry import Scenario, check_seed, get_scenario
@@ -199,6 +202,19 @@ def run_closed_loop(
     return ClosedLoopResult(trajectory=trajectory, kpis=kpis, errors=tuple(errors))
 
 
+@contextlib.contextmanager
+def one_torch_thread() -> Iterator[None]:
+    """Planners roll out small tensors: one intra-op thread is fastest on a shared machine."""
+    import torch
+
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(before)
+
+
 def check_writable(*paths: str | None, create_parents: bool = False) -> None:
     """Fail before any work if an output file cannot be written: its folder is missing (unless
     ``create_parents``, then the nearest existing ancestor counts) or read-only."""
@@ -237,8 +253,7 @@ def closed_loop_command(
     plot_path: str | None,
 ) -> str:
     """``pinn-mpc closed-loop``: run, write KPI JSON (and CSV, plot), return a one-line summary."""
-    from scenarios.factory import make_controller
-    from scenarios.plots import plot_trajectory
+    from scenarios.plots import plot_trajectory  # matplotlib only when plotting
 
     check_writable(json_path, csv_path, plot_path)
     scen = get_scenario(scenario)
@@ -249,7 +264,10 @@ def closed_loop_command(
         rc_path=rc,
         n_steps=days * scen.steps_per_day,
     )
-    result = run_closed_loop(scen, ctrl, days=days, seed=seed)
+    # torch only for the planners over learned models; the others start faster without it.
+    threads = one_torch_thread() if controller in MODEL_CONTROLLERS else contextlib.nullcontext()
+    with threads:
+        result = run_closed_loop(scen, ctrl, days=days, seed=seed)
     if csv_path is not None:
         write_trajectory(result, csv_path)
     if plot_path is not None:
