@@ -119,9 +119,13 @@ class SyntheticWeather:
             raise InputError(f"SyntheticWeather.slow_periods_days must be > 0, got {self.slow_periods_days}")
 
     def sample(
-        self, *, n: int, dt_s: float, rng: np.random.Generator
+        self, *, n: int, dt_s: float, run_days: int, rng: np.random.Generator
     ) -> tuple[pd.DatetimeIndex, np.ndarray, np.ndarray]:
-        """``n`` intervals -> (start times, T_a (n,) [C], G (n,) [W/m2])."""
+        """``n`` intervals -> (start times, T_a (n,) [C], G (n,) [W/m2]).
+
+        ``run_days`` (the simulated days, without forecast lead) matters only to windowed
+        weather; synthetic weather has no window and always starts at ``start``.
+        """
         times = interval_starts(pd.Timestamp(self.start), n, dt_s)
         mid_h = time_of_day_h(times) + 0.5 * dt_s / 3600.0
         elapsed_days = (np.arange(n) + 0.5) * dt_s / SECONDS_PER_DAY
@@ -203,8 +207,8 @@ class TMY3Weather:
     """Real typical-year weather from pvlib's TMY3 files, in a seasonal window.
 
     The window starts at ``window_start`` (``"MM-DD"``) and lasts ``window_days`` days (it may
-    wrap past 31 December). The generator picks the start day uniformly so that the run stays
-    inside the window when it fits. Times are labelled from :data:`BASE_YEAR` (non-leap years
+    wrap past 31 December). The generator picks the start day uniformly so that a run of
+    ``run_days`` stays inside the window when it fits; a longer run continues past its end. Times are labelled from :data:`BASE_YEAR` (non-leap years
     until 2024, so calendar and typical year agree for runs shorter than about two years).
     """
 
@@ -221,11 +225,14 @@ class TMY3Weather:
             raise InputError(f"TMY3Weather.window_days must lie in [1, 365], got {self.window_days}")
 
     def sample(
-        self, *, n: int, dt_s: float, rng: np.random.Generator
+        self, *, n: int, dt_s: float, run_days: int, rng: np.random.Generator
     ) -> tuple[pd.DatetimeIndex, np.ndarray, np.ndarray]:
-        """``n`` intervals -> (start times, T_a (n,) [C], G (n,) [W/m2])."""
+        """``n`` intervals -> (start times, T_a (n,) [C], G (n,) [W/m2]).
+
+        The start day leaves room for ``run_days`` in the window, so forecast lead rows
+        (``n`` beyond ``run_days``) never move the start.
+        """
         t_a_hourly, ghi_hourly, _ = load_tmy3(self.file_name)
-        run_days = math.ceil(n * dt_s / SECONDS_PER_DAY)
         offset_day = int(rng.integers(max(self.window_days - run_days, 0) + 1))
         first = pd.Timestamp(f"{BASE_YEAR}-{self.window_start}") + pd.Timedelta(days=offset_day)
         start_s = ((first - pd.Timestamp(f"{BASE_YEAR}-01-01")).days % 365) * SECONDS_PER_DAY

@@ -88,7 +88,7 @@ class Scenario:
         dt_s = self.sim.dt_s
         n = days * self.steps_per_day + lead_steps
         times, t_a, g = self.weather.sample(
-            n=n, dt_s=dt_s, rng=np.random.default_rng([seed, _WEATHER_STREAM])
+            n=n, dt_s=dt_s, run_days=days, rng=np.random.default_rng([seed, _WEATHER_STREAM])
         )
         price = self.price.sample(times, dt_s=dt_s, rng=np.random.default_rng([seed, _PRICE_STREAM]))
         i_g = self.gains.sample(times, rng=np.random.default_rng([seed, _GAINS_STREAM]))

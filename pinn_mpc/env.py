@@ -1,0 +1,138 @@
+"""Gymnasium environment around the simulator: one building, one control interval per step.
+
+Observation (float32, shape (9,)): what a controller may see at the start of interval k:
+``(T_r measured [C], T_a [C], G [W/m2], I_g [W], price [EUR/kWh], T_min [C], T_max [C],
+sin(2 pi h/24), cos(2 pi h/24))`` with h the hour of day. Action (float32, shape (1,)): the
+demanded power in [0, u_max_w] W (clipped). Reward: minus the objective of the interval, i.e.
+``-(price x delivered energy [kWh] + comfort_weight x band violation of T_r at the end of the
+interval [K] x interval [h])``, the same objective the controllers use. ``info`` carries the
+hidden ``T_m`` [C], the true ``T_r`` [C], ``u_phys`` [W], ``overridden`` (the backup acted),
+``energy_kwh``, ``cost_eur`` and ``discomfort_kh``.
+
+The exogenous inputs come as a frame (as :meth:`scenarios.registry.Scenario.exogenous` makes
+it); an episode covers ``episode_steps`` consecutive rows. When the frame is longer than an
+episode, ``reset`` draws the first row from the environment's own generator, which
+``reset(seed=...)`` reseeds; the generator also seeds the sensor noise.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import pandas as pd
+
+from pinn_mpc.data import TEMPERATURE_RANGE_C
+from pinn_mpc.errors import InputError
+from pinn_mpc.simulator import SimConfig, Simulator
+
+EXOGENOUS = ("T_a", "G", "I_g", "price", "T_min", "T_max")
+OBSERVATION_NAMES = ("T_r", "T_a", "G", "I_g", "price", "T_min", "T_max", "sin_time", "cos_time")
+
+
+class BuildingEnv(gym.Env[np.ndarray, np.ndarray]):
+    """One simulated building driven by a fixed exogenous frame; see the module docstring."""
+
+    metadata: dict[str, Any] = {"render_modes": []}
+
+    def __init__(
+        self,
+        config: SimConfig,
+        exogenous: pd.DataFrame,
+        *,
+        comfort_weight_eur_per_kh: float,
+        episode_steps: int | None = None,
+        initial_t_r_c: float = 17.0,
+        initial_t_m_c: float = 17.0,
+    ):
+        missing = [c for c in ("time", *EXOGENOUS) if c not in exogenous.columns]
+        if missing:
+            raise InputError(
+                f"BuildingEnv: exogenous frame lacks column(s) {missing}; have {list(exogenous.columns)}"
+            )
+        if not (math.isfinite(comfort_weight_eur_per_kh) and comfort_weight_eur_per_kh >= 0):
+            raise InputError(
+                f"BuildingEnv: comfort_weight_eur_per_kh must be >= 0, got {comfort_weight_eur_per_kh!r}"
+            )
+        steps = len(exogenous) if episode_steps is None else episode_steps
+        if not 1 <= steps <= len(exogenous):
+            raise InputError(
+                f"BuildingEnv: episode_steps={episode_steps} must lie in [1, {len(exogenous)}] "
+                "(the exogenous frame's rows)"
+            )
+        self.config = config
+        self.comfort_weight_eur_per_kh = float(comfort_weight_eur_per_kh)
+        self.episode_steps = steps
+        self.initial_state_c = (float(initial_t_r_c), float(initial_t_m_c))
+        self._exo = np.column_stack([exogenous[c].to_numpy(dtype=float) for c in EXOGENOUS])
+        if not np.all(np.isfinite(self._exo)):
+            raise InputError("BuildingEnv: exogenous frame has non-finite values")
+        times = pd.DatetimeIndex(exogenous["time"])
+        hours = np.asarray((times - times.normalize()).total_seconds() / 3600.0, dtype=float)
+        angle = 2.0 * math.pi * hours / 24.0
+        self._clock = np.column_stack([np.sin(angle), np.cos(angle)])
+
+        t_lo, t_hi = TEMPERATURE_RANGE_C
+        low = np.array([t_lo, t_lo, 0.0, 0.0, -10.0, t_lo, t_lo, -1.0, -1.0], dtype=np.float32)
+        high = np.array([t_hi, t_hi, 2000.0, 1e6, 10.0, t_hi, t_hi, 1.0, 1.0], dtype=np.float32)
+        self._obs_low, self._obs_high = low, high
+        self.observation_space = gym.spaces.Box(low=low, high=high, dtype=np.float32)
+        self.action_space = gym.spaces.Box(
+            low=0.0, high=float(config.u_max_w), shape=(1,), dtype=np.float32
+        )
+        self._sim = Simulator(config, n_buildings=1, seed=0)
+        self._start = 0
+        self._k = 0
+
+    def _observation(self) -> np.ndarray:
+        # After the last interval the next row may not exist: reuse the last row's inputs.
+        row = min(self._start + self._k, len(self._exo) - 1)
+        raw = np.concatenate([self._sim.measure(), self._exo[row], self._clock[row]])
+        return np.clip(raw, self._obs_low, self._obs_high).astype(np.float32)
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[np.ndarray, dict[str, Any]]:
+        """Start an episode; ``options`` may set ``t_r_c``, ``t_m_c`` and ``start`` (row)."""
+        super().reset(seed=seed)
+        opts = dict(options or {})
+        unknown = set(opts) - {"t_r_c", "t_m_c", "start"}
+        if unknown:
+            raise InputError(f"BuildingEnv.reset: unknown option(s) {sorted(unknown)}")
+        last_start = len(self._exo) - self.episode_steps
+        start = opts.get("start", int(self.np_random.integers(last_start + 1)))
+        if not 0 <= start <= last_start:
+            raise InputError(f"BuildingEnv.reset: start={start} must lie in [0, {last_start}]")
+        self._start, self._k = int(start), 0
+        t_r, t_m = opts.get("t_r_c", self.initial_state_c[0]), opts.get("t_m_c", self.initial_state_c[1])
+        self._sim.reset(t_r, t_m, seed=int(self.np_random.integers(2**63)))
+        return self._observation(), {"T_m": float(t_m), "T_r": float(t_r)}
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        if self._k >= self.episode_steps:
+            raise InputError("BuildingEnv.step: the episode is over; call reset() first")
+        u = float(np.clip(np.asarray(action, dtype=float).reshape(-1)[0], 0.0, self.config.u_max_w))
+        t_a, g, i_g, price, t_min, t_max = (float(v) for v in self._exo[self._start + self._k])
+        result = self._sim.step(u, t_a, g, i_g)
+        t_r_next = float(result.t_r_c[0])
+        u_phys = float(result.u_phys_w[0])
+        dt_h = self.config.dt_s / 3600.0
+        energy_kwh = u_phys / 1000.0 * dt_h
+        violation_k = max(t_min - t_r_next, 0.0) + max(t_r_next - t_max, 0.0)
+        cost_eur = price * energy_kwh
+        discomfort_kh = violation_k * dt_h
+        reward = -(cost_eur + self.comfort_weight_eur_per_kh * discomfort_kh)
+        self._k += 1
+        truncated = self._k >= self.episode_steps
+        info = {
+            "T_m": float(result.t_m_c[0]),
+            "T_r": t_r_next,
+            "u_phys": u_phys,
+            "overridden": bool(result.overridden[0]),
+            "energy_kwh": energy_kwh,
+            "cost_eur": cost_eur,
+            "discomfort_kh": discomfort_kh,
+        }
+        return self._observation(), float(reward), False, truncated, info
