@@ -1,0 +1,121 @@
+"""Decision time of random shooting and CEM at a 48-step horizon.
+
+    python benchmarks/bench_planners.py [--model physnet|rc|both] [--members 5] [--decisions 20]
+
+Data: the ``paper_household`` scenario, random on/off demand. ``physnet`` trains a small
+ensemble for a few epochs (decision time does not depend on how well it is trained; the
+network sizes are the paper's); ``rc`` is the exact 2R2C physics (:class:`RCBatchModel`).
+Each controller makes ``--decisions`` consecutive warm-started decisions along the data
+(after two untimed ones) and the median / p95 / max decision time is printed. One intra-op
+torch thread: the tensors are small and the machine's 2 cores are shared.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from collections.abc import Callable
+
+import numpy as np
+import pandas as pd
+import torch
+
+from controllers.base import ControlSpec, Forecast, Observation
+from controllers.shooting import CEM, BatchDynamics, RandomShooting, RCBatchModel
+from scenarios.datagen import generate
+from scenarios.inputs import time_of_day_h
+from scenarios.registry import get_scenario
+
+TARGET_MS = 100.0
+
+
+def _observation(df: pd.DataFrame, k: int, spec: ControlSpec) -> tuple[Observation, Forecast]:
+    """Observation at row k (history rows 0..k) and the forecast of rows k..k+H-1."""
+    tod = time_of_day_h(df["time"])
+    h = spec.horizon_steps
+    history = {c: df[c].to_numpy(dtype=float)[: k + 1] for c in ("T_r", "T_m", "T_a")}
+    history.update({c: df[c].to_numpy(dtype=float)[:k] for c in ("u", "u_phys")})
+    history["G"] = np.zeros(k + 1)
+    history["I_g"] = np.zeros(k + 1)
+    history["time_of_day_h"] = tod[: k + 1]
+    col = {c: df[c].to_numpy(dtype=float)[k : k + h] for c in ("T_a", "price", "T_min", "T_max")}
+    forecast = Forecast(
+        time_of_day_h=tod[k : k + h],
+        t_a_c=col["T_a"],
+        g_w_per_m2=np.zeros(h),
+        i_g_w=np.zeros(h),
+        price_eur_per_kwh=col["price"],
+        t_min_c=col["T_min"],
+        t_max_c=col["T_max"],
+    )
+    obs = Observation(k=k, t_r_c=float(history["T_r"][-1]), history=history, t_m_true_c=0.0)
+    return obs, forecast
+
+
+def _time_decisions(controller: CEM | RandomShooting, df: pd.DataFrame, first: int, n: int) -> np.ndarray:
+    """Decision times [ms] of n timed decisions after two untimed warm-up decisions."""
+    controller.reset(seed=0)
+    times = []
+    fallbacks = 0
+    for i in range(n + 2):
+        obs, forecast = _observation(df, first + i, controller.spec)
+        start = time.perf_counter()
+        controller.act(obs, forecast)
+        elapsed = time.perf_counter() - start
+        fallbacks += controller.last_stats.fallback
+        if i >= 2:
+            times.append(elapsed * 1000.0)
+    if fallbacks:
+        raise RuntimeError(f"{controller.name}: {fallbacks} fallbacks: {controller.last_stats.status}")
+    return np.array(times)
+
+
+def _physnet(df: pd.DataFrame, members: int, epochs: int) -> BatchDynamics:
+    from pinn_mpc.training import TrainConfig, train_model
+
+    config = TrainConfig(depth=8, n_seeds=members, epochs=epochs)
+    return train_model(df[["time", "T_r", "u", "u_phys", "T_a"]], arch="physnet", config=config)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--model", choices=["physnet", "rc", "both"], default="both")
+    parser.add_argument("--members", type=int, default=5)
+    parser.add_argument("--epochs", type=int, default=2)
+    parser.add_argument("--decisions", type=int, default=20)
+    args = parser.parse_args()
+    torch.set_num_threads(1)
+
+    scenario = get_scenario("paper_household")
+    spec = scenario.control_spec()
+    df = generate(scenario, days=8, seed=0, policy="random")
+    models: dict[str, Callable[[], BatchDynamics]] = {
+        "rc": lambda: RCBatchModel(
+            scenario.sim.params,
+            dt_s=spec.dt_s,
+            u_max_w=spec.u_max_w,
+            backup_low_c=scenario.sim.backup_low_c,
+            backup_high_c=scenario.sim.backup_high_c,
+        ),
+        "physnet": lambda: _physnet(df, args.members, args.epochs),
+    }
+    names = ["rc", "physnet"] if args.model == "both" else [args.model]
+    print(f"horizon {spec.horizon_steps} steps, torch threads {torch.get_num_threads()}")
+    for name in names:
+        model = models[name]()
+        label = f"{name} x{model.n_members}"
+        for controller in (CEM(model, spec), RandomShooting(model, spec)):
+            ms = _time_decisions(controller, df, first=24, n=args.decisions)
+            p = controller.planner
+            size = f"{p.n_samples} samples x {getattr(p, 'n_iters', 1)} iters"
+            verdict = ""
+            if controller.name == "cem":
+                verdict = "  OK" if np.median(ms) <= TARGET_MS else f"  OVER {TARGET_MS:.0f} ms"
+            print(
+                f"{label:12s} {controller.name:16s} {size:22s} median {np.median(ms):6.1f} ms"
+                f"  p95 {np.percentile(ms, 95):6.1f} ms  max {ms.max():6.1f} ms{verdict}"
+            )
+
+
+if __name__ == "__main__":
+    main()

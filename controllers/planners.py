@@ -1,0 +1,210 @@
+"""Sampling optimisers over action sequences: random shooting and the cross-entropy method.
+
+Both share one shape (as in mbrl-lib), so a controller can swap them::
+
+    result = planner.optimize(objective, x0, generator)
+
+``objective`` maps a batch of action sequences, a tensor (N, H) [W], to costs (N,); it is called
+once per iteration with the whole batch, so a model rolls every candidate out together.
+``x0`` (H,) is the warm start (normally the previous plan shifted by one step); it is always
+evaluated as one of the candidates, so a planner never returns a plan worse than its warm start.
+All randomness comes from the ``torch.Generator`` passed in; the planners hold no state.
+
+Actions are either continuous in ``[lower, upper]`` or, with ``binary=True``, on/off: exactly
+``lower`` or ``upper``. Non-finite costs rank last (they never become elites or the result).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import NamedTuple, Protocol
+
+import torch
+
+from pinn_mpc.errors import InputError
+
+#: Costs (N,) of a batch of action sequences (N, H).
+Objective = Callable[[torch.Tensor], torch.Tensor]
+
+
+class PlanResult(NamedTuple):
+    """Best sequence found: ``plan`` (H,) and its ``cost``; ``n_evaluated`` sequences in total."""
+
+    plan: torch.Tensor
+    cost: float
+    iterations: int
+    n_evaluated: int
+
+
+class Planner(Protocol):
+    @property
+    def n_samples(self) -> int: ...  # sequences per objective call
+
+    @property
+    def binary(self) -> bool: ...
+
+    def optimize(
+        self, objective: Objective, x0: torch.Tensor, generator: torch.Generator
+    ) -> PlanResult: ...
+
+
+def _check_common(name: str, lower: float, upper: float, n_samples: int) -> None:
+    if not (math.isfinite(lower) and math.isfinite(upper) and lower < upper):
+        raise InputError(f"{name} bounds must be finite with lower < upper, got {lower}, {upper}")
+    if n_samples < 2:
+        raise InputError(f"{name}.n_samples must be >= 2, got {n_samples}")
+
+
+def _evaluate(objective: Objective, candidates: torch.Tensor) -> torch.Tensor:
+    """Costs (N,) with non-finite values replaced by +inf so they rank last."""
+    costs = objective(candidates).reshape(-1).to(torch.float64)
+    if costs.shape[0] != candidates.shape[0]:
+        raise ValueError(
+            f"objective returned {costs.shape[0]} costs for {candidates.shape[0]} candidates"
+        )
+    return torch.where(torch.isfinite(costs), costs, torch.full_like(costs, math.inf))
+
+
+def colored_noise(
+    n: int, h: int, beta: float, generator: torch.Generator, dtype: torch.dtype
+) -> torch.Tensor:
+    """Standard normal noise (n, h) with power spectrum ~ 1/f^beta along the horizon.
+
+    ``beta=0`` is white noise; larger values correlate neighbouring steps (iCEM, Pinneri et
+    al. 2020), which explores slow changes of power (pre-heating, coasting) far better than
+    independent steps. Every entry has unit variance.
+    """
+    white = torch.randn((n, h), generator=generator, dtype=dtype)
+    if beta == 0 or h < 2:
+        return white
+    freqs = torch.fft.rfftfreq(h, dtype=dtype)
+    scale = torch.ones_like(freqs)
+    scale[1:] = freqs[1:] ** (-beta / 2)
+    scale[0] = scale[1]
+    # A circular convolution of white noise with kernel irfft(scale): variance sum(kernel^2).
+    kernel_norm = torch.linalg.vector_norm(torch.fft.irfft(scale, n=h))
+    return torch.fft.irfft(torch.fft.rfft(white, dim=1) * scale, n=h, dim=1) / kernel_norm
+
+
+def _snap(x: torch.Tensor, lower: float, upper: float) -> torch.Tensor:
+    """Round to the nearer of ``lower`` / ``upper`` (on/off actions)."""
+    return torch.where(x >= 0.5 * (lower + upper), upper, lower).to(x.dtype)
+
+
+@dataclass(frozen=True, kw_only=True)
+class RandomShootingPlanner:
+    """Sample ``n_samples`` sequences once (uniform, or fair coin flips when binary); keep the best.
+
+    The warm start replaces the first sample.
+    """
+
+    lower: float
+    upper: float
+    n_samples: int = 1000
+    binary: bool = False
+
+    def __post_init__(self) -> None:
+        _check_common("RandomShootingPlanner", self.lower, self.upper, self.n_samples)
+
+    def optimize(
+        self, objective: Objective, x0: torch.Tensor, generator: torch.Generator
+    ) -> PlanResult:
+        """x0 (H,) [W] -> the best of ``n_samples`` candidates (one objective call)."""
+        h = x0.shape[0]
+        r = torch.rand((self.n_samples, h), generator=generator, dtype=x0.dtype)
+        if self.binary:
+            samples = torch.where(r < 0.5, self.upper, self.lower).to(x0.dtype)
+            samples[0] = _snap(x0, self.lower, self.upper)
+        else:
+            samples = self.lower + (self.upper - self.lower) * r
+            samples[0] = x0.clamp(self.lower, self.upper)
+        costs = _evaluate(objective, samples)
+        best = int(torch.argmin(costs))
+        return PlanResult(samples[best].clone(), float(costs[best]), 1, self.n_samples)
+
+
+@dataclass(frozen=True, kw_only=True)
+class CEMPlanner:
+    """Cross-entropy method, warm-started and elitist.
+
+    Continuous actions: a Gaussian per step (mean from ``x0``, std ``init_std_frac`` x range),
+    samples clipped to the bounds (clipping puts mass on the bounds, where optima of
+    energy/comfort problems often lie). Binary actions: a Bernoulli per step, started halfway
+    between 1/2 and the warm start (0.25 or 0.75). Each iteration refits the distribution to the
+    ``elite_frac`` best samples with smoothing ``alpha`` (the weight kept on the old
+    distribution, mbrl-lib's convention). The current mean (continuous) and the best sequence so
+    far are re-evaluated among the samples, so the returned cost never increases with iterations.
+    """
+
+    lower: float
+    upper: float
+    n_samples: int = 128
+    n_iters: int = 3
+    elite_frac: float = 0.05
+    alpha: float = 0.1
+    init_std_frac: float = 0.5
+    noise_beta: float = 2.0
+    binary: bool = False
+
+    def __post_init__(self) -> None:
+        _check_common("CEMPlanner", self.lower, self.upper, self.n_samples)
+        if self.n_iters < 1:
+            raise InputError(f"CEMPlanner.n_iters must be >= 1, got {self.n_iters}")
+        if not (0.0 < self.elite_frac <= 1.0) or self.n_elites < 2:
+            raise InputError(
+                f"CEMPlanner.elite_frac={self.elite_frac} must lie in (0, 1] and give at least 2 "
+                f"elites of n_samples={self.n_samples}; raise elite_frac or n_samples"
+            )
+        if not (0.0 <= self.alpha < 1.0):
+            raise InputError(f"CEMPlanner.alpha must lie in [0, 1), got {self.alpha}")
+        if not (self.init_std_frac > 0 and math.isfinite(self.init_std_frac)):
+            raise InputError(f"CEMPlanner.init_std_frac must be > 0, got {self.init_std_frac}")
+        if not (0.0 <= self.noise_beta <= 4.0):
+            raise InputError(
+                f"CEMPlanner.noise_beta must be in [0, 4] (0 white, 2 typical), got {self.noise_beta}"
+            )
+
+    @property
+    def n_elites(self) -> int:
+        return math.ceil(self.elite_frac * self.n_samples)
+
+    def optimize(
+        self, objective: Objective, x0: torch.Tensor, generator: torch.Generator
+    ) -> PlanResult:
+        """x0 (H,) [W] -> best sequence after ``n_iters`` objective calls of ``n_samples`` each."""
+        h, dtype = x0.shape[0], x0.dtype
+        span = self.upper - self.lower
+        if self.binary:
+            best = _snap(x0, self.lower, self.upper)
+            mean = 0.25 + 0.5 * (best - self.lower) / span  # probability of "on"
+            std = torch.zeros_like(mean)
+        else:
+            best = x0.clamp(self.lower, self.upper)
+            mean = best.clone()
+            std = torch.full_like(mean, self.init_std_frac * span)
+        best_cost = math.inf
+        for _ in range(self.n_iters):
+            if self.binary:
+                r = torch.rand((self.n_samples, h), generator=generator, dtype=dtype)
+                samples = torch.where(r < mean, self.upper, self.lower).to(dtype)
+                samples[0] = best
+            else:
+                noise = colored_noise(self.n_samples, h, self.noise_beta, generator, dtype)
+                samples = (mean + std * noise).clamp(self.lower, self.upper)
+                samples[0] = best
+                samples[1] = mean
+            costs = _evaluate(objective, samples)
+            order = torch.argsort(costs)
+            if float(costs[order[0]]) <= best_cost:
+                best_cost = float(costs[order[0]])
+                best = samples[order[0]].clone()
+            elites = samples[order[: self.n_elites]]
+            if self.binary:
+                freq = (elites - self.lower) / span
+                mean = self.alpha * mean + (1 - self.alpha) * freq.mean(dim=0)
+            else:
+                mean = self.alpha * mean + (1 - self.alpha) * elites.mean(dim=0)
+                std = self.alpha * std + (1 - self.alpha) * elites.std(dim=0)
+        return PlanResult(best, best_cost, self.n_iters, self.n_iters * self.n_samples)

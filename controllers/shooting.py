@@ -1,0 +1,341 @@
+"""Random shooting and CEM controllers over batched dynamics models (learned or physical).
+
+Every ``act`` builds an objective over candidate demand sequences (N, H) [W] and hands it to a
+planner of :mod:`controllers.planners`. The objective rolls all candidates and all ensemble
+members out in one :meth:`BatchDynamics.rollout` call under ``torch.no_grad`` and scores them
+with exactly :func:`controllers.base.plan_cost`: price x delivered energy + comfort weight x band
+violation x dt_h, where *delivered* is the model's predicted ``u_phys`` (so the planner knows
+the backup thermostat will override it) and the temperature is the predicted ``T_r`` at the end
+of each interval. Over ensemble members the cost is ``mean + risk_weight * std`` (population
+std over members; ``risk_weight=0`` is the plain ensemble average).
+
+The plan is warm-started from the previous plan shifted by one step (its last action
+repeated); the first plan starts from half power.
+
+Fallback (never an exception out of ``act``): when the history is shorter than the model needs
+(``depth + 1`` past intervals), when the model returns a non-finite value, or when anything
+else fails, the controller returns :func:`controllers.base.fallback_power` (the band-keeping
+rule on the measured room temperature), sets ``last_stats.fallback=True`` with the reason in
+``status``, clears ``last_plan`` and restarts the next warm start from scratch.
+
+Speed: the rollout is a few small tensor ops per horizon step; on a shared 2-core machine one
+intra-op thread is fastest (``torch.set_num_threads(1)`` in the caller).
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Protocol
+
+import numpy as np
+import torch
+
+from controllers.base import ControlSpec, Forecast, Observation, SolveStats, fallback_power
+from controllers.planners import CEMPlanner, Objective, Planner, RandomShootingPlanner
+from pinn_mpc.errors import InputError
+from pinn_mpc.physics import RCParams, discretise
+
+#: Model exogenous input name -> Forecast field.
+FORECAST_FIELDS = {
+    "time_of_day_h": "time_of_day_h",
+    "T_a": "t_a_c",
+    "G": "g_w_per_m2",
+    "I_g": "i_g_w",
+}
+
+
+class RolloutLike(Protocol):
+    """Predictions for M members x N candidates x H intervals."""
+
+    @property
+    def t_r_c(self) -> torch.Tensor: ...  # (M, N, H) room temperature at interval ends [C]
+
+    @property
+    def u_phys_w(self) -> torch.Tensor: ...  # (M, N, H) delivered power [W]
+
+
+class BatchDynamics(Protocol):
+    """What a planner needs of a model (pinn_mpc's LearnedModel and :class:`RCBatchModel`).
+
+    ``rollout(history, u_w, exog)``: ``history`` as in :class:`controllers.base.Observation`,
+    ``u_w`` (N, H) demanded power [W], ``exog`` one array (H,) per name in ``exog_names``.
+    The model needs ``depth + 1`` past intervals of history.
+    """
+
+    @property
+    def n_members(self) -> int: ...
+
+    @property
+    def depth(self) -> int: ...
+
+    @property
+    def exog_names(self) -> tuple[str, ...]: ...
+
+    def rollout(
+        self, history: dict[str, np.ndarray], u_w: torch.Tensor, exog: dict[str, np.ndarray]
+    ) -> RolloutLike: ...
+
+
+class _Rollout:
+    """Concrete rollout of :class:`RCBatchModel`: tensors (1, N, H)."""
+
+    def __init__(self, t_r_c: torch.Tensor, u_phys_w: torch.Tensor, t_m_c: torch.Tensor):
+        self.t_r_c, self.u_phys_w, self.t_m_c = t_r_c, u_phys_w, t_m_c
+
+
+class RCBatchModel:
+    """The 2R2C physics as a one-member batch model (exact ZOH over each control interval).
+
+    The backup thermostat is approximated per interval by clipping on the room temperature at
+    the start of the interval (full power below ``backup_low_c``, off above ``backup_high_c``
+    for a heater; mirrored for cooling). The hidden ``T_m`` now is taken from ``history['T_m']``
+    when present (simulated data), else reconstructed from the last interval by inverting the
+    T_r row of the discrete model (exact for noise-free data without a backup override).
+    """
+
+    n_members = 1
+    depth = 0
+    exog_names = ("T_a", "G", "I_g")
+
+    def __init__(
+        self,
+        params: RCParams,
+        *,
+        dt_s: float,
+        u_max_w: float,
+        backup_low_c: float = 17.0,
+        backup_high_c: float = 20.5,
+    ):
+        self.params = params
+        self.u_max_w = u_max_w
+        self.backup_low_c, self.backup_high_c = backup_low_c, backup_high_c
+        self.ad, self.bd = discretise(params, dt_s)
+
+    def state_now(self, history: dict[str, np.ndarray]) -> tuple[float, float]:
+        """Current ``(T_r, T_m)`` [C] from the history (see the class docstring)."""
+        t_r = np.asarray(history["T_r"], dtype=float)
+        if "T_m" in history:
+            return float(t_r[-1]), float(np.asarray(history["T_m"])[-1])
+        zeros = np.zeros_like(t_r)
+        d = np.array(
+            [
+                np.asarray(history["u_phys"], dtype=float)[-1],
+                np.asarray(history["T_a"], dtype=float)[-2],
+                np.asarray(history.get("G", zeros), dtype=float)[-2],
+                np.asarray(history.get("I_g", zeros), dtype=float)[-2],
+            ]
+        )
+        (a00, a01), (a10, a11) = self.ad
+        t_m_prev = (t_r[-1] - a00 * t_r[-2] - self.bd[0] @ d) / a01
+        return float(t_r[-1]), float(a10 * t_r[-2] + a11 * t_m_prev + self.bd[1] @ d)
+
+    def rollout(
+        self, history: dict[str, np.ndarray], u_w: torch.Tensor, exog: dict[str, np.ndarray]
+    ) -> _Rollout:
+        """u_w (N, H) [W] -> tensors (1, N, H) of end-of-interval T_r, T_m and delivered power."""
+        n, h = u_w.shape
+        t_r0, t_m0 = self.state_now(history)
+        d = np.stack([np.asarray(exog[k], dtype=float)[:h] for k in self.exog_names], axis=1)
+        drift = torch.as_tensor(d @ self.bd[:, 1:].T, dtype=u_w.dtype)  # (H, 2)
+        (a00, a01), (a10, a11) = self.ad.tolist()
+        b0, b1 = self.bd[:, 0].tolist()
+        t_r = torch.full((n,), t_r0, dtype=u_w.dtype)
+        t_m = torch.full((n,), t_m0, dtype=u_w.dtype)
+        on, off = (self.backup_low_c, self.backup_high_c)
+        out_r, out_m, out_u = [], [], []
+        for j in range(h):
+            force_on, force_off = (t_r < on, t_r > off)
+            if not self.params.heating:
+                force_on, force_off = force_off, force_on
+            p = torch.where(force_on, self.u_max_w, torch.where(force_off, 0.0, u_w[:, j]))
+            t_r, t_m = (
+                a00 * t_r + a01 * t_m + b0 * p + drift[j, 0],
+                a10 * t_r + a11 * t_m + b1 * p + drift[j, 1],
+            )
+            out_r.append(t_r)
+            out_m.append(t_m)
+            out_u.append(p)
+        return _Rollout(
+            torch.stack(out_r, 1)[None], torch.stack(out_u, 1)[None], torch.stack(out_m, 1)[None]
+        )
+
+
+class _NonFiniteModelOutput(Exception):
+    pass
+
+
+class _SamplingController:
+    """Shared ``reset``/``act`` of the sampling controllers (see the module docstring)."""
+
+    name = "sampling"
+
+    def __init__(
+        self, model: BatchDynamics, spec: ControlSpec, planner: Planner, *, risk_weight: float
+    ):
+        for name in model.exog_names:
+            if name not in FORECAST_FIELDS:
+                raise InputError(
+                    f"{type(self).__name__}: model exogenous input {name!r} has no forecast; "
+                    f"known inputs are {sorted(FORECAST_FIELDS)}"
+                )
+        if not (risk_weight >= 0 and np.isfinite(risk_weight)):
+            raise InputError(f"{type(self).__name__}.risk_weight must be >= 0, got {risk_weight}")
+        self.model, self.spec, self.planner, self.risk_weight = model, spec, planner, risk_weight
+        self._plan: np.ndarray | None = None
+        self._stats = SolveStats(time_s=0.0, status="not started", iterations=0, fallback=False)
+        self.last_cost_eur = float("nan")
+        self.reset()
+
+    def reset(self, seed: int | None = None) -> None:
+        """Forget the warm start; reseed the sampling generator (entropy when ``seed`` is None)."""
+        self._generator = torch.Generator()
+        if seed is None:
+            self._generator.seed()
+        else:
+            self._generator.manual_seed(seed)
+        self._plan = None
+        self._stats = SolveStats(time_s=0.0, status="reset", iterations=0, fallback=False)
+
+    @property
+    def last_plan(self) -> np.ndarray | None:
+        """(H,) demanded power of the last plan [W]; None after a fallback."""
+        return None if self._plan is None else self._plan.copy()
+
+    @property
+    def last_stats(self) -> SolveStats:
+        return self._stats
+
+    def act(self, obs: Observation, forecast: Forecast) -> float:
+        """Demanded power for the coming interval [W], in ``[0, u_max_w]``."""
+        start = time.perf_counter()
+        try:
+            if len(obs.history["u_phys"]) < self.model.depth + 1:
+                return self._fallback(obs, forecast, start, "short history")
+            plan, cost, iterations = self._solve(obs, forecast)
+        except _NonFiniteModelOutput:
+            return self._fallback(obs, forecast, start, "non-finite model output")
+        except Exception as exc:  # a failed solve must not stop a closed-loop run
+            return self._fallback(obs, forecast, start, f"error {type(exc).__name__}: {exc}")
+        self._plan, self.last_cost_eur = plan, cost
+        self._stats = SolveStats(
+            time_s=time.perf_counter() - start, status="ok", iterations=iterations, fallback=False
+        )
+        return float(np.clip(plan[0], 0.0, self.spec.u_max_w))
+
+    def _fallback(self, obs: Observation, forecast: Forecast, start: float, reason: str) -> float:
+        self._plan, self.last_cost_eur = None, float("nan")
+        try:
+            action = fallback_power(obs, forecast, self.spec)
+        except Exception:  # e.g. an empty forecast: off is safe behind the backup thermostat
+            action = 0.0
+        self._stats = SolveStats(
+            time_s=time.perf_counter() - start,
+            status=f"fallback: {reason}",
+            iterations=0,
+            fallback=True,
+        )
+        return action
+
+    def _warm_start(self, h: int) -> torch.Tensor:
+        if self._plan is None:
+            x0 = np.full(h, 0.5 * self.spec.u_max_w)
+        else:
+            shifted = np.append(self._plan[1:], self._plan[-1])
+            x0 = np.pad(shifted, (0, max(h - len(shifted), 0)), mode="edge")[:h]
+        return torch.as_tensor(x0, dtype=torch.float32)
+
+    def _solve(self, obs: Observation, forecast: Forecast) -> tuple[np.ndarray, float, int]:
+        h = min(self.spec.horizon_steps, forecast.horizon)
+        if h < 1:
+            raise InputError("the forecast is empty")
+        objective = self._objective(obs.history, forecast, h)
+        result = self.planner.optimize(objective, self._warm_start(h), self._generator)
+        if not np.isfinite(result.cost):
+            raise _NonFiniteModelOutput
+        return result.plan.numpy().astype(float), result.cost, result.iterations
+
+    def _objective(self, history: dict[str, np.ndarray], forecast: Forecast, h: int) -> Objective:
+        exog = {k: np.asarray(getattr(forecast, FORECAST_FIELDS[k]))[:h] for k in self.model.exog_names}
+        dtype = torch.float32
+        price = torch.tensor(forecast.price_eur_per_kwh[:h], dtype=dtype)
+        t_min = torch.tensor(forecast.t_min_c[:h], dtype=dtype)
+        t_max = torch.tensor(forecast.t_max_c[:h], dtype=dtype)
+        dt_h, weight = self.spec.dt_h, self.spec.comfort_weight_eur_per_kh
+
+        def objective(u_w: torch.Tensor) -> torch.Tensor:
+            with torch.no_grad():
+                roll = self.model.rollout(history, u_w, exog)
+                t_r, u_phys = roll.t_r_c.to(dtype), roll.u_phys_w.to(dtype)
+                if not (bool(torch.isfinite(t_r).all()) and bool(torch.isfinite(u_phys).all())):
+                    raise _NonFiniteModelOutput
+                violation = torch.relu(t_min - t_r) + torch.relu(t_r - t_max)
+                step_cost = u_phys * (dt_h / 1000.0) * price + weight * dt_h * violation
+                cost = step_cost.sum(dim=-1)  # (M, N)
+                if self.risk_weight > 0 and cost.shape[0] > 1:
+                    return cost.mean(0) + self.risk_weight * cost.std(0, correction=0)
+                return cost.mean(0)
+
+        return objective
+
+
+_RS = RandomShootingPlanner(lower=0.0, upper=1.0)  # the defaults, defined once in the planners
+_CEM = CEMPlanner(lower=0.0, upper=1.0)
+
+
+class RandomShooting(_SamplingController):
+    """Random shooting over a model: ``n_samples`` sequences scored once, the best one applied."""
+
+    name = "random-shooting"
+
+    def __init__(
+        self,
+        model: BatchDynamics,
+        spec: ControlSpec,
+        *,
+        n_samples: int = _RS.n_samples,
+        binary: bool = False,
+        risk_weight: float = 0.0,
+    ):
+        planner = RandomShootingPlanner(
+            lower=0.0, upper=spec.u_max_w, n_samples=n_samples, binary=binary
+        )
+        super().__init__(model, spec, planner, risk_weight=risk_weight)
+
+
+class CEM(_SamplingController):
+    """Cross-entropy method over a model (see :class:`controllers.planners.CEMPlanner`).
+
+    The defaults (128 samples x 3 iterations, 5 % elites, pink noise ``noise_beta=2``) keep a
+    decision with a 5-member PhysNet ensemble at a 48-step horizon near 100 ms on 2 shared
+    cores (``benchmarks/bench_planners.py``); the warm start carries the search across
+    decisions, so in receding horizon the plans approach what more iterations would give.
+    """
+
+    name = "cem"
+
+    def __init__(
+        self,
+        model: BatchDynamics,
+        spec: ControlSpec,
+        *,
+        n_samples: int = _CEM.n_samples,
+        n_iters: int = _CEM.n_iters,
+        elite_frac: float = _CEM.elite_frac,
+        alpha: float = _CEM.alpha,
+        init_std_frac: float = _CEM.init_std_frac,
+        noise_beta: float = _CEM.noise_beta,
+        binary: bool = False,
+        risk_weight: float = 0.0,
+    ):
+        planner = CEMPlanner(
+            lower=0.0,
+            upper=spec.u_max_w,
+            n_samples=n_samples,
+            n_iters=n_iters,
+            elite_frac=elite_frac,
+            alpha=alpha,
+            init_std_frac=init_std_frac,
+            noise_beta=noise_beta,
+            binary=binary,
+        )
+        super().__init__(model, spec, planner, risk_weight=risk_weight)
