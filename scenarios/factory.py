@@ -25,6 +25,10 @@ TRUTH_CONTROLLERS = ("oracle", "clairvoyant")
 CONTROLLER_NAMES = ("thermostat", *MODEL_CONTROLLERS, *RC_CONTROLLERS, *TRUTH_CONTROLLERS)
 
 
+def _unknown(name: str) -> InputError:
+    return InputError(f"unknown controller {name!r}; choose one of {', '.join(CONTROLLER_NAMES)}")
+
+
 def read_rc(path: str | os.PathLike[str]) -> RCParams:
     """RC parameters from the JSON written by ``identify`` / ``export-rc``."""
     source = Path(path)
@@ -35,9 +39,13 @@ def read_rc(path: str | os.PathLike[str]) -> RCParams:
     try:
         data = json.loads(source.read_text(encoding="utf-8"))
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise InputError(f"{source}: not valid JSON ({exc}); expected the RC JSON of identify") from exc
+        raise InputError(
+            f"{source}: not valid JSON ({exc}); expected the RC JSON of identify or export-rc"
+        ) from exc
     if not isinstance(data, dict):
-        raise InputError(f"{source}: expected a JSON object of RC parameters, got {type(data).__name__}")
+        raise InputError(
+            f"{source}: expected a JSON object of RC parameters, got {type(data).__name__}"
+        )
     try:
         return params_from_summary(data)
     except InputError as exc:
@@ -95,7 +103,7 @@ def build_controller(
         from controllers.oracle import Clairvoyant
 
         return Clairvoyant(scenario.sim.params, spec, n_steps)
-    raise InputError(f"unknown controller {name!r}; choose one of {', '.join(CONTROLLER_NAMES)}")
+    raise _unknown(name)
 
 
 def make_controller(
@@ -111,10 +119,11 @@ def make_controller(
     A model or RC file given to a controller that does not use it is an error, not ignored.
     """
     if name not in CONTROLLER_NAMES:
-        raise InputError(f"unknown controller {name!r}; choose one of {', '.join(CONTROLLER_NAMES)}")
+        raise _unknown(name)
     if model_dir is not None and name not in MODEL_CONTROLLERS:
         raise InputError(
-            f"--model is not used by controller {name!r}; only {', '.join(MODEL_CONTROLLERS)} take it"
+            f"--model is not used by controller {name!r}; "
+            f"only {', '.join(MODEL_CONTROLLERS)} take it"
         )
     if rc_path is not None and name not in RC_CONTROLLERS:
         raise InputError(

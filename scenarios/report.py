@@ -73,7 +73,9 @@ def rc_table_markdown(rc: Mapping[str, Mapping[str, Any]]) -> list[str]:
     sources = list(rc)
     body = []
     for key, label, scale, unit in RC_ROWS:
-        cells = [_cell(float(rc[s][key]) * scale if key in rc[s] else None, "{:.4g}") for s in sources]
+        cells = [
+            _cell(float(rc[s][key]) * scale if key in rc[s] else None, "{:.4g}") for s in sources
+        ]
         body.append([f"{label} [{unit}]", *cells])
     for which in ("fast", "slow"):
         cells = [_cell(rc[s].get("time_constants_h", {}).get(which), "{:.3g}") for s in sources]
@@ -108,14 +110,17 @@ def render_report(
         "",
     ]
     headers = ["controller", *(h for _, h, _ in KPI_COLUMNS)]
-    body = [[f"`{r['controller']}`", *(_cell(r.get(k), f) for k, _, f in KPI_COLUMNS)] for r in rows]
+    body = [
+        [f"`{r['controller']}`", *(_cell(r.get(k), f) for k, _, f in KPI_COLUMNS)] for r in rows
+    ]
     lines += _markdown_table(headers, body)
     lines += [
         "",
         "## RC parameters",
         "",
         "The true building, the parameters identified from the training data (grey-box, T_m "
-        "hidden) and those exported from the trained PhysNet ensemble (mean over members).",
+        "hidden) and those exported from the trained PhysNet ensemble (geometric mean over "
+        "members).",
         "",
         *rc_table_markdown(rc),
         "",

@@ -31,7 +31,12 @@ def imported_layers(source: str) -> set[str]:
 
 
 def test_detector_sees_lazy_and_from_imports():
-    src = "import numpy\ndef f():\n    from scenarios.kpis import KPI_KEYS\nimport controllers.base\n"
+    src = (
+        "import numpy\n"
+        "def f():\n"
+        "    from scenarios.kpis import KPI_KEYS\n"
+        "import controllers.base\n"
+    )
     assert imported_layers(src) == {"scenarios", "controllers"}
 
 
