@@ -1,0 +1,116 @@
+"""Accuracy of a learned model on data: one-step and recursive multi-step errors.
+
+- one step: MAE of the ensemble-mean T_r,i+1, u_phys,i and (when the data has it) T_m,i.
+- h steps: from every start i with enough data, roll the model forward recursively over the
+  measured demand u and exogenous inputs (paper section 5.2), and compare T_r,i+h; MAE of the
+  ensemble mean and the standard deviation of the members' MAEs.
+- persistence: T_r,i+h predicted as T_r,i, over the same starts.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+import pandas as pd
+import torch
+
+from pinn_mpc.artifacts import load_model
+from pinn_mpc.data import read_timeseries, validate_timeseries
+from pinn_mpc.errors import InputError
+from pinn_mpc.features import time_of_day_h
+from pinn_mpc.io import atomic_write_json
+from pinn_mpc.models import LearnedModel
+
+
+def _mae(a: np.ndarray, b: np.ndarray) -> float:
+    return float(np.mean(np.abs(a - b)))
+
+
+def recursive_t_r(model: LearnedModel, df: pd.DataFrame, horizon: int) -> tuple[np.ndarray, np.ndarray]:
+    """Recursive predictions of T_r,i+h for every possible start i.
+
+    Returns ``(pred (M, N) [C], starts (N,) row indices i)``; raises InputError when the frame
+    is too short for one start.
+    """
+    k, f = model.depth, model.features
+    n = len(df)
+    starts = np.arange(k + 1, n - horizon)
+    if len(starts) == 0:
+        raise InputError(
+            f"evaluation data has {n} rows; depth {k} and horizon {horizon} need at least "
+            f"{k + 2 + horizon} rows; give more data or smaller --horizons"
+        )
+    t_r = (df["T_r"].to_numpy(dtype=float) - f.temperature.mean) / f.temperature.std
+    u_phys = (df["u_phys"].to_numpy(dtype=float) - f.power.mean) / f.power.std
+    u = (df["u"].to_numpy(dtype=float) - f.power.mean) / f.power.std
+    exog = f.scale_exog({name: df[name].to_numpy(dtype=float) for name in f.exog_series})
+    tod = f.encode_time(time_of_day_h(df["time"]))
+    back = np.arange(-k, 1)
+    ahead = np.arange(horizon)
+    t_win = t_r[starts[:, None] + back]
+    p_win = u_phys[starts[:, None] + back - 1]
+    e_seq = exog[:, starts[:, None] + np.arange(-k, horizon)].transpose(1, 0, 2)  # (N, n_e, k+H)
+    roll = model.rollout_scaled(
+        torch.from_numpy(t_win.astype(np.float32)),
+        torch.from_numpy(p_win.astype(np.float32)),
+        torch.from_numpy(np.ascontiguousarray(e_seq, dtype=np.float32)),
+        torch.from_numpy(u[starts[:, None] + ahead].astype(np.float32)),
+        torch.from_numpy(tod[starts[:, None] + ahead]),
+    )
+    return roll.t_r_c[..., horizon - 1].numpy().astype(float), starts
+
+
+def evaluate_model(model: LearnedModel, df: pd.DataFrame, horizons: Sequence[int]) -> dict[str, Any]:
+    """Metrics dict: ``one_step`` {T_r_mae, u_phys_mae, T_m_mae (None without T_m)},
+    ``horizons`` {"h": {T_r_mae, T_r_mae_std}}, ``persistence`` {"horizons": {"h": {T_r_mae}}}.
+    MAEs in C (u_phys in W) of the ensemble mean; ``T_r_mae_std`` is the std over members."""
+    if not horizons or min(horizons) < 1:
+        raise InputError(f"horizons must be whole numbers >= 1, got {list(horizons)}")
+    df = validate_timeseries(df, source="evaluation data")
+    one = model.predict_one_step(df)
+    rows = np.asarray(one["row"])
+    t_r = df["T_r"].to_numpy(dtype=float)
+    t_r_next = one["T_r_next"]
+    u_phys = one["u_phys"]
+    t_m_mae = None
+    if one["T_m"] is not None and "T_m" in df.columns:
+        t_m_mae = _mae(one["T_m"].mean(axis=0), df["T_m"].to_numpy(dtype=float)[rows])
+    out: dict[str, Any] = {
+        "one_step": {
+            "T_r_mae": _mae(t_r_next.mean(axis=0), t_r[rows + 1]),
+            "u_phys_mae": _mae(u_phys.mean(axis=0), df["u_phys"].to_numpy(dtype=float)[rows]),
+            "T_m_mae": t_m_mae,
+        },
+        "horizons": {},
+        "persistence": {"horizons": {}},
+    }
+    for h in sorted(set(int(v) for v in horizons)):
+        pred, starts = recursive_t_r(model, df, h)
+        truth = t_r[starts + h]
+        members = np.mean(np.abs(pred - truth), axis=1)
+        out["horizons"][str(h)] = {
+            "T_r_mae": _mae(pred.mean(axis=0), truth),
+            "T_r_mae_std": float(np.std(members)),
+        }
+        out["persistence"]["horizons"][str(h)] = {"T_r_mae": _mae(t_r[starts], truth)}
+    return out
+
+
+def evaluate_to_json(
+    *, model: str, data: str, horizons: Sequence[int], columns: str | None, json_path: str
+) -> str:
+    """CLI ``evaluate``: load the model and data, write the metrics JSON; returns a summary."""
+    learned = load_model(model)
+    df = read_timeseries(data, columns=columns)
+    metrics = evaluate_model(learned, df, horizons)
+    atomic_write_json(json_path, metrics)
+    one = metrics["one_step"]
+    last = max(int(h) for h in metrics["horizons"])
+    t_m = f", T_m {one['T_m_mae']:.3f} C" if one["T_m_mae"] is not None else ""
+    return (
+        f"one-step MAE: T_r {one['T_r_mae']:.3f} C, u_phys {one['u_phys_mae']:.0f} W{t_m}; "
+        f"{last}-step T_r MAE {metrics['horizons'][str(last)]['T_r_mae']:.3f} C "
+        f"(persistence {metrics['persistence']['horizons'][str(last)]['T_r_mae']:.3f} C) -> {json_path}"
+    )

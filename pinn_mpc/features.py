@@ -1,0 +1,253 @@
+"""Feature windows of the paper (Table notation-equ) and their scaling.
+
+For sample ``i`` and depth ``k``::
+
+    x_f   = (T_r,i-k .. T_r,i-1,  u_phys,i-k-1 .. u_phys,i-2)  [+ T_a,i-k .. T_a,i-1, ...]
+    x_obs = (T_r,i,  u_phys,i-1)
+    w     = (time of day t_i, T_a,i [, G_i, I_g,i when the data has them])
+    u_i   = demanded power;  targets T_r,i+1, u_phys,i  (and T_m,i for evaluation only)
+
+Beyond the paper, ``x_f`` also holds the past k values of each exogenous input other than
+time of day: T_m,i-1 follows from T_r,i-1 -> T_r,i only with T_a,i-1 known, so without that
+history the hidden state is not determined by the inputs when the weather varies.
+
+Sample ``i`` needs rows ``i-k-1 .. i+1``, so a frame of ``n`` rows gives ``n - k - 2``
+samples. The scaled feature vector is laid out so that a recursive rollout only shifts
+windows (see :class:`FeatureConfig` for the index sets)::
+
+    [T_r,i-k .. T_r,i] [u_phys,i-k-1 .. u_phys,i-1] [T_a,i-k .. T_a,i] ([G ..] [I_g ..]) [u_i]
+    [sin, cos of the daily phase of t_i]
+
+each window k+1 long. All temperatures (T_r, T_m) share one scale, all powers (u, u_phys)
+another; T_a, G, I_g are standardised each.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, NamedTuple
+
+import numpy as np
+import pandas as pd
+
+from pinn_mpc.errors import InputError
+
+#: Exogenous inputs a model can use, in this order, with the data column each comes from.
+EXOG_COLUMNS = {"time_of_day_h": "time", "T_a": "T_a", "G": "G", "I_g": "I_g"}
+#: Samples a training set must have at least.
+MIN_TRAIN_SAMPLES = 32
+
+
+def exog_names_for(df: pd.DataFrame) -> tuple[str, ...]:
+    """The exogenous inputs a model trained on ``df`` uses: time of day, T_a (+ G, I_g if present)."""
+    return ("time_of_day_h", "T_a") + tuple(c for c in ("G", "I_g") if c in df.columns)
+
+
+def time_of_day_h(time: pd.Series) -> np.ndarray:
+    """(n,) hours since midnight [h] of a datetime64 column."""
+    t = pd.to_datetime(time)
+    return ((t - t.dt.normalize()).dt.total_seconds() / 3600.0).to_numpy(dtype=float)
+
+
+@dataclass(frozen=True, kw_only=True)
+class Standard:
+    """``scaled = (value - mean) / std``; std is at least 1e-6 of the unit (constant columns)."""
+
+    mean: float
+    std: float
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.mean) and math.isfinite(self.std) and self.std > 0):
+            raise InputError(f"scaling must be finite with std > 0, got mean={self.mean}, std={self.std}")
+
+    @classmethod
+    def fit(cls, values: np.ndarray) -> Standard:
+        std = float(np.std(values))
+        return cls(mean=float(np.mean(values)), std=std if std > 1e-6 else 1.0)
+
+    def to_dict(self) -> dict[str, float]:
+        return {"mean": self.mean, "std": self.std}
+
+
+@dataclass(frozen=True, kw_only=True)
+class FeatureConfig:
+    """Depth, exogenous inputs, step and the scaling fitted on the training data."""
+
+    depth: int
+    exog_names: tuple[str, ...]
+    dt_s: float
+    temperature: Standard  # T_r, T_m windows and outputs [C]
+    power: Standard  # u_phys windows, u, u_phys output [W]
+    delta_t_r: Standard  # T_r,i+1 - T_r,i, the regression target [K]
+    exog: dict[str, Standard] = field(default_factory=dict)  # T_a, G, I_g
+
+    def __post_init__(self) -> None:
+        if self.depth < 1:
+            raise InputError(f"depth must be >= 1, got {self.depth}")
+        if self.exog_names[:2] != ("time_of_day_h", "T_a"):
+            raise InputError(f"exog_names must start with time_of_day_h, T_a, got {self.exog_names}")
+        unknown = set(self.exog_names) - set(EXOG_COLUMNS)
+        if unknown:
+            raise InputError(f"unknown exogenous input(s) {sorted(unknown)}; known {list(EXOG_COLUMNS)}")
+        missing = [n for n in self.exog_names[1:] if n not in self.exog]
+        if missing:
+            raise InputError(f"feature config lacks scaling for {missing}")
+
+    @property
+    def exog_series(self) -> tuple[str, ...]:
+        """Exogenous inputs with a history window (all but time of day)."""
+        return self.exog_names[1:]
+
+    @property
+    def n_features(self) -> int:
+        return (2 + len(self.exog_series)) * (self.depth + 1) + 1 + 2
+
+    @property
+    def u_index(self) -> int:
+        """Index of the demanded power u_i."""
+        return (2 + len(self.exog_series)) * (self.depth + 1)
+
+    def window_start(self, j: int) -> int:
+        """Index where window j starts: 0 T_r, 1 u_phys, 2.. the exogenous series."""
+        return j * (self.depth + 1)
+
+    def x_f_index(self) -> list[int]:
+        """Indices of x_f: the first k values of every window."""
+        n_win = 2 + len(self.exog_series)
+        return [self.window_start(j) + p for j in range(n_win) for p in range(self.depth)]
+
+    def now_index(self) -> list[int]:
+        """Indices of x_obs, u_i and w_i: the last value of every window, u, time of day."""
+        n_win = 2 + len(self.exog_series)
+        last = [self.window_start(j) + self.depth for j in range(n_win)]
+        return last + [self.u_index, self.u_index + 1, self.u_index + 2]
+
+    @property
+    def min_rows(self) -> int:
+        """Rows needed for one sample."""
+        return self.depth + 3
+
+    def scale_exog(self, exog: dict[str, np.ndarray]) -> np.ndarray:
+        """Exogenous series, each (n,) -> standardised (n_series, n), float32."""
+        out = [
+            (np.asarray(exog[n], dtype=float) - self.exog[n].mean) / self.exog[n].std
+            for n in self.exog_series
+        ]
+        return np.asarray(out, dtype=np.float32).reshape(len(self.exog_series), -1)
+
+    @staticmethod
+    def encode_time(time_of_day_h: np.ndarray) -> np.ndarray:
+        """Hours since midnight (n,) -> (n, 2) sin, cos of the daily phase, float32."""
+        phase = 2.0 * np.pi * np.asarray(time_of_day_h, dtype=float) / 24.0
+        return np.stack([np.sin(phase), np.cos(phase)], axis=-1).astype(np.float32)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "depth": self.depth,
+            "exog_names": list(self.exog_names),
+            "dt_s": self.dt_s,
+            "temperature": self.temperature.to_dict(),
+            "power": self.power.to_dict(),
+            "delta_t_r": self.delta_t_r.to_dict(),
+            "exog": {k: v.to_dict() for k, v in self.exog.items()},
+        }
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> FeatureConfig:
+        return cls(
+            depth=int(data["depth"]),
+            exog_names=tuple(data["exog_names"]),
+            dt_s=float(data["dt_s"]),
+            temperature=Standard(**data["temperature"]),
+            power=Standard(**data["power"]),
+            delta_t_r=Standard(**data["delta_t_r"]),
+            exog={k: Standard(**v) for k, v in data["exog"].items()},
+        )
+
+
+class Windows(NamedTuple):
+    """Samples of a frame, scaled. S samples, F features."""
+
+    x: np.ndarray  # (S, F) float32 scaled features
+    t_r: np.ndarray  # (n,) measured T_r of all rows [C]
+    u_phys: np.ndarray  # (n,) delivered power of all rows [W]
+    exog_raw: np.ndarray  # (n, 3) T_a [C], G [W/m2], I_g [W] of all rows (0 when absent)
+    t_m: np.ndarray | None  # (n,) T_m of all rows [C] when the data has it
+    rows: np.ndarray  # (S,) row index i of each sample
+
+    @property
+    def t_r_next(self) -> np.ndarray:
+        """(S,) target T_r,i+1 [C]."""
+        return self.t_r[self.rows + 1]
+
+    @property
+    def u_phys_now(self) -> np.ndarray:
+        """(S,) target u_phys,i [W]."""
+        return self.u_phys[self.rows]
+
+
+def _check_rows(df: pd.DataFrame, depth: int, min_samples: int, what: str) -> None:
+    need = depth + 2 + min_samples
+    if len(df) < need:
+        raise InputError(
+            f"{what}: data has {len(df)} rows, but depth {depth} needs at least {need} rows "
+            f"({min_samples} sample(s) of depth+3 consecutive rows); give more data or a smaller --depth"
+        )
+
+
+def fit_feature_config(df: pd.DataFrame, *, depth: int) -> FeatureConfig:
+    """Fit the scaling on training data (validated frame with ``attrs['dt_s']``)."""
+    if depth < 1:
+        raise InputError(f"depth must be >= 1, got {depth}")
+    _check_rows(df, depth, MIN_TRAIN_SAMPLES, "training")
+    names = exog_names_for(df)
+    t_r = df["T_r"].to_numpy(dtype=float)
+    dt_s = float(df.attrs.get("dt_s", 0.0)) or _infer_dt_s(df)
+    return FeatureConfig(
+        depth=depth,
+        exog_names=names,
+        dt_s=dt_s,
+        temperature=Standard.fit(t_r),
+        power=Standard.fit(df["u_phys"].to_numpy(dtype=float)),
+        delta_t_r=Standard.fit(np.diff(t_r)),
+        exog={n: Standard.fit(df[n].to_numpy(dtype=float)) for n in names[1:]},
+    )
+
+
+def _infer_dt_s(df: pd.DataFrame) -> float:
+    steps = np.diff(pd.to_datetime(df["time"]).to_numpy().astype("datetime64[ns]").astype(np.int64))
+    return float(np.median(steps)) / 1e9
+
+
+def make_windows(df: pd.DataFrame, cfg: FeatureConfig, *, min_samples: int = 1) -> Windows:
+    """All samples of a frame as scaled feature rows; raises InputError when too short."""
+    missing = [EXOG_COLUMNS[n] for n in cfg.exog_names if EXOG_COLUMNS[n] not in df.columns]
+    missing += [c for c in ("T_r", "u_phys") if c not in df.columns]
+    if missing:
+        raise InputError(
+            f"data lacks column(s) {missing} that the model was trained with "
+            f"(exogenous inputs {list(cfg.exog_names)}); add them or map them with --columns"
+        )
+    _check_rows(df, cfg.depth, min_samples, "features")
+    k = cfg.depth
+    n = len(df)
+    t_r = df["T_r"].to_numpy(dtype=float)
+    u_phys = df["u_phys"].to_numpy(dtype=float)
+    u = df["u"].to_numpy(dtype=float) if "u" in df.columns else u_phys
+    rows = np.arange(k + 1, n - 1)
+    t_r_s = (t_r - cfg.temperature.mean) / cfg.temperature.std
+    p_s = (u_phys - cfg.power.mean) / cfg.power.std
+    u_s = (u - cfg.power.mean) / cfg.power.std
+    offsets = np.arange(-k, 1)
+    e_s = cfg.scale_exog({name: df[name].to_numpy(dtype=float) for name in cfg.exog_series})
+    parts = [t_r_s[rows[:, None] + offsets], p_s[rows[:, None] + offsets - 1]]
+    parts += [series[rows[:, None] + offsets] for series in e_s]
+    parts += [u_s[rows, None], cfg.encode_time(time_of_day_h(df["time"]))[rows]]
+    x = np.concatenate(parts, axis=1).astype(np.float32)
+    raw = np.stack(
+        [df[c].to_numpy(dtype=float) if c in df.columns else np.zeros(n) for c in ("T_a", "G", "I_g")],
+        axis=1,
+    )
+    t_m = df["T_m"].to_numpy(dtype=float) if "T_m" in df.columns else None
+    return Windows(x=x, t_r=t_r, u_phys=u_phys, exog_raw=raw, t_m=t_m, rows=rows)

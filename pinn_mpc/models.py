@@ -1,0 +1,424 @@
+"""The paper's three networks as vectorised seed ensembles, the physics block, LearnedModel.
+
+Every layer holds the weights of all M members, shape (M, in, out), and applies them with one
+``torch.baddbmm``; inputs are (M, B, F). The architectures (paper section 2.2, appendix A):
+
+- ``mlp``: plain net, features -> 2x64 tanh -> (T_r,i+1, u_phys,i); regression loss only.
+- ``physreg``: shared trunk 2x64 tanh, linear heads for x_obs,i+1 and z_i = T_m,i
+  (Eq. physreg-forward).
+- ``physnet``: encoder x_f -> 2x24 tanh -> T_m,i; dynamics (T_m,i, x_obs,i, u_i, w_i) ->
+  1x128 tanh -> x_obs,i+1 (Eq. physnet-forward).
+
+T_r,i+1 is predicted as T_r,i plus a scaled increment. :class:`Physics` holds learnable 2R2C
+coefficients per member, positive quantities in log space with ``a11 = a12 + c13`` and
+``a22 = a21`` by construction and ``b`` keeping the sign of ``eta``. Two physics residuals:
+
+- :func:`residual_finite_difference`: the paper's Eq. est_Tm (T_r row, forward difference).
+- :func:`residual_exact`: both rows of the exactly (ZOH) discretised 2R2C, built from
+  :func:`pinn_mpc.physics.state_space_entries`; the T_m row links T_m,i to T_m,i+1 of the next
+  sample, which makes C_m identifiable. The default.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any, NamedTuple
+
+import numpy as np
+import pandas as pd
+import torch
+from torch import nn
+
+from pinn_mpc import physics
+from pinn_mpc.errors import InputError
+from pinn_mpc.features import FeatureConfig, make_windows
+
+ARCHS = ("mlp", "physreg", "physnet")
+RESIDUALS = ("exact", "finite_difference")
+HIDDEN = {"mlp": (64, 64), "physreg": (64, 64), "physnet_encoder": (24, 24), "physnet_dynamics": (128,)}
+
+
+class EnsembleLinear(nn.Module):
+    """M independent affine maps: (M, B, n_in) -> (M, B, n_out)."""
+
+    def __init__(self, n_members: int, n_in: int, n_out: int, generators: Sequence[torch.Generator]):
+        super().__init__()
+        self.weight = nn.Parameter(torch.empty(n_members, n_in, n_out))
+        self.bias = nn.Parameter(torch.empty(n_members, 1, n_out))
+        bound = 1.0 / math.sqrt(n_in)  # PyTorch's nn.Linear default, drawn per member
+        with torch.no_grad():
+            for m, g in enumerate(generators):
+                self.weight[m].uniform_(-bound, bound, generator=g)
+                self.bias[m].uniform_(-bound, bound, generator=g)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return torch.baddbmm(self.bias, x, self.weight)
+
+
+def _mlp(sizes: Sequence[int], m: int, gens: Sequence[torch.Generator]) -> nn.ModuleList:
+    return nn.ModuleList(EnsembleLinear(m, a, b, gens) for a, b in zip(sizes[:-1], sizes[1:], strict=True))
+
+
+def _run(layers: nn.ModuleList, x: torch.Tensor) -> torch.Tensor:
+    """tanh on every layer but the last (identity output, as in the paper)."""
+    for layer in layers[:-1]:
+        x = torch.tanh(layer(x))
+    out: torch.Tensor = layers[-1](x)
+    return out
+
+
+class EnsembleNet(nn.Module):
+    """One of the three architectures for M members. ``forward(x (M, B, F))`` returns
+    ``(obs (M, B, 2) scaled (dT_r, u_phys), z (M, B) scaled T_m or None)``."""
+
+    def __init__(
+        self,
+        arch: str,
+        *,
+        features: FeatureConfig,
+        n_members: int,
+        generators: Sequence[torch.Generator],
+    ):
+        super().__init__()
+        if arch not in ARCHS:
+            raise InputError(f"unknown architecture {arch!r}; choose one of {', '.join(ARCHS)}")
+        self.arch = arch
+        if arch == "physnet":
+            x_f, now = features.x_f_index(), features.now_index()
+            self.x_f_index = torch.tensor(x_f)
+            self.now_index = torch.tensor(now)
+            self.encoder = _mlp((len(x_f), *HIDDEN["physnet_encoder"], 1), n_members, generators)
+            self.dynamics = _mlp((1 + len(now), *HIDDEN["physnet_dynamics"], 2), n_members, generators)
+        else:
+            self.trunk = _mlp((features.n_features, *HIDDEN[arch]), n_members, generators)
+            self.head = EnsembleLinear(n_members, HIDDEN[arch][-1], 2, generators)
+            if arch == "physreg":
+                self.z_head = EnsembleLinear(n_members, HIDDEN[arch][-1], 1, generators)
+
+    def forward(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor | None]:
+        if self.arch == "physnet":
+            z = _run(self.encoder, x.index_select(-1, self.x_f_index))
+            dyn_in = torch.cat([z, x.index_select(-1, self.now_index)], dim=-1)
+            return _run(self.dynamics, dyn_in), z[..., 0]
+        s = x
+        for layer in self.trunk:
+            s = torch.tanh(layer(s))
+        obs = self.head(s)
+        if self.arch == "physreg":
+            return obs, self.z_head(s)[..., 0]
+        return obs, None
+
+
+_GAIN_NAMES = {"G": ("c11", "c21"), "I_g": ("c12", "c22")}
+
+
+class Physics(nn.Module):
+    """Learnable 2R2C coefficients (per second), one set per member, initialised from a prior.
+
+    Positive quantities live in log space; ``a11 = a12 + c13``, ``a22 = a21``; ``b = sign(eta)
+    * exp(log|b|)``. Solar and internal-gain coefficients are learnable only when the data has
+    ``G``/``I_g`` (softplus of a parameter, scaled by the prior's ``1/C_r``), else zero.
+    """
+
+    def __init__(self, prior: physics.RCParams, *, n_members: int, exog_names: Sequence[str]):
+        super().__init__()
+        coef = physics.to_coefficients(prior)
+        self.sign_b = 1.0 if prior.eta > 0 else -1.0
+
+        def log_param(value: float) -> nn.Parameter:
+            return nn.Parameter(torch.full((n_members,), math.log(abs(float(value)))))
+
+        self.log_a12 = log_param(coef.a12)
+        self.log_c13 = log_param(coef.c13)
+        self.log_a21 = log_param(coef.a21)
+        self.log_b = log_param(coef.b)  # log|b|
+        self.gain_scale = 1.0 / prior.c_r_j_per_k
+        self.gains = tuple(n for g in ("G", "I_g") if g in exog_names for n in _GAIN_NAMES[g])
+        for name in self.gains:
+            value = max(float(getattr(coef, name)) / self.gain_scale, 1e-3)
+            raw = value + math.log(-math.expm1(-value))  # softplus^-1
+            self.register_parameter(f"raw_{name}", nn.Parameter(torch.full((n_members,), raw)))
+
+    def coefficients(self) -> physics.Coefficients:
+        """Coefficients whose fields are tensors (M,)."""
+        a12, c13, a21 = self.log_a12.exp(), self.log_c13.exp(), self.log_a21.exp()
+        zero = torch.zeros_like(a12)
+        gains = {
+            n: nn.functional.softplus(getattr(self, f"raw_{n}")) * self.gain_scale if n in self.gains else zero
+            for n in ("c11", "c12", "c21", "c22")
+        }
+        return physics.Coefficients(
+            a11=a12 + c13, a12=a12, a21=a21, a22=a21, b=self.sign_b * self.log_b.exp(), c13=c13, **gains
+        )
+
+
+def discretise_torch(coef: physics.Coefficients, dt_s: float) -> tuple[torch.Tensor, torch.Tensor]:
+    """Exact ZOH of the 2R2C for tensor coefficients (M,): ``Ad`` (M, 2, 2), ``Bd`` (M, 2, 4).
+
+    Input order ``(u, T_a, G, I_g)``; computed in float64 via ``torch.linalg.matrix_exp``.
+    """
+    a, b = physics.state_space_entries(coef)
+    a_mat = torch.stack([torch.stack(row, dim=-1) for row in a], dim=-2).double()
+    b_mat = torch.stack([torch.stack(row, dim=-1) for row in b], dim=-2).double()
+    m = a_mat.shape[0]
+    top = torch.cat([a_mat, b_mat], dim=-1) * dt_s
+    aug = torch.cat([top, torch.zeros(m, physics.N_INPUTS, top.shape[-1], dtype=top.dtype)], dim=-2)
+    e = torch.linalg.matrix_exp(aug)
+    return e[:, : physics.N_STATES, : physics.N_STATES], e[:, : physics.N_STATES, physics.N_STATES :]
+
+
+def residual_exact(
+    coef: physics.Coefficients,
+    dt_s: float,
+    *,
+    t_r: torch.Tensor,
+    d: torch.Tensor,
+    t_m_hat: torch.Tensor,
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """Both rows of the ZOH 2R2C over chunks of L consecutive samples [K].
+
+    ``t_r`` (M, C, L+1) measured T_r at rows i .. i+L [C]; ``d`` (M, C, L, 4) inputs
+    (u_phys [W], T_a [C], G [W/m2], I_g [W]) of rows i .. i+L-1; ``t_m_hat`` (M, C, L)
+    predicted T_m of those rows [C]. Returns the T_r-row residual (M, C, L): predicted T_m,i
+    minus the T_m,i that takes T_r,i to T_r,i+1; and the T_m-row residual (M, C, L-1):
+    predicted T_m,i+1 minus T_m,i propagated one step.
+    """
+    ad, bd = discretise_torch(coef, dt_s)
+    ad, bd = ad.to(t_r.dtype)[:, None, None], bd.to(t_r.dtype)[:, None, None]  # (M, 1, 1, ...)
+    drive = (d[..., None, :] * bd).sum(-1)  # (M, C, L, 2 states)
+    t_m_implied = (t_r[..., 1:] - ad[..., 0, 0] * t_r[..., :-1] - drive[..., 0]) / ad[..., 0, 1]
+    propagated = ad[..., 1, 0] * t_r[..., :-2] + ad[..., 1, 1] * t_m_hat[..., :-1] + drive[..., :-1, 1]
+    return t_m_hat - t_m_implied, t_m_hat[..., 1:] - propagated
+
+
+def residual_finite_difference(
+    coef: physics.Coefficients,
+    dt_s: float,
+    *,
+    t_r: torch.Tensor,
+    t_r_hat: torch.Tensor,
+    u_phys_hat: torch.Tensor,
+    exog: torch.Tensor,
+    t_m_hat: torch.Tensor,
+) -> torch.Tensor:
+    """The paper's Eq. est_Tm [K] over chunks of L consecutive samples: (M, C, L-1).
+
+    For each row i after the first of a chunk: ``T_m_hat,i - T_m^M,i`` with
+    ``T_m^M,i = (dT_r,i/dt + a11 T_r_hat,i - b u_phys_hat,i - c13 T_a,i - c11 G_i - c12 I_g,i)/a12``
+    and ``dT_r,i/dt = (T_r,i+1 - T_r,i)/dt`` from measured values. ``t_r`` (M, C, L+1)
+    measured [C]; ``t_r_hat`` (M, C, L) predicted T_r,i+1 of each sample (so T_r_hat,i comes from
+    sample i-1, as in the paper); ``u_phys_hat`` (M, C, L) [W]; ``exog`` (M, C, L, 3) T_a, G,
+    I_g; ``t_m_hat`` (M, C, L) [C].
+    """
+    m = t_r.shape[0]
+
+    def col(v: Any) -> Any:
+        return v.to(t_r.dtype).reshape(m, 1, 1) if torch.is_tensor(v) else v
+
+    prev_hat = t_r_hat[..., :-1]
+    t_r_dot = (t_r[..., 2:] - t_r[..., 1:-1]) / dt_s
+    e = exog[..., 1:, :]
+    t_m_model = (
+        t_r_dot
+        + col(coef.a11) * prev_hat
+        - col(coef.b) * u_phys_hat[..., 1:]
+        - col(coef.c13) * e[..., 0]
+        - col(coef.c11) * e[..., 1]
+        - col(coef.c12) * e[..., 2]
+    ) / col(coef.a12)
+    return t_m_hat[..., 1:] - t_m_model
+
+
+class Rollout(NamedTuple):
+    """Recursive predictions for M members x N plans x H intervals (torch tensors)."""
+
+    t_r_c: torch.Tensor  # (M, N, H) T_r at the end of each interval [C]
+    u_phys_w: torch.Tensor  # (M, N, H) delivered power during each interval [W]
+    t_m_c: torch.Tensor | None  # (M, N, H) T_m at the start of each interval [C]; None for mlp
+
+
+class EnsembleModule(nn.Module):
+    """Network plus (for the physics-informed architectures) the learnable physics block."""
+
+    def __init__(
+        self,
+        arch: str,
+        *,
+        features: FeatureConfig,
+        n_members: int,
+        prior: physics.RCParams,
+        generators: Sequence[torch.Generator],
+    ):
+        super().__init__()
+        self.n_members = n_members
+        self.net = EnsembleNet(arch, features=features, n_members=n_members, generators=generators)
+        self.physics = (
+            Physics(prior, n_members=n_members, exog_names=features.exog_names) if arch != "mlp" else None
+        )
+
+
+class LearnedModel:
+    """A trained seed ensemble (eval mode), ready to predict and roll out.
+
+    ``arch``, ``depth``, ``n_members``, ``exog_names`` describe it; ``meta`` holds the training
+    record that :mod:`pinn_mpc.artifacts` stores in ``model.json``.
+    """
+
+    def __init__(
+        self, *, arch: str, features: FeatureConfig, module: EnsembleModule, meta: dict[str, Any]
+    ):
+        self.arch = arch
+        self.depth = features.depth
+        self.n_members = module.n_members
+        self.exog_names = features.exog_names
+        self.features = features
+        self.module = module.eval()
+        self.meta = meta
+        lo, hi = meta["u_phys_range_w"]
+        p = features.power
+        self._p_lo, self._p_hi = (lo - p.mean) / p.std, (hi - p.mean) / p.std
+        t, dlt = features.temperature, features.delta_t_r
+        self._dt_ratio, self._dt_offset = dlt.std / t.std, dlt.mean / t.std
+
+    @property
+    def eta(self) -> float:
+        return float(self.meta["eta"])
+
+    def _step(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor | None]:
+        """Scaled features (M, B, F) -> scaled (T_r,i+1, u_phys,i, T_m,i), each (M, B)."""
+        obs, z = self.module.net(x)
+        k = self.depth
+        t_next = x[..., k] + obs[..., 0] * self._dt_ratio + self._dt_offset
+        p = obs[..., 1].clamp(self._p_lo, self._p_hi)
+        return t_next, p, z
+
+    def _unscale_t(self, v: torch.Tensor) -> torch.Tensor:
+        return v * self.features.temperature.std + self.features.temperature.mean
+
+    def rollout_scaled(
+        self,
+        t_win: torch.Tensor,
+        p_win: torch.Tensor,
+        e_seq: torch.Tensor,
+        u_s: torch.Tensor,
+        tod: torch.Tensor,
+    ) -> Rollout:
+        """Batched recursive rollout in scaled units, N plans (or starts) of H steps.
+
+        ``t_win``, ``p_win`` (N0, k+1) scaled T_r,i-k..T_r,i and u_phys,i-k-1..u_phys,i-1;
+        ``e_seq`` (N0, n_series, k+H) scaled exogenous series from i-k to i+H-1; ``u_s`` (N, H)
+        scaled demand; ``tod`` (N0, H, 2) encoded time of day. N0 is 1 or N.
+        """
+        m, k1 = self.n_members, self.depth + 1
+        n, h_len = u_s.shape
+        t_buf = torch.empty(m, n, k1 + h_len)
+        p_buf = torch.empty(m, n, k1 + h_len)
+        t_buf[..., :k1] = t_win
+        p_buf[..., :k1] = p_win
+        e_win = e_seq.unfold(-1, k1, 1)[..., :h_len, :]  # (N0, n_series, H, k+1)
+        e_win = e_win.permute(0, 2, 1, 3).reshape(e_seq.shape[0], h_len, -1)
+        static = torch.cat([e_win.expand(n, -1, -1), u_s[..., None], tod.expand(n, -1, -1)], dim=-1)
+        static = static.expand(m, -1, -1, -1)  # (M, N, H, n_static)
+        z_out = torch.empty(m, n, h_len) if self.arch != "mlp" else None
+        with torch.no_grad():
+            for h in range(h_len):
+                x = torch.cat([t_buf[..., h : h + k1], p_buf[..., h : h + k1], static[:, :, h]], dim=-1)
+                t_next, p, z = self._step(x)
+                t_buf[..., k1 + h] = t_next
+                p_buf[..., k1 + h] = p
+                if z_out is not None and z is not None:
+                    z_out[..., h] = z
+        f = self.features
+        return Rollout(
+            t_r_c=self._unscale_t(t_buf[..., k1:]),
+            u_phys_w=p_buf[..., k1:] * f.power.std + f.power.mean,
+            t_m_c=self._unscale_t(z_out) if z_out is not None else None,
+        )
+
+    def rollout(
+        self, history: dict[str, np.ndarray], u_w: torch.Tensor, exog: dict[str, np.ndarray]
+    ) -> Rollout:
+        """Roll N demand plans forward H intervals, recursively, for all M members at once.
+
+        ``history``: ``T_r`` (>= depth+1,) measured up to and including now [C]; ``u_phys``
+        (>= depth+1,) past delivered power [W] (last = previous interval); each exogenous
+        series of ``exog_names`` but time of day (``T_a`` ...) (>= depth+1,) up to now.
+        ``u_w`` (N, H) demanded power [W]. ``exog``: one array (>= H,) per name in
+        ``exog_names`` for the next H intervals (``time_of_day_h`` at each interval start).
+        Returns tensors (M, N, H): one batched forward per horizon step.
+        """
+        k1 = self.depth + 1
+        f = self.features
+        hist = {n: np.asarray(history[n], dtype=float) for n in ("T_r", "u_phys", *f.exog_series)
+                if n in history}
+        short = {n: len(hist.get(n, ())) for n in ("T_r", "u_phys", *f.exog_series)}
+        short = {n: v for n, v in short.items() if v < k1}
+        if short:
+            raise InputError(
+                f"rollout needs at least depth+1={k1} past values of T_r, u_phys and "
+                f"{', '.join(f.exog_series)}; got {short}"
+            )
+        u_w = torch.as_tensor(u_w, dtype=torch.float32)
+        if u_w.ndim != 2:
+            raise InputError(f"rollout u_w must have shape (N, H), got {tuple(u_w.shape)}")
+        h_len = u_w.shape[1]
+        for name in self.exog_names:
+            if name not in exog or np.shape(exog[name])[0] < h_len:
+                raise InputError(f"rollout exog[{name!r}] must have at least H={h_len} values")
+        t_win = (hist["T_r"][-k1:] - f.temperature.mean) / f.temperature.std
+        p_win = (hist["u_phys"][-k1:] - f.power.mean) / f.power.std
+        seq = {n: np.concatenate([hist[n][-k1:-1], np.asarray(exog[n], dtype=float)[:h_len]])
+               for n in f.exog_series}
+        return self.rollout_scaled(
+            torch.as_tensor(t_win, dtype=torch.float32)[None],
+            torch.as_tensor(p_win, dtype=torch.float32)[None],
+            torch.from_numpy(f.scale_exog(seq))[None],
+            (u_w - f.power.mean) / f.power.std,
+            torch.from_numpy(f.encode_time(np.asarray(exog["time_of_day_h"])[:h_len]))[None],
+        )
+
+    def predict_one_step(self, df: pd.DataFrame) -> dict[str, Any]:
+        """One-step predictions for every sample of a frame.
+
+        Returns ``T_r_next`` (M, n) [C] (T_r,i+1), ``u_phys`` (M, n) [W] (u_phys,i), ``T_m``
+        (M, n) [C] (T_m,i) or None for mlp, and ``row`` (n,) the row index i of each sample.
+        """
+        win = make_windows(df, self.features)
+        x = torch.from_numpy(win.x).expand(self.n_members, -1, -1)
+        with torch.no_grad():
+            t_next, p, z = self._step(x)
+        f = self.features
+        return {
+            "T_r_next": self._unscale_t(t_next).numpy().astype(float),
+            "u_phys": (p * f.power.std + f.power.mean).numpy().astype(float),
+            "T_m": self._unscale_t(z).numpy().astype(float) if z is not None else None,
+            "row": win.rows,
+        }
+
+    def physics_coefficients(self) -> physics.Coefficients | None:
+        """Learned coefficients (per second), geometric mean over members; None for mlp."""
+        if self.module.physics is None:
+            return None
+        with torch.no_grad():
+            coef = self.module.physics.coefficients()
+
+        def mean(v: torch.Tensor) -> float:
+            v = v.double()
+            if torch.all(v > 0):
+                return float(v.log().mean().exp())
+            if torch.all(v < 0):
+                return -float((-v).log().mean().exp())
+            return float(v.mean())
+
+        values = {name: mean(getattr(coef, name)) for name in physics.Coefficients.__dataclass_fields__}
+        return physics.Coefficients(**values)
+
+    def member_coefficients(self) -> list[dict[str, float]]:
+        """Learned coefficients of each member, as dicts (empty for mlp)."""
+        if self.module.physics is None:
+            return []
+        with torch.no_grad():
+            coef = self.module.physics.coefficients()
+        names = list(physics.Coefficients.__dataclass_fields__)
+        return [{n: float(getattr(coef, n)[m]) for n in names} for m in range(self.n_members)]
