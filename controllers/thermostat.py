@@ -53,14 +53,22 @@ class Thermostat:
             return t_min_c + offset - half, t_min_c + offset + half
         return t_max_c - offset + half, t_max_c - offset - half
 
+    def switch(
+        self, t_r_c: np.ndarray, was_on: np.ndarray, t_min_c: float, t_max_c: float
+    ) -> np.ndarray:
+        """The rule for a batch: room temperatures (B,) [C] and states (B,) bool -> on (B,) bool.
+
+        Stateless, so data generation can run it over many buildings at once.
+        """
+        on_at, off_at = self.thresholds_c(t_min_c, t_max_c)
+        if self.spec.heating:
+            return (t_r_c < on_at) | (was_on & (t_r_c <= off_at))
+        return (t_r_c > on_at) | (was_on & (t_r_c >= off_at))
+
     def act(self, obs: Observation, forecast: Forecast) -> float:
         start = time.perf_counter()
-        on_at, off_at = self.thresholds_c(float(forecast.t_min_c[0]), float(forecast.t_max_c[0]))
-        t_r = obs.t_r_c
-        if self.spec.heating:
-            self._on = t_r < on_at or (self._on and t_r <= off_at)
-        else:
-            self._on = t_r > on_at or (self._on and t_r >= off_at)
+        band = float(forecast.t_min_c[0]), float(forecast.t_max_c[0])
+        self._on = bool(self.switch(np.array([obs.t_r_c]), np.array([self._on]), *band)[0])
         power = self.spec.u_max_w if self._on else 0.0
         self._plan = np.array([power])
         self._stats = SolveStats(

@@ -4,7 +4,8 @@ Policies:
 
 - ``random`` (the paper's): in each interval, independently per building, demand ``u_max``
   with probability ``on_probability``, else 0.
-- ``thermostat``: :class:`controllers.thermostat.Thermostat` on the scenario's comfort band.
+- ``thermostat``: :class:`controllers.thermostat.Thermostat` on the scenario's comfort band
+  (its rule :meth:`~controllers.thermostat.Thermostat.switch`, batched over buildings).
 
 Rows are control intervals: ``T_r``/``T_m`` at the start of the interval (true values, plus
 the scenario's measurement noise on ``T_r`` if any), ``u`` demanded and ``u_phys`` the mean
@@ -22,12 +23,10 @@ from typing import Literal
 import numpy as np
 import pandas as pd
 
-from controllers.base import Forecast, Observation
 from controllers.thermostat import Thermostat
 from pinn_mpc.data import write_timeseries
 from pinn_mpc.errors import InputError
 from pinn_mpc.simulator import Simulator
-from scenarios.inputs import time_of_day_h
 from scenarios.registry import Scenario, check_seed, get_scenario
 
 POLICIES = ("random", "thermostat")
@@ -56,11 +55,9 @@ def generate(
         raise InputError(f"n_buildings must be >= 1, got {n_buildings}")
     check_seed(seed)
     spec = scenario.control_spec()
-    horizon = spec.horizon_steps if policy == "thermostat" else 0
-    exo = scenario.exogenous(days=days, seed=seed, lead_steps=horizon)
-    n = len(exo) - horizon
+    exo = scenario.exogenous(days=days, seed=seed)
+    n = len(exo)
     cols = {c: exo[c].to_numpy(dtype=float) for c in ("T_a", "G", "I_g", "price", "T_min", "T_max")}
-    tod = time_of_day_h(exo["time"])
 
     sensor_seed = int(np.random.default_rng([seed, _SENSOR_STREAM]).integers(2**63))
     sim = Simulator(scenario.sim, n_buildings=n_buildings, seed=sensor_seed)
@@ -69,40 +66,17 @@ def generate(
     t_m = np.empty((n_buildings, n))
     u = np.empty((n_buildings, n))
     u_phys = np.empty((n_buildings, n))
-    if policy == "random":
-        draws = np.random.default_rng([seed, _POLICY_STREAM]).random((n, n_buildings))
-        demand = np.where(draws < on_probability, scenario.sim.u_max_w, 0.0)
-    else:
-        thermostats = [Thermostat(spec) for _ in range(n_buildings)]
-        for t in thermostats:
-            t.reset(seed)
+    draws = np.random.default_rng([seed, _POLICY_STREAM]).random((n, n_buildings))
+    thermostat = Thermostat(spec)
+    on = np.zeros(n_buildings, dtype=bool)
     for k in range(n):
         t_r[:, k] = sim.measure()
         t_m[:, k] = sim.state[:, 1]
         if policy == "random":
-            u[:, k] = demand[k]
-        else:
-            forecast = Forecast(
-                time_of_day_h=tod[k : k + horizon],
-                t_a_c=cols["T_a"][k : k + horizon],
-                g_w_per_m2=cols["G"][k : k + horizon],
-                i_g_w=cols["I_g"][k : k + horizon],
-                price_eur_per_kwh=cols["price"][k : k + horizon],
-                t_min_c=cols["T_min"][k : k + horizon],
-                t_max_c=cols["T_max"][k : k + horizon],
-            )
-            for b, thermostat in enumerate(thermostats):
-                history = {
-                    "T_r": t_r[b, : k + 1],
-                    "u": u[b, :k],
-                    "u_phys": u_phys[b, :k],
-                    "T_a": cols["T_a"][: k + 1],
-                    "G": cols["G"][: k + 1],
-                    "I_g": cols["I_g"][: k + 1],
-                    "time_of_day_h": tod[: k + 1],
-                }
-                obs = Observation(k=k, t_r_c=float(t_r[b, k]), history=history, t_m_true_c=t_m[b, k])
-                u[b, k] = thermostat.act(obs, forecast)
+            on = draws[k] < on_probability
+        else:  # the thermostat's rule, batched over the buildings (it sees only T_r and the band)
+            on = thermostat.switch(t_r[:, k], on, cols["T_min"][k], cols["T_max"][k])
+        u[:, k] = np.where(on, spec.u_max_w, 0.0)
         result = sim.step(u[:, k], cols["T_a"][k], cols["G"][k], cols["I_g"][k])
         u_phys[:, k] = result.u_phys_w
 

@@ -78,3 +78,16 @@ def test_generate_rejects_bad_arguments():
         generate(scenario, days=1, seed=0, policy="bangbang")
     with pytest.raises(InputError, match="on_probability"):
         generate(scenario, days=1, seed=0, on_probability=1.5)
+
+
+def test_batched_thermostat_policy_makes_the_controllers_decisions():
+    scenario = get_scenario("winter_household")
+    frame = generate(scenario, days=2, seed=4, policy="thermostat")
+    controller = Thermostat(scenario.control_spec())
+    controller.reset(0)
+    for row in frame.itertuples():
+        band = np.array([row.T_min]), np.array([row.T_max])
+        forecast = Forecast(np.zeros(1), np.zeros(1), np.zeros(1), np.zeros(1), np.zeros(1), *band)
+        obs = Observation(k=row.Index, t_r_c=row.T_r, history={}, t_m_true_c=row.T_m)
+        assert controller.act(obs, forecast) == row.u
+    assert 0 < np.mean(frame["u"] > 0) < 1
