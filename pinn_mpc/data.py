@@ -25,7 +25,7 @@ from pinn_mpc.io import atomic_write
 
 REQUIRED = ("time", "T_r", "u", "u_phys", "T_a")
 OPTIONAL = ("T_m", "G", "I_g", "price", "T_min", "T_max")
-COLUMNS = REQUIRED + OPTIONAL
+COLUMNS = ("time", "T_r", "T_m", "u", "u_phys", "T_a", "G", "I_g", "price", "T_min", "T_max")
 NUMERIC = tuple(c for c in COLUMNS if c != "time")
 #: Physically plausible range of each temperature column [C], to catch unit mix-ups (K, F).
 TEMPERATURE_RANGE_C = (-60.0, 90.0)

@@ -25,7 +25,7 @@ def frame(n=6):
 def test_round_trip_and_step(tmp_path):
     path = write_timeseries(frame(), tmp_path / "d.csv")
     back = read_timeseries(path)
-    assert list(back.columns) == ["time", "T_r", "u", "u_phys", "T_a", "T_m"]
+    assert list(back.columns) == ["time", "T_r", "T_m", "u", "u_phys", "T_a"]
     assert back.attrs["dt_s"] == 1800.0
     np.testing.assert_allclose(back["u_phys"], frame()["u_phys"])
     assert not list(tmp_path.glob("*.tmp"))
