@@ -97,12 +97,13 @@ def _snap(x: torch.Tensor, lower: float, upper: float) -> torch.Tensor:
 class RandomShootingPlanner:
     """Sample ``n_samples`` sequences once (uniform, or fair coin flips when binary); keep the best.
 
-    The warm start replaces the first sample.
+    The warm start replaces the first sample. The default budget equals CEM's default
+    (128 samples x 3 iterations), so the two compare at equal model cost.
     """
 
     lower: float
     upper: float
-    n_samples: int = 1000
+    n_samples: int = 384
     binary: bool = False
 
     def __post_init__(self) -> None:
@@ -163,7 +164,7 @@ class CEMPlanner:
             raise InputError(f"CEMPlanner.init_std_frac must be > 0, got {self.init_std_frac}")
         if not (0.0 <= self.noise_beta <= 4.0):
             raise InputError(
-                f"CEMPlanner.noise_beta must be in [0, 4] (0 white, 2 typical), got {self.noise_beta}"
+                f"CEMPlanner.noise_beta must be in [0, 4] (0 white, 2 pink), got {self.noise_beta}"
             )
 
     @property

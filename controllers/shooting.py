@@ -255,7 +255,9 @@ class _SamplingController:
         return result.plan.numpy().astype(float), result.cost, result.iterations
 
     def _objective(self, history: dict[str, np.ndarray], forecast: Forecast, h: int) -> Objective:
-        exog = {k: np.asarray(getattr(forecast, FORECAST_FIELDS[k]))[:h] for k in self.model.exog_names}
+        exog = {
+            k: np.array(getattr(forecast, FORECAST_FIELDS[k])[:h]) for k in self.model.exog_names
+        }
         dtype = torch.float32
         price = torch.tensor(forecast.price_eur_per_kwh[:h], dtype=dtype)
         t_min = torch.tensor(forecast.t_min_c[:h], dtype=dtype)

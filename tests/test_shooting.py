@@ -68,7 +68,8 @@ def _lp_optimum(x0: np.ndarray, fc: Forecast) -> float:
     cons += [x[j + 1] == AD @ x[j] + BD[:, 0] * u[j] + BD[:, 1:] @ d[j] for j in range(H)]
     cons += [s >= fc.t_min_c[:H] - x[1:, 0], s >= x[1:, 0] - fc.t_max_c[:H]]
     energy = cp.sum(cp.multiply(fc.price_eur_per_kwh[:H] * SPEC.dt_h / 1000.0, u))
-    problem = cp.Problem(cp.Minimize(energy + SPEC.comfort_weight_eur_per_kh * SPEC.dt_h * cp.sum(s)), cons)
+    discomfort = SPEC.comfort_weight_eur_per_kh * SPEC.dt_h * cp.sum(s)
+    problem = cp.Problem(cp.Minimize(energy + discomfort), cons)
     problem.solve()
     assert problem.status == "optimal"
     return float(problem.value)
@@ -227,7 +228,9 @@ def test_short_history_and_errors_fall_back_without_raising():
 
 def test_cooling_model_plans_against_overheating():
     cooling = PAPER_HOUSEHOLD.__class__(**{**PAPER_HOUSEHOLD.to_dict(), "eta": -3.0})
-    model = RCBatchModel(cooling, dt_s=DT_S, u_max_w=2000.0, backup_low_c=-100.0, backup_high_c=100.0)
+    model = RCBatchModel(
+        cooling, dt_s=DT_S, u_max_w=2000.0, backup_low_c=-100.0, backup_high_c=100.0
+    )
     spec = ControlSpec(u_max_w=2000.0, horizon_steps=H, heating=False)
     hot = _forecast()._replace(t_a_c=np.full(H, 30.0))
     cem = CEM(model, spec)
@@ -250,3 +253,77 @@ def test_unknown_model_input_and_bad_risk_weight_are_rejected():
         CEM(model, SPEC)
     with pytest.raises(InputError, match="risk_weight must be >= 0"):
         RandomShooting(LINEAR, SPEC, risk_weight=-1.0)
+
+
+@pytest.fixture(scope="module")
+def physnet():
+    from pinn_mpc.training import TrainConfig, train_model
+    from tests.model_data import household_data
+
+    data = household_data(6, seed=0)[["time", "T_r", "u", "u_phys", "T_a"]]
+    return train_model(
+        data, arch="physnet", config=TrainConfig(depth=4, n_seeds=2, epochs=2), progress=False
+    )
+
+
+def _closed_loop(controller, n_steps: int):
+    """Run the controller against the simulator from an empty history; yield per step."""
+    sim = Simulator(SimConfig(u_max_w=U_MAX_W), n_buildings=1)
+    sim.reset(18.6, 18.2)
+    hist: dict[str, list[float]] = {k: [] for k in ("T_r", "u", "u_phys", "T_a", "G", "I_g")}
+    hist["time_of_day_h"] = []
+    for k in range(n_steps):
+        fc = _forecast(start=k)
+        hist["T_r"].append(float(sim.measure()[0]))
+        hist["T_a"].append(float(fc.t_a_c[0]))
+        hist["time_of_day_h"].append(float(fc.time_of_day_h[0]))
+        hist["G"].append(0.0)
+        hist["I_g"].append(0.0)
+        history = {name: np.array(values) for name, values in hist.items()}
+        obs = Observation(k=k, t_r_c=hist["T_r"][-1], history=history, t_m_true_c=float("nan"))
+        u = controller.act(obs, fc)
+        yield k, obs, fc, u
+        step = sim.step(u, fc.t_a_c[0])
+        hist["u"].append(u)
+        hist["u_phys"].append(float(step.u_phys_w[0]))
+
+
+def test_cem_over_a_trained_physnet_ensemble_in_closed_loop(physnet):
+    cem = CEM(physnet, SPEC, n_samples=64, n_iters=2)
+    cem.reset(seed=0)
+    planned = 0
+    for k, obs, fc, u in _closed_loop(cem, n_steps=physnet.depth + 3):
+        assert 0.0 <= u <= U_MAX_W
+        stats = cem.last_stats
+        assert stats.fallback == (k < physnet.depth + 1), stats.status
+        if stats.fallback:
+            assert stats.status == "fallback: short history"
+            assert u == fallback_power(obs, fc, SPEC)
+            continue
+        planned += 1
+        plan = cem.last_plan
+        assert plan is not None and u == plan[0]
+        # The planner's score is plan_cost on the model's prediction, averaged over members.
+        exog = {"time_of_day_h": fc.time_of_day_h[:H], "T_a": fc.t_a_c[:H]}
+        roll = physnet.rollout(obs.history, torch.tensor(plan[None], dtype=torch.float32), exog)
+        per_member = [
+            plan_cost(roll.u_phys_w[m, 0].numpy(), roll.t_r_c[m, 0].numpy(), fc, SPEC)
+            for m in range(physnet.n_members)
+        ]
+        assert cem.last_cost_eur == pytest.approx(float(np.mean(per_member)), rel=1e-4)
+    assert planned == 2
+
+
+def test_physnet_with_nan_weights_falls_back(physnet):
+    import copy
+
+    broken = copy.deepcopy(physnet)
+    with torch.no_grad():
+        for p in broken.module.parameters():
+            p.fill_(float("nan"))
+    cem = CEM(broken, SPEC, n_samples=32, n_iters=2)
+    cem.reset(seed=0)
+    steps = list(_closed_loop(cem, n_steps=broken.depth + 2))
+    k, obs, fc, u = steps[-1]
+    assert cem.last_stats.fallback and cem.last_stats.status == "fallback: non-finite model output"
+    assert u == fallback_power(obs, fc, SPEC)
