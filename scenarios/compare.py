@@ -1,0 +1,235 @@
+"""``pinn-mpc compare``: train, identify and run every controller on one scenario.
+
+1. Training data: ``train_days`` under the random policy (seed ``seed``).
+2. Models: physnet, physreg and mlp seed ensembles; grey-box RC identification (T_m hidden);
+   the RC parameters exported from the physnet ensemble.
+3. Closed loop on the same ``days`` test days (seed ``seed + 1``, so other weather than the
+   training data), same perfect forecasts, same one-day thermostat warm-up, for: thermostat,
+   random shooting and CEM over physnet (and CEM over physreg and mlp unless ``quick``),
+   casadi-mpc and qp-mpc on the identified RC, qp-mpc on the physnet-exported RC, oracle and
+   clairvoyant.
+4. Outputs: a JSON table (one row per controller with every KPI), a markdown report with the
+   KPI table, each objective relative to the oracle's, the RC parameters against the true ones
+   and a figure of all trajectories (PNG next to the report).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+from tqdm import tqdm
+
+from pinn_mpc.io import atomic_write_json, atomic_write_text
+from pinn_mpc.physics import RCParams, params_from_summary, rc_summary
+from scenarios.closed_loop import check_writable, one_torch_thread, run_closed_loop
+from scenarios.factory import build_controller
+from scenarios.plots import plot_comparison
+from scenarios.registry import Scenario, check_seed, get_scenario
+from scenarios.report import kpi_table_text, objective_ratios, render_report
+
+ARCHS = ("physnet", "physreg", "mlp")
+REFERENCE = "oracle"
+
+
+@dataclass(frozen=True, kw_only=True)
+class CompareSettings:
+    """Everything a comparison depends on (all of it is written into the report)."""
+
+    train_days: int
+    test_days: int
+    seed: int
+    n_seeds: int = 10
+    epochs: int | None = None  # None: the training recipe's
+    depth: int = 8
+    recipe: str = "converged"
+    shooting_samples: int = 1000
+    cem_samples: int = 300
+    cem_iters: int = 5
+    cem_all_models: bool = True
+    quick: bool = False
+
+    def __post_init__(self) -> None:
+        from pinn_mpc.errors import InputError
+
+        check_seed(self.seed)
+        for name in ("train_days", "test_days", "n_seeds", "depth", "shooting_samples",
+                     "cem_samples", "cem_iters"):
+            if getattr(self, name) < 1:
+                raise InputError(f"compare: {name} must be >= 1, got {getattr(self, name)}")
+
+    @classmethod
+    def for_run(cls, *, train_days: int, days: int, seed: int, quick: bool) -> CompareSettings:
+        """The defaults, or with ``quick`` small ensembles, short training, at most 2 test days
+        and fewer planner samples (a few minutes on 2 cores)."""
+        if not quick:
+            return cls(train_days=train_days, test_days=days, seed=seed)
+        return cls(
+            train_days=train_days,
+            test_days=min(days, 2),
+            seed=seed,
+            n_seeds=3,
+            epochs=60,
+            shooting_samples=300,
+            cem_samples=100,
+            cem_iters=3,
+            cem_all_models=False,
+            quick=True,
+        )
+
+    @property
+    def test_seed(self) -> int:
+        return self.seed + 1
+
+
+@dataclass(frozen=True, kw_only=True)
+class ComparisonResult:
+    """``rows``: one KPI dict per controller (keys of :mod:`scenarios.kpis` plus ``controller``
+    label, ``name``, ``model``, ``objective_to_oracle``); ``rc``: RC summaries by source;
+    ``trajectories`` by label; ``wall_time_s`` by stage."""
+
+    rows: list[dict[str, Any]]
+    rc: dict[str, dict[str, Any]]
+    trajectories: dict[str, pd.DataFrame]
+    wall_time_s: dict[str, float]
+
+
+def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonResult:
+    """Steps 1-3 of the module docstring; progress bars when attached to a terminal."""
+    from pinn_mpc.export import export_rc
+    from pinn_mpc.identify import identify_rc
+    from pinn_mpc.training import TrainConfig, train_model
+    from scenarios.datagen import generate
+
+    wall: dict[str, float] = {}
+    start = time.perf_counter()
+    data = generate(scenario, days=settings.train_days, seed=settings.seed, policy="random")
+    wall["training data"] = time.perf_counter() - start
+    eta = scenario.sim.params.eta
+    config = TrainConfig(
+        depth=settings.depth,
+        n_seeds=settings.n_seeds,
+        first_seed=settings.seed,
+        epochs=settings.epochs,
+        recipe=settings.recipe,
+        eta=eta,
+    )
+    models = {}
+    # physreg and mlp only serve the CEM rows that quick runs leave out.
+    for arch in ARCHS if settings.cem_all_models else ARCHS[:1]:
+        start = time.perf_counter()
+        models[arch] = train_model(data, arch=arch, config=config, progress=True)
+        wall[f"train {arch}"] = time.perf_counter() - start
+    start = time.perf_counter()
+    identified = identify_rc(data, eta=eta).params
+    wall["identify RC"] = time.perf_counter() - start
+    exported = export_rc(models["physnet"], source="physnet ensemble (compare)")
+    rc = {
+        "true": rc_summary(scenario.sim.params, source=f"scenario {scenario.name}"),
+        "identified": rc_summary(identified, source="identify (training data)"),
+        "physnet export": exported,
+    }
+    rc_params: dict[str, RCParams] = {
+        "identified RC": identified,
+        "physnet RC": params_from_summary(exported),
+    }
+
+    n_steps = settings.test_days * scenario.steps_per_day
+    shooting = {"n_samples": settings.shooting_samples}
+    cem = {"n_samples": settings.cem_samples, "n_iters": settings.cem_iters}
+    # (controller name, what it runs on, keyword arguments of build_controller)
+    plan: list[tuple[str, str, dict[str, Any]]] = [
+        ("thermostat", "-", {}),
+        ("random-shooting", "physnet", {"model": models["physnet"], "planner_options": shooting}),
+        *(
+            ("cem", arch, {"model": model, "planner_options": cem})
+            for arch, model in models.items()
+        ),
+        ("casadi-mpc", "identified RC", {"rc_params": rc_params["identified RC"]}),
+        ("qp-mpc", "identified RC", {"rc_params": rc_params["identified RC"]}),
+        ("qp-mpc", "physnet RC", {"rc_params": rc_params["physnet RC"]}),
+        ("oracle", "true", {}),
+        ("clairvoyant", "true", {}),
+    ]
+    rows: list[dict[str, Any]] = []
+    trajectories: dict[str, pd.DataFrame] = {}
+    with one_torch_thread(), tqdm(plan, desc="closed loop", unit="controller", disable=None) as bar:
+        for name, model_name, kwargs in bar:
+            label = name if model_name in ("-", "true") else f"{name} / {model_name}"
+            bar.set_postfix_str(label)
+            start = time.perf_counter()
+            controller = build_controller(name, scenario, n_steps=n_steps, **kwargs)
+            result = run_closed_loop(
+                scenario, controller, days=settings.test_days, seed=settings.test_seed, label=label
+            )
+            wall[f"run {label}"] = time.perf_counter() - start
+            rows.append({"controller": label, "name": name, "model": model_name, **{
+                k: v for k, v in result.kpis.items() if k != "controller"}})
+            trajectories[label] = result.trajectory
+    for row, ratio in zip(rows, objective_ratios(rows, reference=REFERENCE), strict=True):
+        row["objective_to_oracle"] = ratio
+    return ComparisonResult(rows=rows, rc=rc, trajectories=trajectories, wall_time_s=wall)
+
+
+def _make_parents(*paths: Path) -> None:
+    for path in paths:
+        path.parent.mkdir(parents=True, exist_ok=True)
+
+
+def compare_command(
+    *,
+    scenario: str,
+    train_days: int,
+    days: int,
+    seed: int,
+    json_path: str,
+    report_path: str,
+    quick: bool,
+) -> str:
+    """``pinn-mpc compare``: run the comparison, write the JSON table, report and figure."""
+    scen = get_scenario(scenario)
+    settings = CompareSettings.for_run(train_days=train_days, days=days, seed=seed, quick=quick)
+    report = Path(report_path)
+    figure = report.with_suffix(".png")
+    check_writable(json_path, report_path, str(figure), create_parents=True)
+    start = time.perf_counter()
+    result = run_comparison(scen, settings)
+    total_s = time.perf_counter() - start
+    settings_table = {
+        **dataclasses.asdict(settings),
+        "test_seed": settings.test_seed,
+        "scenario": scen.name,
+        "comfort_weight_eur_per_kh": scen.comfort_weight_eur_per_kh,
+        "horizon_steps": scen.horizon_steps,
+        "dt_s": scen.sim.dt_s,
+        "u_max_w": scen.sim.u_max_w,
+        "wall_time_s": round(total_s, 1),
+        "cpu_count": os.cpu_count(),
+    }
+    notes = [f"wall time of {stage}: {sec:.1f} s" for stage, sec in result.wall_time_s.items()]
+    _make_parents(Path(json_path), report, figure)
+    title = f"{scen.name}: test days, seed {settings.test_seed}"
+    plot_comparison(result.trajectories, figure, title=title)
+    atomic_write_text(
+        report,
+        render_report(
+            scenario=scen.name,
+            description=scen.description,
+            rows=result.rows,
+            rc=result.rc,
+            settings=settings_table,
+            figure_name=figure.name,
+            notes=notes,
+        ),
+    )
+    atomic_write_json(
+        json_path,
+        {"scenario": scen.name, "settings": settings_table, "rows": result.rows, "rc": result.rc},
+    )
+    written = f"wrote {json_path}, {report_path}, {figure} ({total_s:.0f} s)"
+    return f"{kpi_table_text(result.rows)}\n{written}"

@@ -1,0 +1,107 @@
+"""The comparison: report rendering, settings, and the ``compare`` command end to end."""
+
+import json
+
+import pytest
+
+from pinn_mpc.cli import main
+from pinn_mpc.errors import InputError
+from pinn_mpc.physics import PAPER_HOUSEHOLD, rc_summary
+from scenarios.compare import CompareSettings
+from scenarios.kpis import KPI_KEYS
+from scenarios.report import kpi_table_text, objective_ratios, render_report
+
+
+def _row(label, objective, **extra):
+    row = {key: 0 for key in KPI_KEYS}
+    return {**row, "controller": label, "objective": objective, **extra}
+
+
+def test_objective_ratios_against_the_oracle():
+    rows = [_row("thermostat", 3.0), _row("oracle", 2.0), _row("cem / physnet", 2.5)]
+    assert objective_ratios(rows, reference="oracle") == pytest.approx([1.5, 1.0, 1.25])
+    assert objective_ratios(rows[:1], reference="oracle") == [None]
+    assert objective_ratios([_row("oracle", 0.0)], reference="oracle") == [None]
+
+
+def test_kpi_table_text_has_a_line_per_controller():
+    rows = [_row("thermostat", 3.0, objective_to_oracle=1.5), _row("oracle", 2.0)]
+    lines = kpi_table_text(rows).splitlines()
+    assert len(lines) == 3
+    assert lines[0].startswith("controller") and "objective EUR" in lines[0]
+    assert lines[1].split()[:3] == ["thermostat", "3.000", "1.500"]
+    assert lines[2].split()[:3] == ["oracle", "2.000", "n/a"]
+
+
+def test_report_lists_kpis_rc_parameters_and_figure():
+    true = rc_summary(PAPER_HOUSEHOLD, source="true")
+    text = render_report(
+        scenario="paper_household",
+        description="The paper's household.",
+        rows=[_row("oracle", 2.0, objective_to_oracle=1.0)],
+        rc={"true": true, "identified": true},
+        settings={"train_days": 60},
+        figure_name="report.png",
+    )
+    assert "# Closed-loop comparison on `paper_household`" in text
+    assert "| `oracle` | 2.000 | 1.000 |" in text
+    # R_ra = 3.75e-3 K/W is 3.75 mK/W; C_r = 4e6 J/K is 4 MJ/K.
+    assert "| R_ra [mK/W] | 3.75 | 3.75 |" in text
+    assert "| C_r [MJ/K] | 4 | 4 |" in text
+    assert "![room temperature and delivered power of every controller](report.png)" in text
+    assert "| train_days | `60` |" in text
+
+
+def test_quick_settings_are_small():
+    quick = CompareSettings.for_run(train_days=60, days=5, seed=0, quick=True)
+    full = CompareSettings.for_run(train_days=60, days=5, seed=0, quick=False)
+    assert quick.test_days == 2 and full.test_days == 5
+    assert quick.n_seeds < full.n_seeds and quick.cem_samples < full.cem_samples
+    assert quick.test_seed != quick.seed
+    with pytest.raises(InputError, match="train_days must be >= 1"):
+        CompareSettings(train_days=0, test_days=1, seed=0)
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--scenario", "mars_base"], "unknown scenario 'mars_base'"),
+        (["--json", "{tmp}/file.txt/table.json"], "is a file, not a directory"),
+    ],
+)
+def test_compare_bad_input_exits_2_before_any_work(tmp_path, capsys, args, message):
+    (tmp_path / "file.txt").write_text("x")
+    args = [a.format(tmp=tmp_path) for a in args]
+    argv = ["compare", "--quick", "--report", str(tmp_path / "out" / "report.md"), *args]
+    if "--json" not in args:
+        argv += ["--json", str(tmp_path / "out" / "table.json")]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert message in err and len(err.strip().splitlines()) == 1
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["file.txt"]
+
+
+@pytest.mark.slow
+def test_compare_quick_end_to_end(tmp_path, capsys):
+    out = tmp_path / "compare"  # does not exist yet: the command creates it
+    code = main(["compare", "--quick", "--train-days", "14", "--days", "1", "--seed", "0",
+                 "--json", str(out / "table.json"), "--report", str(out / "report.md")])
+    assert code == 0
+    table = json.loads((out / "table.json").read_text())
+    labels = [row["controller"] for row in table["rows"]]
+    assert labels == [
+        "thermostat", "random-shooting / physnet", "cem / physnet", "casadi-mpc / identified RC",
+        "qp-mpc / identified RC", "qp-mpc / physnet RC", "oracle", "clairvoyant",
+    ]
+    rows = {row["controller"]: row for row in table["rows"]}
+    for row in table["rows"]:
+        assert set(KPI_KEYS) <= set(row) and row["days"] == 1
+    assert rows["oracle"]["objective_to_oracle"] == pytest.approx(1.0)
+    # The reference with the true model must beat the rule-based baseline on its own objective.
+    assert rows["oracle"]["objective"] < rows["thermostat"]["objective"]
+    assert set(table["rc"]) == {"true", "identified", "physnet export"}
+    report = (out / "report.md").read_text()
+    assert "## KPIs" in report and "## RC parameters" in report and "(report.png)" in report
+    assert (out / "report.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    printed = capsys.readouterr().out
+    assert all(label in printed for label in labels)
