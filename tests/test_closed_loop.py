@@ -7,11 +7,12 @@ import math
 import numpy as np
 import pytest
 
-from controllers.base import Forecast, Observation, SolveStats, fallback_power
+from controllers.base import Controller, Forecast, Observation, SolveStats, fallback_power
 from controllers.thermostat import Thermostat
 from pinn_mpc.cli import main
 from pinn_mpc.data import read_timeseries
 from scenarios.closed_loop import EXTRA_COLUMNS, run_closed_loop
+from scenarios.factory import CONTROLLER_NAMES, MODEL_CONTROLLERS, RC_CONTROLLERS, make_controller
 from scenarios.kpis import KPI_KEYS
 from scenarios.registry import get_scenario
 
@@ -251,3 +252,45 @@ def test_cli_unwritable_json_leaves_nothing(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "does not exist" in err and len(err.strip().splitlines()) == 1
     assert list(tmp_path.iterdir()) == []
+
+
+# ----------------------------------------------------------------------- the factory
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory, scenario):
+    """A tiny trained model directory and the true RC parameters as an RC JSON."""
+    from pinn_mpc.artifacts import save_model
+    from pinn_mpc.physics import rc_summary
+    from pinn_mpc.training import TrainConfig, train_model
+    from scenarios.datagen import generate
+
+    root = tmp_path_factory.mktemp("factory")
+    data = generate(scenario, days=3, seed=0, policy="random")
+    model = train_model(
+        data, arch="physnet", config=TrainConfig(depth=4, n_seeds=1, epochs=1), progress=False
+    )
+    save_model(model, root / "model")
+    (root / "rc.json").write_text(json.dumps(rc_summary(scenario.sim.params, source="true")))
+    return {"model_dir": str(root / "model"), "rc_path": str(root / "rc.json")}
+
+
+@pytest.mark.parametrize("name", CONTROLLER_NAMES)
+def test_factory_builds_every_controller_by_its_cli_name(scenario, files, name):
+    kwargs = {}
+    if name in MODEL_CONTROLLERS:
+        kwargs["model_dir"] = files["model_dir"]
+    if name in RC_CONTROLLERS:
+        kwargs["rc_path"] = files["rc_path"]
+    controller = make_controller(name, scenario, n_steps=48, **kwargs)
+    assert isinstance(controller, Controller)
+    assert controller.name == name
+
+
+def test_qp_mpc_on_true_rc_in_closed_loop_beats_the_thermostat(tmp_path, files, scenario):
+    json_path = tmp_path / "k.json"
+    assert _cli(tmp_path, "--controller", "qp-mpc", "--rc", files["rc_path"],
+                "--json", str(json_path)) == 0
+    kpis = json.loads(json_path.read_text())
+    thermostat = run_closed_loop(scenario, Thermostat(scenario.control_spec()), days=1, seed=1)
+    assert kpis["objective"] < thermostat.kpis["objective"]
