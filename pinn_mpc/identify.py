@@ -1,0 +1,254 @@
+"""Grey-box identification of 2R2C parameters from data in which ``T_m`` is hidden.
+
+Output-error method: the exact zero-order-hold model (:func:`pinn_mpc.physics.discretise`) is
+simulated over the whole data set from ``(T_r[0], T_m0)`` with the measured inputs held over
+each interval (``u_phys``, the interval-mean delivered power, ``T_a`` and, when present, ``G``
+and ``I_g``), and the simulated room temperature is fitted to the measured one by
+:func:`scipy.optimize.least_squares` in log-parameters. Unknowns: ``R_ra, R_rm, C_r, C_m``,
+the unknown initial ``T_m0`` and, when the columns exist and vary, the solar aperture, the
+solar fraction to the air and the internal-gain fraction to the air. A ``T_m`` column, if any,
+is ignored. ``eta`` is not identifiable (only ``eta/C_r`` is) and must be given.
+
+Initial guess: the steady-state gain ``R_ra`` and the solar aperture come from a day-averaged
+energy balance (a linear regression); the split into fast and slow parts is found by a few
+short least-squares starts over a small grid of time constants, the best of which is refined.
+
+The model ignores what happens inside an interval (e.g. a backup thermostat switching the
+heater on for part of it), so the fit residual is not pure sensor noise.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import pandas as pd
+import scipy.optimize
+import scipy.signal
+
+from pinn_mpc.data import read_timeseries
+from pinn_mpc.errors import InputError
+from pinn_mpc.io import atomic_write_json
+from pinn_mpc.physics import RCParams, discretise
+
+#: Below this standard deviation a G or I_g column counts as constant (not identifiable).
+_MIN_STD = {"G": 1.0, "I_g": 1.0}
+#: Grid of starting points: C_r as a fraction of the total capacity, R_rm as a fraction of R_ra.
+_C_R_FRACTIONS = (0.02, 0.08, 0.3)
+_R_RM_FRACTIONS = (0.1, 0.4)
+
+
+@dataclass(frozen=True, kw_only=True)
+class IdentifyResult:
+    """Identified parameters and fit statistics."""
+
+    params: RCParams
+    rmse_c: float  # output-error RMSE of the simulated T_r over the data [C]
+    n_rows: int
+    t_m0_c: float  # identified initial thermal-mass temperature [C]
+    identified_solar: bool
+    identified_gains: bool
+    n_starts: int
+    cost_evaluations: int
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.rmse_c) and self.rmse_c >= 0):
+            raise InputError(f"IdentifyResult.rmse_c must be finite and >= 0, got {self.rmse_c}")
+
+    def fit_statistics(self) -> dict[str, Any]:
+        return {
+            "method": "output-error least squares, exact ZOH 2R2C, T_m hidden",
+            "rmse_c": self.rmse_c,
+            "n_rows": self.n_rows,
+            "t_m0_c": self.t_m0_c,
+            "identified_solar": self.identified_solar,
+            "identified_gains": self.identified_gains,
+            "n_starts": self.n_starts,
+            "cost_evaluations": self.cost_evaluations,
+        }
+
+
+def simulate_rc(
+    ad: np.ndarray, bd: np.ndarray, x0: np.ndarray, d: np.ndarray
+) -> np.ndarray:
+    """Free-run ``x[k+1] = Ad x[k] + Bd d[k]``: x0 (2,), d (N, 4) -> states (N+1, 2) [C].
+
+    Uses the modal form (the eigenvalues of an RC network's ``Ad`` are real, distinct and in
+    (0, 1)), so each mode is a first-order recursion run by :func:`scipy.signal.lfilter`.
+    """
+    lam, v = np.linalg.eig(ad)
+    lam, v = np.real(lam), np.real(v)
+    v_inv = np.linalg.inv(v)
+    w = (d @ bd.T) @ v_inv.T  # (N, 2) modal inputs
+    z0 = v_inv @ x0
+    n = d.shape[0]
+    powers = lam[None, :] ** np.arange(n + 1)[:, None]  # (N+1, 2)
+    z = powers * z0[None, :]
+    for i in range(2):
+        z[1:, i] += scipy.signal.lfilter([1.0], [1.0, -lam[i]], w[:, i])
+    return z @ v.T
+
+
+class _Layout:
+    """Which unknowns the parameter vector holds, and the map to RCParams."""
+
+    def __init__(self, *, solar: bool, gains: bool, eta: float) -> None:
+        self.solar, self.gains, self.eta = solar, gains, eta
+        self.names = ["ln_r_ra", "ln_r_rm", "ln_c_r", "ln_c_m"]
+        if solar:
+            self.names += ["ln_aperture", "solar_to_air"]
+        if gains:
+            self.names += ["gain_to_air"]
+        self.names += ["t_m0"]
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        lo = {"solar_to_air": 0.0, "gain_to_air": 0.0, "t_m0": -60.0, "ln_aperture": -12.0}
+        hi = {"solar_to_air": 1.0, "gain_to_air": 1.0, "t_m0": 90.0, "ln_aperture": 8.0}
+        lower = np.array([lo.get(n, -30.0) for n in self.names])
+        upper = np.array([hi.get(n, 40.0) for n in self.names])
+        return lower, upper
+
+    def params(self, theta: np.ndarray) -> RCParams:
+        v = dict(zip(self.names, theta, strict=True))
+        return RCParams(
+            r_ra_k_per_w=math.exp(v["ln_r_ra"]),
+            r_rm_k_per_w=math.exp(v["ln_r_rm"]),
+            c_r_j_per_k=math.exp(v["ln_c_r"]),
+            c_m_j_per_k=math.exp(v["ln_c_m"]),
+            eta=self.eta,
+            solar_aperture_m2=math.exp(v["ln_aperture"]) if self.solar else 0.0,
+            solar_to_air_fraction=float(v["solar_to_air"]) if self.solar else 0.0,
+            gain_to_air_fraction=float(v["gain_to_air"]) if self.gains else 1.0,
+        )
+
+
+def _varies(df: pd.DataFrame, column: str) -> bool:
+    return column in df.columns and float(df[column].std()) > _MIN_STD[column]
+
+
+def _energy_balance_guess(
+    t_r: np.ndarray, d: np.ndarray, dt_s: float, *, eta: float, solar: bool
+) -> tuple[float, float, float]:
+    """Day-averaged balance ``eta u + A G + I_g = (T_r - T_a)/R_ra + C_tot dT_r/dt`` -> (R_ra, A, C_tot)."""
+    per_day = max(int(round(86400.0 / dt_s)), 1)
+    n_days = (len(d)) // per_day
+    if n_days < 3:
+        per_day = max(len(d) // 6, 1)
+        n_days = len(d) // per_day
+    m = n_days * per_day
+    day = lambda a: a[:m].reshape(n_days, per_day).mean(axis=1)  # noqa: E731
+    heat = eta * day(d[:, 0]) + day(d[:, 3])
+    loss = day(t_r[:-1]) - day(d[:, 1])
+    rate = (t_r[per_day : m + 1 : per_day] - t_r[0:m:per_day]) / (per_day * dt_s)
+    columns = [loss, rate] + ([-day(d[:, 2])] if solar else [])
+    coef, *_ = np.linalg.lstsq(np.stack(columns, axis=1), heat, rcond=None)
+    r_ra = 1.0 / coef[0] if coef[0] > 0 else 0.01
+    c_tot = coef[1] if coef[1] > 0 else 3600.0 * 50.0 / (1.0 / r_ra)
+    aperture = coef[2] if solar and coef[2] > 0 else 1.0
+    return float(r_ra), float(c_tot), float(aperture)
+
+
+def identify_rc(df: pd.DataFrame, *, eta: float = 1.0) -> IdentifyResult:
+    """Identify RC parameters from a validated frame (columns time, T_r, u_phys, T_a, [G, I_g]).
+
+    ``df.attrs['dt_s']`` (set by :func:`pinn_mpc.data.validate_timeseries`) is the step; a
+    ``T_m`` column is never used. ``eta`` (heat per W of actuator power) is given: 1 for an
+    electric heater, minus the COP for a cooling machine.
+    """
+    if not (math.isfinite(eta) and eta != 0):
+        raise InputError(f"identify: eta must be finite and non-zero, got {eta}")
+    missing = [c for c in ("T_r", "u_phys", "T_a") if c not in df.columns]
+    if missing:
+        raise InputError(f"identify: data lacks column(s) {missing}; see the data format")
+    dt_s = float(df.attrs.get("dt_s", 0.0))
+    if not dt_s > 0:
+        raise InputError("identify: the frame has no attrs['dt_s']; read it with read_timeseries")
+    n_rows = len(df)
+    if n_rows < 48:
+        raise InputError(f"identify: needs at least 48 rows (a day at 30 min), got {n_rows}")
+    if float(df["u_phys"].std()) == 0.0:
+        raise InputError("identify: u_phys is constant, so the building's response is not excited")
+    solar, gains = _varies(df, "G"), _varies(df, "I_g")
+    zeros = np.zeros(n_rows)
+    d = np.stack(
+        [
+            df["u_phys"].to_numpy(float),
+            df["T_a"].to_numpy(float),
+            df["G"].to_numpy(float) if "G" in df.columns else zeros,
+            df["I_g"].to_numpy(float) if "I_g" in df.columns else zeros,
+        ],
+        axis=1,
+    )[:-1]
+    t_r = df["T_r"].to_numpy(float)
+    layout = _Layout(solar=solar, gains=gains, eta=eta)
+    lower, upper = layout.bounds()
+
+    def residuals(theta: np.ndarray) -> np.ndarray:
+        try:
+            p = layout.params(theta)
+        except InputError:
+            return np.full(n_rows - 1, 1e3)
+        ad, bd = discretise(p, dt_s)
+        x = simulate_rc(ad, bd, np.array([t_r[0], theta[-1]]), d)
+        res = x[1:, 0] - t_r[1:]
+        return np.where(np.isfinite(res), res, 1e3)
+
+    r_ra, c_tot, aperture = _energy_balance_guess(t_r, d, dt_s, eta=eta, solar=solar)
+    starts = []
+    for f_c in _C_R_FRACTIONS:
+        for f_r in _R_RM_FRACTIONS:
+            theta = [math.log(r_ra), math.log(f_r * r_ra), math.log(f_c * c_tot),
+                     math.log((1 - f_c) * c_tot)]
+            theta += [math.log(aperture), 0.5] if solar else []
+            theta += [0.5] if gains else []
+            theta += [float(t_r[0])]
+            starts.append(np.clip(np.array(theta), lower + 1e-9, upper - 1e-9))
+    evaluations = 0
+    best: Any = None
+    for theta0 in starts:
+        fit = scipy.optimize.least_squares(residuals, theta0, bounds=(lower, upper), max_nfev=15)
+        evaluations += fit.nfev
+        if best is None or fit.cost < best.cost:
+            best = fit
+    final = scipy.optimize.least_squares(
+        residuals, best.x, bounds=(lower, upper), xtol=1e-10, ftol=1e-12, max_nfev=400
+    )
+    evaluations += final.nfev
+    rmse = float(np.sqrt(np.mean(np.square(final.fun))))
+    return IdentifyResult(
+        params=layout.params(final.x),
+        rmse_c=rmse,
+        n_rows=n_rows,
+        t_m0_c=float(final.x[-1]),
+        identified_solar=solar,
+        identified_gains=gains,
+        n_starts=len(starts),
+        cost_evaluations=evaluations,
+    )
+
+
+def identify_to_json(
+    *,
+    data: str | os.PathLike[str],
+    columns: str | None,
+    out: str | os.PathLike[str],
+    eta: float | None,
+) -> str:
+    """CLI ``identify``: read ``data``, identify, write the RC JSON (atomically) to ``out``."""
+    from pinn_mpc.physics import rc_summary
+
+    eta_value = 1.0 if eta is None else float(eta)
+    df = read_timeseries(data, columns=columns)
+    result = identify_rc(df, eta=eta_value)
+    summary = rc_summary(result.params, source=f"identify:{data}")
+    summary["fit"] = result.fit_statistics()
+    atomic_write_json(out, summary)
+    p = result.params
+    return (
+        f"identified R_ra={p.r_ra_k_per_w:.4g} K/W R_rm={p.r_rm_k_per_w:.4g} K/W "
+        f"C_r={p.c_r_j_per_k:.4g} J/K C_m={p.c_m_j_per_k:.4g} J/K "
+        f"(rmse {result.rmse_c:.3f} C over {result.n_rows} rows) -> {out}"
+    )

@@ -1,0 +1,149 @@
+"""Grey-box RC identification with T_m hidden: recovers the simulator's parameters."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from pinn_mpc.data import validate_timeseries
+from pinn_mpc.errors import InputError
+from pinn_mpc.identify import identify_rc, identify_to_json, simulate_rc
+from pinn_mpc.physics import PAPER_HOUSEHOLD, RCParams, discretise, params_from_summary
+from pinn_mpc.simulator import SimConfig, Simulator
+
+SOLAR = dataclasses.replace(
+    PAPER_HOUSEHOLD, solar_aperture_m2=8.0, solar_to_air_fraction=0.3, gain_to_air_fraction=0.6
+)
+
+
+def _random_policy_frame(params: RCParams, days: int, seed: int) -> pd.DataFrame:
+    """Random on/off demand, a synthetic outdoor temperature, sun and evening gains.
+
+    Cooling data get a summer climate and a backup thermostat out of reach.
+    """
+    rng = np.random.default_rng(seed)
+    if params.heating:
+        config, t_a_mean = SimConfig(params=params), 3.0
+    else:
+        config, t_a_mean = SimConfig(params=params, backup_low_c=-50, backup_high_c=80), 30.0
+    sim = Simulator(config, seed=seed)
+    sim.reset(19.0, 18.0)
+    n = days * 48
+    hours = np.arange(n) * 0.5
+    t_a = t_a_mean + 4.0 * np.sin(2 * np.pi * (hours - 9.0) / 24.0) + 0.3 * np.cumsum(rng.normal(0, 0.2, n))
+    cloud = rng.uniform(0.2, 1.0, days).repeat(48)
+    g = 400.0 * cloud * np.clip(np.sin(2 * np.pi * (hours - 6.0) / 24.0), 0.0, None)
+    i_g = 200.0 + 300.0 * ((hours % 24 > 17) & (hours % 24 < 22))
+    u = np.where(rng.random(n) < 0.5, 5000.0, 0.0) * rng.uniform(0.3, 1.0, n)
+    if not params.heating:
+        u = u / 2.0  # a cooling machine of 2.5 kW electric
+    rows = []
+    for k in range(n):
+        t_r, t_m = float(sim.measure()[0]), float(sim.state[0, 1])
+        r = sim.step(u[k], t_a[k], g[k], i_g[k])
+        rows.append((k * 1800.0, t_r, t_m, u[k], float(r.u_phys_w[0]), t_a[k], g[k], i_g[k]))
+    columns = ["time", "T_r", "T_m", "u", "u_phys", "T_a", "G", "I_g"]
+    return validate_timeseries(pd.DataFrame(rows, columns=columns))
+
+
+def _rel(a: float, b: float) -> float:
+    return abs(a / b - 1.0)
+
+
+@pytest.fixture(scope="module")
+def solar_frame() -> pd.DataFrame:
+    return _random_policy_frame(SOLAR, days=30, seed=0)
+
+
+def test_simulate_rc_matches_stepping_the_discretised_model() -> None:
+    ad, bd = discretise(SOLAR, 1800.0)
+    rng = np.random.default_rng(0)
+    d = np.stack([rng.uniform(0, 5000, 50), rng.uniform(-5, 10, 50), rng.uniform(0, 300, 50),
+                  rng.uniform(0, 500, 50)], axis=1)
+    x = np.array([19.0, 17.0])
+    expected = [x]
+    for row in d:
+        x = ad @ x + bd @ row
+        expected.append(x)
+    np.testing.assert_allclose(simulate_rc(ad, bd, np.array([19.0, 17.0]), d), expected, atol=1e-9)
+
+
+def test_recovers_parameters_with_solar_and_gains(solar_frame: pd.DataFrame) -> None:
+    result = identify_rc(solar_frame)
+    p = result.params
+    assert _rel(p.r_ra_k_per_w, SOLAR.r_ra_k_per_w) < 0.10
+    assert _rel(p.c_r_j_per_k, SOLAR.c_r_j_per_k) < 0.10
+    assert _rel(p.r_rm_k_per_w, SOLAR.r_rm_k_per_w) < 0.20
+    assert _rel(p.c_m_j_per_k, SOLAR.c_m_j_per_k) < 0.20
+    assert _rel(p.solar_aperture_m2, SOLAR.solar_aperture_m2) < 0.10
+    assert abs(p.solar_to_air_fraction - SOLAR.solar_to_air_fraction) < 0.1
+    assert abs(p.gain_to_air_fraction - SOLAR.gain_to_air_fraction) < 0.15
+    assert result.identified_solar and result.identified_gains
+    assert result.rmse_c < 0.1 and result.n_rows == len(solar_frame)
+    assert abs(result.t_m0_c - solar_frame["T_m"].iloc[0]) < 0.5
+
+
+def test_ignores_a_t_m_column(solar_frame: pd.DataFrame) -> None:
+    short = validate_timeseries(solar_frame.iloc[: 7 * 48])
+    garbled = short.copy()
+    garbled["T_m"] = 50.0
+    garbled.attrs["dt_s"] = short.attrs["dt_s"]
+    assert identify_rc(garbled).params == identify_rc(short.drop(columns="T_m")).params
+
+
+def test_cooling_needs_eta_and_recovers_parameters() -> None:
+    cooling = dataclasses.replace(PAPER_HOUSEHOLD, eta=-3.0)
+    frame = _random_policy_frame(cooling, days=20, seed=1)
+    p = identify_rc(frame, eta=-3.0).params
+    assert p.eta == -3.0
+    assert _rel(p.r_ra_k_per_w, cooling.r_ra_k_per_w) < 0.10
+    assert _rel(p.c_r_j_per_k, cooling.c_r_j_per_k) < 0.10
+
+
+def test_identify_to_json_writes_the_rc_schema(tmp_path: Path, solar_frame: pd.DataFrame) -> None:
+    data = tmp_path / "data.csv"
+    renamed = solar_frame.iloc[: 10 * 48].rename(columns={"T_r": "T_int", "u_phys": "P_hea"})
+    renamed = renamed.drop(columns=["u"])
+    renamed.attrs["dt_s"] = 1800.0
+    renamed.to_csv(data, index=False)
+    out = tmp_path / "rc.json"
+    summary = identify_to_json(data=data, columns="T_r=T_int,u_phys=P_hea", out=out, eta=None)
+    assert str(out) in summary and "R_ra=" in summary
+    written = json.loads(out.read_text())
+    params = params_from_summary(written)
+    assert params.eta == 1.0
+    assert _rel(params.r_ra_k_per_w, SOLAR.r_ra_k_per_w) < 0.10
+    assert written["fit"]["n_rows"] == 10 * 48 and written["fit"]["rmse_c"] < 0.1
+    assert written["source"].startswith("identify:")
+
+
+def test_rejects_unexcited_data(solar_frame: pd.DataFrame) -> None:
+    flat = solar_frame.iloc[:96].copy()
+    flat["u_phys"] = 0.0
+    flat.attrs["dt_s"] = 1800.0
+    with pytest.raises(InputError, match="u_phys is constant"):
+        identify_rc(flat)
+    with pytest.raises(InputError, match="eta must be finite and non-zero"):
+        identify_rc(solar_frame, eta=0.0)
+    with pytest.raises(InputError, match="at least 48 rows"):
+        identify_rc(validate_timeseries(solar_frame.iloc[:10]))
+
+
+@pytest.mark.slow
+def test_winter_household_sixty_days_of_random_policy() -> None:
+    from scenarios.datagen import generate
+    from scenarios.registry import get_scenario
+
+    scenario = get_scenario("winter_household")
+    frame = generate(scenario, days=60, seed=0, policy="random")
+    truth = scenario.sim.params
+    p = identify_rc(frame, eta=truth.eta).params
+    assert _rel(p.r_ra_k_per_w, truth.r_ra_k_per_w) < 0.10
+    assert _rel(p.c_r_j_per_k, truth.c_r_j_per_k) < 0.10
+    assert _rel(p.r_rm_k_per_w, truth.r_rm_k_per_w) < 0.20
+    assert _rel(p.c_m_j_per_k, truth.c_m_j_per_k) < 0.20

@@ -1,0 +1,228 @@
+"""RC MPCs (casadi-mpc, qp-mpc), oracle and clairvoyant against analytic truth and each other."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from controllers.base import (
+    Controller,
+    ControlSpec,
+    Forecast,
+    Observation,
+    fallback_power,
+    plan_cost,
+)
+from controllers.oracle import Clairvoyant, Oracle
+from controllers.qp_mpc import QPMPC
+from controllers.rc_mpc import CasadiMPC
+from controllers.rc_problem import RCMPCBase
+from pinn_mpc.physics import PAPER_HOUSEHOLD, steady_state
+from pinn_mpc.simulator import SimConfig, Simulator
+
+SPEC = ControlSpec(u_max_w=5000.0)
+PARAMS = PAPER_HOUSEHOLD
+MPCS = (QPMPC, CasadiMPC)
+
+
+def _forecast(n: int, *, start: int = 0, **constant: float) -> Forecast:
+    """A day-shaped forecast of n steps from step ``start``; keywords make a field constant."""
+    k = np.arange(start, start + n)
+    hours = (k * 0.5) % 24.0
+    fields = {
+        "time_of_day_h": hours,
+        "t_a_c": 3.0 + 4.0 * np.sin(2 * np.pi * (hours - 9.0) / 24.0),
+        "g_w_per_m2": np.zeros(n),
+        "i_g_w": np.zeros(n),
+        "price_eur_per_kwh": np.where((hours > 17) & (hours < 21), 0.45, np.where(hours < 6, 0.12, 0.25)),
+        "t_min_c": np.where((hours >= 7) & (hours < 22), 20.0, 17.0),
+        "t_max_c": np.full(n, 23.0),
+    }
+    for name, value in constant.items():
+        fields[name] = np.full(n, float(value))
+    return Forecast(**fields)
+
+
+def _first_obs(t_r_c: float, t_m_c: float, t_a_c: float = 3.0) -> Observation:
+    history = {"T_r": np.array([t_r_c]), "u": np.zeros(0), "u_phys": np.zeros(0), "T_a": np.array([t_a_c])}
+    return Observation(k=0, t_r_c=t_r_c, history=history, t_m_true_c=t_m_c)
+
+
+def _closed_loop(controller: Controller, n_steps: int, *, hidden_start_t_m_c: float = 17.0):
+    """Run against the simulator (backup thermostat out of reach, so the model is exact).
+
+    Returns (actions (n,), realised objective [EUR], final |T_m estimate - T_m| or nan).
+    """
+    config = SimConfig(params=PARAMS, backup_low_c=-50.0, backup_high_c=80.0)
+    sim = Simulator(config, seed=0)
+    sim.reset(19.0, hidden_start_t_m_c)
+    fc_all = _forecast(n_steps + SPEC.horizon_steps)
+    hist: dict[str, list[float]] = {"T_r": [19.0], "u": [], "u_phys": [], "T_a": [fc_all.t_a_c[0]]}
+    actions, t_r_next = [], []
+    controller.reset(seed=0)
+    for k in range(n_steps):
+        obs = Observation(
+            k=k,
+            t_r_c=hist["T_r"][-1],
+            history={name: np.array(v) for name, v in hist.items()},
+            t_m_true_c=float(sim.state[0, 1]),
+        )
+        fc = Forecast(*(np.asarray(a)[k:] for a in fc_all))
+        u = controller.act(obs, fc)
+        r = sim.step(u, fc_all.t_a_c[k])
+        hist["T_r"].append(float(r.t_r_c[0]))
+        hist["u"].append(u)
+        hist["u_phys"].append(float(r.u_phys_w[0]))
+        hist["T_a"].append(float(fc_all.t_a_c[k + 1]))
+        actions.append(u)
+        t_r_next.append(float(r.t_r_c[0]))
+    realised = float(plan_cost(np.array(actions), np.array(t_r_next), fc_all, SPEC))
+    error = np.nan
+    if isinstance(controller, RCMPCBase):
+        error = abs(controller.state_estimate_c[1] - float(sim.state[0, 1]))  # estimate at k=n-1
+    return np.array(actions), realised, error
+
+
+@pytest.mark.parametrize(("t_r_c", "t_m_c"), [(18.5, 18.0), (20.5, 21.5), (17.0, 14.0)])
+def test_casadi_and_qp_agree_on_first_action_and_objective(t_r_c: float, t_m_c: float) -> None:
+    fc = _forecast(60)
+    qp, ca = QPMPC(PARAMS, SPEC), CasadiMPC(PARAMS, SPEC)
+    obs = _first_obs(t_r_c, t_m_c)
+    a_qp, a_ca = qp.act(obs, fc), ca.act(obs, fc)
+    assert not qp.last_stats.fallback and not ca.last_stats.fallback
+    assert abs(a_qp - a_ca) <= 0.01 * SPEC.u_max_w
+    stage = qp.problem.stage(qp.state_estimate_c, fc)
+    j_qp = qp.problem.objective(stage, qp.last_plan / 1000.0)
+    j_ca = ca.problem.objective(stage, ca.last_plan / 1000.0)
+    assert j_qp == pytest.approx(j_ca, rel=1e-3)
+
+
+@pytest.mark.parametrize("cls", MPCS)
+def test_plan_respects_bounds_and_matches_plan_cost(cls: type[RCMPCBase]) -> None:
+    fc = _forecast(48)
+    mpc = cls(PARAMS, SPEC)
+    mpc.act(_first_obs(19.0, 18.0), fc)
+    plan = mpc.last_plan
+    assert plan is not None and plan.shape == (48,)
+    assert plan.min() >= 0.0 and plan.max() <= SPEC.u_max_w
+    stage = mpc.problem.stage(mpc.state_estimate_c, fc)
+    t_r = mpc.problem.rollout(stage, plan / 1000.0)[:, 0]
+    assert mpc.problem.objective(stage, plan / 1000.0) == pytest.approx(
+        float(plan_cost(plan, t_r, fc, SPEC)), rel=1e-12
+    )
+
+
+@pytest.mark.parametrize("cls", MPCS)
+def test_unreachable_comfort_band_still_solves(cls: type[RCMPCBase]) -> None:
+    fc = _forecast(48, t_min_c=35.0, t_max_c=36.0)  # far above what 5 kW can reach
+    mpc = cls(PARAMS, SPEC)
+    action = mpc.act(_first_obs(19.0, 18.0), fc)
+    assert not mpc.last_stats.fallback
+    assert action == pytest.approx(SPEC.u_max_w, rel=1e-6)  # best effort: flat out
+
+
+@pytest.mark.parametrize(
+    ("cls", "options"), [(QPMPC, {"max_iter": 1}), (CasadiMPC, {"nWSR": 1})]
+)
+def test_injected_solver_failure_acts_through_the_fallback(cls: type, options: dict) -> None:
+    fc = _forecast(48)
+    obs = _first_obs(17.5, 17.0)
+    mpc = cls(PARAMS, SPEC, solver_options=options)
+    action = mpc.act(obs, fc)
+    assert mpc.last_stats.fallback and mpc.n_fallbacks == 1
+    assert action == fallback_power(obs, fc, SPEC) == SPEC.u_max_w
+    assert mpc.last_plan is None
+
+
+@pytest.mark.parametrize("cls", MPCS)
+def test_failure_after_a_solve_uses_the_shifted_previous_plan(cls: type[RCMPCBase]) -> None:
+    mpc = cls(PARAMS, SPEC)
+    mpc.act(_first_obs(19.0, 18.0), _forecast(48))
+    plan = mpc.last_plan
+    assert plan is not None
+    bad = _forecast(48, price_eur_per_kwh=np.nan)  # a non-finite forecast: the solve fails
+    history = {"T_r": np.array([19.0, 19.2]), "u": plan[:1], "u_phys": plan[:1], "T_a": np.array([3.0, 3.0])}
+    action = mpc.act(Observation(k=1, t_r_c=19.2, history=history, t_m_true_c=18.0), bad)
+    assert mpc.last_stats.fallback and mpc.n_fallbacks == 1
+    assert action == pytest.approx(plan[1])
+
+
+@pytest.mark.parametrize("cls", MPCS)
+def test_free_energy_and_a_band_above_the_free_run_heats_flat_out(cls: type[RCMPCBase]) -> None:
+    fc = _forecast(48, price_eur_per_kwh=0.0, t_min_c=22.0, t_max_c=30.0, t_a_c=5.0)
+    x_free = steady_state(PARAMS, u_w=0.0, t_a_c=5.0)  # 5 C: free-running
+    action = cls(PARAMS, SPEC).act(_first_obs(float(x_free[0]), float(x_free[1])), fc)
+    assert action == pytest.approx(SPEC.u_max_w, rel=1e-6)
+
+
+@pytest.mark.parametrize("cls", MPCS)
+def test_steady_state_action_holds_the_lower_band(cls: type[RCMPCBase]) -> None:
+    t_min, t_a = 20.0, 5.0
+    u_ss = (t_min - t_a) / (PARAMS.r_ra_k_per_w * PARAMS.eta)  # 4000 W
+    x = steady_state(PARAMS, u_w=u_ss, t_a_c=t_a)
+    np.testing.assert_allclose(x, [t_min, t_min], atol=1e-9)
+    fc = _forecast(48, price_eur_per_kwh=0.25, t_min_c=t_min, t_max_c=24.0, t_a_c=t_a)
+    action = cls(PARAMS, SPEC).act(_first_obs(t_min, t_min, t_a), fc)
+    assert action == pytest.approx(u_ss, rel=0.01)
+
+
+def test_regulariser_moves_the_objective_by_less_than_a_thousandth() -> None:
+    fc = _forecast(48)
+    obs = _first_obs(18.5, 18.0)
+    regular, lp = CasadiMPC(PARAMS, SPEC), CasadiMPC(PARAMS, SPEC, regularisation_eur_per_kw2h=1e-9)
+    regular.act(obs, fc)
+    lp.act(obs, fc)
+    stage = lp.problem.stage(lp.state_estimate_c, fc)
+    j_lp = lp.problem.objective(stage, lp.last_plan / 1000.0)
+    j_reg = regular.problem.objective(stage, regular.last_plan / 1000.0)
+    assert j_lp <= j_reg <= j_lp * (1 + 1e-3)
+
+
+def test_closed_loop_qp_and_casadi_agree_and_the_observer_finds_t_m() -> None:
+    a_qp, j_qp, err_qp = _closed_loop(QPMPC(PARAMS, SPEC), 60)
+    a_ca, j_ca, err_ca = _closed_loop(CasadiMPC(PARAMS, SPEC), 60)
+    assert np.max(np.abs(a_qp - a_ca)) <= 0.01 * SPEC.u_max_w
+    assert j_qp == pytest.approx(j_ca, rel=1e-3)
+    assert err_qp < 0.2 and err_ca < 0.2
+
+
+def test_reset_makes_runs_reproducible() -> None:
+    mpc = QPMPC(PARAMS, SPEC)
+    first, _, _ = _closed_loop(mpc, 12)
+    second, _, _ = _closed_loop(mpc, 12)
+    np.testing.assert_array_equal(first, second)
+
+
+def test_oracle_uses_the_true_state() -> None:
+    oracle = Oracle(PARAMS, SPEC)
+    oracle.act(_first_obs(19.0, 15.0), _forecast(48))
+    np.testing.assert_array_equal(oracle.state_estimate_c, [19.0, 15.0])
+    assert oracle.name == "oracle"
+
+
+def test_clairvoyant_is_a_lower_bound_and_realises_its_plan() -> None:
+    n = 48
+    clair = Clairvoyant(PARAMS, SPEC, n)
+    _, j_oracle, _ = _closed_loop(Oracle(PARAMS, SPEC), n)
+    actions, j_clair, _ = _closed_loop(clair, n)
+    assert j_clair <= j_oracle * (1 + 1e-4)
+    # With an exact model the whole-run plan of step 0 is what happens.
+    fresh = Clairvoyant(PARAMS, SPEC, n)
+    fresh.act(_first_obs(19.0, 17.0), _forecast(n + SPEC.horizon_steps))
+    assert fresh.last_plan is not None
+    np.testing.assert_allclose(actions, fresh.last_plan, atol=0.01 * SPEC.u_max_w)
+    assert clair.name == "clairvoyant"
+
+
+def test_forecast_longer_or_shorter_than_the_horizon() -> None:
+    spec = dataclasses.replace(SPEC, horizon_steps=12)
+    mpc = QPMPC(PARAMS, spec)
+    long_action = mpc.act(_first_obs(19.0, 18.0), _forecast(100))
+    short = QPMPC(PARAMS, spec).act(_first_obs(19.0, 18.0), _forecast(12))
+    assert long_action == pytest.approx(short, abs=1.0)
+    assert mpc.last_plan is not None and mpc.last_plan.shape == (12,)
+    padded = QPMPC(PARAMS, spec)
+    padded.act(_first_obs(19.0, 18.0), _forecast(5))  # the last value is repeated
+    assert not padded.last_stats.fallback
