@@ -33,6 +33,7 @@ import numpy as np
 import pandas as pd
 
 from controllers.base import Controller, ControlSpec, Forecast, Observation, fallback_power
+from controllers.thermostat import Thermostat
 from pinn_mpc.data import write_timeseries
 from pinn_mpc.errors import InputError
 from pinn_mpc.io import atomic_write_json
@@ -40,11 +41,12 @@ from pinn_mpc.simulator import Simulator
 from scenarios.factory import MODEL_CONTROLLERS, make_controller
 from scenarios.inputs import time_of_day_h
 from scenarios.kpis import compute_kpis
-from scenarios.registry import Scenario, check_seed, get_scenario
+from scenarios.registry import EXOGENOUS_COLUMNS, Scenario, check_seed, get_scenario
 
 #: Columns the trajectory adds to the data format.
 EXTRA_COLUMNS = ("overridden", "fallback", "decision_ms")
 _FORECAST_NOISE_STREAM = 1
+_EXOGENOUS = EXOGENOUS_COLUMNS[1:]  # all but time
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -117,10 +119,8 @@ def run_closed_loop(
             f"scenario {scenario.name!r} gave {len(exo)} exogenous rows, need {total + horizon}"
         )
     exo = exo.iloc[: total + horizon].reset_index(drop=True)
-    cols = {c: exo[c].to_numpy(dtype=float) for c in ("T_a", "G", "I_g", "price", "T_min", "T_max")}
+    cols = {c: exo[c].to_numpy(dtype=float) for c in _EXOGENOUS}
     tod = time_of_day_h(exo["time"])
-
-    from controllers.thermostat import Thermostat  # the warm-up policy
 
     warmup_controller = Thermostat(spec)
     warmup_controller.reset(seed)
@@ -147,10 +147,13 @@ def run_closed_loop(
         history["T_r"] = np.array(t_r_meas[: k + 1])
         history["u"] = np.array(u_dem[:k])
         history["u_phys"] = np.array(u_phys[:k])
-        obs = Observation(k=k, t_r_c=float(t_r_meas[k]), history=history, t_m_true_c=t_m_true[k])
+        obs = Observation(
+            k=k, t_r_c=float(t_r_meas[k]), history=history, t_m_true_c=float(t_m_true[k])
+        )
         t_a_forecast = cols["T_a"][k:].copy()
-        noise = forecast_rng.normal(0.0, 1.0, size=len(t_a_forecast) - 1)
-        t_a_forecast[1:] += forecast_noise_std_c * noise
+        if forecast_noise_std_c > 0:
+            n_future = len(t_a_forecast) - 1
+            t_a_forecast[1:] += forecast_rng.normal(0.0, forecast_noise_std_c, n_future)
         forecast = Forecast(
             time_of_day_h=np.array(tod[k:]),
             t_a_c=t_a_forecast,
@@ -177,7 +180,7 @@ def run_closed_loop(
             "T_m": t_m_true[counted],
             "u": u_dem[counted],
             "u_phys": u_phys[counted],
-            **{c: cols[c][counted] for c in ("T_a", "G", "I_g", "price", "T_min", "T_max")},
+            **{c: cols[c][counted] for c in _EXOGENOUS},
             "overridden": overridden[counted].astype(int),
             "fallback": fallback[counted].astype(int),
             "decision_ms": decision_s[counted] * 1000.0,
@@ -273,7 +276,10 @@ def closed_loop_command(
     if plot_path is not None:
         plot_trajectory(result.trajectory, plot_path, title=f"{controller} on {scenario}")
     atomic_write_json(json_path, result.kpis)
-    return format_kpis(result.kpis) + f"\nwrote {json_path}"
+    lines = [format_kpis(result.kpis)]
+    if result.errors:
+        lines.append(f"{len(result.errors)} controller error(s), first: {result.errors[0]}")
+    return "\n".join([*lines, f"wrote {json_path}"])
 
 
 def format_kpis(kpis: dict[str, Any]) -> str:
