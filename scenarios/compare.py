@@ -1,8 +1,9 @@
 """``pinn-mpc compare``: train, identify and run every controller on one scenario.
 
 1. Training data: ``train_days`` under the random policy (seed ``seed``).
-2. Models: physnet, physreg and mlp seed ensembles; grey-box RC identification (T_m hidden);
-   the RC parameters exported from the physnet ensemble.
+2. Models: physnet, physreg and mlp seed ensembles (``quick``: physnet only, the others serve
+   only the CEM rows it leaves out); grey-box RC identification (T_m hidden); the RC
+   parameters exported from the physnet ensemble.
 3. Closed loop on the same ``days`` test days (seed ``seed + 1``, so other weather than the
    training data), same perfect forecasts, same one-day thermostat warm-up, for: thermostat,
    random shooting and CEM over physnet (and CEM over physreg and mlp unless ``quick``),
@@ -25,6 +26,7 @@ from typing import Any
 import pandas as pd
 from tqdm import tqdm
 
+from pinn_mpc.errors import InputError
 from pinn_mpc.io import atomic_write_json, atomic_write_text
 from pinn_mpc.physics import RCParams, params_from_summary, rc_summary
 from scenarios.closed_loop import check_writable, one_torch_thread, run_closed_loop
@@ -55,8 +57,6 @@ class CompareSettings:
     quick: bool = False
 
     def __post_init__(self) -> None:
-        from pinn_mpc.errors import InputError
-
         check_seed(self.seed)
         for name in ("train_days", "test_days", "n_seeds", "depth", "shooting_samples",
                      "cem_samples", "cem_iters"):
