@@ -1,11 +1,16 @@
 """``casadi-mpc``: the RC MPC problem of :mod:`controllers.rc_problem` in CasADi.
 
-The problem is written once symbolically (the state rollout with ``Ad``, ``Bd`` from
-:func:`pinn_mpc.physics.discretise`), with the initial state, the exogenous drift and the
-price as CasADi parameters and the comfort band as constraint bounds, and handed to
-``casadi.qpsol``; each step only numbers change and the solver is warm-started from the
-previous solution shifted by one step. The QP plugin defaults to ``qpoases`` (ships with CasADi; an
-exact active-set solver, reliable on this nearly-linear problem). Alternatives measured on the
+The problem is written once symbolically and handed to ``casadi.qpsol``, in condensed form:
+the decision is (power, slack), the room temperature at the end of interval j is
+``free[j] + (S p)[j]`` where ``S p`` is the symbolic rollout of ``Ad``, ``Bd`` (from
+:func:`pinn_mpc.physics.discretise`) from a zero state and ``free`` the response to the
+initial state and the exogenous inputs, computed each step by ``RCProblem.rollout``. The price
+is a CasADi parameter; the free response and the comfort band enter as constraint bounds. Each
+step only numbers change and the solver is warm-started from the previous solution shifted by
+one step (qp-mpc keeps the states as variables instead, so the two formulations cross-check).
+
+The QP plugin defaults to ``qpoases`` (ships with CasADi; an exact active-set solver, reliable
+on this nearly-linear problem; dense, hence the condensed form). Alternatives measured on the
 household problem at H=48: ``qrqp`` is faster but, warm-started with an inconsistent active
 set, reported success at a suboptimal point; ``osqp`` needs tight tolerances (slow) on this
 near-LP; ``highs`` collides with the ``highspy`` wheel cvxpy loads (two HiGHS libraries in one
@@ -73,29 +78,32 @@ class CasadiMPC(RCMPCBase):
         b_u = prob.b_u_c_per_kw
         p = ca.SX.sym("power_kw", h)
         s = ca.SX.sym("slack_k", h)
-        x = ca.SX.sym("state_c", 2, h)  # end-of-interval states, lifted: sparse constraints
         price = ca.SX.sym("price_eur_per_kwh", h)
         ad_ca, bu_ca = ca.DM(ad), ca.DM(b_u)
-        previous = ca.horzcat(ca.DM.zeros(2, 1), x[:, : h - 1])
-        # x[j] - Ad x[j-1] - b_u p[j] = drift[j] (+ Ad x0 for j = 0): data enter as bounds only
-        dynamics = x - ca.mtimes(ad_ca, previous) - ca.mtimes(bu_ca, p.T)
-        t_r_next = x[0, :].T
+        # Condensed: T_r[j+1] = free[j] + (S p)[j]; the rollout from a zero state gives S p,
+        # the free response (initial state and exogenous inputs) enters the bounds each step.
+        x = ca.SX.zeros(2, 1)
+        forced = []
+        for j in range(h):
+            x = ca.mtimes(ad_ca, x) + bu_ca * p[j]
+            forced.append(x[0])
+        t_r_forced = ca.vertcat(*forced)
         f = dt_h * (
             ca.dot(price, p)
             + self.spec.comfort_weight_eur_per_kh * ca.sum1(s)
             + prob.regularisation_eur_per_kw2h * ca.sumsqr(p)
         )
         qp = {
-            "x": ca.vertcat(p, s, ca.vec(x.T)),  # blocks of length H: shiftable
+            "x": ca.vertcat(p, s),
             "p": price,
             "f": f,
-            "g": ca.vertcat(ca.vec(dynamics.T), t_r_next + s, t_r_next - s),
+            "g": ca.vertcat(t_r_forced + s, t_r_forced - s),
         }
         with _quiet_c_stdout():
             self._solver = ca.qpsol("casadi_mpc", self.plugin, qp, options)
         self._first_call = True
-        self._lbx = np.concatenate([np.zeros(2 * h), np.full(2 * h, -np.inf)])
-        self._ubx = np.concatenate([np.full(h, prob.u_max_kw), np.full(3 * h, np.inf)])
+        self._lbx = np.zeros(2 * h)
+        self._ubx = np.concatenate([np.full(h, prob.u_max_kw), np.full(h, np.inf)])
         self._warm: dict[str, np.ndarray] | None = None
 
     def reset(self, seed: int | None = None) -> None:
@@ -104,16 +112,14 @@ class CasadiMPC(RCMPCBase):
 
     def _solve(self, stage: StageData) -> SolveResult:
         h = self.problem.horizon_steps
-        ad, _ = self.problem.matrices
-        drift = stage.free_c.copy()  # (H, 2)
-        drift[0] += ad @ stage.x0_c
+        free = self.problem.rollout(stage, np.zeros(h))[:, 0]
         inf = np.full(h, np.inf)
         args: dict[str, Any] = {
             "p": stage.price_eur_per_kwh,
             "lbx": self._lbx,
             "ubx": self._ubx,
-            "lbg": np.concatenate([drift.T.reshape(-1), stage.t_min_c, -inf]),
-            "ubg": np.concatenate([drift.T.reshape(-1), inf, stage.t_max_c]),
+            "lbg": np.concatenate([stage.t_min_c - free, -inf]),
+            "ubg": np.concatenate([inf, stage.t_max_c - free]),
         }
         if self._warm is not None:
             args.update(self._warm)
