@@ -32,7 +32,7 @@ import scipy.signal
 from pinn_mpc.data import read_timeseries
 from pinn_mpc.errors import InputError
 from pinn_mpc.io import atomic_write_json
-from pinn_mpc.physics import RCParams, discretise
+from pinn_mpc.physics import RCParams, discretise, rc_summary
 
 #: Below this standard deviation a G or I_g column counts as constant (not identifiable).
 _MIN_STD = {"G": 1.0, "I_g": 1.0}
@@ -139,14 +139,17 @@ def _energy_balance_guess(
         per_day = max(len(d) // 6, 1)
         n_days = len(d) // per_day
     m = n_days * per_day
-    day = lambda a: a[:m].reshape(n_days, per_day).mean(axis=1)  # noqa: E731
+
+    def day(a: np.ndarray) -> np.ndarray:
+        return a[:m].reshape(n_days, per_day).mean(axis=1)
+
     heat = eta * day(d[:, 0]) + day(d[:, 3])
     loss = day(t_r[:-1]) - day(d[:, 1])
     rate = (t_r[per_day : m + 1 : per_day] - t_r[0:m:per_day]) / (per_day * dt_s)
     columns = [loss, rate] + ([-day(d[:, 2])] if solar else [])
     coef, *_ = np.linalg.lstsq(np.stack(columns, axis=1), heat, rcond=None)
     r_ra = 1.0 / coef[0] if coef[0] > 0 else 0.01
-    c_tot = coef[1] if coef[1] > 0 else 3600.0 * 50.0 / (1.0 / r_ra)
+    c_tot = coef[1] if coef[1] > 0 else 3600.0 * 50.0 / r_ra  # a 50 h time constant
     aperture = coef[2] if solar and coef[2] > 0 else 1.0
     return float(r_ra), float(c_tot), float(aperture)
 
@@ -237,9 +240,11 @@ def identify_to_json(
     out: str | os.PathLike[str],
     eta: float | None,
 ) -> str:
-    """CLI ``identify``: read ``data``, identify, write the RC JSON (atomically) to ``out``."""
-    from pinn_mpc.physics import rc_summary
+    """CLI ``identify``: read ``data``, identify, write the RC JSON (atomically) to ``out``.
 
+    ``eta`` None means 1 (a heater). The JSON is :func:`pinn_mpc.physics.rc_summary` plus a
+    ``fit`` block (:meth:`IdentifyResult.fit_statistics`). Returns a one-line summary.
+    """
     eta_value = 1.0 if eta is None else float(eta)
     df = read_timeseries(data, columns=columns)
     result = identify_rc(df, eta=eta_value)
