@@ -130,14 +130,15 @@ def test_rc_model_reconstructs_hidden_t_m_from_the_last_interval():
 def test_cem_plan_comes_within_a_few_percent_of_the_exact_optimum():
     x0, fc = np.array([19.5, 19.0]), _forecast()
     optimum = _lp_optimum(x0, fc)
-    cem = CEM(LINEAR, SPEC, n_samples=300, n_iters=6)  # a cold start needs more than the default
+    # A cold start needs a wider search than the warm-started default.
+    cem = CEM(LINEAR, SPEC, n_samples=300, n_iters=8, init_std_frac=0.5)
     cem.reset(seed=0)
     cem.act(_obs(*x0), fc)
     plan = cem.last_plan
     assert plan is not None and plan.shape == (H,)
     # The planner's own score is the true objective of its plan (float32 rollout).
     assert cem.last_cost_eur == pytest.approx(_true_cost(plan, x0, fc), rel=1e-4)
-    assert optimum <= cem.last_cost_eur <= 1.05 * optimum
+    assert optimum <= cem.last_cost_eur <= 1.04 * optimum
 
 
 def test_warm_started_cem_closes_in_on_the_optimum_in_receding_horizon():
@@ -152,7 +153,7 @@ def test_warm_started_cem_closes_in_on_the_optimum_in_receding_horizon():
         x = AD @ x + BD @ np.array([u, fc.t_a_c[0], 0.0, 0.0])
         assert not cem.last_stats.fallback
     assert min(gaps) >= 0.0
-    assert gaps[-1] < 0.045 and gaps[-1] < gaps[0]
+    assert gaps[-1] < 0.05 and gaps[-1] < gaps[0]
 
 
 @pytest.mark.parametrize("seed", [0, 1])
