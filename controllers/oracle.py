@@ -5,8 +5,10 @@ state (``obs.t_m_true_c``) and are meant to get the true parameters and perfect 
 
 - ``oracle``: the receding-horizon MPC (horizon ``spec.horizon_steps``) with perfect knowledge;
   the reference a controller is judged by.
-- ``clairvoyant``: the whole run as one problem. At step k it solves over the remaining
-  ``n_steps - k`` intervals (shrinking horizon to the run end; the QP is built once with
+- ``clairvoyant``: the whole run as one problem. The run is the ``n_steps`` intervals from
+  the first ``act`` after ``reset`` (so a warm-up driven by another controller, which advances
+  ``obs.k``, does not count). At the i-th decision it solves over the remaining ``n_steps - i``
+  intervals (shrinking horizon to the run end; the QP is built once with
   ``n_steps`` steps and the steps after the end get zero price and an open band). With a
   perfect model this reproduces the single whole-run optimum, so its objective is the lower
   bound for the run (up to the backup thermostat, which no controller models). The forecast
@@ -66,5 +68,11 @@ class Clairvoyant(Oracle):
             solver_options=solver_options,
         )
 
+    def reset(self, seed: int | None = None) -> None:
+        super().reset(seed)
+        self._k_start: int | None = None
+
     def _n_active(self, obs: Observation) -> int:
-        return max(self.n_steps - obs.k, 1)
+        if self._k_start is None:
+            self._k_start = obs.k
+        return max(self.n_steps - (obs.k - self._k_start), 1)

@@ -226,3 +226,21 @@ def test_forecast_longer_or_shorter_than_the_horizon() -> None:
     padded = QPMPC(PARAMS, spec)
     padded.act(_first_obs(19.0, 18.0), _forecast(5))  # the last value is repeated
     assert not padded.last_stats.fallback
+
+
+def test_clairvoyant_counts_its_run_from_the_first_decision() -> None:
+    """A warm-up driven by another controller advances obs.k but is not part of the run."""
+    n, fc = 24, _forecast(24 + SPEC.horizon_steps)
+    at_zero, after_warmup = Clairvoyant(PARAMS, SPEC, n), Clairvoyant(PARAMS, SPEC, n)
+    at_zero.act(_first_obs(19.0, 17.0), fc)
+    late = _first_obs(19.0, 17.0)._replace(k=48)
+    after_warmup.act(late, fc)
+    assert at_zero.last_plan is not None and after_warmup.last_plan is not None
+    np.testing.assert_allclose(after_warmup.last_plan, at_zero.last_plan, atol=1e-6)
+    assert at_zero.last_plan.shape == (n,) and at_zero.last_plan.max() > 100.0
+    plan = at_zero.last_plan
+    history = {"T_r": np.array([19.0, 19.5]), "u": plan[:1], "u_phys": plan[:1], "T_a": fc.t_a_c[:2]}
+    second = Observation(k=1, t_r_c=19.5, history=history, t_m_true_c=17.1)
+    at_zero.act(second, Forecast(*(np.asarray(a)[1:] for a in fc)))
+    assert at_zero.last_plan is not None
+    assert at_zero.last_plan[-1] < 1.0  # the last step is after the run end: nothing planned
