@@ -133,7 +133,8 @@ class CEMPlanner:
     Continuous actions: a Gaussian per step (mean from ``x0``, std ``init_std_frac`` x range),
     samples clipped to the bounds (clipping puts mass on the bounds, where optima of
     energy/comfort problems often lie). Binary actions: a Bernoulli per step, started halfway
-    between 1/2 and the warm start (0.25 or 0.75). Each iteration refits the distribution to the
+    between 1/2 and the warm start's fraction of full power (0.25 off, 0.75 on, 0.5 at half
+    power, the controllers' cold start). Each iteration refits the distribution to the
     ``elite_frac`` best samples with smoothing ``alpha`` (the weight kept on the old
     distribution, mbrl-lib's convention). The current mean (continuous) and the best sequence so
     far are re-evaluated among the samples, so the returned cost never increases with iterations.
@@ -177,7 +178,8 @@ class CEMPlanner:
         span = self.upper - self.lower
         if self.binary:
             best = _snap(x0, self.lower, self.upper)
-            mean = 0.25 + 0.5 * (best - self.lower) / span  # probability of "on"
+            on = ((x0 - self.lower) / span).clamp(0.0, 1.0)
+            mean = 0.25 + 0.5 * on  # probability of "on"
             std = torch.zeros_like(mean)
         else:
             best = x0.clamp(self.lower, self.upper)

@@ -153,3 +153,17 @@ def test_colored_noise_is_unit_variance_and_correlated_in_time():
 def test_invalid_settings_are_rejected_with_a_clear_message(kwargs, message):
     with pytest.raises(InputError, match=message):
         CEMPlanner(**kwargs)
+
+
+@pytest.mark.parametrize(("x0_value", "p_on"), [(0.0, 0.25), (0.5, 0.5), (1.0, 0.75)])
+def test_binary_cem_starts_between_a_fair_coin_and_the_warm_start(x0_value, p_on):
+    seen: list[torch.Tensor] = []
+
+    def objective(u: torch.Tensor) -> torch.Tensor:
+        seen.append(u.clone())
+        return torch.zeros(u.shape[0])
+
+    planner = CEMPlanner(lower=0.0, upper=1.0, n_samples=2000, n_iters=1, binary=True)
+    planner.optimize(objective, torch.full((H,), x0_value), _gen())
+    drawn = seen[0][1:]  # row 0 is the (snapped) warm start itself
+    assert float(drawn.mean()) == pytest.approx(p_on, abs=0.02)  # 16000 draws: 4 sigma

@@ -290,7 +290,8 @@ def _closed_loop(controller, n_steps: int):
 
 
 def test_cem_over_a_trained_physnet_ensemble_in_closed_loop(physnet):
-    cem = CEM(physnet, SPEC, n_samples=64, n_iters=2)
+    risk_weight = 0.5
+    cem = CEM(physnet, SPEC, n_samples=64, n_iters=2, risk_weight=risk_weight)
     cem.reset(seed=0)
     planned = 0
     for k, obs, fc, u in _closed_loop(cem, n_steps=physnet.depth + 3):
@@ -304,14 +305,17 @@ def test_cem_over_a_trained_physnet_ensemble_in_closed_loop(physnet):
         planned += 1
         plan = cem.last_plan
         assert plan is not None and u == plan[0]
-        # The planner's score is plan_cost on the model's prediction, averaged over members.
+        # The planner's score is plan_cost on the model's prediction: mean + risk x std over
+        # the members.
         exog = {"time_of_day_h": fc.time_of_day_h[:H], "T_a": fc.t_a_c[:H]}
         roll = physnet.rollout(obs.history, torch.tensor(plan[None], dtype=torch.float32), exog)
         per_member = [
             plan_cost(roll.u_phys_w[m, 0].numpy(), roll.t_r_c[m, 0].numpy(), fc, SPEC)
             for m in range(physnet.n_members)
         ]
-        assert cem.last_cost_eur == pytest.approx(float(np.mean(per_member)), rel=1e-4)
+        expected = np.mean(per_member) + risk_weight * np.std(per_member)
+        assert np.std(per_member) > 0
+        assert cem.last_cost_eur == pytest.approx(float(expected), rel=1e-4)
     assert planned == 2
 
 
