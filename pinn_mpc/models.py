@@ -22,7 +22,7 @@ coefficients per member, positive quantities in log space with ``a11 = a12 + c13
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -108,6 +108,36 @@ class EnsembleNet(nn.Module):
         if self.arch == "physreg":
             return obs, self.z_head(s)[..., 0]
         return obs, None
+
+    def rollout_steps(
+        self, static: torch.Tensor, depth: int
+    ) -> Callable[[torch.Tensor, torch.Tensor, int], tuple[torch.Tensor, torch.Tensor | None]]:
+        """Prepare a recursive rollout over H steps without re-gathering inputs every step.
+
+        ``static`` (N, H, n_static) holds, for every step, the inputs that do not depend on the
+        predictions (``x[..., 2(k+1):]``: exogenous windows, u, time of day), the same for all
+        members. Returns ``step(t_win, p_win, h)`` (windows (M, N, k+1) scaled) giving the same
+        ``(obs, z)`` as :meth:`forward` on the full features of step h.
+        """
+        k, k1 = depth, depth + 1
+        m = self.head.weight.shape[0] if self.arch != "physnet" else self.dynamics[0].weight.shape[0]
+        by_step = static.transpose(0, 1)  # (H, N, n_static)
+        if self.arch != "physnet":
+            static_h = by_step.contiguous()
+
+            def step_reg(t: torch.Tensor, p: torch.Tensor, h: int) -> tuple[torch.Tensor, torch.Tensor | None]:
+                return self(torch.cat([t, p, static_h[h].expand(m, -1, -1)], dim=-1))
+
+            return step_reg
+        enc_static = by_step[..., [i - 2 * k1 for i in self.x_f_index.tolist() if i >= 2 * k1]].contiguous()
+        dyn_static = by_step[..., [i - 2 * k1 for i in self.now_index.tolist() if i >= 2 * k1]].contiguous()
+
+        def step_net(t: torch.Tensor, p: torch.Tensor, h: int) -> tuple[torch.Tensor, torch.Tensor | None]:
+            z = _run(self.encoder, torch.cat([t[..., :k], p[..., :k], enc_static[h].expand(m, -1, -1)], -1))
+            dyn_in = torch.cat([z, t[..., k:], p[..., k:], dyn_static[h].expand(m, -1, -1)], dim=-1)
+            return _run(self.dynamics, dyn_in), z[..., 0]
+
+        return step_net
 
 
 _GAIN_NAMES = {"G": ("c11", "c21"), "I_g": ("c12", "c22")}
@@ -319,14 +349,13 @@ class LearnedModel:
         e_win = e_seq.unfold(-1, k1, 1)[..., :h_len, :]  # (N0, n_series, H, k+1)
         e_win = e_win.permute(0, 2, 1, 3).reshape(e_seq.shape[0], h_len, -1)
         static = torch.cat([e_win.expand(n, -1, -1), u_s[..., None], tod.expand(n, -1, -1)], dim=-1)
-        static = static.expand(m, -1, -1, -1)  # (M, N, H, n_static)
         z_out = torch.empty(m, n, h_len) if self.arch != "mlp" else None
         with torch.no_grad():
+            step = self.module.net.rollout_steps(static, self.depth)
             for h in range(h_len):
-                x = torch.cat([t_buf[..., h : h + k1], p_buf[..., h : h + k1], static[:, :, h]], dim=-1)
-                t_next, p, z = self._step(x)
-                t_buf[..., k1 + h] = t_next
-                p_buf[..., k1 + h] = p
+                obs, z = step(t_buf[..., h : h + k1], p_buf[..., h : h + k1], h)
+                t_buf[..., k1 + h] = t_buf[..., k1 + h - 1] + obs[..., 0] * self._dt_ratio + self._dt_offset
+                p_buf[..., k1 + h] = obs[..., 1].clamp(self._p_lo, self._p_hi)
                 if z_out is not None and z is not None:
                     z_out[..., h] = z
         f = self.features
