@@ -98,7 +98,7 @@ def test_ignores_a_t_m_column(solar_frame: pd.DataFrame) -> None:
 
 def test_cooling_needs_eta_and_recovers_parameters() -> None:
     cooling = dataclasses.replace(PAPER_HOUSEHOLD, eta=-3.0)
-    frame = _random_policy_frame(cooling, days=20, seed=1)
+    frame = _random_policy_frame(cooling, days=12, seed=1)
     p = identify_rc(frame, eta=-3.0).params
     assert p.eta == -3.0
     assert _rel(p.r_ra_k_per_w, cooling.r_ra_k_per_w) < 0.10
