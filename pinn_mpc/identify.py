@@ -166,6 +166,11 @@ def identify_rc(df: pd.DataFrame, *, eta: float = 1.0) -> IdentifyResult:
     missing = [c for c in ("T_r", "u_phys", "T_a") if c not in df.columns]
     if missing:
         raise InputError(f"identify: data lacks column(s) {missing}; see the data format")
+    if "building" in df.columns and df["building"].nunique() > 1:
+        raise InputError(
+            f"identify: data holds {df['building'].nunique()} buildings (column 'building'); "
+            "identify one building at a time (keep the rows of one building)"
+        )
     dt_s = float(df.attrs.get("dt_s", 0.0))
     if not dt_s > 0:
         raise InputError("identify: the frame has no attrs['dt_s']; read it with read_timeseries")

@@ -132,6 +132,11 @@ def test_rejects_unexcited_data(solar_frame: pd.DataFrame) -> None:
         identify_rc(solar_frame, eta=0.0)
     with pytest.raises(InputError, match="at least 48 rows"):
         identify_rc(validate_timeseries(solar_frame.iloc[:10]))
+    two = pd.concat([solar_frame.iloc[:96], solar_frame.iloc[:96]], ignore_index=True)
+    two.insert(0, "building", np.repeat([0, 1], 96))
+    two.attrs["dt_s"] = 1800.0
+    with pytest.raises(InputError, match="data holds 2 buildings"):
+        identify_rc(two)
 
 
 @pytest.mark.slow
