@@ -18,8 +18,10 @@ else fails, the controller returns :func:`controllers.base.fallback_power` (the 
 rule on the measured room temperature), sets ``last_stats.fallback=True`` with the reason in
 ``status``, clears ``last_plan`` and restarts the next warm start from scratch.
 
-Speed: the rollout is a few small tensor ops per horizon step; on a shared 2-core machine one
-intra-op thread is fastest (``torch.set_num_threads(1)`` in the caller).
+Speed: a rollout is a few small tensor ops per horizon step for the whole batch, so its time
+is mostly a fixed cost per step and grows slowly with the number of candidates; iterations
+are what cost. On a shared 2-core machine one intra-op thread is fastest
+(``torch.set_num_threads(1)`` in the caller).
 """
 
 from __future__ import annotations
@@ -106,6 +108,12 @@ class RCBatchModel:
         backup_low_c: float = 17.0,
         backup_high_c: float = 20.5,
     ):
+        if not (np.isfinite(u_max_w) and u_max_w > 0):
+            raise InputError(f"RCBatchModel.u_max_w must be positive, got {u_max_w!r}")
+        if not backup_low_c < backup_high_c:
+            raise InputError(
+                f"RCBatchModel backup limits need low < high, got {backup_low_c}, {backup_high_c}"
+            )
         self.params = params
         self.u_max_w = u_max_w
         self.backup_low_c, self.backup_high_c = backup_low_c, backup_high_c
@@ -182,8 +190,7 @@ class _SamplingController:
             raise InputError(f"{type(self).__name__}.risk_weight must be >= 0, got {risk_weight}")
         self.model, self.spec, self.planner, self.risk_weight = model, spec, planner, risk_weight
         self._plan: np.ndarray | None = None
-        self._stats = SolveStats(time_s=0.0, status="not started", iterations=0, fallback=False)
-        self.last_cost_eur = float("nan")
+        self.last_cost_eur = float("nan")  # planned objective of the last plan [EUR]
         self.reset()
 
     def reset(self, seed: int | None = None) -> None:

@@ -254,6 +254,8 @@ def test_unknown_model_input_and_bad_risk_weight_are_rejected():
         CEM(model, SPEC)
     with pytest.raises(InputError, match="risk_weight must be >= 0"):
         RandomShooting(LINEAR, SPEC, risk_weight=-1.0)
+    with pytest.raises(InputError, match="backup limits need low < high"):
+        RCBatchModel(PAPER_HOUSEHOLD, dt_s=DT_S, u_max_w=U_MAX_W, backup_low_c=21.0)
 
 
 @pytest.fixture(scope="module")
