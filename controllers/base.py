@@ -85,14 +85,38 @@ def band_violation_k(t_r_c: np.ndarray, t_min_c: np.ndarray, t_max_c: np.ndarray
     return np.maximum(t_min_c - t_r_c, 0.0) + np.maximum(t_r_c - t_max_c, 0.0)
 
 
+def _first(values: np.ndarray, n: int) -> np.ndarray:
+    """First n values (n,), the last one repeated when there are fewer."""
+    a = np.asarray(values, dtype=float).reshape(-1)[:n]
+    return np.concatenate([a, np.full(n - a.size, a[-1])])
+
+
+def planning_band(forecast: Forecast, h: int) -> tuple[np.ndarray, np.ndarray]:
+    """The band the room temperature at the end of each of the next h intervals must keep, (h,) each.
+
+    The end of interval j is also the start of interval j+1, so it must lie in both bands: without
+    this a planner arrives at 17 C exactly when a 20 C day band starts, and the closed-loop KPI
+    (the time integral of the violation) charges the whole warm-up. The last value, with no next
+    interval in the forecast, uses its own band.
+    """
+    t_min, t_max = _first(forecast.t_min_c, h + 1), _first(forecast.t_max_c, h + 1)
+    lower = np.maximum(t_min[:-1], t_min[1:])
+    upper = np.minimum(t_max[:-1], t_max[1:])
+    return lower, upper
+
+
 def plan_cost(
     u_phys_w: np.ndarray, t_r_next_c: np.ndarray, forecast: Forecast, spec: ControlSpec
 ) -> np.ndarray:
-    """Objective of plans: arrays (..., H) of delivered power and end-of-interval T_r -> (...,) [EUR]."""
+    """Objective of plans: arrays (..., H) of delivered power and end-of-interval T_r -> (...,) [EUR].
+
+    Discomfort is measured against :func:`planning_band`.
+    """
     h = u_phys_w.shape[-1]
     energy_kwh = u_phys_w / 1000.0 * spec.dt_h
     cost = energy_kwh * forecast.price_eur_per_kwh[:h]
-    violation = band_violation_k(t_r_next_c, forecast.t_min_c[:h], forecast.t_max_c[:h])
+    lower, upper = planning_band(forecast, h)
+    violation = band_violation_k(t_r_next_c, lower, upper)
     return np.sum(cost + spec.comfort_weight_eur_per_kh * violation * spec.dt_h, axis=-1)
 
 

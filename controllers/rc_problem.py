@@ -37,6 +37,7 @@ from controllers.base import (
     Observation,
     SolveStats,
     fallback_power,
+    planning_band,
 )
 from pinn_mpc.errors import InputError
 from pinn_mpc.observer import KalmanObserver
@@ -99,9 +100,8 @@ class RCProblem:
         exog = np.stack(
             [_fit(a, h) for a in (forecast.t_a_c, forecast.g_w_per_m2, forecast.i_g_w)], axis=1
         )
-        price, t_min, t_max = (
-            _fit(a, h) for a in (forecast.price_eur_per_kwh, forecast.t_min_c, forecast.t_max_c)
-        )
+        price = _fit(forecast.price_eur_per_kwh, h)
+        t_min, t_max = planning_band(forecast, h)
         if n_active is not None and n_active < h:
             price[n_active:] = 0.0
             t_min[n_active:], t_max[n_active:] = OPEN_BAND_C

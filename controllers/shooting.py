@@ -32,7 +32,14 @@ from typing import Protocol
 import numpy as np
 import torch
 
-from controllers.base import ControlSpec, Forecast, Observation, SolveStats, fallback_power
+from controllers.base import (
+    ControlSpec,
+    Forecast,
+    Observation,
+    SolveStats,
+    fallback_power,
+    planning_band,
+)
 from controllers.planners import CEMPlanner, Objective, Planner, RandomShootingPlanner
 from pinn_mpc.errors import InputError
 from pinn_mpc.physics import RCParams, discretise
@@ -267,8 +274,9 @@ class _SamplingController:
         }
         dtype = torch.float32
         price = torch.tensor(forecast.price_eur_per_kwh[:h], dtype=dtype)
-        t_min = torch.tensor(forecast.t_min_c[:h], dtype=dtype)
-        t_max = torch.tensor(forecast.t_max_c[:h], dtype=dtype)
+        lower, upper = planning_band(forecast, h)
+        t_min = torch.tensor(lower, dtype=dtype)
+        t_max = torch.tensor(upper, dtype=dtype)
         dt_h, weight = self.spec.dt_h, self.spec.comfort_weight_eur_per_kh
 
         def objective(u_w: torch.Tensor) -> torch.Tensor:

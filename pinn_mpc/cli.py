@@ -240,8 +240,13 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    # The numerical work here is many small matrices (MPC, observers, identification): a
+    # multi-threaded BLAS only adds synchronisation on top of them. Torch keeps its own threads.
+    from threadpoolctl import threadpool_limits
+
     try:
-        summary = args.handler(args)
+        with threadpool_limits(limits=1, user_api="blas"):
+            summary = args.handler(args)
     except InputError as exc:
         print(f"pinn-mpc {args.command}: error: {exc}", file=sys.stderr)
         return 2
