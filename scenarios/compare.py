@@ -1,12 +1,12 @@
 """``pinn-mpc compare``: train, identify and run every controller on one scenario.
 
 1. Training data: ``train_days`` under the random policy (seed ``seed``).
-2. Models: physnet, physreg and mlp seed ensembles (``quick``: physnet only, the others serve
-   only the CEM rows it leaves out); grey-box RC identification (T_m hidden); the RC
-   parameters exported from the physnet ensemble.
+2. Models: physnet, physreg and mlp seed ensembles; grey-box RC identification (T_m hidden);
+   the RC parameters exported from the physnet ensemble.
 3. Closed loop on the same ``days`` test days (seed ``seed + 1``, so other weather than the
    training data), same perfect forecasts, same one-day thermostat warm-up, for: thermostat,
-   random shooting and CEM over physnet (and CEM over physreg and mlp unless ``quick``),
+   random shooting and CEM over physnet, CEM over physreg and mlp (unless
+   ``cem_all_models=False``),
    casadi-mpc and qp-mpc on the identified RC, qp-mpc on the physnet-exported RC, oracle and
    clairvoyant.
 4. Outputs: a JSON table (one row per controller with every KPI), a markdown report with the
@@ -78,7 +78,6 @@ class CompareSettings:
             shooting_samples=300,
             cem_samples=100,
             cem_iters=3,
-            cem_all_models=False,
             quick=True,
         )
 
@@ -120,7 +119,7 @@ def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonR
         eta=eta,
     )
     models = {}
-    # physreg and mlp only serve the CEM rows that quick runs leave out.
+    # physreg and mlp only serve the CEM rows; without them only physnet is trained.
     for arch in ARCHS if settings.cem_all_models else ARCHS[:1]:
         start = time.perf_counter()
         models[arch] = train_model(data, arch=arch, config=config, progress=True)
@@ -168,8 +167,7 @@ def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonR
                 scenario, controller, days=settings.test_days, seed=settings.test_seed, label=label
             )
             wall[f"run {label}"] = time.perf_counter() - start
-            rows.append({"controller": label, "name": name, "model": model_name, **{
-                k: v for k, v in result.kpis.items() if k != "controller"}})
+            rows.append({**result.kpis, "name": name, "model": model_name})
             trajectories[label] = result.trajectory
     for row, ratio in zip(rows, objective_ratios(rows, reference=REFERENCE), strict=True):
         row["objective_to_oracle"] = ratio

@@ -90,7 +90,8 @@ def test_compare_quick_end_to_end(tmp_path, capsys):
     table = json.loads((out / "table.json").read_text())
     labels = [row["controller"] for row in table["rows"]]
     assert labels == [
-        "thermostat", "random-shooting / physnet", "cem / physnet", "casadi-mpc / identified RC",
+        "thermostat", "random-shooting / physnet", "cem / physnet", "cem / physreg", "cem / mlp",
+        "casadi-mpc / identified RC",
         "qp-mpc / identified RC", "qp-mpc / physnet RC", "oracle", "clairvoyant",
     ]
     rows = {row["controller"]: row for row in table["rows"]}
