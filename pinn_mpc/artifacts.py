@@ -62,7 +62,9 @@ def _read_meta(directory: Path) -> dict[str, Any]:
     try:
         meta = json.loads(meta_path.read_text(encoding="utf-8"))
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise ModelFileError(f"{meta_path} is not valid JSON ({exc}); retrain or restore the model") from exc
+        raise ModelFileError(
+            f"{meta_path} is not valid JSON ({exc}); retrain or restore the model"
+        ) from exc
     if not isinstance(meta, dict):
         raise ModelFileError(f"{meta_path} must hold a JSON object, got {type(meta).__name__}")
     missing = [k for k in _REQUIRED if k not in meta]
@@ -96,7 +98,8 @@ def load_model(path: str | os.PathLike[str]) -> LearnedModel:
     directory = Path(path)
     if not directory.is_dir():
         raise ModelFileError(
-            f"model directory {directory} does not exist; train one with `pinn-mpc train --out {directory}`"
+            f"model directory {directory} does not exist; "
+            f"train one with `pinn-mpc train --out {directory}`"
         )
     meta = _read_meta(directory)
     state = _read_weights(directory)
@@ -107,17 +110,22 @@ def load_model(path: str | os.PathLike[str]) -> LearnedModel:
         lo, hi = (float(v) for v in meta["u_phys_range_w"])
         float(meta["eta"])
     except (KeyError, TypeError, ValueError, InputError) as exc:
-        raise ModelFileError(f"{directory / META} has an invalid field ({exc}); retrain the model") from exc
+        raise ModelFileError(
+            f"{directory / META} has an invalid field ({exc}); retrain the model"
+        ) from exc
     if n_members < 1 or not lo <= hi:
         raise ModelFileError(f"{directory / META}: invalid n_members={n_members} or u_phys range")
     gens = [torch.Generator().manual_seed(0) for _ in range(n_members)]
-    module = EnsembleModule(meta["arch"], features=features, n_members=n_members, prior=prior, generators=gens)
+    module = EnsembleModule(
+        meta["arch"], features=features, n_members=n_members, prior=prior, generators=gens
+    )
     expected = module.state_dict()
     missing = sorted(set(expected) - set(state))
     unexpected = sorted(set(state) - set(expected))
     if missing or unexpected:
         raise ModelFileError(
-            f"{directory / WEIGHTS} does not match {META}: missing {missing}, unexpected {unexpected}"
+            f"{directory / WEIGHTS} does not match {META}: "
+            f"missing {missing}, unexpected {unexpected}"
         )
     for name, tensor in state.items():
         if tuple(tensor.shape) != tuple(expected[name].shape):

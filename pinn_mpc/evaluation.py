@@ -28,7 +28,9 @@ def _mae(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.mean(np.abs(a - b)))
 
 
-def recursive_t_r(model: LearnedModel, df: pd.DataFrame, horizon: int) -> tuple[np.ndarray, np.ndarray]:
+def recursive_t_r(
+    model: LearnedModel, df: pd.DataFrame, horizon: int
+) -> tuple[np.ndarray, np.ndarray]:
     """Recursive predictions of T_r,i+h for every possible start i.
 
     Returns ``(pred (M, N) [C], starts (N,) row indices i)``; raises InputError when the frame
@@ -62,7 +64,9 @@ def recursive_t_r(model: LearnedModel, df: pd.DataFrame, horizon: int) -> tuple[
     return roll.t_r_c[..., horizon - 1].numpy().astype(float), starts
 
 
-def evaluate_model(model: LearnedModel, df: pd.DataFrame, horizons: Sequence[int]) -> dict[str, Any]:
+def evaluate_model(
+    model: LearnedModel, df: pd.DataFrame, horizons: Sequence[int]
+) -> dict[str, Any]:
     """Metrics dict: ``one_step`` {T_r_mae, u_phys_mae, T_m_mae (None without T_m)},
     ``horizons`` {"h": {T_r_mae, T_r_mae_std}}, ``persistence`` {"horizons": {"h": {T_r_mae}}}.
     MAEs in C (u_phys in W) of the ensemble mean; ``T_r_mae_std`` is the std over members."""
@@ -112,5 +116,6 @@ def evaluate_to_json(
     return (
         f"one-step MAE: T_r {one['T_r_mae']:.3f} C, u_phys {one['u_phys_mae']:.0f} W{t_m}; "
         f"{last}-step T_r MAE {metrics['horizons'][str(last)]['T_r_mae']:.3f} C "
-        f"(persistence {metrics['persistence']['horizons'][str(last)]['T_r_mae']:.3f} C) -> {json_path}"
+        f"(persistence {metrics['persistence']['horizons'][str(last)]['T_r_mae']:.3f} C) "
+        f"-> {json_path}"
     )

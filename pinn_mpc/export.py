@@ -33,7 +33,9 @@ def export_rc(model: LearnedModel, *, source: str) -> dict[str, Any]:
 def export_rc_to_json(*, model: str, out: str) -> str:
     """CLI ``export-rc``: load a model directory, write its RC JSON; returns a summary line."""
     learned = load_model(model)
-    data = export_rc(learned, source=f"export-rc of {learned.arch} x{learned.n_members} from {model}")
+    data = export_rc(
+        learned, source=f"export-rc of {learned.arch} x{learned.n_members} from {model}"
+    )
     atomic_write_json(out, data)
     return (
         f"R_ra={data['R_ra_K_per_W']:.4g} K/W R_rm={data['R_rm_K_per_W']:.4g} K/W "

@@ -40,7 +40,7 @@ MIN_TRAIN_SAMPLES = 32
 
 
 def exog_names_for(df: pd.DataFrame) -> tuple[str, ...]:
-    """The exogenous inputs a model trained on ``df`` uses: time of day, T_a (+ G, I_g if present)."""
+    """Exogenous inputs of a model trained on ``df``: time of day, T_a (+ G, I_g if present)."""
     return ("time_of_day_h", "T_a") + tuple(c for c in ("G", "I_g") if c in df.columns)
 
 
@@ -59,7 +59,9 @@ class Standard:
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.mean) and math.isfinite(self.std) and self.std > 0):
-            raise InputError(f"scaling must be finite with std > 0, got mean={self.mean}, std={self.std}")
+            raise InputError(
+                f"scaling must be finite with std > 0, got mean={self.mean}, std={self.std}"
+            )
 
     @classmethod
     def fit(cls, values: np.ndarray) -> Standard:
@@ -86,10 +88,14 @@ class FeatureConfig:
         if self.depth < 1:
             raise InputError(f"depth must be >= 1, got {self.depth}")
         if self.exog_names[:2] != ("time_of_day_h", "T_a"):
-            raise InputError(f"exog_names must start with time_of_day_h, T_a, got {self.exog_names}")
+            raise InputError(
+                f"exog_names must start with time_of_day_h, T_a, got {self.exog_names}"
+            )
         unknown = set(self.exog_names) - set(EXOG_COLUMNS)
         if unknown:
-            raise InputError(f"unknown exogenous input(s) {sorted(unknown)}; known {list(EXOG_COLUMNS)}")
+            raise InputError(
+                f"unknown exogenous input(s) {sorted(unknown)}; known {list(EXOG_COLUMNS)}"
+            )
         missing = [n for n in self.exog_names[1:] if n not in self.exog]
         if missing:
             raise InputError(f"feature config lacks scaling for {missing}")
@@ -192,7 +198,8 @@ def _check_rows(df: pd.DataFrame, depth: int, min_samples: int, what: str) -> No
     if len(df) < need:
         raise InputError(
             f"{what}: data has {len(df)} rows, but depth {depth} needs at least {need} rows "
-            f"({min_samples} sample(s) of depth+3 consecutive rows); give more data or a smaller --depth"
+            f"({min_samples} sample(s) of depth+3 consecutive rows); "
+            "give more data or a smaller --depth"
         )
 
 
@@ -246,7 +253,10 @@ def make_windows(df: pd.DataFrame, cfg: FeatureConfig, *, min_samples: int = 1) 
     parts += [u_s[rows, None], cfg.encode_time(time_of_day_h(df["time"]))[rows]]
     x = np.concatenate(parts, axis=1).astype(np.float32)
     raw = np.stack(
-        [df[c].to_numpy(dtype=float) if c in df.columns else np.zeros(n) for c in ("T_a", "G", "I_g")],
+        [
+            df[c].to_numpy(dtype=float) if c in df.columns else np.zeros(n)
+            for c in ("T_a", "G", "I_g")
+        ],
         axis=1,
     )
     t_m = df["T_m"].to_numpy(dtype=float) if "T_m" in df.columns else None

@@ -36,13 +36,20 @@ from pinn_mpc.features import FeatureConfig, make_windows
 
 ARCHS = ("mlp", "physreg", "physnet")
 RESIDUALS = ("exact", "finite_difference")
-HIDDEN = {"mlp": (64, 64), "physreg": (64, 64), "physnet_encoder": (24, 24), "physnet_dynamics": (128,)}
+HIDDEN = {
+    "mlp": (64, 64),
+    "physreg": (64, 64),
+    "physnet_encoder": (24, 24),
+    "physnet_dynamics": (128,),
+}
 
 
 class EnsembleLinear(nn.Module):
     """M independent affine maps: (M, B, n_in) -> (M, B, n_out)."""
 
-    def __init__(self, n_members: int, n_in: int, n_out: int, generators: Sequence[torch.Generator]):
+    def __init__(
+        self, n_members: int, n_in: int, n_out: int, generators: Sequence[torch.Generator]
+    ):
         super().__init__()
         self.weight = nn.Parameter(torch.empty(n_members, n_in, n_out))
         self.bias = nn.Parameter(torch.empty(n_members, 1, n_out))
@@ -57,7 +64,9 @@ class EnsembleLinear(nn.Module):
 
 
 def _mlp(sizes: Sequence[int], m: int, gens: Sequence[torch.Generator]) -> nn.ModuleList:
-    return nn.ModuleList(EnsembleLinear(m, a, b, gens) for a, b in zip(sizes[:-1], sizes[1:], strict=True))
+    return nn.ModuleList(
+        EnsembleLinear(m, a, b, gens) for a, b in zip(sizes[:-1], sizes[1:], strict=True)
+    )
 
 
 def _run(layers: nn.ModuleList, x: torch.Tensor) -> torch.Tensor:
@@ -84,12 +93,15 @@ class EnsembleNet(nn.Module):
         if arch not in ARCHS:
             raise InputError(f"unknown architecture {arch!r}; choose one of {', '.join(ARCHS)}")
         self.arch = arch
+        self.n_members = n_members
         if arch == "physnet":
             x_f, now = features.x_f_index(), features.now_index()
             self.x_f_index = torch.tensor(x_f)
             self.now_index = torch.tensor(now)
             self.encoder = _mlp((len(x_f), *HIDDEN["physnet_encoder"], 1), n_members, generators)
-            self.dynamics = _mlp((1 + len(now), *HIDDEN["physnet_dynamics"], 2), n_members, generators)
+            self.dynamics = _mlp(
+                (1 + len(now), *HIDDEN["physnet_dynamics"], 2), n_members, generators
+            )
         else:
             self.trunk = _mlp((features.n_features, *HIDDEN[arch]), n_members, generators)
             self.head = EnsembleLinear(n_members, HIDDEN[arch][-1], 2, generators)
@@ -120,20 +132,31 @@ class EnsembleNet(nn.Module):
         ``(obs, z)`` as :meth:`forward` on the full features of step h.
         """
         k, k1 = depth, depth + 1
-        m = self.head.weight.shape[0] if self.arch != "physnet" else self.dynamics[0].weight.shape[0]
+        m = self.n_members
         by_step = static.transpose(0, 1)  # (H, N, n_static)
         if self.arch != "physnet":
             static_h = by_step.contiguous()
 
-            def step_reg(t: torch.Tensor, p: torch.Tensor, h: int) -> tuple[torch.Tensor, torch.Tensor | None]:
+            def step_reg(
+                t: torch.Tensor, p: torch.Tensor, h: int
+            ) -> tuple[torch.Tensor, torch.Tensor | None]:
                 return self(torch.cat([t, p, static_h[h].expand(m, -1, -1)], dim=-1))
 
             return step_reg
-        enc_static = by_step[..., [i - 2 * k1 for i in self.x_f_index.tolist() if i >= 2 * k1]].contiguous()
-        dyn_static = by_step[..., [i - 2 * k1 for i in self.now_index.tolist() if i >= 2 * k1]].contiguous()
+        enc_static = by_step[
+            ..., [i - 2 * k1 for i in self.x_f_index.tolist() if i >= 2 * k1]
+        ].contiguous()
+        dyn_static = by_step[
+            ..., [i - 2 * k1 for i in self.now_index.tolist() if i >= 2 * k1]
+        ].contiguous()
 
-        def step_net(t: torch.Tensor, p: torch.Tensor, h: int) -> tuple[torch.Tensor, torch.Tensor | None]:
-            z = _run(self.encoder, torch.cat([t[..., :k], p[..., :k], enc_static[h].expand(m, -1, -1)], -1))
+        def step_net(
+            t: torch.Tensor, p: torch.Tensor, h: int
+        ) -> tuple[torch.Tensor, torch.Tensor | None]:
+            z = _run(
+                self.encoder,
+                torch.cat([t[..., :k], p[..., :k], enc_static[h].expand(m, -1, -1)], -1),
+            )
             dyn_in = torch.cat([z, t[..., k:], p[..., k:], dyn_static[h].expand(m, -1, -1)], dim=-1)
             return _run(self.dynamics, dyn_in), z[..., 0]
 
@@ -175,11 +198,19 @@ class Physics(nn.Module):
         a12, c13, a21 = self.log_a12.exp(), self.log_c13.exp(), self.log_a21.exp()
         zero = torch.zeros_like(a12)
         gains = {
-            n: nn.functional.softplus(getattr(self, f"raw_{n}")) * self.gain_scale if n in self.gains else zero
+            n: nn.functional.softplus(getattr(self, f"raw_{n}")) * self.gain_scale
+            if n in self.gains
+            else zero
             for n in ("c11", "c12", "c21", "c22")
         }
         return physics.Coefficients(
-            a11=a12 + c13, a12=a12, a21=a21, a22=a21, b=self.sign_b * self.log_b.exp(), c13=c13, **gains
+            a11=a12 + c13,
+            a12=a12,
+            a21=a21,
+            a22=a21,
+            b=self.sign_b * self.log_b.exp(),
+            c13=c13,
+            **gains,
         )
 
 
@@ -195,7 +226,9 @@ def discretise_torch(coef: physics.Coefficients, dt_s: float) -> tuple[torch.Ten
     top = torch.cat([a_mat, b_mat], dim=-1) * dt_s
     aug = torch.cat([top, torch.zeros(m, physics.N_INPUTS, top.shape[-1], dtype=top.dtype)], dim=-2)
     e = torch.linalg.matrix_exp(aug)
-    return e[:, : physics.N_STATES, : physics.N_STATES], e[:, : physics.N_STATES, physics.N_STATES :]
+    return e[:, : physics.N_STATES, : physics.N_STATES], e[
+        :, : physics.N_STATES, physics.N_STATES :
+    ]
 
 
 def residual_exact(
@@ -218,7 +251,9 @@ def residual_exact(
     ad, bd = ad.to(t_r.dtype)[:, None, None], bd.to(t_r.dtype)[:, None, None]  # (M, 1, 1, ...)
     drive = (d[..., None, :] * bd).sum(-1)  # (M, C, L, 2 states)
     t_m_implied = (t_r[..., 1:] - ad[..., 0, 0] * t_r[..., :-1] - drive[..., 0]) / ad[..., 0, 1]
-    propagated = ad[..., 1, 0] * t_r[..., :-2] + ad[..., 1, 1] * t_m_hat[..., :-1] + drive[..., :-1, 1]
+    propagated = (
+        ad[..., 1, 0] * t_r[..., :-2] + ad[..., 1, 1] * t_m_hat[..., :-1] + drive[..., :-1, 1]
+    )
     return t_m_hat - t_m_implied, t_m_hat[..., 1:] - propagated
 
 
@@ -284,7 +319,9 @@ class EnsembleModule(nn.Module):
         self.n_members = n_members
         self.net = EnsembleNet(arch, features=features, n_members=n_members, generators=generators)
         self.physics = (
-            Physics(prior, n_members=n_members, exog_names=features.exog_names) if arch != "mlp" else None
+            Physics(prior, n_members=n_members, exog_names=features.exog_names)
+            if arch != "mlp"
+            else None
         )
 
 
@@ -354,7 +391,9 @@ class LearnedModel:
             step = self.module.net.rollout_steps(static, self.depth)
             for h in range(h_len):
                 obs, z = step(t_buf[..., h : h + k1], p_buf[..., h : h + k1], h)
-                t_buf[..., k1 + h] = t_buf[..., k1 + h - 1] + obs[..., 0] * self._dt_ratio + self._dt_offset
+                t_buf[..., k1 + h] = (
+                    t_buf[..., k1 + h - 1] + obs[..., 0] * self._dt_ratio + self._dt_offset
+                )
                 p_buf[..., k1 + h] = obs[..., 1].clamp(self._p_lo, self._p_hi)
                 if z_out is not None and z is not None:
                     z_out[..., h] = z
@@ -379,8 +418,11 @@ class LearnedModel:
         """
         k1 = self.depth + 1
         f = self.features
-        hist = {n: np.asarray(history[n], dtype=float) for n in ("T_r", "u_phys", *f.exog_series)
-                if n in history}
+        hist = {
+            n: np.asarray(history[n], dtype=float)
+            for n in ("T_r", "u_phys", *f.exog_series)
+            if n in history
+        }
         short = {n: len(hist.get(n, ())) for n in ("T_r", "u_phys", *f.exog_series)}
         short = {n: v for n, v in short.items() if v < k1}
         if short:
@@ -397,8 +439,10 @@ class LearnedModel:
                 raise InputError(f"rollout exog[{name!r}] must have at least H={h_len} values")
         t_win = (hist["T_r"][-k1:] - f.temperature.mean) / f.temperature.std
         p_win = (hist["u_phys"][-k1:] - f.power.mean) / f.power.std
-        seq = {n: np.concatenate([hist[n][-k1:-1], np.asarray(exog[n], dtype=float)[:h_len]])
-               for n in f.exog_series}
+        seq = {
+            n: np.concatenate([hist[n][-k1:-1], np.asarray(exog[n], dtype=float)[:h_len]])
+            for n in f.exog_series
+        }
         return self.rollout_scaled(
             torch.as_tensor(t_win, dtype=torch.float32)[None],
             torch.as_tensor(p_win, dtype=torch.float32)[None],
@@ -440,7 +484,9 @@ class LearnedModel:
                 return -float((-v).log().mean().exp())
             return float(v.mean())
 
-        values = {name: mean(getattr(coef, name)) for name in physics.Coefficients.__dataclass_fields__}
+        values = {
+            name: mean(getattr(coef, name)) for name in physics.Coefficients.__dataclass_fields__
+        }
         return physics.Coefficients(**values)
 
     def member_coefficients(self) -> list[dict[str, float]]:

@@ -88,7 +88,9 @@ class TrainConfig:
         if self.recipe not in RECIPES:
             raise InputError(f"unknown recipe {self.recipe!r}; choose one of {', '.join(RECIPES)}")
         if self.residual not in RESIDUALS:
-            raise InputError(f"unknown residual {self.residual!r}; choose one of {', '.join(RESIDUALS)}")
+            raise InputError(
+                f"unknown residual {self.residual!r}; choose one of {', '.join(RESIDUALS)}"
+            )
         if self.epochs is not None and self.epochs < 1:
             raise InputError(f"TrainConfig.epochs must be >= 1, got {self.epochs}")
         if self.lam is not None and not (math.isfinite(self.lam) and self.lam >= 0):
@@ -191,12 +193,16 @@ def train_model(
     total = hp["epochs"] * n_batches
     groups: list[dict[str, Any]] = [{"params": list(module.net.parameters()), "factor": 1.0}]
     if module.physics is not None:
-        groups.append({"params": list(module.physics.parameters()), "factor": config.physics_lr_factor})
+        groups.append(
+            {"params": list(module.physics.parameters()), "factor": config.physics_lr_factor}
+        )
     opt = torch.optim.Adam(groups, lr=hp["lr"], fused=True)
     decay = hp["lr_final"] / hp["lr"]
 
     def lr_at(step: int) -> float:
-        return hp["lr"] * (decay + (1 - decay) * 0.5 * (1 + math.cos(math.pi * step / max(total, 1))))
+        return hp["lr"] * (
+            decay + (1 - decay) * 0.5 * (1 + math.cos(math.pi * step / max(total, 1)))
+        )
 
     dt_s = features.dt_s
     offsets = torch.arange(chunk)
@@ -235,8 +241,12 @@ def train_model(
                         )
                         w_room = hold_rows[idx]
                         w_mass = w_room[..., :-1]
-                        total_sq = (w_room * r_room**2).sum() + (w_mass * r_mass**2).sum()
-                        sq = total_sq / (w_room.sum() + w_mass.sum()).clamp(min=1.0)
+                        # Per member, so that members stay independent of each other.
+                        total_sq = (w_room * r_room**2).sum((1, 2)) + (w_mass * r_mass**2).sum(
+                            (1, 2)
+                        )
+                        count = w_room.sum((1, 2)) + w_mass.sum((1, 2))
+                        sq = torch.mean(total_sq / count.clamp(min=1.0))
                     else:
                         obs3 = obs.reshape(m, c, chunk, 2)
                         res = residual_finite_difference(
@@ -301,9 +311,13 @@ def train_to_dir(
 
     parent = Path(out).parent
     if not parent.is_dir():
-        raise InputError(f"cannot write model {out}: directory {parent} does not exist; create it first")
+        raise InputError(
+            f"cannot write model {out}: directory {parent} does not exist; create it first"
+        )
     df = read_timeseries(data, columns=columns)
-    config = TrainConfig(depth=depth, n_seeds=seeds, first_seed=seed, epochs=epochs, lam=lam, recipe=recipe)
+    config = TrainConfig(
+        depth=depth, n_seeds=seeds, first_seed=seed, epochs=epochs, lam=lam, recipe=recipe
+    )
     model = train_model(df, arch=arch, config=config)
     path = save_model(model, out)
     loss = model.meta["final_loss"]

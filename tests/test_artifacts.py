@@ -1,0 +1,109 @@
+"""Model directories: round trip, and every kind of damage -> ModelFileError."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pinn_mpc.artifacts import META, WEIGHTS, load_model, save_model
+from pinn_mpc.errors import ModelFileError
+from pinn_mpc.models import LearnedModel
+from pinn_mpc.training import TrainConfig, train_model
+from tests.model_data import household_data
+
+
+@pytest.fixture(scope="module")
+def model() -> LearnedModel:
+    return train_model(
+        household_data(3, 0),
+        arch="physnet",
+        config=TrainConfig(n_seeds=2, epochs=1, depth=4),
+        progress=False,
+    )
+
+
+@pytest.fixture()
+def saved(model: LearnedModel, tmp_path: Path) -> Path:
+    return Path(save_model(model, tmp_path / "m"))
+
+
+def test_round_trip_gives_identical_predictions(model: LearnedModel, saved: Path) -> None:
+    loaded = load_model(saved)
+    df = household_data(2, 7)
+    a, b = model.predict_one_step(df), loaded.predict_one_step(df)
+    for key in ("T_r_next", "u_phys", "T_m"):
+        np.testing.assert_array_equal(a[key], b[key])
+    assert (loaded.arch, loaded.depth, loaded.n_members, loaded.exog_names) == (
+        "physnet",
+        4,
+        2,
+        ("time_of_day_h", "T_a"),
+    )
+    assert loaded.physics_coefficients() == model.physics_coefficients()
+    meta = json.loads((saved / META).read_text())
+    assert meta["package_version"] and meta["training_data"]["n_rows"] == 144
+    assert set(meta["learned_coefficients_per_s"]["ensemble"]) >= {"a11", "a12", "a21", "b", "c13"}
+    assert sorted(p.name for p in saved.iterdir()) == [META, WEIGHTS]
+
+
+def test_saving_over_an_existing_model_replaces_it(model: LearnedModel, saved: Path) -> None:
+    save_model(model, saved)
+    assert sorted(p.name for p in saved.iterdir()) == [META, WEIGHTS]
+    assert [p.name for p in saved.parent.iterdir()] == ["m"]
+
+
+def test_missing_directory(tmp_path: Path) -> None:
+    with pytest.raises(ModelFileError, match="does not exist; train one"):
+        load_model(tmp_path / "nope")
+
+
+@pytest.mark.parametrize("keep", [0, 8, 200, -1])
+def test_truncated_weights(saved: Path, keep: int) -> None:
+    data = (saved / WEIGHTS).read_bytes()
+    (saved / WEIGHTS).write_bytes(data[:keep] if keep >= 0 else data[: len(data) - 4])
+    with pytest.raises(ModelFileError, match="truncated or corrupt"):
+        load_model(saved)
+
+
+def test_missing_weights_and_bad_json(saved: Path) -> None:
+    (saved / META).write_text("{not json")
+    with pytest.raises(ModelFileError, match="is not valid JSON"):
+        load_model(saved)
+    (saved / META).unlink()
+    with pytest.raises(ModelFileError, match=f"has no {META}"):
+        load_model(saved)
+
+
+def test_weights_missing(saved: Path) -> None:
+    (saved / WEIGHTS).unlink()
+    with pytest.raises(ModelFileError, match=f"has no {WEIGHTS}"):
+        load_model(saved)
+
+
+@pytest.mark.parametrize(
+    ("field", "value", "match"),
+    [
+        ("n_members", 3, "has shape"),
+        ("arch", "physreg", "does not match"),
+        ("arch", "rnn", "unknown arch"),
+        ("format_version", 99, "format_version 99"),
+        ("features", {"depth": 4}, "invalid field"),
+    ],
+)
+def test_inconsistent_metadata(saved: Path, field: str, value: object, match: str) -> None:
+    meta = json.loads((saved / META).read_text())
+    meta[field] = value
+    (saved / META).write_text(json.dumps(meta))
+    with pytest.raises(ModelFileError, match=match):
+        load_model(saved)
+
+
+def test_depth_mismatch_is_a_shape_error(saved: Path) -> None:
+    meta = json.loads((saved / META).read_text())
+    meta["features"]["depth"] = 6
+    (saved / META).write_text(json.dumps(meta))
+    with pytest.raises(ModelFileError, match="has shape"):
+        load_model(saved)

@@ -1,0 +1,178 @@
+"""Networks, physics block and residuals, rollout: against analytic truth and each other."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+import torch
+
+from pinn_mpc import physics
+from pinn_mpc.errors import InputError
+from pinn_mpc.features import time_of_day_h
+from pinn_mpc.models import (
+    EnsembleLinear,
+    LearnedModel,
+    Physics,
+    discretise_torch,
+    residual_exact,
+    residual_finite_difference,
+)
+from pinn_mpc.training import TrainConfig, train_model
+from tests.model_data import household_data
+
+
+@pytest.fixture(scope="module", params=["mlp", "physreg", "physnet"])
+def small_model(request: pytest.FixtureRequest) -> LearnedModel:
+    config = TrainConfig(n_seeds=3, epochs=2, depth=4)
+    return train_model(household_data(4, 0), arch=request.param, config=config, progress=False)
+
+
+def _tensor_coefficients(p: physics.RCParams) -> physics.Coefficients:
+    c = physics.to_coefficients(p)
+    return physics.Coefficients(
+        **{k: torch.tensor([v], dtype=torch.float64) for k, v in c.to_dict().items()}
+    )
+
+
+def test_ensemble_linear_members_are_independent_affine_maps() -> None:
+    gens = [torch.Generator().manual_seed(s) for s in (0, 1, 2)]
+    layer = EnsembleLinear(3, 5, 4, gens)
+    x = torch.randn(3, 7, 5)
+    y = layer(x)
+    for m in range(3):
+        torch.testing.assert_close(y[m], x[m] @ layer.weight[m] + layer.bias[m])
+    again = EnsembleLinear(1, 5, 4, [torch.Generator().manual_seed(1)])
+    torch.testing.assert_close(again.weight[0], layer.weight[1])
+
+
+def test_physics_block_starts_at_the_prior_and_keeps_the_structure() -> None:
+    prior = physics.PAPER_HOUSEHOLD
+    block = Physics(prior, n_members=4, exog_names=("time_of_day_h", "T_a"))
+    coef = block.coefficients()
+    truth = physics.to_coefficients(prior)
+    for name in ("a11", "a12", "a21", "a22", "b", "c13"):
+        np.testing.assert_allclose(
+            getattr(coef, name).detach().numpy(), getattr(truth, name), rtol=1e-6
+        )
+    with torch.no_grad():
+        block.log_a12 += 0.3
+    coef = block.coefficients()
+    torch.testing.assert_close(coef.a11, coef.a12 + coef.c13)
+    torch.testing.assert_close(coef.a22, coef.a21)
+    cooling = Physics(
+        dataclasses.replace(prior, eta=-3.0), n_members=2, exog_names=("time_of_day_h", "T_a")
+    )
+    assert torch.all(cooling.coefficients().b < 0)
+
+
+def test_torch_discretisation_equals_the_scipy_one() -> None:
+    params = dataclasses.replace(
+        physics.PAPER_HOUSEHOLD,
+        solar_aperture_m2=3.0,
+        solar_to_air_fraction=0.4,
+        gain_to_air_fraction=0.7,
+    )
+    ad, bd = discretise_torch(_tensor_coefficients(params), 1800.0)
+    ad_ref, bd_ref = physics.discretise(params, 1800.0)
+    np.testing.assert_allclose(ad[0].numpy(), ad_ref, rtol=1e-10, atol=1e-14)
+    np.testing.assert_allclose(bd[0].numpy(), bd_ref, rtol=1e-10, atol=1e-14)
+
+
+def test_exact_residual_vanishes_on_true_states_where_power_was_held() -> None:
+    df = household_data(3, 2)
+    held = np.abs(df["u"].to_numpy() - df["u_phys"].to_numpy()) <= 1.0
+    t_r = torch.tensor(df["T_r"].to_numpy())[None, None]
+    t_m = torch.tensor(df["T_m"].to_numpy())[None, None]
+    zeros = np.zeros(len(df))
+    d = torch.tensor(np.stack([df["u_phys"], df["T_a"], zeros, zeros], axis=1))[None, None]
+    coef = _tensor_coefficients(physics.PAPER_HOUSEHOLD)
+    r_room, r_mass = residual_exact(coef, 1800.0, t_r=t_r, d=d[:, :, :-1], t_m_hat=t_m[..., :-1])
+    assert held[:-1].sum() > 20
+    assert np.max(np.abs(r_room[0, 0].numpy()[held[:-1]])) < 1e-6
+    assert np.max(np.abs(r_mass[0, 0].numpy()[held[:-2]])) < 1e-6
+    # A wrong C_m breaks the T_m row even though the T_r row does not involve it.
+    wrong = _tensor_coefficients(dataclasses.replace(physics.PAPER_HOUSEHOLD, c_m_j_per_k=3.0e7))
+    _, r_mass_wrong = residual_exact(wrong, 1800.0, t_r=t_r, d=d[:, :, :-1], t_m_hat=t_m[..., :-1])
+    assert np.mean(np.abs(r_mass_wrong[0, 0].numpy()[held[:-2]])) > 1e-3
+
+
+def test_finite_difference_residual_is_the_papers_formula() -> None:
+    c = physics.to_coefficients(physics.PAPER_HOUSEHOLD)
+    coef = _tensor_coefficients(physics.PAPER_HOUSEHOLD)
+    t_r = torch.tensor([[[19.0, 19.5, 19.8]]], dtype=torch.float64)
+    t_r_hat = torch.tensor([[[19.4, 19.9]]], dtype=torch.float64)
+    u_hat = torch.tensor([[[0.0, 5000.0]]], dtype=torch.float64)
+    exog = torch.tensor([[[[10.0, 0, 0], [11.0, 0, 0]]]], dtype=torch.float64)
+    t_m_hat = torch.tensor([[[18.0, 18.5]]], dtype=torch.float64)
+    res = residual_finite_difference(
+        coef, 1800.0, t_r=t_r, t_r_hat=t_r_hat, u_phys_hat=u_hat, exog=exog, t_m_hat=t_m_hat
+    )
+    t_dot = (19.8 - 19.5) / 1800.0
+    expected = 18.5 - (t_dot + c.a11 * 19.4 - c.b * 5000.0 - c.c13 * 11.0) / c.a12
+    assert res.shape == (1, 1, 1)
+    assert float(res[0, 0, 0]) == pytest.approx(expected, rel=1e-12)
+
+
+def _history(df, i: int, k: int) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray], int]:
+    hist = {
+        "T_r": df["T_r"].to_numpy()[: i + 1],
+        "u_phys": df["u_phys"].to_numpy()[:i],
+        "T_a": df["T_a"].to_numpy()[: i + 1],
+        "time_of_day_h": time_of_day_h(df["time"])[: i + 1],
+    }
+    h = len(df) - i - 1
+    exog = {
+        "T_a": df["T_a"].to_numpy()[i : i + h],
+        "time_of_day_h": time_of_day_h(df["time"])[i : i + h],
+    }
+    return hist, exog, h
+
+
+def test_rollout_feeds_predictions_back_like_a_step_by_step_loop(small_model: LearnedModel) -> None:
+    model = small_model
+    df = household_data(4, 5).iloc[:32].reset_index(drop=True)
+    df.attrs["dt_s"] = 1800.0
+    i = 20
+    hist, exog, h = _history(df, i, model.depth)
+    u = torch.tensor(df["u"].to_numpy()[i : i + h], dtype=torch.float32)[None].repeat(2, 1)
+    roll = model.rollout(hist, u, exog)
+    m = model.n_members
+    assert roll.t_r_c.shape == roll.u_phys_w.shape == (m, 2, h)
+    assert (roll.t_m_c is None) == (model.arch == "mlp")
+    # Step by step: write each member's prediction into the frame and predict one step.
+    for member in range(m):
+        frame = df.copy()
+        for j in range(h):
+            one = model.predict_one_step(frame.iloc[: i + j + 2])
+            row = list(one["row"]).index(i + j)
+            assert one["T_r_next"][member, row] == pytest.approx(
+                float(roll.t_r_c[member, 0, j]), abs=2e-4
+            )
+            assert one["u_phys"][member, row] == pytest.approx(
+                float(roll.u_phys_w[member, 0, j]), abs=0.5
+            )
+            frame.loc[i + j + 1, "T_r"] = one["T_r_next"][member, row]
+            frame.loc[i + j, "u_phys"] = one["u_phys"][member, row]
+    # The same plan twice gives the same rollout.
+    torch.testing.assert_close(roll.t_r_c[:, 0], roll.t_r_c[:, 1])
+
+
+def test_rollout_rejects_short_history(small_model: LearnedModel) -> None:
+    df = household_data(4, 5)
+    hist, exog, _ = _history(df.iloc[:30], 3, small_model.depth)
+    with pytest.raises(InputError, match="depth\\+1=5"):
+        small_model.rollout(hist, torch.zeros(1, 4), exog)
+
+
+def test_one_step_predictions_have_member_axis(small_model: LearnedModel) -> None:
+    df = household_data(4, 5)
+    out = small_model.predict_one_step(df)
+    n = len(df) - small_model.depth - 2
+    assert out["T_r_next"].shape == out["u_phys"].shape == (3, n)
+    assert np.all(np.isfinite(out["T_r_next"]))
+    lo, hi = small_model.meta["u_phys_range_w"]
+    assert out["u_phys"].min() >= lo - 1e-3 and out["u_phys"].max() <= hi + 1e-3
+    coef = small_model.physics_coefficients()
+    assert (coef is None) == (small_model.arch == "mlp")
