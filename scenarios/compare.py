@@ -90,12 +90,14 @@ class CompareSettings:
 class ComparisonResult:
     """``rows``: one KPI dict per controller (keys of :mod:`scenarios.kpis` plus ``controller``
     label, ``name``, ``model``, ``objective_to_oracle``); ``rc``: RC summaries by source;
-    ``trajectories`` by label; ``wall_time_s`` by stage."""
+    ``trajectories`` by label; ``wall_time_s`` by stage; ``errors`` the controller exceptions
+    of each run that had any (the fallback acted, see :mod:`scenarios.closed_loop`)."""
 
     rows: list[dict[str, Any]]
     rc: dict[str, dict[str, Any]]
     trajectories: dict[str, pd.DataFrame]
     wall_time_s: dict[str, float]
+    errors: dict[str, tuple[str, ...]]
 
 
 def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonResult:
@@ -157,6 +159,7 @@ def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonR
     ]
     rows: list[dict[str, Any]] = []
     trajectories: dict[str, pd.DataFrame] = {}
+    errors: dict[str, tuple[str, ...]] = {}
     with one_torch_thread(), tqdm(plan, desc="closed loop", unit="controller", disable=None) as bar:
         for name, model_name, kwargs in bar:
             label = name if model_name in ("-", "true") else f"{name} / {model_name}"
@@ -169,9 +172,13 @@ def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonR
             wall[f"run {label}"] = time.perf_counter() - start
             rows.append({**result.kpis, "name": name, "model": model_name})
             trajectories[label] = result.trajectory
+            if result.errors:
+                errors[label] = result.errors
     for row, ratio in zip(rows, objective_ratios(rows, reference=REFERENCE), strict=True):
         row["objective_to_oracle"] = ratio
-    return ComparisonResult(rows=rows, rc=rc, trajectories=trajectories, wall_time_s=wall)
+    return ComparisonResult(
+        rows=rows, rc=rc, trajectories=trajectories, wall_time_s=wall, errors=errors
+    )
 
 
 def _make_parents(*paths: Path) -> None:
@@ -209,7 +216,11 @@ def compare_command(
         "wall_time_s": round(total_s, 1),
         "cpu_count": os.cpu_count(),
     }
-    notes = [f"wall time of {stage}: {sec:.1f} s" for stage, sec in result.wall_time_s.items()]
+    notes = [
+        f"`{label}`: {len(errs)} controller error(s), the fallback acted; first: {errs[0]}"
+        for label, errs in result.errors.items()
+    ]
+    notes += [f"wall time of {stage}: {sec:.1f} s" for stage, sec in result.wall_time_s.items()]
     _make_parents(Path(json_path), report, figure)
     title = f"{scen.name}: test days, seed {settings.test_seed}"
     plot_comparison(result.trajectories, figure, title=title)
