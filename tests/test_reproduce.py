@@ -14,7 +14,12 @@ from pinn_mpc.cli import main
 from pinn_mpc.errors import InputError
 from scenarios.datagen import generate
 from scenarios.registry import get_scenario
-from scenarios.reproduce import PAPER_VALIDATION, ReproduceConfig, run_reproduction
+from scenarios.reproduce import (
+    PAPER_VALIDATION,
+    ReproduceConfig,
+    run_reproduction,
+    validation_table,
+)
 
 TINY = ReproduceConfig(
     seeds=2,
@@ -126,6 +131,26 @@ def test_tables_and_report(tiny_run: tuple[Path, dict]) -> None:
     for needle in ("fig1_validation.png", "fig2_training_size.png", "fig3_horizon.png",
                    "cold-storage", "reduced run"):
         assert needle in report
+
+
+def test_text_summary_is_the_validation_table(tiny_run: tuple[Path, dict]) -> None:
+    _, results = tiny_run
+    lines = validation_table(results, markdown=False).splitlines()
+    assert len(lines) == 4 and lines[0].startswith("architecture")
+    mlp = results["validation"]["mlp"]["T_r"]
+    assert lines[1].split()[:4] == ["MLP", f"{mlp['mean']:.3f}", "±", f"{mlp['std']:.3f}"]
+    assert "n/a" in lines[1] and "1.413" in lines[1]
+
+
+def test_quick_and_default_configurations() -> None:
+    quick = ReproduceConfig.quick()
+    assert quick.seeds == 3 and quick.epochs is not None
+    assert quick.sizes() == [15, 60, 120]
+    assert ReproduceConfig.quick(7).seeds == 7
+    full = ReproduceConfig()
+    assert full.seeds == 20 and full.epochs is None
+    assert full.sizes() == [15, 30, 45, 60, 90, 120]
+    assert full.eval_horizons() == [1, 6, 12, 24, 36, 48]
 
 
 def test_bad_configuration_is_refused() -> None:
