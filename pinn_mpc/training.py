@@ -62,9 +62,9 @@ class TrainConfig:
     ``prior`` gives the initial 2R2C coefficients (default :data:`physics.PAPER_HOUSEHOLD`),
     ``eta`` the heat per watt of actuator power (sign fixes the sign of ``b``). ``residual`` is
     ``"exact"`` (both 2R2C rows, ZOH) or ``"finite_difference"`` (the paper's Eq. est_Tm).
-    ``physics_lr_factor`` scales the learning rate of the log-space coefficients: raise it
-    (e.g. 10) to move far from a poor prior on data that excites both time constants; at 1
-    a good prior stays put where the data identify C_m only weakly.
+    ``physics_lr_factor`` scales the learning rate of the log-space coefficients against the
+    network's: at 10 the coefficients reach the same values from a prior 30-40 % off as from
+    the true one (tested on paper_household); at 1 they barely leave the prior.
     """
 
     depth: int = 8
@@ -78,7 +78,7 @@ class TrainConfig:
     residual: str = "exact"
     batch_size: int | None = None
     lr: float | None = None
-    physics_lr_factor: float = 1.0
+    physics_lr_factor: float = 10.0
 
     def __post_init__(self) -> None:
         if self.depth < 1:
@@ -242,9 +242,8 @@ def train_model(
                         w_room = hold_rows[idx]
                         w_mass = w_room[..., :-1]
                         # Per member, so that members stay independent of each other.
-                        total_sq = (w_room * r_room**2).sum((1, 2)) + (w_mass * r_mass**2).sum(
-                            (1, 2)
-                        )
+                        sq_room = (w_room * r_room**2).sum((1, 2))
+                        total_sq = sq_room + (w_mass * r_mass**2).sum((1, 2))
                         count = w_room.sum((1, 2)) + w_mass.sum((1, 2))
                         sq = torch.mean(total_sq / count.clamp(min=1.0))
                     else:
