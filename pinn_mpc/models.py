@@ -470,7 +470,8 @@ class LearnedModel:
         }
 
     def physics_coefficients(self) -> physics.Coefficients | None:
-        """Learned coefficients (per second), geometric mean over members; None for mlp."""
+        """Learned coefficients (per second), geometric mean over members (``a11 = a12 + c13``,
+        ``a22 = a21`` kept); None for mlp."""
         if self.module.physics is None:
             return None
         with torch.no_grad():
@@ -487,6 +488,9 @@ class LearnedModel:
         values = {
             name: mean(getattr(coef, name)) for name in physics.Coefficients.__dataclass_fields__
         }
+        # Keep the structure of the 2R2C exact after averaging.
+        values["a11"] = values["a12"] + values["c13"]
+        values["a22"] = values["a21"]
         return physics.Coefficients(**values)
 
     def member_coefficients(self) -> list[dict[str, float]]:
