@@ -7,9 +7,11 @@ Every layer holds the weights of all M members, shape (M, in, out), and applies 
 - ``physreg``: shared trunk 2x64 tanh, linear heads for x_obs,i+1 and z_i = T_m,i
   (Eq. physreg-forward).
 - ``physnet``: encoder x_f -> 2x24 tanh -> T_m,i; dynamics (T_m,i, x_obs,i, u_i, w_i) ->
-  1x128 tanh -> x_obs,i+1 (Eq. physnet-forward).
+  1x128 tanh -> x_obs,i+1 (Eq. physnet-forward). Here x_f also holds the exogenous history
+  (see :mod:`pinn_mpc.features`): without T_a,i-1 the encoder cannot pin T_m.
 
-T_r,i+1 is predicted as T_r,i plus a scaled increment. :class:`Physics` holds learnable 2R2C
+T_r,i+1 is predicted as T_r,i plus a scaled increment; u_phys is clipped to the range seen in
+training. :class:`Physics` holds learnable 2R2C
 coefficients per member, positive quantities in log space with ``a11 = a12 + c13`` and
 ``a22 = a21`` by construction and ``b`` keeping the sign of ``eta``. Two physics residuals:
 
