@@ -52,7 +52,8 @@ def main() -> None:
         start = time.perf_counter()
         model = train_model(df, arch=arch, config=config, progress=False)
         seconds = time.perf_counter() - start
-        small = train_model(df.iloc[:500], arch=arch, config=TrainConfig(n_seeds=5, epochs=1), progress=False)
+        small_config = TrainConfig(n_seeds=5, epochs=1)
+        small = train_model(df.iloc[:500], arch=arch, config=small_config, progress=False)
         torch.set_num_threads(1)
         ms = _rollout_ms(small, df)
         print(

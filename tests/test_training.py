@@ -82,7 +82,10 @@ def test_bad_configuration_and_short_data_are_input_errors() -> None:
 
 #: A prior 30-40 % off the true paper_household values.
 POOR_PRIOR = physics.RCParams(
-    r_ra_k_per_w=3.75e-3 * 1.4, r_rm_k_per_w=7.5e-4 * 0.7, c_r_j_per_k=4.0e6 * 1.3, c_m_j_per_k=4.0e7
+    r_ra_k_per_w=3.75e-3 * 1.4,
+    r_rm_k_per_w=7.5e-4 * 0.7,
+    c_r_j_per_k=4.0e6 * 1.3,
+    c_m_j_per_k=4.0e7,
 )
 
 
@@ -101,7 +104,8 @@ def test_paper_household_accuracy_and_identified_rc(
     assert metrics["one_step"]["T_r_mae"] <= 0.05
     assert metrics["one_step"]["T_m_mae"] <= 0.10
     assert metrics["horizons"]["48"]["T_r_mae"] <= 0.3
-    assert metrics["horizons"]["48"]["T_r_mae"] < metrics["persistence"]["horizons"]["48"]["T_r_mae"]
+    persistence = metrics["persistence"]["horizons"]["48"]["T_r_mae"]
+    assert metrics["horizons"]["48"]["T_r_mae"] < persistence
     rc = export_rc(model, source="test")
     truth = physics.PAPER_HOUSEHOLD
     assert rc["R_ra_K_per_W"] == pytest.approx(truth.r_ra_k_per_w, rel=0.15)
