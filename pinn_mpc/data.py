@@ -100,7 +100,7 @@ def validate_timeseries(
         if bad.any():
             row = int(np.flatnonzero(bad)[0])
             raise InputError(
-                f"{source}: column {col!r} row {row + 1} has {df[col].iloc[row]!r}, not a finite "
+                f"{source}: column {col!r} row {row + 1} has {str(df[col].iloc[row])!r}, not a finite "
                 "number; fill or drop such rows first"
             )
         out[col] = values.astype(float)
