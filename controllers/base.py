@@ -85,9 +85,13 @@ def band_violation_k(t_r_c: np.ndarray, t_min_c: np.ndarray, t_max_c: np.ndarray
     return np.maximum(t_min_c - t_r_c, 0.0) + np.maximum(t_r_c - t_max_c, 0.0)
 
 
-def _first(values: np.ndarray, n: int) -> np.ndarray:
-    """First n values (n,), the last one repeated when there are fewer."""
-    a = np.asarray(values, dtype=float).reshape(-1)[:n]
+def first_values(values: np.ndarray, n: int) -> np.ndarray:
+    """A fresh array of the first n values (n,), the last one repeated when there are fewer."""
+    a = np.asarray(values, dtype=float).reshape(-1)
+    if a.size == 0:
+        raise InputError("forecast array is empty; the controller needs at least one step")
+    if a.size >= n:
+        return a[:n].copy()
     return np.concatenate([a, np.full(n - a.size, a[-1])])
 
 
@@ -99,7 +103,7 @@ def planning_band(forecast: Forecast, h: int) -> tuple[np.ndarray, np.ndarray]:
     (the time integral of the violation) charges the whole warm-up. The last value, with no next
     interval in the forecast, uses its own band.
     """
-    t_min, t_max = _first(forecast.t_min_c, h + 1), _first(forecast.t_max_c, h + 1)
+    t_min, t_max = first_values(forecast.t_min_c, h + 1), first_values(forecast.t_max_c, h + 1)
     lower = np.maximum(t_min[:-1], t_min[1:])
     upper = np.minimum(t_max[:-1], t_max[1:])
     return lower, upper

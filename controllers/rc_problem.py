@@ -37,6 +37,7 @@ from controllers.base import (
     Observation,
     SolveStats,
     fallback_power,
+    first_values,
     planning_band,
 )
 from pinn_mpc.errors import InputError
@@ -98,9 +99,9 @@ class RCProblem:
         h = self.horizon_steps
         _, bd = self.matrices
         exog = np.stack(
-            [_fit(a, h) for a in (forecast.t_a_c, forecast.g_w_per_m2, forecast.i_g_w)], axis=1
+            [first_values(a, h) for a in (forecast.t_a_c, forecast.g_w_per_m2, forecast.i_g_w)], axis=1
         )
-        price = _fit(forecast.price_eur_per_kwh, h)
+        price = first_values(forecast.price_eur_per_kwh, h)
         t_min, t_max = planning_band(forecast, h)
         if n_active is not None and n_active < h:
             price[n_active:] = 0.0
@@ -130,16 +131,6 @@ class RCProblem:
         dt_h = self.spec.dt_h
         energy = float(np.sum(stage.price_eur_per_kwh * p_kw)) * dt_h
         return energy + self.spec.comfort_weight_eur_per_kh * dt_h * float(np.sum(violation))
-
-
-def _fit(values: np.ndarray, h: int) -> np.ndarray:
-    """First h values, the last one repeated when there are fewer."""
-    a = np.asarray(values, dtype=float).reshape(-1)
-    if a.size == 0:
-        raise InputError("forecast array is empty; the controller needs at least one step")
-    if a.size >= h:
-        return a[:h].copy()
-    return np.concatenate([a, np.full(h - a.size, a[-1])])
 
 
 class SolveResult(NamedTuple):
