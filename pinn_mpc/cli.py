@@ -153,7 +153,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--scenario", required=True, help="scenario name, e.g. paper_household")
     p.add_argument("--days", type=_positive_int, required=True)
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--policy", choices=["random", "thermostat"], default="random")
+    p.add_argument("--policy", choices=["random", "random-level", "thermostat"], default="random")
     p.add_argument("--buildings", type=_positive_int, default=1)
     p.add_argument("--out", required=True, help="CSV file to write")
 

@@ -4,6 +4,10 @@ Policies:
 
 - ``random`` (the paper's): in each interval, independently per building, demand ``u_max``
   with probability ``on_probability``, else 0.
+- ``random-level``: in each interval, independently per building, a demand drawn uniformly
+  from ``[0, u_max]``. On/off data shows a network only the two extremes of the power; a
+  controller that modulates the power asks it about the levels in between, which this policy
+  covers (a multi-level excitation signal, as system identification recommends).
 - ``thermostat``: :class:`controllers.thermostat.Thermostat` on the scenario's comfort band
   (its rule :meth:`~controllers.thermostat.Thermostat.switch`, batched over buildings).
 
@@ -29,7 +33,7 @@ from pinn_mpc.errors import InputError
 from pinn_mpc.simulator import Simulator
 from scenarios.registry import Scenario, check_seed, get_scenario
 
-POLICIES = ("random", "thermostat")
+POLICIES = ("random", "random-level", "thermostat")
 # Random streams apart from the exogenous ones (see scenarios.registry).
 _POLICY_STREAM, _SENSOR_STREAM = 11, 12
 
@@ -39,7 +43,7 @@ def generate(
     *,
     days: int,
     seed: int,
-    policy: Literal["random", "thermostat"] | str = "random",
+    policy: Literal["random", "random-level", "thermostat"] | str = "random",
     n_buildings: int = 1,
     on_probability: float = 0.5,
 ) -> pd.DataFrame:
@@ -73,10 +77,12 @@ def generate(
         t_r[:, k] = sim.measure()
         t_m[:, k] = sim.state[:, 1]
         if policy == "random":
-            on = draws[k] < on_probability
+            u[:, k] = np.where(draws[k] < on_probability, spec.u_max_w, 0.0)
+        elif policy == "random-level":
+            u[:, k] = draws[k] * spec.u_max_w
         else:  # the thermostat's rule, batched over the buildings (it sees only T_r and the band)
             on = thermostat.switch(t_r[:, k], on, cols["T_min"][k], cols["T_max"][k])
-        u[:, k] = np.where(on, spec.u_max_w, 0.0)
+            u[:, k] = np.where(on, spec.u_max_w, 0.0)
         result = sim.step(u[:, k], cols["T_a"][k], cols["G"][k], cols["I_g"][k])
         u_phys[:, k] = result.u_phys_w
 

@@ -31,6 +31,20 @@ def test_on_probability_sets_the_share_of_full_power_demands():
     assert abs(share - 0.2) < 4 * np.sqrt(0.2 * 0.8 / len(frame))
 
 
+def test_random_level_policy_draws_uniform_demands_over_the_range():
+    scenario = get_scenario("paper_household")
+    frame = generate(scenario, days=20, seed=3, policy="random-level", n_buildings=2)
+    u = frame["u"].to_numpy()
+    assert np.all((u >= 0) & (u <= 5000)) and len(np.unique(u)) == len(u)
+    # Uniform on [0, 5000]: a fifth of the draws in each fifth of the range.
+    counts = np.histogram(u, bins=5, range=(0, 5000))[0]
+    expected = len(u) / 5
+    assert np.all(np.abs(counts - expected) < 4 * np.sqrt(expected))
+    pd.testing.assert_frame_equal(
+        frame, generate(scenario, days=20, seed=3, policy="random-level", n_buildings=2)
+    )
+
+
 def test_batched_buildings_equal_single_simulations_of_their_demands():
     scenario = get_scenario("winter_household")
     frame = generate(scenario, days=2, seed=3, n_buildings=3)

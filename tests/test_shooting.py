@@ -144,7 +144,7 @@ def test_cem_plan_comes_within_a_few_percent_of_the_exact_optimum():
 
 
 def test_warm_started_cem_closes_in_on_the_optimum_in_receding_horizon():
-    cem = CEM(LINEAR, SPEC)  # defaults: the warm start carries the search across decisions
+    cem = CEM(LINEAR, SPEC, polish_iters=0)  # sampling alone: the warm start carries the search
     cem.reset(seed=1)
     x = np.array([19.5, 19.0])
     gaps = []
@@ -154,8 +154,24 @@ def test_warm_started_cem_closes_in_on_the_optimum_in_receding_horizon():
         gaps.append(cem.last_cost_eur / _lp_optimum(x, fc) - 1.0)
         x = AD @ x + BD @ np.array([u, fc.t_a_c[0], 0.0, 0.0])
         assert not cem.last_stats.fallback
-    assert min(gaps) >= 0.0
+    assert min(gaps) >= -1e-5  # float32 rollouts
     assert gaps[-1] < 0.05 and gaps[-1] < gaps[0]
+
+
+def test_lp_polish_reaches_the_exact_optimum_on_a_linear_model():
+    # The default CEM polishes its plan by an LP on the linearised model: on the exact linear
+    # 2R2C the linearisation is exact, so every decision's plan is the LP optimum (to float32).
+    cem = CEM(LINEAR, SPEC)
+    cem.reset(seed=1)
+    x = np.array([19.5, 19.0])
+    for k in range(3):
+        fc = _forecast(start=k)
+        u = cem.act(_obs(*x, t_a_c=float(fc.t_a_c[0])), fc)
+        optimum = _lp_optimum(x, fc)
+        assert cem.last_cost_eur == pytest.approx(optimum, rel=1e-4)
+        assert _true_cost(cem.last_plan, x, fc) == pytest.approx(optimum, rel=1e-4)
+        assert cem.last_stats.iterations == 2 + 1  # CEM iterations + one LP
+        x = AD @ x + BD @ np.array([u, fc.t_a_c[0], 0.0, 0.0])
 
 
 @pytest.mark.parametrize("seed", [0, 1])
@@ -295,7 +311,15 @@ def _closed_loop(controller, n_steps: int):
 
 def test_cem_over_a_trained_physnet_ensemble_in_closed_loop(physnet):
     risk_weight = 0.5
-    cem = CEM(physnet, SPEC, n_samples=64, n_iters=2, risk_weight=risk_weight)
+    cem = CEM(
+        physnet,
+        SPEC,
+        n_samples=64,
+        n_iters=2,
+        risk_weight=risk_weight,
+        ensemble="members",
+        offset_gain=0.0,
+    )
     cem.reset(seed=0)
     planned = 0
     for k, obs, fc, u in _closed_loop(cem, n_steps=physnet.depth + 3):
@@ -321,6 +345,42 @@ def test_cem_over_a_trained_physnet_ensemble_in_closed_loop(physnet):
         assert np.std(per_member) > 0
         assert cem.last_cost_eur == pytest.approx(float(expected), rel=1e-4)
     assert planned == 2
+
+
+def test_default_cem_scores_the_ensemble_mean_with_a_measured_offset(physnet):
+    # Defaults: the members' mean prediction is scored, shifted by the filtered error of the
+    # model's one-step prediction of the interval that just ended (offset-free MPC).
+    gain = 0.5
+    cem = CEM(physnet, SPEC, n_samples=64, n_iters=2, offset_gain=gain)
+    cem.reset(seed=0)
+    offset = 0.0
+    steps = list(_closed_loop(cem, n_steps=physnet.depth + 5))
+    for k, obs, fc, _u in steps:
+        if k < physnet.depth + 1:
+            continue
+        exog = {"time_of_day_h": fc.time_of_day_h[:H], "T_a": fc.t_a_c[:H]}
+        if k >= physnet.depth + 2:
+            past = {name: v[:-1] for name, v in obs.history.items()}
+            last = {name: obs.history[name][-2:-1] for name in ("time_of_day_h", "T_a")}
+            u_last = torch.tensor([[obs.history["u_phys"][-1]]], dtype=torch.float32)
+            predicted = float(physnet.rollout(past, u_last, last).t_r_c[:, 0, 0].mean())
+            offset += gain * (obs.history["T_r"][-1] - predicted - offset)
+    k, obs, fc, _u = steps[-1]
+    plan = torch.tensor(cem.last_plan[None], dtype=torch.float32)
+    roll = physnet.rollout(obs.history, plan, exog)
+    mean_t = roll.t_r_c[:, 0].mean(0).numpy() + offset
+    expected = plan_cost(roll.u_phys_w[:, 0].mean(0).numpy(), mean_t, fc, SPEC)
+    assert offset != 0.0
+    assert cem.last_cost_eur == pytest.approx(float(expected), rel=1e-4)
+
+
+def test_ensemble_and_offset_settings_are_checked(physnet):
+    with pytest.raises(InputError, match="ensemble"):
+        CEM(physnet, SPEC, ensemble="median")
+    with pytest.raises(InputError, match="offset_gain"):
+        CEM(physnet, SPEC, offset_gain=1.5)
+    with pytest.raises(InputError, match="risk_weight"):
+        CEM(physnet, SPEC, risk_weight=0.5)  # the spread of one mean prediction is zero
 
 
 def test_physnet_with_nan_weights_falls_back(physnet):
