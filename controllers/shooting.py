@@ -41,7 +41,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from typing import Protocol
+from typing import NamedTuple, Protocol
 
 import numpy as np
 import torch
@@ -195,6 +195,16 @@ class RCBatchModel:
         )
 
 
+class _Options(NamedTuple):
+    """How a sampling controller scores and refines plans (see the module docstring); on/off
+    actions are never polished (the LP plan is continuous)."""
+
+    risk_weight: float
+    ensemble: str
+    offset_gain: float
+    polish_iters: int
+
+
 class _NonFiniteModelOutput(Exception):
     pass
 
@@ -209,12 +219,9 @@ class _SamplingController:
         model: BatchDynamics,
         spec: ControlSpec,
         planner: Planner,
-        *,
-        risk_weight: float,
-        polish: PolishSettings,
-        ensemble: str,
-        offset_gain: float,
+        options: _Options,
     ):
+        risk_weight, ensemble, offset_gain = options.risk_weight, options.ensemble, options.offset_gain
         for name in model.exog_names:
             if name not in FORECAST_FIELDS:
                 raise InputError(
@@ -224,7 +231,7 @@ class _SamplingController:
         if not (risk_weight >= 0 and np.isfinite(risk_weight)):
             raise InputError(f"{type(self).__name__}.risk_weight must be >= 0, got {risk_weight}")
         self.model, self.spec, self.planner, self.risk_weight = model, spec, planner, risk_weight
-        self.polish = polish
+        self.polish = PolishSettings(iters=options.polish_iters)
         if ensemble not in ENSEMBLE_MODES:
             raise InputError(
                 f"{type(self).__name__}.ensemble must be one of {', '.join(ENSEMBLE_MODES)}, "
@@ -387,11 +394,6 @@ class _SamplingController:
         return rollout, score, problem
 
 
-def _polish(iters: int, binary: bool) -> PolishSettings:
-    """LP polish settings; on/off actions are not polished (the LP plan is continuous)."""
-    return PolishSettings(iters=0 if binary else iters)
-
-
 _RS = RandomShootingPlanner(lower=0.0, upper=1.0)  # the defaults, defined once in the planners
 _CEM = CEMPlanner(lower=0.0, upper=1.0)
 
@@ -416,15 +418,8 @@ class RandomShooting(_SamplingController):
         planner = RandomShootingPlanner(
             lower=0.0, upper=spec.u_max_w, n_samples=n_samples, binary=binary
         )
-        super().__init__(
-            model,
-            spec,
-            planner,
-            risk_weight=risk_weight,
-            polish=_polish(polish_iters, binary),
-            ensemble=ensemble,
-            offset_gain=offset_gain,
-        )
+        options = _Options(risk_weight, ensemble, offset_gain, 0 if binary else polish_iters)
+        super().__init__(model, spec, planner, options)
 
 
 class CEM(_SamplingController):
@@ -467,12 +462,5 @@ class CEM(_SamplingController):
             noise_beta=noise_beta,
             binary=binary,
         )
-        super().__init__(
-            model,
-            spec,
-            planner,
-            risk_weight=risk_weight,
-            polish=_polish(polish_iters, binary),
-            ensemble=ensemble,
-            offset_gain=offset_gain,
-        )
+        options = _Options(risk_weight, ensemble, offset_gain, 0 if binary else polish_iters)
+        super().__init__(model, spec, planner, options)
