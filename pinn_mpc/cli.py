@@ -125,6 +125,7 @@ def _compare(a: argparse.Namespace) -> str:
         json_path=a.json,
         report_path=a.report,
         quick=a.quick,
+        policy=a.policy,
     )
 
 
@@ -229,6 +230,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", default="compare/table.json")
     p.add_argument("--report", default="compare/report.md")
     p.add_argument("--quick", action="store_true", help="small ensembles and short runs (minutes)")
+    p.add_argument(
+        "--policy",
+        choices=["random-level", "random"],
+        default="random-level",
+        help="training-data policy: uniform random power levels (default) or the paper's on/off",
+    )
 
     p = add("reproduce", _reproduce, "reproduce the paper's three experiments on simulated data")
     p.add_argument("--out", required=True)

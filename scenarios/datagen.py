@@ -34,6 +34,8 @@ from pinn_mpc.simulator import Simulator
 from scenarios.registry import Scenario, check_seed, get_scenario
 
 POLICIES = ("random", "random-level", "thermostat")
+#: The random policies (training data for learned models and identification).
+RANDOM_POLICIES = ("random", "random-level")
 # Random streams apart from the exogenous ones (see scenarios.registry).
 _POLICY_STREAM, _SENSOR_STREAM = 11, 12
 

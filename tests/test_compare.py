@@ -58,6 +58,12 @@ def test_quick_settings_are_small():
     assert quick.test_days == 2 and full.test_days == 5
     assert quick.n_seeds < full.n_seeds and quick.cem_samples < full.cem_samples
     assert quick.test_seed != quick.seed
+    assert full.policy == quick.policy == "random-level" and full.depth == 16
+
+
+def test_compare_rejects_an_unknown_training_policy():
+    with pytest.raises(InputError, match="unknown policy 'thermostat'"):
+        CompareSettings(train_days=1, test_days=1, seed=0, policy="thermostat")
     with pytest.raises(InputError, match="train_days must be >= 1"):
         CompareSettings(train_days=0, test_days=1, seed=0)
 
@@ -90,7 +96,8 @@ def test_compare_quick_end_to_end(tmp_path, capsys):
     table = json.loads((out / "table.json").read_text())
     labels = [row["controller"] for row in table["rows"]]
     assert labels == [
-        "thermostat", "random-shooting / physnet", "cem / physnet", "cem / physreg", "cem / mlp",
+        "thermostat", "random-shooting / physnet", "cem / physnet, no LP polish", "cem / physnet",
+        "cem / physreg", "cem / mlp",
         "casadi-mpc / identified RC",
         "qp-mpc / identified RC", "qp-mpc / physnet RC", "oracle", "clairvoyant",
     ]
