@@ -1,10 +1,12 @@
 """Decision time of random shooting and CEM at a 48-step horizon.
 
-    python benchmarks/bench_planners.py [--model physnet|rc|both] [--members 5] [--decisions 20]
+    python benchmarks/bench_planners.py [--model physnet|rc|both] [--members 10] [--decisions 20]
 
-Data: the ``paper_household`` scenario, random on/off demand. ``physnet`` trains a small
-ensemble for a few epochs (decision time does not depend on how well it is trained; the
-network sizes are the paper's); ``rc`` is the exact 2R2C physics (:class:`RCBatchModel`).
+Data: the ``winter_household`` scenario under the random-level policy. ``physnet`` trains an
+ensemble shaped as ``pinn-mpc compare`` trains it (10 members, depth 16: the model whose
+decisions the comparison reports) for a few epochs (decision time does not depend on how well
+it is trained; the network sizes are the paper's); ``rc`` is the exact 2R2C physics
+(:class:`RCBatchModel`). CEM runs with its defaults, LP polish and offset included.
 Each controller makes ``--decisions`` consecutive warm-started decisions along the data
 (after two untimed ones); the median / p95 wall-clock decision time and the median CPU time
 of the process are printed with the load average: on a shared machine the wall time grows
@@ -26,12 +28,14 @@ import torch
 from controllers.base import ControlSpec, Forecast, Observation
 from controllers.planners import CEMPlanner
 from controllers.shooting import CEM, BatchDynamics, RandomShooting, RCBatchModel
+from scenarios.compare import CompareSettings
 from scenarios.datagen import generate
 from scenarios.inputs import time_of_day_h
 from scenarios.registry import get_scenario
 
 TARGET_MS = 100.0
 _CEM = CEMPlanner(lower=0.0, upper=1.0)  # the defaults
+_COMPARE = CompareSettings(train_days=1, test_days=1, seed=0)  # the comparison's model shape
 
 
 def _observation(df: pd.DataFrame, k: int, spec: ControlSpec) -> tuple[Observation, Forecast]:
@@ -40,15 +44,18 @@ def _observation(df: pd.DataFrame, k: int, spec: ControlSpec) -> tuple[Observati
     h = spec.horizon_steps
     history = {c: df[c].to_numpy(dtype=float)[: k + 1] for c in ("T_r", "T_m", "T_a")}
     history.update({c: df[c].to_numpy(dtype=float)[:k] for c in ("u", "u_phys")})
-    history["G"] = np.zeros(k + 1)
-    history["I_g"] = np.zeros(k + 1)
+    for c in ("G", "I_g"):
+        history[c] = df[c].to_numpy(dtype=float)[: k + 1] if c in df else np.zeros(k + 1)
     history["time_of_day_h"] = tod[: k + 1]
-    col = {c: df[c].to_numpy(dtype=float)[k : k + h] for c in ("T_a", "price", "T_min", "T_max")}
+    col = {
+        c: df[c].to_numpy(dtype=float)[k : k + h] if c in df else np.zeros(h)
+        for c in ("T_a", "G", "I_g", "price", "T_min", "T_max")
+    }
     forecast = Forecast(
         time_of_day_h=tod[k : k + h],
         t_a_c=col["T_a"],
-        g_w_per_m2=np.zeros(h),
-        i_g_w=np.zeros(h),
+        g_w_per_m2=col["G"],
+        i_g_w=col["I_g"],
         price_eur_per_kwh=col["price"],
         t_min_c=col["T_min"],
         t_max_c=col["T_max"],
@@ -82,14 +89,14 @@ def _time_decisions(
 def _physnet(df: pd.DataFrame, members: int, epochs: int) -> BatchDynamics:
     from pinn_mpc.training import TrainConfig, train_model
 
-    config = TrainConfig(depth=8, n_seeds=members, epochs=epochs)
-    return train_model(df[["time", "T_r", "u", "u_phys", "T_a"]], arch="physnet", config=config)
+    config = TrainConfig(depth=_COMPARE.depth, n_seeds=members, epochs=epochs)
+    return train_model(df.drop(columns=["T_m"]), arch="physnet", config=config, progress=False)
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--model", choices=["physnet", "rc", "both"], default="both")
-    parser.add_argument("--members", type=int, default=5)
+    parser.add_argument("--members", type=int, default=_COMPARE.n_seeds)
     parser.add_argument("--epochs", type=int, default=2)
     parser.add_argument("--decisions", type=int, default=20)
     parser.add_argument("--samples", type=int, default=_CEM.n_samples, help="CEM samples")
@@ -97,9 +104,9 @@ def main() -> None:
     args = parser.parse_args()
     torch.set_num_threads(1)
 
-    scenario = get_scenario("paper_household")
+    scenario = get_scenario("winter_household")
     spec = scenario.control_spec()
-    df = generate(scenario, days=8, seed=0, policy="random")
+    df = generate(scenario, days=8, seed=0, policy=_COMPARE.policy)
     models: dict[str, Callable[[], BatchDynamics]] = {
         "rc": lambda: RCBatchModel(
             scenario.sim.params,

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from typing import Any, NamedTuple
+from typing import Any, NamedTuple, cast
 
 import numpy as np
 import pandas as pd
@@ -124,45 +124,92 @@ class EnsembleNet(nn.Module):
         return obs, None
 
     def rollout_steps(
-        self, static: torch.Tensor, depth: int
-    ) -> Callable[[torch.Tensor, torch.Tensor, int], tuple[torch.Tensor, torch.Tensor | None]]:
-        """Prepare a recursive rollout over H steps without re-gathering inputs every step.
+        self, e_win: torch.Tensor, u_s: torch.Tensor, tod: torch.Tensor, depth: int
+    ) -> Callable[[torch.Tensor, int], tuple[torch.Tensor, torch.Tensor | None]]:
+        """Prepare a recursive rollout over H steps; the same ``(obs, z)`` as :meth:`forward`.
 
-        ``static`` (N, H, n_static) holds, for every step, the inputs that do not depend on the
-        predictions (``x[..., 2(k+1):]``: exogenous windows, u, time of day), the same for all
-        members. Returns ``step(t_win, p_win, h)`` (windows (M, N, k+1) scaled) giving the same
-        ``(obs, z)`` as :meth:`forward` on the full features of step h.
+        ``e_win`` (N0, H, n_series*(k+1)) holds each step's scaled exogenous windows, ``u_s``
+        (N, H) the scaled demand, ``tod`` (N0, H, 2) the encoded time of day; N0 is 1 (one
+        start, N plans) or N. Returns ``step(tp, h)``: ``tp`` (M, N, k+1+H, 2) holds scaled
+        (T_r, u_phys) per time index, the window of step h being ``tp[:, :, h:h+k+1]``.
+
+        Everything that does not depend on the predictions (exogenous windows, time of day) is
+        pushed through the first layers once for all steps, so each step only multiplies the
+        T_r/u_phys window and the demand: about half the work and a third of the operations of
+        :meth:`forward` on concatenated features.
         """
         k, k1 = depth, depth + 1
-        m = self.n_members
-        by_step = static.transpose(0, 1)  # (H, N, n_static)
-        if self.arch != "physnet":
-            static_h = by_step.contiguous()
+        n_series = e_win.shape[-1] // k1
+        n0 = max(e_win.shape[0], tod.shape[0])
+        e_win, tod = e_win.expand(n0, -1, -1), tod.expand(n0, -1, -1)
 
-            def step_reg(
-                t: torch.Tensor, p: torch.Tensor, h: int
-            ) -> tuple[torch.Tensor, torch.Tensor | None]:
-                return self(torch.cat([t, p, static_h[h].expand(m, -1, -1)], dim=-1))
+        def pre(layer: EnsembleLinear, rows: list[int], cols: list[int]) -> torch.Tensor:
+            """Bias + static inputs through ``layer``'s weight rows: (H, M, N0, out)."""
+            static = torch.cat([e_win, tod], dim=-1)[..., cols]  # (N0, H, n)
+            out = torch.einsum("nhf,mfo->hmno", static, layer.weight[:, rows])
+            return out + layer.bias[None]
 
-            return step_reg
-        enc_static = by_step[
-            ..., [i - 2 * k1 for i in self.x_f_index.tolist() if i >= 2 * k1]
-        ].contiguous()
-        dyn_static = by_step[
-            ..., [i - 2 * k1 for i in self.now_index.tolist() if i >= 2 * k1]
-        ].contiguous()
+        def tp_weight(layer: EnsembleLinear, t_rows: list[int], p_rows: list[int]) -> torch.Tensor:
+            """Rows for the interleaved (T_r, u_phys) window, (M, 2 * len(t_rows), out)."""
+            w = torch.stack([layer.weight[:, t_rows], layer.weight[:, p_rows]], dim=2)
+            return w.reshape(w.shape[0], -1, w.shape[-1])
 
-        def step_net(
-            t: torch.Tensor, p: torch.Tensor, h: int
-        ) -> tuple[torch.Tensor, torch.Tensor | None]:
-            z = _run(
-                self.encoder,
-                torch.cat([t[..., :k], p[..., :k], enc_static[h].expand(m, -1, -1)], -1),
-            )
-            dyn_in = torch.cat([z, t[..., k:], p[..., k:], dyn_static[h].expand(m, -1, -1)], dim=-1)
-            return _run(self.dynamics, dyn_in), z[..., 0]
+        n_e = n_series * k1
 
-        return step_net
+        def raw(layers: Any) -> list[tuple[torch.Tensor, torch.Tensor]]:
+            """(weight, bias) of layers, to skip the module-call overhead in the step loop."""
+            return [(layer.weight, layer.bias) for layer in layers]
+
+        def run_raw(layers: list[tuple[torch.Tensor, torch.Tensor]], x: torch.Tensor) -> torch.Tensor:
+            """:func:`_run` on raw layers (tanh on all but the last)."""
+            for i, (w, b) in enumerate(layers):
+                x = torch.baddbmm(b, x, w)
+                if i < len(layers) - 1:
+                    x = torch.tanh(x)
+            return x
+
+        if self.arch == "physnet":
+            enc0 = cast(EnsembleLinear, self.encoder[0])
+            dyn0 = cast(EnsembleLinear, self.dynamics[0])
+            enc_e = [s * k1 + j for s in range(n_series) for j in range(k)]
+            pre_enc = pre(enc0, list(range(2 * k, 2 * k + len(enc_e))), enc_e)
+            w_enc = tp_weight(enc0, list(range(k)), list(range(k, 2 * k)))
+            # Dynamics rows: z, T_r now, u_phys now, exogenous now (n_series), u, time of day.
+            now_e = [s * k1 + k for s in range(n_series)]
+            dyn_static_rows = [*range(3, 3 + n_series), 4 + n_series, 5 + n_series]
+            pre_dyn = pre(dyn0, dyn_static_rows, [*now_e, n_e, n_e + 1])
+            w_dyn = dyn0.weight[:, [0, 1, 2, 3 + n_series]]  # (M, 4, out)
+            enc_rest, dyn_rest = raw(self.encoder[1:]), raw(self.dynamics[1:])
+
+            def step_net(tp: torch.Tensor, h: int) -> tuple[torch.Tensor, torch.Tensor | None]:
+                m, n = tp.shape[0], tp.shape[1]
+                x = torch.baddbmm(pre_enc[h], tp[:, :, h : h + k].reshape(m, n, 2 * k), w_enc)
+                z = run_raw(enc_rest, torch.tanh(x)) if enc_rest else x
+                u_h = u_s[:, h].reshape(1, n, 1).expand(m, n, 1)
+                small = torch.cat([z, tp[:, :, h + k], u_h], dim=-1)  # (M, N, 4)
+                hidden = torch.tanh(torch.baddbmm(pre_dyn[h], small, w_dyn))
+                return run_raw(dyn_rest, hidden), z[..., 0]
+
+            return step_net
+        first = cast(EnsembleLinear, self.trunk[0])
+        n_x = 2 * k1 + n_e
+        pre_trunk = pre(first, [*range(2 * k1, n_x), n_x + 1, n_x + 2], [*range(n_e), n_e, n_e + 1])
+        w_trunk = tp_weight(first, list(range(k1)), list(range(k1, 2 * k1)))
+        w_u = first.weight[:, n_x][:, None, :]  # (M, 1, out)
+        trunk_rest = raw(self.trunk[1:])
+        head = (self.head.weight, self.head.bias)
+        z_head = (self.z_head.weight, self.z_head.bias) if self.arch == "physreg" else None
+
+        def step_reg(tp: torch.Tensor, h: int) -> tuple[torch.Tensor, torch.Tensor | None]:
+            m, n = tp.shape[0], tp.shape[1]
+            base = torch.addcmul(pre_trunk[h], u_s[:, h].reshape(1, n, 1), w_u)
+            s = torch.tanh(torch.baddbmm(base, tp[:, :, h : h + k1].reshape(m, n, 2 * k1), w_trunk))
+            for w, b in trunk_rest:
+                s = torch.tanh(torch.baddbmm(b, s, w))
+            obs = torch.baddbmm(head[1], s, head[0])
+            return obs, (torch.baddbmm(z_head[1], s, z_head[0])[..., 0] if z_head else None)
+
+        return step_reg
 
 
 _GAIN_NAMES = {"G": ("c11", "c21"), "I_g": ("c12", "c22")}
@@ -381,28 +428,29 @@ class LearnedModel:
         """
         m, k1 = self.n_members, self.depth + 1
         n, h_len = u_s.shape
-        t_buf = torch.empty(m, n, k1 + h_len)
-        p_buf = torch.empty(m, n, k1 + h_len)
-        t_buf[..., :k1] = t_win
-        p_buf[..., :k1] = p_win
+        tp = torch.empty(m, n, k1 + h_len, 2)
+        tp[..., :k1, 0] = t_win
+        tp[..., :k1, 1] = p_win
         e_win = e_seq.unfold(-1, k1, 1)[..., :h_len, :]  # (N0, n_series, H, k+1)
         e_win = e_win.permute(0, 2, 1, 3).reshape(e_seq.shape[0], h_len, -1)
-        static = torch.cat([e_win.expand(n, -1, -1), u_s[..., None], tod.expand(n, -1, -1)], dim=-1)
         z_out = torch.empty(m, n, h_len) if self.arch != "mlp" else None
+        # Scaled outputs -> (T_r increment, u_phys): obs * scale + shift, then T_r,i added.
+        scale = torch.tensor([self._dt_ratio, 1.0])
+        shift = torch.tensor([self._dt_offset, 0.0])
         with torch.no_grad():
-            step = self.module.net.rollout_steps(static, self.depth)
+            step = self.module.net.rollout_steps(e_win, u_s, tod, self.depth)
             for h in range(h_len):
-                obs, z = step(t_buf[..., h : h + k1], p_buf[..., h : h + k1], h)
-                t_buf[..., k1 + h] = (
-                    t_buf[..., k1 + h - 1] + obs[..., 0] * self._dt_ratio + self._dt_offset
-                )
-                p_buf[..., k1 + h] = obs[..., 1].clamp(self._p_lo, self._p_hi)
+                obs, z = step(tp, h)
+                row = tp.select(2, k1 + h)  # (M, N, 2) view
+                torch.addcmul(shift, obs, scale, out=row)
+                row.select(2, 0).add_(tp.select(2, k1 + h - 1).select(2, 0))
+                row.select(2, 1).clamp_(self._p_lo, self._p_hi)
                 if z_out is not None and z is not None:
-                    z_out[..., h] = z
+                    z_out.select(2, h).copy_(z)
         f = self.features
         return Rollout(
-            t_r_c=self._unscale_t(t_buf[..., k1:]),
-            u_phys_w=p_buf[..., k1:] * f.power.std + f.power.mean,
+            t_r_c=self._unscale_t(tp[..., k1:, 0]),
+            u_phys_w=tp[..., k1:, 1] * f.power.std + f.power.mean,
             t_m_c=self._unscale_t(z_out) if z_out is not None else None,
         )
 
