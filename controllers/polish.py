@@ -20,6 +20,12 @@ the demanded power, so one linearisation around the sampled plan and one LP clos
 
 This is sequential linear programming (successive linearisation MPC) applied to the learned
 model; it needs no gradients of the network, only batched rollouts.
+
+A learned model's rollout costs mostly a fixed time per horizon step, whatever the batch, so the
+polish rides along with the planner's own objective calls (:class:`PiggybackPolish`): the
+probes around the warm start join the planner's first batch, the line-search plans its second;
+only what is left over after the planner's last call costs a rollout of its own. With CEM's two
+iterations, polishing adds no rollout at all.
 """
 
 from __future__ import annotations
@@ -71,24 +77,25 @@ class PlanProblem:
     upper: float
 
 
-def linearise(
-    rollout: RolloutFn, u0: torch.Tensor, delta_w: float, upper: float
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Predictions at ``u0`` (H,) and their sensitivities, one batched rollout of H+1 plans.
-
-    Returns ``t0``, ``p0`` (M, H) and ``jr``, ``jp`` (M, H, H): d(prediction at step j) /
-    d(demand at step i) in [K/W] and [W/W]. Each step moves up by ``delta_w``, or down where that
-    would leave the bound ``upper``.
-    """
+def probes(u0: torch.Tensor, delta_w: float, upper: float) -> tuple[torch.Tensor, torch.Tensor]:
+    """``u0`` (H,) and H copies with one step moved by ``delta_w`` (down where up would leave
+    ``upper``): the batch (H+1, H) and the signed steps (H,)."""
     h = u0.shape[0]
     step = torch.where(u0 + delta_w <= upper, delta_w, -delta_w).to(u0.dtype)
     batch = u0.expand(h + 1, h).clone()
     batch[1:] += torch.diag(step)
-    t_r, u_phys = rollout(batch)
+    return batch, step
+
+
+def jacobians(
+    t_r: torch.Tensor, u_phys: torch.Tensor, step: torch.Tensor
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Predictions (M, H+1, H) of a :func:`probes` batch -> ``t0``, ``p0`` (M, H) at ``u0`` and
+    ``jr``, ``jp`` (M, H, H): d(prediction at step j) / d(demand at step i), [K/W] and [W/W]."""
     t = t_r.double().numpy()
     p = u_phys.double().numpy()
     d = step.double().numpy()
-    # (M, H+1, H): row 0 the base plan, row 1+i the plan with step i moved.
+    # Row 0 the base plan, row 1+i the plan with step i moved.
     jr = np.swapaxes((t[:, 1:, :] - t[:, :1, :]) / d[None, :, None], 1, 2)
     jp = np.swapaxes((p[:, 1:, :] - p[:, :1, :]) / d[None, :, None], 1, 2)
     return t[:, 0, :], p[:, 0, :], jr, jp
@@ -96,7 +103,6 @@ def linearise(
 
 def solve_lp(
     t0: np.ndarray,
-    p0: np.ndarray,
     jr: np.ndarray,
     jp: np.ndarray,
     u0: np.ndarray,
@@ -106,6 +112,7 @@ def solve_lp(
     """The LP of the module docstring; the new plan (H,) [W], or None if HiGHS fails.
 
     Variables: the change of demand in kW (H,) and one violation slack per member and step.
+    The energy term is linear in the change, so the predicted power at ``u0`` drops out.
     """
     m, h = t0.shape
     kw = 1000.0
@@ -136,33 +143,79 @@ def solve_lp(
     return np.clip(u0 + res.x[:h] * kw, problem.lower, problem.upper)
 
 
-def polish(
-    rollout: RolloutFn,
-    score: Callable[[torch.Tensor, torch.Tensor], torch.Tensor],
-    plan: torch.Tensor,
-    cost: float,
-    problem: PlanProblem,
-    settings: PolishSettings,
-) -> tuple[torch.Tensor, float, int]:
-    """Improve ``plan`` (H,) of objective ``cost``: returns (plan, cost, LPs solved).
+class PiggybackPolish:
+    """Polish riding on a planner's objective calls (see the module docstring).
 
-    ``score(t_r, u_phys)`` maps predictions (M, N, H) to costs (N,) (the controller's objective).
+    Use :meth:`objective` in place of the plain objective, then :meth:`finish` for the best
+    polished plan. ``rollout(u_w)`` gives predictions (M, N, H) and ``score(t_r, u_phys)``
+    their costs (N,); ``x0`` (H,) is the plan to linearise around first (the warm start).
     """
-    span = problem.upper - problem.lower
-    solved = 0
-    for _ in range(settings.iters):
-        t0, p0, jr, jp = linearise(rollout, plan, settings.delta_frac * span, problem.upper)
-        u0 = plan.double().numpy()
-        target = solve_lp(t0, p0, jr, jp, u0, problem, settings.trust_frac * span)
+
+    def __init__(
+        self,
+        rollout: RolloutFn,
+        score: Callable[[torch.Tensor, torch.Tensor], torch.Tensor],
+        problem: PlanProblem,
+        settings: PolishSettings,
+        x0: torch.Tensor,
+    ):
+        self.rollout, self.score, self.problem, self.settings = rollout, score, problem, settings
+        self.span = problem.upper - problem.lower
+        self.best: tuple[torch.Tensor, float] | None = None  # best polish plan and its cost
+        self.lps = 0
+        self._rounds = settings.iters
+        self._pending: torch.Tensor | None = None
+        self._step: torch.Tensor | None = None  # set while the pending batch is probes
+        if self._rounds > 0:
+            self._queue_probes(x0)
+
+    def _queue_probes(self, u0: torch.Tensor) -> None:
+        self._rounds -= 1
+        self._pending, self._step = probes(u0, self.settings.delta_frac * self.span, self.problem.upper)
+
+    def objective(self, u_w: torch.Tensor) -> torch.Tensor:
+        """Costs (N,) of the planner's batch; pending polish plans are rolled out with it."""
+        extra = self._pending
+        if extra is None:
+            return self.score(*self.rollout(u_w))
+        n = u_w.shape[0]
+        t_r, u_phys = self.rollout(torch.cat([u_w, extra]))
+        costs = self.score(t_r, u_phys)
+        self._take(extra, t_r[:, n:], u_phys[:, n:], costs[n:])
+        return costs[:n]
+
+    def finish(self) -> tuple[torch.Tensor, float] | None:
+        """Roll out what is still pending; the best polish plan and cost (None if none)."""
+        while self._pending is not None:
+            extra = self._pending
+            t_r, u_phys = self.rollout(extra)
+            self._take(extra, t_r, u_phys, self.score(t_r, u_phys))
+        return self.best
+
+    def _take(
+        self, batch: torch.Tensor, t_r: torch.Tensor, u_phys: torch.Tensor, costs: torch.Tensor
+    ) -> None:
+        self._pending = None
+        costs = costs.double()
+        self._consider(batch, costs)
+        if self._step is None:  # a line search was evaluated: probe around the best again
+            if self._rounds > 0 and self.best is not None:
+                self._queue_probes(self.best[0])
+            return
+        step, self._step = self._step, None
+        t0, _p0, jr, jp = jacobians(t_r, u_phys, step)
+        u0 = batch[0]
+        target = solve_lp(t0, jr, jp, u0.double().numpy(), self.problem, self.settings.trust_frac * self.span)
         if target is None:
-            break
-        solved += 1
-        steps = torch.tensor(settings.line_search, dtype=plan.dtype)[:, None]
-        direction = torch.as_tensor(target, dtype=plan.dtype) - plan
-        candidates = (plan + steps * direction).clamp(problem.lower, problem.upper)
-        costs = score(*rollout(candidates)).double()
-        best = int(torch.argmin(costs))
-        if not (torch.isfinite(costs[best]) and float(costs[best]) < cost):
-            break
-        plan, cost = candidates[best].clone(), float(costs[best])
-    return plan, cost, solved
+            return
+        self.lps += 1
+        alphas = torch.tensor(self.settings.line_search, dtype=u0.dtype)[:, None]
+        direction = torch.as_tensor(target, dtype=u0.dtype) - u0
+        lo, hi = self.problem.lower, self.problem.upper
+        self._pending = (u0 + alphas * direction).clamp(lo, hi)
+
+    def _consider(self, batch: torch.Tensor, costs: torch.Tensor) -> None:
+        finite = torch.where(torch.isfinite(costs), costs, torch.full_like(costs, float("inf")))
+        i = int(torch.argmin(finite))
+        if bool(torch.isfinite(finite[i])) and (self.best is None or float(finite[i]) < self.best[1]):
+            self.best = (batch[i].clone(), float(finite[i]))

@@ -55,7 +55,7 @@ from controllers.base import (
     planning_band,
 )
 from controllers.planners import CEMPlanner, Planner, RandomShootingPlanner
-from controllers.polish import PlanProblem, PolishSettings, RolloutFn, polish
+from controllers.polish import PiggybackPolish, PlanProblem, PolishSettings, RolloutFn
 from pinn_mpc.errors import InputError
 from pinn_mpc.physics import RCParams, discretise
 
@@ -318,17 +318,16 @@ class _SamplingController:
         offset = self._update_offset(obs.history)
         rollout, score, problem = self._objective(obs.history, forecast, h, offset)
 
-        def objective(u_w: torch.Tensor) -> torch.Tensor:
-            return score(*rollout(u_w))
-
-        result = self.planner.optimize(objective, self._warm_start(h), self._generator)
-        if not np.isfinite(result.cost):
+        x0 = self._warm_start(h)
+        polisher = PiggybackPolish(rollout, score, problem, self.polish, x0)
+        result = self.planner.optimize(polisher.objective, x0, self._generator)
+        plan, cost = result.plan, result.cost
+        polished = polisher.finish()
+        if polished is not None and polished[1] < cost:
+            plan, cost = polished
+        if not np.isfinite(cost):
             raise _NonFiniteModelOutput
-        plan, cost, iterations = result.plan, result.cost, result.iterations
-        if self.polish.iters > 0:
-            plan, cost, solved = polish(rollout, score, plan, cost, problem, self.polish)
-            iterations += solved
-        return plan.numpy().astype(float), cost, iterations
+        return plan.numpy().astype(float), cost, result.iterations + polisher.lps
 
     def _update_offset(self, history: dict[str, np.ndarray]) -> float:
         """The output-disturbance estimate [K] after the newest measurement (0 when off).

@@ -160,7 +160,8 @@ def test_warm_started_cem_closes_in_on_the_optimum_in_receding_horizon():
 
 def test_lp_polish_reaches_the_exact_optimum_on_a_linear_model():
     # The default CEM polishes its plan by an LP on the linearised model: on the exact linear
-    # 2R2C the linearisation is exact, so every decision's plan is the LP optimum (to float32).
+    # 2R2C the linearisation is exact, so every decision's plan is the LP optimum, up to the
+    # float32 finite differences of the Jacobian (CEM alone stays a few percent off).
     cem = CEM(LINEAR, SPEC)
     cem.reset(seed=1)
     x = np.array([19.5, 19.0])
@@ -168,8 +169,8 @@ def test_lp_polish_reaches_the_exact_optimum_on_a_linear_model():
         fc = _forecast(start=k)
         u = cem.act(_obs(*x, t_a_c=float(fc.t_a_c[0])), fc)
         optimum = _lp_optimum(x, fc)
-        assert cem.last_cost_eur == pytest.approx(optimum, rel=1e-4)
-        assert _true_cost(cem.last_plan, x, fc) == pytest.approx(optimum, rel=1e-4)
+        assert cem.last_cost_eur == pytest.approx(optimum, rel=1e-3)
+        assert _true_cost(cem.last_plan, x, fc) == pytest.approx(optimum, rel=1e-3)
         assert cem.last_stats.iterations == 2 + 1  # CEM iterations + one LP
         x = AD @ x + BD @ np.array([u, fc.t_a_c[0], 0.0, 0.0])
 
