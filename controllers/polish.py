@@ -49,6 +49,7 @@ class PolishSettings:
     """Settings of the LP polish (see the module docstring)."""
 
     iters: int = 1
+    probe_stride: int = 4
     delta_frac: float = 0.02
     trust_frac: float = 1.0
     line_search: Sequence[float] = (1.0, 0.5, 0.25)
@@ -56,6 +57,8 @@ class PolishSettings:
     def __post_init__(self) -> None:
         if self.iters < 0:
             raise InputError(f"polish iters must be >= 0, got {self.iters}")
+        if self.probe_stride < 1:
+            raise InputError(f"polish probe_stride must be >= 1, got {self.probe_stride}")
         if not 0.0 < self.delta_frac <= 0.5:
             raise InputError(f"polish delta_frac must lie in (0, 0.5], got {self.delta_frac}")
         if not self.trust_frac > 0:
@@ -77,27 +80,46 @@ class PlanProblem:
     upper: float
 
 
-def probes(u0: torch.Tensor, delta_w: float, upper: float) -> tuple[torch.Tensor, torch.Tensor]:
-    """``u0`` (H,) and H copies with one step moved by ``delta_w`` (down where up would leave
-    ``upper``): the batch (H+1, H) and the signed steps (H,)."""
+def probes(
+    u0: torch.Tensor, delta_w: float, upper: float, stride: int = 1
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """``u0`` (H,) and copies with one step moved by ``delta_w`` (down where up would leave
+    ``upper``), every ``stride``-th step: the batch (1 + ceil(H/stride), H) and the signed
+    steps (H,) (zero where not probed)."""
     h = u0.shape[0]
     step = torch.where(u0 + delta_w <= upper, delta_w, -delta_w).to(u0.dtype)
-    batch = u0.expand(h + 1, h).clone()
-    batch[1:] += torch.diag(step)
+    probed = torch.arange(0, h, stride)
+    step = torch.zeros_like(step).index_copy_(0, probed, step[probed])
+    batch = u0.expand(len(probed) + 1, h).clone()
+    batch[1:] += torch.diag(step)[probed]
     return batch, step
 
 
 def jacobians(
     t_r: torch.Tensor, u_phys: torch.Tensor, step: torch.Tensor
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Predictions (M, H+1, H) of a :func:`probes` batch -> ``t0``, ``p0`` (M, H) at ``u0`` and
-    ``jr``, ``jp`` (M, H, H): d(prediction at step j) / d(demand at step i), [K/W] and [W/W]."""
+    """Predictions (M, 1+P, H) of a :func:`probes` batch -> ``t0``, ``p0`` (M, H) at ``u0`` and
+    ``jr``, ``jp`` (M, H, H): d(prediction at step j) / d(demand at step i), [K/W] and [W/W].
+
+    A step i between probed steps takes the response of the nearest probed step p <= i shifted
+    by i - p (the impulse response of a slowly varying system; exact for a linear
+    time-invariant model, whatever the stride).
+    """
     t = t_r.double().numpy()
     p = u_phys.double().numpy()
     d = step.double().numpy()
-    # Row 0 the base plan, row 1+i the plan with step i moved.
-    jr = np.swapaxes((t[:, 1:, :] - t[:, :1, :]) / d[None, :, None], 1, 2)
-    jp = np.swapaxes((p[:, 1:, :] - p[:, :1, :]) / d[None, :, None], 1, 2)
+    probed = np.flatnonzero(d)
+    m, h = t.shape[0], t.shape[2]
+    # Responses (M, P, H) of the probed steps, per watt.
+    resp_t = (t[:, 1:, :] - t[:, :1, :]) / d[probed][None, :, None]
+    resp_p = (p[:, 1:, :] - p[:, :1, :]) / d[probed][None, :, None]
+    jr = np.zeros((m, h, h))
+    jp = np.zeros((m, h, h))
+    owner = np.searchsorted(probed, np.arange(h), side="right") - 1  # probe index per step
+    for i in range(h):
+        q, lag = owner[i], i - probed[owner[i]]
+        jr[:, i:, i] = resp_t[:, q, probed[q] : h - lag]
+        jp[:, i:, i] = resp_p[:, q, probed[q] : h - lag]
     return t[:, 0, :], p[:, 0, :], jr, jp
 
 
@@ -171,7 +193,10 @@ class PiggybackPolish:
 
     def _queue_probes(self, u0: torch.Tensor) -> None:
         self._rounds -= 1
-        self._pending, self._step = probes(u0, self.settings.delta_frac * self.span, self.problem.upper)
+        delta = self.settings.delta_frac * self.span
+        self._pending, self._step = probes(
+            u0, delta, self.problem.upper, self.settings.probe_stride
+        )
 
     def objective(self, u_w: torch.Tensor) -> torch.Tensor:
         """Costs (N,) of the planner's batch; pending polish plans are rolled out with it."""
