@@ -98,12 +98,12 @@ class RandomShootingPlanner:
     """Sample ``n_samples`` sequences once (uniform, or fair coin flips when binary); keep the best.
 
     The warm start replaces the first sample. The default budget equals CEM's default
-    (192 samples x 2 iterations), so the two compare at equal model cost.
+    (64 samples x 2 iterations), so the two compare at equal model cost.
     """
 
     lower: float
     upper: float
-    n_samples: int = 384
+    n_samples: int = 128
     binary: bool = False
 
     def __post_init__(self) -> None:
@@ -142,7 +142,7 @@ class CEMPlanner:
 
     lower: float
     upper: float
-    n_samples: int = 192
+    n_samples: int = 64
     n_iters: int = 2
     elite_frac: float = 0.03
     alpha: float = 0.1

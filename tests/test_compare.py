@@ -56,7 +56,7 @@ def test_quick_settings_are_small():
     quick = CompareSettings.for_run(train_days=60, days=5, seed=0, quick=True)
     full = CompareSettings.for_run(train_days=60, days=5, seed=0, quick=False)
     assert quick.test_days == 2 and full.test_days == 5
-    assert quick.n_seeds < full.n_seeds and quick.cem_samples < full.cem_samples
+    assert quick.n_seeds < full.n_seeds and quick.cem_samples == full.cem_samples
     assert quick.test_seed != quick.seed
     assert full.policy == quick.policy == "random-level" and full.depth == 16
 
