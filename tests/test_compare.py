@@ -59,6 +59,10 @@ def test_quick_settings_are_small():
     assert quick.n_seeds < full.n_seeds and quick.cem_samples == full.cem_samples
     assert quick.test_seed != quick.seed
     assert full.policy == quick.policy == "random-level" and full.depth == 16
+    # As many optimizer steps as the recipe's calibration (60 epochs of 120 days).
+    assert full.training_epochs == 120 and quick.training_epochs == 60
+    assert CompareSettings(train_days=10, test_days=1, seed=0).training_epochs == 240
+    assert CompareSettings(train_days=365, test_days=1, seed=0).training_epochs == 60
 
 
 def test_compare_rejects_an_unknown_training_policy():
