@@ -70,7 +70,12 @@ def test_backup_acts_and_caps_the_room_temperature(paper_csv):
 
 
 @pytest.mark.parametrize(
-    ("scenario", "policy", "band"), [("winter_household", "random", None), ("cold_storage", "thermostat", (1.0, 7.5))]
+    ("scenario", "policy", "band"),
+    [
+        ("winter_household", "random", None),
+        ("winter_household", "random-level", None),
+        ("cold_storage", "thermostat", (1.0, 7.5)),
+    ],
 )
 def test_other_scenarios_simulate(scenario, policy, band, tmp_path, capsys):
     out = tmp_path / "s.csv"
@@ -81,6 +86,8 @@ def test_other_scenarios_simulate(scenario, policy, band, tmp_path, capsys):
     assert {"G", "I_g"} <= set(df.columns) or scenario == "cold_storage"
     if band is not None:
         assert band[0] < df["T_r"].iloc[48:].min() and df["T_r"].iloc[48:].max() < band[1]
+    levels = df["u"].nunique()
+    assert levels == len(df) if policy == "random-level" else levels <= 2
     assert "2 building(s)" in capsys.readouterr().out
 
 
