@@ -27,7 +27,8 @@ import torch
 
 from controllers.base import ControlSpec, Forecast, Observation
 from controllers.planners import CEMPlanner
-from controllers.shooting import CEM, BatchDynamics, RandomShooting, RCBatchModel
+from controllers.sampling import CEM, RandomShooting
+from pinn_mpc.rc_batch_model import BatchDynamics, RCBatchModel
 from scenarios.compare import CompareSettings
 from scenarios.datagen import generate
 from scenarios.inputs import time_of_day_h
@@ -51,16 +52,8 @@ def _observation(df: pd.DataFrame, k: int, spec: ControlSpec) -> tuple[Observati
         c: df[c].to_numpy(dtype=float)[k : k + h] if c in df else np.zeros(h)
         for c in ("T_a", "G", "I_g", "price", "T_min", "T_max")
     }
-    forecast = Forecast(
-        time_of_day_h=tod[k : k + h],
-        t_a_c=col["T_a"],
-        g_w_per_m2=col["G"],
-        i_g_w=col["I_g"],
-        price_eur_per_kwh=col["price"],
-        t_min_c=col["T_min"],
-        t_max_c=col["T_max"],
-    )
-    obs = Observation(k=k, t_r_c=float(history["T_r"][-1]), history=history, t_m_true_c=0.0)
+    forecast = Forecast(time_of_day_h=tod[k : k + h], **col)
+    obs = Observation.from_history(k, history, 0.0)
     return obs, forecast
 
 

@@ -1,9 +1,9 @@
-"""What every controller shares: observation, forecast, objective, protocol, fallback.
+"""What every controller shares: observation, forecast, control spec, protocol, fallback.
 
-The objective is the same for every controller so comparisons are fair: over the horizon,
-energy cost (price x delivered energy) plus ``comfort_weight`` x discomfort [K h], where the
-discomfort of step j is the band violation of the room temperature at the end of interval j
-(against the band of interval j) times the interval length in hours.
+Names follow the data format (``T_a``, ``G``, ``I_g``, ``price``, ``T_min``, ``T_max``, ``u``,
+``u_phys``, ``time_of_day_h``) in the history, the last interval and the forecast alike, so a
+model's exogenous input name is also the forecast's field and the last interval's field.
+The objective every controller optimises is in :mod:`controllers.objective`.
 """
 
 from __future__ import annotations
@@ -16,21 +16,54 @@ import numpy as np
 
 from pinn_mpc.errors import InputError
 
+__all__ = [
+    "EXOGENOUS_NAMES",
+    "Controller",
+    "ControlSpec",
+    "Fallback",
+    "Forecast",
+    "LastInterval",
+    "Observation",
+    "SolveStats",
+    "fallback_power",
+    "first_values",
+]
+
+#: Exogenous inputs a model may take, in the data format's names (fields of Forecast and
+#: LastInterval alike).
+EXOGENOUS_NAMES = ("time_of_day_h", "T_a", "G", "I_g")
+
 
 class Forecast(NamedTuple):
-    """Exogenous inputs for the next H control intervals, each an array (H,)."""
+    """Inputs for the next H control intervals, each an array (H,), named as in the data format."""
 
     time_of_day_h: np.ndarray  # start of each interval, hours since midnight
-    t_a_c: np.ndarray  # outdoor temperature [C]
-    g_w_per_m2: np.ndarray  # global horizontal irradiance [W/m2]
-    i_g_w: np.ndarray  # internal gains [W]
-    price_eur_per_kwh: np.ndarray
-    t_min_c: np.ndarray  # comfort band, lower [C]
-    t_max_c: np.ndarray  # comfort band, upper [C]
+    T_a: np.ndarray  # outdoor temperature [C]
+    G: np.ndarray  # global horizontal irradiance [W/m2]
+    I_g: np.ndarray  # internal gains [W]
+    price: np.ndarray  # [EUR/kWh]
+    T_min: np.ndarray  # comfort band, lower [C]
+    T_max: np.ndarray  # comfort band, upper [C]
 
     @property
     def horizon(self) -> int:
-        return len(self.t_a_c)
+        return len(self.T_a)
+
+    def exogenous(self, names: tuple[str, ...], h: int) -> dict[str, np.ndarray]:
+        """Fresh arrays (h,) of the named series (names of :data:`EXOGENOUS_NAMES`)."""
+        fields = self._asdict()
+        return {name: np.array(fields[name][:h]) for name in names}
+
+
+class LastInterval(NamedTuple):
+    """The control interval that just ended: its inputs [data-format names and units]."""
+
+    time_of_day_h: float  # its start
+    T_a: float
+    G: float
+    I_g: float
+    u: float  # demanded power [W]
+    u_phys: float  # delivered power [W]
 
 
 class Observation(NamedTuple):
@@ -39,13 +72,42 @@ class Observation(NamedTuple):
     ``history`` holds the past in the data format's names: ``T_r`` (k+1,) measured room
     temperatures up to and including now; ``u`` and ``u_phys`` (k,) demanded and delivered power
     of past intervals [W]; ``T_a``, ``G``, ``I_g``, ``time_of_day_h`` (k+1,) up to now.
-    ``t_m_true_c`` is the simulator's hidden thermal-mass temperature: only ``oracle`` may use it.
+    ``last`` is the interval that just ended (None at the first step), so nobody reads it back
+    out of ``history`` by index. ``t_m_true_c`` is the simulator's hidden thermal-mass
+    temperature: only the true-state estimator (oracle) may use it.
     """
 
     k: int
     t_r_c: float
     history: dict[str, np.ndarray]
     t_m_true_c: float
+    last: LastInterval | None = None
+
+    @classmethod
+    def from_history(
+        cls, k: int, history: dict[str, np.ndarray], t_m_true_c: float = math.nan
+    ) -> Observation:
+        """The observation of step k from a history as in the class docstring; ``last`` is
+        read from it (``G``, ``I_g`` missing count as 0)."""
+        t_r = np.asarray(history["T_r"], dtype=float)
+        last = None
+        u_phys = np.asarray(history.get("u_phys", np.zeros(0)), dtype=float)
+        if len(u_phys) >= 1 and len(t_r) >= 2:
+
+            def before_now(name: str) -> float:  # value at the start of the last interval
+                values = history.get(name)
+                return 0.0 if values is None else float(values[-2])
+
+            u = np.asarray(history.get("u", u_phys), dtype=float)  # one power column: u = u_phys
+            last = LastInterval(
+                time_of_day_h=before_now("time_of_day_h"),
+                T_a=before_now("T_a"),
+                G=before_now("G"),
+                I_g=before_now("I_g"),
+                u=float(u[-1]),
+                u_phys=float(u_phys[-1]),
+            )
+        return cls(k=k, t_r_c=float(t_r[-1]), history=history, t_m_true_c=t_m_true_c, last=last)
 
 
 class SolveStats(NamedTuple):
@@ -80,11 +142,6 @@ class ControlSpec:
         return self.dt_s / 3600.0
 
 
-def band_violation_k(t_r_c: np.ndarray, t_min_c: np.ndarray, t_max_c: np.ndarray) -> np.ndarray:
-    """Elementwise violation of the comfort band [K], broadcasting."""
-    return np.maximum(t_min_c - t_r_c, 0.0) + np.maximum(t_r_c - t_max_c, 0.0)
-
-
 def first_values(values: np.ndarray, n: int) -> np.ndarray:
     """A fresh array of the first n values (n,), the last one repeated when there are fewer."""
     a = np.asarray(values, dtype=float).reshape(-1)
@@ -93,35 +150,6 @@ def first_values(values: np.ndarray, n: int) -> np.ndarray:
     if a.size >= n:
         return a[:n].copy()
     return np.concatenate([a, np.full(n - a.size, a[-1])])
-
-
-def planning_band(forecast: Forecast, h: int) -> tuple[np.ndarray, np.ndarray]:
-    """The band the room temperature at the end of each of the next h intervals must keep, (h,) each.
-
-    The end of interval j is also the start of interval j+1, so it must lie in both bands: without
-    this a planner arrives at 17 C exactly when a 20 C day band starts, and the closed-loop KPI
-    (the time integral of the violation) charges the whole warm-up. The last value, with no next
-    interval in the forecast, uses its own band.
-    """
-    t_min, t_max = first_values(forecast.t_min_c, h + 1), first_values(forecast.t_max_c, h + 1)
-    lower = np.maximum(t_min[:-1], t_min[1:])
-    upper = np.minimum(t_max[:-1], t_max[1:])
-    return lower, upper
-
-
-def plan_cost(
-    u_phys_w: np.ndarray, t_r_next_c: np.ndarray, forecast: Forecast, spec: ControlSpec
-) -> np.ndarray:
-    """Objective of plans: arrays (..., H) of delivered power and end-of-interval T_r -> (...,) [EUR].
-
-    Discomfort is measured against :func:`planning_band`.
-    """
-    h = u_phys_w.shape[-1]
-    energy_kwh = u_phys_w / 1000.0 * spec.dt_h
-    cost = energy_kwh * forecast.price_eur_per_kwh[:h]
-    lower, upper = planning_band(forecast, h)
-    violation = band_violation_k(t_r_next_c, lower, upper)
-    return np.sum(cost + spec.comfort_weight_eur_per_kh * violation * spec.dt_h, axis=-1)
 
 
 @runtime_checkable
@@ -145,10 +173,44 @@ def fallback_power(obs: Observation, forecast: Forecast, spec: ControlSpec) -> f
     """The documented safe action when a solver fails or a model output is not finite.
 
     A band-keeping rule on the measured room temperature: full power when the room is in the
-    lower (heating) or upper (cooling) quarter of the band or beyond it, otherwise off.
+    lower (heating) or upper (cooling) quarter of the band or beyond it, otherwise off. Without
+    a band (an empty forecast) it is off: the backup thermostat still guards the room.
     """
-    t_min, t_max = float(forecast.t_min_c[0]), float(forecast.t_max_c[0])
+    if len(forecast.T_min) == 0 or len(forecast.T_max) == 0:
+        return 0.0
+    t_min, t_max = float(forecast.T_min[0]), float(forecast.T_max[0])
     quarter = 0.25 * (t_max - t_min)
     if spec.heating:
         return spec.u_max_w if obs.t_r_c < t_min + quarter else 0.0
     return spec.u_max_w if obs.t_r_c > t_max - quarter else 0.0
+
+
+class Fallback:
+    """The one fallback path of every controller, and the plan it falls back on.
+
+    A controller hands each successful plan to :meth:`planned`; when a decision fails it calls
+    :meth:`act`, which returns the previous plan shifted by the steps since it was made (when
+    ``reuse_plan`` and the plan is not exhausted), else :func:`fallback_power`, and counts the
+    event in ``n_events``. Without ``reuse_plan`` a failure also forgets the plan (a sampling
+    controller then warm-starts from scratch).
+    """
+
+    def __init__(self, spec: ControlSpec, *, reuse_plan: bool) -> None:
+        self.spec, self.reuse_plan = spec, reuse_plan
+        self.reset()
+
+    def reset(self) -> None:
+        self.plan_w: np.ndarray | None = None
+        self.n_events = 0
+        self._age = 0
+
+    def planned(self, plan_w: np.ndarray) -> None:
+        self.plan_w, self._age = plan_w, 0
+
+    def act(self, obs: Observation, forecast: Forecast) -> float:
+        self.n_events += 1
+        if self.reuse_plan and self.plan_w is not None and self._age + 1 < len(self.plan_w):
+            self._age += 1
+            return float(self.plan_w[self._age])
+        self.plan_w = None
+        return fallback_power(obs, forecast, self.spec)

@@ -4,7 +4,7 @@ Heating: full power when the measured room temperature falls below ``c - hystere
 off when it rises above ``c + hysteresis_k/2``, unchanged in between, where the centre
 ``c = T_min + offset_fraction * (T_max - T_min)`` (default a quarter of the band above its
 lower edge, like :func:`controllers.base.fallback_power`). Cooling mirrors this on ``T_max``.
-The band is the forecast's first interval, ``forecast.t_min_c[0]`` / ``forecast.t_max_c[0]``.
+The band is the forecast's first interval, ``forecast.T_min[0]`` / ``forecast.T_max[0]``.
 Deciding once per control interval at full power, it overshoots by up to the temperature
 change of one interval; that is the baseline's nature, not a bug.
 """
@@ -67,7 +67,7 @@ class Thermostat:
 
     def act(self, obs: Observation, forecast: Forecast) -> float:
         start = time.perf_counter()
-        band = float(forecast.t_min_c[0]), float(forecast.t_max_c[0])
+        band = float(forecast.T_min[0]), float(forecast.T_max[0])
         self._on = bool(self.switch(np.array([obs.t_r_c]), np.array([self._on]), *band)[0])
         power = self.spec.u_max_w if self._on else 0.0
         self._plan = np.array([power])

@@ -1,10 +1,7 @@
-"""The closed loop: a controller against the simulator, do-mpc style.
+"""A controller on a scenario: the closed loop of :mod:`scenarios.engine`, warm-up, KPIs.
 
-Every control interval k::
-
-    obs = measure(sim)                 # Observation: measured T_r, the past, hidden T_m
-    u = controller.act(obs, forecast)  # timed; an exception or non-finite u -> fallback
-    result = sim.step(u, T_a, G, I_g)  # minute substeps with the backup thermostat
+Every control interval k runs :meth:`scenarios.engine.ClosedLoop.advance` (observe, forecast,
+decide, step, in the do-mpc order).
 
 Warm-up: learned models need a history of at least ``depth + 1`` steps and observers need
 time to settle, so every run starts with ``warmup_steps`` intervals (default one day) driven by
@@ -23,23 +20,20 @@ from __future__ import annotations
 import contextlib
 import math
 import os
-import time
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import pandas as pd
 
-from controllers.base import Controller, ControlSpec, Forecast, Observation, fallback_power
+from controllers.base import Controller, ControlSpec
 from controllers.thermostat import Thermostat
 from pinn_mpc.data import write_timeseries
 from pinn_mpc.errors import InputError
 from pinn_mpc.io import atomic_write_json
-from pinn_mpc.simulator import Simulator
+from scenarios.engine import ClosedLoop, ExogenousSeries
 from scenarios.factory import MODEL_CONTROLLERS, make_controller
-from scenarios.inputs import time_of_day_h
 from scenarios.kpis import compute_kpis
 from scenarios.registry import EXOGENOUS_COLUMNS, Scenario, check_seed, get_scenario
 
@@ -58,29 +52,6 @@ class ClosedLoopResult:
     trajectory: pd.DataFrame
     kpis: dict[str, Any]
     errors: tuple[str, ...]
-
-
-def _decide(
-    controller: Controller, obs: Observation, forecast: Forecast, spec: ControlSpec
-) -> tuple[float, float, bool, str | None]:
-    """Call ``act`` once, timed: (demand [W], decision time [s], fallback used, error line)."""
-    error = None
-    start = time.perf_counter()
-    try:
-        action = np.asarray(controller.act(obs, forecast), dtype=float)
-        if action.size != 1 or not math.isfinite(float(action.reshape(-1)[0])):
-            error = f"act returned {action!r}, not one finite number"
-    except Exception as exc:  # a controller failure must not end the run: fall back, count it
-        error = f"{type(exc).__name__}: {exc}"
-    elapsed = time.perf_counter() - start
-    if error is not None:
-        return fallback_power(obs, forecast, spec), elapsed, True, error
-    try:
-        own_fallback = bool(controller.last_stats.fallback)
-    except Exception as exc:
-        own_fallback, error = True, f"last_stats: {type(exc).__name__}: {exc}"
-    u = float(np.clip(float(action.reshape(-1)[0]), 0.0, spec.u_max_w))
-    return u, elapsed, own_fallback, error
 
 
 def run_closed_loop(
@@ -102,8 +73,6 @@ def run_closed_loop(
     if days < 1:
         raise InputError(f"closed loop: days must be >= 1, got {days}")
     check_seed(seed)
-    if not (math.isfinite(forecast_noise_std_c) and forecast_noise_std_c >= 0):
-        raise InputError(f"forecast_noise_std_c must be >= 0, got {forecast_noise_std_c!r}")
     sim_config = scenario.sim
     spec: ControlSpec = scenario.control_spec()
     spd = scenario.steps_per_day
@@ -119,83 +88,53 @@ def run_closed_loop(
             f"scenario {scenario.name!r} gave {len(exo)} exogenous rows, need {total + horizon}"
         )
     exo = exo.iloc[: total + horizon].reset_index(drop=True)
-    cols = {c: exo[c].to_numpy(dtype=float) for c in _EXOGENOUS}
-    tod = time_of_day_h(exo["time"])
+    series = ExogenousSeries.from_frame(exo)
 
     warmup_controller = Thermostat(spec)
     warmup_controller.reset(seed)
     controller.reset(seed)
-    sim = Simulator(sim_config, n_buildings=1, seed=seed)
-    sim.reset(scenario.initial_t_r_c, scenario.initial_t_m_c)
-    forecast_rng = np.random.default_rng([seed, _FORECAST_NOISE_STREAM])
-
-    t_r_meas = np.zeros(total)
-    t_m_true = np.zeros(total)
-    u_dem = np.zeros(total)
-    u_phys = np.zeros(total)
-    overridden = np.zeros(total, dtype=bool)
-    fallback = np.zeros(total, dtype=bool)
-    decision_s = np.zeros(total)
-    t_r_sub = np.zeros((total, sim_config.n_substeps))
+    loop = ClosedLoop(
+        sim_config,
+        series,
+        spec=spec,
+        initial_t_r_c=scenario.initial_t_r_c,
+        initial_t_m_c=scenario.initial_t_m_c,
+        seed=seed,
+        forecast_noise_std_c=forecast_noise_std_c,
+        forecast_seed=[seed, _FORECAST_NOISE_STREAM],
+    )
     errors: list[str] = []
-    history_src = {"T_a": cols["T_a"], "G": cols["G"], "I_g": cols["I_g"], "time_of_day_h": tod}
     for k in range(total):
-        t_r_meas[k] = sim.measure()[0]
-        t_m_true[k] = sim.state[0, 1]
-        # Copies: a controller may keep or change what it is given without touching the run.
-        history = {name: np.array(src[: k + 1]) for name, src in history_src.items()}
-        history["T_r"] = np.array(t_r_meas[: k + 1])
-        history["u"] = np.array(u_dem[:k])
-        history["u_phys"] = np.array(u_phys[:k])
-        obs = Observation(
-            k=k, t_r_c=float(t_r_meas[k]), history=history, t_m_true_c=float(t_m_true[k])
-        )
-        t_a_forecast = cols["T_a"][k:].copy()
-        if forecast_noise_std_c > 0:
-            n_future = len(t_a_forecast) - 1
-            t_a_forecast[1:] += forecast_rng.normal(0.0, forecast_noise_std_c, n_future)
-        forecast = Forecast(
-            time_of_day_h=np.array(tod[k:]),
-            t_a_c=t_a_forecast,
-            g_w_per_m2=np.array(cols["G"][k:]),
-            i_g_w=np.array(cols["I_g"][k:]),
-            price_eur_per_kwh=np.array(cols["price"][k:]),
-            t_min_c=np.array(cols["T_min"][k:]),
-            t_max_c=np.array(cols["T_max"][k:]),
-        )
-        acting = warmup_controller if k < warmup else controller
-        u_dem[k], decision_s[k], fallback[k], error = _decide(acting, obs, forecast, spec)
-        if error is not None:
-            errors.append(f"step {k}: {error}")
-        step = sim.step(u_dem[k], cols["T_a"][k], cols["G"][k], cols["I_g"][k])
-        u_phys[k] = step.u_phys_w[0]
-        overridden[k] = bool(step.overridden[0])
-        t_r_sub[k] = step.t_r_sub_c[0]
+        decision = loop.advance(warmup_controller if k < warmup else controller)
+        if decision.error is not None:
+            errors.append(f"step {k}: {decision.error}")
+    rec = loop.record()
+    cols = {c: getattr(series, c) for c in _EXOGENOUS}
 
     counted = slice(warmup, total)
     trajectory = pd.DataFrame(
         {
             "time": exo["time"].iloc[counted].reset_index(drop=True),
-            "T_r": t_r_meas[counted],
-            "T_m": t_m_true[counted],
-            "u": u_dem[counted],
-            "u_phys": u_phys[counted],
+            "T_r": rec.t_r_c[counted],
+            "T_m": rec.t_m_c[counted],
+            "u": rec.u_w[counted],
+            "u_phys": rec.u_phys_w[counted],
             **{c: cols[c][counted] for c in _EXOGENOUS},
-            "overridden": overridden[counted].astype(int),
-            "fallback": fallback[counted].astype(int),
-            "decision_ms": decision_s[counted] * 1000.0,
+            "overridden": rec.overridden[counted].astype(int),
+            "fallback": rec.fallback[counted].astype(int),
+            "decision_ms": rec.decision_s[counted] * 1000.0,
         }
     )
     trajectory.attrs["dt_s"] = float(sim_config.dt_s)
     kpis = compute_kpis(
-        u_phys_w=u_phys[counted],
+        u_phys_w=rec.u_phys_w[counted],
         price_eur_per_kwh=cols["price"][counted],
-        t_r_sub_c=t_r_sub[counted],
+        t_r_sub_c=rec.t_r_sub_c[counted],
         t_min_c=cols["T_min"][counted],
         t_max_c=cols["T_max"][counted],
-        decision_s=decision_s[counted],
-        overridden=overridden[counted],
-        fallback=fallback[counted],
+        decision_s=rec.decision_s[counted],
+        overridden=rec.overridden[counted],
+        fallback=rec.fallback[counted],
         dt_s=sim_config.dt_s,
         comfort_weight_eur_per_kh=spec.comfort_weight_eur_per_kh,
     )

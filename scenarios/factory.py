@@ -3,7 +3,8 @@
 ``thermostat`` needs nothing; ``random-shooting`` and ``cem`` plan over a trained model
 (``--model``); ``casadi-mpc`` and ``qp-mpc`` work on an RC parameter set (``--rc``, from
 ``pinn-mpc identify`` or ``pinn-mpc export-rc``); ``oracle`` and ``clairvoyant`` use the
-scenario's true parameters (and the true T_m), as references.
+scenario's true parameters (and the true T_m), as references: the QP MPC composed with the
+true-state estimator (:mod:`controllers.rc_mpc.references`).
 """
 
 from __future__ import annotations
@@ -18,6 +19,16 @@ from controllers.base import Controller
 from pinn_mpc.errors import InputError
 from pinn_mpc.physics import RCParams, params_from_summary
 from scenarios.registry import Scenario
+
+__all__ = [
+    "CONTROLLER_NAMES",
+    "MODEL_CONTROLLERS",
+    "RC_CONTROLLERS",
+    "TRUTH_CONTROLLERS",
+    "build_controller",
+    "make_controller",
+    "read_rc",
+]
 
 MODEL_CONTROLLERS = ("random-shooting", "cem")
 RC_CONTROLLERS = ("casadi-mpc", "qp-mpc")
@@ -78,7 +89,7 @@ def build_controller(
                 f"controller {name!r} plans over a trained model: add --model MODEL_DIR "
                 "(make one with `pinn-mpc train --data data.csv --arch physnet --out MODEL_DIR`)"
             )
-        from controllers.shooting import CEM, RandomShooting
+        from controllers.sampling import CEM, RandomShooting
 
         planner = RandomShooting if name == "random-shooting" else CEM
         return planner(model, spec, **options)
@@ -89,20 +100,20 @@ def build_controller(
                 "(write one with `pinn-mpc identify --data data.csv --out rc.json`)"
             )
         if name == "casadi-mpc":
-            from controllers.rc_mpc import CasadiMPC
+            from controllers.rc_mpc.casadi import CasadiMPC
 
             return CasadiMPC(rc_params, spec)
-        from controllers.qp_mpc import QPMPC
+        from controllers.rc_mpc.osqp import QPMPC
 
         return QPMPC(rc_params, spec)
     if name == "oracle":
-        from controllers.oracle import Oracle
+        from controllers.rc_mpc.references import oracle_mpc
 
-        return Oracle(scenario.sim.params, spec)
+        return oracle_mpc(scenario.sim.params, spec)
     if name == "clairvoyant":
-        from controllers.oracle import Clairvoyant
+        from controllers.rc_mpc.references import clairvoyant_mpc
 
-        return Clairvoyant(scenario.sim.params, spec, n_steps)
+        return clairvoyant_mpc(scenario.sim.params, spec, n_steps)
     raise _unknown(name)
 
 

@@ -7,7 +7,8 @@
   substep and compared with the band of its control interval.
 - ``peak_kw``: the largest interval-mean delivered power.
 - ``objective``: ``cost_eur + comfort_weight x discomfort_kh``, the objective every controller
-  optimises (see :mod:`controllers.base`), here measured on the true trajectory.
+  optimises (:mod:`controllers.objective`, whose primitives compute both terms here), measured on
+  the true trajectory at the substep resolution.
 - ``decision_ms_median/mean/p95``: wall-clock time of the controller's decisions.
 - ``time_ratio``: total decision time / simulated time (BOPTEST's computational time ratio).
 - ``backup_overrides``: intervals in which the backup thermostat changed the demand.
@@ -20,8 +21,10 @@ from typing import Any
 
 import numpy as np
 
-from controllers.base import band_violation_k
+from controllers.objective import band_violation_k, energy_cost_eur
 from pinn_mpc.errors import InputError
+
+__all__ = ["KPI_KEYS", "compute_kpis"]
 
 #: The KPI JSON keys, in order.
 KPI_KEYS = (
@@ -82,7 +85,7 @@ def compute_kpis(
         sub, np.asarray(t_min_c, dtype=float)[:, None], np.asarray(t_max_c, dtype=float)[:, None]
     )
     discomfort_kh = float(np.sum(violation) * dt_h / sub.shape[1])
-    cost_eur = float(np.sum(energy_kwh_k * np.asarray(price_eur_per_kwh, dtype=float)))
+    cost_eur = float(np.sum(energy_cost_eur(u, np.asarray(price_eur_per_kwh, dtype=float), dt_h)))
     decision_ms = np.asarray(decision_s, dtype=float) * 1000.0
     return {
         "energy_kwh": float(np.sum(energy_kwh_k)),

@@ -136,7 +136,7 @@ def test_observation_and_forecast_contents(scenario):
         for name in ("T_a", "G", "I_g", "time_of_day_h"):
             assert len(obs.history[name]) == k + 1
         assert forecast.horizon == 10 + 48 + horizon - k
-        assert forecast.t_a_c[0] == obs.history["T_a"][-1]
+        assert forecast.T_a[0] == obs.history["T_a"][-1]
         assert math.isfinite(obs.t_m_true_c)
     # The past the controller saw is what happened: its own (zero) demand after the warm-up.
     last_obs = ctrl.seen[-1][0]
@@ -153,10 +153,10 @@ def test_forecast_noise_is_seeded_and_spares_the_present(scenario):
     run_closed_loop(scenario, exact, days=1, seed=0)
     noisy, again = forecasts(0), forecasts(0)
     f_exact, f_noisy = exact.seen[0][1], noisy[0][1]
-    assert f_noisy.t_a_c[0] == f_exact.t_a_c[0]
-    error = f_noisy.t_a_c[1:] - f_exact.t_a_c[1:]
+    assert f_noisy.T_a[0] == f_exact.T_a[0]
+    error = f_noisy.T_a[1:] - f_exact.T_a[1:]
     assert 0.8 < float(np.std(error)) < 1.2
-    np.testing.assert_array_equal(f_noisy.t_a_c, again[0][1].t_a_c)
+    np.testing.assert_array_equal(f_noisy.T_a, again[0][1].T_a)
 
 
 @pytest.mark.parametrize(
@@ -183,7 +183,7 @@ def test_fallback_matches_the_documented_rule(scenario):
     for row in traj.itertuples():
         obs = Observation(k=0, t_r_c=row.T_r, history={}, t_m_true_c=float("nan"))
         one = np.array([row.T_min]), np.array([row.T_max])
-        forecast = Forecast(*(np.zeros(1),) * 5, t_min_c=one[0], t_max_c=one[1])
+        forecast = Forecast(*(np.zeros(1),) * 5, T_min=one[0], T_max=one[1])
         assert row.u == fallback_power(obs, forecast, spec)
 
 

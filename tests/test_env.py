@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
 
-from pinn_mpc.env import OBSERVATION_NAMES, BuildingEnv
 from pinn_mpc.errors import InputError
 from pinn_mpc.simulator import Simulator
+from scenarios.gym_env import OBSERVATION_NAMES, BuildingEnv
 from scenarios.registry import get_scenario
 
 

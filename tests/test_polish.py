@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import torch
 
-from controllers.polish import PolishSettings, jacobians, probes
+from controllers.lp_polish import PolishSettings, jacobians, probes
 from pinn_mpc.errors import InputError
 
 H = 12

@@ -13,14 +13,15 @@ from controllers.base import (
     Forecast,
     Observation,
     fallback_power,
-    plan_cost,
 )
-from controllers.oracle import Clairvoyant, Oracle
-from controllers.qp_mpc import QPMPC
-from controllers.rc_mpc import CasadiMPC
-from controllers.rc_problem import RCMPCBase
+from controllers.objective import HorizonObjective
+from controllers.rc_mpc.casadi import CasadiMPC
+from controllers.rc_mpc.osqp import QPMPC
+from controllers.rc_mpc.problem import RCMPC
+from controllers.rc_mpc.references import clairvoyant_mpc, oracle_mpc
 from pinn_mpc.physics import PAPER_HOUSEHOLD, steady_state
-from pinn_mpc.simulator import SimConfig, Simulator
+from pinn_mpc.simulator import SimConfig
+from scenarios.engine import ClosedLoop, ExogenousSeries
 
 SPEC = ControlSpec(u_max_w=5000.0)
 PARAMS = PAPER_HOUSEHOLD
@@ -33,12 +34,12 @@ def _forecast(n: int, *, start: int = 0, **constant: float) -> Forecast:
     hours = (k * 0.5) % 24.0
     fields = {
         "time_of_day_h": hours,
-        "t_a_c": 3.0 + 4.0 * np.sin(2 * np.pi * (hours - 9.0) / 24.0),
-        "g_w_per_m2": np.zeros(n),
-        "i_g_w": np.zeros(n),
-        "price_eur_per_kwh": np.where((hours > 17) & (hours < 21), 0.45, np.where(hours < 6, 0.12, 0.25)),
-        "t_min_c": np.where((hours >= 7) & (hours < 22), 20.0, 17.0),
-        "t_max_c": np.full(n, 23.0),
+        "T_a": 3.0 + 4.0 * np.sin(2 * np.pi * (hours - 9.0) / 24.0),
+        "G": np.zeros(n),
+        "I_g": np.zeros(n),
+        "price": np.where((hours > 17) & (hours < 21), 0.45, np.where(hours < 6, 0.12, 0.25)),
+        "T_min": np.where((hours >= 7) & (hours < 22), 20.0, 17.0),
+        "T_max": np.full(n, 23.0),
     }
     for name, value in constant.items():
         fields[name] = np.full(n, float(value))
@@ -47,42 +48,39 @@ def _forecast(n: int, *, start: int = 0, **constant: float) -> Forecast:
 
 def _first_obs(t_r_c: float, t_m_c: float, t_a_c: float = 3.0) -> Observation:
     history = {"T_r": np.array([t_r_c]), "u": np.zeros(0), "u_phys": np.zeros(0), "T_a": np.array([t_a_c])}
-    return Observation(k=0, t_r_c=t_r_c, history=history, t_m_true_c=t_m_c)
+    return Observation.from_history(0, history, t_m_c)
+
+
+def _realised_cost(actions: np.ndarray, t_r_next_c: np.ndarray, forecast: Forecast) -> float:
+    """The shared objective of what happened (the band as the planners see it)."""
+    objective = HorizonObjective.from_forecast(forecast, SPEC, len(actions))
+    return float(objective.cost(actions, t_r_next_c))
 
 
 def _closed_loop(controller: Controller, n_steps: int, *, hidden_start_t_m_c: float = 17.0):
-    """Run against the simulator (backup thermostat out of reach, so the model is exact).
+    """Run on the closed-loop engine (backup thermostat out of reach, so the model is exact).
 
     Returns (actions (n,), realised objective [EUR], final |T_m estimate - T_m| or nan).
     """
     config = SimConfig(params=PARAMS, backup_low_c=-50.0, backup_high_c=80.0)
-    sim = Simulator(config, seed=0)
-    sim.reset(19.0, hidden_start_t_m_c)
     fc_all = _forecast(n_steps + SPEC.horizon_steps)
-    hist: dict[str, list[float]] = {"T_r": [19.0], "u": [], "u_phys": [], "T_a": [fc_all.t_a_c[0]]}
-    actions, t_r_next = [], []
+    loop = ClosedLoop(
+        config,
+        ExogenousSeries(**fc_all._asdict()),
+        spec=SPEC,
+        initial_t_r_c=19.0,
+        initial_t_m_c=hidden_start_t_m_c,
+    )
     controller.reset(seed=0)
-    for k in range(n_steps):
-        obs = Observation(
-            k=k,
-            t_r_c=hist["T_r"][-1],
-            history={name: np.array(v) for name, v in hist.items()},
-            t_m_true_c=float(sim.state[0, 1]),
-        )
-        fc = Forecast(*(np.asarray(a)[k:] for a in fc_all))
-        u = controller.act(obs, fc)
-        r = sim.step(u, fc_all.t_a_c[k])
-        hist["T_r"].append(float(r.t_r_c[0]))
-        hist["u"].append(u)
-        hist["u_phys"].append(float(r.u_phys_w[0]))
-        hist["T_a"].append(float(fc_all.t_a_c[k + 1]))
-        actions.append(u)
-        t_r_next.append(float(r.t_r_c[0]))
-    realised = float(plan_cost(np.array(actions), np.array(t_r_next), fc_all, SPEC))
+    t_r_next, t_m_last = [], np.nan
+    for _ in range(n_steps):
+        t_m_last = float(loop.sim.state[0, 1])
+        t_r_next.append(float(loop.advance(controller).plant.t_r_c[0]))
+    actions = loop.record().u_w
     error = np.nan
-    if isinstance(controller, RCMPCBase):
-        error = abs(controller.state_estimate_c[1] - float(sim.state[0, 1]))  # estimate at k=n-1
-    return np.array(actions), realised, error
+    if isinstance(controller, RCMPC):
+        error = abs(controller.state_estimate_c[1] - t_m_last)  # estimate at k=n-1
+    return actions, _realised_cost(actions, np.array(t_r_next), fc_all), error
 
 
 @pytest.mark.parametrize(("t_r_c", "t_m_c"), [(18.5, 18.0), (20.5, 21.5), (17.0, 14.0)])
@@ -100,7 +98,7 @@ def test_casadi_and_qp_agree_on_first_action_and_objective(t_r_c: float, t_m_c: 
 
 
 @pytest.mark.parametrize("cls", MPCS)
-def test_plan_respects_bounds_and_matches_plan_cost(cls: type[RCMPCBase]) -> None:
+def test_plan_respects_bounds_and_matches_the_shared_objective(cls: type[RCMPC]) -> None:
     fc = _forecast(48)
     mpc = cls(PARAMS, SPEC)
     mpc.act(_first_obs(19.0, 18.0), fc)
@@ -109,14 +107,15 @@ def test_plan_respects_bounds_and_matches_plan_cost(cls: type[RCMPCBase]) -> Non
     assert plan.min() >= 0.0 and plan.max() <= SPEC.u_max_w
     stage = mpc.problem.stage(mpc.state_estimate_c, fc)
     t_r = mpc.problem.rollout(stage, plan / 1000.0)[:, 0]
+    shared = HorizonObjective.from_forecast(fc, SPEC, 48)
     assert mpc.problem.objective(stage, plan / 1000.0) == pytest.approx(
-        float(plan_cost(plan, t_r, fc, SPEC)), rel=1e-12
+        float(shared.cost(plan, t_r)), rel=1e-12
     )
 
 
 @pytest.mark.parametrize("cls", MPCS)
-def test_unreachable_comfort_band_still_solves(cls: type[RCMPCBase]) -> None:
-    fc = _forecast(48, t_min_c=35.0, t_max_c=36.0)  # far above what 5 kW can reach
+def test_unreachable_comfort_band_still_solves(cls: type[RCMPC]) -> None:
+    fc = _forecast(48, T_min=35.0, T_max=36.0)  # far above what 5 kW can reach
     mpc = cls(PARAMS, SPEC)
     action = mpc.act(_first_obs(19.0, 18.0), fc)
     assert not mpc.last_stats.fallback
@@ -137,33 +136,33 @@ def test_injected_solver_failure_acts_through_the_fallback(cls: type, options: d
 
 
 @pytest.mark.parametrize("cls", MPCS)
-def test_failure_after_a_solve_uses_the_shifted_previous_plan(cls: type[RCMPCBase]) -> None:
+def test_failure_after_a_solve_uses_the_shifted_previous_plan(cls: type[RCMPC]) -> None:
     mpc = cls(PARAMS, SPEC)
     mpc.act(_first_obs(19.0, 18.0), _forecast(48))
     plan = mpc.last_plan
     assert plan is not None
-    bad = _forecast(48, price_eur_per_kwh=np.nan)  # a non-finite forecast: the solve fails
+    bad = _forecast(48, price=np.nan)  # a non-finite forecast: the solve fails
     history = {"T_r": np.array([19.0, 19.2]), "u": plan[:1], "u_phys": plan[:1], "T_a": np.array([3.0, 3.0])}
-    action = mpc.act(Observation(k=1, t_r_c=19.2, history=history, t_m_true_c=18.0), bad)
+    action = mpc.act(Observation.from_history(1, history, 18.0), bad)
     assert mpc.last_stats.fallback and mpc.n_fallbacks == 1
     assert action == pytest.approx(plan[1])
 
 
 @pytest.mark.parametrize("cls", MPCS)
-def test_free_energy_and_a_band_above_the_free_run_heats_flat_out(cls: type[RCMPCBase]) -> None:
-    fc = _forecast(48, price_eur_per_kwh=0.0, t_min_c=22.0, t_max_c=30.0, t_a_c=5.0)
+def test_free_energy_and_a_band_above_the_free_run_heats_flat_out(cls: type[RCMPC]) -> None:
+    fc = _forecast(48, price=0.0, T_min=22.0, T_max=30.0, T_a=5.0)
     x_free = steady_state(PARAMS, u_w=0.0, t_a_c=5.0)  # 5 C: free-running
     action = cls(PARAMS, SPEC).act(_first_obs(float(x_free[0]), float(x_free[1])), fc)
     assert action == pytest.approx(SPEC.u_max_w, rel=1e-6)
 
 
 @pytest.mark.parametrize("cls", MPCS)
-def test_steady_state_action_holds_the_lower_band(cls: type[RCMPCBase]) -> None:
+def test_steady_state_action_holds_the_lower_band(cls: type[RCMPC]) -> None:
     t_min, t_a = 20.0, 5.0
     u_ss = (t_min - t_a) / (PARAMS.r_ra_k_per_w * PARAMS.eta)  # 4000 W
     x = steady_state(PARAMS, u_w=u_ss, t_a_c=t_a)
     np.testing.assert_allclose(x, [t_min, t_min], atol=1e-9)
-    fc = _forecast(48, price_eur_per_kwh=0.25, t_min_c=t_min, t_max_c=24.0, t_a_c=t_a)
+    fc = _forecast(48, price=0.25, T_min=t_min, T_max=24.0, T_a=t_a)
     action = cls(PARAMS, SPEC).act(_first_obs(t_min, t_min, t_a), fc)
     assert action == pytest.approx(u_ss, rel=0.01)
 
@@ -196,7 +195,7 @@ def test_reset_makes_runs_reproducible() -> None:
 
 
 def test_oracle_uses_the_true_state() -> None:
-    oracle = Oracle(PARAMS, SPEC)
+    oracle = oracle_mpc(PARAMS, SPEC)
     oracle.act(_first_obs(19.0, 15.0), _forecast(48))
     np.testing.assert_array_equal(oracle.state_estimate_c, [19.0, 15.0])
     assert oracle.name == "oracle"
@@ -204,12 +203,12 @@ def test_oracle_uses_the_true_state() -> None:
 
 def test_clairvoyant_is_a_lower_bound_and_realises_its_plan() -> None:
     n = 48
-    clair = Clairvoyant(PARAMS, SPEC, n)
-    _, j_oracle, _ = _closed_loop(Oracle(PARAMS, SPEC), n)
+    clair = clairvoyant_mpc(PARAMS, SPEC, n)
+    _, j_oracle, _ = _closed_loop(oracle_mpc(PARAMS, SPEC), n)
     actions, j_clair, _ = _closed_loop(clair, n)
     assert j_clair <= j_oracle * (1 + 1e-4)
     # With an exact model the whole-run plan of step 0 is what happens.
-    fresh = Clairvoyant(PARAMS, SPEC, n)
+    fresh = clairvoyant_mpc(PARAMS, SPEC, n)
     fresh.act(_first_obs(19.0, 17.0), _forecast(n + SPEC.horizon_steps))
     assert fresh.last_plan is not None
     np.testing.assert_allclose(actions, fresh.last_plan, atol=0.01 * SPEC.u_max_w)
@@ -231,7 +230,7 @@ def test_forecast_longer_or_shorter_than_the_horizon() -> None:
 def test_clairvoyant_counts_its_run_from_the_first_decision() -> None:
     """A warm-up driven by another controller advances obs.k but is not part of the run."""
     n, fc = 24, _forecast(24 + SPEC.horizon_steps)
-    at_zero, after_warmup = Clairvoyant(PARAMS, SPEC, n), Clairvoyant(PARAMS, SPEC, n)
+    at_zero, after_warmup = clairvoyant_mpc(PARAMS, SPEC, n), clairvoyant_mpc(PARAMS, SPEC, n)
     at_zero.act(_first_obs(19.0, 17.0), fc)
     late = _first_obs(19.0, 17.0)._replace(k=48)
     after_warmup.act(late, fc)
@@ -239,8 +238,8 @@ def test_clairvoyant_counts_its_run_from_the_first_decision() -> None:
     np.testing.assert_allclose(after_warmup.last_plan, at_zero.last_plan, atol=1e-6)
     assert at_zero.last_plan.shape == (n,) and at_zero.last_plan.max() > 100.0
     plan = at_zero.last_plan
-    history = {"T_r": np.array([19.0, 19.5]), "u": plan[:1], "u_phys": plan[:1], "T_a": fc.t_a_c[:2]}
-    second = Observation(k=1, t_r_c=19.5, history=history, t_m_true_c=17.1)
+    history = {"T_r": np.array([19.0, 19.5]), "u": plan[:1], "u_phys": plan[:1], "T_a": fc.T_a[:2]}
+    second = Observation.from_history(1, history, 17.1)
     at_zero.act(second, Forecast(*(np.asarray(a)[1:] for a in fc)))
     assert at_zero.last_plan is not None
     assert at_zero.last_plan[-1] < 1.0  # the last step is after the run end: nothing planned

@@ -38,7 +38,10 @@ import scipy.optimize
 import scipy.sparse as sp
 import torch
 
+from controllers.objective import HorizonObjective
 from pinn_mpc.errors import InputError
+
+__all__ = ["PiggybackPolish", "PlanProblem", "PolishSettings", "RolloutFn", "jacobians", "probes", "solve_lp"]
 
 #: Rollout of N demand plans (N, H) [W] -> (T_r (M, N, H) [C], u_phys (M, N, H) [W]).
 RolloutFn = Callable[[torch.Tensor], tuple[torch.Tensor, torch.Tensor]]
@@ -69,13 +72,9 @@ class PolishSettings:
 
 @dataclass(frozen=True, kw_only=True)
 class PlanProblem:
-    """What the LP needs of the objective, arrays (H,): price [EUR/kWh], band [C]; scalars."""
+    """What the LP needs: the horizon objective and the demand bounds [W]."""
 
-    price: np.ndarray
-    t_min: np.ndarray
-    t_max: np.ndarray
-    dt_h: float
-    weight: float
+    objective: HorizonObjective
     lower: float
     upper: float
 
@@ -138,9 +137,10 @@ def solve_lp(
     """
     m, h = t0.shape
     kw = 1000.0
-    energy = problem.price * problem.dt_h  # EUR per kW over each interval
+    obj = problem.objective
+    energy = obj.price_eur_per_kwh * obj.dt_h  # EUR per kW over each interval
     c_du = np.einsum("j,mji->i", energy, jp) / m  # d(mean cost)/d(du in kW)
-    c_s = np.full(m * h, problem.weight * problem.dt_h / m)
+    c_s = np.full(m * h, obj.comfort_weight_eur_per_kh * obj.dt_h / m)
     jr_kw = (jr * kw).reshape(m * h, h)
     eye = sp.identity(m * h, format="csr")
     a_ub = sp.vstack(
@@ -152,7 +152,7 @@ def solve_lp(
     )
     t_flat = t0.reshape(-1)
     b_ub = np.concatenate(
-        [t_flat - np.tile(problem.t_min[:h], m), np.tile(problem.t_max[:h], m) - t_flat]
+        [t_flat - np.tile(obj.t_min_c[:h], m), np.tile(obj.t_max_c[:h], m) - t_flat]
     )
     lo = np.maximum(problem.lower - u0, -trust_w) / kw
     hi = np.minimum(problem.upper - u0, trust_w) / kw

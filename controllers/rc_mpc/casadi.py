@@ -1,4 +1,4 @@
-"""``casadi-mpc``: the RC MPC problem of :mod:`controllers.rc_problem` in CasADi.
+"""``casadi-mpc``: the RC MPC problem of :mod:`controllers.rc_mpc.problem` in CasADi.
 
 The problem is written once symbolically and handed to ``casadi.qpsol``, in condensed form:
 the decision is (power, slack), the room temperature at the end of interval j is
@@ -30,9 +30,11 @@ import casadi as ca
 import numpy as np
 
 from controllers.base import ControlSpec
-from controllers.rc_problem import RCMPCBase, SolveResult, StageData
+from controllers.rc_mpc.problem import RCMPC, SolveResult, StageData
 from pinn_mpc.errors import InputError
 from pinn_mpc.physics import RCParams
+
+__all__ = ["PLUGIN_OPTIONS", "CasadiMPC"]
 
 #: Per-plugin defaults (silenced output).
 PLUGIN_OPTIONS: dict[str, dict[str, Any]] = {
@@ -45,8 +47,8 @@ PLUGIN_OPTIONS: dict[str, dict[str, Any]] = {
 }
 
 
-class CasadiMPC(RCMPCBase):
-    """RC MPC via ``casadi.qpsol`` with a Kalman observer for the hidden ``T_m``.
+class CasadiMPC(RCMPC):
+    """RC MPC via ``casadi.qpsol`` (by default with a Kalman observer for the hidden ``T_m``).
 
     ``plugin`` picks the QP solver; ``solver_options`` update its defaults (e.g. for
     ``qpoases`` ``{"nWSR": 1}`` allows one working-set change, so the solve stops before the
@@ -58,7 +60,7 @@ class CasadiMPC(RCMPCBase):
     def __init__(
         self, params: RCParams, spec: ControlSpec, *, plugin: str = "qpoases", **options: Any
     ) -> None:
-        """``options``: the keywords of :class:`controllers.rc_problem.RCMPCBase`."""
+        """``options``: the keywords of :class:`controllers.rc_mpc.problem.RCMPC`."""
         if plugin not in PLUGIN_OPTIONS or not ca.has_conic(plugin):
             raise InputError(
                 f"CasadiMPC: QP plugin {plugin!r} is not available; use one of "
@@ -115,11 +117,11 @@ class CasadiMPC(RCMPCBase):
         free = self.problem.rollout(stage, np.zeros(h))[:, 0]
         inf = np.full(h, np.inf)
         args: dict[str, Any] = {
-            "p": stage.price_eur_per_kwh,
+            "p": stage.objective.price_eur_per_kwh,
             "lbx": self._lbx,
             "ubx": self._ubx,
-            "lbg": np.concatenate([stage.t_min_c - free, -inf]),
-            "ubg": np.concatenate([inf, stage.t_max_c - free]),
+            "lbg": np.concatenate([stage.objective.t_min_c - free, -inf]),
+            "ubg": np.concatenate([inf, stage.objective.t_max_c - free]),
         }
         if self._warm is not None:
             args.update(self._warm)

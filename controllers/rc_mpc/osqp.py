@@ -1,4 +1,4 @@
-"""``qp-mpc``: the RC MPC problem of :mod:`controllers.rc_problem` in cvxpy, solved by OSQP.
+"""``qp-mpc``: the RC MPC problem of :mod:`controllers.rc_mpc.problem` in cvxpy, solved by OSQP.
 
 The problem is written once in cvxpy, DPP-parametrised (drift of the states, price, comfort
 band), with the states lifted as variables so the constraint matrix stays sparse (the
@@ -21,7 +21,10 @@ import numpy as np
 import osqp
 import scipy.sparse as sp
 
-from controllers.rc_problem import RCMPCBase, SolveResult, StageData
+from controllers.objective import HorizonObjective
+from controllers.rc_mpc.problem import RCMPC, SolveResult, StageData
+
+__all__ = ["OSQP_OPTIONS", "QPMPC"]
 
 #: OSQP settings. The problem is nearly an LP, where ADMM needs many iterations for tight
 #: tolerances; moderate tolerances plus polishing (which recovers the exact active set) give
@@ -35,8 +38,8 @@ OSQP_OPTIONS: dict[str, Any] = {
 }
 
 
-class QPMPC(RCMPCBase):
-    """RC MPC in cvxpy + OSQP with a Kalman observer for the hidden ``T_m``.
+class QPMPC(RCMPC):
+    """RC MPC in cvxpy + OSQP (by default with a Kalman observer for the hidden ``T_m``).
 
     ``solver_options`` update :data:`OSQP_OPTIONS` (e.g. ``{"max_iter": 1}`` stops OSQP
     before convergence, a real non-optimal status that exercises the fallback).
@@ -92,9 +95,9 @@ class QPMPC(RCMPCBase):
         drift[:, 0] += ad @ stage.x0_c
         return {
             self._drift.id: drift,
-            self._price.id: stage.price_eur_per_kwh,
-            self._t_min.id: stage.t_min_c,
-            self._t_max.id: stage.t_max_c,
+            self._price.id: stage.objective.price_eur_per_kwh,
+            self._t_min.id: stage.objective.t_min_c,
+            self._t_max.id: stage.objective.t_max_c,
         }
 
     def _solve(self, stage: StageData) -> SolveResult:
@@ -146,9 +149,13 @@ def _example_stage(h: int) -> StageData:
     return StageData(
         x0_c=np.array([19.0, 18.0]),
         free_c=np.stack([0.1 + 0.05 * ramp, 0.02 - 0.01 * ramp], axis=1),
-        price_eur_per_kwh=0.2 + 0.1 * ramp,
-        t_min_c=19.0 + ramp,
-        t_max_c=23.0 - ramp,
+        objective=HorizonObjective(
+            price_eur_per_kwh=0.2 + 0.1 * ramp,
+            t_min_c=19.0 + ramp,
+            t_max_c=23.0 - ramp,
+            dt_h=0.5,
+            comfort_weight_eur_per_kh=1.0,
+        ),
     )
 
 

@@ -1,4 +1,4 @@
-"""The linear MPC problem on RC parameters, shared by ``casadi-mpc``, ``qp-mpc`` and ``oracle``.
+"""The linear MPC problem on RC parameters, and the controller shell its solvers share.
 
 Over H control intervals j = 0..H-1, with decision power ``p_j`` [kW] in ``[0, u_max]`` and
 comfort slack ``s_j >= 0`` [K]::
@@ -7,18 +7,20 @@ comfort slack ``s_j >= 0`` [K]::
     subject to x[j+1] = Ad x[j] + Bd (1000 p_j, T_a,j, G_j, I_g,j)      (exact ZOH, physics.discretise)
                T_min,j - s_j <= T_r[j+1] <= T_max,j + s_j
 
-The first two terms are :func:`controllers.base.plan_cost` with ``s`` as the band violation.
-The third, ``rho = regularisation_eur_per_kw2h`` (default 1e-5 EUR per kW^2 h), only makes the
-optimum unique (the LP is often degenerate, e.g. under a flat price); at 5 kW for a whole day it
-adds 0.006 EUR, so the objective moves by well under 0.1 % in practice. The backup thermostat of
-the simulator is not modelled: the MPC plans as if its demand is always delivered.
+The first two terms are :class:`controllers.objective.HorizonObjective` with ``s`` as the band
+violation: its price and band arrays are the QP data. The third, ``rho =
+regularisation_eur_per_kw2h`` (default :data:`DEFAULT_REGULARISATION`), only makes the optimum
+unique (the LP is often degenerate, e.g. under a flat price). The backup thermostat of the
+simulator is not modelled: the MPC plans as if its demand is always delivered.
 
 Forecast arrays may be longer than H (the first H are used) or shorter (the last value is
-repeated). Steps after ``n_active`` (the clairvoyant's run end) have zero price and a band so
-wide it never binds, so the regulariser turns the heater off there.
+repeated). With ``run_steps`` (the clairvoyant) the steps after the run end have zero price and
+a band that never binds (:meth:`HorizonObjective.until`), so the regulariser turns the heater
+off there.
 
-:class:`RCMPCBase` is the controller shell both solvers share: state estimation (a Kalman
-observer fed from ``obs.history``), timing, status checks and the fallback.
+:class:`RCMPC` is the controller shell both solvers share: a state estimator component (a
+Kalman observer on the same parameters unless another is given), timing, status checks and the
+fallback (:class:`controllers.base.Fallback`).
 """
 
 from __future__ import annotations
@@ -33,30 +35,28 @@ import numpy as np
 
 from controllers.base import (
     ControlSpec,
+    Fallback,
     Forecast,
     Observation,
     SolveStats,
-    fallback_power,
     first_values,
-    planning_band,
 )
+from controllers.estimators import KalmanEstimator, StateEstimator
+from controllers.objective import HorizonObjective
 from pinn_mpc.errors import InputError
-from pinn_mpc.observer import KalmanObserver
 from pinn_mpc.physics import RCParams, discretise
 
-#: Comfort band used after the run end (clairvoyant): never binds.
-OPEN_BAND_C = (-100.0, 200.0)
+__all__ = ["DEFAULT_REGULARISATION", "RCMPC", "RCProblem", "SolveResult", "StageData"]
+
 DEFAULT_REGULARISATION = 1e-4
 
 
 class StageData(NamedTuple):
-    """Numeric data of one solve, all (H,) unless noted; powers in kW."""
+    """Numeric data of one solve: the initial state, the drift and the objective (QP data)."""
 
     x0_c: np.ndarray  # (2,) initial (T_r, T_m) [C]
     free_c: np.ndarray  # (H, 2) state drift per step from exogenous inputs [C]
-    price_eur_per_kwh: np.ndarray
-    t_min_c: np.ndarray
-    t_max_c: np.ndarray
+    objective: HorizonObjective
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -98,20 +98,14 @@ class RCProblem:
         """Numeric data for a solve from state x0 (2,) and the forecast."""
         h = self.horizon_steps
         _, bd = self.matrices
-        exog = np.stack(
-            [first_values(a, h) for a in (forecast.t_a_c, forecast.g_w_per_m2, forecast.i_g_w)], axis=1
-        )
-        price = first_values(forecast.price_eur_per_kwh, h)
-        t_min, t_max = planning_band(forecast, h)
-        if n_active is not None and n_active < h:
-            price[n_active:] = 0.0
-            t_min[n_active:], t_max[n_active:] = OPEN_BAND_C
+        exog = np.stack([first_values(a, h) for a in (forecast.T_a, forecast.G, forecast.I_g)], axis=1)
+        objective = HorizonObjective.from_forecast(forecast, self.spec, h)
+        if n_active is not None:
+            objective = objective.until(n_active)
         x0 = np.asarray(x0_c, dtype=float).reshape(2)
         if not np.all(np.isfinite(x0)):
             raise FloatingPointError(f"state estimate is not finite: {x0}")
-        return StageData(
-            x0_c=x0, free_c=exog @ bd[:, 1:].T, price_eur_per_kwh=price, t_min_c=t_min, t_max_c=t_max
-        )
+        return StageData(x0_c=x0, free_c=exog @ bd[:, 1:].T, objective=objective)
 
     def rollout(self, stage: StageData, p_kw: np.ndarray) -> np.ndarray:
         """States at the end of each interval (H, 2) [C] for plan p (H,) [kW]."""
@@ -125,12 +119,9 @@ class RCProblem:
         return out
 
     def objective(self, stage: StageData, p_kw: np.ndarray) -> float:
-        """Objective of plan p (H,) [kW] without the regulariser [EUR] (= plan_cost)."""
-        t_r = self.rollout(stage, p_kw)[:, 0]
-        violation = np.maximum(stage.t_min_c - t_r, 0.0) + np.maximum(t_r - stage.t_max_c, 0.0)
-        dt_h = self.spec.dt_h
-        energy = float(np.sum(stage.price_eur_per_kwh * p_kw)) * dt_h
-        return energy + self.spec.comfort_weight_eur_per_kh * dt_h * float(np.sum(violation))
+        """Objective of plan p (H,) [kW] without the regulariser [EUR]."""
+        p_kw = np.asarray(p_kw, dtype=float)
+        return float(stage.objective.cost(p_kw * 1000.0, self.rollout(stage, p_kw)[:, 0]))
 
 
 class SolveResult(NamedTuple):
@@ -140,15 +131,17 @@ class SolveResult(NamedTuple):
     optimal: bool
 
 
-class RCMPCBase:
-    """Shared controller shell: observer, timing, checks, fallback.
+class RCMPC:
+    """Shared controller shell: estimator, timing, checks, fallback.
 
     Subclasses give ``_build`` (called once at the end of ``__init__``) and ``_solve``;
     ``solver_options`` are handed to the solver (their meaning is the subclass's).
+    ``estimator`` defaults to a :class:`~controllers.estimators.KalmanEstimator` on ``params``;
+    ``run_steps`` makes the horizon shrink to the end of a run of that many intervals, counted
+    from the first ``act`` after ``reset`` (the clairvoyant); ``name`` overrides the class name.
 
-    Fallback (on an exception in the solve, a non-optimal status or a non-finite plan): act on
-    the previous plan shifted by the number of steps since it was made, if one exists and is
-    not exhausted, else :func:`controllers.base.fallback_power`. ``last_stats.fallback`` is
+    Fallback (on an exception in the estimate or solve, a non-optimal status or a non-finite
+    plan): :class:`controllers.base.Fallback` with the previous plan. ``last_stats.fallback`` is
     then True and ``n_fallbacks`` counts the events since ``reset``.
     """
 
@@ -159,13 +152,20 @@ class RCMPCBase:
         params: RCParams,
         spec: ControlSpec,
         *,
+        estimator: StateEstimator | None = None,
         horizon_steps: int | None = None,
+        run_steps: int | None = None,
         regularisation_eur_per_kw2h: float = DEFAULT_REGULARISATION,
-        observer_options: dict[str, Any] | None = None,
         solver_options: dict[str, Any] | None = None,
+        name: str | None = None,
     ) -> None:
+        if run_steps is not None and run_steps < 1:
+            raise InputError(f"{type(self).__name__}.run_steps must be >= 1 (the run length), got {run_steps}")
         self.params = params
         self.spec = spec
+        if name is not None:
+            self.name = name
+        self.run_steps = run_steps
         self.solver_options = dict(solver_options or {})
         self.problem = RCProblem(
             params=params,
@@ -173,24 +173,29 @@ class RCMPCBase:
             horizon_steps=spec.horizon_steps if horizon_steps is None else horizon_steps,
             regularisation_eur_per_kw2h=regularisation_eur_per_kw2h,
         )
-        self.observer = KalmanObserver(params, spec.dt_s, **(observer_options or {}))
+        self.estimator = KalmanEstimator(params, spec.dt_s) if estimator is None else estimator
+        self.fallback = Fallback(spec, reuse_plan=True)
         self.reset()
         self._build()
 
     # -- protocol -------------------------------------------------------------------------
     def reset(self, seed: int | None = None) -> None:
-        """Forget the observer state, the previous plan and the counters (no randomness used)."""
-        self._k_seen: int | None = None
-        self._plan_w: np.ndarray | None = None
-        self._plan_age = 0
+        """Forget the estimator state, the previous plan and the counters (no randomness used)."""
+        self.estimator.reset()
+        self.fallback.reset()
+        self._k_start: int | None = None
         self._stats = SolveStats(time_s=0.0, status="not run", iterations=0, fallback=False)
-        self.n_fallbacks = 0
         self.state_estimate_c = np.full(2, np.nan)
+
+    @property
+    def n_fallbacks(self) -> int:
+        return self.fallback.n_events
 
     @property
     def last_plan(self) -> np.ndarray | None:
         """(H,) planned power [W] of the last successful solve, or None."""
-        return None if self._plan_w is None else self._plan_w.copy()
+        plan = self.fallback.plan_w
+        return None if plan is None else plan.copy()
 
     @property
     def last_stats(self) -> SolveStats:
@@ -198,9 +203,10 @@ class RCMPCBase:
 
     def act(self, obs: Observation, forecast: Forecast) -> float:
         start = time.perf_counter()
-        self.state_estimate_c = self._estimate_state(obs)
         status, iterations = "error", 0
         try:
+            self.state_estimate_c = np.full(2, np.nan)
+            self.state_estimate_c = self.estimator.update(obs)
             stage = self.problem.stage(self.state_estimate_c, forecast, n_active=self._n_active(obs))
             result = self._solve(stage)
             status, iterations = result.status, result.iterations
@@ -210,8 +216,7 @@ class RCMPCBase:
             if not np.all(np.isfinite(p)):
                 raise FloatingPointError("solver returned a non-finite plan")
         except Exception as exc:  # any solver failure acts through the fallback, never raises
-            action = self._fallback(obs, forecast)
-            self.n_fallbacks += 1
+            action = self.fallback.act(obs, forecast)
             self._stats = SolveStats(
                 time_s=time.perf_counter() - start,
                 status=f"{status}: {type(exc).__name__}: {exc}",
@@ -219,12 +224,12 @@ class RCMPCBase:
                 fallback=True,
             )
             return action
-        self._plan_w = np.clip(p, 0.0, self.problem.u_max_kw) * 1000.0
-        self._plan_age = 0
+        plan_w = np.clip(p, 0.0, self.problem.u_max_kw) * 1000.0
+        self.fallback.planned(plan_w)
         self._stats = SolveStats(
             time_s=time.perf_counter() - start, status=status, iterations=iterations, fallback=False
         )
-        return float(self._plan_w[0])
+        return float(plan_w[0])
 
     # -- hooks ----------------------------------------------------------------------------
     def _build(self) -> None:
@@ -235,40 +240,9 @@ class RCMPCBase:
         raise NotImplementedError
 
     def _n_active(self, obs: Observation) -> int | None:
-        return None
-
-    def _estimate_state(self, obs: Observation) -> np.ndarray:
-        """Feed the observer every interval since the previous call from ``obs.history``.
-
-        ``history`` arrays end at step k (``T_r``, exogenous) or k-1 (``u_phys``), so step i is
-        read from the end. A first call, a jump back in k or too short a history restart the
-        observer at the measured ``T_r`` with ``T_m`` guessed equal to it.
-        """
-        hist, k = obs.history, obs.k
-
-        def at(name: str, i: int, last: int) -> float:
-            values = hist.get(name)
-            return 0.0 if values is None else float(values[len(values) - 1 - (last - i)])
-
-        first = k + 1 if self._k_seen is None else self._k_seen + 1
-        n_new = k - first + 1
-        if self._k_seen is None or n_new < 0 or n_new > min(len(hist["T_r"]) - 1, len(hist["u_phys"])):
-            self.observer.reset(obs.t_r_c)
-        else:
-            for i in range(first, k + 1):
-                self.observer.predict(
-                    at("u_phys", i - 1, k - 1),
-                    at("T_a", i - 1, k),
-                    at("G", i - 1, k),
-                    at("I_g", i - 1, k),
-                )
-                self.observer.update(at("T_r", i, k))
-        self._k_seen = k
-        return self.observer.state[0]
-
-    def _fallback(self, obs: Observation, forecast: Forecast) -> float:
-        if self._plan_w is not None and self._plan_age + 1 < len(self._plan_w):
-            self._plan_age += 1
-            return float(self._plan_w[self._plan_age])
-        self._plan_w = None
-        return float(fallback_power(obs, forecast, self.spec))
+        """Steps left in the run (``run_steps``), else None (receding horizon)."""
+        if self.run_steps is None:
+            return None
+        if self._k_start is None:
+            self._k_start = obs.k
+        return max(self.run_steps - (obs.k - self._k_start), 1)

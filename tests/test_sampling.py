@@ -11,13 +11,14 @@ from controllers.base import (
     Forecast,
     Observation,
     fallback_power,
-    plan_cost,
-    planning_band,
 )
-from controllers.shooting import CEM, RandomShooting, RCBatchModel
+from controllers.objective import HorizonObjective, planning_band
+from controllers.sampling import CEM, RandomShooting
 from pinn_mpc.errors import InputError
 from pinn_mpc.physics import PAPER_HOUSEHOLD, discretise
+from pinn_mpc.rc_batch_model import RCBatchModel
 from pinn_mpc.simulator import SimConfig, Simulator
+from scenarios.engine import ClosedLoop, ExogenousSeries
 
 H = 48
 DT_S = 1800.0
@@ -36,13 +37,19 @@ def _forecast(start: int = 0, length: int = H) -> Forecast:
     day = (tod >= 7) & (tod < 22)
     return Forecast(
         time_of_day_h=tod,
-        t_a_c=5.0 + 4.0 * np.sin(2 * np.pi * (tod - 9) / 24),
-        g_w_per_m2=np.zeros(length),
-        i_g_w=np.zeros(length),
-        price_eur_per_kwh=np.where(day, 0.30, 0.15),
-        t_min_c=np.where(day, 20.0, 18.0),
-        t_max_c=np.full(length, 22.0),
+        T_a=5.0 + 4.0 * np.sin(2 * np.pi * (tod - 9) / 24),
+        G=np.zeros(length),
+        I_g=np.zeros(length),
+        price=np.where(day, 0.30, 0.15),
+        T_min=np.where(day, 20.0, 18.0),
+        T_max=np.full(length, 22.0),
     )
+
+
+def plan_cost(u_phys_w, t_r_c, forecast: Forecast, spec: ControlSpec):
+    """The shared objective of predictions (..., H) over the forecast's first H intervals."""
+    h = np.shape(t_r_c)[-1]
+    return HorizonObjective.from_forecast(forecast, spec, h).cost(u_phys_w, t_r_c)
 
 
 def _obs(t_r_c: float, t_m_c: float, k: int = 1, t_a_c: float = 5.0) -> Observation:
@@ -56,7 +63,7 @@ def _obs(t_r_c: float, t_m_c: float, k: int = 1, t_a_c: float = 5.0) -> Observat
         "I_g": np.zeros(k + 1),
         "time_of_day_h": np.zeros(k + 1),
     }
-    return Observation(k=k, t_r_c=t_r_c, history=history, t_m_true_c=t_m_c)
+    return Observation.from_history(k, history, t_m_c)
 
 
 def _lp_optimum(x0: np.ndarray, fc: Forecast) -> float:
@@ -64,12 +71,12 @@ def _lp_optimum(x0: np.ndarray, fc: Forecast) -> float:
     u = cp.Variable(H)
     x = cp.Variable((H + 1, 2))
     s = cp.Variable(H, nonneg=True)
-    d = np.stack([fc.t_a_c[:H], fc.g_w_per_m2[:H], fc.i_g_w[:H]], axis=1)
+    d = np.stack([fc.T_a[:H], fc.G[:H], fc.I_g[:H]], axis=1)
     cons = [x[0] == x0, u >= 0, u <= U_MAX_W]
     cons += [x[j + 1] == AD @ x[j] + BD[:, 0] * u[j] + BD[:, 1:] @ d[j] for j in range(H)]
     lower, upper = planning_band(fc, H)
     cons += [s >= lower - x[1:, 0], s >= x[1:, 0] - upper]
-    energy = cp.sum(cp.multiply(fc.price_eur_per_kwh[:H] * SPEC.dt_h / 1000.0, u))
+    energy = cp.sum(cp.multiply(fc.price[:H] * SPEC.dt_h / 1000.0, u))
     discomfort = SPEC.comfort_weight_eur_per_kh * SPEC.dt_h * cp.sum(s)
     problem = cp.Problem(cp.Minimize(energy + discomfort), cons)
     problem.solve()
@@ -81,7 +88,7 @@ def _true_cost(plan: np.ndarray, x0: np.ndarray, fc: Forecast) -> float:
     """plan_cost of a plan simulated on the linear 2R2C in float64."""
     x, t_r = x0.astype(float), []
     for j in range(H):
-        x = AD @ x + BD @ np.array([plan[j], fc.t_a_c[j], 0.0, 0.0])
+        x = AD @ x + BD @ np.array([plan[j], fc.T_a[j], 0.0, 0.0])
         t_r.append(x[0])
     return float(plan_cost(plan, np.array(t_r), fc, SPEC))
 
@@ -150,9 +157,9 @@ def test_warm_started_cem_closes_in_on_the_optimum_in_receding_horizon():
     gaps = []
     for k in range(6):
         fc = _forecast(start=k)
-        u = cem.act(_obs(*x, t_a_c=float(fc.t_a_c[0])), fc)
+        u = cem.act(_obs(*x, t_a_c=float(fc.T_a[0])), fc)
         gaps.append(cem.last_cost_eur / _lp_optimum(x, fc) - 1.0)
-        x = AD @ x + BD @ np.array([u, fc.t_a_c[0], 0.0, 0.0])
+        x = AD @ x + BD @ np.array([u, fc.T_a[0], 0.0, 0.0])
         assert not cem.last_stats.fallback
     assert min(gaps) >= -1e-5  # float32 rollouts
     assert gaps[-1] < 0.05 and gaps[-1] < gaps[0]
@@ -167,12 +174,12 @@ def test_lp_polish_reaches_the_exact_optimum_on_a_linear_model():
     x = np.array([19.5, 19.0])
     for k in range(3):
         fc = _forecast(start=k)
-        u = cem.act(_obs(*x, t_a_c=float(fc.t_a_c[0])), fc)
+        u = cem.act(_obs(*x, t_a_c=float(fc.T_a[0])), fc)
         optimum = _lp_optimum(x, fc)
         assert cem.last_cost_eur == pytest.approx(optimum, rel=1e-3)
         assert _true_cost(cem.last_plan, x, fc) == pytest.approx(optimum, rel=1e-3)
         assert cem.last_stats.iterations == 2 + 1  # CEM iterations + one LP
-        x = AD @ x + BD @ np.array([u, fc.t_a_c[0], 0.0, 0.0])
+        x = AD @ x + BD @ np.array([u, fc.T_a[0], 0.0, 0.0])
 
 
 @pytest.mark.parametrize("seed", [0, 1])
@@ -224,7 +231,7 @@ def test_nan_forecast_falls_back_and_recovers(make):
     controller = make()
     controller.reset(seed=0)
     fc = _forecast()
-    bad = fc._replace(t_a_c=np.where(np.arange(H) == 7, np.nan, fc.t_a_c))
+    bad = fc._replace(T_a=np.where(np.arange(H) == 7, np.nan, fc.T_a))
     obs = _obs(18.2, 18.0)
     action = controller.act(obs, bad)
     assert action == fallback_power(obs, bad, SPEC) == U_MAX_W
@@ -252,14 +259,14 @@ def test_cooling_model_plans_against_overheating():
         cooling, dt_s=DT_S, u_max_w=2000.0, backup_low_c=-100.0, backup_high_c=100.0
     )
     spec = ControlSpec(u_max_w=2000.0, horizon_steps=H, heating=False)
-    hot = _forecast()._replace(t_a_c=np.full(H, 30.0))
+    hot = _forecast()._replace(T_a=np.full(H, 30.0))
     cem = CEM(model, spec)
     cem.reset(seed=0)
     cem.act(_obs(21.5, 21.5, t_a_c=30.0), hot)
     plan = cem.last_plan
     assert plan is not None and plan.mean() > 0.3 * 2000.0  # must cool hard all day
     do_nothing = model.rollout(_obs(21.5, 21.5).history, torch.zeros(1, H), {
-        "T_a": hot.t_a_c, "G": np.zeros(H), "I_g": np.zeros(H)})
+        "T_a": hot.T_a, "G": np.zeros(H), "I_g": np.zeros(H)})
     idle = plan_cost(do_nothing.u_phys_w[0].numpy(), do_nothing.t_r_c[0].numpy(), hot, spec)
     assert cem.last_cost_eur < 0.5 * float(idle[0])
 
@@ -289,25 +296,19 @@ def physnet():
 
 
 def _closed_loop(controller, n_steps: int):
-    """Run the controller against the simulator from an empty history; yield per step."""
-    sim = Simulator(SimConfig(u_max_w=U_MAX_W), n_buildings=1)
-    sim.reset(18.6, 18.2)
-    hist: dict[str, list[float]] = {k: [] for k in ("T_r", "u", "u_phys", "T_a", "G", "I_g")}
-    hist["time_of_day_h"] = []
-    for k in range(n_steps):
-        fc = _forecast(start=k)
-        hist["T_r"].append(float(sim.measure()[0]))
-        hist["T_a"].append(float(fc.t_a_c[0]))
-        hist["time_of_day_h"].append(float(fc.time_of_day_h[0]))
-        hist["G"].append(0.0)
-        hist["I_g"].append(0.0)
-        history = {name: np.array(values) for name, values in hist.items()}
-        obs = Observation(k=k, t_r_c=hist["T_r"][-1], history=history, t_m_true_c=float("nan"))
-        u = controller.act(obs, fc)
-        yield k, obs, fc, u
-        step = sim.step(u, fc.t_a_c[0])
-        hist["u"].append(u)
-        hist["u_phys"].append(float(step.u_phys_w[0]))
+    """Run the controller on the closed-loop engine from an empty history; yield per step."""
+    exo = _forecast(length=n_steps + H)
+    loop = ClosedLoop(
+        SimConfig(u_max_w=U_MAX_W),
+        ExogenousSeries(**exo._asdict()),
+        spec=SPEC,
+        initial_t_r_c=18.6,
+        initial_t_m_c=18.2,
+    )
+    controller.reset(seed=0)
+    for _ in range(n_steps):
+        d = loop.advance(controller)
+        yield d.k, d.observation, d.forecast, d.u_w
 
 
 def test_cem_over_a_trained_physnet_ensemble_in_closed_loop(physnet):
@@ -336,7 +337,7 @@ def test_cem_over_a_trained_physnet_ensemble_in_closed_loop(physnet):
         assert plan is not None and u == plan[0]
         # The planner's score is plan_cost on the model's prediction: mean + risk x std over
         # the members.
-        exog = {"time_of_day_h": fc.time_of_day_h[:H], "T_a": fc.t_a_c[:H]}
+        exog = {"time_of_day_h": fc.time_of_day_h[:H], "T_a": fc.T_a[:H]}
         roll = physnet.rollout(obs.history, torch.tensor(plan[None], dtype=torch.float32), exog)
         per_member = [
             plan_cost(roll.u_phys_w[m, 0].numpy(), roll.t_r_c[m, 0].numpy(), fc, SPEC)
@@ -359,7 +360,7 @@ def test_default_cem_scores_the_ensemble_mean_with_a_measured_offset(physnet):
     for k, obs, fc, _u in steps:
         if k < physnet.depth + 1:
             continue
-        exog = {"time_of_day_h": fc.time_of_day_h[:H], "T_a": fc.t_a_c[:H]}
+        exog = {"time_of_day_h": fc.time_of_day_h[:H], "T_a": fc.T_a[:H]}
         if k >= physnet.depth + 2:
             past = {name: v[:-1] for name, v in obs.history.items()}
             last = {name: obs.history[name][-2:-1] for name in ("time_of_day_h", "T_a")}

@@ -1,11 +1,13 @@
-"""Gymnasium environment around the simulator: one building, one control interval per step.
+"""Gymnasium face of the closed loop (:class:`scenarios.engine.ClosedLoop`): one building, one
+control interval per step.
 
 Observation (float32, shape (9,)): what a controller may see at the start of interval k:
 ``(T_r measured [C], T_a [C], G [W/m2], I_g [W], price [EUR/kWh], T_min [C], T_max [C],
 sin(2 pi h/24), cos(2 pi h/24))`` with h the hour of day. Action (float32, shape (1,)): the
 demanded power in [0, u_max_w] W (clipped). Reward: minus the objective of the interval, i.e.
 ``-(price x delivered energy [kWh] + comfort_weight x band violation of T_r at the end of the
-interval [K] x interval [h])``, the same objective the controllers use. ``info`` carries the
+interval [K] x interval [h])``: :class:`controllers.objective.HorizonObjective` of one interval
+against that interval's band, the objective the controllers use. ``info`` carries the
 hidden ``T_m`` [C], the true ``T_r`` [C], ``u_phys`` [W], ``overridden`` (the backup acted),
 ``energy_kwh``, ``cost_eur`` and ``discomfort_kh``.
 
@@ -24,11 +26,16 @@ import gymnasium as gym
 import numpy as np
 import pandas as pd
 
+from controllers.base import ControlSpec
+from controllers.objective import HorizonObjective, band_violation_k, energy_cost_eur
 from pinn_mpc.data import TEMPERATURE_RANGE_C
 from pinn_mpc.errors import InputError
-from pinn_mpc.simulator import SimConfig, Simulator
+from pinn_mpc.simulator import SimConfig
+from scenarios.engine import EXOGENOUS_FIELDS, ClosedLoop, ExogenousSeries
 
-EXOGENOUS = ("T_a", "G", "I_g", "price", "T_min", "T_max")
+__all__ = ["OBSERVATION_NAMES", "BuildingEnv"]
+
+EXOGENOUS = EXOGENOUS_FIELDS
 OBSERVATION_NAMES = ("T_r", "T_a", "G", "I_g", "price", "T_min", "T_max", "sin_time", "cos_time")
 
 
@@ -47,11 +54,10 @@ class BuildingEnv(gym.Env[np.ndarray, np.ndarray]):
         initial_t_r_c: float = 17.0,
         initial_t_m_c: float = 17.0,
     ):
-        missing = [c for c in ("time", *EXOGENOUS) if c not in exogenous.columns]
-        if missing:
-            raise InputError(
-                f"BuildingEnv: exogenous frame lacks column(s) {missing}; have {list(exogenous.columns)}"
-            )
+        try:
+            series = ExogenousSeries.from_frame(exogenous)
+        except InputError as exc:
+            raise InputError(f"BuildingEnv: {exc}") from exc
         if not (math.isfinite(comfort_weight_eur_per_kh) and comfort_weight_eur_per_kh >= 0):
             raise InputError(
                 f"BuildingEnv: comfort_weight_eur_per_kh must be >= 0, got {comfort_weight_eur_per_kh!r}"
@@ -66,12 +72,8 @@ class BuildingEnv(gym.Env[np.ndarray, np.ndarray]):
         self.comfort_weight_eur_per_kh = float(comfort_weight_eur_per_kh)
         self.episode_steps = steps
         self.initial_state_c = (float(initial_t_r_c), float(initial_t_m_c))
-        self._exo = np.column_stack([exogenous[c].to_numpy(dtype=float) for c in EXOGENOUS])
-        if not np.all(np.isfinite(self._exo)):
-            raise InputError("BuildingEnv: exogenous frame has non-finite values")
-        times = pd.DatetimeIndex(exogenous["time"])
-        hours = np.asarray((times - times.normalize()).total_seconds() / 3600.0, dtype=float)
-        angle = 2.0 * math.pi * hours / 24.0
+        self._exo = np.column_stack([getattr(series, c) for c in EXOGENOUS])
+        angle = 2.0 * math.pi * series.time_of_day_h / 24.0
         self._clock = np.column_stack([np.sin(angle), np.cos(angle)])
 
         t_lo, t_hi = TEMPERATURE_RANGE_C
@@ -82,14 +84,27 @@ class BuildingEnv(gym.Env[np.ndarray, np.ndarray]):
         self.action_space = gym.spaces.Box(
             low=0.0, high=float(config.u_max_w), shape=(1,), dtype=np.float32
         )
-        self._sim = Simulator(config, n_buildings=1, seed=0)
-        self._start = 0
-        self._k = 0
+        spec = ControlSpec(
+            u_max_w=config.u_max_w,
+            dt_s=config.dt_s,
+            comfort_weight_eur_per_kh=self.comfort_weight_eur_per_kh,
+            heating=config.params.heating,
+        )
+        try:
+            self._loop = ClosedLoop(
+                config,
+                series,
+                spec=spec,
+                initial_t_r_c=self.initial_state_c[0],
+                initial_t_m_c=self.initial_state_c[1],
+            )
+        except InputError as exc:
+            raise InputError(f"BuildingEnv: {exc}") from exc
 
     def _observation(self) -> np.ndarray:
         # After the last interval the next row may not exist: reuse the last row's inputs.
-        row = min(self._start + self._k, len(self._exo) - 1)
-        raw = np.concatenate([self._sim.measure(), self._exo[row], self._clock[row]])
+        row = min(self._loop.start + self._loop.k, len(self._exo) - 1)
+        raw = np.concatenate([[self._loop.measure()], self._exo[row], self._clock[row]])
         return np.clip(raw, self._obs_low, self._obs_high).astype(np.float32)
 
     def reset(
@@ -105,34 +120,35 @@ class BuildingEnv(gym.Env[np.ndarray, np.ndarray]):
         start = opts.get("start", int(self.np_random.integers(last_start + 1)))
         if not 0 <= start <= last_start:
             raise InputError(f"BuildingEnv.reset: start={start} must lie in [0, {last_start}]")
-        self._start, self._k = int(start), 0
         t_r, t_m = opts.get("t_r_c", self.initial_state_c[0]), opts.get("t_m_c", self.initial_state_c[1])
-        self._sim.reset(t_r, t_m, seed=int(self.np_random.integers(2**63)))
+        self._loop.reset(t_r, t_m, start=int(start), seed=int(self.np_random.integers(2**63)))
         return self._observation(), {"T_m": float(t_m), "T_r": float(t_r)}
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
-        if self._k >= self.episode_steps:
+        if self._loop.k >= self.episode_steps:
             raise InputError("BuildingEnv.step: the episode is over; call reset() first")
         u = float(np.clip(np.asarray(action, dtype=float).reshape(-1)[0], 0.0, self.config.u_max_w))
-        t_a, g, i_g, price, t_min, t_max = (float(v) for v in self._exo[self._start + self._k])
-        result = self._sim.step(u, t_a, g, i_g)
+        _, _, _, price, t_min, t_max = (float(v) for v in self._exo[self._loop.start + self._loop.k])
+        result = self._loop.step(u)
         t_r_next = float(result.t_r_c[0])
         u_phys = float(result.u_phys_w[0])
         dt_h = self.config.dt_s / 3600.0
-        energy_kwh = u_phys / 1000.0 * dt_h
-        violation_k = max(t_min - t_r_next, 0.0) + max(t_r_next - t_max, 0.0)
-        cost_eur = price * energy_kwh
-        discomfort_kh = violation_k * dt_h
-        reward = -(cost_eur + self.comfort_weight_eur_per_kh * discomfort_kh)
-        self._k += 1
-        truncated = self._k >= self.episode_steps
+        objective = HorizonObjective(
+            price_eur_per_kwh=np.array([price]),
+            t_min_c=np.array([t_min]),
+            t_max_c=np.array([t_max]),
+            dt_h=dt_h,
+            comfort_weight_eur_per_kh=self.comfort_weight_eur_per_kh,
+        )
+        reward = -float(objective.cost(np.array([u_phys]), np.array([t_r_next])))
+        truncated = self._loop.k >= self.episode_steps
         info = {
             "T_m": float(result.t_m_c[0]),
             "T_r": t_r_next,
             "u_phys": u_phys,
             "overridden": bool(result.overridden[0]),
-            "energy_kwh": energy_kwh,
-            "cost_eur": cost_eur,
-            "discomfort_kh": discomfort_kh,
+            "energy_kwh": u_phys / 1000.0 * dt_h,
+            "cost_eur": float(energy_cost_eur(u_phys, price, dt_h)),
+            "discomfort_kh": float(band_violation_k(t_r_next, t_min, t_max)) * dt_h,
         }
-        return self._observation(), float(reward), False, truncated, info
+        return self._observation(), reward, False, truncated, info

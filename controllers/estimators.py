@@ -1,0 +1,117 @@
+"""State estimators: components a controller is given, kept apart from its optimiser (as in do-mpc).
+
+Each turns the observation of step k into what its controller plans from:
+
+- :class:`KalmanEstimator`: (T_r, T_m) from a Kalman observer on an RC model
+  (:class:`pinn_mpc.observer.KalmanObserver`), fed with the last interval's inputs.
+- :class:`TrueState`: the simulator's true (T_r, T_m); only the reference controllers (oracle,
+  clairvoyant) may use it.
+- :class:`OffsetFilter`: for learned models, the filtered error of the model's one-step
+  prediction of the interval that just ended (offset-free MPC), in kelvin.
+
+``reset()`` forgets everything; ``update(obs)`` is called once per decision, in order.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING, Any, Protocol
+
+import numpy as np
+
+from controllers.base import Observation
+from pinn_mpc.errors import InputError
+from pinn_mpc.observer import KalmanObserver
+from pinn_mpc.physics import RCParams
+
+if TYPE_CHECKING:
+    from pinn_mpc.rc_batch_model import BatchDynamics
+
+__all__ = ["KalmanEstimator", "OffsetFilter", "StateEstimator", "TrueState"]
+
+
+class StateEstimator(Protocol):
+    """Turns observations into a state estimate ``(T_r, T_m)`` (2,) [C]."""
+
+    def reset(self) -> None: ...
+
+    def update(self, obs: Observation) -> np.ndarray: ...
+
+
+class KalmanEstimator:
+    """A Kalman observer on ``params`` fed by the observations.
+
+    The first call, a step that does not follow the previous one, or an observation without its
+    last interval restart the observer at the measured ``T_r`` with ``T_m`` guessed equal to it;
+    otherwise the observer predicts over the last interval (its delivered power and exogenous
+    inputs) and updates with the new measurement. ``observer_options`` are the keywords of
+    :class:`~pinn_mpc.observer.KalmanObserver`.
+    """
+
+    def __init__(self, params: RCParams, dt_s: float, **observer_options: Any) -> None:
+        self.observer = KalmanObserver(params, dt_s, **observer_options)
+        self.reset()
+
+    def reset(self) -> None:
+        self._k_seen: int | None = None
+
+    def update(self, obs: Observation) -> np.ndarray:
+        last = obs.last
+        if self._k_seen is None or obs.k != self._k_seen + 1 or last is None:
+            self.observer.reset(obs.t_r_c)
+        else:
+            self.observer.predict(last.u_phys, last.T_a, last.G, last.I_g)
+            self.observer.update(obs.t_r_c)
+        self._k_seen = obs.k
+        return self.observer.state[0]
+
+
+class TrueState:
+    """The simulator's true state (only against the simulator: it reads ``obs.t_m_true_c``)."""
+
+    def reset(self) -> None:
+        pass
+
+    def update(self, obs: Observation) -> np.ndarray:
+        if not math.isfinite(obs.t_m_true_c):
+            raise InputError(
+                f"the true-state estimator needs the true thermal-mass temperature, got "
+                f"obs.t_m_true_c={obs.t_m_true_c}; use it only against the simulator"
+            )
+        return np.array([obs.t_r_c, obs.t_m_true_c], dtype=float)
+
+
+class OffsetFilter:
+    """Output-disturbance estimate [K] for a batch model (offset-free MPC).
+
+    Each update predicts the interval that just ended from the history one interval earlier and
+    the power actually delivered; the error against the measured ``T_r`` is filtered with
+    ``gain`` into an offset the controller adds to every predicted ``T_r``. It removes the slowly
+    varying bias a learned model has in closed-loop operating points. Gain 0 keeps it at 0; a
+    history too short for the model leaves it unchanged.
+    """
+
+    def __init__(self, model: BatchDynamics, gain: float) -> None:
+        if not 0.0 <= gain <= 1.0:
+            raise InputError(f"offset_gain must lie in [0, 1], got {gain}")
+        self.model, self.gain = model, gain
+        self.reset()
+
+    def reset(self) -> None:
+        self.offset_k = 0.0
+
+    def update(self, obs: Observation) -> float:
+        history, last = obs.history, obs.last
+        if self.gain == 0 or last is None or len(history["u_phys"]) < self.model.depth + 2:
+            return self.offset_k
+        import torch
+
+        past = {name: np.asarray(values)[:-1] for name, values in history.items()}
+        exog = {name: np.array([getattr(last, name)]) for name in self.model.exog_names}
+        u_w = torch.tensor([[last.u_phys]], dtype=torch.float32)
+        with torch.no_grad():
+            predicted = float(self.model.rollout(past, u_w, exog).t_r_c[..., 0].mean())
+        error = obs.t_r_c - predicted
+        if np.isfinite(error):
+            self.offset_k += self.gain * (error - self.offset_k)
+        return self.offset_k

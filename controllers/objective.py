@@ -1,0 +1,133 @@
+"""The control objective over a horizon, one definition for every user.
+
+Over H intervals j: ``price_j x delivered energy_j [kWh] + comfort_weight x violation_j [K] x
+dt_h``, where ``violation_j`` is the band violation of the room temperature at the end of
+interval j. Built once per decision (:meth:`HorizonObjective.from_forecast`, with
+:func:`planning_band`); the sampling planners evaluate it in torch, tests and reports in numpy,
+the RC MPCs take its arrays as QP data, the Gymnasium reward is the one-interval objective and
+the closed-loop KPIs integrate the same primitives (:func:`band_violation_k`,
+:func:`energy_cost_eur`) at the simulator's substep resolution.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from controllers.base import ControlSpec, Forecast, first_values
+from pinn_mpc.errors import InputError
+
+if TYPE_CHECKING:
+    import torch
+
+__all__ = [
+    "OPEN_BAND_C",
+    "HorizonObjective",
+    "band_violation_k",
+    "energy_cost_eur",
+    "planning_band",
+]
+
+#: A comfort band that never binds (after the run end of the clairvoyant).
+OPEN_BAND_C = (-100.0, 200.0)
+
+
+def band_violation_k(t_r_c: Any, t_min_c: Any, t_max_c: Any) -> Any:
+    """Elementwise violation of the comfort band [K], broadcasting (numpy arrays)."""
+    return np.maximum(t_min_c - t_r_c, 0.0) + np.maximum(t_r_c - t_max_c, 0.0)
+
+
+def energy_cost_eur(u_phys_w: Any, price_eur_per_kwh: Any, dt_h: float) -> Any:
+    """Elementwise cost of delivering ``u_phys_w`` [W] for ``dt_h`` hours [EUR] (numpy or torch)."""
+    return u_phys_w * (dt_h / 1000.0) * price_eur_per_kwh
+
+
+def planning_band(forecast: Forecast, h: int) -> tuple[np.ndarray, np.ndarray]:
+    """The band the room temperature at the end of each of the next h intervals must keep, (h,) each.
+
+    The end of interval j is also the start of interval j+1, so it must lie in both bands: without
+    this a planner arrives at 17 C exactly when a 20 C day band starts, and the closed-loop KPI
+    (the time integral of the violation) charges the whole warm-up. The last value, with no next
+    interval in the forecast, uses its own band.
+    """
+    t_min, t_max = first_values(forecast.T_min, h + 1), first_values(forecast.T_max, h + 1)
+    lower = np.maximum(t_min[:-1], t_min[1:])
+    upper = np.minimum(t_max[:-1], t_max[1:])
+    return lower, upper
+
+
+@dataclass(frozen=True, kw_only=True)
+class HorizonObjective:
+    """The objective of H intervals: price [EUR/kWh] and band [C] arrays (H,), weights."""
+
+    price_eur_per_kwh: np.ndarray
+    t_min_c: np.ndarray
+    t_max_c: np.ndarray
+    dt_h: float
+    comfort_weight_eur_per_kh: float
+
+    def __post_init__(self) -> None:
+        shapes = {np.shape(a) for a in (self.price_eur_per_kwh, self.t_min_c, self.t_max_c)}
+        if len(shapes) != 1 or len(next(iter(shapes))) != 1:
+            raise InputError(
+                f"HorizonObjective: price and band must be arrays of one shape (H,), got {shapes}"
+            )
+
+    @classmethod
+    def from_forecast(cls, forecast: Forecast, spec: ControlSpec, horizon_steps: int) -> HorizonObjective:
+        """The objective of the next ``horizon_steps`` intervals: the forecast's price and
+        :func:`planning_band` (a shorter forecast repeats its last value)."""
+        lower, upper = planning_band(forecast, horizon_steps)
+        return cls(
+            price_eur_per_kwh=first_values(forecast.price, horizon_steps),
+            t_min_c=lower,
+            t_max_c=upper,
+            dt_h=spec.dt_h,
+            comfort_weight_eur_per_kh=spec.comfort_weight_eur_per_kh,
+        )
+
+    @property
+    def horizon_steps(self) -> int:
+        return len(self.price_eur_per_kwh)
+
+    def until(self, n_active: int) -> HorizonObjective:
+        """The objective with nothing to pay for after ``n_active`` steps (zero price, a band
+        that never binds): the shrinking horizon of a run that ends there."""
+        if n_active >= self.horizon_steps:
+            return self
+        price, t_min, t_max = (
+            np.array(a) for a in (self.price_eur_per_kwh, self.t_min_c, self.t_max_c)
+        )
+        price[n_active:] = 0.0
+        t_min[n_active:], t_max[n_active:] = OPEN_BAND_C
+        return dataclasses.replace(self, price_eur_per_kwh=price, t_min_c=t_min, t_max_c=t_max)
+
+    def stage_costs(self, u_phys_w: np.ndarray, t_r_c: np.ndarray) -> np.ndarray:
+        """Cost of each interval (..., H) [EUR] of delivered power and end-of-interval T_r (..., H)."""
+        h = self.horizon_steps
+        violation = band_violation_k(np.asarray(t_r_c, dtype=float), self.t_min_c, self.t_max_c)
+        energy = energy_cost_eur(np.asarray(u_phys_w, dtype=float), self.price_eur_per_kwh, self.dt_h)
+        if np.shape(violation)[-1] != h:
+            raise InputError(f"HorizonObjective: predictions must end in H={h}, got {np.shape(t_r_c)}")
+        return energy + self.comfort_weight_eur_per_kh * self.dt_h * violation
+
+    def cost(self, u_phys_w: np.ndarray, t_r_c: np.ndarray) -> np.ndarray:
+        """The objective (...,) [EUR] of predictions (..., H) (numpy, float64)."""
+        return np.sum(self.stage_costs(u_phys_w, t_r_c), axis=-1)
+
+    def cost_torch(self, u_phys_w: torch.Tensor, t_r_c: torch.Tensor) -> torch.Tensor:
+        """The objective (...,) [EUR] of predictions (..., H) in torch, in their dtype."""
+        import torch
+
+        dtype = t_r_c.dtype
+        price = torch.as_tensor(self.price_eur_per_kwh, dtype=dtype)
+        t_min = torch.as_tensor(self.t_min_c, dtype=dtype)
+        t_max = torch.as_tensor(self.t_max_c, dtype=dtype)
+        violation = torch.relu(t_min - t_r_c) + torch.relu(t_r_c - t_max)
+        step_cost = energy_cost_eur(u_phys_w, price, self.dt_h) + (
+            self.comfort_weight_eur_per_kh * self.dt_h * violation
+        )
+        return step_cost.sum(dim=-1)

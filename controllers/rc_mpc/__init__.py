@@ -1,0 +1,3 @@
+"""MPC on RC parameters: the problem and controller shell (:mod:`.problem`), its CasADi
+(:mod:`.casadi`) and cvxpy/OSQP (:mod:`.osqp`) solvers, and the perfect-knowledge references
+(:mod:`.references`). Import from the modules: each solver loads only its own library."""

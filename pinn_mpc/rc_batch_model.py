@@ -1,0 +1,131 @@
+"""The narrow rollout interface every planner model has, and the 2R2C as such a model.
+
+A learned ensemble (:class:`pinn_mpc.models.LearnedModel`) and :class:`RCBatchModel` both map
+(history, candidate plans, exogenous forecast) to one result type,
+:class:`pinn_mpc.models.Rollout`: predicted end-of-interval T_r, delivered power and T_m,
+tensors (M members, N plans, H intervals).
+"""
+
+from __future__ import annotations
+
+from typing import Protocol
+
+import numpy as np
+import torch
+
+from pinn_mpc.errors import InputError
+from pinn_mpc.models import Rollout
+from pinn_mpc.physics import RCParams, discretise
+
+__all__ = ["BatchDynamics", "RCBatchModel"]
+
+
+class BatchDynamics(Protocol):
+    """What a planner needs of a model.
+
+    ``rollout(history, u_w, exog)``: ``history`` in the data format's names (``T_r`` up to and
+    including now, ``u_phys`` of past intervals, exogenous series up to now; see
+    :class:`controllers.base.Observation`), ``u_w`` (N, H) demanded power [W], ``exog`` one
+    array (H,) per name in ``exog_names`` (data-format names). The model needs ``depth + 1``
+    past intervals of history.
+    """
+
+    @property
+    def n_members(self) -> int: ...
+
+    @property
+    def depth(self) -> int: ...
+
+    @property
+    def exog_names(self) -> tuple[str, ...]: ...
+
+    def rollout(
+        self, history: dict[str, np.ndarray], u_w: torch.Tensor, exog: dict[str, np.ndarray]
+    ) -> Rollout: ...
+
+
+class RCBatchModel:
+    """The 2R2C physics as a one-member batch model (exact ZOH over each control interval).
+
+    The backup thermostat is approximated per interval by clipping on the room temperature at
+    the start of the interval (full power below ``backup_low_c``, off above ``backup_high_c``
+    for a heater; mirrored for cooling). The hidden ``T_m`` now is taken from ``history['T_m']``
+    when present (simulated data), else reconstructed from the last interval by inverting the
+    T_r row of the discrete model (exact for noise-free data without a backup override).
+    """
+
+    n_members = 1
+    depth = 0
+    exog_names: tuple[str, ...] = ("T_a", "G", "I_g")
+
+    def __init__(
+        self,
+        params: RCParams,
+        *,
+        dt_s: float,
+        u_max_w: float,
+        backup_low_c: float = 17.0,
+        backup_high_c: float = 20.5,
+    ):
+        if not (np.isfinite(u_max_w) and u_max_w > 0):
+            raise InputError(f"RCBatchModel.u_max_w must be positive, got {u_max_w!r}")
+        if not backup_low_c < backup_high_c:
+            raise InputError(
+                f"RCBatchModel backup limits need low < high, got {backup_low_c}, {backup_high_c}"
+            )
+        self.params = params
+        self.u_max_w = u_max_w
+        self.backup_low_c, self.backup_high_c = backup_low_c, backup_high_c
+        self.ad, self.bd = discretise(params, dt_s)
+
+    def state_now(self, history: dict[str, np.ndarray]) -> tuple[float, float]:
+        """Current ``(T_r, T_m)`` [C] from the history (see the class docstring).
+
+        The reconstruction reads the interval that just ended: ``T_r`` at its start and end,
+        its delivered power and its exogenous inputs (the second-to-last exogenous values).
+        """
+        t_r = np.asarray(history["T_r"], dtype=float)
+        if "T_m" in history:
+            return float(t_r[-1]), float(np.asarray(history["T_m"])[-1])
+        zeros = np.zeros_like(t_r)
+        d = np.array(
+            [
+                np.asarray(history["u_phys"], dtype=float)[-1],
+                *(np.asarray(history.get(name, zeros), dtype=float)[-2] for name in self.exog_names),
+            ]
+        )
+        (a00, a01), (a10, a11) = self.ad
+        t_m_prev = (t_r[-1] - a00 * t_r[-2] - self.bd[0] @ d) / a01
+        return float(t_r[-1]), float(a10 * t_r[-2] + a11 * t_m_prev + self.bd[1] @ d)
+
+    def rollout(
+        self, history: dict[str, np.ndarray], u_w: torch.Tensor, exog: dict[str, np.ndarray]
+    ) -> Rollout:
+        """u_w (N, H) [W] -> tensors (1, N, H) of end-of-interval T_r, delivered power, T_m."""
+        n, h = u_w.shape
+        t_r0, t_m0 = self.state_now(history)
+        d = np.stack([np.asarray(exog[k], dtype=float)[:h] for k in self.exog_names], axis=1)
+        drift = torch.as_tensor(d @ self.bd[:, 1:].T, dtype=u_w.dtype)  # (H, 2)
+        (a00, a01), (a10, a11) = self.ad.tolist()
+        b0, b1 = self.bd[:, 0].tolist()
+        t_r = torch.full((n,), t_r0, dtype=u_w.dtype)
+        t_m = torch.full((n,), t_m0, dtype=u_w.dtype)
+        on, off = (self.backup_low_c, self.backup_high_c)
+        out_r, out_m, out_u = [], [], []
+        for j in range(h):
+            force_on, force_off = (t_r < on, t_r > off)
+            if not self.params.heating:
+                force_on, force_off = force_off, force_on
+            p = torch.where(force_on, self.u_max_w, torch.where(force_off, 0.0, u_w[:, j]))
+            t_r, t_m = (
+                a00 * t_r + a01 * t_m + b0 * p + drift[j, 0],
+                a10 * t_r + a11 * t_m + b1 * p + drift[j, 1],
+            )
+            out_r.append(t_r)
+            out_m.append(t_m)
+            out_u.append(p)
+        return Rollout(
+            t_r_c=torch.stack(out_r, 1)[None],
+            u_phys_w=torch.stack(out_u, 1)[None],
+            t_m_c=torch.stack(out_m, 1)[None],
+        )

@@ -1,0 +1,261 @@
+"""The one closed loop: plant, estimator, controller, in the do-mpc order.
+
+Every closed loop of the package runs on :class:`ClosedLoop` (``closed-loop``, ``compare``,
+``reproduce``, the Gymnasium env :class:`scenarios.gym_env.BuildingEnv`, the tests and the
+benchmarks). Each control interval k::
+
+    obs = loop.observation()           # the plant's measurement (sensor noise) and the past
+    fc = loop.forecast()               # the exogenous inputs from k on (perfect or noisy)
+    u = controller.act(obs, fc)        # the controller's estimator turns obs into a state
+                                       # estimate, then it decides (timed; failure -> fallback)
+    loop.step(u)                       # minute substeps with the backup thermostat
+
+:meth:`ClosedLoop.advance` does the four in one call. The observation carries the last
+interval's demanded and delivered power and exogenous inputs (``Observation.last``) in the data
+format's names, which the forecast shares.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+import pandas as pd
+
+from controllers.base import Controller, ControlSpec, Forecast, Observation, fallback_power
+from pinn_mpc.errors import InputError
+from pinn_mpc.simulator import SimConfig, Simulator, StepResult
+from scenarios.inputs import time_of_day_h
+
+__all__ = ["ClosedLoop", "Decision", "ExogenousSeries", "LoopRecord", "decide"]
+
+#: Columns of an exogenous frame the loop is driven by (besides ``time``).
+EXOGENOUS_FIELDS = ("T_a", "G", "I_g", "price", "T_min", "T_max")
+
+
+@dataclass(frozen=True, kw_only=True)
+class ExogenousSeries:
+    """The inputs a run is driven by, one value per control interval, arrays (N,) named as in
+    the data format (and as :class:`controllers.base.Forecast`)."""
+
+    time_of_day_h: np.ndarray
+    T_a: np.ndarray
+    G: np.ndarray
+    I_g: np.ndarray
+    price: np.ndarray
+    T_min: np.ndarray
+    T_max: np.ndarray
+
+    def __post_init__(self) -> None:
+        lengths = {len(getattr(self, name)) for name in Forecast._fields}
+        if len(lengths) != 1:
+            raise InputError(f"ExogenousSeries: all series need one length, got {sorted(lengths)}")
+
+    @classmethod
+    def from_frame(cls, frame: pd.DataFrame) -> ExogenousSeries:
+        """From a frame with ``time`` and :data:`EXOGENOUS_FIELDS` (as Scenario.exogenous makes it)."""
+        missing = [c for c in ("time", *EXOGENOUS_FIELDS) if c not in frame.columns]
+        if missing:
+            raise InputError(
+                f"exogenous frame lacks column(s) {missing}; have {list(frame.columns)}"
+            )
+        cols = {c: frame[c].to_numpy(dtype=float) for c in EXOGENOUS_FIELDS}
+        return cls(time_of_day_h=time_of_day_h(frame["time"]), **cols)
+
+    def __len__(self) -> int:
+        return len(self.T_a)
+
+    def forecast(self, row: int) -> Forecast:
+        """Fresh arrays of every row from ``row`` to the end."""
+        return Forecast(*(np.array(getattr(self, name)[row:]) for name in Forecast._fields))
+
+
+class Decision(NamedTuple):
+    """One interval of :meth:`ClosedLoop.advance`: what the controller saw and did."""
+
+    k: int
+    observation: Observation
+    forecast: Forecast
+    u_w: float  # demanded power applied [W]
+    time_s: float  # decision time
+    fallback: bool
+    error: str | None  # a controller exception (the loop's fallback acted), else None
+    plant: StepResult
+
+
+class LoopRecord(NamedTuple):
+    """The intervals run so far, arrays (K,) (``t_r_sub_c`` (K, S)); T_r and T_m at their start."""
+
+    t_r_c: np.ndarray  # measured
+    t_m_c: np.ndarray  # true (hidden)
+    u_w: np.ndarray
+    u_phys_w: np.ndarray
+    overridden: np.ndarray
+    fallback: np.ndarray
+    decision_s: np.ndarray
+    t_r_sub_c: np.ndarray  # true room temperature at the end of each substep
+
+
+def decide(
+    controller: Controller, obs: Observation, forecast: Forecast, spec: ControlSpec
+) -> tuple[float, float, bool, str | None]:
+    """Call ``act`` once, timed: (demand [W] in bounds, decision time [s], fallback used, error).
+
+    A controller that raises or returns no finite number does not end the run: the loop acts
+    with :func:`controllers.base.fallback_power` and reports the error.
+    """
+    error = None
+    start = time.perf_counter()
+    try:
+        action = np.asarray(controller.act(obs, forecast), dtype=float)
+        if action.size != 1 or not math.isfinite(float(action.reshape(-1)[0])):
+            error = f"act returned {action!r}, not one finite number"
+    except Exception as exc:  # a controller failure must not end the run: fall back, count it
+        error = f"{type(exc).__name__}: {exc}"
+    elapsed = time.perf_counter() - start
+    if error is not None:
+        return fallback_power(obs, forecast, spec), elapsed, True, error
+    try:
+        own_fallback = bool(controller.last_stats.fallback)
+    except Exception as exc:
+        own_fallback, error = True, f"last_stats: {type(exc).__name__}: {exc}"
+    u = float(np.clip(float(action.reshape(-1)[0]), 0.0, spec.u_max_w))
+    return u, elapsed, own_fallback, error
+
+
+class ClosedLoop:
+    """One simulated building driven by an exogenous series, stepped one interval at a time.
+
+    ``seed`` seeds the plant's sensor noise and the forecast noise (``forecast_noise_std_c``
+    [K] of Gaussian noise on the future outdoor temperature, rows after the current one).
+    :meth:`reset` starts an episode at row ``start`` of the series; ``k`` counts its intervals.
+    """
+
+    def __init__(
+        self,
+        config: SimConfig,
+        exogenous: ExogenousSeries,
+        *,
+        spec: ControlSpec,
+        initial_t_r_c: float,
+        initial_t_m_c: float,
+        seed: int | None = 0,
+        forecast_noise_std_c: float = 0.0,
+        forecast_seed: int | list[int] | None = None,
+    ) -> None:
+        if not (math.isfinite(forecast_noise_std_c) and forecast_noise_std_c >= 0):
+            raise InputError(f"forecast_noise_std_c must be >= 0, got {forecast_noise_std_c!r}")
+        if not np.all(np.isfinite(np.column_stack(list(exogenous.forecast(0))))):
+            raise InputError("exogenous series has non-finite values")
+        self.config, self.exogenous, self.spec = config, exogenous, spec
+        self.forecast_noise_std_c = forecast_noise_std_c
+        self.initial_state_c = (float(initial_t_r_c), float(initial_t_m_c))
+        self.sim = Simulator(config, n_buildings=1, seed=seed)
+        self._forecast_rng = np.random.default_rng(forecast_seed)
+        self.reset()
+
+    def reset(
+        self,
+        t_r_c: float | None = None,
+        t_m_c: float | None = None,
+        *,
+        start: int = 0,
+        seed: int | None = None,
+    ) -> None:
+        """Start an episode at row ``start`` from state (T_r, T_m) [C] (default the initial
+        state); ``seed`` reseeds the sensor noise (None keeps the generator running)."""
+        if not 0 <= start < len(self.exogenous):
+            raise InputError(f"ClosedLoop.reset: start={start} must lie in [0, {len(self.exogenous) - 1}]")
+        t_r = self.initial_state_c[0] if t_r_c is None else t_r_c
+        t_m = self.initial_state_c[1] if t_m_c is None else t_m_c
+        self.sim.reset(t_r, t_m, seed=seed)
+        self.start, self.k = start, 0
+        n = len(self.exogenous) - start
+        self._t_r = np.zeros(n + 1)
+        self._t_m = np.zeros(n + 1)
+        self._measured_k = -1
+        self._u = np.zeros(n)
+        self._u_phys = np.zeros(n)
+        self._overridden = np.zeros(n, dtype=bool)
+        self._fallback = np.zeros(n, dtype=bool)
+        self._decision_s = np.zeros(n)
+        self._t_r_sub = np.zeros((n, self.config.n_substeps))
+
+    @property
+    def steps_left(self) -> int:
+        return len(self._u) - self.k
+
+    def measure(self) -> float:
+        """The measured room temperature now [C] (one sensor reading per interval)."""
+        if self._measured_k != self.k:
+            self._t_r[self.k] = self.sim.measure()[0]
+            self._t_m[self.k] = self.sim.state[0, 1]
+            self._measured_k = self.k
+        return float(self._t_r[self.k])
+
+    def observation(self) -> Observation:
+        """What a controller sees now: copies of the past (data-format names), the last
+        interval and the true T_m (for the true-state estimator only)."""
+        self.measure()
+        k, rows = self.k, slice(self.start, self.start + self.k + 1)
+        exo = self.exogenous
+        # Copies: a controller may keep or change what it is given without touching the run.
+        history = {
+            "T_a": np.array(exo.T_a[rows]),
+            "G": np.array(exo.G[rows]),
+            "I_g": np.array(exo.I_g[rows]),
+            "time_of_day_h": np.array(exo.time_of_day_h[rows]),
+            "T_r": np.array(self._t_r[: k + 1]),
+            "u": np.array(self._u[:k]),
+            "u_phys": np.array(self._u_phys[:k]),
+        }
+        return Observation.from_history(k, history, float(self._t_m[k]))
+
+    def forecast(self) -> Forecast:
+        """The exogenous inputs from now to the end of the series (perfect, or with noise)."""
+        forecast = self.exogenous.forecast(self.start + self.k)
+        if self.forecast_noise_std_c > 0:
+            n_future = len(forecast.T_a) - 1
+            forecast.T_a[1:] += self._forecast_rng.normal(0.0, self.forecast_noise_std_c, n_future)
+        return forecast
+
+    def step(self, u_w: float, *, decision_s: float = 0.0, fallback: bool = False) -> StepResult:
+        """Apply demand ``u_w`` [W] over the current interval; the plant's step result."""
+        if self.steps_left <= 0:
+            raise InputError("ClosedLoop.step: the exogenous series is exhausted; call reset()")
+        self.measure()
+        k, row = self.k, self.start + self.k
+        exo = self.exogenous
+        result = self.sim.step(u_w, exo.T_a[row], exo.G[row], exo.I_g[row])
+        self._u[k], self._decision_s[k], self._fallback[k] = u_w, decision_s, fallback
+        self._u_phys[k] = result.u_phys_w[0]
+        self._overridden[k] = bool(result.overridden[0])
+        self._t_r_sub[k] = result.t_r_sub_c[0]
+        self.k += 1
+        return result
+
+    def advance(self, controller: Controller) -> Decision:
+        """One interval: observe, forecast, decide (:func:`decide`), step."""
+        obs = self.observation()
+        forecast = self.forecast()
+        u, time_s, fallback, error = decide(controller, obs, forecast, self.spec)
+        plant = self.step(u, decision_s=time_s, fallback=fallback)
+        return Decision(obs.k, obs, forecast, u, time_s, fallback, error, plant)
+
+    def record(self) -> LoopRecord:
+        """Copies of the intervals run so far."""
+        k = self.k
+        return LoopRecord(
+            t_r_c=self._t_r[:k].copy(),
+            t_m_c=self._t_m[:k].copy(),
+            u_w=self._u[:k].copy(),
+            u_phys_w=self._u_phys[:k].copy(),
+            overridden=self._overridden[:k].copy(),
+            fallback=self._fallback[:k].copy(),
+            decision_s=self._decision_s[:k].copy(),
+            t_r_sub_c=self._t_r_sub[:k].copy(),
+        )
+
