@@ -24,6 +24,7 @@ __all__ = [
     "Forecast",
     "LastInterval",
     "Observation",
+    "PlanningController",
     "SolveStats",
     "fallback_power",
     "first_values",
@@ -214,3 +215,28 @@ class Fallback:
             return float(self.plan_w[self._age])
         self.plan_w = None
         return fallback_power(obs, forecast, self.spec)
+
+
+class PlanningController:
+    """What a planning controller shares: its plan is the one its :class:`Fallback` keeps, its
+    stats those of the last decision. Subclasses set ``fallback`` and ``_stats``."""
+
+    name = "planning"
+    fallback: Fallback
+    _stats: SolveStats
+
+    @property
+    def last_plan(self) -> np.ndarray | None:
+        """(H,) planned power [W] of the last successful decision; None before or after a
+        fallback that had no plan left."""
+        plan = self.fallback.plan_w
+        return None if plan is None else plan.copy()
+
+    @property
+    def last_stats(self) -> SolveStats:
+        return self._stats
+
+    @property
+    def n_fallbacks(self) -> int:
+        """Fallback events since ``reset``."""
+        return self.fallback.n_events

@@ -25,6 +25,8 @@ import torch
 
 from pinn_mpc.errors import InputError
 
+__all__ = ["CEMPlanner", "Objective", "PlanResult", "Planner", "RandomShootingPlanner", "colored_noise"]
+
 #: Costs (N,) of a batch of action sequences (N, H).
 Objective = Callable[[torch.Tensor], torch.Tensor]
 

@@ -52,6 +52,7 @@ from controllers.base import (
     Fallback,
     Forecast,
     Observation,
+    PlanningController,
     SolveStats,
 )
 from controllers.estimators import OffsetFilter
@@ -83,7 +84,7 @@ class _NonFiniteModelOutput(Exception):
     pass
 
 
-class _SamplingController:
+class _SamplingController(PlanningController):
     """Shared ``reset``/``act`` of the sampling controllers (see the module docstring)."""
 
     name = "sampling"
@@ -139,16 +140,6 @@ class _SamplingController:
         self.fallback.reset()
         self.estimator.reset()
         self._stats = SolveStats(time_s=0.0, status="reset", iterations=0, fallback=False)
-
-    @property
-    def last_plan(self) -> np.ndarray | None:
-        """(H,) demanded power of the last plan [W]; None after a fallback."""
-        plan = self.fallback.plan_w
-        return None if plan is None else plan.copy()
-
-    @property
-    def last_stats(self) -> SolveStats:
-        return self._stats
 
     def act(self, obs: Observation, forecast: Forecast) -> float:
         """Demanded power for the coming interval [W], in ``[0, u_max_w]``."""

@@ -19,6 +19,8 @@ import numpy as np
 from controllers.base import ControlSpec, Forecast, Observation, SolveStats
 from pinn_mpc.errors import InputError
 
+__all__ = ["Thermostat"]
+
 
 class Thermostat:
     """On/off rule; ``act`` returns 0 or ``spec.u_max_w`` [W]. Deterministic; keeps one bit of

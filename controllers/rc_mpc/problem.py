@@ -38,6 +38,7 @@ from controllers.base import (
     Fallback,
     Forecast,
     Observation,
+    PlanningController,
     SolveStats,
     first_values,
 )
@@ -131,7 +132,7 @@ class SolveResult(NamedTuple):
     optimal: bool
 
 
-class RCMPC:
+class RCMPC(PlanningController):
     """Shared controller shell: estimator, timing, checks, fallback.
 
     Subclasses give ``_build`` (called once at the end of ``__init__``) and ``_solve``;
@@ -186,20 +187,6 @@ class RCMPC:
         self._k_start: int | None = None
         self._stats = SolveStats(time_s=0.0, status="not run", iterations=0, fallback=False)
         self.state_estimate_c = np.full(2, np.nan)
-
-    @property
-    def n_fallbacks(self) -> int:
-        return self.fallback.n_events
-
-    @property
-    def last_plan(self) -> np.ndarray | None:
-        """(H,) planned power [W] of the last successful solve, or None."""
-        plan = self.fallback.plan_w
-        return None if plan is None else plan.copy()
-
-    @property
-    def last_stats(self) -> SolveStats:
-        return self._stats
 
     def act(self, obs: Observation, forecast: Forecast) -> float:
         start = time.perf_counter()
