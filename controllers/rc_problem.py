@@ -8,10 +8,10 @@ comfort slack ``s_j >= 0`` [K]::
                T_min,j - s_j <= T_r[j+1] <= T_max,j + s_j
 
 The first two terms are :func:`controllers.base.plan_cost` with ``s`` as the band violation.
-The third, ``rho = regularisation_eur_per_kw2h`` (default 1e-5 EUR per kW^2 h), only makes the
-optimum unique (the LP is often degenerate, e.g. under a flat price); at 5 kW for a whole day it
-adds 0.006 EUR, so the objective moves by well under 0.1 % in practice. The backup thermostat of
-the simulator is not modelled: the MPC plans as if its demand is always delivered.
+The third, ``rho = regularisation_eur_per_kw2h`` (default :data:`DEFAULT_REGULARISATION` EUR per
+kW^2 h), only makes the optimum unique (the LP is often degenerate, e.g. under a flat price); it
+is kept small against the price term. The backup thermostat of the simulator is not modelled:
+the MPC plans as if its demand is always delivered.
 
 Forecast arrays may be longer than H (the first H are used) or shorter (the last value is
 repeated). Steps after ``n_active`` (the clairvoyant's run end) have zero price and a band so
