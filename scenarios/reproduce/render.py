@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
 import pandas as pd
@@ -93,7 +94,7 @@ def series_table(experiment: str, panels: Mapping[str, SeriesBlock]) -> str:
     return "\n\n".join(parts)
 
 
-def _style(ax: Axes, legend_loc: str = "upper right") -> None:
+def _style(ax: Axes, legend_loc: Literal["upper right", "best"] = "upper right") -> None:
     ax.grid(alpha=0.3)
     ax.legend(loc=legend_loc, fontsize=8)
 
