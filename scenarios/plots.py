@@ -173,13 +173,10 @@ def comparison_figure(trajectories: Mapping[str, pd.DataFrame], *, title: str = 
         if reference is not None:
             draw_room(ax_t, reference, f"{REFERENCE} (reference)", **_REFERENCE_STYLE)
             draw_power(ax_u, reference, f"{REFERENCE} (reference)", **_REFERENCE_STYLE)
-        colors = cycle(_COLORS)
-        for label in labels:
-            if label == REFERENCE and reference is not None:
-                continue  # already drawn as the reference
-            color = next(colors)
-            draw_room(ax_t, trajectories[label], label, color=color)
-            draw_power(ax_u, trajectories[label], label, color=color)
+        members = [label for label in labels if not (label == REFERENCE and reference is not None)]
+        for label, style in zip(members, _member_styles(len(members)), strict=True):
+            draw_room(ax_t, trajectories[label], label, **style)
+            draw_power(ax_u, trajectories[label], label, **style)
         ax_t.set_title(family, loc="left", fontsize=10, fontweight="bold")
         ax_t.set_ylabel("T_r [C]")
         ax_u.set_ylabel("delivered\n[kW]")
@@ -193,6 +190,13 @@ def comparison_figure(trajectories: Mapping[str, pd.DataFrame], *, title: str = 
     if title:
         fig.suptitle(title)
     return fig
+
+
+def _member_styles(n: int) -> list[dict[str, Any]]:
+    """A colour each, and lines thinner in drawing order: a run that coincides with an earlier
+    one (e.g. two solvers of the same problem) still shows as a thin line on a thick one."""
+    widths = np.linspace(2.0, 1.0, n) if n > 1 else [1.3]
+    return [{"color": c, "lw": float(w)} for c, w in zip(cycle(_COLORS), widths)]
 
 
 def _share_y(axes: Sequence[Axes]) -> None:
