@@ -1,7 +1,7 @@
 """Seconds to train 20-seed ensembles of physnet and physreg on 120 days of paper_household.
 
-Also times a planner-sized rollout (5 members x 256 plans x 48 steps). The paper's reference
-code needs about 145 s for 20 seeds on this machine; the target here is well under 60 s each.
+Also times a planner-sized rollout (5 members x 256 plans x 48 steps). The target is well
+under 60 s per ensemble.
 
     python benchmarks/bench_training.py [--seeds 20] [--days 120]
 """

@@ -260,13 +260,11 @@ class RandomShooting(_SamplingController):
 class CEM(_SamplingController):
     """Cross-entropy method over a model (see :class:`controllers.planners.CEMPlanner`).
 
-    Defaults (64 samples x 2 iterations, 3 % elites, initial std 0.3 x range, pink noise
-    ``noise_beta=2``, one LP polish) are set by decision time: a learned model's rollout costs
-    mostly a fixed time per horizon step, so iterations are expensive and samples cheap, and
-    the polish rides along in the two batches (``benchmarks/bench_planners.py``: 56 ms median
-    over a 10-member depth-16 physnet). The sampling finds the shape of the plan, the polish
-    its last percent: on the exact 2R2C, sampling alone settles about 4-5 % above the optimum,
-    with the polish at it.
+    The defaults (those of :class:`controllers.planners.CEMPlanner`, coloured noise, one LP
+    polish) are set by decision time: a learned model's rollout costs mostly a fixed time per
+    horizon step, so iterations are expensive and samples cheap, and the polish rides along in
+    the same batches (``benchmarks/bench_planners.py`` times it). The sampling finds the shape
+    of the plan, the polish its last percent (see :mod:`controllers.polish`).
     """
 
     name = "cem"

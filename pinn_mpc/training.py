@@ -63,8 +63,7 @@ class TrainConfig:
     ``eta`` the heat per watt of actuator power (sign fixes the sign of ``b``). ``residual`` is
     ``"exact"`` (both 2R2C rows, ZOH) or ``"finite_difference"`` (the paper's Eq. est_Tm).
     ``physics_lr_factor`` scales the learning rate of the log-space coefficients against the
-    network's: at 10 the coefficients reach the same values from a prior 30-40 % off as from
-    the true one (tested on paper_household); at 1 they barely leave the prior.
+    network's: at 1 the coefficients barely leave the prior, so the default is larger.
     """
 
     depth: int = 8

@@ -2,9 +2,8 @@
 
 1. Training data: ``train_days`` under a random policy (seed ``seed``): ``random-level``
    (a uniform power level per interval, the default) or the paper's on/off ``random``. On/off
-   data shows a network only 0 and full power, while the controllers modulate it: on
-   winter_household a physnet trained on 60 on/off days is 0.33 K too cold 24 h ahead on the
-   oracle's closed-loop trajectory, one trained on uniform levels 0.08 K.
+   data shows a network only 0 and full power, while the controllers modulate it, so a model
+   trained on uniform levels predicts the closed-loop operating points better.
 2. Models: physnet, physreg and mlp seed ensembles; grey-box RC identification (T_m hidden);
    the RC parameters exported from the physnet ensemble.
 3. Closed loop on the same ``days`` test days (seed ``seed + 1``, so other weather than the
@@ -15,7 +14,8 @@
    clairvoyant.
 4. Outputs: a JSON table (one row per controller with every KPI), a markdown report with the
    KPI table, each objective relative to the oracle's, the RC parameters against the true ones
-   and a figure of all trajectories (PNG next to the report).
+   and a figure of the trajectories, one panel per controller family against the oracle
+   (PNG next to the report, :func:`scenarios.plots.comparison_figure`).
 """
 
 from __future__ import annotations
@@ -84,7 +84,7 @@ class CompareSettings:
         cls, *, train_days: int, days: int, seed: int, quick: bool, policy: str = "random-level"
     ) -> CompareSettings:
         """The defaults, or with ``quick`` small ensembles, short training and at most 2 test
-        days (a few minutes on 2 cores); the planners run with their defaults either way."""
+        days; the planners run with their defaults either way."""
         if not quick:
             return cls(train_days=train_days, test_days=days, seed=seed, policy=policy)
         return cls(
@@ -104,9 +104,8 @@ class CompareSettings:
     @property
     def training_epochs(self) -> int:
         """``epochs``, or as many optimizer steps as the ``converged`` recipe was calibrated
-        with (60 epochs of 120 days): 7200 / ``train_days`` epochs, within 60..240. At 60 days
-        that is 120 epochs; 60 epochs left physnet's closed-loop objective 0.5-1.2 points
-        higher on winter_household (seeds 0 and 2)."""
+        with (60 epochs of 120 days): 7200 / ``train_days`` epochs, within 60..240 (120 epochs
+        at 60 days)."""
         if self.epochs is not None:
             return self.epochs
         return min(240, max(60, round(7200 / self.train_days)))
