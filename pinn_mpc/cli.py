@@ -58,6 +58,7 @@ def _simulate(a: argparse.Namespace) -> str:
         policy=a.policy,
         buildings=a.buildings,
         out=a.out,
+        weather_part=a.weather_part,
     )
 
 
@@ -111,6 +112,7 @@ def _closed_loop(a: argparse.Namespace) -> str:
         json_path=a.json,
         csv_path=a.csv,
         plot_path=a.plot,
+        weather_part=a.weather_part,
     )
 
 
@@ -135,6 +137,18 @@ def _reproduce(a: argparse.Namespace) -> str:
     return reproduce_command(out=a.out, quick=a.quick, seeds=a.seeds)
 
 
+def _add_weather_part(p: argparse.ArgumentParser, default: str) -> None:
+    # The names are scenarios.inputs.WEATHER_PARTS (not imported: the CLI starts light).
+    p.add_argument(
+        "--weather-part",
+        choices=["train", "test", "whole"],
+        default=default,
+        help="days of the scenario's weather to draw from: 'train' (training data), 'test' "
+        "(the days closed loops and compare are judged on, disjoint from 'train'), or 'whole' "
+        "(the whole seasonal window, both mixed, as before the split; default: %(default)s)",
+    )
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="pinn-mpc",
@@ -156,6 +170,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--policy", choices=["random", "random-level", "thermostat"], default="random")
     p.add_argument("--buildings", type=_positive_int, default=1)
+    _add_weather_part(p, "train")
     p.add_argument("--out", required=True, help="CSV file to write")
 
     p = add("train", _train, "train a seed ensemble of mlp, physreg or physnet on data")
@@ -221,6 +236,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", required=True)
     p.add_argument("--csv", default=None)
     p.add_argument("--plot", default=None)
+    _add_weather_part(p, "test")
 
     p = add("compare", _compare, "train, identify and run every controller on one scenario")
     p.add_argument("--scenario", default="paper_household")

@@ -39,7 +39,7 @@ from pinn_mpc.errors import InputError
 from pinn_mpc.io import atomic_write_json
 from pinn_mpc.simulator import Simulator
 from scenarios.factory import MODEL_CONTROLLERS, make_controller
-from scenarios.inputs import time_of_day_h
+from scenarios.inputs import day_span, time_of_day_h
 from scenarios.kpis import compute_kpis
 from scenarios.registry import EXOGENOUS_COLUMNS, Scenario, check_seed, get_scenario
 
@@ -53,7 +53,9 @@ _EXOGENOUS = EXOGENOUS_COLUMNS[1:]  # all but time
 class ClosedLoopResult:
     """One run: ``trajectory`` has one row per counted interval (data format + EXTRA_COLUMNS,
     ``attrs['dt_s']``); ``kpis`` the KPI dict (see :mod:`scenarios.kpis`) plus ``controller``,
-    ``scenario``, ``days``, ``seed``; ``errors`` one line per controller exception."""
+    ``scenario``, ``days``, ``seed``, ``weather_part`` and the [first, last] dates of the
+    ``counted_days`` and of the ``weather_days`` (warm-up and forecast lead included);
+    ``errors`` one line per controller exception."""
 
     trajectory: pd.DataFrame
     kpis: dict[str, Any]
@@ -92,12 +94,15 @@ def run_closed_loop(
     forecast_noise_std_c: float = 0.0,
     warmup_steps: int | None = None,
     label: str | None = None,
+    weather_part: str = "test",
 ) -> ClosedLoopResult:
     """Run ``controller`` on ``scenario`` for ``days`` counted days after the warm-up.
 
     ``seed`` fixes the weather/price draw of the scenario, the sensor noise and the forecast
-    noise, so two runs with the same seed see the same disturbances. ``warmup_steps`` defaults
-    to one day of intervals. ``label`` names the controller in the KPIs (default its ``name``).
+    noise, so two runs with the same seed see the same disturbances. ``weather_part`` is the
+    part of the scenario's weather the run is drawn from (default the test part; see
+    :mod:`scenarios.inputs`). ``warmup_steps`` defaults to one day of intervals. ``label``
+    names the controller in the KPIs (default its ``name``).
     """
     if days < 1:
         raise InputError(f"closed loop: days must be >= 1, got {days}")
@@ -113,7 +118,9 @@ def run_closed_loop(
     n_run = days * spd
     total = warmup + n_run
     horizon = scenario.horizon_steps
-    exo = scenario.exogenous(days=days + math.ceil(warmup / spd), seed=seed, lead_steps=horizon)
+    exo = scenario.exogenous(
+        days=days + math.ceil(warmup / spd), seed=seed, part=weather_part, lead_steps=horizon
+    )
     if len(exo) < total + horizon:
         raise InputError(
             f"scenario {scenario.name!r} gave {len(exo)} exogenous rows, need {total + horizon}"
@@ -200,7 +207,13 @@ def run_closed_loop(
         comfort_weight_eur_per_kh=spec.comfort_weight_eur_per_kh,
     )
     kpis.update(
-        controller=label or controller.name, scenario=scenario.name, days=days, seed=seed
+        controller=label or controller.name,
+        scenario=scenario.name,
+        days=days,
+        seed=seed,
+        weather_part=weather_part,
+        counted_days=day_span(trajectory["time"]),
+        weather_days=day_span(exo["time"]),  # warm-up and forecast lead included
     )
     return ClosedLoopResult(trajectory=trajectory, kpis=kpis, errors=tuple(errors))
 
@@ -254,6 +267,7 @@ def closed_loop_command(
     json_path: str,
     csv_path: str | None,
     plot_path: str | None,
+    weather_part: str = "test",
 ) -> str:
     """``pinn-mpc closed-loop``: run, write KPI JSON (and CSV, plot), return a one-line summary."""
     from scenarios.plots import plot_trajectory  # matplotlib only when plotting
@@ -270,7 +284,7 @@ def closed_loop_command(
     # torch only for the planners over learned models; the others start faster without it.
     threads = one_torch_thread() if controller in MODEL_CONTROLLERS else contextlib.nullcontext()
     with threads:
-        result = run_closed_loop(scen, ctrl, days=days, seed=seed)
+        result = run_closed_loop(scen, ctrl, days=days, seed=seed, weather_part=weather_part)
     if csv_path is not None:
         write_trajectory(result, csv_path)
     if plot_path is not None:

@@ -10,7 +10,9 @@ Each (architecture, training size) ensemble is trained once and evaluated at eve
 experiments need. Errors are reported like the paper's: the mean and standard deviation over
 the seeded members of each member's MAE; the MAE of the ensemble-mean prediction is kept too.
 The paper ran experiments 2 and 3 on real cold-storage data, which we do not have; here all
-three use the simulated household (``paper_household``, random on/off demand).
+three use the simulated household (``paper_household``, random on/off demand). Training data
+come from the training part of the scenario's weather, test days from its test part (no
+calendar day in common, see :mod:`scenarios.inputs`).
 """
 
 from __future__ import annotations
@@ -38,6 +40,7 @@ from pinn_mpc.models import ARCHS, LearnedModel  # noqa: E402
 from pinn_mpc.training import RECIPES, TrainConfig, train_model  # noqa: E402
 from scenarios.closed_loop import check_writable  # noqa: E402
 from scenarios.datagen import generate  # noqa: E402
+from scenarios.inputs import day_span  # noqa: E402
 from scenarios.registry import get_scenario  # noqa: E402
 
 LABELS = {"mlp": "MLP", "physreg": "PhysReg MLP", "physnet": "PhysNet"}
@@ -366,6 +369,7 @@ def render_report(
     hp = results["hyperparameters"]
     val = results["validation"]
     naive = results["naive_t_m_mae"]
+    dates = results["dates"]
     our_t_r = ", ".join(f"{LABELS[a]} {val[a]['T_r']['mean']:.3f}" for a in ARCHS)
     our_t_m = ", ".join(f"{LABELS[a]} {val[a]['T_m']['mean']:.3f}" for a in ("physreg", "physnet"))
     lines = [
@@ -376,8 +380,10 @@ def render_report(
         f"`{cfg['recipe']}` ({hp['epochs']} epochs, batch {hp['batch_size']}, lr {hp['lr']:g}"
         f"{' -> ' + format(hp['lr_final'], 'g') if hp['lr_final'] != hp['lr'] else ''}, "
         f"lambda {hp['lam']:g}). Training data: one {max(results['sizes'])}-day run (seed "
-        f"{cfg['train_seed']}); smaller sizes are its first N days. Test: {cfg['test_days']} other "
-        f"days (seed {cfg['test_seed']}). Errors are the mean ± std over seeds of each member's "
+        f"{cfg['train_seed']}, {dates['training'][0]} to {dates['training'][1]}, the training "
+        f"part of the weather); smaller sizes are its first N days. Test: {cfg['test_days']} "
+        f"other days (seed {cfg['test_seed']}, {dates['test'][0]} to {dates['test'][1]}, the test "
+        "part). Errors are the mean ± std over seeds of each member's "
         "MAE (as in the paper's figures); `ens.` is the MAE of the ensemble-mean prediction. Total "
         f"training time {results['train_seconds_total']:.0f} s.",
         "",
@@ -482,8 +488,11 @@ def run_reproduction(
     bar = tqdm(total=len(jobs) + 2, desc="reproduce", disable=None if progress else True)
     with bar:
         bar.set_postfix_str("simulating data")
-        pool = generate(scenario, days=max(sizes), seed=config.train_seed, policy="random")
-        test = generate(scenario, days=config.test_days, seed=config.test_seed, policy="random")
+        draws = {"train": (max(sizes), config.train_seed), "test": (config.test_days, config.test_seed)}
+        pool, test = (
+            generate(scenario, days=days, seed=seed, policy="random", weather_part=part)
+            for part, (days, seed) in draws.items()
+        )
         bar.update(1)
         runs: dict[str, dict[str, Any]] = {a: {} for a in ARCHS}
         preds: dict[str, Any] = {}
@@ -507,7 +516,8 @@ def run_reproduction(
             runs[arch][str(days)] = res
             bar.update(1)
         bar.set_postfix_str("writing")
-        results = _collect(config, runs, sizes, hp, test)
+        dates = {"training": day_span(pool["time"]), "test": day_span(test["time"])}
+        results = _collect(config, runs, sizes, hp, test, dates)
         _write_outputs(out, results, test, preds)
         bar.update(1)
     return results
@@ -519,6 +529,7 @@ def _collect(
     sizes: list[int],
     hp: Mapping[str, Any],
     test: pd.DataFrame,
+    dates: Mapping[str, list[str]],
 ) -> dict[str, Any]:
     persistence = next(iter(runs["mlp"].values()))["persistence"]
 
@@ -536,6 +547,7 @@ def _collect(
         "config": asdict(config),
         "hyperparameters": dict(hp),
         "sizes": sizes,
+        "dates": dict(dates),
         "paper": {"validation": PAPER_VALIDATION, "claims": PAPER_CLAIMS},
         "validation": {
             a: {

@@ -108,7 +108,9 @@ def test_experiment_blocks_are_consistent(tiny_run: tuple[Path, dict]) -> None:
 def test_persistence_by_hand(tiny_run: tuple[Path, dict]) -> None:
     """Persistence predicts T_r,i+h = T_r,i from every start i with a full depth window."""
     _, results = tiny_run
-    test = generate(get_scenario(TINY.scenario), days=TINY.test_days, seed=TINY.test_seed)
+    test = generate(
+        get_scenario(TINY.scenario), days=TINY.test_days, seed=TINY.test_seed, weather_part="test"
+    )
     t_r = test["T_r"].to_numpy(dtype=float)
     for h in (1, 3, 6):
         starts = np.arange(TINY.depth + 1, len(t_r) - h)
@@ -131,6 +133,11 @@ def test_tables_and_report(tiny_run: tuple[Path, dict]) -> None:
     for needle in ("fig1_validation.png", "fig2_training_size.png", "fig3_horizon.png",
                    "cold-storage", "reduced run"):
         assert needle in report
+    # Training and test days are stated and do not overlap.
+    dates = json.loads((out / "results.json").read_text())["dates"]
+    assert dates["training"][1] < dates["test"][0]
+    assert f"{dates['training'][0]} to {dates['training'][1]}, the training part" in report
+    assert f"{dates['test'][0]} to {dates['test'][1]}, the test part" in report
 
 
 def test_text_summary_is_the_validation_table(tiny_run: tuple[Path, dict]) -> None:
