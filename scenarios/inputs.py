@@ -94,6 +94,11 @@ def time_of_day_h(times: pd.Series | pd.DatetimeIndex) -> np.ndarray:
 
 def interval_starts(start: pd.Timestamp, n: int, dt_s: float) -> pd.DatetimeIndex:
     """``n`` interval start times from ``start`` with step ``dt_s`` (datetime64[ns])."""
+    if (n - 1) * dt_s > (pd.Timestamp.max - start).total_seconds():
+        raise InputError(
+            f"a run of {n * dt_s / SECONDS_PER_DAY:.0f} days from {start:%Y-%m-%d} would end after "
+            f"{pd.Timestamp.max:%Y}, where timestamps end; use fewer days"
+        )
     return pd.DatetimeIndex(start + pd.to_timedelta(np.arange(n) * dt_s, unit="s")).as_unit("ns")
 
 

@@ -146,6 +146,13 @@ def test_runs_that_do_not_fit_their_part_are_refused():
         _training_frame(paper, days=longest + 1, seed=0)
 
 
+@pytest.mark.parametrize("part", ["test", "whole"])
+def test_a_run_past_the_last_timestamp_is_refused(part):
+    """Without a part's bound, 100000 days would overflow pandas' nanosecond timestamps."""
+    with pytest.raises(InputError, match=r"a run of 100000 days from 20\d\d-04-01 would end after 2262"):
+        get_scenario("paper_household").exogenous(days=100_000, seed=0, part=part)
+
+
 def test_synthetic_test_days_are_other_dates_and_other_draws():
     """Stationary weather: the test part is the same process, dated from ``test_start`` and
     drawn from its own streams, so the same seed does not repeat the training weather."""
