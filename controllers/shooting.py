@@ -51,12 +51,14 @@ from controllers.base import (
     Forecast,
     Observation,
     SolveStats,
+    check_heating,
     fallback_power,
     planning_band,
 )
 from controllers.planners import CEMPlanner, Planner, RandomShootingPlanner
 from controllers.polish import PiggybackPolish, PlanProblem, PolishSettings, RolloutFn
 from pinn_mpc.errors import InputError
+from pinn_mpc.features import check_interval
 from pinn_mpc.physics import RCParams, discretise
 
 #: How ensemble members enter the objective: "mean" scores the members' average prediction (a
@@ -88,11 +90,18 @@ class BatchDynamics(Protocol):
 
     ``rollout(history, u_w, exog)``: ``history`` as in :class:`controllers.base.Observation`,
     ``u_w`` (N, H) demanded power [W], ``exog`` one array (H,) per name in ``exog_names``.
-    The model needs ``depth + 1`` past intervals of history.
+    The model needs ``depth + 1`` past intervals of history. ``eta`` (heat per W of actuator
+    power, < 0 cooling) and ``dt_s`` (the interval it steps) must match the scenario's.
     """
 
     @property
     def n_members(self) -> int: ...
+
+    @property
+    def eta(self) -> float: ...
+
+    @property
+    def dt_s(self) -> float: ...
 
     @property
     def depth(self) -> int: ...
@@ -142,9 +151,13 @@ class RCBatchModel:
                 f"RCBatchModel backup limits need low < high, got {backup_low_c}, {backup_high_c}"
             )
         self.params = params
-        self.u_max_w = u_max_w
+        self.u_max_w, self.dt_s = u_max_w, dt_s
         self.backup_low_c, self.backup_high_c = backup_low_c, backup_high_c
         self.ad, self.bd = discretise(params, dt_s)
+
+    @property
+    def eta(self) -> float:
+        return self.params.eta
 
     def state_now(self, history: dict[str, np.ndarray]) -> tuple[float, float]:
         """Current ``(T_r, T_m)`` [C] from the history (see the class docstring)."""
@@ -222,6 +235,8 @@ class _SamplingController:
         options: _Options,
     ):
         risk_weight, ensemble, offset_gain = options.risk_weight, options.ensemble, options.offset_gain
+        check_heating(model.eta, spec, what="the model")
+        check_interval(model.dt_s, spec.dt_s, what="the scenario's control interval is")
         for name in model.exog_names:
             if name not in FORECAST_FIELDS:
                 raise InputError(

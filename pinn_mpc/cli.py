@@ -76,6 +76,7 @@ def _train(a: argparse.Namespace) -> str:
         columns=a.columns,
         recipe=a.recipe,
         seed=a.seed,
+        eta=a.eta,
     )
 
 
@@ -195,6 +196,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--columns", default=None, help="column mapping, e.g. T_r=T_int,u_phys=P_hea,T_a=T_ext"
+    )
+    p.add_argument(
+        "--eta",
+        type=float,
+        default=None,
+        help="heat per W of actuator power (default: 1 heating; give -COP for cooling)",
     )
     p.add_argument("--out", required=True, help="model directory to write")
 

@@ -19,7 +19,7 @@ import torch
 from pinn_mpc.artifacts import load_model
 from pinn_mpc.data import read_timeseries, validate_timeseries
 from pinn_mpc.errors import InputError
-from pinn_mpc.features import time_of_day_h
+from pinn_mpc.features import check_interval, time_of_day_h
 from pinn_mpc.io import atomic_write_json
 from pinn_mpc.models import LearnedModel
 
@@ -73,6 +73,7 @@ def evaluate_model(
     if not horizons or min(horizons) < 1:
         raise InputError(f"horizons must be whole numbers >= 1, got {list(horizons)}")
     df = validate_timeseries(df, source="evaluation data")
+    check_interval(model.dt_s, df.attrs["dt_s"], what="the evaluation data has")
     one = model.predict_one_step(df)
     rows = np.asarray(one["row"])
     t_r = df["T_r"].to_numpy(dtype=float)

@@ -16,7 +16,8 @@ def export_rc(model: LearnedModel, *, source: str) -> dict[str, Any]:
 
     Keys as :func:`pinn_mpc.physics.rc_summary` (R_ra_K_per_W, R_rm_K_per_W, C_r_J_per_K,
     C_m_J_per_K, eta, gain terms, coefficients_per_s, time_constants_h, source), plus
-    ``member_coefficients_per_s``, the coefficients of every member. mlp -> InputError.
+    ``member_coefficients_per_s``, the coefficients of every member. mlp, or R/C values
+    outside :data:`pinn_mpc.physics.PLAUSIBLE_RANGES` -> InputError.
     """
     coef = model.physics_coefficients()
     if coef is None:
@@ -24,7 +25,13 @@ def export_rc(model: LearnedModel, *, source: str) -> dict[str, Any]:
             f"model is a plain {model.arch}: it has no physics block to export; "
             "train physreg or physnet, or use `pinn-mpc identify`"
         )
-    params = physics.from_coefficients(coef, eta=model.eta)
+    try:
+        params = physics.from_coefficients(coef, eta=model.eta)
+    except InputError as exc:
+        raise InputError(
+            f"the model's learned 2R2C is not physical ({exc}); train it on longer, more varied "
+            "data, and check the data's units"
+        ) from exc
     out = physics.rc_summary(params, source=source)
     out["member_coefficients_per_s"] = model.member_coefficients()
     return out

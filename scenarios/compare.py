@@ -165,6 +165,7 @@ def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonR
         epochs=settings.training_epochs,
         recipe=settings.recipe,
         eta=eta,
+        u_max_w=scenario.sim.u_max_w,
     )
     models = {}
     # physreg and mlp only serve the CEM rows; without them only physnet is trained.
