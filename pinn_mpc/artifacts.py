@@ -19,17 +19,24 @@ from safetensors.torch import load_file, save_file
 from pinn_mpc import __version__, physics
 from pinn_mpc.errors import InputError, ModelFileError
 from pinn_mpc.features import FeatureConfig
-from pinn_mpc.io import atomic_directory
+from pinn_mpc.io import DirectoryLayout, atomic_directory
 from pinn_mpc.models import ARCHS, EnsembleModule, LearnedModel
 
 WEIGHTS = "weights.safetensors"
 META = "model.json"
 FORMAT_VERSION = 1
+#: A model directory holds these two files (weights first: they are renamed into place in this
+#: order, and model.json describes them).
+MODEL_DIRECTORY = DirectoryLayout(
+    kind="model directory", files=(WEIGHTS, META), markers=(WEIGHTS, META)
+)
 _REQUIRED = ("format_version", "arch", "n_members", "features", "prior", "eta", "u_phys_range_w")
 
 
-def save_model(model: LearnedModel, path: str | os.PathLike[str]) -> str:
-    """Write the model directory atomically (a failed write leaves nothing behind)."""
+def save_model(model: LearnedModel, path: str | os.PathLike[str], *, force: bool = False) -> str:
+    """Write the model directory atomically (a failed write leaves nothing behind). An existing
+    directory that is not a model directory is refused unless ``force``; then only the model's
+    files in it are replaced (see :func:`pinn_mpc.io.atomic_directory`)."""
     state = {k: v.detach().contiguous().clone() for k, v in model.module.state_dict().items()}
     coef = model.physics_coefficients()
     meta: dict[str, Any] = {
@@ -46,12 +53,11 @@ def save_model(model: LearnedModel, path: str | os.PathLike[str]) -> str:
         "tensors": {k: list(v.shape) for k, v in state.items()},
     }
     text = json.dumps(meta, indent=2, allow_nan=False) + "\n"
-    with atomic_directory(path) as tmp:
+    with atomic_directory(path, MODEL_DIRECTORY, force=force) as tmp:
         save_file(state, str(tmp / WEIGHTS))
         (tmp / META).write_text(text, encoding="utf-8")
         for item in (tmp / WEIGHTS, tmp / META):
             item.chmod(0o644)
-        tmp.chmod(0o755)  # mkdtemp makes it private
     return str(path)
 
 
@@ -96,6 +102,11 @@ def _read_weights(directory: Path) -> dict[str, torch.Tensor]:
 def load_model(path: str | os.PathLike[str]) -> LearnedModel:
     """Load and validate a model directory written by :func:`save_model`."""
     directory = Path(path)
+    if directory.is_file():
+        raise ModelFileError(
+            f"{directory} is a file, not a model directory; give the directory that "
+            "`pinn-mpc train --out DIR` wrote (it holds model.json and weights.safetensors)"
+        )
     if not directory.is_dir():
         raise ModelFileError(
             f"model directory {directory} does not exist; "
