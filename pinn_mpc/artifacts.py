@@ -29,12 +29,17 @@ from safetensors.torch import load_file, save_file
 from pinn_mpc import __version__, physics
 from pinn_mpc.errors import InputError, ModelFileError, warn
 from pinn_mpc.features import FeatureConfig, whole_number
-from pinn_mpc.io import atomic_directory
+from pinn_mpc.io import DirectoryLayout, atomic_directory
 from pinn_mpc.models import ARCHS, MAX_MEMBERS, EnsembleModule, LearnedModel
 
 WEIGHTS = "weights.safetensors"
 META = "model.json"
 FORMAT_VERSION = 1
+#: A model directory holds these two files (weights first: they are renamed into place in this
+#: order, and model.json describes them).
+MODEL_DIRECTORY = DirectoryLayout(
+    kind="model directory", files=(WEIGHTS, META), markers=(WEIGHTS, META)
+)
 _REQUIRED = ("format_version", "arch", "n_members", "features", "prior", "u_phys_range_w")
 CHECKSUM = "weights_sha256"
 
@@ -47,8 +52,10 @@ def _sha256(path: Path) -> str:
     return digest.hexdigest()
 
 
-def save_model(model: LearnedModel, path: str | os.PathLike[str]) -> str:
-    """Write the model directory atomically (a failed write leaves nothing behind)."""
+def save_model(model: LearnedModel, path: str | os.PathLike[str], *, force: bool = False) -> str:
+    """Write the model directory atomically (a failed write leaves nothing behind). An existing
+    directory that is not a model directory is refused unless ``force``; then only the model's
+    files in it are replaced (see :func:`pinn_mpc.io.atomic_directory`)."""
     state = {k: v.detach().contiguous().clone() for k, v in model.module.state_dict().items()}
     coef = model.physics_coefficients()
     meta: dict[str, Any] = {
@@ -64,14 +71,13 @@ def save_model(model: LearnedModel, path: str | os.PathLike[str]) -> str:
         },
         "tensors": {k: list(v.shape) for k, v in state.items()},
     }
-    with atomic_directory(path) as tmp:
+    with atomic_directory(path, MODEL_DIRECTORY, force=force) as tmp:
         save_file(state, str(tmp / WEIGHTS))
         meta[CHECKSUM] = _sha256(tmp / WEIGHTS)
         text = json.dumps(meta, indent=2, allow_nan=False) + "\n"
         (tmp / META).write_text(text, encoding="utf-8")
         for item in (tmp / WEIGHTS, tmp / META):
             item.chmod(0o644)
-        tmp.chmod(0o755)  # mkdtemp makes it private
     return str(path)
 
 
@@ -156,6 +162,11 @@ def _check_sizes(
 def load_model(path: str | os.PathLike[str]) -> LearnedModel:
     """Load and validate a model directory written by :func:`save_model`."""
     directory = Path(path)
+    if directory.is_file():
+        raise ModelFileError(
+            f"{directory} is a file, not a model directory; give the directory that "
+            "`pinn-mpc train --out DIR` wrote (it holds model.json and weights.safetensors)"
+        )
     if not directory.is_dir():
         raise ModelFileError(
             f"model directory {directory} does not exist; "

@@ -5,9 +5,9 @@ from __future__ import annotations
 from typing import Any
 
 from pinn_mpc import physics
-from pinn_mpc.artifacts import load_model
+from pinn_mpc.artifacts import MODEL_DIRECTORY, load_model
 from pinn_mpc.errors import InputError
-from pinn_mpc.io import atomic_write_json
+from pinn_mpc.io import atomic_write_json, check_distinct, check_writable
 from pinn_mpc.models import LearnedModel
 
 
@@ -39,6 +39,8 @@ def export_rc(model: LearnedModel, *, source: str) -> dict[str, Any]:
 
 def export_rc_to_json(*, model: str, out: str) -> str:
     """CLI ``export-rc``: load a model directory, write its RC JSON; returns a summary line."""
+    check_writable(out)
+    check_distinct(inputs={"--model": MODEL_DIRECTORY.paths(model)}, outputs={"--out": out})
     learned = load_model(model)
     data = export_rc(
         learned, source=f"export-rc of {learned.arch} x{learned.n_members} from {model}"

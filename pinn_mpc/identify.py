@@ -31,7 +31,7 @@ import scipy.signal
 
 from pinn_mpc.data import read_timeseries
 from pinn_mpc.errors import InputError
-from pinn_mpc.io import atomic_write_json
+from pinn_mpc.io import atomic_write_json, check_distinct, check_writable
 from pinn_mpc.physics import PLAUSIBLE_RANGES, RCParams, check_plausible, discretise, rc_summary
 
 #: Below this standard deviation a G or I_g column counts as constant (not identifiable).
@@ -279,6 +279,8 @@ def identify_to_json(
     ``fit`` block (:meth:`IdentifyResult.fit_statistics`). Returns a one-line summary.
     """
     eta_value = 1.0 if eta is None else float(eta)
+    check_writable(out)
+    check_distinct(inputs={"--data": data}, outputs={"--out": out})
     df = read_timeseries(data, columns=columns)
     result = identify_rc(df, eta=eta_value)
     summary = rc_summary(result.params, source=f"identify:{data}")

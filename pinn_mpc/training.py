@@ -21,7 +21,6 @@ import os
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass, replace
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -33,6 +32,7 @@ from pinn_mpc import __version__, physics
 from pinn_mpc.data import read_timeseries, validate_timeseries
 from pinn_mpc.errors import InputError
 from pinn_mpc.features import MAX_DEPTH, MIN_TRAIN_SAMPLES, fit_feature_config, make_windows
+from pinn_mpc.io import check_distinct, check_output_directory
 from pinn_mpc.models import (
     ARCHS,
     MAX_MEMBERS,
@@ -312,27 +312,30 @@ def train_to_dir(
     recipe: str,
     seed: int,
     eta: float | None = None,
+    force: bool = False,
 ) -> str:
     """CLI ``train``: read data, train the ensemble, save the model directory; returns a summary.
 
     ``eta`` None means 1 (a heater); give minus the COP for a cooling machine.
-    """
-    from pinn_mpc.artifacts import save_model
 
-    parent = Path(out).parent
-    if not parent.is_dir():
-        raise InputError(
-            f"cannot write model {out}: directory {parent} does not exist; create it first"
-        )
+    ``out`` is checked before training: it must be new, empty or a model directory, or
+    ``force`` given (then only the model's files in it are replaced).
+    """
+    from pinn_mpc.artifacts import MODEL_DIRECTORY, save_model
+
+    check_output_directory(out, MODEL_DIRECTORY, force=force)
+    files = MODEL_DIRECTORY.paths(out)
+    check_distinct(inputs={"--data": data}, outputs={"--out": files})
     df = read_timeseries(data, columns=columns)
     config = TrainConfig(
         depth=depth, n_seeds=seeds, first_seed=seed, epochs=epochs, lam=lam, recipe=recipe,
         eta=1.0 if eta is None else eta,
     )
     model = train_model(df, arch=arch, config=config)
-    path = save_model(model, out)
+    save_model(model, out, force=force)
     loss = model.meta["final_loss"]
     return (
         f"trained {arch} x{seeds} on {len(df)} rows in {model.meta['train_seconds']:.1f} s "
-        f"(final loss reg {loss['reg']:.3g}, phys {loss['phys']:.3g}) -> {path}"
+        f"(final loss reg {loss['reg']:.3g}, phys {loss['phys']:.3g}); "
+        f"wrote {', '.join(map(str, files))}"
     )

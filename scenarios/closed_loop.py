@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import contextlib
 import math
-import os
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -31,12 +30,13 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
+from tqdm import tqdm
 
 from controllers.base import Controller, ControlSpec, Forecast, Observation, fallback_power
 from controllers.thermostat import Thermostat
 from pinn_mpc.data import write_timeseries
 from pinn_mpc.errors import InputError
-from pinn_mpc.io import atomic_write_json
+from pinn_mpc.io import PathsArg, atomic_write_json, check_distinct, check_writable
 from pinn_mpc.simulator import Simulator
 from scenarios.factory import MODEL_CONTROLLERS, make_controller
 from scenarios.inputs import day_span, time_of_day_h
@@ -95,6 +95,7 @@ def run_closed_loop(
     warmup_steps: int | None = None,
     label: str | None = None,
     weather_part: str = "test",
+    progress: bool = False,
 ) -> ClosedLoopResult:
     """Run ``controller`` on ``scenario`` for ``days`` counted days after the warm-up.
 
@@ -103,6 +104,7 @@ def run_closed_loop(
     part of the scenario's weather the run is drawn from (default the test part; see
     :mod:`scenarios.inputs`). ``warmup_steps`` defaults to one day of intervals. ``label``
     names the controller in the KPIs (default its ``name``).
+    ``progress`` shows a bar on stderr for runs over a second, when it is a terminal.
     """
     if days < 1:
         raise InputError(f"closed loop: days must be >= 1, got {days}")
@@ -146,7 +148,15 @@ def run_closed_loop(
     t_r_sub = np.zeros((total, sim_config.n_substeps))
     errors: list[str] = []
     history_src = {"T_a": cols["T_a"], "G": cols["G"], "I_g": cols["I_g"], "time_of_day_h": tod}
-    for k in range(total):
+    steps = tqdm(
+        range(total),
+        desc=label or controller.name,
+        unit="step",
+        delay=1.0,
+        leave=False,
+        disable=None if progress else True,  # None: off when stderr is not a terminal
+    )
+    for k in steps:
         t_r_meas[k] = sim.measure()[0]
         t_m_true[k] = sim.state[0, 1]
         # Copies: a controller may keep or change what it is given without touching the run.
@@ -231,26 +241,6 @@ def one_torch_thread() -> Iterator[None]:
         torch.set_num_threads(before)
 
 
-def check_writable(*paths: str | None, create_parents: bool = False) -> None:
-    """Fail before any work if an output file cannot be written: its folder is missing (unless
-    ``create_parents``, then the nearest existing ancestor counts) or read-only."""
-    for path in paths:
-        if path is None:
-            continue
-        target = Path(path)
-        if target.is_dir():
-            raise InputError(f"cannot write {target}: it is a directory; give a file name")
-        parent = target.parent
-        while create_parents and not parent.exists() and parent != parent.parent:
-            parent = parent.parent
-        if parent.exists() and not parent.is_dir():
-            raise InputError(f"cannot write {target}: {parent} is a file, not a directory")
-        if not parent.is_dir():
-            raise InputError(f"cannot write {target}: directory {parent} does not exist; create it")
-        if not os.access(parent, os.W_OK):
-            raise InputError(f"cannot write {target}: directory {parent} is not writable")
-
-
 def write_trajectory(result: ClosedLoopResult, path: str | Path) -> Path:
     """The trajectory CSV: the data format's columns, then :data:`EXTRA_COLUMNS`."""
     return write_timeseries(result.trajectory, path)
@@ -269,10 +259,19 @@ def closed_loop_command(
     plot_path: str | None,
     weather_part: str = "test",
 ) -> str:
-    """``pinn-mpc closed-loop``: run, write KPI JSON (and CSV, plot), return a one-line summary."""
+    """``pinn-mpc closed-loop``: run, write KPI JSON (and CSV, plot), return a summary that
+    names every file written. Outputs are checked before the run: writable, and none of them
+    the same file as an input (``--model``'s files, ``--rc``) or as another output."""
     from scenarios.plots import plot_trajectory  # matplotlib only when plotting
 
-    check_writable(json_path, csv_path, plot_path)
+    outputs = {"--json": json_path, "--csv": csv_path, "--plot": plot_path}
+    check_writable(*outputs.values())
+    inputs: dict[str, PathsArg] = {"--rc": rc}
+    if model is not None:
+        from pinn_mpc.artifacts import MODEL_DIRECTORY  # torch: only when a model is given
+
+        inputs["--model"] = MODEL_DIRECTORY.paths(model)
+    check_distinct(inputs=inputs, outputs=outputs)
     scen = get_scenario(scenario)
     ctrl = make_controller(
         controller,
@@ -284,7 +283,9 @@ def closed_loop_command(
     # torch only for the planners over learned models; the others start faster without it.
     threads = one_torch_thread() if controller in MODEL_CONTROLLERS else contextlib.nullcontext()
     with threads:
-        result = run_closed_loop(scen, ctrl, days=days, seed=seed, weather_part=weather_part)
+        result = run_closed_loop(
+            scen, ctrl, days=days, seed=seed, weather_part=weather_part, progress=True
+        )
     if csv_path is not None:
         write_trajectory(result, csv_path)
     if plot_path is not None:
@@ -293,7 +294,8 @@ def closed_loop_command(
     lines = [format_kpis(result.kpis)]
     if result.errors:
         lines.append(f"{len(result.errors)} controller error(s), first: {result.errors[0]}")
-    return "\n".join([*lines, f"wrote {json_path}"])
+    written = [str(p) for p in (json_path, csv_path, plot_path) if p is not None]
+    return "\n".join([*lines, f"wrote {', '.join(written)}"])
 
 
 def format_kpis(kpis: dict[str, Any]) -> str:

@@ -34,9 +34,15 @@ from tqdm import tqdm
 
 from controllers.planners import CEMPlanner, RandomShootingPlanner
 from pinn_mpc.errors import InputError
-from pinn_mpc.io import atomic_write_json, atomic_write_text
+from pinn_mpc.io import (
+    PathsArg,
+    atomic_write_json,
+    atomic_write_text,
+    check_distinct,
+    check_writable,
+)
 from pinn_mpc.physics import RCParams, params_from_summary, rc_summary
-from scenarios.closed_loop import check_writable, one_torch_thread, run_closed_loop
+from scenarios.closed_loop import one_torch_thread, run_closed_loop
 from scenarios.datagen import RANDOM_POLICIES
 from scenarios.factory import build_controller
 from scenarios.inputs import day_span
@@ -272,13 +278,25 @@ def compare_command(
     policy: str = "random-level",
 ) -> str:
     """``pinn-mpc compare``: run the comparison, write the JSON table, report and figure."""
+    check_writable(json_path, report_path, create_parents=True)
+    report = Path(report_path)
+    figure = report.with_suffix(".png")
+    if figure == report:
+        raise InputError(
+            f"--report {report_path}: the report is markdown and its figure is written next to "
+            f"it as {figure.name}; give --report a name ending in .md"
+        )
+    check_writable(figure, create_parents=True)
+    outputs: dict[str, PathsArg] = {
+        "--json": json_path,
+        "--report": report_path,
+        "--report's figure": figure,
+    }
+    check_distinct(inputs={}, outputs=outputs)
     scen = get_scenario(scenario)
     settings = CompareSettings.for_run(
         train_days=train_days, days=days, seed=seed, quick=quick, policy=policy
     )
-    report = Path(report_path)
-    figure = report.with_suffix(".png")
-    check_writable(json_path, report_path, str(figure), create_parents=True)
     start = time.perf_counter()
     result = run_comparison(scen, settings)
     total_s = time.perf_counter() - start

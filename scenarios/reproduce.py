@@ -35,10 +35,17 @@ from tqdm import tqdm  # noqa: E402
 
 from pinn_mpc.errors import InputError  # noqa: E402
 from pinn_mpc.evaluation import evaluate_model, recursive_t_r  # noqa: E402
-from pinn_mpc.io import atomic_write, atomic_write_json, atomic_write_text  # noqa: E402
+from pinn_mpc.io import (  # noqa: E402
+    DirectoryLayout,
+    atomic_directory,
+    atomic_write,
+    atomic_write_json,
+    atomic_write_text,
+    check_output_directory,
+    check_writable,
+)
 from pinn_mpc.models import ARCHS, LearnedModel  # noqa: E402
 from pinn_mpc.training import RECIPES, TrainConfig, train_model  # noqa: E402
-from scenarios.closed_loop import check_writable  # noqa: E402
 from scenarios.datagen import generate  # noqa: E402
 from scenarios.inputs import day_span  # noqa: E402
 from scenarios.registry import get_scenario  # noqa: E402
@@ -470,16 +477,20 @@ def render_report(
 
 
 def run_reproduction(
-    out: str | Path, config: ReproduceConfig, *, progress: bool = True
+    out: str | Path, config: ReproduceConfig, *, progress: bool = True, force: bool = False
 ) -> dict[str, Any]:
     """Run the three experiments and write ``out/``: ``results.json``, ``report.md``,
     ``table1_validation.md``, ``table2_training_size.md``, ``table3_horizon.md`` and the
-    figures ``fig1_validation.png``, ``fig2_training_size.png``, ``fig3_horizon.png``.
+    figures ``fig1_validation.png``, ``fig2_training_size.png``, ``fig3_horizon.png``
+    (:data:`OUTPUT`). ``out`` is checked first: new, empty or an earlier reproduction, or
+    ``force`` (then only those files are replaced; anything else in ``out`` is kept).
 
     Returns the results dict (what ``results.json`` holds).
     """
     out = Path(out)
-    check_writable(str(out / "results.json"), create_parents=True)
+    check_writable(out / "results.json", create_parents=True)
+    if out.parent.is_dir():  # else it is created at the end, and so is ``out``
+        check_output_directory(out, OUTPUT, force=force)
     scenario = get_scenario(config.scenario)
     sizes = config.sizes()
     horizons = config.eval_horizons()
@@ -518,7 +529,7 @@ def run_reproduction(
         bar.set_postfix_str("writing")
         dates = {"training": day_span(pool["time"]), "test": day_span(test["time"])}
         results = _collect(config, runs, sizes, hp, test, dates)
-        _write_outputs(out, results, test, preds)
+        _write_outputs(out, results, test, preds, force=force)
         bar.update(1)
     return results
 
@@ -579,33 +590,48 @@ FILES = {
 }
 
 
+#: Everything ``reproduce`` writes into its directory.
+OUTPUT = DirectoryLayout(
+    kind="reproduction directory",
+    files=("report.md", "results.json", *(name for pair in FILES.values() for name in pair)),
+    markers=("report.md", "results.json"),
+)
+
+
 def _write_outputs(
-    out: Path, results: Mapping[str, Any], test: pd.DataFrame, preds: Mapping[str, Any]
+    out: Path,
+    results: Mapping[str, Any],
+    test: pd.DataFrame,
+    preds: Mapping[str, Any],
+    *,
+    force: bool,
 ) -> None:
-    out.mkdir(parents=True, exist_ok=True)
+    out.parent.mkdir(parents=True, exist_ok=True)
     figures = {name: fig for name, (fig, _) in FILES.items()}
-    plot_validation(test, preds, out / figures["validation"])
-    tables = {"validation": validation_table(results, markdown=True)}
-    for experiment, panels in series_panels(results).items():
-        plot_series(experiment, panels, out / figures[experiment])
-        tables[experiment] = series_table(experiment, panels)
-    for name, (_, table) in FILES.items():
-        atomic_write_text(out / table, tables[name] + "\n")
-    atomic_write_json(out / "results.json", results)
-    atomic_write_text(out / "report.md", render_report(results, figures=figures, tables=tables))
+    with atomic_directory(out, OUTPUT, force=force) as tmp:
+        plot_validation(test, preds, tmp / figures["validation"])
+        tables = {"validation": validation_table(results, markdown=True)}
+        for experiment, panels in series_panels(results).items():
+            plot_series(experiment, panels, tmp / figures[experiment])
+            tables[experiment] = series_table(experiment, panels)
+        for name, (_, table) in FILES.items():
+            atomic_write_text(tmp / table, tables[name] + "\n")
+        atomic_write_json(tmp / "results.json", results)
+        report = render_report(results, figures=figures, tables=tables)
+        atomic_write_text(tmp / "report.md", report)
 
 
-def reproduce_command(*, out: str, quick: bool, seeds: int | None) -> str:
-    """CLI ``reproduce``: run the experiments into ``out``; returns the validation table."""
+def reproduce_command(*, out: str, quick: bool, seeds: int | None, force: bool = False) -> str:
+    """CLI ``reproduce``: run the experiments into ``out``; returns the validation table and
+    the files written."""
     config = ReproduceConfig.quick(seeds) if quick else ReproduceConfig(seeds=seeds or 20)
     started = time.perf_counter()
-    results = run_reproduction(out, config)
+    results = run_reproduction(out, config, force=force)
     elapsed = time.perf_counter() - started
     return (
         f"one-step MAE on {config.test_days} test days after {config.validation_days} training "
         "days, "
         f"mean ± std over {config.seeds} seeds (ens. = ensemble mean):\n"
         + validation_table(results, markdown=False)
-        + f"\nwrote {Path(out) / 'report.md'} and results.json in {elapsed:.0f} s"
+        + f"\nwrote {Path(out)}/: {', '.join(OUTPUT.files)} in {elapsed:.0f} s"
     )
-
