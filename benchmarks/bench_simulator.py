@@ -23,7 +23,7 @@ MIN_SPEEDUP = 100.0
 def throughput(n_buildings: int, days: int, *, repeats: int = 3) -> float:
     """Best-of-``repeats`` building-minutes per second."""
     scenario = get_scenario("paper_household")
-    exo = scenario.exogenous(days=days, seed=0)
+    exo = scenario.exogenous(days=days, seed=0, part="train")
     t_a = exo["T_a"].to_numpy()
     rng = np.random.default_rng(0)
     demand = np.where(rng.random((len(exo), n_buildings)) < 0.5, scenario.sim.u_max_w, 0.0)

@@ -54,12 +54,14 @@ from controllers.base import (
     Observation,
     PlanningController,
     SolveStats,
+    check_heating,
 )
 from controllers.estimators import OffsetFilter
 from controllers.lp_polish import PiggybackPolish, PlanProblem, PolishSettings, RolloutFn
 from controllers.objective import HorizonObjective
 from controllers.planners import CEMPlanner, Planner, RandomShootingPlanner
 from pinn_mpc.errors import InputError
+from pinn_mpc.features import check_interval
 from pinn_mpc.rc_batch_model import BatchDynamics
 
 __all__ = ["CEM", "ENSEMBLE_MODES", "RandomShooting"]
@@ -97,6 +99,8 @@ class _SamplingController(PlanningController):
         options: _Options,
     ):
         risk_weight, ensemble = options.risk_weight, options.ensemble
+        check_heating(model.eta, spec, what="the model")
+        check_interval(model.dt_s, spec.dt_s, what="the scenario's control interval is")
         for name in model.exog_names:
             if name not in EXOGENOUS_NAMES:
                 raise InputError(

@@ -9,30 +9,56 @@ Bad input (:class:`~pinn_mpc.errors.InputError`) becomes one line on stderr and 
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from collections.abc import Callable, Sequence
+from typing import Any, NoReturn
 
 from pinn_mpc import __version__
 from pinn_mpc.errors import InputError
 
+#: The longest run any command accepts. Timestamps are labelled from 2021 and pandas' clock
+#: ends in 2262, so some limit is needed; ten years is more than any building study simulates.
+MAX_DAYS = 3650
 
-def _positive_int(text: str) -> int:
+
+def _whole(text: str) -> int:
     try:
-        value = int(text)
+        return int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+
+
+def _positive_int(text: str) -> int:
+    value = _whole(text)
     if value < 1:
         raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
     return value
 
 
-def _non_negative_float(text: str) -> float:
+def _days(text: str) -> int:
+    value = _positive_int(text)
+    if value > MAX_DAYS:
+        raise argparse.ArgumentTypeError(
+            f"{value} days is more than the {MAX_DAYS} (ten years) a run may cover"
+        )
+    return value
+
+
+def _seed(text: str) -> int:
+    value = _whole(text)
+    if not 0 <= value < 2**63:  # torch and numpy both take seeds in this range
+        raise argparse.ArgumentTypeError(f"must be a whole number in 0..2**63-1, got {text}")
+    return value
+
+
+def _finite_non_negative_float(text: str) -> float:
     try:
         value = float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if not value >= 0:
-        raise argparse.ArgumentTypeError(f"must be >= 0, got {text}")
+    if not (math.isfinite(value) and value >= 0):
+        raise argparse.ArgumentTypeError(f"must be a finite number >= 0, got {text}")
     return value
 
 
@@ -58,6 +84,7 @@ def _simulate(a: argparse.Namespace) -> str:
         policy=a.policy,
         buildings=a.buildings,
         out=a.out,
+        weather_part=a.weather_part,
     )
 
 
@@ -75,6 +102,8 @@ def _train(a: argparse.Namespace) -> str:
         columns=a.columns,
         recipe=a.recipe,
         seed=a.seed,
+        eta=a.eta,
+        force=a.force,
     )
 
 
@@ -111,6 +140,7 @@ def _closed_loop(a: argparse.Namespace) -> str:
         json_path=a.json,
         csv_path=a.csv,
         plot_path=a.plot,
+        weather_part=a.weather_part,
     )
 
 
@@ -132,13 +162,59 @@ def _compare(a: argparse.Namespace) -> str:
 def _reproduce(a: argparse.Namespace) -> str:
     from scenarios.reproduce import reproduce_command
 
-    return reproduce_command(out=a.out, quick=a.quick, seeds=a.seeds)
+    return reproduce_command(out=a.out, quick=a.quick, seeds=a.seeds, force=a.force)
+
+
+def _registry_names(key: str) -> str:
+    """Scenario or controller names from their registries (imported only to print help)."""
+    if key == "scenarios":
+        from scenarios.registry import scenario_names
+
+        return ", ".join(scenario_names())
+    from scenarios.factory import CONTROLLER_NAMES
+
+    return ", ".join(CONTROLLER_NAMES)
+
+
+class _HelpFormatter(argparse.HelpFormatter):
+    """Shows each option's default (unless it has none) and fills ``{scenarios}`` and
+    ``{controllers}`` from the registries only when help is printed, so start-up stays fast."""
+
+    def _get_help_string(self, action: argparse.Action) -> str | None:
+        text = action.help or ""
+        for key in ("scenarios", "controllers"):
+            if "{" + key + "}" in text:
+                text = text.replace("{" + key + "}", _registry_names(key))
+        no_default = any(action.default is v for v in (None, False, argparse.SUPPRESS))
+        if action.option_strings and not action.required and not no_default:
+            text += " (default: %(default)s)"
+        return text
+
+
+class _Parser(argparse.ArgumentParser):
+    """Usage errors are one line (what is wrong and where to look), like every other error."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
+def _add_weather_part(p: argparse.ArgumentParser, default: str) -> None:
+    # The names are scenarios.inputs.WEATHER_PARTS (not imported: the CLI starts light).
+    p.add_argument(
+        "--weather-part",
+        choices=["train", "test", "whole"],
+        default=default,
+        help="days of the scenario's weather to draw from: 'train' (training data), 'test' "
+        "(the days closed loops and compare are judged on, disjoint from 'train'), or 'whole' "
+        "(the whole seasonal window, both mixed, as before the split)",
+    )
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="pinn-mpc",
         description="Physics-informed neural network building models and receding-horizon control.",
+        formatter_class=_HelpFormatter,
     )
     parser.add_argument("--version", action="version", version=f"pinn-mpc {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
@@ -146,29 +222,65 @@ def build_parser() -> argparse.ArgumentParser:
     def add(
         name: str, handler: Callable[[argparse.Namespace], str], help_: str
     ) -> argparse.ArgumentParser:
-        p = sub.add_parser(name, help=help_, description=help_)
+        p = sub.add_parser(name, help=help_, description=help_, formatter_class=_HelpFormatter)
         p.set_defaults(handler=handler)
         return p
 
+    def scenario(p: argparse.ArgumentParser, **kwargs: Any) -> None:
+        p.add_argument("--scenario", help="scenario name, one of: {scenarios}", **kwargs)
+
+    def days(p: argparse.ArgumentParser, help_: str, **kwargs: Any) -> None:
+        p.add_argument("--days", type=_days, help=f"{help_}, 1..{MAX_DAYS}", **kwargs)
+
+    def columns(p: argparse.ArgumentParser) -> None:
+        p.add_argument(
+            "--columns",
+            help="column mapping for data with other names, e.g. T_r=T_int,u_phys=P_hea,T_a=T_ext",
+        )
+
+    def data(p: argparse.ArgumentParser, help_: str) -> None:
+        p.add_argument("--data", required=True, help=f"{help_} (CSV in the data format)")
+
+    def model(p: argparse.ArgumentParser, help_: str, **kwargs: Any) -> None:
+        p.add_argument("--model", help=f"{help_} (written by `pinn-mpc train`)", **kwargs)
+
+    def force(p: argparse.ArgumentParser) -> None:
+        p.add_argument(
+            "--force",
+            action="store_true",
+            help="write into an existing directory that holds other files too (only this "
+            "command's own files there are replaced; the rest is kept)",
+        )
+
     p = add("simulate", _simulate, "simulate a scenario and write time-series data (CSV)")
-    p.add_argument("--scenario", required=True, help="scenario name, e.g. paper_household")
-    p.add_argument("--days", type=_positive_int, required=True)
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--policy", choices=["random", "random-level", "thermostat"], default="random")
-    p.add_argument("--buildings", type=_positive_int, default=1)
+    scenario(p, required=True)
+    days(p, "days to simulate", required=True)
+    p.add_argument("--seed", type=_seed, default=0, help="seed of the weather, price and policy")
+    p.add_argument(
+        "--policy",
+        choices=["random", "random-level", "thermostat"],
+        default="random-level",
+        help="heating demand: a uniform random power level per interval (best for models that "
+        "will drive a controller), the paper's random on/off, or a thermostat",
+    )
+    p.add_argument("--buildings", type=_positive_int, default=1, help="buildings simulated")
+    _add_weather_part(p, "train")
     p.add_argument("--out", required=True, help="CSV file to write")
 
     p = add("train", _train, "train a seed ensemble of mlp, physreg or physnet on data")
-    p.add_argument("--data", required=True)
-    p.add_argument("--arch", choices=["mlp", "physreg", "physnet"], required=True)
-    p.add_argument("--depth", type=_positive_int, default=8)
+    data(p, "training data")
+    p.add_argument(
+        "--arch", choices=["mlp", "physreg", "physnet"], required=True, help="architecture"
+    )
+    p.add_argument("--depth", type=_positive_int, default=8, help="history steps the model sees")
     p.add_argument("--seeds", type=_positive_int, default=20, help="ensemble members")
-    p.add_argument("--seed", type=int, default=0, help="first seed")
-    p.add_argument("--epochs", type=_positive_int, default=None, help="default: recipe's")
+    p.add_argument("--seed", type=_seed, default=0, help="seed of the first member")
+    p.add_argument("--epochs", type=_positive_int, default=None, help="epochs (default: recipe's)")
     p.add_argument(
         "--lambda",
         dest="lam",
-        type=_non_negative_float,
+        metavar="LAMBDA",
+        type=_finite_non_negative_float,
         default=None,
         help="physics-loss weight (default: recipe's)",
     )
@@ -178,69 +290,94 @@ def build_parser() -> argparse.ArgumentParser:
         default="converged",
         help="'paper': 75 epochs of batch 2048 as published; 'converged': trains to convergence",
     )
+    columns(p)
     p.add_argument(
-        "--columns", default=None, help="column mapping, e.g. T_r=T_int,u_phys=P_hea,T_a=T_ext"
+        "--out", required=True, help="model directory to write (model.json, weights.safetensors)"
     )
-    p.add_argument("--out", required=True, help="model directory to write")
-
-    p = add("evaluate", _evaluate, "one-step and recursive multi-step errors of a model on data")
-    p.add_argument("--model", required=True)
-    p.add_argument("--data", required=True)
-    p.add_argument("--horizons", type=_horizons, default=[1, 6, 12, 24, 36, 48])
-    p.add_argument("--columns", default=None)
-    p.add_argument("--json", required=True, help="metrics JSON to write")
-
-    p = add("export-rc", _export_rc, "export the learned 2R2C parameters of a model")
-    p.add_argument("--model", required=True)
-    p.add_argument("--out", required=True)
-
-    p = add(
-        "identify", _identify, "grey-box identification of 2R2C parameters from data (T_m hidden)"
-    )
-    p.add_argument("--data", required=True)
-    p.add_argument("--columns", default=None)
     p.add_argument(
         "--eta",
         type=float,
         default=None,
         help="heat per W of actuator power (default: 1 heating; give -COP for cooling)",
     )
-    p.add_argument("--out", required=True)
+    force(p)
+
+    p = add("evaluate", _evaluate, "one-step and recursive multi-step errors of a model on data")
+    model(p, "model directory", required=True)
+    data(p, "test data")
+    p.add_argument(
+        "--horizons",
+        type=_horizons,
+        default="1,6,12,24,36,48",
+        help="recursive prediction horizons [steps], comma-separated",
+    )
+    columns(p)
+    p.add_argument("--json", required=True, help="metrics JSON file to write")
+
+    p = add("export-rc", _export_rc, "export the learned 2R2C parameters of a model")
+    model(p, "physreg or physnet model directory", required=True)
+    p.add_argument("--out", required=True, help="RC JSON file to write (for --rc)")
+
+    p = add(
+        "identify", _identify, "grey-box identification of 2R2C parameters from data (T_m hidden)"
+    )
+    data(p, "measured data")
+    columns(p)
+    p.add_argument(
+        "--eta",
+        type=float,
+        default=None,
+        help="heat per W of actuator power (default: 1 heating; give -COP for cooling)",
+    )
+    p.add_argument("--out", required=True, help="RC JSON file to write (for --rc)")
 
     p = add("closed-loop", _closed_loop, "run one controller against the simulator")
-    p.add_argument("--scenario", required=True)
+    scenario(p, required=True)
+    p.add_argument("--controller", required=True, help="controller, one of: {controllers}")
+    model(p, "model directory for random-shooting and cem", default=None)
     p.add_argument(
-        "--controller",
-        required=True,
-        help="thermostat, random-shooting, cem, casadi-mpc, qp-mpc, oracle, clairvoyant",
+        "--rc", default=None, help="RC JSON for casadi-mpc and qp-mpc (from identify, export-rc)"
     )
-    p.add_argument("--model", default=None, help="model directory (random-shooting, cem)")
-    p.add_argument("--rc", default=None, help="RC JSON (casadi-mpc, qp-mpc)")
-    p.add_argument("--days", type=_positive_int, required=True)
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--json", required=True)
-    p.add_argument("--csv", default=None)
-    p.add_argument("--plot", default=None)
+    days(p, "counted days after a one-day thermostat warm-up", required=True)
+    p.add_argument("--seed", type=_seed, default=0, help="seed of the weather, price and noise")
+    p.add_argument("--json", required=True, help="KPI JSON file to write")
+    p.add_argument("--csv", default=None, help="trajectory CSV file to write")
+    p.add_argument("--plot", default=None, help="trajectory figure (PNG) to write")
+    _add_weather_part(p, "test")
 
     p = add("compare", _compare, "train, identify and run every controller on one scenario")
-    p.add_argument("--scenario", default="paper_household")
-    p.add_argument("--train-days", type=_positive_int, default=60)
-    p.add_argument("--days", type=_positive_int, default=5)
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--json", default="compare/table.json")
-    p.add_argument("--report", default="compare/report.md")
+    scenario(p, default="paper_household")
+    p.add_argument(
+        "--train-days",
+        type=_days,
+        default=60,
+        help=f"days of training data, 1..{MAX_DAYS}",
+    )
+    days(p, "test days of each closed-loop run", default=5)
+    p.add_argument("--seed", type=_seed, default=0, help="seed of the training data and models")
+    p.add_argument("--json", default="compare/table.json", help="KPI table JSON file to write")
+    p.add_argument(
+        "--report",
+        default="compare/report.md",
+        help="markdown report to write; its figure goes next to it with the suffix .png",
+    )
     p.add_argument("--quick", action="store_true", help="small ensembles and short runs (minutes)")
     p.add_argument(
         "--policy",
         choices=["random-level", "random"],
         default="random-level",
-        help="training-data policy: uniform random power levels (default) or the paper's on/off",
+        help="training-data policy: uniform random power levels or the paper's on/off",
     )
 
     p = add("reproduce", _reproduce, "reproduce the paper's three experiments on simulated data")
-    p.add_argument("--out", required=True)
-    p.add_argument("--quick", action="store_true")
-    p.add_argument("--seeds", type=_positive_int, default=None)
+    p.add_argument(
+        "--out", required=True, help="directory to write (report.md, results.json, tables, figures)"
+    )
+    p.add_argument("--quick", action="store_true", help="fewer seeds, sizes and epochs (minutes)")
+    p.add_argument(
+        "--seeds", type=_positive_int, default=None, help="ensemble members (default: 20, quick 3)"
+    )
+    force(p)
     return parser
 
 
@@ -260,6 +397,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     except OSError as exc:
         where = f" ({exc.filename})" if getattr(exc, "filename", None) else ""
         print(f"pinn-mpc {args.command}: error: {exc.strerror or exc}{where}", file=sys.stderr)
+        return 2
+    except MemoryError:
+        print(
+            f"pinn-mpc {args.command}: error: out of memory; ask for a smaller run "
+            "(fewer days, buildings, seeds or a smaller depth)",
+            file=sys.stderr,
+        )
         return 2
     except KeyboardInterrupt:
         print(f"pinn-mpc {args.command}: interrupted", file=sys.stderr)

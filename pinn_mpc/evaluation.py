@@ -16,11 +16,11 @@ import numpy as np
 import pandas as pd
 import torch
 
-from pinn_mpc.artifacts import load_model
+from pinn_mpc.artifacts import MODEL_DIRECTORY, load_model
 from pinn_mpc.data import read_timeseries, validate_timeseries
 from pinn_mpc.errors import InputError
-from pinn_mpc.features import time_of_day_h
-from pinn_mpc.io import atomic_write_json
+from pinn_mpc.features import check_interval, time_of_day_h
+from pinn_mpc.io import PathsArg, atomic_write_json, check_distinct, check_writable
 from pinn_mpc.models import LearnedModel
 
 
@@ -73,6 +73,7 @@ def evaluate_model(
     if not horizons or min(horizons) < 1:
         raise InputError(f"horizons must be whole numbers >= 1, got {list(horizons)}")
     df = validate_timeseries(df, source="evaluation data")
+    check_interval(model.dt_s, df.attrs["dt_s"], what="the evaluation data has")
     one = model.predict_one_step(df)
     rows = np.asarray(one["row"])
     t_r = df["T_r"].to_numpy(dtype=float)
@@ -106,6 +107,9 @@ def evaluate_to_json(
     *, model: str, data: str, horizons: Sequence[int], columns: str | None, json_path: str
 ) -> str:
     """CLI ``evaluate``: load the model and data, write the metrics JSON; returns a summary."""
+    check_writable(json_path)
+    inputs: dict[str, PathsArg] = {"--model": MODEL_DIRECTORY.paths(model), "--data": data}
+    check_distinct(inputs=inputs, outputs={"--json": json_path})
     learned = load_model(model)
     df = read_timeseries(data, columns=columns)
     metrics = evaluate_model(learned, df, horizons)

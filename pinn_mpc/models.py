@@ -37,6 +37,9 @@ from pinn_mpc.errors import InputError
 from pinn_mpc.features import FeatureConfig, make_windows
 
 ARCHS = ("mlp", "physreg", "physnet")
+#: Most ensemble members: far beyond the paper's 20; bounds what training or a model.json can
+#: make the program allocate.
+MAX_MEMBERS = 1000
 RESIDUALS = ("exact", "finite_difference")
 HIDDEN = {
     "mlp": (64, 64),
@@ -399,7 +402,13 @@ class LearnedModel:
 
     @property
     def eta(self) -> float:
+        """Heat per W of actuator power the model was trained with: > 0 heating, < 0 cooling."""
         return float(self.meta["eta"])
+
+    @property
+    def dt_s(self) -> float:
+        """The control interval [s] the model predicts one step of."""
+        return self.features.dt_s
 
     def _step(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor | None]:
         """Scaled features (M, B, F) -> scaled (T_r,i+1, u_phys,i, T_m,i), each (M, B)."""

@@ -21,7 +21,6 @@ import os
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass, replace
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -32,9 +31,11 @@ from tqdm import tqdm
 from pinn_mpc import __version__, physics
 from pinn_mpc.data import read_timeseries, validate_timeseries
 from pinn_mpc.errors import InputError
-from pinn_mpc.features import MIN_TRAIN_SAMPLES, fit_feature_config, make_windows
+from pinn_mpc.features import MAX_DEPTH, MIN_TRAIN_SAMPLES, fit_feature_config, make_windows
+from pinn_mpc.io import check_distinct, check_output_directory
 from pinn_mpc.models import (
     ARCHS,
+    MAX_MEMBERS,
     RESIDUALS,
     EnsembleModule,
     LearnedModel,
@@ -60,7 +61,9 @@ class TrainConfig:
     """How to train an ensemble. ``None`` means "the recipe's value" (epochs, lam, batch, lr).
 
     ``prior`` gives the initial 2R2C coefficients (default :data:`physics.PAPER_HOUSEHOLD`),
-    ``eta`` the heat per watt of actuator power (sign fixes the sign of ``b``). ``residual`` is
+    ``eta`` the heat per watt of actuator power (1 a heater, -COP a cooling machine; its sign
+    fixes the sign of ``b``, and the model's record of heating or cooling). ``u_max_w`` is the
+    actuator's limit when known: the data's power must not exceed it. ``residual`` is
     ``"exact"`` (both 2R2C rows, ZOH) or ``"finite_difference"`` (the paper's Eq. est_Tm).
     ``physics_lr_factor`` scales the learning rate of the log-space coefficients against the
     network's: at 1 the coefficients barely leave the prior, so the default is larger.
@@ -78,12 +81,15 @@ class TrainConfig:
     batch_size: int | None = None
     lr: float | None = None
     physics_lr_factor: float = 10.0
+    u_max_w: float | None = None
 
     def __post_init__(self) -> None:
-        if self.depth < 1:
-            raise InputError(f"TrainConfig.depth must be >= 1, got {self.depth}")
-        if self.n_seeds < 1:
-            raise InputError(f"TrainConfig.n_seeds must be >= 1, got {self.n_seeds}")
+        if not 1 <= self.depth <= MAX_DEPTH:
+            raise InputError(f"TrainConfig.depth must be 1 .. {MAX_DEPTH}, got {self.depth}")
+        if not 1 <= self.n_seeds <= MAX_MEMBERS:
+            raise InputError(
+                f"TrainConfig.n_seeds must be 1 .. {MAX_MEMBERS} members, got {self.n_seeds}"
+            )
         if self.recipe not in RECIPES:
             raise InputError(f"unknown recipe {self.recipe!r}; choose one of {', '.join(RECIPES)}")
         if self.residual not in RESIDUALS:
@@ -94,8 +100,9 @@ class TrainConfig:
             raise InputError(f"TrainConfig.epochs must be >= 1, got {self.epochs}")
         if self.lam is not None and not (math.isfinite(self.lam) and self.lam >= 0):
             raise InputError(f"TrainConfig.lam must be a finite number >= 0, got {self.lam}")
-        if not math.isfinite(self.eta) or self.eta == 0:
-            raise InputError(f"TrainConfig.eta must be finite and non-zero, got {self.eta}")
+        physics.check_plausible("eta", self.eta, name="eta (--eta)")
+        if self.u_max_w is not None and not (math.isfinite(self.u_max_w) and self.u_max_w > 0):
+            raise InputError(f"TrainConfig.u_max_w must be positive, got {self.u_max_w!r}")
         if self.batch_size is not None and self.batch_size < 1:
             raise InputError(f"TrainConfig.batch_size must be >= 1, got {self.batch_size}")
         if self.lr is not None and not (math.isfinite(self.lr) and self.lr > 0):
@@ -154,7 +161,7 @@ def train_model(
     """Train ``config.n_seeds`` members of ``arch`` together on a frame in the data format."""
     if arch not in ARCHS:
         raise InputError(f"unknown architecture {arch!r}; choose one of {', '.join(ARCHS)}")
-    df = validate_timeseries(df, source="training data")
+    df = validate_timeseries(df, source="training data", u_max_w=config.u_max_w)
     hp = config.resolved()
     features = fit_feature_config(df, depth=config.depth)
     win = make_windows(df, features, min_samples=MIN_TRAIN_SAMPLES)
@@ -303,23 +310,31 @@ def train_to_dir(
     columns: str | None,
     recipe: str,
     seed: int,
+    eta: float | None = None,
+    force: bool = False,
 ) -> str:
-    """CLI ``train``: read data, train the ensemble, save the model directory; returns a summary."""
-    from pinn_mpc.artifacts import save_model
+    """CLI ``train``: read data, train the ensemble, save the model directory; returns a summary.
 
-    parent = Path(out).parent
-    if not parent.is_dir():
-        raise InputError(
-            f"cannot write model {out}: directory {parent} does not exist; create it first"
-        )
+    ``eta`` None means 1 (a heater); give minus the COP for a cooling machine.
+
+    ``out`` is checked before training: it must be new, empty or a model directory, or
+    ``force`` given (then only the model's files in it are replaced).
+    """
+    from pinn_mpc.artifacts import MODEL_DIRECTORY, save_model
+
+    check_output_directory(out, MODEL_DIRECTORY, force=force)
+    files = MODEL_DIRECTORY.paths(out)
+    check_distinct(inputs={"--data": data}, outputs={"--out": files})
     df = read_timeseries(data, columns=columns)
     config = TrainConfig(
-        depth=depth, n_seeds=seeds, first_seed=seed, epochs=epochs, lam=lam, recipe=recipe
+        depth=depth, n_seeds=seeds, first_seed=seed, epochs=epochs, lam=lam, recipe=recipe,
+        eta=1.0 if eta is None else eta,
     )
     model = train_model(df, arch=arch, config=config)
-    path = save_model(model, out)
+    save_model(model, out, force=force)
     loss = model.meta["final_loss"]
     return (
         f"trained {arch} x{seeds} on {len(df)} rows in {model.meta['train_seconds']:.1f} s "
-        f"(final loss reg {loss['reg']:.3g}, phys {loss['phys']:.3g}) -> {path}"
+        f"(final loss reg {loss['reg']:.3g}, phys {loss['phys']:.3g}); "
+        f"wrote {', '.join(map(str, files))}"
     )

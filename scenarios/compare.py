@@ -1,21 +1,24 @@
 """``pinn-mpc compare``: train, identify and run every controller on one scenario.
 
-1. Training data: ``train_days`` under a random policy (seed ``seed``): ``random-level``
+1. Training data: ``train_days`` from the training part of the scenario's weather (see
+   :mod:`scenarios.inputs`) under a random policy (seed ``seed``): ``random-level``
    (a uniform power level per interval, the default) or the paper's on/off ``random``. On/off
    data shows a network only 0 and full power, while the controllers modulate it, so a model
    trained on uniform levels predicts the closed-loop operating points better.
 2. Models: physnet, physreg and mlp seed ensembles; grey-box RC identification (T_m hidden);
    the RC parameters exported from the physnet ensemble.
-3. Closed loop on the same ``days`` test days (seed ``seed + 1``, so other weather than the
-   training data), same perfect forecasts, same one-day thermostat warm-up, for: thermostat,
+3. Closed loop on the same ``days`` test days from the test part of the weather (seed
+   ``seed + 1``; no calendar day in common with the training data, warm-up and forecast lead
+   included), same perfect forecasts, same one-day thermostat warm-up, for: thermostat,
    random shooting and CEM over physnet (and CEM without its LP polish, to show what the
    polish adds), CEM over physreg and mlp (unless ``cem_all_models=False``),
    casadi-mpc and qp-mpc on the identified RC, qp-mpc on the physnet-exported RC, oracle and
    clairvoyant.
 4. Outputs: a JSON table (one row per controller with every KPI), a markdown report with the
-   KPI table, each objective relative to the oracle's, the RC parameters against the true ones
-   and a figure of the trajectories, one panel per controller family against the oracle
-   (PNG next to the report, :func:`scenarios.plots.comparison_figure`).
+   dates of the training data and of the test days, the KPI table, each objective relative to
+   the oracle's, the RC parameters against the true ones and a figure of the trajectories, one
+   panel per controller family against the oracle (PNG next to the report,
+   :func:`scenarios.plots.comparison_figure`).
 """
 
 from __future__ import annotations
@@ -32,11 +35,18 @@ from tqdm import tqdm
 
 from controllers.planners import CEMPlanner, RandomShootingPlanner
 from pinn_mpc.errors import InputError
-from pinn_mpc.io import atomic_write_json, atomic_write_text
+from pinn_mpc.io import (
+    PathsArg,
+    atomic_write_json,
+    atomic_write_text,
+    check_distinct,
+    check_writable,
+)
 from pinn_mpc.physics import RCParams, params_from_summary, rc_summary
-from scenarios.closed_loop import check_writable, one_torch_thread, run_closed_loop
+from scenarios.closed_loop import one_torch_thread, run_closed_loop
 from scenarios.datagen import RANDOM_POLICIES
 from scenarios.factory import build_controller
+from scenarios.inputs import day_span
 from scenarios.plots import plot_comparison
 from scenarios.registry import Scenario, check_seed, get_scenario
 from scenarios.report import kpi_table_text, objective_ratios, render_report
@@ -116,9 +126,12 @@ class ComparisonResult:
     """``rows``: one KPI dict per controller (keys of :mod:`scenarios.kpis` plus ``controller``
     label, ``name``, ``model``, ``objective_to_oracle``); ``rc``: RC summaries by source;
     ``trajectories`` by label; ``wall_time_s`` by stage; ``errors`` the controller exceptions
-    of each run that had any (the fallback acted, see :mod:`scenarios.closed_loop`)."""
+    of each run that had any (the fallback acted, see :mod:`scenarios.closed_loop`);
+    ``days``: [first, last] dates of the ``training`` data, the ``test`` days counted and the
+    ``test weather`` (warm-up and forecast lead included)."""
 
     rows: list[dict[str, Any]]
+    days: dict[str, list[str]]
     rc: dict[str, dict[str, Any]]
     trajectories: dict[str, pd.DataFrame]
     wall_time_s: dict[str, float]
@@ -133,8 +146,22 @@ def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonR
     from scenarios.datagen import generate
 
     wall: dict[str, float] = {}
+    # Refuse test days that do not fit in the test weather before minutes of training: drawn
+    # as run_closed_loop draws them (one warm-up day, a horizon of forecast lead rows).
+    scenario.exogenous(
+        days=settings.test_days + 1,
+        seed=settings.test_seed,
+        part="test",
+        lead_steps=scenario.horizon_steps,
+    )
     start = time.perf_counter()
-    data = generate(scenario, days=settings.train_days, seed=settings.seed, policy=settings.policy)
+    data = generate(
+        scenario,
+        days=settings.train_days,
+        seed=settings.seed,
+        policy=settings.policy,
+        weather_part="train",
+    )
     wall["training data"] = time.perf_counter() - start
     eta = scenario.sim.params.eta
     config = TrainConfig(
@@ -144,6 +171,7 @@ def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonR
         epochs=settings.training_epochs,
         recipe=settings.recipe,
         eta=eta,
+        u_max_w=scenario.sim.u_max_w,
     )
     models = {}
     # physreg and mlp only serve the CEM rows; without them only physnet is trained.
@@ -197,7 +225,12 @@ def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonR
             start = time.perf_counter()
             controller = build_controller(name, scenario, n_steps=n_steps, **kwargs)
             result = run_closed_loop(
-                scenario, controller, days=settings.test_days, seed=settings.test_seed, label=label
+                scenario,
+                controller,
+                days=settings.test_days,
+                seed=settings.test_seed,
+                label=label,
+                weather_part="test",
             )
             wall[f"run {label}"] = time.perf_counter() - start
             rows.append({**result.kpis, "name": name, "model": model_name})
@@ -206,14 +239,31 @@ def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonR
                 errors[label] = result.errors
     for row, ratio in zip(rows, objective_ratios(rows, reference=REFERENCE), strict=True):
         row["objective_to_oracle"] = ratio
+    days = {
+        "training": day_span(data["time"]),
+        "test": rows[0]["counted_days"],
+        "test weather": rows[0]["weather_days"],
+    }
     return ComparisonResult(
-        rows=rows, rc=rc, trajectories=trajectories, wall_time_s=wall, errors=errors
+        rows=rows, days=days, rc=rc, trajectories=trajectories, wall_time_s=wall, errors=errors
     )
 
 
 def _make_parents(*paths: Path) -> None:
     for path in paths:
         path.parent.mkdir(parents=True, exist_ok=True)
+
+
+def _dates_text(settings: CompareSettings, days: dict[str, list[str]]) -> str:
+    """One sentence: when the training data and the test days are."""
+    (train_first, train_last), (first, last) = days["training"], days["test"]
+    return (
+        f"Training data: {settings.train_days} days, {train_first} to {train_last}, from the "
+        f"training part of the weather (seed {settings.seed}). Test: {settings.test_days} days, "
+        f"{first} to {last}, from the test part (seed {settings.test_seed}); with the warm-up "
+        f"day and the forecast lead the test weather spans {days['test weather'][0]} to "
+        f"{days['test weather'][1]}."
+    )
 
 
 def compare_command(
@@ -228,19 +278,33 @@ def compare_command(
     policy: str = "random-level",
 ) -> str:
     """``pinn-mpc compare``: run the comparison, write the JSON table, report and figure."""
+    check_writable(json_path, report_path, create_parents=True)
+    report = Path(report_path)
+    figure = report.with_suffix(".png")
+    if figure == report:
+        raise InputError(
+            f"--report {report_path}: the report is markdown and its figure is written next to "
+            f"it as {figure.name}; give --report a name ending in .md"
+        )
+    check_writable(figure, create_parents=True)
+    outputs: dict[str, PathsArg] = {
+        "--json": json_path,
+        "--report": report_path,
+        "--report's figure": figure,
+    }
+    check_distinct(inputs={}, outputs=outputs)
     scen = get_scenario(scenario)
     settings = CompareSettings.for_run(
         train_days=train_days, days=days, seed=seed, quick=quick, policy=policy
     )
-    report = Path(report_path)
-    figure = report.with_suffix(".png")
-    check_writable(json_path, report_path, str(figure), create_parents=True)
     start = time.perf_counter()
     result = run_comparison(scen, settings)
     total_s = time.perf_counter() - start
     settings_table = {
         **dataclasses.asdict(settings),
         "test_seed": settings.test_seed,
+        "training_dates": result.days["training"],
+        "test_dates": result.days["test"],
         "training_epochs": settings.training_epochs,
         "scenario": scen.name,
         "comfort_weight_eur_per_kh": scen.comfort_weight_eur_per_kh,
@@ -256,7 +320,8 @@ def compare_command(
     ]
     notes += [f"wall time of {stage}: {sec:.1f} s" for stage, sec in result.wall_time_s.items()]
     _make_parents(Path(json_path), report, figure)
-    title = f"{scen.name}: test days, seed {settings.test_seed}"
+    first, last = result.days["test"]
+    title = f"{scen.name}: test days {first} to {last}, seed {settings.test_seed}"
     plot_comparison(result.trajectories, figure, title=title)
     atomic_write_text(
         report,
@@ -268,11 +333,19 @@ def compare_command(
             settings=settings_table,
             figure_name=figure.name,
             notes=notes,
+            dates=_dates_text(settings, result.days),
         ),
     )
     atomic_write_json(
         json_path,
-        {"scenario": scen.name, "settings": settings_table, "rows": result.rows, "rc": result.rc},
+        {
+            "scenario": scen.name,
+            "training_dates": result.days["training"],
+            "test_dates": result.days["test"],
+            "settings": settings_table,
+            "rows": result.rows,
+            "rc": result.rc,
+        },
     )
     written = f"wrote {json_path}, {report_path}, {figure} ({total_s:.0f} s)"
     return f"{kpi_table_text(result.rows)}\n{written}"

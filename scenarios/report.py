@@ -101,13 +101,17 @@ def render_report(
     rc: Mapping[str, Mapping[str, Any]],
     settings: Mapping[str, Any],
     figure_name: str,
+    dates: str,
     notes: Sequence[str] = (),
 ) -> str:
-    """The markdown report of a comparison."""
+    """The markdown report of a comparison; ``dates`` says when the training data and the
+    test days are."""
     lines = [
         f"# Closed-loop comparison on `{scenario}`",
         "",
         description,
+        "",
+        dates,
         "",
         "Every controller ran on the same test days (same weather, prices, comfort band and "
         "perfect forecasts) after the same one-day thermostat warm-up, which is not counted. "

@@ -114,7 +114,9 @@ def test_experiment_blocks_are_consistent(tiny_run: tuple[Path, ReproductionResu
 def test_persistence_by_hand(tiny_run: tuple[Path, ReproductionResults]) -> None:
     """Persistence predicts T_r,i+h = T_r,i from every start i with a full depth window."""
     _, results = tiny_run
-    test = generate(get_scenario(TINY.scenario), days=TINY.test_days, seed=TINY.test_seed)
+    test = generate(
+        get_scenario(TINY.scenario), days=TINY.test_days, seed=TINY.test_seed, weather_part="test"
+    )
     t_r = test["T_r"].to_numpy(dtype=float)
     for h in (1, 3, 6):
         starts = np.arange(TINY.depth + 1, len(t_r) - h)
@@ -139,6 +141,11 @@ def test_tables_and_report(tiny_run: tuple[Path, ReproductionResults]) -> None:
         assert needle in report
     for name in ("table1_validation.md", "table2_training_size.md", "table3_horizon.md"):
         assert (out / name).read_text().rstrip("\n") in report
+    # Training and test days are stated and do not overlap.
+    dates = json.loads((out / "results.json").read_text())["dates"]
+    assert dates["training"][1] < dates["test"][0]
+    assert f"{dates['training'][0]} to {dates['training'][1]}, the training part" in report
+    assert f"{dates['test'][0]} to {dates['test'][1]}, the test part" in report
 
 
 def _cell(stats: dict | None) -> str:

@@ -21,10 +21,10 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
-from scenarios.closed_loop import check_writable
+from pinn_mpc.io import check_output_directory, check_writable
 from scenarios.reproduce.config import ReproduceConfig
 from scenarios.reproduce.experiments import run_experiments
-from scenarios.reproduce.render import validation_table, write_outputs
+from scenarios.reproduce.render import OUTPUT, validation_table, write_outputs
 from scenarios.reproduce.results import PAPER_CLAIMS, PAPER_VALIDATION, ReproductionResults
 
 __all__ = [
@@ -40,28 +40,34 @@ __all__ = [
 
 
 def run_reproduction(
-    out: str | Path, config: ReproduceConfig, *, progress: bool = True
+    out: str | Path, config: ReproduceConfig, *, progress: bool = True, force: bool = False
 ) -> ReproductionResults:
     """Run the three experiments and write ``out/``: ``results.json``, ``report.md``,
     ``table1_validation.md``, ``table2_training_size.md``, ``table3_horizon.md`` and the
-    figures ``fig1_validation.png``, ``fig2_training_size.png``, ``fig3_horizon.png``."""
+    figures ``fig1_validation.png``, ``fig2_training_size.png``, ``fig3_horizon.png``
+    (:data:`OUTPUT`). ``out`` is checked first, before hours of training: new, empty or an
+    earlier reproduction, or ``force`` (then only those files are replaced; anything else in
+    ``out`` is kept)."""
     out = Path(out)
-    check_writable(str(out / "results.json"), create_parents=True)  # before hours of training
+    check_writable(out / "results.json", create_parents=True)
+    if out.parent.is_dir():  # else it is created at the end, and so is ``out``
+        check_output_directory(out, OUTPUT, force=force)
     results = run_experiments(config, progress=progress)
-    write_outputs(out, results)
+    write_outputs(out, results, force=force)
     return results
 
 
-def reproduce_command(*, out: str, quick: bool, seeds: int | None) -> str:
-    """CLI ``reproduce``: run the experiments into ``out``; returns the validation table."""
+def reproduce_command(*, out: str, quick: bool, seeds: int | None, force: bool = False) -> str:
+    """CLI ``reproduce``: run the experiments into ``out``; returns the validation table and
+    the files written."""
     config = ReproduceConfig.quick(seeds) if quick else ReproduceConfig(seeds=seeds or 20)
     started = time.perf_counter()
-    results = run_reproduction(out, config)
+    results = run_reproduction(out, config, force=force)
     elapsed = time.perf_counter() - started
     return (
         f"one-step MAE on {config.test_days} test days after {config.validation_days} training "
         "days, "
         f"mean ± std over {config.seeds} seeds (ens. = ensemble mean):\n"
         + validation_table(results, markdown=False)
-        + f"\nwrote {Path(out) / 'report.md'} and results.json in {elapsed:.0f} s"
+        + f"\nwrote {Path(out)}/: {', '.join(OUTPUT.files)} in {elapsed:.0f} s"
     )

@@ -18,6 +18,7 @@ from pinn_mpc.evaluation import evaluate_model, recursive_t_r
 from pinn_mpc.models import ARCHS, LearnedModel
 from pinn_mpc.training import TrainConfig, train_model
 from scenarios.datagen import generate
+from scenarios.inputs import day_span
 from scenarios.registry import get_scenario
 from scenarios.reproduce.config import ReproduceConfig
 from scenarios.reproduce.results import (
@@ -84,8 +85,11 @@ def run_experiments(config: ReproduceConfig, *, progress: bool = True) -> Reprod
     bar = tqdm(total=len(jobs) + 1, desc="reproduce", disable=None if progress else True)
     with bar:
         bar.set_postfix_str("simulating data")
-        pool = generate(scenario, days=max(sizes), seed=config.train_seed, policy="random")
-        test = generate(scenario, days=config.test_days, seed=config.test_seed, policy="random")
+        draws = {"train": (max(sizes), config.train_seed), "test": (config.test_days, config.test_seed)}
+        pool, test = (
+            generate(scenario, days=days, seed=seed, policy="random", weather_part=part)
+            for part, (days, seed) in draws.items()
+        )
         bar.update(1)
         runs: dict[str, dict[int, EnsembleRun]] = {a: {} for a in ARCHS}
         preds: dict[str, OneStepPredictions] = {}
@@ -105,5 +109,10 @@ def run_experiments(config: ReproduceConfig, *, progress: bool = True) -> Reprod
                 hp = model.meta["hyperparameters"]
             bar.update(1)
     return ReproductionResults(
-        config=config, hyperparameters=hp, runs=runs, test=test, predictions=preds
+        config=config,
+        hyperparameters=hp,
+        runs=runs,
+        test=test,
+        predictions=preds,
+        dates={"training": day_span(pool["time"]), "test": day_span(test["time"])},
     )

@@ -14,7 +14,7 @@ import numpy as np
 import pandas as pd
 from matplotlib.axes import Axes
 
-from pinn_mpc.io import atomic_write_json, atomic_write_text
+from pinn_mpc.io import DirectoryLayout, atomic_directory, atomic_write_json, atomic_write_text
 from pinn_mpc.models import ARCHS
 from scenarios.plots import new_figure, save_figure
 from scenarios.report import markdown_table, text_table
@@ -185,6 +185,7 @@ def _setup_lines(results: ReproductionResults) -> list[str]:
     cfg = results.config
     hp = results.hyperparameters
     naive = results.naive_t_m_mae
+    dates = results.dates
     lines = [
         "# Reproduction of Gokhale et al. (2022), section 5, on simulated data",
         "",
@@ -193,8 +194,10 @@ def _setup_lines(results: ReproductionResults) -> list[str]:
         f"`{cfg.recipe}` ({hp['epochs']} epochs, batch {hp['batch_size']}, lr {hp['lr']:g}"
         f"{' -> ' + format(hp['lr_final'], 'g') if hp['lr_final'] != hp['lr'] else ''}, "
         f"lambda {hp['lam']:g}). Training data: one {max(results.sizes)}-day run (seed "
-        f"{cfg.train_seed}); smaller sizes are its first N days. Test: {cfg.test_days} other "
-        f"days (seed {cfg.test_seed}). Errors are the mean ± std over seeds of each member's "
+        f"{cfg.train_seed}, {dates['training'][0]} to {dates['training'][1]}, the training "
+        f"part of the weather); smaller sizes are its first N days. Test: {cfg.test_days} "
+        f"other days (seed {cfg.test_seed}, {dates['test'][0]} to {dates['test'][1]}, the test "
+        "part). Errors are the mean ± std over seeds of each member's "
         "MAE (as in the paper's figures); `ens.` is the MAE of the ensemble-mean prediction. Total "
         f"training time {results.train_seconds_total:.0f} s.",
         "",
@@ -303,16 +306,28 @@ def tables(results: ReproductionResults) -> dict[str, str]:
     return out
 
 
-def write_outputs(out: Path, results: ReproductionResults) -> None:
-    """Write the figures, tables, ``results.json`` and ``report.md`` into ``out``."""
-    out.mkdir(parents=True, exist_ok=True)
+#: Everything ``reproduce`` writes into its directory.
+OUTPUT = DirectoryLayout(
+    kind="reproduction directory",
+    files=("report.md", "results.json", *(name for pair in FILES.values() for name in pair)),
+    markers=("report.md", "results.json"),
+)
+
+
+def write_outputs(out: Path, results: ReproductionResults, *, force: bool = False) -> None:
+    """Write the figures, tables, ``results.json`` and ``report.md`` into ``out`` (all or
+    nothing; an existing directory that is not a reproduction needs ``force``, and then only
+    :data:`OUTPUT`'s files in it are replaced)."""
+    out.parent.mkdir(parents=True, exist_ok=True)
     figures = {name: fig for name, (fig, _) in FILES.items()}
-    plot_validation(results.test, results.predictions, out / figures["validation"])
-    for experiment, panels in series_panels(results).items():
-        plot_series(experiment, panels, out / figures[experiment])
-    rendered = tables(results)
-    for name, (_, table) in FILES.items():
-        atomic_write_text(out / table, rendered[name] + "\n")
-    atomic_write_json(out / "results.json", results.to_json())
-    atomic_write_text(out / "report.md", render_report(results, figures=figures, tables=rendered))
+    with atomic_directory(out, OUTPUT, force=force) as tmp:
+        plot_validation(results.test, results.predictions, tmp / figures["validation"])
+        for experiment, panels in series_panels(results).items():
+            plot_series(experiment, panels, tmp / figures[experiment])
+        rendered = tables(results)
+        for name, (_, table) in FILES.items():
+            atomic_write_text(tmp / table, rendered[name] + "\n")
+        atomic_write_json(tmp / "results.json", results.to_json())
+        report = render_report(results, figures=figures, tables=rendered)
+        atomic_write_text(tmp / "report.md", report)
 

@@ -138,13 +138,15 @@ class SeriesBlock:
 class ReproductionResults:
     """Every ensemble of a reproduction, ``runs[arch][days]``, and the three experiments built
     from them. ``test`` is the test frame and ``predictions`` the validation-size ensembles'
-    one-step predictions on it (for the figure; not in :meth:`to_json`)."""
+    one-step predictions on it (for the figure; not in :meth:`to_json`). ``dates`` holds the
+    first and last calendar day of the training data and of the test days."""
 
     config: ReproduceConfig
     hyperparameters: Mapping[str, Any]
     runs: Mapping[str, Mapping[int, EnsembleRun]]
     test: pd.DataFrame
     predictions: Mapping[str, OneStepPredictions]
+    dates: Mapping[str, list[str]]
 
     @property
     def sizes(self) -> list[int]:
@@ -202,6 +204,7 @@ class ReproductionResults:
             "config": asdict(self.config),
             "hyperparameters": dict(self.hyperparameters),
             "sizes": self.sizes,
+            "dates": dict(self.dates),
             "paper": {"validation": PAPER_VALIDATION, "claims": PAPER_CLAIMS},
             "validation": {
                 arch: {
