@@ -69,7 +69,7 @@ def test_results_json_is_the_typed_results(tiny_run: tuple[Path, ReproductionRes
     assert on_disk == json.loads(json.dumps(results.to_json()))
     assert on_disk["sizes"] == [2, 4]
     assert list(on_disk) == [
-        "config", "hyperparameters", "sizes", "paper", "validation", "naive_t_m_mae",
+        "config", "hyperparameters", "sizes", "dates", "paper", "validation", "naive_t_m_mae",
         "training_size", "horizon", "persistence", "runs", "train_seconds_total",
     ]
 
