@@ -27,10 +27,11 @@ from safetensors import safe_open
 from safetensors.torch import load_file, save_file
 
 from pinn_mpc import __version__, physics
+from pinn_mpc.choices import ARCHS
 from pinn_mpc.errors import InputError, ModelFileError, warn
 from pinn_mpc.features import FeatureConfig, whole_number
 from pinn_mpc.io import DirectoryLayout, atomic_directory
-from pinn_mpc.models import ARCHS, MAX_MEMBERS, EnsembleModule, LearnedModel
+from pinn_mpc.models import MAX_MEMBERS, EnsembleModule, LearnedModel
 
 WEIGHTS = "weights.safetensors"
 META = "model.json"

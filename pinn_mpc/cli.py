@@ -1,21 +1,27 @@
 """Command line: ``pinn-mpc COMMAND ...`` (also ``python -m pinn_mpc``).
 
-This module only parses arguments and calls one library function per command; each returns
-a short summary that is printed. It is the application entry point, the one place above all
-three layers, so it imports ``scenarios`` (lazily, inside the handlers, to keep start-up fast).
+This module only parses arguments; each command is one function of :mod:`pinn_mpc.commands`
+(``train``, ``evaluate``, ``export-rc``, ``identify``) or :mod:`scenarios.commands`
+(``simulate``, ``closed-loop``, ``compare``, ``reproduce``), imported when it runs, that writes
+the outputs and returns a short summary, printed here. The choices offered come from the light
+name modules :mod:`pinn_mpc.choices` and :mod:`scenarios.choices`, so start-up and ``--help``
+stay fast. It is the application entry point, the one place above all three layers.
 Bad input (:class:`~pinn_mpc.errors.InputError`) becomes one line on stderr and exit status 2.
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib
 import math
 import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from typing import Any, NoReturn
 
 from pinn_mpc import __version__
+from pinn_mpc.choices import ARCHS, RECIPES
 from pinn_mpc.errors import InputError
+from scenarios.choices import CONTROLLER_NAMES, POLICIES, RANDOM_POLICIES, WEATHER_PARTS
 
 #: The longest run any command accepts. Timestamps are labelled from 2021 and pandas' clock
 #: ends in 2262, so some limit is needed; ten years is more than any building study simulates.
@@ -74,117 +80,21 @@ def _horizons(text: str) -> list[int]:
     return values
 
 
-def _simulate(a: argparse.Namespace) -> str:
-    from scenarios.datagen import simulate_to_csv
+def _scenario_names() -> str:
+    """Scenario names from the registry (imported only to print help: scenarios are data)."""
+    from scenarios.registry import scenario_names
 
-    return simulate_to_csv(
-        scenario=a.scenario,
-        days=a.days,
-        seed=a.seed,
-        policy=a.policy,
-        buildings=a.buildings,
-        out=a.out,
-        weather_part=a.weather_part,
-    )
-
-
-def _train(a: argparse.Namespace) -> str:
-    from pinn_mpc.training import train_to_dir
-
-    return train_to_dir(
-        data=a.data,
-        arch=a.arch,
-        out=a.out,
-        depth=a.depth,
-        seeds=a.seeds,
-        epochs=a.epochs,
-        lam=a.lam,
-        columns=a.columns,
-        recipe=a.recipe,
-        seed=a.seed,
-        eta=a.eta,
-        force=a.force,
-    )
-
-
-def _evaluate(a: argparse.Namespace) -> str:
-    from pinn_mpc.evaluation import evaluate_to_json
-
-    return evaluate_to_json(
-        model=a.model, data=a.data, horizons=a.horizons, columns=a.columns, json_path=a.json
-    )
-
-
-def _export_rc(a: argparse.Namespace) -> str:
-    from pinn_mpc.export import export_rc_to_json
-
-    return export_rc_to_json(model=a.model, out=a.out)
-
-
-def _identify(a: argparse.Namespace) -> str:
-    from pinn_mpc.identify import identify_to_json
-
-    return identify_to_json(data=a.data, columns=a.columns, out=a.out, eta=a.eta)
-
-
-def _closed_loop(a: argparse.Namespace) -> str:
-    from scenarios.closed_loop import closed_loop_command
-
-    return closed_loop_command(
-        scenario=a.scenario,
-        controller=a.controller,
-        model=a.model,
-        rc=a.rc,
-        days=a.days,
-        seed=a.seed,
-        json_path=a.json,
-        csv_path=a.csv,
-        plot_path=a.plot,
-        weather_part=a.weather_part,
-    )
-
-
-def _compare(a: argparse.Namespace) -> str:
-    from scenarios.compare import compare_command
-
-    return compare_command(
-        scenario=a.scenario,
-        train_days=a.train_days,
-        days=a.days,
-        seed=a.seed,
-        json_path=a.json,
-        report_path=a.report,
-        quick=a.quick,
-        policy=a.policy,
-    )
-
-
-def _reproduce(a: argparse.Namespace) -> str:
-    from scenarios.reproduce import reproduce_command
-
-    return reproduce_command(out=a.out, quick=a.quick, seeds=a.seeds, force=a.force)
-
-
-def _registry_names(key: str) -> str:
-    """Scenario or controller names from their registries (imported only to print help)."""
-    if key == "scenarios":
-        from scenarios.registry import scenario_names
-
-        return ", ".join(scenario_names())
-    from scenarios.factory import CONTROLLER_NAMES
-
-    return ", ".join(CONTROLLER_NAMES)
+    return ", ".join(scenario_names())
 
 
 class _HelpFormatter(argparse.HelpFormatter):
-    """Shows each option's default (unless it has none) and fills ``{scenarios}`` and
-    ``{controllers}`` from the registries only when help is printed, so start-up stays fast."""
+    """Shows each option's default (unless it has none) and fills ``{scenarios}`` from the
+    registry only when help is printed, so start-up stays fast."""
 
     def _get_help_string(self, action: argparse.Action) -> str | None:
         text = action.help or ""
-        for key in ("scenarios", "controllers"):
-            if "{" + key + "}" in text:
-                text = text.replace("{" + key + "}", _registry_names(key))
+        if "{scenarios}" in text:
+            text = text.replace("{scenarios}", _scenario_names())
         no_default = any(action.default is v for v in (None, False, argparse.SUPPRESS))
         if action.option_strings and not action.required and not no_default:
             text += " (default: %(default)s)"
@@ -199,10 +109,9 @@ class _Parser(argparse.ArgumentParser):
 
 
 def _add_weather_part(p: argparse.ArgumentParser, default: str) -> None:
-    # The names are scenarios.inputs.WEATHER_PARTS (not imported: the CLI starts light).
     p.add_argument(
         "--weather-part",
-        choices=["train", "test", "whole"],
+        choices=WEATHER_PARTS,
         default=default,
         help="days of the scenario's weather to draw from: 'train' (training data), 'test' "
         "(the days closed loops and compare are judged on, disjoint from 'train'), or 'whole' "
@@ -219,9 +128,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"pinn-mpc {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
-    def add(
-        name: str, handler: Callable[[argparse.Namespace], str], help_: str
-    ) -> argparse.ArgumentParser:
+    def add(name: str, handler: str, help_: str) -> argparse.ArgumentParser:
+        """``handler``: "module:function" taking the parsed arguments, imported when it runs."""
         p = sub.add_parser(name, help=help_, description=help_, formatter_class=_HelpFormatter)
         p.set_defaults(handler=handler)
         return p
@@ -252,13 +160,13 @@ def build_parser() -> argparse.ArgumentParser:
             "command's own files there are replaced; the rest is kept)",
         )
 
-    p = add("simulate", _simulate, "simulate a scenario and write time-series data (CSV)")
+    p = add("simulate", "scenarios.commands:simulate", "simulate a scenario and write time-series data (CSV)")
     scenario(p, required=True)
     days(p, "days to simulate", required=True)
     p.add_argument("--seed", type=_seed, default=0, help="seed of the weather, price and policy")
     p.add_argument(
         "--policy",
-        choices=["random", "random-level", "thermostat"],
+        choices=POLICIES,
         default="random-level",
         help="heating demand: a uniform random power level per interval (best for models that "
         "will drive a controller), the paper's random on/off, or a thermostat",
@@ -267,10 +175,10 @@ def build_parser() -> argparse.ArgumentParser:
     _add_weather_part(p, "train")
     p.add_argument("--out", required=True, help="CSV file to write")
 
-    p = add("train", _train, "train a seed ensemble of mlp, physreg or physnet on data")
+    p = add("train", "pinn_mpc.commands:train", "train a seed ensemble of mlp, physreg or physnet on data")
     data(p, "training data")
     p.add_argument(
-        "--arch", choices=["mlp", "physreg", "physnet"], required=True, help="architecture"
+        "--arch", choices=ARCHS, required=True, help="architecture"
     )
     p.add_argument("--depth", type=_positive_int, default=8, help="history steps the model sees")
     p.add_argument("--seeds", type=_positive_int, default=20, help="ensemble members")
@@ -286,7 +194,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--recipe",
-        choices=["converged", "paper"],
+        choices=tuple(RECIPES),
         default="converged",
         help="'paper': 75 epochs of batch 2048 as published; 'converged': trains to convergence",
     )
@@ -302,7 +210,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     force(p)
 
-    p = add("evaluate", _evaluate, "one-step and recursive multi-step errors of a model on data")
+    p = add("evaluate", "pinn_mpc.commands:evaluate", "one-step and recursive multi-step errors of a model on data")
     model(p, "model directory", required=True)
     data(p, "test data")
     p.add_argument(
@@ -314,12 +222,12 @@ def build_parser() -> argparse.ArgumentParser:
     columns(p)
     p.add_argument("--json", required=True, help="metrics JSON file to write")
 
-    p = add("export-rc", _export_rc, "export the learned 2R2C parameters of a model")
+    p = add("export-rc", "pinn_mpc.commands:export_rc_json", "export the learned 2R2C parameters of a model")
     model(p, "physreg or physnet model directory", required=True)
     p.add_argument("--out", required=True, help="RC JSON file to write (for --rc)")
 
     p = add(
-        "identify", _identify, "grey-box identification of 2R2C parameters from data (T_m hidden)"
+        "identify", "pinn_mpc.commands:identify", "grey-box identification of 2R2C parameters from data (T_m hidden)"
     )
     data(p, "measured data")
     columns(p)
@@ -331,9 +239,11 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--out", required=True, help="RC JSON file to write (for --rc)")
 
-    p = add("closed-loop", _closed_loop, "run one controller against the simulator")
+    p = add("closed-loop", "scenarios.commands:closed_loop", "run one controller against the simulator")
     scenario(p, required=True)
-    p.add_argument("--controller", required=True, help="controller, one of: {controllers}")
+    p.add_argument(
+        "--controller", required=True, help="controller, one of: " + ", ".join(CONTROLLER_NAMES)
+    )
     model(p, "model directory for random-shooting and cem", default=None)
     p.add_argument(
         "--rc", default=None, help="RC JSON for casadi-mpc and qp-mpc (from identify, export-rc)"
@@ -345,7 +255,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--plot", default=None, help="trajectory figure (PNG) to write")
     _add_weather_part(p, "test")
 
-    p = add("compare", _compare, "train, identify and run every controller on one scenario")
+    p = add("compare", "scenarios.commands:compare", "train, identify and run every controller on one scenario")
     scenario(p, default="paper_household")
     p.add_argument(
         "--train-days",
@@ -364,12 +274,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--quick", action="store_true", help="small ensembles and short runs (minutes)")
     p.add_argument(
         "--policy",
-        choices=["random-level", "random"],
+        choices=RANDOM_POLICIES,
         default="random-level",
         help="training-data policy: uniform random power levels or the paper's on/off",
     )
 
-    p = add("reproduce", _reproduce, "reproduce the paper's three experiments on simulated data")
+    p = add("reproduce", "scenarios.commands:reproduce", "reproduce the paper's three experiments on simulated data")
     p.add_argument(
         "--out", required=True, help="directory to write (report.md, results.json, tables, figures)"
     )
@@ -390,7 +300,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     try:
         with threadpool_limits(limits=1, user_api="blas"):
-            summary = args.handler(args)
+            module, function = args.handler.split(":")
+            summary = getattr(importlib.import_module(module), function)(args)
     except InputError as exc:
         print(f"pinn-mpc {args.command}: error: {exc}", file=sys.stderr)
         return 2

@@ -5,9 +5,7 @@ from __future__ import annotations
 from typing import Any
 
 from pinn_mpc import physics
-from pinn_mpc.artifacts import MODEL_DIRECTORY, load_model
 from pinn_mpc.errors import InputError
-from pinn_mpc.io import atomic_write_json, check_distinct, check_writable
 from pinn_mpc.models import LearnedModel
 
 
@@ -35,18 +33,3 @@ def export_rc(model: LearnedModel, *, source: str) -> dict[str, Any]:
     out = physics.rc_summary(params, source=source)
     out["member_coefficients_per_s"] = model.member_coefficients()
     return out
-
-
-def export_rc_to_json(*, model: str, out: str) -> str:
-    """CLI ``export-rc``: load a model directory, write its RC JSON; returns a summary line."""
-    check_writable(out)
-    check_distinct(inputs={"--model": MODEL_DIRECTORY.paths(model)}, outputs={"--out": out})
-    learned = load_model(model)
-    data = export_rc(
-        learned, source=f"export-rc of {learned.arch} x{learned.n_members} from {model}"
-    )
-    atomic_write_json(out, data)
-    return (
-        f"R_ra={data['R_ra_K_per_W']:.4g} K/W R_rm={data['R_rm_K_per_W']:.4g} K/W "
-        f"C_r={data['C_r_J_per_K']:.4g} J/K C_m={data['C_m_J_per_K']:.4g} J/K -> {out}"
-    )

@@ -20,7 +20,6 @@ heater on for part of it), so the fit residual is not pure sensor noise.
 from __future__ import annotations
 
 import math
-import os
 from dataclasses import dataclass
 from typing import Any
 
@@ -29,10 +28,8 @@ import pandas as pd
 import scipy.optimize
 import scipy.signal
 
-from pinn_mpc.data import read_timeseries
 from pinn_mpc.errors import InputError
-from pinn_mpc.io import atomic_write_json, check_distinct, check_writable
-from pinn_mpc.physics import PLAUSIBLE_RANGES, RCParams, check_plausible, discretise, rc_summary
+from pinn_mpc.physics import PLAUSIBLE_RANGES, RCParams, check_plausible, discretise
 
 #: Below this standard deviation a G or I_g column counts as constant (not identifiable).
 _MIN_STD = {"G": 1.0, "I_g": 1.0}
@@ -263,32 +260,4 @@ def identify_rc(df: pd.DataFrame, *, eta: float = 1.0) -> IdentifyResult:
         identified_gains=gains,
         n_starts=len(starts),
         cost_evaluations=evaluations,
-    )
-
-
-def identify_to_json(
-    *,
-    data: str | os.PathLike[str],
-    columns: str | None,
-    out: str | os.PathLike[str],
-    eta: float | None,
-) -> str:
-    """CLI ``identify``: read ``data``, identify, write the RC JSON (atomically) to ``out``.
-
-    ``eta`` None means 1 (a heater). The JSON is :func:`pinn_mpc.physics.rc_summary` plus a
-    ``fit`` block (:meth:`IdentifyResult.fit_statistics`). Returns a one-line summary.
-    """
-    eta_value = 1.0 if eta is None else float(eta)
-    check_writable(out)
-    check_distinct(inputs={"--data": data}, outputs={"--out": out})
-    df = read_timeseries(data, columns=columns)
-    result = identify_rc(df, eta=eta_value)
-    summary = rc_summary(result.params, source=f"identify:{data}")
-    summary["fit"] = result.fit_statistics()
-    atomic_write_json(out, summary)
-    p = result.params
-    return (
-        f"identified R_ra={p.r_ra_k_per_w:.4g} K/W R_rm={p.r_rm_k_per_w:.4g} K/W "
-        f"C_r={p.c_r_j_per_k:.4g} J/K C_m={p.c_m_j_per_k:.4g} J/K "
-        f"(rmse {result.rmse_c:.3f} C over {result.n_rows} rows) -> {out}"
     )

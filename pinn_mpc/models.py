@@ -33,14 +33,13 @@ import torch
 from torch import nn
 
 from pinn_mpc import physics
+from pinn_mpc.choices import ARCHS
 from pinn_mpc.errors import InputError
 from pinn_mpc.features import FeatureConfig, make_windows
 
-ARCHS = ("mlp", "physreg", "physnet")
 #: Most ensemble members: far beyond the paper's 20; bounds what training or a model.json can
 #: make the program allocate.
 MAX_MEMBERS = 1000
-RESIDUALS = ("exact", "finite_difference")
 HIDDEN = {
     "mlp": (64, 64),
     "physreg": (64, 64),

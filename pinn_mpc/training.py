@@ -29,25 +29,18 @@ import torch
 from tqdm import tqdm
 
 from pinn_mpc import __version__, physics
-from pinn_mpc.data import read_timeseries, validate_timeseries
+from pinn_mpc.choices import ARCHS, RECIPES, RESIDUALS
+from pinn_mpc.data import validate_timeseries
 from pinn_mpc.errors import InputError
 from pinn_mpc.features import MAX_DEPTH, MIN_TRAIN_SAMPLES, fit_feature_config, make_windows
-from pinn_mpc.io import check_distinct, check_output_directory
 from pinn_mpc.models import (
-    ARCHS,
     MAX_MEMBERS,
-    RESIDUALS,
     EnsembleModule,
     LearnedModel,
     residual_exact,
     residual_finite_difference,
 )
 
-#: Per recipe: epochs, batch size, initial and final learning rate, default lambda.
-RECIPES: dict[str, dict[str, float]] = {
-    "paper": {"epochs": 75, "batch_size": 2048, "lr": 1e-3, "lr_final": 1e-3, "lam": 1.0},
-    "converged": {"epochs": 60, "batch_size": 512, "lr": 1e-2, "lr_final": 1e-4, "lam": 1.0},
-}
 #: Consecutive samples per mini-batch chunk (the physics residuals link neighbours).
 CHUNK = 8
 #: |u - u_phys| [W] below which an interval counts as held at constant power.
@@ -296,45 +289,3 @@ def train_model(
         "train_seconds": elapsed,
     }
     return LearnedModel(arch=arch, features=features, module=module, meta=meta)
-
-
-def train_to_dir(
-    *,
-    data: str,
-    arch: str,
-    out: str,
-    depth: int,
-    seeds: int,
-    epochs: int | None,
-    lam: float | None,
-    columns: str | None,
-    recipe: str,
-    seed: int,
-    eta: float | None = None,
-    force: bool = False,
-) -> str:
-    """CLI ``train``: read data, train the ensemble, save the model directory; returns a summary.
-
-    ``eta`` None means 1 (a heater); give minus the COP for a cooling machine.
-
-    ``out`` is checked before training: it must be new, empty or a model directory, or
-    ``force`` given (then only the model's files in it are replaced).
-    """
-    from pinn_mpc.artifacts import MODEL_DIRECTORY, save_model
-
-    check_output_directory(out, MODEL_DIRECTORY, force=force)
-    files = MODEL_DIRECTORY.paths(out)
-    check_distinct(inputs={"--data": data}, outputs={"--out": files})
-    df = read_timeseries(data, columns=columns)
-    config = TrainConfig(
-        depth=depth, n_seeds=seeds, first_seed=seed, epochs=epochs, lam=lam, recipe=recipe,
-        eta=1.0 if eta is None else eta,
-    )
-    model = train_model(df, arch=arch, config=config)
-    save_model(model, out, force=force)
-    loss = model.meta["final_loss"]
-    return (
-        f"trained {arch} x{seeds} on {len(df)} rows in {model.meta['train_seconds']:.1f} s "
-        f"(final loss reg {loss['reg']:.3g}, phys {loss['phys']:.3g}); "
-        f"wrote {', '.join(map(str, files))}"
-    )

@@ -31,12 +31,10 @@ from controllers.base import Controller, ControlSpec
 from controllers.thermostat import Thermostat
 from pinn_mpc.data import write_timeseries
 from pinn_mpc.errors import InputError
-from pinn_mpc.io import PathsArg, atomic_write_json, check_distinct, check_writable
 from scenarios.engine import ClosedLoop, ExogenousSeries
-from scenarios.factory import MODEL_CONTROLLERS, make_controller
 from scenarios.inputs import day_span
 from scenarios.kpis import compute_kpis
-from scenarios.registry import EXOGENOUS_COLUMNS, Scenario, check_seed, get_scenario
+from scenarios.registry import EXOGENOUS_COLUMNS, Scenario, check_seed
 
 #: Columns the trajectory adds to the data format.
 EXTRA_COLUMNS = ("overridden", "fallback", "decision_ms")
@@ -184,66 +182,3 @@ def one_torch_thread() -> Iterator[None]:
 def write_trajectory(result: ClosedLoopResult, path: str | Path) -> Path:
     """The trajectory CSV: the data format's columns, then :data:`EXTRA_COLUMNS`."""
     return write_timeseries(result.trajectory, path)
-
-
-def closed_loop_command(
-    *,
-    scenario: str,
-    controller: str,
-    model: str | None,
-    rc: str | None,
-    days: int,
-    seed: int,
-    json_path: str,
-    csv_path: str | None,
-    plot_path: str | None,
-    weather_part: str = "test",
-) -> str:
-    """``pinn-mpc closed-loop``: run, write KPI JSON (and CSV, plot), return a summary that
-    names every file written. Outputs are checked before the run: writable, and none of them
-    the same file as an input (``--model``'s files, ``--rc``) or as another output."""
-    from scenarios.plots import plot_trajectory  # matplotlib only when plotting
-
-    outputs = {"--json": json_path, "--csv": csv_path, "--plot": plot_path}
-    check_writable(*outputs.values())
-    inputs: dict[str, PathsArg] = {"--rc": rc}
-    if model is not None:
-        from pinn_mpc.artifacts import MODEL_DIRECTORY  # torch: only when a model is given
-
-        inputs["--model"] = MODEL_DIRECTORY.paths(model)
-    check_distinct(inputs=inputs, outputs=outputs)
-    scen = get_scenario(scenario)
-    ctrl = make_controller(
-        controller,
-        scen,
-        model_dir=model,
-        rc_path=rc,
-        n_steps=days * scen.steps_per_day,
-    )
-    # torch only for the planners over learned models; the others start faster without it.
-    threads = one_torch_thread() if controller in MODEL_CONTROLLERS else contextlib.nullcontext()
-    with threads:
-        result = run_closed_loop(
-            scen, ctrl, days=days, seed=seed, weather_part=weather_part, progress=True
-        )
-    if csv_path is not None:
-        write_trajectory(result, csv_path)
-    if plot_path is not None:
-        plot_trajectory(result.trajectory, plot_path, title=f"{controller} on {scenario}")
-    atomic_write_json(json_path, result.kpis)
-    lines = [format_kpis(result.kpis)]
-    if result.errors:
-        lines.append(f"{len(result.errors)} controller error(s), first: {result.errors[0]}")
-    written = [str(p) for p in (json_path, csv_path, plot_path) if p is not None]
-    return "\n".join([*lines, f"wrote {', '.join(written)}"])
-
-
-def format_kpis(kpis: dict[str, Any]) -> str:
-    """One line: the main KPIs of a run."""
-    return (
-        f"{kpis['controller']} on {kpis['scenario']}, {kpis['days']} d: "
-        f"energy {kpis['energy_kwh']:.2f} kWh, cost {kpis['cost_eur']:.2f} EUR, "
-        f"discomfort {kpis['discomfort_kh']:.2f} K h, peak {kpis['peak_kw']:.2f} kW, "
-        f"objective {kpis['objective']:.2f} EUR, decision {kpis['decision_ms_median']:.1f} ms "
-        f"(median), overrides {kpis['backup_overrides']}, fallbacks {kpis['fallbacks']}"
-    )

@@ -23,11 +23,8 @@
 
 from __future__ import annotations
 
-import dataclasses
-import os
 import time
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import pandas as pd
@@ -35,21 +32,13 @@ from tqdm import tqdm
 
 from controllers.planners import CEMPlanner, RandomShootingPlanner
 from pinn_mpc.errors import InputError
-from pinn_mpc.io import (
-    PathsArg,
-    atomic_write_json,
-    atomic_write_text,
-    check_distinct,
-    check_writable,
-)
 from pinn_mpc.physics import RCParams, params_from_summary, rc_summary
+from scenarios.choices import RANDOM_POLICIES
 from scenarios.closed_loop import one_torch_thread, run_closed_loop
-from scenarios.datagen import RANDOM_POLICIES
 from scenarios.factory import build_controller
 from scenarios.inputs import day_span
-from scenarios.plots import plot_comparison
-from scenarios.registry import Scenario, check_seed, get_scenario
-from scenarios.report import kpi_table_text, objective_ratios, render_report
+from scenarios.registry import Scenario, check_seed
+from scenarios.report import objective_ratios
 
 ARCHS = ("physnet", "physreg", "mlp")
 _RS = RandomShootingPlanner(lower=0.0, upper=1.0)  # the planners' defaults
@@ -247,105 +236,3 @@ def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonR
     return ComparisonResult(
         rows=rows, days=days, rc=rc, trajectories=trajectories, wall_time_s=wall, errors=errors
     )
-
-
-def _make_parents(*paths: Path) -> None:
-    for path in paths:
-        path.parent.mkdir(parents=True, exist_ok=True)
-
-
-def _dates_text(settings: CompareSettings, days: dict[str, list[str]]) -> str:
-    """One sentence: when the training data and the test days are."""
-    (train_first, train_last), (first, last) = days["training"], days["test"]
-    return (
-        f"Training data: {settings.train_days} days, {train_first} to {train_last}, from the "
-        f"training part of the weather (seed {settings.seed}). Test: {settings.test_days} days, "
-        f"{first} to {last}, from the test part (seed {settings.test_seed}); with the warm-up "
-        f"day and the forecast lead the test weather spans {days['test weather'][0]} to "
-        f"{days['test weather'][1]}."
-    )
-
-
-def compare_command(
-    *,
-    scenario: str,
-    train_days: int,
-    days: int,
-    seed: int,
-    json_path: str,
-    report_path: str,
-    quick: bool,
-    policy: str = "random-level",
-) -> str:
-    """``pinn-mpc compare``: run the comparison, write the JSON table, report and figure."""
-    check_writable(json_path, report_path, create_parents=True)
-    report = Path(report_path)
-    figure = report.with_suffix(".png")
-    if figure == report:
-        raise InputError(
-            f"--report {report_path}: the report is markdown and its figure is written next to "
-            f"it as {figure.name}; give --report a name ending in .md"
-        )
-    check_writable(figure, create_parents=True)
-    outputs: dict[str, PathsArg] = {
-        "--json": json_path,
-        "--report": report_path,
-        "--report's figure": figure,
-    }
-    check_distinct(inputs={}, outputs=outputs)
-    scen = get_scenario(scenario)
-    settings = CompareSettings.for_run(
-        train_days=train_days, days=days, seed=seed, quick=quick, policy=policy
-    )
-    start = time.perf_counter()
-    result = run_comparison(scen, settings)
-    total_s = time.perf_counter() - start
-    settings_table = {
-        **dataclasses.asdict(settings),
-        "test_seed": settings.test_seed,
-        "training_dates": result.days["training"],
-        "test_dates": result.days["test"],
-        "training_epochs": settings.training_epochs,
-        "scenario": scen.name,
-        "comfort_weight_eur_per_kh": scen.comfort_weight_eur_per_kh,
-        "horizon_steps": scen.horizon_steps,
-        "dt_s": scen.sim.dt_s,
-        "u_max_w": scen.sim.u_max_w,
-        "wall_time_s": round(total_s, 1),
-        "cpu_count": os.cpu_count(),
-    }
-    notes = [
-        f"`{label}`: {len(errs)} controller error(s), the fallback acted; first: {errs[0]}"
-        for label, errs in result.errors.items()
-    ]
-    notes += [f"wall time of {stage}: {sec:.1f} s" for stage, sec in result.wall_time_s.items()]
-    _make_parents(Path(json_path), report, figure)
-    first, last = result.days["test"]
-    title = f"{scen.name}: test days {first} to {last}, seed {settings.test_seed}"
-    plot_comparison(result.trajectories, figure, title=title)
-    atomic_write_text(
-        report,
-        render_report(
-            scenario=scen.name,
-            description=scen.description,
-            rows=result.rows,
-            rc=result.rc,
-            settings=settings_table,
-            figure_name=figure.name,
-            notes=notes,
-            dates=_dates_text(settings, result.days),
-        ),
-    )
-    atomic_write_json(
-        json_path,
-        {
-            "scenario": scen.name,
-            "training_dates": result.days["training"],
-            "test_dates": result.days["test"],
-            "settings": settings_table,
-            "rows": result.rows,
-            "rc": result.rc,
-        },
-    )
-    written = f"wrote {json_path}, {report_path}, {figure} ({total_s:.0f} s)"
-    return f"{kpi_table_text(result.rows)}\n{written}"

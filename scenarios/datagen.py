@@ -31,15 +31,11 @@ import numpy as np
 import pandas as pd
 
 from controllers.thermostat import Thermostat
-from pinn_mpc.data import write_timeseries
 from pinn_mpc.errors import InputError
 from pinn_mpc.simulator import Simulator
-from scenarios.inputs import day_span
-from scenarios.registry import Scenario, check_seed, get_scenario
+from scenarios.choices import POLICIES
+from scenarios.registry import Scenario, check_seed
 
-POLICIES = ("random", "random-level", "thermostat")
-#: The random policies (training data for learned models and identification).
-RANDOM_POLICIES = ("random", "random-level")
 # Random streams apart from the exogenous ones (see scenarios.registry).
 _POLICY_STREAM, _SENSOR_STREAM = 11, 12
 
@@ -113,35 +109,3 @@ def generate(
         frame.insert(0, "building", np.repeat(np.arange(n_buildings), n))
     frame.attrs["dt_s"] = float(scenario.sim.dt_s)
     return frame
-
-
-def simulate_to_csv(
-    *,
-    scenario: str,
-    days: int,
-    seed: int,
-    policy: str,
-    buildings: int,
-    out: str,
-    weather_part: str = "train",
-) -> str:
-    """The ``simulate`` command: generate data and write it atomically to ``out``."""
-    chosen = get_scenario(scenario)
-    frame = generate(
-        chosen,
-        days=days,
-        seed=seed,
-        policy=policy,
-        n_buildings=buildings,
-        weather_part=weather_part,
-    )
-    write_timeseries(frame, out)
-    per_building = len(frame) // buildings
-    overridden = float(np.mean(~np.isclose(frame["u"], frame["u_phys"])))
-    first, last = day_span(frame["time"])
-    return (
-        f"wrote {out}: scenario {scenario}, {days} day(s) {first}..{last} ({weather_part} "
-        f"weather), {buildings} building(s), {policy} policy, "
-        f"{per_building} rows per building at {chosen.sim.dt_s:g} s, T_r {frame['T_r'].min():.1f}.."
-        f"{frame['T_r'].max():.1f} C, backup acted in {100 * overridden:.0f} % of intervals"
-    )

@@ -28,12 +28,13 @@ import functools
 import math
 import pathlib
 from dataclasses import dataclass
-from typing import Literal, cast, get_args
+from typing import Literal, cast
 
 import numpy as np
 import pandas as pd
 
 from pinn_mpc.errors import InputError
+from scenarios.choices import WEATHER_PARTS, WeatherPart
 
 SECONDS_PER_DAY = 86400.0
 HOURS_PER_TYPICAL_YEAR = 8760
@@ -46,8 +47,6 @@ _DAYS_PER_TYPICAL_YEAR = HOURS_PER_TYPICAL_YEAR // 24
 #: days come after training days and a training run reaching back a year stays in BASE_YEAR.
 _SEASON_YEAR = BASE_YEAR + 1
 
-WeatherPart = Literal["train", "test", "whole"]
-WEATHER_PARTS: tuple[str, ...] = get_args(WeatherPart)
 
 
 def weather_part(text: str) -> WeatherPart:

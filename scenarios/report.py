@@ -149,3 +149,14 @@ def render_report(
     if notes:
         lines += ["", "## Notes", "", *(f"- {n}" for n in notes)]
     return "\n".join(lines) + "\n"
+
+
+def format_kpis(kpis: dict[str, Any]) -> str:
+    """One line: the main KPIs of a run."""
+    return (
+        f"{kpis['controller']} on {kpis['scenario']}, {kpis['days']} d: "
+        f"energy {kpis['energy_kwh']:.2f} kWh, cost {kpis['cost_eur']:.2f} EUR, "
+        f"discomfort {kpis['discomfort_kh']:.2f} K h, peak {kpis['peak_kw']:.2f} kW, "
+        f"objective {kpis['objective']:.2f} EUR, decision {kpis['decision_ms_median']:.1f} ms "
+        f"(median), overrides {kpis['backup_overrides']}, fallbacks {kpis['fallbacks']}"
+    )

@@ -10,9 +10,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from pinn_mpc.cli import main
 from pinn_mpc.data import validate_timeseries
 from pinn_mpc.errors import InputError
-from pinn_mpc.identify import identify_rc, identify_to_json, simulate_rc
+from pinn_mpc.identify import identify_rc, simulate_rc
 from pinn_mpc.physics import PAPER_HOUSEHOLD, RCParams, discretise, params_from_summary
 from pinn_mpc.simulator import SimConfig, Simulator
 
@@ -105,14 +106,18 @@ def test_cooling_needs_eta_and_recovers_parameters() -> None:
     assert _rel(p.c_r_j_per_k, cooling.c_r_j_per_k) < 0.10
 
 
-def test_identify_to_json_writes_the_rc_schema(tmp_path: Path, solar_frame: pd.DataFrame) -> None:
+def test_identify_command_writes_the_rc_schema(
+    tmp_path: Path, solar_frame: pd.DataFrame, capsys: pytest.CaptureFixture[str]
+) -> None:
     data = tmp_path / "data.csv"
     renamed = solar_frame.iloc[: 10 * 48].rename(columns={"T_r": "T_int", "u_phys": "P_hea"})
     renamed = renamed.drop(columns=["u"])
     renamed.attrs["dt_s"] = 1800.0
     renamed.to_csv(data, index=False)
     out = tmp_path / "rc.json"
-    summary = identify_to_json(data=data, columns="T_r=T_int,u_phys=P_hea", out=out, eta=None)
+    argv = ["identify", "--data", str(data), "--columns", "T_r=T_int,u_phys=P_hea"]
+    assert main([*argv, "--out", str(out)]) == 0
+    summary = capsys.readouterr().out
     assert str(out) in summary and "R_ra=" in summary
     written = json.loads(out.read_text())
     params = params_from_summary(written)

@@ -18,7 +18,6 @@ paper's numbers), :mod:`~scenarios.reproduce.render` (tables, figures, ``report.
 
 from __future__ import annotations
 
-import time
 from pathlib import Path
 
 from pinn_mpc.io import check_output_directory, check_writable
@@ -32,7 +31,6 @@ __all__ = [
     "PAPER_VALIDATION",
     "ReproduceConfig",
     "ReproductionResults",
-    "reproduce_command",
     "run_experiments",
     "run_reproduction",
     "validation_table",
@@ -55,19 +53,3 @@ def run_reproduction(
     results = run_experiments(config, progress=progress)
     write_outputs(out, results, force=force)
     return results
-
-
-def reproduce_command(*, out: str, quick: bool, seeds: int | None, force: bool = False) -> str:
-    """CLI ``reproduce``: run the experiments into ``out``; returns the validation table and
-    the files written."""
-    config = ReproduceConfig.quick(seeds) if quick else ReproduceConfig(seeds=seeds or 20)
-    started = time.perf_counter()
-    results = run_reproduction(out, config, force=force)
-    elapsed = time.perf_counter() - started
-    return (
-        f"one-step MAE on {config.test_days} test days after {config.validation_days} training "
-        "days, "
-        f"mean ± std over {config.seeds} seeds (ens. = ensemble mean):\n"
-        + validation_table(results, markdown=False)
-        + f"\nwrote {Path(out)}/: {', '.join(OUTPUT.files)} in {elapsed:.0f} s"
-    )

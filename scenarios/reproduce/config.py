@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from pinn_mpc.choices import RECIPES
 from pinn_mpc.errors import InputError
-from pinn_mpc.training import RECIPES
 
 
 @dataclass(frozen=True, kw_only=True)

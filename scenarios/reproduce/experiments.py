@@ -14,8 +14,9 @@ import numpy as np
 import pandas as pd
 from tqdm import tqdm
 
+from pinn_mpc.choices import ARCHS
 from pinn_mpc.evaluation import evaluate_model, recursive_t_r
-from pinn_mpc.models import ARCHS, LearnedModel
+from pinn_mpc.models import LearnedModel
 from pinn_mpc.training import TrainConfig, train_model
 from scenarios.datagen import generate
 from scenarios.inputs import day_span

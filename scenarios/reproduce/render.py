@@ -14,8 +14,8 @@ import numpy as np
 import pandas as pd
 from matplotlib.axes import Axes
 
+from pinn_mpc.choices import ARCHS
 from pinn_mpc.io import DirectoryLayout, atomic_directory, atomic_write_json, atomic_write_text
-from pinn_mpc.models import ARCHS
 from scenarios.plots import new_figure, save_figure
 from scenarios.report import markdown_table, text_table
 from scenarios.reproduce.results import (

@@ -14,7 +14,7 @@ from typing import Any, NamedTuple
 import numpy as np
 import pandas as pd
 
-from pinn_mpc.models import ARCHS
+from pinn_mpc.choices import ARCHS
 from scenarios.reproduce.config import ReproduceConfig
 
 #: Paper Table val_results: one-step MAE [C] of T_r and T_m, 120 simulated days, depth 8.
