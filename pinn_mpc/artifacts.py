@@ -33,6 +33,16 @@ from pinn_mpc.features import FeatureConfig, whole_number
 from pinn_mpc.io import DirectoryLayout, atomic_directory
 from pinn_mpc.models import MAX_MEMBERS, EnsembleModule, LearnedModel
 
+__all__ = [
+    "CHECKSUM",
+    "FORMAT_VERSION",
+    "META",
+    "MODEL_DIRECTORY",
+    "WEIGHTS",
+    "load_model",
+    "save_model",
+]
+
 WEIGHTS = "weights.safetensors"
 META = "model.json"
 FORMAT_VERSION = 1

@@ -23,6 +23,8 @@ from pinn_mpc.choices import ARCHS, RECIPES
 from pinn_mpc.errors import InputError
 from scenarios.choices import CONTROLLER_NAMES, POLICIES, RANDOM_POLICIES, WEATHER_PARTS
 
+__all__ = ["MAX_DAYS", "build_parser", "main"]
+
 #: The longest run any command accepts. Timestamps are labelled from 2021 and pandas' clock
 #: ends in 2262, so some limit is needed; ten years is more than any building study simulates.
 MAX_DAYS = 3650

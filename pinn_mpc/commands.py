@@ -21,6 +21,8 @@ from pinn_mpc.io import (
 )
 from pinn_mpc.physics import rc_summary
 
+__all__ = ["evaluate", "export_rc_json", "identify", "train"]
+
 
 def _eta(value: float | None) -> float:
     """``--eta`` not given means 1: a heater (a cooling machine gives minus its COP)."""

@@ -24,6 +24,19 @@ from pinn_mpc.errors import InputError
 from pinn_mpc.io import atomic_write
 from pinn_mpc.physics import DT_RANGE_S, MAX_POWER_W
 
+__all__ = [
+    "COLUMNS",
+    "NUMERIC",
+    "OPTIONAL",
+    "POWER",
+    "REQUIRED",
+    "TEMPERATURE_RANGE_C",
+    "parse_column_map",
+    "read_timeseries",
+    "validate_timeseries",
+    "write_timeseries",
+]
+
 REQUIRED = ("time", "T_r", "u", "u_phys", "T_a")
 OPTIONAL = ("T_m", "G", "I_g", "price", "T_min", "T_max")
 COLUMNS = ("time", "T_r", "T_m", "u", "u_phys", "T_a", "G", "I_g", "price", "T_min", "T_max")

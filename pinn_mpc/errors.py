@@ -2,6 +2,8 @@
 
 import sys
 
+__all__ = ["InputError", "ModelFileError", "warn"]
+
 
 class InputError(ValueError):
     """Bad user input: a file, a column, an option value. The message says what, where, how to fix."""

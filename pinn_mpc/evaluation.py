@@ -21,6 +21,8 @@ from pinn_mpc.errors import InputError
 from pinn_mpc.features import check_interval, time_of_day_h
 from pinn_mpc.models import LearnedModel
 
+__all__ = ["evaluate_model", "recursive_t_r"]
+
 
 def _mae(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.mean(np.abs(a - b)))

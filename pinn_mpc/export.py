@@ -8,6 +8,8 @@ from pinn_mpc import physics
 from pinn_mpc.errors import InputError
 from pinn_mpc.models import LearnedModel
 
+__all__ = ["export_rc"]
+
 
 def export_rc(model: LearnedModel, *, source: str) -> dict[str, Any]:
     """R/C values of the ensemble's learned coefficients (geometric mean over members).

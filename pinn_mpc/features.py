@@ -34,6 +34,22 @@ import pandas as pd
 from pinn_mpc.errors import InputError
 from pinn_mpc.physics import DT_RANGE_S
 
+__all__ = [
+    "EXOG_COLUMNS",
+    "MAX_DEPTH",
+    "MIN_TRAIN_SAMPLES",
+    "FeatureConfig",
+    "Standard",
+    "Windows",
+    "check_interval",
+    "exog_names_for",
+    "fit_feature_config",
+    "format_interval",
+    "make_windows",
+    "time_of_day_h",
+    "whole_number",
+]
+
 #: Exogenous inputs a model can use, in this order, with the data column each comes from.
 EXOG_COLUMNS = {"time_of_day_h": "time", "T_a": "T_a", "G": "G", "I_g": "I_g"}
 #: Samples a training set must have at least.

@@ -31,6 +31,8 @@ import scipy.signal
 from pinn_mpc.errors import InputError
 from pinn_mpc.physics import PLAUSIBLE_RANGES, RCParams, check_plausible, discretise
 
+__all__ = ["IdentifyResult", "identify_rc", "simulate_rc"]
+
 #: Below this standard deviation a G or I_g column counts as constant (not identifiable).
 _MIN_STD = {"G": 1.0, "I_g": 1.0}
 #: Grid of starting points: C_r as a fraction of the total capacity, R_rm as a fraction of R_ra.

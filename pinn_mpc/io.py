@@ -21,6 +21,19 @@ from typing import Any
 
 from pinn_mpc.errors import InputError
 
+__all__ = [
+    "DirectoryLayout",
+    "PathArg",
+    "PathsArg",
+    "atomic_directory",
+    "atomic_write",
+    "atomic_write_json",
+    "atomic_write_text",
+    "check_distinct",
+    "check_output_directory",
+    "check_writable",
+]
+
 PathArg = str | os.PathLike[str]
 
 

@@ -37,6 +37,16 @@ from pinn_mpc.choices import ARCHS
 from pinn_mpc.errors import InputError
 from pinn_mpc.features import FeatureConfig, make_windows
 
+__all__ = [
+    "MAX_MEMBERS",
+    "EnsembleModule",
+    "LearnedModel",
+    "Rollout",
+    "discretise_torch",
+    "residual_exact",
+    "residual_finite_difference",
+]
+
 #: Most ensemble members: far beyond the paper's 20; bounds what training or a model.json can
 #: make the program allocate.
 MAX_MEMBERS = 1000

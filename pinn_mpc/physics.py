@@ -35,6 +35,31 @@ import scipy.linalg
 
 from pinn_mpc.errors import InputError
 
+__all__ = [
+    "DT_RANGE_S",
+    "INPUT_NAMES",
+    "MAX_POWER_W",
+    "N_INPUTS",
+    "N_STATES",
+    "PAPER_HOUSEHOLD",
+    "PLAUSIBLE_RANGES",
+    "SUMMARY_KEYS",
+    "Coefficients",
+    "RCParams",
+    "check_plausible",
+    "continuous_matrices",
+    "discretise",
+    "discretise_euler",
+    "from_coefficients",
+    "params_from_summary",
+    "rc_summary",
+    "state_space_entries",
+    "steady_state",
+    "step",
+    "time_constants_h",
+    "to_coefficients",
+]
+
 N_STATES = 2
 N_INPUTS = 4
 INPUT_NAMES = ("u", "T_a", "G", "I_g")

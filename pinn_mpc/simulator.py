@@ -18,6 +18,8 @@ import numpy as np
 from pinn_mpc.errors import InputError
 from pinn_mpc.physics import PAPER_HOUSEHOLD, RCParams, discretise
 
+__all__ = ["SimConfig", "Simulator", "StepResult", "backup_power"]
+
 
 @dataclass(frozen=True, kw_only=True)
 class SimConfig:

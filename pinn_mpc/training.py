@@ -41,6 +41,8 @@ from pinn_mpc.models import (
     residual_finite_difference,
 )
 
+__all__ = ["TrainConfig", "data_summary", "train_model"]
+
 #: Consecutive samples per mini-batch chunk (the physics residuals link neighbours).
 CHUNK = 8
 #: |u - u_phys| [W] below which an interval counts as held at constant power.

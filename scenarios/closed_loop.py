@@ -36,6 +36,14 @@ from scenarios.inputs import day_span
 from scenarios.kpis import compute_kpis
 from scenarios.registry import EXOGENOUS_COLUMNS, Scenario, check_seed
 
+__all__ = [
+    "EXTRA_COLUMNS",
+    "ClosedLoopResult",
+    "one_torch_thread",
+    "run_closed_loop",
+    "write_trajectory",
+]
+
 #: Columns the trajectory adds to the data format.
 EXTRA_COLUMNS = ("overridden", "fallback", "decision_ms")
 _FORECAST_NOISE_STREAM = 1

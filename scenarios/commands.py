@@ -38,6 +38,8 @@ from scenarios.report import format_kpis, kpi_table_text, render_report
 if TYPE_CHECKING:  # compare loads torch: only the compare command imports it
     from scenarios.compare import CompareSettings, ComparisonResult
 
+__all__ = ["closed_loop", "compare", "reproduce", "simulate"]
+
 
 def simulate(a: argparse.Namespace) -> str:
     """Generate data and write it atomically to ``--out``."""

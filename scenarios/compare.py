@@ -40,6 +40,8 @@ from scenarios.inputs import day_span
 from scenarios.registry import Scenario, check_seed
 from scenarios.report import objective_ratios
 
+__all__ = ["ARCHS", "REFERENCE", "CompareSettings", "ComparisonResult", "run_comparison"]
+
 ARCHS = ("physnet", "physreg", "mlp")
 _RS = RandomShootingPlanner(lower=0.0, upper=1.0)  # the planners' defaults
 _CEM = CEMPlanner(lower=0.0, upper=1.0)

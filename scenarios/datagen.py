@@ -36,6 +36,8 @@ from pinn_mpc.simulator import Simulator
 from scenarios.choices import POLICIES
 from scenarios.registry import Scenario, check_seed
 
+__all__ = ["generate"]
+
 # Random streams apart from the exogenous ones (see scenarios.registry).
 _POLICY_STREAM, _SENSOR_STREAM = 11, 12
 

@@ -36,6 +36,25 @@ import pandas as pd
 from pinn_mpc.errors import InputError
 from scenarios.choices import WEATHER_PARTS, WeatherPart
 
+__all__ = [
+    "BASE_YEAR",
+    "HOURS_PER_TYPICAL_YEAR",
+    "SECONDS_PER_DAY",
+    "ComfortSchedule",
+    "GainsSchedule",
+    "PriceProfile",
+    "SyntheticWeather",
+    "TMY3Weather",
+    "day_span",
+    "interval_starts",
+    "load_tmy3",
+    "resample_typical_year",
+    "steps_per_day",
+    "time_of_day_h",
+    "tmy3_path",
+    "weather_part",
+]
+
 SECONDS_PER_DAY = 86400.0
 HOURS_PER_TYPICAL_YEAR = 8760
 #: Timestamps of synthetic and TMY3 series are labelled in this (non-leap) year and onwards.

@@ -29,6 +29,24 @@ from matplotlib.figure import Figure  # noqa: E402
 from pinn_mpc.io import atomic_write  # noqa: E402
 from scenarios.factory import MODEL_CONTROLLERS, RC_CONTROLLERS, TRUTH_CONTROLLERS  # noqa: E402
 
+__all__ = [
+    "FAMILIES",
+    "REFERENCE",
+    "comparison_figure",
+    "controller_name",
+    "draw_band",
+    "draw_power",
+    "draw_price",
+    "draw_room",
+    "format_time_axis",
+    "group_by_family",
+    "new_figure",
+    "plot_comparison",
+    "plot_trajectory",
+    "save_figure",
+    "trajectory_figure",
+]
+
 #: Panels of the comparison figure: (title, controller names), in drawing order.
 FAMILIES: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("thermostat", ("thermostat",)),

@@ -34,6 +34,15 @@ from scenarios.inputs import (
     weather_part,
 )
 
+__all__ = [
+    "COLD_ROOM",
+    "EXOGENOUS_COLUMNS",
+    "Scenario",
+    "check_seed",
+    "get_scenario",
+    "scenario_names",
+]
+
 #: Columns of :meth:`Scenario.exogenous`, in order.
 EXOGENOUS_COLUMNS = ("time", "T_a", "G", "I_g", "price", "T_min", "T_max")
 # Independent random streams per input, so changing one input's settings leaves the others.

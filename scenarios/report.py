@@ -10,6 +10,18 @@ import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
+__all__ = [
+    "KPI_COLUMNS",
+    "RC_ROWS",
+    "format_kpis",
+    "kpi_table_text",
+    "markdown_table",
+    "objective_ratios",
+    "rc_table_markdown",
+    "render_report",
+    "text_table",
+]
+
 #: (row key, column header, format) of the KPI tables.
 KPI_COLUMNS = (
     ("objective", "objective EUR", "{:.3f}"),

@@ -14,8 +14,9 @@ import pytest
 
 from pinn_mpc.cli import build_parser, main
 from pinn_mpc.errors import InputError
+from scenarios.choices import WEATHER_PARTS
 from scenarios.compare import CompareSettings
-from scenarios.inputs import BASE_YEAR, WEATHER_PARTS, TMY3Weather
+from scenarios.inputs import BASE_YEAR, TMY3Weather
 from scenarios.registry import get_scenario, scenario_names
 from scenarios.reproduce import ReproduceConfig
 

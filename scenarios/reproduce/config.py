@@ -7,6 +7,8 @@ from dataclasses import dataclass
 from pinn_mpc.choices import RECIPES
 from pinn_mpc.errors import InputError
 
+__all__ = ["ReproduceConfig"]
+
 
 @dataclass(frozen=True, kw_only=True)
 class ReproduceConfig:

@@ -29,6 +29,8 @@ from scenarios.reproduce.results import (
     ReproductionResults,
 )
 
+__all__ = ["evaluate_members", "run_experiments"]
+
 
 def _member_mae(pred: np.ndarray, truth: np.ndarray) -> np.ndarray:
     """(M, N) predictions, (N,) truth -> (M,) MAE of each member."""

@@ -27,6 +27,22 @@ from scenarios.reproduce.results import (
     SeriesBlock,
 )
 
+__all__ = [
+    "COLORS",
+    "FILES",
+    "LABELS",
+    "OUTPUT",
+    "X_AXES",
+    "plot_series",
+    "plot_validation",
+    "render_report",
+    "series_panels",
+    "series_table",
+    "tables",
+    "validation_table",
+    "write_outputs",
+]
+
 LABELS = {"mlp": "MLP", "physreg": "PhysReg MLP", "physnet": "PhysNet"}
 COLORS = {"mlp": "tab:gray", "physreg": "tab:blue", "physnet": "tab:orange"}
 #: Per series experiment: the table header of its x values and the x-axis label.

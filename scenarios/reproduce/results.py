@@ -17,6 +17,16 @@ import pandas as pd
 from pinn_mpc.choices import ARCHS
 from scenarios.reproduce.config import ReproduceConfig
 
+__all__ = [
+    "PAPER_CLAIMS",
+    "PAPER_VALIDATION",
+    "EnsembleRun",
+    "ErrorStats",
+    "OneStepPredictions",
+    "ReproductionResults",
+    "SeriesBlock",
+]
+
 #: Paper Table val_results: one-step MAE [C] of T_r and T_m, 120 simulated days, depth 8.
 PAPER_VALIDATION = {
     "mlp": {"T_r": 0.209, "T_m": 1.413},
