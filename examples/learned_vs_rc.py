@@ -22,26 +22,26 @@ from scenarios import (
     get_scenario,
     kpi_table_text,
     run_closed_loop,
-    scenario_names,
 )
+
+#: What to compare on: a built-in scenario, days of training data and of
+#: closed loop, and the seed of the data and the models (the test days use ``SEED + 1``).
+SCENARIO = "winter_household"
+TRAIN_DAYS, TEST_DAYS, SEED = 60, 3, 0
 
 
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, required=True, help="directory to write into")
-    parser.add_argument("--scenario", default="winter_household", choices=scenario_names())
-    parser.add_argument("--train-days", type=int, default=60)
-    parser.add_argument("--days", type=int, default=3, help="counted closed-loop days")
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--quick", action="store_true", help="small data and model, one day")
+    parser.add_argument("--quick", action="store_true", help="20 training days, one test day")
     args = parser.parse_args(argv)
-    train_days, days = (20, 1) if args.quick else (args.train_days, args.days)
+    train_days, days = (20, 1) if args.quick else (TRAIN_DAYS, TEST_DAYS)
 
-    scenario = get_scenario(args.scenario)
+    scenario = get_scenario(SCENARIO)
     eta = scenario.sim.params.eta
-    data = generate(scenario, days=train_days, seed=args.seed, policy="random-level")
+    data = generate(scenario, days=train_days, seed=SEED, policy="random-level")
     config = TrainConfig(depth=16, n_seeds=3 if args.quick else 10,
-                         epochs=40 if args.quick else None, first_seed=args.seed, eta=eta,
+                         epochs=40 if args.quick else None, first_seed=SEED, eta=eta,
                          u_max_w=scenario.sim.u_max_w)
     physnet = train_model(data, arch="physnet", config=config, progress=False)
     identified = identify_rc(data, eta=eta).params
@@ -58,7 +58,7 @@ def main(argv: list[str] | None = None) -> None:
     }
     rows = []
     for label, controller in runs.items():
-        result = run_closed_loop(scenario, controller, days=days, seed=args.seed + 1, label=label)
+        result = run_closed_loop(scenario, controller, days=days, seed=SEED + 1, label=label)
         rows.append(result.kpis)
     for row in rows:  # the oracle ran last
         row["objective_to_oracle"] = row["objective"] / rows[-1]["objective"]

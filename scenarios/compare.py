@@ -1,4 +1,4 @@
-"""``pinn-mpc compare``: train, identify and run every controller on one scenario.
+"""A controller comparison: train, identify and run every controller on one scenario.
 
 1. Training data: ``train_days`` from the training part of the scenario's weather (see
    :mod:`scenarios.inputs`) under a random policy (seed ``seed``): ``random-level``
@@ -14,7 +14,8 @@
    polish adds), CEM over physreg and mlp (unless ``cem_all_models=False``),
    casadi-mpc and qp-mpc on the identified RC, qp-mpc on the physnet-exported RC, oracle and
    clairvoyant.
-4. Outputs: a JSON table (one row per controller with every KPI), a markdown report with the
+4. Outputs (written by the command, :func:`scenarios.commands.compare`; :func:`run_comparison`
+   returns them as a :class:`ComparisonResult`): a JSON table (one row per controller with every KPI), a markdown report with the
    dates of the training data and of the test days, the KPI table, each objective relative to
    the oracle's, the RC parameters against the true ones and a figure of the trajectories, one
    panel per controller family against the oracle (PNG next to the report,
