@@ -31,7 +31,7 @@ import os
 import re
 import socket
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -51,7 +51,8 @@ from scenarios.sweep_report import REFERENCE, plot_sweep, render_sweep_report, s
 ARCH = "physnet"
 RC_KIND = "rc"
 FIGURE = "objective_to_oracle.png"
-_ADDRESS = re.compile(r"^(auto|(ray://)?[A-Za-z0-9.\-\[\]:]+:\d{1,5})$")
+_ADDRESS = re.compile(r"^(ray://)?(?P<host>[A-Za-z0-9.\-]+|\[[0-9A-Fa-f:]+\]):(?P<port>\d{1,5})$")
+_CONNECT_TIMEOUT_S = 5.0
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -269,11 +270,10 @@ def _read_json(path: Path) -> Any:
 
 
 def _check_settings(out: Path, settings: SweepSettings) -> None:
-    """Write ``DIR/sweep.json`` on the first run; refuse a rerun with other settings."""
+    """Refuse a rerun in ``out`` with other settings than its ``sweep.json``."""
     path = out / "sweep.json"
     record = _settings_record(settings)
     if not path.exists():
-        atomic_write_json(path, {"settings": record})
         return
     stored = _read_json(path)
     before = stored.get("settings") if isinstance(stored, dict) else None
@@ -327,12 +327,9 @@ def _store_model(out: Path, key: ModelKey, model: Any) -> None:
 # ---- Ray ----
 
 
-@contextmanager
-def ray_engine(address: str | None, workers: int | None) -> Iterator[dict[str, Any]]:
-    """Start a local Ray instance (``workers`` CPUs, default all) or connect to ``address``;
-    yield the engine record of ``summary.json``; shut down (or disconnect) at the end."""
-    import ray
-
+def check_engine_options(address: str | None, workers: int | None) -> None:
+    """Refuse a malformed or unreachable ``--address`` (before anything is written: Ray itself
+    waits minutes for a head node that is not there) and ``--workers`` with ``--address``."""
     if address is not None and workers is not None:
         raise InputError(
             "sweep: --workers sizes the local Ray instance; with --address the cluster's CPUs "
@@ -340,11 +337,32 @@ def ray_engine(address: str | None, workers: int | None) -> Iterator[dict[str, A
         )
     if workers is not None and workers < 1:
         raise InputError(f"sweep: --workers must be >= 1, got {workers}")
-    if address is not None and not _ADDRESS.match(address):
+    if address is None or address == "auto":
+        return
+    match = _ADDRESS.match(address)
+    if match is None:
         raise InputError(
             f"sweep: --address {address!r} is not a Ray address; give HOST:PORT of the head "
             "node (e.g. 10.0.0.5:6379), ray://HOST:10001, or auto"
         )
+    host, port = match.group("host").strip("[]"), int(match.group("port"))
+    try:
+        with socket.create_connection((host, port), timeout=_CONNECT_TIMEOUT_S):
+            pass
+    except OSError as exc:
+        raise InputError(
+            f"sweep: no Ray head node answers at {address} ({exc.strerror or exc}); start one "
+            "with `ray start --head` (it prints the address) or leave --address out"
+        ) from None
+
+
+@contextmanager
+def ray_engine(address: str | None, workers: int | None) -> Iterator[dict[str, Any]]:
+    """Start a local Ray instance (``workers`` CPUs, default all) or connect to ``address``;
+    yield the engine record of ``summary.json``; shut down (or disconnect) at the end."""
+    import ray
+
+    check_engine_options(address, workers)
     options: dict[str, Any] = {
         "include_dashboard": False,
         "logging_level": logging.ERROR,
@@ -370,18 +388,12 @@ def ray_engine(address: str | None, workers: int | None) -> Iterator[dict[str, A
         ray.shutdown()
 
 
-def _fit_task(key: ModelKey, settings: SweepSettings) -> Any:
+def _one_blas_thread(function: Callable[..., Any], *args: Any) -> Any:
+    """A Ray task body: each task holds one CPU, so its linear algebra gets one thread."""
     from threadpoolctl import threadpool_limits
 
     with threadpool_limits(limits=1):
-        return fit_model(key, settings)
-
-
-def _cell_task(cell: Cell, settings: SweepSettings, model: Any) -> dict[str, Any]:
-    from threadpoolctl import threadpool_limits
-
-    with threadpool_limits(limits=1):
-        return run_cell(cell, settings, model)
+        return function(*args)
 
 
 def _task_failure(what: str, exc: Exception) -> InputError:
@@ -414,12 +426,11 @@ def run_sweep(
         raise InputError(
             f"sweep: baseline {baseline!r} is not among the controllers ({', '.join(grid.controllers)})"
         )
+    check_engine_options(address, workers)
     start = time.perf_counter()
     root = Path(out)
     if root.exists() and not root.is_dir():
         raise InputError(f"sweep: --out {root} is a file; give a directory")
-    (root / "cells").mkdir(parents=True, exist_ok=True)
-    (root / "models").mkdir(exist_ok=True)
     _check_settings(root, settings)
     cells = grid.cells()
     records = {c: _read_cell(root / "cells" / f"{c.name}.json", c) for c in cells}
@@ -428,8 +439,11 @@ def run_sweep(
     keys = sorted({c.model for c in missing if c.model is not None})
     trained = 0
     with ray_engine(address, workers) as engine:
-        fit = ray.remote(num_cpus=1)(_fit_task)
-        cell_task = ray.remote(num_cpus=1)(_cell_task)
+        # Only now that the engine runs: a refused address leaves no directory behind.
+        (root / "models").mkdir(parents=True, exist_ok=True)
+        (root / "cells").mkdir(exist_ok=True)
+        atomic_write_json(root / "sweep.json", {"settings": _settings_record(settings)})
+        task = ray.remote(num_cpus=1)(_one_blas_thread)
         pending: dict[Any, tuple[str, Any]] = {}
         model_refs: dict[ModelKey, Any] = {}
         for key in keys:
@@ -437,10 +451,10 @@ def run_sweep(
             if stored is not None:
                 model_refs[key] = ray.put(stored)
             else:
-                model_refs[key] = fit.remote(key, settings)
+                model_refs[key] = task.remote(fit_model, key, settings)
                 pending[model_refs[key]] = ("model", key)
         for cell in missing:
-            ref = cell_task.remote(cell, settings, model_refs.get(cell.model) if cell.model else None)
+            ref = task.remote(run_cell, cell, settings, model_refs.get(cell.model) if cell.model else None)
             pending[ref] = ("cell", cell)
         with tqdm(total=len(cells), initial=reused, desc="sweep", unit="cell", disable=None) as bar:
             while pending:
