@@ -142,7 +142,8 @@ def test_sweep_runs_then_reuses_every_cell(tmp_path):
     assert rows[("cold_storage", "oracle")]["objective_to_oracle_mean"] == 1.0
     # the thermostat ignores prices and forecasts: it cannot beat the oracle on any seed
     assert all(v > 1.0 for v in rows[("winter_household", "thermostat")]["objective_to_oracle_by_seed"].values())
-    assert (out / "report.md").read_text().count("| `") == 6
+    report = (out / "report.md").read_text()
+    assert report.count("| `winter_household` |") == report.count("| `cold_storage` |") == 3
     assert (out / "objective_to_oracle.png").stat().st_size > 0
     cell_times = {p.name: p.stat().st_mtime_ns for p in (out / "cells").glob("*.json")}
 
