@@ -277,11 +277,10 @@ def _check_settings(out: Path, settings: SweepSettings) -> None:
         return
     stored = _read_json(path)
     before = stored.get("settings") if isinstance(stored, dict) else None
+    before = before if isinstance(before, dict) else {}
     if before != record:
         diff = ", ".join(
-            f"{k} {before.get(k)!r} -> {v!r}"
-            for k, v in record.items()
-            if not isinstance(before, dict) or before.get(k) != v
+            f"{k} {before.get(k)!r} -> {v!r}" for k, v in record.items() if before.get(k) != v
         )
         raise InputError(
             f"sweep: {out} holds a sweep with other settings ({diff}); "
@@ -473,8 +472,9 @@ def run_sweep(
                 records[what] = record
                 bar.update()
     done = [r for r in records.values() if r is not None]
-    summary = {
-        "rows": summarise(done, baseline=baseline, order=[*grid.controllers, REFERENCE]),
+    rows = summarise(done, baseline=baseline, order=[*grid.controllers, REFERENCE])
+    summary: dict[str, Any] = {
+        "rows": rows,
         "baseline": baseline,
         "engine": engine,
         "cells_run": len(missing),
@@ -491,7 +491,7 @@ def run_sweep(
         "wall_time_s": time.perf_counter() - start,
     }
     summary_path = atomic_write_json(root / "summary.json", summary)
-    figure_path = plot_sweep(summary["rows"], root / FIGURE)
+    figure_path = plot_sweep(rows, root / FIGURE)
     report_path = atomic_write_text(
         root / "report.md", render_sweep_report(summary, figure_name=FIGURE)
     )
