@@ -2,9 +2,9 @@
 
 One control interval of B buildings. Per building the 2x2 update and the backup rule of
 :func:`pinn_mpc.simulator.backup_power` run in registers, substep after substep, so the interval
-costs one pass over memory instead of some twenty numpy passes per substep (at 10,000
-buildings: 1.3e8 building-minutes/s against 5.8e7 for the numpy loop it replaces, on the
-same loaded machine). The arithmetic is the numpy loop's, term by term, in float64.
+costs one pass over memory instead of some twenty numpy passes per substep (about twice the
+throughput of the numpy loop it replaced; ``benchmarks/bench_simulator.py`` measures it).
+The arithmetic is the numpy loop's, term by term, in float64.
 
 Imported lazily by :class:`pinn_mpc.simulator.Simulator` so that modules which never step a
 simulator do not pay numba's import. ``cache=True`` keeps the compiled kernel next to this
