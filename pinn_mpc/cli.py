@@ -121,6 +121,24 @@ def _add_weather_part(p: argparse.ArgumentParser, default: str) -> None:
     )
 
 
+def _sweep(a: argparse.Namespace) -> str:
+    from scenarios.sweep import sweep_command
+
+    return sweep_command(
+        scenarios=a.scenarios,
+        controllers=a.controllers,
+        seeds=a.seeds,
+        train_days=a.train_days,
+        days=a.days,
+        out=a.out,
+        quick=a.quick,
+        address=a.address,
+        workers=a.workers,
+        baseline=a.baseline,
+        force=a.force,
+    )
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(
         prog="pinn-mpc",
@@ -289,6 +307,19 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--seeds", type=_positive_int, default=None, help="ensemble members (default: 20, quick 3)"
     )
+    force(p)
+
+    p = add("sweep", _sweep, "run a grid of closed loops (scenarios x controllers x seeds) on Ray")
+    p.add_argument("--scenarios", required=True, help="comma-separated scenario names")
+    p.add_argument("--controllers", required=True, help="comma-separated, e.g. oracle,qp-mpc,cem")
+    p.add_argument("--seeds", required=True, help="e.g. 0-7 or 0,3,5")
+    p.add_argument("--train-days", default="30", help="training days, e.g. 30 or 14,30,60")
+    p.add_argument("--days", type=_positive_int, default=3, help="test days per cell")
+    p.add_argument("--out", required=True, help="directory of cells, models, summary, report")
+    p.add_argument("--quick", action="store_true", help="2-member ensembles, at most 2 test days")
+    p.add_argument("--address", default=None, help="Ray cluster (HOST:PORT, ray://HOST:PORT, auto)")
+    p.add_argument("--workers", type=_positive_int, default=None, help="local CPUs (default all)")
+    p.add_argument("--baseline", default=None, help="controller of the paired differences")
     force(p)
     return parser
 
