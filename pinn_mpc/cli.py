@@ -121,24 +121,6 @@ def _add_weather_part(p: argparse.ArgumentParser, default: str) -> None:
     )
 
 
-def _sweep(a: argparse.Namespace) -> str:
-    from scenarios.sweep import sweep_command
-
-    return sweep_command(
-        scenarios=a.scenarios,
-        controllers=a.controllers,
-        seeds=a.seeds,
-        train_days=a.train_days,
-        days=a.days,
-        out=a.out,
-        quick=a.quick,
-        address=a.address,
-        workers=a.workers,
-        baseline=a.baseline,
-        force=a.force,
-    )
-
-
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(
         prog="pinn-mpc",
@@ -309,7 +291,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     force(p)
 
-    p = add("sweep", _sweep, "run a grid of closed loops (scenarios x controllers x seeds) on Ray")
+    p = add("sweep", "scenarios.commands:sweep", "run a grid of closed loops (scenarios x controllers x seeds) on Ray")
     p.add_argument("--scenarios", required=True, help="comma-separated scenario names")
     p.add_argument("--controllers", required=True, help="comma-separated, e.g. oracle,qp-mpc,cem")
     p.add_argument("--seeds", required=True, help="e.g. 0-7 or 0,3,5")

@@ -16,6 +16,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+__all__ = ["integrate_interval"]
+
 
 @njit(cache=True, nogil=True)
 def integrate_interval(

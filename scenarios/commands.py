@@ -38,7 +38,7 @@ from scenarios.report import format_kpis, kpi_table_text, render_report
 if TYPE_CHECKING:  # compare loads torch: only the compare command imports it
     from scenarios.compare import CompareSettings, ComparisonResult
 
-__all__ = ["closed_loop", "compare", "reproduce", "simulate"]
+__all__ = ["closed_loop", "compare", "reproduce", "simulate", "sweep"]
 
 
 def simulate(a: argparse.Namespace) -> str:
@@ -222,3 +222,47 @@ def reproduce(a: argparse.Namespace) -> str:
         + validation_table(results, markdown=False)
         + f"\nwrote {Path(a.out)}/: {', '.join(OUTPUT.files)} in {elapsed:.0f} s"
     )
+
+
+def sweep(a: argparse.Namespace) -> str:
+    """Parse the grid, run it on Ray (:func:`scenarios.sweep.run_sweep`), return what was run
+    and written."""
+    from scenarios.sweep import SweepGrid, SweepSettings, parse_ints, parse_names, run_sweep
+
+    scenarios, controllers, seeds, train_days = a.scenarios, a.controllers, a.seeds, a.train_days
+    days, out, quick, address, workers = a.days, a.out, a.quick, a.address, a.workers
+    baseline, force = a.baseline, a.force
+    grid = SweepGrid(
+        scenarios=parse_names(scenarios, "scenarios"),
+        controllers=parse_names(controllers, "controllers"),
+        seeds=parse_ints(seeds, "seeds"),
+        train_days=parse_ints(train_days, "training days"),
+    )
+    settings = SweepSettings.for_run(days=days, quick=quick)
+    outcome = run_sweep(
+        grid,
+        settings,
+        out,
+        baseline=baseline or grid.controllers[0],
+        address=address,
+        workers=workers,
+        force=force,
+    )
+    s = outcome.summary
+    total = s["cells_run"] + s["cells_reused"]
+    reuse = (
+        f"all {total} cells reused from {out}, none run"
+        if s["cells_run"] == 0
+        else f"{s['cells_run']} of {total} cells run now, {s['cells_reused']} reused"
+    )
+    lines = [
+        f"{r['scenario']:<18} {r['controller']:<16} n={r['n']:<3} objective/oracle "
+        f"{r['objective_to_oracle_mean']:.3f}"
+        for r in s["rows"]
+    ]
+    lines.append(
+        f"sweep: {reuse}; models {s['models_trained']} trained, {s['models_reused']} reused; "
+        f"wrote {outcome.summary_path}, {outcome.report_path}, {outcome.figure_path} "
+        f"({s['wall_time_s']:.0f} s)"
+    )
+    return "\n".join(lines)

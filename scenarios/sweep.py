@@ -51,6 +51,8 @@ from scenarios.sweep_report import REFERENCE, plot_sweep, render_sweep_report, s
 ARCH = "physnet"
 RC_KIND = "rc"
 FIGURE = "objective_to_oracle.png"
+
+__all__ = ["Cell", "ModelKey", "SweepGrid", "SweepOutcome", "SweepSettings", "check_engine_options", "fit_model", "model_kind", "parse_ints", "parse_names", "ray_engine", "run_cell", "run_sweep"]
 _ADDRESS = re.compile(r"^(ray://)?(?P<host>[A-Za-z0-9.\-]+|\[[0-9A-Fa-f:]+\]):(?P<port>\d{1,5})$")
 _CONNECT_TIMEOUT_S = 5.0
 
@@ -512,54 +514,3 @@ def run_sweep(
     return SweepOutcome(
         summary=summary, summary_path=summary_path, report_path=report_path, figure_path=figure_path
     )
-
-
-def sweep_command(
-    *,
-    scenarios: str,
-    controllers: str,
-    seeds: str,
-    train_days: str,
-    days: int,
-    out: str,
-    quick: bool,
-    address: str | None,
-    workers: int | None,
-    baseline: str | None,
-    force: bool = False,
-) -> str:
-    """``pinn-mpc sweep``: parse the grid, run it, return what was run and written."""
-    grid = SweepGrid(
-        scenarios=parse_names(scenarios, "scenarios"),
-        controllers=parse_names(controllers, "controllers"),
-        seeds=parse_ints(seeds, "seeds"),
-        train_days=parse_ints(train_days, "training days"),
-    )
-    settings = SweepSettings.for_run(days=days, quick=quick)
-    outcome = run_sweep(
-        grid,
-        settings,
-        out,
-        baseline=baseline or grid.controllers[0],
-        address=address,
-        workers=workers,
-        force=force,
-    )
-    s = outcome.summary
-    total = s["cells_run"] + s["cells_reused"]
-    reuse = (
-        f"all {total} cells reused from {out}, none run"
-        if s["cells_run"] == 0
-        else f"{s['cells_run']} of {total} cells run now, {s['cells_reused']} reused"
-    )
-    lines = [
-        f"{r['scenario']:<18} {r['controller']:<16} n={r['n']:<3} objective/oracle "
-        f"{r['objective_to_oracle_mean']:.3f}"
-        for r in s["rows"]
-    ]
-    lines.append(
-        f"sweep: {reuse}; models {s['models_trained']} trained, {s['models_reused']} reused; "
-        f"wrote {outcome.summary_path}, {outcome.report_path}, {outcome.figure_path} "
-        f"({s['wall_time_s']:.0f} s)"
-    )
-    return "\n".join(lines)

@@ -23,6 +23,8 @@ from scenarios.report import markdown_table
 
 REFERENCE = "oracle"
 
+__all__ = ["REFERENCE", "mean_ci95", "plot_sweep", "render_sweep_report", "row_label", "summarise"]
+
 
 def mean_ci95(values: Sequence[float]) -> tuple[float, list[float | None]]:
     """Mean and two-sided 95 % Student t interval of the mean (``[None, None]`` for one value;
