@@ -199,7 +199,8 @@ def test_long_closed_loop_shows_progress_on_a_terminal(tmp_path: Path) -> None:
     import struct
     import termios
 
-    argv = [*LOOP[:-1], "100", "--json", str(tmp_path / "k.json")]
+    # 600 days of thermostat take several seconds, well past the bar's 1 s delay
+    argv = [*LOOP[:-1], "600", "--json", str(tmp_path / "k.json")]
     pid, fd = pty.fork()
     if pid == 0:  # the child: the CLI with a terminal on stdout and stderr
         os.execv(sys.executable, [sys.executable, "-m", "pinn_mpc", *argv])
