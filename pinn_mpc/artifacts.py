@@ -20,7 +20,7 @@ from pinn_mpc import __version__, physics
 from pinn_mpc.errors import InputError, ModelFileError
 from pinn_mpc.features import FeatureConfig
 from pinn_mpc.io import atomic_directory
-from pinn_mpc.models import ARCHS, EnsembleModule, LearnedModel
+from pinn_mpc.models import ALL_ARCHS, EnsembleModule, LearnedModel
 
 WEIGHTS = "weights.safetensors"
 META = "model.json"
@@ -75,8 +75,8 @@ def _read_meta(directory: Path) -> dict[str, Any]:
             f"{meta_path} has format_version {meta['format_version']!r}, this package reads "
             f"{FORMAT_VERSION}; retrain the model with this version"
         )
-    if meta["arch"] not in ARCHS:
-        raise ModelFileError(f"{meta_path}: unknown arch {meta['arch']!r}; expected one of {ARCHS}")
+    if meta["arch"] not in ALL_ARCHS:
+        raise ModelFileError(f"{meta_path}: unknown arch {meta['arch']!r}; expected one of {ALL_ARCHS}")
     return meta
 
 
