@@ -13,6 +13,7 @@ import sys
 from collections.abc import Callable, Sequence
 
 from pinn_mpc import __version__
+from pinn_mpc.archs import ALL_ARCHS, DEFAULT_ARCH
 from pinn_mpc.errors import InputError
 
 
@@ -154,14 +155,26 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--scenario", required=True, help="scenario name, e.g. paper_household")
     p.add_argument("--days", type=_positive_int, required=True)
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--policy", choices=["random", "random-level", "thermostat"], default="random")
+    p.add_argument(
+        "--policy",
+        choices=["random", "random-level", "thermostat"],
+        default="random-level",
+        help="'random-level': a uniform power level per interval (for control); "
+        "'random': the paper's on/off",
+    )
     p.add_argument("--buildings", type=_positive_int, default=1)
     p.add_argument("--out", required=True, help="CSV file to write")
 
-    p = add("train", _train, "train a seed ensemble of mlp, physreg or physnet on data")
+    p = add("train", _train, "train a seed ensemble of hybrid, mlp, physreg or physnet on data")
     p.add_argument("--data", required=True)
-    p.add_argument("--arch", choices=["mlp", "physreg", "physnet"], required=True)
-    p.add_argument("--depth", type=_positive_int, default=8)
+    p.add_argument(
+        "--arch",
+        choices=list(ALL_ARCHS),
+        default=DEFAULT_ARCH,
+        help="hybrid (default, recommended for control): the identified 2R2C with learned "
+        "corrections; mlp, physreg, physnet: the paper's",
+    )
+    p.add_argument("--depth", type=_positive_int, default=16, help="history length (paper: 8)")
     p.add_argument("--seeds", type=_positive_int, default=20, help="ensemble members")
     p.add_argument("--seed", type=int, default=0, help="first seed")
     p.add_argument("--epochs", type=_positive_int, default=None, help="default: recipe's")

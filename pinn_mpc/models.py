@@ -33,14 +33,24 @@ import torch
 from torch import nn
 
 from pinn_mpc import physics
+from pinn_mpc.archs import ALL_ARCHS, ARCHS, DEFAULT_ARCH
 from pinn_mpc.errors import InputError
 from pinn_mpc.features import FeatureConfig, make_windows
 
-#: The paper's three architectures.
-ARCHS = ("mlp", "physreg", "physnet")
-#: Every architecture: the paper's and the hybrid this package recommends for control.
-ALL_ARCHS = (*ARCHS, "hybrid")
-DEFAULT_ARCH = "hybrid"
+__all__ = [
+    "ALL_ARCHS",
+    "ARCHS",
+    "DEFAULT_ARCH",
+    "EnsembleModule",
+    "EnsembleNet",
+    "HybridNet",
+    "LearnedModel",
+    "Physics",
+    "Rollout",
+    "discretise_torch",
+    "residual_exact",
+    "residual_finite_difference",
+]
 RESIDUALS = ("exact", "finite_difference")
 HIDDEN = {
     "mlp": (64, 64),
@@ -341,7 +351,7 @@ class HybridNet(nn.Module):
         self.backup_high_c = nn.Parameter(torch.full((n_members, 1), 100.0))
         self.log_backup_width_k = nn.Parameter(torch.full((n_members, 1), math.log(0.3)))
         self.full_power_w: torch.Tensor
-        self.register_buffer("full_power_w", torch.zeros(()))
+        self.register_buffer("full_power_w", torch.zeros(n_members, 1))  # per member, like all
         names = features.exog_series
         # Position of T_a, G, I_g in the exogenous windows (None when the data lacks it).
         self._exog_pos = [names.index(n) if n in names else None for n in ("T_a", "G", "I_g")]
