@@ -417,6 +417,18 @@ class HybridNet(nn.Module):
         s = (g * (y / a(0, 1) - c[..., :k])).sum(-1) / (g**2).sum(-1)
         return powers[:, None, k] * s + c[..., k]
 
+    def observe_linear(
+        self, ad: torch.Tensor, bd: torch.Tensor, t_r: torch.Tensor, d: torch.Tensor
+    ) -> torch.Tensor:
+        """:meth:`observe_t_m` as one matrix product: the observer is linear in the window, so
+        its weights come from applying it to the unit windows (k+1+4k of them, not B)."""
+        k = d.shape[-2]
+        n_t = k + 1
+        basis = torch.eye(n_t + 4 * k).expand(ad.shape[0], -1, -1)
+        weights = self.observe_t_m(ad, bd, basis[..., :n_t], basis[..., n_t:].unflatten(-1, (k, 4)))
+        window = torch.cat([t_r, d.flatten(-2)], dim=-1)  # (M, B, k+1+4k)
+        return torch.bmm(window, weights[..., None])[..., 0]
+
     def forward_terms(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """``(obs, z, residual)`` for scaled features x (M, B, F): ``obs``, ``z`` as
         :meth:`EnsembleNet.forward`; ``residual`` (M, B) the residual net's scaled output."""
@@ -427,7 +439,7 @@ class HybridNet(nn.Module):
         p_past = self._raw(x, 1)  # u_phys,i-k-1 .. u_phys,i-1
         exog = [None if j is None else self._raw(x, 2 + j) for j in self._exog_pos]
         d_win = self._inputs(p_past[..., 1:], [None if e is None else e[..., :-1] for e in exog])
-        t_m = self.observe_t_m(ad, bd, t_r, d_win)
+        t_m = self.observe_linear(ad, bd, t_r, d_win)
         z = (t_m - f.temperature.mean) / f.temperature.std
         now = x.index_select(-1, self.now_index)
         obs, residual = self._step(ad, bd, t_r[..., k], t_m, z, now, exog_now=[
@@ -492,7 +504,7 @@ class HybridNet(nn.Module):
         e_raw = torch.stack([e_seq[:, j] * sc.std + sc.mean for j, sc in enumerate(scales)], 1)
         exog = [None if j is None else e_raw[:, j].expand(m, -1, -1) for j in self._exog_pos]
         d_win = self._inputs(p_past[..., 1:], [None if e is None else e[..., :k] for e in exog])
-        t_m = self.observe_t_m(ad, bd, t_r, d_win).expand(m, n)  # (M, N)
+        t_m = self.observe_linear(ad, bd, t_r, d_win).expand(m, n)  # (M, N)
         t_now = t_r[..., k].expand(m, n)
         p_now = p_win[:, k].expand(m, n)
         e_seq, tod = e_seq.expand(n, -1, -1), tod.expand(n, -1, -1)
