@@ -43,6 +43,7 @@ __all__ = [
     "DEFAULT_ARCH",
     "EnsembleModule",
     "EnsembleNet",
+    "HybridInputs",
     "HybridNet",
     "LearnedModel",
     "Physics",
@@ -295,6 +296,14 @@ def discretise_torch(coef: physics.Coefficients, dt_s: float) -> tuple[torch.Ten
     ]
 
 
+class HybridInputs(NamedTuple):
+    """What :class:`HybridNet` reads from a sample's features (leading dims (..., ))."""
+
+    window: torch.Tensor  # (..., k+1+4k) raw T_r,i-k..T_r,i, then (u_phys, T_a, G, I_g) per step
+    now: torch.Tensor  # (..., n_now) scaled x_obs,i, w_i and u_i (features.now_index())
+    raw_now: torch.Tensor  # (..., 4) raw T_r,i, T_a,i, G_i, I_g,i (0 where the data lacks one)
+
+
 class HybridNet(nn.Module):
     """The recommended model for control: the 2R2C *is* the predictor, networks only correct it.
 
@@ -375,10 +384,9 @@ class HybridNet(nn.Module):
         ad, bd = discretise_torch(self.coefficients(), self.features.dt_s)
         return ad.float(), bd.float()
 
-    def _inputs(self, p_w: torch.Tensor, exog_c: list[torch.Tensor | None]) -> torch.Tensor:
-        """(u_phys, T_a, G, I_g) stacked last, zeros for what the data lacks: (..., 4)."""
-        zero = torch.zeros_like(p_w)
-        return torch.stack([p_w, *(zero if e is None else e for e in exog_c)], dim=-1)
+    def _inputs(self, p_w: torch.Tensor, exog_c: torch.Tensor) -> torch.Tensor:
+        """(u_phys, T_a, G, I_g) stacked last: ``p_w`` (...,), ``exog_c`` (..., 3) -> (..., 4)."""
+        return torch.cat([p_w[..., None], exog_c], dim=-1)
 
     def _raw(self, x: torch.Tensor, window: int) -> torch.Tensor:
         """Window ``window`` of scaled features x (..., F) in raw units: (..., k+1)."""
@@ -391,6 +399,27 @@ class HybridNet(nn.Module):
             return v * f.power.std + f.power.mean
         s = f.exog[f.exog_series[window - 2]]
         return v * s.std + s.mean
+
+    def _exog_raw(self, series: torch.Tensor) -> torch.Tensor:
+        """Raw (T_a, G, I_g) from raw series (n_series, ...) -> (..., 3), zeros where absent."""
+        zero = torch.zeros_like(series[0])
+        return torch.stack([zero if j is None else series[j] for j in self._exog_pos], dim=-1)
+
+    def split(self, x: torch.Tensor) -> HybridInputs:
+        """What the hybrid reads from scaled features x (..., F); it does not depend on the
+        weights, so training computes it once for all samples."""
+        k = self.features.depth
+        t_r = self._raw(x, 0)
+        p_past = self._raw(x, 1)  # u_phys,i-k-1 .. u_phys,i-1
+        n_series = len(self.features.exog_series)
+        series = torch.stack([self._raw(x, 2 + j) for j in range(n_series)])
+        exog = self._exog_raw(series)  # (..., k+1, 3)
+        d_win = self._inputs(p_past[..., 1:], exog[..., :-1, :])  # (..., k, 4)
+        return HybridInputs(
+            window=torch.cat([t_r, d_win.flatten(-2)], dim=-1),
+            now=x.index_select(-1, self.now_index),
+            raw_now=torch.cat([t_r[..., k, None], exog[..., k, :]], dim=-1),
+        )
 
     def observe_t_m(
         self,
@@ -417,34 +446,28 @@ class HybridNet(nn.Module):
         s = (g * (y / a(0, 1) - c[..., :k])).sum(-1) / (g**2).sum(-1)
         return powers[:, None, k] * s + c[..., k]
 
-    def observe_linear(
-        self, ad: torch.Tensor, bd: torch.Tensor, t_r: torch.Tensor, d: torch.Tensor
-    ) -> torch.Tensor:
-        """:meth:`observe_t_m` as one matrix product: the observer is linear in the window, so
-        its weights come from applying it to the unit windows (k+1+4k of them, not B)."""
-        k = d.shape[-2]
-        n_t = k + 1
-        basis = torch.eye(n_t + 4 * k).expand(ad.shape[0], -1, -1)
-        weights = self.observe_t_m(ad, bd, basis[..., :n_t], basis[..., n_t:].unflatten(-1, (k, 4)))
-        window = torch.cat([t_r, d.flatten(-2)], dim=-1)  # (M, B, k+1+4k)
+    def observe_linear(self, ad: torch.Tensor, bd: torch.Tensor, window: torch.Tensor) -> torch.Tensor:
+        """:meth:`observe_t_m` as one matrix product over ``window`` (M, B, k+1+4k) (see
+        :class:`HybridInputs`): the observer is linear in the window, so its weights come from
+        applying it to the k+1+4k unit windows instead of the B samples. Returns (M, B)."""
+        k = (window.shape[-1] - 1) // 5
+        basis = torch.eye(window.shape[-1]).expand(ad.shape[0], -1, -1)
+        weights = self.observe_t_m(ad, bd, basis[..., : k + 1], basis[..., k + 1 :].unflatten(-1, (k, 4)))
         return torch.bmm(window, weights[..., None])[..., 0]
 
     def forward_terms(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """``(obs, z, residual)`` for scaled features x (M, B, F): ``obs``, ``z`` as
         :meth:`EnsembleNet.forward`; ``residual`` (M, B) the residual net's scaled output."""
+        return self.forward_split(self.split(x))
+
+    def forward_split(self, inputs: HybridInputs) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """:meth:`forward_terms` on the output of :meth:`split` (each (M, B, ...))."""
         f = self.features
-        k = f.depth
         ad, bd = self._matrices()
-        t_r = self._raw(x, 0)
-        p_past = self._raw(x, 1)  # u_phys,i-k-1 .. u_phys,i-1
-        exog = [None if j is None else self._raw(x, 2 + j) for j in self._exog_pos]
-        d_win = self._inputs(p_past[..., 1:], [None if e is None else e[..., :-1] for e in exog])
-        t_m = self.observe_linear(ad, bd, t_r, d_win)
+        t_m = self.observe_linear(ad, bd, inputs.window)
         z = (t_m - f.temperature.mean) / f.temperature.std
-        now = x.index_select(-1, self.now_index)
-        obs, residual = self._step(ad, bd, t_r[..., k], t_m, z, now, exog_now=[
-            None if e is None else e[..., k] for e in exog
-        ])
+        raw = inputs.raw_now
+        obs, residual = self._step(ad, bd, raw[..., 0], t_m, z, inputs.now, exog_now=raw[..., 1:])
         return obs, z, residual
 
     def _step(
@@ -456,10 +479,11 @@ class HybridNet(nn.Module):
         z: torch.Tensor,
         now: torch.Tensor,
         *,
-        exog_now: list[torch.Tensor | None],
+        exog_now: torch.Tensor,
         p_bounds: tuple[float, float] | None = None,
     ) -> tuple[torch.Tensor, torch.Tensor]:
-        """One step from raw T_r, T_m (M, B) and the scaled "now" features (M, B, n_now):
+        """One step from raw T_r, T_m (M, B), the scaled "now" features (M, B, n_now) and the
+        raw (T_a, G, I_g) now (M, B, 3):
         ``(obs (M, B, 2) scaled (dT_r, u_phys), residual (M, B))``."""
         f = self.features
         z_now = torch.cat([z[..., None], now], dim=-1)
@@ -501,10 +525,11 @@ class HybridNet(nn.Module):
         t_r = (t_win * t.std + t.mean).expand(m, -1, -1)
         p_past = (p_win * pw.std + pw.mean).expand(m, -1, -1)
         scales = [f.exog[name] for name in f.exog_series]
-        e_raw = torch.stack([e_seq[:, j] * sc.std + sc.mean for j, sc in enumerate(scales)], 1)
-        exog = [None if j is None else e_raw[:, j].expand(m, -1, -1) for j in self._exog_pos]
-        d_win = self._inputs(p_past[..., 1:], [None if e is None else e[..., :k] for e in exog])
-        t_m = self.observe_linear(ad, bd, t_r, d_win).expand(m, n)  # (M, N)
+        e_raw = torch.stack([e_seq[:, j] * sc.std + sc.mean for j, sc in enumerate(scales)])
+        exog = self._exog_raw(e_raw).expand(m, -1, -1, -1)  # (M, N0, k+H, 3)
+        d_win = self._inputs(p_past[..., 1:], exog[..., :k, :])
+        window = torch.cat([t_r, d_win.flatten(-2)], dim=-1)
+        t_m = self.observe_linear(ad, bd, window).expand(m, n)  # (M, N)
         t_now = t_r[..., k].expand(m, n)
         p_now = p_win[:, k].expand(m, n)
         e_seq, tod = e_seq.expand(n, -1, -1), tod.expand(n, -1, -1)
@@ -519,7 +544,7 @@ class HybridNet(nn.Module):
                      static.expand(m, n, -1)],
                     dim=-1,
                 )
-                exog_now = [None if e is None else e[..., k + h].expand(m, n) for e in exog]
+                exog_now = exog[..., k + h, :].expand(m, n, -1)
                 obs, _ = self._step(
                     ad, bd, t_now, t_m, z, now, exog_now=exog_now, p_bounds=p_bounds
                 )

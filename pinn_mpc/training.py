@@ -37,6 +37,7 @@ from pinn_mpc.models import (
     ALL_ARCHS,
     RESIDUALS,
     EnsembleModule,
+    HybridInputs,
     HybridNet,
     LearnedModel,
     residual_exact,
@@ -235,6 +236,7 @@ def train_model(
 
     if hybrid is not None:
         hybrid.init_backup(*_backup_guess(df, heating=prior.heating))
+        split = hybrid.split(x_all)  # what the hybrid reads, once for all samples
 
     n_samples = len(rows)
     n_chunks = (n_samples - chunk) // chunk + 1
@@ -279,7 +281,7 @@ def train_model(
                 c = idx.shape[1]
                 flat = idx.reshape(m, -1)
                 if hybrid is not None:
-                    obs, z, res = hybrid.forward_terms(x_all[flat])
+                    obs, z, res = hybrid.forward_split(HybridInputs(*(v[flat] for v in split)))
                 else:
                     obs, z = module.net(x_all[flat])
                 loss_reg = torch.mean((obs - y_all[flat]) ** 2)
