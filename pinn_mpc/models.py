@@ -505,18 +505,15 @@ class HybridNet(nn.Module):
         obs, z, _ = self.forward_terms(x)
         return obs, z
 
-    def rollout_scaled(
-        self,
-        t_win: torch.Tensor,
-        p_win: torch.Tensor,
-        e_seq: torch.Tensor,
-        u_s: torch.Tensor,
-        tod: torch.Tensor,
+    def rollout(
+        self, windows: Sequence[torch.Tensor], u_s: torch.Tensor, tod: torch.Tensor,
         p_bounds: tuple[float, float],
     ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        """Recursive rollout, arguments as :meth:`LearnedModel.rollout_scaled`: T_m is observed
-        once from the window, then both states propagate through the 2R2C. Returns scaled
-        ``(T_r,i+1.., u_phys,i.., T_m,i..)``, each (M, N, H)."""
+        """Recursive rollout: ``windows`` = (t_win, p_win, e_seq) and the rest as
+        :meth:`LearnedModel.rollout_scaled`. T_m is observed once from the window, then both
+        states propagate through the 2R2C. Returns scaled ``(T_r,i+1.., u_phys,i.., T_m,i..)``,
+        each (M, N, H)."""
+        t_win, p_win, e_seq = windows
         f = self.features
         m, k = self.n_members, f.depth
         n, h_len = u_s.shape
@@ -720,8 +717,8 @@ class LearnedModel:
         f = self.features
         if isinstance(self.module.net, HybridNet):
             with torch.no_grad():
-                t_s, p_s, z_s = self.module.net.rollout_scaled(
-                    t_win, p_win, e_seq, u_s, tod, (self._p_lo, self._p_hi)
+                t_s, p_s, z_s = self.module.net.rollout(
+                    (t_win, p_win, e_seq), u_s, tod, (self._p_lo, self._p_hi)
                 )
             return Rollout(
                 t_r_c=self._unscale_t(t_s),
