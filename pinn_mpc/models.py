@@ -10,6 +10,10 @@ Every layer holds the weights of all M members, shape (M, in, out), and applies 
   1x128 tanh -> x_obs,i+1 (Eq. physnet-forward). Here x_f also holds the exogenous history
   (see :mod:`pinn_mpc.features`): without T_a,i-1 the encoder cannot pin T_m.
 
+Beyond the paper, ``hybrid`` (:class:`HybridNet`, the default for control): the exact ZOH 2R2C
+of the physics block predicts, started at the grey-box identification; a window observer gives
+T_m, a learned backup thermostat the delivered power, a small network a penalised residual.
+
 T_r,i+1 is predicted as T_r,i plus a scaled increment; u_phys is clipped to the range seen in
 training. :class:`Physics` holds learnable 2R2C
 coefficients per member, positive quantities in log space with ``a11 = a12 + c13`` and
