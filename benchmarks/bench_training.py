@@ -51,7 +51,9 @@ def main() -> None:
     args = parser.parse_args()
     scenario = get_scenario("paper_household")
     df = validate_timeseries(generate(scenario, days=args.days, seed=0, policy="random"))
-    test = validate_timeseries(generate(scenario, days=5, seed=1, policy="random"))
+    test = validate_timeseries(
+        generate(scenario, days=5, seed=1, policy="random", weather_part="test")
+    )
     for arch in args.archs.split(","):
         config = TrainConfig(n_seeds=args.seeds)
         start = time.perf_counter()

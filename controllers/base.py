@@ -143,6 +143,22 @@ class ControlSpec:
         return self.dt_s / 3600.0
 
 
+def check_heating(eta: float, spec: ControlSpec, *, what: str) -> None:
+    """Every controller given a model or RC parameters checks, at construction, that they heat
+    (eta > 0) when the scenario's actuator heats and cool (eta < 0) when it cools."""
+    if (eta > 0) == spec.heating:
+        return
+    if spec.heating:
+        raise InputError(
+            f"{what}: eta={eta:g}, a cooling machine, but the scenario's actuator is a heater; "
+            "use a model or RC file made for heating (eta > 0)"
+        )
+    raise InputError(
+        f"{what}: eta={eta:g}, a heater, but the scenario's actuator is a cooling machine; "
+        "use cooling data with `train --eta -COP` or `identify --eta -COP` (e.g. -2.5)"
+    )
+
+
 def first_values(values: np.ndarray, n: int) -> np.ndarray:
     """A fresh array of the first n values (n,), the last one repeated when there are fewer."""
     a = np.asarray(values, dtype=float).reshape(-1)

@@ -2,7 +2,7 @@
 
 Sampling planners find the right shape of a plan but leave it loose: the elites of a few hundred
 noisy sequences keep the room a fraction of a kelvin above the lower comfort bound, which costs a
-few percent of energy (on the exact 2R2C, CEM alone settles about 4 % above the LP optimum).
+few percent of energy.
 The objective is piecewise linear in the model's predictions, and the models here are smooth in
 the demanded power, so one linearisation around the sampled plan and one LP close that gap:
 

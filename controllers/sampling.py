@@ -54,12 +54,14 @@ from controllers.base import (
     Observation,
     PlanningController,
     SolveStats,
+    check_heating,
 )
 from controllers.estimators import OffsetFilter
 from controllers.lp_polish import PiggybackPolish, PlanProblem, PolishSettings, RolloutFn
 from controllers.objective import HorizonObjective
 from controllers.planners import CEMPlanner, Planner, RandomShootingPlanner
 from pinn_mpc.errors import InputError
+from pinn_mpc.features import check_interval
 from pinn_mpc.rc_batch_model import BatchDynamics
 
 __all__ = ["CEM", "ENSEMBLE_MODES", "RandomShooting"]
@@ -97,6 +99,8 @@ class _SamplingController(PlanningController):
         options: _Options,
     ):
         risk_weight, ensemble = options.risk_weight, options.ensemble
+        check_heating(model.eta, spec, what="the model")
+        check_interval(model.dt_s, spec.dt_s, what="the scenario's control interval is")
         for name in model.exog_names:
             if name not in EXOGENOUS_NAMES:
                 raise InputError(
@@ -260,13 +264,11 @@ class RandomShooting(_SamplingController):
 class CEM(_SamplingController):
     """Cross-entropy method over a model (see :class:`controllers.planners.CEMPlanner`).
 
-    Defaults (64 samples x 2 iterations, 3 % elites, initial std 0.3 x range, pink noise
-    ``noise_beta=2``, one LP polish) are set by decision time: a learned model's rollout costs
-    mostly a fixed time per horizon step, so iterations are expensive and samples cheap, and
-    the polish rides along in the two batches (``benchmarks/bench_planners.py``: 56 ms median
-    over a 10-member depth-16 physnet). The sampling finds the shape of the plan, the polish
-    its last percent: on the exact 2R2C, sampling alone settles about 4-5 % above the optimum,
-    with the polish at it.
+    The defaults (those of :class:`controllers.planners.CEMPlanner`, coloured noise, one LP
+    polish) are set by decision time: a learned model's rollout costs mostly a fixed time per
+    horizon step, so iterations are expensive and samples cheap, and the polish rides along in
+    the same batches (``benchmarks/bench_planners.py`` times it). The sampling finds the shape
+    of the plan, the polish its last percent (see :mod:`controllers.polish`).
     """
 
     name = "cem"

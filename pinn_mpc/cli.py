@@ -1,39 +1,72 @@
 """Command line: ``pinn-mpc COMMAND ...`` (also ``python -m pinn_mpc``).
 
-This module only parses arguments and calls one library function per command; each returns
-a short summary that is printed. It is the application entry point, the one place above all
-three layers, so it imports ``scenarios`` (lazily, inside the handlers, to keep start-up fast).
+This module only parses arguments; each command is one function of :mod:`pinn_mpc.commands`
+(``train``, ``evaluate``, ``export-rc``, ``identify``) or :mod:`scenarios.commands`
+(``simulate``, ``closed-loop``, ``compare``, ``reproduce``), imported when it runs, that writes
+the outputs and returns a short summary, printed here. The choices offered come from the light
+name modules :mod:`pinn_mpc.choices` and :mod:`scenarios.choices`, so start-up and ``--help``
+stay fast. It is the application entry point, the one place above all three layers.
 Bad input (:class:`~pinn_mpc.errors.InputError`) becomes one line on stderr and exit status 2.
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib
+import math
 import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
+from typing import Any, NoReturn
 
 from pinn_mpc import __version__
-from pinn_mpc.archs import ALL_ARCHS, DEFAULT_ARCH
+from pinn_mpc.choices import ALL_ARCHS, DEFAULT_ARCH, RECIPES
 from pinn_mpc.errors import InputError
+from scenarios.choices import CONTROLLER_NAMES, POLICIES, RANDOM_POLICIES, WEATHER_PARTS
+
+__all__ = ["MAX_DAYS", "build_parser", "main"]
+
+#: The longest run any command accepts. Timestamps are labelled from 2021 and pandas' clock
+#: ends in 2262, so some limit is needed; ten years is more than any building study simulates.
+MAX_DAYS = 3650
+
+
+def _whole(text: str) -> int:
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
 
 
 def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    value = _whole(text)
     if value < 1:
         raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
     return value
 
 
-def _non_negative_float(text: str) -> float:
+def _days(text: str) -> int:
+    value = _positive_int(text)
+    if value > MAX_DAYS:
+        raise argparse.ArgumentTypeError(
+            f"{value} days is more than the {MAX_DAYS} (ten years) a run may cover"
+        )
+    return value
+
+
+def _seed(text: str) -> int:
+    value = _whole(text)
+    if not 0 <= value < 2**63:  # torch and numpy both take seeds in this range
+        raise argparse.ArgumentTypeError(f"must be a whole number in 0..2**63-1, got {text}")
+    return value
+
+
+def _finite_non_negative_float(text: str) -> float:
     try:
         value = float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if not value >= 0:
-        raise argparse.ArgumentTypeError(f"must be >= 0, got {text}")
+    if not (math.isfinite(value) and value >= 0):
+        raise argparse.ArgumentTypeError(f"must be a finite number >= 0, got {text}")
     return value
 
 
@@ -49,211 +82,237 @@ def _horizons(text: str) -> list[int]:
     return values
 
 
-def _simulate(a: argparse.Namespace) -> str:
-    from scenarios.datagen import simulate_to_csv
+def _scenario_names() -> str:
+    """Scenario names from the registry (imported only to print help: scenarios are data)."""
+    from scenarios.registry import scenario_names
 
-    return simulate_to_csv(
-        scenario=a.scenario,
-        days=a.days,
-        seed=a.seed,
-        policy=a.policy,
-        buildings=a.buildings,
-        out=a.out,
+    return ", ".join(scenario_names())
+
+
+class _HelpFormatter(argparse.HelpFormatter):
+    """Shows each option's default (unless it has none) and fills ``{scenarios}`` from the
+    registry only when help is printed, so start-up stays fast."""
+
+    def _get_help_string(self, action: argparse.Action) -> str | None:
+        text = action.help or ""
+        if "{scenarios}" in text:
+            text = text.replace("{scenarios}", _scenario_names())
+        no_default = any(action.default is v for v in (None, False, argparse.SUPPRESS))
+        if action.option_strings and not action.required and not no_default:
+            text += " (default: %(default)s)"
+        return text
+
+
+class _Parser(argparse.ArgumentParser):
+    """Usage errors are one line (what is wrong and where to look), like every other error."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
+def _add_weather_part(p: argparse.ArgumentParser, default: str) -> None:
+    p.add_argument(
+        "--weather-part",
+        choices=WEATHER_PARTS,
+        default=default,
+        help="days of the scenario's weather to draw from: 'train' (training data), 'test' "
+        "(the days closed loops and compare are judged on, disjoint from 'train'), or 'whole' "
+        "(the whole seasonal window, both mixed, as before the split)",
     )
-
-
-def _train(a: argparse.Namespace) -> str:
-    from pinn_mpc.training import train_to_dir
-
-    return train_to_dir(
-        data=a.data,
-        arch=a.arch,
-        out=a.out,
-        depth=a.depth,
-        seeds=a.seeds,
-        epochs=a.epochs,
-        lam=a.lam,
-        columns=a.columns,
-        recipe=a.recipe,
-        seed=a.seed,
-    )
-
-
-def _evaluate(a: argparse.Namespace) -> str:
-    from pinn_mpc.evaluation import evaluate_to_json
-
-    return evaluate_to_json(
-        model=a.model, data=a.data, horizons=a.horizons, columns=a.columns, json_path=a.json
-    )
-
-
-def _export_rc(a: argparse.Namespace) -> str:
-    from pinn_mpc.export import export_rc_to_json
-
-    return export_rc_to_json(model=a.model, out=a.out)
-
-
-def _identify(a: argparse.Namespace) -> str:
-    from pinn_mpc.identify import identify_to_json
-
-    return identify_to_json(data=a.data, columns=a.columns, out=a.out, eta=a.eta)
-
-
-def _closed_loop(a: argparse.Namespace) -> str:
-    from scenarios.closed_loop import closed_loop_command
-
-    return closed_loop_command(
-        scenario=a.scenario,
-        controller=a.controller,
-        model=a.model,
-        rc=a.rc,
-        days=a.days,
-        seed=a.seed,
-        json_path=a.json,
-        csv_path=a.csv,
-        plot_path=a.plot,
-    )
-
-
-def _compare(a: argparse.Namespace) -> str:
-    from scenarios.compare import compare_command
-
-    return compare_command(
-        scenario=a.scenario,
-        train_days=a.train_days,
-        days=a.days,
-        seed=a.seed,
-        json_path=a.json,
-        report_path=a.report,
-        quick=a.quick,
-        policy=a.policy,
-    )
-
-
-def _reproduce(a: argparse.Namespace) -> str:
-    from scenarios.reproduce import reproduce_command
-
-    return reproduce_command(out=a.out, quick=a.quick, seeds=a.seeds)
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="pinn-mpc",
         description="Physics-informed neural network building models and receding-horizon control.",
+        formatter_class=_HelpFormatter,
     )
     parser.add_argument("--version", action="version", version=f"pinn-mpc {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
-    def add(
-        name: str, handler: Callable[[argparse.Namespace], str], help_: str
-    ) -> argparse.ArgumentParser:
-        p = sub.add_parser(name, help=help_, description=help_)
+    def add(name: str, handler: str, help_: str) -> argparse.ArgumentParser:
+        """``handler``: "module:function" taking the parsed arguments, imported when it runs."""
+        p = sub.add_parser(name, help=help_, description=help_, formatter_class=_HelpFormatter)
         p.set_defaults(handler=handler)
         return p
 
-    p = add("simulate", _simulate, "simulate a scenario and write time-series data (CSV)")
-    p.add_argument("--scenario", required=True, help="scenario name, e.g. paper_household")
-    p.add_argument("--days", type=_positive_int, required=True)
-    p.add_argument("--seed", type=int, default=0)
+    def scenario(p: argparse.ArgumentParser, **kwargs: Any) -> None:
+        p.add_argument("--scenario", help="scenario name, one of: {scenarios}", **kwargs)
+
+    def days(p: argparse.ArgumentParser, help_: str, **kwargs: Any) -> None:
+        p.add_argument("--days", type=_days, help=f"{help_}, 1..{MAX_DAYS}", **kwargs)
+
+    def columns(p: argparse.ArgumentParser) -> None:
+        p.add_argument(
+            "--columns",
+            help="column mapping for data with other names, e.g. T_r=T_int,u_phys=P_hea,T_a=T_ext",
+        )
+
+    def data(p: argparse.ArgumentParser, help_: str) -> None:
+        p.add_argument("--data", required=True, help=f"{help_} (CSV in the data format)")
+
+    def model(p: argparse.ArgumentParser, help_: str, **kwargs: Any) -> None:
+        p.add_argument("--model", help=f"{help_} (written by `pinn-mpc train`)", **kwargs)
+
+    def force(p: argparse.ArgumentParser) -> None:
+        p.add_argument(
+            "--force",
+            action="store_true",
+            help="write into an existing directory that holds other files too (only this "
+            "command's own files there are replaced; the rest is kept)",
+        )
+
+    p = add("simulate", "scenarios.commands:simulate", "simulate a scenario and write time-series data (CSV)")
+    scenario(p, required=True)
+    days(p, "days to simulate", required=True)
+    p.add_argument("--seed", type=_seed, default=0, help="seed of the weather, price and policy")
     p.add_argument(
         "--policy",
-        choices=["random", "random-level", "thermostat"],
+        choices=POLICIES,
         default="random-level",
-        help="'random-level': a uniform power level per interval (for control); "
-        "'random': the paper's on/off",
+        help="heating demand: a uniform random power level per interval (best for models that "
+        "will drive a controller), the paper's random on/off, or a thermostat",
     )
-    p.add_argument("--buildings", type=_positive_int, default=1)
+    p.add_argument("--buildings", type=_positive_int, default=1, help="buildings simulated")
+    _add_weather_part(p, "train")
     p.add_argument("--out", required=True, help="CSV file to write")
 
-    p = add("train", _train, "train a seed ensemble of hybrid, mlp, physreg or physnet on data")
-    p.add_argument("--data", required=True)
+    p = add(
+        "train",
+        "pinn_mpc.commands:train",
+        "train a seed ensemble of hybrid, mlp, physreg or physnet on data",
+    )
+    data(p, "training data")
     p.add_argument(
         "--arch",
-        choices=list(ALL_ARCHS),
+        choices=ALL_ARCHS,
         default=DEFAULT_ARCH,
         help="hybrid (default, recommended for control): the identified 2R2C with learned "
         "corrections; mlp, physreg, physnet: the paper's",
     )
-    p.add_argument("--depth", type=_positive_int, default=16, help="history length (paper: 8)")
+    p.add_argument(
+        "--depth", type=_positive_int, default=16, help="history steps the model sees (paper: 8)"
+    )
     p.add_argument("--seeds", type=_positive_int, default=20, help="ensemble members")
-    p.add_argument("--seed", type=int, default=0, help="first seed")
-    p.add_argument("--epochs", type=_positive_int, default=None, help="default: recipe's")
+    p.add_argument("--seed", type=_seed, default=0, help="seed of the first member")
+    p.add_argument("--epochs", type=_positive_int, default=None, help="epochs (default: recipe's)")
     p.add_argument(
         "--lambda",
         dest="lam",
-        type=_non_negative_float,
+        metavar="LAMBDA",
+        type=_finite_non_negative_float,
         default=None,
         help="physics-loss weight (default: recipe's)",
     )
     p.add_argument(
         "--recipe",
-        choices=["converged", "paper"],
+        choices=tuple(RECIPES),
         default="converged",
         help="'paper': 75 epochs of batch 2048 as published; 'converged': trains to convergence",
     )
+    columns(p)
     p.add_argument(
-        "--columns", default=None, help="column mapping, e.g. T_r=T_int,u_phys=P_hea,T_a=T_ext"
+        "--out", required=True, help="model directory to write (model.json, weights.safetensors)"
     )
-    p.add_argument("--out", required=True, help="model directory to write")
-
-    p = add("evaluate", _evaluate, "one-step and recursive multi-step errors of a model on data")
-    p.add_argument("--model", required=True)
-    p.add_argument("--data", required=True)
-    p.add_argument("--horizons", type=_horizons, default=[1, 6, 12, 24, 36, 48])
-    p.add_argument("--columns", default=None)
-    p.add_argument("--json", required=True, help="metrics JSON to write")
-
-    p = add("export-rc", _export_rc, "export the learned 2R2C parameters of a model")
-    p.add_argument("--model", required=True)
-    p.add_argument("--out", required=True)
-
-    p = add(
-        "identify", _identify, "grey-box identification of 2R2C parameters from data (T_m hidden)"
-    )
-    p.add_argument("--data", required=True)
-    p.add_argument("--columns", default=None)
     p.add_argument(
         "--eta",
         type=float,
         default=None,
         help="heat per W of actuator power (default: 1 heating; give -COP for cooling)",
     )
-    p.add_argument("--out", required=True)
+    force(p)
 
-    p = add("closed-loop", _closed_loop, "run one controller against the simulator")
-    p.add_argument("--scenario", required=True)
+    p = add("evaluate", "pinn_mpc.commands:evaluate", "one-step and recursive multi-step errors of a model on data")
+    model(p, "model directory", required=True)
+    data(p, "test data")
     p.add_argument(
-        "--controller",
-        required=True,
-        help="thermostat, random-shooting, cem, casadi-mpc, qp-mpc, oracle, clairvoyant",
+        "--horizons",
+        type=_horizons,
+        default="1,6,12,24,36,48",
+        help="recursive prediction horizons [steps], comma-separated",
     )
-    p.add_argument("--model", default=None, help="model directory (random-shooting, cem)")
-    p.add_argument("--rc", default=None, help="RC JSON (casadi-mpc, qp-mpc)")
-    p.add_argument("--days", type=_positive_int, required=True)
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--json", required=True)
-    p.add_argument("--csv", default=None)
-    p.add_argument("--plot", default=None)
+    columns(p)
+    p.add_argument("--json", required=True, help="metrics JSON file to write")
 
-    p = add("compare", _compare, "train, identify and run every controller on one scenario")
-    p.add_argument("--scenario", default="paper_household")
-    p.add_argument("--train-days", type=_positive_int, default=60)
-    p.add_argument("--days", type=_positive_int, default=5)
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--json", default="compare/table.json")
-    p.add_argument("--report", default="compare/report.md")
+    p = add("export-rc", "pinn_mpc.commands:export_rc_json", "export the learned 2R2C parameters of a model")
+    model(p, "physreg or physnet model directory", required=True)
+    p.add_argument("--out", required=True, help="RC JSON file to write (for --rc)")
+
+    p = add(
+        "identify", "pinn_mpc.commands:identify", "grey-box identification of 2R2C parameters from data (T_m hidden)"
+    )
+    data(p, "measured data")
+    columns(p)
+    p.add_argument(
+        "--eta",
+        type=float,
+        default=None,
+        help="heat per W of actuator power (default: 1 heating; give -COP for cooling)",
+    )
+    p.add_argument("--out", required=True, help="RC JSON file to write (for --rc)")
+
+    p = add("closed-loop", "scenarios.commands:closed_loop", "run one controller against the simulator")
+    scenario(p, required=True)
+    p.add_argument(
+        "--controller", required=True, help="controller, one of: " + ", ".join(CONTROLLER_NAMES)
+    )
+    model(p, "model directory for random-shooting and cem", default=None)
+    p.add_argument(
+        "--rc", default=None, help="RC JSON for casadi-mpc and qp-mpc (from identify, export-rc)"
+    )
+    days(p, "counted days after a one-day thermostat warm-up", required=True)
+    p.add_argument("--seed", type=_seed, default=0, help="seed of the weather, price and noise")
+    p.add_argument("--json", required=True, help="KPI JSON file to write")
+    p.add_argument("--csv", default=None, help="trajectory CSV file to write")
+    p.add_argument("--plot", default=None, help="trajectory figure (PNG) to write")
+    _add_weather_part(p, "test")
+
+    p = add("compare", "scenarios.commands:compare", "train, identify and run every controller on one scenario")
+    scenario(p, default="paper_household")
+    p.add_argument(
+        "--train-days",
+        type=_days,
+        default=60,
+        help=f"days of training data, 1..{MAX_DAYS}",
+    )
+    days(p, "test days of each closed-loop run", default=5)
+    p.add_argument("--seed", type=_seed, default=0, help="seed of the training data and models")
+    p.add_argument("--json", default="compare/table.json", help="KPI table JSON file to write")
+    p.add_argument(
+        "--report",
+        default="compare/report.md",
+        help="markdown report to write; its figure goes next to it with the suffix .png",
+    )
     p.add_argument("--quick", action="store_true", help="small ensembles and short runs (minutes)")
     p.add_argument(
         "--policy",
-        choices=["random-level", "random"],
+        choices=RANDOM_POLICIES,
         default="random-level",
-        help="training-data policy: uniform random power levels (default) or the paper's on/off",
+        help="training-data policy: uniform random power levels or the paper's on/off",
     )
 
-    p = add("reproduce", _reproduce, "reproduce the paper's three experiments on simulated data")
-    p.add_argument("--out", required=True)
-    p.add_argument("--quick", action="store_true")
-    p.add_argument("--seeds", type=_positive_int, default=None)
+    p = add("reproduce", "scenarios.commands:reproduce", "reproduce the paper's three experiments on simulated data")
+    p.add_argument(
+        "--out", required=True, help="directory to write (report.md, results.json, tables, figures)"
+    )
+    p.add_argument("--quick", action="store_true", help="fewer seeds, sizes and epochs (minutes)")
+    p.add_argument(
+        "--seeds", type=_positive_int, default=None, help="ensemble members (default: 20, quick 3)"
+    )
+    force(p)
+
+    p = add("sweep", "scenarios.commands:sweep", "run a grid of closed loops (scenarios x controllers x seeds) on Ray")
+    p.add_argument("--scenarios", required=True, help="comma-separated scenario names")
+    p.add_argument("--controllers", required=True, help="comma-separated, e.g. oracle,qp-mpc,cem")
+    p.add_argument("--seeds", required=True, help="e.g. 0-7 or 0,3,5")
+    p.add_argument("--train-days", default="30", help="training days, e.g. 30 or 14,30,60")
+    p.add_argument("--days", type=_positive_int, default=3, help="test days per cell")
+    p.add_argument("--out", required=True, help="directory of cells, models, summary, report")
+    p.add_argument("--quick", action="store_true", help="2-member ensembles, at most 2 test days")
+    p.add_argument("--address", default=None, help="Ray cluster (HOST:PORT, ray://HOST:PORT, auto)")
+    p.add_argument("--workers", type=_positive_int, default=None, help="local CPUs (default all)")
+    p.add_argument("--baseline", default=None, help="controller of the paired differences")
+    force(p)
     return parser
 
 
@@ -266,13 +325,21 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     try:
         with threadpool_limits(limits=1, user_api="blas"):
-            summary = args.handler(args)
+            module, function = args.handler.split(":")
+            summary = getattr(importlib.import_module(module), function)(args)
     except InputError as exc:
         print(f"pinn-mpc {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except OSError as exc:
         where = f" ({exc.filename})" if getattr(exc, "filename", None) else ""
         print(f"pinn-mpc {args.command}: error: {exc.strerror or exc}{where}", file=sys.stderr)
+        return 2
+    except MemoryError:
+        print(
+            f"pinn-mpc {args.command}: error: out of memory; ask for a smaller run "
+            "(fewer days, buildings, seeds or a smaller depth)",
+            file=sys.stderr,
+        )
         return 2
     except KeyboardInterrupt:
         print(f"pinn-mpc {args.command}: interrupted", file=sys.stderr)

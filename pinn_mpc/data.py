@@ -22,6 +22,20 @@ import pandas as pd
 
 from pinn_mpc.errors import InputError
 from pinn_mpc.io import atomic_write
+from pinn_mpc.physics import DT_RANGE_S, MAX_POWER_W
+
+__all__ = [
+    "COLUMNS",
+    "NUMERIC",
+    "OPTIONAL",
+    "POWER",
+    "REQUIRED",
+    "TEMPERATURE_RANGE_C",
+    "parse_column_map",
+    "read_timeseries",
+    "validate_timeseries",
+    "write_timeseries",
+]
 
 REQUIRED = ("time", "T_r", "u", "u_phys", "T_a")
 OPTIONAL = ("T_m", "G", "I_g", "price", "T_min", "T_max")
@@ -29,6 +43,8 @@ COLUMNS = ("time", "T_r", "T_m", "u", "u_phys", "T_a", "G", "I_g", "price", "T_m
 NUMERIC = tuple(c for c in COLUMNS if c != "time")
 #: Physically plausible range of each temperature column [C], to catch unit mix-ups (K, F).
 TEMPERATURE_RANGE_C = (-60.0, 90.0)
+#: Power columns: the actuator's input [W], >= 0 for heating and cooling alike (eta has the sign).
+POWER = ("u", "u_phys")
 
 
 def parse_column_map(text: str | None) -> dict[str, str]:
@@ -77,10 +93,82 @@ def _parse_time(values: pd.Series, source: str) -> pd.Series:
     return parsed
 
 
+def _check_power(out: pd.DataFrame, source: str, u_max_w: float | None) -> None:
+    """Power columns within 0 .. min(MAX_POWER_W, u_max_w) [W], or InputError naming the row."""
+    for col in (c for c in POWER if c in out.columns):
+        values = out[col].to_numpy(dtype=float)
+        negative = np.flatnonzero(values < 0)
+        if negative.size:
+            row = int(negative[0])
+            raise InputError(
+                f"{source}: column {col!r} row {row + 1} is {values[row]:g} W, negative; power is "
+                "the actuator's input, >= 0 for cooling too (mark cooling with --eta -COP); "
+                "clip meter noise below 0 to 0"
+            )
+        cap = MAX_POWER_W
+        why = f"the plausible range is 0 .. {cap:g} W (10 MW: a very large building)"
+        if u_max_w is not None and u_max_w < cap:
+            cap, why = u_max_w, f"the actuator delivers at most {u_max_w:g} W"
+        # The data format writes 6 decimals, so allow that much rounding above the cap.
+        above = np.flatnonzero(values > cap + 1e-6)
+        if above.size:
+            row = int(above[0])
+            raise InputError(
+                f"{source}: column {col!r} row {row + 1} is {values[row]:g} W, but {why}; "
+                "is the column in W (not mW), and power rather than energy per interval?"
+            )
+
+
+def _check_steps(times: pd.Series, raw: pd.Series, source: str) -> float:
+    """The uniform step [s] of a parsed time column, or InputError: a row that goes backwards or
+    repeats a time, a step outside :data:`DT_RANGE_S`, a step that is not uniform."""
+    ns = times.to_numpy().astype("datetime64[ns]").astype(np.int64)
+    steps = np.diff(ns).astype(float) / 1e9
+    not_forward = np.flatnonzero(steps <= 0)
+    if not_forward.size:
+        row = int(not_forward[0]) + 1  # 0-based index of the offending row
+        before, now = raw.iloc[row - 1], raw.iloc[row]
+        if steps[row - 1] == 0:
+            raise InputError(
+                f"{source}: column 'time' has a duplicate timestamp at row {row + 1} ({now!s}, "
+                f"as in row {row}); drop the duplicate rows"
+            )
+        raise InputError(
+            f"{source}: column 'time' goes backwards at row {row + 1} ({before!s} then {now!s}); "
+            "sort the rows by time"
+        )
+    dt_s = float(np.median(steps))
+    lo, hi = DT_RANGE_S
+    if not lo <= dt_s <= hi:
+        raise InputError(
+            f"{source}: time step is {dt_s:g} s, outside the plausible {lo:g} .. {hi:g} s "
+            "(1 min .. 6 h); numeric times are read as seconds (a row index 0, 1, 2 ... is 1 s "
+            "apart): give seconds (0, 1800, 3600 ...) or ISO 8601 times (2021-01-01T00:30:00)"
+        )
+    irregular = np.flatnonzero(np.abs(steps - dt_s) > 1e-6)
+    if irregular.size:
+        row = int(irregular[0]) + 1
+        raise InputError(
+            f"{source}: time step is not uniform at row {row + 1} "
+            f"({steps[row - 1]:g} s against {dt_s:g} s); resample to a uniform step first"
+        )
+    return dt_s
+
+
 def validate_timeseries(
-    df: pd.DataFrame, *, source: str = "data", require: tuple[str, ...] = REQUIRED
+    df: pd.DataFrame,
+    *,
+    source: str = "data",
+    require: tuple[str, ...] = REQUIRED,
+    u_max_w: float | None = None,
 ) -> pd.DataFrame:
-    """Check and normalise a DataFrame in the format; returns a new frame with ``attrs['dt_s']``."""
+    """Check and normalise a DataFrame in the format; returns a new frame with ``attrs['dt_s']``.
+
+    Besides format and finiteness: temperatures within :data:`TEMPERATURE_RANGE_C`, power
+    columns within 0 .. :data:`~pinn_mpc.physics.MAX_POWER_W` (and ``u_max_w``, the actuator's
+    limit, when known), time strictly increasing at a uniform step within
+    :data:`~pinn_mpc.physics.DT_RANGE_S`.
+    """
     missing = [c for c in require if c not in df.columns]
     if "u" in missing and "u_phys" in df.columns:
         missing.remove("u")  # one power column: u = u_phys
@@ -91,7 +179,8 @@ def validate_timeseries(
         )
     if len(df) < 2:
         raise InputError(f"{source}: needs at least 2 rows, has {len(df)}")
-    out = pd.DataFrame({"time": _parse_time(df["time"].reset_index(drop=True), source)})
+    raw_time = df["time"].reset_index(drop=True)
+    out = pd.DataFrame({"time": _parse_time(raw_time, source)})
     for col in NUMERIC:
         if col not in df.columns:
             continue
@@ -116,16 +205,8 @@ def validate_timeseries(
                     f"{source}: column {col!r} row {row + 1} is {out[col].iloc[row]}, outside "
                     f"[{lo}, {hi}] C; is it in kelvin or Fahrenheit?"
                 )
-    ns = out["time"].to_numpy().astype("datetime64[ns]").astype(np.int64)
-    steps = np.diff(ns).astype(float) / 1e9
-    dt_s = float(np.median(steps))
-    irregular = np.abs(steps - dt_s) > 1e-6
-    if dt_s <= 0 or irregular.any():
-        row = int(np.flatnonzero(irregular)[0]) + 1 if irregular.any() else 1
-        raise InputError(
-            f"{source}: time step is not uniform at row {row + 1} "
-            f"({steps[row - 1]:g} s against {dt_s:g} s); resample to a uniform step first"
-        )
+    _check_power(out, source, u_max_w)
+    dt_s = _check_steps(out["time"], raw_time, source)
     ordered = [c for c in COLUMNS if c in out.columns]
     out = out[ordered]
     out.attrs["dt_s"] = dt_s

@@ -1,5 +1,9 @@
 """Exception classes. The CLI turns :class:`InputError` into one line on stderr and exit 2."""
 
+import sys
+
+__all__ = ["InputError", "ModelFileError", "warn"]
+
 
 class InputError(ValueError):
     """Bad user input: a file, a column, an option value. The message says what, where, how to fix."""
@@ -7,3 +11,8 @@ class InputError(ValueError):
 
 class ModelFileError(InputError):
     """A model directory that is missing, truncated, corrupted or inconsistent."""
+
+
+def warn(message: str) -> None:
+    """Input that is accepted but deserves attention: one line on stderr, as the CLI's errors."""
+    print(f"pinn-mpc: warning: {message}", file=sys.stderr)

@@ -16,12 +16,12 @@ import numpy as np
 import pandas as pd
 import torch
 
-from pinn_mpc.artifacts import load_model
-from pinn_mpc.data import read_timeseries, validate_timeseries
+from pinn_mpc.data import validate_timeseries
 from pinn_mpc.errors import InputError
-from pinn_mpc.features import time_of_day_h
-from pinn_mpc.io import atomic_write_json
+from pinn_mpc.features import check_interval, time_of_day_h
 from pinn_mpc.models import LearnedModel
+
+__all__ = ["evaluate_model", "recursive_t_r"]
 
 
 def _mae(a: np.ndarray, b: np.ndarray) -> float:
@@ -73,6 +73,7 @@ def evaluate_model(
     if not horizons or min(horizons) < 1:
         raise InputError(f"horizons must be whole numbers >= 1, got {list(horizons)}")
     df = validate_timeseries(df, source="evaluation data")
+    check_interval(model.dt_s, df.attrs["dt_s"], what="the evaluation data has")
     one = model.predict_one_step(df)
     rows = np.asarray(one["row"])
     t_r = df["T_r"].to_numpy(dtype=float)
@@ -100,22 +101,3 @@ def evaluate_model(
         }
         out["persistence"]["horizons"][str(h)] = {"T_r_mae": _mae(t_r[starts], truth)}
     return out
-
-
-def evaluate_to_json(
-    *, model: str, data: str, horizons: Sequence[int], columns: str | None, json_path: str
-) -> str:
-    """CLI ``evaluate``: load the model and data, write the metrics JSON; returns a summary."""
-    learned = load_model(model)
-    df = read_timeseries(data, columns=columns)
-    metrics = evaluate_model(learned, df, horizons)
-    atomic_write_json(json_path, metrics)
-    one = metrics["one_step"]
-    last = max(int(h) for h in metrics["horizons"])
-    t_m = f", T_m {one['T_m_mae']:.3f} C" if one["T_m_mae"] is not None else ""
-    return (
-        f"one-step MAE: T_r {one['T_r_mae']:.3f} C, u_phys {one['u_phys_mae']:.0f} W{t_m}; "
-        f"{last}-step T_r MAE {metrics['horizons'][str(last)]['T_r_mae']:.3f} C "
-        f"(persistence {metrics['persistence']['horizons'][str(last)]['T_r_mae']:.3f} C) "
-        f"-> {json_path}"
-    )

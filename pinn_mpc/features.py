@@ -32,11 +32,52 @@ import numpy as np
 import pandas as pd
 
 from pinn_mpc.errors import InputError
+from pinn_mpc.physics import DT_RANGE_S
+
+__all__ = [
+    "EXOG_COLUMNS",
+    "MAX_DEPTH",
+    "MIN_TRAIN_SAMPLES",
+    "FeatureConfig",
+    "Standard",
+    "Windows",
+    "check_interval",
+    "exog_names_for",
+    "fit_feature_config",
+    "format_interval",
+    "make_windows",
+    "time_of_day_h",
+    "whole_number",
+]
 
 #: Exogenous inputs a model can use, in this order, with the data column each comes from.
 EXOG_COLUMNS = {"time_of_day_h": "time", "T_a": "T_a", "G": "G", "I_g": "I_g"}
 #: Samples a training set must have at least.
 MIN_TRAIN_SAMPLES = 32
+#: Largest history depth (intervals): 3 weeks at 30 min, far beyond the paper's 8; it bounds
+#: what a model.json can make the loader allocate.
+MAX_DEPTH = 1008
+
+
+def whole_number(value: Any, name: str) -> int:
+    """``value`` as an int if it is a whole number (JSON may write 8 as 8.0), else InputError."""
+    if isinstance(value, bool) or not isinstance(value, int | float) or not float(value).is_integer():
+        raise InputError(f"{name} must be a whole number, got {value!r}")
+    return int(value)
+
+
+def format_interval(dt_s: float) -> str:
+    """``1800 s (30 min)``: an interval for messages."""
+    return f"{dt_s:g} s ({dt_s / 60:g} min)"
+
+
+def check_interval(model_dt_s: float, dt_s: float, *, what: str) -> None:
+    """A model predicts one step of the interval it was trained at: refuse any other."""
+    if abs(model_dt_s - dt_s) > 1e-6:
+        raise InputError(
+            f"the model was trained at {format_interval(model_dt_s)} intervals but {what} "
+            f"{format_interval(dt_s)}; train a model on data at that interval (or resample)"
+        )
 
 
 def exog_names_for(df: pd.DataFrame) -> tuple[str, ...]:
@@ -85,8 +126,13 @@ class FeatureConfig:
     exog: dict[str, Standard] = field(default_factory=dict)  # T_a, G, I_g
 
     def __post_init__(self) -> None:
-        if self.depth < 1:
-            raise InputError(f"depth must be >= 1, got {self.depth}")
+        if not 1 <= self.depth <= MAX_DEPTH:
+            raise InputError(f"depth must be 1 .. {MAX_DEPTH} intervals, got {self.depth}")
+        lo, hi = DT_RANGE_S
+        if not (math.isfinite(self.dt_s) and lo <= self.dt_s <= hi):
+            raise InputError(
+                f"dt_s must be a control interval of {lo:g} .. {hi:g} s, got {self.dt_s!r}"
+            )
         if self.exog_names[:2] != ("time_of_day_h", "T_a"):
             raise InputError(
                 f"exog_names must start with time_of_day_h, T_a, got {self.exog_names}"
@@ -162,7 +208,7 @@ class FeatureConfig:
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> FeatureConfig:
         return cls(
-            depth=int(data["depth"]),
+            depth=whole_number(data["depth"], "depth"),
             exog_names=tuple(data["exog_names"]),
             dt_s=float(data["dt_s"]),
             temperature=Standard(**data["temperature"]),
@@ -205,8 +251,8 @@ def _check_rows(df: pd.DataFrame, depth: int, min_samples: int, what: str) -> No
 
 def fit_feature_config(df: pd.DataFrame, *, depth: int) -> FeatureConfig:
     """Fit the scaling on training data (validated frame with ``attrs['dt_s']``)."""
-    if depth < 1:
-        raise InputError(f"depth must be >= 1, got {depth}")
+    if not 1 <= depth <= MAX_DEPTH:
+        raise InputError(f"depth must be 1 .. {MAX_DEPTH} intervals, got {depth}")
     _check_rows(df, depth, MIN_TRAIN_SAMPLES, "training")
     names = exog_names_for(df)
     t_r = df["T_r"].to_numpy(dtype=float)

@@ -20,7 +20,6 @@ heater on for part of it), so the fit residual is not pure sensor noise.
 from __future__ import annotations
 
 import math
-import os
 from dataclasses import dataclass
 from typing import Any
 
@@ -29,16 +28,25 @@ import pandas as pd
 import scipy.optimize
 import scipy.signal
 
-from pinn_mpc.data import read_timeseries
 from pinn_mpc.errors import InputError
-from pinn_mpc.io import atomic_write_json
-from pinn_mpc.physics import RCParams, discretise, rc_summary
+from pinn_mpc.physics import PLAUSIBLE_RANGES, RCParams, check_plausible, discretise
+
+__all__ = ["IdentifyResult", "identify_rc", "simulate_rc"]
 
 #: Below this standard deviation a G or I_g column counts as constant (not identifiable).
 _MIN_STD = {"G": 1.0, "I_g": 1.0}
 #: Grid of starting points: C_r as a fraction of the total capacity, R_rm as a fraction of R_ra.
 _C_R_FRACTIONS = (0.02, 0.08, 0.3)
 _R_RM_FRACTIONS = (0.1, 0.4)
+#: The log-parameters of R and C, with their RCParams field and rc.json key.
+_LOG_RC = {
+    "ln_r_ra": ("r_ra_k_per_w", "R_ra_K_per_W"),
+    "ln_r_rm": ("r_rm_k_per_w", "R_rm_K_per_W"),
+    "ln_c_r": ("c_r_j_per_k", "C_r_J_per_K"),
+    "ln_c_m": ("c_m_j_per_k", "C_m_J_per_K"),
+}
+#: Margin [log units] that keeps exp(bound) inside the plausible range despite rounding.
+_EDGE = 1e-9
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -105,11 +113,30 @@ class _Layout:
         self.names += ["t_m0"]
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """R and C search only their plausible ranges (:data:`physics.PLAUSIBLE_RANGES`)."""
         lo = {"solar_to_air": 0.0, "gain_to_air": 0.0, "t_m0": -60.0, "ln_aperture": -12.0}
         hi = {"solar_to_air": 1.0, "gain_to_air": 1.0, "t_m0": 90.0, "ln_aperture": 8.0}
-        lower = np.array([lo.get(n, -30.0) for n in self.names])
-        upper = np.array([hi.get(n, 40.0) for n in self.names])
+        for name, (field, _) in _LOG_RC.items():
+            low, high, _unit = PLAUSIBLE_RANGES[field]
+            lo[name], hi[name] = math.log(low) + _EDGE, math.log(high) - _EDGE
+        lower = np.array([lo[n] for n in self.names])
+        upper = np.array([hi[n] for n in self.names])
         return lower, upper
+
+    def check_inside(self, theta: np.ndarray) -> None:
+        """A fit that ends on the edge of a plausible range wanted a value beyond it: refuse."""
+        lower, upper = self.bounds()
+        for i, name in enumerate(self.names):
+            if name not in _LOG_RC or lower[i] + 1e-6 < theta[i] < upper[i] - 1e-6:
+                continue
+            field, key = _LOG_RC[name]
+            low, high, unit = PLAUSIBLE_RANGES[field]
+            raise InputError(
+                f"identify: the fit ran into the edge of the plausible range of {key} "
+                f"({low:g} .. {high:g} {unit}) at {math.exp(theta[i]):.4g} {unit}: the data do "
+                "not determine the building; check the units of power (W) and time, and that "
+                "the power varies enough over several days"
+            )
 
     def params(self, theta: np.ndarray) -> RCParams:
         v = dict(zip(self.names, theta, strict=True))
@@ -161,8 +188,7 @@ def identify_rc(df: pd.DataFrame, *, eta: float = 1.0) -> IdentifyResult:
     ``T_m`` column is never used. ``eta`` (heat per W of actuator power) is given: 1 for an
     electric heater, minus the COP for a cooling machine.
     """
-    if not (math.isfinite(eta) and eta != 0):
-        raise InputError(f"identify: eta must be finite and non-zero, got {eta}")
+    eta = check_plausible("eta", eta, name="identify: eta")
     missing = [c for c in ("T_r", "u_phys", "T_a") if c not in df.columns]
     if missing:
         raise InputError(f"identify: data lacks column(s) {missing}; see the data format")
@@ -225,6 +251,7 @@ def identify_rc(df: pd.DataFrame, *, eta: float = 1.0) -> IdentifyResult:
         residuals, best.x, bounds=(lower, upper), xtol=1e-10, ftol=1e-12, max_nfev=400
     )
     evaluations += final.nfev
+    layout.check_inside(final.x)
     rmse = float(np.sqrt(np.mean(np.square(final.fun))))
     return IdentifyResult(
         params=layout.params(final.x),
@@ -235,30 +262,4 @@ def identify_rc(df: pd.DataFrame, *, eta: float = 1.0) -> IdentifyResult:
         identified_gains=gains,
         n_starts=len(starts),
         cost_evaluations=evaluations,
-    )
-
-
-def identify_to_json(
-    *,
-    data: str | os.PathLike[str],
-    columns: str | None,
-    out: str | os.PathLike[str],
-    eta: float | None,
-) -> str:
-    """CLI ``identify``: read ``data``, identify, write the RC JSON (atomically) to ``out``.
-
-    ``eta`` None means 1 (a heater). The JSON is :func:`pinn_mpc.physics.rc_summary` plus a
-    ``fit`` block (:meth:`IdentifyResult.fit_statistics`). Returns a one-line summary.
-    """
-    eta_value = 1.0 if eta is None else float(eta)
-    df = read_timeseries(data, columns=columns)
-    result = identify_rc(df, eta=eta_value)
-    summary = rc_summary(result.params, source=f"identify:{data}")
-    summary["fit"] = result.fit_statistics()
-    atomic_write_json(out, summary)
-    p = result.params
-    return (
-        f"identified R_ra={p.r_ra_k_per_w:.4g} K/W R_rm={p.r_rm_k_per_w:.4g} K/W "
-        f"C_r={p.c_r_j_per_k:.4g} J/K C_m={p.c_m_j_per_k:.4g} J/K "
-        f"(rmse {result.rmse_c:.3f} C over {result.n_rows} rows) -> {out}"
     )

@@ -1,4 +1,11 @@
-"""Atomic writes: write to a temporary sibling, then rename, so nothing is half-written."""
+"""Safe writes: nothing half-written, nothing of the user's lost or overwritten unasked.
+
+Files are written to a temporary sibling, then renamed. A command that writes a directory
+writes only its own files there (:class:`DirectoryLayout`); an existing directory holding
+anything else is refused unless the user says ``--force``, and even then only the command's own
+files are replaced. Before any work, :func:`check_writable` and :func:`check_distinct` refuse
+outputs that cannot be written or that would overwrite an input or another output.
+"""
 
 from __future__ import annotations
 
@@ -7,11 +14,27 @@ import json
 import os
 import shutil
 import tempfile
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from pinn_mpc.errors import InputError
+
+__all__ = [
+    "DirectoryLayout",
+    "PathArg",
+    "PathsArg",
+    "atomic_directory",
+    "atomic_write",
+    "atomic_write_json",
+    "atomic_write_text",
+    "check_distinct",
+    "check_output_directory",
+    "check_writable",
+]
+
+PathArg = str | os.PathLike[str]
 
 
 def _check_parent(path: Path) -> None:
@@ -28,6 +51,8 @@ def atomic_write(path: str | os.PathLike[str], writer: Callable[[Path], object])
     _check_parent(target)
     if target.is_dir():
         raise InputError(f"cannot write {target}: it is a directory; give a file name")
+    if target.exists() and not target.is_file():  # a device or pipe must not be replaced
+        raise InputError(f"cannot write {target}: it is not a regular file")
     fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
     os.close(fd)
     tmp = Path(tmp_name)
@@ -51,24 +76,176 @@ def atomic_write_json(path: str | os.PathLike[str], data: Any) -> Path:
     )
 
 
-@contextlib.contextmanager
-def atomic_directory(path: str | os.PathLike[str]) -> Iterator[Path]:
-    """Yield a temporary directory; on success it replaces ``path`` (an existing one is swapped out)."""
+def check_writable(*paths: PathArg | None, create_parents: bool = False) -> None:
+    """Fail before any work if an output file cannot be written: it is a directory, its folder
+    is missing (unless ``create_parents``, then the nearest existing ancestor counts) or
+    read-only. ``None`` entries (optional outputs not asked for) are skipped."""
+    for path in paths:
+        if path is None:
+            continue
+        if not str(path).strip():
+            raise InputError("an output file name is empty; give a file name")
+        target = Path(path)
+        if target.is_dir() or target.name in ("", ".", ".."):
+            raise InputError(f"cannot write {path}: it is a directory; give a file name")
+        if target.exists() and not target.is_file():
+            raise InputError(f"cannot write {target}: it is not a regular file")
+        parent = target.parent
+        while create_parents and not parent.exists() and parent != parent.parent:
+            parent = parent.parent
+        if parent.exists() and not parent.is_dir():
+            raise InputError(f"cannot write {target}: {parent} is a file, not a directory")
+        if not parent.is_dir():
+            raise InputError(f"cannot write {target}: directory {parent} does not exist; create it")
+        if not os.access(parent, os.W_OK):
+            raise InputError(f"cannot write {target}: directory {parent} is not writable")
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    if os.path.realpath(a) == os.path.realpath(b):
+        return True
+    try:  # hard links, case-insensitive file systems
+        return os.path.samefile(a, b)
+    except OSError:
+        return False
+
+
+PathsArg = PathArg | Sequence[PathArg] | None
+
+
+def _entries(paths: Mapping[str, PathsArg]) -> list[tuple[str, Path]]:
+    out = []
+    for label, value in paths.items():
+        if value is None:
+            continue
+        if isinstance(value, str | os.PathLike):
+            out.append((label, Path(value)))
+        else:
+            out += [(label, Path(v)) for v in value]
+    return out
+
+
+def check_distinct(*, inputs: Mapping[str, PathsArg], outputs: Mapping[str, PathsArg]) -> None:
+    """Refuse (one-line :class:`InputError`) when an output is an input or another output.
+
+    Keys name the paths in the message (a flag such as ``--data``); a value is a path, several
+    (the files of a directory argument, see :meth:`DirectoryLayout.paths`) or ``None`` (not
+    given). Paths are compared after resolving ``..``, symbolic links and hard links, so
+    ``./d.csv`` and ``sub/../d.csv`` are the same file.
+    """
+    seen = [(label, path, True) for label, path in _entries(inputs)]
+    for label, path in _entries(outputs):
+        for other_label, other, is_input in seen:
+            if not _same_file(path, other):
+                continue
+            if is_input:
+                raise InputError(
+                    f"{label} {path} is the same file as the input {other_label} {other}: "
+                    f"writing it would destroy the input; choose another {label}"
+                )
+            raise InputError(
+                f"{label} {path} and {other_label} {other} are the same file, so one output "
+                "would overwrite the other; give them different names"
+            )
+        seen.append((label, path, False))
+
+
+@dataclass(frozen=True, kw_only=True)
+class DirectoryLayout:
+    """A directory a command writes (or reads): ``kind`` names it in messages, ``files`` are
+    the command's own file names (nothing else is ever written or replaced there), and an
+    existing directory counts as the same kind of output when it holds every name of
+    ``markers`` and nothing but ``files``."""
+
+    kind: str
+    files: tuple[str, ...]
+    markers: tuple[str, ...]
+
+    def __post_init__(self) -> None:
+        if not self.files or not set(self.markers) <= set(self.files):
+            raise ValueError(f"DirectoryLayout {self.kind!r}: markers must be among the files")
+
+    def paths(self, path: PathArg) -> list[Path]:
+        """The own files inside ``path`` (for :func:`check_distinct`)."""
+        return [Path(path) / name for name in self.files]
+
+
+def _listing(names: list[str], limit: int = 4) -> str:
+    shown = ", ".join(names[:limit])
+    return shown + (f" and {len(names) - limit} more" if len(names) > limit else "")
+
+
+def _shown(target: Path) -> str:
+    """The path as given, plus where it is when that is not obvious (``.``, ``..``)."""
+    resolved = os.path.abspath(target)
+    return str(target) if target.name not in ("", ".", "..") else f"{target} ({resolved})"
+
+
+def check_output_directory(path: PathArg, layout: DirectoryLayout, *, force: bool) -> None:
+    """Fail before any work unless ``path`` may receive ``layout``'s files: it does not exist
+    (its parent must), is empty, or is already that kind of output; with ``force`` any existing
+    directory will do, as only ``layout.files`` are replaced and everything else is kept."""
+    if not str(path).strip():  # Path("") would be the working directory
+        raise InputError(f"the {layout.kind} name is empty; give a directory name")
     target = Path(path)
-    _check_parent(target)
     if target.exists() and not target.is_dir():
-        raise InputError(f"cannot write directory {target}: a file of that name exists")
-    tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent))
+        raise InputError(
+            f"cannot write {layout.kind} {target}: a file of that name exists; "
+            "give a directory name"
+        )
+    if not target.exists():
+        _check_parent(target)
+        return
+    if not os.access(target, os.W_OK | os.X_OK):
+        raise InputError(f"cannot write {layout.kind} {_shown(target)}: it is not writable")
+    entries = sorted(os.listdir(target))
+    blocking = [n for n in layout.files if n in entries and not (target / n).is_file()]
+    if blocking:
+        raise InputError(
+            f"cannot write {layout.kind} {_shown(target)}: {_listing(blocking)} in it "
+            "is a directory, not a file; move it away"
+        )
+    foreign = [n + ("/" if (target / n).is_dir() else "") for n in entries if n not in layout.files]
+    if force or not entries:
+        return
+    if foreign or not set(layout.markers) <= set(entries):
+        raise InputError(
+            f"{_shown(target)} already holds {_listing(foreign or entries)}, so it is not a "
+            f"{layout.kind}; give a new or empty directory, or add --force to replace only "
+            f"{_listing(list(layout.files), 3)} there (the rest is kept)"
+        )
+
+
+@contextlib.contextmanager
+def atomic_directory(
+    path: PathArg, layout: DirectoryLayout, *, force: bool = False
+) -> Iterator[Path]:
+    """Yield a temporary directory to write ``layout``'s files into; on success they land in
+    ``path`` and nothing else there is touched.
+
+    A new ``path`` is the temporary directory renamed (all or nothing). Into an existing one
+    (allowed as :func:`check_output_directory` says) each file is renamed into place, so a
+    reader sees every file either old or new, never half-written. On failure nothing changes.
+    """
+    check_output_directory(path, layout, force=force)
+    target = Path(path)
+    exists = target.is_dir()
+    # Inside an existing target (it is writable; its parent may not be); else a sibling.
+    where = target if exists else Path(os.path.abspath(target)).parent
+    tmp = Path(tempfile.mkdtemp(prefix=".pinn-mpc-", suffix=".tmp", dir=where))
     try:
         yield tmp
-        if target.exists():
-            old = target.with_name(f".{target.name}.old")
-            shutil.rmtree(old, ignore_errors=True)
-            os.replace(target, old)
-            os.replace(tmp, target)
-            shutil.rmtree(old, ignore_errors=True)
+        written = sorted(os.listdir(tmp))
+        stray = [n for n in written if n not in layout.files]
+        if stray:  # a bug in the writer, not user input: never put foreign files in place
+            raise RuntimeError(f"{layout.kind}: wrote {stray}, not among {layout.files}")
+        if exists:
+            for name in (n for n in layout.files if n in written):
+                os.replace(tmp / name, target / name)
+            tmp.rmdir()
         else:
-            os.replace(tmp, target)
+            tmp.chmod(0o755)  # mkdtemp makes it private
+            os.rename(tmp, target)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise

@@ -37,7 +37,7 @@ import torch
 from torch import nn
 
 from pinn_mpc import physics
-from pinn_mpc.archs import ALL_ARCHS, ARCHS, DEFAULT_ARCH
+from pinn_mpc.choices import ALL_ARCHS, ARCHS, DEFAULT_ARCH
 from pinn_mpc.errors import InputError
 from pinn_mpc.features import FeatureConfig, make_windows
 
@@ -45,6 +45,7 @@ __all__ = [
     "ALL_ARCHS",
     "ARCHS",
     "DEFAULT_ARCH",
+    "MAX_MEMBERS",
     "EnsembleModule",
     "EnsembleNet",
     "HybridInputs",
@@ -56,7 +57,10 @@ __all__ = [
     "residual_exact",
     "residual_finite_difference",
 ]
-RESIDUALS = ("exact", "finite_difference")
+
+#: Most ensemble members: far beyond the paper's 20; bounds what training or a model.json can
+#: make the program allocate.
+MAX_MEMBERS = 1000
 HIDDEN = {
     "mlp": (64, 64),
     "physreg": (64, 64),
@@ -691,7 +695,13 @@ class LearnedModel:
 
     @property
     def eta(self) -> float:
+        """Heat per W of actuator power the model was trained with: > 0 heating, < 0 cooling."""
         return float(self.meta["eta"])
+
+    @property
+    def dt_s(self) -> float:
+        """The control interval [s] the model predicts one step of."""
+        return self.features.dt_s
 
     def _step(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor | None]:
         """Scaled features (M, B, F) -> scaled (T_r,i+1, u_phys,i, T_m,i), each (M, B)."""

@@ -26,6 +26,8 @@ import numpy as np
 from pinn_mpc.errors import InputError
 from pinn_mpc.physics import RCParams, discretise
 
+__all__ = ["KalmanObserver"]
+
 _H = np.array([1.0, 0.0])  # measurement row: y = T_r
 
 

@@ -18,6 +18,10 @@ Coefficient form (paper Eq. pinn-phy-block), all per second::
 Simulator, physics loss, grey-box identification and both RC MPCs build their matrices from
 :func:`state_space_entries`, which works for floats, numpy arrays, torch tensors and CasADi
 symbols alike.
+
+The physically plausible ranges of everything that enters from outside (R/C values and eta in
+:data:`PLAUSIBLE_RANGES`, actuator power :data:`MAX_POWER_W`, control interval
+:data:`DT_RANGE_S`) are set here, once; :class:`RCParams` enforces its ranges on construction.
 """
 
 from __future__ import annotations
@@ -31,14 +35,104 @@ import scipy.linalg
 
 from pinn_mpc.errors import InputError
 
+__all__ = [
+    "DT_RANGE_S",
+    "INPUT_NAMES",
+    "MAX_POWER_W",
+    "N_INPUTS",
+    "N_STATES",
+    "PAPER_HOUSEHOLD",
+    "PLAUSIBLE_RANGES",
+    "SUMMARY_KEYS",
+    "Coefficients",
+    "RCParams",
+    "check_plausible",
+    "continuous_matrices",
+    "discretise",
+    "discretise_euler",
+    "from_coefficients",
+    "params_from_summary",
+    "rc_summary",
+    "state_space_entries",
+    "steady_state",
+    "step",
+    "time_constants_h",
+    "to_coefficients",
+]
+
 N_STATES = 2
 N_INPUTS = 4
 INPUT_NAMES = ("u", "T_a", "G", "I_g")
 
 
+#: Physically plausible ranges (low, high, unit) of the RC values, the one place they are set.
+#: Wide enough for everything from a walk-in cold room to a large building taken as one zone:
+#:
+#: - resistances 1e-8 .. 10 K/W: 10 K/W is a conductance of 0.1 W/K (a few m2 of 20 cm foam);
+#:   1e-8 K/W is 1e8 W/K (air-to-mass over 1e6 m2 of surfaces at 10 W/(m2 K) is 1e7 W/K);
+#: - capacities 1e4 .. 1e12 J/K: 1e4 J/K is the air of an 8 m3 room (1.2 kJ/(m3 K));
+#:   1e12 J/K is above the concrete of a 1e6 m2 building (~7e8 kg at 0.9 kJ/(kg K));
+#: - |eta| 0.1 .. 10: heat per W of actuator power, from a heater that reaches the room badly to
+#:   beyond the best heat-pump COP (about 7); negative (minus the COP) for cooling;
+#: - solar aperture 0 .. 1e5 m2: effective window area (area x g-value) of a very large building.
+#:
+#: Values outside come from wrong units (W vs kW, seconds vs hours) or a failed fit.
+PLAUSIBLE_RANGES: dict[str, tuple[float, float, str]] = {
+    "r_ra_k_per_w": (1e-8, 10.0, "K/W"),
+    "r_rm_k_per_w": (1e-8, 10.0, "K/W"),
+    "c_r_j_per_k": (1e4, 1e12, "J/K"),
+    "c_m_j_per_k": (1e4, 1e12, "J/K"),
+    "eta": (0.1, 10.0, "W/W"),  # the magnitude; the sign says heating (+) or cooling (-)
+    "solar_aperture_m2": (0.0, 1e5, "m2"),
+    "solar_to_air_fraction": (0.0, 1.0, "-"),
+    "gain_to_air_fraction": (0.0, 1.0, "-"),
+}
+#: Largest actuator power [W] a data set may hold: 10 MW is the peak heating or cooling of a very
+#: large building (1e5 m2 at 100 W/m2) taken as one zone. Above it the power column is in the
+#: wrong unit (mW, or energy per interval in J) or holds a meter error.
+MAX_POWER_W = 1.0e7
+#: Plausible control interval [s]: 1 min (the simulator's substep) to 6 h. Outside it a time
+#: column is usually in the wrong unit (a row index read as seconds, or hours, or ms).
+DT_RANGE_S = (60.0, 6 * 3600.0)
+
+
+def check_plausible(field: str, value: Any, *, name: str | None = None) -> float:
+    """``value`` of RC field ``field`` as a float, or InputError naming it ``name`` (default the
+    field) with the problem (not a number, negative, zero, outside) and the plausible range."""
+    label = name or field
+    lo, hi, unit = PLAUSIBLE_RANGES[field]
+    if isinstance(value, bool):
+        raise InputError(f"{label} is {value!r}, not a number [{unit}]")
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise InputError(f"{label} is {value!r}, not a number [{unit}]") from None
+    span = f"plausible range {lo:g} .. {hi:g} {unit}"
+    if field == "eta":
+        span = f"{span} in magnitude, negative for cooling"
+    if not math.isfinite(number):
+        raise InputError(f"{label} is {number}, not a finite number; {span}")
+    magnitude = abs(number) if field == "eta" else number
+    if field == "eta" and number == 0:
+        raise InputError(
+            f"{label} is 0: the actuator would do nothing; give the heat per W of actuator "
+            f"power (1 for a heater, -COP for a cooling machine), {span}"
+        )
+    if magnitude < 0:
+        raise InputError(f"{label} is negative ({number:g} {unit}); it must lie in the {span}")
+    if lo > 0 and magnitude == 0:
+        raise InputError(f"{label} is 0; it must lie in the {span}")
+    if not lo <= magnitude <= hi:
+        raise InputError(
+            f"{label} = {number:.4g} {unit} is outside the {span} (see "
+            "pinn_mpc.physics.PLAUSIBLE_RANGES); check its units"
+        )
+    return number
+
+
 @dataclass(frozen=True, kw_only=True)
 class RCParams:
-    """Physical 2R2C parameters, SI units in the names."""
+    """Physical 2R2C parameters, SI units in the names, each within :data:`PLAUSIBLE_RANGES`."""
 
     r_ra_k_per_w: float
     r_rm_k_per_w: float
@@ -50,20 +144,8 @@ class RCParams:
     gain_to_air_fraction: float = 1.0
 
     def __post_init__(self) -> None:
-        for name in ("r_ra_k_per_w", "r_rm_k_per_w", "c_r_j_per_k", "c_m_j_per_k"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value > 0):
-                raise InputError(f"RCParams.{name} must be a positive finite number, got {value!r}")
-        if not math.isfinite(self.eta) or self.eta == 0:
-            raise InputError(f"RCParams.eta must be finite and non-zero, got {self.eta!r}")
-        if not (math.isfinite(self.solar_aperture_m2) and self.solar_aperture_m2 >= 0):
-            raise InputError(
-                f"RCParams.solar_aperture_m2 must be >= 0, got {self.solar_aperture_m2!r}"
-            )
-        for name in ("solar_to_air_fraction", "gain_to_air_fraction"):
-            value = getattr(self, name)
-            if not (0.0 <= value <= 1.0):
-                raise InputError(f"RCParams.{name} must lie in [0, 1], got {value!r}")
+        for f in fields(self):
+            check_plausible(f.name, getattr(self, f.name), name=f"RCParams.{f.name}")
 
     @property
     def heating(self) -> bool:
@@ -79,7 +161,7 @@ class RCParams:
         unknown = set(data) - names
         if unknown:
             raise InputError(f"unknown RC parameter(s) {sorted(unknown)}; expected {sorted(names)}")
-        return cls(**{k: float(v) for k, v in data.items()})
+        return cls(**{k: check_plausible(k, v) for k, v in data.items()})
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -156,15 +238,18 @@ def from_coefficients(c: Coefficients, *, eta: float = 1.0) -> RCParams:
     gain_air, gain_mass = values["c12"] * c_r, values["c22"] * c_m
     gains = gain_air + gain_mass
     beta = min(max(gain_air / gains, 0.0), 1.0) if gains > 0 else 1.0
-    return RCParams(
-        r_ra_k_per_w=r_ra,
-        r_rm_k_per_w=r_rm,
-        c_r_j_per_k=c_r,
-        c_m_j_per_k=c_m,
-        eta=eta,
-        solar_aperture_m2=aperture,
-        solar_to_air_fraction=alpha,
-        gain_to_air_fraction=beta,
+    # Through the summary keys, so an implausible result is named as export-rc would write it.
+    return params_from_summary(
+        {
+            "R_ra_K_per_W": r_ra,
+            "R_rm_K_per_W": r_rm,
+            "C_r_J_per_K": c_r,
+            "C_m_J_per_K": c_m,
+            "eta": eta,
+            "solar_aperture_m2": aperture,
+            "solar_to_air_fraction": alpha,
+            "gain_to_air_fraction": beta,
+        }
     )
 
 
@@ -227,19 +312,25 @@ def time_constants_h(p: RCParams | Coefficients) -> tuple[float, float]:
     return float(fast), float(slow)
 
 
+#: rc_summary keys -> RCParams fields.
+SUMMARY_KEYS = {
+    "R_ra_K_per_W": "r_ra_k_per_w",
+    "R_rm_K_per_W": "r_rm_k_per_w",
+    "C_r_J_per_K": "c_r_j_per_k",
+    "C_m_J_per_K": "c_m_j_per_k",
+    "eta": "eta",
+    "solar_aperture_m2": "solar_aperture_m2",
+    "solar_to_air_fraction": "solar_to_air_fraction",
+    "gain_to_air_fraction": "gain_to_air_fraction",
+}
+
+
 def rc_summary(p: RCParams, *, source: str) -> dict[str, Any]:
     """The RC JSON schema shared by ``export-rc`` and ``identify``."""
     coef = to_coefficients(p)
     fast, slow = time_constants_h(p)
     return {
-        "R_ra_K_per_W": p.r_ra_k_per_w,
-        "R_rm_K_per_W": p.r_rm_k_per_w,
-        "C_r_J_per_K": p.c_r_j_per_k,
-        "C_m_J_per_K": p.c_m_j_per_k,
-        "eta": p.eta,
-        "solar_aperture_m2": p.solar_aperture_m2,
-        "solar_to_air_fraction": p.solar_to_air_fraction,
-        "gain_to_air_fraction": p.gain_to_air_fraction,
+        **{key: getattr(p, field) for key, field in SUMMARY_KEYS.items()},
         "coefficients_per_s": coef.to_dict(),
         "time_constants_h": {"fast": fast, "slow": slow},
         "source": source,
@@ -247,22 +338,15 @@ def rc_summary(p: RCParams, *, source: str) -> dict[str, Any]:
 
 
 def params_from_summary(data: dict[str, Any]) -> RCParams:
-    """Inverse of :func:`rc_summary` (the keys it needs); raises InputError naming a missing key."""
-    keys = {
-        "R_ra_K_per_W": "r_ra_k_per_w",
-        "R_rm_K_per_W": "r_rm_k_per_w",
-        "C_r_J_per_K": "c_r_j_per_k",
-        "C_m_J_per_K": "c_m_j_per_k",
-        "eta": "eta",
-        "solar_aperture_m2": "solar_aperture_m2",
-        "solar_to_air_fraction": "solar_to_air_fraction",
-        "gain_to_air_fraction": "gain_to_air_fraction",
-    }
-    required = list(keys)[:4]
+    """Inverse of :func:`rc_summary` (the keys it needs); an InputError names the JSON key as
+    written and its problem (missing, not a number, negative, outside the plausible range)."""
+    required = list(SUMMARY_KEYS)[:4]
     missing = [k for k in required if k not in data]
     if missing:
         raise InputError(f"RC JSON lacks key(s) {missing}; expected the schema of export-rc")
-    try:
-        return RCParams(**{keys[k]: float(data[k]) for k in keys if k in data})
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"RC JSON has a non-numeric parameter: {exc}") from exc
+    values = {
+        field: check_plausible(field, data[key], name=key)
+        for key, field in SUMMARY_KEYS.items()
+        if key in data
+    }
+    return RCParams(**values)

@@ -27,11 +27,18 @@ class BatchDynamics(Protocol):
     including now, ``u_phys`` of past intervals, exogenous series up to now; see
     :class:`controllers.base.Observation`), ``u_w`` (N, H) demanded power [W], ``exog`` one
     array (H,) per name in ``exog_names`` (data-format names). The model needs ``depth + 1``
-    past intervals of history.
+    past intervals of history. ``eta`` (heat per W of actuator power, < 0 cooling) and ``dt_s``
+    (the interval it steps) must match the scenario's.
     """
 
     @property
     def n_members(self) -> int: ...
+
+    @property
+    def eta(self) -> float: ...
+
+    @property
+    def dt_s(self) -> float: ...
 
     @property
     def depth(self) -> int: ...
@@ -74,9 +81,13 @@ class RCBatchModel:
                 f"RCBatchModel backup limits need low < high, got {backup_low_c}, {backup_high_c}"
             )
         self.params = params
-        self.u_max_w = u_max_w
+        self.u_max_w, self.dt_s = u_max_w, dt_s
         self.backup_low_c, self.backup_high_c = backup_low_c, backup_high_c
         self.ad, self.bd = discretise(params, dt_s)
+
+    @property
+    def eta(self) -> float:
+        return self.params.eta
 
     def state_now(self, history: dict[str, np.ndarray]) -> tuple[float, float]:
         """Current ``(T_r, T_m)`` [C] from the history (see the class docstring).

@@ -3,20 +3,27 @@
 Each control interval (``dt_s``, default 30 min) is integrated in substeps (default 1 min)
 with the exact zero-order-hold discretisation of :mod:`pinn_mpc.physics`; the backup
 thermostat is re-evaluated at the start of every substep, so the power actually delivered
-(``u_phys``, the interval mean) can differ from the demand ``u``. All buildings share one
-parameter set and step together as arrays of shape (B,).
+(``u_phys``, the interval mean) can differ from the demand ``u``. B buildings step together as
+arrays of shape (B,); they share the parameters of ``SimConfig.params`` or, for a fleet, each
+has its own (:func:`draw_fleet`, discretised in one batch by :func:`fleet_matrices`). The
+substep loop runs compiled (:mod:`pinn_mpc.substeps`).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import numpy as np
+import scipy.linalg
 
 from pinn_mpc.errors import InputError
-from pinn_mpc.physics import PAPER_HOUSEHOLD, RCParams, discretise
+from pinn_mpc.physics import N_INPUTS, N_STATES, PAPER_HOUSEHOLD, RCParams, continuous_matrices
+
+__all__ = ["SimConfig", "Simulator", "StepResult", "backup_power"]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -66,11 +73,65 @@ class StepResult(NamedTuple):
 
 
 def backup_power(t_r_c: np.ndarray, u_w: np.ndarray, config: SimConfig) -> np.ndarray:
-    """Paper Eq. backup, for a heater (or, mirrored, a cooling machine): (B,) -> (B,) [W]."""
+    """Paper Eq. backup, for a heater (or, mirrored, a cooling machine): (B,) -> (B,) [W].
+
+    The rule as numpy; :mod:`pinn_mpc.substeps` applies the same rule inside its loop.
+    """
     too_cold = t_r_c < config.backup_low_c
     too_warm = t_r_c > config.backup_high_c
     force_on, force_off = (too_cold, too_warm) if config.params.heating else (too_warm, too_cold)
     return np.where(force_on, config.u_max_w, np.where(force_off, 0.0, u_w))
+
+
+#: RCParams fields that :func:`draw_fleet` scales per building; the others (eta, fractions)
+#: stay the base building's, so every building has the same kind of actuator.
+FLEET_SCALED = ("r_ra_k_per_w", "r_rm_k_per_w", "c_r_j_per_k", "c_m_j_per_k", "solar_aperture_m2")
+
+
+def draw_fleet(
+    base: RCParams, n_buildings: int, *, spread: float, rng: np.random.Generator
+) -> tuple[RCParams, ...]:
+    """``n_buildings`` buildings around ``base``: each of :data:`FLEET_SCALED` multiplied by its
+    own log-normal factor ``exp(spread * N(0, 1))`` (``spread`` 0.2 is about +-20 %, 0 gives
+    copies of ``base``). Every building is validated like any RCParams."""
+    if isinstance(n_buildings, bool) or not isinstance(n_buildings, int) or n_buildings < 1:
+        raise InputError(f"draw_fleet: n_buildings must be a whole number >= 1, got {n_buildings!r}")
+    if not (math.isfinite(spread) and 0.0 <= spread <= 1.0):
+        raise InputError(
+            f"draw_fleet: spread must lie in [0, 1] (log-normal sigma; 0.2 is about +-20 %), "
+            f"got {spread!r}"
+        )
+    factors = np.exp(spread * rng.standard_normal((n_buildings, len(FLEET_SCALED))))
+    return tuple(
+        dataclasses.replace(
+            base, **{name: getattr(base, name) * float(f) for name, f in zip(FLEET_SCALED, row, strict=True)}
+        )
+        for row in factors
+    )
+
+
+def fleet_matrices(
+    params: Sequence[RCParams], dt_s: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Exact ZOH discretisation of many buildings in one batched matrix exponential.
+
+    Returns ``Ad`` (B, 2, 2) and ``Bd`` (B, 2, 4), building by building the same matrices as
+    :func:`pinn_mpc.physics.discretise` (to rounding).
+    """
+    if not (math.isfinite(dt_s) and dt_s > 0):
+        raise InputError(f"dt_s must be a positive number of seconds, got {dt_s!r}")
+    if len(params) == 0:
+        raise InputError("fleet_matrices: no buildings given")
+    m = np.zeros((len(params), N_STATES + N_INPUTS, N_STATES + N_INPUTS))
+    for i, p in enumerate(params):
+        a, b = continuous_matrices(p)
+        m[i, :N_STATES, :N_STATES] = a * dt_s
+        m[i, :N_STATES, N_STATES:] = b * dt_s
+    e = scipy.linalg.expm(m)
+    return (
+        np.ascontiguousarray(e[:, :N_STATES, :N_STATES]),
+        np.ascontiguousarray(e[:, :N_STATES, N_STATES:]),
+    )
 
 
 class Simulator:
@@ -78,17 +139,44 @@ class Simulator:
 
     ``reset`` sets the state; ``step`` advances one control interval; ``measure`` returns
     the room temperature as a sensor sees it (with noise when ``noise_std_c > 0``).
+    ``fleet`` gives each building its own parameters (e.g. from :func:`draw_fleet`); their
+    actuators must heat (or cool) as ``config.params`` does, since the backup rule and
+    ``u_max_w`` of ``config`` apply to all. Without it all share ``config.params``.
     """
 
-    def __init__(self, config: SimConfig, *, n_buildings: int = 1, seed: int | None = 0):
+    def __init__(
+        self,
+        config: SimConfig,
+        *,
+        n_buildings: int | None = None,
+        seed: int | None = 0,
+        fleet: Sequence[RCParams] | None = None,
+    ):
+        if fleet is not None:
+            if n_buildings is not None and n_buildings != len(fleet):
+                raise InputError(
+                    f"Simulator: n_buildings={n_buildings} but the fleet has {len(fleet)} buildings; "
+                    "give one of them"
+                )
+            n_buildings = len(fleet)
+            wrong = [i for i, p in enumerate(fleet) if p.heating != config.params.heating]
+            if wrong:
+                kind = "heats" if config.params.heating else "cools"
+                raise InputError(
+                    f"Simulator: fleet building(s) {wrong[:5]} have an actuator of the other sign; "
+                    f"config.params {kind}, and one backup rule applies to all buildings"
+                )
+        n_buildings = 1 if n_buildings is None else n_buildings
         if n_buildings < 1:
             raise InputError(f"n_buildings must be >= 1, got {n_buildings}")
         self.config = config
         self.n_buildings = n_buildings
-        self._ad, self._bd = discretise(config.params, config.substep_s)
+        # (P, 2, 2) / (P, 2, 4): P = 1 when all buildings share config.params.
+        self._ad, self._bd = fleet_matrices(
+            [config.params] if fleet is None else fleet, config.substep_s
+        )
         self._rng = np.random.default_rng(seed)
         self._x = np.zeros((n_buildings, 2))
-
     def reset(
         self, t_r_c: float | np.ndarray, t_m_c: float | np.ndarray, *, seed: int | None = None
     ) -> None:
@@ -123,6 +211,8 @@ class Simulator:
         i_g_w: np.ndarray | float = 0.0,
     ) -> StepResult:
         """Advance one control interval with inputs held constant; all inputs (B,) or scalar."""
+        from pinn_mpc.substeps import integrate_interval  # numba only once something steps
+
         shape = (self.n_buildings,)
         u = np.broadcast_to(np.asarray(u_w, dtype=float), shape)
         if not np.all(np.isfinite(u)):
@@ -135,29 +225,30 @@ class Simulator:
             ],
             axis=1,
         )
-        # Exogenous part of the input is constant over the interval: precompute its effect.
-        drift = exog @ self._bd[:, 1:].T  # (B, 2)
-        b_u = self._bd[:, 0]
-        a = self._ad
-        n = self.config.n_substeps
-        x0, x1 = self._x[:, 0].copy(), self._x[:, 1].copy()
-        delivered = np.zeros(shape)
-        overridden = np.zeros(shape, dtype=bool)
-        t_r_sub = np.empty((self.n_buildings, n))
-        for j in range(n):
-            p = backup_power(x0, u, self.config)
-            overridden |= p != u
-            delivered += p
-            x0, x1 = (
-                a[0, 0] * x0 + a[0, 1] * x1 + b_u[0] * p + drift[:, 0],
-                a[1, 0] * x0 + a[1, 1] * x1 + b_u[1] * p + drift[:, 1],
-            )
-            t_r_sub[:, j] = x0
-        self._x = np.stack([x0, x1], axis=1)
+        cfg = self.config
+        delivered = np.empty(shape)
+        overridden = np.empty(shape, dtype=bool)
+        t_r_sub = np.empty((self.n_buildings, cfg.n_substeps))
+        x = np.ascontiguousarray(self._x, dtype=float)
+        integrate_interval(
+            x,
+            np.ascontiguousarray(u),
+            exog,
+            self._ad,
+            self._bd,
+            float(cfg.u_max_w),
+            float(cfg.backup_low_c),
+            float(cfg.backup_high_c),
+            bool(cfg.params.heating),
+            delivered,
+            overridden,
+            t_r_sub,
+        )
+        self._x = x
         return StepResult(
-            t_r_c=x0.copy(),
-            t_m_c=x1.copy(),
-            u_phys_w=delivered / n,
+            t_r_c=x[:, 0].copy(),
+            t_m_c=x[:, 1].copy(),
+            u_phys_w=delivered,
             overridden=overridden,
             t_r_sub_c=t_r_sub,
         )

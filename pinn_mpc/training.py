@@ -27,7 +27,6 @@ import os
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass, replace
-from pathlib import Path
 from typing import Any, cast
 
 import numpy as np
@@ -36,12 +35,12 @@ import torch
 from tqdm import tqdm
 
 from pinn_mpc import __version__, physics
-from pinn_mpc.data import read_timeseries, validate_timeseries
+from pinn_mpc.choices import ALL_ARCHS, RECIPES, RESIDUALS
+from pinn_mpc.data import validate_timeseries
 from pinn_mpc.errors import InputError
-from pinn_mpc.features import MIN_TRAIN_SAMPLES, fit_feature_config, make_windows
+from pinn_mpc.features import MAX_DEPTH, MIN_TRAIN_SAMPLES, fit_feature_config, make_windows
 from pinn_mpc.models import (
-    ALL_ARCHS,
-    RESIDUALS,
+    MAX_MEMBERS,
     EnsembleModule,
     HybridInputs,
     HybridNet,
@@ -50,11 +49,8 @@ from pinn_mpc.models import (
     residual_finite_difference,
 )
 
-#: Per recipe: epochs, batch size, initial and final learning rate, default lambda.
-RECIPES: dict[str, dict[str, float]] = {
-    "paper": {"epochs": 75, "batch_size": 2048, "lr": 1e-3, "lr_final": 1e-3, "lam": 1.0},
-    "converged": {"epochs": 60, "batch_size": 512, "lr": 1e-2, "lr_final": 1e-4, "lam": 1.0},
-}
+__all__ = ["TrainConfig", "data_summary", "train_model"]
+
 #: Consecutive samples per mini-batch chunk (the physics residuals link neighbours).
 CHUNK = 8
 #: |u - u_phys| [W] below which an interval counts as held at constant power.
@@ -68,7 +64,9 @@ class TrainConfig:
     """How to train an ensemble. ``None`` means "the recipe's value" (epochs, lam, batch, lr).
 
     ``prior`` gives the initial 2R2C coefficients (default :data:`physics.PAPER_HOUSEHOLD`),
-    ``eta`` the heat per watt of actuator power (sign fixes the sign of ``b``). ``residual`` is
+    ``eta`` the heat per watt of actuator power (1 a heater, -COP a cooling machine; its sign
+    fixes the sign of ``b``, and the model's record of heating or cooling). ``u_max_w`` is the
+    actuator's limit when known: the data's power must not exceed it. ``residual`` is
     ``"exact"`` (both 2R2C rows, ZOH) or ``"finite_difference"`` (the paper's Eq. est_Tm).
     ``physics_lr_factor`` scales the learning rate of the log-space coefficients against the
     network's: at 10 the coefficients reach the same values from a prior 30-40 % off as from
@@ -95,12 +93,15 @@ class TrainConfig:
     physics_lr_factor: float | None = None
     residual_weight: float = 1.0
     anchor_weight: float = 10.0
+    u_max_w: float | None = None
 
     def __post_init__(self) -> None:
-        if self.depth < 1:
-            raise InputError(f"TrainConfig.depth must be >= 1, got {self.depth}")
-        if self.n_seeds < 1:
-            raise InputError(f"TrainConfig.n_seeds must be >= 1, got {self.n_seeds}")
+        if not 1 <= self.depth <= MAX_DEPTH:
+            raise InputError(f"TrainConfig.depth must be 1 .. {MAX_DEPTH}, got {self.depth}")
+        if not 1 <= self.n_seeds <= MAX_MEMBERS:
+            raise InputError(
+                f"TrainConfig.n_seeds must be 1 .. {MAX_MEMBERS} members, got {self.n_seeds}"
+            )
         if self.recipe not in RECIPES:
             raise InputError(f"unknown recipe {self.recipe!r}; choose one of {', '.join(RECIPES)}")
         if self.residual not in RESIDUALS:
@@ -111,8 +112,9 @@ class TrainConfig:
             raise InputError(f"TrainConfig.epochs must be >= 1, got {self.epochs}")
         if self.lam is not None and not (math.isfinite(self.lam) and self.lam >= 0):
             raise InputError(f"TrainConfig.lam must be a finite number >= 0, got {self.lam}")
-        if not math.isfinite(self.eta) or self.eta == 0:
-            raise InputError(f"TrainConfig.eta must be finite and non-zero, got {self.eta}")
+        physics.check_plausible("eta", self.eta, name="eta (--eta)")
+        if self.u_max_w is not None and not (math.isfinite(self.u_max_w) and self.u_max_w > 0):
+            raise InputError(f"TrainConfig.u_max_w must be positive, got {self.u_max_w!r}")
         if self.batch_size is not None and self.batch_size < 1:
             raise InputError(f"TrainConfig.batch_size must be >= 1, got {self.batch_size}")
         if self.lr is not None and not (math.isfinite(self.lr) and self.lr > 0):
@@ -208,7 +210,7 @@ def train_model(
     """Train ``config.n_seeds`` members of ``arch`` together on a frame in the data format."""
     if arch not in ALL_ARCHS:
         raise InputError(f"unknown architecture {arch!r}; choose one of {', '.join(ALL_ARCHS)}")
-    df = validate_timeseries(df, source="training data")
+    df = validate_timeseries(df, source="training data", u_max_w=config.u_max_w)
     hp = config.resolved()
     features = fit_feature_config(df, depth=config.depth)
     win = make_windows(df, features, min_samples=MIN_TRAIN_SAMPLES)
@@ -364,37 +366,3 @@ def train_model(
         "train_seconds": elapsed,
     }
     return LearnedModel(arch=arch, features=features, module=module, meta=meta)
-
-
-def train_to_dir(
-    *,
-    data: str,
-    arch: str,
-    out: str,
-    depth: int,
-    seeds: int,
-    epochs: int | None,
-    lam: float | None,
-    columns: str | None,
-    recipe: str,
-    seed: int,
-) -> str:
-    """CLI ``train``: read data, train the ensemble, save the model directory; returns a summary."""
-    from pinn_mpc.artifacts import save_model
-
-    parent = Path(out).parent
-    if not parent.is_dir():
-        raise InputError(
-            f"cannot write model {out}: directory {parent} does not exist; create it first"
-        )
-    df = read_timeseries(data, columns=columns)
-    config = TrainConfig(
-        depth=depth, n_seeds=seeds, first_seed=seed, epochs=epochs, lam=lam, recipe=recipe
-    )
-    model = train_model(df, arch=arch, config=config)
-    path = save_model(model, out)
-    loss = model.meta["final_loss"]
-    return (
-        f"trained {arch} x{seeds} on {len(df)} rows in {model.meta['train_seconds']:.1f} s "
-        f"(final loss reg {loss['reg']:.3g}, phys {loss['phys']:.3g}) -> {path}"
-    )

@@ -1,0 +1,62 @@
+"""Experiments: scenarios, training data, the closed loop, KPIs, comparisons, reproduction.
+
+Public names (imported on first use, see :mod:`pinn_mpc.lazy`): scenarios
+(:class:`Scenario`, :func:`get_scenario`, :func:`scenario_names`), training data
+(:func:`generate`), controllers by name (:func:`build_controller`, :func:`make_controller`,
+:func:`read_rc`, :data:`CONTROLLER_NAMES`), the closed loop (:func:`run_closed_loop` ->
+:class:`ClosedLoopResult`; its engine :class:`ClosedLoop` and :class:`ExogenousSeries`; the
+Gymnasium face :class:`BuildingEnv`), KPIs (:func:`compute_kpis`, :data:`KPI_KEYS`,
+:func:`format_kpis`, :func:`kpi_table_text`), figures (:func:`plot_trajectory`,
+:func:`plot_comparison`), the controller comparison (:class:`CompareSettings`,
+:func:`run_comparison` -> :class:`ComparisonResult`) and the paper reproduction
+(:class:`ReproduceConfig`, :func:`run_reproduction`).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from pinn_mpc.lazy import lazy_exports
+
+if TYPE_CHECKING:
+    from scenarios.choices import CONTROLLER_NAMES as CONTROLLER_NAMES
+    from scenarios.closed_loop import ClosedLoopResult as ClosedLoopResult
+    from scenarios.closed_loop import run_closed_loop as run_closed_loop
+    from scenarios.compare import CompareSettings as CompareSettings
+    from scenarios.compare import ComparisonResult as ComparisonResult
+    from scenarios.compare import run_comparison as run_comparison
+    from scenarios.datagen import generate as generate
+    from scenarios.engine import ClosedLoop as ClosedLoop
+    from scenarios.engine import ExogenousSeries as ExogenousSeries
+    from scenarios.factory import build_controller as build_controller
+    from scenarios.factory import make_controller as make_controller
+    from scenarios.factory import read_rc as read_rc
+    from scenarios.gym_env import BuildingEnv as BuildingEnv
+    from scenarios.kpis import KPI_KEYS as KPI_KEYS
+    from scenarios.kpis import compute_kpis as compute_kpis
+    from scenarios.plots import plot_comparison as plot_comparison
+    from scenarios.plots import plot_trajectory as plot_trajectory
+    from scenarios.registry import Scenario as Scenario
+    from scenarios.registry import get_scenario as get_scenario
+    from scenarios.registry import scenario_names as scenario_names
+    from scenarios.report import format_kpis as format_kpis
+    from scenarios.report import kpi_table_text as kpi_table_text
+    from scenarios.reproduce import ReproduceConfig as ReproduceConfig
+    from scenarios.reproduce import run_reproduction as run_reproduction
+
+_EXPORTS = {
+    "scenarios.choices": ("CONTROLLER_NAMES",),
+    "scenarios.closed_loop": ("ClosedLoopResult", "run_closed_loop"),
+    "scenarios.compare": ("CompareSettings", "ComparisonResult", "run_comparison"),
+    "scenarios.datagen": ("generate",),
+    "scenarios.engine": ("ClosedLoop", "ExogenousSeries"),
+    "scenarios.factory": ("build_controller", "make_controller", "read_rc"),
+    "scenarios.gym_env": ("BuildingEnv",),
+    "scenarios.kpis": ("KPI_KEYS", "compute_kpis"),
+    "scenarios.plots": ("plot_comparison", "plot_trajectory"),
+    "scenarios.registry": ("Scenario", "get_scenario", "scenario_names"),
+    "scenarios.report": ("format_kpis", "kpi_table_text"),
+    "scenarios.reproduce": ("ReproduceConfig", "run_reproduction"),
+}
+__all__ = [name for names in _EXPORTS.values() for name in names]
+__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

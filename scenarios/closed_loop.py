@@ -19,23 +19,30 @@ from __future__ import annotations
 
 import contextlib
 import math
-import os
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import pandas as pd
+from tqdm import tqdm
 
 from controllers.base import Controller, ControlSpec
 from controllers.thermostat import Thermostat
 from pinn_mpc.data import write_timeseries
 from pinn_mpc.errors import InputError
-from pinn_mpc.io import atomic_write_json
 from scenarios.engine import ClosedLoop, ExogenousSeries
-from scenarios.factory import MODEL_CONTROLLERS, make_controller
+from scenarios.inputs import day_span
 from scenarios.kpis import compute_kpis
-from scenarios.registry import EXOGENOUS_COLUMNS, Scenario, check_seed, get_scenario
+from scenarios.registry import EXOGENOUS_COLUMNS, Scenario, check_seed
+
+__all__ = [
+    "EXTRA_COLUMNS",
+    "ClosedLoopResult",
+    "one_torch_thread",
+    "run_closed_loop",
+    "write_trajectory",
+]
 
 #: Columns the trajectory adds to the data format.
 EXTRA_COLUMNS = ("overridden", "fallback", "decision_ms")
@@ -47,7 +54,9 @@ _EXOGENOUS = EXOGENOUS_COLUMNS[1:]  # all but time
 class ClosedLoopResult:
     """One run: ``trajectory`` has one row per counted interval (data format + EXTRA_COLUMNS,
     ``attrs['dt_s']``); ``kpis`` the KPI dict (see :mod:`scenarios.kpis`) plus ``controller``,
-    ``scenario``, ``days``, ``seed``; ``errors`` one line per controller exception."""
+    ``scenario``, ``days``, ``seed``, ``weather_part`` and the [first, last] dates of the
+    ``counted_days`` and of the ``weather_days`` (warm-up and forecast lead included);
+    ``errors`` one line per controller exception."""
 
     trajectory: pd.DataFrame
     kpis: dict[str, Any]
@@ -63,12 +72,17 @@ def run_closed_loop(
     forecast_noise_std_c: float = 0.0,
     warmup_steps: int | None = None,
     label: str | None = None,
+    weather_part: str = "test",
+    progress: bool = False,
 ) -> ClosedLoopResult:
     """Run ``controller`` on ``scenario`` for ``days`` counted days after the warm-up.
 
     ``seed`` fixes the weather/price draw of the scenario, the sensor noise and the forecast
-    noise, so two runs with the same seed see the same disturbances. ``warmup_steps`` defaults
-    to one day of intervals. ``label`` names the controller in the KPIs (default its ``name``).
+    noise, so two runs with the same seed see the same disturbances. ``weather_part`` is the
+    part of the scenario's weather the run is drawn from (default the test part; see
+    :mod:`scenarios.inputs`). ``warmup_steps`` defaults to one day of intervals. ``label``
+    names the controller in the KPIs (default its ``name``).
+    ``progress`` shows a bar on stderr for runs over a second, when it is a terminal.
     """
     if days < 1:
         raise InputError(f"closed loop: days must be >= 1, got {days}")
@@ -82,7 +96,9 @@ def run_closed_loop(
     n_run = days * spd
     total = warmup + n_run
     horizon = scenario.horizon_steps
-    exo = scenario.exogenous(days=days + math.ceil(warmup / spd), seed=seed, lead_steps=horizon)
+    exo = scenario.exogenous(
+        days=days + math.ceil(warmup / spd), seed=seed, part=weather_part, lead_steps=horizon
+    )
     if len(exo) < total + horizon:
         raise InputError(
             f"scenario {scenario.name!r} gave {len(exo)} exogenous rows, need {total + horizon}"
@@ -104,7 +120,15 @@ def run_closed_loop(
         forecast_seed=[seed, _FORECAST_NOISE_STREAM],
     )
     errors: list[str] = []
-    for k in range(total):
+    steps = tqdm(
+        range(total),
+        desc=label or controller.name,
+        unit="step",
+        delay=1.0,
+        leave=False,
+        disable=None if progress else True,  # None: off when stderr is not a terminal
+    )
+    for k in steps:
         decision = loop.advance(warmup_controller if k < warmup else controller)
         if decision.error is not None:
             errors.append(f"step {k}: {decision.error}")
@@ -139,7 +163,13 @@ def run_closed_loop(
         comfort_weight_eur_per_kh=spec.comfort_weight_eur_per_kh,
     )
     kpis.update(
-        controller=label or controller.name, scenario=scenario.name, days=days, seed=seed
+        controller=label or controller.name,
+        scenario=scenario.name,
+        days=days,
+        seed=seed,
+        weather_part=weather_part,
+        counted_days=day_span(trajectory["time"]),
+        weather_days=day_span(exo["time"]),  # warm-up and forecast lead included
     )
     return ClosedLoopResult(trajectory=trajectory, kpis=kpis, errors=tuple(errors))
 
@@ -157,76 +187,6 @@ def one_torch_thread() -> Iterator[None]:
         torch.set_num_threads(before)
 
 
-def check_writable(*paths: str | None, create_parents: bool = False) -> None:
-    """Fail before any work if an output file cannot be written: its folder is missing (unless
-    ``create_parents``, then the nearest existing ancestor counts) or read-only."""
-    for path in paths:
-        if path is None:
-            continue
-        target = Path(path)
-        if target.is_dir():
-            raise InputError(f"cannot write {target}: it is a directory; give a file name")
-        parent = target.parent
-        while create_parents and not parent.exists() and parent != parent.parent:
-            parent = parent.parent
-        if parent.exists() and not parent.is_dir():
-            raise InputError(f"cannot write {target}: {parent} is a file, not a directory")
-        if not parent.is_dir():
-            raise InputError(f"cannot write {target}: directory {parent} does not exist; create it")
-        if not os.access(parent, os.W_OK):
-            raise InputError(f"cannot write {target}: directory {parent} is not writable")
-
-
 def write_trajectory(result: ClosedLoopResult, path: str | Path) -> Path:
     """The trajectory CSV: the data format's columns, then :data:`EXTRA_COLUMNS`."""
     return write_timeseries(result.trajectory, path)
-
-
-def closed_loop_command(
-    *,
-    scenario: str,
-    controller: str,
-    model: str | None,
-    rc: str | None,
-    days: int,
-    seed: int,
-    json_path: str,
-    csv_path: str | None,
-    plot_path: str | None,
-) -> str:
-    """``pinn-mpc closed-loop``: run, write KPI JSON (and CSV, plot), return a one-line summary."""
-    from scenarios.plots import plot_trajectory  # matplotlib only when plotting
-
-    check_writable(json_path, csv_path, plot_path)
-    scen = get_scenario(scenario)
-    ctrl = make_controller(
-        controller,
-        scen,
-        model_dir=model,
-        rc_path=rc,
-        n_steps=days * scen.steps_per_day,
-    )
-    # torch only for the planners over learned models; the others start faster without it.
-    threads = one_torch_thread() if controller in MODEL_CONTROLLERS else contextlib.nullcontext()
-    with threads:
-        result = run_closed_loop(scen, ctrl, days=days, seed=seed)
-    if csv_path is not None:
-        write_trajectory(result, csv_path)
-    if plot_path is not None:
-        plot_trajectory(result.trajectory, plot_path, title=f"{controller} on {scenario}")
-    atomic_write_json(json_path, result.kpis)
-    lines = [format_kpis(result.kpis)]
-    if result.errors:
-        lines.append(f"{len(result.errors)} controller error(s), first: {result.errors[0]}")
-    return "\n".join([*lines, f"wrote {json_path}"])
-
-
-def format_kpis(kpis: dict[str, Any]) -> str:
-    """One line: the main KPIs of a run."""
-    return (
-        f"{kpis['controller']} on {kpis['scenario']}, {kpis['days']} d: "
-        f"energy {kpis['energy_kwh']:.2f} kWh, cost {kpis['cost_eur']:.2f} EUR, "
-        f"discomfort {kpis['discomfort_kh']:.2f} K h, peak {kpis['peak_kw']:.2f} kW, "
-        f"objective {kpis['objective']:.2f} EUR, decision {kpis['decision_ms_median']:.1f} ms "
-        f"(median), overrides {kpis['backup_overrides']}, fallbacks {kpis['fallbacks']}"
-    )

@@ -1,47 +1,49 @@
-"""``pinn-mpc compare``: train, identify and run every controller on one scenario.
+"""A controller comparison: train, identify and run every controller on one scenario.
 
-1. Training data: ``train_days`` under a random policy (seed ``seed``): ``random-level``
+1. Training data: ``train_days`` from the training part of the scenario's weather (see
+   :mod:`scenarios.inputs`) under a random policy (seed ``seed``): ``random-level``
    (a uniform power level per interval, the default) or the paper's on/off ``random``. On/off
-   data shows a network only 0 and full power, while the controllers modulate it: on
-   winter_household a physnet trained on 60 on/off days is 0.33 K too cold 24 h ahead on the
-   oracle's closed-loop trajectory, one trained on uniform levels 0.08 K.
+   data shows a network only 0 and full power, while the controllers modulate it, so a model
+   trained on uniform levels predicts the closed-loop operating points better.
 2. Models: the recommended hybrid (see :class:`pinn_mpc.models.HybridNet`) and the paper's
    physnet, physreg and mlp seed ensembles; grey-box RC identification (T_m hidden); the RC
    parameters exported from the hybrid and the physnet ensembles.
-3. Closed loop on the same ``days`` test days (seed ``seed + 1``, so other weather than the
-   training data), same perfect forecasts, same one-day thermostat warm-up, for: thermostat,
+3. Closed loop on the same ``days`` test days from the test part of the weather (seed
+   ``seed + 1``; no calendar day in common with the training data, warm-up and forecast lead
+   included), same perfect forecasts, same one-day thermostat warm-up, for: thermostat,
    random shooting and CEM over the hybrid (and CEM without its LP polish, to show what the
    polish adds), CEM over physnet, physreg and mlp (physreg and mlp unless
    ``cem_all_models=False``), casadi-mpc and qp-mpc on the identified RC, qp-mpc on the
    hybrid- and physnet-exported RCs, oracle and clairvoyant.
-4. Outputs: a JSON table (one row per controller with every KPI), a markdown report with the
-   KPI table, each objective relative to the oracle's, the RC parameters against the true ones
-   and a figure of all trajectories (PNG next to the report).
+4. Outputs (written by the command, :func:`scenarios.commands.compare`; :func:`run_comparison`
+   returns them as a :class:`ComparisonResult`): a JSON table (one row per controller with every KPI), a markdown report with the
+   dates of the training data and of the test days, the KPI table, each objective relative to
+   the oracle's, the RC parameters against the true ones and a figure of the trajectories, one
+   panel per controller family against the oracle (PNG next to the report,
+   :func:`scenarios.plots.comparison_figure`).
 """
 
 from __future__ import annotations
 
-import dataclasses
-import os
 import time
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import pandas as pd
 from tqdm import tqdm
 
 from controllers.planners import CEMPlanner, RandomShootingPlanner
+from pinn_mpc.choices import DEFAULT_ARCH
 from pinn_mpc.errors import InputError
-from pinn_mpc.io import atomic_write_json, atomic_write_text
-from pinn_mpc.models import DEFAULT_ARCH
 from pinn_mpc.physics import RCParams, params_from_summary, rc_summary
-from scenarios.closed_loop import check_writable, one_torch_thread, run_closed_loop
-from scenarios.datagen import RANDOM_POLICIES
+from scenarios.choices import RANDOM_POLICIES
+from scenarios.closed_loop import one_torch_thread, run_closed_loop
 from scenarios.factory import build_controller
-from scenarios.plots import plot_comparison
-from scenarios.registry import Scenario, check_seed, get_scenario
-from scenarios.report import kpi_table_text, objective_ratios, render_report
+from scenarios.inputs import day_span
+from scenarios.registry import Scenario, check_seed
+from scenarios.report import objective_ratios
+
+__all__ = ["ARCHS", "REFERENCE", "CompareSettings", "ComparisonResult", "run_comparison"]
 
 #: The recommended model first; physnet for the paper's best; physreg and mlp for the CEM rows.
 ARCHS = (DEFAULT_ARCH, "physnet", "physreg", "mlp")
@@ -87,7 +89,7 @@ class CompareSettings:
         cls, *, train_days: int, days: int, seed: int, quick: bool, policy: str = "random-level"
     ) -> CompareSettings:
         """The defaults, or with ``quick`` small ensembles, short training and at most 2 test
-        days (a few minutes on 2 cores); the planners run with their defaults either way."""
+        days; the planners run with their defaults either way."""
         if not quick:
             return cls(train_days=train_days, test_days=days, seed=seed, policy=policy)
         return cls(
@@ -107,9 +109,8 @@ class CompareSettings:
     @property
     def training_epochs(self) -> int:
         """``epochs``, or as many optimizer steps as the ``converged`` recipe was calibrated
-        with (60 epochs of 120 days): 7200 / ``train_days`` epochs, within 60..240. At 60 days
-        that is 120 epochs; 60 epochs left physnet's closed-loop objective 0.5-1.2 points
-        higher on winter_household (seeds 0 and 2)."""
+        with (60 epochs of 120 days): 7200 / ``train_days`` epochs, within 60..240 (120 epochs
+        at 60 days)."""
         if self.epochs is not None:
             return self.epochs
         return min(240, max(60, round(7200 / self.train_days)))
@@ -120,9 +121,12 @@ class ComparisonResult:
     """``rows``: one KPI dict per controller (keys of :mod:`scenarios.kpis` plus ``controller``
     label, ``name``, ``model``, ``objective_to_oracle``); ``rc``: RC summaries by source;
     ``trajectories`` by label; ``wall_time_s`` by stage; ``errors`` the controller exceptions
-    of each run that had any (the fallback acted, see :mod:`scenarios.closed_loop`)."""
+    of each run that had any (the fallback acted, see :mod:`scenarios.closed_loop`);
+    ``days``: [first, last] dates of the ``training`` data, the ``test`` days counted and the
+    ``test weather`` (warm-up and forecast lead included)."""
 
     rows: list[dict[str, Any]]
+    days: dict[str, list[str]]
     rc: dict[str, dict[str, Any]]
     trajectories: dict[str, pd.DataFrame]
     wall_time_s: dict[str, float]
@@ -137,8 +141,22 @@ def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonR
     from scenarios.datagen import generate
 
     wall: dict[str, float] = {}
+    # Refuse test days that do not fit in the test weather before minutes of training: drawn
+    # as run_closed_loop draws them (one warm-up day, a horizon of forecast lead rows).
+    scenario.exogenous(
+        days=settings.test_days + 1,
+        seed=settings.test_seed,
+        part="test",
+        lead_steps=scenario.horizon_steps,
+    )
     start = time.perf_counter()
-    data = generate(scenario, days=settings.train_days, seed=settings.seed, policy=settings.policy)
+    data = generate(
+        scenario,
+        days=settings.train_days,
+        seed=settings.seed,
+        policy=settings.policy,
+        weather_part="train",
+    )
     wall["training data"] = time.perf_counter() - start
     eta = scenario.sim.params.eta
     config = TrainConfig(
@@ -148,6 +166,7 @@ def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonR
         epochs=settings.training_epochs,
         recipe=settings.recipe,
         eta=eta,
+        u_max_w=scenario.sim.u_max_w,
     )
     models = {}
     # physreg and mlp only serve the CEM rows; without them only hybrid and physnet train.
@@ -204,7 +223,12 @@ def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonR
             start = time.perf_counter()
             controller = build_controller(name, scenario, n_steps=n_steps, **kwargs)
             result = run_closed_loop(
-                scenario, controller, days=settings.test_days, seed=settings.test_seed, label=label
+                scenario,
+                controller,
+                days=settings.test_days,
+                seed=settings.test_seed,
+                label=label,
+                weather_part="test",
             )
             wall[f"run {label}"] = time.perf_counter() - start
             rows.append({**result.kpis, "name": name, "model": model_name})
@@ -213,73 +237,11 @@ def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonR
                 errors[label] = result.errors
     for row, ratio in zip(rows, objective_ratios(rows, reference=REFERENCE), strict=True):
         row["objective_to_oracle"] = ratio
-    return ComparisonResult(
-        rows=rows, rc=rc, trajectories=trajectories, wall_time_s=wall, errors=errors
-    )
-
-
-def _make_parents(*paths: Path) -> None:
-    for path in paths:
-        path.parent.mkdir(parents=True, exist_ok=True)
-
-
-def compare_command(
-    *,
-    scenario: str,
-    train_days: int,
-    days: int,
-    seed: int,
-    json_path: str,
-    report_path: str,
-    quick: bool,
-    policy: str = "random-level",
-) -> str:
-    """``pinn-mpc compare``: run the comparison, write the JSON table, report and figure."""
-    scen = get_scenario(scenario)
-    settings = CompareSettings.for_run(
-        train_days=train_days, days=days, seed=seed, quick=quick, policy=policy
-    )
-    report = Path(report_path)
-    figure = report.with_suffix(".png")
-    check_writable(json_path, report_path, str(figure), create_parents=True)
-    start = time.perf_counter()
-    result = run_comparison(scen, settings)
-    total_s = time.perf_counter() - start
-    settings_table = {
-        **dataclasses.asdict(settings),
-        "test_seed": settings.test_seed,
-        "training_epochs": settings.training_epochs,
-        "scenario": scen.name,
-        "comfort_weight_eur_per_kh": scen.comfort_weight_eur_per_kh,
-        "horizon_steps": scen.horizon_steps,
-        "dt_s": scen.sim.dt_s,
-        "u_max_w": scen.sim.u_max_w,
-        "wall_time_s": round(total_s, 1),
-        "cpu_count": os.cpu_count(),
+    days = {
+        "training": day_span(data["time"]),
+        "test": rows[0]["counted_days"],
+        "test weather": rows[0]["weather_days"],
     }
-    notes = [
-        f"`{label}`: {len(errs)} controller error(s), the fallback acted; first: {errs[0]}"
-        for label, errs in result.errors.items()
-    ]
-    notes += [f"wall time of {stage}: {sec:.1f} s" for stage, sec in result.wall_time_s.items()]
-    _make_parents(Path(json_path), report, figure)
-    title = f"{scen.name}: test days, seed {settings.test_seed}"
-    plot_comparison(result.trajectories, figure, title=title)
-    atomic_write_text(
-        report,
-        render_report(
-            scenario=scen.name,
-            description=scen.description,
-            rows=result.rows,
-            rc=result.rc,
-            settings=settings_table,
-            figure_name=figure.name,
-            notes=notes,
-        ),
+    return ComparisonResult(
+        rows=rows, days=days, rc=rc, trajectories=trajectories, wall_time_s=wall, errors=errors
     )
-    atomic_write_json(
-        json_path,
-        {"scenario": scen.name, "settings": settings_table, "rows": result.rows, "rc": result.rc},
-    )
-    written = f"wrote {json_path}, {report_path}, {figure} ({total_s:.0f} s)"
-    return f"{kpi_table_text(result.rows)}\n{written}"

@@ -18,6 +18,9 @@ building has a solar aperture, ``I_g`` only when the scenario has internal gains
 ``T_min`` and ``T_max`` always. With ``n_buildings > 1`` all buildings (same weather,
 independent random demands) run in one batched simulator and the frame is long: an integer
 ``building`` column (0..B-1) precedes ``time``, and each building's rows are contiguous.
+
+The weather comes from the scenario's training part by default (``simulate``, training data);
+test data for open-loop evaluation comes from the test part, the days closed loops run on.
 """
 
 from __future__ import annotations
@@ -28,14 +31,13 @@ import numpy as np
 import pandas as pd
 
 from controllers.thermostat import Thermostat
-from pinn_mpc.data import write_timeseries
 from pinn_mpc.errors import InputError
 from pinn_mpc.simulator import Simulator
-from scenarios.registry import Scenario, check_seed, get_scenario
+from scenarios.choices import POLICIES
+from scenarios.registry import Scenario, check_seed
 
-POLICIES = ("random", "random-level", "thermostat")
-#: The random policies (training data for learned models and identification).
-RANDOM_POLICIES = ("random", "random-level")
+__all__ = ["generate"]
+
 # Random streams apart from the exogenous ones (see scenarios.registry).
 _POLICY_STREAM, _SENSOR_STREAM = 11, 12
 
@@ -48,10 +50,12 @@ def generate(
     policy: Literal["random", "random-level", "thermostat"] | str = "random",
     n_buildings: int = 1,
     on_probability: float = 0.5,
+    weather_part: str = "train",
 ) -> pd.DataFrame:
     """Simulate ``days`` days -> frame of ``days*steps_per_day`` rows (times ``n_buildings``).
 
-    Deterministic in ``seed``; ``attrs['dt_s']`` is the control interval [s].
+    Deterministic in ``seed`` and ``weather_part`` (see :mod:`scenarios.inputs`);
+    ``attrs['dt_s']`` is the control interval [s].
     """
     if policy not in POLICIES:
         raise InputError(f"unknown policy {policy!r}; choose one of: {', '.join(POLICIES)}")
@@ -61,7 +65,7 @@ def generate(
         raise InputError(f"n_buildings must be >= 1, got {n_buildings}")
     check_seed(seed)
     spec = scenario.control_spec()
-    exo = scenario.exogenous(days=days, seed=seed)
+    exo = scenario.exogenous(days=days, seed=seed, part=weather_part)
     n = len(exo)
     cols = {c: exo[c].to_numpy(dtype=float) for c in ("T_a", "G", "I_g", "price", "T_min", "T_max")}
 
@@ -107,17 +111,3 @@ def generate(
         frame.insert(0, "building", np.repeat(np.arange(n_buildings), n))
     frame.attrs["dt_s"] = float(scenario.sim.dt_s)
     return frame
-
-
-def simulate_to_csv(*, scenario: str, days: int, seed: int, policy: str, buildings: int, out: str) -> str:
-    """The ``simulate`` command: generate data and write it atomically to ``out``."""
-    chosen = get_scenario(scenario)
-    frame = generate(chosen, days=days, seed=seed, policy=policy, n_buildings=buildings)
-    write_timeseries(frame, out)
-    per_building = len(frame) // buildings
-    overridden = float(np.mean(~np.isclose(frame["u"], frame["u_phys"])))
-    return (
-        f"wrote {out}: scenario {scenario}, {days} day(s), {buildings} building(s), {policy} policy, "
-        f"{per_building} rows per building at {chosen.sim.dt_s:g} s, T_r {frame['T_r'].min():.1f}.."
-        f"{frame['T_r'].max():.1f} C, backup acted in {100 * overridden:.0f} % of intervals"
-    )

@@ -18,6 +18,12 @@ from typing import Any
 from controllers.base import Controller
 from pinn_mpc.errors import InputError
 from pinn_mpc.physics import RCParams, params_from_summary
+from scenarios.choices import (
+    CONTROLLER_NAMES,
+    MODEL_CONTROLLERS,
+    RC_CONTROLLERS,
+    TRUTH_CONTROLLERS,
+)
 from scenarios.registry import Scenario
 
 __all__ = [
@@ -30,10 +36,6 @@ __all__ = [
     "read_rc",
 ]
 
-MODEL_CONTROLLERS = ("random-shooting", "cem")
-RC_CONTROLLERS = ("casadi-mpc", "qp-mpc")
-TRUTH_CONTROLLERS = ("oracle", "clairvoyant")
-CONTROLLER_NAMES = ("thermostat", *MODEL_CONTROLLERS, *RC_CONTROLLERS, *TRUTH_CONTROLLERS)
 
 
 def _unknown(name: str) -> InputError:

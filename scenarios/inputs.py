@@ -3,7 +3,15 @@
 Every generator takes the interval start times (or the number of intervals) and an explicit
 ``np.random.Generator``; arrays are (N,) with units in the names. Draws are sequential, so
 asking for more intervals with the same generator state extends the series without changing
-its beginning (a controller's forecast rows never alter the simulated ones).
+its beginning (a controller's forecast rows never alter the simulated ones), except where a
+run must fit in a part of the weather (below): there its start depends on all its rows.
+
+Weather parts (:data:`WEATHER_PARTS`): a model must not be judged on the days it was trained
+on, so each weather splits its calendar into disjoint parts. ``train`` (``simulate``, the
+training data of ``compare`` and ``reproduce``), ``test`` (``closed-loop``, the test days of
+``compare`` and ``reproduce``; a run's warm-up day, counted days and forecast lead rows all lie
+in it) and ``whole`` (the whole seasonal window, training and test days alike: the draws made
+before the split, kept so that old results can be reproduced).
 
 - :class:`SyntheticWeather`: outdoor temperature (daily cycle + slow multi-day variation +
   smooth AR(1) noise) and a clear-sky-like irradiance scaled by a daily cloudiness.
@@ -20,17 +28,72 @@ import functools
 import math
 import pathlib
 from dataclasses import dataclass
-from typing import Literal
+from typing import Literal, cast
 
 import numpy as np
 import pandas as pd
 
 from pinn_mpc.errors import InputError
+from scenarios.choices import WEATHER_PARTS, WeatherPart
+
+__all__ = [
+    "BASE_YEAR",
+    "HOURS_PER_TYPICAL_YEAR",
+    "SECONDS_PER_DAY",
+    "ComfortSchedule",
+    "GainsSchedule",
+    "PriceProfile",
+    "SyntheticWeather",
+    "TMY3Weather",
+    "day_span",
+    "interval_starts",
+    "load_tmy3",
+    "resample_typical_year",
+    "steps_per_day",
+    "time_of_day_h",
+    "tmy3_path",
+    "weather_part",
+]
 
 SECONDS_PER_DAY = 86400.0
 HOURS_PER_TYPICAL_YEAR = 8760
 #: Timestamps of synthetic and TMY3 series are labelled in this (non-leap) year and onwards.
 BASE_YEAR = 2021
+_FIRST_DAY = pd.Timestamp(f"{BASE_YEAR}-01-01")
+_DAYS_PER_TYPICAL_YEAR = HOURS_PER_TYPICAL_YEAR // 24
+
+#: Runs in a part of TMY3 weather are dated in the season that starts in this year, so test
+#: days come after training days and a training run reaching back a year stays in BASE_YEAR.
+_SEASON_YEAR = BASE_YEAR + 1
+
+
+
+def weather_part(text: str) -> WeatherPart:
+    """``text`` checked to name a weather part (see the module docstring)."""
+    if text not in WEATHER_PARTS:
+        raise InputError(
+            f"unknown weather part {text!r}; choose one of: {', '.join(WEATHER_PARTS)}"
+        )
+    return cast(WeatherPart, text)
+
+
+def day_span(times: pd.Series | pd.DatetimeIndex) -> list[str]:
+    """[first day, last day] (ISO dates) of interval start times."""
+    t = pd.DatetimeIndex(times)
+    return [f"{t[0]:%Y-%m-%d}", f"{t[-1]:%Y-%m-%d}"]
+
+
+def _days_touched(n: int, dt_s: float) -> int:
+    """Calendar days that ``n`` intervals from midnight touch."""
+    return -(-n // steps_per_day(dt_s))
+
+
+def _too_long(part: str, need_days: int, room: str) -> InputError:
+    return InputError(
+        f"a run of {need_days} days (warm-up and forecast lead rows, if any, included) does not "
+        f"fit in the {part} weather, {room}; use fewer days, or --weather-part whole to draw from "
+        "the whole window, training and test days mixed"
+    )
 
 
 def steps_per_day(dt_s: float) -> int:
@@ -49,6 +112,11 @@ def time_of_day_h(times: pd.Series | pd.DatetimeIndex) -> np.ndarray:
 
 def interval_starts(start: pd.Timestamp, n: int, dt_s: float) -> pd.DatetimeIndex:
     """``n`` interval start times from ``start`` with step ``dt_s`` (datetime64[ns])."""
+    if (n - 1) * dt_s > (pd.Timestamp.max - start).total_seconds():
+        raise InputError(
+            f"a run of {n * dt_s / SECONDS_PER_DAY:.0f} days from {start:%Y-%m-%d} would end after "
+            f"{pd.Timestamp.max:%Y}, where timestamps end; use fewer days"
+        )
     return pd.DatetimeIndex(start + pd.to_timedelta(np.arange(n) * dt_s, unit="s")).as_unit("ns")
 
 
@@ -90,9 +158,14 @@ class SyntheticWeather:
     total amplitude ``slow_amplitude_c`` and the noise is AR(1) (3 h correlation time).
     ``G`` is ``peak * sin(pi (h - sunrise)/(sunset - sunrise))**1.5`` by day, zero at night,
     times a daily clearness drawn uniformly in [min_clearness, 1], evaluated mid-interval.
+
+    The process is stationary, so the parts differ only in their dates: ``train`` and
+    ``whole`` runs start at ``start``, ``test`` runs at ``test_start``, and a training run must
+    end before it (the scenario gives test runs random streams of their own).
     """
 
     start: str = f"{BASE_YEAR}-04-01"
+    test_start: str = f"{BASE_YEAR + 1}-04-01"
     mean_c: float = 15.0
     daily_amplitude_c: float = 4.0
     slow_amplitude_c: float = 3.0
@@ -117,16 +190,50 @@ class SyntheticWeather:
             )
         if min(self.slow_periods_days) <= 0:
             raise InputError(f"SyntheticWeather.slow_periods_days must be > 0, got {self.slow_periods_days}")
+        starts = {}
+        for name in ("start", "test_start"):
+            try:
+                starts[name] = pd.Timestamp(getattr(self, name))
+            except ValueError as exc:
+                raise InputError(
+                    f"SyntheticWeather.{name} {getattr(self, name)!r} is not a date (YYYY-MM-DD)"
+                ) from exc
+        if not starts["start"] + pd.Timedelta(days=1) <= starts["test_start"]:
+            raise InputError(
+                f"SyntheticWeather.test_start {self.test_start} must lie at least a day after "
+                f"start {self.start}"
+            )
+
+    @property
+    def longest_training_days(self) -> int:
+        """Training runs must end before the first test day."""
+        return (pd.Timestamp(self.test_start) - pd.Timestamp(self.start)).days
+
+    def split_text(self) -> str:
+        return (
+            f"Weather split (the synthetic process is stationary, only the dates differ): "
+            f"training runs are dated from {self.start} (up to {self.longest_training_days} "
+            f"days), test runs from {self.test_start}."
+        )
 
     def sample(
-        self, *, n: int, dt_s: float, run_days: int, rng: np.random.Generator
+        self, *, n: int, dt_s: float, run_days: int, part: WeatherPart, rng: np.random.Generator
     ) -> tuple[pd.DatetimeIndex, np.ndarray, np.ndarray]:
         """``n`` intervals -> (start times, T_a (n,) [C], G (n,) [W/m2]).
 
         ``run_days`` (the simulated days, without forecast lead) matters only to windowed
-        weather; synthetic weather has no window and always starts at ``start``.
+        weather; synthetic weather has no window and starts at ``start``, or for the ``test``
+        part at ``test_start``.
         """
-        times = interval_starts(pd.Timestamp(self.start), n, dt_s)
+        part = weather_part(part)
+        if part == "train" and _days_touched(n, dt_s) > self.longest_training_days:
+            raise _too_long(
+                "training",
+                _days_touched(n, dt_s),
+                f"which holds {self.longest_training_days} days from {self.start}",
+            )
+        first = pd.Timestamp(self.test_start if part == "test" else self.start)
+        times = interval_starts(first, n, dt_s)
         mid_h = time_of_day_h(times) + 0.5 * dt_s / 3600.0
         elapsed_days = (np.arange(n) + 0.5) * dt_s / SECONDS_PER_DAY
         phases = rng.uniform(0.0, 2.0 * math.pi, size=2)
@@ -202,42 +309,124 @@ def resample_typical_year(
     return t_a, np.maximum(ghi, 0.0)
 
 
+def _day_of_year(owner: str, month_day: str) -> int:
+    """``"MM-DD"`` -> day of the (non-leap) typical year, 0 = 1 January."""
+    try:
+        return (pd.Timestamp(f"{BASE_YEAR}-{month_day}") - _FIRST_DAY).days
+    except ValueError as exc:
+        raise InputError(f"{owner} {month_day!r} is not MM-DD") from exc
+
+
+def _month_day(day: int) -> str:
+    """Day of the typical year -> e.g. ``"Feb 1"``."""
+    t = _FIRST_DAY + pd.Timedelta(days=day % _DAYS_PER_TYPICAL_YEAR)
+    return f"{t:%b} {t.day}"
+
+
 @dataclass(frozen=True, kw_only=True)
 class TMY3Weather:
     """Real typical-year weather from pvlib's TMY3 files, in a seasonal window.
 
     The window starts at ``window_start`` (``"MM-DD"``) and lasts ``window_days`` days (it may
-    wrap past 31 December). The generator picks the start day uniformly so that a run of
-    ``run_days`` stays inside the window when it fits; a longer run continues past its end. Times are labelled from :data:`BASE_YEAR` (non-leap years
-    until 2024, so calendar and typical year agree for runs shorter than about two years).
+    wrap past 31 December). Inside it, ``test_days`` days from ``test_start`` are the test part
+    and the window's days before them the training part. Each run's start day is drawn with
+    ``rng``, uniformly among those that keep the run in its part:
+
+    - ``test``: all rows of the run (warm-up, counted days, forecast lead) in the test part; a
+      longer run is refused.
+    - ``train``: all rows in the training part; a longer run starts earlier, in the weeks before
+      the window, and still ends the day before the test part (so training sizes beyond the
+      season fit without touching a test day); longer than ``365 - test_days`` days, refused.
+    - ``whole``: ``run_days`` (the forecast lead not counted) inside the window; a longer run
+      continues past its end (the draws before the split).
+
+    ``whole`` runs are labelled from :data:`BASE_YEAR`, runs in a part in season order (the
+    window starts in ``BASE_YEAR + 1``); both are non-leap years until 2024, so calendar and
+    typical year agree for runs shorter than about two years.
     """
 
     file_name: str = "723170TYA.CSV"
     window_start: str = "11-01"
     window_days: int = 151
+    test_start: str = "02-01"
+    test_days: int = 59
 
     def __post_init__(self) -> None:
-        try:
-            pd.Timestamp(f"{BASE_YEAR}-{self.window_start}")
-        except ValueError as exc:
-            raise InputError(f"TMY3Weather.window_start {self.window_start!r} is not MM-DD") from exc
-        if not 1 <= self.window_days <= 365:
+        if not 1 <= self.window_days <= _DAYS_PER_TYPICAL_YEAR:
             raise InputError(f"TMY3Weather.window_days must lie in [1, 365], got {self.window_days}")
+        core = self.training_core_days  # also checks both dates
+        if not (1 <= core and self.test_days >= 1 and core + self.test_days <= self.window_days):
+            raise InputError(
+                f"TMY3Weather: the test part ({self.test_days} days from {self.test_start}) must "
+                f"lie inside the window ({self.window_days} days from {self.window_start}) with "
+                "at least one training day before it"
+            )
+
+    @property
+    def training_core_days(self) -> int:
+        """Days of the window before the test part: where training runs that fit are drawn."""
+        start = _day_of_year("TMY3Weather.window_start", self.window_start)
+        test = _day_of_year("TMY3Weather.test_start", self.test_start)
+        return (test - start) % _DAYS_PER_TYPICAL_YEAR
+
+    @property
+    def longest_training_days(self) -> int:
+        return _DAYS_PER_TYPICAL_YEAR - self.test_days
+
+    def split_text(self) -> str:
+        start = _day_of_year("window_start", self.window_start)
+        test = _day_of_year("test_start", self.test_start)
+        return (
+            f"Weather split (days of the typical year): training {_month_day(start)} - "
+            f"{_month_day(test - 1)} ({self.training_core_days} days; a longer training run "
+            f"starts earlier and still ends {_month_day(test - 1)}, up to "
+            f"{self.longest_training_days} days), test {_month_day(test)} - "
+            f"{_month_day(test + self.test_days - 1)} ({self.test_days} days, holding a test "
+            "run's warm-up day, counted days and forecast lead)."
+        )
+
+    def _start_offset(
+        self, part: WeatherPart, *, need_days: int, run_days: int, rng: np.random.Generator
+    ) -> int:
+        """Days from the window start to the run's first day (negative: before the window)."""
+        core = self.training_core_days
+        if part == "whole":
+            return int(rng.integers(max(self.window_days - run_days, 0) + 1))
+        test = _day_of_year("test_start", self.test_start)
+        test_block = f"{_month_day(test)} - {_month_day(test + self.test_days - 1)}"
+        if part == "test":
+            if need_days > self.test_days:
+                raise _too_long("test", need_days, f"the {self.test_days} days {test_block}")
+            return core + int(rng.integers(self.test_days - need_days + 1))
+        if need_days <= core:
+            return int(rng.integers(core - need_days + 1))
+        if need_days > self.longest_training_days:
+            room = (
+                f"which may reach back {self.longest_training_days} days from "
+                f"{_month_day(test - 1)} before meeting the test days {test_block}"
+            )
+            raise _too_long("training", need_days, room)
+        return core - need_days
 
     def sample(
-        self, *, n: int, dt_s: float, run_days: int, rng: np.random.Generator
+        self, *, n: int, dt_s: float, run_days: int, part: WeatherPart, rng: np.random.Generator
     ) -> tuple[pd.DatetimeIndex, np.ndarray, np.ndarray]:
         """``n`` intervals -> (start times, T_a (n,) [C], G (n,) [W/m2]).
 
-        The start day leaves room for ``run_days`` in the window, so forecast lead rows
-        (``n`` beyond ``run_days``) never move the start.
+        The start day is drawn as the class docstring says: for ``whole`` it leaves room for
+        ``run_days`` in the window, so forecast lead rows (``n`` beyond ``run_days``) never
+        move it; for ``train`` and ``test`` all ``n`` rows must fit in the part.
         """
+        part = weather_part(part)
         t_a_hourly, ghi_hourly, _ = load_tmy3(self.file_name)
-        offset_day = int(rng.integers(max(self.window_days - run_days, 0) + 1))
-        first = pd.Timestamp(f"{BASE_YEAR}-{self.window_start}") + pd.Timedelta(days=offset_day)
-        start_s = ((first - pd.Timestamp(f"{BASE_YEAR}-01-01")).days % 365) * SECONDS_PER_DAY
+        offset = self._start_offset(part, need_days=_days_touched(n, dt_s), run_days=run_days, rng=rng)
+        window = _day_of_year("window_start", self.window_start)
+        start_s = ((window + offset) % _DAYS_PER_TYPICAL_YEAR) * SECONDS_PER_DAY
         t_a, ghi = resample_typical_year(t_a_hourly, ghi_hourly, start_s=start_s, n=n, dt_s=dt_s)
-        start = pd.Timestamp(f"{BASE_YEAR}-01-01") + pd.Timedelta(seconds=start_s)
+        if part == "whole":  # the labels from before the split, day of the year in BASE_YEAR
+            start = _FIRST_DAY + pd.Timedelta(seconds=start_s)
+        else:  # season order: training before test, in non-leap years from BASE_YEAR on
+            start = pd.Timestamp(f"{_SEASON_YEAR}-{self.window_start}") + pd.Timedelta(days=offset)
         return interval_starts(start, n, dt_s), t_a, ghi
 
 

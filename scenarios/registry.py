@@ -1,8 +1,10 @@
 """Named scenarios: building, actuator, backup thermostat, weather, price, comfort, gains.
 
 A :class:`Scenario` is an immutable description; :meth:`Scenario.exogenous` turns it into the
-exogenous frame of a run (deterministic in the seed) and :meth:`Scenario.control_spec` into the
-objective every controller shares.
+exogenous frame of a run (deterministic in the seed and the weather part) and
+:meth:`Scenario.control_spec` into the objective every controller shares. Each built-in's
+description ends with its weather split (:attr:`Scenario.weather_split`): training and test
+runs never share a calendar day (see :mod:`scenarios.inputs`).
 
 The comfort weights price discomfort well above the energy it would take to avoid it: in
 ``winter_household`` keeping the room 1 K warmer for an hour costs about UA x 1 K x 1 h =
@@ -29,12 +31,25 @@ from scenarios.inputs import (
     SyntheticWeather,
     TMY3Weather,
     steps_per_day,
+    weather_part,
 )
+
+__all__ = [
+    "COLD_ROOM",
+    "EXOGENOUS_COLUMNS",
+    "Scenario",
+    "check_seed",
+    "get_scenario",
+    "scenario_names",
+]
 
 #: Columns of :meth:`Scenario.exogenous`, in order.
 EXOGENOUS_COLUMNS = ("time", "T_a", "G", "I_g", "price", "T_min", "T_max")
 # Independent random streams per input, so changing one input's settings leaves the others.
 _WEATHER_STREAM, _PRICE_STREAM, _GAINS_STREAM = 1, 2, 3
+# Test runs draw from streams of their own: the same seed never repeats a training draw (on
+# stationary synthetic weather only the dates would differ otherwise).
+_TEST_PART_STREAM = 1
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -72,26 +87,44 @@ class Scenario:
     def uses_solar(self) -> bool:
         return self.sim.params.solar_aperture_m2 > 0
 
-    def exogenous(self, *, days: int, seed: int, lead_steps: int = 0) -> pd.DataFrame:
+    @property
+    def weather_split(self) -> str:
+        """One sentence: the calendar days of the training and the test part."""
+        return self.weather.split_text()
+
+    def exogenous(self, *, days: int, seed: int, part: str, lead_steps: int = 0) -> pd.DataFrame:
         """Exogenous inputs of a run: ``days * steps_per_day + lead_steps`` rows.
 
         Columns ``time`` (datetime64, interval start), ``T_a`` [C], ``G`` [W/m2], ``I_g`` [W],
-        ``price`` [EUR/kWh], ``T_min``/``T_max`` [C]. The ``lead_steps`` extra rows at the end
-        give a controller at the last step a full-horizon forecast; they never change the first
-        rows. Same seed -> identical frame. ``attrs['dt_s']`` is the control interval.
+        ``price`` [EUR/kWh], ``T_min``/``T_max`` [C]. ``part`` is the weather part the run is
+        drawn from (``train``, ``test`` or ``whole``, see :mod:`scenarios.inputs`); a run that
+        does not fit in its part raises InputError. The ``lead_steps`` extra rows at the end
+        give a controller at the last step a full-horizon forecast; with ``whole`` they never
+        change the first rows, in a part they are placed inside it too. Same seed and part ->
+        identical frame; ``test`` draws every random input from streams of its own.
+        ``attrs['dt_s']`` is the control interval.
         """
         if days < 1:
             raise InputError(f"scenario {self.name!r}: days must be >= 1, got {days}")
         if lead_steps < 0:
             raise InputError(f"scenario {self.name!r}: lead_steps must be >= 0, got {lead_steps}")
         check_seed(seed)
+        chosen = weather_part(part)
+        extra = (_TEST_PART_STREAM,) if chosen == "test" else ()
+
+        def rng(stream: int) -> np.random.Generator:
+            return np.random.default_rng([seed, stream, *extra])
+
         dt_s = self.sim.dt_s
         n = days * self.steps_per_day + lead_steps
-        times, t_a, g = self.weather.sample(
-            n=n, dt_s=dt_s, run_days=days, rng=np.random.default_rng([seed, _WEATHER_STREAM])
-        )
-        price = self.price.sample(times, dt_s=dt_s, rng=np.random.default_rng([seed, _PRICE_STREAM]))
-        i_g = self.gains.sample(times, rng=np.random.default_rng([seed, _GAINS_STREAM]))
+        try:
+            times, t_a, g = self.weather.sample(
+                n=n, dt_s=dt_s, run_days=days, part=chosen, rng=rng(_WEATHER_STREAM)
+            )
+        except InputError as exc:
+            raise InputError(f"scenario {self.name!r}: {exc}") from None
+        price = self.price.sample(times, dt_s=dt_s, rng=rng(_PRICE_STREAM))
+        i_g = self.gains.sample(times, rng=rng(_GAINS_STREAM))
         t_min, t_max = self.comfort.sample(times)
         frame = pd.DataFrame(
             {
@@ -135,8 +168,15 @@ COLD_ROOM = RCParams(
     gain_to_air_fraction=0.8,
 )
 
+def _with_split(scenario: Scenario) -> Scenario:
+    """The scenario with its weather split appended to the description."""
+    return dataclasses.replace(
+        scenario, description=f"{scenario.description} {scenario.weather_split}"
+    )
+
+
 _SCENARIOS: dict[str, Scenario] = {
-    s.name: s
+    s.name: _with_split(s)
     for s in (
         Scenario(
             name="paper_household",
@@ -179,7 +219,17 @@ _SCENARIOS: dict[str, Scenario] = {
             comfort_weight_eur_per_kh=5.0,
             initial_t_r_c=20.0,
             initial_t_m_c=20.0,
-            weather=TMY3Weather(file_name="723170TYA.CSV", window_start="11-01", window_days=151),
+            # Trained on the first three months of the heating season, tested on the last two (a
+            # model fitted on the season so far, then used): February keeps cold test days
+            # (mean 5.0 C against 0.3 C in January and 11.4 C in March), and 59 test days hold
+            # a 57-day closed-loop run. 120 training days reach back into October.
+            weather=TMY3Weather(
+                file_name="723170TYA.CSV",
+                window_start="11-01",
+                window_days=151,
+                test_start="02-01",
+                test_days=59,
+            ),
             price=PriceProfile(kind="dynamic", level_eur_per_kwh=0.22, peak_eur_per_kwh=0.15),
             comfort=ComfortSchedule(day_min_c=20.0, day_max_c=22.0, night_min_c=17.0, night_max_c=22.0),
             gains=GainsSchedule(base_w=100.0, scheduled_w=400.0, periods_h=((6.0, 8.5), (17.0, 23.0))),
@@ -195,7 +245,16 @@ _SCENARIOS: dict[str, Scenario] = {
             comfort_weight_eur_per_kh=10.0,
             initial_t_r_c=4.0,
             initial_t_m_c=4.0,
-            weather=TMY3Weather(file_name="723170TYA.CSV", window_start="06-01", window_days=92),
+            # Tested on the last five weeks of summer (August is nearly as hot as July: 24.8 C
+            # against 25.4 C mean), enough for a 33-day closed-loop run; training on June and
+            # July, reaching back into May (60 days) or March (120 days) for longer runs.
+            weather=TMY3Weather(
+                file_name="723170TYA.CSV",
+                window_start="06-01",
+                window_days=92,
+                test_start="07-28",
+                test_days=35,
+            ),
             price=PriceProfile(kind="day_night", level_eur_per_kwh=0.25, night_eur_per_kwh=0.12),
             comfort=ComfortSchedule(day_min_c=2.0, day_max_c=6.0, night_min_c=2.0, night_max_c=6.0),
             gains=GainsSchedule(

@@ -1,10 +1,26 @@
-"""Text and markdown renderings of a controller comparison (see :mod:`scenarios.compare`)."""
+"""Text and markdown tables, and the report of a controller comparison (see :mod:`scenarios.compare`).
+
+:func:`markdown_table` and :func:`text_table` are the table helpers of every report of the
+package (the comparison here, the paper reproduction in :mod:`scenarios.reproduce`).
+"""
 
 from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
 from typing import Any
+
+__all__ = [
+    "KPI_COLUMNS",
+    "RC_ROWS",
+    "format_kpis",
+    "kpi_table_text",
+    "markdown_table",
+    "objective_ratios",
+    "rc_table_markdown",
+    "render_report",
+    "text_table",
+]
 
 #: (row key, column header, format) of the KPI tables.
 KPI_COLUMNS = (
@@ -47,25 +63,31 @@ def objective_ratios(rows: Sequence[Mapping[str, Any]], *, reference: str) -> li
     return [float(r["objective"]) / ref for r in rows]
 
 
+def text_table(headers: Sequence[str], body: Sequence[Sequence[str]]) -> str:
+    """Fixed-width table for a terminal: first column left-aligned, the others right-aligned."""
+    widths = [max(len(line[i]) for line in [headers, *body]) for i in range(len(headers))]
+
+    def fmt(line: Sequence[str]) -> str:
+        first = line[0].ljust(widths[0])
+        return "  ".join([first, *(c.rjust(w) for c, w in zip(line[1:], widths[1:], strict=True))])
+
+    return "\n".join(fmt(line) for line in [headers, *body])
+
+
+def markdown_table(headers: Sequence[str], body: Sequence[Sequence[str]]) -> list[str]:
+    """A markdown (GitHub) table as lines: header, separator, one line per body row."""
+    lines = ["| " + " | ".join(headers) + " |", "|" + "---|" * len(headers)]
+    lines += ["| " + " | ".join(line) + " |" for line in body]
+    return lines
+
+
 def kpi_table_text(rows: Sequence[Mapping[str, Any]]) -> str:
     """Fixed-width KPI table for a terminal, one line per controller."""
     headers = ["controller", *(h for _, h, _ in KPI_COLUMNS)]
     body = [
         [str(r["controller"]), *(_cell(r.get(k), f) for k, _, f in KPI_COLUMNS)] for r in rows
     ]
-    widths = [max(len(line[i]) for line in [headers, *body]) for i in range(len(headers))]
-
-    def fmt(line: list[str]) -> str:
-        first = line[0].ljust(widths[0])
-        return "  ".join([first, *(c.rjust(w) for c, w in zip(line[1:], widths[1:], strict=True))])
-
-    return "\n".join([fmt(headers), *(fmt(line) for line in body)])
-
-
-def _markdown_table(headers: Sequence[str], body: Sequence[Sequence[str]]) -> list[str]:
-    lines = ["| " + " | ".join(headers) + " |", "|" + "---|" * len(headers)]
-    lines += ["| " + " | ".join(line) + " |" for line in body]
-    return lines
+    return text_table(headers, body)
 
 
 def rc_table_markdown(rc: Mapping[str, Mapping[str, Any]]) -> list[str]:
@@ -80,7 +102,7 @@ def rc_table_markdown(rc: Mapping[str, Mapping[str, Any]]) -> list[str]:
     for which in ("fast", "slow"):
         cells = [_cell(rc[s].get("time_constants_h", {}).get(which), "{:.3g}") for s in sources]
         body.append([f"time constant, {which} [h]", *cells])
-    return _markdown_table(["parameter", *sources], body)
+    return markdown_table(["parameter", *sources], body)
 
 
 def render_report(
@@ -91,13 +113,17 @@ def render_report(
     rc: Mapping[str, Mapping[str, Any]],
     settings: Mapping[str, Any],
     figure_name: str,
+    dates: str,
     notes: Sequence[str] = (),
 ) -> str:
-    """The markdown report of a comparison."""
+    """The markdown report of a comparison; ``dates`` says when the training data and the
+    test days are."""
     lines = [
         f"# Closed-loop comparison on `{scenario}`",
         "",
         description,
+        "",
+        dates,
         "",
         "Every controller ran on the same test days (same weather, prices, comfort band and "
         "perfect forecasts) after the same one-day thermostat warm-up, which is not counted. "
@@ -113,7 +139,7 @@ def render_report(
     body = [
         [f"`{r['controller']}`", *(_cell(r.get(k), f) for k, _, f in KPI_COLUMNS)] for r in rows
     ]
-    lines += _markdown_table(headers, body)
+    lines += markdown_table(headers, body)
     lines += [
         "",
         "## RC parameters",
@@ -131,7 +157,18 @@ def render_report(
         "## Settings",
         "",
     ]
-    lines += _markdown_table(["setting", "value"], [[k, f"`{v}`"] for k, v in settings.items()])
+    lines += markdown_table(["setting", "value"], [[k, f"`{v}`"] for k, v in settings.items()])
     if notes:
         lines += ["", "## Notes", "", *(f"- {n}" for n in notes)]
     return "\n".join(lines) + "\n"
+
+
+def format_kpis(kpis: dict[str, Any]) -> str:
+    """One line: the main KPIs of a run."""
+    return (
+        f"{kpis['controller']} on {kpis['scenario']}, {kpis['days']} d: "
+        f"energy {kpis['energy_kwh']:.2f} kWh, cost {kpis['cost_eur']:.2f} EUR, "
+        f"discomfort {kpis['discomfort_kh']:.2f} K h, peak {kpis['peak_kw']:.2f} kW, "
+        f"objective {kpis['objective']:.2f} EUR, decision {kpis['decision_ms_median']:.1f} ms "
+        f"(median), overrides {kpis['backup_overrides']}, fallbacks {kpis['fallbacks']}"
+    )

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pinn_mpc.artifacts import META, WEIGHTS, load_model, save_model
+from pinn_mpc.artifacts import CHECKSUM, META, WEIGHTS, load_model, save_model
 from pinn_mpc.errors import ModelFileError
 from pinn_mpc.models import LearnedModel
 from pinn_mpc.training import TrainConfig, train_model
@@ -123,4 +123,61 @@ def test_depth_mismatch_is_a_shape_error(saved: Path) -> None:
     meta["features"]["depth"] = 6
     (saved / META).write_text(json.dumps(meta))
     with pytest.raises(ModelFileError, match="has shape"):
+        load_model(saved)
+
+
+def _edit_meta(saved: Path, path: str, value: object) -> None:
+    """Set the model.json field at a dotted path (``features.depth``), or delete it (value None)."""
+    meta = json.loads((saved / META).read_text())
+    *parents, last = path.split(".")
+    node = meta
+    for key in parents:
+        node = node[key]
+    if value is None:
+        del node[last]
+    else:
+        node[last] = value
+    (saved / META).write_text(json.dumps(meta))
+
+
+def test_flipped_bit_in_the_weights_is_detected(saved: Path) -> None:
+    raw = bytearray((saved / WEIGHTS).read_bytes())
+    header_len = int.from_bytes(raw[:8], "little")
+    raw[8 + header_len + 10] ^= 0x40  # inside the tensor data: the header stays valid
+    (saved / WEIGHTS).write_bytes(bytes(raw))
+    with pytest.raises(ModelFileError, match=f"{WEIGHTS} does not match {META} .*re-train"):
+        load_model(saved)
+
+
+def test_older_directory_without_checksum_or_eta_loads_as_a_heater(
+    saved: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert len(json.loads((saved / META).read_text())[CHECKSUM]) == 64
+    _edit_meta(saved, CHECKSUM, None)
+    _edit_meta(saved, "eta", None)
+    loaded = load_model(saved)
+    assert loaded.eta == 1.0
+    warning = capsys.readouterr().err.strip()
+    assert len(warning.splitlines()) == 1 and f"has no {CHECKSUM}" in warning
+
+
+@pytest.mark.parametrize(
+    ("path", "value", "match"),
+    [
+        # Sizes are checked against caps and the weights' header before allocating anything.
+        ("n_members", 1e9, r"n_members is 1000000000, must be 1 \.\. 1000"),
+        ("n_members", 1000, r"has shape \(2, .*implies \(1000, "),
+        ("n_members", 2.5, "n_members must be a whole number"),
+        ("features.depth", 1e8, r"depth must be 1 \.\. 1008 intervals, got 100000000"),
+        ("features.dt_s", 0, r"dt_s must be a control interval of 60 \.\. 21600 s, got 0"),
+        ("features.dt_s", -1800, "dt_s must be a control interval"),
+        ("eta", 0, "eta is 0"),
+        ("eta", float("nan"), "eta is nan, not a finite number"),
+        ("eta", -2.5, "disagree on heating vs cooling"),
+        ("u_phys_range_w", [0.0, 1e12], "u_phys_range_w .* must lie within"),
+    ],
+)
+def test_implausible_model_json_is_refused(saved: Path, path: str, value: object, match: str) -> None:
+    _edit_meta(saved, path, value)
+    with pytest.raises(ModelFileError, match=match):
         load_model(saved)

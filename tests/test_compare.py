@@ -2,6 +2,7 @@
 
 import json
 
+import pandas as pd
 import pytest
 
 from pinn_mpc.cli import main
@@ -9,6 +10,7 @@ from pinn_mpc.errors import InputError
 from pinn_mpc.physics import PAPER_HOUSEHOLD, rc_summary
 from scenarios.compare import CompareSettings
 from scenarios.kpis import KPI_KEYS
+from scenarios.registry import get_scenario
 from scenarios.report import kpi_table_text, objective_ratios, render_report
 
 
@@ -42,8 +44,10 @@ def test_report_lists_kpis_rc_parameters_and_figure():
         rc={"true": true, "identified": true},
         settings={"train_days": 60},
         figure_name="report.png",
+        dates="Training data: 60 days, 2021-04-01 to 2021-05-30.",
     )
     assert "# Closed-loop comparison on `paper_household`" in text
+    assert "The paper's household.\n\nTraining data: 60 days, 2021-04-01 to 2021-05-30.\n" in text
     assert "| `oracle` | 2.000 | 1.000 |" in text
     # R_ra = 3.75e-3 K/W is 3.75 mK/W; C_r = 4e6 J/K is 4 MJ/K.
     assert "| R_ra [mK/W] | 3.75 | 3.75 |" in text
@@ -113,7 +117,19 @@ def test_compare_quick_end_to_end(tmp_path, capsys):
     # The reference with the true model must beat the rule-based baseline on its own objective.
     assert rows["oracle"]["objective"] < rows["thermostat"]["objective"]
     assert set(table["rc"]) == {"true", "identified", "hybrid export", "physnet export"}
+    # Training from the first day of the training weather, test days (after a warm-up day) from
+    # the test weather: both ranges in the JSON and the report.
+    weather = get_scenario("paper_household").weather
+    first_train, first_test = pd.Timestamp(weather.start), pd.Timestamp(weather.test_start)
+    day = pd.Timedelta(days=1)
+    assert table["training_dates"] == [f"{first_train:%Y-%m-%d}", f"{first_train + 13 * day:%Y-%m-%d}"]
+    assert table["test_dates"] == [f"{first_test + day:%Y-%m-%d}"] * 2
+    assert table["settings"]["test_dates"] == table["test_dates"]
+    assert all(row["weather_part"] == "test" for row in table["rows"])
     report = (out / "report.md").read_text()
+    first, last = table["training_dates"]
+    assert f"Training data: 14 days, {first} to {last}, from the training part" in report
+    assert f"Test: 1 days, {table['test_dates'][0]} to {table['test_dates'][1]}, from the test part" in report
     assert "## KPIs" in report and "## RC parameters" in report and "(report.png)" in report
     assert (out / "report.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     printed = capsys.readouterr().out

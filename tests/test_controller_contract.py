@@ -26,7 +26,7 @@ def _make(name: str) -> Controller:
 
 
 def _run(controller: Controller, seed: int) -> tuple[np.ndarray, list[np.ndarray | None]]:
-    frame = SCENARIO.exogenous(days=1, seed=0, lead_steps=SCENARIO.horizon_steps)
+    frame = SCENARIO.exogenous(days=1, seed=0, part="test", lead_steps=SCENARIO.horizon_steps)
     loop = ClosedLoop(
         SCENARIO.sim,
         ExogenousSeries.from_frame(frame),

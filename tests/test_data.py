@@ -58,11 +58,49 @@ def test_column_mapping_and_single_power_column(tmp_path):
         (lambda d: d.drop(columns="T_a"), "missing column.*T_a"),
         (lambda d: d.assign(T_a=d["T_a"] + 273.15), "kelvin"),
         (lambda d: d.drop(index=2), "not uniform at row 3"),
+        # Power is the actuator's input: never negative, never beyond a building's 10 MW.
+        (
+            lambda d: d.assign(u_phys=d["u_phys"].where(d.index != 2, -500.0)),
+            r"'u_phys' row 3 is -500 W, negative; .*--eta -COP",
+        ),
+        (
+            lambda d: d.assign(u=d["u"].where(d.index != 1, 1e12)),
+            r"'u' row 2 is 1e\+12 W, but the plausible range is 0 \.\. 1e\+07 W",
+        ),
+        # A row index in 'time' is 1-s steps; 12-h steps are not a control interval.
+        (
+            lambda d: d.assign(time=np.arange(len(d))),
+            r"time step is 1 s, outside the plausible 60 \.\. 21600 s .*ISO 8601",
+        ),
+        (
+            lambda d: d.assign(time=pd.date_range("2024-01-01", periods=len(d), freq="12h")),
+            "time step is 43200 s, outside the plausible",
+        ),
+        (
+            lambda d: d.iloc[::-1],
+            r"'time' goes backwards at row 2 \(2024-01-01 02:30:00 then 2024-01-01 02:00:00\)",
+        ),
+        (
+            lambda d: pd.concat([d.iloc[:3], d.iloc[2:]]),
+            r"duplicate timestamp at row 4 \(2024-01-01 01:00:00, as in row 3\)",
+        ),
     ],
 )
 def test_bad_data_names_column_row_and_fix(mutate, match):
     with pytest.raises(InputError, match=match):
         validate_timeseries(mutate(frame()).reset_index(drop=True))
+
+
+@pytest.mark.parametrize("freq", ["1min", "6h"])
+def test_steps_at_the_plausible_limits_are_accepted(freq):
+    d = frame().assign(time=pd.date_range("2024-01-01", periods=6, freq=freq))
+    assert validate_timeseries(d).attrs["dt_s"] == pd.Timedelta(freq).total_seconds()
+
+
+def test_power_above_the_actuator_limit_is_refused():
+    assert len(validate_timeseries(frame(), u_max_w=5000.0)) == 6
+    with pytest.raises(InputError, match="'u' row 2 is 5000 W, but the actuator delivers at most 4000 W"):
+        validate_timeseries(frame(), u_max_w=4000.0)
 
 
 def test_mapping_errors(tmp_path):

@@ -16,7 +16,7 @@ def make_env(episode_steps=48, name="winter_household"):
     scenario = get_scenario(name)
     return scenario, BuildingEnv(
         scenario.sim,
-        scenario.exogenous(days=2, seed=0),
+        scenario.exogenous(days=2, seed=0, part="train"),
         comfort_weight_eur_per_kh=scenario.comfort_weight_eur_per_kh,
         episode_steps=episode_steps,
         initial_t_r_c=scenario.initial_t_r_c,
@@ -38,7 +38,7 @@ def test_passes_the_gymnasium_checker():
 def test_reward_is_minus_cost_plus_weighted_discomfort_and_matches_the_simulator():
     scenario, env = make_env()
     obs, info = env.reset(seed=1, options={"start": 10})
-    exo = scenario.exogenous(days=2, seed=0)
+    exo = scenario.exogenous(days=2, seed=0, part="train")
     sim = Simulator(scenario.sim, n_buildings=1)
     sim.reset(scenario.initial_t_r_c, scenario.initial_t_m_c)
     assert obs[1] == pytest.approx(exo["T_a"][10], abs=1e-5)
@@ -75,8 +75,8 @@ def test_actions_are_clipped_and_bad_input_rejected():
     with pytest.raises(InputError, match="unknown option"):
         env.reset(options={"temperature": 3})
     with pytest.raises(InputError, match="lacks column"):
-        BuildingEnv(scenario.sim, scenario.exogenous(days=1, seed=0).drop(columns="price"),
+        BuildingEnv(scenario.sim, scenario.exogenous(days=1, seed=0, part="train").drop(columns="price"),
                     comfort_weight_eur_per_kh=1.0)
     with pytest.raises(InputError, match="episode_steps=100"):
-        BuildingEnv(scenario.sim, scenario.exogenous(days=1, seed=0), comfort_weight_eur_per_kh=1.0,
+        BuildingEnv(scenario.sim, scenario.exogenous(days=1, seed=0, part="train"), comfort_weight_eur_per_kh=1.0,
                     episode_steps=100)

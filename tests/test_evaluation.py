@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
+import torch
 
 from pinn_mpc import physics
 from pinn_mpc.errors import InputError
@@ -72,3 +75,13 @@ def test_export_rc(model: LearnedModel) -> None:
         assert getattr(back, name) == pytest.approx(getattr(coef, name), rel=1e-9)
     assert rc["source"] == "test" and len(rc["member_coefficients_per_s"]) == 3
     assert rc["time_constants_h"]["slow"] > rc["time_constants_h"]["fast"] > 0
+
+
+def test_export_of_an_implausible_learned_rc_is_refused() -> None:
+    config = TrainConfig(n_seeds=1, epochs=1, depth=4)
+    model = train_model(household_data(4, 0), arch="physreg", config=config, progress=False)
+    assert model.module.physics is not None
+    with torch.no_grad():  # a21 = 1/(C_m R_rm) = 1e-12 /s: C_m near 1e15 J/K
+        model.module.physics.log_a21.fill_(math.log(1e-12))
+    with pytest.raises(InputError, match="learned 2R2C is not physical .*C_m_J_per_K = .* outside"):
+        export_rc(model, source="test")

@@ -10,9 +10,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from pinn_mpc.cli import main
 from pinn_mpc.data import validate_timeseries
 from pinn_mpc.errors import InputError
-from pinn_mpc.identify import identify_rc, identify_to_json, simulate_rc
+from pinn_mpc.identify import identify_rc, simulate_rc
 from pinn_mpc.physics import PAPER_HOUSEHOLD, RCParams, discretise, params_from_summary
 from pinn_mpc.simulator import SimConfig, Simulator
 
@@ -105,14 +106,18 @@ def test_cooling_needs_eta_and_recovers_parameters() -> None:
     assert _rel(p.c_r_j_per_k, cooling.c_r_j_per_k) < 0.10
 
 
-def test_identify_to_json_writes_the_rc_schema(tmp_path: Path, solar_frame: pd.DataFrame) -> None:
+def test_identify_command_writes_the_rc_schema(
+    tmp_path: Path, solar_frame: pd.DataFrame, capsys: pytest.CaptureFixture[str]
+) -> None:
     data = tmp_path / "data.csv"
     renamed = solar_frame.iloc[: 10 * 48].rename(columns={"T_r": "T_int", "u_phys": "P_hea"})
     renamed = renamed.drop(columns=["u"])
     renamed.attrs["dt_s"] = 1800.0
     renamed.to_csv(data, index=False)
     out = tmp_path / "rc.json"
-    summary = identify_to_json(data=data, columns="T_r=T_int,u_phys=P_hea", out=out, eta=None)
+    argv = ["identify", "--data", str(data), "--columns", "T_r=T_int,u_phys=P_hea"]
+    assert main([*argv, "--out", str(out)]) == 0
+    summary = capsys.readouterr().out
     assert str(out) in summary and "R_ra=" in summary
     written = json.loads(out.read_text())
     params = params_from_summary(written)
@@ -128,7 +133,7 @@ def test_rejects_unexcited_data(solar_frame: pd.DataFrame) -> None:
     flat.attrs["dt_s"] = 1800.0
     with pytest.raises(InputError, match="u_phys is constant"):
         identify_rc(flat)
-    with pytest.raises(InputError, match="eta must be finite and non-zero"):
+    with pytest.raises(InputError, match="eta is 0"):
         identify_rc(solar_frame, eta=0.0)
     with pytest.raises(InputError, match="at least 48 rows"):
         identify_rc(validate_timeseries(solar_frame.iloc[:10]))
@@ -152,3 +157,12 @@ def test_winter_household_sixty_days_of_random_policy() -> None:
     assert _rel(p.c_r_j_per_k, truth.c_r_j_per_k) < 0.10
     assert _rel(p.r_rm_k_per_w, truth.r_rm_k_per_w) < 0.20
     assert _rel(p.c_m_j_per_k, truth.c_m_j_per_k) < 0.20
+
+
+def test_power_in_kilowatts_runs_into_the_plausible_edge_and_is_refused() -> None:
+    """Power logged in kW needs C_r 1000 x too small (4e3 J/K < 1e4): refused, not reported."""
+    frame = _random_policy_frame(PAPER_HOUSEHOLD, days=7, seed=0).drop(columns=["G", "I_g"])
+    assert _rel(identify_rc(frame).params.c_r_j_per_k, PAPER_HOUSEHOLD.c_r_j_per_k) < 0.10
+    kw = validate_timeseries(frame.assign(u=frame["u"] / 1000, u_phys=frame["u_phys"] / 1000))
+    with pytest.raises(InputError, match="edge of the plausible range of C_r_J_per_K"):
+        identify_rc(kw)

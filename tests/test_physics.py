@@ -148,9 +148,16 @@ def test_rc_summary_round_trip():
 @pytest.mark.parametrize(
     "field, value, match",
     [
-        ("r_ra_k_per_w", -1.0, "r_ra_k_per_w must be a positive"),
-        ("eta", 0.0, "eta must be finite"),
-        ("solar_to_air_fraction", 1.5, "must lie in"),
+        ("r_ra_k_per_w", -1.0, "RCParams.r_ra_k_per_w is negative"),
+        ("r_rm_k_per_w", 0.0, "r_rm_k_per_w is 0"),
+        ("c_r_j_per_k", math.nan, "c_r_j_per_k is nan, not a finite number"),
+        ("c_m_j_per_k", 1e30, r"c_m_j_per_k = 1e\+30 J/K is outside the plausible range 10000 \.\. 1e\+12"),
+        ("c_r_j_per_k", 2228.0, "c_r_j_per_k = 2228 J/K is outside the plausible range"),
+        ("r_ra_k_per_w", 100.0, r"plausible range 1e-08 \.\. 10 K/W"),
+        ("eta", 0.0, "eta is 0"),
+        ("eta", math.inf, "eta is inf"),
+        ("eta", -50.0, "eta = -50 W/W"),
+        ("solar_to_air_fraction", 1.5, r"outside the plausible range 0 \.\. 1 -"),
     ],
 )
 def test_invalid_params_name_the_field(field, value, match):
@@ -163,3 +170,47 @@ def test_from_coefficients_rejects_wrong_sign():
     c = physics.to_coefficients(P)
     with pytest.raises(InputError, match="sign of eta"):
         physics.from_coefficients(c, eta=-2.5)
+
+
+def test_plausible_ranges_hold_a_cold_room_and_a_large_building():
+    """The ranges' documented extremes, estimated from first principles, are accepted."""
+    walk_in = physics.RCParams(
+        r_ra_k_per_w=1 / 5.0,  # UA 5 W/K: 10 m2 of 10 cm foam
+        r_rm_k_per_w=1 / 50.0,  # 10 m2 of shelves and goods at 5 W/(m2 K)
+        c_r_j_per_k=10 * 1.2e3,  # 10 m3 of air
+        c_m_j_per_k=1e5,  # 100 kg of goods
+        eta=-2.5,
+    )
+    large = physics.RCParams(
+        r_ra_k_per_w=1 / 1e6,  # UA 1 MW/K
+        r_rm_k_per_w=1 / 1e7,  # 1e6 m2 of surfaces at 10 W/(m2 K)
+        c_r_j_per_k=3e6 * 1.2e3,  # 3e6 m3 of air
+        c_m_j_per_k=1e6 * 0.3 * 2400 * 900,  # 1e6 m2 of 30 cm concrete
+        eta=4.0,
+    )
+    for p in (P, walk_in, large):
+        assert physics.params_from_summary(physics.rc_summary(p, source="test")) == p
+
+
+@pytest.mark.parametrize(
+    "key, value, match",
+    [
+        # Values the issue found accepted or reported: rc.json C_m = 1e30, identify's 2.35e17.
+        ("C_m_J_per_K", 1e30, r"C_m_J_per_K = 1e\+30 J/K is outside the plausible range"),
+        ("C_m_J_per_K", 2.35e17, r"C_m_J_per_K = 2.35e\+17 J/K is outside"),
+        ("R_ra_K_per_W", -0.004, r"R_ra_K_per_W is negative \(-0.004 K/W\)"),
+        ("C_r_J_per_K", "big", "C_r_J_per_K is 'big', not a number"),
+        ("eta", 0, "eta is 0"),
+    ],
+)
+def test_rc_json_values_are_named_by_their_key(key, value, match):
+    summary = physics.rc_summary(P, source="test") | {key: value}
+    with pytest.raises(InputError, match=match):
+        physics.params_from_summary(summary)
+
+
+def test_implausible_coefficients_do_not_map_to_rc():
+    c = physics.to_coefficients(P)
+    tiny_a21 = physics.Coefficients(**(c.to_dict() | {"a21": 1e-12, "a22": 1e-12}))
+    with pytest.raises(InputError, match="C_m_J_per_K = 1.333e\\+15 J/K is outside"):
+        physics.from_coefficients(tiny_a21)

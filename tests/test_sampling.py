@@ -284,6 +284,18 @@ def test_unknown_model_input_and_bad_risk_weight_are_rejected():
         RCBatchModel(PAPER_HOUSEHOLD, dt_s=DT_S, u_max_w=U_MAX_W, backup_low_c=21.0)
 
 
+@pytest.mark.parametrize("planner", [CEM, RandomShooting])
+def test_model_must_heat_or_cool_as_the_scenario_and_step_its_interval(planner):
+    cooling = PAPER_HOUSEHOLD.__class__(**{**PAPER_HOUSEHOLD.to_dict(), "eta": -2.5})
+    with pytest.raises(InputError, match="eta=-2.5, a cooling machine, but the scenario's actuator is a heater"):
+        planner(RCBatchModel(cooling, dt_s=DT_S, u_max_w=U_MAX_W), SPEC)
+    with pytest.raises(InputError, match="eta=1, a heater, but the scenario's actuator is a cooling"):
+        planner(LINEAR, ControlSpec(u_max_w=U_MAX_W, horizon_steps=H, heating=False))
+    quarter = RCBatchModel(PAPER_HOUSEHOLD, dt_s=900.0, u_max_w=U_MAX_W)
+    with pytest.raises(InputError, match=r"trained at 900 s \(15 min\) intervals but the scenario's"):
+        planner(quarter, SPEC)
+
+
 @pytest.fixture(scope="module")
 def physnet():
     from pinn_mpc.training import TrainConfig, train_model

@@ -24,10 +24,11 @@ def test_registry_lists_the_three_scenarios_and_rejects_unknown_names():
         get_scenario("nope")
 
 
+@pytest.mark.parametrize("part", ["train", "test", "whole"])
 @pytest.mark.parametrize("name", NAMES)
-def test_exogenous_shape_determinism_and_lead_rows(name):
+def test_exogenous_shape_determinism_and_lead_rows(name, part):
     scenario = get_scenario(name)
-    frame = scenario.exogenous(days=2, seed=5, lead_steps=10)
+    frame = scenario.exogenous(days=2, seed=5, part=part, lead_steps=10)
     assert list(frame.columns) == list(EXOGENOUS_COLUMNS)
     assert len(frame) == 2 * 48 + 10
     steps = np.diff(frame["time"].to_numpy()).astype("timedelta64[s]").astype(int)
@@ -35,23 +36,26 @@ def test_exogenous_shape_determinism_and_lead_rows(name):
     assert np.all(np.isfinite(frame.drop(columns="time").to_numpy()))
     assert np.all(frame["G"] >= 0) and np.all(frame["I_g"] >= 0) and np.all(frame["price"] > 0)
     assert np.all(frame["T_min"] < frame["T_max"])
-    pd.testing.assert_frame_equal(frame, scenario.exogenous(days=2, seed=5, lead_steps=10))
-    # The forecast lead never changes the simulated rows.
-    pd.testing.assert_frame_equal(frame.iloc[:96], scenario.exogenous(days=2, seed=5))
-    other = scenario.exogenous(days=2, seed=6)
-    assert not np.allclose(other["T_a"], frame["T_a"].iloc[:96])
+    pd.testing.assert_frame_equal(frame, scenario.exogenous(days=2, seed=5, part=part, lead_steps=10))
+    if part == "whole":  # in a part, the lead rows must fit in it too and may move the start
+        # The forecast lead never changes the simulated rows.
+        pd.testing.assert_frame_equal(frame.iloc[:96], scenario.exogenous(days=2, seed=5, part=part))
+    other = scenario.exogenous(days=2, seed=6, part=part, lead_steps=10)
+    assert not np.allclose(other["T_a"], frame["T_a"])
 
 
 def test_exogenous_rejects_bad_arguments():
     scenario = get_scenario("paper_household")
     with pytest.raises(InputError, match="days must be >= 1"):
-        scenario.exogenous(days=0, seed=0)
+        scenario.exogenous(days=0, seed=0, part="train")
     with pytest.raises(InputError, match="seed must be a non-negative"):
-        scenario.exogenous(days=1, seed=-1)
+        scenario.exogenous(days=1, seed=-1, part="train")
+    with pytest.raises(InputError, match="unknown weather part 'all'; choose one of: train, test, whole"):
+        scenario.exogenous(days=1, seed=0, part="all")
 
 
 def test_paper_weather_range_and_irradiance_cycle():
-    frame = get_scenario("paper_household").exogenous(days=120, seed=0)
+    frame = get_scenario("paper_household").exogenous(days=120, seed=0, part="train")
     assert 2.0 < frame["T_a"].min() < 10.0 and 20.0 < frame["T_a"].max() < 27.0
     hour = time_of_day_h(frame["time"])
     night = (hour < 6.0) | (hour >= 20.0)
@@ -101,7 +105,7 @@ def test_winter_window_and_seeded_start_day():
     scenario = get_scenario("winter_household")
     starts = set()
     for seed in range(6):
-        frame = scenario.exogenous(days=5, seed=seed)
+        frame = scenario.exogenous(days=5, seed=seed, part="whole")
         months = set(frame["time"].dt.month)
         assert months <= {11, 12, 1, 2, 3}
         starts.add(frame["time"].iloc[0])
@@ -127,12 +131,12 @@ def test_price_profiles():
 
 
 def test_comfort_and_gains_schedules():
-    winter = get_scenario("winter_household").exogenous(days=3, seed=0)
+    winter = get_scenario("winter_household").exogenous(days=3, seed=0, part="test")
     hour = time_of_day_h(winter["time"])
     day = (hour >= 7) & (hour < 22)
     assert np.all(winter["T_min"][day] == 20) and np.all(winter["T_min"][~day] == 17)
     assert np.all(winter["T_max"] == 22)
-    cold = get_scenario("cold_storage").exogenous(days=10, seed=0)
+    cold = get_scenario("cold_storage").exogenous(days=10, seed=0, part="train")
     hour = time_of_day_h(cold["time"])
     open_hours = (hour >= 7) & (hour < 19)
     assert np.all(cold["I_g"][~open_hours] == 150.0)

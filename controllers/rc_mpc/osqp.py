@@ -7,8 +7,8 @@ since the parameters enter only the linear cost and the constraint bounds, the c
 are ``q = Mq theta + cq`` and ``(l, u) = Mb theta + cb`` with constant ``P`` and ``A``. Those
 affine maps are read from cvxpy's parametrised program (``ParamConeProg``, the tensors
 cvxpy's own DPP solve applies) and checked once against ``Problem.get_problem_data``; each step
-then costs two sparse mat-vecs and a warm-started ``osqp.OSQP.update`` + ``solve``, instead of
-cvxpy's ~5-10 ms per-solve overhead. If the check fails (a cvxpy version with another internal
+then costs two sparse mat-vecs and a warm-started ``osqp.OSQP.update`` + ``solve``, without
+cvxpy's per-solve canonicalisation overhead. If the check fails (a cvxpy version with another internal
 layout) the controller uses plain ``Problem.solve(solver=OSQP, warm_start=True)`` instead.
 """
 

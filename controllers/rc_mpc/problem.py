@@ -40,6 +40,7 @@ from controllers.base import (
     Observation,
     PlanningController,
     SolveStats,
+    check_heating,
     first_values,
 )
 from controllers.estimators import KalmanEstimator, StateEstimator
@@ -75,11 +76,7 @@ class RCProblem:
         rho = self.regularisation_eur_per_kw2h
         if not (math.isfinite(rho) and rho > 0):
             raise InputError(f"regularisation_eur_per_kw2h must be > 0 (uniqueness), got {rho!r}")
-        if self.params.heating != self.spec.heating:
-            raise InputError(
-                f"RC parameters (eta={self.params.eta}) and ControlSpec(heating={self.spec.heating})"
-                " disagree on heating vs cooling; give eta=-COP for a cooling machine"
-            )
+        check_heating(self.params.eta, self.spec, what="the RC parameters")
 
     @cached_property
     def matrices(self) -> tuple[np.ndarray, np.ndarray]:

@@ -1,0 +1,118 @@
+"""The model commands of the CLI: ``train``, ``evaluate``, ``export-rc``, ``identify``.
+
+Each takes the parsed arguments, refuses outputs that cannot be written or would overwrite an
+input or another output (before any work), calls the library (which returns typed results and
+never writes), writes the outputs atomically and returns the summary the CLI prints. The
+experiment commands are in :mod:`scenarios.commands`; the parser is :mod:`pinn_mpc.cli`.
+Libraries are imported inside the commands, so that ``identify`` does not wait for torch.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+from pinn_mpc.data import read_timeseries
+from pinn_mpc.io import (
+    PathsArg,
+    atomic_write_json,
+    check_distinct,
+    check_output_directory,
+    check_writable,
+)
+from pinn_mpc.physics import rc_summary
+
+__all__ = ["evaluate", "export_rc_json", "identify", "train"]
+
+
+def _eta(value: float | None) -> float:
+    """``--eta`` not given means 1: a heater (a cooling machine gives minus its COP)."""
+    return 1.0 if value is None else float(value)
+
+
+def train(a: argparse.Namespace) -> str:
+    """Read ``--data``, train the ensemble, save the model directory ``--out``.
+
+    ``--out`` is checked before training: it must be new, empty or a model directory, or
+    ``--force`` given (then only the model's files in it are replaced).
+    """
+    from pinn_mpc.artifacts import MODEL_DIRECTORY, save_model
+    from pinn_mpc.training import TrainConfig, train_model
+
+    check_output_directory(a.out, MODEL_DIRECTORY, force=a.force)
+    files = MODEL_DIRECTORY.paths(a.out)
+    check_distinct(inputs={"--data": a.data}, outputs={"--out": files})
+    df = read_timeseries(a.data, columns=a.columns)
+    config = TrainConfig(
+        depth=a.depth, n_seeds=a.seeds, first_seed=a.seed, epochs=a.epochs, lam=a.lam,
+        recipe=a.recipe, eta=_eta(a.eta),
+    )
+    model = train_model(df, arch=a.arch, config=config)
+    save_model(model, a.out, force=a.force)
+    loss = model.meta["final_loss"]
+    return (
+        f"trained {a.arch} x{a.seeds} on {len(df)} rows in {model.meta['train_seconds']:.1f} s "
+        f"(final loss reg {loss['reg']:.3g}, phys {loss['phys']:.3g}); "
+        f"wrote {', '.join(map(str, files))}"
+    )
+
+
+def evaluate(a: argparse.Namespace) -> str:
+    """Load ``--model`` and ``--data``, write the metrics JSON ``--json``."""
+    from pinn_mpc.artifacts import MODEL_DIRECTORY, load_model
+    from pinn_mpc.evaluation import evaluate_model
+
+    check_writable(a.json)
+    inputs: dict[str, PathsArg] = {"--model": MODEL_DIRECTORY.paths(a.model), "--data": a.data}
+    check_distinct(inputs=inputs, outputs={"--json": a.json})
+    learned = load_model(a.model)
+    df = read_timeseries(a.data, columns=a.columns)
+    metrics = evaluate_model(learned, df, a.horizons)
+    atomic_write_json(a.json, metrics)
+    one = metrics["one_step"]
+    last = max(int(h) for h in metrics["horizons"])
+    t_m = f", T_m {one['T_m_mae']:.3f} C" if one["T_m_mae"] is not None else ""
+    return (
+        f"one-step MAE: T_r {one['T_r_mae']:.3f} C, u_phys {one['u_phys_mae']:.0f} W{t_m}; "
+        f"{last}-step T_r MAE {metrics['horizons'][str(last)]['T_r_mae']:.3f} C "
+        f"(persistence {metrics['persistence']['horizons'][str(last)]['T_r_mae']:.3f} C) "
+        f"-> {a.json}"
+    )
+
+
+def export_rc_json(a: argparse.Namespace) -> str:
+    """``export-rc``: load ``--model``, write its RC JSON ``--out``."""
+    from pinn_mpc.artifacts import MODEL_DIRECTORY, load_model
+    from pinn_mpc.export import export_rc
+
+    check_writable(a.out)
+    check_distinct(inputs={"--model": MODEL_DIRECTORY.paths(a.model)}, outputs={"--out": a.out})
+    learned = load_model(a.model)
+    data = export_rc(
+        learned, source=f"export-rc of {learned.arch} x{learned.n_members} from {a.model}"
+    )
+    atomic_write_json(a.out, data)
+    return (
+        f"R_ra={data['R_ra_K_per_W']:.4g} K/W R_rm={data['R_rm_K_per_W']:.4g} K/W "
+        f"C_r={data['C_r_J_per_K']:.4g} J/K C_m={data['C_m_J_per_K']:.4g} J/K -> {a.out}"
+    )
+
+
+def identify(a: argparse.Namespace) -> str:
+    """Read ``--data``, identify, write the RC JSON ``--out``:
+    :func:`pinn_mpc.physics.rc_summary` plus a ``fit`` block
+    (:meth:`~pinn_mpc.identify.IdentifyResult.fit_statistics`)."""
+    from pinn_mpc.identify import identify_rc
+
+    check_writable(a.out)
+    check_distinct(inputs={"--data": a.data}, outputs={"--out": a.out})
+    df = read_timeseries(a.data, columns=a.columns)
+    result = identify_rc(df, eta=_eta(a.eta))
+    summary = rc_summary(result.params, source=f"identify:{a.data}")
+    summary["fit"] = result.fit_statistics()
+    atomic_write_json(a.out, summary)
+    p = result.params
+    return (
+        f"identified R_ra={p.r_ra_k_per_w:.4g} K/W R_rm={p.r_rm_k_per_w:.4g} K/W "
+        f"C_r={p.c_r_j_per_k:.4g} J/K C_m={p.c_m_j_per_k:.4g} J/K "
+        f"(rmse {result.rmse_c:.3f} C over {result.n_rows} rows) -> {a.out}"
+    )

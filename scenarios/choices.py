@@ -1,0 +1,38 @@
+"""The named choices of the experiment layer: data policies, weather parts, controllers.
+
+They live in this light module (no numpy, pandas or torch) so that the CLI can offer them as
+choices and print its help without loading what implements them; :mod:`scenarios.datagen`,
+:mod:`scenarios.inputs` and :mod:`scenarios.factory` take them from here. Scenario names are
+data (:func:`scenarios.registry.scenario_names`).
+"""
+
+from __future__ import annotations
+
+from typing import Literal, get_args
+
+__all__ = [
+    "CONTROLLER_NAMES",
+    "MODEL_CONTROLLERS",
+    "POLICIES",
+    "RANDOM_POLICIES",
+    "RC_CONTROLLERS",
+    "TRUTH_CONTROLLERS",
+    "WEATHER_PARTS",
+    "WeatherPart",
+]
+
+#: Demand policies of generated data (:mod:`scenarios.datagen`).
+POLICIES = ("random", "random-level", "thermostat")
+#: The random policies (training data for learned models and identification).
+RANDOM_POLICIES = ("random", "random-level")
+
+#: Parts of a scenario's weather (:mod:`scenarios.inputs`).
+WeatherPart = Literal["train", "test", "whole"]
+WEATHER_PARTS: tuple[str, ...] = get_args(WeatherPart)
+
+#: Controllers by what they run on (:mod:`scenarios.factory`): a trained model, RC
+#: parameters, or the scenario's true parameters (references).
+MODEL_CONTROLLERS = ("random-shooting", "cem")
+RC_CONTROLLERS = ("casadi-mpc", "qp-mpc")
+TRUTH_CONTROLLERS = ("oracle", "clairvoyant")
+CONTROLLER_NAMES = ("thermostat", *MODEL_CONTROLLERS, *RC_CONTROLLERS, *TRUTH_CONTROLLERS)

@@ -1,0 +1,276 @@
+"""The experiment commands of the CLI: ``simulate``, ``closed-loop``, ``compare``, ``reproduce``.
+
+Each takes the parsed arguments, refuses outputs that cannot be written or would overwrite an
+input or another output (before any work), calls the library (which returns typed results),
+writes the outputs atomically and returns the summary the CLI prints. The model commands are in
+:mod:`pinn_mpc.commands`; the parser is :mod:`pinn_mpc.cli`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import dataclasses
+import os
+import time
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from pinn_mpc.data import write_timeseries
+from pinn_mpc.errors import InputError
+from pinn_mpc.io import (
+    PathsArg,
+    atomic_write_json,
+    atomic_write_text,
+    check_distinct,
+    check_writable,
+)
+from scenarios.choices import MODEL_CONTROLLERS
+from scenarios.closed_loop import one_torch_thread, run_closed_loop
+from scenarios.datagen import generate
+from scenarios.factory import make_controller
+from scenarios.inputs import day_span
+from scenarios.registry import Scenario, get_scenario
+from scenarios.report import format_kpis, kpi_table_text, render_report
+
+if TYPE_CHECKING:  # compare loads torch: only the compare command imports it
+    from scenarios.compare import CompareSettings, ComparisonResult
+
+__all__ = ["closed_loop", "compare", "reproduce", "simulate", "sweep"]
+
+
+def simulate(a: argparse.Namespace) -> str:
+    """Generate data and write it atomically to ``--out``."""
+    chosen = get_scenario(a.scenario)
+    frame = generate(
+        chosen,
+        days=a.days,
+        seed=a.seed,
+        policy=a.policy,
+        n_buildings=a.buildings,
+        weather_part=a.weather_part,
+    )
+    write_timeseries(frame, a.out)
+    per_building = len(frame) // a.buildings
+    overridden = float(np.mean(~np.isclose(frame["u"], frame["u_phys"])))
+    first, last = day_span(frame["time"])
+    return (
+        f"wrote {a.out}: scenario {a.scenario}, {a.days} day(s) {first}..{last} "
+        f"({a.weather_part} weather), {a.buildings} building(s), {a.policy} policy, "
+        f"{per_building} rows per building at {chosen.sim.dt_s:g} s, T_r "
+        f"{frame['T_r'].min():.1f}..{frame['T_r'].max():.1f} C, backup acted in "
+        f"{100 * overridden:.0f} % of intervals"
+    )
+
+
+def closed_loop(a: argparse.Namespace) -> str:
+    """Run, write the KPI JSON (and CSV, plot); the summary names every file written.
+    Outputs are checked before the run: writable, and none of them the same file as an input
+    (``--model``'s files, ``--rc``) or as another output."""
+    outputs = {"--json": a.json, "--csv": a.csv, "--plot": a.plot}
+    check_writable(*outputs.values())
+    inputs: dict[str, PathsArg] = {"--rc": a.rc}
+    if a.model is not None:
+        from pinn_mpc.artifacts import MODEL_DIRECTORY  # torch: only when a model is given
+
+        inputs["--model"] = MODEL_DIRECTORY.paths(a.model)
+    check_distinct(inputs=inputs, outputs=outputs)
+    scenario = get_scenario(a.scenario)
+    controller = make_controller(
+        a.controller,
+        scenario,
+        model_dir=a.model,
+        rc_path=a.rc,
+        n_steps=a.days * scenario.steps_per_day,
+    )
+    # torch only for the planners over learned models; the others start faster without it.
+    threads = one_torch_thread() if a.controller in MODEL_CONTROLLERS else contextlib.nullcontext()
+    with threads:
+        result = run_closed_loop(
+            scenario, controller, days=a.days, seed=a.seed, weather_part=a.weather_part,
+            progress=True,
+        )
+    if a.csv is not None:
+        write_timeseries(result.trajectory, a.csv)
+    if a.plot is not None:
+        from scenarios.plots import plot_trajectory  # matplotlib only when plotting
+
+        plot_trajectory(result.trajectory, a.plot, title=f"{a.controller} on {a.scenario}")
+    atomic_write_json(a.json, result.kpis)
+    lines = [format_kpis(result.kpis)]
+    if result.errors:
+        lines.append(f"{len(result.errors)} controller error(s), first: {result.errors[0]}")
+    written = [str(p) for p in (a.json, a.csv, a.plot) if p is not None]
+    return "\n".join([*lines, f"wrote {', '.join(written)}"])
+
+
+def _dates_text(settings: CompareSettings, days: dict[str, list[str]]) -> str:
+    """One sentence: when the training data and the test days are."""
+    (train_first, train_last), (first, last) = days["training"], days["test"]
+    return (
+        f"Training data: {settings.train_days} days, {train_first} to {train_last}, from the "
+        f"training part of the weather (seed {settings.seed}). Test: {settings.test_days} days, "
+        f"{first} to {last}, from the test part (seed {settings.test_seed}); with the warm-up "
+        f"day and the forecast lead the test weather spans {days['test weather'][0]} to "
+        f"{days['test weather'][1]}."
+    )
+
+
+def _settings_table(
+    scenario: Scenario, settings: CompareSettings, result: ComparisonResult, total_s: float
+) -> dict[str, Any]:
+    """What the comparison depended on, for the report and the JSON table."""
+    return {
+        **dataclasses.asdict(settings),
+        "test_seed": settings.test_seed,
+        "training_dates": result.days["training"],
+        "test_dates": result.days["test"],
+        "training_epochs": settings.training_epochs,
+        "scenario": scenario.name,
+        "comfort_weight_eur_per_kh": scenario.comfort_weight_eur_per_kh,
+        "horizon_steps": scenario.horizon_steps,
+        "dt_s": scenario.sim.dt_s,
+        "u_max_w": scenario.sim.u_max_w,
+        "wall_time_s": round(total_s, 1),
+        "cpu_count": os.cpu_count(),
+    }
+
+
+def compare(a: argparse.Namespace) -> str:
+    """Run the comparison, write the JSON table, the report and its figure (parents created)."""
+    from scenarios.compare import CompareSettings, run_comparison
+
+    check_writable(a.json, a.report, create_parents=True)
+    report = Path(a.report)
+    figure = report.with_suffix(".png")
+    if figure == report:
+        raise InputError(
+            f"--report {a.report}: the report is markdown and its figure is written next to "
+            f"it as {figure.name}; give --report a name ending in .md"
+        )
+    check_writable(figure, create_parents=True)
+    outputs: dict[str, PathsArg] = {
+        "--json": a.json,
+        "--report": a.report,
+        "--report's figure": figure,
+    }
+    check_distinct(inputs={}, outputs=outputs)
+    scenario = get_scenario(a.scenario)
+    settings = CompareSettings.for_run(
+        train_days=a.train_days, days=a.days, seed=a.seed, quick=a.quick, policy=a.policy
+    )
+    start = time.perf_counter()
+    result = run_comparison(scenario, settings)
+    total_s = time.perf_counter() - start
+    settings_table = _settings_table(scenario, settings, result, total_s)
+    notes = [
+        f"`{label}`: {len(errs)} controller error(s), the fallback acted; first: {errs[0]}"
+        for label, errs in result.errors.items()
+    ]
+    notes += [f"wall time of {stage}: {sec:.1f} s" for stage, sec in result.wall_time_s.items()]
+    for path in (Path(a.json), report, figure):
+        path.parent.mkdir(parents=True, exist_ok=True)
+    from scenarios.plots import plot_comparison  # matplotlib only when plotting
+
+    first, last = result.days["test"]
+    title = f"{scenario.name}: test days {first} to {last}, seed {settings.test_seed}"
+    plot_comparison(result.trajectories, figure, title=title)
+    atomic_write_text(
+        report,
+        render_report(
+            scenario=scenario.name,
+            description=scenario.description,
+            rows=result.rows,
+            rc=result.rc,
+            settings=settings_table,
+            figure_name=figure.name,
+            notes=notes,
+            dates=_dates_text(settings, result.days),
+        ),
+    )
+    atomic_write_json(
+        a.json,
+        {
+            "scenario": scenario.name,
+            "training_dates": result.days["training"],
+            "test_dates": result.days["test"],
+            "settings": settings_table,
+            "rows": result.rows,
+            "rc": result.rc,
+        },
+    )
+    written = f"wrote {a.json}, {a.report}, {figure} ({total_s:.0f} s)"
+    return f"{kpi_table_text(result.rows)}\n{written}"
+
+
+def reproduce(a: argparse.Namespace) -> str:
+    """Run the paper's experiments into ``--out``; the summary is the validation table and
+    the files written."""
+    from scenarios.reproduce import ReproduceConfig, run_reproduction, validation_table
+    from scenarios.reproduce.render import OUTPUT
+
+    config = ReproduceConfig.quick(a.seeds) if a.quick else ReproduceConfig(seeds=a.seeds or 20)
+    started = time.perf_counter()
+    results = run_reproduction(a.out, config, force=a.force)
+    for name in config.also_scenarios:
+        run_reproduction(
+            Path(a.out) / name,
+            dataclasses.replace(config, scenario=name, also_scenarios=()),
+            force=a.force,
+        )
+    elapsed = time.perf_counter() - started
+    return (
+        f"one-step MAE on {config.test_days} test days after {config.validation_days} training "
+        "days, "
+        f"mean ± std over {config.seeds} seeds (ens. = ensemble mean):\n"
+        + validation_table(results, markdown=False)
+        + f"\nwrote {Path(a.out)}/: {', '.join(OUTPUT.files)}"
+        + "".join(f"; the same in {Path(a.out) / name}/" for name in config.also_scenarios)
+        + f" in {elapsed:.0f} s"
+    )
+
+
+def sweep(a: argparse.Namespace) -> str:
+    """Parse the grid, run it on Ray (:func:`scenarios.sweep.run_sweep`), return what was run
+    and written."""
+    from scenarios.sweep import SweepGrid, SweepSettings, parse_ints, parse_names, run_sweep
+
+    scenarios, controllers, seeds, train_days = a.scenarios, a.controllers, a.seeds, a.train_days
+    days, out, quick, address, workers = a.days, a.out, a.quick, a.address, a.workers
+    baseline, force = a.baseline, a.force
+    grid = SweepGrid(
+        scenarios=parse_names(scenarios, "scenarios"),
+        controllers=parse_names(controllers, "controllers"),
+        seeds=parse_ints(seeds, "seeds"),
+        train_days=parse_ints(train_days, "training days"),
+    )
+    settings = SweepSettings.for_run(days=days, quick=quick)
+    outcome = run_sweep(
+        grid,
+        settings,
+        out,
+        baseline=baseline or grid.controllers[0],
+        address=address,
+        workers=workers,
+        force=force,
+    )
+    s = outcome.summary
+    total = s["cells_run"] + s["cells_reused"]
+    reuse = (
+        f"all {total} cells reused from {out}, none run"
+        if s["cells_run"] == 0
+        else f"{s['cells_run']} of {total} cells run now, {s['cells_reused']} reused"
+    )
+    lines = [
+        f"{r['scenario']:<18} {r['controller']:<16} n={r['n']:<3} objective/oracle "
+        f"{r['objective_to_oracle_mean']:.3f}"
+        for r in s["rows"]
+    ]
+    lines.append(
+        f"sweep: {reuse}; models {s['models_trained']} trained, {s['models_reused']} reused; "
+        f"wrote {outcome.summary_path}, {outcome.report_path}, {outcome.figure_path} "
+        f"({s['wall_time_s']:.0f} s)"
+    )
+    return "\n".join(lines)

@@ -1,0 +1,516 @@
+"""``pinn-mpc sweep``: grids of closed loops on Ray, each model trained once, each cell kept.
+
+A cell is one closed loop: (scenario, controller, seed[, training days]). The seed fixes the
+training data (``seed``) and the test days (``seed + 1``), as in ``compare``. Controllers that
+plan over a learned model (``random-shooting``, ``cem``) use a PhysNet ensemble trained on the
+scenario's simulated data; ``qp-mpc`` / ``casadi-mpc`` the RC identified from the same data.
+Each model is trained once per scenario x seed x kind x training days, as a Ray task whose
+result every cell needing it receives (Ray passes it through its object store, also between
+nodes); the oracle of each scenario and seed always runs, as the denominator.
+
+Everything is written by the driver (this process), so results land in ``DIR`` on the machine
+that runs ``pinn-mpc sweep``, whatever nodes did the work:
+
+- ``DIR/sweep.json``: the settings (test days, ensemble sizes, ...). A rerun with other
+  settings is refused; the grid itself (scenarios, controllers, seeds, training days) may grow.
+- ``DIR/cells/<scenario>--<controller>--seed<S>[--train<D>].json``: one file per finished
+  cell, written atomically the moment it arrives. A rerun reads them and runs only the missing
+  cells, so an interrupted sweep loses at most the cells in flight.
+- ``DIR/models/``: the trained models (model directories) and identified RC JSONs, reused
+  by reruns that need more cells of the same scenario and seed.
+- ``DIR/summary.json``, ``DIR/report.md``, ``DIR/objective_to_oracle.png``: see
+  :mod:`scenarios.sweep_report`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import logging
+import os
+import re
+import socket
+import time
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from tqdm import tqdm
+
+from pinn_mpc import __version__
+from pinn_mpc.errors import InputError
+from pinn_mpc.io import atomic_write_json, atomic_write_text
+from pinn_mpc.physics import RCParams, params_from_summary, rc_summary
+from scenarios.factory import CONTROLLER_NAMES, MODEL_CONTROLLERS, RC_CONTROLLERS
+from scenarios.registry import get_scenario
+from scenarios.sweep_report import REFERENCE, plot_sweep, render_sweep_report, summarise
+
+#: The architecture the model-based controllers plan over.
+ARCH = "physnet"
+RC_KIND = "rc"
+FIGURE = "objective_to_oracle.png"
+
+__all__ = ["Cell", "ModelKey", "SweepGrid", "SweepOutcome", "SweepSettings", "check_engine_options", "fit_model", "model_kind", "parse_ints", "parse_names", "ray_engine", "run_cell", "run_sweep"]
+_ADDRESS = re.compile(r"^(ray://)?(?P<host>[A-Za-z0-9.\-]+|\[[0-9A-Fa-f:]+\]):(?P<port>\d{1,5})$")
+_CONNECT_TIMEOUT_S = 5.0
+
+
+@dataclass(frozen=True, kw_only=True)
+class SweepSettings:
+    """What every cell shares (the grid axes are separate, see :class:`SweepGrid`)."""
+
+    test_days: int = 3
+    n_members: int = 10
+    epochs: int | None = None  # None: compare's rule, 7200 / train_days within 60..240
+    depth: int = 16
+    policy: str = "random-level"
+    quick: bool = False
+
+    def __post_init__(self) -> None:
+        for name in ("test_days", "n_members", "depth"):
+            if getattr(self, name) < 1:
+                raise InputError(f"sweep: {name} must be >= 1, got {getattr(self, name)}")
+        if self.epochs is not None and self.epochs < 1:
+            raise InputError(f"sweep: epochs must be >= 1, got {self.epochs}")
+
+    @classmethod
+    def for_run(cls, *, days: int, quick: bool) -> SweepSettings:
+        """Defaults, or with ``quick`` 2-member ensembles, 30 epochs and at most 2 test days."""
+        if not quick:
+            return cls(test_days=days)
+        return cls(test_days=min(days, 2), n_members=2, epochs=30, quick=True)
+
+
+@dataclass(frozen=True, kw_only=True, order=True)
+class Cell:
+    scenario: str
+    controller: str
+    seed: int
+    train_days: int | None  # None for controllers that need no model
+
+    @property
+    def name(self) -> str:
+        days = "" if self.train_days is None else f"--train{self.train_days}"
+        return f"{self.scenario}--{self.controller}--seed{self.seed}{days}"
+
+    @property
+    def model(self) -> ModelKey | None:
+        kind = model_kind(self.controller)
+        if kind is None or self.train_days is None:
+            return None
+        return ModelKey(scenario=self.scenario, kind=kind, seed=self.seed, train_days=self.train_days)
+
+
+@dataclass(frozen=True, kw_only=True, order=True)
+class ModelKey:
+    scenario: str
+    kind: str  # ARCH or RC_KIND
+    seed: int
+    train_days: int
+
+    @property
+    def name(self) -> str:
+        return f"{self.scenario}--{self.kind}--seed{self.seed}--train{self.train_days}"
+
+
+def model_kind(controller: str) -> str | None:
+    """What a controller needs trained: the learned architecture, an identified RC, or nothing."""
+    if controller in MODEL_CONTROLLERS:
+        return ARCH
+    if controller in RC_CONTROLLERS:
+        return RC_KIND
+    return None
+
+
+@dataclass(frozen=True, kw_only=True)
+class SweepGrid:
+    scenarios: tuple[str, ...]
+    controllers: tuple[str, ...]
+    seeds: tuple[int, ...]
+    train_days: tuple[int, ...]
+
+    def __post_init__(self) -> None:
+        for scenario in self.scenarios:
+            get_scenario(scenario)  # an unknown name raises InputError listing the valid ones
+        unknown = [c for c in self.controllers if c not in CONTROLLER_NAMES]
+        if unknown:
+            raise InputError(
+                f"sweep: unknown controller(s) {', '.join(unknown)}; "
+                f"choose from {', '.join(CONTROLLER_NAMES)}"
+            )
+        for name in ("scenarios", "controllers", "seeds", "train_days"):
+            if not getattr(self, name):
+                raise InputError(f"sweep: no {name.replace('_', ' ')} given")
+        if min(self.train_days) < 2:
+            raise InputError(f"sweep: training days must be >= 2, got {min(self.train_days)}")
+
+    def cells(self) -> list[Cell]:
+        """Every cell of the grid, plus the oracle of each scenario and seed (the denominator)."""
+        controllers = dict.fromkeys([*self.controllers, REFERENCE])
+        out = []
+        for scenario in self.scenarios:
+            for controller in controllers:
+                days: Sequence[int | None] = (
+                    self.train_days if model_kind(controller) else (None,)
+                )
+                out += [
+                    Cell(scenario=scenario, controller=controller, seed=s, train_days=d)
+                    for s in self.seeds
+                    for d in days
+                ]
+        return out
+
+
+def parse_names(text: str, what: str) -> tuple[str, ...]:
+    """``"a,b"`` -> ("a", "b"), duplicates dropped; empty -> InputError."""
+    names = tuple(dict.fromkeys(n.strip() for n in text.split(",") if n.strip()))
+    if not names:
+        raise InputError(f"sweep: no {what} given in {text!r}; give a comma-separated list")
+    return names
+
+
+def parse_ints(text: str, what: str) -> tuple[int, ...]:
+    """``"0-7"``, ``"0,3,5"`` or ``"0-3,8"`` -> sorted whole numbers >= 0; an empty range
+    (``"5-2"``) or nothing at all is an InputError."""
+    values: set[int] = set()
+    for part in (p.strip() for p in text.split(",")):
+        if not part:
+            continue
+        match = re.fullmatch(r"(\d+)(?:-(\d+))?", part)
+        if match is None:
+            raise InputError(
+                f"sweep: {what} {part!r} is not a whole number >= 0 or a range like 0-7"
+            )
+        first = int(match.group(1))
+        last = int(match.group(2)) if match.group(2) is not None else first
+        if last < first:
+            raise InputError(f"sweep: {what} range {part!r} is empty; write it low-high, e.g. 0-7")
+        values.update(range(first, last + 1))
+    if not values:
+        raise InputError(f"sweep: no {what} given in {text!r}; write e.g. 0-7 or 0,3,5")
+    return tuple(sorted(values))
+
+
+# ---- the adapter: the one place that calls the package's closed loop and model fitting ----
+
+
+def fit_model(key: ModelKey, settings: SweepSettings) -> Any:
+    """Train the PhysNet ensemble or identify the RC of ``key`` on the scenario's simulated data
+    (``train_days`` days under the random policy, seed ``key.seed``)."""
+    from scenarios.compare import CompareSettings
+    from scenarios.datagen import generate
+
+    scenario = get_scenario(key.scenario)
+    data = generate(scenario, days=key.train_days, seed=key.seed, policy=settings.policy)
+    eta = scenario.sim.params.eta
+    if key.kind == RC_KIND:
+        from pinn_mpc.identify import identify_rc
+
+        return identify_rc(data, eta=eta).params
+    from pinn_mpc.training import TrainConfig, train_model
+
+    epochs = CompareSettings(
+        train_days=key.train_days, test_days=1, seed=key.seed, epochs=settings.epochs
+    ).training_epochs
+    config = TrainConfig(
+        depth=settings.depth,
+        n_seeds=settings.n_members,
+        first_seed=key.seed,
+        epochs=epochs,
+        eta=eta,
+    )
+    return train_model(data, arch=key.kind, config=config, progress=False)
+
+
+def run_cell(cell: Cell, settings: SweepSettings, model: Any) -> dict[str, Any]:
+    """One closed loop on the test days (seed + 1): ``{"kpis", "errors", "host", "wall_time_s"}``.
+
+    ``model`` is what :func:`fit_model` returned for ``cell.model`` (None when it has none).
+    """
+    from scenarios.closed_loop import one_torch_thread, run_closed_loop
+    from scenarios.factory import build_controller
+
+    start = time.perf_counter()
+    scenario = get_scenario(cell.scenario)
+    kind = model_kind(cell.controller)
+    controller = build_controller(
+        cell.controller,
+        scenario,
+        model=model if kind == ARCH else None,
+        rc_params=model if kind == RC_KIND else None,
+        n_steps=settings.test_days * scenario.steps_per_day,
+    )
+    with one_torch_thread():
+        result = run_closed_loop(
+            scenario, controller, days=settings.test_days, seed=cell.seed + 1
+        )
+    return {
+        "kpis": result.kpis,
+        "errors": list(result.errors),
+        "host": socket.gethostname(),
+        "wall_time_s": time.perf_counter() - start,
+    }
+
+
+# ---- storage in DIR ----
+
+
+def _settings_record(settings: SweepSettings) -> dict[str, Any]:
+    return {**dataclasses.asdict(settings), "package_version": __version__}
+
+
+def _read_json(path: Path) -> Any:
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise InputError(
+            f"{path}: not valid JSON ({exc}); it was not written by pinn-mpc sweep "
+            "(whose writes are atomic): move it away and rerun"
+        ) from exc
+
+
+def _check_settings(out: Path, settings: SweepSettings) -> None:
+    """Refuse a rerun in ``out`` with other settings than its ``sweep.json``."""
+    path = out / "sweep.json"
+    record = _settings_record(settings)
+    if not path.exists():
+        return
+    stored = _read_json(path)
+    before = stored.get("settings") if isinstance(stored, dict) else None
+    before = before if isinstance(before, dict) else {}
+    if before != record:
+        diff = ", ".join(
+            f"{k} {before.get(k)!r} -> {v!r}" for k, v in record.items() if before.get(k) != v
+        )
+        raise InputError(
+            f"sweep: {out} holds a sweep with other settings ({diff}); "
+            "use another --out, or the same settings to extend it"
+        )
+
+
+def _read_cell(path: Path, cell: Cell) -> dict[str, Any] | None:
+    if not path.exists():
+        return None
+    record = _read_json(path)
+    if not isinstance(record, dict) or record.get("cell") != dataclasses.asdict(cell):
+        raise InputError(f"{path}: not the record of cell {cell.name}; move it away and rerun")
+    return record
+
+
+def _model_path(out: Path, key: ModelKey) -> Path:
+    suffix = ".json" if key.kind == RC_KIND else ""
+    return out / "models" / f"{key.name}{suffix}"
+
+
+def _load_model(out: Path, key: ModelKey) -> Any:
+    path = _model_path(out, key)
+    if not path.exists():
+        return None
+    if key.kind == RC_KIND:
+        return params_from_summary(_read_json(path))
+    from pinn_mpc.artifacts import load_model
+
+    return load_model(path)
+
+
+def _store_model(out: Path, key: ModelKey, model: Any) -> None:
+    path = _model_path(out, key)
+    if isinstance(model, RCParams):
+        atomic_write_json(path, rc_summary(model, source=f"identify ({key.name})"))
+        return
+    from pinn_mpc.artifacts import save_model
+
+    save_model(model, path)
+
+
+# ---- Ray ----
+
+
+def check_engine_options(address: str | None, workers: int | None) -> None:
+    """Refuse a malformed or unreachable ``--address`` (before anything is written: Ray itself
+    waits minutes for a head node that is not there) and ``--workers`` with ``--address``."""
+    if address is not None and workers is not None:
+        raise InputError(
+            "sweep: --workers sizes the local Ray instance; with --address the cluster's CPUs "
+            "decide, so leave --workers out"
+        )
+    if workers is not None and workers < 1:
+        raise InputError(f"sweep: --workers must be >= 1, got {workers}")
+    if address is None or address == "auto":
+        return
+    match = _ADDRESS.match(address)
+    if match is None:
+        raise InputError(
+            f"sweep: --address {address!r} is not a Ray address; give HOST:PORT of the head "
+            "node (e.g. 10.0.0.5:6379), ray://HOST:10001, or auto"
+        )
+    host, port = match.group("host").strip("[]"), int(match.group("port"))
+    try:
+        with socket.create_connection((host, port), timeout=_CONNECT_TIMEOUT_S):
+            pass
+    except OSError as exc:
+        raise InputError(
+            f"sweep: no Ray head node answers at {address} ({exc.strerror or exc}); start one "
+            "with `ray start --head` (it prints the address) or leave --address out"
+        ) from None
+
+
+@contextmanager
+def ray_engine(address: str | None, workers: int | None) -> Iterator[dict[str, Any]]:
+    """Start a local Ray instance (``workers`` CPUs, default all) or connect to ``address``;
+    yield the engine record of ``summary.json``; shut down (or disconnect) at the end."""
+    import ray
+
+    check_engine_options(address, workers)
+    options: dict[str, Any] = {
+        "include_dashboard": False,
+        "logging_level": logging.ERROR,
+        "log_to_driver": False,
+    }
+    try:
+        if address is None:
+            ray.init(num_cpus=workers or os.cpu_count() or 1, **options)
+        else:
+            ray.init(address=address, **options)
+    except (ConnectionError, RuntimeError, ValueError, TimeoutError) as exc:
+        where = "start a local instance" if address is None else f"connect to {address}"
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise InputError(
+            f"sweep: cannot {where} with Ray ({first}); check the address "
+            "(`ray status` on the head node prints it) or leave --address out"
+        ) from exc
+    try:
+        resources = {k: v for k, v in ray.cluster_resources().items() if k in ("CPU", "GPU", "memory")}
+        resources["nodes"] = sum(1 for n in ray.nodes() if n.get("Alive"))
+        yield {"name": "ray", "version": ray.__version__, "resources": resources}
+    finally:
+        ray.shutdown()
+
+
+def _one_blas_thread(function: Callable[..., Any], *args: Any) -> Any:
+    """A Ray task body: each task holds one CPU, so its linear algebra gets one thread."""
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=1):
+        return function(*args)
+
+
+def _task_failure(what: str, exc: Exception) -> InputError:
+    cause = getattr(exc, "cause", None) or exc
+    first = (str(cause).strip().splitlines() or [""])[0]
+    return InputError(f"sweep: {what} failed: {type(cause).__name__}: {first}")
+
+
+@dataclass(frozen=True, kw_only=True)
+class SweepOutcome:
+    summary: dict[str, Any]
+    summary_path: Path
+    report_path: Path
+    figure_path: Path
+
+
+def run_sweep(
+    grid: SweepGrid,
+    settings: SweepSettings,
+    out: str | os.PathLike[str],
+    *,
+    baseline: str,
+    address: str | None = None,
+    workers: int | None = None,
+    force: bool = False,
+) -> SweepOutcome:
+    """Run the missing cells of ``grid`` on Ray, then write the summary, report and figure.
+
+    ``out`` must be new, empty or an earlier sweep's directory (it holds ``sweep.json``); any
+    other directory needs ``force`` (then the sweep's files are added and nothing else in it is
+    touched, but a ``summary.json`` or ``report.md`` of the user's would be replaced)."""
+    import ray
+
+    if baseline not in (*grid.controllers, REFERENCE):
+        raise InputError(
+            f"sweep: baseline {baseline!r} is not among the controllers ({', '.join(grid.controllers)})"
+        )
+    check_engine_options(address, workers)
+    start = time.perf_counter()
+    root = Path(out)
+    if root.exists() and not root.is_dir():
+        raise InputError(f"sweep: --out {root} is a file; give a directory")
+    if root.is_dir() and not force and not (root / "sweep.json").is_file():
+        foreign = sorted(p.name + ("/" if p.is_dir() else "") for p in root.iterdir())
+        if foreign:
+            shown = ", ".join(foreign[:5]) + (", ..." if len(foreign) > 5 else "")
+            raise InputError(
+                f"sweep: --out {root} already holds {shown} and is not a sweep directory (no "
+                "sweep.json); give a new or empty directory, or add --force to write the sweep's "
+                "files there (nothing else in it is touched)"
+            )
+    _check_settings(root, settings)
+    cells = grid.cells()
+    records = {c: _read_cell(root / "cells" / f"{c.name}.json", c) for c in cells}
+    missing = [c for c in cells if records[c] is None]
+    reused = len(cells) - len(missing)
+    keys = sorted({c.model for c in missing if c.model is not None})
+    trained = 0
+    with ray_engine(address, workers) as engine:
+        # Only now that the engine runs: a refused address leaves no directory behind.
+        (root / "models").mkdir(parents=True, exist_ok=True)
+        (root / "cells").mkdir(exist_ok=True)
+        atomic_write_json(root / "sweep.json", {"settings": _settings_record(settings)})
+        task = ray.remote(num_cpus=1)(_one_blas_thread)
+        pending: dict[Any, tuple[str, Any]] = {}
+        model_refs: dict[ModelKey, Any] = {}
+        for key in keys:
+            stored = _load_model(root, key)
+            if stored is not None:
+                model_refs[key] = ray.put(stored)
+            else:
+                model_refs[key] = task.remote(fit_model, key, settings)
+                pending[model_refs[key]] = ("model", key)
+        for cell in missing:
+            ref = task.remote(run_cell, cell, settings, model_refs.get(cell.model) if cell.model else None)
+            pending[ref] = ("cell", cell)
+        with tqdm(total=len(cells), initial=reused, desc="sweep", unit="cell", disable=None) as bar:
+            while pending:
+                ready, _ = ray.wait(list(pending), num_returns=1)
+                kind, what = pending.pop(ready[0])
+                try:
+                    value = ray.get(ready[0])
+                except ray.exceptions.RayError as exc:
+                    raise _task_failure(f"{kind} {what.name}", exc) from None
+                if kind == "model":
+                    _store_model(root, what, value)
+                    trained += 1
+                    continue
+                record = {"cell": dataclasses.asdict(what), "settings": _settings_record(settings), **value}
+                atomic_write_json(root / "cells" / f"{what.name}.json", record)
+                records[what] = record
+                bar.update()
+    done = [r for r in records.values() if r is not None]
+    rows = summarise(done, baseline=baseline, order=[*grid.controllers, REFERENCE])
+    summary: dict[str, Any] = {
+        "rows": rows,
+        "baseline": baseline,
+        "engine": engine,
+        "cells_run": len(missing),
+        "cells_reused": reused,
+        "models_trained": trained,
+        "models_reused": len(keys) - trained,
+        "grid": {
+            "scenarios": list(grid.scenarios),
+            "controllers": list(grid.controllers),
+            "seeds": list(grid.seeds),
+            "train_days": list(grid.train_days),
+        },
+        "settings": _settings_record(settings),
+        "wall_time_s": time.perf_counter() - start,
+    }
+    summary_path = atomic_write_json(root / "summary.json", summary)
+    figure_path = plot_sweep(rows, root / FIGURE)
+    report_path = atomic_write_text(
+        root / "report.md", render_sweep_report(summary, figure_name=FIGURE)
+    )
+    return SweepOutcome(
+        summary=summary, summary_path=summary_path, report_path=report_path, figure_path=figure_path
+    )

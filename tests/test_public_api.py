@@ -1,0 +1,150 @@
+"""The public API: what the packages export, that importing them stays light, and that the
+README's layout, command line and Python API example match the code."""
+
+from __future__ import annotations
+
+import argparse
+import ast
+import importlib
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from pinn_mpc.cli import build_parser
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGES = ("pinn_mpc", "controllers", "scenarios")
+README = (ROOT / "README.md").read_text(encoding="utf-8")
+
+
+def _type_checking_imports(package: str) -> dict[str, str]:
+    """{name: module} imported under ``if TYPE_CHECKING:`` in the package's ``__init__``."""
+    tree = ast.parse((ROOT / package / "__init__.py").read_text(encoding="utf-8"))
+    found = {}
+    for node in tree.body:
+        if isinstance(node, ast.If) and ast.unparse(node.test) == "TYPE_CHECKING":
+            for imp in node.body:
+                assert isinstance(imp, ast.ImportFrom) and imp.module
+                found |= {alias.name: imp.module for alias in imp.names}
+    return found
+
+
+@pytest.mark.parametrize("package", PACKAGES)
+def test_package_exports_resolve_to_their_modules(package: str) -> None:
+    pkg = importlib.import_module(package)
+    typed = _type_checking_imports(package)
+    exported = set(pkg.__all__) - {"__version__"}
+    assert exported == set(typed), "__all__ and the TYPE_CHECKING imports differ"
+    assert len(pkg.__all__) == len(set(pkg.__all__))
+    for name, module in typed.items():
+        assert getattr(pkg, name) is getattr(importlib.import_module(module), name)
+    assert exported <= set(dir(pkg))
+    with pytest.raises(AttributeError, match=f"module '{package}' has no attribute 'nope'"):
+        pkg.nope  # noqa: B018
+
+
+def _modules() -> list[Path]:
+    return sorted(p for pkg in PACKAGES for p in (ROOT / pkg).rglob("*.py"))
+
+
+@pytest.mark.parametrize("path", _modules(), ids=lambda p: str(p.relative_to(ROOT)))
+def test_every_module_says_what_is_public(path: Path) -> None:
+    if path.name == "__main__.py":
+        return
+    name = ".".join(path.relative_to(ROOT).with_suffix("").parts).removesuffix(".__init__")
+    module = importlib.import_module(name)
+    assert hasattr(module, "__all__"), f"{name} has no __all__"
+    missing = [n for n in module.__all__ if not hasattr(module, n)]
+    assert not missing, f"{name}.__all__ names {missing}, which it does not define"
+
+
+def test_importing_the_packages_and_the_cli_stays_light() -> None:
+    """``pinn-mpc --help`` and ``import pinn_mpc`` must not wait for torch, pandas or numpy."""
+    code = (
+        "import sys, pinn_mpc, controllers, scenarios, pinn_mpc.cli\n"
+        "parser = pinn_mpc.cli.build_parser(); parser.format_help()\n"
+        "for name in ('train', 'evaluate', 'export-rc', 'identify', 'reproduce'):\n"
+        "    parser._subparsers._group_actions[0].choices[name].format_help()\n"
+        "print(sorted({'torch', 'pandas', 'numpy', 'matplotlib'} & set(sys.modules)))\n"
+    )
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    result = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True
+    )
+    assert result.stdout.strip() == "[]"
+
+
+def _block(after: str, lang: str = "") -> str:
+    section = README[README.index(after) :]
+    match = re.search(rf"```{lang}\n(.*?)```", section, re.S)
+    assert match, f"no code block after {after!r}"
+    return match.group(1)
+
+
+def test_readme_layout_names_every_module() -> None:
+    layout = _block("## What is in it")
+    named = set(re.findall(r"\b([a-z_]+\.py)\b", layout))
+    named |= {f"{d}.py" for d in re.findall(r"\b([a-z_]+)\.py\b", layout)}
+    for path in _modules():
+        if path.name in ("__init__.py", "__main__.py"):
+            continue
+        rel = path.relative_to(ROOT)
+        sub = rel.parts[1] if len(rel.parts) > 2 else None  # modules of a subpackage
+        assert path.name in named or (sub and f"{sub}/" in layout), f"{rel} not in the layout"
+    every = {p.name for p in _modules()}
+    assert named <= every, f"the layout names modules that do not exist: {named - every}"
+    assert "examples/" in layout and (ROOT / "examples").is_dir()
+
+
+def _subparsers() -> dict[str, argparse.ArgumentParser]:
+    action = next(
+        a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction)
+    )
+    return dict(action.choices)
+
+
+def test_readme_command_line_matches_the_parser() -> None:
+    lines = [ln for ln in _block("## Command line").splitlines() if ln.startswith("pinn-mpc ")]
+    commands = _subparsers()
+    assert [ln.split()[1] for ln in lines] == list(commands)
+    for line in lines:
+        parser = commands[line.split()[1]]
+        options = {
+            opt: action for action in parser._actions for opt in action.option_strings
+            if opt.startswith("--") and opt != "--help"
+        }
+        written = dict(re.findall(r"(--[a-z-]+)(?: ([A-Za-z0-9_.,|-]+))?", line))
+        assert set(written) == set(options), f"{line.split()[1]}: {set(written) ^ set(options)}"
+        for opt, value in written.items():
+            choices = options[opt].choices
+            if choices is not None:
+                assert set(value.split("|")) == set(choices), f"{opt}: {value} vs {choices}"
+
+
+def test_readme_names_the_scenarios_and_controllers() -> None:
+    from scenarios.choices import CONTROLLER_NAMES
+    from scenarios.registry import scenario_names
+
+    line = re.search(r"Scenarios: (.*?)\. Controllers: (.*?)\.\n", README.replace("\n`", " `"))
+    assert line, "the sentence naming scenarios and controllers is missing"
+    assert sorted(re.findall(r"`([a-z_-]+)`", line.group(1))) == sorted(scenario_names())
+    assert re.findall(r"`([a-z_-]+)`", line.group(2)) == list(CONTROLLER_NAMES)
+
+
+@pytest.mark.slow
+def test_readme_python_example_runs(tmp_path: Path) -> None:
+    code = _block("## Python API", "python")
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "OMP_NUM_THREADS": "1"}
+    result = subprocess.run(
+        [sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True, env=env,
+        timeout=600,
+    )
+    assert result.returncode == 0, result.stderr[-3000:]
+    lines = result.stdout.splitlines()
+    assert [ln.split(" on ")[0] for ln in lines] == ["cem", "oracle"]
+    assert all("winter_household, 1 d: energy" in ln for ln in lines)
+    assert not list(tmp_path.iterdir()), "the example wrote files"

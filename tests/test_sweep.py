@@ -1,0 +1,223 @@
+"""``pinn-mpc sweep``: grid parsing, the statistics of the summary, and real sweeps on Ray."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from pinn_mpc.errors import InputError
+from scenarios.sweep import SweepGrid, parse_ints, parse_names
+from scenarios.sweep_report import mean_ci95, summarise
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def sweep_cli(*args: str, timeout: float = 900) -> subprocess.CompletedProcess[str]:
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "OMP_NUM_THREADS": "1"}
+    return subprocess.run(
+        [sys.executable, "-m", "pinn_mpc", "sweep", *args],
+        capture_output=True, text=True, env=env, timeout=timeout, cwd=ROOT,
+    )
+
+
+def test_mean_ci95_known_t_interval():
+    # 1..5: mean 3, s = sqrt(2.5), sem = sqrt(0.5); t(0.975, 4 dof) = 2.776445 (tables)
+    mean, (low, high) = mean_ci95([1.0, 2.0, 3.0, 4.0, 5.0])
+    half = 2.776445 * 0.5**0.5
+    assert mean == 3.0
+    assert low == pytest.approx(3.0 - half, abs=1e-6)
+    assert high == pytest.approx(3.0 + half, abs=1e-6)
+    # two values 1 and 3: sem 1, t(0.975, 1 dof) = 12.706205
+    assert mean_ci95([1.0, 3.0])[1] == pytest.approx([2.0 - 12.706205, 2.0 + 12.706205], abs=1e-6)
+    assert mean_ci95([1.2, 1.2, 1.2]) == (1.2, [1.2, 1.2])
+    assert mean_ci95([0.7]) == (0.7, [None, None])
+
+
+def _record(scenario, controller, seed, objective, train_days=None):
+    return {
+        "cell": {"scenario": scenario, "controller": controller, "seed": seed, "train_days": train_days},
+        "kpis": {"objective": objective},
+    }
+
+
+def test_summarise_divides_by_the_oracle_of_the_same_seed_and_pairs_with_the_baseline():
+    cells = [
+        _record("s", "oracle", 0, 10.0),
+        _record("s", "oracle", 1, 20.0),
+        _record("s", "thermostat", 0, 15.0),  # 1.5
+        _record("s", "thermostat", 1, 40.0),  # 2.0
+        _record("s", "qp-mpc", 0, 11.0, 30),  # 1.1
+        _record("s", "qp-mpc", 1, 21.0, 30),  # 1.05
+    ]
+    rows = summarise(cells, baseline="thermostat", order=["thermostat", "qp-mpc", "oracle"])
+    assert [r["controller"] for r in rows] == ["thermostat", "qp-mpc", "oracle"]
+    qp = rows[1]
+    assert qp["n"] == 2 and qp["train_days"] == 30
+    assert qp["objective_to_oracle_mean"] == pytest.approx(1.075)
+    # ratios 1.1, 1.05: sem 0.025, t(0.975, 1) = 12.706205
+    assert qp["objective_to_oracle_ci95"] == pytest.approx(
+        [1.075 - 12.706205 * 0.025, 1.075 + 12.706205 * 0.025], abs=1e-6
+    )
+    # paired with the thermostat seed by seed: 1.1 - 1.5 = -0.4, 1.05 - 2.0 = -0.95
+    assert qp["paired_difference_mean"] == pytest.approx(-0.675)
+    assert qp["paired_difference_ci95"] == pytest.approx(
+        [-0.675 - 12.706205 * 0.275, -0.675 + 12.706205 * 0.275], abs=1e-6
+    )
+    assert rows[2]["objective_to_oracle_ci95"] == [1.0, 1.0]
+
+
+def test_grid_parsing_and_errors():
+    assert parse_ints("0-3,8", "seeds") == (0, 1, 2, 3, 8)
+    assert parse_ints("5", "seeds") == (5,)
+    assert parse_names("a, b,a", "scenarios") == ("a", "b")
+    with pytest.raises(InputError, match="range '5-2' is empty"):
+        parse_ints("5-2", "seeds")
+    with pytest.raises(InputError, match="not a whole number"):
+        parse_ints("x", "seeds")
+    with pytest.raises(InputError, match="unknown controller"):
+        SweepGrid(scenarios=("cold_storage",), controllers=("pid",), seeds=(0,), train_days=(7,))
+    grid = SweepGrid(
+        scenarios=("cold_storage",), controllers=("cem", "thermostat"), seeds=(0, 1), train_days=(7, 14)
+    )
+    cells = grid.cells()
+    # cem per seed x training size, thermostat and the (implicit) oracle once per seed
+    assert len(cells) == 2 * 2 + 2 + 2
+    assert {c.model for c in cells if c.controller == "cem"} == {
+        c.model for c in cells if c.model is not None
+    }
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--controllers", "oracle,pid", "--seeds", "0"], "unknown controller(s) pid"),
+        (["--controllers", "oracle", "--seeds", "3-1"], "range '3-1' is empty"),
+        (["--controllers", "oracle", "--seeds", "0", "--address", "no address"], "is not a Ray address"),
+        (["--controllers", "oracle", "--seeds", "0", "--address", "127.0.0.1:1"], "no Ray head node answers"),
+        (["--controllers", "oracle", "--seeds", "0", "--address", "auto", "--workers", "2"], "leave --workers out"),
+    ],
+)
+def test_bad_input_exits_2_with_one_line_and_writes_nothing(tmp_path, args, message):
+    out = tmp_path / "sweep"
+    result = sweep_cli("--scenarios", "cold_storage", "--days", "1", "--quick", "--out", str(out), *args)
+    assert result.returncode == 2, result.stderr
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and message in lines[0], result.stderr
+    assert not out.exists()
+
+
+def test_a_foreign_directory_is_refused_and_left_untouched(tmp_path):
+    out = tmp_path / "project"
+    out.mkdir()
+    (out / "report.md").write_text("my thesis notes\n")
+    result = sweep_cli(
+        "--scenarios", "cold_storage", "--controllers", "oracle", "--seeds", "0", "--days", "1",
+        "--quick", "--out", str(out),
+    )
+    assert result.returncode == 2, result.stderr
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and "not a sweep directory" in lines[0] and "--force" in lines[0]
+    assert sorted(p.name for p in out.iterdir()) == ["report.md"]
+    assert (out / "report.md").read_text() == "my thesis notes\n"
+
+
+GRID = [
+    "--scenarios", "winter_household,cold_storage",
+    "--controllers", "thermostat,qp-mpc,oracle",
+    "--seeds", "0-3",
+    "--train-days", "7",
+    "--days", "1",
+    "--quick",
+    "--workers", "2",
+]
+
+
+@pytest.mark.slow
+def test_sweep_runs_then_reuses_every_cell(tmp_path):
+    out = tmp_path / "sweep"
+    first = sweep_cli(*GRID, "--out", str(out))
+    assert first.returncode == 0, first.stderr[-3000:]
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["cells_run"] == 24 and summary["cells_reused"] == 0
+    # one identification per scenario x seed, shared by nothing else here but trained once
+    assert summary["models_trained"] == 8
+    assert summary["engine"]["name"] == "ray" and summary["engine"]["resources"]["CPU"] == 2
+    assert len(list((out / "cells").glob("*.json"))) == 24
+    rows = {(r["scenario"], r["controller"]): r for r in summary["rows"]}
+    assert len(rows) == 6
+    for row in rows.values():
+        assert row["n"] == 4
+        low, high = row["objective_to_oracle_ci95"]
+        assert low <= row["objective_to_oracle_mean"] <= high
+    assert rows[("cold_storage", "oracle")]["objective_to_oracle_mean"] == 1.0
+    # the thermostat ignores prices and forecasts: it cannot beat the oracle on any seed
+    assert all(v > 1.0 for v in rows[("winter_household", "thermostat")]["objective_to_oracle_by_seed"].values())
+    report = (out / "report.md").read_text()
+    assert report.count("| `winter_household` |") == report.count("| `cold_storage` |") == 3
+    assert (out / "objective_to_oracle.png").stat().st_size > 0
+    cell_times = {p.name: p.stat().st_mtime_ns for p in (out / "cells").glob("*.json")}
+
+    again = sweep_cli(*GRID, "--out", str(out))
+    assert again.returncode == 0, again.stderr[-3000:]
+    assert "all 24 cells reused" in again.stdout
+    summary2 = json.loads((out / "summary.json").read_text())
+    assert summary2["cells_run"] == 0 and summary2["cells_reused"] == 24
+    assert summary2["rows"] == summary["rows"]
+    assert {p.name: p.stat().st_mtime_ns for p in (out / "cells").glob("*.json")} == cell_times
+
+    other = sweep_cli(*[a if a != "1" else "2" for a in GRID], "--out", str(out))
+    assert other.returncode == 2 and "other settings (test_days 1 -> 2)" in other.stderr
+
+
+@pytest.mark.slow
+def test_learned_controllers_share_one_trained_model(tmp_path):
+    out = tmp_path / "sweep"
+    result = sweep_cli(
+        "--scenarios", "cold_storage", "--controllers", "cem,random-shooting", "--seeds", "0",
+        "--train-days", "7", "--days", "1", "--quick", "--workers", "2", "--out", str(out),
+    )
+    assert result.returncode == 0, result.stderr[-3000:]
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["models_trained"] == 1 and summary["cells_run"] == 3
+    assert [p.name for p in (out / "models").iterdir()] == ["cold_storage--physnet--seed0--train7"]
+
+
+@pytest.mark.slow
+def test_sigint_keeps_finished_cells_and_the_rerun_completes_the_rest(tmp_path):
+    out = tmp_path / "sweep"
+    grid = [
+        "--scenarios", "cold_storage", "--controllers", "thermostat,oracle", "--seeds", "0-7",
+        "--days", "1", "--quick", "--workers", "2", "--out", str(out),
+    ]
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "OMP_NUM_THREADS": "1"}
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "pinn_mpc", "sweep", *grid],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, cwd=ROOT,
+    )
+    deadline = time.monotonic() + 600
+    cells = out / "cells"
+    while time.monotonic() < deadline and len(list(cells.glob("*.json"))) < 3:
+        assert proc.poll() is None, proc.communicate()
+        time.sleep(0.2)
+    proc.send_signal(signal.SIGINT)
+    _, stderr = proc.communicate(timeout=120)
+    assert proc.returncode == 130, stderr[-3000:]
+    assert "interrupted" in stderr
+    kept = {p.name: p.read_text() for p in cells.glob("*.json")}
+    assert 3 <= len(kept) < 16, "interrupt came too late to test anything"
+    for text in kept.values():
+        assert json.loads(text)["kpis"]["objective"] > 0  # complete records, not half-written
+    assert not list(cells.glob(".*.tmp"))
+    assert not (out / "summary.json").exists()
+
+    rerun = sweep_cli(*grid)
+    assert rerun.returncode == 0, rerun.stderr[-3000:]
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["cells_reused"] == len(kept)
+    assert summary["cells_run"] == 16 - len(kept)
+    assert {p.name: p.read_text() for p in cells.glob("*.json") if p.name in kept} == kept
