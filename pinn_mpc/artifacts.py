@@ -27,7 +27,7 @@ from safetensors import safe_open
 from safetensors.torch import load_file, save_file
 
 from pinn_mpc import __version__, physics
-from pinn_mpc.choices import ARCHS
+from pinn_mpc.choices import ALL_ARCHS
 from pinn_mpc.errors import InputError, ModelFileError, warn
 from pinn_mpc.features import FeatureConfig, whole_number
 from pinn_mpc.io import DirectoryLayout, atomic_directory
@@ -112,8 +112,8 @@ def _read_meta(directory: Path) -> dict[str, Any]:
             f"{meta_path} has format_version {meta['format_version']!r}, this package reads "
             f"{FORMAT_VERSION}; retrain the model with this version"
         )
-    if meta["arch"] not in ARCHS:
-        raise ModelFileError(f"{meta_path}: unknown arch {meta['arch']!r}; expected one of {ARCHS}")
+    if meta["arch"] not in ALL_ARCHS:
+        raise ModelFileError(f"{meta_path}: unknown arch {meta['arch']!r}; expected one of {ALL_ARCHS}")
     return meta
 
 

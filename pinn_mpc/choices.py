@@ -7,10 +7,13 @@ and :mod:`pinn_mpc.training` take them from here.
 
 from __future__ import annotations
 
-__all__ = ["ARCHS", "RECIPES", "RESIDUALS"]
+__all__ = ["ALL_ARCHS", "ARCHS", "DEFAULT_ARCH", "RECIPES", "RESIDUALS"]
 
-#: Learned-model architectures (:mod:`pinn_mpc.models`).
+#: The paper's three learned-model architectures (:mod:`pinn_mpc.models`).
 ARCHS = ("mlp", "physreg", "physnet")
+#: Every architecture: the paper's and the hybrid this package recommends for control.
+ALL_ARCHS = (*ARCHS, "hybrid")
+DEFAULT_ARCH = "hybrid"
 #: Physics residuals of the training loss (:class:`pinn_mpc.training.TrainConfig`).
 RESIDUALS = ("exact", "finite_difference")
 #: Per recipe: epochs, batch size, initial and final learning rate, default lambda

@@ -19,7 +19,7 @@ from collections.abc import Sequence
 from typing import Any, NoReturn
 
 from pinn_mpc import __version__
-from pinn_mpc.choices import ARCHS, RECIPES
+from pinn_mpc.choices import ALL_ARCHS, DEFAULT_ARCH, RECIPES
 from pinn_mpc.errors import InputError
 from scenarios.choices import CONTROLLER_NAMES, POLICIES, RANDOM_POLICIES, WEATHER_PARTS
 
@@ -177,12 +177,22 @@ def build_parser() -> argparse.ArgumentParser:
     _add_weather_part(p, "train")
     p.add_argument("--out", required=True, help="CSV file to write")
 
-    p = add("train", "pinn_mpc.commands:train", "train a seed ensemble of mlp, physreg or physnet on data")
+    p = add(
+        "train",
+        "pinn_mpc.commands:train",
+        "train a seed ensemble of hybrid, mlp, physreg or physnet on data",
+    )
     data(p, "training data")
     p.add_argument(
-        "--arch", choices=ARCHS, required=True, help="architecture"
+        "--arch",
+        choices=ALL_ARCHS,
+        default=DEFAULT_ARCH,
+        help="hybrid (default, recommended for control): the identified 2R2C with learned "
+        "corrections; mlp, physreg, physnet: the paper's",
     )
-    p.add_argument("--depth", type=_positive_int, default=8, help="history steps the model sees")
+    p.add_argument(
+        "--depth", type=_positive_int, default=16, help="history steps the model sees (paper: 8)"
+    )
     p.add_argument("--seeds", type=_positive_int, default=20, help="ensemble members")
     p.add_argument("--seed", type=_seed, default=0, help="seed of the first member")
     p.add_argument("--epochs", type=_positive_int, default=None, help="epochs (default: recipe's)")

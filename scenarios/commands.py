@@ -214,13 +214,21 @@ def reproduce(a: argparse.Namespace) -> str:
     config = ReproduceConfig.quick(a.seeds) if a.quick else ReproduceConfig(seeds=a.seeds or 20)
     started = time.perf_counter()
     results = run_reproduction(a.out, config, force=a.force)
+    for name in config.also_scenarios:
+        run_reproduction(
+            Path(a.out) / name,
+            dataclasses.replace(config, scenario=name, also_scenarios=()),
+            force=a.force,
+        )
     elapsed = time.perf_counter() - started
     return (
         f"one-step MAE on {config.test_days} test days after {config.validation_days} training "
         "days, "
         f"mean ± std over {config.seeds} seeds (ens. = ensemble mean):\n"
         + validation_table(results, markdown=False)
-        + f"\nwrote {Path(a.out)}/: {', '.join(OUTPUT.files)} in {elapsed:.0f} s"
+        + f"\nwrote {Path(a.out)}/: {', '.join(OUTPUT.files)}"
+        + "".join(f"; the same in {Path(a.out) / name}/" for name in config.also_scenarios)
+        + f" in {elapsed:.0f} s"
     )
 
 

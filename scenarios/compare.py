@@ -5,15 +5,16 @@
    (a uniform power level per interval, the default) or the paper's on/off ``random``. On/off
    data shows a network only 0 and full power, while the controllers modulate it, so a model
    trained on uniform levels predicts the closed-loop operating points better.
-2. Models: physnet, physreg and mlp seed ensembles; grey-box RC identification (T_m hidden);
-   the RC parameters exported from the physnet ensemble.
+2. Models: the recommended hybrid (see :class:`pinn_mpc.models.HybridNet`) and the paper's
+   physnet, physreg and mlp seed ensembles; grey-box RC identification (T_m hidden); the RC
+   parameters exported from the hybrid and the physnet ensembles.
 3. Closed loop on the same ``days`` test days from the test part of the weather (seed
    ``seed + 1``; no calendar day in common with the training data, warm-up and forecast lead
    included), same perfect forecasts, same one-day thermostat warm-up, for: thermostat,
-   random shooting and CEM over physnet (and CEM without its LP polish, to show what the
-   polish adds), CEM over physreg and mlp (unless ``cem_all_models=False``),
-   casadi-mpc and qp-mpc on the identified RC, qp-mpc on the physnet-exported RC, oracle and
-   clairvoyant.
+   random shooting and CEM over the hybrid (and CEM without its LP polish, to show what the
+   polish adds), CEM over physnet, physreg and mlp (physreg and mlp unless
+   ``cem_all_models=False``), casadi-mpc and qp-mpc on the identified RC, qp-mpc on the
+   hybrid- and physnet-exported RCs, oracle and clairvoyant.
 4. Outputs (written by the command, :func:`scenarios.commands.compare`; :func:`run_comparison`
    returns them as a :class:`ComparisonResult`): a JSON table (one row per controller with every KPI), a markdown report with the
    dates of the training data and of the test days, the KPI table, each objective relative to
@@ -32,6 +33,7 @@ import pandas as pd
 from tqdm import tqdm
 
 from controllers.planners import CEMPlanner, RandomShootingPlanner
+from pinn_mpc.choices import DEFAULT_ARCH
 from pinn_mpc.errors import InputError
 from pinn_mpc.physics import RCParams, params_from_summary, rc_summary
 from scenarios.choices import RANDOM_POLICIES
@@ -43,7 +45,8 @@ from scenarios.report import objective_ratios
 
 __all__ = ["ARCHS", "REFERENCE", "CompareSettings", "ComparisonResult", "run_comparison"]
 
-ARCHS = ("physnet", "physreg", "mlp")
+#: The recommended model first; physnet for the paper's best; physreg and mlp for the CEM rows.
+ARCHS = (DEFAULT_ARCH, "physnet", "physreg", "mlp")
 _RS = RandomShootingPlanner(lower=0.0, upper=1.0)  # the planners' defaults
 _CEM = CEMPlanner(lower=0.0, upper=1.0)
 REFERENCE = "oracle"
@@ -166,24 +169,27 @@ def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonR
         u_max_w=scenario.sim.u_max_w,
     )
     models = {}
-    # physreg and mlp only serve the CEM rows; without them only physnet is trained.
-    for arch in ARCHS if settings.cem_all_models else ARCHS[:1]:
+    # physreg and mlp only serve the CEM rows; without them only hybrid and physnet train.
+    for arch in ARCHS if settings.cem_all_models else ARCHS[:2]:
         start = time.perf_counter()
         models[arch] = train_model(data, arch=arch, config=config, progress=True)
         wall[f"train {arch}"] = time.perf_counter() - start
     start = time.perf_counter()
     identified = identify_rc(data, eta=eta).params
     wall["identify RC"] = time.perf_counter() - start
-    exported = export_rc(models["physnet"], source="physnet ensemble (compare)")
     rc = {
         "true": rc_summary(scenario.sim.params, source=f"scenario {scenario.name}"),
         "identified": rc_summary(identified, source="identify (training data)"),
-        "physnet export": exported,
+        **{
+            f"{arch} export": export_rc(models[arch], source=f"{arch} ensemble (compare)")
+            for arch in ARCHS[:2]
+        },
     }
     rc_params: dict[str, RCParams] = {
         "identified RC": identified,
-        "physnet RC": params_from_summary(exported),
+        **{f"{arch} RC": params_from_summary(rc[f"{arch} export"]) for arch in ARCHS[:2]},
     }
+    best = models[DEFAULT_ARCH]
 
     n_steps = settings.test_days * scenario.steps_per_day
     shooting = {"n_samples": settings.shooting_samples}
@@ -191,11 +197,11 @@ def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonR
     # (controller name, what it runs on, keyword arguments of build_controller)
     plan: list[tuple[str, str, dict[str, Any]]] = [
         ("thermostat", "-", {}),
-        ("random-shooting", "physnet", {"model": models["physnet"], "planner_options": shooting}),
+        ("random-shooting", DEFAULT_ARCH, {"model": best, "planner_options": shooting}),
         (
             "cem",
-            "physnet, no LP polish",
-            {"model": models["physnet"], "planner_options": {**cem, "polish_iters": 0}},
+            f"{DEFAULT_ARCH}, no LP polish",
+            {"model": best, "planner_options": {**cem, "polish_iters": 0}},
         ),
         *(
             ("cem", arch, {"model": model, "planner_options": cem})
@@ -203,7 +209,7 @@ def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonR
         ),
         ("casadi-mpc", "identified RC", {"rc_params": rc_params["identified RC"]}),
         ("qp-mpc", "identified RC", {"rc_params": rc_params["identified RC"]}),
-        ("qp-mpc", "physnet RC", {"rc_params": rc_params["physnet RC"]}),
+        *(("qp-mpc", f"{arch} RC", {"rc_params": rc_params[f"{arch} RC"]}) for arch in ARCHS[:2]),
         ("oracle", "true", {}),
         ("clairvoyant", "true", {}),
     ]

@@ -49,6 +49,23 @@ def test_round_trip_gives_identical_predictions(model: LearnedModel, saved: Path
     assert sorted(p.name for p in saved.iterdir()) == [META, WEIGHTS]
 
 
+def test_hybrid_round_trip_keeps_physics_backup_and_rollouts(tmp_path: Path) -> None:
+    hybrid = train_model(
+        household_data(3, 0), arch="hybrid", config=TrainConfig(n_seeds=2, epochs=2, depth=4),
+        progress=False,
+    )
+    loaded = load_model(save_model(hybrid, tmp_path / "h"))
+    assert loaded.arch == "hybrid"
+    assert loaded.physics_coefficients() == hybrid.physics_coefficients()
+    df = household_data(2, 7)
+    a, b = hybrid.predict_one_step(df), loaded.predict_one_step(df)
+    for key in ("T_r_next", "u_phys", "T_m"):
+        np.testing.assert_array_equal(a[key], b[key])
+    net = loaded.module.net
+    assert bool((net.full_power_w == hybrid.module.net.full_power_w).all())
+    assert bool((net.full_power_w > 0).all())
+
+
 def test_saving_over_an_existing_model_replaces_it(model: LearnedModel, saved: Path) -> None:
     save_model(model, saved)
     assert sorted(p.name for p in saved.iterdir()) == [META, WEIGHTS]

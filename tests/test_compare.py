@@ -104,10 +104,11 @@ def test_compare_quick_end_to_end(tmp_path, capsys):
     table = json.loads((out / "table.json").read_text())
     labels = [row["controller"] for row in table["rows"]]
     assert labels == [
-        "thermostat", "random-shooting / physnet", "cem / physnet, no LP polish", "cem / physnet",
-        "cem / physreg", "cem / mlp",
+        "thermostat", "random-shooting / hybrid", "cem / hybrid, no LP polish", "cem / hybrid",
+        "cem / physnet", "cem / physreg", "cem / mlp",
         "casadi-mpc / identified RC",
-        "qp-mpc / identified RC", "qp-mpc / physnet RC", "oracle", "clairvoyant",
+        "qp-mpc / identified RC", "qp-mpc / hybrid RC", "qp-mpc / physnet RC", "oracle",
+        "clairvoyant",
     ]
     rows = {row["controller"]: row for row in table["rows"]}
     for row in table["rows"]:
@@ -115,7 +116,7 @@ def test_compare_quick_end_to_end(tmp_path, capsys):
     assert rows["oracle"]["objective_to_oracle"] == pytest.approx(1.0)
     # The reference with the true model must beat the rule-based baseline on its own objective.
     assert rows["oracle"]["objective"] < rows["thermostat"]["objective"]
-    assert set(table["rc"]) == {"true", "identified", "physnet export"}
+    assert set(table["rc"]) == {"true", "identified", "hybrid export", "physnet export"}
     # Training from the first day of the training weather, test days (after a warm-up day) from
     # the test weather: both ranges in the JSON and the report.
     weather = get_scenario("paper_household").weather

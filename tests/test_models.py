@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 import pytest
@@ -176,3 +177,97 @@ def test_one_step_predictions_have_member_axis(small_model: LearnedModel) -> Non
     assert out["u_phys"].min() >= lo - 1e-3 and out["u_phys"].max() <= hi + 1e-3
     coef = small_model.physics_coefficients()
     assert (coef is None) == (small_model.arch == "mlp")
+
+
+def _winter_data(days: int, seed: int):
+    from pinn_mpc.data import validate_timeseries
+    from scenarios.datagen import generate
+    from scenarios.registry import get_scenario
+
+    scenario = get_scenario("winter_household")
+    frame = generate(scenario, days=days, seed=seed, policy="random-level")
+    return scenario.sim.params, validate_timeseries(frame)
+
+
+def _history_and_forecast(df, i: int, h: int):
+    tod = time_of_day_h(df["time"])
+    history = {c: df[c].to_numpy()[: i + 1] for c in ("T_r", "T_a", "G", "I_g")}
+    history["u_phys"] = df["u_phys"].to_numpy()[:i]
+    history["time_of_day_h"] = tod[: i + 1]
+    exog = {c: df[c].to_numpy()[i : i + h] for c in ("T_a", "G", "I_g")}
+    exog["time_of_day_h"] = tod[i : i + h]
+    return history, exog
+
+
+def test_hybrid_without_corrections_is_the_exact_2r2c() -> None:
+    """True parameters, no residual, backup far away: the window observer recovers T_m and the
+    rollout is the ZOH 2R2C (RCBatchModel started at the true T_m) up to that T_m error."""
+    from pinn_mpc.rc_batch_model import RCBatchModel
+
+    truth, df = _winter_data(8, 0)
+    model = train_model(
+        df,
+        arch="hybrid",
+        config=TrainConfig(n_seeds=2, epochs=1, depth=16, prior=truth),
+        progress=False,
+    )
+    net = model.module.net
+    with torch.no_grad():
+        net.residual_net[-1].weight.zero_()
+        net.residual_net[-1].bias.zero_()
+        net.init_backup(-100.0, 100.0, 5000.0)
+        for p, p0 in zip(model.module.physics.parameters(), Physics(
+            truth, n_members=2, exog_names=model.exog_names
+        ).parameters(), strict=True):
+            p.copy_(p0)
+    held = np.abs(df["u"].to_numpy() - df["u_phys"].to_numpy()) < 1.0
+    i = next(j for j in range(40, len(df) - 30) if held[j - 17 : j + 24].all())
+    history, exog = _history_and_forecast(df, i, 24)
+    u = 500.0 + torch.rand(4, 24, generator=torch.Generator().manual_seed(0)) * 3500.0
+    roll = model.rollout(history, u, exog)
+    rc = RCBatchModel(truth, dt_s=1800.0, u_max_w=5000.0, backup_low_c=-99, backup_high_c=99)
+    ref = rc.rollout({**history, "T_m": df["T_m"].to_numpy()[: i + 1]}, u, exog)
+    assert roll.t_m_c is not None
+    t_m_error = float((roll.t_m_c[:, :, 0] - df["T_m"].to_numpy()[i]).abs().max())
+    assert t_m_error < 0.01
+    torch.testing.assert_close(roll.u_phys_w, ref.u_phys_w.expand(2, -1, -1), atol=0.5, rtol=0)
+    assert float((roll.t_r_c - ref.t_r_c).abs().max()) <= t_m_error + 1e-3
+
+
+@pytest.mark.parametrize("heating", [True, False])
+def test_hybrid_backup_thermostat_leaves_the_demand_alone_away_from_its_limits(
+    heating: bool,
+) -> None:
+    truth, df = _winter_data(4, 0)
+    prior = dataclasses.replace(truth, eta=1.0 if heating else -2.5)
+    model = train_model(
+        df, arch="hybrid", config=TrainConfig(n_seeds=1, epochs=1, depth=4, prior=prior, eta=prior.eta), progress=False
+    )
+    net = model.module.net
+    net.init_backup(16.0, 24.0, 5000.0)
+    u = torch.tensor([[0.0, 1000.0, 4000.0]])
+    with torch.no_grad():
+        net.log_backup_width_k.fill_(math.log(0.3))  # 4 K = 13 widths: sigmoid < 2e-6
+        mid = net.delivered_w(u, torch.full_like(u, 20.0), torch.full_like(u, 20.0))
+        cold = net.delivered_w(u, torch.full_like(u, 11.0), torch.full_like(u, 12.0))
+        hot = net.delivered_w(u, torch.full_like(u, 28.0), torch.full_like(u, 29.0))
+    torch.testing.assert_close(mid, u, atol=0.01, rtol=0)
+    full, off = torch.full_like(u, 5000.0), torch.zeros_like(u)
+    torch.testing.assert_close(cold, full if heating else off, atol=0.01, rtol=0)
+    torch.testing.assert_close(hot, off if heating else full, atol=0.01, rtol=0)
+
+
+def test_hybrid_heats_with_the_sign_of_eta() -> None:
+    """More demand never cools a heated room in the next interval (d u_phys / d u =
+    (1 - full)(1 - off) >= 0, the residual does not see u); over 12 intervals only when the
+    backup thermostat stays out of it (near its limits less demand can mean more heat)."""
+    _, df = _winter_data(10, 1)
+    config = TrainConfig(n_seeds=3, epochs=3, depth=8)
+    model = train_model(df, arch="hybrid", config=config, progress=False)
+    history, exog = _history_and_forecast(df, 200, 12)
+    plans = torch.linspace(0.0, 5000.0, 11)[:, None].expand(11, 12)
+    first = model.rollout(history, plans[:, :1], exog).t_r_c[..., 0]  # (M, 11)
+    assert bool((first[:, 1:] > first[:, :-1]).all())
+    model.module.net.init_backup(-100.0, 100.0, 5000.0)
+    t_r = model.rollout(history, plans, exog).t_r_c  # (M, 11, H)
+    assert bool((t_r[:, 1:] > t_r[:, :-1]).all())

@@ -3,6 +3,7 @@ evaluation, figures and report)."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from pathlib import Path
@@ -217,6 +218,8 @@ def test_quick_and_default_configurations() -> None:
     assert full.seeds == 20 and full.epochs is None
     assert full.sizes() == [15, 30, 45, 60, 90, 120]
     assert full.eval_horizons() == [1, 6, 12, 24, 36, 48]
+    # Experiments 2-3 also run on the paper's own setting, a (simulated) cold store.
+    assert full.also_scenarios == ("cold_storage",) == quick.also_scenarios
 
 
 def test_bad_configuration_is_refused() -> None:
@@ -224,6 +227,8 @@ def test_bad_configuration_is_refused() -> None:
         ReproduceConfig(test_days=1, horizons=(1, 48))
     with pytest.raises(InputError, match="seeds must be >= 1"):
         ReproduceConfig(seeds=0)
+    with pytest.raises(InputError, match="nowhere"):
+        ReproduceConfig(also_scenarios=("nowhere",))
 
 
 def test_cli_refuses_output_under_a_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -231,3 +236,13 @@ def test_cli_refuses_output_under_a_file(tmp_path: Path, capsys: pytest.CaptureF
     blocker.write_text("x")
     assert main(["reproduce", "--out", str(blocker / "out"), "--quick"]) == 2
     assert "is a file" in capsys.readouterr().err
+
+
+def test_cold_storage_runs_the_same_experiments(tmp_path: Path) -> None:
+    config = dataclasses.replace(TINY, scenario="cold_storage", also_scenarios=())
+    results = run_reproduction(tmp_path / "cold_storage", config, progress=False)
+    assert results.config.scenario == "cold_storage"
+    assert results.training_size[4].x == (2, 4)
+    assert results.horizon[2].x == (1, 3, 6)
+    report = (tmp_path / "cold_storage" / "report.md").read_text()
+    assert "Scenario `cold_storage` (" in report and "household" not in report.split("\n")[2]

@@ -18,7 +18,9 @@ class ReproduceConfig:
     training set of ``max(all sizes)`` days); ``horizon_days`` the sizes of experiment 3 and
     ``validation_days`` that of experiment 1, all trained once per architecture.
     ``size_horizons`` are the horizons [steps] of experiment 2, ``horizons`` those of
-    experiment 3.
+    experiment 3. The experiments are repeated on each of ``also_scenarios`` (default the
+    simulated ``cold_storage``, where the paper ran experiments 2-3 on real data), each in a
+    subdirectory of the output named after it.
     """
 
     seeds: int = 20
@@ -34,8 +36,13 @@ class ReproduceConfig:
     train_seed: int = 0
     test_seed: int = 1
     scenario: str = "paper_household"
+    also_scenarios: tuple[str, ...] = ("cold_storage",)
 
     def __post_init__(self) -> None:
+        from scenarios.registry import get_scenario
+
+        for name in (self.scenario, *self.also_scenarios):
+            get_scenario(name)  # an unknown name fails here, before any work
         if self.seeds < 1:
             raise InputError(f"reproduce: seeds must be >= 1, got {self.seeds}")
         if self.epochs is not None and self.epochs < 1:

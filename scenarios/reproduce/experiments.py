@@ -98,7 +98,11 @@ def run_experiments(config: ReproduceConfig, *, progress: bool = True) -> Reprod
         preds: dict[str, OneStepPredictions] = {}
         hp: dict[str, Any] = {}
         tc = TrainConfig(
-            depth=config.depth, n_seeds=config.seeds, epochs=config.epochs, recipe=config.recipe
+            depth=config.depth,
+            n_seeds=config.seeds,
+            epochs=config.epochs,
+            recipe=config.recipe,
+            eta=scenario.sim.params.eta,
         )
         for arch, days in jobs:
             bar.set_postfix_str(f"{arch}, {days} days")

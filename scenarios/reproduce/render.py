@@ -17,6 +17,7 @@ from matplotlib.axes import Axes
 from pinn_mpc.choices import ARCHS
 from pinn_mpc.io import DirectoryLayout, atomic_directory, atomic_write_json, atomic_write_text
 from scenarios.plots import new_figure, save_figure
+from scenarios.registry import get_scenario
 from scenarios.report import markdown_table, text_table
 from scenarios.reproduce.results import (
     PAPER_CLAIMS,
@@ -205,8 +206,8 @@ def _setup_lines(results: ReproductionResults) -> list[str]:
     lines = [
         "# Reproduction of Gokhale et al. (2022), section 5, on simulated data",
         "",
-        f"Scenario `{cfg.scenario}` (the paper's 2R2C household, random on/off heating, backup "
-        f"thermostat), {cfg.seeds} seeds per model, depth {cfg.depth}, recipe "
+        f"Scenario `{cfg.scenario}` ({get_scenario(cfg.scenario).description.rstrip('.')}; "
+        f"random on/off demand), {cfg.seeds} seeds per model, depth {cfg.depth}, recipe "
         f"`{cfg.recipe}` ({hp['epochs']} epochs, batch {hp['batch_size']}, lr {hp['lr']:g}"
         f"{' -> ' + format(hp['lr_final'], 'g') if hp['lr_final'] != hp['lr'] else ''}, "
         f"lambda {hp['lam']:g}). Training data: one {max(results.sizes)}-day run (seed "
