@@ -20,7 +20,7 @@ Three defaults matter in closed loop (measured on winter_household, see the issu
   It removes the slowly varying bias a learned model has in closed-loop operating points.
 - CEM polishes its plan with one LP on the linearised model (:mod:`controllers.lp_polish`),
   which takes a plan the last few percent to the optimum of the model; random shooting does
-  not (``polish_iters``), so it stays the plain sampling baseline.
+  not by default (``polish_iters``), so it shows what sampling alone does.
 
 The plan is warm-started from the previous plan shifted by one step (its last action
 repeated); the first plan starts from half power.
@@ -234,7 +234,9 @@ _CEM = CEMPlanner(lower=0.0, upper=1.0)
 
 
 class RandomShooting(_SamplingController):
-    """Random shooting over a model: ``n_samples`` sequences scored once, the best one applied."""
+    """Random shooting over a model: ``n_samples`` sequences scored once, the best one applied
+    (sampled around the warm start and in a move-blocked plan space, see
+    :class:`controllers.planners.RandomShootingPlanner`)."""
 
     name = "random-shooting"
 
@@ -244,6 +246,7 @@ class RandomShooting(_SamplingController):
         spec: ControlSpec,
         *,
         n_samples: int = _RS.n_samples,
+        local_frac: float = _RS.local_frac,
         binary: bool = False,
         risk_weight: float = 0.0,
         polish_iters: int = 0,
@@ -251,7 +254,7 @@ class RandomShooting(_SamplingController):
         offset_gain: float = 0.5,
     ):
         planner = RandomShootingPlanner(
-            lower=0.0, upper=spec.u_max_w, n_samples=n_samples, binary=binary
+            lower=0.0, upper=spec.u_max_w, n_samples=n_samples, local_frac=local_frac, binary=binary
         )
         options = _Options(risk_weight, ensemble, offset_gain, 0 if binary else polish_iters)
         super().__init__(model, spec, planner, options)
