@@ -10,7 +10,8 @@ it is trained; the network sizes are the paper's); ``rc`` is the exact 2R2C phys
 Each controller makes ``--decisions`` consecutive warm-started decisions along the data
 (after two untimed ones); the median / p95 wall-clock decision time and the median CPU time
 of the process are printed with the load average: on a shared machine the wall time grows
-with the load, the CPU time much less. One intra-op torch thread: the tensors are small and
+with the load, the CPU time much less, so the verdict on the target is on the CPU time (on an
+idle core the two agree). One intra-op torch thread: the tensors are small and
 the machine's 2 cores are shared.
 """
 
@@ -34,7 +35,7 @@ from scenarios.datagen import generate
 from scenarios.inputs import time_of_day_h
 from scenarios.registry import get_scenario
 
-TARGET_MS = 100.0
+TARGET_MS = 30.0  # CPU time of a CEM decision (issue 10)
 _CEM = CEMPlanner(lower=0.0, upper=1.0)  # the defaults
 _COMPARE = CompareSettings(train_days=1, test_days=1, seed=0)  # the comparison's model shape
 
@@ -122,7 +123,8 @@ def main() -> None:
             size = f"{p.n_samples} samples x {getattr(p, 'n_iters', 1)} iters"
             verdict = ""
             if controller.name == "cem":
-                verdict = "  OK" if np.median(ms) <= TARGET_MS else f"  OVER {TARGET_MS:.0f} ms"
+                over = np.median(cpu_ms) > TARGET_MS
+                verdict = f"  OVER {TARGET_MS:.0f} ms cpu" if over else "  OK"
             print(
                 f"{label:12s} {controller.name:16s} {size:22s} median {np.median(ms):6.1f} ms"
                 f"  p95 {np.percentile(ms, 95):6.1f} ms  cpu {np.median(cpu_ms):6.1f} ms"

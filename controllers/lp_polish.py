@@ -21,8 +21,8 @@ the demanded power, so one linearisation around the sampled plan and one LP clos
 This is sequential linear programming (successive linearisation MPC) applied to the learned
 model; it needs no gradients of the network, only batched rollouts.
 
-A learned model's rollout costs mostly a fixed time per horizon step, whatever the batch, so the
-polish rides along with the planner's own objective calls (:class:`PiggybackPolish`): the
+A learned model's rollout costs a fixed time per horizon step plus a smaller part per plan, so
+the polish rides along with the planner's own objective calls (:class:`PiggybackPolish`): the
 probes around the warm start join the planner's first batch, the line-search plans its second;
 only what is left over after the planner's last call costs a rollout of its own. With CEM's two
 iterations, polishing adds no rollout at all.

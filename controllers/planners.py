@@ -25,7 +25,15 @@ import torch
 
 from pinn_mpc.errors import InputError
 
-__all__ = ["CEMPlanner", "Objective", "PlanResult", "Planner", "RandomShootingPlanner", "colored_noise"]
+__all__ = [
+    "CEMPlanner",
+    "Objective",
+    "PlanResult",
+    "Planner",
+    "RandomShootingPlanner",
+    "colored_noise",
+    "move_blocks",
+]
 
 #: Costs (N,) of a batch of action sequences (N, H).
 Objective = Callable[[torch.Tensor], torch.Tensor]
@@ -57,6 +65,11 @@ def _check_common(name: str, lower: float, upper: float, n_samples: int) -> None
         raise InputError(f"{name} bounds must be finite with lower < upper, got {lower}, {upper}")
     if n_samples < 2:
         raise InputError(f"{name}.n_samples must be >= 2, got {n_samples}")
+
+
+def _check_beta(name: str, beta: float) -> None:
+    if not 0.0 <= beta <= 4.0:
+        raise InputError(f"{name}.noise_beta must be in [0, 4] (0 white, 2 pink), got {beta}")
 
 
 def _evaluate(objective: Objective, candidates: torch.Tensor) -> torch.Tensor:
@@ -95,11 +108,36 @@ def _snap(x: torch.Tensor, lower: float, upper: float) -> torch.Tensor:
     return torch.where(x >= 0.5 * (lower + upper), upper, lower).to(x.dtype)
 
 
+def move_blocks(h: int) -> torch.Tensor:
+    """Block index of each of ``h`` steps (h,), blocks of 1, 1, 2, 2, 4, 4, ... steps: a plan
+    constant per block is fine near now and coarse far ahead (move blocking), so 48 steps take
+    10 numbers."""
+    index: list[int] = []
+    size = 1
+    while len(index) < h:
+        for _ in range(2):
+            index += [index[-1] + 1 if index else 0] * size
+        size *= 2
+    return torch.tensor(index[:h])
+
+
 @dataclass(frozen=True, kw_only=True)
 class RandomShootingPlanner:
-    """Sample ``n_samples`` sequences once (uniform, or fair coin flips when binary); keep the best.
+    """Sample ``n_samples`` sequences once; keep the best (fair coin flips when binary).
 
-    The warm start replaces the first sample. The default budget equals CEM's default
+    Continuous actions come from two low-dimensional families, because independent uniform
+    steps almost never hold a room at a band edge (on the exact 2R2C, 128 of them end 25 % above
+    the optimum in closed loop, 4096 still 10 %):
+
+    - ``local_frac`` of them around the warm start (the previous plan, shifted): correlated
+      noise (``noise_beta``, see :func:`colored_noise`) at each scale of ``local_std_fracs`` x
+      range, in equal shares. In receding horizon this turns one batch per decision into a
+      search that continues from decision to decision, as MPPI's warm start does.
+    - the rest uniform per :func:`move_blocks` block (10 numbers for 48 steps): the global
+      search that finds a new shape when the warm start is far off (a cold start, a new price
+      or comfort period).
+
+    The warm start itself is the first sample. The default budget equals CEM's default
     (64 samples x 2 iterations), so the two compare at equal model cost.
     """
 
@@ -107,22 +145,50 @@ class RandomShootingPlanner:
     upper: float
     n_samples: int = 128
     binary: bool = False
+    local_frac: float = 0.85
+    local_std_fracs: tuple[float, ...] = (0.01, 0.05, 0.2)
+    noise_beta: float = 1.5
 
     def __post_init__(self) -> None:
         _check_common("RandomShootingPlanner", self.lower, self.upper, self.n_samples)
+        if not 0.0 <= self.local_frac <= 1.0:
+            raise InputError(
+                f"RandomShootingPlanner.local_frac must lie in [0, 1], got {self.local_frac}"
+            )
+        if not self.local_std_fracs or not all(
+            0.0 < f and math.isfinite(f) for f in self.local_std_fracs
+        ):
+            raise InputError(
+                "RandomShootingPlanner.local_std_fracs must be positive fractions of the range, "
+                f"got {self.local_std_fracs}"
+            )
+        _check_beta("RandomShootingPlanner", self.noise_beta)
 
     def optimize(
         self, objective: Objective, x0: torch.Tensor, generator: torch.Generator
     ) -> PlanResult:
         """x0 (H,) [W] -> the best of ``n_samples`` candidates (one objective call)."""
-        h = x0.shape[0]
-        r = torch.rand((self.n_samples, h), generator=generator, dtype=x0.dtype)
+        h, dtype = x0.shape[0], x0.dtype
         if self.binary:
-            samples = torch.where(r < 0.5, self.upper, self.lower).to(x0.dtype)
+            r = torch.rand((self.n_samples, h), generator=generator, dtype=dtype)
+            samples = torch.where(r < 0.5, self.upper, self.lower).to(dtype)
             samples[0] = _snap(x0, self.lower, self.upper)
         else:
-            samples = self.lower + (self.upper - self.lower) * r
-            samples[0] = x0.clamp(self.lower, self.upper)
+            span = self.upper - self.lower
+            n_local = round(self.local_frac * (self.n_samples - 1))
+            shares = [len(c) for c in torch.arange(n_local).tensor_split(len(self.local_std_fracs))]
+            parts = [x0[None]]
+            for frac, n in zip(self.local_std_fracs, shares, strict=True):
+                if n == 0:
+                    continue
+                noise = colored_noise(n, h, self.noise_beta, generator, dtype)
+                parts.append(x0 + frac * span * noise)
+            blocks = move_blocks(h)
+            levels = torch.rand(
+                (self.n_samples - 1 - n_local, int(blocks[-1]) + 1), generator=generator, dtype=dtype
+            )
+            parts.append(self.lower + span * levels[:, blocks])
+            samples = torch.cat(parts).clamp(self.lower, self.upper)
         costs = _evaluate(objective, samples)
         best = int(torch.argmin(costs))
         return PlanResult(samples[best].clone(), float(costs[best]), 1, self.n_samples)
@@ -162,10 +228,7 @@ class CEMPlanner:
             raise InputError(f"CEMPlanner.alpha must lie in [0, 1), got {self.alpha}")
         if not (self.init_std_frac > 0 and math.isfinite(self.init_std_frac)):
             raise InputError(f"CEMPlanner.init_std_frac must be > 0, got {self.init_std_frac}")
-        if not (0.0 <= self.noise_beta <= 4.0):
-            raise InputError(
-                f"CEMPlanner.noise_beta must be in [0, 4] (0 white, 2 pink), got {self.noise_beta}"
-            )
+        _check_beta("CEMPlanner", self.noise_beta)
 
     @property
     def n_elites(self) -> int:

@@ -20,7 +20,7 @@ Three defaults matter in closed loop (measured on winter_household, see the issu
   It removes the slowly varying bias a learned model has in closed-loop operating points.
 - CEM polishes its plan with one LP on the linearised model (:mod:`controllers.lp_polish`),
   which takes a plan the last few percent to the optimum of the model; random shooting does
-  not (``polish_iters``), so it stays the plain sampling baseline.
+  not by default (``polish_iters``), so it shows what sampling alone does.
 
 The plan is warm-started from the previous plan shifted by one step (its last action
 repeated); the first plan starts from half power.
@@ -31,9 +31,9 @@ else fails, the controller acts through :class:`controllers.base.Fallback` (the 
 rule on the measured room temperature), sets ``last_stats.fallback=True`` with the reason in
 ``status``, clears ``last_plan`` and restarts the next warm start from scratch.
 
-Speed: a rollout is a few small tensor ops per horizon step for the whole batch, so its time
-is mostly a fixed cost per step and grows slowly with the number of candidates; iterations
-are what cost. On a shared 2-core machine one intra-op thread is fastest
+Speed: a rollout is a few small tensor ops per horizon step for the whole batch: over a
+10-member depth-16 physnet at 48 steps about 4 ms fixed plus 0.1 ms per candidate (CPU time),
+so an iteration costs about as much as 40 more candidates. On a shared 2-core machine one intra-op thread is fastest
 (``torch.set_num_threads(1)`` in the caller).
 """
 
@@ -238,7 +238,9 @@ _CEM = CEMPlanner(lower=0.0, upper=1.0)
 
 
 class RandomShooting(_SamplingController):
-    """Random shooting over a model: ``n_samples`` sequences scored once, the best one applied."""
+    """Random shooting over a model: ``n_samples`` sequences scored once, the best one applied
+    (sampled around the warm start and in a move-blocked plan space, see
+    :class:`controllers.planners.RandomShootingPlanner`)."""
 
     name = "random-shooting"
 
@@ -248,6 +250,7 @@ class RandomShooting(_SamplingController):
         spec: ControlSpec,
         *,
         n_samples: int = _RS.n_samples,
+        local_frac: float = _RS.local_frac,
         binary: bool = False,
         risk_weight: float = 0.0,
         polish_iters: int = 0,
@@ -255,7 +258,7 @@ class RandomShooting(_SamplingController):
         offset_gain: float = 0.5,
     ):
         planner = RandomShootingPlanner(
-            lower=0.0, upper=spec.u_max_w, n_samples=n_samples, binary=binary
+            lower=0.0, upper=spec.u_max_w, n_samples=n_samples, local_frac=local_frac, binary=binary
         )
         options = _Options(risk_weight, ensemble, offset_gain, 0 if binary else polish_iters)
         super().__init__(model, spec, planner, options)
@@ -267,8 +270,9 @@ class CEM(_SamplingController):
     The defaults (those of :class:`controllers.planners.CEMPlanner`, coloured noise, one LP
     polish) are set by decision time: a learned model's rollout costs mostly a fixed time per
     horizon step, so iterations are expensive and samples cheap, and the polish rides along in
-    the same batches (``benchmarks/bench_planners.py`` times it). The sampling finds the shape
-    of the plan, the polish its last percent (see :mod:`controllers.polish`).
+    the same batches (``benchmarks/bench_planners.py`` times it: about 30 ms CPU time over a
+    10-member depth-16 physnet). The sampling finds the shape of the plan, the polish its last
+    percent (see :mod:`controllers.polish`).
     """
 
     name = "cem"

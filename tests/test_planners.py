@@ -5,7 +5,7 @@ import math
 import pytest
 import torch
 
-from controllers.planners import CEMPlanner, RandomShootingPlanner, colored_noise
+from controllers.planners import CEMPlanner, RandomShootingPlanner, colored_noise, move_blocks
 from pinn_mpc.errors import InputError
 
 H = 8
@@ -155,6 +155,20 @@ def test_invalid_settings_are_rejected_with_a_clear_message(kwargs, message):
         CEMPlanner(**kwargs)
 
 
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"local_frac": 1.5}, "local_frac must lie in"),
+        ({"local_std_fracs": ()}, "local_std_fracs must be positive"),
+        ({"local_std_fracs": (0.1, -0.1)}, "local_std_fracs must be positive"),
+        ({"noise_beta": 5.0}, "RandomShootingPlanner.noise_beta must be"),
+    ],
+)
+def test_invalid_random_shooting_settings_are_rejected(kwargs, message):
+    with pytest.raises(InputError, match=message):
+        RandomShootingPlanner(lower=0.0, upper=1.0, **kwargs)
+
+
 @pytest.mark.parametrize(("x0_value", "p_on"), [(0.0, 0.25), (0.5, 0.5), (1.0, 0.75)])
 def test_binary_cem_starts_between_a_fair_coin_and_the_warm_start(x0_value, p_on):
     seen: list[torch.Tensor] = []
@@ -167,3 +181,35 @@ def test_binary_cem_starts_between_a_fair_coin_and_the_warm_start(x0_value, p_on
     planner.optimize(objective, torch.full((H,), x0_value), _gen())
     drawn = seen[0][1:]  # row 0 is the (snapped) warm start itself
     assert float(drawn.mean()) == pytest.approx(p_on, abs=0.02)  # 16000 draws: 4 sigma
+
+
+def test_move_blocks_double_every_two_blocks_and_cover_the_horizon():
+    assert move_blocks(48).tolist() == [
+        0, 1, *[2] * 2, *[3] * 2, *[4] * 4, *[5] * 4, *[6] * 8, *[7] * 8, *[8] * 16, *[9] * 2
+    ]
+    assert move_blocks(1).tolist() == [0]
+
+
+def test_random_shooting_samples_stay_in_bounds_and_centre_on_the_warm_start():
+    seen = []
+
+    def objective(u):
+        seen.append(u.clone())
+        return (u - 0.7).pow(2).sum(1)
+
+    x0 = torch.full((24,), 0.9)
+    planner = RandomShootingPlanner(lower=0.0, upper=1.0, n_samples=101, local_frac=0.5)
+    result = planner.optimize(objective, x0, torch.Generator().manual_seed(0))
+    (batch,) = seen
+    assert batch.shape == (101, 24) and bool(((batch >= 0) & (batch <= 1)).all())
+    torch.testing.assert_close(batch[0], x0)
+    local, blocked = batch[1:51], batch[51:]
+    # The smallest scale (1 % of the range) stays next to the warm start; the blocked samples
+    # are constant over each block.
+    assert float((local[:17] - x0).abs().max()) < 0.1
+    blocks = move_blocks(24)
+    for b in range(int(blocks[-1]) + 1):
+        cols = blocked[:, blocks == b]
+        torch.testing.assert_close(cols, cols[:, :1].expand_as(cols))
+    assert result.cost == pytest.approx(float(objective(result.plan[None])[0]))
+    assert result.cost <= float((x0 - 0.7).pow(2).sum())
