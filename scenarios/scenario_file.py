@@ -285,7 +285,9 @@ def _build(cls: type, table: dict[str, Any], where: str, base: Path) -> Any:
     try:
         obj = cls(**kwargs)
     except InputError as exc:  # the class names itself: say where in the file instead
-        message = str(exc).replace(f"{cls.__name__}.", f"{section}.")
+        message = str(exc)
+        for name in sorted(known, key=len, reverse=True):  # a name may prefix another
+            message = message.replace(f"{cls.__name__}.{name}", _file_key(_join(where, name)))
         message = message.replace(cls.__name__, section or cls.__name__)
         raise InputError(message if message.startswith(section) else f"{section}: {message}") from None
     if hasattr(obj, "check"):  # a file it names must exist and be readable now
