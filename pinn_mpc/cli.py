@@ -421,7 +421,9 @@ def build_parser() -> argparse.ArgumentParser:
     force(p)
 
     p = add("scenario", _scenario, "list, show or export scenarios as TOML files")
-    actions = p.add_subparsers(dest="action", required=True, metavar="ACTION")
+    actions = p.add_subparsers(
+        dest="action", required=True, metavar="ACTION", help="list, show or export"
+    )
     actions.add_parser("list", help="built-in scenarios with one-line descriptions")
     for action, help_ in (
         ("show", "print a scenario (built-in name or .toml file) as its TOML file"),

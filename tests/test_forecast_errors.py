@@ -12,25 +12,13 @@ from controllers.thermostat import Thermostat
 from pinn_mpc.errors import InputError
 from pinn_mpc.physics import PAPER_HOUSEHOLD
 from pinn_mpc.simulator import SimConfig
-from scenarios.engine import ClosedLoop, ExogenousSeries, ForecastErrors, lead_error_paths
+from scenarios.engine import ClosedLoop, ForecastErrors, lead_error_paths
 from scenarios.inputs import GainsSchedule
+from tests.test_engine import _series  # the engine tests' day of exogenous inputs
 
 SPEC = ControlSpec(u_max_w=5000.0)
 DT_S = 1800.0
 LEAD_24H = 48  # intervals of 30 min
-
-
-def _series(n: int) -> ExogenousSeries:
-    hours = (np.arange(n) * 0.5) % 24.0
-    return ExogenousSeries(
-        time_of_day_h=hours,
-        T_a=3.0 + 4.0 * np.sin(2 * np.pi * (hours - 9.0) / 24.0),
-        G=np.where((hours > 8) & (hours < 16), 300.0, 0.0),
-        I_g=np.where(hours >= 17, 600.0, 100.0),
-        price=np.full(n, 0.25),
-        T_min=np.full(n, 20.0),
-        T_max=np.full(n, 23.0),
-    )
 
 
 def _loop(errors: ForecastErrors, *, forecast_seed=0, n: int = 100, **kwargs) -> ClosedLoop:
