@@ -317,8 +317,16 @@ def scenario_from_dict(data: dict[str, Any], *, base: Path, default_name: str) -
             raise InputError(f"building.rc: {exc}") from None
         data["building"] = params.to_dict()
     for section, content in data.items():
-        if section in {"sensor", "simulation", "building"} and not isinstance(content, dict):
+        if section in {p.split(".")[0] for p in SECTIONS.values()} and not isinstance(content, dict):
             raise InputError(f"{section}: expected a table, got {content!r}")
+    # A field with a section of its own is not also taken where the dataclass has it
+    # (``simulation.noise_std_c`` is ``sensor.noise_std_c``).
+    for inner, place in SECTIONS.items():
+        parent = inner.rpartition(".")[0]
+        if parent in SECTIONS:
+            written = SECTIONS[parent] + inner[len(parent) :]
+            if _pop_path(_deep_copy(data), written) is not _MISSING:
+                raise InputError(f"{written}: unknown key; it is written as {place}")
     data.setdefault("name", default_name)
     data.setdefault("description", f"Scenario file {default_name}.")
     internal = _relocate(data, {v: k for k, v in SECTIONS.items()})

@@ -102,6 +102,10 @@ BAD_FILES = {
         lambda t: _edit(t, "noise_std_c = 0.0", "noise_std_c = -0.1"),
         "sensor.noise_std_c must be >= 0",
     ),
+    "relocated-key-in-the-wrong-section": (
+        lambda t: _edit(t, "backup_low_c = 16.0", "backup_low_c = 16.0\nnoise_std_c = 0.1"),
+        "simulation.noise_std_c: unknown key; it is written as sensor.noise_std_c",
+    ),
     "missing-required": (
         lambda t: _edit(t, "initial_t_r_c = 20.0\n", ""), "initial_t_r_c: missing"
     ),
