@@ -137,7 +137,11 @@ def build_parser() -> argparse.ArgumentParser:
         return p
 
     def scenario(p: argparse.ArgumentParser, **kwargs: Any) -> None:
-        p.add_argument("--scenario", help="scenario name, one of: {scenarios}", **kwargs)
+        p.add_argument(
+            "--scenario",
+            help="scenario name, one of: {scenarios}; or a scenario file (.toml, see `scenario`)",
+            **kwargs,
+        )
 
     def days(p: argparse.ArgumentParser, help_: str, **kwargs: Any) -> None:
         p.add_argument("--days", type=_days, help=f"{help_}, 1..{MAX_DAYS}", **kwargs)
@@ -313,6 +317,20 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--workers", type=_positive_int, default=None, help="local CPUs (default all)")
     p.add_argument("--baseline", default=None, help="controller of the paired differences")
     force(p)
+
+    p = add("scenario", "scenarios.commands:scenario", "list, show or export scenarios as TOML files")
+    actions = p.add_subparsers(
+        dest="action", required=True, metavar="ACTION", help="list, show or export"
+    )
+    actions.add_parser("list", help="built-in scenarios with one-line descriptions")
+    for action, help_ in (
+        ("show", "print a scenario (built-in name or .toml file) as its TOML file"),
+        ("export", "write a built-in (or file) scenario as a complete, commented TOML file"),
+    ):
+        q = actions.add_parser(action, help=help_, description=help_, formatter_class=_HelpFormatter)
+        q.add_argument("name", metavar="NAME", help="scenario name, one of: {scenarios}; or a .toml file")
+        if action == "export":
+            q.add_argument("--out", required=True, help="TOML file to write")
     return parser
 
 

@@ -9,10 +9,10 @@ the thermostat. They are not counted in the KPIs nor written to the trajectory; 
 steps are the ``days`` that follow, and observations keep the whole past, warm-up included, with
 ``Observation.k`` counting from the start of the warm-up.
 
-Forecasts are perfect by default: at step k the controller gets every known future row, from k
-to the end of the run plus ``scenario.horizon_steps`` lead rows. ``forecast_noise_std_c`` adds
-seeded Gaussian noise to the future outdoor temperature (rows after the current one); the noise
-depends only on ``seed``, so every controller sees the same forecasts.
+At step k the controller gets a forecast of every future row, from k to the end of the run plus
+``scenario.horizon_steps`` lead rows: perfect, or with the errors of ``scenario.forecast``
+(:class:`scenarios.engine.ForecastErrors`, made by the engine); they depend only on ``seed``, so
+every controller sees the same forecasts.
 """
 
 from __future__ import annotations
@@ -46,7 +46,7 @@ __all__ = [
 
 #: Columns the trajectory adds to the data format.
 EXTRA_COLUMNS = ("overridden", "fallback", "decision_ms")
-_FORECAST_NOISE_STREAM = 1
+_FORECAST_ERROR_STREAM = 1
 _EXOGENOUS = EXOGENOUS_COLUMNS[1:]  # all but time
 
 
@@ -69,7 +69,6 @@ def run_closed_loop(
     *,
     days: int,
     seed: int,
-    forecast_noise_std_c: float = 0.0,
     warmup_steps: int | None = None,
     label: str | None = None,
     weather_part: str = "test",
@@ -78,7 +77,7 @@ def run_closed_loop(
     """Run ``controller`` on ``scenario`` for ``days`` counted days after the warm-up.
 
     ``seed`` fixes the weather/price draw of the scenario, the sensor noise and the forecast
-    noise, so two runs with the same seed see the same disturbances. ``weather_part`` is the
+    errors, so two runs with the same seed see the same disturbances. ``weather_part`` is the
     part of the scenario's weather the run is drawn from (default the test part; see
     :mod:`scenarios.inputs`). ``warmup_steps`` defaults to one day of intervals. ``label``
     names the controller in the KPIs (default its ``name``).
@@ -116,8 +115,9 @@ def run_closed_loop(
         initial_t_r_c=scenario.initial_t_r_c,
         initial_t_m_c=scenario.initial_t_m_c,
         seed=seed,
-        forecast_noise_std_c=forecast_noise_std_c,
-        forecast_seed=[seed, _FORECAST_NOISE_STREAM],
+        forecast_errors=scenario.forecast,
+        forecast_seed=[seed, _FORECAST_ERROR_STREAM],
+        expected_gains_w=scenario.gains.expected(pd.DatetimeIndex(exo["time"])),
     )
     errors: list[str] = []
     steps = tqdm(

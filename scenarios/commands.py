@@ -38,7 +38,7 @@ from scenarios.report import format_kpis, kpi_table_text, render_report
 if TYPE_CHECKING:  # compare loads torch: only the compare command imports it
     from scenarios.compare import CompareSettings, ComparisonResult
 
-__all__ = ["closed_loop", "compare", "reproduce", "simulate", "sweep"]
+__all__ = ["closed_loop", "compare", "reproduce", "scenario", "simulate", "sweep"]
 
 
 def simulate(a: argparse.Namespace) -> str:
@@ -235,13 +235,18 @@ def reproduce(a: argparse.Namespace) -> str:
 def sweep(a: argparse.Namespace) -> str:
     """Parse the grid, run it on Ray (:func:`scenarios.sweep.run_sweep`), return what was run
     and written."""
+    from scenarios.registry import is_scenario_file
     from scenarios.sweep import SweepGrid, SweepSettings, parse_ints, parse_names, run_sweep
 
     scenarios, controllers, seeds, train_days = a.scenarios, a.controllers, a.seeds, a.train_days
     days, out, quick, address, workers = a.days, a.out, a.quick, a.address, a.workers
     baseline, force = a.baseline, a.force
     grid = SweepGrid(
-        scenarios=parse_names(scenarios, "scenarios"),
+        # Absolute: Ray workers resolve scenario files wherever they run.
+        scenarios=tuple(
+            os.path.abspath(n) if is_scenario_file(n) else n
+            for n in parse_names(scenarios, "scenarios")
+        ),
         controllers=parse_names(controllers, "controllers"),
         seeds=parse_ints(seeds, "seeds"),
         train_days=parse_ints(train_days, "training days"),
@@ -274,3 +279,10 @@ def sweep(a: argparse.Namespace) -> str:
         f"({s['wall_time_s']:.0f} s)"
     )
     return "\n".join(lines)
+
+
+def scenario(a: argparse.Namespace) -> str:
+    """``pinn-mpc scenario list | show NAME | export NAME --out FILE.toml``."""
+    from scenarios.scenario_file import scenario_command
+
+    return scenario_command(a.action, name=getattr(a, "name", None), out=getattr(a, "out", None))

@@ -13,6 +13,12 @@ benchmarks). Each control interval k::
 :meth:`ClosedLoop.advance` does the four in one call. The observation carries the last
 interval's demanded and delivered power and exogenous inputs (``Observation.last``) in the data
 format's names, which the forecast shares.
+
+Forecast errors (:class:`ForecastErrors`) are made in one place, :meth:`ClosedLoop.forecast`:
+the outdoor temperature and irradiance a controller sees carry an error that grows with lead
+time, drawn afresh at every decision from a generator seeded by (run seed, interval), so every
+controller of a run sees the same forecasts. A controller with perfect knowledge (its estimator
+is :class:`controllers.estimators.TrueState`: ``oracle``, ``clairvoyant``) sees the truth.
 """
 
 from __future__ import annotations
@@ -26,14 +32,83 @@ import numpy as np
 import pandas as pd
 
 from controllers.base import Controller, ControlSpec, Forecast, Observation, fallback_power
+from controllers.estimators import TrueState
 from pinn_mpc.errors import InputError
 from pinn_mpc.simulator import SimConfig, Simulator, StepResult
 from scenarios.inputs import time_of_day_h
 
-__all__ = ["ClosedLoop", "Decision", "ExogenousSeries", "LoopRecord", "decide"]
+__all__ = [
+    "ClosedLoop",
+    "Decision",
+    "ExogenousSeries",
+    "ForecastErrors",
+    "LoopRecord",
+    "decide",
+    "lead_error_paths",
+]
 
 #: Columns of an exogenous frame the loop is driven by (besides ``time``).
 EXOGENOUS_FIELDS = ("T_a", "G", "I_g", "price", "T_min", "T_max")
+
+
+@dataclass(frozen=True, kw_only=True)
+class ForecastErrors:
+    """What a controller's forecast gets wrong (the default: nothing).
+
+    - ``t_a_error_std_c`` [K]: standard deviation of the outdoor-temperature error at 24 h lead.
+    - ``g_error_rel_std``: the same for irradiance as a relative error (0.3: +-30 % at 24 h
+      lead); the forecast is ``G * max(0, 1 + e)``, so it stays >= 0 and is 0 at night.
+    - ``error_correlation_h`` [h]: correlation time of both errors along the lead (AR(1)).
+    - ``gains_known``: False -> the controller sees the gains schedule's expectation (base +
+      occupancy + event probability x event power), in its forecast and in the past it
+      observes, instead of the gains that happened.
+
+    Each error is an AR(1) process along the lead ``h`` (intervals ahead of now), starting at 0
+    for the current interval (h = 0, whose inputs are measured): ``e_h = phi e_(h-1) + q w_h``,
+    ``phi = exp(-dt / correlation time)``, ``w_h ~ N(0, 1)``, so ``Var e_h = q^2 (1 - phi^(2h))
+    / (1 - phi^2)`` grows with lead; ``q`` is set so that the std at 24 h lead is the given one.
+    """
+
+    t_a_error_std_c: float = 0.0
+    g_error_rel_std: float = 0.0
+    error_correlation_h: float = 12.0
+    gains_known: bool = True
+
+    def __post_init__(self) -> None:
+        for name in ("t_a_error_std_c", "g_error_rel_std"):
+            value = getattr(self, name)
+            if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0):
+                raise InputError(f"ForecastErrors.{name} must be a number >= 0, got {value!r}")
+        h = self.error_correlation_h
+        if not (isinstance(h, int | float) and math.isfinite(h) and h > 0):
+            raise InputError(f"ForecastErrors.error_correlation_h must be > 0 hours, got {h!r}")
+        if not isinstance(self.gains_known, bool):
+            raise InputError(f"ForecastErrors.gains_known must be true or false, got {self.gains_known!r}")
+
+    @property
+    def perfect(self) -> bool:
+        return self.t_a_error_std_c == 0 and self.g_error_rel_std == 0 and self.gains_known
+
+
+def lead_error_paths(
+    rng: np.random.Generator, *, n_paths: int, n_leads: int, std_at_24h: float,
+    correlation_h: float, dt_s: float,
+) -> np.ndarray:
+    """AR(1) errors along the lead (see :class:`ForecastErrors`): (n_paths, n_leads), column 0
+    (lead 0) is zero and the standard deviation at 24 h lead is ``std_at_24h``."""
+    phi = math.exp(-dt_s / (correlation_h * 3600.0))
+    lead_24h = 86400.0 / dt_s
+    # Var e_h = q^2 sum_{j<h} phi^(2j); solved for q at h = 24 h (a fractional h is fine).
+    q = std_at_24h / math.sqrt((1.0 - phi ** (2.0 * lead_24h)) / (1.0 - phi**2))
+    shocks = q * rng.standard_normal((n_paths, n_leads))
+    errors = np.zeros((n_paths, n_leads))
+    for h in range(1, n_leads):
+        errors[:, h] = phi * errors[:, h - 1] + shocks[:, h]
+    return errors
+
+
+#: Streams of the forecast-error generator, so the two errors are independent.
+_T_A_STREAM, _G_STREAM = 0, 1
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -129,9 +204,11 @@ def decide(
 class ClosedLoop:
     """One simulated building driven by an exogenous series, stepped one interval at a time.
 
-    ``seed`` seeds the plant's sensor noise and the forecast noise (``forecast_noise_std_c``
-    [K] of Gaussian noise on the future outdoor temperature, rows after the current one).
-    :meth:`reset` starts an episode at row ``start`` of the series; ``k`` counts its intervals.
+    ``seed`` seeds the plant's sensor noise; ``forecast_seed`` the forecast errors
+    (``forecast_errors``, see :class:`ForecastErrors`), which depend only on it and the row.
+    ``expected_gains_w`` (N,) is what a controller sees of the gains when they are not known
+    (required then). :meth:`reset` starts an episode at row ``start`` of the series; ``k``
+    counts its intervals.
     """
 
     def __init__(
@@ -143,18 +220,25 @@ class ClosedLoop:
         initial_t_r_c: float,
         initial_t_m_c: float,
         seed: int | None = 0,
-        forecast_noise_std_c: float = 0.0,
-        forecast_seed: int | list[int] | None = None,
+        forecast_errors: ForecastErrors = ForecastErrors(),
+        forecast_seed: int | list[int] = 0,
+        expected_gains_w: np.ndarray | None = None,
     ) -> None:
-        if not (math.isfinite(forecast_noise_std_c) and forecast_noise_std_c >= 0):
-            raise InputError(f"forecast_noise_std_c must be >= 0, got {forecast_noise_std_c!r}")
         if not np.all(np.isfinite(np.column_stack(list(exogenous.forecast(0))))):
             raise InputError("exogenous series has non-finite values")
+        seen_gains_w = exogenous.I_g
+        if not forecast_errors.gains_known:
+            if expected_gains_w is None or len(expected_gains_w) != len(exogenous):
+                raise InputError(
+                    "ClosedLoop: gains_known = false needs expected_gains_w, one value per row"
+                )
+            seen_gains_w = np.asarray(expected_gains_w, dtype=float)
         self.config, self.exogenous, self.spec = config, exogenous, spec
-        self.forecast_noise_std_c = forecast_noise_std_c
+        self.forecast_errors = forecast_errors
+        self._forecast_seed = [forecast_seed] if isinstance(forecast_seed, int) else list(forecast_seed)
+        self._seen_gains_w = seen_gains_w
         self.initial_state_c = (float(initial_t_r_c), float(initial_t_m_c))
         self.sim = Simulator(config, n_buildings=1, seed=seed)
-        self._forecast_rng = np.random.default_rng(forecast_seed)
         self.reset()
 
     def reset(
@@ -196,17 +280,19 @@ class ClosedLoop:
             self._measured_k = self.k
         return float(self._t_r[self.k])
 
-    def observation(self) -> Observation:
+    def observation(self, *, perfect: bool = False) -> Observation:
         """What a controller sees now: copies of the past (data-format names), the last
-        interval and the true T_m (for the true-state estimator only)."""
+        interval and the true T_m (for the true-state estimator only). Unknown gains
+        (``gains_known = false``) are the expected ones unless ``perfect``."""
         self.measure()
         k, rows = self.k, slice(self.start, self.start + self.k + 1)
         exo = self.exogenous
+        gains = exo.I_g if perfect else self._seen_gains_w
         # Copies: a controller may keep or change what it is given without touching the run.
         history = {
             "T_a": np.array(exo.T_a[rows]),
             "G": np.array(exo.G[rows]),
-            "I_g": np.array(exo.I_g[rows]),
+            "I_g": np.array(gains[rows]),
             "time_of_day_h": np.array(exo.time_of_day_h[rows]),
             "T_r": np.array(self._t_r[: k + 1]),
             "u": np.array(self._u[:k]),
@@ -214,12 +300,30 @@ class ClosedLoop:
         }
         return Observation.from_history(k, history, float(self._t_m[k]))
 
-    def forecast(self) -> Forecast:
-        """The exogenous inputs from now to the end of the series (perfect, or with noise)."""
-        forecast = self.exogenous.forecast(self.start + self.k)
-        if self.forecast_noise_std_c > 0:
-            n_future = len(forecast.T_a) - 1
-            forecast.T_a[1:] += self._forecast_rng.normal(0.0, self.forecast_noise_std_c, n_future)
+    def forecast(self, *, perfect: bool = False) -> Forecast:
+        """The exogenous inputs from now to the end of the series, with the errors of
+        :class:`ForecastErrors` unless ``perfect``. The errors depend only on the forecast
+        seed and the row, so repeated calls and every controller get the same forecast."""
+        row = self.start + self.k
+        forecast = self.exogenous.forecast(row)
+        errors = self.forecast_errors
+        if perfect or errors.perfect:
+            return forecast
+        if not errors.gains_known:
+            forecast.I_g[:] = self._seen_gains_w[row:]
+        n = forecast.horizon
+        for stream, std in ((_T_A_STREAM, errors.t_a_error_std_c), (_G_STREAM, errors.g_error_rel_std)):
+            if std == 0:
+                continue
+            rng = np.random.default_rng([*self._forecast_seed, row, stream])
+            e = lead_error_paths(
+                rng, n_paths=1, n_leads=n, std_at_24h=std,
+                correlation_h=errors.error_correlation_h, dt_s=self.config.dt_s,
+            )[0]
+            if stream == _T_A_STREAM:
+                forecast.T_a[:] += e
+            else:
+                forecast.G[:] *= np.maximum(1.0 + e, 0.0)
         return forecast
 
     def step(self, u_w: float, *, decision_s: float = 0.0, fallback: bool = False) -> StepResult:
@@ -238,9 +342,11 @@ class ClosedLoop:
         return result
 
     def advance(self, controller: Controller) -> Decision:
-        """One interval: observe, forecast, decide (:func:`decide`), step."""
-        obs = self.observation()
-        forecast = self.forecast()
+        """One interval: observe, forecast, decide (:func:`decide`), step. A controller with
+        the true-state estimator has perfect knowledge: it gets perfect forecasts too."""
+        perfect = isinstance(getattr(controller, "estimator", None), TrueState)
+        obs = self.observation(perfect=perfect)
+        forecast = self.forecast(perfect=perfect)
         u, time_s, fallback, error = decide(controller, obs, forecast, self.spec)
         plant = self.step(u, decision_s=time_s, fallback=fallback)
         return Decision(obs.k, obs, forecast, u, time_s, fallback, error, plant)

@@ -28,7 +28,7 @@ import functools
 import math
 import pathlib
 from dataclasses import dataclass
-from typing import Literal, cast
+from typing import ClassVar, Literal, cast
 
 import numpy as np
 import pandas as pd
@@ -258,30 +258,50 @@ class SyntheticWeather:
 
 
 def tmy3_path(file_name: str) -> pathlib.Path:
-    """Path of a TMY3 file shipped in pvlib's data folder."""
+    """A TMY3 file shipped in pvlib's data folder (a bare name found there), else ``file_name``
+    itself as a path (a TMY3 ``.csv`` or an EPW ``.epw`` typical year)."""
     import pvlib
 
-    return pathlib.Path(pvlib.__file__).parent / "data" / file_name
+    shipped = pathlib.Path(pvlib.__file__).parent / "data" / file_name
+    if pathlib.Path(file_name).name == file_name and shipped.is_file():
+        return shipped
+    return pathlib.Path(file_name)
 
 
 @functools.lru_cache(maxsize=4)
 def load_tmy3(file_name: str) -> tuple[np.ndarray, np.ndarray, str]:
     """Hourly typical year: (dry-bulb T (8760,) [C], GHI (8760,) [W/m2], station name).
 
-    Row i is the hour ending at (i+1) h after 1 January 00:00 local standard time; temperature
-    is the value at that instant, GHI the mean over the hour (TMY3 convention).
+    ``file_name`` as :func:`tmy3_path` resolves it; an ``.epw`` file is read with pvlib's EPW
+    reader, anything else with its TMY3 reader. Row i is the hour ending at (i+1) h after
+    1 January 00:00 local standard time; temperature is the value at that instant, GHI the
+    mean over the hour (the TMY3 and EPW convention).
     """
     import pvlib
 
     path = tmy3_path(file_name)
     if not path.is_file():
-        raise InputError(f"TMY3 file {file_name!r} is not in pvlib's data folder {path.parent}")
-    frame, meta = pvlib.iotools.read_tmy3(path, map_variables=True)
-    if len(frame) != HOURS_PER_TYPICAL_YEAR:
-        raise InputError(f"TMY3 file {path} has {len(frame)} rows, expected {HOURS_PER_TYPICAL_YEAR}")
-    t_a = frame["temp_air"].to_numpy(dtype=float)
-    ghi = frame["ghi"].to_numpy(dtype=float)
-    return t_a, np.maximum(ghi, 0.0), str(meta.get("Name", file_name)).strip('"')
+        raise InputError(
+            f"weather file {file_name!r} not found (neither in pvlib's data folder nor as a path)"
+        )
+    epw = path.suffix.lower() == ".epw"
+    try:
+        if epw:
+            frame, meta = pvlib.iotools.read_epw(path)
+            station = meta.get("city", file_name)
+        else:
+            frame, meta = pvlib.iotools.read_tmy3(path, map_variables=True)
+            station = meta.get("Name", file_name)
+        t_a = frame["temp_air"].to_numpy(dtype=float)
+        ghi = frame["ghi"].to_numpy(dtype=float)
+    except Exception as exc:  # pvlib raises many kinds on a malformed file; one line for the user
+        kind = "EPW" if epw else "TMY3"
+        raise InputError(f"weather file {path} is not a readable {kind} file: {exc}") from None
+    if len(t_a) != HOURS_PER_TYPICAL_YEAR:
+        raise InputError(f"weather file {path} has {len(t_a)} hours, a typical year has {HOURS_PER_TYPICAL_YEAR}")
+    if not (np.isfinite(t_a).all() and np.isfinite(ghi).all()):
+        raise InputError(f"weather file {path} has missing temperature or GHI values")
+    return t_a, np.maximum(ghi, 0.0), str(station).strip('"')
 
 
 def resample_typical_year(
@@ -350,6 +370,8 @@ class TMY3Weather:
     window_days: int = 151
     test_start: str = "02-01"
     test_days: int = 59
+    #: Fields holding a file path, resolved relative to the scenario file that names them.
+    PATH_FIELDS: ClassVar[tuple[str, ...]] = ("file_name",)
 
     def __post_init__(self) -> None:
         if not 1 <= self.window_days <= _DAYS_PER_TYPICAL_YEAR:
@@ -361,6 +383,10 @@ class TMY3Weather:
                 f"lie inside the window ({self.window_days} days from {self.window_start}) with "
                 "at least one training day before it"
             )
+
+    def check(self) -> None:
+        """Read and check the weather file now (a scenario file is checked when it is loaded)."""
+        load_tmy3(self.file_name)
 
     @property
     def training_core_days(self) -> int:
@@ -495,11 +521,13 @@ class ComfortSchedule:
     day_end_h: float = 22.0
 
     def __post_init__(self) -> None:
-        if not (self.day_min_c < self.day_max_c and self.night_min_c < self.night_max_c):
-            raise InputError(
-                f"ComfortSchedule bands must have min < max, got day {self.day_min_c}-{self.day_max_c}"
-                f" and night {self.night_min_c}-{self.night_max_c}"
-            )
+        for band in ("day", "night"):
+            low, high = getattr(self, f"{band}_min_c"), getattr(self, f"{band}_max_c")
+            if not low < high:
+                raise InputError(
+                    f"ComfortSchedule.{band}_min_c ({low}) must be below {band}_max_c ({high}): "
+                    "the comfort band needs min < max"
+                )
         _check_hours("ComfortSchedule", self.day_start_h, self.day_end_h)
 
     def sample(self, times: pd.DatetimeIndex) -> tuple[np.ndarray, np.ndarray]:
@@ -545,3 +573,9 @@ class GainsSchedule:
         inside = _in_periods(time_of_day_h(times), self.periods_h)
         events = rng.random(len(times)) < self.event_probability
         return self.base_w + inside * (self.scheduled_w + events * self.event_w)
+
+    def expected(self, times: pd.DatetimeIndex) -> np.ndarray:
+        """Interval start times (N,) -> the expectation of :meth:`sample` (N,) [W]: what a
+        controller that does not measure the gains knows of them."""
+        inside = _in_periods(time_of_day_h(times), self.periods_h)
+        return self.base_w + inside * (self.scheduled_w + self.event_probability * self.event_w)

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -24,6 +25,7 @@ from controllers.base import ControlSpec
 from pinn_mpc.errors import InputError
 from pinn_mpc.physics import PAPER_HOUSEHOLD, RCParams
 from pinn_mpc.simulator import SimConfig
+from scenarios.engine import ForecastErrors
 from scenarios.inputs import (
     ComfortSchedule,
     GainsSchedule,
@@ -33,6 +35,7 @@ from scenarios.inputs import (
     steps_per_day,
     weather_part,
 )
+from scenarios.measured import CSVWeather, PriceCSV
 
 __all__ = [
     "COLD_ROOM",
@@ -55,7 +58,8 @@ _TEST_PART_STREAM = 1
 @dataclass(frozen=True, kw_only=True)
 class Scenario:
     """A named experiment setting. ``sim`` holds the building, actuator limit, control interval,
-    substep and backup-thermostat limits; the rest describes the exogenous inputs."""
+    substep, backup-thermostat limits and sensor noise; the rest describes the exogenous inputs
+    and (``forecast``) what the controllers' forecasts get wrong."""
 
     name: str
     description: str
@@ -64,10 +68,11 @@ class Scenario:
     horizon_steps: int = 48
     initial_t_r_c: float
     initial_t_m_c: float
-    weather: SyntheticWeather | TMY3Weather
-    price: PriceProfile
+    weather: SyntheticWeather | TMY3Weather | CSVWeather
+    price: PriceProfile | PriceCSV
     comfort: ComfortSchedule
     gains: GainsSchedule = field(default_factory=GainsSchedule)
+    forecast: ForecastErrors = field(default_factory=ForecastErrors)
 
     def __post_init__(self) -> None:
         steps_per_day(self.sim.dt_s)
@@ -270,11 +275,22 @@ def scenario_names() -> list[str]:
     return sorted(_SCENARIOS)
 
 
-def get_scenario(name: str) -> Scenario:
-    """The scenario of that name; an unknown name raises InputError listing the valid ones."""
-    try:
-        return _SCENARIOS[name]
-    except KeyError:
-        raise InputError(
-            f"unknown scenario {name!r}; choose one of: {', '.join(scenario_names())}"
-        ) from None
+def is_scenario_file(name_or_path: str) -> bool:
+    """True when ``--scenario`` names a file (a ``.toml`` name or a path), not a built-in."""
+    return name_or_path.lower().endswith(".toml") or "/" in name_or_path or os.sep in name_or_path
+
+
+def get_scenario(name_or_path: str) -> Scenario:
+    """A built-in scenario by name, or a scenario file (see :mod:`scenarios.scenario_file`):
+    the one resolver behind every ``--scenario``. An unknown name raises InputError listing
+    the valid ones; a bad file, one naming the file and the key."""
+    if name_or_path in _SCENARIOS:
+        return _SCENARIOS[name_or_path]
+    if is_scenario_file(name_or_path):
+        from scenarios.scenario_file import load_scenario_file  # it imports this module
+
+        return load_scenario_file(name_or_path)
+    raise InputError(
+        f"unknown scenario {name_or_path!r}; choose one of: {', '.join(scenario_names())}, or give "
+        "a scenario file (.toml; write one with `pinn-mpc scenario export NAME --out FILE.toml`)"
+    )

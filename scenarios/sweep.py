@@ -44,7 +44,7 @@ from pinn_mpc.errors import InputError
 from pinn_mpc.io import atomic_write_json, atomic_write_text
 from pinn_mpc.physics import RCParams, params_from_summary, rc_summary
 from scenarios.factory import CONTROLLER_NAMES, MODEL_CONTROLLERS, RC_CONTROLLERS
-from scenarios.registry import get_scenario
+from scenarios.registry import get_scenario, is_scenario_file
 from scenarios.sweep_report import REFERENCE, plot_sweep, render_sweep_report, summarise
 
 #: The architecture the model-based controllers plan over.
@@ -93,7 +93,7 @@ class Cell:
     @property
     def name(self) -> str:
         days = "" if self.train_days is None else f"--train{self.train_days}"
-        return f"{self.scenario}--{self.controller}--seed{self.seed}{days}"
+        return f"{_label(self.scenario)}--{self.controller}--seed{self.seed}{days}"
 
     @property
     def model(self) -> ModelKey | None:
@@ -112,7 +112,12 @@ class ModelKey:
 
     @property
     def name(self) -> str:
-        return f"{self.scenario}--{self.kind}--seed{self.seed}--train{self.train_days}"
+        return f"{_label(self.scenario)}--{self.kind}--seed{self.seed}--train{self.train_days}"
+
+
+def _label(scenario: str) -> str:
+    """A scenario in file names: its name, or a scenario file's stem (not its folders)."""
+    return Path(scenario).stem if is_scenario_file(scenario) else scenario
 
 
 def model_kind(controller: str) -> str | None:

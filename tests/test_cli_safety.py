@@ -234,7 +234,8 @@ def test_every_option_has_help_and_shows_its_default(capsys: pytest.CaptureFixtu
             has_default = not action.required and not any(
                 action.default is v for v in (None, False)
             )
-            shown = f"{action.option_strings[0]}" in text
+            # A positional (the ACTION of `scenario`) is shown by its metavar.
+            shown = (action.option_strings or [action.metavar])[0] in text
             assert shown
             if has_default:
                 default = action.default

@@ -12,6 +12,7 @@ from controllers.thermostat import Thermostat
 from pinn_mpc.cli import main
 from pinn_mpc.data import read_timeseries
 from scenarios.closed_loop import EXTRA_COLUMNS, run_closed_loop
+from scenarios.engine import ForecastErrors
 from scenarios.factory import CONTROLLER_NAMES, MODEL_CONTROLLERS, RC_CONTROLLERS, make_controller
 from scenarios.kpis import KPI_KEYS
 from scenarios.registry import get_scenario
@@ -143,10 +144,12 @@ def test_observation_and_forecast_contents(scenario):
     assert (last_obs.history["u"][10:] == 0.0).all()
 
 
-def test_forecast_noise_is_seeded_and_spares_the_present(scenario):
+def test_forecast_errors_are_seeded_and_spare_the_present(scenario):
+    noisy_scenario = dataclasses.replace(scenario, forecast=ForecastErrors(t_a_error_std_c=1.0))
+
     def forecasts(seed):
         ctrl = ConstantPower(0.0)
-        run_closed_loop(scenario, ctrl, days=1, seed=seed, forecast_noise_std_c=1.0)
+        run_closed_loop(noisy_scenario, ctrl, days=1, seed=seed)
         return ctrl.seen
 
     exact = ConstantPower(0.0)
@@ -154,9 +157,10 @@ def test_forecast_noise_is_seeded_and_spares_the_present(scenario):
     noisy, again = forecasts(0), forecasts(0)
     f_exact, f_noisy = exact.seen[0][1], noisy[0][1]
     assert f_noisy.T_a[0] == f_exact.T_a[0]
-    error = f_noisy.T_a[1:] - f_exact.T_a[1:]
-    assert 0.8 < float(np.std(error)) < 1.2
+    assert not np.array_equal(f_noisy.T_a[1:], f_exact.T_a[1:])
     np.testing.assert_array_equal(f_noisy.T_a, again[0][1].T_a)
+    # The plant ran on the truth: the observed past is the exact one.
+    np.testing.assert_array_equal(noisy[-1][0].history["T_a"], exact.seen[-1][0].history["T_a"])
 
 
 @pytest.mark.parametrize(

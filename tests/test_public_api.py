@@ -113,8 +113,13 @@ def test_readme_command_line_matches_the_parser() -> None:
     assert [ln.split()[1] for ln in lines] == list(commands)
     for line in lines:
         parser = commands[line.split()[1]]
+        # A command with actions (`scenario list|show|export`) has its options on the actions.
+        parsers = [parser] + [
+            sub for action in parser._actions if isinstance(action, argparse._SubParsersAction)
+            for sub in action.choices.values()
+        ]
         options = {
-            opt: action for action in parser._actions for opt in action.option_strings
+            opt: action for p in parsers for action in p._actions for opt in action.option_strings
             if opt.startswith("--") and opt != "--help"
         }
         written = dict(re.findall(r"(--[a-z-]+)(?: ([A-Za-z0-9_.,|-]+))?", line))
