@@ -14,7 +14,15 @@
    polish adds), CEM over physreg and mlp (unless ``cem_all_models=False``),
    casadi-mpc and qp-mpc on the identified RC, qp-mpc on the physnet-exported RC, oracle and
    clairvoyant.
-4. Outputs: a JSON table (one row per controller with every KPI), a markdown report with the
+   With a heat pump (``scenario.sim.actuator``) the data's power is electrical: the networks are
+   trained on it with ``eta`` = the training data's power-weighted mean COP (their prior and
+   export then describe the building with that actuator gain); the grey-box identification
+   runs on the delivered heat (COP(T_a) x electrical power; the COP curve is the actuator's
+   data sheet), and the exported RC gets the building's own ``eta`` back, since the RC MPCs
+   multiply by the COP of each forecast step themselves.
+4. Prediction: every model's 24-step T_r error on held-out data of the test part
+   (:mod:`scenarios.prediction`), the identified, exported and true RC as the RC MPCs use them.
+5. Outputs: a JSON table (one row per controller with every KPI), a markdown report with the
    dates of the training data and of the test days, the KPI table, each objective relative to
    the oracle's, the RC parameters against the true ones and a figure of the trajectories, one
    panel per controller family against the oracle (PNG next to the report,
@@ -30,6 +38,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pandas as pd
 from tqdm import tqdm
 
@@ -48,8 +57,14 @@ from scenarios.datagen import RANDOM_POLICIES
 from scenarios.factory import build_controller
 from scenarios.inputs import day_span
 from scenarios.plots import plot_comparison
+from scenarios.prediction import PREDICTION_HORIZON, prediction_errors
 from scenarios.registry import Scenario, check_seed, get_scenario
-from scenarios.report import kpi_table_text, objective_ratios, render_report
+from scenarios.report import (
+    kpi_table_text,
+    objective_ratios,
+    prediction_table_text,
+    render_report,
+)
 
 ARCHS = ("physnet", "physreg", "mlp")
 _RS = RandomShootingPlanner(lower=0.0, upper=1.0)  # the planners' defaults
@@ -127,6 +142,7 @@ class ComparisonResult:
     label, ``name``, ``model``, ``objective_to_oracle``); ``rc``: RC summaries by source;
     ``trajectories`` by label; ``wall_time_s`` by stage; ``errors`` the controller exceptions
     of each run that had any (the fallback acted, see :mod:`scenarios.closed_loop`);
+    ``prediction`` each model's prediction error (:mod:`scenarios.prediction`);
     ``days``: [first, last] dates of the ``training`` data, the ``test`` days counted and the
     ``test weather`` (warm-up and forecast lead included)."""
 
@@ -136,6 +152,7 @@ class ComparisonResult:
     trajectories: dict[str, pd.DataFrame]
     wall_time_s: dict[str, float]
     errors: dict[str, tuple[str, ...]]
+    prediction: list[dict[str, Any]] = dataclasses.field(default_factory=list)
 
 
 def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonResult:
@@ -164,13 +181,16 @@ def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonR
     )
     wall["training data"] = time.perf_counter() - start
     eta = scenario.sim.params.eta
+    actuator = scenario.sim.actuator
+    cop = actuator.gain(data["T_a"].to_numpy(dtype=float))
+    mean_cop = _mean_gain(data["u_phys"].to_numpy(dtype=float), cop)
     config = TrainConfig(
         depth=settings.depth,
         n_seeds=settings.n_seeds,
         first_seed=settings.seed,
         epochs=settings.training_epochs,
         recipe=settings.recipe,
-        eta=eta,
+        eta=eta * mean_cop,
         u_max_w=scenario.sim.u_max_w,
     )
     models = {}
@@ -180,9 +200,12 @@ def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonR
         models[arch] = train_model(data, arch=arch, config=config, progress=True)
         wall[f"train {arch}"] = time.perf_counter() - start
     start = time.perf_counter()
-    identified = identify_rc(data, eta=eta).params
+    identified = identify_rc(_heat_frame(data, cop), eta=eta).params
     wall["identify RC"] = time.perf_counter() - start
     exported = export_rc(models["physnet"], source="physnet ensemble (compare)")
+    physnet_rc = params_from_summary(exported)
+    if mean_cop != 1.0:
+        physnet_rc = dataclasses.replace(physnet_rc, eta=eta)
     rc = {
         "true": rc_summary(scenario.sim.params, source=f"scenario {scenario.name}"),
         "identified": rc_summary(identified, source="identify (training data)"),
@@ -190,8 +213,23 @@ def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonR
     }
     rc_params: dict[str, RCParams] = {
         "identified RC": identified,
-        "physnet RC": params_from_summary(exported),
+        "physnet RC": physnet_rc,
     }
+    start = time.perf_counter()
+    held_out = generate(
+        scenario,
+        days=settings.test_days + 1,
+        seed=settings.test_seed,
+        policy=settings.policy,
+        weather_part="test",
+    )
+    prediction = prediction_errors(
+        held_out,
+        learned=models,
+        rc={**rc_params, "true RC": scenario.sim.params},
+        actuator=actuator,
+    )
+    wall["prediction"] = time.perf_counter() - start
 
     n_steps = settings.test_days * scenario.steps_per_day
     shooting = {"n_samples": settings.shooting_samples}
@@ -245,8 +283,33 @@ def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonR
         "test weather": rows[0]["weather_days"],
     }
     return ComparisonResult(
-        rows=rows, days=days, rc=rc, trajectories=trajectories, wall_time_s=wall, errors=errors
+        rows=rows,
+        days=days,
+        rc=rc,
+        trajectories=trajectories,
+        wall_time_s=wall,
+        errors=errors,
+        prediction=prediction,
     )
+
+
+def _mean_gain(u_phys_w: np.ndarray, gain: np.ndarray) -> float:
+    """Power-weighted mean heat per electrical watt of a data set: exactly 1 for the ideal
+    heater, so that path is unchanged."""
+    if np.all(gain == 1.0):
+        return 1.0
+    return float(np.sum(u_phys_w * gain) / np.sum(u_phys_w))
+
+
+def _heat_frame(data: pd.DataFrame, gain: np.ndarray) -> pd.DataFrame:
+    """The data with the power columns as delivered heat (gain x electrical power)."""
+    if np.all(gain == 1.0):
+        return data
+    heat = data.copy()
+    heat["u"] = heat["u"].to_numpy(dtype=float) * gain
+    heat["u_phys"] = heat["u_phys"].to_numpy(dtype=float) * gain
+    heat.attrs = dict(data.attrs)
+    return heat
 
 
 def _make_parents(*paths: Path) -> None:
@@ -334,6 +397,8 @@ def compare_command(
             figure_name=figure.name,
             notes=notes,
             dates=_dates_text(settings, result.days),
+            prediction=result.prediction,
+            prediction_horizon=PREDICTION_HORIZON,
         ),
     )
     atomic_write_json(
@@ -345,7 +410,8 @@ def compare_command(
             "settings": settings_table,
             "rows": result.rows,
             "rc": result.rc,
+            "prediction": result.prediction,
         },
     )
     written = f"wrote {json_path}, {report_path}, {figure} ({total_s:.0f} s)"
-    return f"{kpi_table_text(result.rows)}\n{written}"
+    return f"{kpi_table_text(result.rows)}\n{prediction_table_text(result.prediction)}\n{written}"

@@ -41,7 +41,7 @@ def test_fleet_matches_reference_and_single_buildings_to_1e12(name):
     n_steps = 24
     # Full-power demands push buildings across the backup limits, so the rule is exercised.
     u = rng.choice([0.0, 0.5 * config.u_max_w, config.u_max_w], size=(n_steps, 5))
-    exo = scenario.exogenous(days=1, seed=0)
+    exo = scenario.exogenous(days=1, seed=0, part="train")
     t_a, g, i_g = (exo[c].to_numpy()[:n_steps] for c in ("T_a", "G", "I_g"))
     sim = Simulator(config, fleet=fleet)
     sim.reset(scenario.initial_t_r_c, scenario.initial_t_m_c)
