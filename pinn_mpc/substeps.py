@@ -25,6 +25,31 @@ def _cycling_substeps(demand: float, min_power_w: float, n_sub: int) -> int:
     return -1
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _substep_power(
+    j: int,
+    demand: float,
+    n_on: int,
+    min_power_w: float,
+    t_r_c: float,
+    backup_low_c: float,
+    backup_high_c: float,
+    heating: bool,
+    u_max_w: float,
+) -> tuple[float, float]:
+    """(the machine's demand in substep j, the power after the backup rule)."""
+    # Below the minimum modulation the machine cycles (on, then off) within the interval.
+    if n_on >= 0:
+        demand = min_power_w if j < n_on else 0.0
+    # Paper Eq. backup (mirrored for a cooling machine), re-evaluated every substep.
+    p = demand
+    if t_r_c < backup_low_c:
+        p = u_max_w if heating else 0.0
+    elif t_r_c > backup_high_c:
+        p = 0.0 if heating else u_max_w
+    return demand, p
+
+
 @njit(cache=True, nogil=True)
 def integrate_interval(
     x: np.ndarray,
@@ -67,15 +92,9 @@ def integrate_interval(
         n_on = _cycling_substeps(demand, min_power_w, n_sub)
         total, changed = 0.0, False
         for j in range(n_sub):
-            # Below the minimum modulation the machine cycles (on, then off) within the interval.
-            if n_on >= 0:
-                demand = min_power_w if j < n_on else 0.0
-            # Paper Eq. backup (mirrored for a cooling machine), re-evaluated every substep.
-            p = demand
-            if x0 < backup_low_c:
-                p = force_on if heating else 0.0
-            elif x0 > backup_high_c:
-                p = 0.0 if heating else force_on
+            demand, p = _substep_power(
+                j, demand, n_on, min_power_w, x0, backup_low_c, backup_high_c, heating, force_on
+            )
             changed = changed or p != demand
             total += p
             x0, x1 = a00 * x0 + a01 * x1 + b0 * p + d0, a10 * x0 + a11 * x1 + b1 * p + d1
@@ -121,13 +140,9 @@ def integrate_interval_n(
         n_on = _cycling_substeps(demand, min_power_w, n_sub)
         total, changed = 0.0, False
         for j in range(n_sub):
-            if n_on >= 0:
-                demand = min_power_w if j < n_on else 0.0
-            p = demand
-            if cur[0] < backup_low_c:
-                p = u_max_w if heating else 0.0
-            elif cur[0] > backup_high_c:
-                p = 0.0 if heating else u_max_w
+            demand, p = _substep_power(
+                j, demand, n_on, min_power_w, cur[0], backup_low_c, backup_high_c, heating, u_max_w
+            )
             changed = changed or p != demand
             total += p
             for r in range(n):
