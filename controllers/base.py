@@ -9,11 +9,12 @@ The objective every controller optimises is in :mod:`controllers.objective`.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import NamedTuple, Protocol, runtime_checkable
 
 import numpy as np
 
+from pinn_mpc.actuator import Actuator
 from pinn_mpc.errors import InputError
 
 __all__ = [
@@ -120,13 +121,17 @@ class SolveStats(NamedTuple):
 
 @dataclass(frozen=True, kw_only=True)
 class ControlSpec:
-    """Actuator and objective settings shared by all controllers of a run."""
+    """Actuator and objective settings shared by all controllers of a run.
+
+    ``u_max_w`` and every power a controller decides are electrical; ``actuator`` says how the
+    plant turns them into heat (a heat pump's COP curve, which an RC MPC plans with)."""
 
     u_max_w: float
     dt_s: float = 1800.0
     horizon_steps: int = 48
     comfort_weight_eur_per_kh: float = 1.0
     heating: bool = True
+    actuator: Actuator = field(default_factory=Actuator)
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.u_max_w) and self.u_max_w > 0):

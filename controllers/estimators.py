@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 import numpy as np
 
 from controllers.base import Observation
+from pinn_mpc.actuator import Actuator
 from pinn_mpc.errors import InputError
 from pinn_mpc.observer import KalmanObserver
 from pinn_mpc.physics import RCParams
@@ -45,11 +46,20 @@ class KalmanEstimator:
     last interval restart the observer at the measured ``T_r`` with ``T_m`` guessed equal to it;
     otherwise the observer predicts over the last interval (its delivered power and exogenous
     inputs) and updates with the new measurement. ``observer_options`` are the keywords of
-    :class:`~pinn_mpc.observer.KalmanObserver`.
+    :class:`~pinn_mpc.observer.KalmanObserver`. ``actuator`` turns the last interval's
+    electrical power into the heat the RC model takes (the heat pump's COP at its T_a).
     """
 
-    def __init__(self, params: RCParams, dt_s: float, **observer_options: Any) -> None:
+    def __init__(
+        self,
+        params: RCParams,
+        dt_s: float,
+        *,
+        actuator: Actuator | None = None,
+        **observer_options: Any,
+    ) -> None:
         self.observer = KalmanObserver(params, dt_s, **observer_options)
+        self.actuator = Actuator() if actuator is None else actuator
         self.reset()
 
     def reset(self) -> None:
@@ -60,7 +70,8 @@ class KalmanEstimator:
         if self._k_seen is None or obs.k != self._k_seen + 1 or last is None:
             self.observer.reset(obs.t_r_c)
         else:
-            self.observer.predict(last.u_phys, last.T_a, last.G, last.I_g)
+            heat_w = last.u_phys * float(self.actuator.gain(last.T_a))
+            self.observer.predict(heat_w, last.T_a, last.G, last.I_g)
             self.observer.update(obs.t_r_c)
         self._k_seen = obs.k
         return self.observer.state[0]

@@ -1,7 +1,8 @@
 """The control objective over a horizon, one definition for every user.
 
-Over H intervals j: ``price_j x delivered energy_j [kWh] + comfort_weight x violation_j [K] x
-dt_h``, where ``violation_j`` is the band violation of the room temperature at the end of
+Over H intervals j: ``price_j x delivered electrical energy_j [kWh] + comfort_weight x
+violation_j [K] x dt_h`` (the energy is the actuator's electrical input, ``u_phys``; a heat
+pump's heat is COP times it, :mod:`pinn_mpc.actuator`), where ``violation_j`` is the band violation of the room temperature at the end of
 interval j. Built once per decision (:meth:`HorizonObjective.from_forecast`, with
 :func:`planning_band`); the sampling planners evaluate it in torch, tests and reports in numpy,
 the RC MPCs take its arrays as QP data, the Gymnasium reward is the one-interval objective and
@@ -41,7 +42,7 @@ def band_violation_k(t_r_c: Any, t_min_c: Any, t_max_c: Any) -> Any:
 
 
 def energy_cost_eur(u_phys_w: Any, price_eur_per_kwh: Any, dt_h: float) -> Any:
-    """Elementwise cost of delivering ``u_phys_w`` [W] for ``dt_h`` hours [EUR] (numpy or torch)."""
+    """Elementwise cost of ``u_phys_w`` [W] electrical power for ``dt_h`` hours [EUR] (numpy or torch)."""
     return u_phys_w * (dt_h / 1000.0) * price_eur_per_kwh
 
 
@@ -106,7 +107,7 @@ class HorizonObjective:
         return dataclasses.replace(self, price_eur_per_kwh=price, t_min_c=t_min, t_max_c=t_max)
 
     def stage_costs(self, u_phys_w: np.ndarray, t_r_c: np.ndarray) -> np.ndarray:
-        """Cost of each interval (..., H) [EUR] of delivered power and end-of-interval T_r (..., H)."""
+        """Cost of each interval (..., H) [EUR] of delivered electrical power and end-of-interval T_r (..., H)."""
         h = self.horizon_steps
         violation = band_violation_k(np.asarray(t_r_c, dtype=float), self.t_min_c, self.t_max_c)
         energy = energy_cost_eur(np.asarray(u_phys_w, dtype=float), self.price_eur_per_kwh, self.dt_h)

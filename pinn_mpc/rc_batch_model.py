@@ -13,6 +13,7 @@ from typing import Protocol
 import numpy as np
 import torch
 
+from pinn_mpc.actuator import Actuator
 from pinn_mpc.errors import InputError
 from pinn_mpc.models import Rollout
 from pinn_mpc.physics import RCParams, discretise
@@ -59,6 +60,8 @@ class RCBatchModel:
     for a heater; mirrored for cooling). The hidden ``T_m`` now is taken from ``history['T_m']``
     when present (simulated data), else reconstructed from the last interval by inverting the
     T_r row of the discrete model (exact for noise-free data without a backup override).
+    ``actuator`` (default the ideal heater) turns electrical power into heat with its COP at
+    each interval's T_a, as the simulator does; powers in and out stay electrical.
     """
 
     n_members = 1
@@ -73,6 +76,7 @@ class RCBatchModel:
         u_max_w: float,
         backup_low_c: float = 17.0,
         backup_high_c: float = 20.5,
+        actuator: Actuator | None = None,
     ):
         if not (np.isfinite(u_max_w) and u_max_w > 0):
             raise InputError(f"RCBatchModel.u_max_w must be positive, got {u_max_w!r}")
@@ -84,6 +88,7 @@ class RCBatchModel:
         self.u_max_w, self.dt_s = u_max_w, dt_s
         self.backup_low_c, self.backup_high_c = backup_low_c, backup_high_c
         self.ad, self.bd = discretise(params, dt_s)
+        self.actuator = Actuator() if actuator is None else actuator
 
     @property
     def eta(self) -> float:
@@ -99,9 +104,10 @@ class RCBatchModel:
         if "T_m" in history:
             return float(t_r[-1]), float(np.asarray(history["T_m"])[-1])
         zeros = np.zeros_like(t_r)
+        t_a_last = float(np.asarray(history.get("T_a", zeros), dtype=float)[-2])
         d = np.array(
             [
-                np.asarray(history["u_phys"], dtype=float)[-1],
+                np.asarray(history["u_phys"], dtype=float)[-1] * float(self.actuator.gain(t_a_last)),
                 *(np.asarray(history.get(name, zeros), dtype=float)[-2] for name in self.exog_names),
             ]
         )
@@ -119,6 +125,7 @@ class RCBatchModel:
         drift = torch.as_tensor(d @ self.bd[:, 1:].T, dtype=u_w.dtype)  # (H, 2)
         (a00, a01), (a10, a11) = self.ad.tolist()
         b0, b1 = self.bd[:, 0].tolist()
+        gain = self.actuator.gain(d[:, 0]).tolist()  # heat per electrical W of each interval
         t_r = torch.full((n,), t_r0, dtype=u_w.dtype)
         t_m = torch.full((n,), t_m0, dtype=u_w.dtype)
         on, off = (self.backup_low_c, self.backup_high_c)
@@ -128,9 +135,10 @@ class RCBatchModel:
             if not self.params.heating:
                 force_on, force_off = force_off, force_on
             p = torch.where(force_on, self.u_max_w, torch.where(force_off, 0.0, u_w[:, j]))
+            heat = p * gain[j]
             t_r, t_m = (
-                a00 * t_r + a01 * t_m + b0 * p + drift[j, 0],
-                a10 * t_r + a11 * t_m + b1 * p + drift[j, 1],
+                a00 * t_r + a01 * t_m + b0 * heat + drift[j, 0],
+                a10 * t_r + a11 * t_m + b1 * heat + drift[j, 1],
             )
             out_r.append(t_r)
             out_m.append(t_m)

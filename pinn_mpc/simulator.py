@@ -7,6 +7,12 @@ thermostat is re-evaluated at the start of every substep, so the power actually 
 arrays of shape (B,); they share the parameters of ``SimConfig.params`` or, for a fleet, each
 has its own (:func:`draw_fleet`, discretised in one batch by :func:`fleet_matrices`). The
 substep loop runs compiled (:mod:`pinn_mpc.substeps`).
+
+``SimConfig.actuator`` (:mod:`pinn_mpc.actuator`) turns the electrical demand into heat (the
+ideal heater by default, or a heat pump whose COP follows the interval's outdoor temperature);
+``u`` and ``u_phys`` stay electrical. ``SimConfig.plant`` (:mod:`pinn_mpc.plant`) is the
+models' 2R2C by default, or a 3R3C with an envelope node the models do not have; its third
+state is in :attr:`Simulator.full_state` only.
 """
 
 from __future__ import annotations
@@ -20,15 +26,20 @@ from typing import NamedTuple
 import numpy as np
 import scipy.linalg
 
+from pinn_mpc.actuator import Actuator
 from pinn_mpc.errors import InputError
-from pinn_mpc.physics import N_INPUTS, N_STATES, PAPER_HOUSEHOLD, RCParams, continuous_matrices
+from pinn_mpc.physics import N_INPUTS, PAPER_HOUSEHOLD, RCParams
+from pinn_mpc.plant import Plant, plant_matrices
 
 __all__ = ["SimConfig", "Simulator", "StepResult", "backup_power"]
 
 
 @dataclass(frozen=True, kw_only=True)
 class SimConfig:
-    """Building, actuator and backup-thermostat settings of a simulation."""
+    """Building, actuator and backup-thermostat settings of a simulation.
+
+    ``u_max_w`` is electrical; ``actuator`` and ``plant`` default to today's ideal heater on
+    the 2R2C (bit-identical trajectories)."""
 
     params: RCParams = field(default_factory=lambda: PAPER_HOUSEHOLD)
     u_max_w: float = 5000.0
@@ -37,8 +48,15 @@ class SimConfig:
     backup_low_c: float = 17.0
     backup_high_c: float = 20.5
     noise_std_c: float = 0.0
+    actuator: Actuator = field(default_factory=Actuator)
+    plant: Plant = field(default_factory=Plant)
 
     def __post_init__(self) -> None:
+        if self.actuator.kind == "heat_pump" and not self.params.heating:
+            raise InputError(
+                "SimConfig: a heat_pump actuator heats, but params.eta < 0 (cooling); give the "
+                "cooling machine's COP as -eta with the ideal actuator"
+            )
         if not (math.isfinite(self.u_max_w) and self.u_max_w > 0):
             raise InputError(f"SimConfig.u_max_w must be positive, got {self.u_max_w!r}")
         if not (self.substep_s > 0 and self.dt_s > 0):
@@ -67,7 +85,7 @@ class StepResult(NamedTuple):
 
     t_r_c: np.ndarray  # (B,) room temperature at the end of the interval [C]
     t_m_c: np.ndarray  # (B,) thermal-mass temperature at the end of the interval [C]
-    u_phys_w: np.ndarray  # (B,) mean power delivered over the interval [W]
+    u_phys_w: np.ndarray  # (B,) mean electrical power delivered over the interval [W]
     overridden: np.ndarray  # (B,) bool, the backup changed the demand in some substep
     t_r_sub_c: np.ndarray  # (B, n_substeps) room temperature at the end of each substep [C]
 
@@ -111,27 +129,26 @@ def draw_fleet(
 
 
 def fleet_matrices(
-    params: Sequence[RCParams], dt_s: float
+    params: Sequence[RCParams], dt_s: float, plant: Plant | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
     """Exact ZOH discretisation of many buildings in one batched matrix exponential.
 
-    Returns ``Ad`` (B, 2, 2) and ``Bd`` (B, 2, 4), building by building the same matrices as
-    :func:`pinn_mpc.physics.discretise` (to rounding).
+    Returns ``Ad`` (B, n, n) and ``Bd`` (B, n, 4), n = 2 for the default plant (building by
+    building the same matrices as :func:`pinn_mpc.physics.discretise`, to rounding).
     """
+    plant = Plant() if plant is None else plant
+    n = plant.n_states
     if not (math.isfinite(dt_s) and dt_s > 0):
         raise InputError(f"dt_s must be a positive number of seconds, got {dt_s!r}")
     if len(params) == 0:
         raise InputError("fleet_matrices: no buildings given")
-    m = np.zeros((len(params), N_STATES + N_INPUTS, N_STATES + N_INPUTS))
+    m = np.zeros((len(params), n + N_INPUTS, n + N_INPUTS))
     for i, p in enumerate(params):
-        a, b = continuous_matrices(p)
-        m[i, :N_STATES, :N_STATES] = a * dt_s
-        m[i, :N_STATES, N_STATES:] = b * dt_s
+        a, b = plant_matrices(p, plant)
+        m[i, :n, :n] = a * dt_s
+        m[i, :n, n:] = b * dt_s
     e = scipy.linalg.expm(m)
-    return (
-        np.ascontiguousarray(e[:, :N_STATES, :N_STATES]),
-        np.ascontiguousarray(e[:, :N_STATES, N_STATES:]),
-    )
+    return np.ascontiguousarray(e[:, :n, :n]), np.ascontiguousarray(e[:, :n, n:])
 
 
 class Simulator:
@@ -171,29 +188,41 @@ class Simulator:
             raise InputError(f"n_buildings must be >= 1, got {n_buildings}")
         self.config = config
         self.n_buildings = n_buildings
-        # (P, 2, 2) / (P, 2, 4): P = 1 when all buildings share config.params.
+        # (P, n, n) / (P, n, 4): P = 1 when all buildings share config.params.
         self._ad, self._bd = fleet_matrices(
-            [config.params] if fleet is None else fleet, config.substep_s
+            [config.params] if fleet is None else fleet, config.substep_s, config.plant
         )
         self._rng = np.random.default_rng(seed)
-        self._x = np.zeros((n_buildings, 2))
+        self._x = np.zeros((n_buildings, config.plant.n_states))
+
     def reset(
-        self, t_r_c: float | np.ndarray, t_m_c: float | np.ndarray, *, seed: int | None = None
+        self,
+        t_r_c: float | np.ndarray,
+        t_m_c: float | np.ndarray,
+        *,
+        seed: int | None = None,
+        t_e_c: float | np.ndarray | None = None,
     ) -> None:
-        """Set the state (scalars broadcast to all buildings); reseed the noise if ``seed``."""
+        """Set the state (scalars broadcast to all buildings); reseed the noise if ``seed``.
+
+        ``t_e_c`` is the 3R3C's envelope temperature, by default the room's (ignored by the
+        2R2C)."""
         if seed is not None:
             self._rng = np.random.default_rng(seed)
+        values = [t_r_c, t_m_c, t_r_c if t_e_c is None else t_e_c][: self.config.plant.n_states]
         self._x = np.stack(
-            [
-                np.broadcast_to(np.asarray(t_r_c, dtype=float), (self.n_buildings,)),
-                np.broadcast_to(np.asarray(t_m_c, dtype=float), (self.n_buildings,)),
-            ],
+            [np.broadcast_to(np.asarray(v, dtype=float), (self.n_buildings,)) for v in values],
             axis=1,
         ).copy()
 
     @property
     def state(self) -> np.ndarray:
-        """(B, 2) true ``(T_r, T_m)`` [C]."""
+        """(B, 2) true ``(T_r, T_m)`` [C], the states the models have."""
+        return self._x[:, :2].copy()
+
+    @property
+    def full_state(self) -> np.ndarray:
+        """(B, n) every state of the plant [C]: ``(T_r, T_m)`` or ``(T_r, T_m, T_e)``."""
         return self._x.copy()
 
     def measure(self) -> np.ndarray:
@@ -211,13 +240,15 @@ class Simulator:
         i_g_w: np.ndarray | float = 0.0,
     ) -> StepResult:
         """Advance one control interval with inputs held constant; all inputs (B,) or scalar."""
-        from pinn_mpc.substeps import integrate_interval  # numba only once something steps
+        # numba only once something steps
+        from pinn_mpc.substeps import integrate_interval, integrate_interval_n
 
         shape = (self.n_buildings,)
         u = np.broadcast_to(np.asarray(u_w, dtype=float), shape)
         if not np.all(np.isfinite(u)):
             raise InputError("Simulator.step: demanded power u_w has non-finite values")
-        u = np.clip(u, 0.0, self.config.u_max_w)
+        cfg = self.config
+        u = np.clip(u, 0.0, cfg.u_max_w)
         exog = np.stack(
             [
                 np.broadcast_to(np.asarray(v, dtype=float), shape)
@@ -225,17 +256,20 @@ class Simulator:
             ],
             axis=1,
         )
-        cfg = self.config
+        gain = cfg.actuator.gain(exog[:, 0])
         delivered = np.empty(shape)
         overridden = np.empty(shape, dtype=bool)
         t_r_sub = np.empty((self.n_buildings, cfg.n_substeps))
         x = np.ascontiguousarray(self._x, dtype=float)
-        integrate_interval(
+        kernel = integrate_interval if cfg.plant.n_states == 2 else integrate_interval_n
+        kernel(
             x,
             np.ascontiguousarray(u),
             exog,
             self._ad,
             self._bd,
+            gain,
+            float(cfg.actuator.min_modulation * cfg.u_max_w),
             float(cfg.u_max_w),
             float(cfg.backup_low_c),
             float(cfg.backup_high_c),

@@ -33,7 +33,7 @@ from scenarios.datagen import generate
 from scenarios.factory import make_controller
 from scenarios.inputs import day_span
 from scenarios.registry import Scenario, get_scenario
-from scenarios.report import format_kpis, kpi_table_text, render_report
+from scenarios.report import format_kpis, kpi_table_text, prediction_table_text, render_report
 
 if TYPE_CHECKING:  # compare loads torch: only the compare command imports it
     from scenarios.compare import CompareSettings, ComparisonResult
@@ -141,6 +141,7 @@ def _settings_table(
 def compare(a: argparse.Namespace) -> str:
     """Run the comparison, write the JSON table, the report and its figure (parents created)."""
     from scenarios.compare import CompareSettings, run_comparison
+    from scenarios.prediction import PREDICTION_HORIZON
 
     check_writable(a.json, a.report, create_parents=True)
     report = Path(a.report)
@@ -188,6 +189,8 @@ def compare(a: argparse.Namespace) -> str:
             figure_name=figure.name,
             notes=notes,
             dates=_dates_text(settings, result.days),
+            prediction=result.prediction,
+            prediction_horizon=PREDICTION_HORIZON,
         ),
     )
     atomic_write_json(
@@ -199,10 +202,12 @@ def compare(a: argparse.Namespace) -> str:
             "settings": settings_table,
             "rows": result.rows,
             "rc": result.rc,
+            "prediction": result.prediction,
         },
     )
     written = f"wrote {a.json}, {a.report}, {figure} ({total_s:.0f} s)"
-    return f"{kpi_table_text(result.rows)}\n{written}"
+    prediction = prediction_table_text(result.prediction)
+    return f"{kpi_table_text(result.rows)}\n{prediction}\n{written}"
 
 
 def reproduce(a: argparse.Namespace) -> str:

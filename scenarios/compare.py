@@ -15,7 +15,15 @@
    polish adds), CEM over physnet, physreg and mlp (physreg and mlp unless
    ``cem_all_models=False``), casadi-mpc and qp-mpc on the identified RC, qp-mpc on the
    hybrid- and physnet-exported RCs, oracle and clairvoyant.
-4. Outputs (written by the command, :func:`scenarios.commands.compare`; :func:`run_comparison`
+   With a heat pump (``scenario.sim.actuator``) the data's power is electrical: the networks are
+   trained on it with ``eta`` = the training data's power-weighted mean COP (their prior and
+   export then describe the building with that actuator gain); the grey-box identification
+   runs on the delivered heat (COP(T_a) x electrical power; the COP curve is the actuator's
+   data sheet), and the exported RCs get the building's own ``eta`` back, since the RC MPCs
+   multiply by the COP of each forecast step themselves.
+4. Prediction: every model's 24-step T_r error on held-out data of the test part
+   (:mod:`scenarios.prediction`), the identified, exported and true RC as the RC MPCs use them.
+5. Outputs (written by the command, :func:`scenarios.commands.compare`; :func:`run_comparison`
    returns them as a :class:`ComparisonResult`): a JSON table (one row per controller with every KPI), a markdown report with the
    dates of the training data and of the test days, the KPI table, each objective relative to
    the oracle's, the RC parameters against the true ones and a figure of the trajectories, one
@@ -25,10 +33,12 @@
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
 import pandas as pd
 from tqdm import tqdm
 
@@ -40,6 +50,7 @@ from scenarios.choices import RANDOM_POLICIES
 from scenarios.closed_loop import one_torch_thread, run_closed_loop
 from scenarios.factory import build_controller
 from scenarios.inputs import day_span
+from scenarios.prediction import prediction_errors
 from scenarios.registry import Scenario, check_seed
 from scenarios.report import objective_ratios
 
@@ -122,6 +133,7 @@ class ComparisonResult:
     label, ``name``, ``model``, ``objective_to_oracle``); ``rc``: RC summaries by source;
     ``trajectories`` by label; ``wall_time_s`` by stage; ``errors`` the controller exceptions
     of each run that had any (the fallback acted, see :mod:`scenarios.closed_loop`);
+    ``prediction`` each model's prediction error (:mod:`scenarios.prediction`);
     ``days``: [first, last] dates of the ``training`` data, the ``test`` days counted and the
     ``test weather`` (warm-up and forecast lead included)."""
 
@@ -131,6 +143,7 @@ class ComparisonResult:
     trajectories: dict[str, pd.DataFrame]
     wall_time_s: dict[str, float]
     errors: dict[str, tuple[str, ...]]
+    prediction: list[dict[str, Any]] = dataclasses.field(default_factory=list)
 
 
 def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonResult:
@@ -159,13 +172,16 @@ def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonR
     )
     wall["training data"] = time.perf_counter() - start
     eta = scenario.sim.params.eta
+    actuator = scenario.sim.actuator
+    cop = actuator.gain(data["T_a"].to_numpy(dtype=float))
+    mean_cop = _mean_gain(data["u_phys"].to_numpy(dtype=float), cop)
     config = TrainConfig(
         depth=settings.depth,
         n_seeds=settings.n_seeds,
         first_seed=settings.seed,
         epochs=settings.training_epochs,
         recipe=settings.recipe,
-        eta=eta,
+        eta=eta * mean_cop,
         u_max_w=scenario.sim.u_max_w,
     )
     models = {}
@@ -175,7 +191,7 @@ def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonR
         models[arch] = train_model(data, arch=arch, config=config, progress=True)
         wall[f"train {arch}"] = time.perf_counter() - start
     start = time.perf_counter()
-    identified = identify_rc(data, eta=eta).params
+    identified = identify_rc(_heat_frame(data, cop), eta=eta).params
     wall["identify RC"] = time.perf_counter() - start
     rc = {
         "true": rc_summary(scenario.sim.params, source=f"scenario {scenario.name}"),
@@ -189,7 +205,25 @@ def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonR
         "identified RC": identified,
         **{f"{arch} RC": params_from_summary(rc[f"{arch} export"]) for arch in ARCHS[:2]},
     }
+    if mean_cop != 1.0:  # the RC MPCs apply the COP themselves: the building's own eta back
+        for key in (f"{arch} RC" for arch in ARCHS[:2]):
+            rc_params[key] = dataclasses.replace(rc_params[key], eta=eta)
     best = models[DEFAULT_ARCH]
+    start = time.perf_counter()
+    held_out = generate(
+        scenario,
+        days=settings.test_days + 1,
+        seed=settings.test_seed,
+        policy=settings.policy,
+        weather_part="test",
+    )
+    prediction = prediction_errors(
+        held_out,
+        learned=models,
+        rc={**rc_params, "true RC": scenario.sim.params},
+        actuator=actuator,
+    )
+    wall["prediction"] = time.perf_counter() - start
 
     n_steps = settings.test_days * scenario.steps_per_day
     shooting = {"n_samples": settings.shooting_samples}
@@ -243,5 +277,31 @@ def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonR
         "test weather": rows[0]["weather_days"],
     }
     return ComparisonResult(
-        rows=rows, days=days, rc=rc, trajectories=trajectories, wall_time_s=wall, errors=errors
+        rows=rows,
+        days=days,
+        rc=rc,
+        trajectories=trajectories,
+        wall_time_s=wall,
+        errors=errors,
+        prediction=prediction,
     )
+
+
+def _mean_gain(u_phys_w: np.ndarray, gain: np.ndarray) -> float:
+    """Power-weighted mean heat per electrical watt of a data set: exactly 1 for the ideal
+    heater, so that path is unchanged."""
+    if np.all(gain == 1.0):
+        return 1.0
+    return float(np.sum(u_phys_w * gain) / np.sum(u_phys_w))
+
+
+def _heat_frame(data: pd.DataFrame, gain: np.ndarray) -> pd.DataFrame:
+    """The data with the power columns as delivered heat (gain x electrical power)."""
+    if np.all(gain == 1.0):
+        return data
+    heat = data.copy()
+    heat["u"] = heat["u"].to_numpy(dtype=float) * gain
+    heat["u_phys"] = heat["u_phys"].to_numpy(dtype=float) * gain
+    heat.attrs = dict(data.attrs)
+    return heat
+

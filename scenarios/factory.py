@@ -4,7 +4,11 @@
 (``--model``); ``casadi-mpc`` and ``qp-mpc`` work on an RC parameter set (``--rc``, from
 ``pinn-mpc identify`` or ``pinn-mpc export-rc``); ``oracle`` and ``clairvoyant`` use the
 scenario's true parameters (and the true T_m), as references: the QP MPC composed with the
-true-state estimator (:mod:`controllers.rc_mpc.references`).
+true-state estimator (:mod:`controllers.rc_mpc.references`). On a plant of higher order than
+the models (``SimConfig.plant`` 3r3c, :mod:`pinn_mpc.plant`) no 2-state QP has the true model:
+they then plan on the plant's R/C without its envelope node (the 2R2C it reduces to as C_e ->
+0, same steady state) with the true T_r and T_m, so they are strong references there, not
+bounds. With a heat pump they plan on its COP curve at the forecast T_a (exact).
 """
 
 from __future__ import annotations

@@ -89,6 +89,7 @@ class BuildingEnv(gym.Env[np.ndarray, np.ndarray]):
             dt_s=config.dt_s,
             comfort_weight_eur_per_kh=self.comfort_weight_eur_per_kh,
             heating=config.params.heating,
+            actuator=config.actuator,
         )
         try:
             self._loop = ClosedLoop(

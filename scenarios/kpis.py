@@ -1,11 +1,12 @@
 """Closed-loop key performance indicators, following BOPTEST's definitions.
 
-- ``energy_kwh``: actuator energy, the delivered power ``u_phys`` integrated over the run.
-- ``cost_eur``: price x delivered energy, interval by interval.
+- ``energy_kwh``: actuator energy, the delivered ELECTRICAL power ``u_phys`` integrated over
+  the run (a heat pump's heat is COP times it, :mod:`pinn_mpc.actuator`).
+- ``cost_eur``: price x delivered electrical energy, interval by interval.
 - ``discomfort_kh``: integral over time of the comfort-band violation [K h]. The room
   temperature is the simulator's at the end of every substep (1 min by default), held over that
   substep and compared with the band of its control interval.
-- ``peak_kw``: the largest interval-mean delivered power.
+- ``peak_kw``: the largest interval-mean delivered electrical power.
 - ``objective``: ``cost_eur + comfort_weight x discomfort_kh``, the objective every controller
   optimises (:mod:`controllers.objective`, whose primitives compute both terms here), measured on
   the true trajectory at the substep resolution.

@@ -17,13 +17,16 @@ import dataclasses
 import math
 import os
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import pandas as pd
 
 from controllers.base import ControlSpec
+from pinn_mpc.actuator import Actuator
 from pinn_mpc.errors import InputError
 from pinn_mpc.physics import PAPER_HOUSEHOLD, RCParams
+from pinn_mpc.plant import Plant
 from pinn_mpc.simulator import SimConfig
 from scenarios.engine import ForecastErrors
 from scenarios.inputs import (
@@ -153,6 +156,7 @@ class Scenario:
             horizon_steps=self.horizon_steps,
             comfort_weight_eur_per_kh=self.comfort_weight_eur_per_kh,
             heating=self.sim.params.heating,
+            actuator=self.sim.actuator,
         )
 
 
@@ -268,6 +272,54 @@ _SCENARIOS: dict[str, Scenario] = {
         ),
     )
 }
+
+
+
+def _winter_variant(name: str, description: str, **sim_changes: Any) -> Scenario:
+    """winter_household with other simulation settings (its weather, price, comfort, gains)."""
+    base = _SCENARIOS["winter_household"]
+    return _with_split(
+        dataclasses.replace(
+            base,
+            name=name,
+            description=description,
+            sim=dataclasses.replace(base.sim, **sim_changes),
+        )
+    )
+
+
+_SCENARIOS.update(
+    (s.name, s)
+    for s in (
+        _winter_variant(
+            "heat_pump_household",
+            "winter_household heated by an air-source heat pump of 4 kW electrical (COP = 45 % "
+            "of Carnot to a 35 C supply, clipped to 1..6: about 4.0 at 0 C, 3.1 at -10 C), "
+            "minimum modulation 30 % (a lower demand runs at 30 % or is off, whichever is "
+            "nearer); power, energy and cost are electrical.",
+            u_max_w=4000.0,
+            actuator=Actuator(
+                kind="heat_pump",
+                supply_temp_c=35.0,
+                carnot_efficiency=0.45,
+                cop_min=1.0,
+                cop_max=6.0,
+                min_modulation=0.3,
+            ),
+        ),
+        _winter_variant(
+            "mismatch_household",
+            "winter_household on a 3R3C plant the models cannot represent: R_ra split in halves "
+            "at an envelope node of 1e7 J/K (outer wall layers; a third time constant of 2.6 h, "
+            "same steady state). Models, RC MPCs and the oracle are 2R2C; the oracle plans on the "
+            "plant's R/C without the envelope (the 2R2C it reduces to as C_e -> 0) with the true "
+            "T_r and T_m, so it is no longer a lower bound, nor is the clairvoyant.",
+            plant=Plant(
+                kind="3r3c", envelope_capacity_j_per_k=1.0e7, envelope_resistance_fraction=0.5
+            ),
+        ),
+    )
+)
 
 
 def scenario_names() -> list[str]:

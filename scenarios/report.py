@@ -90,6 +90,26 @@ def kpi_table_text(rows: Sequence[Mapping[str, Any]]) -> str:
     return text_table(headers, body)
 
 
+def _prediction_cells(rows: Sequence[Mapping[str, Any]]) -> tuple[list[str], list[list[str]]]:
+    headers = ["model", "kind", "T_r MAE [K]", "T_r bias [K]", "starts"]
+    body = [
+        [
+            str(r["model"]),
+            str(r["kind"]),
+            _cell(r["T_r_mae_c"], "{:.3f}"),
+            _cell(r["T_r_bias_c"], "{:+.3f}"),
+            str(r["n_starts"]),
+        ]
+        for r in rows
+    ]
+    return headers, body
+
+
+def prediction_table_text(rows: Sequence[Mapping[str, Any]]) -> str:
+    """The prediction errors as a plain-text table (the CLI's summary)."""
+    return text_table(*_prediction_cells(rows)) if rows else ""
+
+
 def rc_table_markdown(rc: Mapping[str, Mapping[str, Any]]) -> list[str]:
     """RC parameters of each source (columns) against each other, plus time constants."""
     sources = list(rc)
@@ -115,9 +135,11 @@ def render_report(
     figure_name: str,
     dates: str,
     notes: Sequence[str] = (),
+    prediction: Sequence[Mapping[str, Any]] = (),
+    prediction_horizon: int = 24,
 ) -> str:
     """The markdown report of a comparison; ``dates`` says when the training data and the
-    test days are."""
+    test days are; ``prediction`` the rows of :func:`scenarios.prediction.prediction_errors`."""
     lines = [
         f"# Closed-loop comparison on `{scenario}`",
         "",
@@ -140,6 +162,19 @@ def render_report(
         [f"`{r['controller']}`", *(_cell(r.get(k), f) for k, _, f in KPI_COLUMNS)] for r in rows
     ]
     lines += markdown_table(headers, body)
+    if prediction:
+        lines += [
+            "",
+            "## Prediction",
+            "",
+            f"Each model predicts the room temperature {prediction_horizon} intervals ahead from "
+            "the same starts of held-out data (test part of the weather, the training data's "
+            "random policy, not the closed loop): learned models by their own rollout on the "
+            "demanded power, RC parameter sets from a Kalman estimate of the state on the "
+            "delivered power (see `scenarios.prediction`). MAE and bias (prediction - truth).",
+            "",
+            *markdown_table(*_prediction_cells(prediction)),
+        ]
     lines += [
         "",
         "## RC parameters",

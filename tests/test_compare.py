@@ -117,6 +117,15 @@ def test_compare_quick_end_to_end(tmp_path, capsys):
     # The reference with the true model must beat the rule-based baseline on its own objective.
     assert rows["oracle"]["objective"] < rows["thermostat"]["objective"]
     assert set(table["rc"]) == {"true", "identified", "hybrid export", "physnet export"}
+    # Every model's 24-step prediction error on held-out test-part data, same starts for all;
+    # on paper_household the plant is the 2R2C, so the true RC predicts best among the RCs.
+    prediction = {row["model"]: row for row in table["prediction"]}
+    assert set(prediction) == {
+        "hybrid", "physnet", "physreg", "mlp", "identified RC", "hybrid RC", "physnet RC", "true RC"
+    }
+    assert len({row["n_starts"] for row in table["prediction"]}) == 1
+    assert prediction["true RC"]["T_r_mae_c"] < 0.05
+    assert prediction["true RC"]["T_r_mae_c"] <= prediction["physnet RC"]["T_r_mae_c"]
     # Training from the first day of the training weather, test days (after a warm-up day) from
     # the test weather: both ranges in the JSON and the report.
     weather = get_scenario("paper_household").weather
@@ -131,6 +140,7 @@ def test_compare_quick_end_to_end(tmp_path, capsys):
     assert f"Training data: 14 days, {first} to {last}, from the training part" in report
     assert f"Test: 1 days, {table['test_dates'][0]} to {table['test_dates'][1]}, from the test part" in report
     assert "## KPIs" in report and "## RC parameters" in report and "(report.png)" in report
+    assert "## Prediction" in report
     assert (out / "report.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     printed = capsys.readouterr().out
     assert all(label in printed for label in labels)

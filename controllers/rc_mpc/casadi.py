@@ -78,7 +78,7 @@ class CasadiMPC(RCMPC):
         h, dt_h = prob.horizon_steps, self.spec.dt_h
         ad, _ = prob.matrices
         b_u = prob.b_u_c_per_kw
-        p = ca.SX.sym("power_kw", h)
+        p = ca.SX.sym("heat_kw", h)
         s = ca.SX.sym("slack_k", h)
         price = ca.SX.sym("price_eur_per_kwh", h)
         ad_ca, bu_ca = ca.DM(ad), ca.DM(b_u)
@@ -105,7 +105,7 @@ class CasadiMPC(RCMPC):
             self._solver = ca.qpsol("casadi_mpc", self.plugin, qp, options)
         self._first_call = True
         self._lbx = np.zeros(2 * h)
-        self._ubx = np.concatenate([np.full(h, prob.u_max_kw), np.full(h, np.inf)])
+        self._slack_max = np.full(h, np.inf)
         self._warm: dict[str, np.ndarray] | None = None
 
     def reset(self, seed: int | None = None) -> None:
@@ -117,9 +117,10 @@ class CasadiMPC(RCMPC):
         free = self.problem.rollout(stage, np.zeros(h))[:, 0]
         inf = np.full(h, np.inf)
         args: dict[str, Any] = {
-            "p": stage.objective.price_eur_per_kwh,
+            # The decision is the delivered heat (problem module docstring).
+            "p": stage.heat_price_eur_per_kwh,
             "lbx": self._lbx,
-            "ubx": self._ubx,
+            "ubx": np.concatenate([stage.heat_max_kw(self.problem.u_max_kw), self._slack_max]),
             "lbg": np.concatenate([stage.objective.t_min_c - free, -inf]),
             "ubg": np.concatenate([inf, stage.objective.t_max_c - free]),
         }
@@ -141,7 +142,7 @@ class CasadiMPC(RCMPC):
                 "lam_g0": _shift(np.asarray(sol["lam_g"]).reshape(-1), h),
             }
         return SolveResult(
-            p_kw=w[:h],
+            p_kw=stage.electrical_kw(w[:h]),
             status=str(stats.get("return_status", "unknown")),
             iterations=int(stats.get("iter_count", stats.get("n_iter", 0)) or 0),
             optimal=optimal,

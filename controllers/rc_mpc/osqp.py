@@ -1,7 +1,7 @@
 """``qp-mpc``: the RC MPC problem of :mod:`controllers.rc_mpc.problem` in cvxpy, solved by OSQP.
 
 The problem is written once in cvxpy, DPP-parametrised (drift of the states, price, comfort
-band), with the states lifted as variables so the constraint matrix stays sparse (the
+band, the price and bound of the delivered heat it plans, see the problem module), with the states lifted as variables so the constraint matrix stays sparse (the
 clairvoyant uses the same class with the horizon of a whole run). cvxpy canonicalises it once;
 since the parameters enter only the linear cost and the constraint bounds, the canonical data
 are ``q = Mq theta + cq`` and ``(l, u) = Mb theta + cb`` with constant ``P`` and ``A``. Those
@@ -54,11 +54,12 @@ class QPMPC(RCMPC):
         h, dt_h = prob.horizon_steps, self.spec.dt_h
         ad, _ = prob.matrices
         b_u = prob.b_u_c_per_kw.reshape(2, 1)
-        self._p = cp.Variable(h, name="power_kw")
+        self._p = cp.Variable(h, name="heat_kw")  # delivered heat (problem module docstring)
         self._s = cp.Variable(h, name="slack_k")
         x = cp.Variable((2, h), name="state_c")
         self._drift = cp.Parameter((2, h), name="drift_c")
-        self._price = cp.Parameter(h, name="price_eur_per_kwh")
+        self._price = cp.Parameter(h, name="heat_price_eur_per_kwh")
+        self._p_max = cp.Parameter(h, name="heat_max_kw")
         self._t_min = cp.Parameter(h, name="t_min_c")
         self._t_max = cp.Parameter(h, name="t_max_c")
         previous = cp.hstack([np.zeros((2, 1)), x[:, :-1]]) if h > 1 else np.zeros((2, 1))
@@ -67,7 +68,7 @@ class QPMPC(RCMPC):
             x[0, :] + self._s >= self._t_min,
             x[0, :] - self._s <= self._t_max,
             self._p >= 0.0,
-            self._p <= prob.u_max_kw,
+            self._p <= self._p_max,
             self._s >= 0.0,
         ]
         objective = dt_h * (
@@ -95,7 +96,8 @@ class QPMPC(RCMPC):
         drift[:, 0] += ad @ stage.x0_c
         return {
             self._drift.id: drift,
-            self._price.id: stage.objective.price_eur_per_kwh,
+            self._price.id: stage.heat_price_eur_per_kwh,
+            self._p_max.id: stage.heat_max_kw(self.problem.u_max_kw),
             self._t_min.id: stage.objective.t_min_c,
             self._t_max.id: stage.objective.t_max_c,
         }
@@ -103,7 +105,8 @@ class QPMPC(RCMPC):
     def _solve(self, stage: StageData) -> SolveResult:
         values = self._parameter_values(stage)
         if self._affine is None:
-            return self._solve_cvxpy(values)
+            heat = self._solve_cvxpy(values)
+            return heat._replace(p_kw=stage.electrical_kw(heat.p_kw))
         # Hot path: no cvxpy parameter assignment (its value validation costs milliseconds).
         q, lower, upper = self._affine.data(values)
         if self._osqp is None:
@@ -123,7 +126,7 @@ class QPMPC(RCMPC):
                 y=_shift_blocks(result.y, self._affine.y_blocks),
             )
         return SolveResult(
-            p_kw=np.asarray(result.x)[self._affine.p_slice],
+            p_kw=stage.electrical_kw(np.asarray(result.x)[self._affine.p_slice]),
             status=str(info.status),
             iterations=int(info.iter),
             optimal=str(info.status) == "solved",
@@ -156,6 +159,7 @@ def _example_stage(h: int) -> StageData:
             dt_h=0.5,
             comfort_weight_eur_per_kh=1.0,
         ),
+        cop=2.0 + ramp,
     )
 
 

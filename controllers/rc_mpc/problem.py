@@ -7,6 +7,14 @@ comfort slack ``s_j >= 0`` [K]::
     subject to x[j+1] = Ad x[j] + Bd (1000 p_j, T_a,j, G_j, I_g,j)      (exact ZOH, physics.discretise)
                T_min,j - s_j <= T_r[j+1] <= T_max,j + s_j
 
+``p_j`` is electrical. With a heat pump (``spec.actuator``) the building receives
+``COP(T_a,j) p_j``: the COP is evaluated on the forecast outdoor temperature, so the problem is
+still linear, ``B_u,j = COP(T_a,j) b`` (exact for the plant's COP curve; only the forecast's
+T_a error enters). The solvers plan the delivered heat ``q_j = COP_j p_j`` instead, so that
+their matrices stay fixed: the price of heat is ``price_j / COP_j``, its bound ``COP_j u_max``,
+and the regulariser acts on ``q`` (a tie-breaker either way). For the ideal heater ``COP_j = 1``
+and nothing changes.
+
 The first two terms are :class:`controllers.objective.HorizonObjective` with ``s`` as the band
 violation: its price and band arrays are the QP data. The third, ``rho =
 regularisation_eur_per_kw2h`` (default :data:`DEFAULT_REGULARISATION`), only makes the optimum
@@ -59,6 +67,20 @@ class StageData(NamedTuple):
     x0_c: np.ndarray  # (2,) initial (T_r, T_m) [C]
     free_c: np.ndarray  # (H, 2) state drift per step from exogenous inputs [C]
     objective: HorizonObjective
+    cop: np.ndarray  # (H,) heat per electrical watt of each step (1 for the ideal heater)
+
+    @property
+    def heat_price_eur_per_kwh(self) -> np.ndarray:
+        """(H,) price per kWh of delivered heat: the solvers' linear cost."""
+        return self.objective.price_eur_per_kwh / self.cop
+
+    def heat_max_kw(self, u_max_kw: float) -> np.ndarray:
+        """(H,) the most heat the actuator delivers in each step [kW]."""
+        return u_max_kw * self.cop
+
+    def electrical_kw(self, heat_kw: np.ndarray) -> np.ndarray:
+        """Electrical power [kW] of a heat plan (H,)."""
+        return np.asarray(heat_kw, dtype=float) / self.cop
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -97,33 +119,34 @@ class RCProblem:
         h = self.horizon_steps
         _, bd = self.matrices
         exog = np.stack([first_values(a, h) for a in (forecast.T_a, forecast.G, forecast.I_g)], axis=1)
+        cop = self.spec.actuator.gain(exog[:, 0])
         objective = HorizonObjective.from_forecast(forecast, self.spec, h)
         if n_active is not None:
             objective = objective.until(n_active)
         x0 = np.asarray(x0_c, dtype=float).reshape(2)
         if not np.all(np.isfinite(x0)):
             raise FloatingPointError(f"state estimate is not finite: {x0}")
-        return StageData(x0_c=x0, free_c=exog @ bd[:, 1:].T, objective=objective)
+        return StageData(x0_c=x0, free_c=exog @ bd[:, 1:].T, objective=objective, cop=cop)
 
     def rollout(self, stage: StageData, p_kw: np.ndarray) -> np.ndarray:
-        """States at the end of each interval (H, 2) [C] for plan p (H,) [kW]."""
+        """States at the end of each interval (H, 2) [C] for electrical plan p (H,) [kW]."""
         ad, _ = self.matrices
         b_u = self.b_u_c_per_kw
         x = stage.x0_c
         out = np.empty((len(p_kw), 2))
         for j, p in enumerate(p_kw):
-            x = ad @ x + b_u * p + stage.free_c[j]
+            x = ad @ x + b_u * (stage.cop[j] * p) + stage.free_c[j]
             out[j] = x
         return out
 
     def objective(self, stage: StageData, p_kw: np.ndarray) -> float:
-        """Objective of plan p (H,) [kW] without the regulariser [EUR]."""
+        """Objective of electrical plan p (H,) [kW] without the regulariser [EUR]."""
         p_kw = np.asarray(p_kw, dtype=float)
         return float(stage.objective.cost(p_kw * 1000.0, self.rollout(stage, p_kw)[:, 0]))
 
 
 class SolveResult(NamedTuple):
-    p_kw: np.ndarray  # (H,) planned power [kW]
+    p_kw: np.ndarray  # (H,) planned electrical power [kW]
     status: str
     iterations: int
     optimal: bool
@@ -171,7 +194,9 @@ class RCMPC(PlanningController):
             horizon_steps=spec.horizon_steps if horizon_steps is None else horizon_steps,
             regularisation_eur_per_kw2h=regularisation_eur_per_kw2h,
         )
-        self.estimator = KalmanEstimator(params, spec.dt_s) if estimator is None else estimator
+        self.estimator = (
+            KalmanEstimator(params, spec.dt_s, actuator=spec.actuator) if estimator is None else estimator
+        )
         self.fallback = Fallback(spec, reuse_plan=True)
         self.reset()
         self._build()
