@@ -1,10 +1,11 @@
 """Decision time of random shooting and CEM at a 48-step horizon.
 
-    python benchmarks/bench_planners.py [--model physnet|rc|both] [--members 10] [--decisions 20]
+    python benchmarks/bench_planners.py [--model hybrid|physnet|rc|all] [--members 10] [--decisions 20]
 
-Data: the ``winter_household`` scenario under the random-level policy. ``physnet`` trains an
-ensemble shaped as ``pinn-mpc compare`` trains it (10 members, depth 16: the model whose
-decisions the comparison reports) for a few epochs (decision time does not depend on how well
+Data: the ``winter_household`` scenario under the random-level policy. ``hybrid`` (the model
+``train`` makes by default and ``compare`` recommends) and ``physnet`` train an ensemble shaped
+as ``pinn-mpc compare`` trains it (10 members, depth 16: the models whose decisions the
+comparison reports) for a few epochs (decision time does not depend on how well
 it is trained; the network sizes are the paper's); ``rc`` is the exact 2R2C physics
 (:class:`RCBatchModel`). CEM runs with its defaults, LP polish and offset included.
 Each controller makes ``--decisions`` consecutive warm-started decisions along the data
@@ -80,16 +81,16 @@ def _time_decisions(
     return np.array(times), np.array(cpu_times)
 
 
-def _physnet(df: pd.DataFrame, members: int, epochs: int) -> BatchDynamics:
+def _learned(arch: str, df: pd.DataFrame, members: int, epochs: int) -> BatchDynamics:
     from pinn_mpc.training import TrainConfig, train_model
 
     config = TrainConfig(depth=_COMPARE.depth, n_seeds=members, epochs=epochs)
-    return train_model(df.drop(columns=["T_m"]), arch="physnet", config=config, progress=False)
+    return train_model(df.drop(columns=["T_m"]), arch=arch, config=config, progress=False)
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--model", choices=["physnet", "rc", "both"], default="both")
+    parser.add_argument("--model", choices=["hybrid", "physnet", "rc", "all"], default="all")
     parser.add_argument("--members", type=int, default=_COMPARE.n_seeds)
     parser.add_argument("--epochs", type=int, default=2)
     parser.add_argument("--decisions", type=int, default=20)
@@ -109,9 +110,10 @@ def main() -> None:
             backup_low_c=scenario.sim.backup_low_c,
             backup_high_c=scenario.sim.backup_high_c,
         ),
-        "physnet": lambda: _physnet(df, args.members, args.epochs),
+        "hybrid": lambda: _learned("hybrid", df, args.members, args.epochs),
+        "physnet": lambda: _learned("physnet", df, args.members, args.epochs),
     }
-    names = ["rc", "physnet"] if args.model == "both" else [args.model]
+    names = list(models) if args.model == "all" else [args.model]
     print(f"horizon {spec.horizon_steps} steps, torch threads {torch.get_num_threads()}")
     for name in names:
         model = models[name]()
