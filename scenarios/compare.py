@@ -54,7 +54,16 @@ from scenarios.prediction import prediction_errors
 from scenarios.registry import Scenario, check_seed
 from scenarios.report import objective_ratios
 
-__all__ = ["ARCHS", "REFERENCE", "CompareSettings", "ComparisonResult", "run_comparison"]
+__all__ = [
+    "ARCHS",
+    "REFERENCE",
+    "CompareSettings",
+    "ComparisonResult",
+    "identify_scenario_rc",
+    "learned_eta",
+    "rc_for_mpc",
+    "run_comparison",
+]
 
 #: The recommended model first; physnet for the paper's best; physreg and mlp for the CEM rows.
 ARCHS = (DEFAULT_ARCH, "physnet", "physreg", "mlp")
@@ -149,7 +158,6 @@ class ComparisonResult:
 def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonResult:
     """Steps 1-3 of the module docstring; progress bars when attached to a terminal."""
     from pinn_mpc.export import export_rc
-    from pinn_mpc.identify import identify_rc
     from pinn_mpc.training import TrainConfig, train_model
     from scenarios.datagen import generate
 
@@ -171,17 +179,14 @@ def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonR
         weather_part="train",
     )
     wall["training data"] = time.perf_counter() - start
-    eta = scenario.sim.params.eta
     actuator = scenario.sim.actuator
-    cop = actuator.gain(data["T_a"].to_numpy(dtype=float))
-    mean_cop = _mean_gain(data["u_phys"].to_numpy(dtype=float), cop)
     config = TrainConfig(
         depth=settings.depth,
         n_seeds=settings.n_seeds,
         first_seed=settings.seed,
         epochs=settings.training_epochs,
         recipe=settings.recipe,
-        eta=eta * mean_cop,
+        eta=learned_eta(scenario, data),
         u_max_w=scenario.sim.u_max_w,
     )
     models = {}
@@ -191,7 +196,7 @@ def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonR
         models[arch] = train_model(data, arch=arch, config=config, progress=True)
         wall[f"train {arch}"] = time.perf_counter() - start
     start = time.perf_counter()
-    identified = identify_rc(_heat_frame(data, cop), eta=eta).params
+    identified = identify_scenario_rc(scenario, data)
     wall["identify RC"] = time.perf_counter() - start
     rc = {
         "true": rc_summary(scenario.sim.params, source=f"scenario {scenario.name}"),
@@ -203,11 +208,11 @@ def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonR
     }
     rc_params: dict[str, RCParams] = {
         "identified RC": identified,
-        **{f"{arch} RC": params_from_summary(rc[f"{arch} export"]) for arch in ARCHS[:2]},
+        **{
+            f"{arch} RC": rc_for_mpc(params_from_summary(rc[f"{arch} export"]), scenario)
+            for arch in ARCHS[:2]
+        },
     }
-    if mean_cop != 1.0:  # the RC MPCs apply the COP themselves: the building's own eta back
-        for key in (f"{arch} RC" for arch in ARCHS[:2]):
-            rc_params[key] = dataclasses.replace(rc_params[key], eta=eta)
     best = models[DEFAULT_ARCH]
     start = time.perf_counter()
     held_out = generate(
@@ -287,21 +292,44 @@ def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonR
     )
 
 
-def _mean_gain(u_phys_w: np.ndarray, gain: np.ndarray) -> float:
-    """Power-weighted mean heat per electrical watt of a data set: exactly 1 for the ideal
-    heater, so that path is unchanged."""
-    if np.all(gain == 1.0):
-        return 1.0
-    return float(np.sum(u_phys_w * gain) / np.sum(u_phys_w))
+def _cop(scenario: Scenario, data: pd.DataFrame) -> np.ndarray:
+    """Heat per electrical watt of each row of ``data`` (exactly 1 for the ideal heater)."""
+    return np.asarray(scenario.sim.actuator.gain(data["T_a"].to_numpy(dtype=float)), dtype=float)
 
 
-def _heat_frame(data: pd.DataFrame, gain: np.ndarray) -> pd.DataFrame:
-    """The data with the power columns as delivered heat (gain x electrical power)."""
-    if np.all(gain == 1.0):
-        return data
-    heat = data.copy()
-    heat["u"] = heat["u"].to_numpy(dtype=float) * gain
-    heat["u_phys"] = heat["u_phys"].to_numpy(dtype=float) * gain
-    heat.attrs = dict(data.attrs)
-    return heat
+def learned_eta(scenario: Scenario, data: pd.DataFrame) -> float:
+    """The ``eta`` a network trains with on ``data`` of ``scenario``: the building's own for the
+    ideal heater; with a heat pump (electrical power in the data) the building's times the
+    data's power-weighted mean COP, so the prior and the export describe the building with that
+    actuator gain."""
+    eta = scenario.sim.params.eta
+    cop = _cop(scenario, data)
+    if np.all(cop == 1.0):
+        return eta
+    u_w = data["u_phys"].to_numpy(dtype=float)
+    return eta * float(np.sum(u_w * cop) / np.sum(u_w))
+
+
+def identify_scenario_rc(scenario: Scenario, data: pd.DataFrame) -> RCParams:
+    """The grey-box identification of ``data``; with a heat pump on the delivered heat
+    (COP(T_a) x electrical power, the COP curve being the actuator's data sheet)."""
+    from pinn_mpc.identify import identify_rc
+
+    cop = _cop(scenario, data)
+    heat = data
+    if not np.all(cop == 1.0):
+        heat = data.copy()
+        for column in ("u", "u_phys"):
+            heat[column] = data[column].to_numpy(dtype=float) * cop
+        heat.attrs = dict(data.attrs)
+    return identify_rc(heat, eta=scenario.sim.params.eta).params
+
+
+def rc_for_mpc(params: RCParams, scenario: Scenario) -> RCParams:
+    """A network's exported RC as the RC MPCs use it: with a heat pump they multiply by the
+    COP of each forecast step themselves, so the building's own ``eta`` replaces the learned
+    gain (which holds the training data's mean COP, see :func:`learned_eta`)."""
+    if scenario.sim.actuator.kind == "ideal":  # a gain of 1: the learned eta is the building's
+        return params
+    return dataclasses.replace(params, eta=scenario.sim.params.eta)
 

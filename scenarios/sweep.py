@@ -2,8 +2,10 @@
 
 A cell is one closed loop: (scenario, controller, seed[, training days]). The seed fixes the
 training data (``seed``) and the test days (``seed + 1``), as in ``compare``. Controllers that
-plan over a learned model (``random-shooting``, ``cem``) use a PhysNet ensemble trained on the
-scenario's simulated data; ``qp-mpc`` / ``casadi-mpc`` the RC identified from the same data.
+plan over a learned model (``random-shooting``, ``cem``) use an ensemble of the architecture
+``train`` makes by default (the hybrid) trained on the scenario's simulated data, as ``compare``
+trains it; ``qp-mpc`` / ``casadi-mpc`` the RC identified from the same data (on delivered heat
+under a heat pump, as ``compare``).
 Each model is trained once per scenario x seed x kind x training days, as a Ray task whose
 result every cell needing it receives (Ray passes it through its object store, also between
 nodes); the oracle of each scenario and seed always runs, as the denominator.
@@ -11,7 +13,7 @@ nodes); the oracle of each scenario and seed always runs, as the denominator.
 Everything is written by the driver (this process), so results land in ``DIR`` on the machine
 that runs ``pinn-mpc sweep``, whatever nodes did the work:
 
-- ``DIR/sweep.json``: the settings (test days, ensemble sizes, ...). A rerun with other
+- ``DIR/sweep.json``: the settings (test days, ensemble sizes, architecture, ...). A rerun with other
   settings is refused; the grid itself (scenarios, controllers, seeds, training days) may grow.
 - ``DIR/cells/<scenario>--<controller>--seed<S>[--train<D>].json``: one file per finished
   cell, written atomically the moment it arrives. A rerun reads them and runs only the missing
@@ -40,6 +42,7 @@ from typing import Any
 from tqdm import tqdm
 
 from pinn_mpc import __version__
+from pinn_mpc.choices import DEFAULT_ARCH
 from pinn_mpc.errors import InputError
 from pinn_mpc.io import atomic_write_json, atomic_write_text
 from pinn_mpc.physics import RCParams, params_from_summary, rc_summary
@@ -47,8 +50,8 @@ from scenarios.factory import CONTROLLER_NAMES, MODEL_CONTROLLERS, RC_CONTROLLER
 from scenarios.registry import get_scenario, is_scenario_file
 from scenarios.sweep_report import REFERENCE, plot_sweep, render_sweep_report, summarise
 
-#: The architecture the model-based controllers plan over.
-ARCH = "physnet"
+#: The architecture the model-based controllers plan over: the one ``train`` makes by default.
+ARCH = DEFAULT_ARCH
 RC_KIND = "rc"
 FIGURE = "objective_to_oracle.png"
 
@@ -202,18 +205,15 @@ def parse_ints(text: str, what: str) -> tuple[int, ...]:
 
 
 def fit_model(key: ModelKey, settings: SweepSettings) -> Any:
-    """Train the PhysNet ensemble or identify the RC of ``key`` on the scenario's simulated data
+    """Train the learned ensemble (:data:`ARCH`) or identify the RC of ``key`` on the scenario's simulated data
     (``train_days`` days under the random policy, seed ``key.seed``)."""
-    from scenarios.compare import CompareSettings
+    from scenarios.compare import CompareSettings, identify_scenario_rc, learned_eta
     from scenarios.datagen import generate
 
     scenario = get_scenario(key.scenario)
     data = generate(scenario, days=key.train_days, seed=key.seed, policy=settings.policy)
-    eta = scenario.sim.params.eta
-    if key.kind == RC_KIND:
-        from pinn_mpc.identify import identify_rc
-
-        return identify_rc(data, eta=eta).params
+    if key.kind == RC_KIND:  # as compare identifies (on delivered heat under a heat pump)
+        return identify_scenario_rc(scenario, data)
     from pinn_mpc.training import TrainConfig, train_model
 
     epochs = CompareSettings(
@@ -224,7 +224,8 @@ def fit_model(key: ModelKey, settings: SweepSettings) -> Any:
         n_seeds=settings.n_members,
         first_seed=key.seed,
         epochs=epochs,
-        eta=eta,
+        eta=learned_eta(scenario, data),
+        u_max_w=scenario.sim.u_max_w,
     )
     return train_model(data, arch=key.kind, config=config, progress=False)
 
@@ -263,7 +264,7 @@ def run_cell(cell: Cell, settings: SweepSettings, model: Any) -> dict[str, Any]:
 
 
 def _settings_record(settings: SweepSettings) -> dict[str, Any]:
-    return {**dataclasses.asdict(settings), "package_version": __version__}
+    return {**dataclasses.asdict(settings), "arch": ARCH, "package_version": __version__}
 
 
 def _read_json(path: Path) -> Any:
