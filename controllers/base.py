@@ -124,7 +124,9 @@ class ControlSpec:
     """Actuator and objective settings shared by all controllers of a run.
 
     ``u_max_w`` and every power a controller decides are electrical; ``actuator`` says how the
-    plant turns them into heat (a heat pump's COP curve, which an RC MPC plans with)."""
+    plant turns them into heat (a heat pump's COP curve, which an RC MPC plans with);
+    ``sensor_noise_std_c`` the room sensor's noise as its data sheet states it (the Kalman
+    observers take it as their measurement noise; 0 keeps their default)."""
 
     u_max_w: float
     dt_s: float = 1800.0
@@ -132,12 +134,17 @@ class ControlSpec:
     comfort_weight_eur_per_kh: float = 1.0
     heating: bool = True
     actuator: Actuator = field(default_factory=Actuator)
+    sensor_noise_std_c: float = 0.0
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.u_max_w) and self.u_max_w > 0):
             raise InputError(f"ControlSpec.u_max_w must be positive, got {self.u_max_w!r}")
         if self.horizon_steps < 1:
             raise InputError(f"ControlSpec.horizon_steps must be >= 1, got {self.horizon_steps}")
+        if not (math.isfinite(self.sensor_noise_std_c) and self.sensor_noise_std_c >= 0):
+            raise InputError(
+                f"ControlSpec.sensor_noise_std_c must be finite and >= 0, got {self.sensor_noise_std_c!r}"
+            )
         if not (self.comfort_weight_eur_per_kh >= 0):
             raise InputError(
                 f"ControlSpec.comfort_weight_eur_per_kh must be >= 0, got {self.comfort_weight_eur_per_kh}"

@@ -19,10 +19,10 @@ from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
-from controllers.base import Observation
+from controllers.base import ControlSpec, Observation
 from pinn_mpc.actuator import Actuator
 from pinn_mpc.errors import InputError
-from pinn_mpc.observer import KalmanObserver
+from pinn_mpc.observer import DEFAULT_MEASUREMENT_STD_C, KalmanObserver
 from pinn_mpc.physics import RCParams
 
 if TYPE_CHECKING:
@@ -48,6 +48,7 @@ class KalmanEstimator:
     inputs) and updates with the new measurement. ``observer_options`` are the keywords of
     :class:`~pinn_mpc.observer.KalmanObserver`. ``actuator`` turns the last interval's
     electrical power into the heat the RC model takes (the heat pump's COP at its T_a).
+    :meth:`for_spec` builds it as the RC MPCs do, with the sensor's stated noise.
     """
 
     def __init__(
@@ -61,6 +62,18 @@ class KalmanEstimator:
         self.observer = KalmanObserver(params, dt_s, **observer_options)
         self.actuator = Actuator() if actuator is None else actuator
         self.reset()
+
+    @classmethod
+    def for_spec(cls, params: RCParams, spec: ControlSpec) -> KalmanEstimator:
+        """The observer of an RC MPC: the spec's interval and actuator, and as measurement noise
+        the sensor's stated noise when it exceeds the observer's default (a noisy sensor
+        trusted as a clean one makes the plan chase its noise: with 0.1 C of noise on
+        winter_household, qp-mpc +3.7 to +12.5 % over its noise-free objective at the default
+        0.05 C, +1.6 to +8.0 % with 0.1 C)."""
+        options: dict[str, Any] = {}
+        if spec.sensor_noise_std_c > DEFAULT_MEASUREMENT_STD_C:
+            options["measurement_std_c"] = spec.sensor_noise_std_c
+        return cls(params, spec.dt_s, actuator=spec.actuator, **options)
 
     def reset(self) -> None:
         self._k_seen: int | None = None

@@ -26,9 +26,13 @@ import numpy as np
 from pinn_mpc.errors import InputError
 from pinn_mpc.physics import RCParams, discretise
 
-__all__ = ["KalmanObserver"]
+__all__ = ["DEFAULT_MEASUREMENT_STD_C", "KalmanObserver"]
 
 _H = np.array([1.0, 0.0])  # measurement row: y = T_r
+
+
+#: The measurement noise [C] the observer assumes unless told (a good room sensor).
+DEFAULT_MEASUREMENT_STD_C = 0.05
 
 
 class KalmanObserver:
@@ -45,7 +49,7 @@ class KalmanObserver:
         *,
         n_batch: int = 1,
         process_std_c: tuple[float, float] = (0.05, 0.01),
-        measurement_std_c: float = 0.05,
+        measurement_std_c: float = DEFAULT_MEASUREMENT_STD_C,
         initial_t_m_std_c: float = 3.0,
     ) -> None:
         if n_batch < 1:

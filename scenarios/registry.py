@@ -157,6 +157,7 @@ class Scenario:
             comfort_weight_eur_per_kh=self.comfort_weight_eur_per_kh,
             heating=self.sim.params.heating,
             actuator=self.sim.actuator,
+            sensor_noise_std_c=self.sim.noise_std_c,
         )
 
 

@@ -195,7 +195,7 @@ class RCMPC(PlanningController):
             regularisation_eur_per_kw2h=regularisation_eur_per_kw2h,
         )
         self.estimator = (
-            KalmanEstimator(params, spec.dt_s, actuator=spec.actuator) if estimator is None else estimator
+            KalmanEstimator.for_spec(params, spec) if estimator is None else estimator
         )
         self.fallback = Fallback(spec, reuse_plan=True)
         self.reset()
