@@ -22,19 +22,15 @@ import time
 from scenarios.closed_loop import one_torch_thread
 from scenarios.fleet import FleetResult, run_fleet_closed_loop
 from scenarios.registry import get_scenario
+from scenarios.report import format_fleet
 
 SCENARIO = "winter_household"
 
 
 def report(result: FleetResult, build_and_run_s: float) -> None:
-    info, t, totals = result.info, result.step_time, result.totals
+    t = result.step_time
     interval_ms = get_scenario(SCENARIO).sim.dt_s * 1000.0
-    steps = len(result.aggregate_u_phys_w)
-    print(
-        f"{info['n_buildings']:,} buildings under {info['controller']} on {info['scenario']}, "
-        f"{steps} counted control steps ({info['days']} day(s) after a day of warm-up), "
-        f"{build_and_run_s:.1f} s in all"
-    )
+    print(format_fleet(result))
     for part in ("controllers", "plant", "total"):
         print(
             f"  {part:12s} per control step: median {t[f'{part}_ms_median']:10.1f} ms, "
@@ -42,17 +38,13 @@ def report(result: FleetResult, build_and_run_s: float) -> None:
         )
     per_building = sorted(k["decision_ms_median"] for k in result.kpis)
     print(
-        f"  one building's decision: median of the buildings' medians "
-        f"{per_building[len(per_building) // 2]:.2f} ms"
+        f"  {len(result.aggregate_u_phys_w)} counted control steps after a day of warm-up, "
+        f"{build_and_run_s:.1f} s in all (building the controllers included); one building's "
+        f"decision: {per_building[len(per_building) // 2]:.2f} ms (median of the medians)"
     )
     print(
-        f"  total p95 is {t['total_ms_p95'] / interval_ms:.4%} of the "
+        f"  total p95 per control step is {t['total_ms_p95'] / interval_ms:.4%} of the "
         f"{interval_ms / 60000:.0f}-minute control interval"
-    )
-    print(
-        f"  fleet: {totals['energy_kwh']:.0f} kWh, {totals['cost_eur']:.2f} EUR, "
-        f"{totals['discomfort_kh']:.1f} K h, aggregate peak {totals['peak_kw']:.0f} kW, "
-        f"fallbacks {totals['fallbacks']} in {totals['buildings_with_fallbacks']} building(s)"
     )
 
 

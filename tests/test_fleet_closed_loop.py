@@ -1,12 +1,14 @@
 """The fleet closed loop (scenarios.fleet): one batched plant, one controller per building."""
 
 import dataclasses
+import json
 
 import numpy as np
 import pytest
 
 from controllers.rc_mpc.osqp import QPMPC
 from controllers.thermostat import Thermostat
+from pinn_mpc.cli import main
 from pinn_mpc.errors import InputError
 from scenarios.closed_loop import build_loop, prepare_run, run_closed_loop
 from scenarios.engine import ForecastErrors
@@ -115,3 +117,41 @@ def test_fleet_input_errors_are_one_clear_line():
         loop.advance_fleet([Thermostat(scenario.control_spec())])
     with pytest.raises(InputError, match=r"building=2 must lie in \[0, 1\]"):
         loop.record(2)
+
+
+def _cli(*extra):
+    return main(["closed-loop", "--scenario", "paper_household", "--days", "1", "--seed", "2", *extra])
+
+
+def test_cli_fleet_writes_totals_step_times_and_every_building(tmp_path, capsys):
+    path = tmp_path / "fleet.json"
+    assert _cli("--controller", "qp-mpc", "--buildings", "3", "--spread", "0.1", "--json", str(path)) == 0
+    out = capsys.readouterr().out
+    assert "qp-mpc x 3 buildings" in out and "time per control step" in out and str(path) in out
+    data = json.loads(path.read_text())
+    assert data["fleet"]["n_buildings"] == 3 and data["fleet"]["spread"] == 0.1
+    assert set(data["totals"]) == set(FLEET_TOTAL_KEYS)
+    assert [b["building"] for b in data["buildings"]] == [0, 1, 2]
+    # The JSON's parameters are the fleet's: the same draw through the library.
+    again = run_fleet_closed_loop(
+        get_scenario("paper_household"), "qp-mpc", n_buildings=3, days=1, seed=2, spread=0.1
+    )
+    assert [b["params"] for b in data["buildings"]] == [dataclasses.asdict(p) for p in again.params]
+    assert data["totals"]["energy_kwh"] == pytest.approx(again.totals["energy_kwh"], rel=1e-9)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["fleet.json"]
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--buildings", "2", "--rc", "rc.json"], "--rc does not apply to a fleet"),
+        (["--buildings", "2", "--csv", "t.csv"], "--csv does not apply to a fleet"),
+        (["--spread", "0.3"], "--spread draws a fleet: add --buildings N"),
+        (["--buildings", "2", "--spread", "1.5"], "spread must lie in [0, 1]"),
+    ],
+)
+def test_cli_fleet_bad_input_exits_2_with_one_line(tmp_path, capsys, args, message):
+    assert _cli("--controller", "qp-mpc", *args, "--json", str(tmp_path / "k.json")) == 2
+    err = capsys.readouterr().err
+    assert message in err and len(err.strip().splitlines()) == 1
+    assert list(tmp_path.iterdir()) == []
