@@ -270,6 +270,21 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--csv", default=None, help="trajectory CSV file to write")
     p.add_argument("--plot", default=None, help="trajectory figure (PNG) to write")
     _add_weather_part(p, "test")
+    p.add_argument(
+        "--buildings",
+        type=_positive_int,
+        default=1,
+        help="a fleet of this many buildings drawn around the scenario's, each with its own "
+        "controller on its own RC (the KPI JSON then holds every building, the fleet totals "
+        "and the time per control step; no --model, --rc, --csv, --plot)",
+    )
+    p.add_argument(
+        "--spread",
+        type=_finite_non_negative_float,
+        default=None,
+        help="log-normal spread of the fleet's R, C and solar aperture (0.2 is about +-20 %%, "
+        "0 copies the scenario's building; default 0.2, only with --buildings > 1)",
+    )
 
     p = add("compare", "scenarios.commands:compare", "train, identify and run every controller on one scenario")
     scenario(p, default="paper_household")

@@ -5,7 +5,8 @@ Public names (imported on first use, see :mod:`pinn_mpc.lazy`): scenarios
 (:func:`generate`), controllers by name (:func:`build_controller`, :func:`make_controller`,
 :func:`read_rc`, :data:`CONTROLLER_NAMES`), the closed loop (:func:`run_closed_loop` ->
 :class:`ClosedLoopResult`; its engine :class:`ClosedLoop` and :class:`ExogenousSeries`; the
-Gymnasium face :class:`BuildingEnv`), KPIs (:func:`compute_kpis`, :data:`KPI_KEYS`,
+Gymnasium face :class:`BuildingEnv`), fleets (:func:`run_fleet_closed_loop` -> :class:`FleetResult`,
+:func:`format_fleet`), KPIs (:func:`compute_kpis`, :data:`KPI_KEYS`,
 :func:`format_kpis`, :func:`kpi_table_text`), figures (:func:`plot_trajectory`,
 :func:`plot_comparison`), the controller comparison (:class:`CompareSettings`,
 :func:`run_comparison` -> :class:`ComparisonResult`) and the paper reproduction
@@ -31,6 +32,8 @@ if TYPE_CHECKING:
     from scenarios.factory import build_controller as build_controller
     from scenarios.factory import make_controller as make_controller
     from scenarios.factory import read_rc as read_rc
+    from scenarios.fleet import FleetResult as FleetResult
+    from scenarios.fleet import run_fleet_closed_loop as run_fleet_closed_loop
     from scenarios.gym_env import BuildingEnv as BuildingEnv
     from scenarios.kpis import KPI_KEYS as KPI_KEYS
     from scenarios.kpis import compute_kpis as compute_kpis
@@ -39,6 +42,7 @@ if TYPE_CHECKING:
     from scenarios.registry import Scenario as Scenario
     from scenarios.registry import get_scenario as get_scenario
     from scenarios.registry import scenario_names as scenario_names
+    from scenarios.report import format_fleet as format_fleet
     from scenarios.report import format_kpis as format_kpis
     from scenarios.report import kpi_table_text as kpi_table_text
     from scenarios.reproduce import ReproduceConfig as ReproduceConfig
@@ -51,11 +55,12 @@ _EXPORTS = {
     "scenarios.datagen": ("generate",),
     "scenarios.engine": ("ClosedLoop", "ExogenousSeries"),
     "scenarios.factory": ("build_controller", "make_controller", "read_rc"),
+    "scenarios.fleet": ("FleetResult", "run_fleet_closed_loop"),
     "scenarios.gym_env": ("BuildingEnv",),
     "scenarios.kpis": ("KPI_KEYS", "compute_kpis"),
     "scenarios.plots": ("plot_comparison", "plot_trajectory"),
     "scenarios.registry": ("Scenario", "get_scenario", "scenario_names"),
-    "scenarios.report": ("format_kpis", "kpi_table_text"),
+    "scenarios.report": ("format_fleet", "format_kpis", "kpi_table_text"),
     "scenarios.reproduce": ("ReproduceConfig", "run_reproduction"),
 }
 __all__ = [name for names in _EXPORTS.values() for name in names]

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import contextlib
 import math
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -27,11 +27,12 @@ from typing import Any
 import pandas as pd
 from tqdm import tqdm
 
-from controllers.base import Controller, ControlSpec
+from controllers.base import Controller
 from controllers.thermostat import Thermostat
 from pinn_mpc.data import write_timeseries
 from pinn_mpc.errors import InputError
-from scenarios.engine import ClosedLoop, ExogenousSeries
+from pinn_mpc.physics import RCParams
+from scenarios.engine import ClosedLoop, ExogenousSeries, LoopRecord
 from scenarios.inputs import day_span
 from scenarios.kpis import compute_kpis
 from scenarios.registry import EXOGENOUS_COLUMNS, Scenario, check_seed
@@ -39,7 +40,12 @@ from scenarios.registry import EXOGENOUS_COLUMNS, Scenario, check_seed
 __all__ = [
     "EXTRA_COLUMNS",
     "ClosedLoopResult",
+    "RunInputs",
+    "build_loop",
+    "counted_kpis",
     "one_torch_thread",
+    "prepare_run",
+    "progress_steps",
     "run_closed_loop",
     "write_trajectory",
 ]
@@ -63,6 +69,81 @@ class ClosedLoopResult:
     errors: tuple[str, ...]
 
 
+@dataclass(frozen=True, kw_only=True)
+class RunInputs:
+    """What a run is driven by: the exogenous frame (``warmup + counted`` rows plus the
+    forecast lead) and its series, and the interval counts."""
+
+    exo: pd.DataFrame
+    series: ExogenousSeries
+    warmup: int
+    total: int  # warm-up and counted intervals
+
+    @property
+    def counted(self) -> slice:
+        return slice(self.warmup, self.total)
+
+
+def prepare_run(
+    scenario: Scenario, *, days: int, seed: int, warmup_steps: int | None, weather_part: str
+) -> RunInputs:
+    """The inputs of a run of ``days`` counted days after ``warmup_steps`` (default one day)."""
+    if days < 1:
+        raise InputError(f"closed loop: days must be >= 1, got {days}")
+    check_seed(seed)
+    spd = scenario.steps_per_day
+    warmup = spd if warmup_steps is None else warmup_steps
+    if warmup < 0:
+        raise InputError(f"closed loop: warmup_steps must be >= 0, got {warmup}")
+    total = warmup + days * spd
+    horizon = scenario.horizon_steps
+    exo = scenario.exogenous(
+        days=days + math.ceil(warmup / spd), seed=seed, part=weather_part, lead_steps=horizon
+    )
+    if len(exo) < total + horizon:
+        raise InputError(
+            f"scenario {scenario.name!r} gave {len(exo)} exogenous rows, need {total + horizon}"
+        )
+    exo = exo.iloc[: total + horizon].reset_index(drop=True)
+    return RunInputs(exo=exo, series=ExogenousSeries.from_frame(exo), warmup=warmup, total=total)
+
+
+def build_loop(
+    scenario: Scenario, run: RunInputs, *, seed: int, fleet: Sequence[RCParams] | None = None
+) -> ClosedLoop:
+    """The engine of a run: sensor noise and forecast errors seeded by ``seed``; ``fleet``
+    gives many buildings their own parameters (see :class:`ClosedLoop`)."""
+    return ClosedLoop(
+        scenario.sim,
+        run.series,
+        spec=scenario.control_spec(),
+        initial_t_r_c=scenario.initial_t_r_c,
+        initial_t_m_c=scenario.initial_t_m_c,
+        seed=seed,
+        forecast_errors=scenario.forecast,
+        forecast_seed=[seed, _FORECAST_ERROR_STREAM],
+        expected_gains_w=scenario.gains.expected(pd.DatetimeIndex(run.exo["time"])),
+        fleet=fleet,
+    )
+
+
+def counted_kpis(scenario: Scenario, run: RunInputs, rec: LoopRecord) -> dict[str, Any]:
+    """The KPIs (:func:`scenarios.kpis.compute_kpis`) of one building's counted intervals."""
+    counted, series = run.counted, run.series
+    return compute_kpis(
+        u_phys_w=rec.u_phys_w[counted],
+        price_eur_per_kwh=series.price[counted],
+        t_r_sub_c=rec.t_r_sub_c[counted],
+        t_min_c=series.T_min[counted],
+        t_max_c=series.T_max[counted],
+        decision_s=rec.decision_s[counted],
+        overridden=rec.overridden[counted],
+        fallback=rec.fallback[counted],
+        dt_s=scenario.sim.dt_s,
+        comfort_weight_eur_per_kh=scenario.comfort_weight_eur_per_kh,
+    )
+
+
 def run_closed_loop(
     scenario: Scenario,
     controller: Controller,
@@ -83,59 +164,21 @@ def run_closed_loop(
     names the controller in the KPIs (default its ``name``).
     ``progress`` shows a bar on stderr for runs over a second, when it is a terminal.
     """
-    if days < 1:
-        raise InputError(f"closed loop: days must be >= 1, got {days}")
-    check_seed(seed)
-    sim_config = scenario.sim
-    spec: ControlSpec = scenario.control_spec()
-    spd = scenario.steps_per_day
-    warmup = spd if warmup_steps is None else warmup_steps
-    if warmup < 0:
-        raise InputError(f"closed loop: warmup_steps must be >= 0, got {warmup}")
-    n_run = days * spd
-    total = warmup + n_run
-    horizon = scenario.horizon_steps
-    exo = scenario.exogenous(
-        days=days + math.ceil(warmup / spd), seed=seed, part=weather_part, lead_steps=horizon
+    run = prepare_run(
+        scenario, days=days, seed=seed, warmup_steps=warmup_steps, weather_part=weather_part
     )
-    if len(exo) < total + horizon:
-        raise InputError(
-            f"scenario {scenario.name!r} gave {len(exo)} exogenous rows, need {total + horizon}"
-        )
-    exo = exo.iloc[: total + horizon].reset_index(drop=True)
-    series = ExogenousSeries.from_frame(exo)
-
-    warmup_controller = Thermostat(spec)
+    warmup_controller = Thermostat(scenario.control_spec())
     warmup_controller.reset(seed)
     controller.reset(seed)
-    loop = ClosedLoop(
-        sim_config,
-        series,
-        spec=spec,
-        initial_t_r_c=scenario.initial_t_r_c,
-        initial_t_m_c=scenario.initial_t_m_c,
-        seed=seed,
-        forecast_errors=scenario.forecast,
-        forecast_seed=[seed, _FORECAST_ERROR_STREAM],
-        expected_gains_w=scenario.gains.expected(pd.DatetimeIndex(exo["time"])),
-    )
+    loop = build_loop(scenario, run, seed=seed)
     errors: list[str] = []
-    steps = tqdm(
-        range(total),
-        desc=label or controller.name,
-        unit="step",
-        delay=1.0,
-        leave=False,
-        disable=None if progress else True,  # None: off when stderr is not a terminal
-    )
-    for k in steps:
-        decision = loop.advance(warmup_controller if k < warmup else controller)
+    for k in progress_steps(run.total, label or controller.name, progress):
+        decision = loop.advance(warmup_controller if k < run.warmup else controller)
         if decision.error is not None:
             errors.append(f"step {k}: {decision.error}")
     rec = loop.record()
+    series, counted, exo = run.series, run.counted, run.exo
     cols = {c: getattr(series, c) for c in _EXOGENOUS}
-
-    counted = slice(warmup, total)
     trajectory = pd.DataFrame(
         {
             "time": exo["time"].iloc[counted].reset_index(drop=True),
@@ -149,19 +192,8 @@ def run_closed_loop(
             "decision_ms": rec.decision_s[counted] * 1000.0,
         }
     )
-    trajectory.attrs["dt_s"] = float(sim_config.dt_s)
-    kpis = compute_kpis(
-        u_phys_w=rec.u_phys_w[counted],
-        price_eur_per_kwh=cols["price"][counted],
-        t_r_sub_c=rec.t_r_sub_c[counted],
-        t_min_c=cols["T_min"][counted],
-        t_max_c=cols["T_max"][counted],
-        decision_s=rec.decision_s[counted],
-        overridden=rec.overridden[counted],
-        fallback=rec.fallback[counted],
-        dt_s=sim_config.dt_s,
-        comfort_weight_eur_per_kh=spec.comfort_weight_eur_per_kh,
-    )
+    trajectory.attrs["dt_s"] = float(scenario.sim.dt_s)
+    kpis = counted_kpis(scenario, run, rec)
     kpis.update(
         controller=label or controller.name,
         scenario=scenario.name,
@@ -172,6 +204,19 @@ def run_closed_loop(
         weather_days=day_span(exo["time"]),  # warm-up and forecast lead included
     )
     return ClosedLoopResult(trajectory=trajectory, kpis=kpis, errors=tuple(errors))
+
+
+def progress_steps(total: int, label: str, progress: bool) -> Iterable[int]:
+    """``range(total)``, shown as a bar on stderr when ``progress``, the run takes over a
+    second and stderr is a terminal."""
+    return tqdm(
+        range(total),
+        desc=label,
+        unit="step",
+        delay=1.0,
+        leave=False,
+        disable=None if progress else True,  # None: off when stderr is not a terminal
+    )
 
 
 @contextlib.contextmanager

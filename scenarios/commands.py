@@ -33,7 +33,13 @@ from scenarios.datagen import generate
 from scenarios.factory import make_controller
 from scenarios.inputs import day_span
 from scenarios.registry import Scenario, get_scenario
-from scenarios.report import format_kpis, kpi_table_text, prediction_table_text, render_report
+from scenarios.report import (
+    format_fleet,
+    format_kpis,
+    kpi_table_text,
+    prediction_table_text,
+    render_report,
+)
 
 if TYPE_CHECKING:  # compare loads torch: only the compare command imports it
     from scenarios.compare import CompareSettings, ComparisonResult
@@ -78,6 +84,10 @@ def closed_loop(a: argparse.Namespace) -> str:
         inputs["--model"] = MODEL_DIRECTORY.paths(a.model)
     check_distinct(inputs=inputs, outputs=outputs)
     scenario = get_scenario(a.scenario)
+    if a.buildings > 1:
+        return _fleet_closed_loop(a, scenario)
+    if a.spread is not None:
+        raise InputError("--spread draws a fleet: add --buildings N with N > 1")
     controller = make_controller(
         a.controller,
         scenario,
@@ -104,6 +114,42 @@ def closed_loop(a: argparse.Namespace) -> str:
         lines.append(f"{len(result.errors)} controller error(s), first: {result.errors[0]}")
     written = [str(p) for p in (a.json, a.csv, a.plot) if p is not None]
     return "\n".join([*lines, f"wrote {', '.join(written)}"])
+
+
+def _fleet_closed_loop(a: argparse.Namespace, scenario: Scenario) -> str:
+    """``closed-loop --buildings N``: the fleet run, its JSON (fleet, totals, step times,
+    buildings); each building's controller is built on its own parameters."""
+    from scenarios.fleet import run_fleet_closed_loop
+
+    for option, value in (("--model", a.model), ("--rc", a.rc), ("--csv", a.csv), ("--plot", a.plot)):
+        if value is not None:
+            raise InputError(
+                f"{option} does not apply to a fleet (--buildings {a.buildings}): each building's "
+                "controller works on that building's own RC; leave it out"
+            )
+    spread = 0.2 if a.spread is None else a.spread
+    threads = one_torch_thread() if a.controller in MODEL_CONTROLLERS else contextlib.nullcontext()
+    with threads:
+        result = run_fleet_closed_loop(
+            scenario, a.controller, n_buildings=a.buildings, days=a.days, seed=a.seed,
+            spread=spread, weather_part=a.weather_part, progress=True,
+        )
+    atomic_write_json(
+        a.json,
+        {
+            "fleet": result.info,
+            "totals": result.totals,
+            "step_time": result.step_time,
+            "buildings": [
+                {**kpis, "params": dataclasses.asdict(params)}
+                for kpis, params in zip(result.kpis, result.params, strict=True)
+            ],
+        },
+    )
+    lines = [format_fleet(result)]
+    if result.errors:
+        lines.append(f"{len(result.errors)} controller error(s), first: {result.errors[0]}")
+    return "\n".join([*lines, f"wrote {a.json}"])
 
 
 def _dates_text(settings: CompareSettings, days: dict[str, list[str]]) -> str:

@@ -14,6 +14,11 @@ benchmarks). Each control interval k::
 interval's demanded and delivered power and exogenous inputs (``Observation.last``) in the data
 format's names, which the forecast shares.
 
+A loop built with ``fleet`` (one :class:`~pinn_mpc.physics.RCParams` per building, e.g. from
+:func:`pinn_mpc.simulator.draw_fleet`) runs many buildings under the same weather, prices and
+forecasts: :meth:`ClosedLoop.advance_fleet` lets each building's own controller decide on its
+own observation, then advances the whole fleet in one call of the batched simulator.
+
 Forecast errors (:class:`ForecastErrors`) are made in one place, :meth:`ClosedLoop.forecast`:
 the outdoor temperature and irradiance a controller sees carry an error that grows with lead
 time, drawn afresh at every decision from a generator seeded by (run seed, interval), so every
@@ -25,6 +30,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -34,6 +40,7 @@ import pandas as pd
 from controllers.base import Controller, ControlSpec, Forecast, Observation, fallback_power
 from controllers.estimators import TrueState
 from pinn_mpc.errors import InputError
+from pinn_mpc.physics import RCParams
 from pinn_mpc.simulator import SimConfig, Simulator, StepResult
 from scenarios.inputs import time_of_day_h
 
@@ -41,6 +48,7 @@ __all__ = [
     "ClosedLoop",
     "Decision",
     "ExogenousSeries",
+    "FleetStep",
     "ForecastErrors",
     "LoopRecord",
     "decide",
@@ -161,6 +169,19 @@ class Decision(NamedTuple):
     plant: StepResult
 
 
+class FleetStep(NamedTuple):
+    """One interval of :meth:`ClosedLoop.advance_fleet`, arrays (B,) over the buildings."""
+
+    k: int
+    u_w: np.ndarray  # demanded power applied [W]
+    decision_s: np.ndarray  # each controller's decision time [s]
+    fallback: np.ndarray  # bool
+    errors: tuple[tuple[int, str], ...]  # (building, controller exception) where the loop fell back
+    controllers_s: float  # wall time of every building's observe, forecast and decide [s]
+    plant_s: float  # wall time of the one batched plant step [s]
+    plant: StepResult
+
+
 class LoopRecord(NamedTuple):
     """The intervals run so far, arrays (K,) (``t_r_sub_c`` (K, S)); T_r and T_m at their start."""
 
@@ -202,13 +223,17 @@ def decide(
 
 
 class ClosedLoop:
-    """One simulated building driven by an exogenous series, stepped one interval at a time.
+    """One simulated building (or a fleet) driven by an exogenous series, stepped one interval
+    at a time.
 
     ``seed`` seeds the plant's sensor noise; ``forecast_seed`` the forecast errors
     (``forecast_errors``, see :class:`ForecastErrors`), which depend only on it and the row.
     ``expected_gains_w`` (N,) is what a controller sees of the gains when they are not known
     (required then). :meth:`reset` starts an episode at row ``start`` of the series; ``k``
-    counts its intervals.
+    counts its intervals. ``fleet`` gives B buildings their own parameters (the backup rule,
+    actuator and ``u_max_w`` of ``config`` apply to all; see :class:`Simulator`); they share
+    the series, the forecasts and the initial state. Methods that concern one building take
+    its index ``building`` (default 0, the only one without a fleet).
     """
 
     def __init__(
@@ -223,6 +248,7 @@ class ClosedLoop:
         forecast_errors: ForecastErrors = ForecastErrors(),
         forecast_seed: int | list[int] = 0,
         expected_gains_w: np.ndarray | None = None,
+        fleet: Sequence[RCParams] | None = None,
     ) -> None:
         if not np.all(np.isfinite(np.column_stack(list(exogenous.forecast(0))))):
             raise InputError("exogenous series has non-finite values")
@@ -238,7 +264,8 @@ class ClosedLoop:
         self._forecast_seed = [forecast_seed] if isinstance(forecast_seed, int) else list(forecast_seed)
         self._seen_gains_w = seen_gains_w
         self.initial_state_c = (float(initial_t_r_c), float(initial_t_m_c))
-        self.sim = Simulator(config, n_buildings=1, seed=seed)
+        self.sim = Simulator(config, seed=seed, fleet=fleet)
+        self.n_buildings = self.sim.n_buildings
         self.reset()
 
     def reset(
@@ -257,34 +284,43 @@ class ClosedLoop:
         t_m = self.initial_state_c[1] if t_m_c is None else t_m_c
         self.sim.reset(t_r, t_m, seed=seed)
         self.start, self.k = start, 0
-        n = len(self.exogenous) - start
-        self._t_r = np.zeros(n + 1)
-        self._t_m = np.zeros(n + 1)
+        n, b = len(self.exogenous) - start, self.n_buildings
+        # Interval-major (K, B): one row per interval holds the whole fleet.
+        self._t_r = np.zeros((n + 1, b))
+        self._t_m = np.zeros((n + 1, b))
         self._measured_k = -1
-        self._u = np.zeros(n)
-        self._u_phys = np.zeros(n)
-        self._overridden = np.zeros(n, dtype=bool)
-        self._fallback = np.zeros(n, dtype=bool)
-        self._decision_s = np.zeros(n)
-        self._t_r_sub = np.zeros((n, self.config.n_substeps))
+        self._u = np.zeros((n, b))
+        self._u_phys = np.zeros((n, b))
+        self._overridden = np.zeros((n, b), dtype=bool)
+        self._fallback = np.zeros((n, b), dtype=bool)
+        self._decision_s = np.zeros((n, b))
+        self._t_r_sub = np.zeros((n, b, self.config.n_substeps))
 
     @property
     def steps_left(self) -> int:
         return len(self._u) - self.k
 
-    def measure(self) -> float:
-        """The measured room temperature now [C] (one sensor reading per interval)."""
-        if self._measured_k != self.k:
-            self._t_r[self.k] = self.sim.measure()[0]
-            self._t_m[self.k] = self.sim.state[0, 1]
-            self._measured_k = self.k
-        return float(self._t_r[self.k])
+    def _check_building(self, building: int) -> None:
+        if not 0 <= building < self.n_buildings:
+            raise InputError(
+                f"ClosedLoop: building={building} must lie in [0, {self.n_buildings - 1}]"
+            )
 
-    def observation(self, *, perfect: bool = False) -> Observation:
-        """What a controller sees now: copies of the past (data-format names), the last
-        interval and the true T_m (for the true-state estimator only). Unknown gains
+    def measure(self, building: int = 0) -> float:
+        """The measured room temperature of ``building`` now [C] (one sensor reading of every
+        building per interval)."""
+        self._check_building(building)
+        if self._measured_k != self.k:
+            self._t_r[self.k] = self.sim.measure()
+            self._t_m[self.k] = self.sim.state[:, 1]
+            self._measured_k = self.k
+        return float(self._t_r[self.k, building])
+
+    def observation(self, *, perfect: bool = False, building: int = 0) -> Observation:
+        """What ``building``'s controller sees now: copies of the past (data-format names),
+        the last interval and the true T_m (for the true-state estimator only). Unknown gains
         (``gains_known = false``) are the expected ones unless ``perfect``."""
-        self.measure()
+        self.measure(building)
         k, rows = self.k, slice(self.start, self.start + self.k + 1)
         exo = self.exogenous
         gains = exo.I_g if perfect else self._seen_gains_w
@@ -294,11 +330,11 @@ class ClosedLoop:
             "G": np.array(exo.G[rows]),
             "I_g": np.array(gains[rows]),
             "time_of_day_h": np.array(exo.time_of_day_h[rows]),
-            "T_r": np.array(self._t_r[: k + 1]),
-            "u": np.array(self._u[:k]),
-            "u_phys": np.array(self._u_phys[:k]),
+            "T_r": np.array(self._t_r[: k + 1, building]),
+            "u": np.array(self._u[:k, building]),
+            "u_phys": np.array(self._u_phys[:k, building]),
         }
-        return Observation.from_history(k, history, float(self._t_m[k]))
+        return Observation.from_history(k, history, float(self._t_m[k, building]))
 
     def forecast(self, *, perfect: bool = False) -> Forecast:
         """The exogenous inputs from now to the end of the series, with the errors of
@@ -326,8 +362,15 @@ class ClosedLoop:
                 forecast.G[:] *= np.maximum(1.0 + e, 0.0)
         return forecast
 
-    def step(self, u_w: float, *, decision_s: float = 0.0, fallback: bool = False) -> StepResult:
-        """Apply demand ``u_w`` [W] over the current interval; the plant's step result."""
+    def step(
+        self,
+        u_w: float | np.ndarray,
+        *,
+        decision_s: float | np.ndarray = 0.0,
+        fallback: bool | np.ndarray = False,
+    ) -> StepResult:
+        """Apply demand ``u_w`` [W] over the current interval (a number, or (B,) one per
+        building; likewise ``decision_s`` and ``fallback``); the plant's step result."""
         if self.steps_left <= 0:
             raise InputError("ClosedLoop.step: the exogenous series is exhausted; call reset()")
         self.measure()
@@ -335,33 +378,81 @@ class ClosedLoop:
         exo = self.exogenous
         result = self.sim.step(u_w, exo.T_a[row], exo.G[row], exo.I_g[row])
         self._u[k], self._decision_s[k], self._fallback[k] = u_w, decision_s, fallback
-        self._u_phys[k] = result.u_phys_w[0]
-        self._overridden[k] = bool(result.overridden[0])
-        self._t_r_sub[k] = result.t_r_sub_c[0]
+        self._u_phys[k] = result.u_phys_w
+        self._overridden[k] = result.overridden
+        self._t_r_sub[k] = result.t_r_sub_c
         self.k += 1
         return result
 
     def advance(self, controller: Controller) -> Decision:
         """One interval: observe, forecast, decide (:func:`decide`), step. A controller with
         the true-state estimator has perfect knowledge: it gets perfect forecasts too."""
-        perfect = isinstance(getattr(controller, "estimator", None), TrueState)
+        if self.n_buildings != 1:
+            raise InputError(
+                f"ClosedLoop.advance drives one building, this loop has {self.n_buildings}; "
+                "use advance_fleet with one controller per building"
+            )
+        perfect = _perfect_knowledge(controller)
         obs = self.observation(perfect=perfect)
         forecast = self.forecast(perfect=perfect)
         u, time_s, fallback, error = decide(controller, obs, forecast, self.spec)
         plant = self.step(u, decision_s=time_s, fallback=fallback)
         return Decision(obs.k, obs, forecast, u, time_s, fallback, error, plant)
 
-    def record(self) -> LoopRecord:
-        """Copies of the intervals run so far."""
+    def advance_fleet(self, controllers: Sequence[Controller]) -> FleetStep:
+        """One interval of every building: building b's controller ``controllers[b]`` observes
+        its building and decides (:func:`decide`, so a failure falls back and is reported, in
+        building order), then one batched plant step advances all buildings. Each controller
+        gets its own copy of the forecast (perfect for the true-state estimator, as in
+        :meth:`advance`)."""
+        b = self.n_buildings
+        if len(controllers) != b:
+            raise InputError(
+                f"ClosedLoop.advance_fleet: {len(controllers)} controllers for {b} buildings; "
+                "give one controller per building"
+            )
+        start = time.perf_counter()
+        forecasts: dict[bool, Forecast] = {}
+        u, decision_s, fallback = np.zeros(b), np.zeros(b), np.zeros(b, dtype=bool)
+        errors = []
+        for i, controller in enumerate(controllers):
+            perfect = _perfect_knowledge(controller)
+            if perfect not in forecasts:
+                forecasts[perfect] = self.forecast(perfect=perfect)
+            forecast = Forecast(*(np.array(a) for a in forecasts[perfect]))
+            obs = self.observation(perfect=perfect, building=i)
+            u[i], decision_s[i], fallback[i], error = decide(controller, obs, forecast, self.spec)
+            if error is not None:
+                errors.append((i, error))
+        decided = time.perf_counter()
         k = self.k
-        return LoopRecord(
-            t_r_c=self._t_r[:k].copy(),
-            t_m_c=self._t_m[:k].copy(),
-            u_w=self._u[:k].copy(),
-            u_phys_w=self._u_phys[:k].copy(),
-            overridden=self._overridden[:k].copy(),
-            fallback=self._fallback[:k].copy(),
-            decision_s=self._decision_s[:k].copy(),
-            t_r_sub_c=self._t_r_sub[:k].copy(),
+        plant = self.step(u, decision_s=decision_s, fallback=fallback)
+        return FleetStep(
+            k, u, decision_s, fallback, tuple(errors),
+            controllers_s=decided - start, plant_s=time.perf_counter() - decided, plant=plant,
         )
+
+    def record(self, building: int = 0) -> LoopRecord:
+        """Copies of the intervals run so far of ``building``."""
+        self._check_building(building)
+        k, i = self.k, building
+        return LoopRecord(
+            t_r_c=self._t_r[:k, i].copy(),
+            t_m_c=self._t_m[:k, i].copy(),
+            u_w=self._u[:k, i].copy(),
+            u_phys_w=self._u_phys[:k, i].copy(),
+            overridden=self._overridden[:k, i].copy(),
+            fallback=self._fallback[:k, i].copy(),
+            decision_s=self._decision_s[:k, i].copy(),
+            t_r_sub_c=self._t_r_sub[:k, i].copy(),
+        )
+
+    def aggregate_u_phys_w(self) -> np.ndarray:
+        """(K,) delivered power summed over the buildings, per interval run so far [W]."""
+        return self._u_phys[: self.k].sum(axis=1)
+
+
+def _perfect_knowledge(controller: Controller) -> bool:
+    """A controller with the true-state estimator knows everything: perfect forecasts too."""
+    return isinstance(getattr(controller, "estimator", None), TrueState)
 

@@ -8,11 +8,15 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from scenarios.fleet import FleetResult
 
 __all__ = [
     "KPI_COLUMNS",
     "RC_ROWS",
+    "format_fleet",
     "format_kpis",
     "kpi_table_text",
     "markdown_table",
@@ -206,4 +210,22 @@ def format_kpis(kpis: dict[str, Any]) -> str:
         f"discomfort {kpis['discomfort_kh']:.2f} K h, peak {kpis['peak_kw']:.2f} kW, "
         f"objective {kpis['objective']:.2f} EUR, decision {kpis['decision_ms_median']:.1f} ms "
         f"(median), overrides {kpis['backup_overrides']}, fallbacks {kpis['fallbacks']}"
+    )
+
+
+def format_fleet(result: FleetResult) -> str:
+    """Two lines: a fleet run's totals, and its wall time per control step."""
+    info, totals, t = result.info, result.totals, result.step_time
+    times = ", ".join(
+        f"{part} {t[f'{part}_ms_median']:.1f} ms (p95 {t[f'{part}_ms_p95']:.1f})"
+        for part in ("controllers", "plant", "total")
+    )
+    return (
+        f"{info['controller']} x {info['n_buildings']} buildings on {info['scenario']}, "
+        f"{info['days']} d: energy {totals['energy_kwh']:.2f} kWh, cost {totals['cost_eur']:.2f} "
+        f"EUR, discomfort {totals['discomfort_kh']:.2f} K h, aggregate peak "
+        f"{totals['peak_kw']:.2f} kW, objective {totals['objective']:.2f} EUR, overrides "
+        f"{totals['backup_overrides']}, fallbacks {totals['fallbacks']} in "
+        f"{totals['buildings_with_fallbacks']} building(s)\n"
+        f"time per control step (median): {times}"
     )

@@ -1,0 +1,219 @@
+"""A fleet closed loop: many buildings around a scenario's building, each with its own controller.
+
+An aggregator controls many buildings under the same weather, prices and forecasts. The fleet is
+drawn around the scenario's building (:func:`pinn_mpc.simulator.draw_fleet`, log-normal
+``spread`` on R, C and solar aperture); the plant is the batched simulator, which advances every
+building in one call per control interval (:meth:`scenarios.engine.ClosedLoop.advance_fleet`).
+Everything else is the single-building run's (:mod:`scenarios.closed_loop`): the same exogenous
+inputs (test part of the weather by default), thermostat warm-up, forecasts and forecast errors,
+estimator and fallback of each controller, and KPIs per building (:mod:`scenarios.kpis`).
+
+Each building has its own controller instance, by default the named controller built on that
+building's own parameters: ``qp-mpc`` and ``casadi-mpc`` get its RC (the aggregator is assumed to
+know every building's RC, e.g. from ``pinn-mpc identify`` on its data), ``cem`` and
+``random-shooting`` plan over its exact RC as a batch model (:class:`RCBatchModel`), ``oracle``
+and ``clairvoyant`` use its true parameters and state. A callable ``controller`` builds them
+otherwise (e.g. on identified parameters with errors).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from controllers.base import Controller
+from controllers.thermostat import Thermostat
+from pinn_mpc.errors import InputError
+from pinn_mpc.physics import RCParams
+from pinn_mpc.simulator import draw_fleet
+from scenarios.choices import CONTROLLER_NAMES, MODEL_CONTROLLERS, RC_CONTROLLERS
+from scenarios.closed_loop import (
+    build_loop,
+    counted_kpis,
+    prepare_run,
+    progress_steps,
+)
+from scenarios.registry import Scenario, check_seed
+
+__all__ = ["FLEET_TOTAL_KEYS", "FleetResult", "fleet_controller", "run_fleet_closed_loop"]
+
+#: Keys of :attr:`FleetResult.totals`.
+FLEET_TOTAL_KEYS = (
+    "energy_kwh",
+    "cost_eur",
+    "discomfort_kh",
+    "objective",
+    "peak_kw",
+    "backup_overrides",
+    "fallbacks",
+    "buildings_with_fallbacks",
+)
+
+#: A controller for building ``index`` with parameters ``params``.
+ControllerFactory = Callable[[int, RCParams], Controller]
+
+
+@dataclass(frozen=True, kw_only=True)
+class FleetResult:
+    """A fleet run.
+
+    - ``kpis``: one KPI dict per building (:func:`scenarios.kpis.compute_kpis`, plus
+      ``building``, its index).
+    - ``totals``: the fleet's :data:`FLEET_TOTAL_KEYS`: energy, cost, discomfort, objective,
+      overrides and fallbacks summed over the buildings; ``peak_kw`` is the peak of the
+      AGGREGATE power (the interval-mean delivered power summed over the buildings), not the
+      sum of the buildings' peaks.
+    - ``aggregate_u_phys_w`` (K,): that aggregate power per counted interval [W].
+    - ``step_time``: wall time per counted control step [ms], ``{controllers, plant,
+      total}_ms_{median, p95}``: ``controllers`` is every building's observe, forecast and
+      decide, ``plant`` the one batched simulator step, ``total`` both.
+    - ``params``: each building's parameters; ``errors``: one line per controller exception
+      (building, step), where the loop's fallback acted; ``info``: scenario, controller, days,
+      seed, spread, n_buildings, weather_part.
+    """
+
+    kpis: tuple[dict[str, Any], ...]
+    totals: dict[str, float | int]
+    aggregate_u_phys_w: np.ndarray
+    step_time: dict[str, float]
+    params: tuple[RCParams, ...]
+    errors: tuple[str, ...]
+    info: dict[str, Any]
+
+
+def fleet_controller(
+    name: str, scenario: Scenario, *, n_steps: int, planner_options: Mapping[str, Any] | None = None
+) -> ControllerFactory:
+    """The factory of :func:`run_fleet_closed_loop` for controller ``name``: each building's
+    controller on that building's own parameters (see the module docstring)."""
+    from scenarios.factory import build_controller
+
+    if name not in CONTROLLER_NAMES:
+        raise InputError(f"unknown controller {name!r}; choose one of {', '.join(CONTROLLER_NAMES)}")
+
+    def make(index: int, params: RCParams) -> Controller:
+        building = dataclasses.replace(scenario, sim=dataclasses.replace(scenario.sim, params=params))
+        model = None
+        if name in MODEL_CONTROLLERS:
+            from pinn_mpc.rc_batch_model import RCBatchModel
+
+            sim = building.sim
+            model = RCBatchModel(
+                params, dt_s=sim.dt_s, u_max_w=sim.u_max_w, backup_low_c=sim.backup_low_c,
+                backup_high_c=sim.backup_high_c, actuator=sim.actuator,
+            )
+        return build_controller(
+            name,
+            building,
+            model=model,
+            rc_params=params if name in RC_CONTROLLERS else None,
+            n_steps=n_steps,
+            planner_options=planner_options,
+        )
+
+    return make
+
+
+def run_fleet_closed_loop(
+    scenario: Scenario,
+    controller: str | ControllerFactory,
+    *,
+    n_buildings: int,
+    days: int,
+    seed: int,
+    spread: float = 0.2,
+    warmup_steps: int | None = None,
+    weather_part: str = "test",
+    planner_options: Mapping[str, Any] | None = None,
+    progress: bool = False,
+) -> FleetResult:
+    """Run ``n_buildings`` buildings around ``scenario``'s building for ``days`` counted days.
+
+    The fleet is ``draw_fleet(scenario.sim.params, n_buildings, spread=spread)`` with a
+    generator seeded by ``seed`` (``spread=0``: copies of the scenario's building).
+    ``controller`` is a controller name (:func:`fleet_controller`: each building's own
+    controller on its own parameters; ``planner_options`` as for ``cem``) or a factory
+    ``(index, params) -> Controller``. ``seed``, ``warmup_steps`` (default one day of the
+    thermostat) and ``weather_part`` (default the test part) mean what they mean for
+    :func:`scenarios.closed_loop.run_closed_loop`, which a fleet of one building reproduces.
+    A controller that fails falls back (its own fallback, or the loop's on an exception) and
+    is counted in that building's ``fallbacks``; the run goes on.
+    """
+    check_seed(seed)
+    fleet = draw_fleet(
+        scenario.sim.params, n_buildings, spread=spread, rng=np.random.default_rng([seed, _FLEET_STREAM])
+    )
+    run = prepare_run(
+        scenario, days=days, seed=seed, warmup_steps=warmup_steps, weather_part=weather_part
+    )
+    n_counted = run.total - run.warmup
+    factory = (
+        fleet_controller(
+            controller, scenario, n_steps=n_counted, planner_options=planner_options
+        )
+        if isinstance(controller, str)
+        else controller
+    )
+    controllers = [factory(i, p) for i, p in enumerate(fleet)]
+    spec = scenario.control_spec()
+    warmup_controllers = [Thermostat(spec) for _ in fleet]
+    for c in (*warmup_controllers, *controllers):
+        c.reset(seed)
+    loop = build_loop(scenario, run, seed=seed, fleet=fleet)
+    label = f"{controllers[0].name} x {len(fleet)}"
+    errors: list[str] = []
+    times_s = np.zeros((n_counted, 2))  # controllers, plant
+    for k in progress_steps(run.total, label, progress):
+        step = loop.advance_fleet(warmup_controllers if k < run.warmup else controllers)
+        errors.extend(f"building {b}, step {k}: {e}" for b, e in step.errors)
+        if k >= run.warmup:
+            times_s[k - run.warmup] = step.controllers_s, step.plant_s
+    kpis = tuple(
+        {**counted_kpis(scenario, run, loop.record(b)), "building": b} for b in range(len(fleet))
+    )
+    aggregate = loop.aggregate_u_phys_w()[run.counted]
+    return FleetResult(
+        kpis=kpis,
+        totals=_totals(kpis, aggregate),
+        aggregate_u_phys_w=aggregate,
+        step_time=_step_time(times_s),
+        params=tuple(fleet),
+        errors=tuple(errors),
+        info={
+            "scenario": scenario.name,
+            "controller": controller if isinstance(controller, str) else controllers[0].name,
+            "n_buildings": len(fleet),
+            "days": days,
+            "seed": seed,
+            "spread": spread,
+            "weather_part": weather_part,
+        },
+    )
+
+
+#: Stream of the fleet draw's generator, apart from the scenario's and the loop's.
+_FLEET_STREAM = 7
+
+
+def _totals(kpis: tuple[dict[str, Any], ...], aggregate_w: np.ndarray) -> dict[str, float | int]:
+    summed = {key: sum(k[key] for k in kpis) for key in FLEET_TOTAL_KEYS[:4]}
+    counts = {key: int(sum(k[key] for k in kpis)) for key in ("backup_overrides", "fallbacks")}
+    return {
+        **summed,
+        "peak_kw": float(np.max(aggregate_w) / 1000.0),
+        **counts,
+        "buildings_with_fallbacks": sum(1 for k in kpis if k["fallbacks"] > 0),
+    }
+
+
+def _step_time(times_s: np.ndarray) -> dict[str, float]:
+    columns = {"controllers": times_s[:, 0], "plant": times_s[:, 1], "total": times_s.sum(axis=1)}
+    out = {}
+    for name, values in columns.items():
+        out[f"{name}_ms_median"] = float(np.median(values) * 1000.0)
+        out[f"{name}_ms_p95"] = float(np.percentile(values, 95) * 1000.0)
+    return out
