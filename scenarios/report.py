@@ -184,8 +184,9 @@ def render_report(
         "## RC parameters",
         "",
         "The true building, the parameters identified from the training data (grey-box, T_m "
-        "hidden) and those exported from the trained PhysNet ensemble (geometric mean over "
-        "members).",
+        "hidden) and those exported from the trained ensembles (hybrid and PhysNet; geometric "
+        "mean over members). Under a heat pump the exports' eta holds the training data's mean "
+        "COP; the RC MPCs use the building's own eta and apply the COP per step.",
         "",
         *rc_table_markdown(rc),
         "",
