@@ -270,8 +270,8 @@ class CEM(_SamplingController):
     The defaults (those of :class:`controllers.planners.CEMPlanner`, coloured noise, one LP
     polish) are set by decision time: a learned model's rollout costs mostly a fixed time per
     horizon step, so iterations are expensive and samples cheap, and the polish rides along in
-    the same batches (``benchmarks/bench_planners.py`` times it: about 30 ms CPU time over a
-    10-member depth-16 physnet). The sampling finds the shape of the plan, the polish its last
+    the same batches (``benchmarks/bench_planners.py`` times it: about 18 ms CPU time over a
+    10-member depth-16 hybrid, 30 ms over a physnet). The sampling finds the shape of the plan, the polish its last
     percent (see :mod:`controllers.polish`).
     """
 

@@ -48,6 +48,7 @@ __all__ = [
     "MAX_MEMBERS",
     "EnsembleModule",
     "EnsembleNet",
+    "HybridConstants",
     "HybridInputs",
     "HybridNet",
     "LearnedModel",
@@ -359,6 +360,24 @@ class HybridInputs(NamedTuple):
     raw_now: torch.Tensor  # (..., 4) raw T_r,i, T_a,i, G_i, I_g,i (0 where the data lacks one)
 
 
+class HybridConstants(NamedTuple):
+    """The weights of :class:`HybridNet` arranged for its rollout, per member M; the state is
+    (u_phys delivered in the step before [W], T_m, T_r [C]), feature-major (M, 3, N)."""
+
+    observer: torch.Tensor  # (M, k+1+4k, 1) T_m observer over the window
+    w_state: torch.Tensor  # (M, out+2, 3) residual net's first layer (folded), then Ad
+    b_first: torch.Tensor  # (M, out, 1) first layer's bias with the state's scaling folded in
+    w_static: torch.Tensor  # (M, n_series+2, out) first layer on scaled exogenous now, time
+    middle: list[tuple[torch.Tensor, torch.Tensor]]  # hidden layers after the first, folded
+    w_last: torch.Tensor  # (M, 1, in) last layer (folded) to T_r's increment [K]
+    b_last: torch.Tensor  # (M, 1, 1)
+    drive_b: torch.Tensor  # (M, 2, 4) Bd, rows (T_m, T_r), inputs (u_phys, T_a, G, I_g)
+    thermostat_k: torch.Tensor  # (M, 4, 2) on (T_m, T_r), rows "full" twice, "off" twice
+    thermostat_c: torch.Tensor  # (M, 4, 1)
+    thermostat_end: torch.Tensor  # (M, 4, 1) weight of T_r's inputs (rows on T_end)
+    full_power_w: torch.Tensor  # (M, 1)
+
+
 class HybridNet(nn.Module):
     """The recommended model for control: the 2R2C *is* the predictor, networks only correct it.
 
@@ -501,14 +520,17 @@ class HybridNet(nn.Module):
         s = (g * (y / a(0, 1) - c[..., :k])).sum(-1) / (g**2).sum(-1)
         return powers[:, None, k] * s + c[..., k]
 
-    def observe_linear(self, ad: torch.Tensor, bd: torch.Tensor, window: torch.Tensor) -> torch.Tensor:
-        """:meth:`observe_t_m` as one matrix product over ``window`` (M, B, k+1+4k) (see
-        :class:`HybridInputs`): the observer is linear in the window, so its weights come from
-        applying it to the k+1+4k unit windows instead of the B samples. Returns (M, B)."""
-        k = (window.shape[-1] - 1) // 5
-        basis = torch.eye(window.shape[-1]).expand(ad.shape[0], -1, -1)
+    def observer_weights(self, ad: torch.Tensor, bd: torch.Tensor) -> torch.Tensor:
+        """:meth:`observe_t_m` is linear in the window (see :class:`HybridInputs`): its weights
+        (M, k+1+4k, 1), from applying it to the k+1+4k unit windows."""
+        k = self.features.depth
+        basis = torch.eye(k + 1 + 4 * k).expand(ad.shape[0], -1, -1)
         weights = self.observe_t_m(ad, bd, basis[..., : k + 1], basis[..., k + 1 :].unflatten(-1, (k, 4)))
-        return torch.bmm(window, weights[..., None])[..., 0]
+        return weights[..., None]
+
+    def observe_linear(self, ad: torch.Tensor, bd: torch.Tensor, window: torch.Tensor) -> torch.Tensor:
+        """:meth:`observe_t_m` as one matrix product over ``window`` (M, B, k+1+4k). Returns (M, B)."""
+        return torch.bmm(window, self.observer_weights(ad, bd))[..., 0]
 
     def forward_terms(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """``(obs, z, residual)`` for scaled features x (M, B, F): ``obs``, ``z`` as
@@ -560,54 +582,120 @@ class HybridNet(nn.Module):
         obs, z, _ = self.forward_terms(x)
         return obs, z
 
+    def rollout_constants(self) -> HybridConstants:
+        """What :meth:`rollout` needs from the weights; it depends on nothing else, so a caller
+        keeps it while the weights do not change."""
+        f = self.features
+        t, pw = f.temperature, f.power
+        with torch.no_grad():
+            ad, bd = self._matrices()
+            ad, bd = ad.flip(1, 2), bd.flip(1)  # states and rows (T_m, T_r)
+            layers = _sigmoid_form(self.residual_net, tanh_last=False)
+            w0, b0 = layers[0]  # (M, in, out); rows: z, T_r, u_phys, exogenous now, time of day
+            # The raw state (u_phys, T_m, T_r) in place of its scaled features.
+            w_hidden = torch.stack([w0[:, 2] / pw.std, w0[:, 0] / t.std, w0[:, 1] / t.std], dim=-1)
+            w_ad = torch.cat([torch.zeros_like(ad[..., :1]), ad], dim=-1)  # (M, 2, 3)
+            shift = (w0[:, 0] + w0[:, 1]) * (t.mean / t.std) + w0[:, 2] * (pw.mean / pw.std)
+            rest = _transposed(layers[1:])
+            w_last, b_last = rest[-1]  # scaled residual -> T_r increment [K]
+            # Backup thermostat: 1 - sigmoid(a) = sigmoid(-a), a linear in (T_m, T_r, T_r's
+            # inputs): (low - T)/width for "cold", (T - high)/width for "hot", T = T_r or T_end.
+            inv_w = torch.exp(-self.log_backup_width_k)[..., None]  # (M, 1, 1)
+            on_t = torch.cat([torch.tensor([[[0.0, 1.0]]]).expand(ad.shape[0], -1, -1), ad[:, 1:]], 1)
+            on_in = torch.tensor([0.0, 1.0])[:, None]  # (2, 1): T_r's inputs, on T_end only
+            cold = (-inv_w * on_t, self.backup_low_c[..., None] * inv_w, -inv_w * on_in)
+            hot = (inv_w * on_t, -self.backup_high_c[..., None] * inv_w, inv_w * on_in)
+            full, off = (cold, hot) if self.heating else (hot, cold)
+            return HybridConstants(
+                observer=self.observer_weights(ad.flip(1, 2), bd.flip(1)),
+                w_state=torch.cat([w_hidden, w_ad], dim=1),
+                b_first=(b0[:, 0] - shift)[..., None],
+                w_static=w0[:, 3:],
+                middle=rest[:-1],
+                w_last=w_last * f.delta_t_r.std,
+                b_last=b_last * f.delta_t_r.std,
+                drive_b=bd,
+                thermostat_k=-torch.cat([full[0], off[0]], dim=1),
+                thermostat_c=-torch.cat([full[1], full[1], off[1], off[1]], dim=1),
+                thermostat_end=-torch.cat([full[2], off[2]], dim=1),
+                full_power_w=self.full_power_w.detach().clone(),
+            )
+
     def rollout(
-        self, windows: Sequence[torch.Tensor], u_s: torch.Tensor, tod: torch.Tensor,
-        p_bounds: tuple[float, float],
+        self,
+        constants: HybridConstants,
+        windows: Sequence[torch.Tensor],
+        u_s: torch.Tensor,
+        tod: torch.Tensor,
+        p_bounds_w: tuple[float, float],
     ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        """Recursive rollout: ``windows`` = (t_win, p_win, e_seq) and the rest as
-        :meth:`LearnedModel.rollout_scaled`. T_m is observed once from the window, then both
-        states propagate through the 2R2C. Returns scaled ``(T_r,i+1.., u_phys,i.., T_m,i..)``,
-        each (M, N, H)."""
+        """Recursive rollout: ``constants`` from :meth:`rollout_constants`, ``windows`` = (t_win,
+        p_win, e_seq), ``u_s``, ``tod`` as :meth:`LearnedModel.rollout_scaled`; ``p_bounds_w``
+        the delivered power's range [W]. T_m is observed once from the window, then both states
+        propagate through the 2R2C. Returns raw ``(T_r,i+1.. [C], u_phys,i.. [W], T_m,i.. [C])``,
+        each (M, N, H).
+
+        The arithmetic of stepping :meth:`_step` (up to float round-off), arranged so that a
+        step is ten small ops: what does not depend on the state (the exogenous drive of both
+        2R2C rows, the residual net's first layer on the exogenous features and time of day,
+        the demand's terms) is computed for all H steps first; per step the state goes through
+        one product for the first layer and the free 2R2C response together, feature-major
+        (M, features, N) as in :meth:`EnsembleNet.rollout_steps`, tanh folded into a sigmoid;
+        the backup thermostat's min/max of T becomes a min of sigmoids (monotone: the same).
+        """
+        c = constants
         t_win, p_win, e_seq = windows
         f = self.features
         m, k = self.n_members, f.depth
         n, h_len = u_s.shape
-        ad, bd = self._matrices()
         t, pw = f.temperature, f.power
-        t_r = (t_win * t.std + t.mean).expand(m, -1, -1)
-        p_past = (p_win * pw.std + pw.mean).expand(m, -1, -1)
-        scales = [f.exog[name] for name in f.exog_series]
-        e_raw = torch.stack([e_seq[:, j] * sc.std + sc.mean for j, sc in enumerate(scales)])
-        exog = self._exog_raw(e_raw).expand(m, -1, -1, -1)  # (M, N0, k+H, 3)
-        d_win = self._inputs(p_past[..., 1:], exog[..., :k, :])
-        window = torch.cat([t_r, d_win.flatten(-2)], dim=-1)
-        t_m = self.observe_linear(ad, bd, window).expand(m, n)  # (M, N)
-        t_now = t_r[..., k].expand(m, n)
-        p_now = p_win[:, k].expand(m, n)
-        e_seq, tod = e_seq.expand(n, -1, -1), tod.expand(n, -1, -1)
-        out = torch.empty(3, m, n, h_len)
-        a = ad[:, None]
+        hidden = c.b_first.shape[1]
         with torch.no_grad():
+            t_r = t_win * t.std + t.mean  # (N0, k+1)
+            p_past = p_win * pw.std + pw.mean
+            scales = [f.exog[name] for name in f.exog_series]
+            e_raw = torch.stack([e_seq[:, j] * sc.std + sc.mean for j, sc in enumerate(scales)])
+            exog = self._exog_raw(e_raw)  # (N0, k+H, 3)
+            d_win = self._inputs(p_past[..., 1:], exog[..., :k, :])
+            window = torch.cat([t_r, d_win.flatten(-2)], dim=-1)  # (N0, k+1+4k)
+            states = torch.empty(h_len + 1, m, 3, n)  # (u_phys, T_m, T_r) at each step's start
+            states[0, :, 0] = p_past[:, k]
+            states[0, :, 1] = torch.matmul(window, c.observer)[..., 0]
+            states[0, :, 2] = t_r[:, k]
+            drive = torch.einsum("mrc,nhc->hmrn", c.drive_b[..., 1:], exog[:, k : k + h_len])
+            n0 = max(e_seq.shape[0], tod.shape[0])
+            e_now = e_seq[:, :, k : k + h_len].transpose(1, 2).expand(n0, -1, -1)
+            static = torch.cat([e_now, tod[:, :h_len].expand(n0, -1, -1)], dim=-1)
+            first = torch.einsum("msj,nhs->hmjn", c.w_static, static) + c.b_first  # (H, M, out, N0)
+            u_w = (u_s * pw.std + pw.mean).T.contiguous()[:, None, None]  # (H, 1, 1, N)
+            # T_r's inputs without the override (demand, exogenous): thermostat rows on T_end.
+            t_r_in = torch.addcmul(drive[:, :, 1:], c.drive_b[:, 1:, :1], u_w)  # (H, M, 1, N)
+            gate_c = torch.addcmul(c.thermostat_c, c.thermostat_end, t_r_in)  # (H, M, 4, N)
+            drive[:, :, 1:] += c.b_last
+            pre = torch.cat([first, drive], dim=2)  # (H, M, out+2, N0)
+            u_w = u_w[:, 0]  # (H, 1, N)
+            no_full = -c.full_power_w
+            b_u = c.drive_b[..., :1]  # (M, 2, 1)
+            lo, hi = p_bounds_w
             for h in range(h_len):
-                z = (t_m - t.mean) / t.std
-                static = torch.cat([e_seq[:, :, k + h], u_s[:, h, None], tod[:, h]], dim=-1)
-                now = torch.cat(
-                    [((t_now - t.mean) / t.std)[..., None], p_now[..., None],
-                     static.expand(m, n, -1)],
-                    dim=-1,
-                )
-                exog_now = exog[..., k + h, :].expand(m, n, -1)
-                obs, _ = self._step(
-                    ad, bd, t_now, t_m, z, now, exog_now=exog_now, p_bounds=p_bounds
-                )
-                d = self._inputs(obs[..., 1] * pw.std + pw.mean, exog_now)
-                t_m_next = a[..., 1, 0] * t_now + a[..., 1, 1] * t_m + (d * bd[:, None, 1]).sum(-1)
-                out[2, ..., h] = z
-                t_now = t_now + (obs[..., 0] * f.delta_t_r.std + f.delta_t_r.mean)
-                p_now, t_m = obs[..., 1], t_m_next
-                out[0, ..., h] = (t_now - t.mean) / t.std
-                out[1, ..., h] = p_now
-        return out[0], out[1], out[2]
+                now, nxt = states[h], states[h + 1]
+                y = torch.baddbmm(pre[h], c.w_state, now)  # (hidden, free 2R2C response)
+                x = y[:, :hidden].sigmoid_()
+                for w, b in c.middle:
+                    x = torch.baddbmm(b, w, x).sigmoid_()
+                gate = torch.baddbmm(gate_c[h], c.thermostat_k, now[:, 1:]).sigmoid_()
+                not_full, not_off = gate.view(m, 2, 2, n).amin(2).unbind(1)
+                # delivered = u + (F - u) full - u off (1 - full) = F + (u (1 - off) - F)(1 - full)
+                p_w = torch.addcmul(c.full_power_w, torch.addcmul(no_full, u_w[h], not_off), not_full)
+                torch.clamp(p_w, lo, hi, out=nxt[:, 0])
+                torch.addcmul(y[:, hidden:], b_u, nxt[:, :1], out=nxt[:, 1:])
+                nxt[:, 2:].baddbmm_(c.w_last, x)
+            series = states.permute(1, 2, 3, 0)  # (M, 3, N, H+1)
+            return (
+                series[:, 2, :, 1:].contiguous(),
+                series[:, 0, :, 1:].contiguous(),
+                series[:, 1, :, :-1].contiguous(),
+            )
 
 
 def residual_exact(
@@ -739,6 +827,7 @@ class LearnedModel:
         self._p_lo, self._p_hi = (lo - p.mean) / p.std, (hi - p.mean) / p.std
         t, dlt = features.temperature, features.delta_t_r
         self._dt_ratio, self._dt_offset = dlt.std / t.std, dlt.mean / t.std
+        self._hybrid_cache: tuple[torch.Tensor, HybridConstants] | None = None
 
     @property
     def eta(self) -> float:
@@ -758,6 +847,18 @@ class LearnedModel:
         p = obs[..., 1].clamp(self._p_lo, self._p_hi)
         return t_next, p, z
 
+    def _hybrid_constants(self, net: HybridNet) -> HybridConstants:
+        """:meth:`HybridNet.rollout_constants`, kept while the weights stay the same (a
+        decision rolls out several times; the matrix exponential and the observer are the
+        cost). The weights are compared by value, so changing them in place is seen."""
+        with torch.no_grad():
+            weights = [t.reshape(-1) for t in (*self.module.parameters(), *self.module.buffers())]
+            key = torch.cat(weights)
+        cached = self._hybrid_cache
+        if cached is None or not torch.equal(cached[0], key):
+            cached = self._hybrid_cache = (key, net.rollout_constants())
+        return cached[1]
+
     def _unscale_t(self, v: torch.Tensor) -> torch.Tensor:
         return v * self.features.temperature.std + self.features.temperature.mean
 
@@ -776,16 +877,12 @@ class LearnedModel:
         scaled demand; ``tod`` (N0, H, 2) encoded time of day. N0 is 1 or N.
         """
         f = self.features
-        if isinstance(self.module.net, HybridNet):
-            with torch.no_grad():
-                t_s, p_s, z_s = self.module.net.rollout(
-                    (t_win, p_win, e_seq), u_s, tod, (self._p_lo, self._p_hi)
-                )
-            return Rollout(
-                t_r_c=self._unscale_t(t_s),
-                u_phys_w=p_s * f.power.std + f.power.mean,
-                t_m_c=self._unscale_t(z_s),
+        net = self.module.net
+        if isinstance(net, HybridNet):
+            t_r, p_w, t_m = net.rollout(
+                self._hybrid_constants(net), (t_win, p_win, e_seq), u_s, tod, self.meta["u_phys_range_w"]
             )
+            return Rollout(t_r_c=t_r, u_phys_w=p_w, t_m_c=t_m)
         m, k1 = self.n_members, self.depth + 1
         n, h_len = u_s.shape
         tp = torch.empty(m, k1 + h_len, 2, n)  # feature-major: see EnsembleNet.rollout_steps
@@ -798,7 +895,7 @@ class LearnedModel:
         scale = torch.tensor([[self._dt_ratio], [1.0]])
         shift = torch.tensor([[self._dt_offset], [0.0]])
         with torch.no_grad():
-            step = self.module.net.rollout_steps(e_win, u_s, tod, self.depth)
+            step = net.rollout_steps(e_win, u_s, tod, self.depth)
             for h in range(h_len):
                 obs, z = step(tp, h)
                 row = tp.select(1, k1 + h)  # (M, 2, N) view

@@ -14,6 +14,7 @@ from pinn_mpc.errors import InputError
 from pinn_mpc.features import time_of_day_h
 from pinn_mpc.models import (
     EnsembleLinear,
+    HybridNet,
     LearnedModel,
     Physics,
     discretise_torch,
@@ -271,3 +272,128 @@ def test_hybrid_heats_with_the_sign_of_eta() -> None:
     model.module.net.init_backup(-100.0, 100.0, 5000.0)
     t_r = model.rollout(history, plans, exog).t_r_c  # (M, 11, H)
     assert bool((t_r[:, 1:] > t_r[:, :-1]).all())
+
+
+def _reference_hybrid_rollout(
+    net: HybridNet,
+    windows: tuple[torch.Tensor, torch.Tensor, torch.Tensor],
+    u_s: torch.Tensor,
+    tod: torch.Tensor,
+    p_bounds: tuple[float, float],
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """The hybrid's rollout written plainly (the implementation before it was made fast): per
+    horizon step the "now" features are rebuilt and the net's one-step ``_step`` (the one its
+    ``forward`` uses) predicts; T_m follows the 2R2C. Raw (T_r, u_phys, T_m), each (M, N, H)."""
+    t_win, p_win, e_seq = windows
+    f = net.features
+    m, k = net.n_members, f.depth
+    n, h_len = u_s.shape
+    ad, bd = net._matrices()
+    t, pw = f.temperature, f.power
+    t_r = (t_win * t.std + t.mean).expand(m, -1, -1)
+    p_past = (p_win * pw.std + pw.mean).expand(m, -1, -1)
+    scales = [f.exog[name] for name in f.exog_series]
+    e_raw = torch.stack([e_seq[:, j] * sc.std + sc.mean for j, sc in enumerate(scales)])
+    exog = net._exog_raw(e_raw).expand(m, -1, -1, -1)
+    d_win = net._inputs(p_past[..., 1:], exog[..., :k, :])
+    t_m = net.observe_linear(ad, bd, torch.cat([t_r, d_win.flatten(-2)], dim=-1)).expand(m, n)
+    t_now = t_r[..., k].expand(m, n)
+    p_now = p_win[:, k].expand(m, n)
+    e_seq, tod = e_seq.expand(n, -1, -1), tod.expand(n, -1, -1)
+    out = torch.empty(3, m, n, h_len)
+    with torch.no_grad():
+        for h in range(h_len):
+            z = (t_m - t.mean) / t.std
+            static = torch.cat([e_seq[:, :, k + h], u_s[:, h, None], tod[:, h]], dim=-1)
+            t_s = ((t_now - t.mean) / t.std)[..., None]
+            now = torch.cat([t_s, p_now[..., None], static.expand(m, n, -1)], dim=-1)
+            exog_now = exog[..., k + h, :].expand(m, n, -1)
+            obs, _ = net._step(ad, bd, t_now, t_m, z, now, exog_now=exog_now, p_bounds=p_bounds)
+            d = net._inputs(obs[..., 1] * pw.std + pw.mean, exog_now)
+            out[2, ..., h] = t_m
+            t_m = ad[:, None, 1, 0] * t_now + ad[:, None, 1, 1] * t_m + (d * bd[:, None, 1]).sum(-1)
+            t_now = t_now + (obs[..., 0] * f.delta_t_r.std + f.delta_t_r.mean)
+            p_now = obs[..., 1]
+            out[0, ..., h] = t_now
+            out[1, ..., h] = p_now * pw.std + pw.mean
+    return out[0], out[1], out[2]
+
+
+def _scaled_windows(model: LearnedModel, df, starts: np.ndarray, h: int):
+    """Scaled (t_win, p_win, e_seq, u_s, tod) of :meth:`LearnedModel.rollout_scaled` for the
+    measured data from each start row, N0 = N = len(starts)."""
+    f, k = model.features, model.depth
+    back, ahead = np.arange(-k, 1), np.arange(h)
+    t_r = (df["T_r"].to_numpy() - f.temperature.mean) / f.temperature.std
+    p = (df["u_phys"].to_numpy() - f.power.mean) / f.power.std
+    u = (df["u"].to_numpy() - f.power.mean) / f.power.std
+    exog = f.scale_exog({n: df[n].to_numpy() for n in f.exog_series})
+    tod = f.encode_time(time_of_day_h(df["time"]))
+    e_seq = exog[:, starts[:, None] + np.arange(-k, h)].transpose(1, 0, 2)
+    as_t = lambda a: torch.from_numpy(np.ascontiguousarray(a, dtype=np.float32))  # noqa: E731
+    return (
+        as_t(t_r[starts[:, None] + back]),
+        as_t(p[starts[:, None] + back - 1]),
+        as_t(e_seq),
+        as_t(u[starts[:, None] + ahead]),
+        as_t(tod[starts[:, None] + ahead]),
+    )
+
+
+@pytest.mark.parametrize("heating", [True, False])
+def test_hybrid_rollout_equals_stepping_the_one_step_model(heating: bool) -> None:
+    """The fast rollout against the plain one (the net's one-step ``_step`` per horizon step):
+    the same predictions up to float32 round-off, for one start and N plans (N0 = 1) and N
+    starts (N0 = N), with a residual and a backup thermostat that both act; and again after
+    the weights change in place (the rollout's cached constants must follow)."""
+    truth, df = _winter_data(3, 2)
+    prior = dataclasses.replace(truth, eta=truth.eta if heating else -2.5)
+    config = TrainConfig(n_seeds=3, epochs=1, depth=6, prior=prior, eta=prior.eta)
+    model = train_model(df, arch="hybrid", config=config, progress=False)
+    net = model.module.net
+    assert isinstance(net, HybridNet) and net.heating == heating
+    gen = torch.Generator().manual_seed(0)
+    t_mid = float(np.median(df["T_r"]))
+    with torch.no_grad():
+        for layer in net.residual_net:  # a residual of a few 0.1 K
+            layer.weight.normal_(0.0, 0.3, generator=gen)
+            layer.bias.normal_(0.0, 0.3, generator=gen)
+        net.init_backup(t_mid - 0.5, t_mid + 0.5, 5000.0)
+    h, bounds = 24, (model._p_lo, model._p_hi)
+    starts = np.arange(40, len(df) - h, 7)
+    t_win, p_win, e_seq, u_s, tod = _scaled_windows(model, df, starts, h)
+    plans = (u_s[:1] + torch.randn(5, h, generator=gen)).clamp(-3.0, 3.0)
+    cases = {
+        "N0=N": ((t_win, p_win, e_seq), u_s, tod),
+        "N0=1": ((t_win[:1], p_win[:1], e_seq[:1]), plans, tod[:1]),
+        "N0=1, N=1": ((t_win[:1], p_win[:1], e_seq[:1]), plans[:1], tod[:1]),
+    }
+
+    def check() -> list[torch.Tensor]:
+        outs = []
+        for name, (windows, u, tods) in cases.items():
+            ref = _reference_hybrid_rollout(net, windows, u, tods, bounds)
+            roll = model.rollout_scaled(*windows, u, tods)
+            assert roll.t_m_c is not None
+            for a, b, tol in zip(ref, (roll.t_r_c, roll.u_phys_w, roll.t_m_c), (1e-4, 0.5, 1e-4), strict=True):
+                assert b.shape == (3, u.shape[0], h), name
+                assert float((a - b).abs().max()) < tol, name
+            outs.append(roll.t_r_c)
+        return outs
+
+    first = check()
+    # The thermostat overrode the demand somewhere, and the residual moved T_r.
+    ref_p = _reference_hybrid_rollout(net, *cases["N0=N"], bounds)[1]
+    demand = (u_s * model.features.power.std + model.features.power.mean).clamp(*model.meta["u_phys_range_w"])
+    assert float((ref_p - demand).abs().max()) > 1000.0
+    with torch.no_grad():
+        model.module.physics.log_a12 += 0.2
+        net.backup_low_c -= 0.3
+        net.residual_net[0].weight.mul_(1.5)
+    second = check()
+    assert all(float((a - b).abs().max()) > 0.05 for a, b in zip(first, second, strict=True))
+    with torch.no_grad():  # without the residual
+        net.residual_net[-1].weight.zero_()
+        net.residual_net[-1].bias.zero_()
+    third = check()
+    assert all(float((a - b).abs().max()) > 0.05 for a, b in zip(second, third, strict=True))

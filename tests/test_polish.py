@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import torch
 
-from controllers.lp_polish import PolishSettings, jacobians, probes
+from controllers.lp_polish import PolishSettings, _constraint_matrix, jacobians, probes
 from pinn_mpc.errors import InputError
 
 H = 12
@@ -57,3 +57,14 @@ def test_polish_settings_are_checked():
         PolishSettings(delta_frac=0.0)
     with pytest.raises(InputError, match="line_search"):
         PolishSettings(line_search=(1.5,))
+
+
+def test_constraint_matrix_is_the_block_matrix_with_only_its_nonzeros_stored():
+    rng = np.random.default_rng(2)
+    jr = np.tril(rng.normal(size=(3, H, H))).reshape(3 * H, H)
+    jr[jr > 1.0] = 0.0  # zeros inside the triangle too
+    a = _constraint_matrix(jr)
+    eye = np.eye(3 * H)
+    np.testing.assert_array_equal(a.toarray(), np.block([[-jr, -eye], [jr, -eye]]))
+    assert a.nnz == 2 * (np.count_nonzero(jr) + 3 * H)
+    assert a.has_canonical_format
