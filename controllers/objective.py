@@ -106,6 +106,19 @@ class HorizonObjective:
         t_min[n_active:], t_max[n_active:] = OPEN_BAND_C
         return dataclasses.replace(self, price_eur_per_kwh=price, t_min_c=t_min, t_max_c=t_max)
 
+    def tightened(self, margin_k: float) -> HorizonObjective:
+        """The objective with the band narrowed by ``margin_k`` [K] on each side (to its middle
+        where it is narrower than twice the margin): constraint tightening for a planner whose
+        model is off by a few millikelvin."""
+        if margin_k == 0:
+            return self
+        middle = 0.5 * (self.t_min_c + self.t_max_c)
+        return dataclasses.replace(
+            self,
+            t_min_c=np.minimum(self.t_min_c + margin_k, middle),
+            t_max_c=np.maximum(self.t_max_c - margin_k, middle),
+        )
+
     def stage_costs(self, u_phys_w: np.ndarray, t_r_c: np.ndarray) -> np.ndarray:
         """Cost of each interval (..., H) [EUR] of delivered electrical power and end-of-interval T_r (..., H)."""
         h = self.horizon_steps

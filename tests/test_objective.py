@@ -74,3 +74,16 @@ def test_until_frees_the_steps_after_the_run_end():
             dt_h=0.5,
             comfort_weight_eur_per_kh=1.0,
         )
+
+
+def test_tightened_narrows_the_band_and_meets_in_the_middle():
+    objective = HorizonObjective.from_forecast(_forecast(), SPEC, 4)  # bands 20-23, 20-22, ...
+    narrow = objective.tightened(0.25)
+    assert narrow.t_min_c.tolist() == [20.25, 20.25, 20.25, 17.25]
+    assert narrow.t_max_c.tolist() == [22.75, 21.75, 21.75, 23.75]
+    # A margin wider than half the 2 K band leaves the middle; price and weights unchanged.
+    middle = objective.tightened(1.5)
+    assert middle.t_min_c.tolist() == [21.5, 21.0, 21.0, 18.5]
+    assert middle.t_max_c.tolist() == [21.5, 21.0, 21.0, 22.5]
+    assert middle.price_eur_per_kwh.tolist() == objective.price_eur_per_kwh.tolist()
+    assert objective.tightened(0.0) is objective

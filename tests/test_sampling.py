@@ -46,10 +46,12 @@ def _forecast(start: int = 0, length: int = H) -> Forecast:
     )
 
 
-def plan_cost(u_phys_w, t_r_c, forecast: Forecast, spec: ControlSpec):
-    """The shared objective of predictions (..., H) over the forecast's first H intervals."""
+def plan_cost(u_phys_w, t_r_c, forecast: Forecast, spec: ControlSpec, margin_k: float = 0.0):
+    """The shared objective of predictions (..., H) over the forecast's first H intervals, the
+    band narrowed by ``margin_k`` (a sampling controller's ``comfort_margin_k``)."""
     h = np.shape(t_r_c)[-1]
-    return HorizonObjective.from_forecast(forecast, spec, h).cost(u_phys_w, t_r_c)
+    objective = HorizonObjective.from_forecast(forecast, spec, h).tightened(margin_k)
+    return objective.cost(u_phys_w, t_r_c)
 
 
 def _obs(t_r_c: float, t_m_c: float, k: int = 1, t_a_c: float = 5.0) -> Observation:
@@ -66,8 +68,9 @@ def _obs(t_r_c: float, t_m_c: float, k: int = 1, t_a_c: float = 5.0) -> Observat
     return Observation.from_history(k, history, t_m_c)
 
 
-def _lp_optimum(x0: np.ndarray, fc: Forecast) -> float:
-    """The same objective over the linear 2R2C, solved exactly (slack = band violation)."""
+def _lp_optimum(x0: np.ndarray, fc: Forecast, margin_k: float = 0.0) -> float:
+    """The same objective over the linear 2R2C, solved exactly (slack = band violation), the
+    band narrowed by ``margin_k`` (the bands here are 2-4 K wide)."""
     u = cp.Variable(H)
     x = cp.Variable((H + 1, 2))
     s = cp.Variable(H, nonneg=True)
@@ -75,6 +78,7 @@ def _lp_optimum(x0: np.ndarray, fc: Forecast) -> float:
     cons = [x[0] == x0, u >= 0, u <= U_MAX_W]
     cons += [x[j + 1] == AD @ x[j] + BD[:, 0] * u[j] + BD[:, 1:] @ d[j] for j in range(H)]
     lower, upper = planning_band(fc, H)
+    lower, upper = lower + margin_k, upper - margin_k
     cons += [s >= lower - x[1:, 0], s >= x[1:, 0] - upper]
     energy = cp.sum(cp.multiply(fc.price[:H] * SPEC.dt_h / 1000.0, u))
     discomfort = SPEC.comfort_weight_eur_per_kh * SPEC.dt_h * cp.sum(s)
@@ -84,13 +88,13 @@ def _lp_optimum(x0: np.ndarray, fc: Forecast) -> float:
     return float(problem.value)
 
 
-def _true_cost(plan: np.ndarray, x0: np.ndarray, fc: Forecast) -> float:
+def _true_cost(plan: np.ndarray, x0: np.ndarray, fc: Forecast, margin_k: float = 0.0) -> float:
     """plan_cost of a plan simulated on the linear 2R2C in float64."""
     x, t_r = x0.astype(float), []
     for j in range(H):
         x = AD @ x + BD @ np.array([plan[j], fc.T_a[j], 0.0, 0.0])
         t_r.append(x[0])
-    return float(plan_cost(plan, np.array(t_r), fc, SPEC))
+    return float(plan_cost(plan, np.array(t_r), fc, SPEC, margin_k))
 
 
 def test_rc_model_matches_the_minute_level_simulator_without_overrides():
@@ -140,7 +144,7 @@ def test_cem_plan_comes_within_a_few_percent_of_the_exact_optimum():
     x0, fc = np.array([19.5, 19.0]), _forecast()
     optimum = _lp_optimum(x0, fc)
     # A cold start needs a wider search than the warm-started default.
-    cem = CEM(LINEAR, SPEC, n_samples=400, n_iters=12, init_std_frac=0.5)
+    cem = CEM(LINEAR, SPEC, n_samples=400, n_iters=12, init_std_frac=0.5, comfort_margin_k=0.0)
     cem.reset(seed=0)
     cem.act(_obs(*x0), fc)
     plan = cem.last_plan
@@ -151,7 +155,8 @@ def test_cem_plan_comes_within_a_few_percent_of_the_exact_optimum():
 
 
 def test_warm_started_cem_closes_in_on_the_optimum_in_receding_horizon():
-    cem = CEM(LINEAR, SPEC, polish_iters=0)  # sampling alone: the warm start carries the search
+    # Sampling alone: the warm start carries the search (on the true band: an exact model).
+    cem = CEM(LINEAR, SPEC, polish_iters=0, comfort_margin_k=0.0)
     cem.reset(seed=1)
     x = np.array([19.5, 19.0])
     gaps = []
@@ -168,16 +173,21 @@ def test_warm_started_cem_closes_in_on_the_optimum_in_receding_horizon():
 def test_lp_polish_reaches_the_exact_optimum_on_a_linear_model():
     # The default CEM polishes its plan by an LP on the linearised model: on the exact linear
     # 2R2C the linearisation is exact, so every decision's plan is the LP optimum, up to the
-    # float32 finite differences of the Jacobian (CEM alone stays a few percent off).
+    # float32 finite differences of the Jacobian (CEM alone stays a few percent off). The
+    # default plans against the band narrowed by 0.01 K: the optimum of that band.
     cem = CEM(LINEAR, SPEC)
+    margin = cem.comfort_margin_k
+    assert margin == 0.01
     cem.reset(seed=1)
     x = np.array([19.5, 19.0])
     for k in range(3):
         fc = _forecast(start=k)
         u = cem.act(_obs(*x, t_a_c=float(fc.T_a[0])), fc)
-        optimum = _lp_optimum(x, fc)
+        optimum = _lp_optimum(x, fc, margin)
         assert cem.last_cost_eur == pytest.approx(optimum, rel=1e-3)
-        assert _true_cost(cem.last_plan, x, fc) == pytest.approx(optimum, rel=1e-3)
+        assert _true_cost(cem.last_plan, x, fc, margin) == pytest.approx(optimum, rel=1e-3)
+        # It pays for the margin in energy, a little above the true band's optimum.
+        assert _lp_optimum(x, fc) < _true_cost(cem.last_plan, x, fc) < 1.01 * _lp_optimum(x, fc)
         assert cem.last_stats.iterations == 2 + 1  # CEM iterations + one LP
         x = AD @ x + BD @ np.array([u, fc.T_a[0], 0.0, 0.0])
 
@@ -222,7 +232,7 @@ def test_random_shooting_with_the_polish_reaches_the_optimum():
 def test_random_shooting_is_no_better_than_cem(seed):
     obs, fc = _obs(19.5, 19.0), _forecast()
     costs = {}
-    for controller in (RandomShooting(LINEAR, SPEC), CEM(LINEAR, SPEC)):
+    for controller in (RandomShooting(LINEAR, SPEC), CEM(LINEAR, SPEC, comfort_margin_k=0.0)):
         controller.reset(seed)
         controller.act(obs, fc)
         costs[controller.name] = controller.last_cost_eur
@@ -388,7 +398,7 @@ def test_cem_over_a_trained_physnet_ensemble_in_closed_loop(physnet):
         exog = {"time_of_day_h": fc.time_of_day_h[:H], "T_a": fc.T_a[:H]}
         roll = physnet.rollout(obs.history, torch.tensor(plan[None], dtype=torch.float32), exog)
         per_member = [
-            plan_cost(roll.u_phys_w[m, 0].numpy(), roll.t_r_c[m, 0].numpy(), fc, SPEC)
+            plan_cost(roll.u_phys_w[m, 0].numpy(), roll.t_r_c[m, 0].numpy(), fc, SPEC, 0.01)
             for m in range(physnet.n_members)
         ]
         expected = np.mean(per_member) + risk_weight * np.std(per_member)
@@ -419,7 +429,7 @@ def test_default_cem_scores_the_ensemble_mean_with_a_measured_offset(physnet):
     plan = torch.tensor(cem.last_plan[None], dtype=torch.float32)
     roll = physnet.rollout(obs.history, plan, exog)
     mean_t = roll.t_r_c[:, 0].mean(0).numpy() + offset
-    expected = plan_cost(roll.u_phys_w[:, 0].mean(0).numpy(), mean_t, fc, SPEC)
+    expected = plan_cost(roll.u_phys_w[:, 0].mean(0).numpy(), mean_t, fc, SPEC, 0.01)
     assert offset != 0.0
     assert cem.last_cost_eur == pytest.approx(float(expected), rel=1e-4)
 
@@ -429,6 +439,9 @@ def test_ensemble_and_offset_settings_are_checked(physnet):
         CEM(physnet, SPEC, ensemble="median")
     with pytest.raises(InputError, match="offset_gain"):
         CEM(physnet, SPEC, offset_gain=1.5)
+    for margin in (-0.01, float("nan")):
+        with pytest.raises(InputError, match="comfort_margin_k"):
+            CEM(physnet, SPEC, comfort_margin_k=margin)
     with pytest.raises(InputError, match="risk_weight"):
         CEM(physnet, SPEC, risk_weight=0.5)  # the spread of one mean prediction is zero
 
