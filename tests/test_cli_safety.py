@@ -313,3 +313,22 @@ def test_hard_links_are_the_same_file(tmp_path: Path) -> None:
             inputs={"--data": tmp_path / "data.csv"}, outputs={"--out": tmp_path / "alias.csv"}
         )
     check_distinct(inputs={"--data": tmp_path / "data.csv"}, outputs={"--out": tmp_path / "o.csv"})
+
+
+def test_ctrl_c_during_an_atomic_write_finishes_the_file_then_interrupts(tmp_path: Path) -> None:
+    import signal
+
+    from pinn_mpc.io import atomic_write
+
+    target = tmp_path / "cell.json"
+
+    def writer(tmp: Path) -> None:
+        tmp.write_text("half", encoding="utf-8")
+        os.kill(os.getpid(), signal.SIGINT)  # Ctrl-C in the middle of the write
+        tmp.write_text("whole", encoding="utf-8")
+
+    with pytest.raises(KeyboardInterrupt):
+        atomic_write(target, writer)
+    assert target.read_text(encoding="utf-8") == "whole"
+    assert [p.name for p in tmp_path.iterdir()] == ["cell.json"]  # no temporary file left
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
