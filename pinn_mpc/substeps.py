@@ -82,7 +82,6 @@ def integrate_interval(
     n_buildings = x.shape[0]
     n_sub = t_r_sub_c.shape[1]
     shared = ad.shape[0] == 1
-    force_on = u_max_w
     for i in range(n_buildings):
         q = 0 if shared else i
         a00, a01, a10, a11 = ad[q, 0, 0], ad[q, 0, 1], ad[q, 1, 0], ad[q, 1, 1]
@@ -95,7 +94,7 @@ def integrate_interval(
         total, changed = 0.0, False
         for j in range(n_sub):
             demand, p = _substep_power(
-                j, demand, n_on, min_power_w, x0, backup_low_c, backup_high_c, heating, force_on
+                j, demand, n_on, min_power_w, x0, backup_low_c, backup_high_c, heating, u_max_w
             )
             changed = changed or p != demand
             total += p
