@@ -39,7 +39,7 @@ import numpy as np
 
 from pinn_mpc.errors import InputError
 
-__all__ = ["ACTUATOR_KINDS", "Actuator", "KELVIN"]
+__all__ = ["ACTUATOR_KINDS", "Actuator", "CopCurve", "KELVIN"]
 
 ACTUATOR_KINDS = ("ideal", "heat_pump")
 KELVIN = 273.15
@@ -98,3 +98,59 @@ class Actuator:
         with np.errstate(divide="ignore", invalid="ignore"):
             carnot = np.where(lift_k > 0, t_supply_k / np.where(lift_k > 0, lift_k, 1.0), np.inf)
         return np.clip(self.carnot_efficiency * carnot, self.cop_min, self.cop_max)
+
+
+@dataclass(frozen=True, kw_only=True)
+class CopCurve:
+    """Heat per electrical watt against outdoor temperature, as a data set shows it: piecewise
+    linear through ``cop`` at knots ``t_a_c`` [C] (increasing), constant beyond the end knots
+    (a model never extrapolates the COP past what its data saw)."""
+
+    t_a_c: tuple[float, ...]
+    cop: tuple[float, ...]
+
+    def __post_init__(self) -> None:
+        t, c = np.asarray(self.t_a_c, dtype=float), np.asarray(self.cop, dtype=float)
+        if t.ndim != 1 or t.shape != c.shape or len(t) < 2:
+            raise InputError(
+                f"COP curve needs two or more knots of equal length, got {len(t)} and {len(c)}"
+            )
+        if not (np.all(np.isfinite(t)) and np.all(np.diff(t) > 0)):
+            raise InputError(f"COP curve knots must be finite and increasing, got {list(t)}")
+        if not (np.all(np.isfinite(c)) and np.all((c >= 0.1) & (c <= 20.0))):
+            raise InputError(f"COP curve values must lie in 0.1 .. 20, got {list(c)}")
+
+    @classmethod
+    def fit(cls, t_a_c: np.ndarray, cop: np.ndarray, *, n_knots: int = 12) -> CopCurve | None:
+        """The curve through measured ``cop`` (heat per electrical watt, e.g. a ``cop`` column)
+        at outdoor temperatures ``t_a_c``: least squares on a piecewise-linear basis with a
+        small curvature penalty. None when the COP is 1 throughout (a resistance heater)."""
+        t, c = np.asarray(t_a_c, dtype=float), np.asarray(cop, dtype=float)
+        if np.allclose(c, 1.0):
+            return None
+        lo, hi = float(t.min()), float(t.max())
+        if hi - lo < 1e-6:
+            return cls(t_a_c=(lo - 0.5, lo + 0.5), cop=(float(c.mean()),) * 2)
+        knots = np.linspace(lo, hi, n_knots)
+        # Hat basis: column j is the linear interpolant of the j-th unit vector.
+        basis = np.stack([np.interp(t, knots, np.eye(n_knots)[j]) for j in range(n_knots)], axis=1)
+        curvature = np.diff(np.eye(n_knots), 2, axis=0) * np.sqrt(1e-3 * len(t))
+        values = np.linalg.lstsq(
+            np.vstack([basis, curvature]), np.concatenate([c, np.zeros(n_knots - 2)]), rcond=None
+        )[0]
+        values = np.clip(values, float(c.min()), float(c.max()))
+        return cls(t_a_c=tuple(map(float, knots)), cop=tuple(map(float, values)))
+
+    def __call__(self, t_a_c: Any) -> np.ndarray:
+        """The COP at outdoor temperature(s) ``t_a_c`` [C], same shape."""
+        return np.interp(np.asarray(t_a_c, dtype=float), self.t_a_c, self.cop)
+
+    def to_dict(self) -> dict[str, list[float]]:
+        return {"t_a_c": list(self.t_a_c), "cop": list(self.cop)}
+
+    @classmethod
+    def from_dict(cls, data: Any) -> CopCurve:
+        try:
+            return cls(t_a_c=tuple(map(float, data["t_a_c"])), cop=tuple(map(float, data["cop"])))
+        except (KeyError, TypeError, ValueError) as exc:
+            raise InputError(f"COP curve must hold lists t_a_c and cop, got {data!r}") from exc

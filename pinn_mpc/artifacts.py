@@ -27,6 +27,7 @@ from safetensors import safe_open
 from safetensors.torch import load_file, save_file
 
 from pinn_mpc import __version__, physics
+from pinn_mpc.actuator import CopCurve
 from pinn_mpc.choices import ALL_ARCHS
 from pinn_mpc.errors import InputError, ModelFileError, warn
 from pinn_mpc.features import FeatureConfig, whole_number
@@ -45,7 +46,7 @@ __all__ = [
 
 WEIGHTS = "weights.safetensors"
 META = "model.json"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
 #: A model directory holds these two files (weights first: they are renamed into place in this
 #: order, and model.json describes them).
 MODEL_DIRECTORY = DirectoryLayout(
@@ -107,7 +108,9 @@ def _read_meta(directory: Path) -> dict[str, Any]:
     missing = [k for k in _REQUIRED if k not in meta]
     if missing:
         raise ModelFileError(f"{meta_path} lacks key(s) {missing}; retrain or restore the model")
-    if meta["format_version"] != FORMAT_VERSION:
+    # Version 2 changed the hybrid's backup thermostat; the other architectures read as before.
+    readable = (FORMAT_VERSION,) if meta.get("arch") == "hybrid" else (1, FORMAT_VERSION)
+    if meta["format_version"] not in readable:
         raise ModelFileError(
             f"{meta_path} has format_version {meta['format_version']!r}, this package reads "
             f"{FORMAT_VERSION}; retrain the model with this version"
@@ -194,6 +197,9 @@ def load_model(path: str | os.PathLike[str]) -> LearnedModel:
         n_members = whole_number(meta["n_members"], "n_members")
         lo, hi = (float(v) for v in meta["u_phys_range_w"])
         eta = physics.check_plausible("eta", meta.get("eta", 1.0), name="eta")
+        cop_curve = (
+            CopCurve.from_dict(meta["cop_curve"]) if meta.get("cop_curve") is not None else None
+        )
     except (KeyError, TypeError, ValueError, InputError) as exc:
         raise ModelFileError(
             f"{directory / META} has an invalid field ({exc}); retrain the model"
@@ -232,7 +238,12 @@ def load_model(path: str | os.PathLike[str]) -> LearnedModel:
             raise ModelFileError(f"{directory / WEIGHTS}: tensor {name} has non-finite values")
     gens = [torch.Generator().manual_seed(0) for _ in range(n_members)]
     module = EnsembleModule(
-        meta["arch"], features=features, n_members=n_members, prior=prior, generators=gens
+        meta["arch"],
+        features=features,
+        n_members=n_members,
+        prior=prior,
+        generators=gens,
+        cop_curve=cop_curve,
     )
     module.load_state_dict(state)
     return LearnedModel(

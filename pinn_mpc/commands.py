@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 
 from pinn_mpc.data import read_timeseries
+from pinn_mpc.errors import warn
 from pinn_mpc.io import (
     PathsArg,
     atomic_write_json,
@@ -47,6 +48,8 @@ def train(a: argparse.Namespace) -> str:
         recipe=a.recipe, eta=_eta(a.eta),
     )
     model = train_model(df, arch=a.arch, config=config)
+    for message in model.meta["data_warnings"]:
+        warn(f"{a.data}: {message}")
     save_model(model, a.out, force=a.force)
     loss = model.meta["final_loss"]
     return (

@@ -3,7 +3,9 @@
 Columns: ``time`` (start of the interval, ISO 8601 or numeric seconds), ``T_r`` [C] at the
 start of the interval, optional ``T_m`` [C] (simulated data only), ``u`` [W] demanded during
 the interval, ``u_phys`` [W] mean delivered during the interval, ``T_a`` [C]; optional
-``G`` [W/m2], ``I_g`` [W], ``price`` [EUR/kWh], ``T_min``/``T_max`` [C] comfort band.
+``G`` [W/m2], ``I_g`` [W], ``price`` [EUR/kWh], ``T_min``/``T_max`` [C] comfort band, ``cop``
+[-] heat delivered per electrical watt of ``u_phys`` (a heat pump's COP; absent or 1 for a
+resistance heater; :func:`pinn_mpc.identify.identify_rc` then fits on ``cop`` x ``u_phys``).
 
 :func:`read_timeseries` validates a file and returns a DataFrame whose ``time`` column is
 ``datetime64[ns]`` (numeric seconds are taken as seconds since 1970-01-01) with a uniform
@@ -38,8 +40,12 @@ __all__ = [
 ]
 
 REQUIRED = ("time", "T_r", "u", "u_phys", "T_a")
-OPTIONAL = ("T_m", "G", "I_g", "price", "T_min", "T_max")
-COLUMNS = ("time", "T_r", "T_m", "u", "u_phys", "T_a", "G", "I_g", "price", "T_min", "T_max")
+OPTIONAL = ("T_m", "G", "I_g", "price", "T_min", "T_max", "cop")
+COLUMNS = (
+    "time", "T_r", "T_m", "u", "u_phys", "T_a", "G", "I_g", "price", "T_min", "T_max", "cop",
+)
+#: Plausible heat per electrical watt (``cop`` column): a resistance heater 1, heat pumps 2-6.
+COP_RANGE = (0.5, 10.0)
 NUMERIC = tuple(c for c in COLUMNS if c != "time")
 #: Physically plausible range of each temperature column [C], to catch unit mix-ups (K, F).
 TEMPERATURE_RANGE_C = (-60.0, 90.0)
@@ -206,6 +212,15 @@ def validate_timeseries(
                     f"[{lo}, {hi}] C; is it in kelvin or Fahrenheit?"
                 )
     _check_power(out, source, u_max_w)
+    if "cop" in out.columns:
+        lo, hi = COP_RANGE
+        outside = (out["cop"] < lo) | (out["cop"] > hi)
+        if outside.any():
+            row = int(np.flatnonzero(outside.to_numpy())[0])
+            raise InputError(
+                f"{source}: column 'cop' row {row + 1} is {out['cop'].iloc[row]:g}, outside the "
+                f"plausible {lo:g} .. {hi:g} (heat delivered per electrical watt)"
+            )
     dt_s = _check_steps(out["time"], raw_time, source)
     ordered = [c for c in COLUMNS if c in out.columns]
     out = out[ordered]

@@ -181,11 +181,18 @@ def _energy_balance_guess(
     return float(r_ra), float(c_tot), float(aperture)
 
 
+def _heat(df: pd.DataFrame) -> np.ndarray:
+    """The power the building receives per unit of eta [W]: ``u_phys``, times ``cop`` if given."""
+    heat = df["u_phys"].to_numpy(float)
+    return heat * df["cop"].to_numpy(float) if "cop" in df.columns else heat
+
+
 def identify_rc(df: pd.DataFrame, *, eta: float = 1.0) -> IdentifyResult:
     """Identify RC parameters from a validated frame (columns time, T_r, u_phys, T_a, [G, I_g]).
 
     ``df.attrs['dt_s']`` (set by :func:`pinn_mpc.data.validate_timeseries`) is the step; a
-    ``T_m`` column is never used. ``eta`` (heat per W of actuator power) is given: 1 for an
+    ``T_m`` column is never used; a ``cop`` column (a heat pump's heat per electrical watt)
+    makes the input the delivered heat ``cop`` x ``u_phys``. ``eta`` (heat per W of actuator power) is given: 1 for an
     electric heater, minus the COP for a cooling machine.
     """
     eta = check_plausible("eta", eta, name="identify: eta")
@@ -209,7 +216,7 @@ def identify_rc(df: pd.DataFrame, *, eta: float = 1.0) -> IdentifyResult:
     zeros = np.zeros(n_rows)
     d = np.stack(
         [
-            df["u_phys"].to_numpy(float),
+            _heat(df),
             df["T_a"].to_numpy(float),
             df["G"].to_numpy(float) if "G" in df.columns else zeros,
             df["I_g"].to_numpy(float) if "I_g" in df.columns else zeros,

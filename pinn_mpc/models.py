@@ -37,6 +37,7 @@ import torch
 from torch import nn
 
 from pinn_mpc import physics
+from pinn_mpc.actuator import CopCurve
 from pinn_mpc.choices import ALL_ARCHS, ARCHS, DEFAULT_ARCH
 from pinn_mpc.errors import InputError
 from pinn_mpc.features import FeatureConfig, make_windows
@@ -352,6 +353,16 @@ def discretise_torch(coef: physics.Coefficients, dt_s: float) -> tuple[torch.Ten
     ]
 
 
+def interp_clamped(x: torch.Tensor, knots: torch.Tensor, values: torch.Tensor) -> torch.Tensor:
+    """Piecewise-linear interpolation of ``values`` at increasing ``knots`` (K,), constant
+    beyond the end knots (as :func:`numpy.interp`); ``x`` any shape."""
+    xc = x.clamp(float(knots[0]), float(knots[-1]))
+    j = torch.searchsorted(knots, xc.detach().contiguous()).clamp(1, len(knots) - 1)
+    x0, x1 = knots[j - 1], knots[j]
+    w = (xc - x0) / (x1 - x0)
+    return values[j - 1] + w * (values[j] - values[j - 1])
+
+
 class HybridInputs(NamedTuple):
     """What :class:`HybridNet` reads from a sample's features (leading dims (..., ))."""
 
@@ -371,11 +382,10 @@ class HybridConstants(NamedTuple):
     middle: list[tuple[torch.Tensor, torch.Tensor]]  # hidden layers after the first, folded
     w_last: torch.Tensor  # (M, 1, in) last layer (folded) to T_r's increment [K]
     b_last: torch.Tensor  # (M, 1, 1)
-    drive_b: torch.Tensor  # (M, 2, 4) Bd, rows (T_m, T_r), inputs (u_phys, T_a, G, I_g)
-    thermostat_k: torch.Tensor  # (M, 4, 2) on (T_m, T_r), rows "full" twice, "off" twice
-    thermostat_c: torch.Tensor  # (M, 4, 1)
-    thermostat_end: torch.Tensor  # (M, 4, 1) weight of T_r's inputs (rows on T_end)
-    full_power_w: torch.Tensor  # (M, 1)
+    drive_b: torch.Tensor  # (M, 2, 4) Bd, rows (T_m, T_r), inputs (heat, T_a, G, I_g)
+    t_off: torch.Tensor  # (M, 1, 1) backup threshold past which it switches off [C]
+    t_full: torch.Tensor  # (M, 1, 1) backup threshold past which it forces full power [C]
+    full_power_w: torch.Tensor  # (M, 1, 1)
 
 
 class HybridNet(nn.Module):
@@ -388,14 +398,16 @@ class HybridNet(nn.Module):
       of the window gives one equation of the T_r row; s is their least-squares solution (closed
       form, differentiable), propagated to row i. No network estimates the hidden state, so none
       can absorb what the physics should explain (PhysNet's encoder does, and its export drifts).
-    - u_phys,i: the demand, overridden by a learned backup thermostat: full power with weight
-      sigmoid((theta_full - T)/width), none with weight sigmoid((T - theta_off)/width) (mirrored
-      for cooling), T the lowest/highest of T_r,i and the physics' T_r,i+1 without override.
-      Thresholds and widths are learned; far from them the delivered power is exactly the
-      demand. (A free network for u_phys, tried first, left small errors everywhere that the
-      planners exploited: CEM 1.032 x oracle on winter_household seed 3, 1.001 without it.)
+    - u_phys,i: the demand, saturated by a learned backup thermostat as the power that ends the
+      interval at its threshold: with T_end(p) = T_free + b g p the physics' T_r,i+1 under
+      delivered power p (g the actuator's heat per electrical watt, the COP curve),
+      ``p = max(min(u, max(p_off, 0)), min(p_full, P_max))`` where T_end(p_off) is the "off"
+      threshold (upper for heating, lower for cooling) and T_end(p_full) the "full power" one.
+      The thresholds are learned. Delivered power never falls as the demand rises, and far from
+      the thresholds it is exactly the demand (a gate that switched the heater off when the
+      demand itself would overshoot made full demand look free: 105 x oracle under CEM).
     - T_r,i+1 = Ad[0] (T_r,i, T_m,i) + Bd[0] (u_phys,i, T_a,i, G_i, I_g,i) + residual net
-      (z, x_obs, w). The residual net does not see u, so the heating effect is the physics'
+      (z, x_obs, w), with Bd's first input the heat g(T_a) u_phys. The residual net does not see u, so the heating effect is the physics'
       ``b`` (sign fixed by eta) through the delivered power (Di Natale et al., 2022, put the
       inputs' effect in the physics for the same reason); training penalises the residual.
 
@@ -411,9 +423,16 @@ class HybridNet(nn.Module):
         generators: Sequence[torch.Generator],
         coefficients: Callable[[], physics.Coefficients],
         heating: bool,
+        cop_curve: CopCurve | None = None,
     ):
         super().__init__()
         self.arch = "hybrid"
+        self.cop_curve = cop_curve
+        self._cop = (
+            None
+            if cop_curve is None
+            else (torch.tensor(cop_curve.t_a_c), torch.tensor(cop_curve.cop))
+        )
         self.heating = heating
         self.n_members = n_members
         self.features = features
@@ -432,7 +451,6 @@ class HybridNet(nn.Module):
         # Backup thermostat [C], [W]; set from the data by init_backup before training.
         self.backup_low_c = nn.Parameter(torch.full((n_members, 1), -100.0))
         self.backup_high_c = nn.Parameter(torch.full((n_members, 1), 100.0))
-        self.log_backup_width_k = nn.Parameter(torch.full((n_members, 1), math.log(0.3)))
         self.full_power_w: torch.Tensor
         self.register_buffer("full_power_w", torch.zeros(n_members, 1))  # per member, like all
         names = features.exog_series
@@ -446,21 +464,33 @@ class HybridNet(nn.Module):
             self.backup_high_c.fill_(high_c)
             self.full_power_w.fill_(full_power_w)
 
-    def delivered_w(self, u_w: torch.Tensor, t_lo: torch.Tensor, t_hi: torch.Tensor) -> torch.Tensor:
-        """Delivered power [W] for demand ``u_w`` when the room spans [t_lo, t_hi] [C]."""
-        width = self.log_backup_width_k.exp()
-        cold = torch.sigmoid((self.backup_low_c - t_lo) / width)
-        hot = torch.sigmoid((t_hi - self.backup_high_c) / width)
-        full, off = (cold, hot) if self.heating else (hot, cold)
-        return u_w + (self.full_power_w - u_w) * full - u_w * off * (1 - full)
+    def gain(self, t_a_c: torch.Tensor) -> torch.Tensor | None:
+        """Heat per electrical watt at outdoor temperature ``t_a_c`` [C] (same shape), from the
+        COP curve; None for a heater or chiller of constant gain (the physics' eta)."""
+        return None if self._cop is None else interp_clamped(t_a_c, *self._cop)
+
+    def delivered_w(self, u_w: torch.Tensor, t_free: torch.Tensor, b_w: torch.Tensor) -> torch.Tensor:
+        """Delivered power [W] for demand ``u_w`` when the room would end the interval at
+        ``t_free`` [C] without power and ``t_free + b_w p`` with power p (``b_w`` [K/W])."""
+        t_off, t_full = (
+            (self.backup_high_c, self.backup_low_c)
+            if self.heating
+            else (self.backup_low_c, self.backup_high_c)
+        )
+        p_off = ((t_off - t_free) / b_w).clamp(min=0.0)
+        p_full = torch.minimum((t_full - t_free) / b_w, self.full_power_w)
+        return torch.maximum(torch.minimum(u_w, p_off), p_full)
 
     def _matrices(self) -> tuple[torch.Tensor, torch.Tensor]:
         ad, bd = discretise_torch(self.coefficients(), self.features.dt_s)
         return ad.float(), bd.float()
 
     def _inputs(self, p_w: torch.Tensor, exog_c: torch.Tensor) -> torch.Tensor:
-        """(u_phys, T_a, G, I_g) stacked last: ``p_w`` (...,), ``exog_c`` (..., 3) -> (..., 4)."""
-        return torch.cat([p_w[..., None], exog_c], dim=-1)
+        """(heat, T_a, G, I_g) stacked last: ``p_w`` (...,) electrical power, ``exog_c`` (..., 3)
+        -> (..., 4); the heat is g(T_a) p_w with a COP curve, else p_w."""
+        g = self.gain(exog_c[..., 0])
+        heat = p_w if g is None else p_w * g
+        return torch.cat([heat[..., None], exog_c], dim=-1)
 
     def _raw(self, x: torch.Tensor, window: int) -> torch.Tensor:
         """Window ``window`` of scaled features x (..., F) in raw units: (..., k+1)."""
@@ -567,8 +597,10 @@ class HybridNet(nn.Module):
         b0 = bd[:, None, 0]
         u_w = now[..., -3] * f.power.std + f.power.mean
         free = (ad[:, None, 0, 0] - 1) * t_r + ad[:, None, 0, 1] * t_m  # without inputs
-        t_end = t_r + free + (self._inputs(u_w, exog_now) * b0).sum(-1)
-        p_w = self.delivered_w(u_w, torch.minimum(t_r, t_end), torch.maximum(t_r, t_end))
+        t_free = t_r + free + (exog_now * b0[..., 1:]).sum(-1)
+        g = self.gain(exog_now[..., 0])
+        b_w = b0[..., 0] if g is None else b0[..., 0] * g
+        p_w = self.delivered_w(u_w, t_free, b_w)
         p_s = (p_w - f.power.mean) / f.power.std
         if p_bounds is not None:
             p_s = p_s.clamp(*p_bounds)
@@ -598,14 +630,11 @@ class HybridNet(nn.Module):
             shift = (w0[:, 0] + w0[:, 1]) * (t.mean / t.std) + w0[:, 2] * (pw.mean / pw.std)
             rest = _transposed(layers[1:])
             w_last, b_last = rest[-1]  # scaled residual -> T_r increment [K]
-            # Backup thermostat: 1 - sigmoid(a) = sigmoid(-a), a linear in (T_m, T_r, T_r's
-            # inputs): (low - T)/width for "cold", (T - high)/width for "hot", T = T_r or T_end.
-            inv_w = torch.exp(-self.log_backup_width_k)[..., None]  # (M, 1, 1)
-            on_t = torch.cat([torch.tensor([[[0.0, 1.0]]]).expand(ad.shape[0], -1, -1), ad[:, 1:]], 1)
-            on_in = torch.tensor([0.0, 1.0])[:, None]  # (2, 1): T_r's inputs, on T_end only
-            cold = (-inv_w * on_t, self.backup_low_c[..., None] * inv_w, -inv_w * on_in)
-            hot = (inv_w * on_t, -self.backup_high_c[..., None] * inv_w, inv_w * on_in)
-            full, off = (cold, hot) if self.heating else (hot, cold)
+            t_off, t_full = (
+                (self.backup_high_c, self.backup_low_c)
+                if self.heating
+                else (self.backup_low_c, self.backup_high_c)
+            )
             return HybridConstants(
                 observer=self.observer_weights(ad.flip(1, 2), bd.flip(1)),
                 w_state=torch.cat([w_hidden, w_ad], dim=1),
@@ -615,10 +644,9 @@ class HybridNet(nn.Module):
                 w_last=w_last * f.delta_t_r.std,
                 b_last=b_last * f.delta_t_r.std,
                 drive_b=bd,
-                thermostat_k=-torch.cat([full[0], off[0]], dim=1),
-                thermostat_c=-torch.cat([full[1], full[1], off[1], off[1]], dim=1),
-                thermostat_end=-torch.cat([full[2], off[2]], dim=1),
-                full_power_w=self.full_power_w.detach().clone(),
+                t_off=t_off.detach()[..., None].clone(),
+                t_full=t_full.detach()[..., None].clone(),
+                full_power_w=self.full_power_w.detach()[..., None].clone(),
             )
 
     def rollout(
@@ -641,7 +669,7 @@ class HybridNet(nn.Module):
         the demand's terms) is computed for all H steps first; per step the state goes through
         one product for the first layer and the free 2R2C response together, feature-major
         (M, features, N) as in :meth:`EnsembleNet.rollout_steps`, tanh folded into a sigmoid;
-        the backup thermostat's min/max of T becomes a min of sigmoids (monotone: the same).
+        the backup thermostat's saturation reads T_r's free response from the same product.
         """
         c = constants
         t_win, p_win, e_seq = windows
@@ -667,15 +695,14 @@ class HybridNet(nn.Module):
             e_now = e_seq[:, :, k : k + h_len].transpose(1, 2).expand(n0, -1, -1)
             static = torch.cat([e_now, tod[:, :h_len].expand(n0, -1, -1)], dim=-1)
             first = torch.einsum("msj,nhs->hmjn", c.w_static, static) + c.b_first  # (H, M, out, N0)
-            u_w = (u_s * pw.std + pw.mean).T.contiguous()[:, None, None]  # (H, 1, 1, N)
-            # T_r's inputs without the override (demand, exogenous): thermostat rows on T_end.
-            t_r_in = torch.addcmul(drive[:, :, 1:], c.drive_b[:, 1:, :1], u_w)  # (H, M, 1, N)
-            gate_c = torch.addcmul(c.thermostat_c, c.thermostat_end, t_r_in)  # (H, M, 4, N)
+            u_w = (u_s * pw.std + pw.mean).T.contiguous()[:, None]  # (H, 1, N)
             drive[:, :, 1:] += c.b_last
             pre = torch.cat([first, drive], dim=2)  # (H, M, out+2, N0)
-            u_w = u_w[:, 0]  # (H, 1, N)
-            no_full = -c.full_power_w
+            # Heat per electrical watt of each step: the input column of Bd times the COP.
+            g = self.gain(exog[:, k : k + h_len, 0])  # (N0, H) or None
             b_u = c.drive_b[..., :1]  # (M, 2, 1)
+            b_step = b_u[None] if g is None else b_u[None] * g.T[:, None, None, :]  # (H|1, M, 2, N0)
+            inv_b = 1.0 / b_step[:, :, 1:]  # (H|1, M, 1, N0) [W/K] on T_r
             lo, hi = p_bounds_w
             for h in range(h_len):
                 now, nxt = states[h], states[h + 1]
@@ -683,12 +710,13 @@ class HybridNet(nn.Module):
                 x = y[:, :hidden].sigmoid_()
                 for w, b in c.middle:
                     x = torch.baddbmm(b, w, x).sigmoid_()
-                gate = torch.baddbmm(gate_c[h], c.thermostat_k, now[:, 1:]).sigmoid_()
-                not_full, not_off = gate.view(m, 2, 2, n).amin(2).unbind(1)
-                # delivered = u + (F - u) full - u off (1 - full) = F + (u (1 - off) - F)(1 - full)
-                p_w = torch.addcmul(c.full_power_w, torch.addcmul(no_full, u_w[h], not_off), not_full)
-                torch.clamp(p_w, lo, hi, out=nxt[:, 0])
-                torch.addcmul(y[:, hidden:], b_u, nxt[:, :1], out=nxt[:, 1:])
+                hb = 0 if g is None else h
+                t_free = y[:, hidden + 1 :] - c.b_last  # (M, 1, N): T_r,i+1 without power
+                p_off = ((c.t_off - t_free) * inv_b[hb]).clamp_(min=0.0)
+                p_full = torch.minimum((c.t_full - t_free) * inv_b[hb], c.full_power_w)
+                p_w = torch.maximum(torch.minimum(u_w[h], p_off), p_full)
+                torch.clamp(p_w, lo, hi, out=nxt[:, :1])
+                torch.addcmul(y[:, hidden:], b_step[hb], nxt[:, :1], out=nxt[:, 1:])
                 nxt[:, 2:].baddbmm_(c.w_last, x)
             series = states.permute(1, 2, 3, 0)  # (M, 3, N, H+1)
             return (
@@ -781,6 +809,7 @@ class EnsembleModule(nn.Module):
         n_members: int,
         prior: physics.RCParams,
         generators: Sequence[torch.Generator],
+        cop_curve: CopCurve | None = None,
     ):
         super().__init__()
         self.n_members = n_members
@@ -798,6 +827,7 @@ class EnsembleModule(nn.Module):
                 generators=generators,
                 coefficients=self.physics.coefficients,
                 heating=prior.heating,
+                cop_curve=cop_curve,
             )
         else:
             self.net = EnsembleNet(

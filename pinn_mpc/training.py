@@ -35,6 +35,7 @@ import torch
 from tqdm import tqdm
 
 from pinn_mpc import __version__, physics
+from pinn_mpc.actuator import CopCurve
 from pinn_mpc.choices import ALL_ARCHS, RECIPES, RESIDUALS
 from pinn_mpc.data import validate_timeseries
 from pinn_mpc.errors import InputError
@@ -49,7 +50,7 @@ from pinn_mpc.models import (
     residual_finite_difference,
 )
 
-__all__ = ["TrainConfig", "data_summary", "train_model"]
+__all__ = ["TrainConfig", "data_summary", "data_warnings", "train_model"]
 
 #: Consecutive samples per mini-batch chunk (the physics residuals link neighbours).
 CHUNK = 8
@@ -184,6 +185,59 @@ def data_summary(df: pd.DataFrame) -> dict[str, Any]:
     return out
 
 
+def _identify(df: pd.DataFrame, eta: float) -> Any:
+    """The grey-box identification of the training data, or None where it fails."""
+    from pinn_mpc.identify import identify_rc
+
+    try:
+        return identify_rc(df, eta=eta)
+    except InputError:
+        return None
+
+
+def _mean_cop(df: pd.DataFrame) -> float:
+    """The power-weighted mean heat per electrical watt (1 without a ``cop`` column)."""
+    if "cop" not in df.columns:
+        return 1.0
+    u_w = df["u_phys"].to_numpy(dtype=float)
+    return float(np.sum(u_w * df["cop"].to_numpy(dtype=float)) / max(np.sum(u_w), 1e-9))
+
+
+#: Below these the data barely constrain a model outside them (see :func:`data_warnings`).
+MIN_T_A_SPAN_K = 10.0
+MIN_NEAR_FULL_SHARE = 0.02
+MIN_TRAIN_DAYS = 14.0
+
+
+def data_warnings(df: pd.DataFrame) -> list[str]:
+    """What a validated training frame cannot teach a model, one sentence each: few days, a
+    narrow outdoor-temperature range, few intervals near the largest power."""
+    out = []
+    days = len(df) * float(df.attrs.get("dt_s", 1800.0)) / 86400.0
+    if days < MIN_TRAIN_DAYS:
+        out.append(
+            f"training data cover {days:.1f} days (< {MIN_TRAIN_DAYS:g}): the model sees few "
+            "weather situations; control over it falls back to the RC MPC where it errs"
+        )
+    t_a = df["T_a"].to_numpy(dtype=float)
+    span = float(t_a.max() - t_a.min())
+    if span < MIN_T_A_SPAN_K:
+        out.append(
+            f"T_a spans only {t_a.min():.1f} .. {t_a.max():.1f} C ({span:.1f} K): the model "
+            "extrapolates in other weather; train on data from more of the season"
+        )
+    u_phys = df["u_phys"].to_numpy(dtype=float)
+    top = float(u_phys.max())
+    share = float(np.mean(u_phys >= 0.9 * top)) if top > 0 else 0.0
+    if share < MIN_NEAR_FULL_SHARE:
+        out.append(
+            f"only {100 * share:.1f} % of intervals deliver >= 90 % of the largest power "
+            f"({top:.0f} W): the response near full power is barely identified; "
+            "add data at high power (e.g. simulate --policy random-level)"
+        )
+    return out
+
+
 def _backup_guess(df: pd.DataFrame, *, heating: bool) -> tuple[float, float, float]:
     """Start of the hybrid's learned backup thermostat: (low, high) [C] and full power [W].
 
@@ -214,10 +268,18 @@ def train_model(
     hp = config.resolved()
     features = fit_feature_config(df, depth=config.depth)
     win = make_windows(df, features, min_samples=MIN_TRAIN_SAMPLES)
-    prior = config.prior_params(df, arch)
+    identified = _identify(df, config.eta)
+    cop_curve = CopCurve.fit(df["T_a"].to_numpy(float), df["cop"].to_numpy(float)) if "cop" in df else None
+    if arch == "hybrid":  # its physics works on the heat, g(T_a) x u_phys
+        use_identified = config.prior is None and identified is not None
+        prior = identified.params if use_identified else config.prior_params(df, arch)
+    else:  # the paper's networks see electrical power: eta times the data's mean COP
+        prior = replace(config.prior_params(df, arch), eta=config.eta * _mean_cop(df))
     m = config.n_seeds
     gens = [torch.Generator().manual_seed(config.first_seed + i) for i in range(m)]
-    module = EnsembleModule(arch, features=features, n_members=m, prior=prior, generators=gens)
+    module = EnsembleModule(
+        arch, features=features, n_members=m, prior=prior, generators=gens, cop_curve=cop_curve
+    )
     lam = hp["lam"] if arch in ("physreg", "physnet") else 0.0
     hybrid = module.net if isinstance(module.net, HybridNet) else None
     chunk = CHUNK if lam > 0 else 1
@@ -358,8 +420,19 @@ def train_model(
             if hybrid is not None
             else {}
         ),
-        "eta": config.eta,
+        "eta": prior.eta,
         "prior": prior.to_dict(),
+        "cop_curve": cop_curve.to_dict() if cop_curve is not None and hybrid is not None else None,
+        # The fallback of the planners over this model: the RC MPC on these parameters.
+        "identified_rc": (
+            {
+                **physics.rc_summary(identified.params, source="identify (training data)"),
+                "fit": identified.fit_statistics(),
+            }
+            if identified is not None
+            else None
+        ),
+        "data_warnings": data_warnings(df),
         "u_phys_range_w": [float(u_phys.min()), float(u_phys.max())],
         "training_data": data_summary(df),
         "final_loss": {"reg": history[-1][0], "phys": history[-1][1]},

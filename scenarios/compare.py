@@ -15,12 +15,12 @@
    polish adds), CEM over physnet, physreg and mlp (physreg and mlp unless
    ``cem_all_models=False``), casadi-mpc and qp-mpc on the identified RC, qp-mpc on the
    hybrid- and physnet-exported RCs, oracle and clairvoyant.
-   With a heat pump (``scenario.sim.actuator``) the data's power is electrical: the networks are
-   trained on it with ``eta`` = the training data's power-weighted mean COP (their prior and
-   export then describe the building with that actuator gain); the grey-box identification
-   runs on the delivered heat (COP(T_a) x electrical power; the COP curve is the actuator's
-   data sheet), and the exported RCs get the building's own ``eta`` back, since the RC MPCs
-   multiply by the COP of each forecast step themselves.
+   With a heat pump (``scenario.sim.actuator``) the data's power is electrical and its ``cop``
+   column the heat per electrical watt: the hybrid and the grey-box identification work on the
+   delivered heat (COP(T_a) x electrical power); the paper's networks train on the electrical
+   power with ``eta`` times the data's power-weighted mean COP (their prior and export then
+   describe the building with that actuator gain), and their exported RCs get the building's
+   own ``eta`` back, since the RC MPCs multiply by the COP of each forecast step themselves.
 4. Prediction: every model's 24-step T_r error on held-out data of the test part
    (:mod:`scenarios.prediction`), the identified, exported and true RC as the RC MPCs use them.
 5. Outputs (written by the command, :func:`scenarios.commands.compare`; :func:`run_comparison`
@@ -60,7 +60,6 @@ __all__ = [
     "CompareSettings",
     "ComparisonResult",
     "identify_scenario_rc",
-    "learned_eta",
     "rc_for_mpc",
     "run_comparison",
 ]
@@ -186,7 +185,7 @@ def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonR
         first_seed=settings.seed,
         epochs=settings.training_epochs,
         recipe=settings.recipe,
-        eta=learned_eta(scenario, data),
+        eta=scenario.sim.params.eta,
         u_max_w=scenario.sim.u_max_w,
     )
     models = {}
@@ -292,43 +291,18 @@ def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonR
     )
 
 
-def _cop(scenario: Scenario, data: pd.DataFrame) -> np.ndarray:
-    """Heat per electrical watt of each row of ``data`` (exactly 1 for the ideal heater)."""
-    return np.asarray(scenario.sim.actuator.gain(data["T_a"].to_numpy(dtype=float)), dtype=float)
-
-
-def learned_eta(scenario: Scenario, data: pd.DataFrame) -> float:
-    """The ``eta`` a network trains with on ``data`` of ``scenario``: the building's own for the
-    ideal heater; with a heat pump (electrical power in the data) the building's times the
-    data's power-weighted mean COP, so the prior and the export describe the building with that
-    actuator gain."""
-    eta = scenario.sim.params.eta
-    cop = _cop(scenario, data)
-    if np.all(cop == 1.0):
-        return eta
-    u_w = data["u_phys"].to_numpy(dtype=float)
-    return eta * float(np.sum(u_w * cop) / np.sum(u_w))
-
-
 def identify_scenario_rc(scenario: Scenario, data: pd.DataFrame) -> RCParams:
-    """The grey-box identification of ``data``; with a heat pump on the delivered heat
-    (COP(T_a) x electrical power, the COP curve being the actuator's data sheet)."""
+    """The grey-box identification of ``data`` (on the delivered heat when it has a ``cop``
+    column, as a heat pump's data has)."""
     from pinn_mpc.identify import identify_rc
 
-    cop = _cop(scenario, data)
-    heat = data
-    if not np.all(cop == 1.0):
-        heat = data.copy()
-        for column in ("u", "u_phys"):
-            heat[column] = data[column].to_numpy(dtype=float) * cop
-        heat.attrs = dict(data.attrs)
-    return identify_rc(heat, eta=scenario.sim.params.eta).params
+    return identify_rc(data, eta=scenario.sim.params.eta).params
 
 
 def rc_for_mpc(params: RCParams, scenario: Scenario) -> RCParams:
     """A network's exported RC as the RC MPCs use it: with a heat pump they multiply by the
     COP of each forecast step themselves, so the building's own ``eta`` replaces the learned
-    gain (which holds the training data's mean COP, see :func:`learned_eta`)."""
+    gain (which holds the training data's mean COP, see :func:`pinn_mpc.training.train_model`)."""
     if scenario.sim.actuator.kind == "ideal":  # a gain of 1: the learned eta is the building's
         return params
     return dataclasses.replace(params, eta=scenario.sim.params.eta)

@@ -107,6 +107,8 @@ def generate(
             **{c: np.tile(cols[c][:n], n_buildings) for c in columns},
         }
     )
+    if not scenario.sim.actuator.is_ideal:  # a heat pump: heat per electrical watt, per row
+        frame["cop"] = scenario.sim.actuator.gain(frame["T_a"].to_numpy(dtype=float))
     if n_buildings > 1:
         frame.insert(0, "building", np.repeat(np.arange(n_buildings), n))
     frame.attrs["dt_s"] = float(scenario.sim.dt_s)

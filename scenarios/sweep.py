@@ -207,7 +207,7 @@ def parse_ints(text: str, what: str) -> tuple[int, ...]:
 def fit_model(key: ModelKey, settings: SweepSettings) -> Any:
     """Train the learned ensemble (:data:`ARCH`) or identify the RC of ``key`` on the scenario's simulated data
     (``train_days`` days under the random policy, seed ``key.seed``)."""
-    from scenarios.compare import CompareSettings, identify_scenario_rc, learned_eta
+    from scenarios.compare import CompareSettings, identify_scenario_rc
     from scenarios.datagen import generate
 
     scenario = get_scenario(key.scenario)
@@ -224,7 +224,7 @@ def fit_model(key: ModelKey, settings: SweepSettings) -> Any:
         n_seeds=settings.n_members,
         first_seed=key.seed,
         epochs=epochs,
-        eta=learned_eta(scenario, data),
+        eta=scenario.sim.params.eta,
         u_max_w=scenario.sim.u_max_w,
     )
     return train_model(data, arch=key.kind, config=config, progress=False)
