@@ -112,7 +112,8 @@ class OffsetFilter:
     the power actually delivered; the error against the measured ``T_r`` is filtered with
     ``gain`` into an offset the controller adds to every predicted ``T_r``. It removes the slowly
     varying bias a learned model has in closed-loop operating points. Gain 0 keeps it at 0; a
-    history too short for the model leaves it unchanged.
+    history too short for the model leaves it unchanged. The errors it sees are kept for the
+    planner's trust monitor (:mod:`controllers.trust`).
     """
 
     def __init__(self, model: BatchDynamics, gain: float) -> None:
@@ -123,19 +124,29 @@ class OffsetFilter:
 
     def reset(self) -> None:
         self.offset_k = 0.0
+        self.innovation_k = float("nan")  # last measured minus predicted T_r, offset included
+        self.power_error_w = float("nan")  # last delivered minus predicted under the demand
 
     def update(self, obs: Observation) -> float:
+        """Fold the interval that just ended into the offset; returns the offset [K]. Also
+        records ``innovation_k`` and ``power_error_w`` (NaN when the history is too short)."""
         history, last = obs.history, obs.last
-        if self.gain == 0 or last is None or len(history["u_phys"]) < self.model.depth + 2:
+        self.innovation_k = self.power_error_w = float("nan")
+        if last is None or len(history["u_phys"]) < self.model.depth + 2:
             return self.offset_k
         import torch
 
         past = {name: np.asarray(values)[:-1] for name, values in history.items()}
         exog = {name: np.array([getattr(last, name)]) for name in self.model.exog_names}
-        u_w = torch.tensor([[last.u_phys]], dtype=torch.float32)
+        # Row 0 replays the delivered power (the room's error); row 1 the demand (the power's).
+        u_w = torch.tensor([[last.u_phys], [last.u]], dtype=torch.float32)
         with torch.no_grad():
-            predicted = float(self.model.rollout(past, u_w, exog).t_r_c[..., 0].mean())
+            roll = self.model.rollout(past, u_w, exog)
+            predicted = float(roll.t_r_c[:, 0, 0].mean())
+            delivered = float(roll.u_phys_w[:, 1, 0].mean())
         error = obs.t_r_c - predicted
+        self.power_error_w = last.u_phys - delivered
         if np.isfinite(error):
+            self.innovation_k = error - self.offset_k
             self.offset_k += self.gain * (error - self.offset_k)
         return self.offset_k

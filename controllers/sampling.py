@@ -80,11 +80,13 @@ from controllers.lp_polish import PiggybackPolish, PlanProblem, PolishSettings, 
 from controllers.objective import HorizonObjective
 from controllers.planners import CEMPlanner, Planner, PlanResult, RandomShootingPlanner
 from controllers.setpoint_space import SetpointSpace
+from controllers.trust import TrustMonitor, TrustSettings
 from pinn_mpc.errors import InputError
 from pinn_mpc.features import check_interval
+from pinn_mpc.physics import RCParams
 from pinn_mpc.rc_batch_model import BatchDynamics
 
-__all__ = ["CEM", "ENSEMBLE_MODES", "RandomShooting"]
+__all__ = ["CEM", "ENSEMBLE_MODES", "Guard", "RandomShooting"]
 
 #: How ensemble members enter the objective: "mean" scores the members' average prediction (a
 #: seed ensemble as one point predictor); "members" averages the members' costs (plus
@@ -111,6 +113,21 @@ class _NonFiniteModelOutput(Exception):
     pass
 
 
+class Guard(NamedTuple):
+    """What a sampling controller falls back on when its model is not to be trusted
+    (:mod:`controllers.trust`): the RC identified from the model's training data (None: no
+    fallback, the model always drives), the monitor's limits, and the training data's input
+    ranges (``{"T_a": (lo, hi), "G": (lo, hi)}``, empty when unknown)."""
+
+    rc: RCParams | None = None
+    settings: TrustSettings = TrustSettings()
+    training_ranges: dict[str, tuple[float, float]] = {}
+
+
+#: No RC fallback: the model always drives (its errors are still monitored and counted).
+NO_GUARD = Guard()
+
+
 class _SamplingController(PlanningController):
     """Shared ``reset``/``act`` of the sampling controllers (see the module docstring)."""
 
@@ -122,6 +139,7 @@ class _SamplingController(PlanningController):
         spec: ControlSpec,
         planner: Planner,
         options: _Options,
+        guard: Guard,
     ):
         risk_weight, ensemble = options.risk_weight, options.ensemble
         check_heating(model.eta, spec, what="the model")
@@ -158,6 +176,14 @@ class _SamplingController(PlanningController):
         except InputError as exc:
             raise InputError(f"{type(self).__name__}.{exc}") from exc
         self.fallback = Fallback(spec, reuse_plan=False)
+        self.monitor = TrustMonitor(guard.settings, spec.u_max_w)
+        self.training_ranges = dict(guard.training_ranges)
+        self.shadow = None
+        if guard.rc is not None:
+            from controllers.rc_mpc.osqp import QPMPC
+
+            check_heating(guard.rc.eta, spec, what="the model's fallback RC")
+            self.shadow = QPMPC(guard.rc, spec)
         self.setpoint_stride: int | None = None  # probe stride when planning in setpoint space
         self.last_cost_eur = float("nan")  # planned objective of the last plan [EUR]
         self.reset()
@@ -175,25 +201,65 @@ class _SamplingController(PlanningController):
             self._generator.manual_seed(seed)
         self.fallback.reset()
         self.estimator.reset()
+        self.monitor.reset()
+        if self.shadow is not None:
+            self.shadow.reset(seed)
         self._stats = SolveStats(time_s=0.0, status="reset", iterations=0, fallback=False)
 
+    @property
+    def trust_report(self) -> dict[str, object]:
+        """The trust monitor's counts since ``reset`` (the KPIs report them)."""
+        s = self.monitor.state
+        return {
+            "model_fallback": self.shadow is not None,
+            "model_fallback_switches": s.switches,
+            "model_fallback_steps": s.fallback_steps,
+            "model_fallback_reasons": dict(s.reasons),
+            "out_of_training_range_steps": s.out_of_range_steps,
+            "model_error_k": round(s.error_k, 4),
+        }
+
     def act(self, obs: Observation, forecast: Forecast) -> float:
-        """Demanded power for the coming interval [W], in ``[0, u_max_w]``."""
+        """Demanded power for the coming interval [W], in ``[0, u_max_w]``: the model's plan,
+        or the fallback RC MPC's action while the model is not to be trusted."""
         start = time.perf_counter()
+        shadow_u = None
         try:
+            if self.shadow is not None:  # every step, so that its observer stays current
+                shadow_u = self.shadow.act(obs, forecast)
             if len(obs.history["u_phys"]) < self.model.depth + 1:
                 return self._fallback(obs, forecast, start, "short history")
-            plan, cost, iterations = self._solve(obs, forecast)
+            plan, cost, iterations, spread = self._solve(obs, forecast)
         except _NonFiniteModelOutput:
             return self._fallback(obs, forecast, start, "non-finite model output")
         except Exception as exc:  # a failed solve must not stop a closed-loop run
             return self._fallback(obs, forecast, start, f"error {type(exc).__name__}: {exc}")
         self.fallback.planned(plan)
         self.last_cost_eur = cost
+        reason = self.monitor.reason(spread)
+        if shadow_u is not None and not self.monitor.decide(reason):
+            self._stats = SolveStats(
+                time_s=time.perf_counter() - start,
+                status=f"rc-mpc fallback: {reason or 'recovering'}",
+                iterations=iterations,
+                fallback=False,
+            )
+            return float(np.clip(shadow_u, 0.0, self.spec.u_max_w))
         self._stats = SolveStats(
             time_s=time.perf_counter() - start, status="ok", iterations=iterations, fallback=False
         )
         return float(np.clip(plan[0], 0.0, self.spec.u_max_w))
+
+    def _out_of_range(self, exog: dict[str, np.ndarray]) -> None:
+        """Count a forecast that leaves the training data's input ranges."""
+        excess = 0.0
+        for name, (lo, hi) in self.training_ranges.items():
+            if name in exog and len(exog[name]):
+                v = np.asarray(exog[name], dtype=float)
+                excess = max(excess, float(v.max()) - hi, lo - float(v.min()))
+        self.monitor.state.out_of_range_k = excess
+        if excess > 0:
+            self.monitor.state.out_of_range_steps += 1
 
     def _fallback(self, obs: Observation, forecast: Forecast, start: float, reason: str) -> float:
         self.last_cost_eur = float("nan")
@@ -215,15 +281,22 @@ class _SamplingController(PlanningController):
             x0 = np.pad(shifted, (0, max(h - len(shifted), 0)), mode="edge")[:h]
         return torch.as_tensor(x0, dtype=torch.float32)
 
-    def _solve(self, obs: Observation, forecast: Forecast) -> tuple[np.ndarray, float, int]:
+    def _solve(
+        self, obs: Observation, forecast: Forecast
+    ) -> tuple[np.ndarray, float, int, float]:
+        """(plan [W], its planned cost [EUR], iterations, the members' largest std of T_r
+        along it [K])."""
         h = min(self.spec.horizon_steps, forecast.horizon)
         if h < 1:
             raise InputError("the forecast is empty")
         offset = self.estimator.update(obs)
+        self.monitor.observe(self.estimator.innovation_k, self.estimator.power_error_w)
         objective = HorizonObjective.from_forecast(forecast, self.spec, h).tightened(
-            self.comfort_margin_k
+            self.monitor.margin_k(self.comfort_margin_k)
         )
-        rollout, score = self._scorer(obs.history, forecast.exogenous(self.model.exog_names, h), objective, offset)
+        exog = forecast.exogenous(self.model.exog_names, h)
+        self._out_of_range(exog)
+        rollout, score = self._scorer(obs.history, exog, objective, offset)
         problem = PlanProblem(objective=objective, lower=0.0, upper=self.spec.u_max_w)
 
         x0 = self._warm_start(h)
@@ -240,7 +313,10 @@ class _SamplingController(PlanningController):
             plan, cost = polished
         if not np.isfinite(cost):
             raise _NonFiniteModelOutput
-        return plan.numpy().astype(float), cost, result.iterations + polisher.lps
+        with torch.no_grad():
+            members = self.model.rollout(obs.history, plan[None].float(), exog).t_r_c[:, 0]
+        spread = float(members.std(0, correction=0).max()) if members.shape[0] > 1 else 0.0
+        return plan.numpy().astype(float), cost, result.iterations + polisher.lps, spread
 
     def _optimize_setpoints(
         self,
@@ -330,6 +406,7 @@ class RandomShooting(_SamplingController):
         space: str = "setpoint",
         setpoint_span_k: float = 1.0,
         probe_stride: int = 4,
+        guard: Guard = NO_GUARD,
     ):
         if space not in PLAN_SPACES:
             raise InputError(
@@ -360,7 +437,7 @@ class RandomShooting(_SamplingController):
         options = _Options(
             risk_weight, ensemble, offset_gain, 0 if binary else polish_iters, comfort_margin_k
         )
-        super().__init__(model, spec, planner, options)
+        super().__init__(model, spec, planner, options, guard)
         if setpoints:
             self.setpoint_stride = probe_stride
 
@@ -395,6 +472,7 @@ class CEM(_SamplingController):
         ensemble: str = "mean",
         offset_gain: float = 0.5,
         comfort_margin_k: float = 0.01,
+        guard: Guard = NO_GUARD,
     ):
         planner = CEMPlanner(
             lower=0.0,
@@ -410,4 +488,4 @@ class CEM(_SamplingController):
         options = _Options(
             risk_weight, ensemble, offset_gain, 0 if binary else polish_iters, comfort_margin_k
         )
-        super().__init__(model, spec, planner, options)
+        super().__init__(model, spec, planner, options, guard)

@@ -203,6 +203,9 @@ def run_closed_loop(
         counted_days=day_span(trajectory["time"]),
         weather_days=day_span(exo["time"]),  # warm-up and forecast lead included
     )
+    report = getattr(controller, "trust_report", None)
+    if isinstance(report, dict):  # a planner over a learned model: how often it fell back
+        kpis.update(report)
     return ClosedLoopResult(trajectory=trajectory, kpis=kpis, errors=tuple(errors))
 
 

@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from pinn_mpc.data import write_timeseries
-from pinn_mpc.errors import InputError
+from pinn_mpc.errors import InputError, warn
 from pinn_mpc.io import (
     PathsArg,
     atomic_write_json,
@@ -110,6 +110,19 @@ def closed_loop(a: argparse.Namespace) -> str:
         plot_trajectory(result.trajectory, a.plot, title=f"{a.controller} on {a.scenario}")
     atomic_write_json(a.json, result.kpis)
     lines = [format_kpis(result.kpis)]
+    if a.model is not None:
+        from scenarios.factory import weather_range_note
+
+        note = weather_range_note(getattr(controller, "model", None), result.trajectory)
+        if note is not None:
+            warn(note)
+    if "model_fallback_switches" in result.kpis:
+        k = result.kpis
+        lines.append(
+            f"model trusted in {k['days'] * scenario.steps_per_day - k['model_fallback_steps']} of "
+            f"{k['days'] * scenario.steps_per_day} decisions; {k['model_fallback_switches']} switch(es) "
+            f"to the RC MPC fallback {k['model_fallback_reasons'] or ''}".rstrip()
+        )
     if result.errors:
         lines.append(f"{len(result.errors)} controller error(s), first: {result.errors[0]}")
     written = [str(p) for p in (a.json, a.csv, a.plot) if p is not None]

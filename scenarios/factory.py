@@ -20,8 +20,8 @@ from pathlib import Path
 from typing import Any
 
 from controllers.base import Controller
-from pinn_mpc.errors import InputError
-from pinn_mpc.physics import RCParams, params_from_summary
+from pinn_mpc.errors import InputError, warn
+from pinn_mpc.physics import RCParams, params_from_summary, time_constants_h
 from scenarios.choices import (
     CONTROLLER_NAMES,
     MODEL_CONTROLLERS,
@@ -36,9 +36,15 @@ __all__ = [
     "RC_CONTROLLERS",
     "TRUTH_CONTROLLERS",
     "build_controller",
+    "check_model_fits",
     "make_controller",
+    "model_guard",
     "read_rc",
+    "weather_range_note",
 ]
+
+#: Ranges of the training data's inputs a planner watches (see controllers.trust).
+_WATCHED = ("T_a", "G")
 
 
 
@@ -69,6 +75,96 @@ def read_rc(path: str | os.PathLike[str]) -> RCParams:
         raise InputError(f"{source}: {exc}") from exc
 
 
+def _meta(model: Any) -> dict[str, Any]:
+    meta = getattr(model, "meta", None)
+    return meta if isinstance(meta, dict) else {}
+
+
+def model_guard(model: Any) -> Any:
+    """The fallback of a planner over ``model`` (:class:`controllers.sampling.Guard`): the RC
+    identified from its training data, which ``train`` stores in ``model.json``, and the
+    training data's input ranges. Models without them (older, or not from ``train``) get no
+    RC fallback."""
+    from controllers.sampling import Guard
+
+    meta = _meta(model)
+    rc = None
+    if isinstance(meta.get("identified_rc"), dict):
+        rc = params_from_summary(meta["identified_rc"])
+    summary = meta.get("training_data", {})
+    ranges = {
+        name: (float(summary[f"{name}_range"][0]), float(summary[f"{name}_range"][1]))
+        for name in _WATCHED
+        if f"{name}_range" in summary
+    }
+    return Guard(rc=rc, training_ranges=ranges)
+
+
+def check_model_fits(model: Any, scenario: Scenario) -> list[str]:
+    """Refuse a model made for another actuator (a heat pump's data has a ``cop`` column) or
+    for a larger one (training power above the scenario's limit); return warnings for a model
+    whose data never came near the scenario's full power or whose identified time constants
+    differ from the scenario's building by more than a factor of 3."""
+    meta = _meta(model)
+    columns = meta.get("training_data", {}).get("columns", [])
+    heat_pump = not scenario.sim.actuator.is_ideal
+    if "cop" in columns and not heat_pump:
+        raise InputError(
+            f"the model was trained on heat-pump data (a cop column), but scenario "
+            f"{scenario.name!r} has an ideal heater or chiller; train on data of this scenario"
+        )
+    notes = []
+    if heat_pump and columns and "cop" not in columns:
+        notes.append(
+            f"scenario {scenario.name!r} has a heat pump, but the model's data had no cop "
+            "column: it sees electrical power only (add the COP per row as a cop column)"
+        )
+    lo, hi = (float(v) for v in meta.get("u_phys_range_w", (0.0, 0.0)))
+    u_max = scenario.sim.u_max_w
+    if hi > 1.05 * u_max:
+        raise InputError(
+            f"the model was trained on powers up to {hi:.0f} W, but scenario {scenario.name!r}'s "
+            f"actuator gives at most {u_max:.0f} W: it was made for another building; "
+            "train on data of this scenario"
+        )
+    if 0 < hi < 0.5 * u_max:
+        notes.append(
+            f"the model's data reach {hi:.0f} W, under half the scenario's {u_max:.0f} W: "
+            "it extrapolates at high power"
+        )
+    if isinstance(meta.get("identified_rc"), dict):
+        mine = time_constants_h(params_from_summary(meta["identified_rc"]))
+        theirs = time_constants_h(scenario.sim.params)
+        ratio = max(max(a / b, b / a) for a, b in zip(mine, theirs, strict=True))
+        if ratio > 3:
+            notes.append(
+                f"the model's data show time constants of {mine[0]:.2g} h and {mine[1]:.2g} h, "
+                f"the scenario's building {theirs[0]:.2g} h and {theirs[1]:.2g} h: "
+                "is it the same building?"
+            )
+    return notes
+
+
+def weather_range_note(model: Any, trajectory: Any) -> str | None:
+    """How far a run's weather left the model's training data (None when it stayed inside)."""
+    summary = _meta(model).get("training_data", {})
+    parts = []
+    units = {"T_a": "K", "G": "W/m2"}
+    for name in _WATCHED:
+        if f"{name}_range" not in summary or name not in getattr(trajectory, "columns", ()):
+            continue
+        lo, hi = (float(v) for v in summary[f"{name}_range"])
+        v = trajectory[name].to_numpy(dtype=float)
+        above, below = float(v.max()) - hi, lo - float(v.min())
+        if above > 0:
+            parts.append(f"{name} up to {v.max():.1f}, {above:.1f} {units[name]} above the training data's {hi:.1f}")
+        if below > 0:
+            parts.append(f"{name} down to {v.min():.1f}, {below:.1f} {units[name]} below the training data's {lo:.1f}")
+    if not parts:
+        return None
+    return "the test weather leaves the model's training range: " + "; ".join(parts)
+
+
 def build_controller(
     name: str,
     scenario: Scenario,
@@ -93,10 +189,13 @@ def build_controller(
         if model is None:
             raise InputError(
                 f"controller {name!r} plans over a trained model: add --model MODEL_DIR "
-                "(make one with `pinn-mpc train --data data.csv --arch physnet --out MODEL_DIR`)"
+                "(make one with `pinn-mpc train --data data.csv --out MODEL_DIR`)"
             )
         from controllers.sampling import CEM, RandomShooting
 
+        for note in check_model_fits(model, scenario):
+            warn(note)
+        options.setdefault("guard", model_guard(model))
         planner = RandomShooting if name == "random-shooting" else CEM
         return planner(model, spec, **options)
     if name in RC_CONTROLLERS:

@@ -1,0 +1,138 @@
+"""When a learned model is not to be trusted, and what a planner over it does then.
+
+A planner over a learned model (:mod:`controllers.sampling`) watches three signals each
+decision, all in closed loop:
+
+- the realised one-step error of its model's room temperature: the prediction of the interval
+  that just ended (replaying the delivered power) against the measurement, after the offset
+  filter's correction (the innovation), filtered;
+- the realised error of its model's delivered power: the prediction of the interval that just
+  ended under the power that was *demanded*, against the power the plant delivered (the backup
+  thermostat and the actuator are part of the model; the offset filter cannot see them), as a
+  fraction of the actuator's range, filtered;
+- the ensemble's disagreement along the chosen plan: the largest standard deviation over the
+  members of the predicted room temperature;
+- how far the forecast's inputs leave the ranges of the training data (counted, not acted on:
+  physics carries a model some way out of its data).
+
+When a filtered error or the disagreement passes its limit, the decision is handed to the
+fallback: the MPC on the RC identified from the same training data (``train`` stores it with
+the model), which runs as a shadow every step so that its observer is current when it takes
+over. The model takes over again after ``recover_steps`` decisions within the limits. The
+planner also plans against the comfort band narrowed by the filtered error of its room
+temperature (never less than its ``comfort_margin_k``), so a model that errs more keeps more
+distance from the band's edges.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from pinn_mpc.errors import InputError
+
+__all__ = ["TrustMonitor", "TrustSettings", "TrustState"]
+
+
+@dataclass(frozen=True, kw_only=True)
+class TrustSettings:
+    """Limits of the :class:`TrustMonitor` (module docstring).
+
+    ``error_k``: filtered |innovation| of T_r [K]; ``power_error_frac``: filtered |error| of the
+    delivered power over the actuator's range; ``spread_k``: the members' largest std of T_r
+    along the plan [K]; ``filter_gain``: weight of a new error in the filters; ``recover_steps``:
+    decisions within the limits before the model drives again; ``margin_factor``: the band is
+    narrowed by this times the filtered |innovation| (at most ``max_margin_k``).
+    """
+
+    error_k: float = 0.3
+    power_error_frac: float = 0.2
+    spread_k: float = 0.5
+    filter_gain: float = 0.3
+    recover_steps: int = 6
+    margin_factor: float = 1.0
+    max_margin_k: float = 0.5
+
+    def __post_init__(self) -> None:
+        for name in ("error_k", "power_error_frac", "spread_k", "max_margin_k"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise InputError(f"TrustSettings.{name} must be a positive number, got {value!r}")
+        if not 0 < self.filter_gain <= 1:
+            raise InputError(f"TrustSettings.filter_gain must lie in (0, 1], got {self.filter_gain}")
+        if not (math.isfinite(self.margin_factor) and self.margin_factor >= 0):
+            raise InputError(f"TrustSettings.margin_factor must be >= 0, got {self.margin_factor}")
+        if self.recover_steps < 1:
+            raise InputError(f"TrustSettings.recover_steps must be >= 1, got {self.recover_steps}")
+
+
+@dataclass
+class TrustState:
+    """What the monitor counts over a run (reset with the controller)."""
+
+    error_k: float = 0.0  # filtered |innovation| of T_r [K]
+    power_error_frac: float = 0.0  # filtered |delivered power error| / range
+    spread_k: float = 0.0  # members' std of T_r along the last plan [K], its maximum
+    out_of_range_k: float = 0.0  # how far the last forecast left the training inputs [K or W/m2]
+    trusted: bool = True
+    calm_steps: int = 0
+    switches: int = 0  # model -> fallback transitions
+    fallback_steps: int = 0  # decisions the fallback made
+    out_of_range_steps: int = 0  # decisions whose forecast left the training ranges
+    reasons: dict[str, int] = field(default_factory=dict)  # why the model was distrusted
+
+
+class TrustMonitor:
+    """Filters the error signals and decides, each interval, whether the model drives."""
+
+    def __init__(self, settings: TrustSettings, u_range_w: float) -> None:
+        if not (math.isfinite(u_range_w) and u_range_w > 0):
+            raise InputError(f"TrustMonitor needs a positive power range, got {u_range_w!r}")
+        self.settings, self.u_range_w = settings, u_range_w
+        self.state = TrustState()
+
+    def reset(self) -> None:
+        self.state = TrustState()
+
+    def observe(self, innovation_k: float, power_error_w: float) -> None:
+        """One interval's realised errors (NaN where unknown: left out of the filters)."""
+        s, g = self.state, self.settings.filter_gain
+        if math.isfinite(innovation_k):
+            s.error_k += g * (abs(innovation_k) - s.error_k)
+        if math.isfinite(power_error_w):
+            s.power_error_frac += g * (abs(power_error_w) / self.u_range_w - s.power_error_frac)
+
+    def margin_k(self, base_k: float) -> float:
+        """The comfort margin to plan with: ``base_k``, or more where the model errs more."""
+        extra = self.settings.margin_factor * self.state.error_k
+        return max(base_k, min(extra, self.settings.max_margin_k))
+
+    def reason(self, spread_k: float | None = None) -> str | None:
+        """Why the model is not to be trusted now (None when it is)."""
+        s, lim = self.state, self.settings
+        if spread_k is not None:
+            s.spread_k = spread_k
+        if s.error_k > lim.error_k:
+            return "room temperature error"
+        if s.power_error_frac > lim.power_error_frac:
+            return "delivered power error"
+        if spread_k is not None and not spread_k <= lim.spread_k:  # NaN counts as too large
+            return "ensemble disagreement"
+        return None
+
+    def decide(self, reason: str | None) -> bool:
+        """Record this decision's verdict; True when the model drives it."""
+        s = self.state
+        if reason is not None:
+            s.reasons[reason] = s.reasons.get(reason, 0) + 1
+            s.calm_steps = 0
+            if s.trusted:
+                s.switches += 1
+            s.trusted = False
+        elif not s.trusted:
+            s.calm_steps += 1
+            if s.calm_steps >= self.settings.recover_steps:
+                s.trusted = True
+        if not s.trusted:
+            s.fallback_steps += 1
+        return s.trusted
