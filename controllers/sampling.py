@@ -58,6 +58,7 @@ so an iteration costs about as much as 40 more candidates. On a shared 2-core ma
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable
 from typing import NamedTuple
@@ -83,7 +84,7 @@ from controllers.setpoint_space import SetpointSpace
 from controllers.trust import TrustMonitor, TrustSettings
 from pinn_mpc.errors import InputError
 from pinn_mpc.features import check_interval
-from pinn_mpc.physics import RCParams
+from pinn_mpc.physics import RCParams, discretise
 from pinn_mpc.rc_batch_model import BatchDynamics
 
 __all__ = ["CEM", "ENSEMBLE_MODES", "Guard", "RandomShooting"]
@@ -179,11 +180,13 @@ class _SamplingController(PlanningController):
         self.monitor = TrustMonitor(guard.settings, spec.u_max_w)
         self.training_ranges = dict(guard.training_ranges)
         self.shadow = None
+        self._estimates: dict[int, np.ndarray] = {}  # the shadow's (T_r, T_m) by step
         if guard.rc is not None:
             from controllers.rc_mpc.osqp import QPMPC
 
             check_heating(guard.rc.eta, spec, what="the model's fallback RC")
             self.shadow = QPMPC(guard.rc, spec)
+            self._rc_matrices = discretise(guard.rc, spec.dt_s)
         self.setpoint_stride: int | None = None  # probe stride when planning in setpoint space
         self.last_cost_eur = float("nan")  # planned objective of the last plan [EUR]
         self.reset()
@@ -202,6 +205,7 @@ class _SamplingController(PlanningController):
         self.fallback.reset()
         self.estimator.reset()
         self.monitor.reset()
+        self._estimates = {}
         if self.shadow is not None:
             self.shadow.reset(seed)
         self._stats = SolveStats(time_s=0.0, status="reset", iterations=0, fallback=False)
@@ -217,6 +221,8 @@ class _SamplingController(PlanningController):
             "model_fallback_reasons": dict(s.reasons),
             "out_of_training_range_steps": s.out_of_range_steps,
             "model_error_k": round(s.error_k, 4),
+            "model_replay_error_k": round(s.replay_k, 4) if math.isfinite(s.replay_k) else None,
+            "rc_replay_error_k": round(s.replay_rc_k, 4) if math.isfinite(s.replay_rc_k) else None,
         }
 
     def act(self, obs: Observation, forecast: Forecast) -> float:
@@ -227,6 +233,8 @@ class _SamplingController(PlanningController):
         try:
             if self.shadow is not None:  # every step, so that its observer stays current
                 shadow_u = self.shadow.act(obs, forecast)
+                self._estimates[obs.k] = np.array(self.shadow.state_estimate_c, dtype=float)
+                self._estimates.pop(obs.k - self.monitor.settings.replay_steps - 1, None)
             if len(obs.history["u_phys"]) < self.model.depth + 1:
                 return self._fallback(obs, forecast, start, "short history")
             plan, cost, iterations, spread = self._solve(obs, forecast)
@@ -249,6 +257,31 @@ class _SamplingController(PlanningController):
             time_s=time.perf_counter() - start, status="ok", iterations=iterations, fallback=False
         )
         return float(np.clip(plan[0], 0.0, self.spec.u_max_w))
+
+    def _replay_errors(self, obs: Observation) -> tuple[float, float]:
+        """Measured minus replayed T_r now [K], of the model and of the fallback RC, over the
+        last ``replay_steps`` intervals under the delivered power (NaN, NaN until both can)."""
+        r = self.monitor.settings.replay_steps
+        start = self._estimates.get(obs.k - r)
+        hist = obs.history
+        if start is None or not np.all(np.isfinite(start)):
+            return math.nan, math.nan
+        if len(hist["u_phys"]) < self.model.depth + 1 + r:
+            return math.nan, math.nan
+        u_phys = np.asarray(hist["u_phys"], dtype=float)[-r:]
+        past = {name: np.asarray(values)[:-r] for name, values in hist.items()}
+        exog = {name: np.asarray(hist[name], dtype=float)[-r - 1 : -1] for name in self.model.exog_names}
+        with torch.no_grad():
+            roll = self.model.rollout(past, torch.as_tensor(u_phys[None], dtype=torch.float32), exog)
+        learned = float(roll.t_r_c[:, 0, -1].mean())
+        ad, bd = self._rc_matrices
+        x = start.copy()
+        zeros = np.zeros(len(hist["T_r"]))
+        series = {n: np.asarray(hist.get(n, zeros), dtype=float)[-r - 1 : -1] for n in ("T_a", "G", "I_g")}
+        heat = u_phys * self.spec.actuator.gain(series["T_a"])
+        for j in range(r):
+            x = ad @ x + bd @ np.array([heat[j], series["T_a"][j], series["G"][j], series["I_g"][j]])
+        return obs.t_r_c - learned, obs.t_r_c - float(x[0])
 
     def _out_of_range(self, exog: dict[str, np.ndarray]) -> None:
         """Count a forecast that leaves the training data's input ranges."""
@@ -290,7 +323,9 @@ class _SamplingController(PlanningController):
         if h < 1:
             raise InputError("the forecast is empty")
         offset = self.estimator.update(obs)
-        self.monitor.observe(self.estimator.innovation_k, self.estimator.power_error_w)
+        self.monitor.observe(
+            self.estimator.innovation_k, self.estimator.power_error_w, *self._replay_errors(obs)
+        )
         objective = HorizonObjective.from_forecast(forecast, self.spec, h).tightened(
             self.monitor.margin_k(self.comfort_margin_k)
         )

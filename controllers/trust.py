@@ -1,11 +1,15 @@
 """When a learned model is not to be trusted, and what a planner over it does then.
 
-A planner over a learned model (:mod:`controllers.sampling`) watches three signals each
+A planner over a learned model (:mod:`controllers.sampling`) watches these signals each
 decision, all in closed loop:
 
-- the realised one-step error of its model's room temperature: the prediction of the interval
-  that just ended (replaying the delivered power) against the measurement, after the offset
-  filter's correction (the innovation), filtered;
+- the realised multi-step error of its model's room temperature against that of the RC it
+  falls back on: both replay the last ``replay_steps`` intervals from where they stood then
+  (the learned model from its history, the RC from its Kalman estimate) under the power that
+  was delivered, and their errors against the measured T_r now are filtered; the model is
+  distrusted when its error passes ``error_floor_k`` and ``error_ratio`` times the RC's (a
+  wrong gain or time constant shows over hours, not in one interval, where the offset filter
+  hides it);
 - the realised error of its model's delivered power: the prediction of the interval that just
   ended under the power that was *demanded*, against the power the plant delivered (the backup
   thermostat and the actuator are part of the model; the offset filter cannot see them), as a
@@ -15,7 +19,7 @@ decision, all in closed loop:
 - how far the forecast's inputs leave the ranges of the training data (counted, not acted on:
   physics carries a model some way out of its data).
 
-When a filtered error or the disagreement passes its limit, the decision is handed to the
+When an error or the disagreement passes its limit, the decision is handed to the
 fallback: the MPC on the RC identified from the same training data (``train`` stores it with
 the model), which runs as a shadow every step so that its observer is current when it takes
 over. The model takes over again after ``recover_steps`` decisions within the limits. The
@@ -38,14 +42,17 @@ __all__ = ["TrustMonitor", "TrustSettings", "TrustState"]
 class TrustSettings:
     """Limits of the :class:`TrustMonitor` (module docstring).
 
-    ``error_k``: filtered |innovation| of T_r [K]; ``power_error_frac``: filtered |error| of the
-    delivered power over the actuator's range; ``spread_k``: the members' largest std of T_r
+    ``replay_steps``: intervals replayed; ``error_floor_k`` and ``error_ratio``: the model's
+    filtered replay error [K] must pass both the floor and the ratio to the RC's to distrust
+    it; ``power_error_frac``: filtered |error| of the delivered power over the actuator's range; ``spread_k``: the members' largest std of T_r
     along the plan [K]; ``filter_gain``: weight of a new error in the filters; ``recover_steps``:
     decisions within the limits before the model drives again; ``margin_factor``: the band is
     narrowed by this times the filtered |innovation| (at most ``max_margin_k``).
     """
 
-    error_k: float = 0.3
+    replay_steps: int = 8
+    error_floor_k: float = 0.2
+    error_ratio: float = 1.5
     power_error_frac: float = 0.2
     spread_k: float = 0.5
     filter_gain: float = 0.3
@@ -54,7 +61,7 @@ class TrustSettings:
     max_margin_k: float = 0.5
 
     def __post_init__(self) -> None:
-        for name in ("error_k", "power_error_frac", "spread_k", "max_margin_k"):
+        for name in ("error_floor_k", "error_ratio", "power_error_frac", "spread_k", "max_margin_k"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise InputError(f"TrustSettings.{name} must be a positive number, got {value!r}")
@@ -62,6 +69,8 @@ class TrustSettings:
             raise InputError(f"TrustSettings.filter_gain must lie in (0, 1], got {self.filter_gain}")
         if not (math.isfinite(self.margin_factor) and self.margin_factor >= 0):
             raise InputError(f"TrustSettings.margin_factor must be >= 0, got {self.margin_factor}")
+        if self.replay_steps < 1:
+            raise InputError(f"TrustSettings.replay_steps must be >= 1, got {self.replay_steps}")
         if self.recover_steps < 1:
             raise InputError(f"TrustSettings.recover_steps must be >= 1, got {self.recover_steps}")
 
@@ -71,6 +80,8 @@ class TrustState:
     """What the monitor counts over a run (reset with the controller)."""
 
     error_k: float = 0.0  # filtered |innovation| of T_r [K]
+    replay_k: float = float("nan")  # filtered |replay error| of the model [K]
+    replay_rc_k: float = float("nan")  # the same of the fallback RC [K]
     power_error_frac: float = 0.0  # filtered |delivered power error| / range
     spread_k: float = 0.0  # members' std of T_r along the last plan [K], its maximum
     out_of_range_k: float = 0.0  # how far the last forecast left the training inputs [K or W/m2]
@@ -94,11 +105,23 @@ class TrustMonitor:
     def reset(self) -> None:
         self.state = TrustState()
 
-    def observe(self, innovation_k: float, power_error_w: float) -> None:
+    def observe(
+        self,
+        innovation_k: float,
+        power_error_w: float,
+        replay_k: float = float("nan"),
+        replay_rc_k: float = float("nan"),
+    ) -> None:
         """One interval's realised errors (NaN where unknown: left out of the filters)."""
         s, g = self.state, self.settings.filter_gain
         if math.isfinite(innovation_k):
             s.error_k += g * (abs(innovation_k) - s.error_k)
+        if math.isfinite(replay_k) and math.isfinite(replay_rc_k):
+            if not math.isfinite(s.replay_k):
+                s.replay_k, s.replay_rc_k = abs(replay_k), abs(replay_rc_k)
+            else:
+                s.replay_k += g * (abs(replay_k) - s.replay_k)
+                s.replay_rc_k += g * (abs(replay_rc_k) - s.replay_rc_k)
         if math.isfinite(power_error_w):
             s.power_error_frac += g * (abs(power_error_w) / self.u_range_w - s.power_error_frac)
 
@@ -112,8 +135,8 @@ class TrustMonitor:
         s, lim = self.state, self.settings
         if spread_k is not None:
             s.spread_k = spread_k
-        if s.error_k > lim.error_k:
-            return "room temperature error"
+        if s.replay_k > lim.error_floor_k and s.replay_k > lim.error_ratio * s.replay_rc_k:
+            return "prediction error above the RC's"
         if s.power_error_frac > lim.power_error_frac:
             return "delivered power error"
         if spread_k is not None and not spread_k <= lim.spread_k:  # NaN counts as too large

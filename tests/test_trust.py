@@ -1,0 +1,168 @@
+"""Learned-model control that knows when its model is wrong: the trust monitor, the RC
+fallback a trained model carries, the COP curve, and the model-vs-scenario checks."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+import torch
+
+from controllers.trust import TrustMonitor, TrustSettings
+from pinn_mpc.actuator import Actuator, CopCurve
+from pinn_mpc.errors import InputError
+from pinn_mpc.identify import identify_rc
+from pinn_mpc.training import TrainConfig, data_warnings, train_model
+from scenarios.closed_loop import run_closed_loop
+from scenarios.datagen import generate
+from scenarios.factory import build_controller, check_model_fits, model_guard
+from scenarios.registry import get_scenario
+
+HP = Actuator(kind="heat_pump")
+
+
+def test_monitor_switches_after_a_large_error_and_recovers_after_calm_steps() -> None:
+    settings = TrustSettings(error_floor_k=0.2, error_ratio=1.5, filter_gain=1.0, recover_steps=3)
+    m = TrustMonitor(settings, u_range_w=5000.0)
+    m.observe(0.05, 100.0, 0.1, 0.05)
+    assert m.reason(0.1) is None and m.decide(None)
+    m.observe(0.0, 0.0, 0.5, 0.4)  # past the floor, but the RC errs about as much
+    assert m.reason(0.1) is None
+    m.observe(0.0, 0.0, 0.5, 0.1)  # past the floor and 1.5 x the RC's error
+    assert m.reason(0.1) == "prediction error above the RC's"
+    assert not m.decide(m.reason(0.1))
+    m.observe(0.0, 0.0, 0.0, 0.0)
+    verdicts = [m.decide(m.reason(0.1)) for _ in range(3)]
+    assert verdicts == [False, False, True]  # back after recover_steps calm decisions
+    s = m.state
+    assert (s.switches, s.fallback_steps) == (1, 3)
+    m.observe(0.0, 2000.0)  # 40 % of the range: the delivered power is mispredicted
+    assert m.reason(0.1) == "delivered power error"
+    m.observe(0.0, 0.0)
+    assert m.reason(0.8) == "ensemble disagreement"
+    assert m.reason(float("nan")) == "ensemble disagreement"
+
+
+def test_monitor_narrows_the_band_by_its_filtered_error_within_limits() -> None:
+    m = TrustMonitor(TrustSettings(filter_gain=1.0, max_margin_k=0.2), u_range_w=1.0)
+    assert m.margin_k(0.01) == 0.01
+    m.observe(0.05, float("nan"))
+    assert m.margin_k(0.01) == pytest.approx(0.05)
+    m.observe(3.0, float("nan"))
+    assert m.margin_k(0.01) == 0.2
+
+
+@pytest.mark.parametrize(
+    "bad", [{"error_floor_k": 0.0}, {"filter_gain": 1.5}, {"recover_steps": 0}, {"replay_steps": 0}]
+)
+def test_trust_settings_are_checked(bad: dict) -> None:
+    with pytest.raises(InputError, match=next(iter(bad))):
+        TrustSettings(**bad)
+
+
+def test_cop_curve_fit_recovers_the_actuator_within_the_data_and_holds_outside() -> None:
+    t_a = np.linspace(-10.0, 12.0, 500)
+    curve = CopCurve.fit(t_a, HP.gain(t_a))
+    assert curve is not None
+    inside = np.linspace(-9.0, 11.0, 41)
+    np.testing.assert_allclose(curve(inside), HP.gain(inside), rtol=0.02)
+    assert curve(30.0) == pytest.approx(float(curve(12.0)))  # constant past the data
+    assert CopCurve.fit(t_a, np.ones_like(t_a)) is None  # a resistance heater has no curve
+    assert CopCurve.from_dict(json.loads(json.dumps(curve.to_dict()))) == curve
+
+
+def test_identify_on_heat_pump_data_recovers_the_building() -> None:
+    """With the data's cop column, identification works on the delivered heat: the building's
+    R and C, not the electrical gain's mix of both."""
+    scenario = get_scenario("heat_pump_household")
+    data = generate(scenario, days=20, seed=3, policy="random-level")
+    assert "cop" in data.columns and data["cop"].min() > 1.5
+    truth = scenario.sim.params
+    got = identify_rc(data, eta=truth.eta).params
+    for name in ("r_ra_k_per_w", "c_r_j_per_k", "c_m_j_per_k"):
+        assert getattr(got, name) == pytest.approx(getattr(truth, name), rel=0.1), name
+    without = identify_rc(data.drop(columns="cop"), eta=truth.eta).params
+    assert abs(without.c_r_j_per_k / truth.c_r_j_per_k - 1) > 0.5  # electrical power only
+
+
+@pytest.fixture(scope="module")
+def winter_model():
+    scenario = get_scenario("winter_household")
+    data = generate(scenario, days=14, seed=2, policy="random-level")
+    config = TrainConfig(n_seeds=3, epochs=20, depth=8, u_max_w=scenario.sim.u_max_w)
+    return scenario, train_model(data, arch="hybrid", config=config, progress=False)
+
+
+def test_a_trained_model_carries_its_identified_rc_and_ranges(winter_model) -> None:
+    scenario, model = winter_model
+    guard = model_guard(model)
+    assert guard.rc is not None
+    assert guard.rc.c_m_j_per_k == pytest.approx(scenario.sim.params.c_m_j_per_k, rel=0.2)
+    lo, hi = guard.training_ranges["T_a"]
+    assert lo < hi
+    assert model.meta["identified_rc"]["fit"]["rmse_c"] < 0.2
+
+
+def test_a_model_that_mispredicts_is_replaced_by_the_rc_mpc_and_counted(winter_model) -> None:
+    """Sabotage the trained hybrid (its heater gain at a third): the planner over it would
+    overheat less but freeze; the monitor sees the delivered-power and room errors, hands the
+    decisions to the QP MPC on the RC identified from the same data, and the run ends within a
+    few per cent of that MPC alone."""
+    scenario, model = winter_model
+    broken = train_model(
+        generate(scenario, days=14, seed=2, policy="random-level"),
+        arch="hybrid",
+        config=TrainConfig(n_seeds=3, epochs=20, depth=8, u_max_w=scenario.sim.u_max_w),
+        progress=False,
+    )
+    with torch.no_grad():
+        broken.module.physics.log_b.add_(math.log(1 / 3))
+    n = scenario.steps_per_day
+    kpis = {}
+    for label, kwargs in {
+        "cem": {"model": broken},
+        "cem, no fallback": {
+            "model": broken,
+            "planner_options": {"guard": model_guard(broken)._replace(rc=None)},
+        },
+        "qp-mpc": {"rc_params": model_guard(model).rc},
+    }.items():
+        name = label.split(",")[0]
+        controller = build_controller(name, scenario, n_steps=n, **kwargs)
+        kpis[label] = run_closed_loop(scenario, controller, days=1, seed=5).kpis
+    assert kpis["cem"]["model_fallback_switches"] >= 1
+    assert kpis["cem"]["model_fallback_steps"] > 0
+    assert kpis["cem, no fallback"]["model_fallback_steps"] == 0
+    print({k: (v["objective"], v["model_fallback_steps"] if "model_fallback_steps" in v else None) for k, v in kpis.items()})
+    assert kpis["cem"]["objective"] <= 1.05 * kpis["qp-mpc"]["objective"]
+    assert kpis["cem"]["objective"] < kpis["cem, no fallback"]["objective"]
+
+
+def test_a_good_model_keeps_control(winter_model) -> None:
+    scenario, model = winter_model
+    controller = build_controller("cem", scenario, model=model, n_steps=scenario.steps_per_day)
+    kpis = run_closed_loop(scenario, controller, days=1, seed=5).kpis
+    assert kpis["model_fallback_steps"] == 0 and kpis["model_fallback_switches"] == 0
+
+
+def test_models_are_checked_against_the_scenario(winter_model) -> None:
+    scenario, model = winter_model
+    assert check_model_fits(model, scenario) == []
+    with pytest.raises(InputError, match="powers up to"):
+        check_model_fits(model, get_scenario("paper_household"))  # 10 kW data, a 5 kW heater
+    meta = {**model.meta, "training_data": {**model.meta["training_data"], "columns": ["cop"]}}
+    heat_pump_model = type("M", (), {"meta": meta})()
+    with pytest.raises(InputError, match="heat-pump data"):
+        check_model_fits(heat_pump_model, scenario)
+
+
+def test_train_warns_about_data_that_cannot_teach_the_model() -> None:
+    data = generate(get_scenario("winter_household"), days=5, seed=1, policy="random-level")
+    notes = data_warnings(data)
+    assert any("5.0 days" in n for n in notes)
+    narrow = data.assign(T_a=5.0 + 0.1 * np.sin(np.arange(len(data))))
+    assert any("T_a spans only" in n for n in data_warnings(narrow))
+    low = data.assign(u_phys=np.where(np.arange(len(data)) == 3, 9000.0, 1000.0))
+    assert any("largest power" in n for n in data_warnings(low))
