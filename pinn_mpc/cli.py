@@ -321,11 +321,16 @@ def build_parser() -> argparse.ArgumentParser:
     force(p)
 
     p = add("sweep", "scenarios.commands:sweep", "run a grid of closed loops (scenarios x controllers x seeds) on Ray")
-    p.add_argument("--scenarios", required=True, help="comma-separated scenario names")
-    p.add_argument("--controllers", required=True, help="comma-separated, e.g. oracle,qp-mpc,cem")
-    p.add_argument("--seeds", required=True, help="e.g. 0-7 or 0,3,5")
-    p.add_argument("--train-days", default="30", help="training days, e.g. 30 or 14,30,60")
-    p.add_argument("--days", type=_positive_int, default=3, help="test days per cell")
+    p.add_argument(
+        "--spec", default=None,
+        help="a sweep definition (TOML: scenarios, controllers, seeds, train_days, days, "
+        "baseline), e.g. sweeps/robustness.toml; options given here override it",
+    )
+    p.add_argument("--scenarios", default=None, help="comma-separated scenario names")
+    p.add_argument("--controllers", default=None, help="comma-separated, e.g. oracle,qp-mpc,cem")
+    p.add_argument("--seeds", default=None, help="e.g. 0-7 or 0,3,5")
+    p.add_argument("--train-days", default=None, help="training days, e.g. 30 or 14,30,60 (default 30)")
+    p.add_argument("--days", type=_positive_int, default=None, help="test days per cell (default 3)")
     p.add_argument("--out", required=True, help="directory of cells, models, summary, report")
     p.add_argument("--quick", action="store_true", help="2-member ensembles, at most 2 test days")
     p.add_argument("--address", default=None, help="Ray cluster (HOST:PORT, ray://HOST:PORT, auto)")

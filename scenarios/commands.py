@@ -300,11 +300,28 @@ def sweep(a: argparse.Namespace) -> str:
     """Parse the grid, run it on Ray (:func:`scenarios.sweep.run_sweep`), return what was run
     and written."""
     from scenarios.registry import is_scenario_file
-    from scenarios.sweep import SweepGrid, SweepSettings, parse_ints, parse_names, run_sweep
+    from scenarios.sweep import (
+        SweepGrid,
+        SweepSettings,
+        parse_ints,
+        parse_names,
+        read_sweep_spec,
+        run_sweep,
+    )
 
-    scenarios, controllers, seeds, train_days = a.scenarios, a.controllers, a.seeds, a.train_days
-    days, out, quick, address, workers = a.days, a.out, a.quick, a.address, a.workers
-    baseline, force = a.baseline, a.force
+    spec = read_sweep_spec(a.spec) if a.spec is not None else {}
+
+    def given(name: str, default: Any = None) -> Any:
+        value = getattr(a, name)
+        return value if value is not None else spec.get(name, default)
+
+    scenarios, controllers, seeds = given("scenarios"), given("controllers"), given("seeds")
+    missing = [f"--{n}" for n, v in (("scenarios", scenarios), ("controllers", controllers), ("seeds", seeds)) if v is None]
+    if missing:
+        raise InputError(f"sweep needs {', '.join(missing)} (or a --spec file that gives them)")
+    train_days, days = given("train_days", "30"), given("days", 3)
+    out, quick, address, workers = a.out, a.quick, a.address, a.workers
+    baseline, force = given("baseline"), a.force
     grid = SweepGrid(
         # Absolute: Ray workers resolve scenario files wherever they run.
         scenarios=tuple(

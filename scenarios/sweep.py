@@ -179,6 +179,52 @@ def parse_names(text: str, what: str) -> tuple[str, ...]:
     return names
 
 
+#: Keys of a sweep definition file (``pinn-mpc sweep --spec FILE.toml``).
+SPEC_KEYS = ("description", "scenarios", "controllers", "seeds", "train_days", "days", "baseline")
+
+
+def read_sweep_spec(path: str | os.PathLike[str]) -> dict[str, Any]:
+    """A sweep definition (TOML): lists or comma-separated strings for ``scenarios``,
+    ``controllers``, ``seeds`` and ``train_days`` (ranges as ``"0-7"``), an integer ``days``,
+    a controller name ``baseline``; scenario files named relative to the definition file.
+    Returns the values as the command line gives them."""
+    import tomllib
+
+    source = Path(path)
+    if not source.is_file():
+        raise InputError(f"{source}: no such sweep definition; see sweeps/ for examples")
+    try:
+        data = tomllib.loads(source.read_text(encoding="utf-8-sig"))
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise InputError(f"{source}: not a valid TOML file ({exc})") from exc
+    unknown = sorted(set(data) - set(SPEC_KEYS))
+    if unknown:
+        raise InputError(f"{source}: unknown key(s) {', '.join(unknown)}; known: {', '.join(SPEC_KEYS)}")
+    out: dict[str, Any] = {}
+    for key in ("scenarios", "controllers", "seeds", "train_days"):
+        if key not in data:
+            continue
+        value = data[key]
+        items = value if isinstance(value, list) else [value]
+        if not all(isinstance(v, str | int) and not isinstance(v, bool) for v in items):
+            raise InputError(f"{source}: {key} must be a list of names or numbers, or a string")
+        if key == "scenarios":  # a scenario file is relative to the definition
+            items = [
+                str(source.parent / v) if isinstance(v, str) and v.endswith(".toml") else v
+                for v in items
+            ]
+        out[key] = ",".join(str(v) for v in items)
+    if "days" in data:
+        if isinstance(data["days"], bool) or not isinstance(data["days"], int) or data["days"] < 1:
+            raise InputError(f"{source}: days must be a whole number >= 1, got {data['days']!r}")
+        out["days"] = data["days"]
+    if "baseline" in data:
+        if not isinstance(data["baseline"], str):
+            raise InputError(f"{source}: baseline must be a controller name")
+        out["baseline"] = data["baseline"]
+    return out
+
+
 def parse_ints(text: str, what: str) -> tuple[int, ...]:
     """``"0-7"``, ``"0,3,5"`` or ``"0-3,8"`` -> sorted whole numbers >= 0; an empty range
     (``"5-2"``) or nothing at all is an InputError."""

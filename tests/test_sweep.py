@@ -222,3 +222,35 @@ def test_sigint_keeps_finished_cells_and_the_rerun_completes_the_rest(tmp_path):
     assert summary["cells_reused"] == len(kept)
     assert summary["cells_run"] == 32 - len(kept)
     assert {p.name: p.read_text() for p in cells.glob("*.json") if p.name in kept} == kept
+
+
+def test_sweep_definition_files_are_read_and_checked(tmp_path):
+    from scenarios.sweep import read_sweep_spec
+
+    root = Path(__file__).resolve().parents[1]
+    spec = read_sweep_spec(root / "sweeps" / "robustness.toml")
+    assert spec["train_days"] == "14,30,60" and spec["seeds"] == "0-2" and spec["days"] == 3
+    assert parse_ints(spec["train_days"], "training days") == (14, 30, 60)
+    assert len(parse_names(spec["scenarios"], "scenarios")) == 5
+    own = tmp_path / "mine.toml"
+    own.write_text('scenarios = ["my.toml", "winter_household"]\nseeds = [0, 3]\n')
+    assert read_sweep_spec(own)["scenarios"] == f"{tmp_path / 'my.toml'},winter_household"
+    for text, message in (
+        ("scenario = ['a']", "unknown key"),
+        ("days = 0", "days must be"),
+        ("seeds = [true]", "seeds must be"),
+        ("scenarios = [", "not a valid TOML"),
+    ):
+        own.write_text(text)
+        with pytest.raises(InputError, match=message):
+            read_sweep_spec(own)
+
+
+def test_sweep_without_a_grid_or_spec_exits_2(tmp_path):
+    result = subprocess.run(
+        [sys.executable, "-m", "pinn_mpc", "sweep", "--scenarios", "winter_household", "--out", str(tmp_path / "o")],
+        capture_output=True, text=True, check=False,
+    )
+    assert result.returncode == 2
+    assert "sweep needs --controllers, --seeds" in result.stderr
+    assert not (tmp_path / "o").exists()
