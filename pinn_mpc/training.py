@@ -56,6 +56,9 @@ __all__ = ["TrainConfig", "data_summary", "data_warnings", "train_model"]
 CHUNK = 8
 #: |u - u_phys| [W] below which an interval counts as held at constant power.
 HOLD_TOLERANCE_W = 1.0
+#: Share of the largest power by which delivered must differ from demanded to count as an
+#: override of the backup thermostat when its thresholds are guessed.
+BACKUP_SHARE = 0.1
 #: Threads while training: the matmuls are small, and the machine is shared.
 TRAIN_THREADS = 1
 
@@ -241,7 +244,8 @@ def data_warnings(df: pd.DataFrame) -> list[str]:
 def _backup_guess(df: pd.DataFrame, *, heating: bool) -> tuple[float, float, float]:
     """Start of the hybrid's learned backup thermostat: (low, high) [C] and full power [W].
 
-    Intervals whose delivered power exceeds (falls short of) the demand were forced on (off);
+    Intervals whose delivered power exceeds (falls short of) the demand by more than
+    :data:`BACKUP_SHARE` of the largest power were forced on (off);
     the threshold starts at the 90th percentile of the room's lowest temperature over the
     forced intervals on the cold side (the 10th of the highest on the hot side); with no
     such interval, 5 K beyond what the data saw.
@@ -249,7 +253,10 @@ def _backup_guess(df: pd.DataFrame, *, heating: bool) -> tuple[float, float, flo
     t_r = df["T_r"].to_numpy(dtype=float)
     gap = df["u_phys"].to_numpy(dtype=float)[:-1] - df["u"].to_numpy(dtype=float)[:-1]
     lo, hi = np.minimum(t_r[:-1], t_r[1:]), np.maximum(t_r[:-1], t_r[1:])
-    forced_on, forced_off = gap > HOLD_TOLERANCE_W, gap < -HOLD_TOLERANCE_W
+    # An override moves a sizeable share of full power; a machine's minimum modulation only
+    # rounds the demand (a heat pump cycling below it: a few per cent of its minimum power).
+    tolerance = max(HOLD_TOLERANCE_W, BACKUP_SHARE * float(df["u_phys"].max()))
+    forced_on, forced_off = gap > tolerance, gap < -tolerance
     cold, hot = (forced_on, forced_off) if heating else (forced_off, forced_on)
     low = float(np.percentile(lo[cold], 90)) if cold.any() else float(t_r.min()) - 5.0
     high = float(np.percentile(hi[hot], 10)) if hot.any() else float(t_r.max()) + 5.0

@@ -229,6 +229,9 @@ def compare(a: argparse.Namespace) -> str:
         f"`{label}`: {len(errs)} controller error(s), the fallback acted; first: {errs[0]}"
         for label, errs in result.errors.items()
     ]
+    for note in result.notes:
+        warn(note)
+    notes += list(result.notes)
     notes += [f"wall time of {stage}: {sec:.1f} s" for stage, sec in result.wall_time_s.items()]
     for path in (Path(a.json), report, figure):
         path.parent.mkdir(parents=True, exist_ok=True)

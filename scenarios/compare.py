@@ -47,7 +47,7 @@ from pinn_mpc.errors import InputError
 from pinn_mpc.physics import RCParams, params_from_summary, rc_summary
 from scenarios.choices import RANDOM_POLICIES
 from scenarios.closed_loop import one_torch_thread, run_closed_loop
-from scenarios.factory import build_controller
+from scenarios.factory import build_controller, weather_range_note
 from scenarios.inputs import day_span
 from scenarios.prediction import prediction_errors
 from scenarios.registry import Scenario, check_seed
@@ -151,6 +151,7 @@ class ComparisonResult:
     wall_time_s: dict[str, float]
     errors: dict[str, tuple[str, ...]]
     prediction: list[dict[str, Any]] = dataclasses.field(default_factory=list)
+    notes: tuple[str, ...] = ()  # what a user should know: weather outside the training range
 
 
 def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonResult:
@@ -274,6 +275,17 @@ def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonR
                 errors[label] = result.errors
     for row, ratio in zip(rows, objective_ratios(rows, reference=REFERENCE), strict=True):
         row["objective_to_oracle"] = ratio
+    notes = []
+    note = weather_range_note(best, trajectories[rows[0]["controller"]])
+    if note is not None:
+        notes.append(note)
+    for row in rows:
+        if row.get("model_fallback_steps"):
+            notes.append(
+                f"{row['controller']}: the RC MPC fallback made {row['model_fallback_steps']} "
+                f"decisions ({row['model_fallback_switches']} switch(es): "
+                f"{row['model_fallback_reasons']})"
+            )
     days = {
         "training": day_span(data["time"]),
         "test": rows[0]["counted_days"],
@@ -287,6 +299,7 @@ def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonR
         wall_time_s=wall,
         errors=errors,
         prediction=prediction,
+        notes=tuple(notes),
     )
 
 
