@@ -21,6 +21,7 @@ __all__ = [
     "BYTES_PER_FLEET_BUILDING",
     "LARGE_FLEET_BUILDINGS",
     "LARGE_GRID_CELLS",
+    "SECONDS_PER_BUILDING_DAY",
     "available_memory_bytes",
     "check_fleet_memory",
     "check_fleet_size",
@@ -41,6 +42,17 @@ BYTES_PER_FLEET_BUILDING = {
 }
 #: Memory per building and counted interval of a fleet's record (states, powers, KPI inputs).
 BYTES_PER_FLEET_STEP = 200
+#: Rough wall time per building and simulated day [s] of a fleet by controller, on one core
+#: of the development machine (it varies with the machine; it only sizes the warning).
+SECONDS_PER_BUILDING_DAY = {
+    "thermostat": 0.02,
+    "qp-mpc": 0.1,
+    "casadi-mpc": 0.15,
+    "oracle": 0.16,
+    "clairvoyant": 0.16,
+    "random-shooting": 2.5,
+    "cem": 2.5,
+}
 #: Share of the available memory a run may plan to use (the rest is the process and the OS).
 MEMORY_SHARE = 0.8
 #: Sweep grids above this many cells are confirmed with ``--large``.
@@ -130,14 +142,22 @@ def check_fleet_memory(
     )
 
 
-def check_fleet_size(buildings: int, *, large: bool) -> None:
-    """Refuse a fleet of more than :data:`LARGE_FLEET_BUILDINGS` buildings unless ``large``."""
+def check_fleet_size(controller: str, *, buildings: int, days: int, large: bool) -> None:
+    """Refuse a fleet of more than :data:`LARGE_FLEET_BUILDINGS` buildings unless ``large``;
+    the message gives a rough estimate of the run time (:data:`SECONDS_PER_BUILDING_DAY`)."""
     if buildings > LARGE_FLEET_BUILDINGS and not large:
+        seconds = SECONDS_PER_BUILDING_DAY.get(controller, 1.0) * buildings * (days + 1)
         raise InputError(
-            f"--buildings {buildings} builds and runs {buildings:,} controllers, more than "
-            f"{LARGE_FLEET_BUILDINGS} (that takes hours); add --large to confirm, or use "
-            "fewer buildings"
+            f"--buildings {buildings} builds and runs {buildings:,} {controller} controllers, "
+            f"more than {LARGE_FLEET_BUILDINGS}: roughly {_duration(seconds)} of work for "
+            f"{days} day(s) and the warm-up day; add --large to confirm, or use fewer buildings"
         )
+
+
+def _duration(seconds: float) -> str:
+    if seconds < 3600:
+        return f"{max(1, round(seconds / 60))} min"
+    return f"{seconds / 3600:.0f} h" if seconds < 48 * 3600 else f"{seconds / 86400:.0f} days"
 
 
 def check_grid_size(cells: int, *, large: bool, what: str) -> None:

@@ -51,7 +51,10 @@ def _scenario_inputs(name: str) -> dict[str, PathsArg]:
     """The files ``--scenario`` reads (the file and the files it names), as inputs to protect."""
     from scenarios.scenario_file import scenario_inputs
 
-    return {"--scenario": scenario_inputs(name)}
+    return {
+        f"--scenario {name}'s {key}" if key else "--scenario": path
+        for key, path in scenario_inputs(name).items()
+    }
 
 
 def _scenario_label(name: str, scenario: Scenario) -> str:
@@ -132,7 +135,7 @@ def closed_loop(a: argparse.Namespace) -> str:
         plot_trajectory(result.trajectory, a.plot, title=f"{a.controller} on {a.scenario}")
     kpis = _with_scenario_file(result.kpis, a.scenario)
     atomic_write_json(a.json, kpis)
-    lines = [format_kpis(kpis)]
+    lines = [format_kpis({**kpis, "scenario": _scenario_label(a.scenario, scenario)})]
     if result.errors:
         lines.append(f"{len(result.errors)} controller error(s), first: {result.errors[0]}")
     written = [str(p) for p in (a.json, a.csv, a.plot) if p is not None]
@@ -194,8 +197,8 @@ def _fleet_closed_loop(a: argparse.Namespace, scenario: Scenario) -> str:
                 f"{option} does not apply to a fleet (--buildings {a.buildings}): "
                 f"{_FLEET_REASONS[option]}; leave it out, or drop --buildings for one building"
             )
-    check_fleet_size(a.buildings, large=a.large)
     check_fleet_memory(scenario, a.controller, days=a.days, buildings=a.buildings)
+    check_fleet_size(a.controller, buildings=a.buildings, days=a.days, large=a.large)
     spread = 0.2 if a.spread is None else a.spread
     threads = one_torch_thread() if a.controller in MODEL_CONTROLLERS else contextlib.nullcontext()
     with threads:

@@ -394,11 +394,20 @@ def load_scenario_file(path: str | os.PathLike[str]) -> Scenario:
 
 
 def _warn_implausible(scenario: Scenario, source: Path) -> None:
-    """Warn about measured weather that looks like the wrong unit for the scenario: a heated
-    building whose outdoor temperature is mostly above its comfort band (Fahrenheit?)."""
+    """Warn about a file that carries a built-in's name but is another scenario, and about
+    measured weather that looks like the wrong unit: a heated building whose outdoor
+    temperature is mostly above its comfort band (Fahrenheit?)."""
     from pinn_mpc.errors import warn_once
     from scenarios.measured import CSVWeather
+    from scenarios.registry import get_scenario, scenario_names
 
+    if scenario.name in scenario_names():
+        builtin = get_scenario(scenario.name)
+        if dataclasses.replace(scenario, description=builtin.description) != builtin:
+            warn_once(
+                f"{source}: name = {scenario.name!r} is a built-in scenario's, but the file "
+                "differs from it; results name the file too (scenario_file), or rename it"
+            )
     weather = scenario.weather
     if not (isinstance(weather, CSVWeather) and scenario.sim.params.heating):
         return
@@ -432,27 +441,28 @@ def _leaf_keys(data: dict[str, Any], prefix: str = "") -> set[str]:
     return out
 
 
-def scenario_inputs(name_or_path: str) -> list[Path]:
-    """Every file a scenario reads: for a scenario file, the file itself, the ``rc.json`` its
-    ``[building]`` names and the weather and price files (CSV, TMY3, EPW) it names; for a
-    built-in name, none. Commands protect them as inputs (no output may replace them)."""
+def scenario_inputs(name_or_path: str) -> dict[str, Path]:
+    """Every file a scenario reads, by its key in the file: for a scenario file, the file
+    itself (key ``""``), the ``building.rc`` it names and its weather and price files (CSV,
+    TMY3, EPW: ``weather.path``, ``weather.file_name``, ``price.path``); for a built-in name,
+    none. Commands protect them as inputs (no output may replace them)."""
     from scenarios.inputs import tmy3_path
     from scenarios.registry import get_scenario, is_scenario_file
 
     if not is_scenario_file(name_or_path):
-        return []
+        return {}
     source = Path(name_or_path)
-    files = [source]
+    files = {"": source}
     building = read_toml(source).get("building")
     if isinstance(building, dict) and isinstance(building.get("rc"), str):
-        files.append(source.parent / building["rc"])
+        files["building.rc"] = source.parent / building["rc"]
     scenario = get_scenario(name_or_path)
-    for part in (scenario.weather, scenario.price):
+    for section, part in (("weather", scenario.weather), ("price", scenario.price)):
         for name in getattr(part, "PATH_FIELDS", ()):
             value = getattr(part, name)
             path = tmy3_path(value) if name == "file_name" else Path(value)
             if path.is_file():
-                files.append(path)
+                files[f"{section}.{name}"] = path
     return files
 
 
@@ -497,7 +507,8 @@ def scenario_command(
             f"a built-in name); write --out {out}.toml"
         )
     check_writable(out)
-    check_distinct(inputs={"NAME": scenario_inputs(name)}, outputs={"--out": out})
+    inputs = {f"NAME {name}'s {k}" if k else "NAME": p for k, p in scenario_inputs(name).items()}
+    check_distinct(inputs=inputs, outputs={"--out": out})
     if Path(out).exists() and not force:
         raise InputError(
             f"--out {out} already exists (perhaps edited); choose another name, or add --force "
