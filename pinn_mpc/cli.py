@@ -285,6 +285,11 @@ def build_parser() -> argparse.ArgumentParser:
         help="log-normal spread of the fleet's R, C and solar aperture (0.2 is about +-20 %%, "
         "0 copies the scenario's building; default 0.2, only with --buildings > 1)",
     )
+    p.add_argument(
+        "--large",
+        action="store_true",
+        help="confirm a fleet of more than 1000 buildings (hours of work)",
+    )
 
     p = add("compare", "scenarios.commands:compare", "train, identify and run every controller on one scenario")
     scenario(p, default="paper_household")
@@ -336,6 +341,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--address", default=None, help="Ray cluster (HOST:PORT, ray://HOST:PORT, auto)")
     p.add_argument("--workers", type=_positive_int, default=None, help="local CPUs (default all)")
     p.add_argument("--baseline", default=None, help="controller of the paired differences")
+    p.add_argument(
+        "--large", action="store_true", help="confirm a grid of more than 1000 cells"
+    )
     force(p)
 
     p = add("scenario", "scenarios.commands:scenario", "list, show or export scenarios as TOML files")
@@ -350,7 +358,10 @@ def build_parser() -> argparse.ArgumentParser:
         q = actions.add_parser(action, help=help_, description=help_, formatter_class=_HelpFormatter)
         q.add_argument("name", metavar="NAME", help="scenario name, one of: {scenarios}; or a .toml file")
         if action == "export":
-            q.add_argument("--out", required=True, help="TOML file to write")
+            q.add_argument("--out", required=True, help="TOML file to write (ending in .toml)")
+            q.add_argument(
+                "--force", action="store_true", help="replace --out if it exists"
+            )
     return parser
 
 

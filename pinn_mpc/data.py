@@ -34,6 +34,7 @@ __all__ = [
     "REQUIRED",
     "TEMPERATURE_RANGE_C",
     "parse_column_map",
+    "parse_times",
     "read_timeseries",
     "validate_timeseries",
     "write_timeseries",
@@ -76,17 +77,21 @@ def parse_column_map(text: str | None) -> dict[str, str]:
     return mapping
 
 
-def _parse_time(values: pd.Series, source: str) -> pd.Series:
+def parse_times(values: pd.Series, source: str) -> pd.Series:
+    """A ``time`` column as naive datetime64[ns]: ISO 8601 text (``Z`` and UTC offsets, also
+    offsets that change at a daylight-saving switch, are read as instants and given in UTC;
+    times without an offset are kept as they are) or numeric seconds since 1970-01-01 UTC.
+    A value that is neither is an InputError naming ``source`` and the row."""
     if pd.api.types.is_datetime64_any_dtype(values):
-        parsed = pd.to_datetime(values)
+        parsed = pd.to_datetime(values, utc=True)
     else:
         numeric = pd.to_numeric(values, errors="coerce")
         if numeric.notna().all():
             seconds = numeric.to_numpy(dtype=float)
             if not np.all(np.abs(seconds) < 1e11):
                 raise InputError(f"{source}: column 'time' has numeric values beyond 1e11 s")
-            return pd.Series(pd.to_datetime(seconds, unit="s"))
-        parsed = pd.to_datetime(values, errors="coerce", format="ISO8601")
+            return pd.Series(pd.to_datetime(seconds, unit="s")).astype("datetime64[ns]")
+        parsed = pd.to_datetime(values, errors="coerce", format="ISO8601", utc=True)
     bad = parsed.isna()
     if bad.any():
         row = int(np.flatnonzero(bad.to_numpy())[0])
@@ -94,9 +99,7 @@ def _parse_time(values: pd.Series, source: str) -> pd.Series:
             f"{source}: column 'time' row {row + 1} has {values.iloc[row]!r}, "
             "neither ISO 8601 nor numeric seconds"
         )
-    if parsed.dt.tz is not None:
-        parsed = parsed.dt.tz_convert("UTC").dt.tz_localize(None)
-    return parsed
+    return pd.Series(parsed.dt.tz_convert("UTC").dt.tz_localize(None)).astype("datetime64[ns]")
 
 
 def _check_power(out: pd.DataFrame, source: str, u_max_w: float | None) -> None:
@@ -186,7 +189,7 @@ def validate_timeseries(
     if len(df) < 2:
         raise InputError(f"{source}: needs at least 2 rows, has {len(df)}")
     raw_time = df["time"].reset_index(drop=True)
-    out = pd.DataFrame({"time": _parse_time(raw_time, source)})
+    out = pd.DataFrame({"time": parse_times(raw_time, source)})
     for col in NUMERIC:
         if col not in df.columns:
             continue

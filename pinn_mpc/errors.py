@@ -2,7 +2,9 @@
 
 import sys
 
-__all__ = ["InputError", "ModelFileError", "warn"]
+__all__ = ["InputError", "ModelFileError", "warn", "warn_once"]
+
+_WARNED: set[str] = set()
 
 
 class InputError(ValueError):
@@ -16,3 +18,10 @@ class ModelFileError(InputError):
 def warn(message: str) -> None:
     """Input that is accepted but deserves attention: one line on stderr, as the CLI's errors."""
     print(f"pinn-mpc: warning: {message}", file=sys.stderr)
+
+
+def warn_once(message: str) -> None:
+    """:func:`warn`, but each message at most once per process (input read several times)."""
+    if message not in _WARNED:
+        _WARNED.add(message)
+        warn(message)

@@ -187,13 +187,46 @@ def _heat(df: pd.DataFrame) -> np.ndarray:
     return heat * df["cop"].to_numpy(float) if "cop" in df.columns else heat
 
 
+#: |t| of the power's effect on the next room temperature above which its sign is certain.
+_SIGN_T_STAT = 5.0
+
+
+def _check_sign(t_r: np.ndarray, d: np.ndarray, eta: float) -> None:
+    """Refuse an ``eta`` whose sign contradicts the data: regress each step's change of T_r on
+    the power, the outdoor-room difference, G, I_g and a constant; a clearly positive power
+    coefficient means the actuator heats, a clearly negative one that it cools."""
+    columns = [d[:, 0], d[:, 1] - t_r[:-1], np.ones(len(d))]
+    columns += [d[:, k] for k in (2, 3) if np.std(d[:, k]) > 0]
+    x = np.stack(columns, axis=1)
+    y = np.diff(t_r)
+    coef, *_ = np.linalg.lstsq(x, y, rcond=None)
+    dof = len(y) - x.shape[1]
+    if dof < 1:
+        return
+    sigma2 = float(np.sum(np.square(y - x @ coef))) / dof
+    cov = sigma2 * np.linalg.pinv(x.T @ x)
+    t_stat = coef[0] / math.sqrt(max(float(cov[0, 0]), 1e-300))
+    if t_stat * eta < 0 and abs(t_stat) > _SIGN_T_STAT:
+        heats = t_stat > 0
+        raise InputError(
+            f"identify: eta = {eta:g} says the actuator {'cools' if eta < 0 else 'heats'}, but "
+            f"in the data more power {'warms' if heats else 'cools'} the room (t = {t_stat:.0f}); "
+            + (
+                "for a heater leave --eta out (1) or give the heat per W (> 0)"
+                if heats
+                else "for a cooling machine give --eta -COP, e.g. --eta -2.5"
+            )
+        )
+
+
 def identify_rc(df: pd.DataFrame, *, eta: float = 1.0) -> IdentifyResult:
     """Identify RC parameters from a validated frame (columns time, T_r, u_phys, T_a, [G, I_g]).
 
     ``df.attrs['dt_s']`` (set by :func:`pinn_mpc.data.validate_timeseries`) is the step; a
     ``T_m`` column is never used; a ``cop`` column (a heat pump's heat per electrical watt)
-    makes the input the delivered heat ``cop`` x ``u_phys``. ``eta`` (heat per W of actuator power) is given: 1 for an
-    electric heater, minus the COP for a cooling machine.
+    makes the input the delivered heat ``cop`` x ``u_phys``. ``eta`` (heat per W of actuator
+    power) is given: 1 for an electric heater, minus the COP for a cooling machine; one whose
+    sign the data contradict is refused.
     """
     eta = check_plausible("eta", eta, name="identify: eta")
     missing = [c for c in ("T_r", "u_phys", "T_a") if c not in df.columns]
@@ -224,6 +257,7 @@ def identify_rc(df: pd.DataFrame, *, eta: float = 1.0) -> IdentifyResult:
         axis=1,
     )[:-1]
     t_r = df["T_r"].to_numpy(float)
+    _check_sign(t_r, d, eta)
     layout = _Layout(solar=solar, gains=gains, eta=eta)
     lower, upper = layout.bounds()
 

@@ -19,10 +19,12 @@ from __future__ import annotations
 
 import contextlib
 import math
-from collections.abc import Iterable, Iterator, Sequence
+import sys
+import time
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, TextIO
 
 import pandas as pd
 from tqdm import tqdm
@@ -162,7 +164,7 @@ def run_closed_loop(
     part of the scenario's weather the run is drawn from (default the test part; see
     :mod:`scenarios.inputs`). ``warmup_steps`` defaults to one day of intervals. ``label``
     names the controller in the KPIs (default its ``name``).
-    ``progress`` shows a bar on stderr for runs over a second, when it is a terminal.
+    ``progress`` shows progress on stderr (:func:`progress_steps`).
     """
     run = prepare_run(
         scenario, days=days, seed=seed, warmup_steps=warmup_steps, weather_part=weather_part
@@ -209,17 +211,56 @@ def run_closed_loop(
     return ClosedLoopResult(trajectory=trajectory, kpis=kpis, errors=tuple(errors))
 
 
-def progress_steps(total: int, label: str, progress: bool) -> Iterable[int]:
-    """``range(total)``, shown as a bar on stderr when ``progress``, the run takes over a
-    second and stderr is a terminal."""
-    return tqdm(
-        range(total),
-        desc=label,
-        unit="step",
-        delay=1.0,
-        leave=False,
-        disable=None if progress else True,  # None: off when stderr is not a terminal
-    )
+#: Seconds between two progress lines when stderr is not a terminal (a log file, a pipe).
+PROGRESS_EVERY_S = 60.0
+
+
+def progress_steps(
+    total: int,
+    label: str,
+    progress: bool,
+    *,
+    unit: str = "step",
+    stream: TextIO | None = None,
+    clock: Callable[[], float] = time.monotonic,
+    every_s: float = PROGRESS_EVERY_S,
+) -> Iterable[int]:
+    """``range(total)``, with progress on ``stream`` (default stderr) when ``progress``: a bar
+    after a second on a terminal; otherwise (a log file, a pipe) one line every ``every_s``
+    seconds of ``clock`` with the steps done and an estimate of the time left."""
+    out = sys.stderr if stream is None else stream
+    if not progress:
+        return range(total)
+    if out.isatty():
+        return tqdm(range(total), desc=label, unit=unit, delay=1.0, leave=False, file=out)
+    return _progress_lines(total, label, unit, out, clock, every_s)
+
+
+def _duration(seconds: float) -> str:
+    """``seconds`` as ``45 s``, ``12 min`` or ``3 h 05 min``."""
+    if seconds < 90:
+        return f"{seconds:.0f} s"
+    minutes = round(seconds / 60)
+    return f"{minutes} min" if minutes < 90 else f"{minutes // 60} h {minutes % 60:02d} min"
+
+
+def _progress_lines(
+    total: int, label: str, unit: str, out: TextIO, clock: Callable[[], float], every_s: float
+) -> Iterator[int]:
+    start = last = clock()
+    for k in range(total):
+        yield k
+        now = clock()
+        if now - last >= every_s and k + 1 < total:
+            last = now
+            done = k + 1
+            left = (now - start) / done * (total - done)
+            print(
+                f"{label}: {done:,} of {total:,} {unit}s ({100 * done / total:.0f} %), "
+                f"{_duration(now - start)} elapsed, about {_duration(left)} left",
+                file=out,
+                flush=True,
+            )
 
 
 @contextlib.contextmanager

@@ -47,9 +47,33 @@ if TYPE_CHECKING:  # compare loads torch: only the compare command imports it
 __all__ = ["closed_loop", "compare", "reproduce", "scenario", "simulate", "sweep"]
 
 
+def _scenario_inputs(name: str) -> dict[str, PathsArg]:
+    """The files ``--scenario`` reads (the file and the files it names), as inputs to protect."""
+    from scenarios.scenario_file import scenario_inputs
+
+    return {
+        f"--scenario {name}'s {key}" if key else "--scenario": path
+        for key, path in scenario_inputs(name).items()
+    }
+
+
+def _scenario_label(name: str, scenario: Scenario) -> str:
+    """The scenario as results name it: its name, and for a file the file too (a file may
+    carry any name, a built-in's included)."""
+    from scenarios.registry import is_scenario_file
+
+    return f"{scenario.name} (file {name})" if is_scenario_file(name) else scenario.name
+
+
 def simulate(a: argparse.Namespace) -> str:
-    """Generate data and write it atomically to ``--out``."""
+    """Generate data and write it atomically to ``--out`` (never onto a file the scenario
+    reads); a run that would not fit in memory is refused before it starts."""
+    from scenarios.budget import check_simulate_memory
+
+    check_writable(a.out)
+    check_distinct(inputs=_scenario_inputs(a.scenario), outputs={"--out": a.out})
     chosen = get_scenario(a.scenario)
+    check_simulate_memory(chosen, days=a.days, buildings=a.buildings)
     frame = generate(
         chosen,
         days=a.days,
@@ -63,7 +87,7 @@ def simulate(a: argparse.Namespace) -> str:
     overridden = float(np.mean(~np.isclose(frame["u"], frame["u_phys"])))
     first, last = day_span(frame["time"])
     return (
-        f"wrote {a.out}: scenario {a.scenario}, {a.days} day(s) {first}..{last} "
+        f"wrote {a.out}: scenario {_scenario_label(a.scenario, chosen)}, {a.days} day(s) {first}..{last} "
         f"({a.weather_part} weather), {a.buildings} building(s), {a.policy} policy, "
         f"{per_building} rows per building at {chosen.sim.dt_s:g} s, T_r "
         f"{frame['T_r'].min():.1f}..{frame['T_r'].max():.1f} C, backup acted in "
@@ -77,7 +101,7 @@ def closed_loop(a: argparse.Namespace) -> str:
     (``--model``'s files, ``--rc``) or as another output."""
     outputs = {"--json": a.json, "--csv": a.csv, "--plot": a.plot}
     check_writable(*outputs.values())
-    inputs: dict[str, PathsArg] = {"--rc": a.rc}
+    inputs: dict[str, PathsArg] = {"--rc": a.rc, **_scenario_inputs(a.scenario)}
     if a.model is not None:
         from pinn_mpc.artifacts import MODEL_DIRECTORY  # torch: only when a model is given
 
@@ -88,6 +112,7 @@ def closed_loop(a: argparse.Namespace) -> str:
         return _fleet_closed_loop(a, scenario)
     if a.spread is not None:
         raise InputError("--spread draws a fleet: add --buildings N with N > 1")
+    _check_controller_inputs(a)
     controller = make_controller(
         a.controller,
         scenario,
@@ -108,20 +133,21 @@ def closed_loop(a: argparse.Namespace) -> str:
         from scenarios.plots import plot_trajectory  # matplotlib only when plotting
 
         plot_trajectory(result.trajectory, a.plot, title=f"{a.controller} on {a.scenario}")
-    atomic_write_json(a.json, result.kpis)
-    lines = [format_kpis(result.kpis)]
+    kpis = _with_scenario_file(result.kpis, a.scenario)
+    atomic_write_json(a.json, kpis)
+    lines = [format_kpis({**kpis, "scenario": _scenario_label(a.scenario, scenario)})]
     if a.model is not None:
         from scenarios.factory import weather_range_note
 
         note = weather_range_note(getattr(controller, "model", None), result.trajectory)
         if note is not None:
             warn(note)
-    if "model_fallback_switches" in result.kpis:
-        k = result.kpis
+    if "model_fallback_switches" in kpis:
+        n_decisions = kpis["days"] * scenario.steps_per_day
         lines.append(
-            f"model trusted in {k['days'] * scenario.steps_per_day - k['model_fallback_steps']} of "
-            f"{k['days'] * scenario.steps_per_day} decisions; {k['model_fallback_switches']} switch(es) "
-            f"to the RC MPC fallback {k['model_fallback_reasons'] or ''}".rstrip()
+            f"model trusted in {n_decisions - kpis['model_fallback_steps']} of {n_decisions} "
+            f"decisions; {kpis['model_fallback_switches']} switch(es) to the RC MPC fallback "
+            f"{kpis['model_fallback_reasons'] or ''}".rstrip()
         )
     if result.errors:
         lines.append(f"{len(result.errors)} controller error(s), first: {result.errors[0]}")
@@ -129,17 +155,63 @@ def closed_loop(a: argparse.Namespace) -> str:
     return "\n".join([*lines, f"wrote {', '.join(written)}"])
 
 
+def _check_controller_inputs(a: argparse.Namespace) -> None:
+    """Refuse, in the user's terms, a controller without the file it plans with, or an RC file
+    that is a directory (a model directory given to ``--rc``)."""
+    if a.controller in MODEL_CONTROLLERS and a.model is None:
+        raise InputError(
+            f"controller {a.controller!r} plans over a trained model: add --model MODEL_DIR "
+            "(make one with `pinn-mpc train --data data.csv --out MODEL_DIR`; "
+            "data from `pinn-mpc simulate`)"
+        )
+    if a.rc is not None and Path(a.rc).is_dir():
+        hint = (
+            " (it is a model directory: give it as --model to cem or random-shooting, or write "
+            f"its RC with `pinn-mpc export-rc --model {a.rc} --out rc.json`)"
+            if (Path(a.rc) / "model.json").is_file()
+            else ""
+        )
+        raise InputError(
+            f"--rc {a.rc} is a directory, not an RC JSON file{hint}; give the rc.json written "
+            "by `pinn-mpc identify` or `pinn-mpc export-rc`"
+        )
+
+
+def _with_scenario_file(kpis: dict[str, Any], name: str) -> dict[str, Any]:
+    """The KPIs with ``scenario_file`` (absolute) when ``--scenario`` is a file: its ``name``
+    alone may be anything, a built-in's included."""
+    from scenarios.registry import is_scenario_file
+
+    if not is_scenario_file(name):
+        return kpis
+    return {**kpis, "scenario_file": os.path.abspath(name)}
+
+
+_FLEET_REASONS = {
+    "--model": "each building's controller plans over that building's own RC, not a shared "
+    "model",
+    "--rc": "each building's controller works on that building's own RC",
+    "--csv": "a trajectory CSV holds one building; the KPI JSON (--json) holds every building",
+    "--plot": "a trajectory figure shows one building; the KPI JSON (--json) holds every "
+    "building",
+}
+
+
 def _fleet_closed_loop(a: argparse.Namespace, scenario: Scenario) -> str:
     """``closed-loop --buildings N``: the fleet run, its JSON (fleet, totals, step times,
-    buildings); each building's controller is built on its own parameters."""
+    buildings); each building's controller is built on its own parameters. A fleet that would
+    not fit in memory is refused before anything is built."""
+    from scenarios.budget import check_fleet_memory, check_fleet_size
     from scenarios.fleet import run_fleet_closed_loop
 
     for option, value in (("--model", a.model), ("--rc", a.rc), ("--csv", a.csv), ("--plot", a.plot)):
         if value is not None:
             raise InputError(
-                f"{option} does not apply to a fleet (--buildings {a.buildings}): each building's "
-                "controller works on that building's own RC; leave it out"
+                f"{option} does not apply to a fleet (--buildings {a.buildings}): "
+                f"{_FLEET_REASONS[option]}; leave it out, or drop --buildings for one building"
             )
+    check_fleet_memory(scenario, a.controller, days=a.days, buildings=a.buildings)
+    check_fleet_size(a.controller, buildings=a.buildings, days=a.days, large=a.large)
     spread = 0.2 if a.spread is None else a.spread
     threads = one_torch_thread() if a.controller in MODEL_CONTROLLERS else contextlib.nullcontext()
     with threads:
@@ -150,7 +222,7 @@ def _fleet_closed_loop(a: argparse.Namespace, scenario: Scenario) -> str:
     atomic_write_json(
         a.json,
         {
-            "fleet": result.info,
+            "fleet": _with_scenario_file(result.info, a.scenario),
             "totals": result.totals,
             "step_time": result.step_time,
             "buildings": [
@@ -178,9 +250,16 @@ def _dates_text(settings: CompareSettings, days: dict[str, list[str]]) -> str:
 
 
 def _settings_table(
-    scenario: Scenario, settings: CompareSettings, result: ComparisonResult, total_s: float
+    name: str,
+    scenario: Scenario,
+    settings: CompareSettings,
+    result: ComparisonResult,
+    total_s: float,
 ) -> dict[str, Any]:
-    """What the comparison depended on, for the report and the JSON table."""
+    """What the comparison depended on, for the report and the JSON table (``name``: the
+    ``--scenario`` given, a built-in name or a file)."""
+    from scenarios.registry import is_scenario_file
+
     return {
         **dataclasses.asdict(settings),
         "test_seed": settings.test_seed,
@@ -188,6 +267,7 @@ def _settings_table(
         "test_dates": result.days["test"],
         "training_epochs": settings.training_epochs,
         "scenario": scenario.name,
+        **({"scenario_file": os.path.abspath(name)} if is_scenario_file(name) else {}),
         "comfort_weight_eur_per_kh": scenario.comfort_weight_eur_per_kh,
         "horizon_steps": scenario.horizon_steps,
         "dt_s": scenario.sim.dt_s,
@@ -216,7 +296,7 @@ def compare(a: argparse.Namespace) -> str:
         "--report": a.report,
         "--report's figure": figure,
     }
-    check_distinct(inputs={}, outputs=outputs)
+    check_distinct(inputs=_scenario_inputs(a.scenario), outputs=outputs)
     scenario = get_scenario(a.scenario)
     settings = CompareSettings.for_run(
         train_days=a.train_days, days=a.days, seed=a.seed, quick=a.quick, policy=a.policy
@@ -224,7 +304,7 @@ def compare(a: argparse.Namespace) -> str:
     start = time.perf_counter()
     result = run_comparison(scenario, settings)
     total_s = time.perf_counter() - start
-    settings_table = _settings_table(scenario, settings, result, total_s)
+    settings_table = _settings_table(a.scenario, scenario, settings, result, total_s)
     notes = [
         f"`{label}`: {len(errs)} controller error(s), the fallback acted; first: {errs[0]}"
         for label, errs in result.errors.items()
@@ -302,6 +382,7 @@ def reproduce(a: argparse.Namespace) -> str:
 def sweep(a: argparse.Namespace) -> str:
     """Parse the grid, run it on Ray (:func:`scenarios.sweep.run_sweep`), return what was run
     and written."""
+    from scenarios.budget import check_grid_size
     from scenarios.registry import is_scenario_file
     from scenarios.sweep import (
         SweepGrid,
@@ -334,6 +415,12 @@ def sweep(a: argparse.Namespace) -> str:
         controllers=parse_names(controllers, "controllers"),
         seeds=parse_ints(seeds, "seeds"),
         train_days=parse_ints(train_days, "training days"),
+    )
+    check_grid_size(
+        len(grid.cells()),
+        large=a.large,
+        what=f"{len(grid.scenarios)} scenario(s) x {len(grid.controllers)} controller(s) and "
+        f"the oracle x {len(grid.seeds)} seed(s) x {len(grid.train_days)} training length(s)",
     )
     settings = SweepSettings.for_run(days=days, quick=quick)
     outcome = run_sweep(
@@ -369,4 +456,9 @@ def scenario(a: argparse.Namespace) -> str:
     """``pinn-mpc scenario list | show NAME | export NAME --out FILE.toml``."""
     from scenarios.scenario_file import scenario_command
 
-    return scenario_command(a.action, name=getattr(a, "name", None), out=getattr(a, "out", None))
+    return scenario_command(
+        a.action,
+        name=getattr(a, "name", None),
+        out=getattr(a, "out", None),
+        force=getattr(a, "force", False),
+    )

@@ -158,7 +158,11 @@ def run_fleet_closed_loop(
         if isinstance(controller, str)
         else controller
     )
-    controllers = [factory(i, p) for i, p in enumerate(fleet)]
+    name = controller if isinstance(controller, str) else "controller"
+    controllers = [
+        factory(i, fleet[i])
+        for i in progress_steps(len(fleet), f"building {name}s", progress, unit="building")
+    ]
     spec = scenario.control_spec()
     warmup_controllers = [Thermostat(spec) for _ in fleet]
     for c in (*warmup_controllers, *controllers):

@@ -43,12 +43,16 @@ from scenarios.measured import CSVWeather, PriceCSV
 __all__ = [
     "COLD_ROOM",
     "EXOGENOUS_COLUMNS",
+    "INITIAL_TEMPERATURE_RANGE_C",
     "Scenario",
     "check_seed",
     "get_scenario",
     "scenario_names",
 ]
 
+#: Plausible starting temperatures of a building's room and mass [C] (a cold store at -40 C
+#: to a sauna); beyond them a value is a typo or another unit.
+INITIAL_TEMPERATURE_RANGE_C = (-50.0, 80.0)
 #: Columns of :meth:`Scenario.exogenous`, in order.
 EXOGENOUS_COLUMNS = ("time", "T_a", "G", "I_g", "price", "T_min", "T_max")
 # Independent random streams per input, so changing one input's settings leaves the others.
@@ -86,6 +90,14 @@ class Scenario:
             )
         if self.horizon_steps < 1:
             raise InputError(f"Scenario {self.name!r}: horizon_steps must be >= 1, got {self.horizon_steps}")
+        lo, hi = INITIAL_TEMPERATURE_RANGE_C
+        for key in ("initial_t_r_c", "initial_t_m_c"):
+            value = getattr(self, key)
+            if not (math.isfinite(value) and lo <= value <= hi):
+                raise InputError(
+                    f"Scenario.{key} = {value:g} C is outside the plausible {lo:g} .. {hi:g} C of "
+                    "a building's starting temperature; give it in Celsius"
+                )
 
     @property
     def steps_per_day(self) -> int:
@@ -343,6 +355,11 @@ def get_scenario(name_or_path: str) -> Scenario:
         from scenarios.scenario_file import load_scenario_file  # it imports this module
 
         return load_scenario_file(name_or_path)
+    if os.path.isfile(name_or_path):
+        raise InputError(
+            f"{name_or_path!r} is a file, but scenario files end in .toml (without it the name "
+            f"is taken for a built-in); rename it {name_or_path}.toml"
+        )
     raise InputError(
         f"unknown scenario {name_or_path!r}; choose one of: {', '.join(scenario_names())}, or give "
         "a scenario file (.toml; write one with `pinn-mpc scenario export NAME --out FILE.toml`)"

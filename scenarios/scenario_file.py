@@ -44,8 +44,11 @@ from scenarios.registry import Scenario
 
 __all__ = [
     "SECTIONS",
+    "defaulted_keys",
     "load_scenario_file",
+    "read_toml",
     "scenario_command",
+    "scenario_inputs",
     "scenario_from_dict",
     "scenario_list",
     "scenario_to_toml",
@@ -303,6 +306,22 @@ def scenario_from_dict(data: dict[str, Any], *, base: Path, default_name: str) -
     """A Scenario from parsed TOML data (``base``: the folder relative paths start from)."""
     data = _deep_copy(data)
     building = data.get("building")
+    if building is None:
+        raise InputError(
+            "[building] is missing: the building is not defaulted; give its R/C values (as "
+            "`pinn-mpc scenario export winter_household` writes them) or one line, "
+            'rc = "rc.json"'
+        )
+    if isinstance(building, dict) and "rc" not in building:
+        from pinn_mpc.physics import RCParams
+
+        absent = [f.name for f in dataclasses.fields(RCParams) if f.name not in building]
+        if absent:
+            raise InputError(
+                f"building.{absent[0]}: missing (the building is not defaulted: a deleted "
+                f"solar aperture would silently mean no windows); give {', '.join(absent)} "
+                "(0 for none), as `pinn-mpc scenario export` writes them"
+            )
     if isinstance(building, dict) and "rc" in building:
         others = sorted(set(building) - {"rc"})
         if others:
@@ -311,6 +330,11 @@ def scenario_from_dict(data: dict[str, Any], *, base: Path, default_name: str) -
             raise InputError(f"building.rc: expected a path string, got {building['rc']!r}")
         from scenarios.factory import read_rc
 
+        if (base / building["rc"]).is_dir():
+            raise InputError(
+                f"building.rc: {base / building['rc']} is a directory; give the rc.json file "
+                "written by `pinn-mpc identify` or `pinn-mpc export-rc`"
+            )
         try:
             params = read_rc(base / building["rc"])
         except InputError as exc:
@@ -341,19 +365,105 @@ def scenario_from_dict(data: dict[str, Any], *, base: Path, default_name: str) -
     return typing.cast(Scenario, _build(Scenario, internal, "", base))
 
 
-def load_scenario_file(path: str | os.PathLike[str]) -> Scenario:
-    """A Scenario from a TOML file; any problem is one InputError naming the file and the key."""
+def read_toml(path: str | os.PathLike[str]) -> dict[str, Any]:
+    """The parsed TOML of a scenario file (a UTF-8 byte-order mark, as some editors write, is
+    skipped); a missing or unparsable file is one InputError naming it."""
     source = Path(path)
+    if source.is_dir():
+        raise InputError(f"{source}: is a directory; give the scenario's .toml file")
     if not source.is_file():
         raise InputError(f"{source}: no such scenario file")
     try:
-        data = tomllib.loads(source.read_text(encoding="utf-8"))
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        return tomllib.loads(source.read_text(encoding="utf-8-sig"))
+    except UnicodeDecodeError as exc:
+        raise InputError(f"{source}: not UTF-8 text ({exc}); save it as UTF-8") from None
+    except tomllib.TOMLDecodeError as exc:
         raise InputError(f"{source}: not valid TOML ({exc})") from None
+
+
+def load_scenario_file(path: str | os.PathLike[str]) -> Scenario:
+    """A Scenario from a TOML file; any problem is one InputError naming the file and the key."""
+    source = Path(path)
+    data = read_toml(source)
     try:
-        return scenario_from_dict(data, base=source.parent, default_name=source.stem)
+        scenario = scenario_from_dict(data, base=source.parent, default_name=source.stem)
     except InputError as exc:
         raise InputError(f"{source}: {exc}") from None
+    _warn_implausible(scenario, source)
+    return scenario
+
+
+def _warn_implausible(scenario: Scenario, source: Path) -> None:
+    """Warn about a file that carries a built-in's name but is another scenario, and about
+    measured weather that looks like the wrong unit: a heated building whose outdoor
+    temperature is mostly above its comfort band (Fahrenheit?)."""
+    from pinn_mpc.errors import warn_once
+    from scenarios.measured import CSVWeather
+    from scenarios.registry import get_scenario, scenario_names
+
+    if scenario.name in scenario_names():
+        builtin = get_scenario(scenario.name)
+        if dataclasses.replace(scenario, description=builtin.description) != builtin:
+            warn_once(
+                f"{source}: name = {scenario.name!r} is a built-in scenario's, but the file "
+                "differs from it; results name the file too (scenario_file), or rename it"
+            )
+    weather = scenario.weather
+    if not (isinstance(weather, CSVWeather) and scenario.sim.params.heating):
+        return
+    median = float(weather.frame()["T_a"].median())
+    top = max(scenario.comfort.day_max_c, scenario.comfort.night_max_c)
+    if median > top:
+        warn_once(
+            f"{source}: weather.path {weather.path}: the median T_a is {median:.1f} C, above "
+            f"the comfort band's top ({top:g} C) of a heated building; is T_a in Fahrenheit "
+            f"({median:.1f} F would be {(median - 32) / 1.8:.1f} C)? Convert it to Celsius"
+        )
+
+
+def defaulted_keys(path: str | os.PathLike[str]) -> list[str]:
+    """The keys (dotted, as in the file) a scenario file leaves out, so that their defaults
+    apply: every key of the complete file :func:`scenario_to_toml` writes that it lacks."""
+    source = Path(path)
+    given = _leaf_keys(read_toml(source))
+    complete = _leaf_keys(tomllib.loads(scenario_to_toml(load_scenario_file(source))))
+    left_out = complete - given - {"name", "description"}
+    if "building.rc" in given:  # the rc.json gives the whole building
+        left_out = {k for k in left_out if not k.startswith("building.")}
+    return sorted(left_out)
+
+
+def _leaf_keys(data: dict[str, Any], prefix: str = "") -> set[str]:
+    out: set[str] = set()
+    for key, value in data.items():
+        dotted = _join(prefix, key)
+        out |= _leaf_keys(value, dotted) if isinstance(value, dict) else {dotted}
+    return out
+
+
+def scenario_inputs(name_or_path: str) -> dict[str, Path]:
+    """Every file a scenario reads, by its key in the file: for a scenario file, the file
+    itself (key ``""``), the ``building.rc`` it names and its weather and price files (CSV,
+    TMY3, EPW: ``weather.path``, ``weather.file_name``, ``price.path``); for a built-in name,
+    none. Commands protect them as inputs (no output may replace them)."""
+    from scenarios.inputs import tmy3_path
+    from scenarios.registry import get_scenario, is_scenario_file
+
+    if not is_scenario_file(name_or_path):
+        return {}
+    source = Path(name_or_path)
+    files = {"": source}
+    building = read_toml(source).get("building")
+    if isinstance(building, dict) and isinstance(building.get("rc"), str):
+        files["building.rc"] = source.parent / building["rc"]
+    scenario = get_scenario(name_or_path)
+    for section, part in (("weather", scenario.weather), ("price", scenario.price)):
+        for name in getattr(part, "PATH_FIELDS", ()):
+            value = getattr(part, name)
+            path = tmy3_path(value) if name == "file_name" else Path(value)
+            if path.is_file():
+                files[f"{section}.{name}"] = path
+    return files
 
 
 # ---------------------------------------------------------------- pinn-mpc scenario
@@ -366,8 +476,11 @@ def scenario_list() -> str:
     return "\n".join(f"{name}: {get_scenario(name).description}" for name in scenario_names())
 
 
-def scenario_command(action: str, *, name: str | None, out: str | None) -> str:
-    """``pinn-mpc scenario list | show NAME | export NAME --out FILE.toml``."""
+def scenario_command(
+    action: str, *, name: str | None, out: str | None, force: bool = False
+) -> str:
+    """``pinn-mpc scenario list | show NAME | export NAME --out FILE.toml [--force]``: an
+    existing ``--out`` is replaced only with ``force``, and never when the scenario reads it."""
     from pinn_mpc.io import atomic_write_text, check_distinct, check_writable
     from scenarios.registry import get_scenario, is_scenario_file
 
@@ -376,11 +489,31 @@ def scenario_command(action: str, *, name: str | None, out: str | None) -> str:
     if name is None:
         raise InputError(f"scenario {action} needs a scenario name or file")
     if action == "show":
-        return scenario_to_toml(get_scenario(name)).rstrip("\n")
+        text = scenario_to_toml(get_scenario(name)).rstrip("\n")
+        if not is_scenario_file(name):
+            return text
+        defaults = defaulted_keys(name)
+        note = (
+            f"# Not in {name}, so at their defaults (as shown above): {', '.join(defaults)}"
+            if defaults
+            else f"# {name} gives every key."
+        )
+        return f"{text}\n\n{note}"
     if action != "export" or out is None:
         raise InputError(f"unknown scenario action {action!r}; use list, show or export")
+    if not out.lower().endswith(".toml"):
+        raise InputError(
+            f"--out {out}: scenario files end in .toml (that is how --scenario tells a file from "
+            f"a built-in name); write --out {out}.toml"
+        )
     check_writable(out)
-    check_distinct(inputs={"NAME": name if is_scenario_file(name) else None}, outputs={"--out": out})
+    inputs = {f"NAME {name}'s {k}" if k else "NAME": p for k, p in scenario_inputs(name).items()}
+    check_distinct(inputs=inputs, outputs={"--out": out})
+    if Path(out).exists() and not force:
+        raise InputError(
+            f"--out {out} already exists (perhaps edited); choose another name, or add --force "
+            "to replace it"
+        )
     text = scenario_to_toml(get_scenario(name))
     atomic_write_text(out, text)
     return f"wrote {out}"

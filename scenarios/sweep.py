@@ -17,7 +17,9 @@ that runs ``pinn-mpc sweep``, whatever nodes did the work:
   settings is refused; the grid itself (scenarios, controllers, seeds, training days) may grow.
 - ``DIR/cells/<scenario>--<controller>--seed<S>[--train<D>].json``: one file per finished
   cell, written atomically the moment it arrives. A rerun reads them and runs only the missing
-  cells, so an interrupted sweep loses at most the cells in flight.
+  cells, so an interrupted sweep loses at most the cells in flight. A scenario file is named
+  by its stem and a digest of its content (:func:`scenario_digest`): files of the same stem
+  never share a cell, and a rerun after the file (or a CSV it reads) changed runs new cells.
 - ``DIR/models/``: the trained models (model directories) and identified RC JSONs, reused
   by reruns that need more cells of the same scenario and seed.
 - ``DIR/summary.json``, ``DIR/report.md``, ``DIR/objective_to_oracle.png``: see
@@ -27,6 +29,8 @@ that runs ``pinn-mpc sweep``, whatever nodes did the work:
 from __future__ import annotations
 
 import dataclasses
+import functools
+import hashlib
 import json
 import logging
 import os
@@ -55,7 +59,7 @@ ARCH = DEFAULT_ARCH
 RC_KIND = "rc"
 FIGURE = "objective_to_oracle.png"
 
-__all__ = ["Cell", "ModelKey", "SweepGrid", "SweepOutcome", "SweepSettings", "check_engine_options", "fit_model", "model_kind", "parse_ints", "parse_names", "ray_engine", "run_cell", "run_sweep"]
+__all__ = ["Cell", "ModelKey", "SweepGrid", "SweepOutcome", "SweepSettings", "check_engine_options", "fit_model", "model_kind", "parse_ints", "parse_names", "ray_engine", "run_cell", "run_sweep", "scenario_digest"]
 _ADDRESS = re.compile(r"^(ray://)?(?P<host>[A-Za-z0-9.\-]+|\[[0-9A-Fa-f:]+\]):(?P<port>\d{1,5})$")
 _CONNECT_TIMEOUT_S = 5.0
 
@@ -119,8 +123,33 @@ class ModelKey:
 
 
 def _label(scenario: str) -> str:
-    """A scenario in file names: its name, or a scenario file's stem (not its folders)."""
-    return Path(scenario).stem if is_scenario_file(scenario) else scenario
+    """A scenario in file names: a built-in's name, or a scenario file's stem followed by the
+    first 12 hex digits of :func:`scenario_digest`, so that two files of the same stem never
+    share a cell and an edited file makes new cells (built-ins change only with the package
+    version, which ``sweep.json`` pins)."""
+    if not is_scenario_file(scenario):
+        return scenario
+    return f"{Path(scenario).stem}-{scenario_digest(scenario)[:12]}"
+
+
+def scenario_digest(scenario: str) -> str:
+    """The sha256 of a scenario's content: the complete TOML of the resolved scenario (every
+    default filled in) and the bytes of each weather, price or RC file it reads."""
+    stat = os.stat(scenario)
+    return _digest(scenario, stat.st_mtime_ns, stat.st_size)
+
+
+@functools.lru_cache(maxsize=64)
+def _digest(scenario: str, mtime_ns: int, size: int) -> str:
+    """:func:`scenario_digest`, computed once per version of the file (its time and size)."""
+    from scenarios.scenario_file import scenario_inputs, scenario_to_toml
+
+    digest = hashlib.sha256(scenario_to_toml(get_scenario(scenario)).encode("utf-8"))
+    for key, path in sorted(scenario_inputs(scenario).items()):
+        if key:  # the TOML file itself is in the resolved text
+            digest.update(f"\n{key}\n".encode())
+            digest.update(path.read_bytes())
+    return digest.hexdigest()
 
 
 def model_kind(controller: str) -> str | None:
@@ -342,11 +371,18 @@ def _check_settings(out: Path, settings: SweepSettings) -> None:
         )
 
 
+def _cell_record_key(cell: Cell) -> dict[str, Any]:
+    """What identifies a cell in its record: its fields and its scenario's content digest."""
+    digest = scenario_digest(cell.scenario) if is_scenario_file(cell.scenario) else None
+    return {"cell": dataclasses.asdict(cell), "scenario_sha256": digest}
+
+
 def _read_cell(path: Path, cell: Cell) -> dict[str, Any] | None:
     if not path.exists():
         return None
     record = _read_json(path)
-    if not isinstance(record, dict) or record.get("cell") != dataclasses.asdict(cell):
+    key = _cell_record_key(cell)
+    if not isinstance(record, dict) or any(record.get(k) != v for k, v in key.items()):
         raise InputError(f"{path}: not the record of cell {cell.name}; move it away and rerun")
     return record
 
@@ -535,7 +571,9 @@ def run_sweep(
                     _store_model(root, what, value)
                     trained += 1
                     continue
-                record = {"cell": dataclasses.asdict(what), "settings": _settings_record(settings), **value}
+                record = {
+                    **_cell_record_key(what), "settings": _settings_record(settings), **value
+                }
                 atomic_write_json(root / "cells" / f"{what.name}.json", record)
                 records[what] = record
                 bar.update()

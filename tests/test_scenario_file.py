@@ -56,6 +56,7 @@ def test_closed_loop_on_the_exported_file_gives_the_same_kpis(tmp_path, capsys, 
                 "--seed", "2", "--json", str(out)]
         assert main(argv) == 0
         kpis[label] = {k: v for k, v in json.loads(out.read_text()).items() if k not in TIME_KEYS}
+    assert kpis["file"].pop("scenario_file") == str(path)  # the results name the file too
     assert kpis["file"] == kpis["name"]
     assert kpis["file"]["scenario"] == name and kpis["file"]["objective"] > 0
 

@@ -1,0 +1,356 @@
+"""Nothing lost, nothing silent, nothing unbounded (issue 18): the newer features under
+careless input. Each refusal is exit 2 with one line on stderr naming the problem, and the
+user's files byte for byte as they were (sha256 before and after)."""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import io
+import json
+import os
+import re
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from pinn_mpc.cli import main
+from pinn_mpc.data import read_timeseries
+from pinn_mpc.errors import InputError
+from pinn_mpc.identify import identify_rc
+from pinn_mpc.io import atomic_write_json
+from pinn_mpc.physics import PAPER_HOUSEHOLD, rc_summary
+from scenarios import budget
+from scenarios.closed_loop import progress_steps
+from scenarios.datagen import generate
+from scenarios.registry import get_scenario
+from scenarios.scenario_file import load_scenario_file, scenario_inputs, scenario_to_toml
+from scenarios.sweep import Cell, _label, _read_cell, scenario_digest
+
+HOURS = pd.date_range("2023-01-01", periods=24 * 30, freq="h")
+
+
+def _weather(path: Path, times: pd.DatetimeIndex | list[str] | np.ndarray = HOURS, *,
+             t_a: np.ndarray | None = None, g: np.ndarray | None = None) -> Path:
+    n = len(times)
+    hour = np.arange(n) % 24
+    pd.DataFrame({
+        "time": times.strftime("%Y-%m-%dT%H:%M:%S") if isinstance(times, pd.DatetimeIndex) else times,
+        "T_a": 2.0 + 3.0 * np.sin(2 * np.pi * hour / 24) if t_a is None else t_a,
+        "G": np.where(hour == 12, 400.0, 0.0) if g is None else g,
+    }).to_csv(path, index=False)
+    return path
+
+
+def _with_section(text: str, section: str, body: str) -> str:
+    start = text.index(f"\n[{section}]") + 1
+    end = text.index("\n[", start + 1) + 1
+    return text[:start] + f"[{section}]\n{body}\n\n" + text[end:]
+
+
+def _scenario(folder: Path, name: str = "s.toml", *, weather: str | None = "wx.csv",
+              extra: str = "", price: str | None = None, edit: tuple[str, str] | None = None) -> Path:
+    """winter_household as a file; ``weather`` a CSV in ``folder`` (written if missing)."""
+    text = scenario_to_toml(get_scenario("winter_household"))
+    if weather is not None:
+        if not (folder / weather).exists():
+            _weather(folder / weather)
+        text = _with_section(text, "weather", f'type = "CSVWeather"\npath = "{weather}"\n'
+                             f"test_days = 10\n{extra}")
+    if price is not None:
+        text = _with_section(text, "price", f'type = "PriceCSV"\npath = "{price}"')
+    if edit is not None:
+        assert re.search(edit[0], text), edit[0]
+        text = re.sub(edit[0], edit[1], text, count=1)
+    (folder / name).write_text(text, encoding="utf-8")
+    return folder / name
+
+
+def checksums(root: Path) -> dict[str, str]:
+    return {str(p.relative_to(root)): hashlib.sha256(p.read_bytes()).hexdigest()
+            for p in sorted(root.rglob("*")) if p.is_file()}
+
+
+def refused(argv: list[str], capsys: pytest.CaptureFixture[str], *fragments: str) -> str:
+    """Run the CLI: exit 2 and one line on stderr holding every fragment; returns the line."""
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    lines = [line for line in err.splitlines() if "warning" not in line]
+    assert len(lines) == 1, err
+    for fragment in fragments:
+        assert fragment in lines[0], lines[0]
+    return lines[0]
+
+
+@pytest.fixture
+def user(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    """A user's folder: a scenario file reading a weather CSV, one reading an rc.json, an
+    edited exported scenario."""
+    monkeypatch.chdir(tmp_path)
+    _scenario(tmp_path, "csvw.toml")
+    _scenario(tmp_path, "s.toml", weather=None)
+    atomic_write_json(tmp_path / "rc.json", rc_summary(PAPER_HOUSEHOLD, source="test"))
+    text = scenario_to_toml(get_scenario("paper_household"))
+    (tmp_path / "rcs.toml").write_text(_with_section(text, "building", 'rc = "rc.json"'))
+    (tmp_path / "edited.toml").write_text("# my edits\n" + text)
+    return tmp_path
+
+
+LOOP = ["closed-loop", "--controller", "thermostat", "--days", "1"]
+DATA_LOSS = [
+    pytest.param([*LOOP, "--scenario", "s.toml", "--json", "s.toml"],
+                 ["--json s.toml", "input --scenario s.toml"], id="closed-loop-json-is-the-scenario"),
+    pytest.param(["simulate", "--scenario", "s.toml", "--days", "1", "--out", "s.toml"],
+                 ["--out s.toml", "input --scenario s.toml"], id="simulate-out-is-the-scenario"),
+    pytest.param(["simulate", "--scenario", "csvw.toml", "--days", "1", "--out", "wx.csv"],
+                 ["--out wx.csv", "--scenario csvw.toml's weather.path"], id="simulate-out-is-its-weather"),
+    pytest.param([*LOOP, "--scenario", "csvw.toml", "--json", "./wx.csv"],
+                 ["--scenario csvw.toml's weather.path"], id="closed-loop-json-is-its-weather"),
+    pytest.param([*LOOP, "--scenario", "csvw.toml", "--json", "k.json", "--csv", "wx.csv"],
+                 ["--csv wx.csv"], id="closed-loop-csv-is-its-weather"),
+    pytest.param([*LOOP, "--scenario", "rcs.toml", "--json", "rc.json"],
+                 ["--scenario rcs.toml's building.rc"], id="closed-loop-json-is-its-rc"),
+    pytest.param(["compare", "--scenario", "csvw.toml", "--quick", "--json", "wx.csv"],
+                 ["--json wx.csv", "weather.path"], id="compare-json-is-its-weather"),
+    pytest.param(["scenario", "export", "winter_household", "--out", "edited.toml"],
+                 ["edited.toml already exists", "--force"], id="export-onto-an-edited-file"),
+    pytest.param(["scenario", "export", "csvw.toml", "--out", "csvw.toml", "--force"],
+                 ["same file as the input NAME"], id="export-force-onto-its-own-file"),
+    pytest.param(["scenario", "export", "winter_household", "--out", "myscen"],
+                 ["end in .toml", "myscen.toml"], id="export-without-suffix"),
+]
+
+
+@pytest.mark.parametrize(("argv", "fragments"), DATA_LOSS)
+def test_no_output_replaces_a_file_a_command_reads(user, capsys, argv, fragments):
+    before = checksums(user)
+    refused(argv, capsys, *fragments)
+    assert checksums(user) == before
+
+
+def test_export_replaces_an_existing_file_only_with_force(user, capsys):
+    assert main(["scenario", "export", "winter_household", "--out", "edited.toml", "--force"]) == 0
+    assert load_scenario_file(user / "edited.toml") == get_scenario("winter_household")
+
+
+def test_scenario_inputs_are_the_file_and_what_it_names(user):
+    assert scenario_inputs("winter_household") == {}
+    assert scenario_inputs("csvw.toml") == {"": Path("csvw.toml"), "weather.path": Path("wx.csv")}
+    assert scenario_inputs("rcs.toml")["building.rc"] == Path("rc.json")
+
+
+# ---------------------------------------------------------------- sweep cells by content
+
+
+def test_sweep_cells_are_keyed_by_content_not_by_stem(tmp_path):
+    (tmp_path / "da").mkdir()
+    (tmp_path / "db").mkdir()
+    a = str(_scenario(tmp_path / "da", weather=None))
+    b = str(_scenario(tmp_path / "db", weather=None, edit=(
+        r"comfort_weight_eur_per_kh = [0-9.]+", "comfort_weight_eur_per_kh = 500.0")))
+    cells = [Cell(scenario=s, controller="thermostat", seed=0, train_days=None) for s in (a, b)]
+    assert cells[0].name != cells[1].name  # same stem, different content
+    assert _label("winter_household") == "winter_household"
+    before = _label(a)
+    text = Path(a).read_text()
+    Path(a).write_text(text.replace("comfort_weight_eur_per_kh = 5.0", "comfort_weight_eur_per_kh = 50.0"))
+    assert _label(a) != before  # an edited file is a new cell
+    Path(a).write_text(text)
+    assert _label(a) == before  # the same content, the same cell
+
+
+def test_a_changed_weather_file_changes_the_digest(tmp_path):
+    path = str(_scenario(tmp_path))
+    before = scenario_digest(path)
+    _weather(tmp_path / "wx.csv", t_a=np.full(len(HOURS), 1.0))
+    os.utime(path, ns=(1, 1))  # the digest is computed once per version of the scenario file
+    assert scenario_digest(path) != before
+
+
+def test_a_cell_record_of_another_content_is_refused(tmp_path):
+    path = str(_scenario(tmp_path, weather=None))
+    cell = Cell(scenario=path, controller="thermostat", seed=0, train_days=None)
+    record = tmp_path / "cell.json"
+    record.write_text(json.dumps({"cell": dataclasses.asdict(cell), "scenario_sha256": "0" * 64}))
+    with pytest.raises(InputError, match="not the record of cell"):
+        _read_cell(record, cell)
+
+
+# ---------------------------------------------------------------- measured inputs
+
+
+def _gap_times() -> pd.DatetimeIndex:
+    return HOURS[(HOURS < "2023-01-10") | (HOURS >= "2023-01-16")]
+
+
+def test_a_gap_in_the_weather_is_refused_unless_max_gap_h_bridges_it(tmp_path):
+    _weather(tmp_path / "gap.csv", _gap_times())
+    with pytest.raises(InputError, match=r"weather.path: .*gap of 6.0 days between rows 216 .* max_gap_h"):
+        load_scenario_file(_scenario(tmp_path, weather="gap.csv"))
+    scenario = load_scenario_file(
+        _scenario(tmp_path, "bridged.toml", weather="gap.csv", extra="max_gap_h = 150.0")
+    )
+    assert scenario.weather.max_gap_h == 150.0  # type: ignore[union-attr]
+
+
+@pytest.mark.parametrize(
+    ("rows", "message"),
+    [
+        (pd.date_range("2023-01-01", periods=6, freq="h"), "cover 6.0 h"),
+        (pd.date_range("2023-01-01", periods=30, freq="h"), "cover 30.0 h"),
+        (pd.date_range("2023-01-01", periods=48, freq="4h")[:-1], "max_gap_h"),
+    ],
+)
+def test_a_price_file_that_is_not_whole_days_is_refused(tmp_path, rows, message):
+    pd.DataFrame({"time": rows, "price": 0.2}).to_csv(tmp_path / "p.csv", index=False)
+    with pytest.raises(InputError, match=f"price.path: .*{message}"):
+        load_scenario_file(_scenario(tmp_path, weather=None, price="p.csv"))
+
+
+DST = pd.date_range("2023-03-01", periods=24 * 40, freq="h")  # Europe switches on 26 March
+
+
+@pytest.mark.parametrize(
+    ("reference", "write"),
+    [
+        pytest.param(HOURS, lambda t: t.strftime("%Y-%m-%dT%H:%M:%SZ"), id="Z"),
+        pytest.param(DST, lambda t: [x.isoformat() for x in
+                                     t.tz_localize("UTC").tz_convert("Europe/Brussels")],
+                     id="offsets-changing-at-dst"),
+        pytest.param(HOURS, lambda t: (t - pd.Timestamp("1970-01-01")).total_seconds().astype(int),
+                     id="epoch-seconds"),
+    ],
+)
+def test_weather_times_are_instants_in_every_notation(tmp_path, reference, write):
+    """The same instants written with Z, with local offsets across a DST switch and as epoch
+    seconds give the same weather as naive UTC times."""
+    t_a = np.linspace(0, 10, len(reference))
+    _weather(tmp_path / "mine.csv", write(reference), t_a=t_a)
+    _weather(tmp_path / "utc.csv", reference, t_a=t_a)
+    mine = load_scenario_file(_scenario(tmp_path, "mine.toml", weather="mine.csv"))
+    utc = load_scenario_file(_scenario(tmp_path, "utc.toml", weather="utc.csv"))
+    pd.testing.assert_frame_equal(mine.weather.frame(), utc.weather.frame())  # type: ignore[union-attr]
+    assert mine.weather.split_text().split(":")[1] == utc.weather.split_text().split(":")[1]
+
+
+def test_data_with_offsets_changing_at_dst_reads_without_a_traceback(tmp_path):
+    frame = generate(get_scenario("paper_household"), days=2, seed=0)
+    utc = pd.DatetimeIndex(frame["time"]) - pd.Timedelta(days=5)  # 27-29 March 2021
+    local = utc.tz_localize("UTC").tz_convert("Europe/Brussels")
+    assert local[0].utcoffset() != local[-1].utcoffset()  # the file crosses the switch
+    frame["time"] = [t.isoformat() for t in local]
+    frame.to_csv(tmp_path / "d.csv", index=False)
+    read = read_timeseries(tmp_path / "d.csv")
+    assert read.attrs["dt_s"] == 1800.0
+    assert (read["time"].to_numpy() == utc.to_numpy()).all()
+
+
+@pytest.mark.parametrize(
+    ("edit", "message"),
+    [
+        ((r"initial_t_r_c = [-0-9.]+", "initial_t_r_c = 500.0"),
+         "initial_t_r_c = 500 C is outside the plausible -50 .. 80 C"),
+        ((r"initial_t_m_c = [-0-9.]+", "initial_t_m_c = -300.0"), "initial_t_m_c = -300 C"),
+        ((r"(?s)\n\[building\].*?\n(?=\[simulation\])", "\n"), "[building] is missing"),
+        ((r"solar_aperture_m2 = [^\n]*\n", ""), "building.solar_aperture_m2: missing"),
+        ((r"eta = [^\n]*\n", ""), "building.eta: missing"),
+    ],
+)
+def test_implausible_or_missing_scenario_values_are_refused(tmp_path, edit, message):
+    with pytest.raises(InputError, match=re.escape(message)):
+        load_scenario_file(_scenario(tmp_path, weather=None, edit=edit))
+
+
+@pytest.mark.parametrize(
+    ("t_a", "g", "warning"),
+    [
+        (2.0 * 1.8 + 32 + np.zeros(len(HOURS)), None, "is T_a in Fahrenheit (35.6 F would be 2.0 C)"),
+        (None, np.where(np.arange(len(HOURS)) % 24 == 12, 0.4, 0.0), "G never exceeds 0.4 W/m2"),
+    ],
+)
+def test_implausible_units_are_warned_with_the_likely_cause(tmp_path, capsys, t_a, g, warning):
+    _weather(tmp_path / "units.csv", t_a=t_a, g=g)
+    load_scenario_file(_scenario(tmp_path, weather="units.csv"))
+    assert warning in capsys.readouterr().err
+
+
+def test_a_file_with_a_builtins_name_is_named_in_the_results(tmp_path, capsys):
+    path = _scenario(tmp_path, weather=None, edit=('name = "winter_household"', 'name = "cold_storage"'))
+    out = tmp_path / "k.json"
+    assert main([*LOOP, "--scenario", str(path), "--json", str(out)]) == 0
+    captured = capsys.readouterr()
+    assert "name = 'cold_storage' is a built-in scenario's, but the file differs" in captured.err
+    assert f"thermostat on cold_storage (file {path})" in captured.out
+    assert json.loads(out.read_text())["scenario_file"] == str(path)
+
+
+def test_a_bom_is_skipped_and_show_lists_the_defaults(tmp_path, capsys):
+    path = _scenario(tmp_path, weather=None, edit=(r"\[forecast\][^\[]*", ""))
+    path.write_text(path.read_text(), encoding="utf-8-sig")
+    assert load_scenario_file(path) == get_scenario("winter_household")
+    assert main(["scenario", "show", str(path)]) == 0
+    assert "at their defaults (as shown above): forecast.error_correlation_h" in capsys.readouterr().out
+
+
+# ---------------------------------------------------------------- work before it starts
+
+
+def test_simulate_memory_is_estimated_before_anything_runs(tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr(budget, "available_memory_bytes", lambda: 8_000_000_000)
+    out = tmp_path / "big.csv"
+    line = refused(["simulate", "--scenario", "winter_household", "--buildings", "100000",
+                    "--days", "30", "--out", str(out)], capsys, "needs about 58 GB of memory",
+                   "use at most 11111 buildings for 30 days")
+    assert "144,000,000 rows" in line
+    assert not out.exists()
+
+
+def test_fleets_and_grids_are_sized_before_they_start(tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr(budget, "available_memory_bytes", lambda: 8_000_000_000)
+    fleet = ["closed-loop", "--scenario", "winter_household", "--controller", "qp-mpc",
+             "--days", "1", "--json", str(tmp_path / "k.json"), "--buildings"]
+    refused([*fleet, "100000"], capsys, "needs about 102 GB of memory", "use at most")
+    refused([*fleet, "5000"], capsys, "5,000 qp-mpc controllers", "roughly", "--large")
+    refused(["sweep", "--scenarios", "winter_household", "--controllers", "qp-mpc", "--seeds",
+             "0-100000", "--out", str(tmp_path / "sw")], capsys, "200,002 cells", "--large")
+    assert sorted(p.name for p in tmp_path.iterdir()) == []
+
+
+def test_long_runs_print_progress_lines_off_a_terminal():
+    """One line per ``every_s`` of the (fake) clock, with the steps done and the time left."""
+    ticks = iter(range(0, 10_000, 10))
+    stream = io.StringIO()
+    steps = list(progress_steps(100, "cem", True, stream=stream, clock=lambda: next(ticks), every_s=250))
+    assert steps == list(range(100))
+    lines = stream.getvalue().splitlines()
+    assert len(lines) == 3
+    assert lines[0] == "cem: 25 of 100 steps (25 %), 4 min elapsed, about 12 min left"
+    assert list(progress_steps(3, "x", False, stream=stream)) == [0, 1, 2]
+
+
+# ---------------------------------------------------------------- messages
+
+
+def test_messages_name_the_real_problem(user, capsys):
+    model = user / "m"
+    model.mkdir()
+    (model / "model.json").write_text("{}")
+    loop = [*LOOP[:2], "qp-mpc", "--days", "1", "--scenario", "winter_household", "--json", "k.json"]
+    refused([*loop, "--rc", "m"], capsys, "--rc m is a directory", "export-rc --model m")
+    refused([*LOOP, "--scenario", "winter_household", "--json", "k.json", "--buildings", "3",
+             "--plot", "p.png"], capsys, "--plot does not apply", "trajectory figure shows one building")
+    line = refused([*LOOP[:2], "cem", "--days", "1", "--scenario", "winter_household", "--json",
+                    "k.json"], capsys, "--model MODEL_DIR", "pinn-mpc train --data data.csv --out")
+    assert "physnet" not in line
+    (user / "myscen").write_text((user / "s.toml").read_text())
+    refused([*LOOP, "--scenario", "myscen", "--json", "k.json"], capsys,
+            "'myscen' is a file, but scenario files end in .toml", "rename it myscen.toml")
+    assert not (user / "k.json").exists()
+
+
+def test_an_eta_of_the_wrong_sign_is_named_as_such():
+    data = generate(get_scenario("paper_household"), days=3, seed=0, policy="random-level")
+    with pytest.raises(InputError, match=r"eta = -2.5 says the actuator cools, but in the data more power warms"):
+        identify_rc(data, eta=-2.5)
