@@ -363,6 +363,12 @@ def interp_clamped(x: torch.Tensor, knots: torch.Tensor, values: torch.Tensor) -
     return values[j - 1] + w * (values[j] - values[j - 1])
 
 
+#: The residual net's bound before training sets it (finite: weights files hold no inf).
+RESIDUAL_UNBOUNDED_K = 1e3
+#: The residual's bound: this times the largest |increment| it added on the training data.
+RESIDUAL_BOUND_FACTOR = 1.5
+
+
 class HybridInputs(NamedTuple):
     """What :class:`HybridNet` reads from a sample's features (leading dims (..., ))."""
 
@@ -382,6 +388,7 @@ class HybridConstants(NamedTuple):
     middle: list[tuple[torch.Tensor, torch.Tensor]]  # hidden layers after the first, folded
     w_last: torch.Tensor  # (M, 1, in) last layer (folded) to T_r's increment [K]
     b_last: torch.Tensor  # (M, 1, 1)
+    residual_bound_k: torch.Tensor  # (M, 1, 1) |T_r increment| of the residual net [K]
     drive_b: torch.Tensor  # (M, 2, 4) Bd, rows (T_m, T_r), inputs (heat, T_a, G, I_g)
     t_off: torch.Tensor  # (M, 1, 1) backup threshold past which it switches off [C]
     t_full: torch.Tensor  # (M, 1, 1) backup threshold past which it forces full power [C]
@@ -453,6 +460,10 @@ class HybridNet(nn.Module):
         self.backup_high_c = nn.Parameter(torch.full((n_members, 1), 100.0))
         self.full_power_w: torch.Tensor
         self.register_buffer("full_power_w", torch.zeros(n_members, 1))  # per member, like all
+        # |T_r increment| the residual net may add [K]: set after training to what it added
+        # on the training data (with a margin), so it cannot extrapolate without bound.
+        self.residual_bound_k: torch.Tensor
+        self.register_buffer("residual_bound_k", torch.full((n_members, 1), RESIDUAL_UNBOUNDED_K))
         names = features.exog_series
         # Position of T_a, G, I_g in the exogenous windows (None when the data lacks it).
         self._exog_pos = [names.index(n) if n in names else None for n in ("T_a", "G", "I_g")]
@@ -605,6 +616,8 @@ class HybridNet(nn.Module):
         if p_bounds is not None:
             p_s = p_s.clamp(*p_bounds)
         residual = _run(self.residual_net, z_now.index_select(-1, self.free_index))[..., 0]
+        bound = self.residual_bound_k / f.delta_t_r.std
+        residual = torch.maximum(torch.minimum(residual, bound), -bound)
         d = self._inputs(p_s * f.power.std + f.power.mean, exog_now)
         dt_r = free + (d * b0).sum(-1)
         obs0 = (dt_r - f.delta_t_r.mean) / f.delta_t_r.std + residual
@@ -643,6 +656,7 @@ class HybridNet(nn.Module):
                 middle=rest[:-1],
                 w_last=w_last * f.delta_t_r.std,
                 b_last=b_last * f.delta_t_r.std,
+                residual_bound_k=self.residual_bound_k.detach()[..., None].clone(),
                 drive_b=bd,
                 t_off=t_off.detach()[..., None].clone(),
                 t_full=t_full.detach()[..., None].clone(),
@@ -696,7 +710,6 @@ class HybridNet(nn.Module):
             static = torch.cat([e_now, tod[:, :h_len].expand(n0, -1, -1)], dim=-1)
             first = torch.einsum("msj,nhs->hmjn", c.w_static, static) + c.b_first  # (H, M, out, N0)
             u_w = (u_s * pw.std + pw.mean).T.contiguous()[:, None]  # (H, 1, N)
-            drive[:, :, 1:] += c.b_last
             pre = torch.cat([first, drive], dim=2)  # (H, M, out+2, N0)
             # Heat per electrical watt of each step: the input column of Bd times the COP.
             g = self.gain(exog[:, k : k + h_len, 0])  # (N0, H) or None
@@ -711,13 +724,14 @@ class HybridNet(nn.Module):
                 for w, b in c.middle:
                     x = torch.baddbmm(b, w, x).sigmoid_()
                 hb = 0 if g is None else h
-                t_free = y[:, hidden + 1 :] - c.b_last  # (M, 1, N): T_r,i+1 without power
+                t_free = y[:, hidden + 1 :]  # (M, 1, N): T_r,i+1 without power
                 p_off = ((c.t_off - t_free) * inv_b[hb]).clamp_(min=0.0)
                 p_full = torch.minimum((c.t_full - t_free) * inv_b[hb], c.full_power_w)
                 p_w = torch.maximum(torch.minimum(u_w[h], p_off), p_full)
                 torch.clamp(p_w, lo, hi, out=nxt[:, :1])
                 torch.addcmul(y[:, hidden:], b_step[hb], nxt[:, :1], out=nxt[:, 1:])
-                nxt[:, 2:].baddbmm_(c.w_last, x)
+                res = torch.baddbmm(c.b_last, c.w_last, x)
+                nxt[:, 2:] += torch.maximum(torch.minimum(res, c.residual_bound_k), -c.residual_bound_k)
             series = states.permute(1, 2, 3, 0)  # (M, 3, N, H+1)
             return (
                 series[:, 2, :, 1:].contiguous(),

@@ -42,6 +42,7 @@ from pinn_mpc.errors import InputError
 from pinn_mpc.features import MAX_DEPTH, MIN_TRAIN_SAMPLES, fit_feature_config, make_windows
 from pinn_mpc.models import (
     MAX_MEMBERS,
+    RESIDUAL_BOUND_FACTOR,
     EnsembleModule,
     HybridInputs,
     HybridNet,
@@ -413,6 +414,13 @@ def train_model(
             history.append((sum_reg / n_batches, sum_phys / n_batches))
             bar.set_postfix(reg=f"{history[-1][0]:.2e}", phys=f"{history[-1][1]:.2e}")
     elapsed = time.perf_counter() - started
+    if hybrid is not None:
+        module.eval()
+        with torch.no_grad():
+            every = torch.arange(n_samples).expand(m, -1)
+            _, _, res = hybrid.forward_split(HybridInputs(*(v[every] for v in split)))  # (M, S)
+            largest = (res.abs() * features.delta_t_r.std).amax(dim=1, keepdim=True)
+            hybrid.residual_bound_k.copy_(RESIDUAL_BOUND_FACTOR * largest + 1e-3)
     u_phys = df["u_phys"].to_numpy(dtype=float)
     meta: dict[str, Any] = {
         "package_version": __version__,

@@ -423,3 +423,28 @@ def test_hybrid_rollout_equals_stepping_the_one_step_model(heating: bool) -> Non
         net.residual_net[-1].bias.zero_()
     third = check()
     assert all(float((a - b).abs().max()) > 0.05 for a, b in zip(second, third, strict=True))
+
+
+def test_hybrid_residual_is_bounded_by_what_it_added_on_its_training_data() -> None:
+    """Far outside the training weather (T_a +40 K, sun x3) the residual net adds at most its
+    bound to each step's T_r, and the bound is 1.5 x its largest training increment."""
+    _, df = _winter_data(10, 1)
+    model = train_model(df, arch="hybrid", config=TrainConfig(n_seeds=2, epochs=3, depth=8), progress=False)
+    net = model.module.net
+    assert isinstance(net, HybridNet)
+    bound = net.residual_bound_k
+    assert bool((bound > 1e-3).all()) and bool((bound < 1.0).all())
+    history, exog = _history_and_forecast(df, 200, 12)
+    hot = {**exog, "T_a": np.asarray(exog["T_a"]) + 40.0}
+    if "G" in hot:
+        hot["G"] = np.asarray(hot["G"]) * 3.0
+    plans = torch.full((3, 12), 1000.0)
+    with_res = model.rollout(history, plans, hot).t_r_c
+    with torch.no_grad():
+        for p in net.residual_net[-1].parameters():
+            p.zero_()
+    model._hybrid_cache = None
+    bare = model.rollout(history, plans, hot).t_r_c
+    # The residual's effect accumulates through the 2R2C, at most the bound per step.
+    steps = torch.arange(1, 13, dtype=torch.float32)
+    assert bool(((with_res - bare).abs() <= bound[:, None, :] * steps + 1e-4).all())
