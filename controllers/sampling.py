@@ -125,6 +125,9 @@ class Guard(NamedTuple):
     training_ranges: dict[str, tuple[float, float]] = {}
 
 
+#: Decisions of the shadow RC MPC before its Kalman estimates start replays.
+SHADOW_SETTLE_STEPS = 3
+
 #: No RC fallback: the model always drives (its errors are still monitored and counted).
 NO_GUARD = Guard()
 
@@ -181,6 +184,7 @@ class _SamplingController(PlanningController):
         self.training_ranges = dict(guard.training_ranges)
         self.shadow = None
         self._estimates: dict[int, np.ndarray] = {}  # the shadow's (T_r, T_m) by step
+        self._shadow_steps = 0
         if guard.rc is not None:
             from controllers.rc_mpc.osqp import QPMPC
 
@@ -206,6 +210,7 @@ class _SamplingController(PlanningController):
         self.estimator.reset()
         self.monitor.reset()
         self._estimates = {}
+        self._shadow_steps = 0
         if self.shadow is not None:
             self.shadow.reset(seed)
         self._stats = SolveStats(time_s=0.0, status="reset", iterations=0, fallback=False)
@@ -233,8 +238,10 @@ class _SamplingController(PlanningController):
         try:
             if self.shadow is not None:  # every step, so that its observer stays current
                 shadow_u = self.shadow.act(obs, forecast)
-                self._estimates[obs.k] = np.array(self.shadow.state_estimate_c, dtype=float)
-                self._estimates.pop(obs.k - self.monitor.settings.replay_steps - 1, None)
+                self._shadow_steps += 1
+                if self._shadow_steps > SHADOW_SETTLE_STEPS:  # its observer has settled
+                    self._estimates[obs.k] = np.array(self.shadow.state_estimate_c, dtype=float)
+                    self._estimates.pop(obs.k - self.monitor.settings.replay_steps - 1, None)
             if len(obs.history["u_phys"]) < self.model.depth + 1:
                 return self._fallback(obs, forecast, start, "short history")
             plan, cost, iterations, spread = self._solve(obs, forecast)
@@ -260,20 +267,24 @@ class _SamplingController(PlanningController):
 
     def _replay_errors(self, obs: Observation) -> tuple[float, float]:
         """Measured minus replayed T_r now [K], of the model and of the fallback RC, over the
-        last ``replay_steps`` intervals under the delivered power (NaN, NaN until both can)."""
-        r = self.monitor.settings.replay_steps
-        start = self._estimates.get(obs.k - r)
+        last ``replay_steps`` intervals (fewer, down to 2, early in a run) under the delivered
+        power (NaN where there is too little history, or no settled RC estimate)."""
+        # The longest replay from a settled RC estimate (2 .. replay_steps intervals), else the
+        # longest the history allows, for the model alone.
         hist = obs.history
-        if start is None or not np.all(np.isfinite(start)):
+        longest = min(self.monitor.settings.replay_steps, len(hist["u_phys"]) - self.model.depth - 1)
+        r = next((j for j in range(longest, 1, -1) if obs.k - j in self._estimates), longest)
+        if r < 2:
             return math.nan, math.nan
-        if len(hist["u_phys"]) < self.model.depth + 1 + r:
-            return math.nan, math.nan
+        start = self._estimates.get(obs.k - r)
         u_phys = np.asarray(hist["u_phys"], dtype=float)[-r:]
         past = {name: np.asarray(values)[:-r] for name, values in hist.items()}
         exog = {name: np.asarray(hist[name], dtype=float)[-r - 1 : -1] for name in self.model.exog_names}
         with torch.no_grad():
             roll = self.model.rollout(past, torch.as_tensor(u_phys[None], dtype=torch.float32), exog)
         learned = float(roll.t_r_c[:, 0, -1].mean())
+        if start is None or not np.all(np.isfinite(start)):
+            return obs.t_r_c - learned, math.nan
         ad, bd = self._rc_matrices
         x = start.copy()
         zeros = np.zeros(len(hist["T_r"]))

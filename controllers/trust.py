@@ -7,9 +7,9 @@ decision, all in closed loop:
   falls back on: both replay the last ``replay_steps`` intervals from where they stood then
   (the learned model from its history, the RC from its Kalman estimate) under the power that
   was delivered, and their errors against the measured T_r now are filtered; the model is
-  distrusted when its error passes ``error_floor_k`` and ``error_ratio`` times the RC's (a
-  wrong gain or time constant shows over hours, not in one interval, where the offset filter
-  hides it);
+  distrusted when its error passes ``error_floor_k`` and ``error_ratio`` times the RC's, or
+  ``error_alone_k`` while the RC's observer is still settling (a wrong gain or time constant
+  shows over hours, not in one interval, where the offset filter hides it);
 - the realised error of its model's delivered power: the prediction of the interval that just
   ended under the power that was *demanded*, against the power the plant delivered (the backup
   thermostat and the actuator are part of the model; the offset filter cannot see them), as a
@@ -22,7 +22,8 @@ decision, all in closed loop:
 When an error or the disagreement passes its limit, the decision is handed to the
 fallback: the MPC on the RC identified from the same training data (``train`` stores it with
 the model), which runs as a shadow every step so that its observer is current when it takes
-over. The model takes over again after ``recover_steps`` decisions within the limits. The
+over. The model takes over again after ``recover_steps`` decisions within the limits, twice as
+many after each further switch (a model found wrong again is given less benefit of the doubt). The
 planner also plans against the comfort band narrowed by the filtered error of its room
 temperature (never less than its ``comfort_margin_k``), so a model that errs more keeps more
 distance from the band's edges.
@@ -44,24 +45,31 @@ class TrustSettings:
 
     ``replay_steps``: intervals replayed; ``error_floor_k`` and ``error_ratio``: the model's
     filtered replay error [K] must pass both the floor and the ratio to the RC's to distrust
-    it; ``power_error_frac``: filtered |error| of the delivered power over the actuator's range; ``spread_k``: the members' largest std of T_r
+    it; ``error_alone_k``: the same without the RC's (its observer settling);
+    ``power_error_frac``: filtered |error| of the delivered power over the actuator's range; ``spread_k``: the members' largest std of T_r
     along the plan [K]; ``filter_gain``: weight of a new error in the filters; ``recover_steps``:
-    decisions within the limits before the model drives again; ``margin_factor``: the band is
+    decisions within the limits before the model drives again (doubled after each further
+    switch, at most ``max_recover_steps``); ``margin_factor``: the band is
     narrowed by this times the filtered |innovation| (at most ``max_margin_k``).
     """
 
     replay_steps: int = 8
-    error_floor_k: float = 0.2
-    error_ratio: float = 1.5
+    error_floor_k: float = 0.3
+    error_ratio: float = 2.0
+    error_alone_k: float = 1.0
     power_error_frac: float = 0.2
     spread_k: float = 0.5
     filter_gain: float = 0.3
-    recover_steps: int = 6
+    recover_steps: int = 12
+    max_recover_steps: int = 48
     margin_factor: float = 1.0
     max_margin_k: float = 0.5
 
     def __post_init__(self) -> None:
-        for name in ("error_floor_k", "error_ratio", "power_error_frac", "spread_k", "max_margin_k"):
+        for name in (
+            "error_floor_k", "error_ratio", "error_alone_k", "power_error_frac", "spread_k",
+            "max_margin_k",
+        ):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise InputError(f"TrustSettings.{name} must be a positive number, got {value!r}")
@@ -71,8 +79,11 @@ class TrustSettings:
             raise InputError(f"TrustSettings.margin_factor must be >= 0, got {self.margin_factor}")
         if self.replay_steps < 1:
             raise InputError(f"TrustSettings.replay_steps must be >= 1, got {self.replay_steps}")
-        if self.recover_steps < 1:
-            raise InputError(f"TrustSettings.recover_steps must be >= 1, got {self.recover_steps}")
+        if not 1 <= self.recover_steps <= self.max_recover_steps:
+            raise InputError(
+                f"TrustSettings.recover_steps must lie in 1 .. max_recover_steps "
+                f"({self.max_recover_steps}), got {self.recover_steps}"
+            )
 
 
 @dataclass
@@ -116,12 +127,14 @@ class TrustMonitor:
         s, g = self.state, self.settings.filter_gain
         if math.isfinite(innovation_k):
             s.error_k += g * (abs(innovation_k) - s.error_k)
-        if math.isfinite(replay_k) and math.isfinite(replay_rc_k):
-            if not math.isfinite(s.replay_k):
-                s.replay_k, s.replay_rc_k = abs(replay_k), abs(replay_rc_k)
-            else:
-                s.replay_k += g * (abs(replay_k) - s.replay_k)
-                s.replay_rc_k += g * (abs(replay_rc_k) - s.replay_rc_k)
+        if math.isfinite(replay_k):
+            s.replay_k = abs(replay_k) if not math.isfinite(s.replay_k) else s.replay_k + g * (abs(replay_k) - s.replay_k)
+        if math.isfinite(replay_rc_k):
+            s.replay_rc_k = (
+                abs(replay_rc_k)
+                if not math.isfinite(s.replay_rc_k)
+                else s.replay_rc_k + g * (abs(replay_rc_k) - s.replay_rc_k)
+            )
         if math.isfinite(power_error_w):
             s.power_error_frac += g * (abs(power_error_w) / self.u_range_w - s.power_error_frac)
 
@@ -135,8 +148,11 @@ class TrustMonitor:
         s, lim = self.state, self.settings
         if spread_k is not None:
             s.spread_k = spread_k
-        if s.replay_k > lim.error_floor_k and s.replay_k > lim.error_ratio * s.replay_rc_k:
-            return "prediction error above the RC's"
+        if math.isfinite(s.replay_rc_k):
+            if s.replay_k > lim.error_floor_k and s.replay_k > lim.error_ratio * s.replay_rc_k:
+                return "prediction error above the RC's"
+        elif s.replay_k > lim.error_alone_k:
+            return "prediction error"
         if s.power_error_frac > lim.power_error_frac:
             return "delivered power error"
         if spread_k is not None and not spread_k <= lim.spread_k:  # NaN counts as too large
@@ -154,7 +170,8 @@ class TrustMonitor:
             s.trusted = False
         elif not s.trusted:
             s.calm_steps += 1
-            if s.calm_steps >= self.settings.recover_steps:
+            needed = self.settings.recover_steps * 2 ** max(s.switches - 1, 0)
+            if s.calm_steps >= min(needed, self.settings.max_recover_steps):
                 s.trusted = True
         if not s.trusted:
             s.fallback_steps += 1

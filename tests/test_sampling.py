@@ -399,8 +399,9 @@ def test_cem_over_a_trained_physnet_ensemble_in_closed_loop(physnet):
         # the members.
         exog = {"time_of_day_h": fc.time_of_day_h[:H], "T_a": fc.T_a[:H]}
         roll = physnet.rollout(obs.history, torch.tensor(plan[None], dtype=torch.float32), exog)
+        margin = cem.monitor.margin_k(0.01)  # the band narrowed by the model's filtered error
         per_member = [
-            plan_cost(roll.u_phys_w[m, 0].numpy(), roll.t_r_c[m, 0].numpy(), fc, SPEC, 0.01)
+            plan_cost(roll.u_phys_w[m, 0].numpy(), roll.t_r_c[m, 0].numpy(), fc, SPEC, margin)
             for m in range(physnet.n_members)
         ]
         expected = np.mean(per_member) + risk_weight * np.std(per_member)
@@ -431,7 +432,8 @@ def test_default_cem_scores_the_ensemble_mean_with_a_measured_offset(physnet):
     plan = torch.tensor(cem.last_plan[None], dtype=torch.float32)
     roll = physnet.rollout(obs.history, plan, exog)
     mean_t = roll.t_r_c[:, 0].mean(0).numpy() + offset
-    expected = plan_cost(roll.u_phys_w[:, 0].mean(0).numpy(), mean_t, fc, SPEC, 0.01)
+    margin = cem.monitor.margin_k(0.01)  # the band narrowed by the model's filtered error
+    expected = plan_cost(roll.u_phys_w[:, 0].mean(0).numpy(), mean_t, fc, SPEC, margin)
     assert offset != 0.0
     assert cem.last_cost_eur == pytest.approx(float(expected), rel=1e-4)
 

@@ -135,7 +135,6 @@ def test_a_model_that_mispredicts_is_replaced_by_the_rc_mpc_and_counted(winter_m
     assert kpis["cem"]["model_fallback_switches"] >= 1
     assert kpis["cem"]["model_fallback_steps"] > 0
     assert kpis["cem, no fallback"]["model_fallback_steps"] == 0
-    print({k: (v["objective"], v["model_fallback_steps"] if "model_fallback_steps" in v else None) for k, v in kpis.items()})
     assert kpis["cem"]["objective"] <= 1.05 * kpis["qp-mpc"]["objective"]
     assert kpis["cem"]["objective"] < kpis["cem, no fallback"]["objective"]
 
