@@ -440,8 +440,9 @@ def sweep(a: argparse.Namespace) -> str:
         else f"{s['cells_run']} of {total} cells run now, {s['cells_reused']} reused"
     )
     lines = [
-        f"{r['scenario']:<18} {r['controller']:<16} n={r['n']:<3} objective/oracle "
-        f"{r['objective_to_oracle_mean']:.3f}"
+        f"{r['scenario']:<18} {r['controller']:<16} "
+        f"{'' if r.get('train_days') is None else str(r['train_days']) + ' d':<5} n={r['n']:<3} "
+        f"objective/oracle {r['objective_to_oracle_mean']:.3f} (worst {max(r['objective_to_oracle_by_seed'].values()):.3f})"
         for r in s["rows"]
     ]
     lines.append(
