@@ -1,6 +1,6 @@
 """Decision time of random shooting and CEM at a 48-step horizon.
 
-    python benchmarks/bench_planners.py [--model hybrid|physnet|rc|all] [--members 10] [--decisions 20]
+    python benchmarks/bench_planners.py [--model hybrid|physnet|rc|all] [--members 10] [--decisions 20] [--guard]
 
 Data: the ``winter_household`` scenario under the random-level policy. ``hybrid`` (the model
 ``train`` makes by default and ``compare`` recommends) and ``physnet`` train an ensemble shaped
@@ -96,6 +96,10 @@ def main() -> None:
     parser.add_argument("--decisions", type=int, default=20)
     parser.add_argument("--samples", type=int, default=_CEM.n_samples, help="CEM samples")
     parser.add_argument("--iters", type=int, default=_CEM.n_iters, help="CEM iterations")
+    parser.add_argument(
+        "--guard", action="store_true",
+        help="learned models also with their RC fallback (the shadow QP MPC and the replays)",
+    )
     args = parser.parse_args()
     torch.set_num_threads(1)
 
@@ -118,8 +122,19 @@ def main() -> None:
     for name in names:
         model = models[name]()
         label = f"{name} x{model.n_members}"
-        cem = CEM(model, spec, n_samples=args.samples, n_iters=args.iters)
-        for controller in (cem, RandomShooting(model, spec)):
+        controllers: list[tuple[str, CEM | RandomShooting]] = [
+            ("", CEM(model, spec, n_samples=args.samples, n_iters=args.iters)),
+            ("", RandomShooting(model, spec)),
+        ]
+        if args.guard and name != "rc":
+            from scenarios.factory import model_guard
+
+            guard = model_guard(model)
+            controllers += [
+                (" +guard", CEM(model, spec, n_samples=args.samples, n_iters=args.iters, guard=guard)),
+                (" +guard", RandomShooting(model, spec, guard=guard)),
+            ]
+        for suffix, controller in controllers:
             ms, cpu_ms = _time_decisions(controller, df, first=24, n=args.decisions)
             p = controller.planner
             size = f"{p.n_samples} samples x {getattr(p, 'n_iters', 1)} iters"
@@ -128,7 +143,7 @@ def main() -> None:
                 over = np.median(cpu_ms) > TARGET_MS
                 verdict = f"  OVER {TARGET_MS:.0f} ms cpu" if over else "  OK"
             print(
-                f"{label:12s} {controller.name:16s} {size:22s} median {np.median(ms):6.1f} ms"
+                f"{label:12s} {controller.name + suffix:22s} {size:22s} median {np.median(ms):6.1f} ms"
                 f"  p95 {np.percentile(ms, 95):6.1f} ms  cpu {np.median(cpu_ms):6.1f} ms"
                 f"  load {os.getloadavg()[0]:.1f}{verdict}"
             )

@@ -281,7 +281,7 @@ class _SamplingController(PlanningController):
         past = {name: np.asarray(values)[:-r] for name, values in hist.items()}
         exog = {name: np.asarray(hist[name], dtype=float)[-r - 1 : -1] for name in self.model.exog_names}
         with torch.no_grad():
-            roll = self.model.rollout(past, torch.as_tensor(u_phys[None], dtype=torch.float32), exog)
+            roll = self.model.rollout(past, torch.tensor(u_phys[None], dtype=torch.float32), exog)
         learned = float(roll.t_r_c[:, 0, -1].mean())
         if start is None or not np.all(np.isfinite(start)):
             return obs.t_r_c - learned, math.nan
