@@ -193,6 +193,9 @@ def build_controller(
             )
         from controllers.sampling import CEM, RandomShooting
 
+        from controllers.base import check_heating
+
+        check_heating(model.eta, spec, what="the model")  # the first thing to get right
         for note in check_model_fits(model, scenario):
             warn(note)
         options.setdefault("guard", model_guard(model))
