@@ -191,9 +191,8 @@ def build_controller(
                 f"controller {name!r} plans over a trained model: add --model MODEL_DIR "
                 "(make one with `pinn-mpc train --data data.csv --out MODEL_DIR`)"
             )
-        from controllers.sampling import CEM, RandomShooting
-
         from controllers.base import check_heating
+        from controllers.sampling import CEM, RandomShooting
 
         check_heating(model.eta, spec, what="the model")  # the first thing to get right
         for note in check_model_fits(model, scenario):
