@@ -236,8 +236,9 @@ def data_warnings(df: pd.DataFrame) -> list[str]:
     if share < MIN_NEAR_FULL_SHARE:
         out.append(
             f"only {100 * share:.1f} % of intervals deliver >= 90 % of the largest power "
-            f"({top:.0f} W): the response near full power is barely identified; "
-            "add data at high power (e.g. simulate --policy random-level)"
+            f"({top:.0f} W): the response near full power is barely identified; add data "
+            "at high power (colder days, a lower room temperature: a backup thermostat that "
+            "cuts the heater in warm rooms keeps data from full power)"
         )
     return out
 
