@@ -69,6 +69,13 @@ def evaluate(a: argparse.Namespace) -> str:
     check_distinct(inputs=inputs, outputs={"--json": a.json})
     learned = load_model(a.model)
     df = read_timeseries(a.data, columns=a.columns)
+    trained_on = learned.meta.get("training_data", {}).get("columns", [])
+    if ("cop" in df.columns) != ("cop" in trained_on):
+        has, lacks = ("the data", "the model's training data") if "cop" in df.columns else ("the model's training data", "the data")
+        warn(
+            f"{has} has a cop column (a heat pump) and {lacks} has none: "
+            "the model may be evaluated on another actuator than it was made for"
+        )
     metrics = evaluate_model(learned, df, a.horizons)
     atomic_write_json(a.json, metrics)
     one = metrics["one_step"]

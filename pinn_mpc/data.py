@@ -188,6 +188,12 @@ def validate_timeseries(
         )
     if len(df) < 2:
         raise InputError(f"{source}: needs at least 2 rows, has {len(df)}")
+    if "building" in df.columns and df["building"].nunique() > 1:
+        raise InputError(
+            f"{source}: holds {df['building'].nunique()} buildings (column 'building', as "
+            "simulate --buildings writes); keep the rows of one building, e.g. with pandas: "
+            "df[df.building == 0]"
+        )
     raw_time = df["time"].reset_index(drop=True)
     out = pd.DataFrame({"time": parse_times(raw_time, source)})
     for col in NUMERIC:

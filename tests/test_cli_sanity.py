@@ -260,3 +260,24 @@ def test_implausible_rc_json_is_refused_by_its_key(
             str(rc), "--days", "1", "--json", str(tmp_path / "k.json")]
     _refused(capsys, args, expected)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["rc.json"]
+
+
+@pytest.mark.parametrize(
+    ("change", "expected"),
+    [
+        ({"cop": -1.0}, ("column 'cop'", "plausible 0.5 .. 10")),
+        ({"cop": 100.0}, ("column 'cop'", "plausible 0.5 .. 10")),
+        ({"building": "two"}, ("holds 2 buildings", "column 'building'")),
+    ],
+)
+def test_heat_pump_and_fleet_columns_are_checked(tmp_path, capsys, change, expected):
+    df = household_data(days=3, seed=0)
+    if change.get("building") == "two":
+        df = pd.concat([df.assign(building=0), df.assign(building=1)], ignore_index=True)
+    else:
+        df = df.assign(cop=3.0)
+        df.loc[5, "cop"] = change["cop"]
+    write_timeseries(df, tmp_path / "d.csv")
+    for command in (["train", "--out", str(tmp_path / "m"), *SMALL], ["identify", "--out", str(tmp_path / "rc.json")]):
+        _refused(capsys, [command[0], "--data", str(tmp_path / "d.csv"), *command[1:]], *expected)
+    assert not (tmp_path / "m").exists() and not (tmp_path / "rc.json").exists()
