@@ -15,12 +15,19 @@ with C_e then lumped with the outdoor air or the room air) the 2R2C is recovered
 envelope adds a third time constant ``C_e (R_re || R_ea)`` (2.6 h in ``mismatch_household``) that
 no 2-state model represents: the room answers the outdoor temperature late and smoothed. The
 controllers and models never see ``T_e``.
+
+``energyplus`` is not an RC network: an EnergyPlus building model (``building``, a bundled DOE
+reference building or an IDF/epJSON path) run on ``weather`` (a bundled EPW name or a path) by
+:mod:`pinn_mpc.energyplus`; ``heater_w`` is its heater's power (0: the simulation's
+``u_max_w``), ``allow_code`` lets a model that declares Python plugins or external co-simulation
+run them. Its R/C parameters are unknown; the scenario's are nominal.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
@@ -29,7 +36,9 @@ from pinn_mpc.physics import N_INPUTS, RCParams, check_plausible, continuous_mat
 
 __all__ = ["PLANT_KINDS", "Plant", "plant_matrices"]
 
-PLANT_KINDS = ("2r2c", "3r3c")
+PLANT_KINDS = ("2r2c", "3r3c", "energyplus")
+#: Fields holding a file path, resolved relative to the scenario file that names them.
+_PATH_FIELDS = ("building", "weather")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -39,10 +48,30 @@ class Plant:
     kind: str = "2r2c"
     envelope_capacity_j_per_k: float = 1.0e7
     envelope_resistance_fraction: float = 0.5
+    building: str = ""
+    weather: str = ""
+    heater_w: float = 0.0
+    allow_code: bool = False
+    PATH_FIELDS: ClassVar[tuple[str, ...]] = _PATH_FIELDS
 
     def __post_init__(self) -> None:
         if self.kind not in PLANT_KINDS:
             raise InputError(f"plant.kind {self.kind!r} is unknown; choose one of {', '.join(PLANT_KINDS)}")
+        if self.kind == "energyplus":
+            if not (self.building and self.weather):
+                raise InputError(
+                    "plant: kind = \"energyplus\" needs building (a bundled reference building "
+                    "such as small_office, or an IDF/epJSON path) and weather (a bundled EPW name "
+                    "such as usa_il_chicago, or an .epw path)"
+                )
+            h = self.heater_w
+            if isinstance(h, bool) or not (isinstance(h, int | float) and math.isfinite(h) and h >= 0):
+                raise InputError(f"plant.heater_w = {h!r} must be a power >= 0 W (0: simulation.u_max_w)")
+        elif self.building or self.weather or self.heater_w or self.allow_code:
+            raise InputError(
+                f"plant: building, weather, heater_w and allow_code belong to kind = "
+                f"\"energyplus\", not {self.kind!r}"
+            )
         check_plausible("c_r_j_per_k", self.envelope_capacity_j_per_k, name="plant.envelope_capacity_j_per_k")
         f = self.envelope_resistance_fraction
         if isinstance(f, bool) or not (isinstance(f, int | float) and math.isfinite(f) and 0 < f < 1):
@@ -53,11 +82,17 @@ class Plant:
 
     @property
     def n_states(self) -> int:
-        return 2 if self.kind == "2r2c" else 3
+        return 3 if self.kind == "3r3c" else 2
+
+    @property
+    def is_energyplus(self) -> bool:
+        return self.kind == "energyplus"
 
 
 def plant_matrices(params: RCParams, plant: Plant) -> tuple[np.ndarray, np.ndarray]:
     """Continuous ``A`` (n, n) [1/s] and ``B`` (n, 4) of the plant, n = ``plant.n_states``."""
+    if plant.is_energyplus:
+        raise InputError("an EnergyPlus plant has no RC matrices: it runs in EnergyPlus")
     a2, b2 = continuous_matrices(params)
     if plant.kind == "2r2c":
         return a2, b2

@@ -30,6 +30,7 @@ import pandas as pd
 from tqdm import tqdm
 
 from controllers.base import Controller
+from controllers.estimators import TrueState
 from controllers.thermostat import Thermostat
 from pinn_mpc.data import write_timeseries
 from pinn_mpc.errors import InputError
@@ -44,6 +45,7 @@ __all__ = [
     "ClosedLoopResult",
     "RunInputs",
     "build_loop",
+    "check_plant_supports",
     "counted_kpis",
     "one_torch_thread",
     "prepare_run",
@@ -129,6 +131,17 @@ def build_loop(
     )
 
 
+def check_plant_supports(scenario: Scenario, controller: Controller) -> None:
+    """Refuse, before anything runs, a controller with perfect knowledge (``oracle``,
+    ``clairvoyant``) on a plant without a true state to know (EnergyPlus)."""
+    if scenario.sim.plant.is_energyplus and isinstance(getattr(controller, "estimator", None), TrueState):
+        raise InputError(
+            f"controller {controller.name!r} knows the plant's true RC model and state, which an "
+            f"EnergyPlus building ({scenario.name!r}) does not have: the oracle and the "
+            "clairvoyant do not apply; compare against the thermostat"
+        )
+
+
 def counted_kpis(scenario: Scenario, run: RunInputs, rec: LoopRecord) -> dict[str, Any]:
     """The KPIs (:func:`scenarios.kpis.compute_kpis`) of one building's counted intervals."""
     counted, series = run.counted, run.series
@@ -166,21 +179,24 @@ def run_closed_loop(
     names the controller in the KPIs (default its ``name``).
     ``progress`` shows progress on stderr (:func:`progress_steps`).
     """
+    check_plant_supports(scenario, controller)
     run = prepare_run(
         scenario, days=days, seed=seed, warmup_steps=warmup_steps, weather_part=weather_part
     )
     warmup_controller = Thermostat(scenario.control_spec())
     warmup_controller.reset(seed)
     controller.reset(seed)
-    loop = build_loop(scenario, run, seed=seed)
     errors: list[str] = []
-    for k in progress_steps(run.total, label or controller.name, progress):
-        decision = loop.advance(warmup_controller if k < run.warmup else controller)
-        if decision.error is not None:
-            errors.append(f"step {k}: {decision.error}")
-    rec = loop.record()
+    with build_loop(scenario, run, seed=seed) as loop:
+        for k in progress_steps(run.total, label or controller.name, progress):
+            decision = loop.advance(warmup_controller if k < run.warmup else controller)
+            if decision.error is not None:
+                errors.append(f"step {k}: {decision.error}")
+        rec = loop.record()
     series, counted, exo = run.series, run.counted, run.exo
+    # The inputs the plant had: the series' rows on the RC plant, EnergyPlus's own otherwise.
     cols = {c: getattr(series, c) for c in _EXOGENOUS}
+    cols.update(T_a=rec.t_a_c, G=rec.g_w_per_m2, I_g=rec.i_g_w)
     trajectory = pd.DataFrame(
         {
             "time": exo["time"].iloc[counted].reset_index(drop=True),
@@ -194,6 +210,8 @@ def run_closed_loop(
             "decision_ms": rec.decision_s[counted] * 1000.0,
         }
     )
+    if scenario.sim.plant.is_energyplus:  # no true mass temperature
+        trajectory = trajectory.drop(columns="T_m")
     trajectory.attrs["dt_s"] = float(scenario.sim.dt_s)
     kpis = counted_kpis(scenario, run, rec)
     kpis.update(

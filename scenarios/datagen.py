@@ -19,6 +19,10 @@ building has a solar aperture, ``I_g`` only when the scenario has internal gains
 independent random demands) run in one batched simulator and the frame is long: an integer
 ``building`` column (0..B-1) precedes ``time``, and each building's rows are contiguous.
 
+On an EnergyPlus plant (one building) the rows hold the outdoor temperature and irradiance
+EnergyPlus had, as interval means, and no ``T_m`` (it has none); its internal gains stay
+unmeasured, as in a real building.
+
 The weather comes from the scenario's training part by default (``simulate``, training data);
 test data for open-loop evaluation comes from the test part, the days closed loops run on.
 """
@@ -68,6 +72,9 @@ def generate(
     exo = scenario.exogenous(days=days, seed=seed, part=weather_part)
     n = len(exo)
     cols = {c: exo[c].to_numpy(dtype=float) for c in ("T_a", "G", "I_g", "price", "T_min", "T_max")}
+    if scenario.sim.plant.is_energyplus:
+        return _generate_energyplus(scenario, exo, cols, seed=seed, policy=policy,
+                                    n_buildings=n_buildings, on_probability=on_probability)
 
     sensor_seed = int(np.random.default_rng([seed, _SENSOR_STREAM]).integers(2**63))
     sim = Simulator(scenario.sim, n_buildings=n_buildings, seed=sensor_seed)
@@ -111,5 +118,63 @@ def generate(
         frame["cop"] = scenario.sim.actuator.gain(frame["T_a"].to_numpy(dtype=float))
     if n_buildings > 1:
         frame.insert(0, "building", np.repeat(np.arange(n_buildings), n))
+    frame.attrs["dt_s"] = float(scenario.sim.dt_s)
+    return frame
+
+
+def _generate_energyplus(
+    scenario: Scenario,
+    exo: pd.DataFrame,
+    cols: dict[str, np.ndarray],
+    *,
+    seed: int,
+    policy: str,
+    n_buildings: int,
+    on_probability: float,
+) -> pd.DataFrame:
+    """:func:`generate` on an EnergyPlus plant: one building, the plant's own weather."""
+    from pinn_mpc.energyplus import EnergyPlusPlant
+
+    if n_buildings != 1:
+        raise InputError(
+            f"an EnergyPlus building is one building; --buildings {n_buildings} needs an RC scenario"
+        )
+    spec = scenario.control_spec()
+    n = len(exo)
+    sensor_seed = int(np.random.default_rng([seed, _SENSOR_STREAM]).integers(2**63))
+    draws = np.random.default_rng([seed, _POLICY_STREAM]).random(n)
+    thermostat = Thermostat(spec)
+    on = np.zeros(1, dtype=bool)
+    t_r, u, u_phys, t_a, g = (np.empty(n) for _ in range(5))
+    plant = EnergyPlusPlant(scenario.sim, exo["time"].to_numpy(), seed=sensor_seed)
+    try:
+        plant.reset(scenario.initial_t_r_c, scenario.initial_t_m_c, start=0, seed=None)
+        for k in range(n):
+            measured = plant.measure()
+            t_r[k] = measured[0]
+            if policy == "random":
+                u[k] = spec.u_max_w if draws[k] < on_probability else 0.0
+            elif policy == "random-level":
+                u[k] = draws[k] * spec.u_max_w
+            else:
+                on = thermostat.switch(measured, on, cols["T_min"][k], cols["T_max"][k])
+                u[k] = spec.u_max_w if on[0] else 0.0
+            step = plant.step(u[k], k)
+            u_phys[k], t_a[k], g[k] = step.result.u_phys_w[0], step.t_a_c[0], step.g_w_per_m2[0]
+    finally:
+        plant.close()
+    frame = pd.DataFrame(
+        {
+            "time": exo["time"].to_numpy()[:n],
+            "T_r": t_r,
+            "u": u,
+            "u_phys": u_phys,
+            "T_a": t_a,
+            "price": cols["price"],
+            "T_min": cols["T_min"],
+            "T_max": cols["T_max"],
+            "G": g,
+        }
+    )
     frame.attrs["dt_s"] = float(scenario.sim.dt_s)
     return frame

@@ -8,11 +8,18 @@ benchmarks). Each control interval k::
     fc = loop.forecast()               # the exogenous inputs from k on (perfect or noisy)
     u = controller.act(obs, fc)        # the controller's estimator turns obs into a state
                                        # estimate, then it decides (timed; failure -> fallback)
-    loop.step(u)                       # minute substeps with the backup thermostat
+    loop.step(u)                       # the plant advances one interval
 
 :meth:`ClosedLoop.advance` does the four in one call. The observation carries the last
 interval's demanded and delivered power and exogenous inputs (``Observation.last``) in the data
 format's names, which the forecast shares.
+
+The plant is a :class:`LoopPlant`: :class:`RCPlant` (the minute-level 2R2C or 3R3C simulator
+with the backup thermostat, driven by the exogenous series) for every RC scenario, or
+:class:`pinn_mpc.energyplus.EnergyPlusPlant` for an EnergyPlus building, which has its own
+weather and internal gains: the past a controller observes holds the interval means the plant
+reports, the series only the inputs still to come. An EnergyPlus plant holds a thread and a
+temporary directory: close the loop (:meth:`ClosedLoop.close`, or use it as a context manager).
 
 A loop built with ``fleet`` (one :class:`~pinn_mpc.physics.RCParams` per building, e.g. from
 :func:`pinn_mpc.simulator.draw_fleet`) runs many buildings under the same weather, prices and
@@ -32,7 +39,7 @@ import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import Any, NamedTuple, Protocol
 
 import numpy as np
 import pandas as pd
@@ -41,7 +48,7 @@ from controllers.base import Controller, ControlSpec, Forecast, Observation, fal
 from controllers.estimators import TrueState
 from pinn_mpc.errors import InputError
 from pinn_mpc.physics import RCParams
-from pinn_mpc.simulator import SimConfig, Simulator, StepResult
+from pinn_mpc.simulator import PlantStep, SimConfig, Simulator, StepResult
 from scenarios.inputs import time_of_day_h
 
 __all__ = [
@@ -50,7 +57,9 @@ __all__ = [
     "ExogenousSeries",
     "FleetStep",
     "ForecastErrors",
+    "LoopPlant",
     "LoopRecord",
+    "RCPlant",
     "decide",
     "lead_error_paths",
 ]
@@ -131,6 +140,8 @@ class ExogenousSeries:
     price: np.ndarray
     T_min: np.ndarray
     T_max: np.ndarray
+    #: (N,) interval start times (datetime64), when known: a plant with a calendar needs them.
+    times: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         lengths = {len(getattr(self, name)) for name in Forecast._fields}
@@ -146,7 +157,8 @@ class ExogenousSeries:
                 f"exogenous frame lacks column(s) {missing}; have {list(frame.columns)}"
             )
         cols = {c: frame[c].to_numpy(dtype=float) for c in EXOGENOUS_FIELDS}
-        return cls(time_of_day_h=time_of_day_h(frame["time"]), **cols)
+        times = pd.DatetimeIndex(frame["time"]).to_numpy()
+        return cls(time_of_day_h=time_of_day_h(frame["time"]), times=times, **cols)
 
     def __len__(self) -> int:
         return len(self.T_a)
@@ -193,6 +205,86 @@ class LoopRecord(NamedTuple):
     fallback: np.ndarray
     decision_s: np.ndarray
     t_r_sub_c: np.ndarray  # true room temperature at the end of each substep
+    t_a_c: np.ndarray  # the interval means the plant reports
+    g_w_per_m2: np.ndarray
+    i_g_w: np.ndarray
+
+
+class LoopPlant(Protocol):
+    """What :class:`ClosedLoop` steps: B buildings, each interval in ``n_substeps`` substeps.
+
+    ``reset`` starts an episode at row ``start`` of the loop's exogenous series from the state
+    (T_r, T_m) (a plant that cannot set its state warms up towards T_r instead); ``measure``
+    is the sensor's room temperature now; ``hidden_t_m`` the true mass temperature (NaN when
+    the plant has none, ``has_true_state`` False: no controller with perfect knowledge runs
+    on it); ``step`` holds the demand over the interval of row ``row`` and returns the step
+    result with the interval's means of the exogenous inputs; ``close`` frees what it holds.
+    """
+
+    n_buildings: int
+    n_substeps: int
+    has_true_state: bool
+
+    def reset(self, t_r_c: float, t_m_c: float, *, start: int, seed: int | None) -> None: ...
+
+    def measure(self) -> np.ndarray: ...
+
+    def hidden_t_m(self) -> np.ndarray: ...
+
+    def step(self, u_w: float | np.ndarray, row: int) -> PlantStep: ...
+
+    def close(self) -> None: ...
+
+
+class RCPlant:
+    """The RC simulator (:class:`pinn_mpc.simulator.Simulator`) as a :class:`LoopPlant`: its
+    inputs are the exogenous series' rows, so the interval means are those rows."""
+
+    has_true_state = True
+
+    def __init__(
+        self, config: SimConfig, exogenous: ExogenousSeries, *, seed: int | None,
+        fleet: Sequence[RCParams] | None,
+    ) -> None:
+        self.sim = Simulator(config, seed=seed, fleet=fleet)
+        self.exogenous = exogenous
+        self.n_buildings = self.sim.n_buildings
+        self.n_substeps = config.n_substeps
+
+    def reset(self, t_r_c: float, t_m_c: float, *, start: int, seed: int | None) -> None:
+        self.sim.reset(t_r_c, t_m_c, seed=seed)
+
+    def measure(self) -> np.ndarray:
+        return self.sim.measure()
+
+    def hidden_t_m(self) -> np.ndarray:
+        return self.sim.state[:, 1]
+
+    def step(self, u_w: float | np.ndarray, row: int) -> PlantStep:
+        exo = self.exogenous
+        result = self.sim.step(u_w, exo.T_a[row], exo.G[row], exo.I_g[row])
+        shape = (self.n_buildings,)
+        means = (np.full(shape, v) for v in (exo.T_a[row], exo.G[row], exo.I_g[row]))
+        return PlantStep(result, *means)
+
+    def close(self) -> None:
+        """Nothing to free."""
+
+
+def make_plant(
+    config: SimConfig, exogenous: ExogenousSeries, *, seed: int | None,
+    fleet: Sequence[RCParams] | None = None,
+) -> LoopPlant:
+    """The scenario's plant: the RC simulator, or EnergyPlus for an ``energyplus`` plant."""
+    if not config.plant.is_energyplus:
+        return RCPlant(config, exogenous, seed=seed, fleet=fleet)
+    if fleet is not None:
+        raise InputError("a fleet runs on the RC simulator; an EnergyPlus plant is one building")
+    if exogenous.times is None:
+        raise InputError("an EnergyPlus plant needs the series' dates (ExogenousSeries.times)")
+    from pinn_mpc.energyplus import EnergyPlusPlant
+
+    return EnergyPlusPlant(config, exogenous.times, seed=seed)
 
 
 def decide(
@@ -249,6 +341,7 @@ class ClosedLoop:
         forecast_seed: int | list[int] = 0,
         expected_gains_w: np.ndarray | None = None,
         fleet: Sequence[RCParams] | None = None,
+        plant: LoopPlant | None = None,
     ) -> None:
         if not np.all(np.isfinite(np.column_stack(list(exogenous.forecast(0))))):
             raise InputError("exogenous series has non-finite values")
@@ -264,9 +357,30 @@ class ClosedLoop:
         self._forecast_seed = [forecast_seed] if isinstance(forecast_seed, int) else list(forecast_seed)
         self._seen_gains_w = seen_gains_w
         self.initial_state_c = (float(initial_t_r_c), float(initial_t_m_c))
-        self.sim = Simulator(config, seed=seed, fleet=fleet)
-        self.n_buildings = self.sim.n_buildings
-        self.reset()
+        self.plant = plant if plant is not None else make_plant(config, exogenous, seed=seed, fleet=fleet)
+        self.n_buildings = self.plant.n_buildings
+        try:
+            self.reset()
+        except BaseException:
+            self.plant.close()
+            raise
+
+    @property
+    def sim(self) -> Simulator:
+        """The RC simulator of an :class:`RCPlant` (its true state for tests and diagnostics)."""
+        if not isinstance(self.plant, RCPlant):
+            raise InputError("ClosedLoop.sim: this loop's plant is not the RC simulator")
+        return self.plant.sim
+
+    def close(self) -> None:
+        """Free the plant (an EnergyPlus run's thread and temporary directory)."""
+        self.plant.close()
+
+    def __enter__(self) -> ClosedLoop:
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
 
     def reset(
         self,
@@ -282,7 +396,7 @@ class ClosedLoop:
             raise InputError(f"ClosedLoop.reset: start={start} must lie in [0, {len(self.exogenous) - 1}]")
         t_r = self.initial_state_c[0] if t_r_c is None else t_r_c
         t_m = self.initial_state_c[1] if t_m_c is None else t_m_c
-        self.sim.reset(t_r, t_m, seed=seed)
+        self.plant.reset(t_r, t_m, start=start, seed=seed)
         self.start, self.k = start, 0
         n, b = len(self.exogenous) - start, self.n_buildings
         # Interval-major (K, B): one row per interval holds the whole fleet.
@@ -294,7 +408,8 @@ class ClosedLoop:
         self._overridden = np.zeros((n, b), dtype=bool)
         self._fallback = np.zeros((n, b), dtype=bool)
         self._decision_s = np.zeros((n, b))
-        self._t_r_sub = np.zeros((n, b, self.config.n_substeps))
+        self._t_r_sub = np.zeros((n, b, self.plant.n_substeps))
+        self._means = np.zeros((n, b, 3))  # T_a, G, I_g as the plant had them
 
     @property
     def steps_left(self) -> int:
@@ -311,8 +426,8 @@ class ClosedLoop:
         building per interval)."""
         self._check_building(building)
         if self._measured_k != self.k:
-            self._t_r[self.k] = self.sim.measure()
-            self._t_m[self.k] = self.sim.state[:, 1]
+            self._t_r[self.k] = self.plant.measure()
+            self._t_m[self.k] = self.plant.hidden_t_m()
             self._measured_k = self.k
         return float(self._t_r[self.k, building])
 
@@ -325,9 +440,11 @@ class ClosedLoop:
         exo = self.exogenous
         gains = exo.I_g if perfect else self._seen_gains_w
         # Copies: a controller may keep or change what it is given without touching the run.
+        # The past as the plant had it (for the RC plant, the series' rows), the current row
+        # from the series.
         history = {
-            "T_a": np.array(exo.T_a[rows]),
-            "G": np.array(exo.G[rows]),
+            "T_a": np.append(self._means[:k, building, 0], exo.T_a[self.start + k]),
+            "G": np.append(self._means[:k, building, 1], exo.G[self.start + k]),
             "I_g": np.array(gains[rows]),
             "time_of_day_h": np.array(exo.time_of_day_h[rows]),
             "T_r": np.array(self._t_r[: k + 1, building]),
@@ -375,8 +492,9 @@ class ClosedLoop:
             raise InputError("ClosedLoop.step: the exogenous series is exhausted; call reset()")
         self.measure()
         k, row = self.k, self.start + self.k
-        exo = self.exogenous
-        result = self.sim.step(u_w, exo.T_a[row], exo.G[row], exo.I_g[row])
+        stepped = self.plant.step(u_w, row)
+        result = stepped.result
+        self._means[k] = np.column_stack([stepped.t_a_c, stepped.g_w_per_m2, stepped.i_g_w])
         self._u[k], self._decision_s[k], self._fallback[k] = u_w, decision_s, fallback
         self._u_phys[k] = result.u_phys_w
         self._overridden[k] = result.overridden
@@ -393,6 +511,8 @@ class ClosedLoop:
                 "use advance_fleet with one controller per building"
             )
         perfect = _perfect_knowledge(controller)
+        if perfect and not self.plant.has_true_state:
+            raise InputError(_NO_TRUE_STATE)
         obs = self.observation(perfect=perfect)
         forecast = self.forecast(perfect=perfect)
         u, time_s, fallback, error = decide(controller, obs, forecast, self.spec)
@@ -445,11 +565,20 @@ class ClosedLoop:
             fallback=self._fallback[:k, i].copy(),
             decision_s=self._decision_s[:k, i].copy(),
             t_r_sub_c=self._t_r_sub[:k, i].copy(),
+            t_a_c=self._means[:k, i, 0].copy(),
+            g_w_per_m2=self._means[:k, i, 1].copy(),
+            i_g_w=self._means[:k, i, 2].copy(),
         )
 
     def aggregate_u_phys_w(self) -> np.ndarray:
         """(K,) delivered power summed over the buildings, per interval run so far [W]."""
         return self._u_phys[: self.k].sum(axis=1)
+
+
+_NO_TRUE_STATE = (
+    "this plant has no true state to know (an EnergyPlus building): the oracle and the "
+    "clairvoyant do not apply; compare against the thermostat instead"
+)
 
 
 def _perfect_knowledge(controller: Controller) -> bool:

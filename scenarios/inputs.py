@@ -258,13 +258,19 @@ class SyntheticWeather:
 
 
 def tmy3_path(file_name: str) -> pathlib.Path:
-    """A TMY3 file shipped in pvlib's data folder (a bare name found there), else ``file_name``
-    itself as a path (a TMY3 ``.csv`` or an EPW ``.epw`` typical year)."""
+    """A TMY3 file shipped in pvlib's data folder (a bare name found there), an EPW file shipped
+    with EnergyPlus (its name, e.g. ``usa_il_chicago``), else ``file_name`` itself as a path (a
+    TMY3 ``.csv`` or an EPW ``.epw`` typical year)."""
     import pvlib
 
     shipped = pathlib.Path(pvlib.__file__).parent / "data" / file_name
     if pathlib.Path(file_name).name == file_name and shipped.is_file():
         return shipped
+    from pinn_mpc.energyplus import bundled_weather
+
+    bundled = bundled_weather()
+    if file_name in bundled:  # an EPW file shipped with EnergyPlus, by name
+        return pathlib.Path(bundled[file_name])
     return pathlib.Path(file_name)
 
 

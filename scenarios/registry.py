@@ -36,12 +36,15 @@ from scenarios.inputs import (
     SyntheticWeather,
     TMY3Weather,
     steps_per_day,
+    tmy3_path,
     weather_part,
 )
 from scenarios.measured import CSVWeather, PriceCSV
 
 __all__ = [
     "COLD_ROOM",
+    "EPLUS_NOMINAL",
+    "eplus_weather",
     "EXOGENOUS_COLUMNS",
     "INITIAL_TEMPERATURE_RANGE_C",
     "Scenario",
@@ -98,6 +101,28 @@ class Scenario:
                     f"Scenario.{key} = {value:g} C is outside the plausible {lo:g} .. {hi:g} C of "
                     "a building's starting temperature; give it in Celsius"
                 )
+        if self.sim.plant.is_energyplus:
+            self._check_energyplus()
+
+    def _check_energyplus(self) -> None:
+        """An EnergyPlus building brings its own weather file and internal gains: the
+        scenario's weather must be that file (the controllers' forecasts), its gains none."""
+        plant, weather = self.sim.plant, self.weather
+        same = isinstance(weather, TMY3Weather) and (
+            weather.file_name == plant.weather
+            or str(tmy3_path(weather.file_name)) == str(tmy3_path(plant.weather))
+        )
+        if not same:
+            raise InputError(
+                f"Scenario {self.name!r}: the EnergyPlus plant runs on weather {plant.weather!r}, "
+                "so [weather] must be a TMY3Weather of the same file (leave [weather] out to get "
+                "it with a January / February split)"
+            )
+        if self.gains.active:
+            raise InputError(
+                f"Scenario {self.name!r}: an EnergyPlus building has its own internal gains; "
+                "leave [gains] out"
+            )
 
     @property
     def steps_per_day(self) -> int:
@@ -189,6 +214,30 @@ COLD_ROOM = RCParams(
     eta=-2.5,
     gain_to_air_fraction=0.8,
 )
+
+#: What the controllers' side of a scenario assumes of an EnergyPlus building (eta = 1: an
+#: electric heater; a solar aperture, so data carry G): nominal values of the order identify
+#: finds for DOE's small office (so a model of it is recognised as this building's), not the
+#: plant's, which has no R/C parameters. Models and RC MPCs learn their own.
+EPLUS_NOMINAL = RCParams(
+    r_ra_k_per_w=1.0 / 800.0,
+    r_rm_k_per_w=1.0 / 5000.0,
+    c_r_j_per_k=3.0e6,
+    c_m_j_per_k=6.0e8,
+    eta=1.0,
+    solar_aperture_m2=10.0,
+    solar_to_air_fraction=0.3,
+    gain_to_air_fraction=0.5,
+)
+
+
+def eplus_weather(file_name: str) -> TMY3Weather:
+    """The weather of an EnergyPlus scenario: the plant's EPW, January and February, trained
+    on January, tested on February (EnergyPlus runs stay inside one calendar year)."""
+    return TMY3Weather(
+        file_name=file_name, window_start="01-01", window_days=59, test_start="02-01", test_days=28
+    )
+
 
 def _with_split(scenario: Scenario) -> Scenario:
     """The scenario with its weather split appended to the description."""
@@ -330,6 +379,39 @@ _SCENARIOS.update(
             plant=Plant(
                 kind="3r3c", envelope_capacity_j_per_k=1.0e7, envelope_resistance_fraction=0.5
             ),
+        ),
+    )
+)
+
+
+_SCENARIOS["eplus_small_office"] = _with_split(
+    Scenario(
+        name="eplus_small_office",
+        description=(
+            "DOE's small office (EnergyPlus reference building, 511 m2) in Chicago (TMY3), its "
+            "HVAC removed, its five conditioned zones merged into one, heated by an ideal 25 kW "
+            "electric heater; run by EnergyPlus (no R/C parameters, no oracle). Office comfort "
+            "20-23 C 07-19 h, 16-25 C otherwise, winter_household's dynamic "
+            "price, backup 14/28 C; the office's internal gains are unmeasured."
+        ),
+        sim=SimConfig(
+            params=EPLUS_NOMINAL,
+            u_max_w=25000.0,
+            backup_low_c=14.0,
+            backup_high_c=28.0,
+            plant=Plant(
+                kind="energyplus", building="small_office", weather="usa_il_chicago",
+                heater_w=25000.0,
+            ),
+        ),
+        comfort_weight_eur_per_kh=5.0,
+        initial_t_r_c=20.0,
+        initial_t_m_c=20.0,
+        weather=eplus_weather("usa_il_chicago"),
+        price=PriceProfile(kind="dynamic", level_eur_per_kwh=0.22, peak_eur_per_kwh=0.15),
+        comfort=ComfortSchedule(
+            day_min_c=20.0, day_max_c=23.0, night_min_c=16.0, night_max_c=25.0,
+            day_start_h=7.0, day_end_h=19.0,
         ),
     )
 )

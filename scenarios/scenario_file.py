@@ -260,6 +260,8 @@ def _convert(tp: Any, value: Any, where: str, base: Path) -> Any:
 def _resolve(text: str, base: Path) -> str:
     """A path written in the file: relative to the file's folder when that file exists there;
     otherwise as written (a bare name may be one of pvlib's TMY3 files)."""
+    if not text:  # not given (an RC plant has no EnergyPlus building)
+        return text
     candidate = base / os.path.expanduser(text)
     if Path(text).is_absolute() or candidate.exists() or Path(text).name != text:
         return str(candidate)
@@ -302,9 +304,31 @@ def _build(cls: type, table: dict[str, Any], where: str, base: Path) -> Any:
     return obj
 
 
+def _energyplus_defaults(data: dict[str, Any]) -> None:
+    """A file whose ``[simulation.plant]`` has ``kind = "energyplus"`` may leave out what the
+    EnergyPlus building gives: ``[building]`` (nominal values, :data:`EPLUS_NOMINAL`),
+    ``[weather]`` (the plant's EPW, January / February) and ``simulation.u_max_w`` (the plant's
+    ``heater_w``)."""
+    simulation = data.get("simulation")
+    plant = simulation.get("plant") if isinstance(simulation, dict) else None
+    if not (isinstance(plant, dict) and plant.get("kind") == "energyplus"):
+        return
+    from scenarios.registry import EPLUS_NOMINAL, eplus_weather
+
+    data.setdefault("building", EPLUS_NOMINAL.to_dict())
+    weather = plant.get("weather")
+    if "weather" not in data and isinstance(weather, str):
+        data["weather"] = {"type": "TMY3Weather", **_plain(eplus_weather(weather), Any)}
+    heater = plant.get("heater_w")
+    if isinstance(heater, int | float) and not isinstance(heater, bool) and heater > 0:
+        assert isinstance(simulation, dict)
+        simulation.setdefault("u_max_w", float(heater))
+
+
 def scenario_from_dict(data: dict[str, Any], *, base: Path, default_name: str) -> Scenario:
     """A Scenario from parsed TOML data (``base``: the folder relative paths start from)."""
     data = _deep_copy(data)
+    _energyplus_defaults(data)
     building = data.get("building")
     if building is None:
         raise InputError(

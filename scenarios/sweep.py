@@ -170,7 +170,13 @@ class SweepGrid:
 
     def __post_init__(self) -> None:
         for scenario in self.scenarios:
-            get_scenario(scenario)  # an unknown name raises InputError listing the valid ones
+            # an unknown name raises InputError listing the valid ones
+            if get_scenario(scenario).sim.plant.is_energyplus:
+                raise InputError(
+                    f"sweep: scenario {scenario!r} runs on EnergyPlus, which sweeps do not "
+                    "support yet (their cells are reported against the oracle, which does not "
+                    "exist there); run closed-loop for each controller"
+                )
         unknown = [c for c in self.controllers if c not in CONTROLLER_NAMES]
         if unknown:
             raise InputError(

@@ -213,7 +213,11 @@ def test_commands_use_these_draws(name, tmp_path, capsys):
     data = pd.read_csv(csv_path, parse_dates=["time"])
     training = _training_frame(scenario, days=3, seed=4)
     np.testing.assert_array_equal(data["time"].to_numpy(), training["time"].to_numpy())
-    np.testing.assert_allclose(data["T_a"], training["T_a"])
+    if scenario.sim.plant.is_energyplus:  # EnergyPlus's own reading of the same weather file
+        np.testing.assert_allclose(data["T_a"], training["T_a"], atol=2.0)
+        assert np.mean(np.abs(data["T_a"] - training["T_a"])) < 0.3
+    else:
+        np.testing.assert_allclose(data["T_a"], training["T_a"])
     assert "(train weather)" in capsys.readouterr().out
     assert main(["closed-loop", *argv, "--controller", "thermostat", "--json", str(json_path)]) == 0
     kpis = json.loads(json_path.read_text())

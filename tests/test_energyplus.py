@@ -1,0 +1,199 @@
+"""EnergyPlus as the plant: energy balance, determinism, broken models, shutdown, code refused."""
+
+import json
+import subprocess
+import sys
+import tempfile
+import threading
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("pyenergyplus.api")
+
+from controllers.thermostat import Thermostat  # noqa: E402
+from pinn_mpc.energyplus import (  # noqa: E402
+    EnergyPlusRun,
+    _read_model,
+    _resolve_building,
+    prepare_model,
+)
+from pinn_mpc.errors import InputError  # noqa: E402
+from scenarios.closed_loop import run_closed_loop  # noqa: E402
+from scenarios.registry import get_scenario  # noqa: E402
+
+SCENARIO = "eplus_small_office"
+FILE = """
+name = "office_file"
+comfort_weight_eur_per_kh = 5.0
+initial_t_r_c = 20.0
+initial_t_m_c = 20.0
+[simulation]
+backup_low_c = 14.0
+backup_high_c = 28.0
+[simulation.plant]
+kind = "energyplus"
+building = "{building}"
+weather = "usa_il_chicago"
+heater_w = 20000.0
+{extra}
+[price]
+type = "PriceProfile"
+kind = "dynamic"
+[comfort]
+day_min_c = 20.0
+day_max_c = 23.0
+night_min_c = 16.0
+night_max_c = 25.0
+"""
+
+
+def run_cli(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "pinn_mpc", *args], cwd=cwd, capture_output=True, text=True, timeout=300
+    )
+
+
+def _eplus_leftovers() -> set[str]:
+    return {p.name for p in Path(tempfile.gettempdir()).glob("pinn-mpc-eplus-*")}
+
+
+def _energyplus_threads() -> list[threading.Thread]:
+    return [t for t in threading.enumerate() if t.name == "energyplus"]
+
+
+def _small_office_with(tmp_path: Path, change) -> Path:
+    model = _read_model(_resolve_building("small_office"))
+    change(model)
+    path = tmp_path / "office.epJSON"
+    path.write_text(json.dumps(model))
+    return path
+
+
+def test_heat_delivered_is_the_power_asked():
+    """Without a backup, the heater's reported heating rate is the power asked, every interval:
+    the energy EnergyPlus puts into the zone is the energy asked."""
+    asked = np.random.default_rng(0).uniform(0.0, 20000.0, 48)
+    with EnergyPlusRun(prepare_model("small_office"), weather="usa_il_chicago", u_max_w=20000.0) as run:
+        run.start(32, 1)
+        delivered = np.array([run.step(u).u_phys_w for u in asked])
+    assert delivered == pytest.approx(asked, rel=1e-9, abs=1e-6)
+    assert delivered.sum() * 0.5 / 1000 == pytest.approx(asked.sum() * 0.5 / 1000, rel=1e-9)
+
+
+def test_more_power_warms_the_room():
+    """The actuator acts on the zone: a day at full power ends warmer than a day without."""
+    prepared = prepare_model("small_office")
+    ends = []
+    for u in (0.0, 20000.0):
+        with EnergyPlusRun(prepared, weather="usa_il_chicago", u_max_w=20000.0) as run:
+            run.start(40, 1)
+            ends.append([run.step(u).t_r_c for _ in range(48)][-1])
+    assert ends[1] > ends[0] + 5.0
+
+
+def test_same_seed_same_csv(tmp_path):
+    args = ["simulate", "--scenario", SCENARIO, "--days", "1", "--seed", "3", "--policy", "random-level"]
+    for name in ("a.csv", "b.csv"):
+        result = run_cli(*args, "--out", name, cwd=tmp_path)
+        assert result.returncode == 0, result.stderr
+    a, b = (tmp_path / "a.csv").read_text(), (tmp_path / "b.csv").read_text()
+    assert a == b
+    assert a.splitlines()[0] == "time,T_r,u,u_phys,T_a,G,price,T_min,T_max"
+    assert len(a.splitlines()) == 49
+
+
+def test_broken_model_exit_2_with_first_severe(tmp_path):
+    def break_it(model):
+        surface = model["BuildingSurface:Detailed"]["Attic_floor_core"]
+        surface["construction_name"] = "No Such Construction"
+
+    _small_office_with(tmp_path, break_it)
+    (tmp_path / "broken.toml").write_text(FILE.format(building="office.epJSON", extra=""))
+    before = _eplus_leftovers()
+    result = run_cli("simulate", "--scenario", "broken.toml", "--days", "1", "--seed", "0",
+                     "--out", "d.csv", cwd=tmp_path)
+    assert result.returncode == 2
+    last = result.stderr.strip().splitlines()[-1]
+    assert "EnergyPlus could not run" in last and 'invalid construction_name="NO SUCH CONSTRUCTION"' in last
+    assert not (tmp_path / "d.csv").exists()
+    assert _eplus_leftovers() == before
+
+
+def test_plugin_objects_refused_unless_allowed(tmp_path):
+    def add_plugin(model):
+        model["PythonPlugin:Instance"] = {
+            "Evil": {"run_during_warmup_days": "No", "python_module_name": "evil",
+                     "plugin_class_name": "Evil"}
+        }
+
+    path = _small_office_with(tmp_path, add_plugin)
+    with pytest.raises(InputError, match='declares PythonPlugin:Instance "Evil".*allow_code = true'):
+        prepare_model(str(path))
+    assert "PythonPlugin:Instance" in prepare_model(str(path), allow_code=True).model
+    (tmp_path / "plugin.toml").write_text(FILE.format(building="office.epJSON", extra=""))
+    result = run_cli("simulate", "--scenario", "plugin.toml", "--days", "1", "--seed", "0",
+                     "--out", "d.csv", cwd=tmp_path)
+    assert result.returncode == 2 and "PythonPlugin:Instance" in result.stderr
+
+
+def test_interrupt_leaves_no_thread_or_directory():
+    """Ctrl-C mid-run (KeyboardInterrupt from the controller) stops EnergyPlus and cleans up."""
+
+    class Interrupted(Thermostat):
+        def act(self, obs, forecast):
+            if obs.k >= 60:
+                raise KeyboardInterrupt
+            return super().act(obs, forecast)
+
+    scenario = get_scenario(SCENARIO)
+    before = _eplus_leftovers()
+    with pytest.raises(KeyboardInterrupt):
+        run_closed_loop(scenario, Interrupted(scenario.control_spec()), days=2, seed=0)
+    assert _energyplus_threads() == []
+    assert _eplus_leftovers() == before
+
+
+def test_thermostat_closed_loop_and_no_oracle(tmp_path):
+    scenario = get_scenario(SCENARIO)
+    result = run_closed_loop(scenario, Thermostat(scenario.control_spec()), days=1, seed=0)
+    traj = result.trajectory
+    assert len(traj) == 48 and "T_m" not in traj.columns
+    assert traj["T_r"].between(14.0, 28.0).all()
+    assert result.kpis["energy_kwh"] > 0 and _energyplus_threads() == []
+    # T_a and G are EnergyPlus's interval means, close to the EPW the forecasts come from
+    assert traj["T_a"].between(-30, 20).all() and traj["G"].max() > 50
+    result = run_cli("closed-loop", "--scenario", SCENARIO, "--controller", "oracle", "--days", "1",
+                     "--seed", "0", "--json", "k.json", cwd=tmp_path)
+    assert result.returncode == 2 and "oracle and the clairvoyant do not apply" in result.stderr
+
+
+def test_scenario_file_energyplus_defaults_and_checks(tmp_path):
+    path = tmp_path / "office.toml"
+    path.write_text(FILE.format(building="small_office", extra=""))
+    scenario = get_scenario(str(path))
+    assert scenario.sim.u_max_w == 20000.0 and scenario.sim.plant.is_energyplus
+    assert scenario.weather.file_name == "usa_il_chicago"
+    path.write_text(FILE.format(building="small_office", extra="") + "[gains]\nbase_w = 100.0\n")
+    with pytest.raises(InputError, match="own internal gains"):
+        get_scenario(str(path))
+    path.write_text(FILE.format(building="small_office", extra="heater_w = 0.0\nbuilding = 'x'"))
+    with pytest.raises(InputError):
+        get_scenario(str(path))
+
+
+def test_run_refuses_a_year_crossing():
+    with EnergyPlusRun(prepare_model("small_office"), weather="usa_il_chicago", u_max_w=1000.0) as run:
+        with pytest.raises(InputError, match="31 December"):
+            run.start(360, 10)
+    assert _energyplus_threads() == []
+
+
+def test_compare_and_sweep_refuse_energyplus(tmp_path):
+    result = run_cli("compare", "--scenario", SCENARIO, "--quick", "--json", "t.json",
+                     "--report", "r.md", cwd=tmp_path)
+    assert result.returncode == 2 and "compare does not support yet" in result.stderr
+    result = run_cli("sweep", "--scenarios", SCENARIO, "--controllers", "thermostat",
+                     "--seeds", "0", "--out", "sw", cwd=tmp_path)
+    assert result.returncode == 2 and "sweeps do not support yet" in result.stderr
