@@ -3,7 +3,7 @@
 Each takes the parsed arguments, refuses outputs that cannot be written or would overwrite an
 input or another output (before any work), calls the library (which returns typed results and
 never writes), writes the outputs atomically and returns the summary the CLI prints. The
-experiment commands are in :mod:`scenarios.commands`; the parser is :mod:`pinn_mpc.cli`.
+experiment commands are in :mod:`scenarios.commands`; the parser is :mod:`pinn_mpc_cli.cli`.
 Libraries are imported inside the commands, so that ``identify`` does not wait for torch.
 """
 

@@ -14,13 +14,13 @@ import torch
 from torch import nn
 
 from pinn_mpc.artifacts import load_model, save_model
-from pinn_mpc.cli import build_parser
 from pinn_mpc.evaluation import recursive_t_r
 from pinn_mpc.models import registry
 from pinn_mpc.models.base import Architecture, NetParts
 from pinn_mpc.models.learned import ModelRecord
 from pinn_mpc.models.mlp import MLP, TrunkNet
 from pinn_mpc.training import TrainConfig, train_model
+from pinn_mpc_cli.cli import build_parser
 from tests.model_data import household_data
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pinn_mpc.cli import main
 from pinn_mpc.data import write_timeseries
+from pinn_mpc_cli.cli import main
 from tests.model_data import household_data
 
 REAL_COLUMNS = "T_r=T_int,u_phys=P_hea,T_a=T_ext,time=Time"
