@@ -48,12 +48,12 @@ def train(a: argparse.Namespace) -> str:
         recipe=a.recipe, eta=_eta(a.eta),
     )
     model = train_model(df, arch=a.arch, config=config)
-    for message in model.meta["data_warnings"]:
+    for message in model.record.data_warnings:
         warn(f"{a.data}: {message}")
     save_model(model, a.out, force=a.force)
-    loss = model.meta["final_loss"]
+    loss = model.record.final_loss
     return (
-        f"trained {a.arch} x{a.seeds} on {len(df)} rows in {model.meta['train_seconds']:.1f} s "
+        f"trained {a.arch} x{a.seeds} on {len(df)} rows in {model.record.train_seconds:.1f} s "
         f"(final loss reg {loss['reg']:.3g}, phys {loss['phys']:.3g}); "
         f"wrote {', '.join(map(str, files))}"
     )
