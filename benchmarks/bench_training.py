@@ -66,9 +66,9 @@ def main() -> None:
         mae = evaluate_model(model, test, [1])["one_step"]["T_r_mae"]
         print(
             f"{arch}: {seconds:.1f} s to train {args.seeds} seeds on {args.days} days "
-            f"({model.meta['hyperparameters']['epochs']} epochs); held-out one-step T_r MAE "
+            f"({model.record.hyperparameters['epochs']} epochs); held-out one-step T_r MAE "
             f"{mae:.4f} C; rollout 5 x 256 x 48: {ms:.1f} ms; "
-            f"final loss {model.meta['final_loss']['reg']:.2e}"
+            f"final loss {model.record.final_loss['reg']:.2e}"
         )
 
 

@@ -26,7 +26,7 @@ from pinn_mpc.observer import DEFAULT_MEASUREMENT_STD_C, KalmanObserver
 from pinn_mpc.physics import RCParams
 
 if TYPE_CHECKING:
-    from pinn_mpc.rc_batch_model import BatchDynamics
+    from pinn_mpc.models.rollout import BatchDynamics
 
 __all__ = ["KalmanEstimator", "OffsetFilter", "StateEstimator", "TrueState"]
 

@@ -2,7 +2,7 @@
 
 Every ``act`` builds an objective over candidate demand sequences (N, H) [W] and hands it to a
 planner of :mod:`controllers.planners`. The objective rolls all candidates and all ensemble
-members out in one :meth:`pinn_mpc.rc_batch_model.BatchDynamics.rollout` call under ``torch.no_grad`` and scores them
+members out in one :meth:`pinn_mpc.models.rollout.BatchDynamics.rollout` call under ``torch.no_grad`` and scores them
 with :class:`controllers.objective.HorizonObjective` (evaluated in torch): price x delivered energy + comfort weight x band
 violation x dt_h, where *delivered* is the model's predicted ``u_phys`` (so the planner knows
 the backup thermostat will override it) and the temperature is the predicted ``T_r`` at the end
@@ -84,8 +84,8 @@ from controllers.setpoint_space import SetpointSpace
 from controllers.trust import TrustMonitor, TrustSettings
 from pinn_mpc.errors import InputError
 from pinn_mpc.features import check_interval
+from pinn_mpc.models.rollout import BatchDynamics
 from pinn_mpc.physics import RCParams, discretise
-from pinn_mpc.rc_batch_model import BatchDynamics
 
 __all__ = ["CEM", "ENSEMBLE_MODES", "Guard", "RandomShooting"]
 

@@ -32,7 +32,8 @@ from pinn_mpc.choices import ALL_ARCHS
 from pinn_mpc.errors import InputError, ModelFileError, warn
 from pinn_mpc.features import FeatureConfig, whole_number
 from pinn_mpc.io import DirectoryLayout, atomic_directory
-from pinn_mpc.models import MAX_MEMBERS, EnsembleModule, LearnedModel
+from pinn_mpc.models.learned import MAX_MEMBERS, EnsembleModule, LearnedModel, ModelRecord
+from pinn_mpc.models.registry import get_architecture
 
 __all__ = [
     "CHECKSUM",
@@ -108,15 +109,14 @@ def _read_meta(directory: Path) -> dict[str, Any]:
     missing = [k for k in _REQUIRED if k not in meta]
     if missing:
         raise ModelFileError(f"{meta_path} lacks key(s) {missing}; retrain or restore the model")
-    # Version 2 changed the hybrid's backup thermostat; the other architectures read as before.
-    readable = (FORMAT_VERSION,) if meta.get("arch") == "hybrid" else (1, FORMAT_VERSION)
-    if meta["format_version"] not in readable:
+    if meta["arch"] not in ALL_ARCHS:
+        raise ModelFileError(f"{meta_path}: unknown arch {meta['arch']!r}; expected one of {ALL_ARCHS}")
+    # Each architecture names the formats it reads (version 2 changed the hybrid's backup).
+    if meta["format_version"] not in get_architecture(meta["arch"]).format_versions:
         raise ModelFileError(
             f"{meta_path} has format_version {meta['format_version']!r}, this package reads "
             f"{FORMAT_VERSION}; retrain the model with this version"
         )
-    if meta["arch"] not in ALL_ARCHS:
-        raise ModelFileError(f"{meta_path}: unknown arch {meta['arch']!r}; expected one of {ALL_ARCHS}")
     return meta
 
 
@@ -247,5 +247,5 @@ def load_model(path: str | os.PathLike[str]) -> LearnedModel:
     )
     module.load_state_dict(state)
     return LearnedModel(
-        arch=meta["arch"], features=features, module=module, meta={**meta, "eta": eta}
+        features=features, module=module, record=ModelRecord.from_dict({**meta, "eta": eta})
     )

@@ -1,19 +1,16 @@
 """The named choices of the modelling layer: architectures and training recipes.
 
-They live in this light module (no torch, no pandas) so that the CLI can offer them as choices
-and print its help without loading the libraries that implement them; :mod:`pinn_mpc.models`
-and :mod:`pinn_mpc.training` take them from here.
+They live in light modules (no torch, no pandas) so that the CLI can offer them as choices
+and print its help without loading the libraries that implement them. The architectures are
+those of the registry (:mod:`pinn_mpc.models.registry`).
 """
 
 from __future__ import annotations
 
+from pinn_mpc.models.registry import ALL_ARCHS, ARCHS, DEFAULT_ARCH
+
 __all__ = ["ALL_ARCHS", "ARCHS", "DEFAULT_ARCH", "RECIPES", "RESIDUALS"]
 
-#: The paper's three learned-model architectures (:mod:`pinn_mpc.models`).
-ARCHS = ("mlp", "physreg", "physnet")
-#: Every architecture: the paper's and the hybrid this package recommends for control.
-ALL_ARCHS = (*ARCHS, "hybrid")
-DEFAULT_ARCH = "hybrid"
 #: Physics residuals of the training loss (:class:`pinn_mpc.training.TrainConfig`).
 RESIDUALS = ("exact", "finite_difference")
 #: Per recipe: epochs, batch size, initial and final learning rate, default lambda
@@ -21,4 +18,5 @@ RESIDUALS = ("exact", "finite_difference")
 RECIPES: dict[str, dict[str, float]] = {
     "paper": {"epochs": 75, "batch_size": 2048, "lr": 1e-3, "lr_final": 1e-3, "lam": 1.0},
     "converged": {"epochs": 60, "batch_size": 512, "lr": 1e-2, "lr_final": 1e-4, "lam": 1.0},
+    "long": {"epochs": 150, "batch_size": 512, "lr": 1e-2, "lr_final": 1e-4, "lam": 1.0},
 }

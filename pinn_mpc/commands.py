@@ -3,7 +3,7 @@
 Each takes the parsed arguments, refuses outputs that cannot be written or would overwrite an
 input or another output (before any work), calls the library (which returns typed results and
 never writes), writes the outputs atomically and returns the summary the CLI prints. The
-experiment commands are in :mod:`scenarios.commands`; the parser is :mod:`pinn_mpc.cli`.
+experiment commands are in :mod:`scenarios.commands`; the parser is :mod:`pinn_mpc_cli.cli`.
 Libraries are imported inside the commands, so that ``identify`` does not wait for torch.
 """
 
@@ -48,12 +48,12 @@ def train(a: argparse.Namespace) -> str:
         recipe=a.recipe, eta=_eta(a.eta),
     )
     model = train_model(df, arch=a.arch, config=config)
-    for message in model.meta["data_warnings"]:
+    for message in model.record.data_warnings:
         warn(f"{a.data}: {message}")
     save_model(model, a.out, force=a.force)
-    loss = model.meta["final_loss"]
+    loss = model.record.final_loss
     return (
-        f"trained {a.arch} x{a.seeds} on {len(df)} rows in {model.meta['train_seconds']:.1f} s "
+        f"trained {a.arch} x{a.seeds} on {len(df)} rows in {model.record.train_seconds:.1f} s "
         f"(final loss reg {loss['reg']:.3g}, phys {loss['phys']:.3g}); "
         f"wrote {', '.join(map(str, files))}"
     )

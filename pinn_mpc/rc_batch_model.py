@@ -1,55 +1,17 @@
-"""The narrow rollout interface every planner model has, and the 2R2C as such a model.
-
-A learned ensemble (:class:`pinn_mpc.models.LearnedModel`) and :class:`RCBatchModel` both map
-(history, candidate plans, exogenous forecast) to one result type,
-:class:`pinn_mpc.models.Rollout`: predicted end-of-interval T_r, delivered power and T_m,
-tensors (M members, N plans, H intervals).
-"""
+"""The 2R2C as a planner model: :class:`RCBatchModel` has the rollout interface
+(:class:`pinn_mpc.models.rollout.BatchDynamics`) of the learned ensembles."""
 
 from __future__ import annotations
-
-from typing import Protocol
 
 import numpy as np
 import torch
 
 from pinn_mpc.actuator import Actuator
 from pinn_mpc.errors import InputError
-from pinn_mpc.models import Rollout
+from pinn_mpc.models.rollout import Rollout
 from pinn_mpc.physics import RCParams, discretise
 
-__all__ = ["BatchDynamics", "RCBatchModel"]
-
-
-class BatchDynamics(Protocol):
-    """What a planner needs of a model.
-
-    ``rollout(history, u_w, exog)``: ``history`` in the data format's names (``T_r`` up to and
-    including now, ``u_phys`` of past intervals, exogenous series up to now; see
-    :class:`controllers.base.Observation`), ``u_w`` (N, H) demanded power [W], ``exog`` one
-    array (H,) per name in ``exog_names`` (data-format names). The model needs ``depth + 1``
-    past intervals of history. ``eta`` (heat per W of actuator power, < 0 cooling) and ``dt_s``
-    (the interval it steps) must match the scenario's.
-    """
-
-    @property
-    def n_members(self) -> int: ...
-
-    @property
-    def eta(self) -> float: ...
-
-    @property
-    def dt_s(self) -> float: ...
-
-    @property
-    def depth(self) -> int: ...
-
-    @property
-    def exog_names(self) -> tuple[str, ...]: ...
-
-    def rollout(
-        self, history: dict[str, np.ndarray], u_w: torch.Tensor, exog: dict[str, np.ndarray]
-    ) -> Rollout: ...
+__all__ = ["RCBatchModel"]
 
 
 class RCBatchModel:

@@ -3,7 +3,7 @@
 Each takes the parsed arguments, refuses outputs that cannot be written or would overwrite an
 input or another output (before any work), calls the library (which returns typed results),
 writes the outputs atomically and returns the summary the CLI prints. The model commands are in
-:mod:`pinn_mpc.commands`; the parser is :mod:`pinn_mpc.cli`.
+:mod:`pinn_mpc.commands`; the parser is :mod:`pinn_mpc_cli.cli`.
 """
 
 from __future__ import annotations

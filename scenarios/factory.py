@@ -17,10 +17,11 @@ import json
 import os
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from controllers.base import Controller
 from pinn_mpc.errors import InputError, warn
+from pinn_mpc.models.rollout import BatchDynamics
 from pinn_mpc.physics import RCParams, params_from_summary, time_constants_h
 from scenarios.choices import (
     CONTROLLER_NAMES,
@@ -29,6 +30,12 @@ from scenarios.choices import (
     TRUTH_CONTROLLERS,
 )
 from scenarios.registry import Scenario
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from controllers.sampling import Guard
+    from pinn_mpc.models.learned import ModelRecord
 
 __all__ = [
     "CONTROLLER_NAMES",
@@ -75,38 +82,47 @@ def read_rc(path: str | os.PathLike[str]) -> RCParams:
         raise InputError(f"{source}: {exc}") from exc
 
 
-def _meta(model: Any) -> dict[str, Any]:
-    meta = getattr(model, "meta", None)
-    return meta if isinstance(meta, dict) else {}
+def _record(model: BatchDynamics | None) -> ModelRecord | None:
+    """The training record of a model from ``train`` (None for others, e.g. the RC model)."""
+    from pinn_mpc.models.learned import ModelRecord
+
+    record = getattr(model, "record", None)
+    return record if isinstance(record, ModelRecord) else None
 
 
-def model_guard(model: Any) -> Any:
+def _ranges(record: ModelRecord | None) -> dict[str, tuple[float, float]]:
+    """The training data's ranges of the watched inputs (none without a record)."""
+    summary = record.training_data if record is not None else {}
+    return {
+        name: (float(summary[f"{name}_range"][0]), float(summary[f"{name}_range"][1]))
+        for name in _WATCHED
+        if f"{name}_range" in summary
+    }
+
+
+def model_guard(model: BatchDynamics) -> Guard:
     """The fallback of a planner over ``model`` (:class:`controllers.sampling.Guard`): the RC
     identified from its training data, which ``train`` stores in ``model.json``, and the
     training data's input ranges. Models without them (older, or not from ``train``) get no
     RC fallback."""
     from controllers.sampling import Guard
 
-    meta = _meta(model)
+    record = _record(model)
     rc = None
-    if isinstance(meta.get("identified_rc"), dict):
-        rc = params_from_summary(meta["identified_rc"])
-    summary = meta.get("training_data", {})
-    ranges = {
-        name: (float(summary[f"{name}_range"][0]), float(summary[f"{name}_range"][1]))
-        for name in _WATCHED
-        if f"{name}_range" in summary
-    }
-    return Guard(rc=rc, training_ranges=ranges)
+    if record is not None and isinstance(record.identified_rc, dict):
+        rc = params_from_summary(record.identified_rc)
+    return Guard(rc=rc, training_ranges=_ranges(record))
 
 
-def check_model_fits(model: Any, scenario: Scenario) -> list[str]:
+def check_model_fits(model: BatchDynamics, scenario: Scenario) -> list[str]:
     """Refuse a model made for another actuator (a heat pump's data has a ``cop`` column) or
     for a larger one (training power above the scenario's limit); return warnings for a model
     whose data never came near the scenario's full power or whose identified time constants
     differ from the scenario's building by more than a factor of 3."""
-    meta = _meta(model)
-    columns = meta.get("training_data", {}).get("columns", [])
+    record = _record(model)
+    if record is None:
+        return []
+    columns = record.training_data.get("columns", [])
     heat_pump = not scenario.sim.actuator.is_ideal
     if "cop" in columns and not heat_pump:
         raise InputError(
@@ -119,7 +135,7 @@ def check_model_fits(model: Any, scenario: Scenario) -> list[str]:
             f"scenario {scenario.name!r} has a heat pump, but the model's data had no cop "
             "column: it sees electrical power only (add the COP per row as a cop column)"
         )
-    lo, hi = (float(v) for v in meta.get("u_phys_range_w", (0.0, 0.0)))
+    lo, hi = (float(v) for v in record.u_phys_range_w)
     u_max = scenario.sim.u_max_w
     if hi > 1.05 * u_max:
         raise InputError(
@@ -132,8 +148,8 @@ def check_model_fits(model: Any, scenario: Scenario) -> list[str]:
             f"the model's data reach {hi:.0f} W, under half the scenario's {u_max:.0f} W: "
             "it extrapolates at high power"
         )
-    if isinstance(meta.get("identified_rc"), dict):
-        mine = time_constants_h(params_from_summary(meta["identified_rc"]))
+    if isinstance(record.identified_rc, dict):
+        mine = time_constants_h(params_from_summary(record.identified_rc))
         theirs = time_constants_h(scenario.sim.params)
         ratio = max(max(a / b, b / a) for a, b in zip(mine, theirs, strict=True))
         if ratio > 3:
@@ -145,15 +161,13 @@ def check_model_fits(model: Any, scenario: Scenario) -> list[str]:
     return notes
 
 
-def weather_range_note(model: Any, trajectory: Any) -> str | None:
+def weather_range_note(model: BatchDynamics | None, trajectory: pd.DataFrame) -> str | None:
     """How far a run's weather left the model's training data (None when it stayed inside)."""
-    summary = _meta(model).get("training_data", {})
     parts = []
     units = {"T_a": "K", "G": "W/m2"}
-    for name in _WATCHED:
-        if f"{name}_range" not in summary or name not in getattr(trajectory, "columns", ()):
+    for name, (lo, hi) in _ranges(_record(model)).items():
+        if name not in trajectory.columns:
             continue
-        lo, hi = (float(v) for v in summary[f"{name}_range"])
         v = trajectory[name].to_numpy(dtype=float)
         above, below = float(v.max()) - hi, lo - float(v.min())
         if above > 0:
@@ -169,12 +183,13 @@ def build_controller(
     name: str,
     scenario: Scenario,
     *,
-    model: Any = None,
+    model: BatchDynamics | None = None,
     rc_params: RCParams | None = None,
     n_steps: int,
     planner_options: Mapping[str, Any] | None = None,
 ) -> Controller:
-    """A controller from objects already in memory (a LearnedModel, RCParams).
+    """A controller from objects already in memory (a model with the rollout interface, such
+    as a LearnedModel; RCParams).
 
     ``n_steps`` is the number of counted intervals of the run (used by ``clairvoyant``);
     ``planner_options`` are keyword arguments of ``random-shooting`` / ``cem`` (e.g. samples).

@@ -16,12 +16,12 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pinn_mpc.cli import main
 from pinn_mpc.data import read_timeseries
 from pinn_mpc.errors import InputError
 from pinn_mpc.identify import identify_rc
 from pinn_mpc.io import atomic_write_json
 from pinn_mpc.physics import PAPER_HOUSEHOLD, rc_summary
+from pinn_mpc_cli.cli import main
 from scenarios import budget
 from scenarios.closed_loop import progress_steps
 from scenarios.datagen import generate

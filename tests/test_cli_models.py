@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pinn_mpc.cli import main
 from pinn_mpc.data import write_timeseries
+from pinn_mpc_cli.cli import main
 from tests.model_data import household_data
 
 REAL_COLUMNS = "T_r=T_int,u_phys=P_hea,T_a=T_ext,time=Time"
@@ -127,7 +127,7 @@ def test_real_world_data_too_short(tmp_path: Path, capsys: pytest.CaptureFixture
     short = tmp_path / "short.csv"
     short.write_text("\n".join((tmp_path / "real.csv").read_text().splitlines()[:31]) + "\n")
     assert _train(short, tmp_path / "model", "physreg", "--columns", REAL_COLUMNS) == 2
-    assert "has 30 rows, but depth 16 needs at least 50 rows" in _error_line(capsys)
+    assert "has 30 rows, but depth 8 needs at least 42 rows" in _error_line(capsys)  # physreg
     assert not (tmp_path / "model").exists()
 
 

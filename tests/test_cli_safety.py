@@ -17,9 +17,9 @@ import pandas as pd
 import pytest
 
 from pinn_mpc.artifacts import MODEL_DIRECTORY, load_model
-from pinn_mpc.cli import MAX_DAYS, build_parser, main
 from pinn_mpc.errors import InputError
 from pinn_mpc.io import DirectoryLayout, atomic_directory, check_distinct
+from pinn_mpc_cli.cli import MAX_DAYS, build_parser, main
 from scenarios.factory import CONTROLLER_NAMES
 from scenarios.registry import scenario_names
 

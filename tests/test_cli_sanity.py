@@ -13,9 +13,9 @@ import pandas as pd
 import pytest
 
 from pinn_mpc.artifacts import META, WEIGHTS
-from pinn_mpc.cli import main
 from pinn_mpc.data import write_timeseries
 from pinn_mpc.physics import PAPER_HOUSEHOLD, rc_summary
+from pinn_mpc_cli.cli import main
 from tests.model_data import household_data
 
 SMALL = ("--seeds", "2", "--epochs", "2", "--depth", "4")

@@ -9,8 +9,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pinn_mpc.cli import main
 from pinn_mpc.physics import PAPER_HOUSEHOLD, discretise
+from pinn_mpc_cli.cli import main
 from scenarios.registry import scenario_names
 
 ARGS = ["simulate", "--scenario", "paper_household", "--days", "6"]

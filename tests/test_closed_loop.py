@@ -9,8 +9,8 @@ import pytest
 
 from controllers.base import Controller, Forecast, Observation, SolveStats, fallback_power
 from controllers.thermostat import Thermostat
-from pinn_mpc.cli import main
 from pinn_mpc.data import read_timeseries
+from pinn_mpc_cli.cli import main
 from scenarios.closed_loop import EXTRA_COLUMNS, run_closed_loop
 from scenarios.engine import ForecastErrors
 from scenarios.factory import CONTROLLER_NAMES, MODEL_CONTROLLERS, RC_CONTROLLERS, make_controller

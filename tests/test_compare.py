@@ -5,9 +5,9 @@ import json
 import pandas as pd
 import pytest
 
-from pinn_mpc.cli import main
 from pinn_mpc.errors import InputError
 from pinn_mpc.physics import PAPER_HOUSEHOLD, rc_summary
+from pinn_mpc_cli.cli import main
 from scenarios.compare import CompareSettings
 from scenarios.kpis import KPI_KEYS
 from scenarios.registry import get_scenario

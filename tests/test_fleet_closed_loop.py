@@ -8,8 +8,8 @@ import pytest
 
 from controllers.rc_mpc.osqp import QPMPC
 from controllers.thermostat import Thermostat
-from pinn_mpc.cli import main
 from pinn_mpc.errors import InputError
+from pinn_mpc_cli.cli import main
 from scenarios.closed_loop import build_loop, prepare_run, run_closed_loop
 from scenarios.engine import ForecastErrors
 from scenarios.factory import build_controller

@@ -10,12 +10,12 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pinn_mpc.cli import main
 from pinn_mpc.data import validate_timeseries
 from pinn_mpc.errors import InputError
 from pinn_mpc.identify import identify_rc, simulate_rc
 from pinn_mpc.physics import PAPER_HOUSEHOLD, RCParams, discretise, params_from_summary
 from pinn_mpc.simulator import SimConfig, Simulator
+from pinn_mpc_cli.cli import main
 
 SOLAR = dataclasses.replace(
     PAPER_HOUSEHOLD, solar_aperture_m2=8.0, solar_to_air_fraction=0.3, gain_to_air_fraction=0.6

@@ -1,5 +1,7 @@
 """Imports only point downwards: pinn_mpc -> nothing of ours; controllers -> pinn_mpc;
-scenarios -> both. ``pinn_mpc/cli.py`` is the application entry point and may import all."""
+scenarios -> both; the application pinn_mpc_cli -> all three. A package's ``__main__.py``
+(``python -m pinn_mpc``) is a script that runs the application: it may import it, and no
+module may import a ``__main__``."""
 
 import ast
 from pathlib import Path
@@ -7,13 +9,14 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-LAYERS = ("pinn_mpc", "controllers", "scenarios")
+LAYERS = ("pinn_mpc", "controllers", "scenarios", "pinn_mpc_cli")
 ALLOWED = {
     "pinn_mpc": {"pinn_mpc"},
     "controllers": {"pinn_mpc", "controllers"},
     "scenarios": {"pinn_mpc", "controllers", "scenarios"},
+    "pinn_mpc_cli": {"pinn_mpc", "controllers", "scenarios", "pinn_mpc_cli"},
 }
-EXEMPT = {Path("pinn_mpc/cli.py")}
+APPLICATION = "pinn_mpc_cli"
 
 
 def imported_layers(source: str) -> set[str]:
@@ -47,9 +50,23 @@ def test_layer_imports_point_downwards(layer):
     bad = []
     for path in files:
         rel = path.relative_to(ROOT)
-        if rel in EXEMPT:
-            continue
-        wrong = imported_layers(path.read_text(encoding="utf-8")) - ALLOWED[layer]
+        # A script run by `python -m`, not a module: it may start the application.
+        allowed = ALLOWED[layer] | ({APPLICATION} if path.name == "__main__.py" else set())
+        wrong = imported_layers(path.read_text(encoding="utf-8")) - allowed
         if wrong:
             bad.append(f"{rel} imports {sorted(wrong)}")
     assert not bad, "; ".join(bad)
+
+
+def test_nothing_imports_a_main_script():
+    """``__main__`` modules run the application on import: no module may import one."""
+    bad = []
+    for layer in LAYERS:
+        for path in sorted((ROOT / layer).rglob("*.py")):
+            for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+                names = (
+                    [a.name for a in node.names] if isinstance(node, ast.Import)
+                    else [node.module or ""] if isinstance(node, ast.ImportFrom) else []
+                )
+                bad += [f"{path.relative_to(ROOT)}: {n}" for n in names if n.endswith("__main__")]
+    assert not bad, bad

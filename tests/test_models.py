@@ -385,7 +385,7 @@ def test_hybrid_rollout_equals_stepping_the_one_step_model(heating: bool) -> Non
             layer.weight.normal_(0.0, 0.3, generator=gen)
             layer.bias.normal_(0.0, 0.3, generator=gen)
         net.init_backup(t_mid - 0.5, t_mid + 0.5, 5000.0)
-    h, bounds = 24, (model._p_lo, model._p_hi)
+    h, bounds = 24, (model.scaling.p_lo, model.scaling.p_hi)
     starts = np.arange(40, len(df) - h, 7)
     t_win, p_win, e_seq, u_s, tod = _scaled_windows(model, df, starts, h)
     plans = (u_s[:1] + torch.randn(5, h, generator=gen)).clamp(-3.0, 3.0)
@@ -443,7 +443,7 @@ def test_hybrid_residual_is_bounded_by_what_it_added_on_its_training_data() -> N
     with torch.no_grad():
         for p in net.residual_net[-1].parameters():
             p.zero_()
-    model._hybrid_cache = None
+    model._constants = None
     bare = model.rollout(history, plans, hot).t_r_c
     # The residual's effect accumulates through the 2R2C, at most the bound per step.
     steps = torch.arange(1, 13, dtype=torch.float32)

@@ -14,10 +14,12 @@ from pathlib import Path
 
 import pytest
 
-from pinn_mpc.cli import build_parser
+from pinn_mpc_cli.cli import build_parser
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("pinn_mpc", "controllers", "scenarios")
+#: The application above the packages (the command line).
+APPLICATION = "pinn_mpc_cli"
 README = (ROOT / "README.md").read_text(encoding="utf-8")
 
 
@@ -48,7 +50,7 @@ def test_package_exports_resolve_to_their_modules(package: str) -> None:
 
 
 def _modules() -> list[Path]:
-    return sorted(p for pkg in PACKAGES for p in (ROOT / pkg).rglob("*.py"))
+    return sorted(p for pkg in (*PACKAGES, APPLICATION) for p in (ROOT / pkg).rglob("*.py"))
 
 
 @pytest.mark.parametrize("path", _modules(), ids=lambda p: str(p.relative_to(ROOT)))
@@ -65,8 +67,8 @@ def test_every_module_says_what_is_public(path: Path) -> None:
 def test_importing_the_packages_and_the_cli_stays_light() -> None:
     """``pinn-mpc --help`` and ``import pinn_mpc`` must not wait for torch, pandas or numpy."""
     code = (
-        "import sys, pinn_mpc, controllers, scenarios, pinn_mpc.cli\n"
-        "parser = pinn_mpc.cli.build_parser(); parser.format_help()\n"
+        "import sys, pinn_mpc, controllers, scenarios, pinn_mpc_cli.cli\n"
+        "parser = pinn_mpc_cli.cli.build_parser(); parser.format_help()\n"
         "for name in ('train', 'evaluate', 'export-rc', 'identify', 'reproduce'):\n"
         "    parser._subparsers._group_actions[0].choices[name].format_help()\n"
         "print(sorted({'torch', 'pandas', 'numpy', 'matplotlib'} & set(sys.modules)))\n"

@@ -11,8 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pinn_mpc.cli import main
 from pinn_mpc.errors import InputError
+from pinn_mpc_cli.cli import main
 from scenarios.datagen import generate
 from scenarios.registry import get_scenario
 from scenarios.reproduce import (

@@ -10,8 +10,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pinn_mpc.cli import main
 from pinn_mpc.errors import InputError
+from pinn_mpc_cli.cli import main
 from scenarios.engine import ForecastErrors
 from scenarios.inputs import load_tmy3
 from scenarios.measured import CSVWeather, PriceCSV

@@ -99,7 +99,7 @@ def test_paper_household_accuracy_and_identified_rc(
 ) -> None:
     """120 training days (seed 0), 5 test days (seed 1): the issue's acceptance thresholds."""
     train, test = household_data(120, 0), household_data(5, 1)
-    config = TrainConfig(n_seeds=5, prior=prior)
+    config = TrainConfig(n_seeds=5, prior=prior, recipe="converged")
     model = train_model(train, arch=arch, config=config, progress=False)
     metrics = evaluate_model(model, test, [48])
     assert metrics["one_step"]["T_r_mae"] <= 0.05

@@ -3,6 +3,7 @@ fallback a trained model carries, the COP curve, and the model-vs-scenario check
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 
@@ -151,8 +152,10 @@ def test_models_are_checked_against_the_scenario(winter_model) -> None:
     assert check_model_fits(model, scenario) == []
     with pytest.raises(InputError, match="powers up to"):
         check_model_fits(model, get_scenario("paper_household"))  # 10 kW data, a 5 kW heater
-    meta = {**model.meta, "training_data": {**model.meta["training_data"], "columns": ["cop"]}}
-    heat_pump_model = type("M", (), {"meta": meta})()
+    record = dataclasses.replace(
+        model.record, training_data={**model.record.training_data, "columns": ["cop"]}
+    )
+    heat_pump_model = type("M", (), {"record": record})()
     with pytest.raises(InputError, match="heat-pump data"):
         check_model_fits(heat_pump_model, scenario)
 

@@ -12,8 +12,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pinn_mpc.cli import build_parser, main
 from pinn_mpc.errors import InputError
+from pinn_mpc_cli.cli import build_parser, main
 from scenarios.choices import WEATHER_PARTS
 from scenarios.compare import CompareSettings
 from scenarios.inputs import BASE_YEAR, TMY3Weather

@@ -66,8 +66,8 @@ def evaluate_members(
         else stats(t_m_pred, test["T_m"].to_numpy(dtype=float)[rows], "T_m_mae"),
         horizons=recursive,
         persistence={int(h): v["T_r_mae"] for h, v in ens["persistence"]["horizons"].items()},
-        train_seconds=float(model.meta["train_seconds"]),
-        final_loss=model.meta["final_loss"],
+        train_seconds=float(model.record.train_seconds),
+        final_loss=model.record.final_loss,
     )
     predictions = OneStepPredictions(
         row=rows,
@@ -113,7 +113,7 @@ def run_experiments(config: ReproduceConfig, *, progress: bool = True) -> Reprod
             if days == config.validation_days:
                 preds[arch] = one_step
             if arch != "mlp":  # the mlp trains with lambda 0: report the physics-informed recipe
-                hp = model.meta["hyperparameters"]
+                hp = model.record.hyperparameters
             bar.update(1)
     return ReproductionResults(
         config=config,

@@ -21,6 +21,7 @@ from typing import Any, NoReturn
 from pinn_mpc import __version__
 from pinn_mpc.choices import ALL_ARCHS, DEFAULT_ARCH, RECIPES
 from pinn_mpc.errors import InputError
+from pinn_mpc.models.registry import arch_help
 from scenarios.choices import CONTROLLER_NAMES, POLICIES, RANDOM_POLICIES, WEATHER_PARTS
 
 __all__ = ["MAX_DAYS", "build_parser", "main"]
@@ -191,11 +192,13 @@ def build_parser() -> argparse.ArgumentParser:
         "--arch",
         choices=ALL_ARCHS,
         default=DEFAULT_ARCH,
-        help="hybrid (default, recommended for control): the identified 2R2C with learned "
-        "corrections; mlp, physreg, physnet: the paper's",
+        help=f"the architecture, each with its own defaults: {arch_help()}",
     )
     p.add_argument(
-        "--depth", type=_positive_int, default=16, help="history steps the model sees (paper: 8)"
+        "--depth",
+        type=_positive_int,
+        default=None,
+        help="history steps the model sees (default: the architecture's)",
     )
     p.add_argument("--seeds", type=_positive_int, default=20, help="ensemble members")
     p.add_argument("--seed", type=_seed, default=0, help="seed of the first member")
@@ -211,8 +214,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--recipe",
         choices=tuple(RECIPES),
-        default="converged",
-        help="'paper': 75 epochs of batch 2048 as published; 'converged': trains to convergence",
+        default=None,
+        help="'paper': 75 epochs of batch 2048 as published; 'converged': 60 epochs of batch 512 "
+        "on a decaying learning rate; 'long': the same over 150 epochs (default: the "
+        "architecture's)",
     )
     columns(p)
     p.add_argument(

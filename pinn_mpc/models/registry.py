@@ -1,0 +1,131 @@
+"""The registry of architectures: the one place their names appear.
+
+Each entry is an :class:`ArchSpec`: the architecture's name, the module and class that implement
+it (:class:`pinn_mpc.models.base.Architecture`), and the settings that give it its best
+accuracy (history depth, training recipe, the data policy it wants). The entries are light (no
+torch), so the CLI lists them and their defaults in its help without loading the library;
+:func:`get_architecture` imports an implementation when it is first asked for. Adding an
+architecture means one module with its :class:`~pinn_mpc.models.base.Architecture` subclass and
+one entry here.
+"""
+
+from __future__ import annotations
+
+import importlib
+from dataclasses import dataclass
+from functools import cache
+from typing import TYPE_CHECKING
+
+from pinn_mpc.errors import InputError
+
+if TYPE_CHECKING:
+    from pinn_mpc.models.base import Architecture
+
+__all__ = [
+    "ALL_ARCHS",
+    "ARCHITECTURES",
+    "ARCHS",
+    "DEFAULT_ARCH",
+    "ArchSpec",
+    "arch_help",
+    "get_architecture",
+    "get_spec",
+]
+
+
+@dataclass(frozen=True, kw_only=True)
+class ArchSpec:
+    """An architecture as the registry lists it.
+
+    ``implementation`` is ``"module:Class"`` of its :class:`~pinn_mpc.models.base.Architecture`;
+    ``label`` its name in tables; ``paper`` whether it is one of the paper's networks.
+    ``depth`` (history steps), ``recipe`` (:data:`pinn_mpc.choices.RECIPES`) and ``policy``
+    (the ``simulate --policy`` of the data it was tuned on) are its defaults; ``summary``
+    says in a line what it is.
+    """
+
+    name: str
+    implementation: str
+    label: str
+    paper: bool
+    depth: int
+    recipe: str
+    policy: str
+    summary: str
+
+
+ARCHITECTURES: dict[str, ArchSpec] = {
+    spec.name: spec
+    for spec in (
+        ArchSpec(
+            name="mlp",
+            implementation="pinn_mpc.models.mlp:MLP",
+            label="MLP",
+            paper=True,
+            depth=8,
+            recipe="converged",
+            policy="random",
+            summary="the paper's plain network (no physics)",
+        ),
+        ArchSpec(
+            name="physreg",
+            implementation="pinn_mpc.models.physreg:PhysReg",
+            label="PhysReg MLP",
+            paper=True,
+            depth=8,
+            recipe="long",
+            policy="random-level",
+            summary="the paper's network with a T_m head and a physics loss",
+        ),
+        ArchSpec(
+            name="physnet",
+            implementation="pinn_mpc.models.physnet:PhysNet",
+            label="PhysNet",
+            paper=True,
+            depth=8,
+            recipe="long",
+            policy="random-level",
+            summary="the paper's encoder (T_m) and dynamics networks with a physics loss",
+        ),
+        ArchSpec(
+            name="hybrid",
+            implementation="pinn_mpc.models.hybrid:Hybrid",
+            label="Hybrid",
+            paper=False,
+            depth=16,
+            recipe="converged",
+            policy="random-level",
+            summary="the identified 2R2C with learned corrections (recommended for control)",
+        ),
+    )
+}
+#: The paper's learned-model architectures.
+ARCHS = tuple(name for name, spec in ARCHITECTURES.items() if spec.paper)
+#: Every architecture.
+ALL_ARCHS = tuple(ARCHITECTURES)
+DEFAULT_ARCH = next(name for name, spec in ARCHITECTURES.items() if not spec.paper)
+
+
+def get_spec(name: str) -> ArchSpec:
+    """The registry's entry for ``name``; InputError naming the choices if there is none."""
+    if name not in ARCHITECTURES:
+        raise InputError(f"unknown architecture {name!r}; choose one of {', '.join(ALL_ARCHS)}")
+    return ARCHITECTURES[name]
+
+
+@cache
+def get_architecture(name: str) -> Architecture:
+    """The implementation of architecture ``name`` (imported on first use, then kept)."""
+    spec = get_spec(name)
+    module, cls = spec.implementation.split(":")
+    architecture: Architecture = getattr(importlib.import_module(module), cls)(spec)
+    return architecture
+
+
+def arch_help() -> str:
+    """One line per architecture: what it is and its defaults (for ``train --help``)."""
+    return "; ".join(
+        f"{s.name}: {s.summary} (depth {s.depth}, recipe {s.recipe}, data of "
+        f"`simulate --policy {s.policy}`{', the default' if s.name == DEFAULT_ARCH else ''})"
+        for s in ARCHITECTURES.values()
+    )

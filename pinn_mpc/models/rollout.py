@@ -1,0 +1,56 @@
+"""The rollout interface every planner model has, and its result type.
+
+A learned ensemble (:class:`pinn_mpc.models.LearnedModel`) and the 2R2C
+(:class:`pinn_mpc.rc_batch_model.RCBatchModel`) both map (history, candidate plans, exogenous
+forecast) to one :class:`Rollout`: predicted end-of-interval T_r, delivered power and T_m,
+tensors (M members, N plans, H intervals). Planners and the factory take
+:class:`BatchDynamics`, nothing more.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple, Protocol
+
+import numpy as np
+import torch
+
+__all__ = ["BatchDynamics", "Rollout"]
+
+
+class Rollout(NamedTuple):
+    """Recursive predictions for M members x N plans x H intervals (torch tensors)."""
+
+    t_r_c: torch.Tensor  # (M, N, H) T_r at the end of each interval [C]
+    u_phys_w: torch.Tensor  # (M, N, H) delivered power during each interval [W]
+    t_m_c: torch.Tensor | None  # (M, N, H) T_m at the start of each interval [C]; None for mlp
+
+
+class BatchDynamics(Protocol):
+    """What a planner needs of a model.
+
+    ``rollout(history, u_w, exog)``: ``history`` in the data format's names (``T_r`` up to and
+    including now, ``u_phys`` of past intervals, exogenous series up to now; see
+    :class:`controllers.base.Observation`), ``u_w`` (N, H) demanded power [W], ``exog`` one
+    array (H,) per name in ``exog_names`` (data-format names). The model needs ``depth + 1``
+    past intervals of history. ``eta`` (heat per W of actuator power, < 0 cooling) and ``dt_s``
+    (the interval it steps) must match the scenario's.
+    """
+
+    @property
+    def n_members(self) -> int: ...
+
+    @property
+    def eta(self) -> float: ...
+
+    @property
+    def dt_s(self) -> float: ...
+
+    @property
+    def depth(self) -> int: ...
+
+    @property
+    def exog_names(self) -> tuple[str, ...]: ...
+
+    def rollout(
+        self, history: dict[str, np.ndarray], u_w: torch.Tensor, exog: dict[str, np.ndarray]
+    ) -> Rollout: ...

@@ -1,0 +1,5 @@
+import sys
+
+from pinn_mpc_cli.cli import main
+
+sys.exit(main())
