@@ -254,7 +254,7 @@ def progress_steps(
     return _progress_lines(total, label, unit, out, clock, every_s)
 
 
-def _duration(seconds: float) -> str:
+def duration_text(seconds: float) -> str:
     """``seconds`` as ``45 s``, ``12 min`` or ``3 h 05 min``."""
     if seconds < 90:
         return f"{seconds:.0f} s"
@@ -275,7 +275,7 @@ def _progress_lines(
             left = (now - start) / done * (total - done)
             print(
                 f"{label}: {done:,} of {total:,} {unit}s ({100 * done / total:.0f} %), "
-                f"{_duration(now - start)} elapsed, about {_duration(left)} left",
+                f"{duration_text(now - start)} elapsed, about {duration_text(left)} left",
                 file=out,
                 flush=True,
             )

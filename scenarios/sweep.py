@@ -36,6 +36,7 @@ import logging
 import os
 import re
 import socket
+import sys
 import time
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
@@ -565,9 +566,30 @@ def run_sweep(
         for cell in missing:
             ref = task.remote(run_cell, cell, settings, model_refs.get(cell.model) if cell.model else None)
             pending[ref] = ("cell", cell)
+        from scenarios.closed_loop import PROGRESS_EVERY_S, duration_text
+
+        terminal = sys.stderr.isatty()
+        began = last = time.monotonic()
         with tqdm(total=len(cells), initial=reused, desc="sweep", unit="cell", disable=None) as bar:
             while pending:
-                ready, _ = ray.wait(list(pending), num_returns=1)
+                now = time.monotonic()
+                if not terminal and now - last >= PROGRESS_EVERY_S:  # a log: a line a minute
+                    last = now
+                    run_now = bar.n - reused
+                    left = (
+                        f"about {duration_text((now - began) / run_now * (len(cells) - bar.n))} left"
+                        if run_now
+                        else "no cell finished yet"
+                    )
+                    print(
+                        f"sweep: {bar.n} of {len(cells)} cells ({reused} reused), {trained} model(s) "
+                        f"trained, {duration_text(now - began)} elapsed, {left}",
+                        file=sys.stderr,
+                        flush=True,
+                    )
+                ready, _ = ray.wait(list(pending), num_returns=1, timeout=PROGRESS_EVERY_S)
+                if not ready:  # nothing finished within a minute: report progress, wait again
+                    continue
                 kind, what = pending.pop(ready[0])
                 try:
                     value = ray.get(ready[0])

@@ -254,3 +254,17 @@ def test_sweep_without_a_grid_or_spec_exits_2(tmp_path):
     assert result.returncode == 2
     assert "sweep needs --controllers, --seeds" in result.stderr
     assert not (tmp_path / "o").exists()
+
+
+def test_a_sweep_logs_its_progress_when_stderr_is_not_a_terminal(tmp_path, monkeypatch, capsys):
+    """Off a terminal (a log file, CI) the sweep prints a progress line every PROGRESS_EVERY_S
+    with the cells done and the models trained."""
+    import scenarios.closed_loop
+    from pinn_mpc_cli.cli import main
+
+    monkeypatch.setattr(scenarios.closed_loop, "PROGRESS_EVERY_S", 0.05)
+    out = tmp_path / "sweep"
+    args = ["--scenarios", "winter_household", "--controllers", "oracle,qp-mpc", "--seeds", "0-1"]
+    assert main(["sweep", *args, "--days", "1", "--quick", "--out", str(out)]) == 0
+    lines = [line for line in capsys.readouterr().err.splitlines() if line.startswith("sweep: ")]
+    assert lines and "of 4 cells" in lines[0] and "elapsed" in lines[0]
