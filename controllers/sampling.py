@@ -85,7 +85,7 @@ from controllers.trust import TrustMonitor, TrustSettings
 from pinn_mpc.errors import InputError
 from pinn_mpc.features import check_interval
 from pinn_mpc.models.rollout import BatchDynamics
-from pinn_mpc.physics import RCParams, discretise
+from pinn_mpc.physics import RCParams, discretise, step
 
 __all__ = ["CEM", "ENSEMBLE_MODES", "Guard", "RandomShooting"]
 
@@ -285,14 +285,13 @@ class _SamplingController(PlanningController):
         learned = float(roll.t_r_c[:, 0, -1].mean())
         if start is None or not np.all(np.isfinite(start)):
             return obs.t_r_c - learned, math.nan
-        ad, bd = self._rc_matrices
-        x = start.copy()
         zeros = np.zeros(len(hist["T_r"]))
-        series = {n: np.asarray(hist.get(n, zeros), dtype=float)[-r - 1 : -1] for n in ("T_a", "G", "I_g")}
-        heat = u_phys * self.spec.actuator.gain(series["T_a"])
+        t_a, g, i_g = (np.asarray(hist.get(n, zeros), dtype=float)[-r - 1 : -1] for n in ("T_a", "G", "I_g"))
+        d = np.stack([u_phys * self.spec.actuator.gain(t_a), t_a, g, i_g], axis=1)  # (r, 4)
+        x = start[None]
         for j in range(r):
-            x = ad @ x + bd @ np.array([heat[j], series["T_a"][j], series["G"][j], series["I_g"][j]])
-        return obs.t_r_c - learned, obs.t_r_c - float(x[0])
+            x = step(x, d[j : j + 1], *self._rc_matrices)
+        return obs.t_r_c - learned, obs.t_r_c - float(x[0, 0])
 
     def _out_of_range(self, exog: dict[str, np.ndarray]) -> None:
         """Count a forecast that leaves the training data's input ranges."""
@@ -301,7 +300,6 @@ class _SamplingController(PlanningController):
             if name in exog and len(exog[name]):
                 v = np.asarray(exog[name], dtype=float)
                 excess = max(excess, float(v.max()) - hi, lo - float(v.min()))
-        self.monitor.state.out_of_range_k = excess
         if excess > 0:
             self.monitor.state.out_of_range_steps += 1
 

@@ -94,8 +94,6 @@ class TrustState:
     replay_k: float = float("nan")  # filtered |replay error| of the model [K]
     replay_rc_k: float = float("nan")  # the same of the fallback RC [K]
     power_error_frac: float = 0.0  # filtered |delivered power error| / range
-    spread_k: float = 0.0  # members' std of T_r along the last plan [K], its maximum
-    out_of_range_k: float = 0.0  # how far the last forecast left the training inputs [K or W/m2]
     trusted: bool = True
     calm_steps: int = 0
     switches: int = 0  # model -> fallback transitions
@@ -146,8 +144,6 @@ class TrustMonitor:
     def reason(self, spread_k: float | None = None) -> str | None:
         """Why the model is not to be trusted now (None when it is)."""
         s, lim = self.state, self.settings
-        if spread_k is not None:
-            s.spread_k = spread_k
         if math.isfinite(s.replay_rc_k):
             if s.replay_k > lim.error_floor_k and s.replay_k > lim.error_ratio * s.replay_rc_k:
                 return "prediction error above the RC's"

@@ -135,7 +135,7 @@ def check_model_fits(model: BatchDynamics, scenario: Scenario) -> list[str]:
             f"scenario {scenario.name!r} has a heat pump, but the model's data had no cop "
             "column: it sees electrical power only (add the COP per row as a cop column)"
         )
-    lo, hi = (float(v) for v in record.u_phys_range_w)
+    hi = float(record.u_phys_range_w[1])
     u_max = scenario.sim.u_max_w
     if hi > 1.05 * u_max:
         raise InputError(
@@ -206,15 +206,14 @@ def build_controller(
                 f"controller {name!r} plans over a trained model: add --model MODEL_DIR "
                 "(make one with `pinn-mpc train --data data.csv --out MODEL_DIR`)"
             )
-        from controllers.base import check_heating
         from controllers.sampling import CEM, RandomShooting
 
-        check_heating(model.eta, spec, what="the model")  # the first thing to get right
-        for note in check_model_fits(model, scenario):
-            warn(note)
         options.setdefault("guard", model_guard(model))
         planner = RandomShooting if name == "random-shooting" else CEM
-        return planner(model, spec, **options)
+        controller = planner(model, spec, **options)  # checks heating vs cooling and interval
+        for note in check_model_fits(model, scenario):
+            warn(note)
+        return controller
     if name in RC_CONTROLLERS:
         if rc_params is None:
             raise InputError(

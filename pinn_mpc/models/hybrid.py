@@ -65,6 +65,23 @@ BACKUP_SHARE = 0.1
 
 
 
+def saturate_backup(
+    u_w: torch.Tensor,
+    t_free: torch.Tensor,
+    b_w: torch.Tensor,
+    t_off: torch.Tensor,
+    t_full: torch.Tensor,
+    full_power_w: torch.Tensor,
+) -> torch.Tensor:
+    """Delivered power [W]: the demand ``u_w`` at most the power that ends the interval at the
+    backup's "off" threshold ``t_off`` (and not below 0), at least the one that ends it at its
+    "full power" threshold ``t_full`` (and not above ``full_power_w``), where the room ends at
+    ``t_free + b_w p`` [C] under power p (``b_w`` [K/W], its sign that of heating)."""
+    p_off = ((t_off - t_free) / b_w).clamp(min=0.0)
+    p_full = torch.minimum((t_full - t_free) / b_w, full_power_w)
+    return torch.maximum(torch.minimum(u_w, p_off), p_full)
+
+
 class HybridInputs(NamedTuple):
     """What :class:`HybridNet` reads from a sample's features (leading dims (..., ))."""
 
@@ -129,7 +146,6 @@ class HybridNet(nn.Module):
         cop_curve: CopCurve | None = None,
     ):
         super().__init__()
-        self.cop_curve = cop_curve
         self._cop = (
             None
             if cop_curve is None
@@ -174,17 +190,17 @@ class HybridNet(nn.Module):
         COP curve; None for a heater or chiller of constant gain (the physics' eta)."""
         return None if self._cop is None else interp_clamped(t_a_c, *self._cop)
 
+    def thresholds(self) -> tuple[torch.Tensor, torch.Tensor]:
+        """The backup's ("off", "full power") thresholds [C], (M, 1) each: (upper, lower) for
+        heating, (lower, upper) for cooling."""
+        if self.heating:
+            return self.backup_high_c, self.backup_low_c
+        return self.backup_low_c, self.backup_high_c
+
     def delivered_w(self, u_w: torch.Tensor, t_free: torch.Tensor, b_w: torch.Tensor) -> torch.Tensor:
         """Delivered power [W] for demand ``u_w`` when the room would end the interval at
         ``t_free`` [C] without power and ``t_free + b_w p`` with power p (``b_w`` [K/W])."""
-        t_off, t_full = (
-            (self.backup_high_c, self.backup_low_c)
-            if self.heating
-            else (self.backup_low_c, self.backup_high_c)
-        )
-        p_off = ((t_off - t_free) / b_w).clamp(min=0.0)
-        p_full = torch.minimum((t_full - t_free) / b_w, self.full_power_w)
-        return torch.maximum(torch.minimum(u_w, p_off), p_full)
+        return saturate_backup(u_w, t_free, b_w, *self.thresholds(), self.full_power_w)
 
     def _matrices(self) -> tuple[torch.Tensor, torch.Tensor]:
         ad, bd = discretise_torch(self.coefficients(), self.features.dt_s)
@@ -311,7 +327,7 @@ class HybridNet(nn.Module):
             p_s = p_s.clamp(*p_bounds)
         residual = run_layers(self.residual_net, z_now.index_select(-1, self.free_index))[..., 0]
         bound = self.residual_bound_k / f.delta_t_r.std
-        residual = torch.maximum(torch.minimum(residual, bound), -bound)
+        residual = residual.clamp(-bound, bound)
         d = self._inputs(p_s * f.power.std + f.power.mean, exog_now)
         dt_r = free + (d * b0).sum(-1)
         obs0 = (dt_r - f.delta_t_r.mean) / f.delta_t_r.std + residual
@@ -337,11 +353,7 @@ class HybridNet(nn.Module):
             shift = (w0[:, 0] + w0[:, 1]) * (t.mean / t.std) + w0[:, 2] * (pw.mean / pw.std)
             rest = transposed(layers[1:])
             w_last, b_last = rest[-1]  # scaled residual -> T_r increment [K]
-            t_off, t_full = (
-                (self.backup_high_c, self.backup_low_c)
-                if self.heating
-                else (self.backup_low_c, self.backup_high_c)
-            )
+            t_off, t_full = self.thresholds()
             return HybridConstants(
                 observer=self.observer_weights(ad.flip(1, 2), bd.flip(1)),
                 w_state=torch.cat([w_hidden, w_ad], dim=1),
@@ -409,7 +421,7 @@ class HybridNet(nn.Module):
             g = self.gain(exog[:, k : k + h_len, 0])  # (N0, H) or None
             b_u = c.drive_b[..., :1]  # (M, 2, 1)
             b_step = b_u[None] if g is None else b_u[None] * g.T[:, None, None, :]  # (H|1, M, 2, N0)
-            inv_b = 1.0 / b_step[:, :, 1:]  # (H|1, M, 1, N0) [W/K] on T_r
+            b_t_r = b_step[:, :, 1:]  # (H|1, M, 1, N0) [K/W] on T_r
             lo, hi = p_bounds_w
             for h in range(h_len):
                 now, nxt = states[h], states[h + 1]
@@ -419,13 +431,11 @@ class HybridNet(nn.Module):
                     x = torch.baddbmm(b, w, x).sigmoid_()
                 hb = 0 if g is None else h
                 t_free = y[:, hidden + 1 :]  # (M, 1, N): T_r,i+1 without power
-                p_off = ((c.t_off - t_free) * inv_b[hb]).clamp_(min=0.0)
-                p_full = torch.minimum((c.t_full - t_free) * inv_b[hb], c.full_power_w)
-                p_w = torch.maximum(torch.minimum(u_w[h], p_off), p_full)
+                p_w = saturate_backup(u_w[h], t_free, b_t_r[hb], c.t_off, c.t_full, c.full_power_w)
                 torch.clamp(p_w, lo, hi, out=nxt[:, :1])
                 torch.addcmul(y[:, hidden:], b_step[hb], nxt[:, :1], out=nxt[:, 1:])
                 res = torch.baddbmm(c.b_last, c.w_last, x)
-                nxt[:, 2:] += torch.maximum(torch.minimum(res, c.residual_bound_k), -c.residual_bound_k)
+                nxt[:, 2:] += res.clamp_(-c.residual_bound_k, c.residual_bound_k)
             series = states.permute(1, 2, 3, 0)  # (M, 3, N, H+1)
             return (
                 series[:, 2, :, 1:].contiguous(),
