@@ -31,6 +31,7 @@ period's year is chosen so that weekdays match the weather file's; sizing is off
 
 from __future__ import annotations
 
+import calendar
 import copy
 import datetime as dt
 import functools
@@ -544,8 +545,12 @@ class EnergyPlusRun:
 
     # ---- the caller's side --------------------------------------------------------------
 
-    def start(self, start_day: int, days: int) -> float:
-        """Start a fresh run (closing one in progress); the room temperature at its start."""
+    def start(self, start_day: int, days: int, *, year: int | None = None) -> float:
+        """Start a fresh run (closing one in progress); the room temperature at its start.
+
+        ``year`` (a non-leap year) sets the calendar, so the building's weekday schedules
+        follow the caller's dates; by default the year whose weekdays match the weather file.
+        """
         from pyenergyplus import runtime as ep_runtime
         from pyenergyplus.api import EnergyPlusAPI
 
@@ -555,13 +560,19 @@ class EnergyPlusRun:
                 f"EnergyPlus runs one calendar year: {days} day(s) from day {start_day} of the "
                 "year would cross 31 December; use fewer days or a later window"
             )
-        begin = dt.date(self.year, 1, 1) + dt.timedelta(days=start_day - 1)
+        if year is not None and calendar.isleap(year):
+            raise InputError(
+                f"EnergyPlus runs on a typical (365-day) weather year, so a run cannot be dated "
+                f"in the leap year {year}; date the series in a non-leap year"
+            )
+        run_year = self.year if year is None else int(year)
+        begin = dt.date(run_year, 1, 1) + dt.timedelta(days=start_day - 1)
         end = begin + dt.timedelta(days=days - 1)
         model = copy.deepcopy(self.prepared.model)
         model["RunPeriod"] = {
             "PINN-MPC Run": {
-                "begin_month": begin.month, "begin_day_of_month": begin.day, "begin_year": self.year,
-                "end_month": end.month, "end_day_of_month": end.day, "end_year": self.year,
+                "begin_month": begin.month, "begin_day_of_month": begin.day, "begin_year": run_year,
+                "end_month": end.month, "end_day_of_month": end.day, "end_year": run_year,
                 "use_weather_file_holidays_and_special_days": "No",
                 "use_weather_file_daylight_saving_period": "No",
                 "apply_weekend_holiday_rule": "No",
@@ -905,7 +916,10 @@ class EnergyPlusPlant:
         start_day = int((days[0] - days[0].astype("datetime64[Y]")).astype(int)) + 1
         n_days = int((days[-1] - days[0]).astype(int)) + 1
         self.run.warmup_setpoint_c = float(t_r_c)
-        self._t_r = self.run.start(start_day, n_days)
+        # Dated as the series is, so the building's weekday schedules (occupancy, internal
+        # gains) fall on the weekdays its time stamps say.
+        year = int(days[0].astype("datetime64[Y]").astype(int)) + 1970
+        self._t_r = self.run.start(start_day, n_days, year=year)
         self._row = start
 
     def measure(self) -> np.ndarray:

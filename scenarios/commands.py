@@ -298,12 +298,6 @@ def compare(a: argparse.Namespace) -> str:
     }
     check_distinct(inputs=_scenario_inputs(a.scenario), outputs=outputs)
     scenario = get_scenario(a.scenario)
-    if scenario.sim.plant.is_energyplus:
-        raise InputError(
-            f"compare: scenario {scenario.name!r} runs on EnergyPlus, which compare does not "
-            "support yet (it reports every controller against the oracle, which does not exist "
-            "there); run closed-loop for each controller"
-        )
     settings = CompareSettings.for_run(
         train_days=a.train_days, days=a.days, seed=a.seed, quick=a.quick, policy=a.policy
     )
@@ -325,7 +319,7 @@ def compare(a: argparse.Namespace) -> str:
 
     first, last = result.days["test"]
     title = f"{scenario.name}: test days {first} to {last}, seed {settings.test_seed}"
-    plot_comparison(result.trajectories, figure, title=title)
+    plot_comparison(result.trajectories, figure, title=title, reference=scenario.reference)
     atomic_write_text(
         report,
         render_report(

@@ -14,20 +14,25 @@
    random shooting and CEM over the hybrid (and CEM without its LP polish, to show what the
    polish adds), CEM over physnet, physreg and mlp (physreg and mlp unless
    ``cem_all_models=False``), casadi-mpc and qp-mpc on the identified RC, qp-mpc on the
-   hybrid- and physnet-exported RCs, oracle and clairvoyant.
+   hybrid- and physnet-exported RCs, oracle and clairvoyant (where the plant has a true RC
+   and state; on EnergyPlus there is no oracle and every controller is measured against the
+   thermostat, :attr:`scenarios.registry.Scenario.reference`).
    With a heat pump (``scenario.sim.actuator``) the data's power is electrical and its ``cop``
    column the heat per electrical watt: the hybrid and the grey-box identification work on the
    delivered heat (COP(T_a) x electrical power); the paper's networks train on the electrical
    power with ``eta`` times the data's power-weighted mean COP (their prior and export then
    describe the building with that actuator gain), and their exported RCs get the building's
    own ``eta`` back, since the RC MPCs multiply by the COP of each forecast step themselves.
-4. Prediction: every model's 24-step T_r error on held-out data of the test part
-   (:mod:`scenarios.prediction`), the identified, exported and true RC as the RC MPCs use them.
+4. Prediction: every model's T_r error 1, 6, 24 and 48 steps ahead on held-out data of the
+   test part (:mod:`scenarios.prediction`): the learned models, a linear ARX baseline fitted on
+   the same training data (:mod:`pinn_mpc.arx`), and the identified, exported and true RC as
+   the RC MPCs use them.
 5. Outputs (written by the command, :func:`scenarios.commands.compare`; :func:`run_comparison`
    returns them as a :class:`ComparisonResult`): a JSON table (one row per controller with every KPI), a markdown report with the
    dates of the training data and of the test days, the KPI table, each objective relative to
-   the oracle's, the RC parameters against the true ones and a figure of the trajectories, one
-   panel per controller family against the oracle (PNG next to the report,
+   the reference's (oracle or thermostat), the RC parameters against the true ones and a
+   figure of the trajectories, one panel per controller family against the reference (PNG
+   next to the report,
    :func:`scenarios.plots.comparison_figure`).
 """
 
@@ -137,7 +142,8 @@ class CompareSettings:
 @dataclass(frozen=True, kw_only=True)
 class ComparisonResult:
     """``rows``: one KPI dict per controller (keys of :mod:`scenarios.kpis` plus ``controller``
-    label, ``name``, ``model``, ``objective_to_oracle``); ``rc``: RC summaries by source;
+    label, ``name``, ``model``, ``objective_to_oracle``, or ``objective_to_thermostat`` on a
+    plant without an oracle, see :attr:`scenarios.registry.Scenario.reference`); ``rc``: RC summaries by source;
     ``trajectories`` by label; ``wall_time_s`` by stage; ``errors`` the controller exceptions
     of each run that had any (the fallback acted, see :mod:`scenarios.closed_loop`);
     ``prediction`` each model's prediction error (:mod:`scenarios.prediction`);
@@ -156,6 +162,7 @@ class ComparisonResult:
 
 def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonResult:
     """Steps 1-3 of the module docstring; progress bars when attached to a terminal."""
+    from pinn_mpc.arx import fit_arx
     from pinn_mpc.export import export_rc
     from pinn_mpc.training import TrainConfig, train_model
     from scenarios.datagen import generate
@@ -197,8 +204,13 @@ def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonR
     start = time.perf_counter()
     identified = identify_scenario_rc(scenario, data)
     wall["identify RC"] = time.perf_counter() - start
+    has_truth = scenario.reference == "oracle"  # an EnergyPlus plant has no true RC or state
     rc = {
-        "true": rc_summary(scenario.sim.params, source=f"scenario {scenario.name}"),
+        **(
+            {"true": rc_summary(scenario.sim.params, source=f"scenario {scenario.name}")}
+            if has_truth
+            else {}
+        ),
         "identified": rc_summary(identified, source="identify (training data)"),
         **{
             f"{arch} export": export_rc(models[arch], source=f"{arch} ensemble (compare)")
@@ -224,7 +236,8 @@ def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonR
     prediction = prediction_errors(
         held_out,
         learned=models,
-        rc={**rc_params, "true RC": scenario.sim.params},
+        linear={"ARX": fit_arx(data)},
+        rc={**rc_params, **({"true RC": scenario.sim.params} if has_truth else {})},
         actuator=actuator,
     )
     wall["prediction"] = time.perf_counter() - start
@@ -248,8 +261,7 @@ def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonR
         ("casadi-mpc", "identified RC", {"rc_params": rc_params["identified RC"]}),
         ("qp-mpc", "identified RC", {"rc_params": rc_params["identified RC"]}),
         *(("qp-mpc", f"{arch} RC", {"rc_params": rc_params[f"{arch} RC"]}) for arch in ARCHS[:2]),
-        ("oracle", "true", {}),
-        ("clairvoyant", "true", {}),
+        *((("oracle", "true", {}), ("clairvoyant", "true", {})) if has_truth else ()),
     ]
     rows: list[dict[str, Any]] = []
     trajectories: dict[str, pd.DataFrame] = {}
@@ -273,8 +285,8 @@ def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonR
             trajectories[label] = result.trajectory
             if result.errors:
                 errors[label] = result.errors
-    for row, ratio in zip(rows, objective_ratios(rows, reference=REFERENCE), strict=True):
-        row["objective_to_oracle"] = ratio
+    for row, ratio in zip(rows, objective_ratios(rows, reference=scenario.reference), strict=True):
+        row[f"objective_to_{scenario.reference}"] = ratio
     notes = []
     note = weather_range_note(best, trajectories[rows[0]["controller"]])
     if note is not None:

@@ -172,13 +172,15 @@ def group_by_family(labels: Sequence[str]) -> dict[str, list[str]]:
     return {title: members for title, members in groups.items() if members}
 
 
-def comparison_figure(trajectories: Mapping[str, pd.DataFrame], *, title: str = "") -> Figure:
+def comparison_figure(
+    trajectories: Mapping[str, pd.DataFrame], *, title: str = "", reference: str = REFERENCE
+) -> Figure:
     """Small multiples of a comparison on the same test days: per controller family, T_r
     against the comfort band and, below it, the delivered power, each controller against the
-    oracle (dashed black) when it ran; the price at the bottom. Shared time axis; all T_r
-    panels share one scale, all power panels another."""
+    ``reference`` (dashed black; the oracle by default) when it ran; the price at the bottom.
+    Shared time axis; all T_r panels share one scale, all power panels another."""
     groups = group_by_family(list(trajectories))
-    reference = trajectories.get(REFERENCE)
+    ref_name, reference_run = reference, trajectories.get(reference)
     first = next(iter(trajectories.values()))
     n = len(groups)
     fig, axes = new_figure(
@@ -188,10 +190,10 @@ def comparison_figure(trajectories: Mapping[str, pd.DataFrame], *, title: str = 
     temp_axes, power_axes = list(axes[0:-1:2]), list(axes[1:-1:2])
     for ax_t, ax_u, (family, labels) in zip(temp_axes, power_axes, groups.items(), strict=True):
         draw_band(ax_t, first)
-        if reference is not None:
-            draw_room(ax_t, reference, f"{REFERENCE} (reference)", **_REFERENCE_STYLE)
-            draw_power(ax_u, reference, f"{REFERENCE} (reference)", **_REFERENCE_STYLE)
-        members = [label for label in labels if not (label == REFERENCE and reference is not None)]
+        if reference_run is not None:
+            draw_room(ax_t, reference_run, f"{ref_name} (reference)", **_REFERENCE_STYLE)
+            draw_power(ax_u, reference_run, f"{ref_name} (reference)", **_REFERENCE_STYLE)
+        members = [label for label in labels if not (label == ref_name and reference_run is not None)]
         for label, style in zip(members, _member_styles(len(members)), strict=True):
             draw_room(ax_t, trajectories[label], label, **style)
             draw_power(ax_u, trajectories[label], label, **style)
@@ -213,7 +215,7 @@ def comparison_figure(trajectories: Mapping[str, pd.DataFrame], *, title: str = 
 def _member_styles(n: int) -> list[dict[str, Any]]:
     """A colour each, and lines thinner in drawing order: a run that coincides with an earlier
     one (e.g. two solvers of the same problem) still shows as a thin line on a thick one."""
-    widths = np.linspace(2.0, 1.0, n) if n > 1 else [1.3]
+    widths = np.linspace(2.0, 1.0, n) if n > 1 else [1.3] * n
     return [{"color": c, "lw": float(w)} for c, w in zip(cycle(_COLORS), widths)]
 
 
@@ -225,7 +227,11 @@ def _share_y(axes: Sequence[Axes]) -> None:
 
 
 def plot_comparison(
-    trajectories: Mapping[str, pd.DataFrame], path: str | os.PathLike[str], *, title: str = ""
+    trajectories: Mapping[str, pd.DataFrame],
+    path: str | os.PathLike[str],
+    *,
+    title: str = "",
+    reference: str = REFERENCE,
 ) -> Path:
     """Write :func:`comparison_figure` as PNG."""
-    return save_figure(comparison_figure(trajectories, title=title), path)
+    return save_figure(comparison_figure(trajectories, title=title, reference=reference), path)

@@ -129,6 +129,13 @@ class Scenario:
         return steps_per_day(self.sim.dt_s)
 
     @property
+    def reference(self) -> str:
+        """The controller every other is measured against: the oracle on a plant with true
+        parameters and state, the thermostat on one without (EnergyPlus), where no oracle
+        exists."""
+        return "thermostat" if self.sim.plant.is_energyplus else "oracle"
+
+    @property
     def uses_solar(self) -> bool:
         return self.sim.params.solar_aperture_m2 > 0
 

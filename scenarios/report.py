@@ -18,14 +18,18 @@ __all__ = [
     "RC_ROWS",
     "format_fleet",
     "format_kpis",
+    "kpi_columns",
     "kpi_table_text",
     "markdown_table",
     "objective_ratios",
     "rc_table_markdown",
+    "reference_of",
     "render_report",
     "text_table",
 ]
 
+#: Prefix of a row's objective divided by the reference controller's.
+_RATIO_PREFIX = "objective_to_"
 #: (row key, column header, format) of the KPI tables.
 KPI_COLUMNS = (
     ("objective", "objective EUR", "{:.3f}"),
@@ -40,6 +44,15 @@ KPI_COLUMNS = (
     ("backup_overrides", "overrides", "{}"),
     ("fallbacks", "fallbacks", "{}"),
 )
+
+#: What the ratio column of a report means, by reference controller.
+_REFERENCE_TEXT = {
+    "oracle": "`/ oracle` divides each objective by the oracle's (true parameters, true T_m, "
+    "perfect forecasts).",
+    "thermostat": "`/ thermostat` divides each objective by the thermostat's: this plant has "
+    "no true parameters or state, so no oracle bound exists and the baseline is the "
+    "thermostat (as BOPTEST reports controllers against a building's baseline control).",
+}
 
 #: (rc_summary key, label, scale, unit) of the RC parameter table.
 RC_ROWS = (
@@ -85,22 +98,38 @@ def markdown_table(headers: Sequence[str], body: Sequence[Sequence[str]]) -> lis
     return lines
 
 
+def reference_of(rows: Sequence[Mapping[str, Any]]) -> str:
+    """The controller the rows' objectives are divided by: the key ``objective_to_NAME`` a
+    row holds (``oracle`` when none does)."""
+    keys = (k for r in rows for k in r if k.startswith(_RATIO_PREFIX))
+    return next(keys, f"{_RATIO_PREFIX}oracle").removeprefix(_RATIO_PREFIX)
+
+
+def kpi_columns(rows: Sequence[Mapping[str, Any]]) -> tuple[tuple[str, str, str], ...]:
+    """:data:`KPI_COLUMNS` with the ratio column of the rows' reference (:func:`reference_of`)."""
+    ref = reference_of(rows)
+    return tuple(
+        (f"{_RATIO_PREFIX}{ref}", f"/ {ref}", f) if k.startswith(_RATIO_PREFIX) else (k, h, f)
+        for k, h, f in KPI_COLUMNS
+    )
+
+
 def kpi_table_text(rows: Sequence[Mapping[str, Any]]) -> str:
     """Fixed-width KPI table for a terminal, one line per controller."""
-    headers = ["controller", *(h for _, h, _ in KPI_COLUMNS)]
-    body = [
-        [str(r["controller"]), *(_cell(r.get(k), f) for k, _, f in KPI_COLUMNS)] for r in rows
-    ]
+    columns = kpi_columns(rows)
+    headers = ["controller", *(h for _, h, _ in columns)]
+    body = [[str(r["controller"]), *(_cell(r.get(k), f) for k, _, f in columns)] for r in rows]
     return text_table(headers, body)
 
 
 def _prediction_cells(rows: Sequence[Mapping[str, Any]]) -> tuple[list[str], list[list[str]]]:
-    headers = ["model", "kind", "T_r MAE [K]", "T_r bias [K]", "starts"]
+    horizons = list(dict.fromkeys(h for r in rows for h in r.get("T_r_mae_by_horizon_c", {})))
+    headers = ["model", "kind", *(f"MAE {h} [K]" for h in horizons), "T_r bias [K]", "starts"]
     body = [
         [
             str(r["model"]),
             str(r["kind"]),
-            _cell(r["T_r_mae_c"], "{:.3f}"),
+            *(_cell(r.get("T_r_mae_by_horizon_c", {}).get(h), "{:.3f}") for h in horizons),
             _cell(r["T_r_bias_c"], "{:+.3f}"),
             str(r["n_starts"]),
         ]
@@ -155,16 +184,16 @@ def render_report(
         "perfect forecasts) after the same one-day thermostat warm-up, which is not counted. "
         "KPIs follow BOPTEST: discomfort is the time integral of the comfort-band violation "
         "(1-min resolution), cost is price x delivered energy, the objective is cost + comfort "
-        "weight x discomfort, the time ratio is decision time / simulated time. `/ oracle` "
-        "divides each objective by the oracle's (true parameters, true T_m, perfect forecasts).",
+        "weight x discomfort, the time ratio is decision time / simulated time. "
+        + _REFERENCE_TEXT.get(reference_of(rows), f"`/ {reference_of(rows)}` divides each "
+                              f"objective by the {reference_of(rows)}'s."),
         "",
         "## KPIs",
         "",
     ]
-    headers = ["controller", *(h for _, h, _ in KPI_COLUMNS)]
-    body = [
-        [f"`{r['controller']}`", *(_cell(r.get(k), f) for k, _, f in KPI_COLUMNS)] for r in rows
-    ]
+    columns = kpi_columns(rows)
+    headers = ["controller", *(h for _, h, _ in columns)]
+    body = [[f"`{r['controller']}`", *(_cell(r.get(k), f) for k, _, f in columns)] for r in rows]
     lines += markdown_table(headers, body)
     if prediction:
         lines += [
@@ -183,7 +212,7 @@ def render_report(
         "",
         "## RC parameters",
         "",
-        "The true building, the parameters identified from the training data (grey-box, T_m "
+        "The true building (where the plant has one), the parameters identified from the training data (grey-box, T_m "
         "hidden) and those exported from the trained ensembles (hybrid and PhysNet; geometric "
         "mean over members). Under a heat pump the exports' eta holds the training data's mean "
         "COP; the RC MPCs use the building's own eta and apply the COP per step.",

@@ -121,9 +121,13 @@ def test_compare_quick_end_to_end(tmp_path, capsys):
     # on paper_household the plant is the 2R2C, so the true RC predicts best among the RCs.
     prediction = {row["model"]: row for row in table["prediction"]}
     assert set(prediction) == {
-        "hybrid", "physnet", "physreg", "mlp", "identified RC", "hybrid RC", "physnet RC", "true RC"
+        "hybrid", "physnet", "physreg", "mlp", "ARX", "identified RC", "hybrid RC", "physnet RC",
+        "true RC",
     }
     assert len({row["n_starts"] for row in table["prediction"]}) == 1
+    assert all(set(row["T_r_mae_by_horizon_c"]) == {"1", "6", "24", "48"} for row in prediction.values())
+    # the 2R2C plant is linear: the ARX baseline, fitted on the same data, predicts it closely
+    assert prediction["ARX"]["T_r_mae_by_horizon_c"]["48"] < 0.1
     assert prediction["true RC"]["T_r_mae_c"] < 0.05
     assert prediction["true RC"]["T_r_mae_c"] <= prediction["physnet RC"]["T_r_mae_c"]
     # Training from the first day of the training weather, test days (after a warm-up day) from

@@ -1,0 +1,136 @@
+"""A linear ARX model of the room temperature: the simplest strong baseline.
+
+Physics-informed linear regression is the known-competitive baseline of building MPC: the next
+room temperature as a linear function of the last ``lags`` room temperatures, delivered powers
+and weather values, plus a weekly schedule standing in for unmeasured internal gains
+(occupancy, equipment, lighting)::
+
+    T_r,k+1 = sum_j a_j T_r,k-j + sum_j b_j u_phys,k-j + sum_j c_j T_a,k-j + sum_j d_j G,k-j
+              [+ sum_j e_j I_g,k-j] + s(block of day of t_k, workday of t_k)
+
+with ``j = 0 .. lags-1`` and ``s`` one coefficient per 2-hour block of the day, separately for
+workdays (Monday-Friday) and weekends. It is fitted by least squares on the one-step error
+(a tiny ridge keeps it well posed), has no hidden state and no network, and is linear in the
+power, so it predicts any power plan by recursion. :func:`fit_arx` fits it,
+:meth:`ARXModel.predict_t_r` predicts ``h`` steps ahead from given starts; it serves as the
+reference every learned model of a comparison must beat (:mod:`scenarios.prediction`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from pinn_mpc.errors import InputError
+
+__all__ = ["ARXModel", "BLOCK_H", "DEFAULT_LAGS", "fit_arx"]
+
+#: Lags of every input (4 h at 30-min intervals).
+DEFAULT_LAGS = 8
+#: Length of one block of the daily schedule [h].
+BLOCK_H = 2.0
+#: Ridge weight relative to each regressor's own sum of squares (keeps collinear lags well posed).
+_RIDGE = 1e-9
+#: Scales that bring the inputs to order one: W -> kW, W/m2 -> 100 W/m2, W -> kW.
+_SCALE = {"T_r": 1.0, "u_phys": 1e-3, "T_a": 1.0, "G": 1e-2, "I_g": 1e-3}
+
+
+def _schedule(times: pd.Series) -> np.ndarray:
+    """(N, 2 * blocks per day) one-hot of each time's 2-hour block, workdays then weekends."""
+    t = pd.to_datetime(times)
+    blocks = int(round(24 / BLOCK_H))
+    block = ((t.dt.hour + t.dt.minute / 60.0) // BLOCK_H).to_numpy(dtype=int)
+    weekend = (t.dt.day_of_week >= 5).to_numpy(dtype=int)
+    out = np.zeros((len(t), 2 * blocks))
+    out[np.arange(len(t)), block + blocks * weekend] = 1.0
+    return out
+
+
+@dataclass(frozen=True, kw_only=True)
+class ARXModel:
+    """A fitted ARX model (module docstring).
+
+    ``columns`` the lagged inputs in order (``T_r`` first, then ``u_phys``, weather, gains);
+    ``lags`` per input; ``coef`` (lags * len(columns) + schedule columns,) in scaled units;
+    ``dt_s`` the interval it steps; ``train_mae_c`` its one-step MAE on the training data.
+    """
+
+    columns: tuple[str, ...]
+    lags: int
+    coef: np.ndarray
+    dt_s: float
+    train_mae_c: float
+
+    def _regressors(self, values: np.ndarray, k: np.ndarray) -> np.ndarray:
+        """(len(k), lags * columns) of the scaled inputs at rows k, k-1, .., k-lags+1."""
+        parts = [values[k - j] for j in range(self.lags)]  # each (len(k), columns)
+        return np.stack(parts, axis=1).reshape(len(k), -1)  # lag-major: j * columns + c
+
+    def _inputs(self, df: pd.DataFrame) -> tuple[np.ndarray, np.ndarray]:
+        missing = [c for c in self.columns if c not in df]
+        if missing:
+            raise InputError(f"ARX model: the data lacks column(s) {', '.join(missing)}")
+        values = np.stack(
+            [df[c].to_numpy(dtype=float) * _SCALE[c] for c in self.columns], axis=1
+        )
+        return values, _schedule(df["time"])
+
+    def predict_t_r(self, df: pd.DataFrame, horizon: int, starts: np.ndarray) -> np.ndarray:
+        """``T_r`` [C] at ``starts + horizon`` (N,): the model's own recursion from the
+        measured ``T_r`` up to each start, on the data's delivered power and weather.
+        Every start must have ``lags - 1`` rows before it."""
+        starts = np.asarray(starts, dtype=int)
+        if starts.size and (starts.min() < self.lags - 1 or starts.max() + horizon > len(df) - 1):
+            raise InputError(
+                f"ARX model: starts must lie in {self.lags - 1} .. {len(df) - 1 - horizon}"
+            )
+        values, sched = self._inputs(df)
+        n_lag = self.lags * len(self.columns)
+        a_tr = self.coef[0:n_lag:len(self.columns)]  # weights of T_r,k-j
+        # Own predictions replace measured T_r once the recursion passes the start.
+        t_hist = np.stack([values[starts - j, 0] for j in range(self.lags)], axis=1)  # (N, lags)
+        for step in range(horizon):
+            k = starts + step
+            reg = self._regressors(values, k)
+            other = reg @ self.coef[:n_lag] - reg[:, 0::len(self.columns)] @ a_tr
+            t_next = other + t_hist @ a_tr + sched[k] @ self.coef[n_lag:]
+            t_hist = np.concatenate([t_next[:, None], t_hist[:, :-1]], axis=1)
+        return t_hist[:, 0] / _SCALE["T_r"]
+
+    def to_dict(self) -> dict[str, Any]:
+        """The model as JSON-ready data (numbers only)."""
+        return {
+            "kind": "arx",
+            "columns": list(self.columns),
+            "lags": self.lags,
+            "coef": [float(c) for c in self.coef],
+            "dt_s": self.dt_s,
+            "block_h": BLOCK_H,
+            "train_mae_c": self.train_mae_c,
+        }
+
+
+def fit_arx(df: pd.DataFrame, *, lags: int = DEFAULT_LAGS) -> ARXModel:
+    """Least-squares ARX fit of ``df`` (data format: ``time``, ``T_r``, ``u_phys``, ``T_a``,
+    optional ``G`` and ``I_g``; consecutive rows at ``df.attrs["dt_s"]``)."""
+    if lags < 1:
+        raise InputError(f"ARX model: lags must be >= 1, got {lags}")
+    columns = ("T_r", "u_phys", "T_a", *(c for c in ("G", "I_g") if c in df))
+    if len(df) < lags + 2 * (lags * len(columns) + 24):
+        raise InputError(
+            f"ARX model: {len(df)} rows are too few to fit {lags} lags of {len(columns)} inputs; "
+            "give more days of data"
+        )
+    dt_s = float(df.attrs.get("dt_s", 1800.0))
+    model = ARXModel(columns=columns, lags=lags, coef=np.zeros(0), dt_s=dt_s, train_mae_c=0.0)
+    values, sched = model._inputs(df)
+    k = np.arange(lags - 1, len(df) - 1)
+    x = np.concatenate([model._regressors(values, k), sched[k]], axis=1)
+    y = values[k + 1, 0]
+    gram = x.T @ x
+    coef = np.linalg.solve(gram + _RIDGE * np.diag(np.diag(gram) + 1e-12), x.T @ y)
+    mae = float(np.mean(np.abs(x @ coef - y))) / _SCALE["T_r"]
+    return ARXModel(columns=columns, lags=lags, coef=coef, dt_s=dt_s, train_mae_c=mae)
