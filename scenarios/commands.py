@@ -392,6 +392,7 @@ def sweep(a: argparse.Namespace) -> str:
         read_sweep_spec,
         run_sweep,
     )
+    from scenarios.sweep_report import ratio
 
     spec = read_sweep_spec(a.spec) if a.spec is not None else {}
 
@@ -420,7 +421,7 @@ def sweep(a: argparse.Namespace) -> str:
         len(grid.cells()),
         large=a.large,
         what=f"{len(grid.scenarios)} scenario(s) x {len(grid.controllers)} controller(s) and "
-        f"the oracle x {len(grid.seeds)} seed(s) x {len(grid.train_days)} training length(s)",
+        f"the reference x {len(grid.seeds)} seed(s) x {len(grid.train_days)} training length(s)",
     )
     settings = SweepSettings.for_run(days=days, quick=quick)
     outcome = run_sweep(
@@ -442,7 +443,7 @@ def sweep(a: argparse.Namespace) -> str:
     lines = [
         f"{r['scenario']:<18} {r['controller']:<16} "
         f"{'' if r.get('train_days') is None else str(r['train_days']) + ' d':<5} n={r['n']:<3} "
-        f"objective/oracle {r['objective_to_oracle_mean']:.3f} (worst {max(r['objective_to_oracle_by_seed'].values()):.3f})"
+        f"objective/{r['reference']} {ratio(r, 'mean'):.3f} (worst {max(ratio(r, 'by_seed').values()):.3f})"
         for r in s["rows"]
     ]
     lines.append(

@@ -424,6 +424,41 @@ _SCENARIOS["eplus_small_office"] = _with_split(
 )
 
 
+_SCENARIOS["eplus_midrise_apartment"] = _with_split(
+    Scenario(
+        name="eplus_midrise_apartment",
+        description=(
+            "DOE's mid-rise apartment building (EnergyPlus reference building, 3,135 m2, four "
+            "floors) in Denver (TMY3), its HVAC removed, its conditioned zones merged into one, "
+            "heated by an ideal 30 kW electric heater; run by EnergyPlus (no R/C parameters, no "
+            "oracle). Residential comfort 20-24 C 06-23 h, 18-24 C at night, winter_household's "
+            "dynamic price, backup 14/28 C; the residents' internal gains are unmeasured. A "
+            "second building and city, not the one the package's EnergyPlus defaults were "
+            "tuned on."
+        ),
+        sim=SimConfig(
+            params=EPLUS_NOMINAL,
+            u_max_w=30000.0,
+            backup_low_c=14.0,
+            backup_high_c=28.0,
+            plant=Plant(
+                kind="energyplus", building="midrise_apartment", weather="usa_co_denver",
+                heater_w=30000.0,
+            ),
+        ),
+        comfort_weight_eur_per_kh=5.0,
+        initial_t_r_c=21.0,
+        initial_t_m_c=21.0,
+        weather=eplus_weather("usa_co_denver"),
+        price=PriceProfile(kind="dynamic", level_eur_per_kwh=0.22, peak_eur_per_kwh=0.15),
+        comfort=ComfortSchedule(
+            day_min_c=20.0, day_max_c=24.0, night_min_c=18.0, night_max_c=24.0,
+            day_start_h=6.0, day_end_h=23.0,
+        ),
+    )
+)
+
+
 def scenario_names() -> list[str]:
     """Names of the registered scenarios, sorted."""
     return sorted(_SCENARIOS)

@@ -23,7 +23,15 @@ from scenarios.report import markdown_table
 
 REFERENCE = "oracle"
 
-__all__ = ["REFERENCE", "mean_ci95", "plot_sweep", "render_sweep_report", "row_label", "summarise"]
+__all__ = [
+    "REFERENCE",
+    "mean_ci95",
+    "plot_sweep",
+    "ratio",
+    "render_sweep_report",
+    "row_label",
+    "summarise",
+]
 
 
 def mean_ci95(values: Sequence[float]) -> tuple[float, list[float | None]]:
@@ -42,18 +50,32 @@ def mean_ci95(values: Sequence[float]) -> tuple[float, list[float | None]]:
     return mean, [float(low), float(high)]
 
 
+def ratio(row: Mapping[str, Any], what: str) -> Any:
+    """A summary row's objective-over-reference figure ``what`` (``mean``, ``ci95`` or
+    ``by_seed``), whichever its reference (``objective_to_oracle_mean``, ...)."""
+    return row[f"objective_to_{row.get('reference', REFERENCE)}_{what}"]
+
+
 def summarise(
-    cells: Sequence[Mapping[str, Any]], *, baseline: str, order: Sequence[str] = ()
+    cells: Sequence[Mapping[str, Any]],
+    *,
+    baseline: str,
+    order: Sequence[str] = (),
+    references: Mapping[str, str] | None = None,
 ) -> list[dict[str, Any]]:
     """Rows of ``summary.json`` from cell records (``cell``: scenario, controller, seed,
     train_days; ``kpis``: with ``objective``), one per scenario x controller (x training size
-    when several), controllers in ``order`` (others after, by name). A seed whose oracle
-    objective is missing or not positive is left out."""
+    when several), controllers in ``order`` (others after, by name). Objectives are divided by
+    the scenario's reference controller's (``references`` by scenario, the oracle by default;
+    the thermostat where the plant has no oracle), in keys ``objective_to_<reference>_*``. A
+    seed whose reference objective is missing or not positive is left out."""
     rank = {name: i for i, name in enumerate(order)}
+    reference_of = dict(references or {})
     oracle: dict[tuple[str, int], float] = {}
     for c in cells:
         key = c["cell"]
-        if key["controller"] == REFERENCE and c["kpis"]["objective"] > 0:
+        ref_name = reference_of.get(key["scenario"], REFERENCE)
+        if key["controller"] == ref_name and c["kpis"]["objective"] > 0:
             oracle[(key["scenario"], key["seed"])] = float(c["kpis"]["objective"])
     ratios: dict[tuple[str, str, int | None], dict[int, float]] = {}
     for c in cells:
@@ -69,14 +91,16 @@ def summarise(
         key=lambda item: (item[0][0], rank.get(item[0][1], len(rank)), item[0][1], item[0][2] or 0),
     ):
         mean, ci = mean_ci95(list(by_seed.values()))
+        ref_name = reference_of.get(scenario, REFERENCE)
         row: dict[str, Any] = {
             "scenario": scenario,
             "controller": controller,
             "train_days": train_days,
             "n": len(by_seed),
-            "objective_to_oracle_mean": mean,
-            "objective_to_oracle_ci95": ci,
-            "objective_to_oracle_by_seed": {str(s): r for s, r in sorted(by_seed.items())},
+            "reference": ref_name,
+            f"objective_to_{ref_name}_mean": mean,
+            f"objective_to_{ref_name}_ci95": ci,
+            f"objective_to_{ref_name}_by_seed": {str(s): r for s, r in sorted(by_seed.items())},
             "baseline": baseline,
         }
         base = _baseline_ratios(ratios, scenario, baseline)
@@ -123,22 +147,24 @@ def render_sweep_report(summary: Mapping[str, Any], *, figure_name: str) -> str:
     engine = summary["engine"]
     baseline = summary["baseline"]
     lines = [
-        "# Sweep: objective relative to the oracle",
+        "# Sweep: objective relative to the reference",
         "",
         "Each cell is one closed loop (one scenario, controller and seed; learned models trained "
-        "on that seed's data). Its objective is divided by the oracle's on the same scenario "
-        "and seed. Mean over seeds with a 95 % Student t interval (scipy.stats); the paired "
+        "on that seed's data). Its objective is divided by the reference's on the same scenario "
+        "and seed: the oracle's, or the thermostat's on a plant without an oracle (EnergyPlus). "
+        "Mean over seeds with a 95 % Student t interval (scipy.stats); the paired "
         f"difference is, seed by seed, the controller's ratio minus that of `{baseline}`.",
         "",
     ]
-    headers = ["scenario", "controller", "n", "objective / oracle [95 % CI]",
+    headers = ["scenario", "controller", "n", "reference", "objective / reference [95 % CI]",
                f"minus `{baseline}` [95 % CI]"]
     body = [
         [
             f"`{r['scenario']}`",
             f"`{row_label(r)}`",
             str(r["n"]),
-            _interval(r["objective_to_oracle_mean"], r["objective_to_oracle_ci95"]),
+            str(r.get("reference", REFERENCE)),
+            _interval(ratio(r, "mean"), ratio(r, "ci95")),
             _interval(r["paired_difference_mean"], r["paired_difference_ci95"]),
         ]
         for r in summary["rows"]
@@ -146,7 +172,7 @@ def render_sweep_report(summary: Mapping[str, Any], *, figure_name: str) -> str:
     lines += markdown_table(headers, body)
     lines += [
         "",
-        f"![objective / oracle per controller and seed]({figure_name})",
+        f"![objective / reference per controller and seed]({figure_name})",
         "",
         "## Run",
         "",
@@ -165,8 +191,8 @@ def render_sweep_report(summary: Mapping[str, Any], *, figure_name: str) -> str:
 
 
 def plot_sweep(rows: Sequence[Mapping[str, Any]], path: str | os.PathLike[str]) -> Path:
-    """One panel per scenario: per controller a box of objective / oracle over seeds, with the
-    seeds as points on top (few seeds make a box alone misleading)."""
+    """One panel per scenario: per controller a box of objective / reference over seeds, with
+    the seeds as points on top (few seeds make a box alone misleading)."""
     import matplotlib.pyplot as plt
 
     scenarios = list(dict.fromkeys(r["scenario"] for r in rows))
@@ -176,7 +202,7 @@ def plot_sweep(rows: Sequence[Mapping[str, Any]], path: str | os.PathLike[str]) 
     )
     for ax, scenario in zip(axes[0], scenarios, strict=True):
         mine = [r for r in rows if r["scenario"] == scenario]
-        values = [list(r["objective_to_oracle_by_seed"].values()) for r in mine]
+        values = [list(ratio(r, "by_seed").values()) for r in mine]
         positions = np.arange(1, len(mine) + 1)
         ax.boxplot(values, positions=positions, widths=0.5, showfliers=False)
         jitter = np.random.default_rng(0)
@@ -186,6 +212,6 @@ def plot_sweep(rows: Sequence[Mapping[str, Any]], path: str | os.PathLike[str]) 
         ax.axhline(1.0, color="grey", lw=0.8, ls="--")
         ax.set_xticks(positions, [row_label(r) for r in mine], rotation=30, ha="right")
         ax.set_title(scenario)
-        ax.set_ylabel("objective / oracle")
+        ax.set_ylabel(f"objective / {mine[0].get('reference', REFERENCE)}")
     fig.tight_layout()
     return save_figure(fig, path)
