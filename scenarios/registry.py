@@ -391,71 +391,77 @@ _SCENARIOS.update(
 )
 
 
-_SCENARIOS["eplus_small_office"] = _with_split(
-    Scenario(
-        name="eplus_small_office",
-        description=(
-            "DOE's small office (EnergyPlus reference building, 511 m2) in Chicago (TMY3), its "
-            "HVAC removed, its five conditioned zones merged into one, heated by an ideal 25 kW "
-            "electric heater; run by EnergyPlus (no R/C parameters, no oracle). Office comfort "
-            "20-23 C 07-19 h, 16-25 C otherwise, winter_household's dynamic "
-            "price, backup 14/28 C; the office's internal gains are unmeasured."
-        ),
-        sim=SimConfig(
-            params=EPLUS_NOMINAL,
-            u_max_w=25000.0,
-            backup_low_c=14.0,
-            backup_high_c=28.0,
-            plant=Plant(
-                kind="energyplus", building="small_office", weather="usa_il_chicago",
-                heater_w=25000.0,
+def _energyplus_scenario(
+    *,
+    name: str,
+    description: str,
+    building: str,
+    weather: str,
+    heater_w: float,
+    initial_t_r_c: float,
+    comfort: ComfortSchedule,
+) -> Scenario:
+    """A built-in EnergyPlus scenario: the bundled ``building`` in the bundled ``weather``,
+    heated by an ideal ``heater_w`` electric heater, backup 14/28 C, winter_household's
+    dynamic price, January to train and February to test (:func:`eplus_weather`)."""
+    return _with_split(
+        Scenario(
+            name=name,
+            description=description,
+            sim=SimConfig(
+                params=EPLUS_NOMINAL,
+                u_max_w=heater_w,
+                backup_low_c=14.0,
+                backup_high_c=28.0,
+                plant=Plant(kind="energyplus", building=building, weather=weather, heater_w=heater_w),
             ),
-        ),
-        comfort_weight_eur_per_kh=5.0,
-        initial_t_r_c=20.0,
-        initial_t_m_c=20.0,
-        weather=eplus_weather("usa_il_chicago"),
-        price=PriceProfile(kind="dynamic", level_eur_per_kwh=0.22, peak_eur_per_kwh=0.15),
-        comfort=ComfortSchedule(
-            day_min_c=20.0, day_max_c=23.0, night_min_c=16.0, night_max_c=25.0,
-            day_start_h=7.0, day_end_h=19.0,
-        ),
+            comfort_weight_eur_per_kh=5.0,
+            initial_t_r_c=initial_t_r_c,
+            initial_t_m_c=initial_t_r_c,
+            weather=eplus_weather(weather),
+            price=PriceProfile(kind="dynamic", level_eur_per_kwh=0.22, peak_eur_per_kwh=0.15),
+            comfort=comfort,
+        )
     )
+
+
+_SCENARIOS["eplus_small_office"] = _energyplus_scenario(
+    name="eplus_small_office",
+    description=(
+        "DOE's small office (EnergyPlus reference building, 511 m2) in Chicago (TMY3), its "
+        "HVAC removed, its five conditioned zones merged into one, heated by an ideal 25 kW "
+        "electric heater; run by EnergyPlus (no R/C parameters, no oracle). Office comfort "
+        "20-23 C 07-19 h, 16-25 C otherwise, winter_household's dynamic "
+        "price, backup 14/28 C; the office's internal gains are unmeasured."
+    ),
+    building="small_office",
+    weather="usa_il_chicago",
+    heater_w=25000.0,
+    initial_t_r_c=20.0,
+    comfort=ComfortSchedule(
+        day_min_c=20.0, day_max_c=23.0, night_min_c=16.0, night_max_c=25.0,
+        day_start_h=7.0, day_end_h=19.0,
+    ),
 )
-
-
-_SCENARIOS["eplus_midrise_apartment"] = _with_split(
-    Scenario(
-        name="eplus_midrise_apartment",
-        description=(
-            "DOE's mid-rise apartment building (EnergyPlus reference building, 3,135 m2, four "
-            "floors) in Denver (TMY3), its HVAC removed, its conditioned zones merged into one, "
-            "heated by an ideal 30 kW electric heater; run by EnergyPlus (no R/C parameters, no "
-            "oracle). Residential comfort 20-24 C 06-23 h, 18-24 C at night, winter_household's "
-            "dynamic price, backup 14/28 C; the residents' internal gains are unmeasured. A "
-            "second building and city, not the one the package's EnergyPlus defaults were "
-            "tuned on."
-        ),
-        sim=SimConfig(
-            params=EPLUS_NOMINAL,
-            u_max_w=30000.0,
-            backup_low_c=14.0,
-            backup_high_c=28.0,
-            plant=Plant(
-                kind="energyplus", building="midrise_apartment", weather="usa_co_denver",
-                heater_w=30000.0,
-            ),
-        ),
-        comfort_weight_eur_per_kh=5.0,
-        initial_t_r_c=21.0,
-        initial_t_m_c=21.0,
-        weather=eplus_weather("usa_co_denver"),
-        price=PriceProfile(kind="dynamic", level_eur_per_kwh=0.22, peak_eur_per_kwh=0.15),
-        comfort=ComfortSchedule(
-            day_min_c=20.0, day_max_c=24.0, night_min_c=18.0, night_max_c=24.0,
-            day_start_h=6.0, day_end_h=23.0,
-        ),
-    )
+_SCENARIOS["eplus_midrise_apartment"] = _energyplus_scenario(
+    name="eplus_midrise_apartment",
+    description=(
+        "DOE's mid-rise apartment building (EnergyPlus reference building, 3,135 m2, four "
+        "floors) in Denver (TMY3), its HVAC removed, its conditioned zones merged into one, "
+        "heated by an ideal 30 kW electric heater; run by EnergyPlus (no R/C parameters, no "
+        "oracle). Residential comfort 20-24 C 06-23 h, 18-24 C at night, winter_household's "
+        "dynamic price, backup 14/28 C; the residents' internal gains are unmeasured. A "
+        "second building and city, not the one the package's EnergyPlus defaults were "
+        "tuned on."
+    ),
+    building="midrise_apartment",
+    weather="usa_co_denver",
+    heater_w=30000.0,
+    initial_t_r_c=21.0,
+    comfort=ComfortSchedule(
+        day_min_c=20.0, day_max_c=24.0, night_min_c=18.0, night_max_c=24.0,
+        day_start_h=6.0, day_end_h=23.0,
+    ),
 )
 
 
