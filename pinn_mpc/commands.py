@@ -119,6 +119,8 @@ def identify(a: argparse.Namespace) -> str:
     result = identify_rc(df, eta=_eta(a.eta))
     summary = rc_summary(result.params, source=f"identify:{a.data}")
     summary["fit"] = result.fit_statistics()
+    for note in result.notes:
+        warn(note)
     atomic_write_json(a.out, summary)
     p = result.params
     return (

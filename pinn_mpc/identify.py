@@ -61,6 +61,7 @@ class IdentifyResult:
     identified_gains: bool
     n_starts: int
     cost_evaluations: int
+    notes: tuple[str, ...] = ()  # what a user should know of the fit (a mass at its edge)
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.rmse_c) and self.rmse_c >= 0):
@@ -76,6 +77,7 @@ class IdentifyResult:
             "identified_gains": self.identified_gains,
             "n_starts": self.n_starts,
             "cost_evaluations": self.cost_evaluations,
+            "notes": list(self.notes),
         }
 
 
@@ -123,20 +125,33 @@ class _Layout:
         upper = np.array([hi[n] for n in self.names])
         return lower, upper
 
-    def check_inside(self, theta: np.ndarray) -> None:
-        """A fit that ends on the edge of a plausible range wanted a value beyond it: refuse."""
+    def check_inside(self, theta: np.ndarray) -> tuple[str, ...]:
+        """A fit that ends on the edge of a plausible range wanted a value beyond it: refuse,
+        except for a thermal mass at its largest capacity, the one edge with a physical
+        meaning (the mass is slower than the data show: its temperature stays at its start
+        over the data's span); that fit is kept and a note returned."""
         lower, upper = self.bounds()
+        notes: list[str] = []
         for i, name in enumerate(self.names):
             if name not in _LOG_RC or lower[i] + 1e-6 < theta[i] < upper[i] - 1e-6:
                 continue
             field, key = _LOG_RC[name]
             low, high, unit = PLAUSIBLE_RANGES[field]
+            if name == "ln_c_m" and theta[i] >= upper[i] - 1e-6:
+                notes.append(
+                    f"identify: the thermal mass ran to its largest plausible capacity "
+                    f"({high:g} {unit}): over these data its temperature barely moves from its "
+                    "start, so the mass acts as a fixed-temperature boundary; more days, or data "
+                    "that move the building's temperature for longer, would resolve it"
+                )
+                continue
             raise InputError(
                 f"identify: the fit ran into the edge of the plausible range of {key} "
                 f"({low:g} .. {high:g} {unit}) at {math.exp(theta[i]):.4g} {unit}: the data do "
                 "not determine the building; check the units of power (W) and time, and that "
                 "the power varies enough over several days"
             )
+        return tuple(notes)
 
     def params(self, theta: np.ndarray) -> RCParams:
         v = dict(zip(self.names, theta, strict=True))
@@ -292,7 +307,7 @@ def identify_rc(df: pd.DataFrame, *, eta: float = 1.0) -> IdentifyResult:
         residuals, best.x, bounds=(lower, upper), xtol=1e-10, ftol=1e-12, max_nfev=400
     )
     evaluations += final.nfev
-    layout.check_inside(final.x)
+    notes = layout.check_inside(final.x)
     rmse = float(np.sqrt(np.mean(np.square(final.fun))))
     return IdentifyResult(
         params=layout.params(final.x),
@@ -303,4 +318,5 @@ def identify_rc(df: pd.DataFrame, *, eta: float = 1.0) -> IdentifyResult:
         identified_gains=gains,
         n_starts=len(starts),
         cost_evaluations=evaluations,
+        notes=notes,
     )

@@ -48,7 +48,7 @@ from tqdm import tqdm
 
 from controllers.planners import CEMPlanner, RandomShootingPlanner
 from pinn_mpc.choices import DEFAULT_ARCH
-from pinn_mpc.errors import InputError
+from pinn_mpc.errors import InputError, warn
 from pinn_mpc.physics import RCParams, params_from_summary, rc_summary
 from scenarios.choices import RANDOM_POLICIES
 from scenarios.closed_loop import one_torch_thread, run_closed_loop
@@ -320,7 +320,10 @@ def identify_scenario_rc(scenario: Scenario, data: pd.DataFrame) -> RCParams:
     column, as a heat pump's data has)."""
     from pinn_mpc.identify import identify_rc
 
-    return identify_rc(data, eta=scenario.sim.params.eta).params
+    result = identify_rc(data, eta=scenario.sim.params.eta)
+    for note in result.notes:
+        warn(note)
+    return result.params
 
 
 def rc_for_mpc(params: RCParams, scenario: Scenario) -> RCParams:

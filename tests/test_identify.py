@@ -166,3 +166,17 @@ def test_power_in_kilowatts_runs_into_the_plausible_edge_and_is_refused() -> Non
     kw = validate_timeseries(frame.assign(u=frame["u"] / 1000, u_phys=frame["u_phys"] / 1000))
     with pytest.raises(InputError, match="edge of the plausible range of C_r_J_per_K"):
         identify_rc(kw)
+
+
+def test_a_mass_slower_than_the_data_is_kept_at_its_largest_capacity_with_a_note() -> None:
+    """A thermal mass whose time constant is years (C_m at the top of its plausible range):
+    over a week its temperature stays at its start, the fit wants an even larger capacity
+    and stops at the edge; that edge means something physical, so the fit is kept, with a
+    note, and predicts the room as well as the truth's own simulation does."""
+    slow = dataclasses.replace(PAPER_HOUSEHOLD, c_m_j_per_k=1e12)
+    frame = _random_policy_frame(slow, days=7, seed=0)
+    result = identify_rc(frame)
+    assert result.params.c_m_j_per_k > 1e11
+    assert len(result.notes) == 1 and "largest plausible capacity" in result.notes[0]
+    assert _rel(result.params.r_ra_k_per_w, slow.r_ra_k_per_w) < 0.10
+    assert result.rmse_c < 0.05
