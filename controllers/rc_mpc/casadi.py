@@ -101,16 +101,23 @@ class CasadiMPC(RCMPC):
             "f": f,
             "g": ca.vertcat(t_r_forced + s, t_r_forced - s),
         }
-        with _quiet_c_stdout():
-            self._solver = ca.qpsol("casadi_mpc", self.plugin, qp, options)
-        self._first_call = True
+        self._qp, self._options = qp, options
+        self._new_solver()
         self._lbx = np.zeros(2 * h)
         self._slack_max = np.full(h, np.inf)
         self._warm: dict[str, np.ndarray] | None = None
 
+    def _new_solver(self) -> None:
+        """A fresh solver: qpOASES keeps a hot-start memory inside the CasADi function."""
+        with _quiet_c_stdout():
+            self._solver = ca.qpsol("casadi_mpc", self.plugin, self._qp, self._options)
+        self._first_call = True
+
     def reset(self, seed: int | None = None) -> None:
         super().reset(seed)
         self._warm = None
+        if hasattr(self, "_qp"):  # reset() runs once before _build()
+            self._new_solver()
 
     def _solve(self, stage: StageData) -> SolveResult:
         h = self.problem.horizon_steps
