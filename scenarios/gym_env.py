@@ -14,7 +14,9 @@ hidden ``T_m`` [C], the true ``T_r`` [C], ``u_phys`` [W], ``overridden`` (the ba
 The exogenous inputs come as a frame (as :meth:`scenarios.registry.Scenario.exogenous` makes
 it); an episode covers ``episode_steps`` consecutive rows. When the frame is longer than an
 episode, ``reset`` draws the first row from the environment's own generator, which
-``reset(seed=...)`` reseeds; the generator also seeds the sensor noise.
+``reset(seed=...)`` reseeds; the generator also seeds the sensor noise. On an EnergyPlus
+building (``config.plant``) each reset starts a fresh EnergyPlus run, at a midnight row;
+``info`` then has no hidden ``T_m`` (NaN). Call :meth:`close` to end the run's thread.
 """
 
 from __future__ import annotations
@@ -73,6 +75,12 @@ class BuildingEnv(gym.Env[np.ndarray, np.ndarray]):
         self.episode_steps = steps
         self.initial_state_c = (float(initial_t_r_c), float(initial_t_m_c))
         self._exo = np.column_stack([getattr(series, c) for c in EXOGENOUS])
+        # An EnergyPlus run starts at midnight: its episodes do too.
+        self._starts = (
+            np.flatnonzero(np.asarray(series.time_of_day_h) == 0.0)
+            if config.plant.is_energyplus
+            else np.arange(len(exogenous))
+        )
         angle = 2.0 * math.pi * series.time_of_day_h / 24.0
         self._clock = np.column_stack([np.sin(angle), np.cos(angle)])
 
@@ -118,7 +126,16 @@ class BuildingEnv(gym.Env[np.ndarray, np.ndarray]):
         if unknown:
             raise InputError(f"BuildingEnv.reset: unknown option(s) {sorted(unknown)}")
         last_start = len(self._exo) - self.episode_steps
-        start = opts.get("start", int(self.np_random.integers(last_start + 1)))
+        starts = self._starts[self._starts <= last_start]
+        if "start" in opts:
+            start = opts["start"]
+        elif starts.size:
+            start = int(starts[self.np_random.integers(starts.size)])
+        else:
+            raise InputError(
+                f"BuildingEnv.reset: no midnight in the first {last_start + 1} rows for an "
+                "EnergyPlus run to start at; give a longer exogenous frame"
+            )
         if not 0 <= start <= last_start:
             raise InputError(f"BuildingEnv.reset: start={start} must lie in [0, {last_start}]")
         t_r, t_m = opts.get("t_r_c", self.initial_state_c[0]), opts.get("t_m_c", self.initial_state_c[1])
@@ -153,3 +170,8 @@ class BuildingEnv(gym.Env[np.ndarray, np.ndarray]):
             "discomfort_kh": float(band_violation_k(t_r_next, t_min, t_max)) * dt_h,
         }
         return self._observation(), reward, False, truncated, info
+
+    def close(self) -> None:
+        """End the plant's work (an EnergyPlus run's thread and files); the RC simulator has none."""
+        self._loop.close()
+        super().close()

@@ -228,3 +228,25 @@ def test_sweep_on_energyplus_against_the_thermostat(tmp_path):
     assert all(r["reference"] == "thermostat" for r in rows.values())
     assert rows["thermostat"]["objective_to_thermostat_mean"] == pytest.approx(1.0)
     assert "objective/thermostat" in result.stdout
+
+
+def test_gymnasium_env_on_energyplus_starts_at_midnight_and_closes_its_thread():
+    """The env on an EnergyPlus building: random episodes start at a midnight row (where an
+    EnergyPlus run can start), the heat delivered is the power asked when the backup is out
+    of reach, and close() ends the run's thread."""
+    from scenarios.gym_env import BuildingEnv
+
+    scenario = get_scenario(SCENARIO)
+    exo = scenario.exogenous(days=2, seed=0, part="test")
+    env = BuildingEnv(scenario.sim, exo, comfort_weight_eur_per_kh=5.0, episode_steps=48)
+    before = threading.active_count()
+    try:
+        for seed in (0, 1):
+            env.reset(seed=seed)
+            assert env._loop.start % scenario.steps_per_day == 0
+            _, reward, _, _, info = env.step(np.array([5000.0], dtype=np.float32))
+            assert info["u_phys"] == pytest.approx(5000.0) and reward < 0
+            assert np.isnan(info["T_m"])
+    finally:
+        env.close()
+    assert threading.active_count() <= before
