@@ -31,9 +31,17 @@ README_EXAMPLE_HEADING = "## Python API"
 FENCE = re.compile(r"^```([a-z]*)\n(.*?)^```$", re.S | re.M)
 
 
+SNIPPET = re.compile(r'^--8<-- "([^":]+)"$', re.M)
+
+
 def blocks(path: Path, lang: str) -> list[str]:
-    """The fenced code blocks of ``path`` in language ``lang`` ("" for unlabelled ones)."""
-    return [body for tag, body in FENCE.findall(path.read_text(encoding="utf-8")) if tag == lang]
+    """The fenced code blocks of ``path`` in language ``lang`` ("" for unlabelled ones), with
+    included files (``--8<-- "path"``) in place, as the site shows them."""
+    return [
+        SNIPPET.sub(lambda m: (ROOT / m.group(1)).read_text(encoding="utf-8"), body)
+        for tag, body in FENCE.findall(path.read_text(encoding="utf-8"))
+        if tag == lang
+    ]
 
 
 def _env() -> dict[str, str]:
