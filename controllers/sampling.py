@@ -8,8 +8,8 @@ violation x dt_h, where *delivered* is the model's predicted ``u_phys`` (so the 
 the backup thermostat will override it) and the temperature is the predicted ``T_r`` at the end
 of each interval.
 
-Four defaults matter in closed loop (measured on winter_household and cold_storage, see the
-issue notes):
+Four defaults matter in closed loop (their measured effect, and what was tried instead, is in
+``CHANGELOG.md`` and ``docs/results/measured.md``):
 
 - ``ensemble="mean"``: the members' mean prediction is scored (a seed ensemble as one point
   predictor). ``"members"`` scores each member and averages the costs, plus ``risk_weight`` x
@@ -22,24 +22,16 @@ issue notes):
 - CEM polishes its plan with one LP on the linearised model (:mod:`controllers.lp_polish`),
   which takes a plan the last few percent to the optimum of the model; random shooting does
   not by default (``polish_iters``), so it shows what sampling alone does.
-- CEM plans against the comfort band narrowed by ``comfort_margin_k=0.01`` K on each side
-  (constraint tightening, :meth:`controllers.objective.HorizonObjective.tightened`). A plan
-  that rides a band edge exactly (the optimum does) and a model a few millikelvin off in
-  closed loop overshoot it at most intervals; with cold_storage's comfort weight that cost
-  2-6 % of the objective (compare seeds 0-3: CEM over the hybrid 1.020-1.057 x oracle, with
-  the margin 1.001-1.004; winter_household seeds 0 and 3 1.016 / 1.009 -> 0.998 / 0.998) for
-  0.1 % more energy. Random shooting in power space gains nothing from it (its gap is energy,
-  1.098-1.150 without, 1.088-1.164 with); in setpoint space it does (below).
+- CEM and random shooting plan against the comfort band narrowed by ``comfort_margin_k=0.01`` K
+  on each side (constraint tightening,
+  :meth:`controllers.objective.HorizonObjective.tightened`): a plan that rides a band edge
+  exactly (the optimum does) and a model a few millikelvin off in closed loop would overshoot
+  it at most intervals.
 - Random shooting samples room-temperature setpoint schedules (``space="setpoint"``): offsets
   from the band edge, turned into powers by tracking them through the model linearised around
   the warm start (:mod:`controllers.setpoint_space`; the probes come out of the same budget of
-  128 rollouts). In power space the search plateaus about 10 % above the optimum because the
-  optimum rides the band edge; in setpoint space that plan is one sample. Measured on the
-  compare's runs (60 training days, 5 test days, 10-member hybrid, no polish), objective /
-  oracle's: winter_household seeds 0-3 1.150 / 1.351 / 1.324 / 1.134 in power space, 1.006 /
-  1.008 / 1.044 / 1.011 in setpoint space; cold_storage 1.098 / 1.114 / 1.102 / 1.135 ->
-  1.031 / 1.035 / 1.029 / 1.029. The 0.01 K margin matters here (cold_storage seed 1: 1.084
-  without).
+  128 rollouts). In power space the search plateaus above the optimum because the optimum
+  rides the band edge; in setpoint space that plan is one sample.
 
 The plan is warm-started from the previous plan shifted by one step (its last action
 repeated); the first plan starts from half power.
@@ -50,10 +42,10 @@ else fails, the controller acts through :class:`controllers.base.Fallback` (the 
 rule on the measured room temperature), sets ``last_stats.fallback=True`` with the reason in
 ``status``, clears ``last_plan`` and restarts the next warm start from scratch.
 
-Speed: a rollout is a few small tensor ops per horizon step for the whole batch: over a
-10-member depth-16 physnet at 48 steps about 4 ms fixed plus 0.1 ms per candidate (CPU time),
-so an iteration costs about as much as 40 more candidates. On a shared 2-core machine one intra-op thread is fastest
-(``torch.set_num_threads(1)`` in the caller).
+Speed: a rollout is a few small tensor ops per horizon step for the whole batch, so its time
+is mostly fixed per horizon step and an iteration costs about as much as many more candidates
+(``benchmarks/bench_planners.py`` times it). On a shared 2-core machine one intra-op thread is
+fastest (``torch.set_num_threads(1)`` in the caller).
 """
 
 from __future__ import annotations
@@ -492,9 +484,8 @@ class CEM(_SamplingController):
     The defaults (those of :class:`controllers.planners.CEMPlanner`, coloured noise, one LP
     polish) are set by decision time: a learned model's rollout costs mostly a fixed time per
     horizon step, so iterations are expensive and samples cheap, and the polish rides along in
-    the same batches (``benchmarks/bench_planners.py`` times it: about 18 ms CPU time over a
-    10-member depth-16 hybrid, 30 ms over a physnet). The sampling finds the shape of the plan, the polish its last
-    percent (see :mod:`controllers.polish`).
+    the same batches (``benchmarks/bench_planners.py`` times it). The sampling finds the shape
+    of the plan, the polish its last percent (see :mod:`controllers.lp_polish`).
     """
 
     name = "cem"

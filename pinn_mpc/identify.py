@@ -235,13 +235,28 @@ def _check_sign(t_r: np.ndarray, d: np.ndarray, eta: float) -> None:
 
 
 def identify_rc(df: pd.DataFrame, *, eta: float = 1.0) -> IdentifyResult:
-    """Identify RC parameters from a validated frame (columns time, T_r, u_phys, T_a, [G, I_g]).
+    """Identify 2R2C parameters from data, with the mass temperature hidden.
 
-    ``df.attrs['dt_s']`` (set by :func:`pinn_mpc.data.validate_timeseries`) is the step; a
-    ``T_m`` column is never used; a ``cop`` column (a heat pump's heat per electrical watt)
-    makes the input the delivered heat ``cop`` x ``u_phys``. ``eta`` (heat per W of actuator
-    power) is given: 1 for an electric heater, minus the COP for a cooling machine; one whose
-    sign the data contradict is refused.
+    Parameters
+    ----------
+    df
+        A validated frame (columns time, T_r, u_phys, T_a, [G, I_g, cop]);
+        ``df.attrs['dt_s']`` (set by :func:`pinn_mpc.data.validate_timeseries`) is the step.
+        A ``T_m`` column is never used; a ``cop`` column (a heat pump's heat per electrical
+        watt) makes the input the delivered heat ``cop`` x ``u_phys``.
+    eta
+        Heat per W of actuator power: 1 for an electric heater, minus the COP for a cooling
+        machine. One whose sign the data contradict is refused.
+
+    Returns
+    -------
+    IdentifyResult
+        The parameters and the fit.
+
+    Raises
+    ------
+    InputError
+        Missing columns, several buildings, too few rows, unexcited or contradicting data.
     """
     eta = check_plausible("eta", eta, name="identify: eta")
     missing = [c for c in ("T_r", "u_phys", "T_a") if c not in df.columns]

@@ -264,8 +264,24 @@ def _training_set(df: pd.DataFrame, features: FeatureConfig, chunk: int) -> Trai
 def train_model(
     df: pd.DataFrame, *, arch: str, config: TrainConfig, progress: bool = True
 ) -> LearnedModel:
-    """Train ``config.n_seeds`` members of ``arch`` together on a frame in the data format;
-    depth and recipe left open in ``config`` are the architecture's."""
+    """Train a seed ensemble of ``arch`` on a frame in the data format.
+
+    Parameters
+    ----------
+    df
+        Training data in the data format (:func:`pinn_mpc.read_timeseries`).
+    arch
+        An architecture name (``"hybrid"``, ``"mlp"``, ``"physreg"``, ``"physnet"``).
+    config
+        How to train; depth and recipe left open are the architecture's.
+    progress
+        Show a progress bar on stderr.
+
+    Returns
+    -------
+    LearnedModel
+        ``config.n_seeds`` members trained together, with the RC identified from the same data.
+    """
     architecture = get_architecture(arch)
     config = config.for_arch(get_spec(arch))
     assert config.depth is not None and config.recipe is not None

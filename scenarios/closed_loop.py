@@ -172,12 +172,34 @@ def run_closed_loop(
 ) -> ClosedLoopResult:
     """Run ``controller`` on ``scenario`` for ``days`` counted days after the warm-up.
 
-    ``seed`` fixes the weather/price draw of the scenario, the sensor noise and the forecast
-    errors, so two runs with the same seed see the same disturbances. ``weather_part`` is the
-    part of the scenario's weather the run is drawn from (default the test part; see
-    :mod:`scenarios.inputs`). ``warmup_steps`` defaults to one day of intervals. ``label``
-    names the controller in the KPIs (default its ``name``).
-    ``progress`` shows progress on stderr (:func:`progress_steps`).
+    A thermostat drives the warm-up (not counted); then ``controller`` decides every interval.
+
+    Parameters
+    ----------
+    scenario
+        The building, weather, price and comfort band (:func:`scenarios.get_scenario`).
+    controller
+        Any :class:`controllers.Controller`, e.g. from :func:`scenarios.build_controller`.
+    days
+        Counted days after the warm-up.
+    seed
+        Fixes the weather/price draw of the scenario, the sensor noise and the forecast errors,
+        so two runs with the same seed see the same disturbances.
+    warmup_steps
+        Warm-up intervals; default one day.
+    label
+        Names the controller in the KPIs; default its ``name``.
+    weather_part
+        The part of the scenario's weather the run is drawn from: ``"test"`` (default),
+        ``"train"`` or ``"whole"`` (see :mod:`scenarios.inputs`).
+    progress
+        Show progress on stderr (:func:`progress_steps`).
+
+    Returns
+    -------
+    ClosedLoopResult
+        ``kpis`` (the dict of :func:`scenarios.compute_kpis` and the run's labels) and
+        ``trajectory`` (one row per counted interval).
     """
     check_plant_supports(scenario, controller)
     run = prepare_run(

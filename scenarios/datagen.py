@@ -56,10 +56,33 @@ def generate(
     on_probability: float = 0.5,
     weather_part: str = "train",
 ) -> pd.DataFrame:
-    """Simulate ``days`` days -> frame of ``days*steps_per_day`` rows (times ``n_buildings``).
+    """Simulate ``days`` days of ``scenario`` under a data-collection policy.
 
-    Deterministic in ``seed`` and ``weather_part`` (see :mod:`scenarios.inputs`);
-    ``attrs['dt_s']`` is the control interval [s].
+    Parameters
+    ----------
+    scenario
+        The scenario to simulate.
+    days
+        Days to simulate.
+    seed
+        Seed of the weather draw, price, policy and sensor noise; the frame is deterministic
+        in ``seed`` and ``weather_part``.
+    policy
+        ``"random-level"`` (a uniform random power per interval, best for models that will
+        drive a controller), ``"random"`` (the paper's on/off with ``on_probability``) or
+        ``"thermostat"``.
+    n_buildings
+        Buildings simulated at once (a ``building`` column is added when more than one).
+    on_probability
+        Probability of full power per interval under ``"random"``.
+    weather_part
+        ``"train"`` (default), ``"test"`` or ``"whole"`` (see :mod:`scenarios.inputs`).
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``days * steps_per_day`` rows (times ``n_buildings``) in the data format;
+        ``attrs['dt_s']`` is the control interval [s].
     """
     if policy not in POLICIES:
         raise InputError(f"unknown policy {policy!r}; choose one of: {', '.join(POLICIES)}")

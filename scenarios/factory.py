@@ -190,11 +190,34 @@ def build_controller(
     n_steps: int,
     planner_options: Mapping[str, Any] | None = None,
 ) -> Controller:
-    """A controller from objects already in memory (a model with the rollout interface, such
-    as a LearnedModel; RCParams).
+    """A controller by its command-line name, from objects already in memory.
 
-    ``n_steps`` is the number of counted intervals of the run (used by ``clairvoyant``);
-    ``planner_options`` are keyword arguments of ``random-shooting`` / ``cem`` (e.g. samples).
+    Parameters
+    ----------
+    name
+        One of :data:`scenarios.CONTROLLER_NAMES`.
+    scenario
+        The scenario the controller will run on (its control spec, and the true parameters
+        for ``oracle`` and ``clairvoyant``).
+    model
+        For ``cem`` and ``random-shooting``: a model with the rollout interface, such as a
+        :class:`pinn_mpc.LearnedModel`.
+    rc_params
+        For ``qp-mpc`` and ``casadi-mpc``: the RC parameters they plan on.
+    n_steps
+        The number of counted intervals of the run (used by ``clairvoyant``).
+    planner_options
+        Keyword arguments of ``random-shooting`` / ``cem`` (e.g. samples).
+
+    Returns
+    -------
+    Controller
+        Ready for :func:`scenarios.run_closed_loop`.
+
+    Raises
+    ------
+    InputError
+        An unknown name, a missing model or RC, or one that does not fit the scenario.
     """
     spec = scenario.control_spec()
     options = dict(planner_options or {})

@@ -58,10 +58,24 @@ def compute_kpis(
 ) -> dict[str, Any]:
     """KPIs of N control intervals of one building.
 
-    ``u_phys_w``, ``price_eur_per_kwh``, ``t_min_c``, ``t_max_c``, ``decision_s`` [s],
-    ``overridden`` and ``fallback`` (bool) are arrays (N,); ``t_r_sub_c`` is (N, S), the true
-    room temperature at the end of each of the S substeps of every interval. Returns a dict with
-    the keys :data:`KPI_KEYS` (floats, counts as ints).
+    Parameters
+    ----------
+    u_phys_w, price_eur_per_kwh, t_min_c, t_max_c, decision_s, overridden, fallback
+        Arrays (N,): delivered power [W], price [EUR/kWh], comfort band [C], decision time
+        [s], and whether the backup thermostat overrode the demand or the controller's
+        fallback acted (bool).
+    t_r_sub_c
+        (N, S): the true room temperature at the end of each of the S substeps of every
+        interval [C].
+    dt_s
+        The control interval [s].
+    comfort_weight_eur_per_kh
+        The price of a kelvin-hour outside the band, in the objective.
+
+    Returns
+    -------
+    dict
+        The keys :data:`KPI_KEYS` (floats, counts as ints).
     """
     u = np.asarray(u_phys_w, dtype=float)
     n = len(u)

@@ -476,9 +476,25 @@ def is_scenario_file(name_or_path: str) -> bool:
 
 
 def get_scenario(name_or_path: str) -> Scenario:
-    """A built-in scenario by name, or a scenario file (see :mod:`scenarios.scenario_file`):
-    the one resolver behind every ``--scenario``. An unknown name raises InputError listing
-    the valid ones; a bad file, one naming the file and the key."""
+    """A built-in scenario by name, or a scenario file: the one resolver behind every
+    ``--scenario``.
+
+    Parameters
+    ----------
+    name_or_path
+        A built-in name (:func:`scenarios.scenario_names`) or the path of a ``.toml`` scenario
+        file (see :mod:`scenarios.scenario_file`).
+
+    Returns
+    -------
+    Scenario
+
+    Raises
+    ------
+    InputError
+        An unknown name (the message lists the valid ones); a bad file (the message names
+        the file and the key).
+    """
     if name_or_path in _SCENARIOS:
         return _SCENARIOS[name_or_path]
     if is_scenario_file(name_or_path):

@@ -1,5 +1,6 @@
 """The public API: what the packages export, that importing them stays light, and that the
-README's layout, command line and Python API example match the code."""
+documented layout (docs/layout.md), the README's command line and its Python API example match
+the code."""
 
 from __future__ import annotations
 
@@ -21,6 +22,7 @@ PACKAGES = ("pinn_mpc", "controllers", "scenarios")
 #: The application above the packages (the command line).
 APPLICATION = "pinn_mpc_cli"
 README = (ROOT / "README.md").read_text(encoding="utf-8")
+LAYOUT = (ROOT / "docs" / "layout.md").read_text(encoding="utf-8")
 
 
 def _type_checking_imports(package: str) -> dict[str, str]:
@@ -80,15 +82,15 @@ def test_importing_the_packages_and_the_cli_stays_light() -> None:
     assert result.stdout.strip() == "[]"
 
 
-def _block(after: str, lang: str = "") -> str:
-    section = README[README.index(after) :]
-    match = re.search(rf"```{lang}\n(.*?)```", section, re.S)
+def _block(after: str, lang: str = "", text: str = README) -> str:
+    section = text[text.index(after) :]
+    match = re.search(rf"```{lang or '[a-z]*'}\n(.*?)```", section, re.S)
     assert match, f"no code block after {after!r}"
     return match.group(1)
 
 
-def test_readme_layout_names_every_module() -> None:
-    layout = _block("## What is in it")
+def test_layout_page_names_every_module() -> None:
+    layout = _block("## What is in it", text=LAYOUT)
     named = set(re.findall(r"\b([a-z_]+\.py)\b", layout))
     named |= {f"{d}.py" for d in re.findall(r"\b([a-z_]+)\.py\b", layout)}
     for path in _modules():

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-CODE = ["pinn_mpc", "pinn_mpc_cli", "controllers", "scenarios", "tests", "benchmarks", "examples"]
+CODE = ["pinn_mpc", "pinn_mpc_cli", "controllers", "scenarios", "tests", "benchmarks", "examples", "docs"]
 
 
 def _run(args: list[str]) -> subprocess.CompletedProcess[str]:

@@ -125,7 +125,7 @@ class HybridNet(nn.Module):
       threshold (upper for heating, lower for cooling) and T_end(p_full) the "full power" one.
       The thresholds are learned. Delivered power never falls as the demand rises, and far from
       the thresholds it is exactly the demand (a gate that switched the heater off when the
-      demand itself would overshoot made full demand look free: 105 x oracle under CEM).
+      demand itself would overshoot made full demand look free; see ``CHANGELOG.md``).
     - T_r,i+1 = Ad[0] (T_r,i, T_m,i) + Bd[0] (u_phys,i, T_a,i, G_i, I_g,i) + residual net
       (z, x_obs, w), with Bd's first input the heat g(T_a) u_phys. The residual net does not see u, so the heating effect is the physics'
       ``b`` (sign fixed by eta) through the delivered power (Di Natale et al., 2022, put the
