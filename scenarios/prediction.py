@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from controllers.estimators import RC_MPC_PROCESS_STD_C
 from pinn_mpc.actuator import Actuator
 from pinn_mpc.arx import ARXModel
 from pinn_mpc.evaluation import recursive_t_r
@@ -56,7 +57,7 @@ def rc_recursive_t_r(
         ],
         axis=1,
     )
-    observer = KalmanObserver(params, dt_s)
+    observer = KalmanObserver(params, dt_s, process_std_c=RC_MPC_PROCESS_STD_C)
     observer.reset(t_r[0])
     estimates = np.empty((len(df), 2))
     estimates[0] = observer.state[0]
