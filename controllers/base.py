@@ -33,7 +33,7 @@ __all__ = [
 
 #: Exogenous inputs a model may take, in the data format's names (fields of Forecast and
 #: LastInterval alike).
-EXOGENOUS_NAMES = ("time_of_day_h", "T_a", "G", "I_g")
+EXOGENOUS_NAMES = ("time_of_day_h", "T_a", "G", "I_g", "day_of_week")
 
 
 class Forecast(NamedTuple):
@@ -46,6 +46,8 @@ class Forecast(NamedTuple):
     price: np.ndarray  # [EUR/kWh]
     T_min: np.ndarray  # comfort band, lower [C]
     T_max: np.ndarray  # comfort band, upper [C]
+    # day of the week of each interval's start, 0 = Monday (NaN where the dates are unknown)
+    day_of_week: np.ndarray | None = None
 
     @property
     def horizon(self) -> int:
@@ -54,6 +56,8 @@ class Forecast(NamedTuple):
     def exogenous(self, names: tuple[str, ...], h: int) -> dict[str, np.ndarray]:
         """Fresh arrays (h,) of the named series (names of :data:`EXOGENOUS_NAMES`)."""
         fields = self._asdict()
+        if "day_of_week" in names and self.day_of_week is None:
+            raise InputError("the forecast has no calendar (day_of_week) that the model needs")
         return {name: np.array(fields[name][:h]) for name in names}
 
 
@@ -66,6 +70,7 @@ class LastInterval(NamedTuple):
     I_g: float
     u: float  # demanded power [W]
     u_phys: float  # delivered power [W]
+    day_of_week: float = math.nan  # of its start, 0 = Monday (NaN when the dates are unknown)
 
 
 class Observation(NamedTuple):
@@ -73,7 +78,8 @@ class Observation(NamedTuple):
 
     ``history`` holds the past in the data format's names: ``T_r`` (k+1,) measured room
     temperatures up to and including now; ``u`` and ``u_phys`` (k,) demanded and delivered power
-    of past intervals [W]; ``T_a``, ``G``, ``I_g``, ``time_of_day_h`` (k+1,) up to now.
+    of past intervals [W]; ``T_a``, ``G``, ``I_g``, ``time_of_day_h`` (k+1,) up to now, and
+    ``day_of_week`` (k+1,, 0 = Monday) where the run has dates.
     ``last`` is the interval that just ended (None at the first step), so nobody reads it back
     out of ``history`` by index. ``t_m_true_c`` is the simulator's hidden thermal-mass
     temperature: only the true-state estimator (oracle) may use it.
@@ -108,6 +114,7 @@ class Observation(NamedTuple):
                 I_g=before_now("I_g"),
                 u=float(u[-1]),
                 u_phys=float(u_phys[-1]),
+                day_of_week=before_now("day_of_week") if "day_of_week" in history else math.nan,
             )
         return cls(k=k, t_r_c=float(t_r[-1]), history=history, t_m_true_c=t_m_true_c, last=last)
 

@@ -14,6 +14,8 @@ workdays (Monday-Friday) and weekends. It is fitted by least squares on the one-
 power, so it predicts any power plan by recursion. :func:`fit_arx` fits it,
 :meth:`ARXModel.predict_t_r` predicts ``h`` steps ahead from given starts; it serves as the
 reference every learned model of a comparison must beat (:mod:`scenarios.prediction`).
+:meth:`ARXModel.rollout` is the planners' rollout interface, so ``cem`` and
+``random-shooting`` plan over it (its schedule reads the forecast's day of the week).
 """
 
 from __future__ import annotations
@@ -23,8 +25,10 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
+import torch
 
 from pinn_mpc.errors import InputError
+from pinn_mpc.models.rollout import Rollout
 
 __all__ = ["ARXModel", "BLOCK_H", "DEFAULT_LAGS", "fit_arx"]
 
@@ -99,6 +103,68 @@ class ARXModel:
             t_next = other + t_hist @ a_tr + sched[k] @ self.coef[n_lag:]
             t_hist = np.concatenate([t_next[:, None], t_hist[:, :-1]], axis=1)
         return t_hist[:, 0] / _SCALE["T_r"]
+
+    # -- the planners' rollout interface (pinn_mpc.models.rollout.BatchDynamics) --------
+    @property
+    def n_members(self) -> int:
+        return 1
+
+    @property
+    def eta(self) -> float:
+        """+1 when more power warms the room in the fit (heating), -1 when it cools."""
+        return 1.0 if float(np.sum(self.coef[1 : self.lags * len(self.columns) : len(self.columns)])) > 0 else -1.0
+
+    @property
+    def depth(self) -> int:
+        return self.lags
+
+    @property
+    def exog_names(self) -> tuple[str, ...]:
+        return ("time_of_day_h", "day_of_week", *self.columns[2:])
+
+    def rollout(
+        self, history: dict[str, np.ndarray], u_w: torch.Tensor, exog: dict[str, np.ndarray]
+    ) -> Rollout:
+        """The recursion for N plans ``u_w`` (N, H) [W] from ``history`` (data-format names,
+        ``T_r`` up to now, ``u_phys`` of past intervals, weather up to now) with ``exog`` (H,)
+        per :attr:`exog_names`; the delivered power is the plan. Tensors (1, N, H)."""
+        n_col, lags = len(self.columns), self.lags
+        u = u_w.detach().to(torch.float64)
+        n, h = u.shape
+        dow = np.asarray(exog["day_of_week"], dtype=float)[:h]
+        if not np.all(np.isfinite(dow)):
+            raise InputError("ARX model: its schedule needs the forecast's dates (day_of_week)")
+        coef = torch.as_tensor(self.coef, dtype=torch.float64)
+        # Every lagged input but T_r over rows k-lags+1 .. k+h-1 (the past, then the horizon).
+        part = torch.zeros(n, h, dtype=torch.float64)
+        for c, name in enumerate(self.columns[1:], start=1):
+            past = np.asarray(history[name], dtype=float)
+            past = past[-(lags - 1):] if name == "u_phys" else past[-lags:-1]
+            if lags > 1 and len(past) < lags - 1:
+                raise InputError(f"ARX model: needs {lags - 1} past intervals of {name}")
+            past_t = torch.as_tensor(past[len(past) - (lags - 1):] * _SCALE[name], dtype=torch.float64)
+            if name == "u_phys":
+                seq = torch.cat([past_t.expand(n, -1), u * _SCALE[name]], dim=1)
+            else:
+                ahead = torch.as_tensor(np.asarray(exog[name], dtype=float)[:h] * _SCALE[name])
+                seq = torch.cat([past_t, ahead]).expand(n, -1)
+            for j in range(lags):
+                part += coef[j * n_col + c] * seq[:, lags - 1 - j : lags - 1 - j + h]
+        blocks = int(round(24 / BLOCK_H))
+        block = (np.asarray(exog["time_of_day_h"], dtype=float)[:h] // BLOCK_H).astype(int)
+        sched = coef[lags * n_col :][torch.as_tensor(block + blocks * (dow >= 5))]
+        part += sched
+        a_tr = coef[0 : lags * n_col : n_col]
+        t_hist = torch.as_tensor(
+            np.asarray(history["T_r"], dtype=float)[::-1][:lags].copy(), dtype=torch.float64
+        ).expand(n, -1)
+        out = []
+        for step in range(h):
+            t_next = part[:, step] + t_hist @ a_tr
+            out.append(t_next)
+            t_hist = torch.cat([t_next[:, None], t_hist[:, :-1]], dim=1)
+        t_r = torch.stack(out, dim=1) / _SCALE["T_r"]
+        return Rollout(t_r_c=t_r[None], u_phys_w=u.clamp(min=0.0)[None], t_m_c=None)
 
     def to_dict(self) -> dict[str, Any]:
         """The model as JSON-ready data (numbers only)."""

@@ -13,7 +13,7 @@
    included), same perfect forecasts, same one-day thermostat warm-up, for: thermostat,
    random shooting and CEM over the hybrid (and CEM without its LP polish, to show what the
    polish adds), CEM over physnet, physreg and mlp (physreg and mlp unless
-   ``cem_all_models=False``), casadi-mpc and qp-mpc on the identified RC, qp-mpc on the
+   ``cem_all_models=False``), CEM over the linear ARX baseline (:mod:`pinn_mpc.arx`), casadi-mpc and qp-mpc on the identified RC, qp-mpc on the
    hybrid- and physnet-exported RCs, oracle and clairvoyant (where the plant has a true RC
    and state; on EnergyPlus there is no oracle and every controller is measured against the
    thermostat, :attr:`scenarios.registry.Scenario.reference`).
@@ -233,10 +233,11 @@ def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonR
         policy=settings.policy,
         weather_part="test",
     )
+    arx = fit_arx(data)
     prediction = prediction_errors(
         held_out,
         learned=models,
-        linear={"ARX": fit_arx(data)},
+        linear={"ARX": arx},
         rc={**rc_params, **({"true RC": scenario.sim.params} if has_truth else {})},
         actuator=actuator,
     )
@@ -258,6 +259,7 @@ def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonR
             ("cem", arch, {"model": model, "planner_options": cem})
             for arch, model in models.items()
         ),
+        ("cem", "ARX", {"model": arx, "planner_options": cem}),
         ("casadi-mpc", "identified RC", {"rc_params": rc_params["identified RC"]}),
         ("qp-mpc", "identified RC", {"rc_params": rc_params["identified RC"]}),
         *(("qp-mpc", f"{arch} RC", {"rc_params": rc_params[f"{arch} RC"]}) for arch in ARCHS[:2]),

@@ -143,7 +143,17 @@ class ExogenousSeries:
     #: (N,) interval start times (datetime64), when known: a plant with a calendar needs them.
     times: np.ndarray | None = None
 
+    #: (N,) day of the week of each interval's start, 0 = Monday; by default from ``times``
+    #: (NaN without them).
+    day_of_week: np.ndarray | None = None
+
     def __post_init__(self) -> None:
+        if self.day_of_week is None:
+            if self.times is None:
+                dow = np.full(len(self.T_a), np.nan)
+            else:  # 1970-01-01 was a Thursday
+                dow = ((np.asarray(self.times, dtype="datetime64[D]").astype(np.int64) + 3) % 7).astype(float)
+            object.__setattr__(self, "day_of_week", dow)
         lengths = {len(getattr(self, name)) for name in Forecast._fields}
         if len(lengths) != 1:
             raise InputError(f"ExogenousSeries: all series need one length, got {sorted(lengths)}")
@@ -343,7 +353,8 @@ class ClosedLoop:
         fleet: Sequence[RCParams] | None = None,
         plant: LoopPlant | None = None,
     ) -> None:
-        if not np.all(np.isfinite(np.column_stack(list(exogenous.forecast(0))))):
+        inputs = exogenous.forecast(0)._replace(day_of_week=None)  # NaN without dates
+        if not np.all(np.isfinite(np.column_stack([a for a in inputs if a is not None]))):
             raise InputError("exogenous series has non-finite values")
         seen_gains_w = exogenous.I_g
         if not forecast_errors.gains_known:
@@ -447,6 +458,7 @@ class ClosedLoop:
             "G": np.append(self._means[:k, building, 1], exo.G[self.start + k]),
             "I_g": np.array(gains[rows]),
             "time_of_day_h": np.array(exo.time_of_day_h[rows]),
+            "day_of_week": np.array(exo.day_of_week)[rows],
             "T_r": np.array(self._t_r[: k + 1, building]),
             "u": np.array(self._u[:k, building]),
             "u_phys": np.array(self._u_phys[:k, building]),
@@ -539,7 +551,10 @@ class ClosedLoop:
             perfect = _perfect_knowledge(controller)
             if perfect not in forecasts:
                 forecasts[perfect] = self.forecast(perfect=perfect)
-            forecast = Forecast(*(np.array(a) for a in forecasts[perfect]))
+            shared = forecasts[perfect]  # each controller gets copies
+            forecast = shared._replace(
+                **{n: np.array(v) for n, v in shared._asdict().items() if v is not None}
+            )
             obs = self.observation(perfect=perfect, building=i)
             u[i], decision_s[i], fallback[i], error = decide(controller, obs, forecast, self.spec)
             if error is not None:

@@ -63,3 +63,37 @@ def test_arx_refuses_short_data_and_out_of_range_starts():
         model.predict_t_r(test, 24, np.array([len(test) - 10]))
     with pytest.raises(InputError, match="lacks column"):
         model.predict_t_r(test.drop(columns="G"), 1, np.array([10]))
+
+
+def test_arx_rollout_is_its_recursion_for_the_planners():
+    """The planners' rollout of the ARX model from a history and a plan equals its own
+    recursion on the same data (the plan being the data's delivered power)."""
+    import torch
+
+    from pinn_mpc.features import time_of_day_h
+
+    model = fit_arx(_rc_data(21, seed=0), lags=4)
+    test = _rc_data(3, seed=1)
+    k, h = 30, 24
+    time = pd.to_datetime(test["time"])
+    history = {
+        "T_r": test["T_r"].to_numpy()[: k + 1],
+        "u_phys": test["u_phys"].to_numpy()[:k],
+        "T_a": test["T_a"].to_numpy()[: k + 1],
+        "G": test["G"].to_numpy()[: k + 1],
+    }
+    exog = {
+        "time_of_day_h": time_of_day_h(test["time"])[k : k + h],
+        "day_of_week": time.dt.day_of_week.to_numpy(dtype=float)[k : k + h],
+        "T_a": test["T_a"].to_numpy()[k : k + h],
+        "G": test["G"].to_numpy()[k : k + h],
+    }
+    plan = torch.tensor(test["u_phys"].to_numpy()[k : k + h])[None]
+    roll = model.rollout(history, plan.repeat(3, 1), exog)
+    assert roll.t_r_c.shape == (1, 3, h) and model.exog_names == ("time_of_day_h", "day_of_week", "T_a", "G")
+    for step in (1, 6, h):
+        expected = model.predict_t_r(test, step, np.array([k]))[0]
+        assert float(roll.t_r_c[0, 2, step - 1]) == pytest.approx(expected, abs=1e-9)
+    assert model.eta == 1.0
+    with pytest.raises(InputError, match="dates"):
+        model.rollout(history, plan, {**exog, "day_of_week": np.full(h, np.nan)})

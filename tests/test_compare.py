@@ -105,7 +105,7 @@ def test_compare_quick_end_to_end(tmp_path, capsys):
     labels = [row["controller"] for row in table["rows"]]
     assert labels == [
         "thermostat", "random-shooting / hybrid", "cem / hybrid, no LP polish", "cem / hybrid",
-        "cem / physnet", "cem / physreg", "cem / mlp",
+        "cem / physnet", "cem / physreg", "cem / mlp", "cem / ARX",
         "casadi-mpc / identified RC",
         "qp-mpc / identified RC", "qp-mpc / hybrid RC", "qp-mpc / physnet RC", "oracle",
         "clairvoyant",

@@ -240,6 +240,6 @@ def test_clairvoyant_counts_its_run_from_the_first_decision() -> None:
     plan = at_zero.last_plan
     history = {"T_r": np.array([19.0, 19.5]), "u": plan[:1], "u_phys": plan[:1], "T_a": fc.T_a[:2]}
     second = Observation.from_history(1, history, 17.1)
-    at_zero.act(second, Forecast(*(np.asarray(a)[1:] for a in fc)))
+    at_zero.act(second, Forecast(*(None if a is None else np.asarray(a)[1:] for a in fc)))
     assert at_zero.last_plan is not None
     assert at_zero.last_plan[-1] < 1.0  # the last step is after the run end: nothing planned
