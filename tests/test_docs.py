@@ -248,7 +248,7 @@ def test_results_page_states_command_commit_machine_and_cells(tmp_path: Path) ->
     assert "**Generated** by `python docs/gen_results.py --spec sweeps/smoke.toml` on " in text
     assert "- commit: `abc123`" in text and "- machine: " in text and "1.5 min" in text
     assert spec.read_text().strip() in text
-    assert "| winter_household | cem | 14 | 2 | 1.015 |" in text  # mean of 1.010 and 1.020
+    assert "| winter_household | cem | 14 | 2 | oracle | 1.015 |" in text  # mean of 1.010 and 1.020
     assert "| winter_household | 14 | 1 | 1.020 | 1.010 | 20.00 | cem 3 of 48 |" in text
     assert "| winter_household | oracle |" not in text
 
