@@ -71,6 +71,13 @@ def _finite_non_negative_float(text: str) -> float:
     return value
 
 
+def _positive_float(text: str) -> float:
+    value = _finite_non_negative_float(text)
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"must be a number > 0, got {text}")
+    return value
+
+
 def _horizons(text: str) -> list[int]:
     try:
         values = [int(v) for v in text.split(",") if v.strip()]
@@ -294,6 +301,25 @@ def build_parser() -> argparse.ArgumentParser:
         "--large",
         action="store_true",
         help="confirm a fleet of more than 1000 buildings (hours of work)",
+    )
+    p.add_argument(
+        "--batched",
+        action="store_true",
+        help="plan the whole fleet in one batch each step (qp-mpc as one block QP; cem and "
+        "random-shooting over the buildings' own models, --model DIR); implied by --cap-kw",
+    )
+    p.add_argument(
+        "--cap-kw",
+        type=_positive_float,
+        default=None,
+        help="keep the fleet's aggregate electrical power at or under this many kW (a price "
+        "signal by dual ascent over the batched planners; the JSON counts every capped "
+        "interval over it); writes the fleet figure next to --json",
+    )
+    p.add_argument(
+        "--cap-window",
+        default=None,
+        help="HH:MM-HH:MM: the cap holds in this window of every day (default all day)",
     )
 
     p = add("compare", "scenarios.commands:compare", "train, identify and run every controller on one scenario")

@@ -43,6 +43,7 @@ from scenarios.report import (
 
 if TYPE_CHECKING:  # compare loads torch: only the compare command imports it
     from scenarios.compare import CompareSettings, ComparisonResult
+    from scenarios.fleet import FleetResult
 
 __all__ = ["closed_loop", "compare", "reproduce", "scenario", "simulate", "sweep"]
 
@@ -110,6 +111,10 @@ def closed_loop(a: argparse.Namespace) -> str:
     scenario = get_scenario(a.scenario)
     if a.buildings > 1:
         return _fleet_closed_loop(a, scenario)
+    for option, given in (("--batched", a.batched), ("--cap-kw", a.cap_kw is not None),
+                          ("--cap-window", a.cap_window is not None)):
+        if given:
+            raise InputError(f"{option} coordinates a fleet: add --buildings N with N > 1")
     if a.spread is not None:
         raise InputError("--spread draws a fleet: add --buildings N with N > 1")
     _check_controller_inputs(a)
@@ -199,42 +204,100 @@ _FLEET_REASONS = {
 
 def _fleet_closed_loop(a: argparse.Namespace, scenario: Scenario) -> str:
     """``closed-loop --buildings N``: the fleet run, its JSON (fleet, totals, step times,
-    buildings); each building's controller is built on its own parameters. A fleet that would
-    not fit in memory is refused before anything is built."""
+    aggregate power, district KPIs, the cap's account, buildings); each building's controller
+    is built on its own parameters, one after another, or the fleet is planned in one batch
+    (``--batched``, ``--cap-kw``; then the fleet figure is written next to the JSON). A fleet
+    that would not fit in memory is refused before anything is built."""
     from scenarios.budget import check_fleet_memory, check_fleet_size
     from scenarios.fleet import run_fleet_closed_loop
 
+    batched = a.batched or a.cap_kw is not None
     for option, value in (("--model", a.model), ("--rc", a.rc), ("--csv", a.csv), ("--plot", a.plot)):
         if value is not None:
             raise InputError(
                 f"{option} does not apply to a fleet (--buildings {a.buildings}): "
                 f"{_FLEET_REASONS[option]}; leave it out, or drop --buildings for one building"
             )
+    if a.cap_window is not None and a.cap_kw is None:
+        raise InputError("--cap-window needs --cap-kw (the cap in that window)")
+    figure = None
+    if batched:
+        from scenarios.aggregator import BATCHED_CONTROLLERS, parse_cap_window
+
+        if a.controller != "qp-mpc":
+            raise InputError(
+                f"--batched/--cap-kw plan the fleet with qp-mpc (one block QP), got "
+                f"--controller {a.controller}; batched controllers: {', '.join(BATCHED_CONTROLLERS)}"
+            )
+        if a.cap_window is not None:
+            parse_cap_window(a.cap_window)
+        figure = str(Path(a.json).with_suffix(".fleet.png"))
+        check_writable(figure)
+        check_distinct(inputs=_scenario_inputs(a.scenario), outputs={"--json": a.json, "figure": figure})
     check_fleet_memory(scenario, a.controller, days=a.days, buildings=a.buildings)
     check_fleet_size(a.controller, buildings=a.buildings, days=a.days, large=a.large)
     spread = 0.2 if a.spread is None else a.spread
     threads = one_torch_thread() if a.controller in MODEL_CONTROLLERS else contextlib.nullcontext()
     with threads:
-        result = run_fleet_closed_loop(
-            scenario, a.controller, n_buildings=a.buildings, days=a.days, seed=a.seed,
-            spread=spread, weather_part=a.weather_part, progress=True,
-        )
-    atomic_write_json(
-        a.json,
-        {
-            "fleet": _with_scenario_file(result.info, a.scenario),
-            "totals": result.totals,
-            "step_time": result.step_time,
-            "buildings": [
-                {**kpis, "params": dataclasses.asdict(params)}
-                for kpis, params in zip(result.kpis, result.params, strict=True)
-            ],
-        },
-    )
+        if batched:
+            from scenarios.aggregator import run_coordinated_fleet
+
+            result = run_coordinated_fleet(
+                scenario, a.controller, n_buildings=a.buildings, days=a.days, seed=a.seed,
+                spread=spread, weather_part=a.weather_part, cap_kw=a.cap_kw,
+                cap_window=a.cap_window, progress=True,
+            )
+        else:
+            result = run_fleet_closed_loop(
+                scenario, a.controller, n_buildings=a.buildings, days=a.days, seed=a.seed,
+                spread=spread, weather_part=a.weather_part, progress=True,
+            )
+    atomic_write_json(a.json, fleet_json(result, a.scenario))
     lines = [format_fleet(result)]
+    if result.cap is not None:
+        c = result.cap
+        lines.append(
+            f"cap {c['kw']:.1f} kW ({c['window'] or 'all day'}): {c['intervals_over']} of "
+            f"{c['intervals']} capped intervals over it, {c['kwh_over']:.2f} kWh over"
+        )
     if result.errors:
         lines.append(f"{len(result.errors)} controller error(s), first: {result.errors[0]}")
+    if figure is not None:
+        from scenarios.aggregator import cap_in_force
+        from scenarios.plots import fleet_figure, save_figure
+
+        cap_kw = None if result.cap is None else cap_in_force(result.times, result.cap)
+        discomfort = np.array([k["discomfort_kh"] for k in result.kpis])
+        title = f"{result.info['controller']} x {result.info['n_buildings']} on {result.info['scenario']}"
+        save_figure(
+            fleet_figure(result.times, result.aggregate_u_phys_w / 1000.0, discomfort,
+                         cap_kw=cap_kw, title=title),
+            figure,
+        )
+        lines.append(f"wrote {figure}")
     return "\n".join([*lines, f"wrote {a.json}"])
+
+
+def fleet_json(result: FleetResult, scenario_arg: str) -> dict[str, Any]:
+    """The fleet JSON: ``fleet`` (what ran), ``totals``, ``district`` KPIs, ``aggregate``
+    (``time``, ``power_kw`` per counted interval), ``cap`` (None without one), ``fell_back``
+    (the buildings whose fallback acted at least once), ``step_time`` and ``buildings``."""
+    return {
+        "fleet": _with_scenario_file(result.info, scenario_arg),
+        "totals": result.totals,
+        "district": result.district,
+        "aggregate": {
+            "time": list(result.times),
+            "power_kw": [round(float(v) / 1000.0, 4) for v in result.aggregate_u_phys_w],
+        },
+        "cap": result.cap,
+        "fell_back": [k["building"] for k in result.kpis if k["fallbacks"] > 0],
+        "step_time": result.step_time,
+        "buildings": [
+            {**kpis, "params": dataclasses.asdict(params)}
+            for kpis, params in zip(result.kpis, result.params, strict=True)
+        ],
+    }
 
 
 def _dates_text(settings: CompareSettings, days: dict[str, list[str]]) -> str:
