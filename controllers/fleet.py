@@ -60,10 +60,12 @@ class FleetPlan(NamedTuple):
 
 class FleetDecision(NamedTuple):
     """What :meth:`FleetPlanner.commit` applies: ``u_w`` (B,) demanded power [W], ``fallback``
-    (B,) bool (the building's own fallback acted)."""
+    (B,) bool (the building's own fallback acted: no plan), ``model_fallback`` (B,) bool (a
+    planner over learned models handed the building to its RC MPC; None: no such fallback)."""
 
     u_w: np.ndarray
     fallback: np.ndarray
+    model_fallback: np.ndarray | None = None
 
 
 class FleetPlanner(Protocol):
@@ -225,9 +227,12 @@ class FleetQPMPC:
         lower[:, 5 * h :], upper[:, 5 * h :] = 0.0, inf
         return q.reshape(-1), lower.reshape(-1), upper.reshape(-1)
 
-    def plan(self, extra_price_eur_per_kwh: np.ndarray | None = None) -> FleetPlan:
+    def plan(
+        self, extra_price_eur_per_kwh: np.ndarray | None = None, *, only: np.ndarray | None = None
+    ) -> FleetPlan:
         """Every building's plan under the forecast plus ``extra_price_eur_per_kwh`` (H,)
-        (default 0) on electrical energy; warm-started from the last solve."""
+        (default 0) on electrical energy; warm-started from the last solve. ``only`` (B,) bool:
+        solve the blocks of these buildings only (the others are not ``ok``)."""
         if self._stage is None:
             raise InputError("FleetQPMPC.plan: call observe() first")
         h = self._h
@@ -237,9 +242,11 @@ class FleetQPMPC:
         q, lower, upper = (v.reshape(self.n_buildings, -1) for v in self._data(extra))
         x = np.full((self.n_buildings, 4 * h), np.nan)
         solved = np.zeros(self.n_buildings, dtype=bool)
-        statuses: set[str] = set()
+        statuses: set[str] = set() if only is None or only.all() else {"solved"}
         iterations = 0
         for j, (block, (p_upper, a)) in enumerate(zip(self._blocks, self._matrices, strict=True)):
+            if only is not None and not np.any(only[block]):
+                continue
             data = {"q": q[block].reshape(-1), "l": lower[block].reshape(-1), "u": upper[block].reshape(-1)}
             solver = self._solvers[j]
             if solver is None:
@@ -262,14 +269,18 @@ class FleetQPMPC:
         status = "solved" if statuses == {"solved"} else ", ".join(sorted(statuses))
         return FleetPlan(power_w=power, ok=ok, status=status, iterations=iterations)
 
-    def commit(self, plan: FleetPlan) -> FleetDecision:
+    def commit(self, plan: FleetPlan, *, active: np.ndarray | None = None) -> FleetDecision:
         """Apply ``plan``: first actions of the buildings that planned, fallbacks otherwise;
-        the solver's solution shifted one step is the next step's warm start."""
+        the solver's solution shifted one step is the next step's warm start. ``active`` (B,)
+        bool: only these buildings act (the others get 0 W and count nothing: a shadow MPC
+        acts only where its model is distrusted)."""
         s = self._stage
         if s is None:
             raise InputError("FleetQPMPC.commit: call observe() and plan() first")
-        u = np.empty(self.n_buildings)
+        u = np.zeros(self.n_buildings)
         for i, fallback in enumerate(self.fallbacks):
+            if active is not None and not active[i]:
+                continue
             if plan.ok[i]:
                 fallback.planned(plan.power_w[i].copy())
                 u[i] = plan.power_w[i, 0]
@@ -277,7 +288,8 @@ class FleetQPMPC:
                 u[i] = fallback.act(s.observations[i], s.forecast)
         self._shift_warm_starts()
         self._stage = None
-        return FleetDecision(u_w=u, fallback=~plan.ok)
+        failed = ~plan.ok if active is None else active & ~plan.ok
+        return FleetDecision(u_w=u, fallback=failed)
 
     def _shift_warm_starts(self) -> None:
         """Each block's last solution, shifted one step: the next step's warm start."""

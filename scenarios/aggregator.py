@@ -20,7 +20,7 @@ import math
 import re
 import time
 from collections.abc import Callable, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
@@ -36,6 +36,9 @@ from scenarios.closed_loop import build_loop, prepare_run, progress_steps
 from scenarios.fleet import FLEET_STREAM, FleetResult, fleet_info, fleet_result
 from scenarios.registry import Scenario, check_seed
 
+if TYPE_CHECKING:
+    from pinn_mpc.models.learned import LearnedModel
+
 __all__ = [
     "BATCHED_CONTROLLERS",
     "DEFAULT_DUAL_ASCENT",
@@ -43,6 +46,7 @@ __all__ = [
     "cap_account",
     "cap_in_force",
     "cap_series",
+    "learned_fleet_planner",
     "parse_cap_window",
     "run_coordinated_fleet",
 ]
@@ -142,6 +146,7 @@ def run_coordinated_fleet(
     dual: DualAscent = DEFAULT_DUAL_ASCENT,
     warmup_steps: int | None = None,
     weather_part: str = "test",
+    fleet: Sequence[RCParams] | None = None,
     progress: bool = False,
 ) -> FleetResult:
     """Run ``n_buildings`` buildings around ``scenario``'s under one fleet planner.
@@ -152,7 +157,10 @@ def run_coordinated_fleet(
     electrical power in ``cap_window`` (``"HH:MM-HH:MM"``; None: all day) of every counted day,
     by ``dual`` (:class:`controllers.coordination.DualAscent`). The rest as
     :func:`scenarios.fleet.run_fleet_closed_loop`; ``kpis`` report each building's share of the
-    batched decision time (the step's planning time / B) as its decision time.
+    batched decision time (the step's planning time / B) as its decision time, and
+    ``model_fallback_steps`` (the decisions its RC MPC made for a distrusted model). ``fleet``
+    gives the buildings (e.g. those the learned models were trained on) instead of the draw
+    around the scenario's (``n_buildings`` must match).
     """
     check_seed(seed)
     if cap_kw is None and cap_window is not None:
@@ -167,9 +175,12 @@ def run_coordinated_fleet(
         factory: FleetPlannerFactory = _qp_factory
     else:
         factory = planner
-    fleet = draw_fleet(
-        scenario.sim.params, n_buildings, spread=spread, rng=np.random.default_rng([seed, FLEET_STREAM])
-    )
+    if fleet is None:
+        fleet = draw_fleet(
+            scenario.sim.params, n_buildings, spread=spread, rng=np.random.default_rng([seed, FLEET_STREAM])
+        )
+    elif len(fleet) != n_buildings:
+        raise InputError(f"run_coordinated_fleet: {len(fleet)} buildings given for n_buildings={n_buildings}")
     run = prepare_run(scenario, days=days, seed=seed, warmup_steps=warmup_steps, weather_part=weather_part)
     spec = scenario.control_spec()
     fleet_planner = factory(fleet, spec)
@@ -189,6 +200,7 @@ def run_coordinated_fleet(
     times_s = np.zeros((n_counted, 2))
     prices = np.zeros(n_counted)
     curtailed = plans = 0
+    model_fallbacks = np.zeros(b, dtype=int)
     label = f"{fleet_planner.name} x {b} (batched{', capped' if cap_kw is not None else ''})"
     for k in progress_steps(run.total, label, progress):
         if k < run.warmup:
@@ -205,6 +217,8 @@ def run_coordinated_fleet(
         times_s[k - run.warmup] = decided - start, time.perf_counter() - decided
         prices[k - run.warmup] = step.price_eur_per_kwh[0]
         curtailed += int(step.curtailed)
+        if step.decision.model_fallback is not None:
+            model_fallbacks += step.decision.model_fallback
         plans += step.plans
     cap_info = None
     if cap_kw is not None:
@@ -216,6 +230,7 @@ def run_coordinated_fleet(
         scenario, run, loop, times_s, params=fleet, errors=(),
         cap=cap_info,
         prices=prices,
+        extra_kpis={"model_fallback_steps": model_fallbacks},
         info={
             **fleet_info(
                 scenario, fleet_planner.name, n_buildings=b, days=days, seed=seed,
@@ -230,3 +245,45 @@ def run_coordinated_fleet(
             },
         },
     )
+
+
+def learned_fleet_planner(
+    models: Sequence[LearnedModel],
+    *,
+    plan_members: int = 1,
+    n_samples: int = 32,
+    n_iters: int = 2,
+    rc_fallback: bool = True,
+) -> FleetPlannerFactory:
+    """The factory of a batched ``cem`` over each building's learned hybrid (``models[b]``):
+    :class:`controllers.fleet_sampling.FleetCEM` planning with each ensemble's first
+    ``plan_members`` members (the disagreement measured over all), ``n_samples`` x ``n_iters``
+    per plan, and with ``rc_fallback`` a shadow :class:`FleetQPMPC` on the RCs identified from
+    the models' training data (every model must have one)."""
+    from controllers.fleet_sampling import FleetCEM
+    from controllers.planners import CEMPlanner
+    from pinn_mpc.fleet_rollout import FleetHybrid
+    from pinn_mpc.physics import params_from_summary
+
+    def make(fleet: Sequence[RCParams], spec: ControlSpec) -> FleetPlanner:
+        if len(fleet) != len(models):
+            raise InputError(f"{len(models)} learned models for a fleet of {len(fleet)} buildings")
+        shadow = None
+        if rc_fallback:
+            rcs = [m.record.identified_rc for m in models]
+            missing = [i for i, rc in enumerate(rcs) if not isinstance(rc, dict)]
+            if missing:
+                raise InputError(
+                    f"building(s) {missing[:5]}: the model has no identified RC to fall back on; "
+                    "retrain it with `train`, or plan without the RC fallback"
+                )
+            shadow = FleetQPMPC([params_from_summary(rc) for rc in rcs if isinstance(rc, dict)], spec)
+        return FleetCEM(
+            FleetHybrid(models, members=plan_members),
+            spec,
+            planner=CEMPlanner(lower=0.0, upper=spec.u_max_w, n_samples=n_samples, n_iters=n_iters),
+            shadow=shadow,
+            spread_dynamics=FleetHybrid(models) if models[0].n_members > 1 else None,
+        )
+
+    return make

@@ -281,7 +281,8 @@ def _fleet_closed_loop(a: argparse.Namespace, scenario: Scenario) -> str:
 def fleet_json(result: FleetResult, scenario_arg: str) -> dict[str, Any]:
     """The fleet JSON: ``fleet`` (what ran), ``totals``, ``district`` KPIs, ``aggregate``
     (``time``, ``power_kw`` per counted interval), ``cap`` (None without one), ``fell_back``
-    (the buildings whose fallback acted at least once), ``step_time`` and ``buildings``."""
+    (the buildings whose fallback or whose model's RC MPC acted at least once), ``step_time``
+    and ``buildings``."""
     return {
         "fleet": _with_scenario_file(result.info, scenario_arg),
         "totals": result.totals,
@@ -291,7 +292,10 @@ def fleet_json(result: FleetResult, scenario_arg: str) -> dict[str, Any]:
             "power_kw": [round(float(v) / 1000.0, 4) for v in result.aggregate_u_phys_w],
         },
         "cap": result.cap,
-        "fell_back": [k["building"] for k in result.kpis if k["fallbacks"] > 0],
+        "fell_back": [
+            k["building"] for k in result.kpis
+            if k["fallbacks"] > 0 or k.get("model_fallback_steps", 0) > 0
+        ],
         "step_time": result.step_time,
         "buildings": [
             {**kpis, "params": dataclasses.asdict(params)}

@@ -236,11 +236,21 @@ def fleet_result(
     info: dict[str, Any],
     cap: dict[str, Any] | None = None,
     prices: np.ndarray | None = None,
+    extra_kpis: dict[str, np.ndarray] | None = None,
 ) -> FleetResult:
     """The :class:`FleetResult` of a fleet run on ``loop`` (every building's counted KPIs, the
-    aggregate and its district KPIs) with step times ``times_s`` (K, 2) [s]."""
+    aggregate and its district KPIs) with step times ``times_s`` (K, 2) [s]; ``extra_kpis``
+    adds one value (B,) per building to its KPIs."""
     n = loop.n_buildings
-    kpis = tuple({**counted_kpis(scenario, run, loop.record(b)), "building": b} for b in range(n))
+    extra = extra_kpis or {}
+    kpis = tuple(
+        {
+            **counted_kpis(scenario, run, loop.record(b)),
+            "building": b,
+            **{name: int(values[b]) for name, values in extra.items()},
+        }
+        for b in range(n)
+    )
     aggregate = loop.aggregate_u_phys_w()[run.counted]
     times = pd.DatetimeIndex(run.exo["time"])[run.counted]
     return FleetResult(
