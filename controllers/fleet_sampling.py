@@ -25,6 +25,7 @@ random shooting's setpoint space.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Sequence
 from typing import NamedTuple, Protocol
@@ -35,13 +36,13 @@ import torch
 from controllers.base import ControlSpec, Fallback, Forecast, Observation, check_heating
 from controllers.fleet import FleetDecision, FleetPlan, FleetQPMPC
 from controllers.objective import HorizonObjective
-from controllers.planners import CEMPlanner, colored_noise
+from controllers.planners import CEMPlanner
 from controllers.trust import TrustMonitor, TrustSettings
 from pinn_mpc.errors import InputError
 from pinn_mpc.fleet_rollout import FleetStart
 from pinn_mpc.models.rollout import Rollout
 
-__all__ = ["FleetCEM", "FleetDynamics", "optimize_fleet"]
+__all__ = ["FleetCEM", "FleetDynamics", "colored_noise_fleet", "optimize_fleet"]
 
 
 class FleetDynamics(Protocol):
@@ -88,7 +89,7 @@ def optimize_fleet(
     best_cost = torch.full((b,), math.inf, dtype=torch.float64)
     rows = torch.arange(b)
     for _ in range(planner.n_iters):
-        noise = torch.stack([colored_noise(n, h, planner.noise_beta, g, dtype) for g in generators])
+        noise = colored_noise_fleet(n, h, planner.noise_beta, generators, dtype)
         samples = (mean[:, None] + std[:, None] * noise).clamp(planner.lower, planner.upper)
         samples[:, 0] = best
         samples[:, 1] = mean
@@ -103,6 +104,29 @@ def optimize_fleet(
         mean = planner.alpha * mean + (1 - planner.alpha) * elites.mean(dim=1)
         std = planner.alpha * std + (1 - planner.alpha) * elites.std(dim=1)
     return best, best_cost
+
+
+def colored_noise_fleet(
+    n: int, h: int, beta: float, generators: Sequence[torch.Generator], dtype: torch.dtype
+) -> torch.Tensor:
+    """:func:`controllers.planners.colored_noise` (n, h) of every building's generator,
+    (B, n, h): the white noise drawn building by building (the same numbers), coloured in one
+    batched FFT."""
+    white = torch.stack([torch.randn((n, h), generator=g, dtype=dtype) for g in generators])
+    if beta == 0 or h < 2:
+        return white
+    # The filter of colored_noise, computed once for the batch.
+    scale, kernel_norm = colored_noise_filter(h, beta, dtype)
+    return torch.fft.irfft(torch.fft.rfft(white, dim=-1) * scale, n=h, dim=-1) / kernel_norm
+
+
+def colored_noise_filter(h: int, beta: float, dtype: torch.dtype) -> tuple[torch.Tensor, torch.Tensor]:
+    """The spectral scale (h//2+1,) and kernel norm of :func:`colored_noise`."""
+    freqs = torch.fft.rfftfreq(h, dtype=dtype)
+    scale = torch.ones_like(freqs)
+    scale[1:] = freqs[1:] ** (-beta / 2)
+    scale[0] = scale[1]
+    return scale, torch.linalg.vector_norm(torch.fft.irfft(scale, n=h))
 
 
 class _Step(NamedTuple):
@@ -123,7 +147,8 @@ class FleetCEM:
     rollout); ``spread_dynamics`` (all members) measures the members' disagreement along the
     chosen plans (None: not measured); ``shadow`` is the fallback RC MPC of every building
     (None: the models always drive). ``planner`` holds the CEM settings (bounds are the
-    actuator's).
+    actuator's); a re-plan within a step (the next coordination price) runs ``replan_iters``
+    CEM iterations from the step's last plans.
     """
 
     name = "cem"
@@ -139,6 +164,7 @@ class FleetCEM:
         trust: TrustSettings | None = None,
         shadow: FleetQPMPC | None = None,
         spread_dynamics: FleetDynamics | None = None,
+        replan_iters: int = 1,
     ) -> None:
         check_heating(dynamics.eta, spec, what="the fleet's models")
         if not 0.0 <= offset_gain <= 1.0:
@@ -149,7 +175,10 @@ class FleetCEM:
             raise InputError("FleetCEM: the shadow RC MPC must have one building per model")
         self.dynamics, self.spec = dynamics, spec
         self.planner = planner if planner is not None else CEMPlanner(lower=0.0, upper=spec.u_max_w, n_samples=32)
+        if replan_iters < 1:
+            raise InputError(f"FleetCEM.replan_iters must be >= 1, got {replan_iters}")
         self.offset_gain, self.comfort_margin_k = offset_gain, comfort_margin_k
+        self.replan_iters = replan_iters
         self.shadow, self.spread_dynamics = shadow, spread_dynamics
         b = dynamics.n_buildings
         self.fallbacks = [Fallback(spec, reuse_plan=False) for _ in range(b)]
@@ -281,13 +310,15 @@ class FleetCEM:
             raise InputError(f"FleetCEM.plan: the extra price must be {h} finite values")
         if step.start is None:
             return FleetPlan(np.zeros((b, h)), np.zeros(b, dtype=bool), "short history", 0)
-        x0 = step.x0 if self._best is None else self._best
-        plans, costs = optimize_fleet(
-            self.planner, lambda u: self._costs(step, extra, u), x0, self.generators
-        )
+        if self._best is None:
+            x0, planner = step.x0, self.planner
+        else:  # a re-plan of the step (a new coordination price): from the last plans
+            x0 = self._best
+            planner = dataclasses.replace(self.planner, n_iters=self.replan_iters)
+        plans, costs = optimize_fleet(planner, lambda u: self._costs(step, extra, u), x0, self.generators)
         self._best = plans
         ok = torch.isfinite(costs).numpy()
-        return FleetPlan(plans.double().numpy(), ok, "ok", self.planner.n_iters)
+        return FleetPlan(plans.double().numpy(), ok, "ok", planner.n_iters)
 
     def commit(self, plan: FleetPlan) -> FleetDecision:
         """Apply ``plan``: each trusted building's first action, the shadow RC MPC's for the

@@ -83,6 +83,9 @@ class FleetHybrid:
             self.p_lo = ranges[:, 0].repeat_interleave(m)[:, None, None]  # (B*M, 1, 1)
             self.p_hi = ranges[:, 1].repeat_interleave(m)[:, None, None]
             self.n_buildings = b
+        # Each building's scaling of its exogenous series (B, S, 1).
+        self._exog_mean = np.array([[[mod.features.exog[n].mean] for n in self.exog_series] for mod in models])
+        self._exog_std = np.array([[[mod.features.exog[n].std] for n in self.exog_series] for mod in models])
 
     def rollout(
         self,
@@ -158,11 +161,9 @@ class FleetHybrid:
             drive_b = c.drive_b.view(b, m, 2, 4)
             drive = torch.einsum("bmrc,bhc->hbmr", drive_b[..., 1:], exog[:, k : k + h_len])
             # The residual net's first layer on the scaled exogenous inputs now and time of day.
-            scaled = torch.stack(
-                [torch.as_tensor(self.models[i].features.scale_exog(
-                    {nm: seq_np[i, j] for j, nm in enumerate(self.exog_series)}))
-                 for i in range(b)]
-            )  # (B, S, k+H)
+            scaled = torch.as_tensor(
+                ((seq_np - self._exog_mean) / self._exog_std).astype(np.float32)
+            )  # (B, S, k+H), as FeatureConfig.scale_exog
             tod = torch.as_tensor(self.models[0].features.encode_time(tod_h))  # (H, 2)
             static = torch.cat(
                 [scaled[:, :, k : k + h_len].transpose(1, 2), tod[None].expand(b, -1, -1)], dim=-1
