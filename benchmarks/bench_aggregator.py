@@ -1,7 +1,7 @@
 """Time per control step of a fleet planned in one batch, uncoordinated and under a cap.
 
 Run: ``python benchmarks/bench_aggregator.py [--rc 100,1000,10000] [--learned 100,1000]
-[--steps 8] [--models 4]``.
+[--steps 10] [--models 4]``.
 
 Every figure is one building fleet of ``winter_household`` (spread 0.2) on its test day
 2023-02-12 (seed 13, -1.7 .. 4.3 C: every building heats all day; the fleet benchmark of
@@ -11,8 +11,9 @@ everything the controllers do in a step: observe, plan, coordinate, commit; the 
 
 - ``qp-mpc``: :class:`controllers.fleet.FleetQPMPC`, every building's RC MPC (its own Kalman
   observer and OSQP problem, data built in one pass), without a cap (one plan a step) and under
-  a cap of 60 % of the fleet's uncoordinated first-step aggregate on the next 4 hours (4
-  dual-ascent plans a step);
+  a cap from 08:00 to 10:00 of 60 % of the peak the fleet plans there without it (announced at
+  06:00, so the timed steps are those before and in the event; 4 dual-ascent plans a step: the
+  first steps after the cap enters the horizon, while the prices move most, take longest);
 - ``cem``: :class:`controllers.fleet_sampling.FleetCEM` over each building's learned hybrid in
   one batched rollout (32 samples x 2 CEM iterations a plan, 1 member planning, all members for
   the disagreement, the shadow RC MPC per building). The fleet's models are ``--models``
@@ -68,9 +69,10 @@ def time_steps(
         planner.observe([loop.observation(building=i) for i in range(n)], forecast)
         if coordination is None:
             cap = np.full(len(run.series), np.inf)
-            if cap_fraction is not None:  # a share of the free plan's first step, for 4 hours
+            if cap_fraction is not None:  # an event 2 h ahead, for 2 h: a share of the free plan
                 row = loop.start + loop.k
-                cap[row : row + 8] = cap_fraction * planner.plan().power_w[:, 0].sum()
+                free = planner.plan().power_w[:, 4:8].sum(axis=0).max()
+                cap[row + 4 : row + 8] = cap_fraction * free
             coordination = Coordination(cap, DualAscent())
         decision = coordination.step(planner, loop.start + loop.k).decision
         times.append(time.perf_counter() - t0)
@@ -98,7 +100,7 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rc", default="100,1000,10000", help="qp-mpc fleet sizes")
     parser.add_argument("--learned", default="100,1000", help="learned cem fleet sizes")
-    parser.add_argument("--steps", type=int, default=8, help="timed control steps (default 8)")
+    parser.add_argument("--steps", type=int, default=10, help="timed control steps (default 10)")
     parser.add_argument("--models", type=int, default=4, help="hybrids trained for the cem fleets")
     args = parser.parse_args()
     spec = get_scenario(SCENARIO).control_spec()

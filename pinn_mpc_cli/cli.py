@@ -186,12 +186,20 @@ def build_parser() -> argparse.ArgumentParser:
         "will drive a controller), the paper's random on/off, or a thermostat",
     )
     p.add_argument("--buildings", type=_positive_int, default=1, help="buildings simulated")
+    p.add_argument(
+        "--spread",
+        type=_finite_non_negative_float,
+        default=None,
+        help="draw the buildings around the scenario's with this log-normal spread of R, C and "
+        "solar aperture (as closed-loop --buildings; their parameters go to OUT's .fleet.json); "
+        "default: every building the scenario's",
+    )
     _add_weather_part(p, "train")
     p.add_argument("--out", required=True, help="CSV file to write")
 
     p = add(
         "train",
-        "pinn_mpc.commands:train",
+        "scenarios.commands:train",
         "train a seed ensemble of hybrid, mlp, physreg or physnet on data",
     )
     data(p, "training data")
@@ -237,6 +245,18 @@ def build_parser() -> argparse.ArgumentParser:
         help="heat per W of actuator power (default: 1 heating; give -COP for cooling)",
     )
     force(p)
+    p.add_argument(
+        "--per-building",
+        action="store_true",
+        help="--data is a fleet data set (a building column, simulate --buildings N): train one "
+        "model per building on Ray into --out/buildings/, keeping those already there",
+    )
+    p.add_argument(
+        "--address", default=None, help="with --per-building: Ray cluster (HOST:PORT, ray://HOST:PORT, auto)"
+    )
+    p.add_argument(
+        "--workers", type=_positive_int, default=None, help="with --per-building: local CPUs (default all)"
+    )
 
     p = add("evaluate", "pinn_mpc.commands:evaluate", "one-step and recursive multi-step errors of a model on data")
     model(p, "model directory", required=True)
