@@ -266,8 +266,14 @@ def learned_fleet_planner(
     from pinn_mpc.physics import params_from_summary
 
     def make(fleet: Sequence[RCParams], spec: ControlSpec) -> FleetPlanner:
+        from scenarios.budget import check_batched_fleet_memory
+
         if len(fleet) != len(models):
             raise InputError(f"{len(models)} learned models for a fleet of {len(fleet)} buildings")
+        check_batched_fleet_memory(
+            buildings=len(models), members=plan_members, samples=n_samples,
+            horizon_steps=spec.horizon_steps,
+        )
         shadow = None
         if rc_fallback:
             rcs = [m.record.identified_rc for m in models]

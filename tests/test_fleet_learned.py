@@ -115,3 +115,13 @@ def test_batched_cem_over_learned_models_keeps_comfort_and_a_cap(fleet_models):
     assert capped.cap is not None and capped.cap["intervals"] == 4
     assert capped.cap["intervals_over"] == 0
     assert np.all(capped.aggregate_u_phys_w[in_window] <= cap_kw * 1000.0 + 1.0)
+
+
+def test_a_batched_rollout_that_would_not_fit_is_refused_before_it_starts():
+    from scenarios.budget import check_batched_fleet_memory
+
+    check_batched_fleet_memory(buildings=1000, members=1, samples=32, horizon_steps=48,
+                               available=8_000_000_000)
+    with pytest.raises(InputError, match="use at most .* buildings, or fewer samples"):
+        check_batched_fleet_memory(buildings=100_000, members=5, samples=64, horizon_steps=48,
+                                   available=8_000_000_000)
