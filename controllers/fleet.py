@@ -104,7 +104,7 @@ class _Stage(NamedTuple):
 
 
 class FleetQPMPC:
-    """``qp-mpc`` for B buildings (``fleet``: each its own parameters) as one block QP.
+    """``qp-mpc`` for B buildings (``fleet``: each its own parameters), planned together.
 
     The problem of :mod:`controllers.rc_mpc.problem` (delivered heat planned, comfort slack,
     regulariser ``regularisation_eur_per_kw2h``) for every building, variables per building

@@ -308,7 +308,8 @@ def build_parser() -> argparse.ArgumentParser:
         default=1,
         help="a fleet of this many buildings drawn around the scenario's, each with its own "
         "controller on its own RC (the KPI JSON then holds every building, the fleet totals "
-        "and the time per control step; no --model, --rc, --csv, --plot)",
+        "and the time per control step; no --rc, --csv, --plot; --model only a directory of "
+        "per-building models, for cem)",
     )
     p.add_argument(
         "--spread",
@@ -325,8 +326,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--batched",
         action="store_true",
-        help="plan the whole fleet in one batch each step (qp-mpc as one block QP; cem and "
-        "random-shooting over the buildings' own models, --model DIR); implied by --cap-kw",
+        help="plan the whole fleet in one batch each step (qp-mpc: every building's RC MPC; cem: "
+        "over the buildings' own models, --model DIR of train --per-building); implied by "
+        "--cap-kw and --model",
     )
     p.add_argument(
         "--cap-kw",

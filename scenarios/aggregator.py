@@ -2,8 +2,9 @@
 
 :func:`run_coordinated_fleet` runs the fleet of :func:`scenarios.fleet.run_fleet_closed_loop`
 (the same draw, weather, warm-up, plant and KPIs) but decides with one fleet planner
-(:mod:`controllers.fleet`: ``qp-mpc`` as one block QP, or :mod:`controllers.fleet_sampling`:
-``cem`` / ``random-shooting`` over each building's learned model in one batched rollout)
+(:mod:`controllers.fleet`: every building's ``qp-mpc``, data built in one pass, or
+:mod:`controllers.fleet_sampling`: ``cem`` over each building's learned model in one batched
+rollout)
 instead of one controller per building, and, with a cap, coordinates it by the dual-ascent
 price signal of :mod:`controllers.coordination`: at most ``cap_kw`` of aggregate electrical
 power in the window (every day) or all day.
@@ -52,7 +53,7 @@ __all__ = [
 ]
 
 #: Controllers a fleet can be planned in one batch with (by name).
-BATCHED_CONTROLLERS = ("qp-mpc", "cem", "random-shooting")
+BATCHED_CONTROLLERS = ("qp-mpc", "cem")
 
 #: The fleet planner for buildings ``fleet`` under ``spec``.
 FleetPlannerFactory = Callable[[Sequence[RCParams], ControlSpec], FleetPlanner]
@@ -151,7 +152,7 @@ def run_coordinated_fleet(
 ) -> FleetResult:
     """Run ``n_buildings`` buildings around ``scenario``'s under one fleet planner.
 
-    ``planner`` is ``"qp-mpc"`` (each building's RC MPC on its own parameters, one block QP) or
+    ``planner`` is ``"qp-mpc"`` (each building's RC MPC on its own parameters, planned together) or
     a factory ``(fleet, spec) -> FleetPlanner`` (e.g. the batched sampling planner over the
     buildings' learned models). ``cap_kw`` (None: no cap, one plan a step) caps the aggregate
     electrical power in ``cap_window`` (``"HH:MM-HH:MM"``; None: all day) of every counted day,
@@ -169,8 +170,8 @@ def run_coordinated_fleet(
     if isinstance(planner, str):
         if planner != "qp-mpc":
             raise InputError(
-                f"a batched fleet without models plans with qp-mpc, got {planner!r}; cem and "
-                "random-shooting need each building's learned model (--model DIR)"
+                f"a batched fleet without models plans with qp-mpc, got {planner!r}; cem needs "
+                "each building's learned model (--model DIR)"
             )
         factory: FleetPlannerFactory = _qp_factory
     else:
