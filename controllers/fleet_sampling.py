@@ -164,7 +164,7 @@ class FleetCEM:
         trust: TrustSettings | None = None,
         shadow: FleetQPMPC | None = None,
         spread_dynamics: FleetDynamics | None = None,
-        replan_iters: int = 1,
+        replan_iters: int = 2,
     ) -> None:
         check_heating(dynamics.eta, spec, what="the fleet's models")
         if not 0.0 <= offset_gain <= 1.0:
