@@ -52,9 +52,10 @@ class FleetHybrid:
             raise InputError("FleetHybrid needs at least one model")
         first = models[0]
         for i, model in enumerate(models):
-            if model.arch != "hybrid":
+            if not isinstance(model.module.net, HybridNet):
                 raise InputError(
-                    f"FleetHybrid: building {i}'s model is a {model.arch!r}; a fleet batch takes hybrids"
+                    f"FleetHybrid: building {i}'s model is a {model.arch!r}; a fleet batch takes "
+                    "the hybrid architecture (the default)"
                 )
             same = (model.depth, model.n_members, model.exog_names, model.dt_s, model.eta > 0)
             want = (first.depth, first.n_members, first.exog_names, first.dt_s, first.eta > 0)

@@ -28,6 +28,7 @@ import pandas as pd
 
 from pinn_mpc.errors import InputError
 from pinn_mpc.io import atomic_write_json
+from pinn_mpc.models.registry import DEFAULT_ARCH
 from pinn_mpc.physics import RCParams
 from pinn_mpc.training import TrainConfig
 
@@ -202,7 +203,7 @@ def pretrain_and_fine_tune(
     *,
     config: TrainConfig,
     fine_tune_epochs: int,
-    arch: str = "hybrid",
+    arch: str = DEFAULT_ARCH,
 ) -> tuple[list[Any], dict[str, float]]:
     """Pre-train one ``arch`` model on all ``frames`` (each building's data, concatenated
     building after building), then fine-tune one model per building for ``fine_tune_epochs``
