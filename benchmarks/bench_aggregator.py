@@ -20,6 +20,10 @@ everything the controllers do in a step: observe, plan, coordinate, commit; the 
   hybrids trained here on 14 days of their buildings' data, assigned round-robin: the timing
   does not depend on the weights (every building's constants are its own copy in the batch).
 
+``--partitions P`` splits each fleet into P partitions, one Ray worker each
+(:mod:`scenarios.partitions`): the driver keeps the loop and the coordination and exchanges the
+observations, the prices and the plans with the workers every step.
+
 The machine is shared (the load average is printed): read the medians.
 """
 
@@ -30,10 +34,12 @@ import os
 import sys
 import time
 from collections.abc import Callable, Sequence
+from typing import Any
 
 import numpy as np
 import torch
 
+from controllers.base import ControlSpec
 from controllers.coordination import Coordination, DualAscent
 from controllers.fleet import FleetPlanner, FleetQPMPC
 from controllers.thermostat import Thermostat
@@ -81,6 +87,10 @@ def time_steps(
     return float(np.median(ms)), float(np.percentile(ms, 95)), built
 
 
+def _qp(fleet: Sequence[RCParams], spec: ControlSpec) -> FleetPlanner:
+    return FleetQPMPC(fleet, spec)
+
+
 def learned_models(n_models: int) -> list:
     from pinn_mpc import TrainConfig, train_model
     from scenarios.datagen import generate
@@ -102,7 +112,23 @@ def main() -> int:
     parser.add_argument("--learned", default="100,1000", help="learned cem fleet sizes")
     parser.add_argument("--steps", type=int, default=10, help="timed control steps (default 10)")
     parser.add_argument("--models", type=int, default=4, help="hybrids trained for the cem fleets")
+    parser.add_argument(
+        "--partitions", type=int, default=1,
+        help="split each fleet into this many partitions, one Ray worker each (default 1: none)",
+    )
     args = parser.parse_args()
+    if args.partitions > 1:
+        from scenarios.partitions import partitioned
+        from scenarios.sweep import ray_engine
+
+        with ray_engine(None, args.partitions):
+            return run(args, lambda f, name: partitioned(f, args.partitions, name))
+    return run(args, lambda f, name: f)
+
+
+def run(args: argparse.Namespace, wrap: Callable[[Any, str], Any]) -> int:
+    """Every timing of the module docstring; ``wrap`` turns a planner factory into the one
+    timed (partitioned across Ray workers, or as it is)."""
     spec = get_scenario(SCENARIO).control_spec()
     sizes = lambda text: [int(v) for v in text.split(",") if v]  # noqa: E731
     print(f"{SCENARIO}, test day seed {SEED} (2023-02-12), from 06:00; ms per control step")
@@ -110,7 +136,8 @@ def main() -> int:
         print(f"torch threads: {torch.get_num_threads()}")
         for n in sizes(args.rc):
             for cap in (None, 0.6):
-                med, p95, built = time_steps(lambda f: FleetQPMPC(f, spec), n, args.steps, cap)
+                qp = wrap(_qp, "qp-mpc")
+                med, p95, built = time_steps(lambda f, m=qp: m(f, spec), n, args.steps, cap)
                 label = "capped, 4 plans" if cap else "no cap, 1 plan "
                 print(f"  qp-mpc {n:6d} buildings, {label}: median {med:9.1f}  p95 {p95:9.1f}  "
                       f"(built in {built:.1f} s)")
@@ -121,13 +148,14 @@ def main() -> int:
             for n in sizes(args.learned):
                 fleet_models = [models[i % len(models)] for i in range(n)]
                 for cap in (None, 0.6):
-                    factory = learned_fleet_planner(fleet_models)
+                    factory = wrap(learned_fleet_planner(fleet_models), "cem")
                     med, p95, built = time_steps(lambda f, m=factory: m(f, spec), n, args.steps, cap)
                     label = "capped, 4 plans" if cap else "no cap, 1 plan "
                     print(f"  cem    {n:6d} buildings, {label}: median {med:9.1f}  p95 {p95:9.1f}  "
                           f"(built in {built:.1f} s)")
     load = ", ".join(f"{v:.2f}" for v in os.getloadavg())
-    print(f"load average (1, 5, 15 min): {load} on {os.cpu_count()} CPUs")
+    print(f"load average (1, 5, 15 min): {load} on {os.cpu_count()} CPUs; partitions "
+          f"{args.partitions}")
     return 0
 
 
