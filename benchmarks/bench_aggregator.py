@@ -122,13 +122,14 @@ def main() -> int:
         from scenarios.sweep import ray_engine
 
         with ray_engine(None, args.partitions):
-            return run(args, lambda f, name: partitioned(f, args.partitions, name))
-    return run(args, lambda f, name: f)
+            return run(args, lambda of, name: partitioned(of, args.partitions, name))
+    return run(args, lambda of, name: of(slice(None)))
 
 
 def run(args: argparse.Namespace, wrap: Callable[[Any, str], Any]) -> int:
-    """Every timing of the module docstring; ``wrap`` turns a planner factory into the one
-    timed (partitioned across Ray workers, or as it is)."""
+    """Every timing of the module docstring; ``wrap`` turns the factory of a slice of the
+    fleet's buildings into the planner factory timed (partitioned across Ray workers, or the
+    whole fleet's)."""
     spec = get_scenario(SCENARIO).control_spec()
     sizes = lambda text: [int(v) for v in text.split(",") if v]  # noqa: E731
     print(f"{SCENARIO}, test day seed {SEED} (2023-02-12), from 06:00; ms per control step")
@@ -136,7 +137,7 @@ def run(args: argparse.Namespace, wrap: Callable[[Any, str], Any]) -> int:
         print(f"torch threads: {torch.get_num_threads()}")
         for n in sizes(args.rc):
             for cap in (None, 0.6):
-                qp = wrap(_qp, "qp-mpc")
+                qp = wrap(lambda s: _qp, "qp-mpc")
                 med, p95, built = time_steps(lambda f, m=qp: m(f, spec), n, args.steps, cap)
                 label = "capped, 4 plans" if cap else "no cap, 1 plan "
                 print(f"  qp-mpc {n:6d} buildings, {label}: median {med:9.1f}  p95 {p95:9.1f}  "
@@ -148,7 +149,7 @@ def run(args: argparse.Namespace, wrap: Callable[[Any, str], Any]) -> int:
             for n in sizes(args.learned):
                 fleet_models = [models[i % len(models)] for i in range(n)]
                 for cap in (None, 0.6):
-                    factory = wrap(learned_fleet_planner(fleet_models), "cem")
+                    factory = wrap(lambda s, fm=fleet_models: learned_fleet_planner(fm[s]), "cem")
                     med, p95, built = time_steps(lambda f, m=factory: m(f, spec), n, args.steps, cap)
                     label = "capped, 4 plans" if cap else "no cap, 1 plan "
                     print(f"  cem    {n:6d} buildings, {label}: median {med:9.1f}  p95 {p95:9.1f}  "

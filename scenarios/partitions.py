@@ -27,10 +27,12 @@ from controllers.fleet import FleetDecision, FleetPlan, FleetPlanner
 from pinn_mpc.errors import InputError
 from pinn_mpc.physics import RCParams
 
-__all__ = ["PartitionedPlanner", "partitioned"]
+__all__ = ["PartFactory", "PartitionedPlanner", "partitioned"]
 
 #: The fleet planner of some buildings under ``spec``.
 Factory = Callable[[Sequence[RCParams], ControlSpec], FleetPlanner]
+#: The factory of the buildings in a slice of the fleet (e.g. with those buildings' models).
+PartFactory = Callable[[slice], Factory]
 
 
 class _Partition:
@@ -59,10 +61,11 @@ class _Partition:
 
 
 class PartitionedPlanner:
-    """``factory``'s planner over ``fleet`` in ``partitions`` Ray actors (module docstring)."""
+    """``factory_of``'s planners over ``fleet`` in ``partitions`` Ray actors (module
+    docstring): the actor of buildings ``s`` (a slice) plans with ``factory_of(s)``."""
 
     def __init__(
-        self, factory: Factory, fleet: Sequence[RCParams], spec: ControlSpec, *, partitions: int
+        self, factory_of: PartFactory, fleet: Sequence[RCParams], spec: ControlSpec, *, partitions: int
     ) -> None:
         import ray
 
@@ -74,7 +77,7 @@ class PartitionedPlanner:
         cuts = np.array_split(np.arange(len(fleet)), partitions)
         self.slices = [slice(int(c[0]), int(c[-1]) + 1) for c in cuts]
         actor = ray.remote(num_cpus=1)(_Partition)
-        self.actors = [actor.remote(factory, list(fleet[s]), spec) for s in self.slices]
+        self.actors = [actor.remote(factory_of(s), list(fleet[s]), spec) for s in self.slices]
         self._n, self._h = len(fleet), spec.horizon_steps
         self.name = "partitioned"
 
@@ -126,11 +129,11 @@ class PartitionedPlanner:
         return np.concatenate(self._all("n_fallbacks"))
 
 
-def partitioned(factory: Factory, partitions: int, name: str) -> Factory:
-    """A factory of :class:`PartitionedPlanner` over ``factory`` (``name``: the planner's)."""
+def partitioned(factory_of: PartFactory, partitions: int, name: str) -> Factory:
+    """A factory of :class:`PartitionedPlanner` over ``factory_of`` (``name``: the planner's)."""
 
     def make(fleet: Sequence[RCParams], spec: ControlSpec) -> FleetPlanner:
-        planner = PartitionedPlanner(factory, fleet, spec, partitions=partitions)
+        planner = PartitionedPlanner(factory_of, fleet, spec, partitions=partitions)
         planner.name = name
         return planner
 

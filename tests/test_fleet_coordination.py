@@ -209,7 +209,7 @@ def test_a_fleet_partitioned_across_ray_workers_plans_as_one():
     whole = run_coordinated_fleet(scenario, qp, n_buildings=5, days=1, seed=COLD_SEED,
                                   cap_kw=10.0, cap_window="17:00-19:00")
     with ray_engine(None, 2):
-        parts = run_coordinated_fleet(scenario, partitioned(qp, 2, "qp-mpc"), n_buildings=5,
+        parts = run_coordinated_fleet(scenario, partitioned(lambda s: qp, 2, "qp-mpc"), n_buildings=5,
                                       days=1, seed=COLD_SEED, cap_kw=10.0, cap_window="17:00-19:00")
     np.testing.assert_allclose(parts.aggregate_u_phys_w, whole.aggregate_u_phys_w, atol=1e-6)
     assert parts.cap == whole.cap and parts.info["controller"] == "qp-mpc"
