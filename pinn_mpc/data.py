@@ -237,6 +237,18 @@ def validate_timeseries(
     return out
 
 
+def _read_csv(path: str | os.PathLike[str]) -> pd.DataFrame:
+    """The CSV at ``path`` as it is, or one line that says why not."""
+    source = str(path)
+    if not Path(path).is_file():
+        raise InputError(f"{source}: no such file; check --data")
+    try:
+        return pd.read_csv(path)
+    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise InputError(f"{source}: not a readable CSV ({first})") from exc
+
+
 def read_timeseries(
     path: str | os.PathLike[str],
     *,
@@ -248,13 +260,7 @@ def read_timeseries(
     mapping = (
         parse_column_map(columns) if isinstance(columns, str) or columns is None else dict(columns)
     )
-    if not Path(path).is_file():
-        raise InputError(f"{source}: no such file; check --data")
-    try:
-        raw = pd.read_csv(path)
-    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
-        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise InputError(f"{source}: not a readable CSV ({first})") from exc
+    raw = _read_csv(path)
     absent = [theirs for theirs in mapping.values() if theirs not in raw.columns]
     if absent:
         raise InputError(
@@ -263,6 +269,34 @@ def read_timeseries(
         )
     renamed = raw.rename(columns={theirs: ours for ours, theirs in mapping.items()})
     return validate_timeseries(renamed, source=source, require=require)
+
+
+def read_fleet_timeseries(
+    path: str | os.PathLike[str], *, columns: Mapping[str, str] | str | None = None
+) -> dict[int, pd.DataFrame]:
+    """Read a fleet data set (``simulate --buildings N``: a ``building`` column of whole
+    numbers) and validate each building's rows as :func:`read_timeseries` validates a file;
+    returns the frames by building."""
+    source = str(path)
+    raw = _read_csv(path)
+    if "building" not in raw.columns:
+        raise InputError(
+            f"{source}: no 'building' column; a fleet data set has one (simulate --buildings N "
+            "writes it), or train one model without --per-building"
+        )
+    ids = pd.to_numeric(raw["building"], errors="coerce")
+    if ids.isna().any() or not np.all(ids == np.round(ids)) or (ids < 0).any():
+        row = int(np.flatnonzero(ids.isna() | (ids != np.round(ids)) | (ids < 0))[0]) + 2
+        raise InputError(f"{source}: row {row}: 'building' must be a whole number >= 0")
+    mapping = (
+        parse_column_map(columns) if isinstance(columns, str) or columns is None else dict(columns)
+    )
+    renamed = raw.rename(columns={theirs: ours for ours, theirs in mapping.items()})
+    frames = {}
+    for b in sorted(int(v) for v in ids.unique()):
+        part = renamed[ids.to_numpy() == b].drop(columns="building")
+        frames[b] = validate_timeseries(part.reset_index(drop=True), source=f"{source} building {b}")
+    return frames
 
 
 def write_timeseries(df: pd.DataFrame, path: str | os.PathLike[str]) -> Path:

@@ -23,7 +23,7 @@ import contextlib
 import math
 import os
 import time
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any
 
@@ -262,7 +262,12 @@ def _training_set(df: pd.DataFrame, features: FeatureConfig, chunk: int) -> Trai
 
 
 def train_model(
-    df: pd.DataFrame, *, arch: str, config: TrainConfig, progress: bool = True
+    df: pd.DataFrame,
+    *,
+    arch: str,
+    config: TrainConfig,
+    progress: bool = True,
+    init_weights: Mapping[str, torch.Tensor] | None = None,
 ) -> LearnedModel:
     """Train a seed ensemble of ``arch`` on a frame in the data format.
 
@@ -274,6 +279,10 @@ def train_model(
         An architecture name (``"hybrid"``, ``"mlp"``, ``"physreg"``, ``"physnet"``).
     config
         How to train; depth and recipe left open are the architecture's.
+    init_weights
+        Names and shapes of the module's state dict (e.g. part of another model's of the same
+        architecture and size) that replace those weights before training: fine-tuning a
+        pre-trained model.
     progress
         Show a progress bar on stderr.
 
@@ -296,6 +305,8 @@ def train_model(
     module = EnsembleModule(
         arch, features=features, n_members=m, prior=prior, generators=gens, cop_curve=cop_curve
     )
+    if init_weights is not None:
+        _load_weights(module, init_weights)
     lam = architecture.physics_weight(hp["lam"])
     chunk = CHUNK if lam > 0 else 1
     data = _training_set(df, features, chunk)
@@ -383,3 +394,18 @@ def train_model(
         **fields,
     )
     return LearnedModel(features=features, module=module, record=record)
+
+
+def _load_weights(module: EnsembleModule, weights: Mapping[str, torch.Tensor]) -> None:
+    """Copy ``weights`` into ``module`` (each name and shape must be the module's)."""
+    own = module.state_dict()
+    for name, value in weights.items():
+        if name not in own or tuple(own[name].shape) != tuple(value.shape):
+            shape = tuple(own[name].shape) if name in own else None
+            raise InputError(
+                f"init_weights: {name!r} {tuple(value.shape)} does not fit the model "
+                f"(its shape there: {shape}); pre-train with the same architecture, depth and seeds"
+            )
+    with torch.no_grad():
+        for name, value in weights.items():
+            own[name].copy_(value)

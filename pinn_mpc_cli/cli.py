@@ -71,6 +71,13 @@ def _finite_non_negative_float(text: str) -> float:
     return value
 
 
+def _positive_float(text: str) -> float:
+    value = _finite_non_negative_float(text)
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"must be a number > 0, got {text}")
+    return value
+
+
 def _horizons(text: str) -> list[int]:
     try:
         values = [int(v) for v in text.split(",") if v.strip()]
@@ -179,12 +186,20 @@ def build_parser() -> argparse.ArgumentParser:
         "will drive a controller), the paper's random on/off, or a thermostat",
     )
     p.add_argument("--buildings", type=_positive_int, default=1, help="buildings simulated")
+    p.add_argument(
+        "--spread",
+        type=_finite_non_negative_float,
+        default=None,
+        help="draw the buildings around the scenario's with this log-normal spread of R, C and "
+        "solar aperture (as closed-loop --buildings; their parameters go to OUT's .fleet.json); "
+        "default: every building the scenario's",
+    )
     _add_weather_part(p, "train")
     p.add_argument("--out", required=True, help="CSV file to write")
 
     p = add(
         "train",
-        "pinn_mpc.commands:train",
+        "scenarios.commands:train",
         "train a seed ensemble of hybrid, mlp, physreg or physnet on data",
     )
     data(p, "training data")
@@ -230,6 +245,18 @@ def build_parser() -> argparse.ArgumentParser:
         help="heat per W of actuator power (default: 1 heating; give -COP for cooling)",
     )
     force(p)
+    p.add_argument(
+        "--per-building",
+        action="store_true",
+        help="--data is a fleet data set (a building column, simulate --buildings N): train one "
+        "model per building on Ray into --out/buildings/, keeping those already there",
+    )
+    p.add_argument(
+        "--address", default=None, help="with --per-building: Ray cluster (HOST:PORT, ray://HOST:PORT, auto)"
+    )
+    p.add_argument(
+        "--workers", type=_positive_int, default=None, help="with --per-building: local CPUs (default all)"
+    )
 
     p = add("evaluate", "pinn_mpc.commands:evaluate", "one-step and recursive multi-step errors of a model on data")
     model(p, "model directory", required=True)
@@ -281,7 +308,8 @@ def build_parser() -> argparse.ArgumentParser:
         default=1,
         help="a fleet of this many buildings drawn around the scenario's, each with its own "
         "controller on its own RC (the KPI JSON then holds every building, the fleet totals "
-        "and the time per control step; no --model, --rc, --csv, --plot)",
+        "and the time per control step; no --rc, --csv, --plot; --model only a directory of "
+        "per-building models, for cem)",
     )
     p.add_argument(
         "--spread",
@@ -294,6 +322,26 @@ def build_parser() -> argparse.ArgumentParser:
         "--large",
         action="store_true",
         help="confirm a fleet of more than 1000 buildings (hours of work)",
+    )
+    p.add_argument(
+        "--batched",
+        action="store_true",
+        help="plan the whole fleet in one batch each step (qp-mpc: every building's RC MPC; cem: "
+        "over the buildings' own models, --model DIR of train --per-building); implied by "
+        "--cap-kw and --model",
+    )
+    p.add_argument(
+        "--cap-kw",
+        type=_positive_float,
+        default=None,
+        help="keep the fleet's aggregate electrical power at or under this many kW (a price "
+        "signal by dual ascent over the batched planners; the JSON counts every capped "
+        "interval over it); writes the fleet figure next to --json",
+    )
+    p.add_argument(
+        "--cap-window",
+        default=None,
+        help="HH:MM-HH:MM: the cap holds in this window of every day (default all day)",
     )
 
     p = add("compare", "scenarios.commands:compare", "train, identify and run every controller on one scenario")

@@ -23,6 +23,7 @@ __all__ = [
     "LARGE_GRID_CELLS",
     "SECONDS_PER_BUILDING_DAY",
     "available_memory_bytes",
+    "check_batched_fleet_memory",
     "check_fleet_memory",
     "check_fleet_size",
     "check_grid_size",
@@ -138,6 +139,31 @@ def check_fleet_memory(
         f"{per_building / 1e6:.1f} MB per building)",
         per_building * buildings,
         f"use at most {fit} buildings, or split the fleet into several runs",
+        available,
+    )
+
+
+#: Bytes of one rollout column of a batched fleet model per horizon step: the states, the
+#: residual net's hidden layer and the plan-free terms, float32, with the CEM's samples and
+#: costs and torch's temporaries (rounded up from the peak of FleetHybrid.roll).
+BYTES_PER_ROLLOUT_COLUMN_STEP = 4 * (3 + 2 * 34 + 8)
+
+
+def check_batched_fleet_memory(
+    *, buildings: int, members: int, samples: int, horizon_steps: int, available: int | None = None
+) -> None:
+    """Refuse a batched rollout of ``buildings`` x ``members`` x ``samples`` columns over
+    ``horizon_steps`` that would not fit in memory (the batched cem of a fleet)."""
+    available = available_memory_bytes() if available is None else available
+    if available is None:
+        return
+    per_building = BYTES_PER_ROLLOUT_COLUMN_STEP * members * samples * (horizon_steps + 1)
+    fit = int(MEMORY_SHARE * available / per_building)
+    _check(
+        f"a batched rollout of {buildings} buildings x {members} member(s) x {samples} samples "
+        f"x {horizon_steps} steps (about {per_building / 1e6:.1f} MB per building)",
+        per_building * buildings,
+        f"use at most {fit} buildings, or fewer samples",
         available,
     )
 

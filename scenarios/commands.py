@@ -43,6 +43,7 @@ from scenarios.report import (
 
 if TYPE_CHECKING:  # compare loads torch: only the compare command imports it
     from scenarios.compare import CompareSettings, ComparisonResult
+    from scenarios.fleet import FleetResult
 
 __all__ = ["closed_loop", "compare", "reproduce", "scenario", "simulate", "sweep"]
 
@@ -70,10 +71,22 @@ def simulate(a: argparse.Namespace) -> str:
     reads); a run that would not fit in memory is refused before it starts."""
     from scenarios.budget import check_simulate_memory
 
-    check_writable(a.out)
-    check_distinct(inputs=_scenario_inputs(a.scenario), outputs={"--out": a.out})
+    sidecar = None
+    if a.spread is not None:
+        if a.buildings < 2:
+            raise InputError("--spread draws a fleet: add --buildings N with N > 1")
+        sidecar = fleet_params_path(a.out)
+    check_writable(a.out, sidecar)
+    check_distinct(inputs=_scenario_inputs(a.scenario), outputs={"--out": a.out, "fleet file": sidecar})
     chosen = get_scenario(a.scenario)
     check_simulate_memory(chosen, days=a.days, buildings=a.buildings)
+    fleet = None
+    if a.spread is not None:
+        from pinn_mpc.simulator import draw_fleet
+        from scenarios.fleet import FLEET_STREAM
+
+        rng = np.random.default_rng([a.seed, FLEET_STREAM])
+        fleet = draw_fleet(chosen.sim.params, a.buildings, spread=a.spread, rng=rng)
     frame = generate(
         chosen,
         days=a.days,
@@ -81,8 +94,11 @@ def simulate(a: argparse.Namespace) -> str:
         policy=a.policy,
         n_buildings=a.buildings,
         weather_part=a.weather_part,
+        fleet=fleet,
     )
     write_timeseries(frame, a.out)
+    if sidecar is not None and fleet is not None:
+        atomic_write_json(sidecar, {"spread": a.spread, "params": [dataclasses.asdict(p) for p in fleet]})
     per_building = len(frame) // a.buildings
     overridden = float(np.mean(~np.isclose(frame["u"], frame["u_phys"])))
     first, last = day_span(frame["time"])
@@ -92,6 +108,53 @@ def simulate(a: argparse.Namespace) -> str:
         f"{per_building} rows per building at {chosen.sim.dt_s:g} s, T_r "
         f"{frame['T_r'].min():.1f}..{frame['T_r'].max():.1f} C, backup acted in "
         f"{100 * overridden:.0f} % of intervals"
+    )
+
+
+def fleet_params_path(data: str | os.PathLike[str]) -> Path:
+    """The file next to a fleet data set with its buildings' parameters (``simulate
+    --spread``): ``fleet.csv`` -> ``fleet.fleet.json``."""
+    return Path(data).with_suffix(".fleet.json")
+
+
+def train(a: argparse.Namespace) -> str:
+    """``train``: one ensemble (:func:`pinn_mpc.commands.train`), or with ``--per-building``
+    one model per building of a fleet data set on Ray (:mod:`scenarios.fleet_training`)."""
+    from pinn_mpc.commands import train as train_one
+
+    if not a.per_building:
+        for option, value in (("--address", a.address), ("--workers", a.workers)):
+            if value is not None:
+                raise InputError(f"{option} runs --per-building training on Ray; add --per-building")
+        return train_one(a)
+    import json
+
+    from pinn_mpc.data import read_fleet_timeseries
+    from pinn_mpc.physics import RCParams
+    from pinn_mpc.training import TrainConfig
+    from scenarios.fleet_training import train_per_building
+
+    frames = read_fleet_timeseries(a.data, columns=a.columns)
+    params = None
+    sidecar = fleet_params_path(a.data)
+    if sidecar.is_file():
+        try:
+            params = [RCParams(**p) for p in json.loads(sidecar.read_text())["params"]]
+        except (OSError, ValueError, KeyError, TypeError) as exc:
+            raise InputError(f"{sidecar}: not a fleet parameter file ({exc})") from None
+    config = TrainConfig(
+        depth=a.depth, n_seeds=a.seeds, first_seed=a.seed, epochs=a.epochs, lam=a.lam,
+        recipe=a.recipe, eta=1.0 if a.eta is None else float(a.eta),
+    )
+    summary = train_per_building(
+        frames, a.out, arch=a.arch, config=config, params=params, address=a.address, workers=a.workers
+    )
+    times = list(summary["train_seconds"].values())
+    median = f", {float(np.median(times)):.1f} s per building (median)" if times else ""
+    return (
+        f"{len(summary['buildings'])} buildings: trained {len(summary['trained'])}, kept "
+        f"{len(summary['kept'])} already there, in {summary['wall_seconds']:.0f} s{median}; "
+        f"wrote {a.out}"
     )
 
 
@@ -110,6 +173,10 @@ def closed_loop(a: argparse.Namespace) -> str:
     scenario = get_scenario(a.scenario)
     if a.buildings > 1:
         return _fleet_closed_loop(a, scenario)
+    for option, given in (("--batched", a.batched), ("--cap-kw", a.cap_kw is not None),
+                          ("--cap-window", a.cap_window is not None)):
+        if given:
+            raise InputError(f"{option} coordinates a fleet: add --buildings N with N > 1")
     if a.spread is not None:
         raise InputError("--spread draws a fleet: add --buildings N with N > 1")
     _check_controller_inputs(a)
@@ -199,42 +266,125 @@ _FLEET_REASONS = {
 
 def _fleet_closed_loop(a: argparse.Namespace, scenario: Scenario) -> str:
     """``closed-loop --buildings N``: the fleet run, its JSON (fleet, totals, step times,
-    buildings); each building's controller is built on its own parameters. A fleet that would
-    not fit in memory is refused before anything is built."""
+    aggregate power, district KPIs, the cap's account, buildings); each building's controller
+    is built on its own parameters, one after another, or the fleet is planned in one batch
+    (``--batched``, ``--cap-kw``; then the fleet figure is written next to the JSON). A fleet
+    that would not fit in memory is refused before anything is built."""
     from scenarios.budget import check_fleet_memory, check_fleet_size
     from scenarios.fleet import run_fleet_closed_loop
 
-    for option, value in (("--model", a.model), ("--rc", a.rc), ("--csv", a.csv), ("--plot", a.plot)):
+    batched = a.batched or a.cap_kw is not None or a.model is not None
+    for option, value in (("--rc", a.rc), ("--csv", a.csv), ("--plot", a.plot)):
         if value is not None:
             raise InputError(
                 f"{option} does not apply to a fleet (--buildings {a.buildings}): "
                 f"{_FLEET_REASONS[option]}; leave it out, or drop --buildings for one building"
             )
+    if a.cap_window is not None and a.cap_kw is None:
+        raise InputError("--cap-window needs --cap-kw (the cap in that window)")
+    figure = None
+    if batched:
+        from scenarios.aggregator import BATCHED_CONTROLLERS, parse_cap_window
+
+        wanted = "cem" if a.model is not None else "qp-mpc"
+        if a.controller != wanted:
+            raise InputError(
+                f"a batched fleet plans with qp-mpc (each building's RC) or, with --model DIR of "
+                f"per-building models, with cem; got --controller {a.controller} "
+                f"({'with' if a.model is not None else 'without'} --model); batched controllers: "
+                f"{', '.join(BATCHED_CONTROLLERS)}"
+            )
+        if a.cap_window is not None:
+            parse_cap_window(a.cap_window)
+        figure = str(Path(a.json).with_suffix(".fleet.png"))
+        check_writable(figure)
+        check_distinct(inputs=_scenario_inputs(a.scenario), outputs={"--json": a.json, "figure": figure})
     check_fleet_memory(scenario, a.controller, days=a.days, buildings=a.buildings)
     check_fleet_size(a.controller, buildings=a.buildings, days=a.days, large=a.large)
     spread = 0.2 if a.spread is None else a.spread
+    planner: Any = a.controller
+    fleet = None
+    if a.model is not None:
+        from scenarios.aggregator import learned_fleet_planner
+        from scenarios.fleet_training import load_fleet_models
+
+        models, fleet = load_fleet_models(a.model)
+        if fleet is None:
+            raise InputError(
+                f"--model {a.model}: the buildings' parameters are unknown (the data was "
+                "simulated without --spread); the closed loop needs the buildings the models "
+                "were trained on"
+            )
+        if len(models) != a.buildings:
+            raise InputError(f"--model {a.model} holds {len(models)} buildings, --buildings is {a.buildings}")
+        if a.spread is not None:
+            raise InputError("--spread does not apply with --model: the buildings are the models' own")
+        planner = learned_fleet_planner(models)
     threads = one_torch_thread() if a.controller in MODEL_CONTROLLERS else contextlib.nullcontext()
     with threads:
-        result = run_fleet_closed_loop(
-            scenario, a.controller, n_buildings=a.buildings, days=a.days, seed=a.seed,
-            spread=spread, weather_part=a.weather_part, progress=True,
-        )
-    atomic_write_json(
-        a.json,
-        {
-            "fleet": _with_scenario_file(result.info, a.scenario),
-            "totals": result.totals,
-            "step_time": result.step_time,
-            "buildings": [
-                {**kpis, "params": dataclasses.asdict(params)}
-                for kpis, params in zip(result.kpis, result.params, strict=True)
-            ],
-        },
-    )
+        if batched:
+            from scenarios.aggregator import run_coordinated_fleet
+
+            result = run_coordinated_fleet(
+                scenario, planner, n_buildings=a.buildings, days=a.days, seed=a.seed,
+                spread=spread, weather_part=a.weather_part, cap_kw=a.cap_kw,
+                cap_window=a.cap_window, fleet=fleet, progress=True,
+            )
+        else:
+            result = run_fleet_closed_loop(
+                scenario, a.controller, n_buildings=a.buildings, days=a.days, seed=a.seed,
+                spread=spread, weather_part=a.weather_part, progress=True,
+            )
+    atomic_write_json(a.json, fleet_json(result, a.scenario))
     lines = [format_fleet(result)]
+    if result.cap is not None:
+        c = result.cap
+        lines.append(
+            f"cap {c['kw']:.1f} kW ({c['window'] or 'all day'}): {c['intervals_over']} of "
+            f"{c['intervals']} capped intervals over it, {c['kwh_over']:.2f} kWh over"
+        )
     if result.errors:
         lines.append(f"{len(result.errors)} controller error(s), first: {result.errors[0]}")
+    if figure is not None:
+        from scenarios.aggregator import cap_in_force
+        from scenarios.plots import fleet_figure, save_figure
+
+        cap_kw = None if result.cap is None else cap_in_force(result.times, result.cap)
+        discomfort = np.array([k["discomfort_kh"] for k in result.kpis])
+        title = f"{result.info['controller']} x {result.info['n_buildings']} on {result.info['scenario']}"
+        save_figure(
+            fleet_figure(result.times, result.aggregate_u_phys_w / 1000.0, discomfort,
+                         cap_kw=cap_kw, title=title),
+            figure,
+        )
+        lines.append(f"wrote {figure}")
     return "\n".join([*lines, f"wrote {a.json}"])
+
+
+def fleet_json(result: FleetResult, scenario_arg: str) -> dict[str, Any]:
+    """The fleet JSON: ``fleet`` (what ran), ``totals``, ``district`` KPIs, ``aggregate``
+    (``time``, ``power_kw`` per counted interval), ``cap`` (None without one), ``fell_back``
+    (the buildings whose fallback or whose model's RC MPC acted at least once), ``step_time``
+    and ``buildings``."""
+    return {
+        "fleet": _with_scenario_file(result.info, scenario_arg),
+        "totals": result.totals,
+        "district": result.district,
+        "aggregate": {
+            "time": list(result.times),
+            "power_kw": [round(float(v) / 1000.0, 4) for v in result.aggregate_u_phys_w],
+        },
+        "cap": result.cap,
+        "fell_back": [
+            k["building"] for k in result.kpis
+            if k["fallbacks"] > 0 or k.get("model_fallback_steps", 0) > 0
+        ],
+        "step_time": result.step_time,
+        "buildings": [
+            {**kpis, "params": dataclasses.asdict(params)}
+            for kpis, params in zip(result.kpis, result.params, strict=True)
+        ],
+    }
 
 
 def _dates_text(settings: CompareSettings, days: dict[str, list[str]]) -> str:

@@ -29,6 +29,7 @@ test data for open-loop evaluation comes from the test part, the days closed loo
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Literal
 
 import numpy as np
@@ -36,6 +37,7 @@ import pandas as pd
 
 from controllers.thermostat import Thermostat
 from pinn_mpc.errors import InputError
+from pinn_mpc.physics import RCParams
 from pinn_mpc.simulator import Simulator
 from scenarios.choices import POLICIES
 from scenarios.registry import Scenario, check_seed
@@ -55,6 +57,7 @@ def generate(
     n_buildings: int = 1,
     on_probability: float = 0.5,
     weather_part: str = "train",
+    fleet: Sequence[RCParams] | None = None,
 ) -> pd.DataFrame:
     """Simulate ``days`` days of ``scenario`` under a data-collection policy.
 
@@ -75,6 +78,9 @@ def generate(
         Buildings simulated at once (a ``building`` column is added when more than one).
     on_probability
         Probability of full power per interval under ``"random"``.
+    fleet
+        The ``n_buildings`` buildings' own parameters (e.g.
+        :func:`pinn_mpc.simulator.draw_fleet`); default: all the scenario's building.
     weather_part
         ``"train"`` (default), ``"test"`` or ``"whole"`` (see :mod:`scenarios.inputs`).
 
@@ -84,6 +90,8 @@ def generate(
         ``days * steps_per_day`` rows (times ``n_buildings``) in the data format;
         ``attrs['dt_s']`` is the control interval [s].
     """
+    if fleet is not None and len(fleet) != n_buildings:
+        raise InputError(f"generate: {len(fleet)} fleet parameters for n_buildings={n_buildings}")
     if policy not in POLICIES:
         raise InputError(f"unknown policy {policy!r}; choose one of: {', '.join(POLICIES)}")
     if not 0.0 <= on_probability <= 1.0:
@@ -96,11 +104,13 @@ def generate(
     n = len(exo)
     cols = {c: exo[c].to_numpy(dtype=float) for c in ("T_a", "G", "I_g", "price", "T_min", "T_max")}
     if scenario.sim.plant.is_energyplus:
+        if fleet is not None:
+            raise InputError("a fleet with its own parameters runs on the RC simulator, not EnergyPlus")
         return _generate_energyplus(scenario, exo, cols, seed=seed, policy=policy,
                                     n_buildings=n_buildings, on_probability=on_probability)
 
     sensor_seed = int(np.random.default_rng([seed, _SENSOR_STREAM]).integers(2**63))
-    sim = Simulator(scenario.sim, n_buildings=n_buildings, seed=sensor_seed)
+    sim = Simulator(scenario.sim, seed=sensor_seed, fleet=fleet, n_buildings=None if fleet else n_buildings)
     sim.reset(scenario.initial_t_r_c, scenario.initial_t_m_c)
     t_r = np.empty((n_buildings, n))
     t_m = np.empty((n_buildings, n))

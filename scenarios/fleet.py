@@ -19,11 +19,12 @@ otherwise (e.g. on identified parameters with errors).
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+import pandas as pd
 
 from controllers.base import Controller
 from controllers.thermostat import Thermostat
@@ -32,14 +33,27 @@ from pinn_mpc.physics import RCParams
 from pinn_mpc.simulator import draw_fleet
 from scenarios.choices import CONTROLLER_NAMES, MODEL_CONTROLLERS, RC_CONTROLLERS
 from scenarios.closed_loop import (
+    RunInputs,
     build_loop,
     counted_kpis,
     prepare_run,
     progress_steps,
 )
+from scenarios.engine import ClosedLoop
 from scenarios.registry import Scenario, check_seed
 
-__all__ = ["FLEET_TOTAL_KEYS", "FleetResult", "fleet_controller", "run_fleet_closed_loop"]
+__all__ = [
+    "FLEET_STREAM",
+    "FLEET_TOTAL_KEYS",
+    "FleetResult",
+    "district_kpis",
+    "fleet_controller",
+    "fleet_info",
+    "fleet_result",
+    "fleet_step_time",
+    "fleet_totals",
+    "run_fleet_closed_loop",
+]
 
 #: Keys of :attr:`FleetResult.totals`.
 FLEET_TOTAL_KEYS = (
@@ -74,6 +88,11 @@ class FleetResult:
     - ``params``: each building's parameters; ``errors``: one line per controller exception
       (building, step), where the loop's fallback acted; ``info``: scenario, controller, days,
       seed, spread, n_buildings, weather_part.
+    - ``times``: the start of each counted interval (ISO 8601), ``district``: the district
+      KPIs of the aggregate (:func:`district_kpis`); ``cap``: the cap's
+      account of a capped run (:func:`scenarios.aggregator.cap_account`), else None;
+      ``coordination_price_eur_per_kwh`` (K,): the coordination price of each counted
+      interval when it was decided (zeros without a cap; empty for a per-building run).
     """
 
     kpis: tuple[dict[str, Any], ...]
@@ -83,6 +102,10 @@ class FleetResult:
     params: tuple[RCParams, ...]
     errors: tuple[str, ...]
     info: dict[str, Any]
+    times: tuple[str, ...] = ()
+    district: dict[str, float] = field(default_factory=dict)
+    cap: dict[str, Any] | None = None
+    coordination_price_eur_per_kwh: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
 
 def fleet_controller(
@@ -145,7 +168,7 @@ def run_fleet_closed_loop(
     """
     check_seed(seed)
     fleet = draw_fleet(
-        scenario.sim.params, n_buildings, spread=spread, rng=np.random.default_rng([seed, _FLEET_STREAM])
+        scenario.sim.params, n_buildings, spread=spread, rng=np.random.default_rng([seed, FLEET_STREAM])
     )
     run = prepare_run(
         scenario, days=days, seed=seed, warmup_steps=warmup_steps, weather_part=weather_part
@@ -176,34 +199,81 @@ def run_fleet_closed_loop(
         errors.extend(f"building {b}, step {k}: {e}" for b, e in step.errors)
         if k >= run.warmup:
             times_s[k - run.warmup] = step.controllers_s, step.plant_s
+    return fleet_result(
+        scenario, run, loop, times_s, params=fleet, errors=tuple(errors),
+        info=fleet_info(
+            scenario,
+            controller if isinstance(controller, str) else controllers[0].name,
+            n_buildings=len(fleet), days=days, seed=seed, spread=spread, weather_part=weather_part,
+        ),
+    )
+
+
+def fleet_info(
+    scenario: Scenario, controller: str, *, n_buildings: int, days: int, seed: int,
+    spread: float, weather_part: str,
+) -> dict[str, Any]:
+    """:attr:`FleetResult.info` of a run."""
+    return {
+        "scenario": scenario.name,
+        "controller": controller,
+        "n_buildings": n_buildings,
+        "days": days,
+        "seed": seed,
+        "spread": spread,
+        "weather_part": weather_part,
+    }
+
+
+def fleet_result(
+    scenario: Scenario,
+    run: RunInputs,
+    loop: ClosedLoop,
+    times_s: np.ndarray,
+    *,
+    params: Sequence[RCParams],
+    errors: tuple[str, ...],
+    info: dict[str, Any],
+    cap: dict[str, Any] | None = None,
+    prices: np.ndarray | None = None,
+    extra_kpis: dict[str, np.ndarray] | None = None,
+) -> FleetResult:
+    """The :class:`FleetResult` of a fleet run on ``loop`` (every building's counted KPIs, the
+    aggregate and its district KPIs) with step times ``times_s`` (K, 2) [s]; ``extra_kpis``
+    adds one value (B,) per building to its KPIs."""
+    n = loop.n_buildings
+    extra = extra_kpis or {}
     kpis = tuple(
-        {**counted_kpis(scenario, run, loop.record(b)), "building": b} for b in range(len(fleet))
+        {
+            **counted_kpis(scenario, run, loop.record(b)),
+            "building": b,
+            **{name: int(values[b]) for name, values in extra.items()},
+        }
+        for b in range(n)
     )
     aggregate = loop.aggregate_u_phys_w()[run.counted]
+    times = pd.DatetimeIndex(run.exo["time"])[run.counted]
     return FleetResult(
         kpis=kpis,
-        totals=_totals(kpis, aggregate),
+        totals=fleet_totals(kpis, aggregate),
         aggregate_u_phys_w=aggregate,
-        step_time=_step_time(times_s),
-        params=tuple(fleet),
-        errors=tuple(errors),
-        info={
-            "scenario": scenario.name,
-            "controller": controller if isinstance(controller, str) else controllers[0].name,
-            "n_buildings": len(fleet),
-            "days": days,
-            "seed": seed,
-            "spread": spread,
-            "weather_part": weather_part,
-        },
+        step_time=fleet_step_time(times_s),
+        params=tuple(params),
+        errors=errors,
+        info=info,
+        times=tuple(times.strftime("%Y-%m-%dT%H:%M:%S")),
+        district=district_kpis(aggregate, dt_s=scenario.sim.dt_s),
+        cap=cap,
+        coordination_price_eur_per_kwh=np.zeros(0) if prices is None else prices,
     )
 
 
 #: Stream of the fleet draw's generator, apart from the scenario's and the loop's.
-_FLEET_STREAM = 7
+FLEET_STREAM = 7
 
 
-def _totals(kpis: tuple[dict[str, Any], ...], aggregate_w: np.ndarray) -> dict[str, float | int]:
+def fleet_totals(kpis: tuple[dict[str, Any], ...], aggregate_w: np.ndarray) -> dict[str, float | int]:
+    """:data:`FLEET_TOTAL_KEYS` of a fleet's per-building KPIs and aggregate power (K,) [W]."""
     summed = {key: sum(k[key] for k in kpis) for key in FLEET_TOTAL_KEYS[:4]}
     counts = {key: int(sum(k[key] for k in kpis)) for key in ("backup_overrides", "fallbacks")}
     return {
@@ -214,10 +284,33 @@ def _totals(kpis: tuple[dict[str, Any], ...], aggregate_w: np.ndarray) -> dict[s
     }
 
 
-def _step_time(times_s: np.ndarray) -> dict[str, float]:
+def fleet_step_time(times_s: np.ndarray) -> dict[str, float]:
+    """Median and p95 [ms] of (K, 2) step times [s] (controllers, plant) and their sum."""
     columns = {"controllers": times_s[:, 0], "plant": times_s[:, 1], "total": times_s.sum(axis=1)}
     out = {}
     for name, values in columns.items():
         out[f"{name}_ms_median"] = float(np.median(values) * 1000.0)
         out[f"{name}_ms_p95"] = float(np.percentile(values, 95) * 1000.0)
     return out
+
+
+def district_kpis(aggregate_w: np.ndarray, *, dt_s: float) -> dict[str, float]:
+    """District KPIs of the aggregate electrical power (K,) [W] as CityLearn defines them, not
+    normalised by a baseline: ``peak_kw`` (all-time peak), ``average_daily_peak_kw``,
+    ``ramping_kw`` (sum of |P_t - P_t-1|), ``load_factor`` (mean / peak over the run) and
+    ``daily_one_minus_load_factor`` (the mean over days of 1 - mean / peak of the day)."""
+    p = np.asarray(aggregate_w, dtype=float) / 1000.0
+    per_day = max(int(round(86400.0 / dt_s)), 1)
+    days = [p[i : i + per_day] for i in range(0, len(p), per_day)]
+    peak = float(p.max()) if len(p) else 0.0
+    return {
+        "peak_kw": peak,
+        "average_daily_peak_kw": float(np.mean([d.max() for d in days])) if days else 0.0,
+        "ramping_kw": float(np.abs(np.diff(p)).sum()),
+        "load_factor": float(p.mean() / peak) if peak > 0 else 0.0,
+        "daily_one_minus_load_factor": float(
+            np.mean([1.0 - d.mean() / d.max() if d.max() > 0 else 0.0 for d in days])
+        )
+        if days
+        else 0.0,
+    }

@@ -38,6 +38,7 @@ __all__ = [
     "draw_power",
     "draw_price",
     "draw_room",
+    "fleet_figure",
     "format_time_axis",
     "group_by_family",
     "new_figure",
@@ -235,3 +236,39 @@ def plot_comparison(
 ) -> Path:
     """Write :func:`comparison_figure` as PNG."""
     return save_figure(comparison_figure(trajectories, title=title, reference=reference), path)
+
+
+def fleet_figure(
+    times: Sequence[str],
+    aggregate_kw: np.ndarray,
+    discomfort_kh: np.ndarray,
+    *,
+    cap_kw: np.ndarray | None = None,
+    baseline_kw: np.ndarray | None = None,
+    title: str = "",
+) -> Figure:
+    """What an aggregator looks at: the fleet's aggregate power (K,) [kW] over the run against
+    its cap (K,) [kW] (NaN where uncapped; None: no cap) and an uncoordinated baseline (K,)
+    [kW] when given, and the distribution of per-building discomfort (B,) [K h]."""
+    fig, axes = new_figure(1, 2, figsize=(12.0, 4.0))
+    ax, hist = axes[0, 0], axes[0, 1]
+    t = pd.DatetimeIndex(pd.to_datetime(list(times)))
+    if baseline_kw is not None:
+        ax.step(t, baseline_kw, where="post", color="tab:gray", lw=1.0, label="uncoordinated")
+    ax.step(t, aggregate_kw, where="post", color="tab:blue", lw=1.4, label="fleet")
+    if cap_kw is not None:
+        ax.step(t, cap_kw, where="post", color="tab:red", ls="--", lw=1.4, label="cap")
+    ax.set_ylabel("aggregate electrical power [kW]")
+    ax.xaxis.set_major_formatter(mdates.DateFormatter("%H:%M"))
+    ax.set_xlabel(f"{t[0]:%Y-%m-%d} .. {t[-1]:%Y-%m-%d}" if len(t) else "")
+    ax.grid(alpha=0.3)
+    _legend(ax)
+    values = np.asarray(discomfort_kh, dtype=float)
+    hist.hist(values, bins=min(30, max(5, len(values) // 5)), color="tab:blue", alpha=0.8)
+    hist.set_xlabel("discomfort per building [K h]")
+    hist.set_ylabel("buildings")
+    hist.set_title(f"mean {values.mean():.2f} K h, worst {values.max():.2f} K h", fontsize=9)
+    hist.grid(alpha=0.3)
+    if title:
+        fig.suptitle(title, fontsize=10)
+    return fig

@@ -1,0 +1,363 @@
+"""Fleet planners: every building of a fleet planned in one batch, state kept per building.
+
+A fleet planner decides for B buildings at once. It splits a decision in three so that a
+coordinator (:mod:`controllers.coordination`) can plan the fleet several times per control
+step under different prices without disturbing any building's state:
+
+- :meth:`FleetPlanner.observe` feeds every building's estimator its observation, once a step;
+- :meth:`FleetPlanner.plan` plans every building under the forecast plus an extra price
+  (H,) [EUR/kWh] on electrical energy (the coordination signal), without changing any
+  building's estimator, warm start or counters; it may be called many times;
+- :meth:`FleetPlanner.commit` applies a plan: the first action of every building that planned,
+  each failed building's own :class:`controllers.base.Fallback` otherwise (counted), and the
+  warm start of the next step.
+
+:class:`FleetQPMPC` is the ``qp-mpc`` of every building (:mod:`controllers.rc_mpc.osqp`: same
+problem, same OSQP settings, each building its own Kalman observer) as ONE sparse QP whose
+blocks are the buildings, built vectorised; a new extra price changes only the linear cost, so
+a coordination iteration is a warm-started OSQP solve. Per-building plans equal those of
+``QPMPC`` within the solver's tolerance (tests/test_fleet_planners.py).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any, NamedTuple, Protocol
+
+import numpy as np
+import osqp
+import scipy.sparse as sp
+
+from controllers.base import (
+    ControlSpec,
+    Fallback,
+    Forecast,
+    Observation,
+    check_heating,
+    first_values,
+)
+from controllers.estimators import KalmanEstimator
+from controllers.objective import HorizonObjective
+from controllers.rc_mpc.osqp import OSQP_OPTIONS
+from controllers.rc_mpc.problem import DEFAULT_REGULARISATION
+from pinn_mpc.errors import InputError
+from pinn_mpc.physics import RCParams
+from pinn_mpc.simulator import fleet_matrices
+
+__all__ = ["FleetDecision", "FleetPlan", "FleetPlanner", "FleetQPMPC"]
+
+
+class FleetPlan(NamedTuple):
+    """Plans of B buildings over H intervals: ``power_w`` (B, H) planned electrical power [W]
+    (demanded; what the aggregate is summed from), ``ok`` (B,) whether the building planned
+    (False: it falls back on commit), ``status`` the solver's word, ``iterations``."""
+
+    power_w: np.ndarray
+    ok: np.ndarray
+    status: str
+    iterations: int
+
+
+class FleetDecision(NamedTuple):
+    """What :meth:`FleetPlanner.commit` applies: ``u_w`` (B,) demanded power [W], ``fallback``
+    (B,) bool (the building's own fallback acted: no plan), ``model_fallback`` (B,) bool (a
+    planner over learned models handed the building to its RC MPC; None: no such fallback)."""
+
+    u_w: np.ndarray
+    fallback: np.ndarray
+    model_fallback: np.ndarray | None = None
+
+
+class FleetPlanner(Protocol):
+    """B buildings planned together (module docstring)."""
+
+    name: str
+
+    @property
+    def n_buildings(self) -> int: ...
+
+    @property
+    def horizon_steps(self) -> int: ...
+
+    def reset(self, seed: int | None = None) -> None: ...
+
+    def observe(self, observations: Sequence[Observation], forecast: Forecast) -> None: ...
+
+    def plan(self, extra_price_eur_per_kwh: np.ndarray | None = None) -> FleetPlan: ...
+
+    def commit(self, plan: FleetPlan) -> FleetDecision: ...
+
+    @property
+    def n_fallbacks(self) -> np.ndarray: ...
+
+
+class _Stage(NamedTuple):
+    """One step's data: the buildings' observations, the forecast, states and objective."""
+
+    observations: tuple[Observation, ...]
+    forecast: Forecast
+    x0_c: np.ndarray  # (B, 2) (T_r, T_m) estimates [C]
+    ok: np.ndarray  # (B,) the estimate is finite
+    objective: HorizonObjective
+    cop: np.ndarray  # (H,)
+    drift_c: np.ndarray  # (B, H, 2) state drift of each step, x0's response in step 0 [C]
+
+
+class FleetQPMPC:
+    """``qp-mpc`` for B buildings (``fleet``: each its own parameters), planned together.
+
+    The problem of :mod:`controllers.rc_mpc.problem` (delivered heat planned, comfort slack,
+    regulariser ``regularisation_eur_per_kw2h``) for every building, variables per building
+    ``(heat (H), slack (H), states (H, 2))``; ``solver_options`` update
+    :data:`controllers.rc_mpc.osqp.OSQP_OPTIONS`. The states come from one Kalman observer per
+    building (:meth:`KalmanEstimator.for_spec`). A building whose estimate is not finite, or
+    every building when OSQP does not report ``solved``, falls back (its previous plan, as
+    ``QPMPC``), counted in :attr:`n_fallbacks`.
+    """
+
+    name = "qp-mpc"
+
+    def __init__(
+        self,
+        fleet: Sequence[RCParams],
+        spec: ControlSpec,
+        *,
+        horizon_steps: int | None = None,
+        regularisation_eur_per_kw2h: float = DEFAULT_REGULARISATION,
+        solver_options: dict[str, Any] | None = None,
+        block_size: int = 1,
+    ) -> None:
+        if len(fleet) < 1:
+            raise InputError("FleetQPMPC needs at least one building")
+        for i, params in enumerate(fleet):
+            check_heating(params.eta, spec, what=f"building {i}'s RC parameters")
+        h = spec.horizon_steps if horizon_steps is None else horizon_steps
+        if h < 1:
+            raise InputError(f"FleetQPMPC.horizon_steps must be >= 1, got {h}")
+        if not (np.isfinite(regularisation_eur_per_kw2h) and regularisation_eur_per_kw2h > 0):
+            raise InputError(
+                f"regularisation_eur_per_kw2h must be > 0 (uniqueness), got {regularisation_eur_per_kw2h!r}"
+            )
+        self.fleet, self.spec, self._h = tuple(fleet), spec, h
+        self.rho = regularisation_eur_per_kw2h
+        self.solver_options = {**OSQP_OPTIONS, **(solver_options or {})}
+        ad, bd = fleet_matrices(self.fleet, spec.dt_s)  # (B, 2, 2), (B, 2, 4)
+        self._ad, self._bd = ad, bd
+        self._b_u = bd[:, :, 0] * 1000.0  # (B, 2) [K/kW]
+        if not (isinstance(block_size, int) and block_size >= 1):
+            raise InputError(f"FleetQPMPC.block_size must be a whole number >= 1, got {block_size!r}")
+        p_diag = 2.0 * spec.dt_h * self.rho
+        self._blocks = [
+            slice(i, min(i + block_size, len(fleet))) for i in range(0, len(fleet), block_size)
+        ]
+        self._matrices = [_block_matrices(ad[s], self._b_u[s], h, p_diag) for s in self._blocks]
+        self.estimators = [KalmanEstimator.for_spec(p, spec) for p in self.fleet]
+        self.fallbacks = [Fallback(spec, reuse_plan=True) for _ in self.fleet]
+        self.reset()
+
+    @property
+    def n_buildings(self) -> int:
+        return len(self.fleet)
+
+    @property
+    def horizon_steps(self) -> int:
+        return self._h
+
+    @property
+    def n_fallbacks(self) -> np.ndarray:
+        """(B,) fallback events of each building since ``reset``."""
+        return np.array([f.n_events for f in self.fallbacks])
+
+    def reset(self, seed: int | None = None) -> None:
+        """Forget estimates, plans, counters and the solver's warm start (no randomness)."""
+        for e, f in zip(self.estimators, self.fallbacks, strict=True):
+            e.reset()
+            f.reset()
+        self._solvers: list[osqp.OSQP | None] = [None] * len(self._blocks)
+        self._stage: _Stage | None = None
+        self._solutions: list[tuple[np.ndarray, np.ndarray] | None] = [None] * len(self._blocks)
+
+    def observe(self, observations: Sequence[Observation], forecast: Forecast) -> None:
+        """Every building's Kalman update on its observation; the step's QP data."""
+        if len(observations) != self.n_buildings:
+            raise InputError(
+                f"FleetQPMPC.observe: {len(observations)} observations for {self.n_buildings} buildings"
+            )
+        x0 = np.empty((self.n_buildings, 2))
+        for i, (est, obs) in enumerate(zip(self.estimators, observations, strict=True)):
+            try:
+                x0[i] = est.update(obs)
+            except Exception:  # a failed estimate falls back for this building only
+                x0[i] = np.nan
+        ok = np.all(np.isfinite(x0), axis=1)
+        # A failed building keeps the QP well posed from its measurement; it does not act on it.
+        measured = np.array([o.t_r_c for o in observations], dtype=float)
+        x0[~ok] = np.where(np.isfinite(measured[~ok]), measured[~ok], 20.0)[:, None]
+        h = self._h
+        exog = np.stack([first_values(a, h) for a in (forecast.T_a, forecast.G, forecast.I_g)], axis=1)
+        drift = np.einsum("hc,brc->bhr", exog, self._bd[:, :, 1:])
+        drift[:, 0] += np.einsum("brc,bc->br", self._ad, x0)
+        self._stage = _Stage(
+            observations=tuple(observations),
+            forecast=forecast,
+            x0_c=x0,
+            ok=ok,
+            objective=HorizonObjective.from_forecast(forecast, self.spec, h),
+            cop=np.asarray(self.spec.actuator.gain(exog[:, 0]), dtype=float) * np.ones(h),
+            drift_c=drift,
+        )
+
+    def _data(self, extra: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """OSQP's q, l, u for the step's stage and the extra price (H,)."""
+        s = self._stage
+        assert s is not None  # observe() comes first (an internal order, not user input)
+        b, h, dt_h = self.n_buildings, self._h, self.spec.dt_h
+        obj = s.objective
+        heat_price = (obj.price_eur_per_kwh + extra) / s.cop
+        q = np.zeros((b, 4 * h))
+        q[:, :h] = dt_h * heat_price
+        q[:, h : 2 * h] = dt_h * obj.comfort_weight_eur_per_kh
+        inf = np.inf
+        lower = np.empty((b, 6 * h))
+        upper = np.empty((b, 6 * h))
+        lower[:, : 2 * h] = upper[:, : 2 * h] = s.drift_c.reshape(b, 2 * h)
+        lower[:, 2 * h : 3 * h], upper[:, 2 * h : 3 * h] = obj.t_min_c, inf
+        lower[:, 3 * h : 4 * h], upper[:, 3 * h : 4 * h] = -inf, obj.t_max_c
+        lower[:, 4 * h : 5 * h], upper[:, 4 * h : 5 * h] = 0.0, s.cop * self.spec.u_max_w / 1000.0
+        lower[:, 5 * h :], upper[:, 5 * h :] = 0.0, inf
+        return q.reshape(-1), lower.reshape(-1), upper.reshape(-1)
+
+    def plan(
+        self, extra_price_eur_per_kwh: np.ndarray | None = None, *, only: np.ndarray | None = None
+    ) -> FleetPlan:
+        """Every building's plan under the forecast plus ``extra_price_eur_per_kwh`` (H,)
+        (default 0) on electrical energy; warm-started from the last solve. ``only`` (B,) bool:
+        solve the blocks of these buildings only (the others are not ``ok``)."""
+        if self._stage is None:
+            raise InputError("FleetQPMPC.plan: call observe() first")
+        h = self._h
+        extra = np.zeros(h) if extra_price_eur_per_kwh is None else np.asarray(extra_price_eur_per_kwh, float)
+        if extra.shape != (h,) or not np.all(np.isfinite(extra)):
+            raise InputError(f"FleetQPMPC.plan: the extra price must be {h} finite values, got {extra!r}")
+        q, lower, upper = (v.reshape(self.n_buildings, -1) for v in self._data(extra))
+        x = np.full((self.n_buildings, 4 * h), np.nan)
+        solved = np.zeros(self.n_buildings, dtype=bool)
+        statuses: set[str] = set() if only is None or only.all() else {"solved"}
+        iterations = 0
+        for j, (block, (p_upper, a)) in enumerate(zip(self._blocks, self._matrices, strict=True)):
+            if only is not None and not np.any(only[block]):
+                continue
+            data = {"q": q[block].reshape(-1), "l": lower[block].reshape(-1), "u": upper[block].reshape(-1)}
+            solver = self._solvers[j]
+            if solver is None:
+                solver = self._solvers[j] = osqp.OSQP()
+                solver.setup(P=p_upper, A=a, **data, **self.solver_options)
+            else:
+                solver.update(**data)
+            result = solver.solve(raise_error=False)
+            status = str(result.info.status)
+            statuses.add(status)
+            iterations = max(iterations, int(result.info.iter))
+            solution = (np.asarray(result.x, dtype=float), np.asarray(result.y, dtype=float))
+            self._solutions[j] = solution
+            if status == "solved":
+                x[block] = solution[0].reshape(-1, 4 * h)
+                solved[block] = True
+        p_kw = x[:, :h] / self._stage.cop
+        ok = self._stage.ok & solved & np.all(np.isfinite(p_kw), axis=1)
+        power = np.clip(np.nan_to_num(p_kw), 0.0, self.spec.u_max_w / 1000.0) * 1000.0
+        status = "solved" if statuses == {"solved"} else ", ".join(sorted(statuses))
+        return FleetPlan(power_w=power, ok=ok, status=status, iterations=iterations)
+
+    def commit(self, plan: FleetPlan, *, active: np.ndarray | None = None) -> FleetDecision:
+        """Apply ``plan``: first actions of the buildings that planned, fallbacks otherwise;
+        the solver's solution shifted one step is the next step's warm start. ``active`` (B,)
+        bool: only these buildings act (the others get 0 W and count nothing: a shadow MPC
+        acts only where its model is distrusted)."""
+        s = self._stage
+        if s is None:
+            raise InputError("FleetQPMPC.commit: call observe() and plan() first")
+        u = np.zeros(self.n_buildings)
+        for i, fallback in enumerate(self.fallbacks):
+            if active is not None and not active[i]:
+                continue
+            if plan.ok[i]:
+                fallback.planned(plan.power_w[i].copy())
+                u[i] = plan.power_w[i, 0]
+            else:
+                u[i] = fallback.act(s.observations[i], s.forecast)
+        self._shift_warm_starts()
+        self._stage = None
+        failed = ~plan.ok if active is None else active & ~plan.ok
+        return FleetDecision(u_w=u, fallback=failed)
+
+    def _shift_warm_starts(self) -> None:
+        """Each block's last solution, shifted one step: the next step's warm start."""
+        h = self._h
+        for block, solver, solution in zip(self._blocks, self._solvers, self._solutions, strict=True):
+            if solver is None or solution is None or not np.all(np.isfinite(solution[0])):
+                continue
+            n = block.stop - block.start
+            x, y = solution
+            solver.warm_start(
+                x=_shift(x.reshape(n, 4 * h), [1, 1, 2], h).reshape(-1),
+                y=_shift(y.reshape(n, 6 * h), [2, 1, 1, 1, 1], h).reshape(-1),
+            )
+
+
+def _shift(v: np.ndarray, per_step: list[int], h: int) -> np.ndarray:
+    """Shift each block (time-major, ``per_step`` values a step) of every row one step, the
+    last step repeated."""
+    out, start = [], 0
+    for n in per_step:
+        block = v[:, start : start + n * h].reshape(v.shape[0], h, n)
+        out.append(np.concatenate([block[:, 1:], block[:, -1:]], axis=1).reshape(v.shape[0], -1))
+        start += n * h
+    return np.concatenate(out, axis=1)
+
+
+def _block_matrices(
+    ad: np.ndarray, b_u: np.ndarray, h: int, p_diag: float
+) -> tuple[sp.csc_matrix, sp.csc_matrix]:
+    """The fleet's P (upper triangle) and A: one block per building, built vectorised.
+
+    Per building the variables are (heat q_j, slack s_j, states x_j = (T_r, T_m) at the end of
+    step j) and the rows (dynamics (H, 2), T_r + s >= T_min, T_r - s <= T_max, q bounds,
+    s bounds), as the module docstring of :mod:`controllers.rc_mpc.problem` states them."""
+    b = ad.shape[0]
+    n, m = 4 * h, 6 * h
+    rows: list[np.ndarray] = []
+    cols: list[np.ndarray] = []
+    vals: list[np.ndarray] = []  # each (B, len) or broadcastable (1, len)
+
+    def add(r: np.ndarray, c: np.ndarray, v: np.ndarray) -> None:
+        rows.append(np.asarray(r))
+        cols.append(np.asarray(c))
+        vals.append(np.broadcast_to(v, (b, len(np.atleast_1d(r)))))
+
+    j = np.arange(h)
+    qi, si = j, h + j
+    xi = 2 * h + 2 * j  # T_r of step j; T_m at +1
+    for r in range(2):
+        dyn = 2 * j + r
+        add(dyn, xi + r, np.ones((1, h)))
+        add(dyn, qi, -np.repeat(b_u[:, r : r + 1], h, axis=1))
+        for c in range(2):
+            add(dyn[1:], xi[:-1] + c, -np.repeat(ad[:, r, c : c + 1], h - 1, axis=1))
+    add(2 * h + j, xi, np.ones((1, h)))
+    add(2 * h + j, si, np.ones((1, h)))
+    add(3 * h + j, xi, np.ones((1, h)))
+    add(3 * h + j, si, -np.ones((1, h)))
+    add(4 * h + j, qi, np.ones((1, h)))
+    add(5 * h + j, si, np.ones((1, h)))
+    r0, c0 = np.concatenate(rows), np.concatenate(cols)
+    v = np.concatenate(vals, axis=1)  # (B, nnz)
+    offsets = np.arange(b)[:, None]
+    a = sp.csc_matrix(
+        (v.reshape(-1), ((r0 + m * offsets).reshape(-1), (c0 + n * offsets).reshape(-1))),
+        shape=(b * m, b * n),
+    )
+    diag = np.zeros(n)
+    diag[:h] = p_diag
+    p_upper = sp.diags(np.tile(diag, b), format="csc")
+    return p_upper, a

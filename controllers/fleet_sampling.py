@@ -1,0 +1,358 @@
+"""CEM over every building's learned model in one batched rollout (a fleet planner).
+
+:class:`FleetCEM` is the ``cem`` controller of :mod:`controllers.sampling` for B buildings at
+once, behind :class:`controllers.fleet.FleetPlanner`: each CEM iteration rolls all buildings x
+samples x horizon out in ONE call of a fleet model (:class:`pinn_mpc.fleet_rollout.FleetHybrid`),
+scores them with the objective (price plus the coordination price, band violation; the
+members' mean prediction plus the building's offset, as ``ensemble="mean"``) and refits each
+building's sampling distribution (:func:`optimize_fleet`, the arithmetic of
+:class:`controllers.planners.CEMPlanner` building by building, with each building's own
+generator, so a building's plan is the one the single planner finds on the same seed).
+
+Kept per building, as the single controller keeps them: the warm start (its last plan shifted),
+the offset filter (offset-free MPC, one batched replay of the interval that just ended), the
+comfort margin from its filtered error, its :class:`controllers.trust.TrustMonitor` (delivered
+power error, ensemble disagreement along the chosen plan, rolled out over all members) and its
+fallbacks: the band-keeping rule when the history is short or the model's output not finite
+(counted as fallbacks), and the shadow RC MPC on the RC identified from its training data while
+the model is not trusted (a :class:`controllers.fleet.FleetQPMPC` whose Kalman observers follow
+every step and which solves only for the distrusted buildings; counted per building).
+
+Not batched, so not done here: the single controller's multi-step replay of the model against
+the RC (the monitor sees the one-step innovation and power error instead), the LP polish and
+random shooting's setpoint space.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Sequence
+from typing import NamedTuple, Protocol
+
+import numpy as np
+import torch
+
+from controllers.base import ControlSpec, Fallback, Forecast, Observation, check_heating
+from controllers.fleet import FleetDecision, FleetPlan, FleetQPMPC
+from controllers.objective import HorizonObjective
+from controllers.planners import CEMPlanner
+from controllers.trust import TrustMonitor, TrustSettings
+from pinn_mpc.errors import InputError
+from pinn_mpc.fleet_rollout import FleetStart
+from pinn_mpc.models.rollout import Rollout
+
+__all__ = ["FleetCEM", "FleetDynamics", "colored_noise_fleet", "optimize_fleet"]
+
+
+class FleetDynamics(Protocol):
+    """B buildings' models rolled out together (:class:`pinn_mpc.fleet_rollout.FleetHybrid`)."""
+
+    n_buildings: int
+    n_members: int
+    depth: int
+    eta: float
+    exog_names: tuple[str, ...]
+
+    def prepare(
+        self, histories: Sequence[dict[str, np.ndarray]], exog: dict[str, np.ndarray], h: int
+    ) -> FleetStart: ...
+
+    def roll(self, start: FleetStart, u_w: torch.Tensor) -> Rollout: ...
+
+    def rollout(
+        self, histories: Sequence[dict[str, np.ndarray]], u_w: torch.Tensor, exog: dict[str, np.ndarray]
+    ) -> Rollout: ...
+
+
+def optimize_fleet(
+    planner: CEMPlanner,
+    objective: object,
+    x0: torch.Tensor,
+    generators: Sequence[torch.Generator],
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """CEM (``planner``'s settings, continuous actions) for B buildings at once: ``objective``
+    maps plans (B, N, H) to costs (B, N); ``x0`` (B, H) the warm starts. Building b draws its
+    noise from ``generators[b]`` exactly as :meth:`CEMPlanner.optimize` would, so its result
+    is that of the single planner on the same generator. Returns (plans (B, H), costs (B,))."""
+    if planner.binary:
+        raise InputError("the fleet CEM plans continuous power; on/off actions are not batched")
+    if not callable(objective):
+        raise InputError("optimize_fleet: objective must be callable")
+    b, h = x0.shape
+    dtype = x0.dtype
+    n = planner.n_samples
+    span = planner.upper - planner.lower
+    best = x0.clamp(planner.lower, planner.upper)
+    mean = best.clone()
+    std = torch.full_like(mean, planner.init_std_frac * span)
+    best_cost = torch.full((b,), math.inf, dtype=torch.float64)
+    rows = torch.arange(b)
+    for _ in range(planner.n_iters):
+        noise = colored_noise_fleet(n, h, planner.noise_beta, generators, dtype)
+        samples = (mean[:, None] + std[:, None] * noise).clamp(planner.lower, planner.upper)
+        samples[:, 0] = best
+        samples[:, 1] = mean
+        costs = objective(samples).to(torch.float64)
+        costs = torch.where(torch.isfinite(costs), costs, torch.full_like(costs, math.inf))
+        order = torch.argsort(costs, dim=1)
+        top = costs[rows, order[:, 0]]
+        better = top <= best_cost
+        best_cost = torch.where(better, top, best_cost)
+        best = torch.where(better[:, None], samples[rows, order[:, 0]], best)
+        elites = samples[rows[:, None], order[:, : planner.n_elites]]  # (B, E, H)
+        mean = planner.alpha * mean + (1 - planner.alpha) * elites.mean(dim=1)
+        std = planner.alpha * std + (1 - planner.alpha) * elites.std(dim=1)
+    return best, best_cost
+
+
+def colored_noise_fleet(
+    n: int, h: int, beta: float, generators: Sequence[torch.Generator], dtype: torch.dtype
+) -> torch.Tensor:
+    """:func:`controllers.planners.colored_noise` (n, h) of every building's generator,
+    (B, n, h): the white noise drawn building by building (the same numbers), coloured in one
+    batched FFT."""
+    white = torch.stack([torch.randn((n, h), generator=g, dtype=dtype) for g in generators])
+    if beta == 0 or h < 2:
+        return white
+    # The filter of colored_noise, computed once for the batch.
+    scale, kernel_norm = colored_noise_filter(h, beta, dtype)
+    return torch.fft.irfft(torch.fft.rfft(white, dim=-1) * scale, n=h, dim=-1) / kernel_norm
+
+
+def colored_noise_filter(h: int, beta: float, dtype: torch.dtype) -> tuple[torch.Tensor, torch.Tensor]:
+    """The spectral scale (h//2+1,) and kernel norm of :func:`colored_noise`."""
+    freqs = torch.fft.rfftfreq(h, dtype=dtype)
+    scale = torch.ones_like(freqs)
+    scale[1:] = freqs[1:] ** (-beta / 2)
+    scale[0] = scale[1]
+    return scale, torch.linalg.vector_norm(torch.fft.irfft(scale, n=h))
+
+
+class _Step(NamedTuple):
+    observations: tuple[Observation, ...]
+    forecast: Forecast
+    start: FleetStart | None  # None: the history is too short for the models
+    price: np.ndarray  # (H,)
+    t_min: torch.Tensor  # (B, H) tightened band
+    t_max: torch.Tensor
+    offset: torch.Tensor  # (B,)
+    x0: torch.Tensor  # (B, H) warm starts
+
+
+class FleetCEM:
+    """CEM over B buildings' learned models, planned in one batch (module docstring).
+
+    ``dynamics`` plans (e.g. ``FleetHybrid(models, members=1)``: fewer members, a cheaper
+    rollout); ``spread_dynamics`` (all members) measures the members' disagreement along the
+    chosen plans (None: not measured); ``shadow`` is the fallback RC MPC of every building
+    (None: the models always drive). ``planner`` holds the CEM settings (bounds are the
+    actuator's); a re-plan within a step (the next coordination price) runs ``replan_iters``
+    CEM iterations from the step's last plans.
+    """
+
+    name = "cem"
+
+    def __init__(
+        self,
+        dynamics: FleetDynamics,
+        spec: ControlSpec,
+        *,
+        planner: CEMPlanner | None = None,
+        offset_gain: float = 0.5,
+        comfort_margin_k: float = 0.01,
+        trust: TrustSettings | None = None,
+        shadow: FleetQPMPC | None = None,
+        spread_dynamics: FleetDynamics | None = None,
+        replan_iters: int = 2,
+    ) -> None:
+        check_heating(dynamics.eta, spec, what="the fleet's models")
+        if not 0.0 <= offset_gain <= 1.0:
+            raise InputError(f"FleetCEM.offset_gain must lie in [0, 1], got {offset_gain}")
+        if not (0 <= comfort_margin_k < 1):
+            raise InputError(f"FleetCEM.comfort_margin_k must lie in [0, 1) K, got {comfort_margin_k}")
+        if shadow is not None and shadow.n_buildings != dynamics.n_buildings:
+            raise InputError("FleetCEM: the shadow RC MPC must have one building per model")
+        self.dynamics, self.spec = dynamics, spec
+        self.planner = planner if planner is not None else CEMPlanner(lower=0.0, upper=spec.u_max_w, n_samples=32)
+        if replan_iters < 1:
+            raise InputError(f"FleetCEM.replan_iters must be >= 1, got {replan_iters}")
+        self.offset_gain, self.comfort_margin_k = offset_gain, comfort_margin_k
+        self.replan_iters = replan_iters
+        self.shadow, self.spread_dynamics = shadow, spread_dynamics
+        b = dynamics.n_buildings
+        self.fallbacks = [Fallback(spec, reuse_plan=False) for _ in range(b)]
+        settings = TrustSettings() if trust is None else trust
+        self.monitors = [TrustMonitor(settings, spec.u_max_w) for _ in range(b)]
+        self.reset()
+
+    @property
+    def n_buildings(self) -> int:
+        return self.dynamics.n_buildings
+
+    @property
+    def horizon_steps(self) -> int:
+        return self.spec.horizon_steps
+
+    @property
+    def n_fallbacks(self) -> np.ndarray:
+        return np.array([f.n_events for f in self.fallbacks])
+
+    def reset(self, seed: int | None = None) -> None:
+        """Forget warm starts, offsets, trust and counters; building b's sampling generator is
+        seeded by (seed, b) (entropy when ``seed`` is None)."""
+        self.generators = []
+        for i in range(self.n_buildings):
+            g = torch.Generator()
+            if seed is None:
+                g.seed()
+            else:
+                g.manual_seed(int(np.random.SeedSequence([seed, i]).generate_state(1, np.uint64)[0] >> 1))
+            self.generators.append(g)
+        for f, mon in zip(self.fallbacks, self.monitors, strict=True):
+            f.reset()
+            mon.reset()
+        self.offset_k = torch.zeros(self.n_buildings)
+        if self.shadow is not None:
+            self.shadow.reset(seed)
+        self._step: _Step | None = None
+        self._best: torch.Tensor | None = None
+
+    def observe(self, observations: Sequence[Observation], forecast: Forecast) -> None:
+        """Offsets and trust from the interval that just ended (one batched replay), the
+        step's objective and rollout start."""
+        b, h = self.n_buildings, self.horizon_steps
+        if len(observations) != b:
+            raise InputError(f"FleetCEM.observe: {len(observations)} observations for {b} buildings")
+        if self.shadow is not None:
+            self.shadow.observe(observations, forecast)
+        histories = [o.history for o in observations]
+        depth = self.dynamics.depth
+        n_past = min(len(hist["u_phys"]) for hist in histories)
+        if n_past >= depth + 2 and all(o.last is not None for o in observations):
+            self._update_offsets(observations)
+        objective = HorizonObjective.from_forecast(forecast, self.spec, h)
+        margins = torch.tensor([m.margin_k(self.comfort_margin_k) for m in self.monitors])[:, None]
+        t_min = torch.as_tensor(objective.t_min_c, dtype=torch.float32)
+        t_max = torch.as_tensor(objective.t_max_c, dtype=torch.float32)
+        middle = 0.5 * (t_min + t_max)
+        start = None
+        if n_past >= depth + 1:
+            exog = forecast.exogenous(self.dynamics.exog_names, h)
+            start = self.dynamics.prepare(histories, exog, h)
+        self._step = _Step(
+            observations=tuple(observations),
+            forecast=forecast,
+            start=start,
+            price=np.asarray(objective.price_eur_per_kwh, dtype=float),
+            t_min=torch.minimum(t_min + margins, middle),
+            t_max=torch.maximum(t_max - margins, middle),
+            offset=self.offset_k.clone(),
+            x0=self._warm_starts(h),
+        )
+        self._best = None
+
+    def _update_offsets(self, observations: Sequence[Observation]) -> None:
+        """The offset filter (:class:`controllers.estimators.OffsetFilter`) of every building
+        at once: the interval that just ended replayed under the delivered and the demanded
+        power."""
+        past = [{n: np.asarray(v)[:-1] for n, v in o.history.items()} for o in observations]
+        last0 = observations[0].last
+        assert last0 is not None
+        exog = {n: np.array([getattr(last0, n)]) for n in self.dynamics.exog_names}
+        u = torch.tensor(
+            [[[o.last.u_phys], [o.last.u]] for o in observations if o.last is not None],
+            dtype=torch.float32,
+        )  # (B, 2, 1)
+        roll = self.dynamics.rollout(past, u, exog)
+        predicted = roll.t_r_c[:, :, 0, 0].mean(1).double()
+        delivered = roll.u_phys_w[:, :, 1, 0].mean(1).double()
+        measured = torch.tensor([o.t_r_c for o in observations], dtype=torch.float64)
+        u_phys = torch.tensor([o.last.u_phys for o in observations if o.last is not None], dtype=torch.float64)
+        error = measured - predicted
+        power_error = u_phys - delivered
+        finite = torch.isfinite(error)
+        innovation = torch.where(finite, error - self.offset_k.double(), torch.full_like(error, math.nan))
+        self.offset_k = torch.where(
+            finite, self.offset_k + self.offset_gain * (error.float() - self.offset_k), self.offset_k
+        )
+        for mon, inn, pe in zip(self.monitors, innovation.tolist(), power_error.tolist(), strict=True):
+            mon.observe(inn, pe)
+
+    def _warm_starts(self, h: int) -> torch.Tensor:
+        x0 = np.full((self.n_buildings, h), 0.5 * self.spec.u_max_w)
+        for i, f in enumerate(self.fallbacks):
+            if f.plan_w is not None:
+                shifted = np.append(f.plan_w[1:], f.plan_w[-1])
+                x0[i] = np.pad(shifted, (0, max(h - len(shifted), 0)), mode="edge")[:h]
+        return torch.as_tensor(x0, dtype=torch.float32)
+
+    def _costs(self, step: _Step, extra: np.ndarray, u_w: torch.Tensor) -> torch.Tensor:
+        """(B, N) objective of plans (B, N, H) under the members' mean prediction + offset."""
+        assert step.start is not None
+        roll = self.dynamics.roll(step.start, u_w)
+        t_r = roll.t_r_c.mean(1) + step.offset[:, None, None]
+        u_phys = roll.u_phys_w.mean(1)
+        price = torch.as_tensor(step.price + extra, dtype=torch.float32)
+        energy = (u_phys * (self.spec.dt_h / 1000.0) * price).sum(-1)
+        violation = (torch.relu(step.t_min[:, None] - t_r) + torch.relu(t_r - step.t_max[:, None])).sum(-1)
+        return energy + self.spec.comfort_weight_eur_per_kh * self.spec.dt_h * violation
+
+    def plan(self, extra_price_eur_per_kwh: np.ndarray | None = None) -> FleetPlan:
+        """Every building's CEM plan under the forecast plus the extra price (H,); a second
+        plan of the same step starts from the first one's plans."""
+        step = self._step
+        if step is None:
+            raise InputError("FleetCEM.plan: call observe() first")
+        h, b = self.horizon_steps, self.n_buildings
+        extra = np.zeros(h) if extra_price_eur_per_kwh is None else np.asarray(extra_price_eur_per_kwh, float)
+        if extra.shape != (h,) or not np.all(np.isfinite(extra)):
+            raise InputError(f"FleetCEM.plan: the extra price must be {h} finite values")
+        if step.start is None:
+            return FleetPlan(np.zeros((b, h)), np.zeros(b, dtype=bool), "short history", 0)
+        if self._best is None:
+            x0, planner = step.x0, self.planner
+        else:  # a re-plan of the step (a new coordination price): from the last plans
+            x0 = self._best
+            planner = dataclasses.replace(self.planner, n_iters=self.replan_iters)
+        plans, costs = optimize_fleet(planner, lambda u: self._costs(step, extra, u), x0, self.generators)
+        self._best = plans
+        ok = torch.isfinite(costs).numpy()
+        return FleetPlan(plans.double().numpy(), ok, "ok", planner.n_iters)
+
+    def commit(self, plan: FleetPlan) -> FleetDecision:
+        """Apply ``plan``: each trusted building's first action, the shadow RC MPC's for the
+        distrusted ones, the band-keeping fallback where there is no plan."""
+        step = self._step
+        if step is None:
+            raise InputError("FleetCEM.commit: call observe() and plan() first")
+        b = self.n_buildings
+        spread = np.zeros(b)
+        if self.spread_dynamics is not None and step.start is not None and plan.ok.any():
+            exog = step.forecast.exogenous(self.dynamics.exog_names, self.horizon_steps)
+            members = self.spread_dynamics.rollout(
+                [o.history for o in step.observations],
+                torch.as_tensor(plan.power_w[:, None], dtype=torch.float32), exog,
+            ).t_r_c[:, :, 0]  # (B, M, H)
+            if members.shape[1] > 1:
+                spread = members.std(1, correction=0).amax(-1).double().numpy()
+        u = np.where(plan.ok, plan.power_w[:, 0], 0.0)
+        distrusted = np.zeros(b, dtype=bool)
+        for i in range(b):
+            if not plan.ok[i]:
+                u[i] = self.fallbacks[i].act(step.observations[i], step.forecast)
+                continue
+            self.fallbacks[i].planned(plan.power_w[i].copy())
+            if self.shadow is not None:
+                distrusted[i] = not self.monitors[i].decide(self.monitors[i].reason(float(spread[i])))
+        if self.shadow is not None:
+            rc_plan = self.shadow.plan(only=distrusted)
+            u[distrusted] = rc_plan.power_w[distrusted, 0]
+            self.shadow.commit(rc_plan, active=distrusted)
+        self._step = None
+        return FleetDecision(u_w=np.clip(u, 0.0, self.spec.u_max_w), fallback=~plan.ok, model_fallback=distrusted)
+
+    @property
+    def model_fallback_steps(self) -> np.ndarray:
+        """(B,) decisions each building's shadow RC MPC made since ``reset``."""
+        return np.array([m.state.fallback_steps for m in self.monitors])

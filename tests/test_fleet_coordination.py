@@ -1,0 +1,215 @@
+"""The batched fleet QP MPC, the cap's dual-ascent coordination and the fleet's new output."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from controllers.coordination import Coordination, DualAscent, planned_aggregate_w
+from controllers.fleet import FleetQPMPC
+from controllers.rc_mpc.osqp import QPMPC
+from pinn_mpc.errors import InputError
+from pinn_mpc.simulator import draw_fleet
+from pinn_mpc_cli.cli import main
+from scenarios.aggregator import cap_account, cap_in_force, parse_cap_window, run_coordinated_fleet
+from scenarios.closed_loop import build_loop, prepare_run
+from scenarios.fleet import district_kpis
+from scenarios.registry import get_scenario
+
+#: A test day of winter_household with heating demand (2023-02-12, -1.7 .. 4.3 C).
+COLD_SEED = 13
+#: Tight OSQP tolerances: the batched and the per-building solutions then agree to round-off.
+TIGHT = {"eps_abs": 1e-6, "eps_rel": 1e-6, "max_iter": 400000}
+
+
+def _fleet_loop(n: int, *, warmup: int = 0):
+    scenario = get_scenario("winter_household")
+    fleet = draw_fleet(scenario.sim.params, n, spread=0.3, rng=np.random.default_rng(1))
+    run = prepare_run(scenario, days=1, seed=COLD_SEED, warmup_steps=warmup, weather_part="test")
+    return scenario, fleet, build_loop(scenario, run, seed=0, fleet=fleet)
+
+
+def _observe(planner, loop):
+    observations = [loop.observation(building=i) for i in range(loop.n_buildings)]
+    forecast = loop.forecast()
+    planner.observe(observations, forecast)
+    return observations, forecast
+
+
+def test_batched_qp_solves_each_buildings_qp_mpc_problem():
+    scenario, fleet, loop = _fleet_loop(3)
+    spec = scenario.control_spec()
+    batched = FleetQPMPC(fleet, spec)
+    exact = FleetQPMPC(fleet, spec, solver_options=TIGHT)  # the same problems, solved tightly
+    singles = [QPMPC(p, spec) for p in fleet]  # the same OSQP settings as `batched`
+    heated = 0.0
+    for _ in range(4):
+        observations, forecast = _observe(batched, loop)
+        _observe(exact, loop)
+        plan, optimum = batched.plan(), exact.plan()
+        for i, (controller, obs) in enumerate(zip(singles, observations, strict=True)):
+            controller.act(obs, forecast)
+            assert not controller.last_stats.fallback
+            # Each building's own estimate and problem: the batched plan is as good as the
+            # building's own QP MPC's, both within the solver's tolerance of the optimum.
+            np.testing.assert_allclose(batched_estimate(batched, i), controller.state_estimate_c)
+            stage = controller.problem.stage(controller.state_estimate_c, forecast)
+            best = controller.problem.objective(stage, optimum.power_w[i] / 1000.0)
+            own = controller.problem.objective(stage, controller.last_plan / 1000.0)
+            ours = controller.problem.objective(stage, plan.power_w[i] / 1000.0)
+            assert best <= min(own, ours) + 1e-6
+            assert ours == pytest.approx(best, rel=3e-2) and own == pytest.approx(best, rel=3e-2)
+        heated += plan.power_w.sum()
+        decision = batched.commit(plan)
+        exact.commit(optimum)
+        assert not decision.fallback.any()
+        loop.step(decision.u_w, decision_s=np.zeros(3), fallback=decision.fallback)
+    assert heated > 1e4  # the day needs heat: the plans are not trivially zero
+
+
+def batched_estimate(planner: FleetQPMPC, i: int) -> np.ndarray:
+    return planner.estimators[i].observer.state[0]
+
+
+def test_raising_the_price_never_raises_the_planned_power_in_the_priced_intervals():
+    scenario, fleet, loop = _fleet_loop(6)
+    planner = FleetQPMPC(fleet, scenario.control_spec(), solver_options=TIGHT)
+    _observe(planner, loop)
+    window = slice(20, 24)
+    totals = []
+    for level in (0.0, 0.05, 0.2, 0.5, 1.0, 3.0):
+        extra = np.zeros(planner.horizon_steps)
+        extra[window] = level
+        totals.append(planned_aggregate_w(planner.plan(extra))[window].sum())
+    assert totals[0] > 1000.0  # the fleet heats in that window without a price
+    assert all(b <= a + 1.0 for a, b in zip(totals, totals[1:], strict=False))
+    assert totals[-1] < 0.5 * totals[0]  # and the price moves it
+
+
+def test_coordination_raises_the_price_while_the_plan_exceeds_the_cap_and_caps_the_first_action():
+    scenario, fleet, loop = _fleet_loop(6)
+    loop.reset(start=16)  # 08:00, the day band starts: every building heats now
+    planner = FleetQPMPC(fleet, scenario.control_spec())
+    _observe(planner, loop)
+    free = planned_aggregate_w(planner.plan())
+    assert free[0] > 1000.0
+    cap_w = np.full(len(loop.exogenous), np.inf)
+    cap_w[16:18] = 0.5 * free[0]  # the interval about to start is capped at half its plan
+    coordination = Coordination(cap_w, DualAscent(iterations=3, step_eur_per_kwh=0.5))
+    step = coordination.step(planner, loop.start + loop.k)
+    assert step.plans == 3
+    assert step.decision.u_w.sum() <= cap_w[0] + 1e-6
+    assert step.price_eur_per_kwh[0] > 0 and np.all(step.price_eur_per_kwh[2:] == 0)
+
+
+def test_cap_account_counts_every_interval_over_the_cap():
+    aggregate = np.array([90e3, 110e3, 100e3, 130e3, 50e3])
+    cap = np.array([np.inf, 100e3, 100e3, 100e3, np.inf])
+    account = cap_account(aggregate, cap, dt_s=1800.0, window="17:00-18:30")
+    assert account["intervals"] == 3 and account["intervals_over"] == 2
+    assert account["kwh_over"] == pytest.approx((10 + 30) * 0.5)
+    assert account["max_over_kw"] == pytest.approx(30.0)
+
+
+def test_district_kpis_as_citylearn_defines_them():
+    p_w = np.array([1.0, 3.0, 2.0, 2.0]) * 1000.0
+    kpis = district_kpis(p_w, dt_s=6 * 3600.0)  # four intervals: one day
+    assert kpis["peak_kw"] == 3.0 and kpis["average_daily_peak_kw"] == 3.0
+    assert kpis["ramping_kw"] == pytest.approx(2.0 + 1.0 + 0.0)
+    assert kpis["load_factor"] == pytest.approx(2.0 / 3.0)
+    assert kpis["daily_one_minus_load_factor"] == pytest.approx(1.0 / 3.0)
+
+
+def test_cap_window_parsing():
+    assert parse_cap_window("17:00-19:30") == (17.0, 19.5)
+    assert parse_cap_window("22:00-06:00") == (22.0, 6.0)
+    for bad in ("17-19", "17:00-17:00", "25:00-26:00", "17:75-18:00"):
+        with pytest.raises(InputError, match="--cap-window"):
+            parse_cap_window(bad)
+    hours = cap_in_force(["2023-02-12T16:30:00", "2023-02-12T17:00:00", "2023-02-12T19:00:00"],
+                         {"kw": 5.0, "window": "17:00-19:00"})
+    assert np.isnan(hours[0]) and hours[1] == 5.0 and np.isnan(hours[2])
+
+
+@pytest.mark.slow
+def test_a_feasible_cap_is_met_in_closed_loop_at_a_small_comfort_cost():
+    scenario = get_scenario("winter_household")
+    n, window = 12, "17:00-19:00"
+    free = run_coordinated_fleet(scenario, n_buildings=n, days=1, seed=COLD_SEED)
+    in_window = ~np.isnan(cap_in_force(free.times, {"kw": 1.0, "window": window}))
+    cap_kw = 0.6 * free.aggregate_u_phys_w[in_window].max() / 1000.0
+    capped = run_coordinated_fleet(
+        scenario, n_buildings=n, days=1, seed=COLD_SEED, cap_kw=cap_kw, cap_window=window
+    )
+    assert capped.cap is not None and capped.cap["intervals"] == 4
+    assert capped.cap["intervals_over"] == 0 and capped.cap["kwh_over"] == pytest.approx(0.0, abs=1e-6)
+    assert np.all(capped.aggregate_u_phys_w[in_window] <= cap_kw * 1000.0 + 1.0)
+    extra_kh = (capped.totals["discomfort_kh"] - free.totals["discomfort_kh"]) / n
+    assert extra_kh < 0.5
+    # Without coordination the same fleet would have broken the cap.
+    assert free.aggregate_u_phys_w[in_window].max() > cap_kw * 1000.0 * 1.5
+
+
+def _cli(tmp_path, *extra):
+    return main([
+        "closed-loop", "--scenario", "winter_household", "--controller", "qp-mpc", "--days", "1",
+        "--seed", str(COLD_SEED), "--json", str(tmp_path / "k.json"), *extra,
+    ])
+
+
+def test_cli_capped_fleet_writes_aggregate_cap_district_and_figure(tmp_path, capsys):
+    assert _cli(tmp_path, "--buildings", "4", "--cap-kw", "12", "--cap-window", "17:00-19:00") == 0
+    out = capsys.readouterr().out
+    assert "capped intervals over it" in out
+    data = json.loads((tmp_path / "k.json").read_text())
+    assert len(data["aggregate"]["time"]) == len(data["aggregate"]["power_kw"]) == 48
+    assert set(data["cap"]) >= {"kw", "window", "intervals", "intervals_over", "kwh_over"}
+    assert data["cap"]["kw"] == 12 and data["cap"]["window"] == "17:00-19:00"
+    assert data["cap"]["intervals"] == 4
+    over = [p for t, p in zip(data["aggregate"]["time"], data["aggregate"]["power_kw"], strict=True)
+            if "T17:" in t or "T18:" in t]
+    assert data["cap"]["intervals_over"] == sum(p > 12.001 for p in over)
+    assert set(data["district"]) >= {"peak_kw", "ramping_kw", "load_factor"}
+    assert data["fell_back"] == []
+    assert (tmp_path / "k.fleet.png").stat().st_size > 1000
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--buildings", "3", "--cap-kw", "5", "--cap-window", "5pm-7pm"], "is not HH:MM-HH:MM"),
+        (["--buildings", "3", "--cap-window", "17:00-19:00"], "--cap-window needs --cap-kw"),
+        (["--cap-kw", "5"], "--cap-kw coordinates a fleet: add --buildings N"),
+        (["--buildings", "3", "--cap-kw", "0"], "must be a number > 0"),
+    ],
+)
+def test_cli_cap_bad_input_exits_2_with_one_line(tmp_path, capsys, args, message):
+    try:
+        code = _cli(tmp_path, *args)
+    except SystemExit as exc:  # argparse's own checks exit
+        code = exc.code
+    assert code == 2
+    err = capsys.readouterr().err
+    assert message in err and len(err.strip().splitlines()) == 1
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.slow
+def test_a_fleet_partitioned_across_ray_workers_plans_as_one():
+    from scenarios.partitions import partitioned
+    from scenarios.sweep import ray_engine
+
+    scenario = get_scenario("winter_household")
+
+    def qp(fleet, spec):
+        return FleetQPMPC(fleet, spec)
+
+    whole = run_coordinated_fleet(scenario, qp, n_buildings=5, days=1, seed=COLD_SEED,
+                                  cap_kw=10.0, cap_window="17:00-19:00")
+    with ray_engine(None, 2):
+        parts = run_coordinated_fleet(scenario, partitioned(lambda s: qp, 2, "qp-mpc"), n_buildings=5,
+                                      days=1, seed=COLD_SEED, cap_kw=10.0, cap_window="17:00-19:00")
+    np.testing.assert_allclose(parts.aggregate_u_phys_w, whole.aggregate_u_phys_w, atol=1e-6)
+    assert parts.cap == whole.cap and parts.info["controller"] == "qp-mpc"

@@ -1,0 +1,127 @@
+"""A fleet of learned hybrids planned in one batch: the batched rollout and CEM against the
+per-building ones, and the batched CEM in closed loop (with and without a cap)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from controllers.planners import CEMPlanner
+from pinn_mpc import TrainConfig, train_model
+from pinn_mpc.errors import InputError
+from pinn_mpc.fleet_rollout import FleetHybrid
+from pinn_mpc.simulator import draw_fleet
+from scenarios.aggregator import cap_in_force, learned_fleet_planner, run_coordinated_fleet
+from scenarios.closed_loop import build_loop, prepare_run
+from scenarios.datagen import generate
+from scenarios.registry import get_scenario
+
+COLD_SEED = 13  # winter_household's test day 2023-02-12: heating all day
+
+
+@pytest.fixture(scope="module")
+def fleet_models():
+    """Two buildings of a spread fleet, each with a small hybrid from 5 days of its own data."""
+    scenario = get_scenario("winter_household")
+    fleet = draw_fleet(scenario.sim.params, 2, spread=0.2, rng=np.random.default_rng(0))
+    data = generate(scenario, days=5, seed=0, policy="random-level", n_buildings=2, fleet=fleet)
+    config = TrainConfig(n_seeds=3, epochs=8, eta=scenario.sim.params.eta, u_max_w=scenario.sim.u_max_w)
+    models = [
+        train_model(part.drop(columns="building").reset_index(drop=True), arch="hybrid",
+                    config=config, progress=False)
+        for _, part in data.groupby("building")
+    ]
+    return scenario, fleet, models
+
+
+def _observations(scenario, fleet, steps=20):
+    run = prepare_run(scenario, days=1, seed=COLD_SEED, warmup_steps=steps, weather_part="test")
+    loop = build_loop(scenario, run, seed=0, fleet=fleet)
+    rng = np.random.default_rng(0)
+    for _ in range(steps):  # a history with every power level
+        loop.step(rng.uniform(0, scenario.sim.u_max_w, len(fleet)), decision_s=np.zeros(len(fleet)),
+                  fallback=np.zeros(len(fleet), dtype=bool))
+    return [loop.observation(building=i) for i in range(len(fleet))], loop.forecast()
+
+
+def test_batched_rollout_equals_each_models_rollout(fleet_models):
+    scenario, fleet, models = fleet_models
+    observations, forecast = _observations(scenario, fleet)
+    h = 48
+    exog = forecast.exogenous(models[0].exog_names, h)
+    u = torch.rand((2, 9, h), generator=torch.Generator().manual_seed(0)) * scenario.sim.u_max_w
+    batched = FleetHybrid(models).rollout([o.history for o in observations], u, exog)
+    first = FleetHybrid(models, members=1).rollout([o.history for o in observations], u, exog)
+    for i, model in enumerate(models):
+        own = model.rollout(observations[i].history, u[i], exog)
+        assert batched.t_r_c[i].shape == own.t_r_c.shape == (3, 9, h)
+        torch.testing.assert_close(batched.t_r_c[i], own.t_r_c, atol=1e-3, rtol=0)
+        torch.testing.assert_close(batched.u_phys_w[i], own.u_phys_w, atol=0.5, rtol=0)
+        torch.testing.assert_close(batched.t_m_c[i], own.t_m_c, atol=1e-3, rtol=0)
+        torch.testing.assert_close(first.t_r_c[i], own.t_r_c[:1], atol=1e-3, rtol=0)
+    # The two buildings' models differ: a mixed-up batch would not pass the comparison.
+    assert (batched.t_r_c[0] - batched.t_r_c[1]).abs().max() > 0.05
+
+
+def test_batched_cem_equals_the_cem_planner_building_by_building(fleet_models):
+    from controllers.fleet_sampling import optimize_fleet
+
+    scenario, fleet, models = fleet_models
+    observations, forecast = _observations(scenario, fleet)
+    h = 24
+    exog = forecast.exogenous(models[0].exog_names, h)
+    planner = CEMPlanner(lower=0.0, upper=scenario.sim.u_max_w, n_samples=16, n_iters=3)
+    target = torch.linspace(20.0, 21.5, h)
+
+    def cost(i: int, u: torch.Tensor) -> torch.Tensor:  # (N, H) -> (N,)
+        roll = models[i].rollout(observations[i].history, u, exog)
+        return (roll.t_r_c.mean(0) - target).abs().sum(-1) + 1e-4 * roll.u_phys_w.mean(0).sum(-1)
+
+    x0 = torch.full((2, h), 3000.0)
+    seeds = (5, 7)
+    plans, costs = optimize_fleet(
+        planner, lambda u: torch.stack([cost(i, u[i]) for i in range(2)]), x0,
+        [torch.Generator().manual_seed(s) for s in seeds],
+    )
+    for i, s in enumerate(seeds):
+        alone = planner.optimize(lambda u, i=i: cost(i, u), x0[i], torch.Generator().manual_seed(s))
+        torch.testing.assert_close(plans[i], alone.plan, atol=1e-3, rtol=0)
+        assert float(costs[i]) == pytest.approx(alone.cost, rel=1e-6)
+
+
+def test_more_members_than_the_ensembles_have_are_refused(fleet_models):
+    _, _, models = fleet_models
+    with pytest.raises(InputError, match="members must lie in 1..3"):
+        FleetHybrid(models, members=4)
+
+
+@pytest.mark.slow
+def test_batched_cem_over_learned_models_keeps_comfort_and_a_cap(fleet_models):
+    scenario, fleet, models = fleet_models
+    free = run_coordinated_fleet(
+        scenario, learned_fleet_planner(models), n_buildings=2, days=1, seed=COLD_SEED, fleet=fleet
+    )
+    assert free.info["controller"] == "cem" and free.totals["fallbacks"] == 0
+    assert free.totals["discomfort_kh"] / 2 < 1.0
+    assert all("model_fallback_steps" in k for k in free.kpis)
+    window = "17:00-19:00"
+    in_window = ~np.isnan(cap_in_force(free.times, {"kw": 1.0, "window": window}))
+    cap_kw = 0.6 * free.aggregate_u_phys_w[in_window].max() / 1000.0
+    capped = run_coordinated_fleet(
+        scenario, learned_fleet_planner(models), n_buildings=2, days=1, seed=COLD_SEED,
+        fleet=fleet, cap_kw=cap_kw, cap_window=window,
+    )
+    assert capped.cap is not None and capped.cap["intervals"] == 4
+    assert capped.cap["intervals_over"] == 0
+    assert np.all(capped.aggregate_u_phys_w[in_window] <= cap_kw * 1000.0 + 1.0)
+
+
+def test_a_batched_rollout_that_would_not_fit_is_refused_before_it_starts():
+    from scenarios.budget import check_batched_fleet_memory
+
+    check_batched_fleet_memory(buildings=1000, members=1, samples=32, horizon_steps=48,
+                               available=8_000_000_000)
+    with pytest.raises(InputError, match="use at most .* buildings, or fewer samples"):
+        check_batched_fleet_memory(buildings=100_000, members=5, samples=64, horizon_steps=48,
+                                   available=8_000_000_000)
