@@ -20,7 +20,10 @@ reference every learned model of a comparison must beat (:mod:`scenarios.predict
 
 from __future__ import annotations
 
+import json
+import os
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -28,9 +31,15 @@ import pandas as pd
 import torch
 
 from pinn_mpc.errors import InputError
+from pinn_mpc.io import DirectoryLayout
 from pinn_mpc.models.rollout import Rollout
 
-__all__ = ["ARXModel", "BLOCK_H", "DEFAULT_LAGS", "fit_arx"]
+__all__ = ["ARX_DIRECTORY", "ARX_FILE", "ARXModel", "BLOCK_H", "DEFAULT_LAGS", "fit_arx", "is_arx_directory", "load_arx", "save_arx"]
+
+#: The file of an ARX model directory (``train --arch arx``): numbers only, no code.
+ARX_FILE = "arx.json"
+#: What ``train --arch arx`` writes.
+ARX_DIRECTORY = DirectoryLayout(kind="ARX model directory", files=(ARX_FILE,), markers=(ARX_FILE,))
 
 #: Lags of every input (4 h at 30-min intervals).
 DEFAULT_LAGS = 8
@@ -200,3 +209,52 @@ def fit_arx(df: pd.DataFrame, *, lags: int = DEFAULT_LAGS) -> ARXModel:
     coef = np.linalg.solve(gram + _RIDGE * np.diag(np.diag(gram) + 1e-12), x.T @ y)
     mae = float(np.mean(np.abs(x @ coef - y))) / _SCALE["T_r"]
     return ARXModel(columns=columns, lags=lags, coef=coef, dt_s=dt_s, train_mae_c=mae)
+
+
+def is_arx_directory(path: str | os.PathLike[str]) -> bool:
+    """True when ``path`` is a directory holding an ARX model (:data:`ARX_FILE`)."""
+    return (Path(path) / ARX_FILE).is_file()
+
+
+def save_arx(model: ARXModel, path: str | os.PathLike[str]) -> Path:
+    """Write ``model`` as ``path/arx.json`` (the directory is created); the file written."""
+    from pinn_mpc.io import atomic_write_json
+
+    out = Path(path) / ARX_FILE
+    out.parent.mkdir(parents=True, exist_ok=True)
+    atomic_write_json(out, model.to_dict())
+    return out
+
+
+def load_arx(path: str | os.PathLike[str]) -> ARXModel:
+    """Read ``path/arx.json``: numbers checked against the layout they must have (reading
+    never runs code from the file); InputError naming the file otherwise."""
+    file = Path(path) / ARX_FILE
+    try:
+        data = json.loads(file.read_text(encoding="utf-8"))
+        columns = tuple(str(c) for c in data["columns"])
+        lags = int(data["lags"])
+        coef = np.asarray(data["coef"], dtype=float)
+        dt_s = float(data["dt_s"])
+        block_h = float(data.get("block_h", BLOCK_H))
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise InputError(f"{file}: not a readable ARX model ({exc}); write it with `pinn-mpc train --arch arx`") from None
+    expected = lags * len(columns) + 2 * int(round(24 / BLOCK_H))
+    if (
+        data.get("kind") != "arx"
+        or columns[:3] != ("T_r", "u_phys", "T_a")
+        or not set(columns) <= set(_SCALE)
+        or not 1 <= lags <= 1000
+        or coef.shape != (expected,)
+        or not np.all(np.isfinite(coef))
+        or block_h != BLOCK_H
+        or not 0 < dt_s <= 86400
+    ):
+        raise InputError(
+            f"{file}: not a valid ARX model (kind, columns, lags, {expected} finite coefficients, "
+            "interval); write it with `pinn-mpc train --arch arx`"
+        )
+    return ARXModel(
+        columns=columns, lags=lags, coef=coef, dt_s=dt_s,
+        train_mae_c=float(data.get("train_mae_c", float("nan"))),
+    )

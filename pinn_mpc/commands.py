@@ -10,9 +10,12 @@ Libraries are imported inside the commands, so that ``identify`` does not wait f
 from __future__ import annotations
 
 import argparse
+import time
+
+import numpy as np
 
 from pinn_mpc.data import read_timeseries
-from pinn_mpc.errors import warn
+from pinn_mpc.errors import InputError, warn
 from pinn_mpc.io import (
     PathsArg,
     atomic_write_json,
@@ -39,6 +42,8 @@ def train(a: argparse.Namespace) -> str:
     from pinn_mpc.artifacts import MODEL_DIRECTORY, save_model
     from pinn_mpc.training import TrainConfig, train_model
 
+    if a.arch == "arx":
+        return _train_arx(a)
     check_output_directory(a.out, MODEL_DIRECTORY, force=a.force)
     files = MODEL_DIRECTORY.paths(a.out)
     check_distinct(inputs={"--data": a.data}, outputs={"--out": files})
@@ -59,12 +64,69 @@ def train(a: argparse.Namespace) -> str:
     )
 
 
+def _train_arx(a: argparse.Namespace) -> str:
+    """``train --arch arx``: the least-squares ARX baseline (:mod:`pinn_mpc.arx`) into ``--out``."""
+    from pinn_mpc.arx import ARX_DIRECTORY, fit_arx, save_arx
+
+    given = [f"--{n}" for n in ("depth", "epochs", "lam", "recipe") if getattr(a, n, None) is not None]
+    if given:
+        raise InputError(
+            f"train --arch arx: {', '.join(given).replace('--lam', '--lambda')} do(es) not apply to "
+            "the least-squares ARX model; leave them out"
+        )
+    check_output_directory(a.out, ARX_DIRECTORY, force=a.force)
+    files = ARX_DIRECTORY.paths(a.out)
+    check_distinct(inputs={"--data": a.data}, outputs={"--out": files})
+    df = read_timeseries(a.data, columns=a.columns)
+    if "building" in df.columns:
+        raise InputError(f"{a.data}: a fleet's data (a building column); train --arch arx takes one building's")
+    start = time.perf_counter()
+    model = fit_arx(df)
+    written = save_arx(model, a.out)
+    return (
+        f"fitted arx ({model.lags} lags of {', '.join(model.columns)}, a weekly schedule) on "
+        f"{len(df)} rows in {time.perf_counter() - start:.2f} s (one-step MAE "
+        f"{model.train_mae_c:.3f} C); wrote {written}"
+    )
+
+
+def _evaluate_arx(a: argparse.Namespace) -> str:
+    """``evaluate`` of an ARX model directory: T_r MAE one step and ``--horizons`` ahead."""
+    from pinn_mpc.arx import load_arx
+
+    model = load_arx(a.model)
+    df = read_timeseries(a.data, columns=a.columns)
+    t_r = df["T_r"].to_numpy(dtype=float)
+    horizons = {}
+    for h in sorted(set(a.horizons) | {1}):
+        starts = np.arange(model.lags - 1, len(df) - h)
+        if starts.size:
+            pred = model.predict_t_r(df, h, starts)
+            horizons[str(h)] = {"T_r_mae": float(np.mean(np.abs(pred - t_r[starts + h])))}
+    if "1" not in horizons:
+        raise InputError(f"{a.data}: too few rows for the ARX model's {model.lags} lags")
+    metrics = {"one_step": {"T_r_mae": horizons["1"]["T_r_mae"]}, "horizons": horizons}
+    atomic_write_json(a.json, metrics)
+    last = max(int(h) for h in horizons)
+    return (
+        f"one-step MAE: T_r {horizons['1']['T_r_mae']:.3f} C; {last}-step T_r MAE "
+        f"{horizons[str(last)]['T_r_mae']:.3f} C -> {a.json}"
+    )
+
+
 def evaluate(a: argparse.Namespace) -> str:
     """Load ``--model`` and ``--data``, write the metrics JSON ``--json``."""
     from pinn_mpc.artifacts import MODEL_DIRECTORY, load_model
+    from pinn_mpc.arx import ARX_DIRECTORY, is_arx_directory
     from pinn_mpc.evaluation import evaluate_model
 
     check_writable(a.json)
+    if is_arx_directory(a.model):
+        check_distinct(
+            inputs={"--model": ARX_DIRECTORY.paths(a.model), "--data": a.data},
+            outputs={"--json": a.json},
+        )
+        return _evaluate_arx(a)
     inputs: dict[str, PathsArg] = {"--model": MODEL_DIRECTORY.paths(a.model), "--data": a.data}
     check_distinct(inputs=inputs, outputs={"--json": a.json})
     learned = load_model(a.model)

@@ -205,9 +205,11 @@ def build_parser() -> argparse.ArgumentParser:
     data(p, "training data")
     p.add_argument(
         "--arch",
-        choices=ALL_ARCHS,
+        choices=(*ALL_ARCHS, "arx"),
         default=DEFAULT_ARCH,
-        help=f"the architecture, each with its own defaults: {arch_help()}",
+        help=f"the architecture, each with its own defaults: {arch_help()}; arx: the linear "
+        "ARX baseline (least squares on 8 lags and a weekly schedule, no network; "
+        "--depth, --seeds, --epochs, --lambda and --recipe do not apply)",
     )
     p.add_argument(
         "--depth",

@@ -286,10 +286,11 @@ def make_controller(
         raise InputError(
             f"--rc is not used by controller {name!r}; only {', '.join(RC_CONTROLLERS)} take it"
         )
-    model = None
+    model: BatchDynamics | None = None
     if model_dir is not None:
         from pinn_mpc.artifacts import load_model
+        from pinn_mpc.arx import is_arx_directory, load_arx
 
-        model = load_model(model_dir)
+        model = load_arx(model_dir) if is_arx_directory(model_dir) else load_model(model_dir)
     rc_params = read_rc(rc_path) if rc_path is not None else None
     return build_controller(name, scenario, model=model, rc_params=rc_params, n_steps=n_steps)

@@ -97,3 +97,38 @@ def test_arx_rollout_is_its_recursion_for_the_planners():
     assert model.eta == 1.0
     with pytest.raises(InputError, match="dates"):
         model.rollout(history, plan, {**exog, "day_of_week": np.full(h, np.nan)})
+
+
+def test_train_arch_arx_writes_numbers_that_evaluate_and_closed_loop_load(tmp_path, capsys):
+    """The user's path with the ARX: ``train --arch arx`` writes arx.json, ``evaluate`` reads
+    it, ``closed-loop --controller cem --model`` plans over it; tuning flags of the networks
+    are refused, and a tampered file is refused with one line."""
+    import json
+
+    from pinn_mpc.data import write_timeseries
+    from pinn_mpc_cli.cli import main
+
+    data = tmp_path / "d.csv"
+    write_timeseries(_rc_data(21, seed=0), data)
+    model = tmp_path / "arx"
+    assert main(["train", "--data", str(data), "--arch", "arx", "--out", str(model)]) == 0
+    assert sorted(p.name for p in model.iterdir()) == ["arx.json"]
+    assert main(["train", "--data", str(data), "--arch", "arx", "--out", str(tmp_path / "b"),
+                 "--epochs", "5"]) == 2
+    assert "do(es) not apply" in capsys.readouterr().err
+    test = tmp_path / "t.csv"
+    write_timeseries(_rc_data(4, seed=1), test)
+    metrics = tmp_path / "m.json"
+    assert main(["evaluate", "--model", str(model), "--data", str(test), "--json", str(metrics),
+                 "--horizons", "1,24"]) == 0
+    assert json.loads(metrics.read_text())["horizons"]["24"]["T_r_mae"] < 0.25
+    kpis = tmp_path / "k.json"
+    assert main(["closed-loop", "--scenario", "winter_household", "--controller", "cem",
+                 "--model", str(model), "--days", "1", "--json", str(kpis)]) == 0
+    assert json.loads(kpis.read_text())["objective"] > 0
+    stored = json.loads((model / "arx.json").read_text())
+    (model / "arx.json").write_text(json.dumps({**stored, "coef": stored["coef"][:-1]}))
+    capsys.readouterr()
+    assert main(["evaluate", "--model", str(model), "--data", str(test), "--json", str(metrics)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "not a valid ARX model" in err
