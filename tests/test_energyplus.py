@@ -59,6 +59,17 @@ def _eplus_leftovers() -> set[str]:
     return {p.name for p in Path(tempfile.gettempdir()).glob("pinn-mpc-eplus-*")}
 
 
+@pytest.fixture
+def private_tmp(tmp_path, monkeypatch):
+    """A temporary directory of this test's own (in process and for the commands it runs), so
+    EnergyPlus runs of other tests or processes do not show up among its leftovers."""
+    own = tmp_path / "tmp"
+    own.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(own))
+    monkeypatch.setenv("TMPDIR", str(own))
+    return own
+
+
 def _energyplus_threads() -> list[threading.Thread]:
     return [t for t in threading.enumerate() if t.name == "energyplus"]
 
@@ -104,7 +115,7 @@ def test_same_seed_same_csv(tmp_path):
     assert len(a.splitlines()) == 49
 
 
-def test_broken_model_exit_2_with_first_severe(tmp_path):
+def test_broken_model_exit_2_with_first_severe(tmp_path, private_tmp):
     def break_it(model):
         surface = model["BuildingSurface:Detailed"]["Attic_floor_core"]
         surface["construction_name"] = "No Such Construction"
@@ -138,7 +149,7 @@ def test_plugin_objects_refused_unless_allowed(tmp_path):
     assert result.returncode == 2 and "PythonPlugin:Instance" in result.stderr
 
 
-def test_interrupt_leaves_no_thread_or_directory():
+def test_interrupt_leaves_no_thread_or_directory(private_tmp):
     """Ctrl-C mid-run (KeyboardInterrupt from the controller) stops EnergyPlus and cleans up."""
 
     class Interrupted(Thermostat):
