@@ -14,6 +14,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import math
+import os
 import sys
 from collections.abc import Sequence
 from typing import Any, NoReturn
@@ -449,5 +450,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"pinn-mpc {args.command}: interrupted", file=sys.stderr)
         return 130
     if summary:
-        print(summary)
+        try:
+            print(summary, flush=True)
+        except BrokenPipeError:  # the reader (e.g. `| head`) has gone: the work is done
+            # Python would report the pipe again when it flushes stdout at exit.
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
     return 0

@@ -281,3 +281,19 @@ def test_heat_pump_and_fleet_columns_are_checked(tmp_path, capsys, change, expec
     for command in (["train", "--out", str(tmp_path / "m"), *SMALL], ["identify", "--out", str(tmp_path / "rc.json")]):
         _refused(capsys, [command[0], "--data", str(tmp_path / "d.csv"), *command[1:]], *expected)
     assert not (tmp_path / "m").exists() and not (tmp_path / "rc.json").exists()
+
+
+def test_output_into_a_closed_pipe_ends_quietly() -> None:
+    """``pinn-mpc scenario show NAME | head -1``: the reader leaves early; no traceback."""
+    import subprocess
+    import sys
+
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "pinn_mpc", "scenario", "show", "winter_household"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+    )
+    assert proc.stdout is not None and proc.stderr is not None
+    proc.stdout.close()  # the reader is gone before the command prints (as after head's line)
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=60) == 0
+    assert "Traceback" not in err and "BrokenPipe" not in err
