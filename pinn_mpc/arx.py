@@ -45,20 +45,28 @@ ARX_DIRECTORY = DirectoryLayout(kind="ARX model directory", files=(ARX_FILE,), m
 DEFAULT_LAGS = 8
 #: Length of one block of the daily schedule [h].
 BLOCK_H = 2.0
+#: Blocks of the daily schedule; the schedule has one coefficient per block for workdays,
+#: then one per block for weekends.
+_BLOCKS = int(round(24 / BLOCK_H))
 #: Ridge weight relative to each regressor's own sum of squares (keeps collinear lags well posed).
 _RIDGE = 1e-9
 #: Scales that bring the inputs to order one: W -> kW, W/m2 -> 100 W/m2, W -> kW.
 _SCALE = {"T_r": 1.0, "u_phys": 1e-3, "T_a": 1.0, "G": 1e-2, "I_g": 1e-3}
 
 
+def _schedule_index(time_of_day_h: np.ndarray, day_of_week: np.ndarray) -> np.ndarray:
+    """(N,) each interval's schedule coefficient: its block of the day, the weekend's after
+    the workdays' (day_of_week 0 = Monday)."""
+    block = (np.asarray(time_of_day_h, dtype=float) // BLOCK_H).astype(int)
+    return block + _BLOCKS * (np.asarray(day_of_week) >= 5)
+
+
 def _schedule(times: pd.Series) -> np.ndarray:
-    """(N, 2 * blocks per day) one-hot of each time's 2-hour block, workdays then weekends."""
+    """(N, 2 * blocks per day) one-hot of each time's schedule coefficient."""
     t = pd.to_datetime(times)
-    blocks = int(round(24 / BLOCK_H))
-    block = ((t.dt.hour + t.dt.minute / 60.0) // BLOCK_H).to_numpy(dtype=int)
-    weekend = (t.dt.day_of_week >= 5).to_numpy(dtype=int)
-    out = np.zeros((len(t), 2 * blocks))
-    out[np.arange(len(t)), block + blocks * weekend] = 1.0
+    index = _schedule_index((t.dt.hour + t.dt.minute / 60.0).to_numpy(), t.dt.day_of_week.to_numpy())
+    out = np.zeros((len(t), 2 * _BLOCKS))
+    out[np.arange(len(t)), index] = 1.0
     return out
 
 
@@ -148,8 +156,9 @@ class ARXModel:
         part = torch.zeros(n, h, dtype=torch.float64)
         for c, name in enumerate(self.columns[1:], start=1):
             past = np.asarray(history[name], dtype=float)
-            past = past[-(lags - 1):] if name == "u_phys" else past[-lags:-1]
-            if lags > 1 and len(past) < lags - 1:
+            if name != "u_phys":  # the weather history ends with now's row: exog[name][0]
+                past = past[:-1]
+            if len(past) < lags - 1:
                 raise InputError(f"ARX model: needs {lags - 1} past intervals of {name}")
             past_t = torch.as_tensor(past[len(past) - (lags - 1):] * _SCALE[name], dtype=torch.float64)
             if name == "u_phys":
@@ -159,10 +168,8 @@ class ARXModel:
                 seq = torch.cat([past_t, ahead]).expand(n, -1)
             for j in range(lags):
                 part += coef[j * n_col + c] * seq[:, lags - 1 - j : lags - 1 - j + h]
-        blocks = int(round(24 / BLOCK_H))
-        block = (np.asarray(exog["time_of_day_h"], dtype=float)[:h] // BLOCK_H).astype(int)
-        sched = coef[lags * n_col :][torch.as_tensor(block + blocks * (dow >= 5))]
-        part += sched
+        index = _schedule_index(np.asarray(exog["time_of_day_h"], dtype=float)[:h], dow)
+        part += coef[lags * n_col :][torch.as_tensor(index)]
         a_tr = coef[0 : lags * n_col : n_col]
         t_hist = torch.as_tensor(
             np.asarray(history["T_r"], dtype=float)[::-1][:lags].copy(), dtype=torch.float64
@@ -239,7 +246,7 @@ def load_arx(path: str | os.PathLike[str]) -> ARXModel:
         block_h = float(data.get("block_h", BLOCK_H))
     except (OSError, ValueError, KeyError, TypeError) as exc:
         raise InputError(f"{file}: not a readable ARX model ({exc}); write it with `pinn-mpc train --arch arx`") from None
-    expected = lags * len(columns) + 2 * int(round(24 / BLOCK_H))
+    expected = lags * len(columns) + 2 * _BLOCKS
     if (
         data.get("kind") != "arx"
         or columns[:3] != ("T_r", "u_phys", "T_a")

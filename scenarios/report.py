@@ -173,6 +173,7 @@ def render_report(
 ) -> str:
     """The markdown report of a comparison; ``dates`` says when the training data and the
     test days are; ``prediction`` the rows of :func:`scenarios.prediction.prediction_errors`."""
+    reference = reference_of(rows)
     lines = [
         f"# Closed-loop comparison on `{scenario}`",
         "",
@@ -185,8 +186,8 @@ def render_report(
         "KPIs follow BOPTEST: discomfort is the time integral of the comfort-band violation "
         "(1-min resolution), cost is price x delivered energy, the objective is cost + comfort "
         "weight x discomfort, the time ratio is decision time / simulated time. "
-        + _REFERENCE_TEXT.get(reference_of(rows), f"`/ {reference_of(rows)}` divides each "
-                              f"objective by the {reference_of(rows)}'s."),
+        + _REFERENCE_TEXT.get(reference, f"`/ {reference}` divides each objective by the "
+                              f"{reference}'s."),
         "",
         "## KPIs",
         "",

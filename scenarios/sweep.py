@@ -194,15 +194,16 @@ class SweepGrid:
         if min(self.train_days) < 2:
             raise InputError(f"sweep: training days must be >= 2, got {min(self.train_days)}")
 
-    @property
+    @functools.cached_property
     def references(self) -> dict[str, str]:
         """Each scenario's reference controller (the oracle, or the thermostat on a plant
-        without an oracle): the denominator of its cells."""
+        without an oracle, EnergyPlus): the denominator of its cells (read once: a scenario
+        file is parsed on every look-up)."""
         return {s: get_scenario(s).reference for s in self.scenarios}
 
     @property
     def has_energyplus(self) -> bool:
-        return any(get_scenario(s).sim.plant.is_energyplus for s in self.scenarios)
+        return any(ref != REFERENCE for ref in self.references.values())
 
     def cells(self) -> list[Cell]:
         """Every cell of the grid, plus the reference of each scenario and seed (the
