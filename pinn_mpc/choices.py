@@ -7,9 +7,25 @@ those of the registry (:mod:`pinn_mpc.models.registry`).
 
 from __future__ import annotations
 
-from pinn_mpc.models.registry import ALL_ARCHS, ARCHS, DEFAULT_ARCH
+from pinn_mpc.models.registry import (
+    ALL_ARCHS,
+    ARCHS,
+    ARX,
+    COMPARED_ARCHS,
+    DEFAULT_ARCH,
+    MODEL_CHOICES,
+)
 
-__all__ = ["ALL_ARCHS", "ARCHS", "DEFAULT_ARCH", "RECIPES", "RESIDUALS"]
+__all__ = [
+    "ALL_ARCHS",
+    "ARCHS",
+    "ARX",
+    "COMPARED_ARCHS",
+    "DEFAULT_ARCH",
+    "MODEL_CHOICES",
+    "RECIPES",
+    "RESIDUALS",
+]
 
 #: Physics residuals of the training loss (:class:`pinn_mpc.training.TrainConfig`).
 RESIDUALS = ("exact", "finite_difference")

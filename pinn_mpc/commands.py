@@ -14,6 +14,7 @@ import time
 
 import numpy as np
 
+from pinn_mpc.choices import ARX
 from pinn_mpc.data import read_timeseries
 from pinn_mpc.errors import InputError, warn
 from pinn_mpc.io import (
@@ -42,7 +43,7 @@ def train(a: argparse.Namespace) -> str:
     from pinn_mpc.artifacts import MODEL_DIRECTORY, save_model
     from pinn_mpc.training import TrainConfig, train_model
 
-    if a.arch == "arx":
+    if a.arch == ARX.name:
         return _train_arx(a)
     check_output_directory(a.out, MODEL_DIRECTORY, force=a.force)
     files = MODEL_DIRECTORY.paths(a.out)
@@ -71,7 +72,7 @@ def _train_arx(a: argparse.Namespace) -> str:
     given = [f"--{n}" for n in ("depth", "epochs", "lam", "recipe") if getattr(a, n, None) is not None]
     if given:
         raise InputError(
-            f"train --arch arx: {', '.join(given).replace('--lam', '--lambda')} do(es) not apply to "
+            f"train --arch {ARX.name}: {', '.join(given).replace('--lam', '--lambda')} do(es) not apply to "
             "the least-squares ARX model; leave them out"
         )
     check_output_directory(a.out, ARX_DIRECTORY, force=a.force)
@@ -84,7 +85,7 @@ def _train_arx(a: argparse.Namespace) -> str:
     model = fit_arx(df)
     written = save_arx(model, a.out)
     return (
-        f"fitted arx ({model.lags} lags of {', '.join(model.columns)}, a weekly schedule) on "
+        f"fitted {ARX.name} ({model.lags} lags of {', '.join(model.columns)}, a weekly schedule) on "
         f"{len(df)} rows in {time.perf_counter() - start:.2f} s (one-step MAE "
         f"{model.train_mae_c:.3f} C); wrote {written}"
     )

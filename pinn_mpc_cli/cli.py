@@ -20,7 +20,7 @@ from collections.abc import Sequence
 from typing import Any, NoReturn
 
 from pinn_mpc import __version__
-from pinn_mpc.choices import ALL_ARCHS, DEFAULT_ARCH, RECIPES
+from pinn_mpc.choices import DEFAULT_ARCH, MODEL_CHOICES, RECIPES
 from pinn_mpc.errors import InputError
 from pinn_mpc.models.registry import arch_help
 from scenarios.choices import CONTROLLER_NAMES, POLICIES, RANDOM_POLICIES, WEATHER_PARTS
@@ -206,11 +206,9 @@ def build_parser() -> argparse.ArgumentParser:
     data(p, "training data")
     p.add_argument(
         "--arch",
-        choices=(*ALL_ARCHS, "arx"),
+        choices=MODEL_CHOICES,
         default=DEFAULT_ARCH,
-        help=f"the architecture, each with its own defaults: {arch_help()}; arx: the linear "
-        "ARX baseline (least squares on 8 lags and a weekly schedule, no network; "
-        "--depth, --seeds, --epochs, --lambda and --recipe do not apply)",
+        help=f"the architecture, each with its own defaults: {arch_help()}",
     )
     p.add_argument(
         "--depth",

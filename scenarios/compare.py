@@ -47,7 +47,7 @@ import pandas as pd
 from tqdm import tqdm
 
 from controllers.planners import CEMPlanner, RandomShootingPlanner
-from pinn_mpc.choices import DEFAULT_ARCH
+from pinn_mpc.choices import ARX, COMPARED_ARCHS, DEFAULT_ARCH
 from pinn_mpc.errors import InputError, warn
 from pinn_mpc.physics import RCParams, params_from_summary, rc_summary
 from scenarios.choices import RANDOM_POLICIES
@@ -69,7 +69,7 @@ __all__ = [
 ]
 
 #: The recommended model first; physnet for the paper's best; physreg and mlp for the CEM rows.
-ARCHS = (DEFAULT_ARCH, "physnet", "physreg", "mlp")
+ARCHS = COMPARED_ARCHS
 _RS = RandomShootingPlanner(lower=0.0, upper=1.0)  # the planners' defaults
 _CEM = CEMPlanner(lower=0.0, upper=1.0)
 REFERENCE = "oracle"
@@ -237,7 +237,7 @@ def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonR
     prediction = prediction_errors(
         held_out,
         learned=models,
-        linear={"ARX": arx},
+        linear={ARX.label: arx},
         rc={**rc_params, **({"true RC": scenario.sim.params} if has_truth else {})},
         actuator=actuator,
     )
@@ -259,7 +259,7 @@ def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonR
             ("cem", arch, {"model": model, "planner_options": cem})
             for arch, model in models.items()
         ),
-        ("cem", "ARX", {"model": arx, "planner_options": cem}),
+        ("cem", ARX.label, {"model": arx, "planner_options": cem}),
         ("casadi-mpc", "identified RC", {"rc_params": rc_params["identified RC"]}),
         ("qp-mpc", "identified RC", {"rc_params": rc_params["identified RC"]}),
         *(("qp-mpc", f"{arch} RC", {"rc_params": rc_params[f"{arch} RC"]}) for arch in ARCHS[:2]),

@@ -25,8 +25,13 @@ __all__ = [
     "ALL_ARCHS",
     "ARCHITECTURES",
     "ARCHS",
+    "ARX",
+    "BASELINES",
+    "COMPARED_ARCHS",
     "DEFAULT_ARCH",
+    "MODEL_CHOICES",
     "ArchSpec",
+    "BaselineSpec",
     "arch_help",
     "get_architecture",
     "get_spec",
@@ -104,6 +109,32 @@ ARCHS = tuple(name for name, spec in ARCHITECTURES.items() if spec.paper)
 #: Every architecture.
 ALL_ARCHS = tuple(ARCHITECTURES)
 DEFAULT_ARCH = next(name for name, spec in ARCHITECTURES.items() if not spec.paper)
+#: The architectures ``compare`` trains, in its order: the default, then the paper's
+#: networks from the most physical (PhysNet) to the plain MLP.
+COMPARED_ARCHS = (DEFAULT_ARCH, *reversed(ARCHS))
+
+
+@dataclass(frozen=True, kw_only=True)
+class BaselineSpec:
+    """A model without a network that ``train --arch`` also fits: ``label`` its name in
+    tables, ``summary`` what it is and which of train's options do not apply to it."""
+
+    name: str
+    label: str
+    summary: str
+
+
+#: The linear ARX baseline (:mod:`pinn_mpc.arx`).
+ARX = BaselineSpec(
+    name="arx",
+    label="ARX",
+    summary="the linear ARX baseline (least squares on 8 lags and a weekly schedule, no "
+    "network; --depth, --seeds, --epochs, --lambda and --recipe do not apply)",
+)
+#: Models ``train`` fits that are not architectures of networks.
+BASELINES: dict[str, BaselineSpec] = {ARX.name: ARX}
+#: Every name ``train --arch`` takes.
+MODEL_CHOICES = (*ALL_ARCHS, *BASELINES)
 
 
 def get_spec(name: str) -> ArchSpec:
@@ -123,9 +154,13 @@ def get_architecture(name: str) -> Architecture:
 
 
 def arch_help() -> str:
-    """One line per architecture: what it is and its defaults (for ``train --help``)."""
+    """One line per architecture: what it is and its defaults, then the baselines (for
+    ``train --help``)."""
     return "; ".join(
-        f"{s.name}: {s.summary} (depth {s.depth}, recipe {s.recipe}, data of "
-        f"`simulate --policy {s.policy}`{', the default' if s.name == DEFAULT_ARCH else ''})"
-        for s in ARCHITECTURES.values()
+        [
+            f"{s.name}: {s.summary} (depth {s.depth}, recipe {s.recipe}, data of "
+            f"`simulate --policy {s.policy}`{', the default' if s.name == DEFAULT_ARCH else ''})"
+            for s in ARCHITECTURES.values()
+        ]
+        + [f"{b.name}: {b.summary}" for b in BASELINES.values()]
     )
