@@ -32,6 +32,7 @@ import torch
 
 from pinn_mpc.errors import InputError
 from pinn_mpc.io import DirectoryLayout
+from pinn_mpc.models.registry import ARX
 from pinn_mpc.models.rollout import Rollout
 
 __all__ = ["ARX_DIRECTORY", "ARX_FILE", "ARXModel", "BLOCK_H", "DEFAULT_LAGS", "fit_arx", "is_arx_directory", "load_arx", "save_arx"]
@@ -185,7 +186,7 @@ class ARXModel:
     def to_dict(self) -> dict[str, Any]:
         """The model as JSON-ready data (numbers only)."""
         return {
-            "kind": "arx",
+            "kind": ARX.name,
             "columns": list(self.columns),
             "lags": self.lags,
             "coef": [float(c) for c in self.coef],
@@ -248,7 +249,7 @@ def load_arx(path: str | os.PathLike[str]) -> ARXModel:
         raise InputError(f"{file}: not a readable ARX model ({exc}); write it with `pinn-mpc train --arch arx`") from None
     expected = lags * len(columns) + 2 * _BLOCKS
     if (
-        data.get("kind") != "arx"
+        data.get("kind") != ARX.name
         or columns[:3] != ("T_r", "u_phys", "T_a")
         or not set(columns) <= set(_SCALE)
         or not 1 <= lags <= 1000
