@@ -6,8 +6,8 @@ unit. Keys only some records have are ``NotRequired``. The experiment records (K
 sweep cells, fleet results) are in :mod:`scenarios.records`.
 """
 
-from __future__ import annotations
-
+# No `from __future__ import annotations`: evaluated, the annotations tell NotRequired keys at
+# run time too (`__optional_keys__`, which tests/test_records.py checks the producers against).
 from typing import Any, NotRequired, TypedDict
 
 __all__ = [

@@ -9,8 +9,8 @@ modelling layer's records (RC summary, evaluation metrics, trust report) are in
 :mod:`pinn_mpc.records`.
 """
 
-from __future__ import annotations
-
+# No `from __future__ import annotations`: evaluated, the annotations tell NotRequired keys at
+# run time too (`__optional_keys__`, which tests/test_records.py checks the producers against).
 from typing import NotRequired, TypedDict
 
 from pinn_mpc.records import RcSummary, TrustReport
