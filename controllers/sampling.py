@@ -78,6 +78,7 @@ from pinn_mpc.errors import InputError
 from pinn_mpc.features import check_interval
 from pinn_mpc.models.rollout import BatchDynamics
 from pinn_mpc.physics import RCParams, discretise, step
+from pinn_mpc.records import TrustReport
 
 __all__ = ["CEM", "ENSEMBLE_MODES", "Guard", "RandomShooting"]
 
@@ -208,7 +209,7 @@ class _SamplingController(PlanningController):
         self._stats = SolveStats(time_s=0.0, status="reset", iterations=0, fallback=False)
 
     @property
-    def trust_report(self) -> dict[str, object]:
+    def trust_report(self) -> TrustReport:
         """The trust monitor's counts since ``reset`` (the KPIs report them)."""
         s = self.monitor.state
         return {

@@ -25,6 +25,7 @@ from pinn_mpc.io import (
     check_writable,
 )
 from pinn_mpc.physics import rc_summary
+from pinn_mpc.records import EvaluationMetrics, HorizonErrors
 
 __all__ = ["evaluate", "export_rc_json", "identify", "train"]
 
@@ -98,7 +99,7 @@ def _evaluate_arx(a: argparse.Namespace) -> str:
     model = load_arx(a.model)
     df = read_timeseries(a.data, columns=a.columns)
     t_r = df["T_r"].to_numpy(dtype=float)
-    horizons = {}
+    horizons: dict[str, HorizonErrors] = {}
     for h in sorted(set(a.horizons) | {1}):
         starts = np.arange(model.lags - 1, len(df) - h)
         if starts.size:
@@ -106,7 +107,7 @@ def _evaluate_arx(a: argparse.Namespace) -> str:
             horizons[str(h)] = {"T_r_mae": float(np.mean(np.abs(pred - t_r[starts + h])))}
     if "1" not in horizons:
         raise InputError(f"{a.data}: too few rows for the ARX model's {model.lags} lags")
-    metrics = {"one_step": {"T_r_mae": horizons["1"]["T_r_mae"]}, "horizons": horizons}
+    metrics: EvaluationMetrics = {"one_step": {"T_r_mae": horizons["1"]["T_r_mae"]}, "horizons": horizons}
     atomic_write_json(a.json, metrics)
     last = max(int(h) for h in horizons)
     return (

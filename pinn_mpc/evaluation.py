@@ -10,7 +10,6 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -20,6 +19,7 @@ from pinn_mpc.data import validate_timeseries
 from pinn_mpc.errors import InputError
 from pinn_mpc.features import check_interval, time_of_day_h
 from pinn_mpc.models import LearnedModel
+from pinn_mpc.records import EvaluationMetrics
 
 __all__ = ["evaluate_model", "recursive_t_r"]
 
@@ -66,8 +66,8 @@ def recursive_t_r(
 
 def evaluate_model(
     model: LearnedModel, df: pd.DataFrame, horizons: Sequence[int]
-) -> dict[str, Any]:
-    """Metrics dict: ``one_step`` {T_r_mae, u_phys_mae, T_m_mae (None without T_m)},
+) -> EvaluationMetrics:
+    """Metrics (:class:`pinn_mpc.records.EvaluationMetrics`): ``one_step`` {T_r_mae, u_phys_mae, T_m_mae (None without T_m)},
     ``horizons`` {"h": {T_r_mae, T_r_mae_std}}, ``persistence`` {"horizons": {"h": {T_r_mae}}}.
     MAEs in C (u_phys in W) of the ensemble mean; ``T_r_mae_std`` is the std over members."""
     if not horizons or min(horizons) < 1:
@@ -82,7 +82,7 @@ def evaluate_model(
     t_m_mae = None
     if one["T_m"] is not None and "T_m" in df.columns:
         t_m_mae = _mae(one["T_m"].mean(axis=0), df["T_m"].to_numpy(dtype=float)[rows])
-    out: dict[str, Any] = {
+    out: EvaluationMetrics = {
         "one_step": {
             "T_r_mae": _mae(t_r_next.mean(axis=0), t_r[rows + 1]),
             "u_phys_mae": _mae(u_phys.mean(axis=0), df["u_phys"].to_numpy(dtype=float)[rows]),

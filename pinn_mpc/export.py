@@ -2,16 +2,15 @@
 
 from __future__ import annotations
 
-from typing import Any
-
 from pinn_mpc import physics
 from pinn_mpc.errors import InputError
 from pinn_mpc.models import LearnedModel
+from pinn_mpc.records import RcSummary
 
 __all__ = ["export_rc"]
 
 
-def export_rc(model: LearnedModel, *, source: str) -> dict[str, Any]:
+def export_rc(model: LearnedModel, *, source: str) -> RcSummary:
     """R/C values of the ensemble's learned coefficients (geometric mean over members).
 
     Keys as :func:`pinn_mpc.physics.rc_summary` (R_ra_K_per_W, R_rm_K_per_W, C_r_J_per_K,

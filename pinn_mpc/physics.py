@@ -27,13 +27,15 @@ The physically plausible ranges of everything that enters from outside (R/C valu
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass, fields
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import scipy.linalg
 
 from pinn_mpc.errors import InputError
+from pinn_mpc.records import RcSummary
 
 __all__ = [
     "DT_RANGE_S",
@@ -325,19 +327,21 @@ SUMMARY_KEYS = {
 }
 
 
-def rc_summary(p: RCParams, *, source: str) -> dict[str, Any]:
-    """The RC JSON schema shared by ``export-rc`` and ``identify``."""
+def rc_summary(p: RCParams, *, source: str) -> RcSummary:
+    """The RC JSON schema shared by ``export-rc`` and ``identify``
+    (:class:`pinn_mpc.records.RcSummary`)."""
     coef = to_coefficients(p)
     fast, slow = time_constants_h(p)
-    return {
+    summary = {
         **{key: getattr(p, field) for key, field in SUMMARY_KEYS.items()},
         "coefficients_per_s": coef.to_dict(),
         "time_constants_h": {"fast": fast, "slow": slow},
         "source": source,
     }
+    return cast(RcSummary, summary)  # the parameters by SUMMARY_KEYS
 
 
-def params_from_summary(data: dict[str, Any]) -> RCParams:
+def params_from_summary(data: Mapping[str, Any]) -> RCParams:
     """Inverse of :func:`rc_summary` (the keys it needs); an InputError names the JSON key as
     written and its problem (missing, not a number, negative, outside the plausible range)."""
     required = list(SUMMARY_KEYS)[:4]

@@ -20,7 +20,7 @@ from __future__ import annotations
 import math
 import re
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -35,6 +35,7 @@ from pinn_mpc.physics import RCParams
 from pinn_mpc.simulator import draw_fleet
 from scenarios.closed_loop import build_loop, prepare_run, progress_steps
 from scenarios.fleet import FLEET_STREAM, FleetResult, fleet_info, fleet_result
+from scenarios.records import CapAccount
 from scenarios.registry import Scenario, check_seed
 
 if TYPE_CHECKING:
@@ -103,7 +104,7 @@ def cap_series(
     return np.where(capped, cap_kw * 1000.0, np.inf)
 
 
-def cap_in_force(times: Sequence[str], cap: dict[str, Any]) -> np.ndarray:
+def cap_in_force(times: Sequence[str], cap: Mapping[str, Any]) -> np.ndarray:
     """(K,) the cap [kW] at each of the interval start ``times`` (ISO 8601) of a run whose cap
     account is ``cap`` (:func:`cap_account`), NaN where it does not hold."""
     stamps = pd.DatetimeIndex(pd.to_datetime(list(times)))
@@ -114,7 +115,7 @@ def cap_in_force(times: Sequence[str], cap: dict[str, Any]) -> np.ndarray:
 
 def cap_account(
     aggregate_w: np.ndarray, cap_w: np.ndarray, *, dt_s: float, window: str | None
-) -> dict[str, Any]:
+) -> CapAccount:
     """The cap's account over the counted intervals: ``kw``, ``window`` (``HH:MM-HH:MM`` or
     None for all day), ``intervals`` capped, ``intervals_over`` (aggregate delivered power
     above the cap by more than 1 W), ``kwh_over`` (energy above the cap in them)."""

@@ -24,7 +24,7 @@ import time
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, TextIO
+from typing import TextIO
 
 import pandas as pd
 from tqdm import tqdm
@@ -35,9 +35,11 @@ from controllers.thermostat import Thermostat
 from pinn_mpc.data import write_timeseries
 from pinn_mpc.errors import InputError
 from pinn_mpc.physics import RCParams
+from pinn_mpc.records import TrustReport
 from scenarios.engine import ClosedLoop, ExogenousSeries, LoopRecord
 from scenarios.inputs import day_span
 from scenarios.kpis import compute_kpis
+from scenarios.records import Kpis, RunKpis
 from scenarios.registry import EXOGENOUS_COLUMNS, Scenario, check_seed
 
 __all__ = [
@@ -65,11 +67,12 @@ class ClosedLoopResult:
     """One run: ``trajectory`` has one row per counted interval (data format + EXTRA_COLUMNS,
     ``attrs['dt_s']``); ``kpis`` the KPI dict (see :mod:`scenarios.kpis`) plus ``controller``,
     ``scenario``, ``days``, ``seed``, ``weather_part`` and the [first, last] dates of the
-    ``counted_days`` and of the ``weather_days`` (warm-up and forecast lead included);
-    ``errors`` one line per controller exception."""
+    ``counted_days`` and of the ``weather_days`` (warm-up and forecast lead included), and a
+    planner's trust report (:class:`scenarios.records.RunKpis`); ``errors`` one line per
+    controller exception."""
 
     trajectory: pd.DataFrame
-    kpis: dict[str, Any]
+    kpis: RunKpis
     errors: tuple[str, ...]
 
 
@@ -142,7 +145,7 @@ def check_plant_supports(scenario: Scenario, controller: Controller) -> None:
         )
 
 
-def counted_kpis(scenario: Scenario, run: RunInputs, rec: LoopRecord) -> dict[str, Any]:
+def counted_kpis(scenario: Scenario, run: RunInputs, rec: LoopRecord) -> Kpis:
     """The KPIs (:func:`scenarios.kpis.compute_kpis`) of one building's counted intervals."""
     counted, series = run.counted, run.series
     return compute_kpis(
@@ -235,17 +238,17 @@ def run_closed_loop(
     if scenario.sim.plant.is_energyplus:  # no true mass temperature
         trajectory = trajectory.drop(columns="T_m")
     trajectory.attrs["dt_s"] = float(scenario.sim.dt_s)
-    kpis = counted_kpis(scenario, run, rec)
-    kpis.update(
-        controller=label or controller.name,
-        scenario=scenario.name,
-        days=days,
-        seed=seed,
-        weather_part=weather_part,
-        counted_days=day_span(trajectory["time"]),
-        weather_days=day_span(exo["time"]),  # warm-up and forecast lead included
-    )
-    report = getattr(controller, "trust_report", None)
+    kpis: RunKpis = {
+        **counted_kpis(scenario, run, rec),
+        "controller": label or controller.name,
+        "scenario": scenario.name,
+        "days": days,
+        "seed": seed,
+        "weather_part": weather_part,
+        "counted_days": day_span(trajectory["time"]),
+        "weather_days": day_span(exo["time"]),  # warm-up and forecast lead included
+    }
+    report: TrustReport | None = getattr(controller, "trust_report", None)
     if isinstance(report, dict):  # a planner over a learned model: how often it fell back
         kpis.update(report)
     return ClosedLoopResult(trajectory=trajectory, kpis=kpis, errors=tuple(errors))

@@ -14,7 +14,7 @@ import dataclasses
 import os
 import time
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 
@@ -32,6 +32,7 @@ from scenarios.closed_loop import one_torch_thread, run_closed_loop
 from scenarios.datagen import generate
 from scenarios.factory import make_controller
 from scenarios.inputs import day_span
+from scenarios.records import CompareTable, FleetInfo, FleetJson, RunKpis
 from scenarios.registry import Scenario, get_scenario
 from scenarios.report import (
     format_fleet,
@@ -244,7 +245,11 @@ def _check_controller_inputs(a: argparse.Namespace) -> None:
         )
 
 
-def _with_scenario_file(kpis: dict[str, Any], name: str) -> dict[str, Any]:
+#: A record that names its scenario file (``scenario_file``) when ``--scenario`` is one.
+_Labelled = TypeVar("_Labelled", RunKpis, FleetInfo)
+
+
+def _with_scenario_file(kpis: _Labelled, name: str) -> _Labelled:
     """The KPIs with ``scenario_file`` (absolute) when ``--scenario`` is a file: its ``name``
     alone may be anything, a built-in's included."""
     from scenarios.registry import is_scenario_file
@@ -361,7 +366,7 @@ def _fleet_closed_loop(a: argparse.Namespace, scenario: Scenario) -> str:
     return "\n".join([*lines, f"wrote {a.json}"])
 
 
-def fleet_json(result: FleetResult, scenario_arg: str) -> dict[str, Any]:
+def fleet_json(result: FleetResult, scenario_arg: str) -> FleetJson:
     """The fleet JSON: ``fleet`` (what ran), ``totals``, ``district`` KPIs, ``aggregate``
     (``time``, ``power_kw`` per counted interval), ``cap`` (None without one), ``fell_back``
     (the buildings whose fallback or whose model's RC MPC acted at least once), ``step_time``
@@ -485,18 +490,16 @@ def compare(a: argparse.Namespace) -> str:
             prediction_horizon=PREDICTION_HORIZON,
         ),
     )
-    atomic_write_json(
-        a.json,
-        {
-            "scenario": scenario.name,
-            "training_dates": result.days["training"],
-            "test_dates": result.days["test"],
-            "settings": settings_table,
-            "rows": result.rows,
-            "rc": result.rc,
-            "prediction": result.prediction,
-        },
-    )
+    table: CompareTable = {
+        "scenario": scenario.name,
+        "training_dates": result.days["training"],
+        "test_dates": result.days["test"],
+        "settings": settings_table,
+        "rows": result.rows,
+        "rc": result.rc,
+        "prediction": result.prediction,
+    }
+    atomic_write_json(a.json, table)
     written = f"wrote {a.json}, {a.report}, {figure} ({total_s:.0f} s)"
     prediction = prediction_table_text(result.prediction)
     return f"{kpi_table_text(result.rows)}\n{prediction}\n{written}"

@@ -50,11 +50,13 @@ from controllers.planners import CEMPlanner, RandomShootingPlanner
 from pinn_mpc.choices import ARX, COMPARED_ARCHS, DEFAULT_ARCH
 from pinn_mpc.errors import InputError, warn
 from pinn_mpc.physics import RCParams, params_from_summary, rc_summary
+from pinn_mpc.records import RcSummary
 from scenarios.choices import RANDOM_POLICIES
 from scenarios.closed_loop import one_torch_thread, run_closed_loop
 from scenarios.factory import build_controller, weather_range_note
 from scenarios.inputs import day_span
 from scenarios.prediction import prediction_errors
+from scenarios.records import CompareRow, PredictionRow
 from scenarios.registry import Scenario, check_seed
 from scenarios.report import objective_ratios
 
@@ -150,13 +152,13 @@ class ComparisonResult:
     ``days``: [first, last] dates of the ``training`` data, the ``test`` days counted and the
     ``test weather`` (warm-up and forecast lead included)."""
 
-    rows: list[dict[str, Any]]
+    rows: list[CompareRow]
     days: dict[str, list[str]]
-    rc: dict[str, dict[str, Any]]
+    rc: dict[str, RcSummary]
     trajectories: dict[str, pd.DataFrame]
     wall_time_s: dict[str, float]
     errors: dict[str, tuple[str, ...]]
-    prediction: list[dict[str, Any]] = dataclasses.field(default_factory=list)
+    prediction: list[PredictionRow] = dataclasses.field(default_factory=list)
     notes: tuple[str, ...] = ()  # what a user should know: weather outside the training range
 
 
@@ -205,7 +207,7 @@ def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonR
     identified = identify_scenario_rc(scenario, data)
     wall["identify RC"] = time.perf_counter() - start
     has_truth = scenario.reference == "oracle"  # an EnergyPlus plant has no true RC or state
-    rc = {
+    rc: dict[str, RcSummary] = {
         **(
             {"true": rc_summary(scenario.sim.params, source=f"scenario {scenario.name}")}
             if has_truth
@@ -265,7 +267,7 @@ def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonR
         *(("qp-mpc", f"{arch} RC", {"rc_params": rc_params[f"{arch} RC"]}) for arch in ARCHS[:2]),
         *((("oracle", "true", {}), ("clairvoyant", "true", {})) if has_truth else ()),
     ]
-    rows: list[dict[str, Any]] = []
+    rows: list[CompareRow] = []
     trajectories: dict[str, pd.DataFrame] = {}
     errors: dict[str, tuple[str, ...]] = {}
     with one_torch_thread(), tqdm(plan, desc="closed loop", unit="controller", disable=None) as bar:
@@ -288,7 +290,10 @@ def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonR
             if result.errors:
                 errors[label] = result.errors
     for row, ratio in zip(rows, objective_ratios(rows, reference=scenario.reference), strict=True):
-        row[f"objective_to_{scenario.reference}"] = ratio
+        if scenario.reference == "oracle":
+            row["objective_to_oracle"] = ratio
+        else:
+            row["objective_to_thermostat"] = ratio
     notes = []
     note = weather_range_note(best, trajectories[rows[0]["controller"]])
     if note is not None:

@@ -21,7 +21,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import pandas as pd
@@ -40,6 +40,7 @@ from scenarios.closed_loop import (
     progress_steps,
 )
 from scenarios.engine import ClosedLoop
+from scenarios.records import BuildingKpis, CapAccount, FleetInfo, FleetTotals
 from scenarios.registry import Scenario, check_seed
 
 __all__ = [
@@ -95,16 +96,16 @@ class FleetResult:
       interval when it was decided (zeros without a cap; empty for a per-building run).
     """
 
-    kpis: tuple[dict[str, Any], ...]
-    totals: dict[str, float | int]
+    kpis: tuple[BuildingKpis, ...]
+    totals: FleetTotals
     aggregate_u_phys_w: np.ndarray
     step_time: dict[str, float]
     params: tuple[RCParams, ...]
     errors: tuple[str, ...]
-    info: dict[str, Any]
+    info: FleetInfo
     times: tuple[str, ...] = ()
     district: dict[str, float] = field(default_factory=dict)
-    cap: dict[str, Any] | None = None
+    cap: CapAccount | None = None
     coordination_price_eur_per_kwh: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
 
@@ -212,7 +213,7 @@ def run_fleet_closed_loop(
 def fleet_info(
     scenario: Scenario, controller: str, *, n_buildings: int, days: int, seed: int,
     spread: float, weather_part: str,
-) -> dict[str, Any]:
+) -> FleetInfo:
     """:attr:`FleetResult.info` of a run."""
     return {
         "scenario": scenario.name,
@@ -233,8 +234,8 @@ def fleet_result(
     *,
     params: Sequence[RCParams],
     errors: tuple[str, ...],
-    info: dict[str, Any],
-    cap: dict[str, Any] | None = None,
+    info: FleetInfo,
+    cap: CapAccount | None = None,
     prices: np.ndarray | None = None,
     extra_kpis: dict[str, np.ndarray] | None = None,
 ) -> FleetResult:
@@ -243,14 +244,14 @@ def fleet_result(
     adds one value (B,) per building to its KPIs."""
     n = loop.n_buildings
     extra = extra_kpis or {}
-    kpis = tuple(
+    kpis = cast("tuple[BuildingKpis, ...]", tuple(
         {
             **counted_kpis(scenario, run, loop.record(b)),
             "building": b,
             **{name: int(values[b]) for name, values in extra.items()},
         }
         for b in range(n)
-    )
+    ))
     aggregate = loop.aggregate_u_phys_w()[run.counted]
     times = pd.DatetimeIndex(run.exo["time"])[run.counted]
     return FleetResult(
@@ -272,16 +273,17 @@ def fleet_result(
 FLEET_STREAM = 7
 
 
-def fleet_totals(kpis: tuple[dict[str, Any], ...], aggregate_w: np.ndarray) -> dict[str, float | int]:
+def fleet_totals(kpis: tuple[BuildingKpis, ...], aggregate_w: np.ndarray) -> FleetTotals:
     """:data:`FLEET_TOTAL_KEYS` of a fleet's per-building KPIs and aggregate power (K,) [W]."""
-    summed = {key: sum(k[key] for k in kpis) for key in FLEET_TOTAL_KEYS[:4]}
+    rows: Sequence[Mapping[str, Any]] = kpis  # summed by the keys' names
+    summed = {key: sum(k[key] for k in rows) for key in FLEET_TOTAL_KEYS[:4]}
     counts = {key: int(sum(k[key] for k in kpis)) for key in ("backup_overrides", "fallbacks")}
-    return {
+    return cast(FleetTotals, {
         **summed,
         "peak_kw": float(np.max(aggregate_w) / 1000.0),
         **counts,
         "buildings_with_fallbacks": sum(1 for k in kpis if k["fallbacks"] > 0),
-    }
+    })
 
 
 def fleet_step_time(times_s: np.ndarray) -> dict[str, float]:

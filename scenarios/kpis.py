@@ -18,12 +18,11 @@
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 
 from controllers.objective import band_violation_k, energy_cost_eur
 from pinn_mpc.errors import InputError
+from scenarios.records import Kpis
 
 __all__ = ["KPI_KEYS", "compute_kpis"]
 
@@ -55,7 +54,7 @@ def compute_kpis(
     fallback: np.ndarray,
     dt_s: float,
     comfort_weight_eur_per_kh: float,
-) -> dict[str, Any]:
+) -> Kpis:
     """KPIs of N control intervals of one building.
 
     Parameters
@@ -74,7 +73,7 @@ def compute_kpis(
 
     Returns
     -------
-    dict
+    Kpis
         The keys :data:`KPI_KEYS` (floats, counts as ints).
     """
     u = np.asarray(u_phys_w, dtype=float)

@@ -19,7 +19,6 @@ a 2R2C against the 3R3C, and what a network trained on the same data makes of it
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -31,6 +30,7 @@ from pinn_mpc.evaluation import recursive_t_r
 from pinn_mpc.models import LearnedModel
 from pinn_mpc.observer import KalmanObserver
 from pinn_mpc.physics import RCParams, discretise
+from scenarios.records import PredictionRow
 
 __all__ = ["PREDICTION_HORIZON", "PREDICTION_HORIZONS", "prediction_errors", "rc_recursive_t_r"]
 
@@ -81,7 +81,7 @@ def prediction_errors(
     linear: Mapping[str, ARXModel] | None = None,
     horizons: tuple[int, ...] = PREDICTION_HORIZONS,
     horizon: int = PREDICTION_HORIZON,
-) -> list[dict[str, Any]]:
+) -> list[PredictionRow]:
     """One row per model: ``model``, ``kind``, ``T_r_mae_c`` and ``T_r_bias_c`` (prediction minus
     truth) of the ``horizon``-step prediction and ``T_r_mae_by_horizon_c`` (MAE by number of
     steps ahead, for each of ``horizons`` that the data holds), over the same starts for all
@@ -114,7 +114,7 @@ def prediction_errors(
     return [_row(name, kinds[name], errors[name], horizon) for name in names]
 
 
-def _row(name: str, kind: str, errors: dict[int, np.ndarray], horizon: int) -> dict[str, Any]:
+def _row(name: str, kind: str, errors: dict[int, np.ndarray], horizon: int) -> PredictionRow:
     main = errors.get(horizon, np.full(1, np.nan))
     return {
         "model": name,

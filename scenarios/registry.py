@@ -17,7 +17,7 @@ import dataclasses
 import math
 import os
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 import pandas as pd
@@ -129,7 +129,7 @@ class Scenario:
         return steps_per_day(self.sim.dt_s)
 
     @property
-    def reference(self) -> str:
+    def reference(self) -> Literal["oracle", "thermostat"]:
         """The controller every other is measured against: the oracle on a plant with true
         parameters and state, the thermostat on one without (EnergyPlus), where no oracle
         exists."""

@@ -10,6 +10,9 @@ import math
 from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
+from pinn_mpc.records import RcSummary
+from scenarios.records import CompareRow, PredictionRow, RunKpis
+
 if TYPE_CHECKING:
     from scenarios.fleet import FleetResult
 
@@ -71,7 +74,7 @@ def _cell(value: Any, fmt: str) -> str:
     return fmt.format(value)
 
 
-def objective_ratios(rows: Sequence[Mapping[str, Any]], *, reference: str) -> list[float | None]:
+def objective_ratios(rows: Sequence[RunKpis], *, reference: str) -> list[float | None]:
     """Each row's objective divided by that of the row labelled ``reference`` (None if absent
     or not positive)."""
     ref = next((r["objective"] for r in rows if r["controller"] == reference), None)
@@ -98,14 +101,14 @@ def markdown_table(headers: Sequence[str], body: Sequence[Sequence[str]]) -> lis
     return lines
 
 
-def reference_of(rows: Sequence[Mapping[str, Any]]) -> str:
+def reference_of(rows: Sequence[RunKpis]) -> str:
     """The controller the rows' objectives are divided by: the key ``objective_to_NAME`` a
     row holds (``oracle`` when none does)."""
     keys = (k for r in rows for k in r if k.startswith(_RATIO_PREFIX))
     return next(keys, f"{_RATIO_PREFIX}oracle").removeprefix(_RATIO_PREFIX)
 
 
-def kpi_columns(rows: Sequence[Mapping[str, Any]]) -> tuple[tuple[str, str, str], ...]:
+def kpi_columns(rows: Sequence[RunKpis]) -> tuple[tuple[str, str, str], ...]:
     """:data:`KPI_COLUMNS` with the ratio column of the rows' reference (:func:`reference_of`)."""
     ref = reference_of(rows)
     return tuple(
@@ -114,7 +117,7 @@ def kpi_columns(rows: Sequence[Mapping[str, Any]]) -> tuple[tuple[str, str, str]
     )
 
 
-def kpi_table_text(rows: Sequence[Mapping[str, Any]]) -> str:
+def kpi_table_text(rows: Sequence[RunKpis]) -> str:
     """Fixed-width KPI table for a terminal, one line per controller."""
     columns = kpi_columns(rows)
     headers = ["controller", *(h for _, h, _ in columns)]
@@ -122,7 +125,7 @@ def kpi_table_text(rows: Sequence[Mapping[str, Any]]) -> str:
     return text_table(headers, body)
 
 
-def _prediction_cells(rows: Sequence[Mapping[str, Any]]) -> tuple[list[str], list[list[str]]]:
+def _prediction_cells(rows: Sequence[PredictionRow]) -> tuple[list[str], list[list[str]]]:
     horizons = list(dict.fromkeys(h for r in rows for h in r.get("T_r_mae_by_horizon_c", {})))
     headers = ["model", "kind", *(f"MAE {h} [K]" for h in horizons), "T_r bias [K]", "starts"]
     body = [
@@ -138,7 +141,7 @@ def _prediction_cells(rows: Sequence[Mapping[str, Any]]) -> tuple[list[str], lis
     return headers, body
 
 
-def prediction_table_text(rows: Sequence[Mapping[str, Any]]) -> str:
+def prediction_table_text(rows: Sequence[PredictionRow]) -> str:
     """The prediction errors as a plain-text table (the CLI's summary)."""
     return text_table(*_prediction_cells(rows)) if rows else ""
 
@@ -162,13 +165,13 @@ def render_report(
     *,
     scenario: str,
     description: str,
-    rows: Sequence[Mapping[str, Any]],
-    rc: Mapping[str, Mapping[str, Any]],
+    rows: Sequence[CompareRow],
+    rc: Mapping[str, RcSummary],
     settings: Mapping[str, Any],
     figure_name: str,
     dates: str,
     notes: Sequence[str] = (),
-    prediction: Sequence[Mapping[str, Any]] = (),
+    prediction: Sequence[PredictionRow] = (),
     prediction_horizon: int = 24,
 ) -> str:
     """The markdown report of a comparison; ``dates`` says when the training data and the
@@ -233,7 +236,7 @@ def render_report(
     return "\n".join(lines) + "\n"
 
 
-def format_kpis(kpis: dict[str, Any]) -> str:
+def format_kpis(kpis: RunKpis) -> str:
     """One line: the main KPIs of a run."""
     return (
         f"{kpis['controller']} on {kpis['scenario']}, {kpis['days']} d: "

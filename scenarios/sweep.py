@@ -42,7 +42,7 @@ from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, TypeAlias, TypedDict, cast
 
 from tqdm import tqdm
 
@@ -53,8 +53,23 @@ from pinn_mpc.io import atomic_write_json, atomic_write_text
 from pinn_mpc.physics import RCParams, params_from_summary, rc_summary
 from scenarios.choices import TRUTH_CONTROLLERS
 from scenarios.factory import CONTROLLER_NAMES, MODEL_CONTROLLERS, RC_CONTROLLERS
+from scenarios.records import (
+    CellKey,
+    CellRecord,
+    CellResult,
+    EngineRecord,
+    SweepSettingsRecord,
+    SweepSummary,
+)
 from scenarios.registry import get_scenario, is_scenario_file
 from scenarios.sweep_report import REFERENCE, plot_sweep, render_sweep_report, summarise
+
+if TYPE_CHECKING:
+    from pinn_mpc.models.learned import LearnedModel
+    from pinn_mpc.models.rollout import BatchDynamics
+
+#: What a sweep trains for a cell (:func:`fit_model`): a learned ensemble or an identified RC.
+SweepModel: TypeAlias = "LearnedModel | RCParams"
 
 #: The architecture the model-based controllers plan over: the one ``train`` makes by default.
 ARCH = DEFAULT_ARCH
@@ -301,7 +316,7 @@ def parse_ints(text: str, what: str) -> tuple[int, ...]:
 # ---- the adapter: the one place that calls the package's closed loop and model fitting ----
 
 
-def fit_model(key: ModelKey, settings: SweepSettings) -> Any:
+def fit_model(key: ModelKey, settings: SweepSettings) -> SweepModel:
     """Train the learned ensemble (:data:`ARCH`) or identify the RC of ``key`` on the scenario's simulated data
     (``train_days`` days under the random policy, seed ``key.seed``)."""
     from scenarios.compare import CompareSettings, identify_scenario_rc
@@ -327,10 +342,13 @@ def fit_model(key: ModelKey, settings: SweepSettings) -> Any:
     return train_model(data, arch=key.kind, config=config, progress=False)
 
 
-def run_cell(cell: Cell, settings: SweepSettings, model: Any) -> dict[str, Any]:
+def run_cell(
+    cell: Cell, settings: SweepSettings, model: BatchDynamics | RCParams | None
+) -> CellResult:
     """One closed loop on the test days (seed + 1): ``{"kpis", "errors", "host", "wall_time_s"}``.
 
-    ``model`` is what :func:`fit_model` returned for ``cell.model`` (None when it has none).
+    ``model`` is what :func:`fit_model` returned for ``cell.model`` (None when it has none):
+    the learned model a planner plans over, or the RC an RC MPC works on.
     """
     from scenarios.closed_loop import one_torch_thread, run_closed_loop
     from scenarios.factory import build_controller
@@ -341,8 +359,8 @@ def run_cell(cell: Cell, settings: SweepSettings, model: Any) -> dict[str, Any]:
     controller = build_controller(
         cell.controller,
         scenario,
-        model=model if kind == ARCH else None,
-        rc_params=model if kind == RC_KIND else None,
+        model=model if kind == ARCH and not isinstance(model, RCParams) else None,
+        rc_params=model if kind == RC_KIND and isinstance(model, RCParams) else None,
         n_steps=settings.test_days * scenario.steps_per_day,
     )
     with one_torch_thread():
@@ -360,8 +378,9 @@ def run_cell(cell: Cell, settings: SweepSettings, model: Any) -> dict[str, Any]:
 # ---- storage in DIR ----
 
 
-def _settings_record(settings: SweepSettings) -> dict[str, Any]:
-    return {**dataclasses.asdict(settings), "arch": ARCH, "package_version": __version__}
+def _settings_record(settings: SweepSettings) -> SweepSettingsRecord:
+    record = {**dataclasses.asdict(settings), "arch": ARCH, "package_version": __version__}
+    return cast(SweepSettingsRecord, record)  # SweepSettings' fields, then two
 
 
 def _read_json(path: Path) -> Any:
@@ -393,20 +412,25 @@ def _check_settings(out: Path, settings: SweepSettings) -> None:
         )
 
 
-def _cell_record_key(cell: Cell) -> dict[str, Any]:
+class _CellRecordKey(TypedDict):
+    cell: CellKey
+    scenario_sha256: str | None
+
+
+def _cell_record_key(cell: Cell) -> _CellRecordKey:
     """What identifies a cell in its record: its fields and its scenario's content digest."""
     digest = scenario_digest(cell.scenario) if is_scenario_file(cell.scenario) else None
-    return {"cell": dataclasses.asdict(cell), "scenario_sha256": digest}
+    return {"cell": cast(CellKey, dataclasses.asdict(cell)), "scenario_sha256": digest}
 
 
-def _read_cell(path: Path, cell: Cell) -> dict[str, Any] | None:
+def _read_cell(path: Path, cell: Cell) -> CellRecord | None:
     if not path.exists():
         return None
     record = _read_json(path)
     key = _cell_record_key(cell)
     if not isinstance(record, dict) or any(record.get(k) != v for k, v in key.items()):
         raise InputError(f"{path}: not the record of cell {cell.name}; move it away and rerun")
-    return record
+    return cast(CellRecord, record)  # written by this module
 
 
 def _model_path(out: Path, key: ModelKey) -> Path:
@@ -414,7 +438,7 @@ def _model_path(out: Path, key: ModelKey) -> Path:
     return out / "models" / f"{key.name}{suffix}"
 
 
-def _load_model(out: Path, key: ModelKey) -> Any:
+def _load_model(out: Path, key: ModelKey) -> SweepModel | None:
     path = _model_path(out, key)
     if not path.exists():
         return None
@@ -425,7 +449,7 @@ def _load_model(out: Path, key: ModelKey) -> Any:
     return load_model(path)
 
 
-def _store_model(out: Path, key: ModelKey, model: Any) -> None:
+def _store_model(out: Path, key: ModelKey, model: SweepModel) -> None:
     path = _model_path(out, key)
     if isinstance(model, RCParams):
         atomic_write_json(path, rc_summary(model, source=f"identify ({key.name})"))
@@ -468,7 +492,7 @@ def check_engine_options(address: str | None, workers: int | None) -> None:
 
 
 @contextmanager
-def ray_engine(address: str | None, workers: int | None) -> Iterator[dict[str, Any]]:
+def ray_engine(address: str | None, workers: int | None) -> Iterator[EngineRecord]:
     """Start a local Ray instance (``workers`` CPUs, default all) or connect to ``address``;
     yield the engine record of ``summary.json``; shut down (or disconnect) at the end."""
     import ray
@@ -515,7 +539,7 @@ def _task_failure(what: str, exc: Exception) -> InputError:
 
 @dataclass(frozen=True, kw_only=True)
 class SweepOutcome:
-    summary: dict[str, Any]
+    summary: SweepSummary
     summary_path: Path
     report_path: Path
     figure_path: Path
@@ -616,8 +640,10 @@ def run_sweep(
                     _store_model(root, what, value)
                     trained += 1
                     continue
-                record = {
-                    **_cell_record_key(what), "settings": _settings_record(settings), **value
+                record: CellRecord = {
+                    **_cell_record_key(what),
+                    "settings": _settings_record(settings),
+                    **cast(CellResult, value),
                 }
                 atomic_write_json(root / "cells" / f"{what.name}.json", record)
                 records[what] = record
@@ -629,7 +655,7 @@ def run_sweep(
         order=[*grid.controllers, *dict.fromkeys(grid.references.values())],
         references=grid.references,
     )
-    summary: dict[str, Any] = {
+    summary: SweepSummary = {
         "rows": rows,
         "baseline": baseline,
         "engine": engine,

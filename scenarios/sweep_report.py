@@ -13,12 +13,13 @@ from __future__ import annotations
 import os
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import scipy.stats
 
 from scenarios.plots import save_figure
+from scenarios.records import CellRecord, SweepRow, SweepSummary
 from scenarios.report import markdown_table
 
 REFERENCE = "oracle"
@@ -57,12 +58,12 @@ def ratio(row: Mapping[str, Any], what: str) -> Any:
 
 
 def summarise(
-    cells: Sequence[Mapping[str, Any]],
+    cells: Sequence[CellRecord],
     *,
     baseline: str,
     order: Sequence[str] = (),
     references: Mapping[str, str] | None = None,
-) -> list[dict[str, Any]]:
+) -> list[SweepRow]:
     """Rows of ``summary.json`` from cell records (``cell``: scenario, controller, seed,
     train_days; ``kpis``: with ``objective``), one per scenario x controller (x training size
     when several), controllers in ``order`` (others after, by name). Objectives are divided by
@@ -114,7 +115,7 @@ def summarise(
             )
         else:
             row.update(paired_difference_n=0, paired_difference_mean=None, paired_difference_ci95=[None, None])
-        rows.append(row)
+        rows.append(cast(SweepRow, row))  # its ratio keys named after the reference
     return rows
 
 
@@ -128,7 +129,7 @@ def _baseline_ratios(
     return ratios[groups[0]] if groups else {}
 
 
-def row_label(row: Mapping[str, Any]) -> str:
+def row_label(row: SweepRow) -> str:
     """The controller, with its training size when it was trained."""
     days = row.get("train_days")
     return row["controller"] if days is None else f"{row['controller']} ({days} d)"
@@ -142,7 +143,7 @@ def _interval(mean: float | None, ci: Sequence[float | None]) -> str:
     return f"{mean:.3f} [{ci[0]:.3f}, {ci[1]:.3f}]"
 
 
-def render_sweep_report(summary: Mapping[str, Any], *, figure_name: str) -> str:
+def render_sweep_report(summary: SweepSummary, *, figure_name: str) -> str:
     """The markdown report of ``summary.json``."""
     engine = summary["engine"]
     baseline = summary["baseline"]
@@ -190,7 +191,7 @@ def render_sweep_report(summary: Mapping[str, Any], *, figure_name: str) -> str:
     return "\n".join(lines) + "\n"
 
 
-def plot_sweep(rows: Sequence[Mapping[str, Any]], path: str | os.PathLike[str]) -> Path:
+def plot_sweep(rows: Sequence[SweepRow], path: str | os.PathLike[str]) -> Path:
     """One panel per scenario: per controller a box of objective / reference over seeds, with
     the seeds as points on top (few seeds make a box alone misleading)."""
     import matplotlib.pyplot as plt

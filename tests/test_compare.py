@@ -10,8 +10,10 @@ from pinn_mpc.physics import PAPER_HOUSEHOLD, rc_summary
 from pinn_mpc_cli.cli import main
 from scenarios.compare import CompareSettings
 from scenarios.kpis import KPI_KEYS
+from scenarios.records import CompareTable
 from scenarios.registry import get_scenario
 from scenarios.report import kpi_table_text, objective_ratios, render_report
+from tests.test_records import assert_record
 
 
 def _row(label, objective, **extra):
@@ -102,6 +104,7 @@ def test_compare_quick_end_to_end(tmp_path, capsys):
                  "--json", str(out / "table.json"), "--report", str(out / "report.md")])
     assert code == 0
     table = json.loads((out / "table.json").read_text())
+    assert_record(table, CompareTable)  # rows, RC summaries and prediction rows as declared
     labels = [row["controller"] for row in table["rows"]]
     assert labels == [
         "thermostat", "random-shooting / hybrid", "cem / hybrid, no LP polish", "cem / hybrid",

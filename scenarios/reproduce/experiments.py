@@ -7,7 +7,7 @@ experiments need (see :class:`~scenarios.reproduce.config.ReproduceConfig`); the
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -47,9 +47,10 @@ def evaluate_members(
     rows = np.asarray(one["row"])
     t_r = test["T_r"].to_numpy(dtype=float)
     t_m_pred = one["T_m"]
+    one_step: Mapping[str, Any] = ens["one_step"]
 
     def stats(pred: np.ndarray, truth: np.ndarray, key: str) -> ErrorStats:
-        return ErrorStats.of(_member_mae(pred, truth), ens["one_step"][key])
+        return ErrorStats.of(_member_mae(pred, truth), one_step[key])
 
     recursive = {}
     for h in sorted({int(v) for v in horizons}):
