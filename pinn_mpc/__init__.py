@@ -37,6 +37,9 @@ if TYPE_CHECKING:
     from pinn_mpc.physics import discretise as discretise
     from pinn_mpc.physics import params_from_summary as params_from_summary
     from pinn_mpc.physics import rc_summary as rc_summary
+    from pinn_mpc.records import EvaluationMetrics as EvaluationMetrics
+    from pinn_mpc.records import RcSummary as RcSummary
+    from pinn_mpc.records import TrustReport as TrustReport
     from pinn_mpc.simulator import SimConfig as SimConfig
     from pinn_mpc.simulator import Simulator as Simulator
     from pinn_mpc.training import TrainConfig as TrainConfig
@@ -51,6 +54,7 @@ _EXPORTS = {
     "pinn_mpc.export": ("export_rc",),
     "pinn_mpc.identify": ("IdentifyResult", "identify_rc"),
     "pinn_mpc.models": ("LearnedModel",),
+    "pinn_mpc.records": ("EvaluationMetrics", "RcSummary", "TrustReport"),
     "pinn_mpc.physics": (
         "PAPER_HOUSEHOLD", "RCParams", "discretise", "params_from_summary", "rc_summary",
     ),

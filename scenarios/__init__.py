@@ -39,6 +39,15 @@ if TYPE_CHECKING:
     from scenarios.kpis import compute_kpis as compute_kpis
     from scenarios.plots import plot_comparison as plot_comparison
     from scenarios.plots import plot_trajectory as plot_trajectory
+    from scenarios.records import BuildingKpis as BuildingKpis
+    from scenarios.records import CellRecord as CellRecord
+    from scenarios.records import CompareRow as CompareRow
+    from scenarios.records import FleetJson as FleetJson
+    from scenarios.records import Kpis as Kpis
+    from scenarios.records import PredictionRow as PredictionRow
+    from scenarios.records import RunKpis as RunKpis
+    from scenarios.records import SweepRow as SweepRow
+    from scenarios.records import SweepSummary as SweepSummary
     from scenarios.registry import Scenario as Scenario
     from scenarios.registry import get_scenario as get_scenario
     from scenarios.registry import scenario_names as scenario_names
@@ -58,6 +67,17 @@ _EXPORTS = {
     "scenarios.fleet": ("FleetResult", "run_fleet_closed_loop"),
     "scenarios.gym_env": ("BuildingEnv",),
     "scenarios.kpis": ("KPI_KEYS", "compute_kpis"),
+    "scenarios.records": (
+        "BuildingKpis",
+        "CellRecord",
+        "CompareRow",
+        "FleetJson",
+        "Kpis",
+        "PredictionRow",
+        "RunKpis",
+        "SweepRow",
+        "SweepSummary",
+    ),
     "scenarios.plots": ("plot_comparison", "plot_trajectory"),
     "scenarios.registry": ("Scenario", "get_scenario", "scenario_names"),
     "scenarios.report": ("format_fleet", "format_kpis", "kpi_table_text"),
