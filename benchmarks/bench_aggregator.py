@@ -130,10 +130,13 @@ def run(args: argparse.Namespace, wrap: Callable[[Any, str], Any]) -> int:
     """Every timing of the module docstring; ``wrap`` turns the factory of a slice of the
     fleet's buildings into the planner factory timed (partitioned across Ray workers, or the
     whole fleet's)."""
+    from threadpoolctl import threadpool_limits
+
     spec = get_scenario(SCENARIO).control_spec()
     sizes = lambda text: [int(v) for v in text.split(",") if v]  # noqa: E731
     print(f"{SCENARIO}, test day seed {SEED} (2023-02-12), from 06:00; ms per control step")
-    with one_torch_thread():
+    # As the command line: one BLAS thread (the observers' and identification's matrices are small).
+    with one_torch_thread(), threadpool_limits(limits=1, user_api="blas"):
         print(f"torch threads: {torch.get_num_threads()}")
         for n in sizes(args.rc):
             for cap in (None, 0.6):

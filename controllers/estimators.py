@@ -15,6 +15,7 @@ Each turns the observation of step k into what its controller plans from:
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
@@ -22,7 +23,7 @@ import numpy as np
 from controllers.base import ControlSpec, Observation
 from pinn_mpc.actuator import Actuator
 from pinn_mpc.errors import InputError
-from pinn_mpc.observer import DEFAULT_MEASUREMENT_STD_C, KalmanObserver
+from pinn_mpc.observer import DEFAULT_INITIAL_T_M_STD_C, DEFAULT_MEASUREMENT_STD_C, KalmanObserver
 from pinn_mpc.physics import RCParams
 
 if TYPE_CHECKING:
@@ -31,6 +32,7 @@ if TYPE_CHECKING:
 __all__ = [
     "NOISY_SENSOR_PROCESS_STD_C",
     "RC_MPC_PROCESS_STD_C",
+    "FleetKalmanEstimator",
     "KalmanEstimator",
     "OffsetFilter",
     "StateEstimator",
@@ -107,6 +109,72 @@ class KalmanEstimator:
             self.observer.update(obs.t_r_c)
         self._k_seen = obs.k
         return self.observer.state[0]
+
+
+class FleetKalmanEstimator:
+    """:class:`KalmanEstimator` (built as :meth:`KalmanEstimator.for_spec`) of B buildings, each
+    on its own RC matrices ``ad`` (B, 2, 2) and ``bd`` (B, 2, 4) (:func:`pinn_mpc.simulator.fleet_matrices`),
+    updated together: the same arithmetic, building by building, as B estimators (each its own
+    covariance and its own restart rule), in one vectorised pass instead of B Python calls."""
+
+    def __init__(self, ad: np.ndarray, bd: np.ndarray, spec: ControlSpec) -> None:
+        ad, bd = np.asarray(ad, dtype=float), np.asarray(bd, dtype=float)
+        if ad.ndim != 3 or ad.shape[1:] != (2, 2) or bd.shape != (ad.shape[0], 2, 4):
+            raise InputError(f"FleetKalmanEstimator: ad (B, 2, 2) and bd (B, 2, 4), got {ad.shape}, {bd.shape}")
+        noisy = spec.sensor_noise_std_c > DEFAULT_MEASUREMENT_STD_C
+        process = NOISY_SENSOR_PROCESS_STD_C if noisy else RC_MPC_PROCESS_STD_C
+        measurement = spec.sensor_noise_std_c if noisy else DEFAULT_MEASUREMENT_STD_C
+        self.ad, self.bd, self.actuator = ad, bd, spec.actuator
+        self.q = np.diag(np.square(np.asarray(process, dtype=float)))
+        self.r = float(measurement) ** 2
+        self.initial_t_m_std_c = DEFAULT_INITIAL_T_M_STD_C
+        self.reset()
+
+    @property
+    def n_buildings(self) -> int:
+        return self.ad.shape[0]
+
+    def reset(self) -> None:
+        b = self.n_buildings
+        self._k_seen = np.full(b, -2, dtype=np.int64)  # -2: not seen (k + 1 never matches)
+        self._x = np.zeros((b, 2))
+        self._p = np.broadcast_to(np.eye(2), (b, 2, 2)).copy()
+
+    @property
+    def state(self) -> np.ndarray:
+        """(B, 2) estimated ``(T_r, T_m)`` [C]."""
+        return self._x.copy()
+
+    def update(self, observations: Sequence[Observation]) -> np.ndarray:
+        """Every building's :meth:`KalmanEstimator.update`; returns (B, 2) ``(T_r, T_m)`` [C]."""
+        b = self.n_buildings
+        if len(observations) != b:
+            raise InputError(f"FleetKalmanEstimator: {len(observations)} observations for {b} buildings")
+        k = np.fromiter((o.k for o in observations), dtype=np.int64, count=b)
+        y = np.fromiter((o.t_r_c for o in observations), dtype=float, count=b)
+        lasts = [o.last for o in observations]
+        go_on = (k == self._k_seen + 1) & np.fromiter((v is not None for v in lasts), dtype=bool, count=b)
+        if go_on.any():
+            d = np.array(
+                [(v.u_phys, v.T_a, v.G, v.I_g) if v is not None else (0.0, 0.0, 0.0, 0.0) for v in lasts]
+            )
+            d[:, 0] *= np.asarray(self.actuator.gain(d[:, 1]), dtype=float)
+            x = np.einsum("bij,bj->bi", self.ad, self._x) + np.einsum("bij,bj->bi", self.bd, d)
+            p = self.ad @ self._p @ self.ad.transpose(0, 2, 1) + self.q
+            s = p[:, 0, 0] + self.r
+            gain = p[:, :, 0] / s[:, None]  # (B, 2)
+            x = x + (y - x[:, 0])[:, None] * gain
+            i_kh = np.broadcast_to(np.eye(2), p.shape).copy()
+            i_kh[:, :, 0] -= gain
+            p = i_kh @ p @ i_kh.transpose(0, 2, 1) + self.r * gain[:, :, None] * gain[:, None, :]
+            self._x = np.where(go_on[:, None], x, self._x)
+            self._p = np.where(go_on[:, None, None], p, self._p)
+        restart = ~go_on
+        if restart.any():
+            self._x[restart] = y[restart, None]
+            self._p[restart] = np.diag([self.r, self.initial_t_m_std_c**2])
+        self._k_seen = k
+        return self.state
 
 
 class TrueState:

@@ -36,7 +36,7 @@ from controllers.base import (
     check_heating,
     first_values,
 )
-from controllers.estimators import KalmanEstimator
+from controllers.estimators import FleetKalmanEstimator
 from controllers.objective import HorizonObjective
 from controllers.rc_mpc.osqp import OSQP_OPTIONS
 from controllers.rc_mpc.problem import DEFAULT_REGULARISATION
@@ -110,7 +110,8 @@ class FleetQPMPC:
     regulariser ``regularisation_eur_per_kw2h``) for every building, variables per building
     ``(heat (H), slack (H), states (H, 2))``; ``solver_options`` update
     :data:`controllers.rc_mpc.osqp.OSQP_OPTIONS`. The states come from one Kalman observer per
-    building (:meth:`KalmanEstimator.for_spec`). A building whose estimate is not finite, or
+    building (:meth:`KalmanEstimator.for_spec`'s, all updated in one pass by
+    :class:`controllers.estimators.FleetKalmanEstimator`). A building whose estimate is not finite, or
     every building when OSQP does not report ``solved``, falls back (its previous plan, as
     ``QPMPC``), counted in :attr:`n_fallbacks`.
     """
@@ -151,7 +152,7 @@ class FleetQPMPC:
             slice(i, min(i + block_size, len(fleet))) for i in range(0, len(fleet), block_size)
         ]
         self._matrices = [_block_matrices(ad[s], self._b_u[s], h, p_diag) for s in self._blocks]
-        self.estimators = [KalmanEstimator.for_spec(p, spec) for p in self.fleet]
+        self.estimator = FleetKalmanEstimator(ad, bd, spec)
         self.fallbacks = [Fallback(spec, reuse_plan=True) for _ in self.fleet]
         self.reset()
 
@@ -170,8 +171,8 @@ class FleetQPMPC:
 
     def reset(self, seed: int | None = None) -> None:
         """Forget estimates, plans, counters and the solver's warm start (no randomness)."""
-        for e, f in zip(self.estimators, self.fallbacks, strict=True):
-            e.reset()
+        self.estimator.reset()
+        for f in self.fallbacks:
             f.reset()
         self._solvers: list[osqp.OSQP | None] = [None] * len(self._blocks)
         self._stage: _Stage | None = None
@@ -183,13 +184,9 @@ class FleetQPMPC:
             raise InputError(
                 f"FleetQPMPC.observe: {len(observations)} observations for {self.n_buildings} buildings"
             )
-        x0 = np.empty((self.n_buildings, 2))
-        for i, (est, obs) in enumerate(zip(self.estimators, observations, strict=True)):
-            try:
-                x0[i] = est.update(obs)
-            except Exception:  # a failed estimate falls back for this building only
-                x0[i] = np.nan
-        ok = np.all(np.isfinite(x0), axis=1)
+        with np.errstate(invalid="ignore", over="ignore"):
+            x0 = self.estimator.update(observations)
+        ok = np.all(np.isfinite(x0), axis=1)  # a failed estimate falls back for this building only
         # A failed building keeps the QP well posed from its measurement; it does not act on it.
         measured = np.array([o.t_r_c for o in observations], dtype=float)
         x0[~ok] = np.where(np.isfinite(measured[~ok]), measured[~ok], 20.0)[:, None]

@@ -55,13 +55,23 @@ class FleetDynamics(Protocol):
     exog_names: tuple[str, ...]
 
     def prepare(
-        self, histories: Sequence[dict[str, np.ndarray]], exog: dict[str, np.ndarray], h: int
+        self,
+        histories: Sequence[dict[str, np.ndarray]],
+        exog: dict[str, np.ndarray],
+        h: int,
+        *,
+        drop_last: int = 0,
     ) -> FleetStart: ...
 
     def roll(self, start: FleetStart, u_w: torch.Tensor) -> Rollout: ...
 
     def rollout(
-        self, histories: Sequence[dict[str, np.ndarray]], u_w: torch.Tensor, exog: dict[str, np.ndarray]
+        self,
+        histories: Sequence[dict[str, np.ndarray]],
+        u_w: torch.Tensor,
+        exog: dict[str, np.ndarray],
+        *,
+        drop_last: int = 0,
     ) -> Rollout: ...
 
 
@@ -133,6 +143,7 @@ class _Step(NamedTuple):
     observations: tuple[Observation, ...]
     forecast: Forecast
     start: FleetStart | None  # None: the history is too short for the models
+    spread_start: FleetStart | None  # the same for the disagreement's members (None: not measured)
     price: np.ndarray  # (H,)
     t_min: torch.Tensor  # (B, H) tightened band
     t_max: torch.Tensor
@@ -213,6 +224,8 @@ class FleetCEM:
             f.reset()
             mon.reset()
         self.offset_k = torch.zeros(self.n_buildings)
+        self._plans = torch.zeros(self.n_buildings, self.horizon_steps)  # the last plans (B, H)
+        self._has_plan = torch.zeros(self.n_buildings, dtype=torch.bool)
         if self.shadow is not None:
             self.shadow.reset(seed)
         self._step: _Step | None = None
@@ -236,14 +249,17 @@ class FleetCEM:
         t_min = torch.as_tensor(objective.t_min_c, dtype=torch.float32)
         t_max = torch.as_tensor(objective.t_max_c, dtype=torch.float32)
         middle = 0.5 * (t_min + t_max)
-        start = None
+        start = spread_start = None
         if n_past >= depth + 1:
             exog = forecast.exogenous(self.dynamics.exog_names, h)
             start = self.dynamics.prepare(histories, exog, h)
+            if self.spread_dynamics is not None:
+                spread_start = self.spread_dynamics.prepare(histories, exog, h)
         self._step = _Step(
             observations=tuple(observations),
             forecast=forecast,
             start=start,
+            spread_start=spread_start,
             price=np.asarray(objective.price_eur_per_kwh, dtype=float),
             t_min=torch.minimum(t_min + margins, middle),
             t_max=torch.maximum(t_max - margins, middle),
@@ -256,7 +272,6 @@ class FleetCEM:
         """The offset filter (:class:`controllers.estimators.OffsetFilter`) of every building
         at once: the interval that just ended replayed under the delivered and the demanded
         power."""
-        past = [{n: np.asarray(v)[:-1] for n, v in o.history.items()} for o in observations]
         last0 = observations[0].last
         assert last0 is not None
         exog = {n: np.array([getattr(last0, n)]) for n in self.dynamics.exog_names}
@@ -264,7 +279,7 @@ class FleetCEM:
             [[[o.last.u_phys], [o.last.u]] for o in observations if o.last is not None],
             dtype=torch.float32,
         )  # (B, 2, 1)
-        roll = self.dynamics.rollout(past, u, exog)
+        roll = self.dynamics.rollout([o.history for o in observations], u, exog, drop_last=1)
         predicted = roll.t_r_c[:, :, 0, 0].mean(1).double()
         delivered = roll.u_phys_w[:, :, 1, 0].mean(1).double()
         measured = torch.tensor([o.t_r_c for o in observations], dtype=torch.float64)
@@ -280,12 +295,13 @@ class FleetCEM:
             mon.observe(inn, pe)
 
     def _warm_starts(self, h: int) -> torch.Tensor:
-        x0 = np.full((self.n_buildings, h), 0.5 * self.spec.u_max_w)
-        for i, f in enumerate(self.fallbacks):
-            if f.plan_w is not None:
-                shifted = np.append(f.plan_w[1:], f.plan_w[-1])
-                x0[i] = np.pad(shifted, (0, max(h - len(shifted), 0)), mode="edge")[:h]
-        return torch.as_tensor(x0, dtype=torch.float32)
+        """(B, H) each building's last plan shifted one interval (its last value repeated), or
+        half power where it has none (before its first plan, after a fallback)."""
+        x0 = torch.full((self.n_buildings, h), 0.5 * self.spec.u_max_w)
+        if self._has_plan.any():
+            shifted = torch.cat([self._plans[:, 1:], self._plans[:, -1:]], dim=1)
+            x0[self._has_plan] = shifted[self._has_plan]
+        return x0
 
     def _costs(self, step: _Step, extra: np.ndarray, u_w: torch.Tensor) -> torch.Tensor:
         """(B, N) objective of plans (B, N, H) under the members' mean prediction + offset."""
@@ -328,24 +344,22 @@ class FleetCEM:
             raise InputError("FleetCEM.commit: call observe() and plan() first")
         b = self.n_buildings
         spread = np.zeros(b)
-        if self.spread_dynamics is not None and step.start is not None and plan.ok.any():
-            exog = step.forecast.exogenous(self.dynamics.exog_names, self.horizon_steps)
-            members = self.spread_dynamics.rollout(
-                [o.history for o in step.observations],
-                torch.as_tensor(plan.power_w[:, None], dtype=torch.float32), exog,
+        if self.spread_dynamics is not None and step.spread_start is not None and plan.ok.any():
+            members = self.spread_dynamics.roll(
+                step.spread_start, torch.as_tensor(plan.power_w[:, None], dtype=torch.float32)
             ).t_r_c[:, :, 0]  # (B, M, H)
             if members.shape[1] > 1:
                 spread = members.std(1, correction=0).amax(-1).double().numpy()
         u = np.where(plan.ok, plan.power_w[:, 0], 0.0)
+        ok = torch.as_tensor(plan.ok)
+        self._plans[ok] = torch.as_tensor(plan.power_w, dtype=torch.float32)[ok]
+        self._has_plan = ok.clone()  # a fallback forgets the plan: the next warm start is fresh
         distrusted = np.zeros(b, dtype=bool)
-        for i in range(b):
-            if not plan.ok[i]:
-                u[i] = self.fallbacks[i].act(step.observations[i], step.forecast)
-                continue
-            self.fallbacks[i].planned(plan.power_w[i].copy())
-            if self.shadow is not None:
-                distrusted[i] = not self.monitors[i].decide(self.monitors[i].reason(float(spread[i])))
+        for i in np.flatnonzero(~plan.ok):
+            u[i] = self.fallbacks[i].act(step.observations[i], step.forecast)
         if self.shadow is not None:
+            for i in np.flatnonzero(plan.ok):
+                distrusted[i] = not self.monitors[i].decide(self.monitors[i].reason(float(spread[i])))
             rc_plan = self.shadow.plan(only=distrusted)
             u[distrusted] = rc_plan.power_w[distrusted, 0]
             self.shadow.commit(rc_plan, active=distrusted)

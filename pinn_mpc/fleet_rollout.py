@@ -93,38 +93,40 @@ class FleetHybrid:
         histories: Sequence[Mapping[str, np.ndarray]],
         u_w: torch.Tensor,
         exog: Mapping[str, np.ndarray],
+        *,
+        drop_last: int = 0,
     ) -> Rollout:
         """Roll every building's N plans ``u_w`` (B, N, H) [W] forward H intervals from its
         ``histories[b]`` (as :meth:`LearnedModel.rollout`: ``T_r``, ``u_phys`` and the
         exogenous series, at least depth+1 values each) under the fleet's forecast ``exog``
-        (one array (>= H,) per name of ``exog_names``). Returns tensors (B, M, N, H)."""
+        (one array (>= H,) per name of ``exog_names``). ``drop_last``: start that many
+        intervals before the histories' end (their last values unread). Returns tensors
+        (B, M, N, H)."""
         u_w = torch.as_tensor(u_w, dtype=torch.float32)
         if u_w.ndim != 3:
             raise InputError(f"FleetHybrid.rollout: u_w must be (B, N, H), got {tuple(u_w.shape)}")
-        return self.roll(self.prepare(histories, exog, u_w.shape[2]), u_w)
+        return self.roll(self.prepare(histories, exog, u_w.shape[2], drop_last=drop_last), u_w)
 
     def prepare(
-        self, histories: Sequence[Mapping[str, np.ndarray]], exog: Mapping[str, np.ndarray], h: int
+        self,
+        histories: Sequence[Mapping[str, np.ndarray]],
+        exog: Mapping[str, np.ndarray],
+        h: int,
+        *,
+        drop_last: int = 0,
     ) -> FleetStart:
         """The plan-free part of :meth:`rollout` over ``h`` intervals, once per decision;
         :meth:`roll` then takes any number of plans (B, N, h) from it."""
         b, k1 = self.n_buildings, self.depth + 1
         if len(histories) != b:
             raise InputError(f"FleetHybrid: {len(histories)} histories for {b} buildings")
+        if drop_last < 0:
+            raise InputError(f"FleetHybrid: drop_last must be >= 0, got {drop_last}")
         for name in self.exog_names:
             if name not in exog or np.shape(exog[name])[0] < h:
                 raise InputError(f"FleetHybrid: exog[{name!r}] must have at least H={h} values")
         series_names = ("T_r", "u_phys", *self.exog_series)
-        raw = {n: np.empty((b, k1)) for n in series_names}
-        for i, hist in enumerate(histories):
-            for n in series_names:
-                values = np.asarray(hist[n], dtype=float)
-                if len(values) < k1:
-                    raise InputError(
-                        f"FleetHybrid: building {i} has {len(values)} past values of {n}, "
-                        f"the models need depth+1={k1}"
-                    )
-                raw[n][i] = values[-k1:]
+        raw = {n: _windows(histories, n, k1, drop_last) for n in series_names}
         future = {n: np.asarray(exog[n], dtype=float)[:h] for n in self.exog_series}
         # Raw exogenous series from i-k to i+H-1 (B, n_series, k+H), as the models see them.
         seq = np.stack(
@@ -215,6 +217,23 @@ class FleetHybrid:
                 u_phys_w=series[:, :, 0, :, 1:].contiguous(),
                 t_m_c=series[:, :, 1, :, :-1].contiguous(),
             )
+
+
+def _windows(histories: Sequence[Mapping[str, np.ndarray]], name: str, k1: int, drop: int) -> np.ndarray:
+    """(B, k1) the last ``k1`` values of series ``name`` of every history but its last ``drop``
+    ones (one array when the histories are of one length, as a fleet's are)."""
+    values = [np.asarray(hist[name], dtype=float) for hist in histories]
+    lengths = {len(v) for v in values}
+    for i, v in enumerate(values):
+        if len(v) < k1 + drop:
+            raise InputError(
+                f"FleetHybrid: building {i} has {len(v)} past values of {name}, the models need "
+                f"depth+1={k1}{f' before its last {drop}' if drop else ''}"
+            )
+    if len(lengths) == 1:
+        n = lengths.pop()
+        return np.stack(values)[:, n - drop - k1 : n - drop]
+    return np.stack([v[len(v) - drop - k1 : len(v) - drop] for v in values])
 
 
 def _members(c: HybridConstants, m: int) -> HybridConstants:

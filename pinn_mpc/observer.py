@@ -26,13 +26,15 @@ import numpy as np
 from pinn_mpc.errors import InputError
 from pinn_mpc.physics import RCParams, discretise
 
-__all__ = ["DEFAULT_MEASUREMENT_STD_C", "KalmanObserver"]
+__all__ = ["DEFAULT_INITIAL_T_M_STD_C", "DEFAULT_MEASUREMENT_STD_C", "KalmanObserver"]
 
 _H = np.array([1.0, 0.0])  # measurement row: y = T_r
 
 
 #: The measurement noise [C] the observer assumes unless told (a good room sensor).
 DEFAULT_MEASUREMENT_STD_C = 0.05
+#: The standard deviation [C] of the initial thermal-mass guess unless told.
+DEFAULT_INITIAL_T_M_STD_C = 3.0
 
 
 class KalmanObserver:
@@ -50,7 +52,7 @@ class KalmanObserver:
         n_batch: int = 1,
         process_std_c: tuple[float, float] = (0.05, 0.01),
         measurement_std_c: float = DEFAULT_MEASUREMENT_STD_C,
-        initial_t_m_std_c: float = 3.0,
+        initial_t_m_std_c: float = DEFAULT_INITIAL_T_M_STD_C,
     ) -> None:
         if n_batch < 1:
             raise InputError(f"KalmanObserver.n_batch must be >= 1, got {n_batch}")

@@ -255,12 +255,14 @@ def learned_fleet_planner(
     plan_members: int = 1,
     n_samples: int = 32,
     n_iters: int = 2,
+    replan_iters: int = 2,
     rc_fallback: bool = True,
 ) -> FleetPlannerFactory:
     """The factory of a batched ``cem`` over each building's learned hybrid (``models[b]``):
     :class:`controllers.fleet_sampling.FleetCEM` planning with each ensemble's first
     ``plan_members`` members (the disagreement measured over all), ``n_samples`` x ``n_iters``
-    per plan, and with ``rc_fallback`` a shadow :class:`FleetQPMPC` on the RCs identified from
+    per plan (``replan_iters`` for each further plan of a step under a new coordination price),
+    and with ``rc_fallback`` a shadow :class:`FleetQPMPC` on the RCs identified from
     the models' training data (every model must have one)."""
     from controllers.fleet_sampling import FleetCEM
     from controllers.planners import CEMPlanner
@@ -292,6 +294,7 @@ def learned_fleet_planner(
             planner=CEMPlanner(lower=0.0, upper=spec.u_max_w, n_samples=n_samples, n_iters=n_iters),
             shadow=shadow,
             spread_dynamics=FleetHybrid(models) if models[0].n_members > 1 else None,
+            replan_iters=replan_iters,
         )
 
     return make

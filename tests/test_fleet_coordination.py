@@ -70,7 +70,7 @@ def test_batched_qp_solves_each_buildings_qp_mpc_problem():
 
 
 def batched_estimate(planner: FleetQPMPC, i: int) -> np.ndarray:
-    return planner.estimators[i].observer.state[0]
+    return planner.estimator.state[i]
 
 
 def test_raising_the_price_never_raises_the_planned_power_in_the_priced_intervals():
