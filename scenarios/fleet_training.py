@@ -69,13 +69,15 @@ def building_model_dir(root: str | os.PathLike[str], building: int) -> Path:
 def _train_one(frame: pd.DataFrame, arch: str, config: TrainConfig, path: str) -> float:
     """A Ray task: train one building's model and save it; returns the training seconds."""
     import torch
+    from threadpoolctl import threadpool_limits
 
     from pinn_mpc.artifacts import save_model
     from pinn_mpc.training import train_model
 
-    torch.set_num_threads(1)
+    torch.set_num_threads(1)  # the task holds one CPU: one thread for torch and for BLAS
     start = time.perf_counter()
-    model = train_model(frame, arch=arch, config=config, progress=False)
+    with threadpool_limits(limits=1, user_api="blas"):
+        model = train_model(frame, arch=arch, config=config, progress=False)
     save_model(model, path, force=True)
     return time.perf_counter() - start
 

@@ -4,6 +4,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+import scipy.linalg
 
 from pinn_mpc import physics
 from pinn_mpc.errors import InputError
@@ -19,8 +20,13 @@ from scenarios.registry import get_scenario
 
 
 def reference_interval(x, u, t_a, g, i_g, config, params):
-    """The simulator's physics written plainly with numpy: ZOH substeps, backup every substep."""
-    ad, bd = physics.discretise(params, config.substep_s)
+    """The simulator's physics written plainly with numpy: ZOH substeps (the exponential of the
+    augmented matrix, as the simulator computes it), backup every substep."""
+    a, b = physics.continuous_matrices(params)
+    m = np.zeros((6, 6))
+    m[:2, :2], m[:2, 2:] = a * config.substep_s, b * config.substep_s
+    e = scipy.linalg.expm(m)
+    ad, bd = e[:2, :2], e[:2, 2:]
     cfg = dataclasses.replace(config, params=params)
     delivered, changed, subs = 0.0, False, []
     for _ in range(config.n_substeps):

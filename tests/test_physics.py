@@ -1,9 +1,11 @@
 """Physics against analytic truth: steady states, exact discretisation, conversions."""
 
+import dataclasses
 import math
 
 import numpy as np
 import pytest
+import scipy.linalg
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -214,3 +216,44 @@ def test_implausible_coefficients_do_not_map_to_rc():
     tiny_a21 = physics.Coefficients(**(c.to_dict() | {"a21": 1e-12, "a22": 1e-12}))
     with pytest.raises(InputError, match="C_m_J_per_K = 1.333e\\+15 J/K is outside"):
         physics.from_coefficients(tiny_a21)
+
+
+def _expm_discretisation(p: physics.RCParams, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """The zero-order hold by the exponential of the augmented matrix [[A, B], [0, 0]] dt."""
+    a, b = physics.continuous_matrices(p)
+    m = np.zeros((6, 6))
+    m[:2, :2], m[:2, 2:] = a * dt, b * dt
+    e = scipy.linalg.expm(m)
+    return e[:2, :2], e[:2, 2:]
+
+
+@pytest.mark.parametrize("dt", [60.0, 900.0, 1800.0, 7200.0])
+def test_closed_form_discretisation_equals_the_matrix_exponential(dt: float) -> None:
+    rng = np.random.default_rng(7)
+    for _ in range(50):
+        scale = np.exp(rng.uniform(-1.0, 1.0, size=4))
+        p = dataclasses.replace(
+            SOLAR,
+            r_ra_k_per_w=SOLAR.r_ra_k_per_w * scale[0],
+            r_rm_k_per_w=SOLAR.r_rm_k_per_w * scale[1],
+            c_r_j_per_k=SOLAR.c_r_j_per_k * scale[2],
+            c_m_j_per_k=SOLAR.c_m_j_per_k * scale[3],
+        )
+        ad, bd = physics.discretise(p, dt)
+        ad_ref, bd_ref = _expm_discretisation(p, dt)
+        np.testing.assert_allclose(ad, ad_ref, rtol=1e-10, atol=1e-13)
+        np.testing.assert_allclose(bd, bd_ref, rtol=1e-10, atol=1e-13 * np.abs(bd_ref).max())
+
+
+def test_discretisation_with_nearly_equal_eigenvalues_falls_back_exactly() -> None:
+    # Equal time constants of air and mass: A's eigenvalues nearly coincide.
+    coef = physics.to_coefficients(SOLAR)
+    a11 = coef.a11
+    near = dataclasses.replace(coef, a22=a11 * (1 + 1e-9), a12=a11 * 1e-12, a21=a11 * 1e-12)
+    ad, bd = physics.discretise(near, 1800.0)
+    a, b = physics.continuous_matrices(near)
+    m = np.zeros((6, 6))
+    m[:2, :2], m[:2, 2:] = a * 1800.0, b * 1800.0
+    e = scipy.linalg.expm(m)
+    np.testing.assert_allclose(ad, e[:2, :2], rtol=1e-12)
+    np.testing.assert_allclose(bd, e[:2, 2:], rtol=1e-12, atol=1e-15)
