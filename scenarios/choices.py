@@ -22,7 +22,7 @@ __all__ = [
 ]
 
 #: Demand policies of generated data (:mod:`scenarios.datagen`).
-POLICIES = ("random", "random-level", "thermostat")
+POLICIES = ("random", "random-level", "thermostat", "closed-loop")
 #: The random policies (training data for learned models and identification).
 RANDOM_POLICIES = ("random", "random-level")
 
