@@ -59,7 +59,7 @@ __all__ = [
 INITIAL_TEMPERATURE_RANGE_C = (-50.0, 80.0)
 #: The training-data policy of EnergyPlus scenarios (:attr:`Scenario.data_policy`): random
 #: setpoints tracked, which keep the room inside the 14/28 C backup thermostat's band.
-ENERGYPLUS_DATA_POLICY = "closed-loop"
+ENERGYPLUS_DATA_POLICY: Literal["closed-loop"] = "closed-loop"
 #: Columns of :meth:`Scenario.exogenous`, in order.
 EXOGENOUS_COLUMNS = ("time", "T_a", "G", "I_g", "price", "T_min", "T_max")
 # Independent random streams per input, so changing one input's settings leaves the others.
