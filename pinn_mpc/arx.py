@@ -17,7 +17,7 @@ occupancy schedule scale the heat loss, so each schedule block gets a second coe
 indoor-outdoor difference, ``+ q(block) (T_r,k - T_a,k)``, and the schedule tells Saturdays
 from Sundays (reference office buildings run a Saturday schedule of their own). The fit must
 say that more power warms the room (the sum of the power's coefficients positive, as a heater
-does), or it is refused. It is fitted by least squares on the one-step error
+does; negative for a cooling machine), or it is refused. It is fitted by least squares on the one-step error
 (a tiny ridge keeps it well posed), has no hidden state and no network, and is linear in the
 power, so it predicts any power plan by recursion. :func:`fit_arx` fits it,
 :meth:`ARXModel.predict_t_r` predicts ``h`` steps ahead from given starts; it serves as the
@@ -278,17 +278,20 @@ def fit_arx(
     return dataclasses.replace(model, coef=coef, train_mae_c=mae)
 
 
-def fit_physics_informed_arx(df: pd.DataFrame, *, lags: int = DEFAULT_LAGS) -> ARXModel:
+def fit_physics_informed_arx(
+    df: pd.DataFrame, *, lags: int = DEFAULT_LAGS, eta: float = 1.0
+) -> ARXModel:
     """The physics-informed ARX (module docstring): workday, Saturday and Sunday schedules,
-    each block also weighing the indoor-outdoor difference; InputError when the fit says that
-    more power cools the room (the data do not identify the heater)."""
+    each block also weighing the indoor-outdoor difference; InputError when the fit's power
+    acts against the sign of ``eta`` (> 0 a heater: more power must warm the room; < 0 a
+    cooling machine: it must cool), as then the data do not identify the actuator."""
     model = fit_arx(df, lags=lags, day_types=3, interaction=True)
     n_col = len(model.columns)
-    if float(np.sum(model.coef[1 : lags * n_col : n_col])) <= 0:
+    if float(np.sum(model.coef[1 : lags * n_col : n_col])) * float(np.sign(eta)) <= 0:
         raise InputError(
-            "physics-informed ARX: the fit says more power cools the room; the data do not "
-            "identify the heater (give data with the power varied, e.g. simulate --policy "
-            "random-level or closed-loop)"
+            f"physics-informed ARX: the fit says more power {'cools' if eta > 0 else 'warms'} "
+            "the room; the data do not identify the actuator (give data with the power varied, "
+            "e.g. simulate --policy random-level or closed-loop)"
         )
     return model
 

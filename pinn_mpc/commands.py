@@ -83,7 +83,7 @@ def _train_arx(a: argparse.Namespace) -> str:
     if "building" in df.columns:
         raise InputError(f"{a.data}: a fleet's data (a building column); train --arch {a.arch} takes one building's")
     start = time.perf_counter()
-    model = fit_arx(df) if a.arch == ARX.name else fit_physics_informed_arx(df)
+    model = fit_arx(df) if a.arch == ARX.name else fit_physics_informed_arx(df, eta=_eta(a.eta))
     written = save_arx(model, a.out)
     return (
         f"fitted {a.arch} ({model.lags} lags of {', '.join(model.columns)}, a weekly schedule) on "

@@ -234,7 +234,7 @@ def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonR
         weather_part="test",
     )
     arx = fit_arx(data)
-    parx = fit_physics_informed_arx(data)
+    parx = fit_physics_informed_arx(data, eta=scenario.sim.params.eta)
     prediction = prediction_errors(
         held_out,
         learned=models,

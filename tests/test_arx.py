@@ -207,3 +207,7 @@ def test_physics_informed_arx_round_trips_plans_as_it_predicts_and_refuses_cooli
         assert float(roll.t_r_c[0, 0, step - 1]) == pytest.approx(expected, abs=1e-9)
     with pytest.raises(InputError, match="more power cools"):
         fit_physics_informed_arx(_occupied_data(21, seed=0, heater_gain=-0.002), lags=1)
+    cooling = fit_physics_informed_arx(_occupied_data(21, seed=0, heater_gain=-0.002), lags=1, eta=-3.0)
+    assert cooling.eta == -1.0
+    with pytest.raises(InputError, match="more power warms"):
+        fit_physics_informed_arx(_occupied_data(21, seed=0), lags=1, eta=-3.0)
