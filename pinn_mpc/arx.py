@@ -9,7 +9,15 @@ and weather values, plus a weekly schedule standing in for unmeasured internal g
               [+ sum_j e_j I_g,k-j] + s(block of day of t_k, workday of t_k)
 
 with ``j = 0 .. lags-1`` and ``s`` one coefficient per 2-hour block of the day, separately for
-workdays (Monday-Friday) and weekends. It is fitted by least squares on the one-step error
+workdays (Monday-Friday) and weekends.
+
+The physics-informed variant (:func:`fit_physics_informed_arx`) adds what a building's
+unmeasured occupancy does besides adding heat: ventilation and infiltration that follow the
+occupancy schedule scale the heat loss, so each schedule block gets a second coefficient on the
+indoor-outdoor difference, ``+ q(block) (T_r,k - T_a,k)``, and the schedule tells Saturdays
+from Sundays (reference office buildings run a Saturday schedule of their own). The fit must
+say that more power warms the room (the sum of the power's coefficients positive, as a heater
+does; negative for a cooling machine), or it is refused. It is fitted by least squares on the one-step error
 (a tiny ridge keeps it well posed), has no hidden state and no network, and is linear in the
 power, so it predicts any power plan by recursion. :func:`fit_arx` fits it,
 :meth:`ARXModel.predict_t_r` predicts ``h`` steps ahead from given starts; it serves as the
@@ -20,6 +28,7 @@ reference every learned model of a comparison must beat (:mod:`scenarios.predict
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 from dataclasses import dataclass
@@ -35,7 +44,18 @@ from pinn_mpc.io import DirectoryLayout
 from pinn_mpc.models.registry import ARX
 from pinn_mpc.models.rollout import Rollout
 
-__all__ = ["ARX_DIRECTORY", "ARX_FILE", "ARXModel", "BLOCK_H", "DEFAULT_LAGS", "fit_arx", "is_arx_directory", "load_arx", "save_arx"]
+__all__ = [
+    "ARX_DIRECTORY",
+    "ARX_FILE",
+    "ARXModel",
+    "BLOCK_H",
+    "DEFAULT_LAGS",
+    "fit_arx",
+    "fit_physics_informed_arx",
+    "is_arx_directory",
+    "load_arx",
+    "save_arx",
+]
 
 #: The file of an ARX model directory (``train --arch arx``): numbers only, no code.
 ARX_FILE = "arx.json"
@@ -55,18 +75,22 @@ _RIDGE = 1e-9
 _SCALE = {"T_r": 1.0, "u_phys": 1e-3, "T_a": 1.0, "G": 1e-2, "I_g": 1e-3}
 
 
-def _schedule_index(time_of_day_h: np.ndarray, day_of_week: np.ndarray) -> np.ndarray:
+def _schedule_index(time_of_day_h: np.ndarray, day_of_week: np.ndarray, day_types: int = 2) -> np.ndarray:
     """(N,) each interval's schedule coefficient: its block of the day, the weekend's after
-    the workdays' (day_of_week 0 = Monday)."""
+    the workdays' (day_of_week 0 = Monday); with 3 ``day_types`` Saturday's, then Sunday's."""
     block = (np.asarray(time_of_day_h, dtype=float) // BLOCK_H).astype(int)
-    return block + _BLOCKS * (np.asarray(day_of_week) >= 5)
+    dow = np.asarray(day_of_week)
+    day = (dow >= 5).astype(int) if day_types == 2 else np.clip(dow - 4, 0, 2).astype(int)
+    return block + _BLOCKS * day
 
 
-def _schedule(times: pd.Series) -> np.ndarray:
-    """(N, 2 * blocks per day) one-hot of each time's schedule coefficient."""
+def _schedule(times: pd.Series, day_types: int = 2) -> np.ndarray:
+    """(N, day_types * blocks per day) one-hot of each time's schedule coefficient."""
     t = pd.to_datetime(times)
-    index = _schedule_index((t.dt.hour + t.dt.minute / 60.0).to_numpy(), t.dt.day_of_week.to_numpy())
-    out = np.zeros((len(t), 2 * _BLOCKS))
+    index = _schedule_index(
+        (t.dt.hour + t.dt.minute / 60.0).to_numpy(), t.dt.day_of_week.to_numpy(), day_types
+    )
+    out = np.zeros((len(t), day_types * _BLOCKS))
     out[np.arange(len(t)), index] = 1.0
     return out
 
@@ -75,9 +99,12 @@ def _schedule(times: pd.Series) -> np.ndarray:
 class ARXModel:
     """A fitted ARX model (module docstring).
 
-    ``columns`` the lagged inputs in order (``T_r`` first, then ``u_phys``, weather, gains);
-    ``lags`` per input; ``coef`` (lags * len(columns) + schedule columns,) in scaled units;
-    ``dt_s`` the interval it steps; ``train_mae_c`` its one-step MAE on the training data.
+    ``columns`` the lagged inputs in order (``T_r`` first, then ``u_phys``, ``T_a``, weather,
+    gains); ``lags`` per input; ``coef`` (lags * len(columns) + schedule columns [+ as many
+    interaction columns],) in scaled units; ``dt_s`` the interval it steps; ``train_mae_c`` its
+    one-step MAE on the training data; ``day_types`` 2 (workdays, weekends) or 3 (workdays,
+    Saturdays, Sundays); ``interaction`` whether each schedule block also weighs
+    ``T_r,k - T_a,k`` (the physics-informed variant, module docstring).
     """
 
     columns: tuple[str, ...]
@@ -85,6 +112,17 @@ class ARXModel:
     coef: np.ndarray
     dt_s: float
     train_mae_c: float
+    day_types: int = 2
+    interaction: bool = False
+
+    @property
+    def n_schedule(self) -> int:
+        """Coefficients of the schedule (and as many of its interaction, if any)."""
+        return self.day_types * _BLOCKS
+
+    def _interaction_coef(self) -> np.ndarray:
+        start = self.lags * len(self.columns) + self.n_schedule
+        return self.coef[start:] if self.interaction else np.zeros(self.n_schedule)
 
     def _regressors(self, values: np.ndarray, k: np.ndarray) -> np.ndarray:
         """(len(k), lags * columns) of the scaled inputs at rows k, k-1, .., k-lags+1."""
@@ -98,7 +136,7 @@ class ARXModel:
         values = np.stack(
             [df[c].to_numpy(dtype=float) * _SCALE[c] for c in self.columns], axis=1
         )
-        return values, _schedule(df["time"])
+        return values, _schedule(df["time"], self.day_types)
 
     def predict_t_r(self, df: pd.DataFrame, horizon: int, starts: np.ndarray) -> np.ndarray:
         """``T_r`` [C] at ``starts + horizon`` (N,): the model's own recursion from the
@@ -112,13 +150,18 @@ class ARXModel:
         values, sched = self._inputs(df)
         n_lag = self.lags * len(self.columns)
         a_tr = self.coef[0:n_lag:len(self.columns)]  # weights of T_r,k-j
+        s_coef = self.coef[n_lag : n_lag + self.n_schedule]
+        q_coef = self._interaction_coef()
         # Own predictions replace measured T_r once the recursion passes the start.
         t_hist = np.stack([values[starts - j, 0] for j in range(self.lags)], axis=1)  # (N, lags)
         for step in range(horizon):
             k = starts + step
             reg = self._regressors(values, k)
             other = reg @ self.coef[:n_lag] - reg[:, 0::len(self.columns)] @ a_tr
-            t_next = other + t_hist @ a_tr + sched[k] @ self.coef[n_lag:]
+            t_next = (
+                other + t_hist @ a_tr + sched[k] @ s_coef
+                + (sched[k] @ q_coef) * (t_hist[:, 0] - values[k, 2])
+            )
             t_hist = np.concatenate([t_next[:, None], t_hist[:, :-1]], axis=1)
         return t_hist[:, 0] / _SCALE["T_r"]
 
@@ -169,15 +212,19 @@ class ARXModel:
                 seq = torch.cat([past_t, ahead]).expand(n, -1)
             for j in range(lags):
                 part += coef[j * n_col + c] * seq[:, lags - 1 - j : lags - 1 - j + h]
-        index = _schedule_index(np.asarray(exog["time_of_day_h"], dtype=float)[:h], dow)
-        part += coef[lags * n_col :][torch.as_tensor(index)]
+        index = torch.as_tensor(
+            _schedule_index(np.asarray(exog["time_of_day_h"], dtype=float)[:h], dow, self.day_types)
+        )
+        part += coef[lags * n_col : lags * n_col + self.n_schedule][index]
+        q = torch.as_tensor(self._interaction_coef(), dtype=torch.float64)[index]  # (h,)
+        t_a = torch.as_tensor(np.asarray(exog["T_a"], dtype=float)[:h] * _SCALE["T_a"])
         a_tr = coef[0 : lags * n_col : n_col]
         t_hist = torch.as_tensor(
             np.asarray(history["T_r"], dtype=float)[::-1][:lags].copy(), dtype=torch.float64
         ).expand(n, -1)
         out = []
         for step in range(h):
-            t_next = part[:, step] + t_hist @ a_tr
+            t_next = part[:, step] + t_hist @ a_tr + q[step] * (t_hist[:, 0] - t_a[step])
             out.append(t_next)
             t_hist = torch.cat([t_next[:, None], t_hist[:, :-1]], dim=1)
         t_r = torch.stack(out, dim=1) / _SCALE["T_r"]
@@ -192,31 +239,62 @@ class ARXModel:
             "coef": [float(c) for c in self.coef],
             "dt_s": self.dt_s,
             "block_h": BLOCK_H,
+            "day_types": self.day_types,
+            "interaction": self.interaction,
             "train_mae_c": self.train_mae_c,
         }
 
 
-def fit_arx(df: pd.DataFrame, *, lags: int = DEFAULT_LAGS) -> ARXModel:
+def fit_arx(
+    df: pd.DataFrame, *, lags: int = DEFAULT_LAGS, day_types: int = 2, interaction: bool = False
+) -> ARXModel:
     """Least-squares ARX fit of ``df`` (data format: ``time``, ``T_r``, ``u_phys``, ``T_a``,
-    optional ``G`` and ``I_g``; consecutive rows at ``df.attrs["dt_s"]``)."""
+    optional ``G`` and ``I_g``; consecutive rows at ``df.attrs["dt_s"]``); ``day_types`` and
+    ``interaction`` as :class:`ARXModel` has them."""
     if lags < 1:
         raise InputError(f"ARX model: lags must be >= 1, got {lags}")
+    if day_types not in (2, 3):
+        raise InputError(f"ARX model: day_types must be 2 or 3, got {day_types}")
     columns = ("T_r", "u_phys", "T_a", *(c for c in ("G", "I_g") if c in df))
-    if len(df) < lags + 2 * (lags * len(columns) + 24):
+    model = ARXModel(
+        columns=columns, lags=lags, coef=np.zeros(0), dt_s=float(df.attrs.get("dt_s", 1800.0)),
+        train_mae_c=0.0, day_types=day_types, interaction=interaction,
+    )
+    n_coef = lags * len(columns) + model.n_schedule * (2 if interaction else 1)
+    if len(df) < lags + 2 * n_coef:
         raise InputError(
             f"ARX model: {len(df)} rows are too few to fit {lags} lags of {len(columns)} inputs; "
             "give more days of data"
         )
-    dt_s = float(df.attrs.get("dt_s", 1800.0))
-    model = ARXModel(columns=columns, lags=lags, coef=np.zeros(0), dt_s=dt_s, train_mae_c=0.0)
     values, sched = model._inputs(df)
     k = np.arange(lags - 1, len(df) - 1)
-    x = np.concatenate([model._regressors(values, k), sched[k]], axis=1)
+    parts = [model._regressors(values, k), sched[k]]
+    if interaction:
+        parts.append(sched[k] * (values[k, 0] - values[k, 2])[:, None])
+    x = np.concatenate(parts, axis=1)
     y = values[k + 1, 0]
     gram = x.T @ x
     coef = np.linalg.solve(gram + _RIDGE * np.diag(np.diag(gram) + 1e-12), x.T @ y)
     mae = float(np.mean(np.abs(x @ coef - y))) / _SCALE["T_r"]
-    return ARXModel(columns=columns, lags=lags, coef=coef, dt_s=dt_s, train_mae_c=mae)
+    return dataclasses.replace(model, coef=coef, train_mae_c=mae)
+
+
+def fit_physics_informed_arx(
+    df: pd.DataFrame, *, lags: int = DEFAULT_LAGS, eta: float = 1.0
+) -> ARXModel:
+    """The physics-informed ARX (module docstring): workday, Saturday and Sunday schedules,
+    each block also weighing the indoor-outdoor difference; InputError when the fit's power
+    acts against the sign of ``eta`` (> 0 a heater: more power must warm the room; < 0 a
+    cooling machine: it must cool), as then the data do not identify the actuator."""
+    model = fit_arx(df, lags=lags, day_types=3, interaction=True)
+    n_col = len(model.columns)
+    if float(np.sum(model.coef[1 : lags * n_col : n_col])) * float(np.sign(eta)) <= 0:
+        raise InputError(
+            f"physics-informed ARX: the fit says more power {'cools' if eta > 0 else 'warms'} "
+            "the room; the data do not identify the actuator (give data with the power varied, "
+            "e.g. simulate --policy random-level or closed-loop)"
+        )
+    return model
 
 
 def is_arx_directory(path: str | os.PathLike[str]) -> bool:
@@ -245,11 +323,15 @@ def load_arx(path: str | os.PathLike[str]) -> ARXModel:
         coef = np.asarray(data["coef"], dtype=float)
         dt_s = float(data["dt_s"])
         block_h = float(data.get("block_h", BLOCK_H))
+        day_types = int(data.get("day_types", 2))
+        interaction = data.get("interaction", False)
     except (OSError, ValueError, KeyError, TypeError) as exc:
         raise InputError(f"{file}: not a readable ARX model ({exc}); write it with `pinn-mpc train --arch arx`") from None
-    expected = lags * len(columns) + 2 * _BLOCKS
+    expected = lags * len(columns) + day_types * _BLOCKS * (2 if interaction is True else 1)
     if (
-        data.get("kind") != ARX.name
+        day_types not in (2, 3)
+        or not isinstance(interaction, bool)
+        or data.get("kind") != ARX.name
         or columns[:3] != ("T_r", "u_phys", "T_a")
         or not set(columns) <= set(_SCALE)
         or not 1 <= lags <= 1000
@@ -265,4 +347,5 @@ def load_arx(path: str | os.PathLike[str]) -> ARXModel:
     return ARXModel(
         columns=columns, lags=lags, coef=coef, dt_s=dt_s,
         train_mae_c=float(data.get("train_mae_c", float("nan"))),
+        day_types=day_types, interaction=bool(interaction),
     )

@@ -14,6 +14,7 @@ from pinn_mpc.models.registry import (
     COMPARED_ARCHS,
     DEFAULT_ARCH,
     MODEL_CHOICES,
+    PHYSICS_ARX,
 )
 
 __all__ = [
@@ -23,6 +24,7 @@ __all__ = [
     "COMPARED_ARCHS",
     "DEFAULT_ARCH",
     "MODEL_CHOICES",
+    "PHYSICS_ARX",
     "RECIPES",
     "RESIDUALS",
 ]

@@ -14,7 +14,7 @@ import time
 
 import numpy as np
 
-from pinn_mpc.choices import ARX
+from pinn_mpc.choices import ARX, PHYSICS_ARX
 from pinn_mpc.data import read_timeseries
 from pinn_mpc.errors import InputError, warn
 from pinn_mpc.io import (
@@ -44,7 +44,7 @@ def train(a: argparse.Namespace) -> str:
     from pinn_mpc.artifacts import MODEL_DIRECTORY, save_model
     from pinn_mpc.training import TrainConfig, train_model
 
-    if a.arch == ARX.name:
+    if a.arch in (ARX.name, PHYSICS_ARX.name):
         return _train_arx(a)
     check_output_directory(a.out, MODEL_DIRECTORY, force=a.force)
     files = MODEL_DIRECTORY.paths(a.out)
@@ -67,13 +67,14 @@ def train(a: argparse.Namespace) -> str:
 
 
 def _train_arx(a: argparse.Namespace) -> str:
-    """``train --arch arx``: the least-squares ARX baseline (:mod:`pinn_mpc.arx`) into ``--out``."""
-    from pinn_mpc.arx import ARX_DIRECTORY, fit_arx, save_arx
+    """``train --arch arx`` (the least-squares ARX baseline, :mod:`pinn_mpc.arx`) or its
+    physics-informed variant into ``--out``."""
+    from pinn_mpc.arx import ARX_DIRECTORY, fit_arx, fit_physics_informed_arx, save_arx
 
     given = [f"--{n}" for n in ("depth", "epochs", "lam", "recipe") if getattr(a, n, None) is not None]
     if given:
         raise InputError(
-            f"train --arch {ARX.name}: {', '.join(given).replace('--lam', '--lambda')} do(es) not apply to "
+            f"train --arch {a.arch}: {', '.join(given).replace('--lam', '--lambda')} do(es) not apply to "
             "the least-squares ARX model; leave them out"
         )
     check_output_directory(a.out, ARX_DIRECTORY, force=a.force)
@@ -81,12 +82,12 @@ def _train_arx(a: argparse.Namespace) -> str:
     check_distinct(inputs={"--data": a.data}, outputs={"--out": files})
     df = read_timeseries(a.data, columns=a.columns)
     if "building" in df.columns:
-        raise InputError(f"{a.data}: a fleet's data (a building column); train --arch arx takes one building's")
+        raise InputError(f"{a.data}: a fleet's data (a building column); train --arch {a.arch} takes one building's")
     start = time.perf_counter()
-    model = fit_arx(df)
+    model = fit_arx(df) if a.arch == ARX.name else fit_physics_informed_arx(df, eta=_eta(a.eta))
     written = save_arx(model, a.out)
     return (
-        f"fitted {ARX.name} ({model.lags} lags of {', '.join(model.columns)}, a weekly schedule) on "
+        f"fitted {a.arch} ({model.lags} lags of {', '.join(model.columns)}, a weekly schedule) on "
         f"{len(df)} rows in {time.perf_counter() - start:.2f} s (one-step MAE "
         f"{model.train_mae_c:.3f} C); wrote {written}"
     )

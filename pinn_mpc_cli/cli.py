@@ -182,9 +182,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--policy",
         choices=POLICIES,
-        default="random-level",
+        default=None,
         help="heating demand: a uniform random power level per interval (best for models that "
-        "will drive a controller), the paper's random on/off, or a thermostat",
+        "will drive a controller), the paper's random on/off, a thermostat, or random "
+        "setpoints tracked by a proportional controller with a dither (closed-loop) (default: "
+        "the scenario's data_policy: random-level, closed-loop on EnergyPlus)",
     )
     p.add_argument("--buildings", type=_positive_int, default=1, help="buildings simulated")
     p.add_argument(
@@ -365,8 +367,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--policy",
         choices=RANDOM_POLICIES,
-        default="random-level",
-        help="training-data policy: uniform random power levels or the paper's on/off",
+        default=None,
+        help="training-data policy: uniform random power levels, the paper's on/off or random "
+        "setpoints tracked (default: the scenario's data_policy: random-level, closed-loop on "
+        "EnergyPlus)",
     )
 
     p = add("reproduce", "scenarios.commands:reproduce", "reproduce the paper's three experiments on simulated data")

@@ -22,9 +22,10 @@ __all__ = [
 ]
 
 #: Demand policies of generated data (:mod:`scenarios.datagen`).
-POLICIES = ("random", "random-level", "thermostat")
-#: The random policies (training data for learned models and identification).
-RANDOM_POLICIES = ("random", "random-level")
+POLICIES = ("random", "random-level", "thermostat", "closed-loop")
+#: The policies of training data for learned models and identification: random (on/off or
+#: levels) and closed-loop (random setpoints tracked, the EnergyPlus scenarios' default).
+RANDOM_POLICIES = ("random", "random-level", "closed-loop")
 
 #: Parts of a scenario's weather (:mod:`scenarios.inputs`).
 WeatherPart = Literal["train", "test", "whole"]

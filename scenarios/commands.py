@@ -88,11 +88,12 @@ def simulate(a: argparse.Namespace) -> str:
 
         rng = np.random.default_rng([a.seed, FLEET_STREAM])
         fleet = draw_fleet(chosen.sim.params, a.buildings, spread=a.spread, rng=rng)
+    policy = a.policy or chosen.data_policy
     frame = generate(
         chosen,
         days=a.days,
         seed=a.seed,
-        policy=a.policy,
+        policy=policy,
         n_buildings=a.buildings,
         weather_part=a.weather_part,
         fleet=fleet,
@@ -105,7 +106,7 @@ def simulate(a: argparse.Namespace) -> str:
     first, last = day_span(frame["time"])
     return (
         f"wrote {a.out}: scenario {_scenario_label(a.scenario, chosen)}, {a.days} day(s) {first}..{last} "
-        f"({a.weather_part} weather), {a.buildings} building(s), {a.policy} policy, "
+        f"({a.weather_part} weather), {a.buildings} building(s), {policy} policy, "
         f"{per_building} rows per building at {chosen.sim.dt_s:g} s, T_r "
         f"{frame['T_r'].min():.1f}..{frame['T_r'].max():.1f} C, backup acted in "
         f"{100 * overridden:.0f} % of intervals"
@@ -454,7 +455,8 @@ def compare(a: argparse.Namespace) -> str:
     check_distinct(inputs=_scenario_inputs(a.scenario), outputs=outputs)
     scenario = get_scenario(a.scenario)
     settings = CompareSettings.for_run(
-        train_days=a.train_days, days=a.days, seed=a.seed, quick=a.quick, policy=a.policy
+        train_days=a.train_days, days=a.days, seed=a.seed, quick=a.quick,
+        policy=a.policy or scenario.data_policy,
     )
     start = time.perf_counter()
     result = run_comparison(scenario, settings)

@@ -13,7 +13,7 @@
    included), same perfect forecasts, same one-day thermostat warm-up, for: thermostat,
    random shooting and CEM over the hybrid (and CEM without its LP polish, to show what the
    polish adds), CEM over physnet, physreg and mlp (physreg and mlp unless
-   ``cem_all_models=False``), CEM over the linear ARX baseline (:mod:`pinn_mpc.arx`), casadi-mpc and qp-mpc on the identified RC, qp-mpc on the
+   ``cem_all_models=False``), CEM over the linear ARX baseline (:mod:`pinn_mpc.arx`) and its physics-informed variant, casadi-mpc and qp-mpc on the identified RC, qp-mpc on the
    hybrid- and physnet-exported RCs, oracle and clairvoyant (where the plant has a true RC
    and state; on EnergyPlus there is no oracle and every controller is measured against the
    thermostat, :attr:`scenarios.registry.Scenario.reference`).
@@ -47,7 +47,7 @@ import pandas as pd
 from tqdm import tqdm
 
 from controllers.planners import CEMPlanner, RandomShootingPlanner
-from pinn_mpc.choices import ARX, COMPARED_ARCHS, DEFAULT_ARCH
+from pinn_mpc.choices import ARX, COMPARED_ARCHS, DEFAULT_ARCH, PHYSICS_ARX
 from pinn_mpc.errors import InputError, warn
 from pinn_mpc.physics import RCParams, params_from_summary, rc_summary
 from pinn_mpc.records import RcSummary
@@ -164,7 +164,7 @@ class ComparisonResult:
 
 def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonResult:
     """Steps 1-3 of the module docstring; progress bars when attached to a terminal."""
-    from pinn_mpc.arx import fit_arx
+    from pinn_mpc.arx import fit_arx, fit_physics_informed_arx
     from pinn_mpc.export import export_rc
     from pinn_mpc.training import TrainConfig, train_model
     from scenarios.datagen import generate
@@ -236,10 +236,11 @@ def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonR
         weather_part="test",
     )
     arx = fit_arx(data)
+    parx = fit_physics_informed_arx(data, eta=scenario.sim.params.eta)
     prediction = prediction_errors(
         held_out,
         learned=models,
-        linear={ARX.label: arx},
+        linear={ARX.label: arx, PHYSICS_ARX.label: parx},
         rc={**rc_params, **({"true RC": scenario.sim.params} if has_truth else {})},
         actuator=actuator,
     )
@@ -262,6 +263,7 @@ def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonR
             for arch, model in models.items()
         ),
         ("cem", ARX.label, {"model": arx, "planner_options": cem}),
+        ("cem", PHYSICS_ARX.label, {"model": parx, "planner_options": cem}),
         ("casadi-mpc", "identified RC", {"rc_params": rc_params["identified RC"]}),
         ("qp-mpc", "identified RC", {"rc_params": rc_params["identified RC"]}),
         *(("qp-mpc", f"{arch} RC", {"rc_params": rc_params[f"{arch} RC"]}) for arch in ARCHS[:2]),

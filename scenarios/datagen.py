@@ -10,6 +10,14 @@ Policies:
   covers (a multi-level excitation signal, as system identification recommends).
 - ``thermostat``: :class:`controllers.thermostat.Thermostat` on the scenario's comfort band
   (its rule :meth:`~controllers.thermostat.Thermostat.switch`, batched over buildings).
+- ``closed-loop``: random setpoint steps tracked by a proportional controller with a random
+  dither (:class:`SetpointPolicy`): a setpoint drawn uniformly from the scenario's comfort
+  band widened by 1 K, held 1-8 h, and a power of ``u_max`` x (0.5 / K x (setpoint - T_r) +
+  a uniform dither of +-0.25), clipped to [0, u_max]. The room stays near where a controller
+  keeps it, inside the backup thermostat's band, while the power still takes every level;
+  on a plant whose backup would otherwise act inside intervals (EnergyPlus, whose random
+  levels overheat the room to the backup's 28 C) it is the scenario's default
+  (:attr:`scenarios.registry.Scenario.data_policy`).
 
 Rows are control intervals: ``T_r``/``T_m`` at the start of the interval (true values, plus
 the scenario's measurement noise on ``T_r`` if any), ``u`` demanded and ``u_phys`` the mean
@@ -30,6 +38,7 @@ test data for open-loop evaluation comes from the test part, the days closed loo
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
@@ -42,10 +51,55 @@ from pinn_mpc.simulator import Simulator
 from scenarios.choices import POLICIES
 from scenarios.registry import Scenario, check_seed
 
-__all__ = ["generate"]
+__all__ = ["SetpointPolicy", "generate"]
 
 # Random streams apart from the exogenous ones (see scenarios.registry).
 _POLICY_STREAM, _SENSOR_STREAM = 11, 12
+
+
+@dataclass(frozen=True, kw_only=True)
+class SetpointPolicy:
+    """The ``closed-loop`` data policy (module docstring): random setpoint steps tracked by a
+    proportional controller with a dither. ``draws`` (N, 3) uniform [0, 1) numbers per interval
+    (setpoint, hold, dither); the setpoint range ``[low_c, high_c]``, held ``hold_steps``
+    intervals (lowest, highest), ``gain_per_k`` of ``u_max_w`` per kelvin below the setpoint,
+    ``dither`` the half-width of the uniform dither as a fraction of ``u_max_w``."""
+
+    u_max_w: float
+    low_c: float
+    high_c: float
+    hold_steps: tuple[int, int]
+    gain_per_k: float = 0.5
+    dither: float = 0.25
+
+    @classmethod
+    def for_data(cls, u_max_w: float, t_min: np.ndarray, t_max: np.ndarray, dt_s: float) -> SetpointPolicy:
+        """The policy for a comfort band ``t_min``..``t_max`` (C) widened by 1 K, setpoints held
+        1-8 h at ``dt_s``."""
+        steps_h = 3600.0 / dt_s
+        return cls(
+            u_max_w=u_max_w,
+            low_c=float(np.min(t_min)) - 1.0,
+            high_c=float(np.max(t_max)) + 1.0,
+            hold_steps=(max(1, round(steps_h)), max(1, round(8 * steps_h))),
+        )
+
+    def setpoints(self, draws: np.ndarray) -> np.ndarray:
+        """(N,) the setpoint of each interval from ``draws`` (N, 3)."""
+        n = len(draws)
+        out = np.empty(n)
+        lo, hi = self.hold_steps
+        k = 0
+        while k < n:
+            hold = lo + int(draws[k, 1] * (hi - lo + 1))
+            out[k : k + hold] = self.low_c + draws[k, 0] * (self.high_c - self.low_c)
+            k += hold
+        return out
+
+    def demand(self, t_r: np.ndarray, setpoint: float, draw: np.ndarray) -> np.ndarray:
+        """The power [W] for room temperatures ``t_r`` at ``setpoint``, dither from ``draw`` (3,)."""
+        level = self.gain_per_k * (setpoint - t_r) + self.dither * (2.0 * draw[2] - 1.0)
+        return np.clip(level, 0.0, 1.0) * self.u_max_w
 
 
 def generate(
@@ -53,7 +107,7 @@ def generate(
     *,
     days: int,
     seed: int,
-    policy: Literal["random", "random-level", "thermostat"] | str = "random",
+    policy: Literal["random", "random-level", "thermostat", "closed-loop"] | str = "random",
     n_buildings: int = 1,
     on_probability: float = 0.5,
     weather_part: str = "train",
@@ -73,7 +127,7 @@ def generate(
     policy
         ``"random-level"`` (a uniform random power per interval, best for models that will
         drive a controller), ``"random"`` (the paper's on/off with ``on_probability``) or
-        ``"thermostat"``.
+        ``"thermostat"`` or ``"closed-loop"`` (random setpoints tracked, :class:`SetpointPolicy`).
     n_buildings
         Buildings simulated at once (a ``building`` column is added when more than one).
     on_probability
@@ -116,7 +170,13 @@ def generate(
     t_m = np.empty((n_buildings, n))
     u = np.empty((n_buildings, n))
     u_phys = np.empty((n_buildings, n))
-    draws = np.random.default_rng([seed, _POLICY_STREAM]).random((n, n_buildings))
+    rng = np.random.default_rng([seed, _POLICY_STREAM])
+    if policy == "closed-loop":
+        tracking = SetpointPolicy.for_data(spec.u_max_w, cols["T_min"], cols["T_max"], scenario.sim.dt_s)
+        draws = rng.random((n, 3))
+        setpoints = tracking.setpoints(draws)
+    else:
+        draws = rng.random((n, n_buildings))
     thermostat = Thermostat(spec)
     on = np.zeros(n_buildings, dtype=bool)
     for k in range(n):
@@ -126,6 +186,8 @@ def generate(
             u[:, k] = np.where(draws[k] < on_probability, spec.u_max_w, 0.0)
         elif policy == "random-level":
             u[:, k] = draws[k] * spec.u_max_w
+        elif policy == "closed-loop":
+            u[:, k] = tracking.demand(t_r[:, k], setpoints[k], draws[k])
         else:  # the thermostat's rule, batched over the buildings (it sees only T_r and the band)
             on = thermostat.switch(t_r[:, k], on, cols["T_min"][k], cols["T_max"][k])
             u[:, k] = np.where(on, spec.u_max_w, 0.0)
@@ -175,7 +237,13 @@ def _generate_energyplus(
     spec = scenario.control_spec()
     n = len(exo)
     sensor_seed = int(np.random.default_rng([seed, _SENSOR_STREAM]).integers(2**63))
-    draws = np.random.default_rng([seed, _POLICY_STREAM]).random(n)
+    rng = np.random.default_rng([seed, _POLICY_STREAM])
+    tracking = SetpointPolicy.for_data(spec.u_max_w, cols["T_min"], cols["T_max"], scenario.sim.dt_s)
+    if policy == "closed-loop":
+        loop_draws = rng.random((n, 3))
+        setpoints = tracking.setpoints(loop_draws)
+    else:
+        draws = rng.random(n)
     thermostat = Thermostat(spec)
     on = np.zeros(1, dtype=bool)
     t_r, u, u_phys, t_a, g = (np.empty(n) for _ in range(5))
@@ -189,6 +257,8 @@ def _generate_energyplus(
                 u[k] = spec.u_max_w if draws[k] < on_probability else 0.0
             elif policy == "random-level":
                 u[k] = draws[k] * spec.u_max_w
+            elif policy == "closed-loop":
+                u[k] = float(tracking.demand(measured, setpoints[k], loop_draws[k])[0])
             else:
                 on = thermostat.switch(measured, on, cols["T_min"][k], cols["T_max"][k])
                 u[k] = spec.u_max_w if on[0] else 0.0

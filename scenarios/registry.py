@@ -43,6 +43,7 @@ from scenarios.measured import CSVWeather, PriceCSV
 
 __all__ = [
     "COLD_ROOM",
+    "ENERGYPLUS_DATA_POLICY",
     "EPLUS_NOMINAL",
     "eplus_weather",
     "EXOGENOUS_COLUMNS",
@@ -56,6 +57,9 @@ __all__ = [
 #: Plausible starting temperatures of a building's room and mass [C] (a cold store at -40 C
 #: to a sauna); beyond them a value is a typo or another unit.
 INITIAL_TEMPERATURE_RANGE_C = (-50.0, 80.0)
+#: The training-data policy of EnergyPlus scenarios (:attr:`Scenario.data_policy`): random
+#: setpoints tracked, which keep the room inside the 14/28 C backup thermostat's band.
+ENERGYPLUS_DATA_POLICY: Literal["closed-loop"] = "closed-loop"
 #: Columns of :meth:`Scenario.exogenous`, in order.
 EXOGENOUS_COLUMNS = ("time", "T_a", "G", "I_g", "price", "T_min", "T_max")
 # Independent random streams per input, so changing one input's settings leaves the others.
@@ -83,6 +87,11 @@ class Scenario:
     comfort: ComfortSchedule
     gains: GainsSchedule = field(default_factory=GainsSchedule)
     forecast: ForecastErrors = field(default_factory=ForecastErrors)
+    #: The policy of the scenario's training data when none is asked for (``simulate``,
+    #: ``compare``; :mod:`scenarios.datagen`): uniform random levels on the RC plants,
+    #: ``closed-loop`` (random setpoints tracked) on EnergyPlus, where random levels overheat
+    #: the room into the backup thermostat, which then cuts the heat inside intervals.
+    data_policy: Literal["random", "random-level", "closed-loop"] = "random-level"
 
     def __post_init__(self) -> None:
         steps_per_day(self.sim.dt_s)
@@ -418,6 +427,7 @@ def _energyplus_scenario(
             comfort_weight_eur_per_kh=5.0,
             initial_t_r_c=initial_t_r_c,
             initial_t_m_c=initial_t_r_c,
+            data_policy=ENERGYPLUS_DATA_POLICY,
             weather=eplus_weather(weather),
             price=PriceProfile(kind="dynamic", level_eur_per_kwh=0.22, peak_eur_per_kwh=0.15),
             comfort=comfort,

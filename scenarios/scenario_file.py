@@ -4,7 +4,8 @@ A file holds one :class:`scenarios.registry.Scenario`, serialised generically fr
 dataclasses; ``pinn-mpc scenario export NAME --out FILE.toml`` writes a complete, commented one.
 Layout (:data:`SECTIONS` maps a dataclass field to its place in the file)::
 
-    name, description, comfort_weight_eur_per_kh, horizon_steps, initial_t_r_c, initial_t_m_c
+    name, description, comfort_weight_eur_per_kh, horizon_steps, initial_t_r_c, initial_t_m_c,
+    data_policy
     [building]    Scenario.sim.params (RCParams), or rc = "rc.json" (identify / export-rc JSON)
     [simulation]  the other SimConfig fields (actuator limit, control interval, backup, ...)
     [sensor]      noise_std_c: SimConfig.noise_std_c, the room-temperature sensor noise
@@ -307,15 +308,16 @@ def _build(cls: type, table: dict[str, Any], where: str, base: Path) -> Any:
 def _energyplus_defaults(data: dict[str, Any]) -> None:
     """A file whose ``[simulation.plant]`` has ``kind = "energyplus"`` may leave out what the
     EnergyPlus building gives: ``[building]`` (nominal values, :data:`EPLUS_NOMINAL`),
-    ``[weather]`` (the plant's EPW, January / February) and ``simulation.u_max_w`` (the plant's
-    ``heater_w``)."""
+    ``[weather]`` (the plant's EPW, January / February), ``simulation.u_max_w`` (the plant's
+    ``heater_w``) and ``data_policy`` (``closed-loop``, as the built-in EnergyPlus scenarios)."""
     simulation = data.get("simulation")
     plant = simulation.get("plant") if isinstance(simulation, dict) else None
     if not (isinstance(plant, dict) and plant.get("kind") == "energyplus"):
         return
-    from scenarios.registry import EPLUS_NOMINAL, eplus_weather
+    from scenarios.registry import ENERGYPLUS_DATA_POLICY, EPLUS_NOMINAL, eplus_weather
 
     data.setdefault("building", EPLUS_NOMINAL.to_dict())
+    data.setdefault("data_policy", ENERGYPLUS_DATA_POLICY)
     weather = plant.get("weather")
     if "weather" not in data and isinstance(weather, str):
         data["weather"] = {"type": "TMY3Weather", **_plain(eplus_weather(weather), Any)}

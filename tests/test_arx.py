@@ -132,3 +132,82 @@ def test_train_arch_arx_writes_numbers_that_evaluate_and_closed_loop_load(tmp_pa
     assert main(["evaluate", "--model", str(model), "--data", str(test), "--json", str(metrics)]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "not a valid ARX model" in err
+
+
+def _occupied_data(days: int, seed: int, *, heater_gain: float = 0.002) -> pd.DataFrame:
+    """A first-order room whose heat loss and gains follow a workday / Saturday / Sunday
+    schedule (occupancy-driven ventilation): exactly a physics-informed ARX of one lag."""
+    rng = np.random.default_rng(seed)
+    n = days * 48
+    time = pd.date_range("2022-01-03", periods=n, freq="30min")  # a Monday
+    hour = time.hour.to_numpy()
+    dow = time.day_of_week.to_numpy()
+    occupied = (hour >= 8) & (hour < 18) & ((dow < 5) | ((dow == 5) & (hour < 12)))
+    loss = np.where(occupied, 0.12, 0.05)  # share of T_r - T_a lost per interval
+    gains = np.where(occupied, 0.6, 0.1) + np.where(dow == 5, 0.2, 0.0)  # K per interval
+    u = rng.uniform(0, 1000, n)
+    t_a = 2 + 4 * np.sin(np.arange(n) / 48 * 2 * np.pi) + rng.normal(0, 1, n)
+    t_r = np.empty(n)
+    t_r[0] = 20.0
+    for k in range(n - 1):
+        t_r[k + 1] = t_r[k] - loss[k] * (t_r[k] - t_a[k]) + heater_gain * u[k] + gains[k]
+    df = pd.DataFrame({"time": time, "T_r": t_r, "u": u, "u_phys": u, "T_a": t_a})
+    df.attrs["dt_s"] = 1800.0
+    return df
+
+
+def test_physics_informed_arx_recovers_an_occupancy_scaled_heat_loss_exactly():
+    """On a room whose loss coefficient follows the occupancy (and a Saturday schedule of its
+    own) the physics-informed ARX recovers the plant: its power coefficient and the loss of
+    every block, and predicts 48 steps ahead exactly; the plain ARX cannot."""
+    from pinn_mpc.arx import BLOCK_H, fit_physics_informed_arx
+
+    train, test = _occupied_data(28, seed=0), _occupied_data(14, seed=1)
+    model = fit_physics_informed_arx(train, lags=1)
+    assert model.day_types == 3 and model.interaction
+    n_lag = len(model.columns)  # one lag of T_r, u_phys, T_a
+    assert model.coef[1] * 1e-3 == pytest.approx(0.002, rel=1e-6)  # scaled: K per kW
+    q = model.coef[n_lag + model.n_schedule :]
+    blocks = int(24 / BLOCK_H)
+    # workday 08-18 h is blocks 4-8, the T_r coefficient itself absorbs the unoccupied loss
+    assert q[4] - q[0] == pytest.approx(-0.07, abs=1e-6)
+    assert q[blocks + 4] - q[blocks + 0] == pytest.approx(-0.07, abs=1e-6)  # Saturday morning
+    assert q[2 * blocks + 4] - q[2 * blocks + 0] == pytest.approx(0.0, abs=1e-6)  # Sunday
+    starts = np.arange(0, len(test) - 48)
+    truth = test["T_r"].to_numpy()
+    for horizon in (1, 24, 48):
+        err = model.predict_t_r(test, horizon, starts) - truth[starts + horizon]
+        assert np.max(np.abs(err)) < 1e-4  # the ridge of 1e-9 only
+    plain = fit_arx(train, lags=1)
+    assert np.mean(np.abs(plain.predict_t_r(test, 24, starts) - truth[starts + 24])) > 0.1
+
+
+def test_physics_informed_arx_round_trips_plans_as_it_predicts_and_refuses_cooling_heat(tmp_path):
+    import torch
+
+    from pinn_mpc.arx import fit_physics_informed_arx, load_arx, save_arx
+    from pinn_mpc.features import time_of_day_h
+
+    model = fit_physics_informed_arx(_occupied_data(21, seed=0), lags=2)
+    save_arx(model, tmp_path)
+    loaded = load_arx(tmp_path)
+    assert loaded.day_types == 3 and loaded.interaction and np.array_equal(loaded.coef, model.coef)
+    test = _occupied_data(4, seed=1)
+    k, h = 100, 24  # a Thursday afternoon: the horizon crosses the evening's schedule change
+    time = pd.to_datetime(test["time"])
+    history = {"T_r": test["T_r"].to_numpy()[: k + 1], "u_phys": test["u_phys"].to_numpy()[:k],
+               "T_a": test["T_a"].to_numpy()[: k + 1]}
+    exog = {"time_of_day_h": time_of_day_h(test["time"])[k : k + h],
+            "day_of_week": time.dt.day_of_week.to_numpy(dtype=float)[k : k + h],
+            "T_a": test["T_a"].to_numpy()[k : k + h]}
+    plan = torch.tensor(test["u_phys"].to_numpy()[k : k + h])[None]
+    roll = loaded.rollout(history, plan, exog)
+    for step in (1, 6, h):
+        expected = loaded.predict_t_r(test, step, np.array([k]))[0]
+        assert float(roll.t_r_c[0, 0, step - 1]) == pytest.approx(expected, abs=1e-9)
+    with pytest.raises(InputError, match="more power cools"):
+        fit_physics_informed_arx(_occupied_data(21, seed=0, heater_gain=-0.002), lags=1)
+    cooling = fit_physics_informed_arx(_occupied_data(21, seed=0, heater_gain=-0.002), lags=1, eta=-3.0)
+    assert cooling.eta == -1.0
+    with pytest.raises(InputError, match="more power warms"):
+        fit_physics_informed_arx(_occupied_data(21, seed=0), lags=1, eta=-3.0)

@@ -244,8 +244,8 @@ def test_every_option_has_help_and_shows_its_default(capsys: pytest.CaptureFixtu
             assert ", ".join(scenario_names()) in text
         if command == "closed-loop":
             assert ", ".join(CONTROLLER_NAMES) in text
-        if command == "simulate":
-            assert "(default: random-level)" in text
+        if command == "simulate":  # the scenario's data policy
+            assert "(default: the scenario's data_policy: random-level, closed-loop on EnergyPlus)" in text
 
 
 def test_simulate_defaults_to_random_levels(tmp_path: Path) -> None:

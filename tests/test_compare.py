@@ -108,7 +108,7 @@ def test_compare_quick_end_to_end(tmp_path, capsys):
     labels = [row["controller"] for row in table["rows"]]
     assert labels == [
         "thermostat", "random-shooting / hybrid", "cem / hybrid, no LP polish", "cem / hybrid",
-        "cem / physnet", "cem / physreg", "cem / mlp", "cem / ARX",
+        "cem / physnet", "cem / physreg", "cem / mlp", "cem / ARX", "cem / Physics-informed ARX",
         "casadi-mpc / identified RC",
         "qp-mpc / identified RC", "qp-mpc / hybrid RC", "qp-mpc / physnet RC", "oracle",
         "clairvoyant",
@@ -124,7 +124,8 @@ def test_compare_quick_end_to_end(tmp_path, capsys):
     # on paper_household the plant is the 2R2C, so the true RC predicts best among the RCs.
     prediction = {row["model"]: row for row in table["prediction"]}
     assert set(prediction) == {
-        "hybrid", "physnet", "physreg", "mlp", "ARX", "identified RC", "hybrid RC", "physnet RC",
+        "hybrid", "physnet", "physreg", "mlp", "ARX", "Physics-informed ARX", "identified RC", "hybrid RC",
+        "physnet RC",
         "true RC",
     }
     assert len({row["n_starts"] for row in table["prediction"]}) == 1

@@ -105,3 +105,46 @@ def test_batched_thermostat_policy_makes_the_controllers_decisions():
         obs = Observation(k=row.Index, t_r_c=row.T_r, history={}, t_m_true_c=row.T_m)
         assert controller.act(obs, forecast) == row.u
     assert 0 < np.mean(frame["u"] > 0) < 1
+
+
+def test_closed_loop_policy_tracks_random_setpoints_inside_the_backup_band():
+    """Random setpoints from the comfort band widened by 1 K, tracked by a proportional
+    controller with a dither: the room stays where a controller keeps it (the backup acts in
+    1 % of the intervals, 44 % under random levels), the power still takes levels across its
+    range, and the frame is seeded."""
+    from scenarios.datagen import SetpointPolicy
+
+    scenario = get_scenario("winter_household")
+    frame = generate(scenario, days=14, seed=4, policy="closed-loop")
+    validate_timeseries(frame)
+    backup = np.mean(~np.isclose(frame["u"], frame["u_phys"]))
+    levels = generate(scenario, days=14, seed=4, policy="random-level")
+    assert backup < 0.03 and backup < 0.1 * np.mean(~np.isclose(levels["u"], levels["u_phys"]))
+    low, high = frame["T_min"].min() - 1.0, frame["T_max"].max() + 1.0
+    assert frame["T_r"].between(low - 1.0, high + 1.0).all()
+    u = frame["u"].to_numpy() / scenario.sim.u_max_w
+    inside = u[(u > 0) & (u < 1)]
+    assert len(inside) > 0.3 * len(u)
+    assert np.histogram(inside, bins=5, range=(0, 1))[0].min() > 0.03 * len(inside)
+    pd.testing.assert_frame_equal(frame, generate(scenario, days=14, seed=4, policy="closed-loop"))
+    policy = SetpointPolicy.for_data(1000.0, np.array([20.0]), np.array([22.0]), 1800.0)
+    setpoints = policy.setpoints(np.random.default_rng(0).random((500, 3)))
+    assert setpoints.min() >= 19.0 and setpoints.max() <= 23.0
+    holds = np.diff(np.flatnonzero(np.diff(setpoints) != 0))
+    assert holds.min() >= 2 and holds.max() <= 16  # 1-8 h at 30 min
+    assert policy.demand(np.array([15.0, 25.0]), 21.0, np.array([0.0, 0.0, 0.5])).tolist() == [1000.0, 0.0]
+
+
+def test_scenarios_say_which_policy_their_training_data_takes(tmp_path):
+    """EnergyPlus scenarios train on closed-loop data by default, the RC ones on random
+    levels; simulate without --policy takes the scenario's."""
+    from pinn_mpc.data import read_timeseries
+    from pinn_mpc_cli.cli import main
+
+    assert get_scenario("eplus_small_office").data_policy == "closed-loop"
+    assert get_scenario("eplus_midrise_apartment").data_policy == "closed-loop"
+    assert get_scenario("winter_household").data_policy == "random-level"
+    out = tmp_path / "d.csv"
+    assert main(["simulate", "--scenario", "winter_household", "--days", "2", "--out", str(out)]) == 0
+    expected = generate(get_scenario("winter_household"), days=2, seed=0, policy="random-level")
+    assert np.allclose(read_timeseries(out)["u"], expected["u"])

@@ -27,6 +27,7 @@ __all__ = [
     "ARCHS",
     "ARX",
     "BASELINES",
+    "PHYSICS_ARX",
     "COMPARED_ARCHS",
     "DEFAULT_ARCH",
     "MODEL_CHOICES",
@@ -131,8 +132,18 @@ ARX = BaselineSpec(
     summary="the linear ARX baseline (least squares on 8 lags and a weekly schedule, no "
     "network; --depth, --seeds, --epochs, --lambda and --recipe do not apply)",
 )
+#: The physics-informed ARX (:func:`pinn_mpc.arx.fit_physics_informed_arx`): the ARX with a
+#: workday / Saturday / Sunday schedule whose blocks also weigh the indoor-outdoor difference
+#: (occupancy-driven ventilation), its heating effect required positive.
+PHYSICS_ARX = BaselineSpec(
+    name="parx",
+    label="Physics-informed ARX",
+    summary="the physics-informed linear ARX (the ARX with workday, Saturday and Sunday "
+    "schedules, each block also weighing T_r - T_a, heating required to warm; no network; "
+    "--depth, --seeds, --epochs, --lambda and --recipe do not apply)",
+)
 #: Models ``train`` fits that are not architectures of networks.
-BASELINES: dict[str, BaselineSpec] = {ARX.name: ARX}
+BASELINES: dict[str, BaselineSpec] = {ARX.name: ARX, PHYSICS_ARX.name: PHYSICS_ARX}
 #: Every name ``train --arch`` takes.
 MODEL_CHOICES = (*ALL_ARCHS, *BASELINES)
 
