@@ -197,7 +197,6 @@ def fleet_reference(
         loop.advance_fleet(thermostats)
     series = run.series
     rows = slice(run.warmup, len(series))  # the counted intervals and the last plan's lead
-    n = rows.stop - rows.start
     window = parse_cap_window(cap_window) if cap_window is not None else None
     cap = (
         cap_series(series.time_of_day_h, cap_kw, window, run.warmup)
