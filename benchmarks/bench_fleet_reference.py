@@ -11,8 +11,11 @@ fleet's peak in that window:
 - the bound (:func:`scenarios.fleet_reference.fleet_reference`): the day as one convex
   problem over all buildings' exact RCs with perfect forecasts, run open loop on the plant,
   uncapped and capped at the same cap as each closed loop below (60 % of that closed loop's own
-  uncapped window peak), under the MPC's objective and under a comfort weight of 1e3 EUR/K h
-  (the least discomfort the cap allows at any energy cost);
+  uncapped window peak): under the MPC's objective over the day and the forecast lead the last
+  plan sees (``mpc_objective``), over the day alone (``mpc_objective_day_only``: the least
+  objective of the day; it lets the building mass run down for the next day), and under a
+  comfort weight of 1e3 EUR/K h (``least_discomfort``: the least discomfort the cap allows at
+  any energy cost);
 - ``--closed-loop rc``: the batched qp-mpc on the buildings' exact RCs
   (:func:`scenarios.aggregator.run_coordinated_fleet`) uncapped and capped;
 - ``--closed-loop cem``: the batched cem over the buildings' learned models (``--models``;
@@ -44,6 +47,12 @@ from scenarios.registry import get_scenario
 
 SCENARIO, SEED, WINDOW, SHARE = "winter_household", 13, "17:00-19:00", 0.6
 STIFF_COMFORT = 1e3  # EUR per K h: the least discomfort at any energy cost
+#: (label, comfort weight (None: the scenario's), plan the forecast lead too)
+VARIANTS = (
+    ("mpc_objective", None, True),
+    ("mpc_objective_day_only", None, False),
+    ("least_discomfort", STIFF_COMFORT, True),
+)
 
 
 def _per_building(values: Any) -> float:
@@ -53,17 +62,19 @@ def _per_building(values: Any) -> float:
 def bound(scenario: Any, fleet: Any, cap_kw: float) -> dict[str, Any]:
     """The reference's discomfort per building, uncapped and capped at ``cap_kw``."""
     out: dict[str, Any] = {"cap_kw": cap_kw}
-    for label, weight in (("mpc_objective", None), ("least_discomfort", STIFF_COMFORT)):
+    for label, weight, lead in VARIANTS:
         t0 = time.perf_counter()
-        free = fleet_reference(scenario, fleet, days=1, seed=SEED, comfort_weight_eur_per_kh=weight)
+        free = fleet_reference(scenario, fleet, days=1, seed=SEED, comfort_weight_eur_per_kh=weight, lead=lead)
         capped = fleet_reference(scenario, fleet, days=1, seed=SEED, cap_kw=cap_kw, cap_window=WINDOW,
-                                 comfort_weight_eur_per_kh=weight)
+                                 comfort_weight_eur_per_kh=weight, lead=lead)
         assert capped.cap is not None
         out[label] = {
             "free_kh": _per_building(free.discomfort_kh),
             "capped_kh": _per_building(capped.discomfort_kh),
             "increase_kh": _per_building(capped.discomfort_kh) - _per_building(free.discomfort_kh),
             "model_increase_kh": _per_building(capped.model_discomfort_kh) - _per_building(free.model_discomfort_kh),
+            "objective_free_eur": float(sum(k["objective"] for k in free.kpis)),
+            "objective_capped_eur": float(sum(k["objective"] for k in capped.kpis)),
             "energy_free_kwh": float(free.energy_kwh.sum()),
             "energy_capped_kwh": float(capped.energy_kwh.sum()),
             "intervals_over": capped.cap["intervals_over"],
@@ -148,7 +159,8 @@ def main() -> int:
                     parser.error(f"--closed-loop: rc or cem, got {kind!r}")
                 caps[kind] = entry[kind]["cap_kw"]
                 c = entry[kind]
-                print(f"{n} buildings, {kind}: cap {c['cap_kw']:.1f} kW; discomfort per building "
+                print(f"{n} buildings, {kind}: cap {c['cap_kw']:.1f} kW; objective {c['free']['objective_eur']:.1f} "
+                      f"-> {c['capped']['objective_eur']:.1f} EUR; discomfort per building "
                       f"{c['free']['discomfort_kh']:.3f} -> {c['capped']['discomfort_kh']:.3f} "
                       f"(+{c['increase_kh']:.3f}); intervals over {c['capped']['cap']['intervals_over']}; "
                       f"energy {c['free']['energy_kwh']:.0f} -> {c['capped']['energy_kwh']:.0f} kWh; "
@@ -160,12 +172,13 @@ def main() -> int:
             entry["bound"] = {}
             for kind, cap_kw in caps.items():
                 b = entry["bound"][kind] = bound(scenario, fleet, cap_kw)
-                for label in ("mpc_objective", "least_discomfort"):
+                for label, _, _ in VARIANTS:
                     v = b[label]
                     print(f"{n} buildings, bound at the {kind} cap {cap_kw:.1f} kW, {label}: "
                           f"{v['free_kh']:.3f} -> {v['capped_kh']:.3f} (+{v['increase_kh']:.3f} K h per "
                           f"building; model +{v['model_increase_kh']:.3f}); energy {v['energy_free_kwh']:.0f} "
-                          f"-> {v['energy_capped_kwh']:.0f} kWh; window {v['window_kw']} kW; cap prices "
+                          f"-> {v['energy_capped_kwh']:.0f} kWh; objective {v['objective_free_eur']:.1f} -> "
+                          f"{v['objective_capped_eur']:.1f} EUR; window {v['window_kw']} kW; cap prices "
                           f"{v['cap_price_eur_per_kwh']} EUR/kWh ({v['seconds']:.0f} s)", flush=True)
             report[str(n)] = entry
     load = ", ".join(f"{v:.2f}" for v in os.getloadavg())

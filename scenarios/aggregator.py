@@ -244,6 +244,8 @@ def run_coordinated_fleet(
                 "iterations": dual.iterations,
                 "step_eur_per_kwh": dual.step_eur_per_kwh,
                 "max_price_eur_per_kwh": dual.max_price_eur_per_kwh,
+                "secant": dual.secant,
+                "interpolate": dual.interpolate,
             },
         },
     )

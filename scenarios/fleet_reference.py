@@ -177,6 +177,7 @@ def fleet_reference(
     warmup_steps: int | None = None,
     weather_part: str = "test",
     comfort_weight_eur_per_kh: float | None = None,
+    lead: bool = True,
     solver: str = "CLARABEL",
 ) -> FleetReference:
     """The centralised optimum of ``fleet`` on ``scenario``'s run (module docstring): the same
@@ -184,7 +185,9 @@ def fleet_reference(
     building's thermostat, its counted days, its cap rule), planned in one problem from the
     true state at the first counted interval, then run open loop on the plant.
     ``comfort_weight_eur_per_kh`` replaces the scenario's comfort weight (e.g. 1e3: the least
-    discomfort at any energy cost)."""
+    discomfort at any energy cost). ``lead`` False plans the counted intervals alone (no forecast
+    lead: the least objective of those intervals, which no closed loop on the same plant beats
+    but for what the minute substeps see between the interval ends)."""
     if cap_kw is None and cap_window is not None:
         raise InputError("fleet_reference: a cap window needs a cap")
     run = prepare_run(scenario, days=days, seed=seed, warmup_steps=warmup_steps, weather_part=weather_part)
@@ -196,7 +199,7 @@ def fleet_reference(
     for _ in range(run.warmup):
         loop.advance_fleet(thermostats)
     series = run.series
-    rows = slice(run.warmup, len(series))  # the counted intervals and the last plan's lead
+    rows = slice(run.warmup, len(series) if lead else run.total)  # counted (and the last plan's lead)
     window = parse_cap_window(cap_window) if cap_window is not None else None
     cap = (
         cap_series(series.time_of_day_h, cap_kw, window, run.warmup)
@@ -205,8 +208,9 @@ def fleet_reference(
     )
     t_min, t_max = np.asarray(series.T_min, float), np.asarray(series.T_max, float)
     # The band at each interval's end is that of the interval and of the next (planning_band).
-    lower = np.maximum(t_min[rows], np.append(t_min[rows.start + 1 :], t_min[-1]))
-    upper = np.minimum(t_max[rows], np.append(t_max[rows.start + 1 :], t_max[-1]))
+    after = slice(rows.start + 1, rows.stop + 1)
+    lower = np.maximum(t_min[rows], np.append(t_min[after], t_min[-1])[: rows.stop - rows.start])
+    upper = np.minimum(t_max[rows], np.append(t_max[after], t_max[-1])[: rows.stop - rows.start])
     exog = np.column_stack([np.asarray(series.T_a, float)[rows], np.asarray(series.G, float)[rows],
                             np.asarray(series.I_g, float)[rows]])
     ad, bd = fleet_matrices(fleet, spec.dt_s)
