@@ -62,7 +62,7 @@ def fleet_runs(request, fleet_models):
             days=1, seed=COLD_SEED, fleet=params, cap_kw=cap_kw, cap_window=WINDOW,
         )
     print(
-        f"\n{N_BUILDINGS} learned buildings ({request.node.callspec.id}), cap {cap_kw:.1f} kW "
+        f"\n{N_BUILDINGS} learned buildings ({'cem, rc candidates' if request.param else 'cem'}), cap {cap_kw:.1f} kW "
         f"{WINDOW}: discomfort per building {_discomfort_per_building(free):.3f} -> "
         f"{_discomfort_per_building(capped):.3f} K h; intervals over {capped.cap['intervals_over']} of "
         f"{capped.cap['intervals']}; window {np.round(capped.aggregate_u_phys_w[in_window] / 1000, 1)} kW; "
