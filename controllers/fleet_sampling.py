@@ -80,11 +80,14 @@ def optimize_fleet(
     objective: object,
     x0: torch.Tensor,
     generators: Sequence[torch.Generator],
+    candidates: torch.Tensor | None = None,
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """CEM (``planner``'s settings, continuous actions) for B buildings at once: ``objective``
     maps plans (B, N, H) to costs (B, N); ``x0`` (B, H) the warm starts. Building b draws its
     noise from ``generators[b]`` exactly as :meth:`CEMPlanner.optimize` would, so its result
-    is that of the single planner on the same generator. Returns (plans (B, H), costs (B,))."""
+    is that of the single planner on the same generator. ``candidates`` (B, C, H) are scored
+    in the first iteration in place of C of the samples (e.g. another planner's plans: the best
+    of them is kept if nothing sampled beats it). Returns (plans (B, H), costs (B,))."""
     if planner.binary:
         raise InputError("the fleet CEM plans continuous power; on/off actions are not batched")
     if not callable(objective):
@@ -98,11 +101,16 @@ def optimize_fleet(
     std = torch.full_like(mean, planner.init_std_frac * span)
     best_cost = torch.full((b,), math.inf, dtype=torch.float64)
     rows = torch.arange(b)
-    for _ in range(planner.n_iters):
+    if candidates is not None and (candidates.shape[0] != b or candidates.shape[2] != h
+                                   or candidates.shape[1] > n - 2):
+        raise InputError(f"optimize_fleet: candidates must be (B, at most N - 2, H), got {tuple(candidates.shape)}")
+    for it in range(planner.n_iters):
         noise = colored_noise_fleet(n, h, planner.noise_beta, generators, dtype)
         samples = (mean[:, None] + std[:, None] * noise).clamp(planner.lower, planner.upper)
         samples[:, 0] = best
         samples[:, 1] = mean
+        if candidates is not None and it == 0:
+            samples[:, 2 : 2 + candidates.shape[1]] = candidates.to(dtype).clamp(planner.lower, planner.upper)
         costs = objective(samples).to(torch.float64)
         costs = torch.where(torch.isfinite(costs), costs, torch.full_like(costs, math.inf))
         order = torch.argsort(costs, dim=1)
@@ -159,7 +167,10 @@ class FleetCEM:
     chosen plans (None: not measured); ``shadow`` is the fallback RC MPC of every building
     (None: the models always drive). ``planner`` holds the CEM settings (bounds are the
     actuator's); a re-plan within a step (the next coordination price) runs ``replan_iters``
-    CEM iterations from the step's last plans.
+    CEM iterations from the step's last plans. With ``rc_candidates`` every plan also scores
+    the shadow RC MPC's plan under the same prices as one of its first samples (one warm-started
+    QP per building and plan), so the CEM starts from the RC's optimum where its own samples do
+    not beat it, e.g. when a coordination price comes or goes and the warm start is far off.
     """
 
     name = "cem"
@@ -176,6 +187,7 @@ class FleetCEM:
         shadow: FleetQPMPC | None = None,
         spread_dynamics: FleetDynamics | None = None,
         replan_iters: int = 2,
+        rc_candidates: bool = False,
     ) -> None:
         check_heating(dynamics.eta, spec, what="the fleet's models")
         if not 0.0 <= offset_gain <= 1.0:
@@ -190,6 +202,9 @@ class FleetCEM:
             raise InputError(f"FleetCEM.replan_iters must be >= 1, got {replan_iters}")
         self.offset_gain, self.comfort_margin_k = offset_gain, comfort_margin_k
         self.replan_iters = replan_iters
+        if rc_candidates and shadow is None:
+            raise InputError("FleetCEM.rc_candidates needs the shadow RC MPC")
+        self.rc_candidates = rc_candidates
         self.shadow, self.spread_dynamics = shadow, spread_dynamics
         b = dynamics.n_buildings
         self.fallbacks = [Fallback(spec, reuse_plan=False) for _ in range(b)]
@@ -331,7 +346,14 @@ class FleetCEM:
         else:  # a re-plan of the step (a new coordination price): from the last plans
             x0 = self._best
             planner = dataclasses.replace(self.planner, n_iters=self.replan_iters)
-        plans, costs = optimize_fleet(planner, lambda u: self._costs(step, extra, u), x0, self.generators)
+        candidates = None
+        if self.rc_candidates and self.shadow is not None:
+            rc = self.shadow.plan(extra)
+            # Where the RC did not plan, its warm start stands in (a sample like any other).
+            candidates = torch.as_tensor(np.where(rc.ok[:, None], rc.power_w, x0.numpy()), dtype=x0.dtype)[:, None]
+        plans, costs = optimize_fleet(
+            planner, lambda u: self._costs(step, extra, u), x0, self.generators, candidates
+        )
         self._best = plans
         ok = torch.isfinite(costs).numpy()
         return FleetPlan(plans.double().numpy(), ok, "ok", planner.n_iters)

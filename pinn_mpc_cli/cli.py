@@ -346,6 +346,13 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="HH:MM-HH:MM: the cap holds in this window of every day (default all day)",
     )
+    p.add_argument(
+        "--rc-candidates",
+        action="store_true",
+        help="with --model (the batched cem): score each building's RC MPC plan (on the RC "
+        "identified from its model's data) among the samples of every plan; plans closer to "
+        "qp-mpc's, at one more QP per building and plan",
+    )
 
     p = add("compare", "scenarios.commands:compare", "train, identify and run every controller on one scenario")
     scenario(p, default="paper_household")

@@ -244,6 +244,8 @@ def run_coordinated_fleet(
                 "iterations": dual.iterations,
                 "step_eur_per_kwh": dual.step_eur_per_kwh,
                 "max_price_eur_per_kwh": dual.max_price_eur_per_kwh,
+                "secant": dual.secant,
+                "interpolate": dual.interpolate,
             },
         },
     )
@@ -257,13 +259,15 @@ def learned_fleet_planner(
     n_iters: int = 2,
     replan_iters: int = 2,
     rc_fallback: bool = True,
+    rc_candidates: bool = False,
 ) -> FleetPlannerFactory:
     """The factory of a batched ``cem`` over each building's learned hybrid (``models[b]``):
     :class:`controllers.fleet_sampling.FleetCEM` planning with each ensemble's first
     ``plan_members`` members (the disagreement measured over all), ``n_samples`` x ``n_iters``
     per plan (``replan_iters`` for each further plan of a step under a new coordination price),
     and with ``rc_fallback`` a shadow :class:`FleetQPMPC` on the RCs identified from
-    the models' training data (every model must have one)."""
+    the models' training data (every model must have one); ``rc_candidates`` scores that RC
+    MPC's plan in every CEM plan (:class:`controllers.fleet_sampling.FleetCEM`)."""
     from controllers.fleet_sampling import FleetCEM
     from controllers.planners import CEMPlanner
     from pinn_mpc.fleet_rollout import FleetHybrid
@@ -295,6 +299,7 @@ def learned_fleet_planner(
             shadow=shadow,
             spread_dynamics=FleetHybrid(models) if models[0].n_members > 1 else None,
             replan_iters=replan_iters,
+            rc_candidates=rc_candidates,
         )
 
     return make

@@ -314,6 +314,8 @@ class DualAscentRecord(TypedDict):
     iterations: int
     step_eur_per_kwh: float
     max_price_eur_per_kwh: float
+    secant: NotRequired[bool]
+    interpolate: NotRequired[bool]
 
 
 class FleetInfo(TypedDict):

@@ -183,6 +183,7 @@ def test_cli_capped_fleet_writes_aggregate_cap_district_and_figure(tmp_path, cap
         (["--buildings", "3", "--cap-window", "17:00-19:00"], "--cap-window needs --cap-kw"),
         (["--cap-kw", "5"], "--cap-kw coordinates a fleet: add --buildings N"),
         (["--buildings", "3", "--cap-kw", "0"], "must be a number > 0"),
+        (["--buildings", "3", "--rc-candidates"], "--rc-candidates applies to the batched cem"),
     ],
 )
 def test_cli_cap_bad_input_exits_2_with_one_line(tmp_path, capsys, args, message):
@@ -213,3 +214,103 @@ def test_a_fleet_partitioned_across_ray_workers_plans_as_one():
                                       days=1, seed=COLD_SEED, cap_kw=10.0, cap_window="17:00-19:00")
     np.testing.assert_allclose(parts.aggregate_u_phys_w, whole.aggregate_u_phys_w, atol=1e-6)
     assert parts.cap == whole.cap and parts.info["controller"] == "qp-mpc"
+
+
+class _ThresholdFleet:
+    """A fleet whose buildings respond like linear programs: building b plans ``demand_w``
+    in an interval while its price there is under its own threshold ``tau[b]``, nothing
+    above it (what makes a fixed dual step overshoot)."""
+
+    name = "threshold"
+
+    def __init__(self, tau: np.ndarray, demand_w: float, h: int = 6) -> None:
+        self.tau, self.demand_w, self.h = tau, demand_w, h
+        self.committed: list[np.ndarray] = []
+        self.prices: list[np.ndarray] = []
+
+    @property
+    def n_buildings(self) -> int:
+        return len(self.tau)
+
+    @property
+    def horizon_steps(self) -> int:
+        return self.h
+
+    @property
+    def n_fallbacks(self) -> np.ndarray:
+        return np.zeros(self.n_buildings, dtype=int)
+
+    def reset(self, seed=None) -> None:
+        pass
+
+    def observe(self, observations, forecast) -> None:
+        pass
+
+    def plan(self, extra=None):
+        from controllers.fleet import FleetPlan
+
+        extra = np.zeros(self.h) if extra is None else np.asarray(extra, float)
+        self.prices.append(extra.copy())
+        power = np.where(extra[None, :] < self.tau[:, None], self.demand_w, 0.0)
+        return FleetPlan(power, np.ones(self.n_buildings, dtype=bool), "solved", 1)
+
+    def commit(self, plan):
+        from controllers.fleet import FleetDecision
+
+        self.committed.append(plan.power_w[:, 0].copy())
+        return FleetDecision(plan.power_w[:, 0].copy(), np.zeros(self.n_buildings, dtype=bool))
+
+
+def test_the_first_actions_use_the_whole_cap_where_the_plans_jump_across_it():
+    rng = np.random.default_rng(0)
+    tau = rng.uniform(1.0, 1.02, 40)  # EUR/kWh each building would pay to heat: alike buildings
+    cap_w = np.full(12, np.inf)
+    cap_w[0:6] = 0.45 * 40 * 3000.0  # 45 % of the fleet's demand, for six intervals
+    big = 1.0  # EUR/kWh per unit of excess: a step that overshoots
+    for settings, whole in (
+        (DualAscent(step_eur_per_kwh=big), True),
+        (DualAscent(step_eur_per_kwh=big, secant=False, interpolate=False), False),
+    ):
+        fleet = _ThresholdFleet(tau, 3000.0)
+        coordination = Coordination(cap_w, settings)
+        used = []
+        for row in range(6):
+            step = coordination.step(fleet, row)
+            assert step.decision.u_w.sum() <= cap_w[row] * (1 + 1e-9)
+            used.append(step.decision.u_w.sum() / cap_w[row])
+        if whole:
+            # Bracketed from the second step on (the prices carry over): the cap exactly, each
+            # building between nothing and its demand, none scaled down.
+            np.testing.assert_allclose(used[1:], 1.0, rtol=1e-9)
+            assert np.all((fleet.committed[-1] >= 0) & (fleet.committed[-1] <= 3000.0))
+        else:
+            assert min(used) < 0.95  # the plain dual ascent overshoots and wastes the cap
+
+
+def test_a_fleet_under_the_cap_at_a_price_gets_the_plan_without_it():
+    tau = np.full(10, 1.0)
+    fleet = _ThresholdFleet(tau, 1000.0)
+    cap_w = np.full(12, np.inf)
+    cap_w[0] = 20e3  # above what the fleet ever asks: the cap does not bind
+    coordination = Coordination(cap_w, DualAscent(iterations=2))
+    coordination._price = np.full(6, 5.0)  # a price left from before, far too high
+    step = coordination.step(fleet, 0)
+    assert step.decision.u_w.sum() == pytest.approx(10e3)  # the extra plan at no price wins
+    assert step.plans == 3 and step.price_eur_per_kwh[0] == 0.0
+
+
+def test_the_secant_price_lies_in_the_bracket_of_the_steps_plans():
+    from controllers.coordination import _Point
+
+    coordination = Coordination(np.full(4, 100.0))
+    cap = np.full(4, 100.0)
+    tried = [
+        _Point(np.full(4, 0.5), None, np.full(4, 150.0)),  # over the cap at 0.5
+        _Point(np.full(4, 1.5), None, np.full(4, 50.0)),  # under it at 1.5
+    ]
+    price = coordination._update(np.full(4, 1.5), np.full(4, 50.0), cap, tried)
+    np.testing.assert_allclose(price, 1.0)  # the secant: halfway in power, halfway in price
+    plain = Coordination(np.full(4, 100.0), DualAscent(secant=False))._update(
+        np.full(4, 1.5), np.full(4, 50.0), cap, tried
+    )
+    np.testing.assert_allclose(plain, 1.5 - 0.2 * 0.5)

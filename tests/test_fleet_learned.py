@@ -90,6 +90,27 @@ def test_batched_cem_equals_the_cem_planner_building_by_building(fleet_models):
         assert float(costs[i]) == pytest.approx(alone.cost, rel=1e-6)
 
 
+def test_a_candidate_plan_is_scored_and_kept_unless_a_sample_beats_it():
+    from controllers.fleet_sampling import optimize_fleet
+
+    planner = CEMPlanner(lower=0.0, upper=10.0, n_samples=8, n_iters=2)
+    h = 6
+    target = torch.tensor([[1.0, 9.0, 2.0, 8.0, 3.0, 7.0], [5.0, 5.0, 0.0, 0.0, 10.0, 10.0]])
+
+    def cost(u: torch.Tensor) -> torch.Tensor:  # (B, N, H) -> (B, N)
+        return (u - target[:, None]).abs().sum(-1)
+
+    x0 = torch.full((2, h), 5.0)
+    generators = lambda: [torch.Generator().manual_seed(s) for s in (1, 2)]  # noqa: E731
+    without, _ = optimize_fleet(planner, cost, x0, generators())
+    assert float(cost(without[:, None]).max()) > 1.0  # two iterations of 8 samples do not find it
+    plans, costs = optimize_fleet(planner, cost, x0, generators(), candidates=target[:, None])
+    torch.testing.assert_close(plans, target)
+    assert float(costs.max()) == 0.0
+    with pytest.raises(InputError, match="candidates must be"):
+        optimize_fleet(planner, cost, x0, generators(), candidates=torch.zeros(2, 7, h))
+
+
 def test_more_members_than_the_ensembles_have_are_refused(fleet_models):
     _, _, models = fleet_models
     with pytest.raises(InputError, match="members must lie in 1..3"):
