@@ -121,21 +121,10 @@ class ARXQPMPC(PlanningController):
             if not np.all(np.isfinite(p)):
                 raise FloatingPointError("solver returned a non-finite plan")
         except Exception as exc:  # any failure acts through the fallback, never raises
-            action = self.fallback.act(obs, forecast)
-            self._stats = SolveStats(
-                time_s=time.perf_counter() - start,
-                status=f"{status}: {type(exc).__name__}: {exc}",
-                iterations=iterations,
-                fallback=True,
-            )
-            return action
+            return self._failed(obs, forecast, start, f"{status}: {type(exc).__name__}: {exc}", iterations)
         plan_w = np.clip(p, 0.0, self.spec.u_max_w / 1000.0) * 1000.0
         self.last_prediction_c = free + offset + gain @ plan_w
-        self.fallback.planned(plan_w)
-        self._stats = SolveStats(
-            time_s=time.perf_counter() - start, status=status, iterations=iterations, fallback=False
-        )
-        return float(plan_w[0])
+        return self._succeeded(plan_w, start, status, iterations)
 
     def prediction(self, obs: Observation, forecast: Forecast) -> tuple[np.ndarray, np.ndarray]:
         """The affine map ``T_r = free + gain @ u`` (h,), (h, h) [C, K/W] of the horizon from
