@@ -75,6 +75,7 @@ class ARXQPMPC(PlanningController):
         *,
         horizon_steps: int | None = None,
         offset_gain: float = 0.5,
+        comfort_margin_k: float = 0.0,
         regularisation_eur_per_kw2h: float = DEFAULT_REGULARISATION,
         solver_options: dict[str, Any] | None = None,
         name: str | None = None,
@@ -93,6 +94,9 @@ class ARXQPMPC(PlanningController):
             self.name = name
         self.model, self.spec = model, spec
         self.rho = regularisation_eur_per_kw2h
+        if not (0 <= comfort_margin_k < 1):
+            raise InputError(f"ARXQPMPC.comfort_margin_k must lie in [0, 1) K, got {comfort_margin_k}")
+        self.comfort_margin_k = comfort_margin_k
         self.solver_options = {**OSQP_OPTIONS, **(solver_options or {})}
         self.estimator = OffsetFilter(model, offset_gain)
         self.fallback = Fallback(spec, reuse_plan=True)
@@ -113,7 +117,9 @@ class ARXQPMPC(PlanningController):
         status, iterations = "error", 0
         try:
             offset = self.estimator.update(obs)
-            objective = HorizonObjective.from_forecast(forecast, self.spec, self.horizon_steps)
+            objective = HorizonObjective.from_forecast(
+                forecast, self.spec, self.horizon_steps
+            ).tightened(self.comfort_margin_k)
             free, gain = self.prediction(obs, forecast)
             p, status, iterations = self._solve(objective, free + offset, gain * 1000.0)
             if status != "solved":

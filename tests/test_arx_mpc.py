@@ -252,3 +252,24 @@ def test_closed_loop_qp_mpc_plans_on_an_arx_directory_and_refuses_a_network(tmp_
         assert main([*args, *extra, "--json", str(tmp_path / "x.json")]) == 2
         err = capsys.readouterr().err.strip()
         assert len(err.splitlines()) == 1 and message in err, err
+
+
+def test_a_comfort_margin_keeps_the_plan_that_far_inside_the_band() -> None:
+    """With ``comfort_margin_k`` the plan keeps its predicted T_r that far inside the band where
+    the band is reachable, at a higher energy cost than without."""
+    fc = _forecast(80, start=0)._replace(T_min=np.full(80, 20.0))  # a band 5 kW can hold
+    history, x = _history_of(PAPER_HOUSEHOLD, np.array([21.0, 21.0]), np.full(12, 4500.0), fc)
+    obs, ahead = Observation.from_history(12, history, float(x[1])), _later(fc, 12)
+    model = arx_of_rc(PAPER_HOUSEHOLD, SPEC.dt_s)
+    spec = ControlSpec(u_max_w=SPEC.u_max_w, comfort_weight_eur_per_kh=50.0)  # comfort first
+    plain, margin = ARXQPMPC(model, spec), ARXQPMPC(model, spec, comfort_margin_k=0.3)
+    plain.act(obs, ahead)
+    margin.act(obs, ahead)
+    band = HorizonObjective.from_forecast(ahead, spec, spec.horizon_steps)
+    held = margin.last_prediction_c - band.t_min_c
+    assert np.min(plain.last_prediction_c - band.t_min_c) == pytest.approx(0.0, abs=2e-3)  # rides it
+    assert np.min(held) == pytest.approx(0.3, abs=5e-3)  # OSQP tolerances
+    assert margin.last_plan is not None and plain.last_plan is not None
+    assert margin.last_plan.sum() > plain.last_plan.sum()
+    with pytest.raises(InputError, match="comfort_margin_k"):
+        ARXQPMPC(model, SPEC, comfort_margin_k=-0.1)
