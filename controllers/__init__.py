@@ -6,7 +6,8 @@ objective (:class:`HorizonObjective`), estimators (:class:`KalmanEstimator`,
 :class:`OffsetFilter`, :class:`TrueState`), and the controllers: :class:`Thermostat`,
 :class:`RandomShooting` and :class:`CEM` over a learned model (with their planners
 :class:`RandomShootingPlanner`, :class:`CEMPlanner`), :class:`QPMPC` and :class:`CasadiMPC` on
-RC parameters, and the references :func:`oracle_mpc` and :func:`clairvoyant_mpc`. To build one
+RC parameters, :class:`ARXQPMPC` on an ARX model, and the references :func:`oracle_mpc` and
+:func:`clairvoyant_mpc`. To build one
 by its CLI name for a scenario, use :func:`scenarios.build_controller`.
 """
 
@@ -17,6 +18,7 @@ from typing import TYPE_CHECKING
 from pinn_mpc.lazy import lazy_exports
 
 if TYPE_CHECKING:
+    from controllers.arx_mpc import ARXQPMPC as ARXQPMPC
     from controllers.base import Controller as Controller
     from controllers.base import ControlSpec as ControlSpec
     from controllers.base import Forecast as Forecast
@@ -36,6 +38,7 @@ if TYPE_CHECKING:
     from controllers.thermostat import Thermostat as Thermostat
 
 _EXPORTS = {
+    "controllers.arx_mpc": ("ARXQPMPC",),
     "controllers.base": ("ControlSpec", "Controller", "Forecast", "Observation"),
     "controllers.estimators": ("KalmanEstimator", "OffsetFilter", "TrueState"),
     "controllers.objective": ("HorizonObjective",),

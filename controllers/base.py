@@ -9,6 +9,7 @@ The objective every controller optimises is in :mod:`controllers.objective`.
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass, field
 from typing import NamedTuple, Protocol, runtime_checkable
 
@@ -275,3 +276,23 @@ class PlanningController:
     def n_fallbacks(self) -> int:
         """Fallback events since ``reset``."""
         return self.fallback.n_events
+
+    def _failed(
+        self, obs: Observation, forecast: Forecast, start_s: float, status: str, iterations: int
+    ) -> float:
+        """The action after a failed decision that began at ``start_s`` (``perf_counter``):
+        the fallback's, recorded in the stats with ``status``."""
+        action = self.fallback.act(obs, forecast)
+        self._stats = SolveStats(
+            time_s=time.perf_counter() - start_s, status=status, iterations=iterations, fallback=True
+        )
+        return action
+
+    def _succeeded(self, plan_w: np.ndarray, start_s: float, status: str, iterations: int) -> float:
+        """The first action of a plan (H,) [W] that a decision begun at ``start_s`` made; the
+        plan is kept for the fallback."""
+        self.fallback.planned(plan_w)
+        self._stats = SolveStats(
+            time_s=time.perf_counter() - start_s, status=status, iterations=iterations, fallback=False
+        )
+        return float(plan_w[0])

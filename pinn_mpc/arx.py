@@ -24,6 +24,9 @@ power, so it predicts any power plan by recursion. :func:`fit_arx` fits it,
 reference every learned model of a comparison must beat (:mod:`scenarios.prediction`).
 :meth:`ARXModel.rollout` is the planners' rollout interface, so ``cem`` and
 ``random-shooting`` plan over it (its schedule reads the forecast's day of the week).
+Being linear in the lagged ``T_r`` and power, its horizon is an affine map of a power plan
+(:meth:`ARXModel.prediction_matrices`), so ``qp-mpc`` plans on it as a QP
+(:mod:`controllers.arx_mpc`).
 """
 
 from __future__ import annotations
@@ -183,51 +186,73 @@ class ARXModel:
     def exog_names(self) -> tuple[str, ...]:
         return ("time_of_day_h", "day_of_week", *self.columns[2:])
 
-    def rollout(
-        self, history: dict[str, np.ndarray], u_w: torch.Tensor, exog: dict[str, np.ndarray]
-    ) -> Rollout:
-        """The recursion for N plans ``u_w`` (N, H) [W] from ``history`` (data-format names,
-        ``T_r`` up to now, ``u_phys`` of past intervals, weather up to now) with ``exog`` (H,)
-        per :attr:`exog_names`; the delivered power is the plan. Tensors (1, N, H)."""
+    def prediction_matrices(
+        self, history: dict[str, np.ndarray], exog: dict[str, np.ndarray], h: int
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The horizon's ``T_r`` as an affine map of a power plan: ``T_r = free + gain @ u``.
+
+        ``u`` (h,) [W] the delivered power of the next ``h`` intervals; ``T_r`` (h,) [C] at the
+        end of each. ``history`` and ``exog`` as :meth:`rollout` takes them. The recursion is
+        linear in the lagged ``T_r`` and power and the rest (weather, schedule, and the
+        schedule's ``T_r - T_a`` interaction, whose weight is known from the dates) is given,
+        so ``free`` (h,) is the prediction under a zero plan and ``gain`` (h, h) [K/W] is
+        lower triangular (a power acts on the temperatures after it)."""
         n_col, lags = len(self.columns), self.lags
-        u = u_w.detach().to(torch.float64)
-        n, h = u.shape
         dow = np.asarray(exog["day_of_week"], dtype=float)[:h]
-        if not np.all(np.isfinite(dow)):
+        if len(dow) < h or not np.all(np.isfinite(dow)):
             raise InputError("ARX model: its schedule needs the forecast's dates (day_of_week)")
-        coef = torch.as_tensor(self.coef, dtype=torch.float64)
-        # Every lagged input but T_r over rows k-lags+1 .. k+h-1 (the past, then the horizon).
-        part = torch.zeros(n, h, dtype=torch.float64)
+        t_r_past = np.asarray(history["T_r"], dtype=float)
+        if len(t_r_past) < lags:
+            raise InputError(f"ARX model: needs {lags} past values of T_r")
+        coef = self.coef
+        # Every lagged input but T_r over rows k-lags+1 .. k+h-1 (the past, then the horizon):
+        # its terms go into ``free``, the planned power's into ``gain``.
+        free = np.zeros(h)
+        gain = np.zeros((h, h))
         for c, name in enumerate(self.columns[1:], start=1):
             past = np.asarray(history[name], dtype=float)
             if name != "u_phys":  # the weather history ends with now's row: exog[name][0]
                 past = past[:-1]
             if len(past) < lags - 1:
                 raise InputError(f"ARX model: needs {lags - 1} past intervals of {name}")
-            past_t = torch.as_tensor(past[len(past) - (lags - 1):] * _SCALE[name], dtype=torch.float64)
-            if name == "u_phys":
-                seq = torch.cat([past_t.expand(n, -1), u * _SCALE[name]], dim=1)
-            else:
-                ahead = torch.as_tensor(np.asarray(exog[name], dtype=float)[:h] * _SCALE[name])
-                seq = torch.cat([past_t, ahead]).expand(n, -1)
+            past = past[len(past) - (lags - 1):] * _SCALE[name]
+            ahead = (
+                np.zeros(h) if name == "u_phys"
+                else np.asarray(exog[name], dtype=float)[:h] * _SCALE[name]
+            )
+            seq = np.concatenate([past, ahead])
             for j in range(lags):
-                part += coef[j * n_col + c] * seq[:, lags - 1 - j : lags - 1 - j + h]
-        index = torch.as_tensor(
-            _schedule_index(np.asarray(exog["time_of_day_h"], dtype=float)[:h], dow, self.day_types)
+                free += coef[j * n_col + c] * seq[lags - 1 - j : lags - 1 - j + h]
+                if name == "u_phys":
+                    gain += coef[j * n_col + c] * _SCALE[name] * np.eye(h, k=-j)
+        index = _schedule_index(
+            np.asarray(exog["time_of_day_h"], dtype=float)[:h], dow, self.day_types
         )
-        part += coef[lags * n_col : lags * n_col + self.n_schedule][index]
-        q = torch.as_tensor(self._interaction_coef(), dtype=torch.float64)[index]  # (h,)
-        t_a = torch.as_tensor(np.asarray(exog["T_a"], dtype=float)[:h] * _SCALE["T_a"])
+        free += coef[lags * n_col : lags * n_col + self.n_schedule][index]
+        q = self._interaction_coef()[index]  # (h,)
+        t_a = np.asarray(exog["T_a"], dtype=float)[:h] * _SCALE["T_a"]
         a_tr = coef[0 : lags * n_col : n_col]
-        t_hist = torch.as_tensor(
-            np.asarray(history["T_r"], dtype=float)[::-1][:lags].copy(), dtype=torch.float64
-        ).expand(n, -1)
-        out = []
+        # The recursion on both parts: the past T_r enter ``free``, the plan none of them.
+        t_hist = t_r_past[::-1][:lags] * _SCALE["T_r"]
+        g_hist = np.zeros((lags, h))
+        out_free, out_gain = np.empty(h), np.empty((h, h))
         for step in range(h):
-            t_next = part[:, step] + t_hist @ a_tr + q[step] * (t_hist[:, 0] - t_a[step])
-            out.append(t_next)
-            t_hist = torch.cat([t_next[:, None], t_hist[:, :-1]], dim=1)
-        t_r = torch.stack(out, dim=1) / _SCALE["T_r"]
+            out_free[step] = free[step] + a_tr @ t_hist + q[step] * (t_hist[0] - t_a[step])
+            out_gain[step] = gain[step] + a_tr @ g_hist + q[step] * g_hist[0]
+            t_hist = np.concatenate([out_free[step : step + 1], t_hist[:-1]])
+            g_hist = np.concatenate([out_gain[step : step + 1], g_hist[:-1]])
+        return out_free / _SCALE["T_r"], out_gain / _SCALE["T_r"]
+
+    def rollout(
+        self, history: dict[str, np.ndarray], u_w: torch.Tensor, exog: dict[str, np.ndarray]
+    ) -> Rollout:
+        """The recursion for N plans ``u_w`` (N, H) [W] from ``history`` (data-format names,
+        ``T_r`` up to now, ``u_phys`` of past intervals, weather up to now) with ``exog`` (H,)
+        per :attr:`exog_names`; the delivered power is the plan. Tensors (1, N, H), by the
+        affine map of :meth:`prediction_matrices`."""
+        u = u_w.detach().to(torch.float64)
+        free, gain = self.prediction_matrices(history, exog, u.shape[1])
+        t_r = torch.as_tensor(free) + u @ torch.as_tensor(gain).T
         return Rollout(t_r_c=t_r[None], u_phys_w=u.clamp(min=0.0)[None], t_m_c=None)
 
     def to_dict(self) -> dict[str, Any]:

@@ -295,7 +295,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--controller", required=True, help="controller, one of: " + ", ".join(CONTROLLER_NAMES)
     )
-    model(p, "model directory for random-shooting and cem", default=None)
+    model(
+        p, "model directory for random-shooting and cem; for qp-mpc an ARX model directory "
+        "(train --arch arx or parx)", default=None,
+    )
     p.add_argument(
         "--rc", default=None, help="RC JSON for casadi-mpc and qp-mpc (from identify, export-rc)"
     )

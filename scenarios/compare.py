@@ -14,7 +14,7 @@
    random shooting and CEM over the hybrid (and CEM without its LP polish, to show what the
    polish adds), CEM over physnet, physreg and mlp (physreg and mlp unless
    ``cem_all_models=False``), CEM over the linear ARX baseline (:mod:`pinn_mpc.arx`) and its physics-informed variant, casadi-mpc and qp-mpc on the identified RC, qp-mpc on the
-   hybrid- and physnet-exported RCs, oracle and clairvoyant (where the plant has a true RC
+   hybrid- and physnet-exported RCs, qp-mpc on both ARX models (:mod:`controllers.arx_mpc`), oracle and clairvoyant (where the plant has a true RC
    and state; on EnergyPlus there is no oracle and every controller is measured against the
    thermostat, :attr:`scenarios.registry.Scenario.reference`).
    With a heat pump (``scenario.sim.actuator``) the data's power is electrical and its ``cop``
@@ -267,6 +267,8 @@ def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonR
         ("casadi-mpc", "identified RC", {"rc_params": rc_params["identified RC"]}),
         ("qp-mpc", "identified RC", {"rc_params": rc_params["identified RC"]}),
         *(("qp-mpc", f"{arch} RC", {"rc_params": rc_params[f"{arch} RC"]}) for arch in ARCHS[:2]),
+        ("qp-mpc", ARX.label, {"model": arx}),
+        ("qp-mpc", PHYSICS_ARX.label, {"model": parx}),
         *((("oracle", "true", {}), ("clairvoyant", "true", {})) if has_truth else ()),
     ]
     rows: list[CompareRow] = []

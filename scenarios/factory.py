@@ -2,7 +2,8 @@
 
 ``thermostat`` needs nothing; ``random-shooting`` and ``cem`` plan over a trained model
 (``--model``); ``casadi-mpc`` and ``qp-mpc`` work on an RC parameter set (``--rc``, from
-``pinn-mpc identify`` or ``pinn-mpc export-rc``); ``oracle`` and ``clairvoyant`` use the
+``pinn-mpc identify`` or ``pinn-mpc export-rc``), and ``qp-mpc`` also on an ARX model
+(``--model`` of ``train --arch arx`` or ``parx``, :mod:`controllers.arx_mpc`); ``oracle`` and ``clairvoyant`` use the
 scenario's true parameters (and the true T_m), as references: the QP MPC composed with the
 true-state estimator (:mod:`controllers.rc_mpc.references`). On a plant of higher order than
 the models (``SimConfig.plant`` 3r3c, :mod:`pinn_mpc.plant`) no 2-state QP has the true model:
@@ -201,7 +202,9 @@ def build_controller(
         for ``oracle`` and ``clairvoyant``).
     model
         For ``cem`` and ``random-shooting``: a model with the rollout interface, such as a
-        :class:`pinn_mpc.LearnedModel`.
+        :class:`pinn_mpc.LearnedModel`. For ``qp-mpc``: an ARX model
+        (:class:`pinn_mpc.arx.ARXModel`, :class:`controllers.arx_mpc.ARXQPMPC`) in place
+        of ``rc_params``.
     rc_params
         For ``qp-mpc`` and ``casadi-mpc``: the RC parameters they plan on.
     n_steps
@@ -239,10 +242,13 @@ def build_controller(
         for note in check_model_fits(model, scenario):
             warn(note)
         return controller
+    if name == "qp-mpc" and model is not None:
+        return _arx_mpc(model, scenario, rc_params)
     if name in RC_CONTROLLERS:
         if rc_params is None:
+            also = " or --model ARX_DIR (`pinn-mpc train --arch arx`)" if name == "qp-mpc" else ""
             raise InputError(
-                f"controller {name!r} needs RC parameters: add --rc rc.json "
+                f"controller {name!r} needs RC parameters: add --rc rc.json{also} "
                 "(write one with `pinn-mpc identify --data data.csv --out rc.json`)"
             )
         if name == "casadi-mpc":
@@ -263,6 +269,31 @@ def build_controller(
     raise _unknown(name)
 
 
+def _not_linear() -> InputError:
+    return InputError(
+        "qp-mpc plans on a linear model: an ARX model directory (`pinn-mpc train --arch "
+        "arx` or parx) or RC parameters (--rc); this --model is a learned network: plan "
+        "over it with cem or random-shooting, or write its RC with `pinn-mpc export-rc`"
+    )
+
+
+def _both() -> InputError:
+    return InputError("qp-mpc plans on either RC parameters (--rc) or an ARX model (--model), not both")
+
+
+def _arx_mpc(model: BatchDynamics, scenario: Scenario, rc_params: RCParams | None) -> Controller:
+    """``qp-mpc`` over a model: only a linear one (the ARX) makes its horizon a QP."""
+    from pinn_mpc.arx import ARXModel
+
+    if rc_params is not None:
+        raise _both()
+    if not isinstance(model, ARXModel):
+        raise _not_linear()
+    from controllers.arx_mpc import ARXQPMPC
+
+    return ARXQPMPC(model, scenario.control_spec())
+
+
 def make_controller(
     name: str,
     scenario: Scenario,
@@ -277,20 +308,24 @@ def make_controller(
     """
     if name not in CONTROLLER_NAMES:
         raise _unknown(name)
-    if model_dir is not None and name not in MODEL_CONTROLLERS:
+    if model_dir is not None and name not in (*MODEL_CONTROLLERS, "qp-mpc"):
         raise InputError(
             f"--model is not used by controller {name!r}; "
-            f"only {', '.join(MODEL_CONTROLLERS)} take it"
+            f"only {', '.join(MODEL_CONTROLLERS)} and qp-mpc (an ARX model) take it"
         )
     if rc_path is not None and name not in RC_CONTROLLERS:
         raise InputError(
             f"--rc is not used by controller {name!r}; only {', '.join(RC_CONTROLLERS)} take it"
         )
+    if model_dir is not None and rc_path is not None:
+        raise _both()
     model: BatchDynamics | None = None
     if model_dir is not None:
         from pinn_mpc.artifacts import load_model
         from pinn_mpc.arx import is_arx_directory, load_arx
 
+        if name == "qp-mpc" and not is_arx_directory(model_dir):
+            raise _not_linear()
         model = load_arx(model_dir) if is_arx_directory(model_dir) else load_model(model_dir)
     rc_params = read_rc(rc_path) if rc_path is not None else None
     return build_controller(name, scenario, model=model, rc_params=rc_params, n_steps=n_steps)

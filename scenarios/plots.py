@@ -52,7 +52,7 @@ __all__ = [
 FAMILIES: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("thermostat", ("thermostat",)),
     ("sampling planners over learned models", MODEL_CONTROLLERS),
-    ("MPC on RC parameters (identified or exported)", RC_CONTROLLERS),
+    ("MPC on RC parameters (identified or exported) or an ARX", RC_CONTROLLERS),
     ("references: true parameters and state", TRUTH_CONTROLLERS),
 )
 #: The run every panel of a comparison is drawn against.

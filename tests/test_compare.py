@@ -110,8 +110,8 @@ def test_compare_quick_end_to_end(tmp_path, capsys):
         "thermostat", "random-shooting / hybrid", "cem / hybrid, no LP polish", "cem / hybrid",
         "cem / physnet", "cem / physreg", "cem / mlp", "cem / ARX", "cem / Physics-informed ARX",
         "casadi-mpc / identified RC",
-        "qp-mpc / identified RC", "qp-mpc / hybrid RC", "qp-mpc / physnet RC", "oracle",
-        "clairvoyant",
+        "qp-mpc / identified RC", "qp-mpc / hybrid RC", "qp-mpc / physnet RC", "qp-mpc / ARX",
+        "qp-mpc / Physics-informed ARX", "oracle", "clairvoyant",
     ]
     rows = {row["controller"]: row for row in table["rows"]}
     for row in table["rows"]:

@@ -225,20 +225,9 @@ class RCMPC(PlanningController):
             if not np.all(np.isfinite(p)):
                 raise FloatingPointError("solver returned a non-finite plan")
         except Exception as exc:  # any solver failure acts through the fallback, never raises
-            action = self.fallback.act(obs, forecast)
-            self._stats = SolveStats(
-                time_s=time.perf_counter() - start,
-                status=f"{status}: {type(exc).__name__}: {exc}",
-                iterations=iterations,
-                fallback=True,
-            )
-            return action
+            return self._failed(obs, forecast, start, f"{status}: {type(exc).__name__}: {exc}", iterations)
         plan_w = np.clip(p, 0.0, self.problem.u_max_kw) * 1000.0
-        self.fallback.planned(plan_w)
-        self._stats = SolveStats(
-            time_s=time.perf_counter() - start, status=status, iterations=iterations, fallback=False
-        )
-        return float(plan_w[0])
+        return self._succeeded(plan_w, start, status, iterations)
 
     # -- hooks ----------------------------------------------------------------------------
     def _build(self) -> None:
