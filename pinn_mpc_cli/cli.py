@@ -351,10 +351,14 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--rc-candidates",
-        action="store_true",
+        choices=("auto", "on", "off"),
+        nargs="?",
+        const="on",
+        default="auto",
         help="with --model (the batched cem): score each building's RC MPC plan (on the RC "
         "identified from its model's data) among the samples of every plan; plans closer to "
-        "qp-mpc's, at one more QP per building and plan",
+        "qp-mpc's, at one more QP per building and plan; auto (the default): on under "
+        "--cap-kw (where the cem's own samples lose the comfort), off without it",
     )
 
     p = add("compare", "scenarios.commands:compare", "train, identify and run every controller on one scenario")

@@ -35,7 +35,7 @@ from pinn_mpc.physics import RCParams
 from pinn_mpc.simulator import draw_fleet
 from scenarios.closed_loop import build_loop, prepare_run, progress_steps
 from scenarios.fleet import FLEET_STREAM, FleetResult, fleet_info, fleet_result
-from scenarios.records import CapAccount
+from scenarios.records import CapAccount, FleetInfo
 from scenarios.registry import Scenario, check_seed
 
 if TYPE_CHECKING:
@@ -228,26 +228,30 @@ def run_coordinated_fleet(
         cap_info = cap_account(aggregate, cap[run.counted], dt_s=scenario.sim.dt_s, window=cap_window)
         cap_info["kw"] = float(cap_kw)
         cap_info["curtailed_steps"] = curtailed
+    info: FleetInfo = {
+        **fleet_info(
+            scenario, fleet_planner.name, n_buildings=b, days=days, seed=seed,
+            spread=spread, weather_part=weather_part,
+        ),
+        "batched": True,
+        "plans_per_step": plans / max(n_counted, 1),
+        "dual_ascent": {
+            "iterations": dual.iterations,
+            "step_eur_per_kwh": dual.step_eur_per_kwh,
+            "max_price_eur_per_kwh": dual.max_price_eur_per_kwh,
+            "secant": dual.secant,
+            "interpolate": dual.interpolate,
+        },
+    }
+    candidates = getattr(fleet_planner, "rc_candidates", None)
+    if candidates is not None:  # a batched cem over learned models
+        info["rc_candidates"] = bool(candidates)
     return fleet_result(
         scenario, run, loop, times_s, params=fleet, errors=(),
         cap=cap_info,
         prices=prices,
         extra_kpis={"model_fallback_steps": model_fallbacks},
-        info={
-            **fleet_info(
-                scenario, fleet_planner.name, n_buildings=b, days=days, seed=seed,
-                spread=spread, weather_part=weather_part,
-            ),
-            "batched": True,
-            "plans_per_step": plans / max(n_counted, 1),
-            "dual_ascent": {
-                "iterations": dual.iterations,
-                "step_eur_per_kwh": dual.step_eur_per_kwh,
-                "max_price_eur_per_kwh": dual.max_price_eur_per_kwh,
-                "secant": dual.secant,
-                "interpolate": dual.interpolate,
-            },
-        },
+        info=info,
     )
 
 

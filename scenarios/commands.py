@@ -176,7 +176,8 @@ def closed_loop(a: argparse.Namespace) -> str:
     if a.buildings > 1:
         return _fleet_closed_loop(a, scenario)
     for option, given in (("--batched", a.batched), ("--cap-kw", a.cap_kw is not None),
-                          ("--cap-window", a.cap_window is not None), ("--rc-candidates", a.rc_candidates)):
+                          ("--cap-window", a.cap_window is not None),
+                          ("--rc-candidates", a.rc_candidates != "auto")):
         if given:
             raise InputError(f"{option} coordinates a fleet: add --buildings N with N > 1")
     if a.spread is not None:
@@ -325,8 +326,9 @@ def _fleet_closed_loop(a: argparse.Namespace, scenario: Scenario) -> str:
             raise InputError(f"--model {a.model} holds {len(models)} buildings, --buildings is {a.buildings}")
         if a.spread is not None:
             raise InputError("--spread does not apply with --model: the buildings are the models' own")
-        planner = learned_fleet_planner(models, rc_candidates=a.rc_candidates)
-    elif a.rc_candidates:
+        candidates = a.rc_candidates == "on" or (a.rc_candidates == "auto" and a.cap_kw is not None)
+        planner = learned_fleet_planner(models, rc_candidates=candidates)
+    elif a.rc_candidates != "auto":
         raise InputError("--rc-candidates applies to the batched cem over learned models: add --model DIR")
     threads = one_torch_thread() if a.controller in MODEL_CONTROLLERS else contextlib.nullcontext()
     with threads:

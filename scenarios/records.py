@@ -335,6 +335,9 @@ class FleetInfo(TypedDict):
     """A batched run (:func:`scenarios.aggregator.run_coordinated_fleet`): True."""
     plans_per_step: NotRequired[float]
     """A batched run: fleet plans per counted step (above 1 when the cap's price iterated)."""
+    rc_candidates: NotRequired[bool]
+    """A batched cem over learned models: whether each building's RC MPC plan was scored among
+    its samples (``closed-loop --rc-candidates``)."""
     dual_ascent: NotRequired[DualAscentRecord]
     """A batched run: the coordination's settings."""
     scenario_file: NotRequired[str]

@@ -108,3 +108,18 @@ def test_cli_per_building_input_errors_are_one_line(tmp_path, capsys):
         err = capsys.readouterr().err
         assert message in err and len(err.strip().splitlines()) == 1
     assert sorted(p.name for p in tmp_path.iterdir()) == ["fleet.csv"]
+
+
+def test_cli_learned_fleet_scores_rc_candidates_by_default_only_under_a_cap(tmp_path):
+    data, fleet = _fleet_data()
+    out = tmp_path / "models"
+    train_per_building(building_frames(data), out, arch="hybrid", config=TINY, params=fleet, workers=1)
+    base = ["closed-loop", "--scenario", "winter_household", "--controller", "cem", "--days", "1",
+            "--buildings", "2", "--model", str(out), "--batched", "--seed", "1"]
+    cases = {"free": ([], False), "capped": (["--cap-kw", "8"], True),
+             "capped-off": (["--cap-kw", "8", "--rc-candidates", "off"], False),
+             "free-on": (["--rc-candidates"], True)}
+    for name, (extra, expected) in cases.items():
+        path = tmp_path / f"{name}.json"
+        assert main([*base, *extra, "--json", str(path)]) == 0
+        assert json.loads(path.read_text())["fleet"]["rc_candidates"] is expected, name
