@@ -50,7 +50,7 @@ from controllers.base import (
 )
 from controllers.estimators import OffsetFilter
 from controllers.objective import HorizonObjective
-from controllers.rc_mpc.osqp import OSQP_OPTIONS
+from controllers.rc_mpc.osqp import OSQP_OPTIONS, shift_blocks
 from controllers.rc_mpc.problem import DEFAULT_REGULARISATION
 from pinn_mpc.arx import ARXModel
 from pinn_mpc.errors import InputError
@@ -172,7 +172,7 @@ class ARXQPMPC(PlanningController):
         result = self._osqp.solve(raise_error=False)
         status = str(result.info.status)
         if status == "solved":  # receding horizon: start the next solve shifted by one step
-            self._osqp.warm_start(x=_shift(result.x, 2), y=_shift(result.y, 4))
+            self._osqp.warm_start(x=shift_blocks(result.x, [(h, 1)] * 2), y=shift_blocks(result.y, [(h, 1)] * 4))
         return np.asarray(result.x)[:h], status, int(result.info.iter)
 
 
@@ -201,8 +201,3 @@ class _Pattern:
     def matrix(self, values: np.ndarray) -> sp.csc_matrix:
         return sp.csc_matrix((values, self.indices, self.indptr), shape=(4 * self.h, 2 * self.h))
 
-
-def _shift(v: np.ndarray, blocks: int) -> np.ndarray:
-    """Each of ``blocks`` equal blocks of ``v`` one step on, its last value repeated."""
-    b = np.asarray(v, dtype=float).reshape(blocks, -1)
-    return np.concatenate([b[:, 1:], b[:, -1:]], axis=1).reshape(-1)

@@ -122,8 +122,8 @@ class QPMPC(RCMPC):
         if str(info.status) == "solved":
             # Receding horizon: start the next solve from this solution shifted by one step.
             self._osqp.warm_start(
-                x=_shift_blocks(result.x, self._affine.x_blocks),
-                y=_shift_blocks(result.y, self._affine.y_blocks),
+                x=shift_blocks(result.x, self._affine.x_blocks),
+                y=shift_blocks(result.y, self._affine.y_blocks),
             )
         return SolveResult(
             p_kw=stage.electrical_kw(np.asarray(result.x)[self._affine.p_slice]),
@@ -244,7 +244,7 @@ class _AffineOSQP:
         return q, lower, upper
 
 
-def _shift_blocks(v: np.ndarray, blocks: list[tuple[int, int]]) -> np.ndarray:
+def shift_blocks(v: np.ndarray, blocks: list[tuple[int, int]]) -> np.ndarray:
     """Shift each block (time-major, ``per_step`` values per step) one step, repeating the last."""
     out, start = [], 0
     for size, per_step in blocks:
