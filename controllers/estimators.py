@@ -86,15 +86,11 @@ class KalmanEstimator:
         sensor noisier than the observer's default, its stated noise as measurement noise and
         the mass kept steady (:data:`NOISY_SENSOR_PROCESS_STD_C`), since then the filter
         cannot tell a drifting mass from noise and the plan would chase it."""
-        if spec.sensor_noise_std_c > DEFAULT_MEASUREMENT_STD_C:
-            return cls(
-                params,
-                spec.dt_s,
-                actuator=spec.actuator,
-                measurement_std_c=spec.sensor_noise_std_c,
-                process_std_c=NOISY_SENSOR_PROCESS_STD_C,
-            )
-        return cls(params, spec.dt_s, actuator=spec.actuator, process_std_c=RC_MPC_PROCESS_STD_C)
+        process, measurement = observer_noise(spec)
+        return cls(
+            params, spec.dt_s, actuator=spec.actuator, measurement_std_c=measurement,
+            process_std_c=process,
+        )
 
     def reset(self) -> None:
         self._k_seen: int | None = None
@@ -111,6 +107,14 @@ class KalmanEstimator:
         return self.observer.state[0]
 
 
+def observer_noise(spec: ControlSpec) -> tuple[tuple[float, float], float]:
+    """The RC MPC observer's process (T_r, T_m) and measurement noise [C] for the spec's sensor
+    (:meth:`KalmanEstimator.for_spec` says why)."""
+    if spec.sensor_noise_std_c > DEFAULT_MEASUREMENT_STD_C:
+        return NOISY_SENSOR_PROCESS_STD_C, spec.sensor_noise_std_c
+    return RC_MPC_PROCESS_STD_C, DEFAULT_MEASUREMENT_STD_C
+
+
 class FleetKalmanEstimator:
     """:class:`KalmanEstimator` (built as :meth:`KalmanEstimator.for_spec`) of B buildings, each
     on its own RC matrices ``ad`` (B, 2, 2) and ``bd`` (B, 2, 4) (:func:`pinn_mpc.simulator.fleet_matrices`),
@@ -121,9 +125,7 @@ class FleetKalmanEstimator:
         ad, bd = np.asarray(ad, dtype=float), np.asarray(bd, dtype=float)
         if ad.ndim != 3 or ad.shape[1:] != (2, 2) or bd.shape != (ad.shape[0], 2, 4):
             raise InputError(f"FleetKalmanEstimator: ad (B, 2, 2) and bd (B, 2, 4), got {ad.shape}, {bd.shape}")
-        noisy = spec.sensor_noise_std_c > DEFAULT_MEASUREMENT_STD_C
-        process = NOISY_SENSOR_PROCESS_STD_C if noisy else RC_MPC_PROCESS_STD_C
-        measurement = spec.sensor_noise_std_c if noisy else DEFAULT_MEASUREMENT_STD_C
+        process, measurement = observer_noise(spec)
         self.ad, self.bd, self.actuator = ad, bd, spec.actuator
         self.q = np.diag(np.square(np.asarray(process, dtype=float)))
         self.r = float(measurement) ** 2
