@@ -81,6 +81,8 @@ ENERGYPLUS_CALLS_PER_WORKER = 20
 __all__ = ["Cell", "ModelKey", "SweepGrid", "SweepOutcome", "SweepSettings", "check_engine_options", "fit_model", "model_kind", "parse_ints", "parse_names", "ray_engine", "run_cell", "run_sweep", "scenario_digest"]
 _ADDRESS = re.compile(r"^(ray://)?(?P<host>[A-Za-z0-9.\-]+|\[[0-9A-Fa-f:]+\]):(?P<port>\d{1,5})$")
 _CONNECT_TIMEOUT_S = 5.0
+#: Training-data policies of a sweep: each scenario's own, or one for all.
+_POLICIES = ("scenario", "random", "random-level", "closed-loop")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -91,7 +93,9 @@ class SweepSettings:
     n_members: int = 10
     epochs: int | None = None  # None: compare's rule, 7200 / train_days within 60..240
     depth: int = 16
-    policy: str = "random-level"
+    #: The training data's policy; ``scenario``: each scenario's own ``data_policy`` (random-level
+    #: on the RC plants, closed-loop on EnergyPlus), as ``simulate`` and ``compare`` default to.
+    policy: str = "scenario"
     quick: bool = False
 
     def __post_init__(self) -> None:
@@ -100,6 +104,8 @@ class SweepSettings:
                 raise InputError(f"sweep: {name} must be >= 1, got {getattr(self, name)}")
         if self.epochs is not None and self.epochs < 1:
             raise InputError(f"sweep: epochs must be >= 1, got {self.epochs}")
+        if self.policy not in _POLICIES:
+            raise InputError(f"sweep: policy {self.policy!r} is unknown; choose one of {', '.join(_POLICIES)}")
 
     @classmethod
     def for_run(cls, *, days: int, quick: bool) -> SweepSettings:
@@ -318,12 +324,13 @@ def parse_ints(text: str, what: str) -> tuple[int, ...]:
 
 def fit_model(key: ModelKey, settings: SweepSettings) -> SweepModel:
     """Train the learned ensemble (:data:`ARCH`) or identify the RC of ``key`` on the scenario's simulated data
-    (``train_days`` days under the random policy, seed ``key.seed``)."""
+    (``train_days`` days under the settings' policy, by default the scenario's, seed ``key.seed``)."""
     from scenarios.compare import CompareSettings, identify_scenario_rc
     from scenarios.datagen import generate
 
     scenario = get_scenario(key.scenario)
-    data = generate(scenario, days=key.train_days, seed=key.seed, policy=settings.policy)
+    policy = scenario.data_policy if settings.policy == "scenario" else settings.policy
+    data = generate(scenario, days=key.train_days, seed=key.seed, policy=policy)
     if key.kind == RC_KIND:  # as compare identifies (on delivered heat under a heat pump)
         return identify_scenario_rc(scenario, data)
     from pinn_mpc.training import TrainConfig, train_model

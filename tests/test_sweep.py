@@ -268,3 +268,37 @@ def test_a_sweep_logs_its_progress_when_stderr_is_not_a_terminal(tmp_path, monke
     assert main(["sweep", *args, "--days", "1", "--quick", "--out", str(out)]) == 0
     lines = [line for line in capsys.readouterr().err.splitlines() if line.startswith("sweep: ")]
     assert lines and "of 4 cells" in lines[0] and "elapsed" in lines[0]
+
+
+def test_sweep_trains_on_each_scenarios_own_data_policy(tmp_path):
+    """By default a sweep's models learn from the data the scenario's `data_policy` names (as
+    simulate and compare use), not one policy for all; an explicit policy still applies to all."""
+    from scenarios.compare import identify_scenario_rc
+    from scenarios.datagen import generate
+    from scenarios.registry import get_scenario
+    from scenarios.sweep import RC_KIND, ModelKey, SweepSettings, fit_model
+
+    text = Path(_export(tmp_path)).read_text().replace(
+        'data_policy = "random-level"', 'data_policy = "closed-loop"'
+    )
+    path = tmp_path / "closed.toml"
+    path.write_text(text)
+    scenario = get_scenario(str(path))
+    key = ModelKey(scenario=str(path), kind=RC_KIND, seed=3, train_days=4)
+    own = identify_scenario_rc(scenario, generate(scenario, days=4, seed=3, policy="closed-loop"))
+    other = identify_scenario_rc(scenario, generate(scenario, days=4, seed=3, policy="random-level"))
+    assert own != other
+    assert SweepSettings().policy == "scenario"
+    assert fit_model(key, SweepSettings()) == own
+    assert fit_model(key, SweepSettings(policy="random-level")) == other
+    with pytest.raises(InputError, match="policy 'bang-bang' is unknown"):
+        SweepSettings(policy="bang-bang")
+
+
+def _export(tmp_path: Path) -> str:
+    out = tmp_path / "winter.toml"
+    subprocess.run(
+        [sys.executable, "-m", "pinn_mpc", "scenario", "export", "winter_household", "--out", str(out)],
+        check=True, capture_output=True,
+    )
+    return str(out)
