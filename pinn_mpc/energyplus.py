@@ -60,6 +60,7 @@ __all__ = [
     "bundled_weather",
     "energyplus_available",
     "prepare_model",
+    "prepare_plant",
     "resolve_weather",
     "weather_year",
 ]
@@ -390,22 +391,52 @@ def _merge_zones(model: dict[str, Any], zones: list[str], geo: dict[str, dict[st
 
 @dataclass(frozen=True, kw_only=True)
 class PreparedModel:
-    """A building ready to run: the epJSON (its run period set per run) and what it holds."""
+    """A building ready to run: the epJSON (its run period set per run) and what it holds.
+
+    ``zones`` are the thermal zones heated (one, ``Merged Zone``, when merged), ``heaters``
+    their heaters, ``weights`` each zone's share of the conditioned floor area (zone
+    multipliers counted; they sum to 1) and ``multipliers`` the zones' multipliers: a power
+    ``u`` is split as ``u * weight / multiplier`` per heater, so the building receives ``u``,
+    and T_r is the floor-area-weighted mean of the zones' air temperatures."""
 
     model: dict[str, Any]
     source: str
-    zone: str
-    heater: str
+    zones: tuple[str, ...]
+    heaters: tuple[str, ...]
+    weights: tuple[float, ...]
+    multipliers: tuple[int, ...]
     floor_m2: float
     volume_m3: float
     merged_zones: tuple[str, ...]
     timesteps_per_hour: int
 
+    @property
+    def zone(self) -> str:
+        """The first heated zone (the only one when merged)."""
+        return self.zones[0]
 
-def prepare_model(building: str, *, allow_code: bool = False, timesteps_per_hour: int = 6) -> PreparedModel:
+    @property
+    def heater(self) -> str:
+        """The first zone's heater (the only one when merged)."""
+        return self.heaters[0]
+
+
+def prepare_model(
+    building: str,
+    *,
+    allow_code: bool = False,
+    timesteps_per_hour: int = 6,
+    zones: str = "merged",
+    radiant_fraction: float = 0.0,
+) -> PreparedModel:
     """A building (a bundled name or an IDF/epJSON path) without its HVAC, its conditioned
-    zones merged into one, an ideal electric heater (0 W until a run sets it) in that zone.
+    zones merged into one (``zones="merged"``) or kept (``"separate"``), an ideal electric
+    heater (0 W until a run sets it; ``radiant_fraction`` of its heat radiant) in each.
     A model with code objects (:data:`CODE_OBJECT_PREFIXES`) is refused unless ``allow_code``."""
+    if zones not in ("merged", "separate"):
+        raise InputError(f"plant.zones = {zones!r} is not one of 'merged', 'separate'")
+    if isinstance(radiant_fraction, bool) or not 0.0 <= radiant_fraction <= 1.0:
+        raise InputError(f"plant.radiant_fraction = {radiant_fraction!r} must lie in [0, 1]")
     _require_energyplus()
     path = _resolve_building(building)
     src = _read_model(path)
@@ -415,12 +446,12 @@ def prepare_model(building: str, *, allow_code: bool = False, timesteps_per_hour
             f"{path} declares {found[0]}: running it would run code from the model; "
             "set allow_code = true in [simulation.plant] if you trust it"
         )
-    zones = _conditioned_zones(src)
-    if not zones:
+    conditioned = _conditioned_zones(src)
+    if not conditioned:
         raise InputError(f"{path}: the model has no zones with floor area to heat")
     geo = _zone_geometry(src)
-    if any(z not in geo for z in zones):
-        raise InputError(f"{path}: zone(s) {[z for z in zones if z not in geo]} have no surfaces")
+    if any(z not in geo for z in conditioned):
+        raise InputError(f"{path}: zone(s) {[z for z in conditioned if z not in geo]} have no surfaces")
     model = {
         k: copy.deepcopy(v)
         for k, v in src.items()
@@ -437,29 +468,47 @@ def prepare_model(building: str, *, allow_code: bool = False, timesteps_per_hour
         }
     }
     model["Timestep"] = {"Timestep 1": {"number_of_timesteps_per_hour": timesteps_per_hour}}
-    _merge_zones(model, zones, geo)
+    if zones == "merged":
+        _merge_zones(model, conditioned, geo)
+        heated, weights, multipliers = [MERGED_ZONE], [1.0], [1]
+    else:
+        heated = conditioned
+        multipliers = [int(model["Zone"][z].get("multiplier", 1)) for z in heated]
+        areas = [geo[z]["floor_m2"] * m for z, m in zip(heated, multipliers, strict=True)]
+        weights = [a / sum(areas) for a in areas] if len(heated) > 1 else [1.0]
     model.setdefault("Schedule:Constant", {})["PINN-MPC Always On"] = {"hourly_value": 1.0}
-    heater = f"{HEATER_PREFIX} {MERGED_ZONE}"
-    model.setdefault("OtherEquipment", {})[heater] = {
-        "fuel_type": "Electricity",
-        "zone_or_zonelist_or_space_or_spacelist_name": MERGED_ZONE,
-        "schedule_name": "PINN-MPC Always On",
-        "design_level_calculation_method": "EquipmentLevel",
-        "design_level": 0.0,
-        "fraction_latent": 0.0,
-        "fraction_radiant": 0.0,
-        "fraction_lost": 0.0,
-        "end_use_subcategory": "PINN-MPC Heater",
-    }
+    heaters = [f"{HEATER_PREFIX} {z}" for z in heated]
+    for zone, heater in zip(heated, heaters, strict=True):
+        model.setdefault("OtherEquipment", {})[heater] = {
+            "fuel_type": "Electricity",
+            "zone_or_zonelist_or_space_or_spacelist_name": zone,
+            "schedule_name": "PINN-MPC Always On",
+            "design_level_calculation_method": "EquipmentLevel",
+            "design_level": 0.0,
+            "fraction_latent": 0.0,
+            "fraction_radiant": float(radiant_fraction),
+            "fraction_lost": 0.0,
+            "end_use_subcategory": "PINN-MPC Heater",
+        }
     return PreparedModel(
         model=model,
         source=str(path),
-        zone=MERGED_ZONE,
-        heater=heater,
-        floor_m2=sum(geo[z]["floor_m2"] for z in zones),
-        volume_m3=sum(geo[z]["volume_m3"] for z in zones),
-        merged_zones=tuple(zones),
+        zones=tuple(heated),
+        heaters=tuple(heaters),
+        weights=tuple(weights),
+        multipliers=tuple(multipliers),
+        floor_m2=sum(geo[z]["floor_m2"] for z in conditioned),
+        volume_m3=sum(geo[z]["volume_m3"] for z in conditioned),
+        merged_zones=tuple(conditioned) if zones == "merged" else (),
         timesteps_per_hour=timesteps_per_hour,
+    )
+
+
+def prepare_plant(plant: Any) -> PreparedModel:
+    """:func:`prepare_model` of a scenario's EnergyPlus :class:`~pinn_mpc.plant.Plant`."""
+    return prepare_model(
+        plant.building, allow_code=plant.allow_code, zones=plant.zones,
+        radiant_fraction=plant.radiant_fraction,
     )
 
 
@@ -508,8 +557,13 @@ class EnergyPlusRun:
     ``days`` days; EnergyPlus's warm-up days hold the room near ``warmup_setpoint_c`` and the
     call returns the room temperature then. :meth:`step` holds a heater power for one control
     interval (``dt_s``) and returns its :class:`IntervalMeans`. A backup thermostat (full power
-    below ``backup_c[0]``, none above ``backup_c[1]``) acts per zone timestep. Use it as a
-    context manager, or call :meth:`close`.
+    below ``backup_c[0]``, none above ``backup_c[1]``; mirrored for a chiller) acts per zone
+    timestep. ``heat_per_w`` is the heat per watt of power (1: the ideal electric heater;
+    minus a COP: an ideal chiller, whose equipment extracts heat, a negative
+    ``OtherEquipment`` power); the reported power is the heat delivered divided by it. With
+    ``hold_c`` set, the power asked is ignored and an ideal thermostat (integral control per
+    zone timestep, as in the warm-up) holds T_r at ``hold_c``: :func:`size_heater` measures
+    the power that takes. Use it as a context manager, or call :meth:`close`.
     """
 
     def __init__(
@@ -522,9 +576,15 @@ class EnergyPlusRun:
         backup_c: tuple[float, float] | None = None,
         warmup_setpoint_c: float = 20.5,
         timeout_s: float = DEFAULT_TIMEOUT_S,
+        heat_per_w: float = 1.0,
+        hold_c: float | None = None,
     ) -> None:
         _require_energyplus()
+        if not (math.isfinite(heat_per_w) and heat_per_w != 0):
+            raise InputError(f"EnergyPlusRun: heat_per_w must be a nonzero number, got {heat_per_w!r}")
         self.prepared = prepared
+        self.heat_per_w = float(heat_per_w)
+        self.hold_c = hold_c
         self.epw = resolve_weather(weather)
         self.year = weather_year(self.epw)
         self.u_max_w, self.dt_s = float(u_max_w), int(dt_s)
@@ -683,19 +743,25 @@ class EnergyPlusRun:
 
     # ---- the EnergyPlus thread ----------------------------------------------------------
 
+    _GAIN_VARIABLES = (
+        "Zone Total Internal Convective Heating Rate",
+        "Zone Total Internal Radiant Heating Rate",
+        "Zone Total Internal Visible Radiation Heating Rate",
+    )
+
     def _variables(self) -> list[tuple[str, str]]:
-        env, zone = "Environment", self.prepared.zone
-        return [
+        env = "Environment"
+        variables = [
             ("Site Outdoor Air Drybulb Temperature", env),
             ("Site Direct Solar Radiation Rate per Area", env),
             ("Site Diffuse Solar Radiation Rate per Area", env),
             ("Site Solar Altitude Angle", env),
-            ("Zone Mean Air Temperature", zone),
-            ("Zone Total Internal Convective Heating Rate", zone),
-            ("Zone Total Internal Radiant Heating Rate", zone),
-            ("Zone Total Internal Visible Radiation Heating Rate", zone),
-            ("Other Equipment Total Heating Rate", self.prepared.heater),
         ]
+        for zone, heater in zip(self.prepared.zones, self.prepared.heaters, strict=True):
+            variables += [("Zone Mean Air Temperature", zone)]
+            variables += [(name, zone) for name in self._GAIN_VARIABLES]
+            variables += [("Other Equipment Total Heating Rate", heater)]
+        return variables
 
     def _run(self, args: list[str]) -> None:
         rc: int | None = None
@@ -722,16 +788,16 @@ class EnergyPlusRun:
     def _get_handles(self, state: Any) -> dict[str, Any]:
         ex = self.api.exchange
         var = {(n, k): ex.get_variable_handle(state, n, k) for n, k in self._variables()}
-        act = ex.get_actuator_handle(state, "OtherEquipment", "Power Level", self.prepared.heater)
-        missing = [k for k, v in var.items() if v < 0] + (["heater actuator"] if act < 0 else [])
+        act = [ex.get_actuator_handle(state, "OtherEquipment", "Power Level", h) for h in self.prepared.heaters]
+        missing = [f"{n} of {k}" for (n, k), v in var.items() if v < 0]
+        missing += [f"actuator of {h}" for h, a in zip(self.prepared.heaters, act, strict=True) if a < 0]
         if missing:
             raise RuntimeError(f"EnergyPlus has no handle for {missing}")
         return {"var": var, "act": act}
 
     def _read(self, state: Any) -> dict[str, float]:
         assert self._handles is not None
-        ex, var = self.api.exchange, self._handles["var"]
-        zone, heater = self.prepared.zone, self.prepared.heater
+        ex, var, prepared = self.api.exchange, self._handles["var"], self.prepared
 
         def g(name: str, key: str = "Environment") -> float:
             return float(ex.get_variable_value(state, var[(name, key)]))
@@ -740,20 +806,18 @@ class EnergyPlusRun:
         ghi = g("Site Direct Solar Radiation Rate per Area") * max(0.0, math.sin(math.radians(alt))) + g(
             "Site Diffuse Solar Radiation Rate per Area"
         )
-        heat = g("Other Equipment Total Heating Rate", heater)
+        # Per zone instance; a zone multiplier repeats both the heat and the gains.
+        mult = prepared.multipliers
+        heat = sum(m * g("Other Equipment Total Heating Rate", h) for h, m in zip(prepared.heaters, mult, strict=True))
         gains = sum(
-            g(n, zone)
-            for n in (
-                "Zone Total Internal Convective Heating Rate",
-                "Zone Total Internal Radiant Heating Rate",
-                "Zone Total Internal Visible Radiation Heating Rate",
-            )
+            m * sum(g(n, zone) for n in self._GAIN_VARIABLES) for zone, m in zip(prepared.zones, mult, strict=True)
         )
+        t_r = sum(w * g("Zone Mean Air Temperature", z) for z, w in zip(prepared.zones, prepared.weights, strict=True))
         return {
-            "T_r": g("Zone Mean Air Temperature", zone),
+            "T_r": t_r,
             "T_a": g("Site Outdoor Air Drybulb Temperature"),
             "G": ghi,
-            "u_phys": heat,
+            "u_phys": heat / self.heat_per_w,
             "I_g": gains - heat,
         }
 
@@ -783,8 +847,19 @@ class EnergyPlusRun:
         )
 
     def _set_heater(self, state: Any, u: float) -> None:
+        """Power ``u`` [W] to the building: its heat split over the zones by floor area."""
         assert self._handles is not None
-        self.api.exchange.set_actuator_value(state, self._handles["act"], u)
+        prepared, heat = self.prepared, u * self.heat_per_w
+        for act, w, m in zip(self._handles["act"], prepared.weights, prepared.multipliers, strict=True):
+            self.api.exchange.set_actuator_value(state, act, heat * w / m)
+
+    def _integral_control(self, setpoint_c: float) -> None:
+        """The warm-up's thermostat: the power moves by 10 % of its range per K of error per
+        zone timestep (towards more power below the setpoint for a heater, above for a chiller)."""
+        if self._last_t_r is not None:
+            error = setpoint_c - self._last_t_r if self.heat_per_w > 0 else self._last_t_r - setpoint_c
+            u = self._u + 0.1 * self.u_max_w * error
+            self._u = min(max(u, 0.0), self.u_max_w)
 
     def _on_begin(self, state: Any) -> None:
         """Begin of a zone timestep: set the heater; at an interval boundary hand over and
@@ -798,9 +873,7 @@ class EnergyPlusRun:
                     return
                 self._handles = self._get_handles(state)
             if ex.warmup_flag(state):  # integral control to the warm-up setpoint
-                if self._last_t_r is not None:
-                    u = self._u + 0.1 * self.u_max_w * (self.warmup_setpoint_c - self._last_t_r)
-                    self._u = min(max(u, 0.0), self.u_max_w)
+                self._integral_control(self.warmup_setpoint_c)
                 self._set_heater(state, self._u)
                 return
             if self._seconds(state) % self.dt_s == 0:
@@ -817,13 +890,21 @@ class EnergyPlusRun:
                     self._set_heater(state, 0.0)
                     self.api.runtime.stop_simulation(state)
                     return
-                self._u = float(msg)
+                if self.hold_c is None:
+                    self._u = float(msg)
+            if self.hold_c is not None:
+                self._integral_control(self.hold_c)
             u = self._u
             if self.backup_c is not None and self._last_t_r is not None:
                 low, high = self.backup_c
-                if self._last_t_r < low:
+                force_on, force_off = (
+                    (self._last_t_r < low, self._last_t_r > high)
+                    if self.heat_per_w > 0
+                    else (self._last_t_r > high, self._last_t_r < low)
+                )
+                if force_on:
                     u = self.u_max_w
-                elif self._last_t_r > high:
+                elif force_off:
                     u = 0.0
                 if u != self._u:
                     self._acc["overridden"] = True
@@ -874,25 +955,31 @@ class EnergyPlusPlant:
 
     def __init__(self, config: Any, times: np.ndarray, *, seed: int | None = 0) -> None:
         plant = config.plant
-        if not config.actuator.is_ideal or config.params.eta != 1.0:
+        eta = config.params.eta
+        if not config.actuator.is_ideal or not (eta == 1.0 or eta < 0):
             raise InputError(
-                "an EnergyPlus plant is heated by an ideal electric heater: use the ideal "
-                "actuator and eta = 1 in the scenario"
+                "an EnergyPlus plant is heated by an ideal electric heater (the ideal actuator, "
+                f"eta = 1) or cooled by an ideal chiller (eta = -COP), not eta = {eta:g}"
             )
-        if plant.heater_w and abs(plant.heater_w - config.u_max_w) > 1e-6 * plant.heater_w:
+        if (
+            isinstance(plant.heater_w, float | int)
+            and plant.heater_w
+            and abs(plant.heater_w - config.u_max_w) > 1e-6 * plant.heater_w
+        ):
             raise InputError(
                 f"plant.heater_w = {plant.heater_w:g} W differs from simulation.u_max_w = "
                 f"{config.u_max_w:g} W; give the heater's power once"
             )
         self.config = config
         self.times = np.asarray(times, dtype="datetime64[s]")
-        self.prepared = prepare_model(plant.building, allow_code=plant.allow_code)
+        self.prepared = prepare_plant(plant)
         self.run = EnergyPlusRun(
             self.prepared,
             weather=plant.weather,
             u_max_w=config.u_max_w,
             dt_s=config.dt_s,
             backup_c=(config.backup_low_c, config.backup_high_c),
+            heat_per_w=eta,
         )
         self.n_substeps = int(config.dt_s * self.prepared.timesteps_per_hour // 3600)
         self._rng = np.random.default_rng(seed)

@@ -261,3 +261,107 @@ def test_gymnasium_env_on_energyplus_starts_at_midnight_and_closes_its_thread():
     finally:
         env.close()
     assert threading.active_count() <= before
+
+
+def _with_sqlite_outputs(prepared):
+    """``prepared`` writing every zone's air temperature and every heater's heating rate per
+    timestep to EnergyPlus's own SQLite output."""
+    import dataclasses
+
+    model = dict(prepared.model)
+    model["Output:SQLite"] = {"Output:SQLite 1": {"option_type": "Simple"}}
+    model["Output:Variable"] = {
+        name: {"key_value": "*", "variable_name": variable, "reporting_frequency": "Timestep"}
+        for name, variable in (("T", "Zone Mean Air Temperature"), ("Q", "Other Equipment Total Heating Rate"))
+    }
+    return dataclasses.replace(prepared, model=model)
+
+
+def _sqlite_series(run) -> dict[tuple[str, str], np.ndarray]:
+    """(key, variable) -> the run-period values (warm-up days excluded) from eplusout.sql."""
+    import sqlite3
+
+    run._thread.join(60)  # EnergyPlus closes its SQLite file when the run ends
+    with sqlite3.connect(run._tmp / "eplusout.sql") as con:
+        rows = con.execute(
+            "select d.KeyValue, d.Name, v.Value from ReportData v join ReportDataDictionary d "
+            "on v.ReportDataDictionaryIndex = d.ReportDataDictionaryIndex join Time t "
+            "on v.TimeIndex = t.TimeIndex where coalesce(t.WarmupFlag, 0) = 0 order by v.TimeIndex"
+        ).fetchall()
+    out: dict[tuple[str, str], list[float]] = {}
+    for key, name, value in rows:
+        out.setdefault((key.upper(), name), []).append(value)
+    return {k: np.array(v) for k, v in out.items()}
+
+
+def test_separate_zones_split_by_floor_area_and_average_by_it():
+    """Zones kept: one heater per conditioned zone gets the power asked times its floor-area
+    share, the heat delivered in total is the power asked, and T_r is the floor-area-weighted
+    mean of the zones' air temperatures as EnergyPlus writes them to its own output."""
+    prepared = prepare_model("small_office", zones="separate")
+    assert len(prepared.zones) == 5 and "Attic" not in prepared.zones
+    assert sum(prepared.weights) == pytest.approx(1.0)
+    assert prepared.weights[0] == pytest.approx(149.66 / 511.16, rel=1e-3)  # the core zone
+    asked = np.random.default_rng(1).uniform(0.0, 20000.0, 96)
+    with EnergyPlusRun(_with_sqlite_outputs(prepared), weather="usa_il_chicago", u_max_w=20000.0) as run:
+        run.start(33, 2)
+        means = [run.step(u) for u in asked]
+        series = _sqlite_series(run)
+    delivered = np.array([m.u_phys_w for m in means])
+    assert delivered == pytest.approx(asked, rel=1e-9, abs=1e-6)
+    heat = {z: series[(h.upper(), "Other Equipment Total Heating Rate")]
+            for z, h in zip(prepared.zones, prepared.heaters, strict=True)}
+    per_step = np.repeat(asked, 3)  # 3 zone timesteps per 30 min
+    for zone, w in zip(prepared.zones, prepared.weights, strict=True):
+        assert heat[zone] == pytest.approx(per_step * w, rel=1e-9, abs=1e-6)
+    temps = np.array([series[(z.upper(), "Zone Mean Air Temperature")] for z in prepared.zones])
+    weighted = np.asarray(prepared.weights) @ temps
+    t_r_sub = np.concatenate([m.t_r_sub_c for m in means])
+    assert len(t_r_sub) == len(weighted) == 96 * 3
+    assert t_r_sub == pytest.approx(weighted, abs=1e-9)
+    assert np.ptp(temps, axis=0).max() > 0.5  # the zones do differ: the mean is not trivial
+
+
+def test_radiant_fraction_is_the_heaters_and_changes_the_room_not_the_heat():
+    """A radiant heater: the same heat (the power asked), part of it into the surfaces, so the
+    air warms less than with the convective heater; values outside [0, 1] are refused."""
+    ends, delivered = [], []
+    for fraction in (0.0, 0.8):
+        prepared = prepare_model("small_office", radiant_fraction=fraction)
+        assert prepared.model["OtherEquipment"][prepared.heater]["fraction_radiant"] == fraction
+        with EnergyPlusRun(prepared, weather="usa_il_chicago", u_max_w=20000.0) as run:
+            run.start(40, 1)
+            means = [run.step(15000.0) for _ in range(12)]
+        delivered.append([m.u_phys_w for m in means])
+        ends.append(means[-1].t_r_c)
+    assert delivered[1] == pytest.approx(delivered[0], rel=1e-9)
+    assert ends[1] < ends[0] - 0.3
+    with pytest.raises(InputError, match="radiant_fraction"):
+        prepare_model("small_office", radiant_fraction=1.5)
+
+
+def test_chiller_extracts_heat_with_its_cop():
+    """eta = -COP: the ideal equipment extracts COP x the power asked (a negative
+    OtherEquipment power), the power reported is the electrical power, and the room is cooler
+    than without it; the backup is mirrored (full power above its upper bound)."""
+    prepared = prepare_model("small_office")
+    asked = np.random.default_rng(2).uniform(0.0, 8000.0, 24)
+    runs = {}
+    for name, power in (("off", np.zeros(24)), ("on", asked)):
+        with EnergyPlusRun(_with_sqlite_outputs(prepared), weather="usa_il_chicago", u_max_w=8000.0,
+                           heat_per_w=-3.0, warmup_setpoint_c=24.0) as run:
+            run.start(200, 1)
+            means = [run.step(u) for u in power] + [run.step(0.0) for _ in range(24)]
+            series = _sqlite_series(run)
+        runs[name] = means
+    delivered = np.array([m.u_phys_w for m in runs["on"][:24]])
+    assert delivered == pytest.approx(asked, rel=1e-9, abs=1e-6)
+    heat = series[(prepared.heater.upper(), "Other Equipment Total Heating Rate")][: 24 * 3]
+    assert heat == pytest.approx(-3.0 * np.repeat(asked, 3), rel=1e-9, abs=1e-6)
+    cooler = [b.t_r_c - a.t_r_c for a, b in zip(runs["off"][:24], runs["on"][:24], strict=True)]
+    assert max(cooler) < -1.0
+    with EnergyPlusRun(prepared, weather="usa_il_chicago", u_max_w=8000.0, heat_per_w=-3.0,
+                       backup_c=(10.0, 22.0), warmup_setpoint_c=26.0) as run:
+        run.start(200, 1)
+        first = run.step(0.0)
+    assert first.overridden and first.u_phys_w > 0
