@@ -54,14 +54,17 @@ __all__ = [
     "CODE_OBJECT_PREFIXES",
     "EnergyPlusPlant",
     "EnergyPlusRun",
+    "HeaterSizing",
     "IntervalMeans",
     "PreparedModel",
     "bundled_buildings",
     "bundled_weather",
     "energyplus_available",
+    "extreme_window",
     "prepare_model",
     "prepare_plant",
     "resolve_weather",
+    "size_heater",
     "weather_year",
 ]
 
@@ -71,6 +74,8 @@ HEATER_PREFIX = "PINN-MPC Heater"
 MERGED_ZONE = "Merged Zone"
 SECONDS_PER_DAY = 86400
 DEFAULT_TIMEOUT_S = 300.0
+#: Gain of the holding thermostat (:class:`EnergyPlusRun` ``hold_c``) per m2 of floor.
+HOLD_GAIN_W_PER_K_M2 = 10.0
 
 # Object types kept from a model: the envelope, its schedules and internal loads; nothing of
 # the HVAC, plant, service water, sizing, tariffs, output requests or code.
@@ -585,6 +590,8 @@ class EnergyPlusRun:
         self.prepared = prepared
         self.heat_per_w = float(heat_per_w)
         self.hold_c = hold_c
+        #: The holding thermostat's gain: W per K of error per zone timestep (per m2 of floor).
+        self.hold_gain_w_per_k = HOLD_GAIN_W_PER_K_M2 * prepared.floor_m2 / abs(self.heat_per_w)
         self.epw = resolve_weather(weather)
         self.year = weather_year(self.epw)
         self.u_max_w, self.dt_s = float(u_max_w), int(dt_s)
@@ -853,12 +860,12 @@ class EnergyPlusRun:
         for act, w, m in zip(self._handles["act"], prepared.weights, prepared.multipliers, strict=True):
             self.api.exchange.set_actuator_value(state, act, heat * w / m)
 
-    def _integral_control(self, setpoint_c: float) -> None:
-        """The warm-up's thermostat: the power moves by 10 % of its range per K of error per
+    def _integral_control(self, setpoint_c: float, gain_w_per_k: float) -> None:
+        """The warm-up's thermostat: the power moves by ``gain_w_per_k`` per K of error per
         zone timestep (towards more power below the setpoint for a heater, above for a chiller)."""
         if self._last_t_r is not None:
             error = setpoint_c - self._last_t_r if self.heat_per_w > 0 else self._last_t_r - setpoint_c
-            u = self._u + 0.1 * self.u_max_w * error
+            u = self._u + gain_w_per_k * error
             self._u = min(max(u, 0.0), self.u_max_w)
 
     def _on_begin(self, state: Any) -> None:
@@ -873,7 +880,8 @@ class EnergyPlusRun:
                     return
                 self._handles = self._get_handles(state)
             if ex.warmup_flag(state):  # integral control to the warm-up setpoint
-                self._integral_control(self.warmup_setpoint_c)
+                gain = 0.1 * self.u_max_w if self.hold_c is None else self.hold_gain_w_per_k
+                self._integral_control(self.warmup_setpoint_c, gain)
                 self._set_heater(state, self._u)
                 return
             if self._seconds(state) % self.dt_s == 0:
@@ -893,7 +901,7 @@ class EnergyPlusRun:
                 if self.hold_c is None:
                     self._u = float(msg)
             if self.hold_c is not None:
-                self._integral_control(self.hold_c)
+                self._integral_control(self.hold_c, self.hold_gain_w_per_k)
             u = self._u
             if self.backup_c is not None and self._last_t_r is not None:
                 low, high = self.backup_c
@@ -1043,3 +1051,112 @@ class EnergyPlusPlant:
 
     def close(self) -> None:
         self.run.close()
+
+
+# --------------------------------------------------------------------------------------------
+# Heater sizing
+# --------------------------------------------------------------------------------------------
+
+
+def _daily_mean_dry_bulb(epw: Path) -> np.ndarray:
+    """(365,) the EPW's daily mean dry-bulb temperature [C] (column 7 of its hourly rows)."""
+    try:
+        with open(epw, encoding="latin-1") as f:
+            rows = [line.split(",") for line in f.readlines()[8:] if line.strip()]
+        dry_bulb = np.array([float(r[6]) for r in rows])
+    except (OSError, ValueError, IndexError):
+        raise InputError(f"{epw}: not a readable EPW weather file (no dry-bulb column)") from None
+    if len(dry_bulb) < 365 * 24:
+        raise InputError(f"{epw}: {len(dry_bulb)} hourly rows; sizing needs a whole year (8760)")
+    return dry_bulb[: 365 * 24].reshape(365, 24).mean(axis=1)
+
+
+def extreme_window(epw: Path, days: int = 3, *, hottest: bool = False) -> int:
+    """The first day of the year (1 = 1 January) of the coldest (``hottest``: the hottest)
+    ``days`` consecutive days of the weather file, by their daily mean dry-bulb."""
+    daily = _daily_mean_dry_bulb(epw)
+    window = np.convolve(daily, np.ones(days) / days, mode="valid")
+    return int(np.argmax(window) if hottest else np.argmin(window)) + 1
+
+
+@dataclass(frozen=True)
+class HeaterSizing:
+    """What :func:`size_heater` found: the power, the peak it came from and where."""
+
+    power_w: float  # the heater's (chiller's) power: peak x margin, rounded up to 1 kW
+    peak_w: float  # the largest interval mean power the ideal thermostat needed
+    setpoint_c: float  # the temperature held
+    start_day: int  # first day of the year of the window
+    days: int
+    margin: float
+    epw: str
+    cooling: bool = False
+
+    def line(self) -> str:
+        """One line for the run's log."""
+        first = dt.date(2001, 1, 1) + dt.timedelta(days=self.start_day - 1)
+        last = first + dt.timedelta(days=self.days - 1)
+        kind, extreme = ("chiller", "hottest") if self.cooling else ("heater", "coldest")
+        return (
+            f"plant.heater_w = \"auto\": {kind} sized {self.power_w / 1000:g} kW (peak "
+            f"{self.peak_w / 1000:.1f} kW x {self.margin:g} to hold {self.setpoint_c:g} C on the "
+            f"{extreme} {self.days} days of {Path(self.epw).name}, {first:%d %b}-{last:%d %b})"
+        )
+
+
+@functools.lru_cache(maxsize=16)
+def _size_heater_cached(
+    prepared_key: tuple[str, bool, str, float], weather: str, setpoint_c: float, heat_per_w: float,
+    margin: float, days: int, dt_s: float,
+) -> HeaterSizing:
+    building, allow_code, zones, radiant = prepared_key
+    prepared = prepare_model(building, allow_code=allow_code, zones=zones, radiant_fraction=radiant)
+    epw = resolve_weather(weather)
+    cooling = heat_per_w < 0
+    start_day = extreme_window(epw, days, hottest=cooling)
+    # A power no building of this floor area needs (1 kW/m2 of heat): the thermostat holds
+    # the setpoint unconstrained, and its largest interval mean is the power the band takes.
+    big_w = 1000.0 * prepared.floor_m2 / abs(heat_per_w)
+    with EnergyPlusRun(
+        prepared, weather=weather, u_max_w=big_w, dt_s=dt_s, heat_per_w=heat_per_w,
+        warmup_setpoint_c=setpoint_c, hold_c=setpoint_c,
+    ) as run:
+        run.start(start_day, days)
+        n = days * SECONDS_PER_DAY // int(dt_s)
+        peak = max(run.step(0.0).u_phys_w for _ in range(n))
+    if peak >= 0.99 * big_w:
+        raise InputError(
+            f"sizing the {'chiller' if cooling else 'heater'} of {prepared.source}: even "
+            f"{big_w / 1000:g} kW did not hold {setpoint_c:g} C; give heater_w"
+        )
+    power = math.ceil(peak * margin / 1000.0) * 1000.0
+    return HeaterSizing(
+        power_w=power, peak_w=peak, setpoint_c=setpoint_c, start_day=start_day, days=days,
+        margin=margin, epw=str(epw), cooling=cooling,
+    )
+
+
+def size_heater(
+    plant: Any,
+    setpoint_c: float,
+    *,
+    heat_per_w: float = 1.0,
+    margin: float = 1.2,
+    days: int = 3,
+    dt_s: float = 1800.0,
+) -> HeaterSizing:
+    """The heater an EnergyPlus :class:`~pinn_mpc.plant.Plant` needs to hold ``setpoint_c``
+    (the comfort band's lower bound) through the weather file's coldest ``days`` days.
+
+    The building (as the plant prepares it: zones, radiant fraction) runs on the coldest
+    window of its EPW (:func:`extreme_window`, by daily mean dry-bulb), warmed up at the
+    setpoint, under an ideal thermostat (integral control per zone timestep) with a heater
+    no building needs (1 kW per m2 of floor); the largest interval mean power it used, times
+    ``margin``, rounded up to a whole kW, is the heater. For a chiller (``heat_per_w < 0``) the
+    same on the hottest days, ``setpoint_c`` the band's upper bound, in electrical power.
+    Computed once per process for the same inputs; nothing is written to disk.
+    """
+    if not (math.isfinite(margin) and margin >= 1.0):
+        raise InputError(f"size_heater: margin must be >= 1, got {margin!r}")
+    key = (plant.building, bool(plant.allow_code), plant.zones, float(plant.radiant_fraction))
+    return _size_heater_cached(key, plant.weather, float(setpoint_c), float(heat_per_w), margin, days, dt_s)

@@ -16,6 +16,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
+import sys
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
@@ -46,6 +47,7 @@ __all__ = [
     "ENERGYPLUS_DATA_POLICY",
     "EPLUS_NOMINAL",
     "eplus_weather",
+    "with_sized_heater",
     "EXOGENOUS_COLUMNS",
     "INITIAL_TEMPERATURE_RANGE_C",
     "Scenario",
@@ -245,6 +247,36 @@ EPLUS_NOMINAL = RCParams(
     solar_to_air_fraction=0.3,
     gain_to_air_fraction=0.5,
 )
+
+
+_SIZING_REPORTED: set[str] = set()
+
+
+def with_sized_heater(scenario: Scenario, *, given_u_max_w: float | None = None) -> Scenario:
+    """The scenario of an EnergyPlus plant with ``heater_w = "auto"``, its ``u_max_w`` the
+    heater :func:`pinn_mpc.energyplus.size_heater` finds for it: holding the comfort band's
+    highest lower bound (a chiller, ``eta < 0``: its lowest upper bound) through the weather
+    file's coldest (hottest) three days. One line on stderr says what was sized (once per
+    process). A ``given_u_max_w`` must be that value (a file ``scenario export`` wrote)."""
+    from pinn_mpc.energyplus import size_heater
+
+    sim = scenario.sim
+    day = pd.date_range("2001-01-01", periods=steps_per_day(sim.dt_s), freq=f"{int(sim.dt_s)}s")
+    t_min, t_max = scenario.comfort.sample(day)
+    heating = sim.params.heating
+    setpoint = float(np.max(t_min)) if heating else float(np.min(t_max))
+    sizing = size_heater(sim.plant, setpoint, heat_per_w=sim.params.eta, dt_s=sim.dt_s)
+    if given_u_max_w is not None and abs(given_u_max_w - sizing.power_w) > 1e-6 * sizing.power_w:
+        raise InputError(
+            f"simulation.u_max_w = {given_u_max_w:g} W, but plant.heater_w = \"auto\" sizes "
+            f"{sizing.power_w:g} W; give the heater's power once (a number in heater_w, or "
+            "leave u_max_w out)"
+        )
+    line = f"pinn-mpc: scenario {scenario.name!r}: {sizing.line()}"
+    if line not in _SIZING_REPORTED:
+        _SIZING_REPORTED.add(line)
+        print(line, file=sys.stderr)
+    return dataclasses.replace(scenario, sim=dataclasses.replace(sim, u_max_w=sizing.power_w))
 
 
 def eplus_weather(file_name: str) -> TMY3Weather:
