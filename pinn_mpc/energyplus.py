@@ -64,6 +64,7 @@ __all__ = [
     "prepare_model",
     "prepare_plant",
     "resolve_weather",
+    "schedule_gains",
     "size_heater",
     "weather_year",
 ]
@@ -1104,6 +1105,29 @@ class HeaterSizing:
         )
 
 
+def _unlimited_power_w(prepared: PreparedModel, heat_per_w: float) -> float:
+    """A power no building of this floor area needs (1 kW/m2 of heat): a thermostat with it
+    holds its setpoint unconstrained."""
+    return 1000.0 * prepared.floor_m2 / abs(heat_per_w)
+
+
+def _held_run(
+    prepared: PreparedModel, weather: str, setpoint_c: float, heat_per_w: float, dt_s: float,
+    start_day: int, days: int, year: int | None,
+) -> list[IntervalMeans]:
+    """Every interval of a run whose room an ideal thermostat holds at ``setpoint_c``."""
+    with EnergyPlusRun(
+        prepared, weather=weather, u_max_w=_unlimited_power_w(prepared, heat_per_w), dt_s=dt_s,
+        heat_per_w=heat_per_w, warmup_setpoint_c=setpoint_c, hold_c=setpoint_c,
+    ) as run:
+        run.start(start_day, days, year=year)
+        return [run.step(0.0) for _ in range(days * SECONDS_PER_DAY // int(dt_s))]
+
+
+def _plant_key(plant: Any) -> tuple[str, bool, str, float]:
+    return (plant.building, bool(plant.allow_code), plant.zones, float(plant.radiant_fraction))
+
+
 @functools.lru_cache(maxsize=16)
 def _size_heater_cached(
     prepared_key: tuple[str, bool, str, float], weather: str, setpoint_c: float, heat_per_w: float,
@@ -1114,16 +1138,9 @@ def _size_heater_cached(
     epw = resolve_weather(weather)
     cooling = heat_per_w < 0
     start_day = extreme_window(epw, days, hottest=cooling)
-    # A power no building of this floor area needs (1 kW/m2 of heat): the thermostat holds
-    # the setpoint unconstrained, and its largest interval mean is the power the band takes.
-    big_w = 1000.0 * prepared.floor_m2 / abs(heat_per_w)
-    with EnergyPlusRun(
-        prepared, weather=weather, u_max_w=big_w, dt_s=dt_s, heat_per_w=heat_per_w,
-        warmup_setpoint_c=setpoint_c, hold_c=setpoint_c,
-    ) as run:
-        run.start(start_day, days)
-        n = days * SECONDS_PER_DAY // int(dt_s)
-        peak = max(run.step(0.0).u_phys_w for _ in range(n))
+    big_w = _unlimited_power_w(prepared, heat_per_w)
+    means = _held_run(prepared, weather, setpoint_c, heat_per_w, dt_s, start_day, days, None)
+    peak = max(m.u_phys_w for m in means)
     if peak >= 0.99 * big_w:
         raise InputError(
             f"sizing the {'chiller' if cooling else 'heater'} of {prepared.source}: even "
@@ -1158,5 +1175,47 @@ def size_heater(
     """
     if not (math.isfinite(margin) and margin >= 1.0):
         raise InputError(f"size_heater: margin must be >= 1, got {margin!r}")
-    key = (plant.building, bool(plant.allow_code), plant.zones, float(plant.radiant_fraction))
-    return _size_heater_cached(key, plant.weather, float(setpoint_c), float(heat_per_w), margin, days, dt_s)
+    return _size_heater_cached(_plant_key(plant), plant.weather, float(setpoint_c), float(heat_per_w), margin, days, dt_s)
+
+
+@functools.lru_cache(maxsize=16)
+def _schedule_gains_cached(
+    prepared_key: tuple[str, bool, str, float], weather: str, setpoint_c: float, heat_per_w: float,
+    dt_s: float, start_day: int, days: int, year: int,
+) -> np.ndarray:
+    building, allow_code, zones, radiant = prepared_key
+    prepared = prepare_model(building, allow_code=allow_code, zones=zones, radiant_fraction=radiant)
+    means = _held_run(prepared, weather, setpoint_c, heat_per_w, dt_s, start_day, days, year)
+    gains = np.array([m.i_g_w for m in means])
+    gains.flags.writeable = False
+    return gains
+
+
+def schedule_gains(
+    plant: Any, times: np.ndarray, *, setpoint_c: float, dt_s: float, heat_per_w: float = 1.0
+) -> np.ndarray:
+    """(N,) the internal gains [W] (the heater's excluded) the building's own schedules
+    deliver in the intervals starting at ``times``, as interval means.
+
+    A building's gains schedules (occupancy, lighting, equipment) are known in advance; the
+    gains that happen are not quite them (EnergyPlus's people give off less sensible heat in
+    a warmer room). So these come from a run of their own over the same dates with the room
+    held at ``setpoint_c`` by an ideal thermostat: what the schedules give at that
+    temperature, known before the plant runs. Computed once per process for the same inputs.
+    """
+    times = np.asarray(times, dtype="datetime64[s]")
+    days = times.astype("datetime64[D]")
+    if days[-1].astype("datetime64[Y]") != days[0].astype("datetime64[Y]"):
+        raise InputError(
+            f"the gains of an EnergyPlus building come from a run inside one calendar year, but "
+            f"this series runs from {days[0]} to {days[-1]}"
+        )
+    year = int(days[0].astype("datetime64[Y]").astype(int)) + 1970
+    start_day = int((days[0] - days[0].astype("datetime64[Y]")).astype(int)) + 1
+    n_days = int((days[-1] - days[0]).astype(int)) + 1
+    gains = _schedule_gains_cached(
+        _plant_key(plant), plant.weather, float(setpoint_c), float(heat_per_w), float(dt_s),
+        start_day, n_days, year,
+    )
+    rows = ((times - days[0].astype("datetime64[s]")).astype(int) // int(dt_s)).astype(int)
+    return np.array(gains[rows])

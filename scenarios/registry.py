@@ -140,6 +140,15 @@ class Scenario:
         return steps_per_day(self.sim.dt_s)
 
     @property
+    def band_setpoint_c(self) -> float:
+        """The comfort band's highest lower bound over a day (a cooled building: its lowest
+        upper bound), where an EnergyPlus plant's heater is sized and its gains schedule is
+        evaluated."""
+        day = pd.date_range("2001-01-01", periods=self.steps_per_day, freq=f"{int(self.sim.dt_s)}s")
+        t_min, t_max = self.comfort.sample(day)
+        return float(np.max(t_min)) if self.sim.params.heating else float(np.min(t_max))
+
+    @property
     def reference(self) -> Literal["oracle", "thermostat"]:
         """The controller every other is measured against: the oracle on a plant with true
         parameters and state, the thermostat on one without (EnergyPlus), where no oracle
@@ -188,6 +197,14 @@ class Scenario:
             raise InputError(f"scenario {self.name!r}: {exc}") from None
         price = self.price.sample(times, dt_s=dt_s, rng=rng(_PRICE_STREAM))
         i_g = self.gains.sample(times, rng=rng(_GAINS_STREAM))
+        plant = self.sim.plant
+        if plant.is_energyplus and plant.gains == "measured":  # the building's gains schedules
+            from pinn_mpc.energyplus import schedule_gains
+
+            i_g = schedule_gains(
+                plant, times.to_numpy(), setpoint_c=self.band_setpoint_c, dt_s=dt_s,
+                heat_per_w=self.sim.params.eta,
+            )
         t_min, t_max = self.comfort.sample(times)
         frame = pd.DataFrame(
             {
@@ -261,11 +278,7 @@ def with_sized_heater(scenario: Scenario, *, given_u_max_w: float | None = None)
     from pinn_mpc.energyplus import size_heater
 
     sim = scenario.sim
-    day = pd.date_range("2001-01-01", periods=steps_per_day(sim.dt_s), freq=f"{int(sim.dt_s)}s")
-    t_min, t_max = scenario.comfort.sample(day)
-    heating = sim.params.heating
-    setpoint = float(np.max(t_min)) if heating else float(np.min(t_max))
-    sizing = size_heater(sim.plant, setpoint, heat_per_w=sim.params.eta, dt_s=sim.dt_s)
+    sizing = size_heater(sim.plant, scenario.band_setpoint_c, heat_per_w=sim.params.eta, dt_s=sim.dt_s)
     if given_u_max_w is not None and abs(given_u_max_w - sizing.power_w) > 1e-6 * sizing.power_w:
         raise InputError(
             f"simulation.u_max_w = {given_u_max_w:g} W, but plant.heater_w = \"auto\" sizes "

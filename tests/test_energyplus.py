@@ -434,3 +434,43 @@ def test_energyplus_plant_keys_in_scenario_files(tmp_path):
     (tmp_path / "sep.toml").write_text(FILE.format(building="small_office", extra='zones = "separate"\nradiant_fraction = 0.5'))
     plant = get_scenario(str(tmp_path / "sep.toml")).sim.plant
     assert (plant.zones, plant.radiant_fraction, plant.gains) == ("separate", 0.5, "unknown")
+
+
+def test_measured_gains_reach_the_controllers(tmp_path):
+    """gains = "measured": the controllers' past gains are the plant's measured interval means,
+    their forecast the gains the building's schedules give (a run of its own held at the
+    band's lower bound), which the measured ones follow closely; the data carry the measured
+    ones as I_g. With the default ("unknown") the controllers see none."""
+    from scenarios.closed_loop import build_loop, prepare_run
+
+    seen = {}
+
+    class Recording(Thermostat):
+        def act(self, obs, forecast):
+            if obs.k == 30:
+                seen["past"], seen["forecast"] = np.array(obs.history["I_g"]), np.array(forecast.I_g)
+            return super().act(obs, forecast)
+
+    (tmp_path / "m.toml").write_text(FILE.format(building="small_office", extra='gains = "measured"'))
+    scenario = get_scenario(str(tmp_path / "m.toml"))
+    run = prepare_run(scenario, days=1, seed=0, warmup_steps=0, weather_part="test")
+    schedule = run.series.I_g
+    assert schedule.max() > 2000 and schedule.min() > 0  # the office's gains, day and night
+    with build_loop(scenario, run, seed=0) as loop:
+        controller = Recording(scenario.control_spec())
+        for _ in range(40):
+            obs = loop.observation()
+            loop.step(controller.act(obs, loop.forecast()))
+        measured = loop.record().i_g_w
+    assert seen["past"][:30] == pytest.approx(measured[:30], rel=1e-12)
+    assert seen["past"][30] == schedule[30] and seen["forecast"] == pytest.approx(schedule[30:], rel=1e-12)
+    assert not np.allclose(measured[:30], schedule[:30], rtol=1e-6)  # measured, not the schedule
+    assert measured[:40] == pytest.approx(schedule[:40], rel=0.1)
+    result = run_cli("simulate", "--scenario", "m.toml", "--days", "1", "--seed", "0", "--out", "d.csv",
+                     cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    header = (tmp_path / "d.csv").read_text().splitlines()[0]
+    assert "I_g" in header.split(",")
+    unknown = get_scenario(SCENARIO)
+    assert unknown.sim.plant.gains == "unknown"
+    assert not unknown.exogenous(days=1, seed=0, part="test")["I_g"].any()
