@@ -474,3 +474,47 @@ def test_measured_gains_reach_the_controllers(tmp_path):
     unknown = get_scenario(SCENARIO)
     assert unknown.sim.plant.gains == "unknown"
     assert not unknown.exogenous(days=1, seed=0, part="test")["I_g"].any()
+
+
+def test_cooling_scenario_file_runs_a_sized_chiller(tmp_path, capsys):
+    """[building] eta = -3 (the package's cooling convention, as cold_storage): the EnergyPlus
+    plant's ideal equipment is a chiller of COP 3, sized on the weather file's hottest days to
+    hold the band's upper bound; the thermostat cools with it (electrical power reported)."""
+    text = FILE.format(building="small_office", extra="").replace("heater_w = 20000.0\n", "")
+    text = text.replace("[simulation]", "[building]\neta = -3.0\n[simulation]")
+    text += '[weather]\ntype = "TMY3Weather"\nfile_name = "usa_il_chicago"\nwindow_start = "06-01"\n'
+    text += 'window_days = 61\ntest_start = "07-01"\ntest_days = 31\n'
+    (tmp_path / "cool.toml").write_text(text.replace("initial_t_r_c = 20.0", "initial_t_r_c = 24.0"))
+    scenario = get_scenario(str(tmp_path / "cool.toml"))
+    assert "chiller sized" in capsys.readouterr().err and scenario.sim.params.eta == -3.0
+    result = run_closed_loop(scenario, Thermostat(scenario.control_spec()), days=1, seed=0)
+    traj = result.trajectory
+    assert traj["u_phys"].max() == pytest.approx(scenario.sim.u_max_w) and traj["u_phys"].min() >= 0
+    assert traj["T_r"].max() < 28.0 and _energyplus_threads() == []
+
+
+def test_separate_zones_with_multipliers_deliver_the_power_asked():
+    """The mid-rise apartment's middle floor is one set of zones with multiplier 2: the split
+    divides by it, and EnergyPlus's own meter of the heaters' electricity (which counts zone
+    multipliers) shows the building receiving exactly the power asked."""
+    import dataclasses
+    import sqlite3
+
+    prepared = prepare_model("midrise_apartment", zones="separate")
+    assert max(prepared.multipliers) == 2 and sum(prepared.weights) == pytest.approx(1.0)
+    model = dict(prepared.model)
+    model["Output:SQLite"] = {"Output:SQLite 1": {"option_type": "Simple"}}
+    model["Output:Meter"] = {
+        "M": {"key_name": "PINN-MPC Heater:InteriorEquipment:Electricity", "reporting_frequency": "Timestep"}
+    }
+    asked = np.random.default_rng(3).uniform(0.0, 30000.0, 48)
+    with EnergyPlusRun(dataclasses.replace(prepared, model=model), weather="usa_co_denver", u_max_w=30000.0) as run:
+        run.start(33, 1)
+        delivered = np.array([run.step(u).u_phys_w for u in asked])
+        run._thread.join(60)
+        with sqlite3.connect(run._tmp / "eplusout.sql") as con:
+            joules = np.array([v for (v,) in con.execute(
+                "select v.Value from ReportData v join Time t on v.TimeIndex = t.TimeIndex "
+                "where coalesce(t.WarmupFlag, 0) = 0 order by v.TimeIndex")])
+    assert delivered == pytest.approx(asked, rel=1e-9)
+    assert joules / 600.0 == pytest.approx(np.repeat(asked, 3), rel=1e-9)
