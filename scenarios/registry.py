@@ -134,6 +134,11 @@ class Scenario:
                 f"Scenario {self.name!r}: an EnergyPlus building has its own internal gains; "
                 "leave [gains] out"
             )
+        if plant.gains == "measured" and not self.forecast.gains_known:
+            raise InputError(
+                f"Scenario {self.name!r}: simulation.plant.gains = \"measured\" makes the "
+                "building's gains known, but forecast.gains_known = false hides them; give one"
+            )
 
     @property
     def steps_per_day(self) -> int:

@@ -431,6 +431,11 @@ def test_energyplus_plant_keys_in_scenario_files(tmp_path):
         assert named in str(error.value) and "\n" not in str(error.value)
     result = run_cli("scenario", "show", "bad.toml", cwd=tmp_path)  # the CLI: exit 2, one line
     assert result.returncode == 2 and result.stderr.count("\n") == 1 and "heater_w" in result.stderr
+    (tmp_path / "bad.toml").write_text(
+        FILE.format(building="small_office", extra='gains = "measured"') + "[forecast]\ngains_known = false\n"
+    )
+    with pytest.raises(InputError, match="gains_known = false hides them"):
+        get_scenario(str(tmp_path / "bad.toml"))
     (tmp_path / "sep.toml").write_text(FILE.format(building="small_office", extra='zones = "separate"\nradiant_fraction = 0.5'))
     plant = get_scenario(str(tmp_path / "sep.toml")).sim.plant
     assert (plant.zones, plant.radiant_fraction, plant.gains) == ("separate", 0.5, "unknown")
