@@ -54,13 +54,18 @@ __all__ = [
     "CODE_OBJECT_PREFIXES",
     "EnergyPlusPlant",
     "EnergyPlusRun",
+    "HeaterSizing",
     "IntervalMeans",
     "PreparedModel",
     "bundled_buildings",
     "bundled_weather",
     "energyplus_available",
+    "extreme_window",
     "prepare_model",
+    "prepare_plant",
     "resolve_weather",
+    "schedule_gains",
+    "size_heater",
     "weather_year",
 ]
 
@@ -70,6 +75,8 @@ HEATER_PREFIX = "PINN-MPC Heater"
 MERGED_ZONE = "Merged Zone"
 SECONDS_PER_DAY = 86400
 DEFAULT_TIMEOUT_S = 300.0
+#: Gain of the holding thermostat (:class:`EnergyPlusRun` ``hold_c``) per m2 of floor.
+HOLD_GAIN_W_PER_K_M2 = 10.0
 
 # Object types kept from a model: the envelope, its schedules and internal loads; nothing of
 # the HVAC, plant, service water, sizing, tariffs, output requests or code.
@@ -390,22 +397,52 @@ def _merge_zones(model: dict[str, Any], zones: list[str], geo: dict[str, dict[st
 
 @dataclass(frozen=True, kw_only=True)
 class PreparedModel:
-    """A building ready to run: the epJSON (its run period set per run) and what it holds."""
+    """A building ready to run: the epJSON (its run period set per run) and what it holds.
+
+    ``zones`` are the thermal zones heated (one, ``Merged Zone``, when merged), ``heaters``
+    their heaters, ``weights`` each zone's share of the conditioned floor area (zone
+    multipliers counted; they sum to 1) and ``multipliers`` the zones' multipliers: a power
+    ``u`` is split as ``u * weight / multiplier`` per heater, so the building receives ``u``,
+    and T_r is the floor-area-weighted mean of the zones' air temperatures."""
 
     model: dict[str, Any]
     source: str
-    zone: str
-    heater: str
+    zones: tuple[str, ...]
+    heaters: tuple[str, ...]
+    weights: tuple[float, ...]
+    multipliers: tuple[int, ...]
     floor_m2: float
     volume_m3: float
     merged_zones: tuple[str, ...]
     timesteps_per_hour: int
 
+    @property
+    def zone(self) -> str:
+        """The first heated zone (the only one when merged)."""
+        return self.zones[0]
 
-def prepare_model(building: str, *, allow_code: bool = False, timesteps_per_hour: int = 6) -> PreparedModel:
+    @property
+    def heater(self) -> str:
+        """The first zone's heater (the only one when merged)."""
+        return self.heaters[0]
+
+
+def prepare_model(
+    building: str,
+    *,
+    allow_code: bool = False,
+    timesteps_per_hour: int = 6,
+    zones: str = "merged",
+    radiant_fraction: float = 0.0,
+) -> PreparedModel:
     """A building (a bundled name or an IDF/epJSON path) without its HVAC, its conditioned
-    zones merged into one, an ideal electric heater (0 W until a run sets it) in that zone.
+    zones merged into one (``zones="merged"``) or kept (``"separate"``), an ideal electric
+    heater (0 W until a run sets it; ``radiant_fraction`` of its heat radiant) in each.
     A model with code objects (:data:`CODE_OBJECT_PREFIXES`) is refused unless ``allow_code``."""
+    if zones not in ("merged", "separate"):
+        raise InputError(f"plant.zones = {zones!r} is not one of 'merged', 'separate'")
+    if isinstance(radiant_fraction, bool) or not 0.0 <= radiant_fraction <= 1.0:
+        raise InputError(f"plant.radiant_fraction = {radiant_fraction!r} must lie in [0, 1]")
     _require_energyplus()
     path = _resolve_building(building)
     src = _read_model(path)
@@ -415,12 +452,12 @@ def prepare_model(building: str, *, allow_code: bool = False, timesteps_per_hour
             f"{path} declares {found[0]}: running it would run code from the model; "
             "set allow_code = true in [simulation.plant] if you trust it"
         )
-    zones = _conditioned_zones(src)
-    if not zones:
+    conditioned = _conditioned_zones(src)
+    if not conditioned:
         raise InputError(f"{path}: the model has no zones with floor area to heat")
     geo = _zone_geometry(src)
-    if any(z not in geo for z in zones):
-        raise InputError(f"{path}: zone(s) {[z for z in zones if z not in geo]} have no surfaces")
+    if any(z not in geo for z in conditioned):
+        raise InputError(f"{path}: zone(s) {[z for z in conditioned if z not in geo]} have no surfaces")
     model = {
         k: copy.deepcopy(v)
         for k, v in src.items()
@@ -437,29 +474,47 @@ def prepare_model(building: str, *, allow_code: bool = False, timesteps_per_hour
         }
     }
     model["Timestep"] = {"Timestep 1": {"number_of_timesteps_per_hour": timesteps_per_hour}}
-    _merge_zones(model, zones, geo)
+    if zones == "merged":
+        _merge_zones(model, conditioned, geo)
+        heated, weights, multipliers = [MERGED_ZONE], [1.0], [1]
+    else:
+        heated = conditioned
+        multipliers = [int(model["Zone"][z].get("multiplier", 1)) for z in heated]
+        areas = [geo[z]["floor_m2"] * m for z, m in zip(heated, multipliers, strict=True)]
+        weights = [a / sum(areas) for a in areas] if len(heated) > 1 else [1.0]
     model.setdefault("Schedule:Constant", {})["PINN-MPC Always On"] = {"hourly_value": 1.0}
-    heater = f"{HEATER_PREFIX} {MERGED_ZONE}"
-    model.setdefault("OtherEquipment", {})[heater] = {
-        "fuel_type": "Electricity",
-        "zone_or_zonelist_or_space_or_spacelist_name": MERGED_ZONE,
-        "schedule_name": "PINN-MPC Always On",
-        "design_level_calculation_method": "EquipmentLevel",
-        "design_level": 0.0,
-        "fraction_latent": 0.0,
-        "fraction_radiant": 0.0,
-        "fraction_lost": 0.0,
-        "end_use_subcategory": "PINN-MPC Heater",
-    }
+    heaters = [f"{HEATER_PREFIX} {z}" for z in heated]
+    for zone, heater in zip(heated, heaters, strict=True):
+        model.setdefault("OtherEquipment", {})[heater] = {
+            "fuel_type": "Electricity",
+            "zone_or_zonelist_or_space_or_spacelist_name": zone,
+            "schedule_name": "PINN-MPC Always On",
+            "design_level_calculation_method": "EquipmentLevel",
+            "design_level": 0.0,
+            "fraction_latent": 0.0,
+            "fraction_radiant": float(radiant_fraction),
+            "fraction_lost": 0.0,
+            "end_use_subcategory": "PINN-MPC Heater",
+        }
     return PreparedModel(
         model=model,
         source=str(path),
-        zone=MERGED_ZONE,
-        heater=heater,
-        floor_m2=sum(geo[z]["floor_m2"] for z in zones),
-        volume_m3=sum(geo[z]["volume_m3"] for z in zones),
-        merged_zones=tuple(zones),
+        zones=tuple(heated),
+        heaters=tuple(heaters),
+        weights=tuple(weights),
+        multipliers=tuple(multipliers),
+        floor_m2=sum(geo[z]["floor_m2"] for z in conditioned),
+        volume_m3=sum(geo[z]["volume_m3"] for z in conditioned),
+        merged_zones=tuple(conditioned) if zones == "merged" else (),
         timesteps_per_hour=timesteps_per_hour,
+    )
+
+
+def prepare_plant(plant: Any) -> PreparedModel:
+    """:func:`prepare_model` of a scenario's EnergyPlus :class:`~pinn_mpc.plant.Plant`."""
+    return prepare_model(
+        plant.building, allow_code=plant.allow_code, zones=plant.zones,
+        radiant_fraction=plant.radiant_fraction,
     )
 
 
@@ -508,8 +563,13 @@ class EnergyPlusRun:
     ``days`` days; EnergyPlus's warm-up days hold the room near ``warmup_setpoint_c`` and the
     call returns the room temperature then. :meth:`step` holds a heater power for one control
     interval (``dt_s``) and returns its :class:`IntervalMeans`. A backup thermostat (full power
-    below ``backup_c[0]``, none above ``backup_c[1]``) acts per zone timestep. Use it as a
-    context manager, or call :meth:`close`.
+    below ``backup_c[0]``, none above ``backup_c[1]``; mirrored for a chiller) acts per zone
+    timestep. ``heat_per_w`` is the heat per watt of power (1: the ideal electric heater;
+    minus a COP: an ideal chiller, whose equipment extracts heat, a negative
+    ``OtherEquipment`` power); the reported power is the heat delivered divided by it. With
+    ``hold_c`` set, the power asked is ignored and an ideal thermostat (integral control per
+    zone timestep, as in the warm-up) holds T_r at ``hold_c``: :func:`size_heater` measures
+    the power that takes. Use it as a context manager, or call :meth:`close`.
     """
 
     def __init__(
@@ -522,9 +582,17 @@ class EnergyPlusRun:
         backup_c: tuple[float, float] | None = None,
         warmup_setpoint_c: float = 20.5,
         timeout_s: float = DEFAULT_TIMEOUT_S,
+        heat_per_w: float = 1.0,
+        hold_c: float | None = None,
     ) -> None:
         _require_energyplus()
+        if not (math.isfinite(heat_per_w) and heat_per_w != 0):
+            raise InputError(f"EnergyPlusRun: heat_per_w must be a nonzero number, got {heat_per_w!r}")
         self.prepared = prepared
+        self.heat_per_w = float(heat_per_w)
+        self.hold_c = hold_c
+        #: The holding thermostat's gain: W per K of error per zone timestep (per m2 of floor).
+        self.hold_gain_w_per_k = HOLD_GAIN_W_PER_K_M2 * prepared.floor_m2 / abs(self.heat_per_w)
         self.epw = resolve_weather(weather)
         self.year = weather_year(self.epw)
         self.u_max_w, self.dt_s = float(u_max_w), int(dt_s)
@@ -683,19 +751,25 @@ class EnergyPlusRun:
 
     # ---- the EnergyPlus thread ----------------------------------------------------------
 
+    _GAIN_VARIABLES = (
+        "Zone Total Internal Convective Heating Rate",
+        "Zone Total Internal Radiant Heating Rate",
+        "Zone Total Internal Visible Radiation Heating Rate",
+    )
+
     def _variables(self) -> list[tuple[str, str]]:
-        env, zone = "Environment", self.prepared.zone
-        return [
+        env = "Environment"
+        variables = [
             ("Site Outdoor Air Drybulb Temperature", env),
             ("Site Direct Solar Radiation Rate per Area", env),
             ("Site Diffuse Solar Radiation Rate per Area", env),
             ("Site Solar Altitude Angle", env),
-            ("Zone Mean Air Temperature", zone),
-            ("Zone Total Internal Convective Heating Rate", zone),
-            ("Zone Total Internal Radiant Heating Rate", zone),
-            ("Zone Total Internal Visible Radiation Heating Rate", zone),
-            ("Other Equipment Total Heating Rate", self.prepared.heater),
         ]
+        for zone, heater in zip(self.prepared.zones, self.prepared.heaters, strict=True):
+            variables += [("Zone Mean Air Temperature", zone)]
+            variables += [(name, zone) for name in self._GAIN_VARIABLES]
+            variables += [("Other Equipment Total Heating Rate", heater)]
+        return variables
 
     def _run(self, args: list[str]) -> None:
         rc: int | None = None
@@ -722,16 +796,16 @@ class EnergyPlusRun:
     def _get_handles(self, state: Any) -> dict[str, Any]:
         ex = self.api.exchange
         var = {(n, k): ex.get_variable_handle(state, n, k) for n, k in self._variables()}
-        act = ex.get_actuator_handle(state, "OtherEquipment", "Power Level", self.prepared.heater)
-        missing = [k for k, v in var.items() if v < 0] + (["heater actuator"] if act < 0 else [])
+        act = [ex.get_actuator_handle(state, "OtherEquipment", "Power Level", h) for h in self.prepared.heaters]
+        missing = [f"{n} of {k}" for (n, k), v in var.items() if v < 0]
+        missing += [f"actuator of {h}" for h, a in zip(self.prepared.heaters, act, strict=True) if a < 0]
         if missing:
             raise RuntimeError(f"EnergyPlus has no handle for {missing}")
         return {"var": var, "act": act}
 
     def _read(self, state: Any) -> dict[str, float]:
         assert self._handles is not None
-        ex, var = self.api.exchange, self._handles["var"]
-        zone, heater = self.prepared.zone, self.prepared.heater
+        ex, var, prepared = self.api.exchange, self._handles["var"], self.prepared
 
         def g(name: str, key: str = "Environment") -> float:
             return float(ex.get_variable_value(state, var[(name, key)]))
@@ -740,20 +814,18 @@ class EnergyPlusRun:
         ghi = g("Site Direct Solar Radiation Rate per Area") * max(0.0, math.sin(math.radians(alt))) + g(
             "Site Diffuse Solar Radiation Rate per Area"
         )
-        heat = g("Other Equipment Total Heating Rate", heater)
+        # Per zone instance; a zone multiplier repeats both the heat and the gains.
+        mult = prepared.multipliers
+        heat = sum(m * g("Other Equipment Total Heating Rate", h) for h, m in zip(prepared.heaters, mult, strict=True))
         gains = sum(
-            g(n, zone)
-            for n in (
-                "Zone Total Internal Convective Heating Rate",
-                "Zone Total Internal Radiant Heating Rate",
-                "Zone Total Internal Visible Radiation Heating Rate",
-            )
+            m * sum(g(n, zone) for n in self._GAIN_VARIABLES) for zone, m in zip(prepared.zones, mult, strict=True)
         )
+        t_r = sum(w * g("Zone Mean Air Temperature", z) for z, w in zip(prepared.zones, prepared.weights, strict=True))
         return {
-            "T_r": g("Zone Mean Air Temperature", zone),
+            "T_r": t_r,
             "T_a": g("Site Outdoor Air Drybulb Temperature"),
             "G": ghi,
-            "u_phys": heat,
+            "u_phys": heat / self.heat_per_w,
             "I_g": gains - heat,
         }
 
@@ -783,8 +855,19 @@ class EnergyPlusRun:
         )
 
     def _set_heater(self, state: Any, u: float) -> None:
+        """Power ``u`` [W] to the building: its heat split over the zones by floor area."""
         assert self._handles is not None
-        self.api.exchange.set_actuator_value(state, self._handles["act"], u)
+        prepared, heat = self.prepared, u * self.heat_per_w
+        for act, w, m in zip(self._handles["act"], prepared.weights, prepared.multipliers, strict=True):
+            self.api.exchange.set_actuator_value(state, act, heat * w / m)
+
+    def _integral_control(self, setpoint_c: float, gain_w_per_k: float) -> None:
+        """The warm-up's thermostat: the power moves by ``gain_w_per_k`` per K of error per
+        zone timestep (towards more power below the setpoint for a heater, above for a chiller)."""
+        if self._last_t_r is not None:
+            error = setpoint_c - self._last_t_r if self.heat_per_w > 0 else self._last_t_r - setpoint_c
+            u = self._u + gain_w_per_k * error
+            self._u = min(max(u, 0.0), self.u_max_w)
 
     def _on_begin(self, state: Any) -> None:
         """Begin of a zone timestep: set the heater; at an interval boundary hand over and
@@ -798,9 +881,8 @@ class EnergyPlusRun:
                     return
                 self._handles = self._get_handles(state)
             if ex.warmup_flag(state):  # integral control to the warm-up setpoint
-                if self._last_t_r is not None:
-                    u = self._u + 0.1 * self.u_max_w * (self.warmup_setpoint_c - self._last_t_r)
-                    self._u = min(max(u, 0.0), self.u_max_w)
+                gain = 0.1 * self.u_max_w if self.hold_c is None else self.hold_gain_w_per_k
+                self._integral_control(self.warmup_setpoint_c, gain)
                 self._set_heater(state, self._u)
                 return
             if self._seconds(state) % self.dt_s == 0:
@@ -817,13 +899,21 @@ class EnergyPlusRun:
                     self._set_heater(state, 0.0)
                     self.api.runtime.stop_simulation(state)
                     return
-                self._u = float(msg)
+                if self.hold_c is None:
+                    self._u = float(msg)
+            if self.hold_c is not None:
+                self._integral_control(self.hold_c, self.hold_gain_w_per_k)
             u = self._u
             if self.backup_c is not None and self._last_t_r is not None:
                 low, high = self.backup_c
-                if self._last_t_r < low:
+                force_on, force_off = (
+                    (self._last_t_r < low, self._last_t_r > high)
+                    if self.heat_per_w > 0
+                    else (self._last_t_r > high, self._last_t_r < low)
+                )
+                if force_on:
                     u = self.u_max_w
-                elif self._last_t_r > high:
+                elif force_off:
                     u = 0.0
                 if u != self._u:
                     self._acc["overridden"] = True
@@ -874,25 +964,31 @@ class EnergyPlusPlant:
 
     def __init__(self, config: Any, times: np.ndarray, *, seed: int | None = 0) -> None:
         plant = config.plant
-        if not config.actuator.is_ideal or config.params.eta != 1.0:
+        eta = config.params.eta
+        if not config.actuator.is_ideal or not (eta == 1.0 or eta < 0):
             raise InputError(
-                "an EnergyPlus plant is heated by an ideal electric heater: use the ideal "
-                "actuator and eta = 1 in the scenario"
+                "an EnergyPlus plant is heated by an ideal electric heater (the ideal actuator, "
+                f"eta = 1) or cooled by an ideal chiller (eta = -COP), not eta = {eta:g}"
             )
-        if plant.heater_w and abs(plant.heater_w - config.u_max_w) > 1e-6 * plant.heater_w:
+        if (
+            isinstance(plant.heater_w, float | int)
+            and plant.heater_w
+            and abs(plant.heater_w - config.u_max_w) > 1e-6 * plant.heater_w
+        ):
             raise InputError(
                 f"plant.heater_w = {plant.heater_w:g} W differs from simulation.u_max_w = "
                 f"{config.u_max_w:g} W; give the heater's power once"
             )
         self.config = config
         self.times = np.asarray(times, dtype="datetime64[s]")
-        self.prepared = prepare_model(plant.building, allow_code=plant.allow_code)
+        self.prepared = prepare_plant(plant)
         self.run = EnergyPlusRun(
             self.prepared,
             weather=plant.weather,
             u_max_w=config.u_max_w,
             dt_s=config.dt_s,
             backup_c=(config.backup_low_c, config.backup_high_c),
+            heat_per_w=eta,
         )
         self.n_substeps = int(config.dt_s * self.prepared.timesteps_per_hour // 3600)
         self._rng = np.random.default_rng(seed)
@@ -956,3 +1052,170 @@ class EnergyPlusPlant:
 
     def close(self) -> None:
         self.run.close()
+
+
+# --------------------------------------------------------------------------------------------
+# Heater sizing
+# --------------------------------------------------------------------------------------------
+
+
+def _daily_mean_dry_bulb(epw: Path) -> np.ndarray:
+    """(365,) the EPW's daily mean dry-bulb temperature [C] (column 7 of its hourly rows)."""
+    try:
+        with open(epw, encoding="latin-1") as f:
+            rows = [line.split(",") for line in f.readlines()[8:] if line.strip()]
+        dry_bulb = np.array([float(r[6]) for r in rows])
+    except (OSError, ValueError, IndexError):
+        raise InputError(f"{epw}: not a readable EPW weather file (no dry-bulb column)") from None
+    if len(dry_bulb) < 365 * 24:
+        raise InputError(f"{epw}: {len(dry_bulb)} hourly rows; sizing needs a whole year (8760)")
+    return dry_bulb[: 365 * 24].reshape(365, 24).mean(axis=1)
+
+
+def extreme_window(epw: Path, days: int = 3, *, hottest: bool = False) -> int:
+    """The first day of the year (1 = 1 January) of the coldest (``hottest``: the hottest)
+    ``days`` consecutive days of the weather file, by their daily mean dry-bulb."""
+    daily = _daily_mean_dry_bulb(epw)
+    window = np.convolve(daily, np.ones(days) / days, mode="valid")
+    return int(np.argmax(window) if hottest else np.argmin(window)) + 1
+
+
+@dataclass(frozen=True)
+class HeaterSizing:
+    """What :func:`size_heater` found: the power, the peak it came from and where."""
+
+    power_w: float  # the heater's (chiller's) power: peak x margin, rounded up to 1 kW
+    peak_w: float  # the largest interval mean power the ideal thermostat needed
+    setpoint_c: float  # the temperature held
+    start_day: int  # first day of the year of the window
+    days: int
+    margin: float
+    epw: str
+    cooling: bool = False
+
+    def line(self) -> str:
+        """One line for the run's log."""
+        first = dt.date(2001, 1, 1) + dt.timedelta(days=self.start_day - 1)
+        last = first + dt.timedelta(days=self.days - 1)
+        kind, extreme = ("chiller", "hottest") if self.cooling else ("heater", "coldest")
+        return (
+            f"plant.heater_w = \"auto\": {kind} sized {self.power_w / 1000:g} kW (peak "
+            f"{self.peak_w / 1000:.1f} kW x {self.margin:g} to hold {self.setpoint_c:g} C on the "
+            f"{extreme} {self.days} days of {Path(self.epw).name}, {first:%d %b}-{last:%d %b})"
+        )
+
+
+def _unlimited_power_w(prepared: PreparedModel, heat_per_w: float) -> float:
+    """A power no building of this floor area needs (1 kW/m2 of heat): a thermostat with it
+    holds its setpoint unconstrained."""
+    return 1000.0 * prepared.floor_m2 / abs(heat_per_w)
+
+
+def _held_run(
+    prepared: PreparedModel, weather: str, setpoint_c: float, heat_per_w: float, dt_s: float,
+    start_day: int, days: int, year: int | None,
+) -> list[IntervalMeans]:
+    """Every interval of a run whose room an ideal thermostat holds at ``setpoint_c``."""
+    with EnergyPlusRun(
+        prepared, weather=weather, u_max_w=_unlimited_power_w(prepared, heat_per_w), dt_s=dt_s,
+        heat_per_w=heat_per_w, warmup_setpoint_c=setpoint_c, hold_c=setpoint_c,
+    ) as run:
+        run.start(start_day, days, year=year)
+        return [run.step(0.0) for _ in range(days * SECONDS_PER_DAY // int(dt_s))]
+
+
+def _plant_key(plant: Any) -> tuple[str, bool, str, float]:
+    return (plant.building, bool(plant.allow_code), plant.zones, float(plant.radiant_fraction))
+
+
+@functools.lru_cache(maxsize=16)
+def _size_heater_cached(
+    prepared_key: tuple[str, bool, str, float], weather: str, setpoint_c: float, heat_per_w: float,
+    margin: float, days: int, dt_s: float,
+) -> HeaterSizing:
+    building, allow_code, zones, radiant = prepared_key
+    prepared = prepare_model(building, allow_code=allow_code, zones=zones, radiant_fraction=radiant)
+    epw = resolve_weather(weather)
+    cooling = heat_per_w < 0
+    start_day = extreme_window(epw, days, hottest=cooling)
+    big_w = _unlimited_power_w(prepared, heat_per_w)
+    means = _held_run(prepared, weather, setpoint_c, heat_per_w, dt_s, start_day, days, None)
+    peak = max(m.u_phys_w for m in means)
+    if peak >= 0.99 * big_w:
+        raise InputError(
+            f"sizing the {'chiller' if cooling else 'heater'} of {prepared.source}: even "
+            f"{big_w / 1000:g} kW did not hold {setpoint_c:g} C; give heater_w"
+        )
+    power = math.ceil(peak * margin / 1000.0) * 1000.0
+    return HeaterSizing(
+        power_w=power, peak_w=peak, setpoint_c=setpoint_c, start_day=start_day, days=days,
+        margin=margin, epw=str(epw), cooling=cooling,
+    )
+
+
+def size_heater(
+    plant: Any,
+    setpoint_c: float,
+    *,
+    heat_per_w: float = 1.0,
+    margin: float = 1.2,
+    days: int = 3,
+    dt_s: float = 1800.0,
+) -> HeaterSizing:
+    """The heater an EnergyPlus :class:`~pinn_mpc.plant.Plant` needs to hold ``setpoint_c``
+    (the comfort band's lower bound) through the weather file's coldest ``days`` days.
+
+    The building (as the plant prepares it: zones, radiant fraction) runs on the coldest
+    window of its EPW (:func:`extreme_window`, by daily mean dry-bulb), warmed up at the
+    setpoint, under an ideal thermostat (integral control per zone timestep) with a heater
+    no building needs (1 kW per m2 of floor); the largest interval mean power it used, times
+    ``margin``, rounded up to a whole kW, is the heater. For a chiller (``heat_per_w < 0``) the
+    same on the hottest days, ``setpoint_c`` the band's upper bound, in electrical power.
+    Computed once per process for the same inputs; nothing is written to disk.
+    """
+    if not (math.isfinite(margin) and margin >= 1.0):
+        raise InputError(f"size_heater: margin must be >= 1, got {margin!r}")
+    return _size_heater_cached(_plant_key(plant), plant.weather, float(setpoint_c), float(heat_per_w), margin, days, dt_s)
+
+
+@functools.lru_cache(maxsize=16)
+def _schedule_gains_cached(
+    prepared_key: tuple[str, bool, str, float], weather: str, setpoint_c: float, heat_per_w: float,
+    dt_s: float, start_day: int, days: int, year: int,
+) -> np.ndarray:
+    building, allow_code, zones, radiant = prepared_key
+    prepared = prepare_model(building, allow_code=allow_code, zones=zones, radiant_fraction=radiant)
+    means = _held_run(prepared, weather, setpoint_c, heat_per_w, dt_s, start_day, days, year)
+    gains = np.array([m.i_g_w for m in means])
+    gains.flags.writeable = False
+    return gains
+
+
+def schedule_gains(
+    plant: Any, times: np.ndarray, *, setpoint_c: float, dt_s: float, heat_per_w: float = 1.0
+) -> np.ndarray:
+    """(N,) the internal gains [W] (the heater's excluded) the building's own schedules
+    deliver in the intervals starting at ``times``, as interval means.
+
+    A building's gains schedules (occupancy, lighting, equipment) are known in advance; the
+    gains that happen are not quite them (EnergyPlus's people give off less sensible heat in
+    a warmer room). So these come from a run of their own over the same dates with the room
+    held at ``setpoint_c`` by an ideal thermostat: what the schedules give at that
+    temperature, known before the plant runs. Computed once per process for the same inputs.
+    """
+    times = np.asarray(times, dtype="datetime64[s]")
+    days = times.astype("datetime64[D]")
+    if days[-1].astype("datetime64[Y]") != days[0].astype("datetime64[Y]"):
+        raise InputError(
+            f"the gains of an EnergyPlus building come from a run inside one calendar year, but "
+            f"this series runs from {days[0]} to {days[-1]}"
+        )
+    year = int(days[0].astype("datetime64[Y]").astype(int)) + 1970
+    start_day = int((days[0] - days[0].astype("datetime64[Y]")).astype(int)) + 1
+    n_days = int((days[-1] - days[0]).astype(int)) + 1
+    gains = _schedule_gains_cached(
+        _plant_key(plant), plant.weather, float(setpoint_c), float(heat_per_w), float(dt_s),
+        start_day, n_days, year,
+    )
+    rows = ((times - days[0].astype("datetime64[s]")).astype(int) // int(dt_s)).astype(int)
+    return np.array(gains[rows])

@@ -19,24 +19,35 @@ controllers and models never see ``T_e``.
 ``energyplus`` is not an RC network: an EnergyPlus building model (``building``, a bundled DOE
 reference building or an IDF/epJSON path) run on ``weather`` (a bundled EPW name or a path) by
 :mod:`pinn_mpc.energyplus`; ``heater_w`` is its heater's power (0: the simulation's
-``u_max_w``), ``allow_code`` lets a model that declares Python plugins or external co-simulation
-run them. Its R/C parameters are unknown; the scenario's are nominal.
+``u_max_w``; ``"auto"``: sized to hold the comfort band through the weather file's coldest
+days, :func:`pinn_mpc.energyplus.size_heater`), ``allow_code`` lets a model that declares
+Python plugins or external co-simulation run them. ``zones`` says whether the conditioned zones
+are ``merged`` into one thermal zone or kept ``separate`` (one ideal heater per zone, the power
+split by floor area, T_r the floor-area-weighted mean); ``radiant_fraction`` is the heater's
+radiant share (0: all convective); ``gains`` says whether the building's internal gains are
+``unknown`` to the controllers (as in a real building) or ``measured``. A negative
+``eta`` in the scenario's building makes the ideal equipment a chiller (heat extracted = -eta x
+the power). Its R/C parameters are unknown; the scenario's are nominal.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import ClassVar
+from typing import ClassVar, Literal
 
 import numpy as np
 
 from pinn_mpc.errors import InputError
 from pinn_mpc.physics import N_INPUTS, RCParams, check_plausible, continuous_matrices
 
-__all__ = ["PLANT_KINDS", "Plant", "plant_matrices"]
+__all__ = ["GAINS_KNOWLEDGE", "PLANT_KINDS", "ZONE_LAYOUTS", "Plant", "plant_matrices"]
 
 PLANT_KINDS = ("2r2c", "3r3c", "energyplus")
+#: ``zones`` of an EnergyPlus plant: one merged thermal zone, or the conditioned zones kept.
+ZONE_LAYOUTS = ("merged", "separate")
+#: ``gains`` of an EnergyPlus plant: unknown to the controllers, or measured.
+GAINS_KNOWLEDGE = ("unknown", "measured")
 #: Fields holding a file path, resolved relative to the scenario file that names them.
 _PATH_FIELDS = ("building", "weather")
 
@@ -50,8 +61,11 @@ class Plant:
     envelope_resistance_fraction: float = 0.5
     building: str = ""
     weather: str = ""
-    heater_w: float = 0.0
+    heater_w: float | str = 0.0
     allow_code: bool = False
+    zones: Literal["merged", "separate"] = "merged"
+    radiant_fraction: float = 0.0
+    gains: Literal["unknown", "measured"] = "unknown"
     PATH_FIELDS: ClassVar[tuple[str, ...]] = _PATH_FIELDS
 
     def __post_init__(self) -> None:
@@ -65,12 +79,32 @@ class Plant:
                     "such as usa_il_chicago, or an .epw path)"
                 )
             h = self.heater_w
-            if isinstance(h, bool) or not (isinstance(h, int | float) and math.isfinite(h) and h >= 0):
-                raise InputError(f"plant.heater_w = {h!r} must be a power >= 0 W (0: simulation.u_max_w)")
-        elif self.building or self.weather or self.heater_w or self.allow_code:
+            if h != "auto" and (
+                isinstance(h, bool) or not (isinstance(h, int | float) and math.isfinite(h) and h >= 0)
+            ):
+                raise InputError(
+                    f"plant.heater_w = {h!r} must be a power >= 0 W (0: simulation.u_max_w) or "
+                    "\"auto\" (sized for the weather file's coldest days)"
+                )
+            for key, allowed in (("zones", ZONE_LAYOUTS), ("gains", GAINS_KNOWLEDGE)):
+                if getattr(self, key) not in allowed:
+                    raise InputError(
+                        f"plant.{key} = {getattr(self, key)!r} is not one of "
+                        f"{', '.join(map(repr, allowed))}"
+                    )
+            f = self.radiant_fraction
+            if isinstance(f, bool) or not (isinstance(f, int | float) and 0.0 <= f <= 1.0):
+                raise InputError(
+                    f"plant.radiant_fraction = {f!r} must lie in [0, 1] (the heater's radiant "
+                    "share; 0: all convective)"
+                )
+        elif (
+            self.building or self.weather or self.heater_w or self.allow_code
+            or self.zones != "merged" or self.radiant_fraction or self.gains != "unknown"
+        ):
             raise InputError(
-                f"plant: building, weather, heater_w and allow_code belong to kind = "
-                f"\"energyplus\", not {self.kind!r}"
+                "plant: building, weather, heater_w, allow_code, zones, radiant_fraction and "
+                f"gains belong to kind = \"energyplus\", not {self.kind!r}"
             )
         check_plausible("c_r_j_per_k", self.envelope_capacity_j_per_k, name="plant.envelope_capacity_j_per_k")
         f = self.envelope_resistance_fraction

@@ -131,6 +131,7 @@ def build_loop(
         forecast_seed=[seed, _FORECAST_ERROR_STREAM],
         expected_gains_w=scenario.gains.expected(pd.DatetimeIndex(run.exo["time"])),
         fleet=fleet,
+        measured_gains=scenario.sim.plant.gains == "measured",
     )
 
 

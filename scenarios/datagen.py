@@ -246,7 +246,7 @@ def _generate_energyplus(
         draws = rng.random(n)
     thermostat = Thermostat(spec)
     on = np.zeros(1, dtype=bool)
-    t_r, u, u_phys, t_a, g = (np.empty(n) for _ in range(5))
+    t_r, u, u_phys, t_a, g, i_g = (np.empty(n) for _ in range(6))
     plant = EnergyPlusPlant(scenario.sim, exo["time"].to_numpy(), seed=sensor_seed)
     try:
         plant.reset(scenario.initial_t_r_c, scenario.initial_t_m_c, start=0, seed=None)
@@ -264,6 +264,7 @@ def _generate_energyplus(
                 u[k] = spec.u_max_w if on[0] else 0.0
             step = plant.step(u[k], k)
             u_phys[k], t_a[k], g[k] = step.result.u_phys_w[0], step.t_a_c[0], step.g_w_per_m2[0]
+            i_g[k] = step.i_g_w[0]
     finally:
         plant.close()
     frame = pd.DataFrame(
@@ -279,5 +280,7 @@ def _generate_energyplus(
             "G": g,
         }
     )
+    if scenario.sim.plant.gains == "measured":  # the gains as they happened, measured
+        frame["I_g"] = i_g
     frame.attrs["dt_s"] = float(scenario.sim.dt_s)
     return frame

@@ -331,7 +331,8 @@ class ClosedLoop:
     ``seed`` seeds the plant's sensor noise; ``forecast_seed`` the forecast errors
     (``forecast_errors``, see :class:`ForecastErrors`), which depend only on it and the row.
     ``expected_gains_w`` (N,) is what a controller sees of the gains when they are not known
-    (required then). :meth:`reset` starts an episode at row ``start`` of the series; ``k``
+    (required then). ``measured_gains``: the past gains a controller observes are the plant's
+    interval means (an EnergyPlus building's measured gains) instead of the series' rows. :meth:`reset` starts an episode at row ``start`` of the series; ``k``
     counts its intervals. ``fleet`` gives B buildings their own parameters (the backup rule,
     actuator and ``u_max_w`` of ``config`` apply to all; see :class:`Simulator`); they share
     the series, the forecasts and the initial state. Methods that concern one building take
@@ -352,6 +353,7 @@ class ClosedLoop:
         expected_gains_w: np.ndarray | None = None,
         fleet: Sequence[RCParams] | None = None,
         plant: LoopPlant | None = None,
+        measured_gains: bool = False,
     ) -> None:
         inputs = exogenous.forecast(0)._replace(day_of_week=None)  # NaN without dates
         if not np.all(np.isfinite(np.column_stack([a for a in inputs if a is not None]))):
@@ -367,6 +369,7 @@ class ClosedLoop:
         self.forecast_errors = forecast_errors
         self._forecast_seed = [forecast_seed] if isinstance(forecast_seed, int) else list(forecast_seed)
         self._seen_gains_w = seen_gains_w
+        self.measured_gains = measured_gains
         self.initial_state_c = (float(initial_t_r_c), float(initial_t_m_c))
         self.plant = plant if plant is not None else make_plant(config, exogenous, seed=seed, fleet=fleet)
         self.n_buildings = self.plant.n_buildings
@@ -450,13 +453,18 @@ class ClosedLoop:
         k, rows = self.k, slice(self.start, self.start + self.k + 1)
         exo = self.exogenous
         gains = exo.I_g if perfect else self._seen_gains_w
+        past_gains = (
+            np.append(self._means[:k, building, 2], gains[self.start + k])
+            if self.measured_gains
+            else np.array(gains[rows])
+        )
         # Copies: a controller may keep or change what it is given without touching the run.
         # The past as the plant had it (for the RC plant, the series' rows), the current row
         # from the series.
         history = {
             "T_a": np.append(self._means[:k, building, 0], exo.T_a[self.start + k]),
             "G": np.append(self._means[:k, building, 1], exo.G[self.start + k]),
-            "I_g": np.array(gains[rows]),
+            "I_g": past_gains,
             "time_of_day_h": np.array(exo.time_of_day_h[rows]),
             "day_of_week": np.array(exo.day_of_week)[rows],
             "T_r": np.array(self._t_r[: k + 1, building]),

@@ -16,6 +16,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
+import sys
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
@@ -46,6 +47,7 @@ __all__ = [
     "ENERGYPLUS_DATA_POLICY",
     "EPLUS_NOMINAL",
     "eplus_weather",
+    "with_sized_heater",
     "EXOGENOUS_COLUMNS",
     "INITIAL_TEMPERATURE_RANGE_C",
     "Scenario",
@@ -132,10 +134,24 @@ class Scenario:
                 f"Scenario {self.name!r}: an EnergyPlus building has its own internal gains; "
                 "leave [gains] out"
             )
+        if plant.gains == "measured" and not self.forecast.gains_known:
+            raise InputError(
+                f"Scenario {self.name!r}: simulation.plant.gains = \"measured\" makes the "
+                "building's gains known, but forecast.gains_known = false hides them; give one"
+            )
 
     @property
     def steps_per_day(self) -> int:
         return steps_per_day(self.sim.dt_s)
+
+    @property
+    def band_setpoint_c(self) -> float:
+        """The comfort band's highest lower bound over a day (a cooled building: its lowest
+        upper bound), where an EnergyPlus plant's heater is sized and its gains schedule is
+        evaluated."""
+        day = pd.date_range("2001-01-01", periods=self.steps_per_day, freq=f"{int(self.sim.dt_s)}s")
+        t_min, t_max = self.comfort.sample(day)
+        return float(np.max(t_min)) if self.sim.params.heating else float(np.min(t_max))
 
     @property
     def reference(self) -> Literal["oracle", "thermostat"]:
@@ -186,6 +202,14 @@ class Scenario:
             raise InputError(f"scenario {self.name!r}: {exc}") from None
         price = self.price.sample(times, dt_s=dt_s, rng=rng(_PRICE_STREAM))
         i_g = self.gains.sample(times, rng=rng(_GAINS_STREAM))
+        plant = self.sim.plant
+        if plant.is_energyplus and plant.gains == "measured":  # the building's gains schedules
+            from pinn_mpc.energyplus import schedule_gains
+
+            i_g = schedule_gains(
+                plant, times.to_numpy(), setpoint_c=self.band_setpoint_c, dt_s=dt_s,
+                heat_per_w=self.sim.params.eta,
+            )
         t_min, t_max = self.comfort.sample(times)
         frame = pd.DataFrame(
             {
@@ -245,6 +269,32 @@ EPLUS_NOMINAL = RCParams(
     solar_to_air_fraction=0.3,
     gain_to_air_fraction=0.5,
 )
+
+
+_SIZING_REPORTED: set[str] = set()
+
+
+def with_sized_heater(scenario: Scenario, *, given_u_max_w: float | None = None) -> Scenario:
+    """The scenario of an EnergyPlus plant with ``heater_w = "auto"``, its ``u_max_w`` the
+    heater :func:`pinn_mpc.energyplus.size_heater` finds for it: holding the comfort band's
+    highest lower bound (a chiller, ``eta < 0``: its lowest upper bound) through the weather
+    file's coldest (hottest) three days. One line on stderr says what was sized (once per
+    process). A ``given_u_max_w`` must be that value (a file ``scenario export`` wrote)."""
+    from pinn_mpc.energyplus import size_heater
+
+    sim = scenario.sim
+    sizing = size_heater(sim.plant, scenario.band_setpoint_c, heat_per_w=sim.params.eta, dt_s=sim.dt_s)
+    if given_u_max_w is not None and abs(given_u_max_w - sizing.power_w) > 1e-6 * sizing.power_w:
+        raise InputError(
+            f"simulation.u_max_w = {given_u_max_w:g} W, but plant.heater_w = \"auto\" sizes "
+            f"{sizing.power_w:g} W; give the heater's power once (a number in heater_w, or "
+            "leave u_max_w out)"
+        )
+    line = f"pinn-mpc: scenario {scenario.name!r}: {sizing.line()}"
+    if line not in _SIZING_REPORTED:
+        _SIZING_REPORTED.add(line)
+        print(line, file=sys.stderr)
+    return dataclasses.replace(scenario, sim=dataclasses.replace(sim, u_max_w=sizing.power_w))
 
 
 def eplus_weather(file_name: str) -> TMY3Weather:

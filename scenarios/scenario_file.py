@@ -232,6 +232,13 @@ def _convert(tp: Any, value: Any, where: str, base: Path) -> Any:
             raise _error(_join(where, TYPE_KEY), f"{kind!r} is not one of {', '.join(names)}")
         rest = {k: v for k, v in value.items() if k != TYPE_KEY}
         return _build(names[kind], rest, where, base)
+    if origin in (typing.Union, types.UnionType):  # of scalars: the first type the value is
+        for member in args:
+            try:
+                return _convert(member, value, where, base)
+            except InputError:
+                continue
+        raise _error(where, f"expected one of {', '.join(a.__name__ for a in args)}, got {value!r}")
     if _is_dataclass_type(tp):
         if not isinstance(value, dict):
             raise _error(where, f"expected a table, got {value!r}")
@@ -309,21 +316,30 @@ def _energyplus_defaults(data: dict[str, Any]) -> None:
     """A file whose ``[simulation.plant]`` has ``kind = "energyplus"`` may leave out what the
     EnergyPlus building gives: ``[building]`` (nominal values, :data:`EPLUS_NOMINAL`),
     ``[weather]`` (the plant's EPW, January / February), ``simulation.u_max_w`` (the plant's
-    ``heater_w``) and ``data_policy`` (``closed-loop``, as the built-in EnergyPlus scenarios)."""
+    ``heater_w``; with neither given, ``heater_w = "auto"``: sized by
+    :func:`pinn_mpc.energyplus.size_heater` when the scenario is read) and ``data_policy``
+    (``closed-loop``, as the built-in EnergyPlus scenarios). A ``[building]`` table may give
+    only some values (``eta = -3.0`` makes the ideal equipment a chiller of COP 3); the
+    others are the nominal ones."""
     simulation = data.get("simulation")
     plant = simulation.get("plant") if isinstance(simulation, dict) else None
     if not (isinstance(plant, dict) and plant.get("kind") == "energyplus"):
         return
     from scenarios.registry import ENERGYPLUS_DATA_POLICY, EPLUS_NOMINAL, eplus_weather
 
-    data.setdefault("building", EPLUS_NOMINAL.to_dict())
+    building = data.setdefault("building", EPLUS_NOMINAL.to_dict())
+    if isinstance(building, dict) and "rc" not in building:
+        for key, value in EPLUS_NOMINAL.to_dict().items():
+            building.setdefault(key, value)
     data.setdefault("data_policy", ENERGYPLUS_DATA_POLICY)
     weather = plant.get("weather")
     if "weather" not in data and isinstance(weather, str):
         data["weather"] = {"type": "TMY3Weather", **_plain(eplus_weather(weather), Any)}
     heater = plant.get("heater_w")
+    assert isinstance(simulation, dict)
+    if heater is None and "u_max_w" not in simulation:
+        plant["heater_w"] = "auto"
     if isinstance(heater, int | float) and not isinstance(heater, bool) and heater > 0:
-        assert isinstance(simulation, dict)
         simulation.setdefault("u_max_w", float(heater))
 
 
@@ -388,7 +404,13 @@ def scenario_from_dict(data: dict[str, Any], *, base: Path, default_name: str) -
             if left:
                 raise InputError(f"{section}.{next(iter(left))}: unknown key")
             del internal[section]
-    return typing.cast(Scenario, _build(Scenario, internal, "", base))
+    scenario = typing.cast(Scenario, _build(Scenario, internal, "", base))
+    if scenario.sim.plant.is_energyplus and scenario.sim.plant.heater_w == "auto":
+        from scenarios.registry import with_sized_heater
+
+        given = data.get("simulation", {}).get("u_max_w")
+        scenario = with_sized_heater(scenario, given_u_max_w=given)
+    return scenario
 
 
 def read_toml(path: str | os.PathLike[str]) -> dict[str, Any]:
