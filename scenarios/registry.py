@@ -506,8 +506,9 @@ _SCENARIOS["eplus_small_office"] = _energyplus_scenario(
 _SCENARIOS["eplus_midrise_apartment"] = _energyplus_scenario(
     name="eplus_midrise_apartment",
     description=(
-        "DOE's mid-rise apartment building (EnergyPlus reference building, 3,135 m2, four "
-        "floors) in Denver (TMY3), its HVAC removed, its conditioned zones merged into one, "
+        "DOE's mid-rise apartment building (EnergyPlus reference building, four floors, "
+        "3,135 m2; merged, its middle floor, which stands for two, counts once: 2,351 m2) in "
+        "Denver (TMY3), its HVAC removed, its conditioned zones merged into one, "
         "heated by an ideal 30 kW electric heater; run by EnergyPlus (no R/C parameters, no "
         "oracle). Residential comfort 20-24 C 06-23 h, 18-24 C at night, winter_household's "
         "dynamic price, backup 14/28 C; the residents' internal gains are unmeasured. A "
