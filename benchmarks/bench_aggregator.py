@@ -16,7 +16,8 @@ everything the controllers do in a step: observe, plan, coordinate, commit; the 
   first steps after the cap enters the horizon, while the prices move most, take longest);
 - ``cem``: :class:`controllers.fleet_sampling.FleetCEM` over each building's learned hybrid in
   one batched rollout (32 samples x 2 CEM iterations a plan, 1 member planning, all members for
-  the disagreement, the shadow RC MPC per building). The fleet's models are ``--models``
+  the disagreement, the shadow RC MPC per building; under the cap each building's RC MPC plan
+  scored in the first plan of a step, as ``closed-loop --rc-candidates auto`` plans). The fleet's models are ``--models``
   hybrids trained here on 14 days of their buildings' data, assigned round-robin: the timing
   does not depend on the weights (every building's constants are its own copy in the batch).
 
@@ -152,7 +153,11 @@ def run(args: argparse.Namespace, wrap: Callable[[Any, str], Any]) -> int:
             for n in sizes(args.learned):
                 fleet_models = [models[i % len(models)] for i in range(n)]
                 for cap in (None, 0.6):
-                    factory = wrap(lambda s, fm=fleet_models: learned_fleet_planner(fm[s]), "cem")
+                    # As the command line plans (--rc-candidates auto): the RC candidates under a cap.
+                    factory = wrap(
+                        lambda s, fm=fleet_models, on=cap is not None: learned_fleet_planner(fm[s], rc_candidates=on),
+                        "cem",
+                    )
                     med, p95, built = time_steps(lambda f, m=factory: m(f, spec), n, args.steps, cap)
                     label = "capped, 4 plans" if cap else "no cap, 1 plan "
                     print(f"  cem    {n:6d} buildings, {label}: median {med:9.1f}  p95 {p95:9.1f}  "

@@ -146,3 +146,37 @@ def test_a_batched_rollout_that_would_not_fit_is_refused_before_it_starts():
     with pytest.raises(InputError, match="use at most .* buildings, or fewer samples"):
         check_batched_fleet_memory(buildings=100_000, members=5, samples=64, horizon_steps=48,
                                    available=8_000_000_000)
+
+
+def test_rc_candidates_are_scored_in_the_first_plan_of_a_step_only(fleet_models):
+    """The RC MPC's plan is a candidate of a step's first plan (kept unless a sample beats it on
+    the model); the step's re-plans under other prices start from those plans instead of
+    solving every building's QP again."""
+    scenario, fleet, models = fleet_models
+    spec = scenario.control_spec()
+    planner = learned_fleet_planner(models, rc_candidates=True)(fleet, spec)
+    planner.reset(0)
+    shadow = planner.shadow
+    solves = []
+    real_plan = shadow.plan
+
+    def counted(*args, **kwargs):  # the candidates' solves (commit's for the distrusted pass `only`)
+        if "only" not in kwargs:
+            solves.append(1)
+        return real_plan(*args, **kwargs)
+
+    shadow.plan = counted
+    observations, forecast = _observations(scenario, fleet)
+    planner.observe(observations, forecast)
+    first = planner.plan()
+    assert len(solves) == 1
+    rc = real_plan()
+    step = planner._step
+    cost = lambda u: planner._costs(step, np.zeros(spec.horizon_steps), torch.as_tensor(u, dtype=torch.float32)[:, None])[:, 0]  # noqa: E731
+    assert torch.all(cost(first.power_w) <= cost(rc.power_w) + 1e-4)
+    planner.plan(np.full(spec.horizon_steps, 0.5))
+    assert len(solves) == 1
+    planner.commit(first)
+    planner.observe(observations, forecast)
+    planner.plan()
+    assert len(solves) == 2
