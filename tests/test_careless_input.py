@@ -10,6 +10,7 @@ import io
 import json
 import os
 import re
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -17,6 +18,12 @@ import pandas as pd
 import pytest
 
 from pinn_mpc.data import read_timeseries
+from pinn_mpc.energyplus import (
+    bundled_buildings,
+    bundled_weather,
+    energyplus_available,
+    prepare_model,
+)
 from pinn_mpc.errors import InputError
 from pinn_mpc.identify import identify_rc
 from pinn_mpc.io import atomic_write_json
@@ -354,3 +361,88 @@ def test_an_eta_of_the_wrong_sign_is_named_as_such():
     data = generate(get_scenario("paper_household"), days=3, seed=0, policy="random-level")
     with pytest.raises(InputError, match=r"eta = -2.5 says the actuator cools, but in the data more power warms"):
         identify_rc(data, eta=-2.5)
+
+
+# ---------------------------------------------------------------- EnergyPlus scenario files
+
+needs_energyplus = pytest.mark.skipif(not energyplus_available(), reason="EnergyPlus is not installed")
+
+
+def _eplus_file(folder: Path, name: str = "ep.toml", **plant: str) -> Path:
+    """eplus_small_office as a file without [weather] (the plant's EPW gives it), with the
+    plant's ``building`` or ``weather`` replaced."""
+    text = re.sub(r"(?s)\n\[weather\].*?\n(?=\[price\])", "\n",
+                  scenario_to_toml(get_scenario("eplus_small_office")))
+    for key, value in plant.items():
+        text, n = re.subn(rf"(?m)^{key} = .*$", f'{key} = "{value}"', text, count=1)
+        assert n == 1, key
+    (folder / name).write_text(text, encoding="utf-8")
+    return folder / name
+
+
+@pytest.fixture
+def office(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    """A user's folder: a copy of the small office's IDF and of Chicago's EPW, and a scenario
+    file running them."""
+    monkeypatch.chdir(tmp_path)
+    shutil.copy(bundled_buildings()["small_office"], tmp_path / "office.idf")
+    shutil.copy(bundled_weather()["usa_il_chicago"], tmp_path / "chicago.epw")
+    _eplus_file(tmp_path, building="office.idf", weather="chicago.epw")
+    return tmp_path
+
+
+EPLUS_DATA_LOSS = [
+    pytest.param(["simulate", "--scenario", "ep.toml", "--days", "1", "--out", "office.idf"],
+                 ["--out office.idf", "simulation.plant.building"], id="simulate-out-is-its-idf"),
+    pytest.param([*LOOP, "--scenario", "ep.toml", "--json", "./office.idf"],
+                 ["--json office.idf", "simulation.plant.building"], id="closed-loop-json-is-its-idf"),
+    pytest.param([*LOOP, "--scenario", "ep.toml", "--json", "k.json", "--csv", "chicago.epw"],
+                 ["--csv chicago.epw", "is the same file as the input"], id="closed-loop-csv-is-its-epw"),
+    pytest.param(["compare", "--scenario", "ep.toml", "--quick", "--json", "office.idf"],
+                 ["--json office.idf", "simulation.plant.building"], id="compare-json-is-its-idf"),
+]
+
+
+@needs_energyplus
+@pytest.mark.parametrize(("argv", "fragments"), EPLUS_DATA_LOSS)
+def test_no_output_replaces_an_energyplus_model_or_weather_file(office, capsys, argv, fragments):
+    before = checksums(office)
+    refused(argv, capsys, *fragments)
+    assert checksums(office) == before
+
+
+@needs_energyplus
+def test_an_energyplus_files_model_and_weather_are_in_its_content(office):
+    inputs = {k: p.resolve() for k, p in scenario_inputs("ep.toml").items()}
+    assert inputs["simulation.plant.building"] == office / "office.idf"
+    assert inputs["simulation.plant.weather"] == office / "chicago.epw"
+    before = scenario_digest("ep.toml")
+    with open(office / "office.idf", "a") as f:
+        f.write("\n! an edit: the building is another one\n")
+    os.utime(office / "ep.toml", ns=(1, 1))  # the digest is computed once per version of the file
+    assert scenario_digest("ep.toml") != before  # a sweep runs the edited building anew
+
+
+@needs_energyplus
+@pytest.mark.parametrize(
+    ("weather", "message"),
+    [
+        ("chicago", "simulation.plant.weather: EnergyPlus weather 'chicago' is neither a bundled "
+                    "weather file (usa_az_phoenix"),
+        ("nothere.epw", "simulation.plant.weather: EnergyPlus weather 'nothere.epw' is neither"),
+        ("garbage.epw", "garbage.epw is not an EPW file: its first line is 'not,an,epw', where an "
+                        "EPW's is its LOCATION header"),
+    ],
+)
+def test_a_bad_energyplus_weather_is_named_as_the_plants(office, weather, message):
+    (office / "garbage.epw").write_text("not,an,epw\n1,2,3\n")
+    with pytest.raises(InputError, match=re.escape(message)):
+        load_scenario_file(_eplus_file(office, "w.toml", weather=weather))
+
+
+@needs_energyplus
+def test_an_idf_without_objects_is_named_as_an_idf(office):
+    (office / "garbage.idf").write_text("this is not an idf {{{\n")
+    with pytest.raises(InputError, match=r"garbage.idf: EnergyPlus read no objects from it: not an IDF model"):
+        prepare_model(str(office / "garbage.idf"))
+
