@@ -17,7 +17,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pinn_mpc.data import read_timeseries
+from pinn_mpc.artifacts import save_model
+from pinn_mpc.data import read_fleet_timeseries, read_timeseries, write_timeseries
 from pinn_mpc.energyplus import (
     bundled_buildings,
     bundled_weather,
@@ -26,12 +27,20 @@ from pinn_mpc.energyplus import (
 )
 from pinn_mpc.errors import InputError
 from pinn_mpc.identify import identify_rc
-from pinn_mpc.io import atomic_write_json
+from pinn_mpc.io import atomic_write_json, file_sha256
 from pinn_mpc.physics import PAPER_HOUSEHOLD, rc_summary
+from pinn_mpc.simulator import draw_fleet
+from pinn_mpc.training import TrainConfig, train_model
 from pinn_mpc_cli.cli import main
 from scenarios import budget
 from scenarios.closed_loop import progress_steps
+from scenarios.commands import fleet_params_path
 from scenarios.datagen import generate
+from scenarios.fleet_training import (
+    building_model_dir,
+    frame_digest,
+    train_per_building,
+)
 from scenarios.registry import get_scenario
 from scenarios.scenario_file import load_scenario_file, scenario_inputs, scenario_to_toml
 from scenarios.sweep import Cell, _label, _read_cell, scenario_digest
@@ -446,3 +455,120 @@ def test_an_idf_without_objects_is_named_as_an_idf(office):
     with pytest.raises(InputError, match=r"garbage.idf: EnergyPlus read no objects from it: not an IDF model"):
         prepare_model(str(office / "garbage.idf"))
 
+
+# ---------------------------------------------------------------- fleets
+
+
+def _fleet_csv(folder: Path, name: str = "fleet.csv", *, n: int = 2, days: int = 1,
+               sidecar: dict | None = None) -> Path:
+    scenario = get_scenario("winter_household")
+    fleet = draw_fleet(scenario.sim.params, n, spread=0.2, rng=np.random.default_rng(3))
+    path = folder / name
+    write_timeseries(generate(scenario, days=days, seed=0, n_buildings=n, fleet=fleet), path)
+    if sidecar is not None:
+        body = {"spread": 0.2, "params": [dataclasses.asdict(p) for p in fleet], **sidecar}
+        atomic_write_json(fleet_params_path(path), body)
+    return path
+
+
+def test_simulate_without_spread_never_leaves_a_stale_fleet_file(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    _fleet_csv(tmp_path, sidecar={})
+    before = checksums(tmp_path)
+    refused(["simulate", "--scenario", "winter_household", "--days", "1", "--buildings", "2",
+             "--out", "fleet.csv"], capsys, "fleet.fleet.json next to it holds the buildings of an "
+            "earlier `simulate --spread` run", "add --spread")
+    assert checksums(tmp_path) == before
+
+
+@pytest.mark.parametrize(
+    ("sidecar", "n", "message"),
+    [
+        ({"data_sha256": "0" * 64}, 2, "fleet.fleet.json describes the buildings of another fleet.csv"),
+        ({}, 3, "fleet.fleet.json holds 2 buildings' parameters, fleet.csv 3 buildings"),
+    ],
+    ids=["other-data", "other-count"],
+)
+def test_per_building_training_refuses_a_fleet_file_of_other_data(tmp_path, capsys, monkeypatch,
+                                                                  sidecar, n, message):
+    monkeypatch.chdir(tmp_path)
+    _fleet_csv(tmp_path, n=n)
+    if n != 2:  # the parameters of a 2-building fleet next to 3 buildings' data
+        _fleet_csv(tmp_path, "two.csv", sidecar=sidecar)
+        os.replace(tmp_path / "two.fleet.json", tmp_path / "fleet.fleet.json")
+    else:
+        _fleet_csv(tmp_path, sidecar=sidecar)
+    before = checksums(tmp_path)
+    refused(["train", "--data", "fleet.csv", "--per-building", "--seeds", "1", "--epochs", "1",
+             "--out", "m"], capsys, message)
+    assert checksums(tmp_path) == before
+
+
+def test_simulate_spread_records_its_data_for_training(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert main(["simulate", "--scenario", "winter_household", "--days", "1", "--buildings", "2",
+                 "--spread", "0.2", "--out", "f.csv"]) == 0
+    assert json.loads((tmp_path / "f.fleet.json").read_text())["data_sha256"] == file_sha256(tmp_path / "f.csv")
+
+
+@pytest.mark.parametrize(
+    ("stored", "message"),
+    [
+        ({"data_sha256": {"0": "x", "1": "y"}}, "holds models trained on other data (building 0's rows "
+                                                "differ, and 1 more)"),
+        ({}, "its fleet.json records no data digests"),
+        ({"config": {"epochs": 3}}, "holds models trained otherwise (epochs 3 -> 2)"),
+    ],
+    ids=["other-data", "no-digests", "other-settings"],
+)
+def test_per_building_training_never_resumes_a_foreign_directory(tmp_path, stored, message):
+    frames = read_fleet_timeseries(_fleet_csv(tmp_path))
+    config = TrainConfig(n_seeds=1, epochs=2)
+    settings = json.loads(json.dumps({k: v for k, v in dataclasses.asdict(config).items() if k != "prior"}))
+    mine = {"arch": "hybrid", "config": settings, "buildings": [0, 1],
+            "data_sha256": {str(b): frame_digest(f) for b, f in frames.items()}}
+    out = tmp_path / "models"
+    (out / "buildings" / "b00000").mkdir(parents=True)
+    (out / "buildings" / "b00000" / "model.json").write_text("{}")
+    record = {**mine, **stored, "config": {**settings, **stored.get("config", {})}}
+    if not stored:
+        del record["data_sha256"]
+    atomic_write_json(out / "fleet.json", record)
+    before = checksums(out)
+    with pytest.raises(InputError, match=re.escape(message)):
+        train_per_building(frames, out, arch="hybrid", config=config, workers=1)
+    assert checksums(out) == before
+
+
+@pytest.mark.parametrize("target", ["fleet.json", "buildings/b00001/model.json",
+                                    "buildings/b00000/weights.safetensors"])
+def test_no_fleet_output_replaces_a_per_building_model(tmp_path, capsys, monkeypatch, target):
+    monkeypatch.chdir(tmp_path)
+    for b in (0, 1):
+        (tmp_path / "m" / "buildings" / f"b{b:05d}").mkdir(parents=True)
+        for name in ("model.json", "weights.safetensors"):
+            (tmp_path / "m" / "buildings" / f"b{b:05d}" / name).write_text(f"{b} {name}")
+    (tmp_path / "m" / "fleet.json").write_text('{"buildings": [0, 1]}')
+    before = checksums(tmp_path)
+    refused(["closed-loop", "--scenario", "winter_household", "--controller", "cem", "--days", "1",
+             "--buildings", "2", "--model", "m", "--json", f"m/{target}"], capsys,
+            f"--json m/{target} is the same file as the input --model")
+    assert checksums(tmp_path) == before
+
+
+def test_per_building_models_are_checked_against_the_scenario(tmp_path, capsys, monkeypatch):
+    """Models of 10 kW buildings driving 4 kW heat pumps: refused as one model is."""
+    monkeypatch.chdir(tmp_path)
+    frames = read_fleet_timeseries(_fleet_csv(tmp_path, days=2, sidecar={}))
+    config = TrainConfig(n_seeds=1, epochs=1)
+    (tmp_path / "m" / "buildings").mkdir(parents=True)
+    for b, frame in frames.items():
+        save_model(train_model(frame, arch="hybrid", config=config, progress=False),
+                   building_model_dir(tmp_path / "m", b))
+    params = json.loads((tmp_path / "fleet.fleet.json").read_text())["params"]
+    atomic_write_json(tmp_path / "m" / "fleet.json", {"buildings": [0, 1], "params": params})
+    refused(["closed-loop", "--scenario", "heat_pump_household", "--controller", "cem", "--days",
+             "1", "--buildings", "2", "--model", "m", "--json", "k.json"], capsys,
+            "--model m, building 0: the model was trained on powers up to",
+            "'heat_pump_household''s actuator gives at most 4000 W")
+    assert not (tmp_path / "k.json").exists()
