@@ -317,6 +317,7 @@ def _energyplus_defaults(data: dict[str, Any], base: Path) -> None:
     if not (isinstance(plant, dict) and plant.get("kind") == "energyplus"):
         return
     from pinn_mpc.energyplus import resolve_weather
+    from pinn_mpc.simulator import MAX_ACTUATOR_W
     from scenarios.registry import ENERGYPLUS_DATA_POLICY, EPLUS_NOMINAL, eplus_weather
 
     data.setdefault("building", EPLUS_NOMINAL.to_dict())
@@ -330,6 +331,11 @@ def _energyplus_defaults(data: dict[str, Any], base: Path) -> None:
     if "weather" not in data and isinstance(weather, str):
         data["weather"] = {"type": "TMY3Weather", **_plain(eplus_weather(weather), Any)}
     heater = plant.get("heater_w")
+    if isinstance(heater, int | float) and not isinstance(heater, bool) and heater > MAX_ACTUATOR_W:
+        raise InputError(
+            f"simulation.plant.heater_w = {heater:.3g} W is above the plausible "
+            f"{MAX_ACTUATOR_W:.0e} W of one building's heater; give it in W"
+        )
     if isinstance(heater, int | float) and not isinstance(heater, bool) and heater > 0:
         assert isinstance(simulation, dict)
         simulation.setdefault("u_max_w", float(heater))

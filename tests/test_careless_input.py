@@ -272,6 +272,8 @@ def test_data_with_offsets_changing_at_dst_reads_without_a_traceback(tmp_path):
         ((r"(?s)\n\[building\].*?\n(?=\[simulation\])", "\n"), "[building] is missing"),
         ((r"solar_aperture_m2 = [^\n]*\n", ""), "building.solar_aperture_m2: missing"),
         ((r"eta = [^\n]*\n", ""), "building.eta: missing"),
+        ((r"u_max_w = [^\n]*", "u_max_w = 5e9"),
+         "simulation.u_max_w = 5e+09 W is above the plausible 1e+08 W"),
     ],
 )
 def test_implausible_or_missing_scenario_values_are_refused(tmp_path, edit, message):
@@ -447,6 +449,18 @@ def test_a_bad_energyplus_weather_is_named_as_the_plants(office, weather, messag
     (office / "garbage.epw").write_text("not,an,epw\n1,2,3\n")
     with pytest.raises(InputError, match=re.escape(message)):
         load_scenario_file(_eplus_file(office, "w.toml", weather=weather))
+
+
+@needs_energyplus
+def test_a_heater_in_the_wrong_unit_is_refused_before_energyplus_runs(office):
+    """1e12 W (u_max_w left to follow it) ran into EnergyPlus's 'temperature of 1136702 C ...
+    malformed zone' after a minute."""
+    path = _eplus_file(office, "h.toml")
+    path.write_text(re.sub(r"(?m)^u_max_w = .*\n", "", path.read_text()).replace(
+        "heater_w = 25000.0", "heater_w = 1e12"))
+    with pytest.raises(InputError, match=re.escape(
+            "simulation.plant.heater_w = 1e+12 W is above the plausible 1e+08 W")):
+        load_scenario_file(path)
 
 
 @needs_energyplus
