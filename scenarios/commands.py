@@ -113,12 +113,13 @@ def simulate(a: argparse.Namespace) -> str:
     per_building = len(frame) // a.buildings
     overridden = float(np.mean(~np.isclose(frame["u"], frame["u_phys"])))
     first, last = day_span(frame["time"])
+    also = "" if sidecar is None else f"; wrote their parameters to {sidecar}"
     return (
         f"wrote {a.out}: scenario {_scenario_label(a.scenario, chosen)}, {a.days} day(s) {first}..{last} "
         f"({a.weather_part} weather), {a.buildings} building(s), {policy} policy, "
         f"{per_building} rows per building at {chosen.sim.dt_s:g} s, T_r "
         f"{frame['T_r'].min():.1f}..{frame['T_r'].max():.1f} C, backup acted in "
-        f"{100 * overridden:.0f} % of intervals"
+        f"{100 * overridden:.0f} % of intervals{also}"
     )
 
 
@@ -249,13 +250,22 @@ def closed_loop(a: argparse.Namespace) -> str:
 
 
 def _check_controller_inputs(a: argparse.Namespace) -> None:
-    """Refuse, in the user's terms, a controller without the file it plans with, or an RC file
-    that is a directory (a model directory given to ``--rc``)."""
+    """Refuse, in the user's terms, a controller without the file it plans with, a directory
+    of per-building models for one building, or an RC file that is a directory (a model
+    directory given to ``--rc``)."""
+    from scenarios.fleet_training import FLEET_FILE
+
     if a.controller in MODEL_CONTROLLERS and a.model is None:
         raise InputError(
             f"controller {a.controller!r} plans over a trained model: add --model MODEL_DIR "
             "(make one with `pinn-mpc train --data data.csv --out MODEL_DIR`; "
             "data from `pinn-mpc simulate`)"
+        )
+    if a.model is not None and (Path(a.model) / FLEET_FILE).is_file():
+        raise InputError(
+            f"--model {a.model} holds one model per building (train --per-building), not one "
+            "model: run the fleet it was trained on with --buildings N --controller cem, or "
+            f"give a model directory of `pinn-mpc train` (one of {a.model}/buildings/*)"
         )
     if a.rc is not None and Path(a.rc).is_dir():
         hint = (

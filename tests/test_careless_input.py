@@ -518,10 +518,11 @@ def test_per_building_training_refuses_a_fleet_file_of_other_data(tmp_path, caps
     assert checksums(tmp_path) == before
 
 
-def test_simulate_spread_records_its_data_for_training(tmp_path, monkeypatch):
+def test_simulate_spread_records_its_data_for_training(tmp_path, capsys, monkeypatch):
     monkeypatch.chdir(tmp_path)
     assert main(["simulate", "--scenario", "winter_household", "--days", "1", "--buildings", "2",
                  "--spread", "0.2", "--out", "f.csv"]) == 0
+    assert capsys.readouterr().out.strip().endswith("; wrote their parameters to f.fleet.json")
     assert json.loads((tmp_path / "f.fleet.json").read_text())["data_sha256"] == file_sha256(tmp_path / "f.csv")
 
 
@@ -568,6 +569,18 @@ def test_no_fleet_output_replaces_a_per_building_model(tmp_path, capsys, monkeyp
              "--buildings", "2", "--model", "m", "--json", f"m/{target}"], capsys,
             f"--json m/{target} is the same file as the input --model")
     assert checksums(tmp_path) == before
+
+
+@pytest.mark.parametrize("controller", ["cem", "random-shooting"])
+def test_per_building_models_are_not_one_model(tmp_path, capsys, monkeypatch, controller):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "m" / "buildings" / "b00000").mkdir(parents=True)
+    (tmp_path / "m" / "fleet.json").write_text('{"buildings": [0]}')
+    refused(["closed-loop", "--scenario", "winter_household", "--controller", controller, "--days",
+             "1", "--model", "m", "--json", "k.json"], capsys,
+            "--model m holds one model per building (train --per-building), not one model",
+            "--buildings N")
+    assert not (tmp_path / "k.json").exists()
 
 
 def test_per_building_models_are_checked_against_the_scenario(tmp_path, capsys, monkeypatch):
