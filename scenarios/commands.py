@@ -253,20 +253,21 @@ def _check_controller_inputs(a: argparse.Namespace) -> None:
     """Refuse, in the user's terms, a controller without the file it plans with, a directory
     of per-building models for one building, or an RC file that is a directory (a model
     directory given to ``--rc``)."""
-    from scenarios.fleet_training import FLEET_FILE
-
     if a.controller in MODEL_CONTROLLERS and a.model is None:
         raise InputError(
             f"controller {a.controller!r} plans over a trained model: add --model MODEL_DIR "
             "(make one with `pinn-mpc train --data data.csv --out MODEL_DIR`; "
             "data from `pinn-mpc simulate`)"
         )
-    if a.model is not None and (Path(a.model) / FLEET_FILE).is_file():
-        raise InputError(
-            f"--model {a.model} holds one model per building (train --per-building), not one "
-            "model: run the fleet it was trained on with --buildings N --controller cem, or "
-            f"give a model directory of `pinn-mpc train` (one of {a.model}/buildings/*)"
-        )
+    if a.model is not None:
+        from scenarios.fleet_training import FLEET_FILE  # torch: only when a model is given
+
+        if (Path(a.model) / FLEET_FILE).is_file():
+            raise InputError(
+                f"--model {a.model} holds one model per building (train --per-building), not "
+                "one model: run the fleet it was trained on with --buildings N --controller "
+                f"cem, or give a model directory of `pinn-mpc train` (one of {a.model}/buildings/*)"
+            )
     if a.rc is not None and Path(a.rc).is_dir():
         hint = (
             " (it is a model directory: give it as --model to cem or random-shooting, or write "
