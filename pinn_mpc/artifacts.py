@@ -16,7 +16,6 @@ on stderr, since corruption of its weights cannot be detected (train it again to
 
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 from pathlib import Path
@@ -31,7 +30,7 @@ from pinn_mpc.actuator import CopCurve
 from pinn_mpc.choices import ALL_ARCHS
 from pinn_mpc.errors import InputError, ModelFileError, warn
 from pinn_mpc.features import FeatureConfig, whole_number
-from pinn_mpc.io import DirectoryLayout, atomic_directory
+from pinn_mpc.io import DirectoryLayout, atomic_directory, file_sha256
 from pinn_mpc.models.learned import MAX_MEMBERS, EnsembleModule, LearnedModel, ModelRecord
 from pinn_mpc.models.registry import get_architecture
 
@@ -57,14 +56,6 @@ _REQUIRED = ("format_version", "arch", "n_members", "features", "prior", "u_phys
 CHECKSUM = "weights_sha256"
 
 
-def _sha256(path: Path) -> str:
-    digest = hashlib.sha256()
-    with path.open("rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()
-
-
 def save_model(model: LearnedModel, path: str | os.PathLike[str], *, force: bool = False) -> str:
     """Write the model directory atomically (a failed write leaves nothing behind). An existing
     directory that is not a model directory is refused unless ``force``; then only the model's
@@ -86,7 +77,7 @@ def save_model(model: LearnedModel, path: str | os.PathLike[str], *, force: bool
     }
     with atomic_directory(path, MODEL_DIRECTORY, force=force) as tmp:
         save_file(state, str(tmp / WEIGHTS))
-        meta[CHECKSUM] = _sha256(tmp / WEIGHTS)
+        meta[CHECKSUM] = file_sha256(tmp / WEIGHTS)
         text = json.dumps(meta, indent=2, allow_nan=False) + "\n"
         (tmp / META).write_text(text, encoding="utf-8")
         for item in (tmp / WEIGHTS, tmp / META):
@@ -130,7 +121,7 @@ def _verify_checksum(directory: Path, meta: dict[str, Any]) -> None:
             "corrupted weights cannot be detected; train it again to add one"
         )
         return
-    if _sha256(weights_path) != expected:
+    if file_sha256(weights_path) != expected:
         raise ModelFileError(
             f"{weights_path} does not match {META} (sha256 differs: the weights are corrupted "
             "or were replaced); re-train the model or restore the directory from a backup"

@@ -224,7 +224,9 @@ def _read_model(path: Path) -> dict[str, Any]:
         model = json.loads(text)
     except json.JSONDecodeError as exc:
         raise InputError(f"{path}: not valid epJSON ({exc})") from None
-    if not isinstance(model, dict):
+    if not isinstance(model, dict) or not model:
+        if path.suffix.lower() == ".idf":  # the converter read no objects from it
+            raise InputError(f"{path}: EnergyPlus read no objects from it: not an IDF model")
         raise InputError(f"{path}: not an epJSON model (a JSON object of object types)")
     return model
 

@@ -10,6 +10,7 @@ outputs that cannot be written or that would overwrite an input or another outpu
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import json
 import os
 import shutil
@@ -34,6 +35,7 @@ __all__ = [
     "check_distinct",
     "check_output_directory",
     "check_writable",
+    "file_sha256",
 ]
 
 PathArg = str | os.PathLike[str]
@@ -89,6 +91,15 @@ def _interrupt_deferred() -> Iterator[None]:
                 previous(signal.SIGINT, None)
             elif previous == signal.SIG_DFL:
                 raise KeyboardInterrupt
+
+
+def file_sha256(path: PathArg) -> str:
+    """The sha256 of a file's bytes (hex), read in blocks."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
 
 
 def atomic_write_text(path: str | os.PathLike[str], text: str) -> Path:

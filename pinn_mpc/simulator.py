@@ -31,7 +31,11 @@ from pinn_mpc.errors import InputError
 from pinn_mpc.physics import N_INPUTS, PAPER_HOUSEHOLD, RCParams
 from pinn_mpc.plant import Plant, plant_matrices
 
-__all__ = ["PlantStep", "SimConfig", "Simulator", "StepResult", "backup_power"]
+__all__ = ["MAX_ACTUATOR_W", "PlantStep", "SimConfig", "Simulator", "StepResult", "backup_power"]
+
+#: The largest plausible actuator of one building [W] (a hospital's heating plant is a few MW):
+#: above it a power was given in the wrong unit.
+MAX_ACTUATOR_W = 1.0e8
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -59,6 +63,11 @@ class SimConfig:
             )
         if not (math.isfinite(self.u_max_w) and self.u_max_w > 0):
             raise InputError(f"SimConfig.u_max_w must be positive, got {self.u_max_w!r}")
+        if self.u_max_w > MAX_ACTUATOR_W:
+            raise InputError(
+                f"SimConfig.u_max_w = {self.u_max_w:.3g} W is above the plausible "
+                f"{MAX_ACTUATOR_W:.0e} W of one building's heating or cooling; give it in W"
+            )
         if not (self.substep_s > 0 and self.dt_s > 0):
             raise InputError(
                 f"SimConfig dt_s and substep_s must be positive, got {self.dt_s}, {self.substep_s}"

@@ -26,6 +26,7 @@ from pinn_mpc.io import (
     atomic_write_text,
     check_distinct,
     check_writable,
+    file_sha256,
 )
 from scenarios.choices import MODEL_CONTROLLERS
 from scenarios.closed_loop import one_torch_thread, run_closed_loop
@@ -77,6 +78,13 @@ def simulate(a: argparse.Namespace) -> str:
         if a.buildings < 2:
             raise InputError("--spread draws a fleet: add --buildings N with N > 1")
         sidecar = fleet_params_path(a.out)
+    elif fleet_params_path(a.out).is_file():
+        stale = fleet_params_path(a.out)
+        raise InputError(
+            f"--out {a.out}: {stale} next to it holds the buildings of an earlier `simulate "
+            f"--spread` run and would no longer describe {a.out} (train --per-building reads "
+            f"it); add --spread, choose another --out, or remove {stale}"
+        )
     check_writable(a.out, sidecar)
     check_distinct(inputs=_scenario_inputs(a.scenario), outputs={"--out": a.out, "fleet file": sidecar})
     chosen = get_scenario(a.scenario)
@@ -100,16 +108,18 @@ def simulate(a: argparse.Namespace) -> str:
     )
     write_timeseries(frame, a.out)
     if sidecar is not None and fleet is not None:
-        atomic_write_json(sidecar, {"spread": a.spread, "params": [dataclasses.asdict(p) for p in fleet]})
+        atomic_write_json(sidecar, {"spread": a.spread, "params": [dataclasses.asdict(p) for p in fleet],
+                                    "data_sha256": file_sha256(a.out)})
     per_building = len(frame) // a.buildings
     overridden = float(np.mean(~np.isclose(frame["u"], frame["u_phys"])))
     first, last = day_span(frame["time"])
+    also = "" if sidecar is None else f"; wrote their parameters to {sidecar}"
     return (
         f"wrote {a.out}: scenario {_scenario_label(a.scenario, chosen)}, {a.days} day(s) {first}..{last} "
         f"({a.weather_part} weather), {a.buildings} building(s), {policy} policy, "
         f"{per_building} rows per building at {chosen.sim.dt_s:g} s, T_r "
         f"{frame['T_r'].min():.1f}..{frame['T_r'].max():.1f} C, backup acted in "
-        f"{100 * overridden:.0f} % of intervals"
+        f"{100 * overridden:.0f} % of intervals{also}"
     )
 
 
@@ -141,9 +151,21 @@ def train(a: argparse.Namespace) -> str:
     sidecar = fleet_params_path(a.data)
     if sidecar.is_file():
         try:
-            params = [RCParams(**p) for p in json.loads(sidecar.read_text())["params"]]
+            stored = json.loads(sidecar.read_text())
+            params = [RCParams(**p) for p in stored["params"]]
         except (OSError, ValueError, KeyError, TypeError) as exc:
             raise InputError(f"{sidecar}: not a fleet parameter file ({exc})") from None
+        if stored.get("data_sha256") not in (None, file_sha256(a.data)):
+            raise InputError(
+                f"{sidecar} describes the buildings of another {a.data} (the data changed since "
+                f"`simulate --spread` wrote both); simulate the fleet again, or remove {sidecar} "
+                "to train without the buildings' parameters"
+            )
+        if len(params) != len(frames):
+            raise InputError(
+                f"{sidecar} holds {len(params)} buildings' parameters, {a.data} {len(frames)} "
+                f"buildings; simulate the fleet again, or remove {sidecar}"
+            )
     config = TrainConfig(
         depth=a.depth, n_seeds=a.seeds, first_seed=a.seed, epochs=a.epochs, lam=a.lam,
         recipe=a.recipe, eta=1.0 if a.eta is None else float(a.eta),
@@ -169,12 +191,14 @@ def closed_loop(a: argparse.Namespace) -> str:
     inputs: dict[str, PathsArg] = {"--rc": a.rc, **_scenario_inputs(a.scenario)}
     if a.model is not None:
         from pinn_mpc.artifacts import MODEL_DIRECTORY  # torch: only when a model is given
+        from scenarios.fleet_training import FLEET_FILE, fleet_model_files
 
-        inputs["--model"] = MODEL_DIRECTORY.paths(a.model)
+        fleet_dir = (Path(a.model) / FLEET_FILE).is_file()  # per-building models
+        inputs["--model"] = fleet_model_files(a.model) if fleet_dir else MODEL_DIRECTORY.paths(a.model)
     check_distinct(inputs=inputs, outputs=outputs)
     scenario = get_scenario(a.scenario)
     if a.buildings > 1:
-        return _fleet_closed_loop(a, scenario)
+        return _fleet_closed_loop(a, scenario, inputs)
     for option, given in (("--batched", a.batched), ("--cap-kw", a.cap_kw is not None),
                           ("--cap-window", a.cap_window is not None),
                           ("--rc-candidates", a.rc_candidates != "auto")):
@@ -226,14 +250,24 @@ def closed_loop(a: argparse.Namespace) -> str:
 
 
 def _check_controller_inputs(a: argparse.Namespace) -> None:
-    """Refuse, in the user's terms, a controller without the file it plans with, or an RC file
-    that is a directory (a model directory given to ``--rc``)."""
+    """Refuse, in the user's terms, a controller without the file it plans with, a directory
+    of per-building models for one building, or an RC file that is a directory (a model
+    directory given to ``--rc``)."""
     if a.controller in MODEL_CONTROLLERS and a.model is None:
         raise InputError(
             f"controller {a.controller!r} plans over a trained model: add --model MODEL_DIR "
             "(make one with `pinn-mpc train --data data.csv --out MODEL_DIR`; "
             "data from `pinn-mpc simulate`)"
         )
+    if a.model is not None:
+        from scenarios.fleet_training import FLEET_FILE  # torch: only when a model is given
+
+        if (Path(a.model) / FLEET_FILE).is_file():
+            raise InputError(
+                f"--model {a.model} holds one model per building (train --per-building), not "
+                "one model: run the fleet it was trained on with --buildings N --controller "
+                f"cem, or give a model directory of `pinn-mpc train` (one of {a.model}/buildings/*)"
+            )
     if a.rc is not None and Path(a.rc).is_dir():
         hint = (
             " (it is a model directory: give it as --model to cem or random-shooting, or write "
@@ -271,7 +305,7 @@ _FLEET_REASONS = {
 }
 
 
-def _fleet_closed_loop(a: argparse.Namespace, scenario: Scenario) -> str:
+def _fleet_closed_loop(a: argparse.Namespace, scenario: Scenario, inputs: dict[str, PathsArg]) -> str:
     """``closed-loop --buildings N``: the fleet run, its JSON (fleet, totals, step times,
     aggregate power, district KPIs, the cap's account, buildings); each building's controller
     is built on its own parameters, one after another, or the fleet is planned in one batch
@@ -305,7 +339,7 @@ def _fleet_closed_loop(a: argparse.Namespace, scenario: Scenario) -> str:
             parse_cap_window(a.cap_window)
         figure = str(Path(a.json).with_suffix(".fleet.png"))
         check_writable(figure)
-        check_distinct(inputs=_scenario_inputs(a.scenario), outputs={"--json": a.json, "figure": figure})
+        check_distinct(inputs=inputs, outputs={"--json": a.json, "figure": figure})
     check_fleet_memory(scenario, a.controller, days=a.days, buildings=a.buildings)
     check_fleet_size(a.controller, buildings=a.buildings, days=a.days, large=a.large)
     spread = 0.2 if a.spread is None else a.spread
@@ -326,6 +360,7 @@ def _fleet_closed_loop(a: argparse.Namespace, scenario: Scenario) -> str:
             raise InputError(f"--model {a.model} holds {len(models)} buildings, --buildings is {a.buildings}")
         if a.spread is not None:
             raise InputError("--spread does not apply with --model: the buildings are the models' own")
+        _check_fleet_models_fit(a.model, models, scenario)
         candidates = a.rc_candidates == "on" or (a.rc_candidates == "auto" and a.cap_kw is not None)
         planner = learned_fleet_planner(models, rc_candidates=candidates)
     elif a.rc_candidates != "auto":
@@ -369,6 +404,27 @@ def _fleet_closed_loop(a: argparse.Namespace, scenario: Scenario) -> str:
         )
         lines.append(f"wrote {figure}")
     return "\n".join([*lines, f"wrote {a.json}"])
+
+
+def _check_fleet_models_fit(root: str, models: list[Any], scenario: Scenario) -> None:
+    """Each building's model checked against the scenario as one model is (actuator, power
+    range, time constants: :func:`scenarios.factory.check_model_fits`): the first refusal
+    names its building; the first building's warnings are shown with a count of the others."""
+    from scenarios.factory import check_model_fits
+
+    noted = []
+    for b, model in enumerate(models):
+        try:
+            notes = check_model_fits(model, scenario)
+        except InputError as exc:
+            raise InputError(f"--model {root}, building {b}: {exc}") from None
+        if notes:
+            noted.append((b, notes))
+    if noted:
+        b, notes = noted[0]
+        others = f" (and notes on {len(noted) - 1} more of the {len(models)} buildings)" if len(noted) > 1 else ""
+        for note in notes:
+            warn(f"--model {root}, building {b}: {note}{others}")
 
 
 def fleet_json(result: FleetResult, scenario_arg: str) -> FleetJson:

@@ -6,7 +6,9 @@ set with a ``building`` column (``simulate --buildings N``) and trains each buil
 :func:`scenarios.sweep.ray_engine`). ``DIR`` holds ``fleet.json`` (what was trained, the
 buildings' parameters when the data came with them) and one model directory per building,
 ``buildings/b00000`` ...; a rerun keeps every building whose model directory loads and trains
-only the others (resumable, as a sweep).
+only the others (resumable, as a sweep). ``fleet.json`` is written before the first model, with
+each building's data digest, the architecture and the training settings: a rerun on other data
+or settings is refused (a kept model would otherwise be another building's, silently).
 
 :func:`pretrain_and_fine_tune` is the transfer-learning alternative: one model pre-trained on
 every building's data together, then each building's model started from its network (the
@@ -17,6 +19,7 @@ building's own identification) and trained for a few epochs on its own data.
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import json
 import os
 import time
@@ -36,6 +39,7 @@ __all__ = [
     "FLEET_FILE",
     "building_frames",
     "building_model_dir",
+    "fleet_model_files",
     "load_fleet_models",
     "pretrain_and_fine_tune",
     "train_per_building",
@@ -64,6 +68,17 @@ def building_frames(data: pd.DataFrame) -> dict[int, pd.DataFrame]:
 
 def building_model_dir(root: str | os.PathLike[str], building: int) -> Path:
     return Path(root) / "buildings" / f"b{building:05d}"
+
+
+def fleet_model_files(root: str | os.PathLike[str]) -> list[Path]:
+    """The files a per-building model directory holds (``fleet.json`` and each building's
+    model files): the inputs no output may replace."""
+    from pinn_mpc.artifacts import MODEL_DIRECTORY
+
+    files = [Path(root) / FLEET_FILE]
+    for building in sorted((Path(root) / "buildings").glob("b*")):
+        files.extend(MODEL_DIRECTORY.paths(building))
+    return files
 
 
 def _train_one(frame: pd.DataFrame, arch: str, config: TrainConfig, path: str) -> float:
@@ -125,11 +140,32 @@ def train_per_building(
             f"--out {root} is not empty and holds no {FLEET_FILE}; give a new or empty directory "
             "(or an earlier per-building run's, to resume it)"
         )
+    digests = {str(b): frame_digest(frame) for b, frame in frames.items()}
+    # as fleet.json will hold them (tuples as lists), to compare with a stored run's
+    settings = json.loads(json.dumps({k: v for k, v in dataclasses.asdict(config).items() if k != "prior"}))
+    previous = _read_fleet(root)
+    if previous is not None:
+        _check_resumable(root, previous, arch=arch, config=settings, digests=digests)
     done = [b for b in frames if _stored(building_model_dir(root, b))]
     todo = [b for b in frames if b not in done]
     start = time.perf_counter()
     seconds: dict[int, float] = {}
+    summary: dict[str, Any] = {
+        "arch": arch,
+        "config": settings,
+        "buildings": sorted(frames),
+        "data_sha256": digests,
+        "trained": [],
+        "kept": sorted(done),
+        "train_seconds": {},
+        "wall_seconds": 0.0,
+        "params": None if params is None else [dataclasses.asdict(p) for p in params],
+    }
+    if previous is not None and previous.get("params") and params is None:
+        summary["params"] = previous["params"]
     if todo:
+        root.mkdir(parents=True, exist_ok=True)
+        atomic_write_json(root / FLEET_FILE, summary)  # an interrupted run resumes from it
         with ray_engine(address, workers):
             (root / "buildings").mkdir(parents=True, exist_ok=True)
             task = ray.remote(num_cpus=1)(_train_one)
@@ -147,21 +183,45 @@ def train_per_building(
                     raise InputError(
                         f"training building {refs[ready[0]]} failed: {type(cause).__name__}: {first}"
                     ) from None
-    summary = {
-        "arch": arch,
-        "config": {k: v for k, v in dataclasses.asdict(config).items() if k != "prior"},
-        "buildings": sorted(frames),
-        "trained": sorted(seconds),
-        "kept": sorted(done),
-        "train_seconds": {str(b): round(s, 2) for b, s in sorted(seconds.items())},
-        "wall_seconds": round(time.perf_counter() - start, 2),
-        "params": None if params is None else [dataclasses.asdict(p) for p in params],
-    }
-    previous = _read_fleet(root)
-    if previous is not None and previous.get("params") and params is None:
-        summary["params"] = previous["params"]
+    summary.update(
+        trained=sorted(seconds),
+        train_seconds={str(b): round(s, 2) for b, s in sorted(seconds.items())},
+        wall_seconds=round(time.perf_counter() - start, 2),
+    )
     atomic_write_json(root / FLEET_FILE, summary)
     return summary
+
+
+def frame_digest(frame: pd.DataFrame) -> str:
+    """The sha256 of one building's data (its column names and values, row by row)."""
+    digest = hashlib.sha256(",".join(map(str, frame.columns)).encode("utf-8"))
+    digest.update(pd.util.hash_pandas_object(frame, index=False).to_numpy().tobytes())
+    return digest.hexdigest()
+
+
+def _check_resumable(
+    root: Path, previous: dict[str, Any], *, arch: str, config: dict[str, Any], digests: dict[str, str]
+) -> None:
+    """Refuse to resume ``root`` on other data or settings: its models would be kept as this
+    data's (each building's digest, the architecture and the training settings must match)."""
+    fix = "give a new --out directory, or the same --data and options to resume this one"
+    stored = previous.get("data_sha256")
+    if not isinstance(stored, dict):
+        raise InputError(
+            f"--out {root}: its {FLEET_FILE} records no data digests, so its models cannot be "
+            f"told to be this data's; {fix}"
+        )
+    other = [b for b, d in digests.items() if b in stored and stored[b] != d]
+    if other:
+        raise InputError(
+            f"--out {root} holds models trained on other data (building {other[0]}'s rows "
+            f"differ{f', and {len(other) - 1} more' if len(other) > 1 else ''}); {fix}"
+        )
+    was = {"arch": previous.get("arch"), **(previous.get("config") or {})}
+    now = {"arch": arch, **config}
+    changed = [f"{k} {was.get(k)!r} -> {v!r}" for k, v in now.items() if was.get(k) != v]
+    if changed:
+        raise InputError(f"--out {root} holds models trained otherwise ({', '.join(changed)}); {fix}")
 
 
 def _read_fleet(root: Path) -> dict[str, Any] | None:

@@ -291,6 +291,15 @@ def load_tmy3(file_name: str) -> tuple[np.ndarray, np.ndarray, str]:
             f"weather file {file_name!r} not found (neither in pvlib's data folder nor as a path)"
         )
     epw = path.suffix.lower() == ".epw"
+    if epw:
+        with open(path, encoding="latin-1") as f:
+            first = f.readline().strip()
+        if not first.upper().startswith("LOCATION,"):
+            raise InputError(
+                f"weather file {path} is not an EPW file: its first line is "
+                f"{first[:40]!r}, where an EPW's is its LOCATION header (8 header lines, then "
+                "8760 hourly rows); give an EPW as EnergyPlus's weather site writes it"
+            )
     try:
         if epw:
             frame, meta = pvlib.iotools.read_epw(path)

@@ -312,7 +312,7 @@ def _build(cls: type, table: dict[str, Any], where: str, base: Path) -> Any:
     return obj
 
 
-def _energyplus_defaults(data: dict[str, Any]) -> None:
+def _energyplus_defaults(data: dict[str, Any], base: Path) -> None:
     """A file whose ``[simulation.plant]`` has ``kind = "energyplus"`` may leave out what the
     EnergyPlus building gives: ``[building]`` (nominal values, :data:`EPLUS_NOMINAL`),
     ``[weather]`` (the plant's EPW, January / February), ``simulation.u_max_w`` (the plant's
@@ -320,11 +320,14 @@ def _energyplus_defaults(data: dict[str, Any]) -> None:
     :func:`pinn_mpc.energyplus.size_heater` when the scenario is read) and ``data_policy``
     (``closed-loop``, as the built-in EnergyPlus scenarios). A ``[building]`` table may give
     only some values (``eta = -3.0`` makes the ideal equipment a chiller of COP 3); the
-    others are the nominal ones."""
+    others are the nominal ones. The plant's weather is checked first, under its own key: the
+    ``[weather]`` made from it, or compared with it, would otherwise be blamed."""
     simulation = data.get("simulation")
     plant = simulation.get("plant") if isinstance(simulation, dict) else None
     if not (isinstance(plant, dict) and plant.get("kind") == "energyplus"):
         return
+    from pinn_mpc.energyplus import resolve_weather
+    from pinn_mpc.simulator import MAX_ACTUATOR_W
     from scenarios.registry import ENERGYPLUS_DATA_POLICY, EPLUS_NOMINAL, eplus_weather
 
     building = data.setdefault("building", EPLUS_NOMINAL.to_dict())
@@ -333,12 +336,22 @@ def _energyplus_defaults(data: dict[str, Any]) -> None:
             building.setdefault(key, value)
     data.setdefault("data_policy", ENERGYPLUS_DATA_POLICY)
     weather = plant.get("weather")
+    if isinstance(weather, str) and weather:
+        try:
+            resolve_weather(_resolve(weather, base))
+        except InputError as exc:
+            raise InputError(f"simulation.plant.weather: {exc}") from None
     if "weather" not in data and isinstance(weather, str):
         data["weather"] = {"type": "TMY3Weather", **_plain(eplus_weather(weather), Any)}
     heater = plant.get("heater_w")
     assert isinstance(simulation, dict)
     if heater is None and "u_max_w" not in simulation:
         plant["heater_w"] = "auto"
+    if isinstance(heater, int | float) and not isinstance(heater, bool) and heater > MAX_ACTUATOR_W:
+        raise InputError(
+            f"simulation.plant.heater_w = {heater:.3g} W is above the plausible "
+            f"{MAX_ACTUATOR_W:.0e} W of one building's heater; give it in W"
+        )
     if isinstance(heater, int | float) and not isinstance(heater, bool) and heater > 0:
         simulation.setdefault("u_max_w", float(heater))
 
@@ -346,7 +359,7 @@ def _energyplus_defaults(data: dict[str, Any]) -> None:
 def scenario_from_dict(data: dict[str, Any], *, base: Path, default_name: str) -> Scenario:
     """A Scenario from parsed TOML data (``base``: the folder relative paths start from)."""
     data = _deep_copy(data)
-    _energyplus_defaults(data)
+    _energyplus_defaults(data, base)
     building = data.get("building")
     if building is None:
         raise InputError(
@@ -491,9 +504,11 @@ def _leaf_keys(data: dict[str, Any], prefix: str = "") -> set[str]:
 
 def scenario_inputs(name_or_path: str) -> dict[str, Path]:
     """Every file a scenario reads, by its key in the file: for a scenario file, the file
-    itself (key ``""``), the ``building.rc`` it names and its weather and price files (CSV,
-    TMY3, EPW: ``weather.path``, ``weather.file_name``, ``price.path``); for a built-in name,
-    none. Commands protect them as inputs (no output may replace them)."""
+    itself (key ``""``), the ``building.rc`` it names, its weather and price files (CSV,
+    TMY3, EPW: ``weather.path``, ``weather.file_name``, ``price.path``) and an EnergyPlus
+    plant's model and weather files (``simulation.plant.building``, ``.weather``: an IDF or
+    epJSON, an EPW); for a built-in name, none. Commands protect them as inputs (no output
+    may replace them)."""
     from scenarios.inputs import tmy3_path
     from scenarios.registry import get_scenario, is_scenario_file
 
@@ -511,6 +526,11 @@ def scenario_inputs(name_or_path: str) -> dict[str, Path]:
             path = tmy3_path(value) if name == "file_name" else Path(value)
             if path.is_file():
                 files[f"{section}.{name}"] = path
+    plant = scenario.sim.plant
+    for name in plant.PATH_FIELDS if plant.is_energyplus else ():
+        path = Path(getattr(plant, name))  # a bundled name is no file here
+        if path.is_file():
+            files[f"simulation.plant.{name}"] = path
     return files
 
 

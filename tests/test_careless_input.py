@@ -10,21 +10,37 @@ import io
 import json
 import os
 import re
+import shutil
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
 
-from pinn_mpc.data import read_timeseries
+from pinn_mpc.artifacts import save_model
+from pinn_mpc.data import read_fleet_timeseries, read_timeseries, write_timeseries
+from pinn_mpc.energyplus import (
+    bundled_buildings,
+    bundled_weather,
+    energyplus_available,
+    prepare_model,
+)
 from pinn_mpc.errors import InputError
 from pinn_mpc.identify import identify_rc
-from pinn_mpc.io import atomic_write_json
+from pinn_mpc.io import atomic_write_json, file_sha256
 from pinn_mpc.physics import PAPER_HOUSEHOLD, rc_summary
+from pinn_mpc.simulator import draw_fleet
+from pinn_mpc.training import TrainConfig, train_model
 from pinn_mpc_cli.cli import main
 from scenarios import budget
 from scenarios.closed_loop import progress_steps
+from scenarios.commands import fleet_params_path
 from scenarios.datagen import generate
+from scenarios.fleet_training import (
+    building_model_dir,
+    frame_digest,
+    train_per_building,
+)
 from scenarios.registry import get_scenario
 from scenarios.scenario_file import load_scenario_file, scenario_inputs, scenario_to_toml
 from scenarios.sweep import Cell, _label, _read_cell, scenario_digest
@@ -256,6 +272,8 @@ def test_data_with_offsets_changing_at_dst_reads_without_a_traceback(tmp_path):
         ((r"(?s)\n\[building\].*?\n(?=\[simulation\])", "\n"), "[building] is missing"),
         ((r"solar_aperture_m2 = [^\n]*\n", ""), "building.solar_aperture_m2: missing"),
         ((r"eta = [^\n]*\n", ""), "building.eta: missing"),
+        ((r"u_max_w = [^\n]*", "u_max_w = 5e9"),
+         "simulation.u_max_w = 5e+09 W is above the plausible 1e+08 W"),
     ],
 )
 def test_implausible_or_missing_scenario_values_are_refused(tmp_path, edit, message):
@@ -354,3 +372,230 @@ def test_an_eta_of_the_wrong_sign_is_named_as_such():
     data = generate(get_scenario("paper_household"), days=3, seed=0, policy="random-level")
     with pytest.raises(InputError, match=r"eta = -2.5 says the actuator cools, but in the data more power warms"):
         identify_rc(data, eta=-2.5)
+
+
+# ---------------------------------------------------------------- EnergyPlus scenario files
+
+needs_energyplus = pytest.mark.skipif(not energyplus_available(), reason="EnergyPlus is not installed")
+
+
+def _eplus_file(folder: Path, name: str = "ep.toml", **plant: str) -> Path:
+    """eplus_small_office as a file without [weather] (the plant's EPW gives it), with the
+    plant's ``building`` or ``weather`` replaced."""
+    text = re.sub(r"(?s)\n\[weather\].*?\n(?=\[price\])", "\n",
+                  scenario_to_toml(get_scenario("eplus_small_office")))
+    for key, value in plant.items():
+        text, n = re.subn(rf"(?m)^{key} = .*$", f'{key} = "{value}"', text, count=1)
+        assert n == 1, key
+    (folder / name).write_text(text, encoding="utf-8")
+    return folder / name
+
+
+@pytest.fixture
+def office(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    """A user's folder: a copy of the small office's IDF and of Chicago's EPW, and a scenario
+    file running them."""
+    monkeypatch.chdir(tmp_path)
+    shutil.copy(bundled_buildings()["small_office"], tmp_path / "office.idf")
+    shutil.copy(bundled_weather()["usa_il_chicago"], tmp_path / "chicago.epw")
+    _eplus_file(tmp_path, building="office.idf", weather="chicago.epw")
+    return tmp_path
+
+
+EPLUS_DATA_LOSS = [
+    pytest.param(["simulate", "--scenario", "ep.toml", "--days", "1", "--out", "office.idf"],
+                 ["--out office.idf", "simulation.plant.building"], id="simulate-out-is-its-idf"),
+    pytest.param([*LOOP, "--scenario", "ep.toml", "--json", "./office.idf"],
+                 ["--json office.idf", "simulation.plant.building"], id="closed-loop-json-is-its-idf"),
+    pytest.param([*LOOP, "--scenario", "ep.toml", "--json", "k.json", "--csv", "chicago.epw"],
+                 ["--csv chicago.epw", "is the same file as the input"], id="closed-loop-csv-is-its-epw"),
+    pytest.param(["compare", "--scenario", "ep.toml", "--quick", "--json", "office.idf"],
+                 ["--json office.idf", "simulation.plant.building"], id="compare-json-is-its-idf"),
+]
+
+
+@needs_energyplus
+@pytest.mark.parametrize(("argv", "fragments"), EPLUS_DATA_LOSS)
+def test_no_output_replaces_an_energyplus_model_or_weather_file(office, capsys, argv, fragments):
+    before = checksums(office)
+    refused(argv, capsys, *fragments)
+    assert checksums(office) == before
+
+
+@needs_energyplus
+def test_an_energyplus_files_model_and_weather_are_in_its_content(office):
+    inputs = {k: p.resolve() for k, p in scenario_inputs("ep.toml").items()}
+    assert inputs["simulation.plant.building"] == office / "office.idf"
+    assert inputs["simulation.plant.weather"] == office / "chicago.epw"
+    before = scenario_digest("ep.toml")
+    with open(office / "office.idf", "a") as f:
+        f.write("\n! an edit: the building is another one\n")
+    os.utime(office / "ep.toml", ns=(1, 1))  # the digest is computed once per version of the file
+    assert scenario_digest("ep.toml") != before  # a sweep runs the edited building anew
+
+
+@needs_energyplus
+@pytest.mark.parametrize(
+    ("weather", "message"),
+    [
+        ("chicago", "simulation.plant.weather: EnergyPlus weather 'chicago' is neither a bundled "
+                    "weather file (usa_az_phoenix"),
+        ("nothere.epw", "simulation.plant.weather: EnergyPlus weather 'nothere.epw' is neither"),
+        ("garbage.epw", "garbage.epw is not an EPW file: its first line is 'not,an,epw', where an "
+                        "EPW's is its LOCATION header"),
+    ],
+)
+def test_a_bad_energyplus_weather_is_named_as_the_plants(office, weather, message):
+    (office / "garbage.epw").write_text("not,an,epw\n1,2,3\n")
+    with pytest.raises(InputError, match=re.escape(message)):
+        load_scenario_file(_eplus_file(office, "w.toml", weather=weather))
+
+
+@needs_energyplus
+def test_a_heater_in_the_wrong_unit_is_refused_before_energyplus_runs(office):
+    """1e12 W (u_max_w left to follow it) ran into EnergyPlus's 'temperature of 1136702 C ...
+    malformed zone' after a minute."""
+    path = _eplus_file(office, "h.toml")
+    path.write_text(re.sub(r"(?m)^u_max_w = .*\n", "", path.read_text()).replace(
+        "heater_w = 25000.0", "heater_w = 1e12"))
+    with pytest.raises(InputError, match=re.escape(
+            "simulation.plant.heater_w = 1e+12 W is above the plausible 1e+08 W")):
+        load_scenario_file(path)
+
+
+@needs_energyplus
+def test_an_idf_without_objects_is_named_as_an_idf(office):
+    (office / "garbage.idf").write_text("this is not an idf {{{\n")
+    with pytest.raises(InputError, match=r"garbage.idf: EnergyPlus read no objects from it: not an IDF model"):
+        prepare_model(str(office / "garbage.idf"))
+
+
+# ---------------------------------------------------------------- fleets
+
+
+def _fleet_csv(folder: Path, name: str = "fleet.csv", *, n: int = 2, days: int = 1,
+               sidecar: dict | None = None) -> Path:
+    scenario = get_scenario("winter_household")
+    fleet = draw_fleet(scenario.sim.params, n, spread=0.2, rng=np.random.default_rng(3))
+    path = folder / name
+    write_timeseries(generate(scenario, days=days, seed=0, n_buildings=n, fleet=fleet), path)
+    if sidecar is not None:
+        body = {"spread": 0.2, "params": [dataclasses.asdict(p) for p in fleet], **sidecar}
+        atomic_write_json(fleet_params_path(path), body)
+    return path
+
+
+def test_simulate_without_spread_never_leaves_a_stale_fleet_file(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    _fleet_csv(tmp_path, sidecar={})
+    before = checksums(tmp_path)
+    refused(["simulate", "--scenario", "winter_household", "--days", "1", "--buildings", "2",
+             "--out", "fleet.csv"], capsys, "fleet.fleet.json next to it holds the buildings of an "
+            "earlier `simulate --spread` run", "add --spread")
+    assert checksums(tmp_path) == before
+
+
+@pytest.mark.parametrize(
+    ("sidecar", "n", "message"),
+    [
+        ({"data_sha256": "0" * 64}, 2, "fleet.fleet.json describes the buildings of another fleet.csv"),
+        ({}, 3, "fleet.fleet.json holds 2 buildings' parameters, fleet.csv 3 buildings"),
+    ],
+    ids=["other-data", "other-count"],
+)
+def test_per_building_training_refuses_a_fleet_file_of_other_data(tmp_path, capsys, monkeypatch,
+                                                                  sidecar, n, message):
+    monkeypatch.chdir(tmp_path)
+    _fleet_csv(tmp_path, n=n)
+    if n != 2:  # the parameters of a 2-building fleet next to 3 buildings' data
+        _fleet_csv(tmp_path, "two.csv", sidecar=sidecar)
+        os.replace(tmp_path / "two.fleet.json", tmp_path / "fleet.fleet.json")
+    else:
+        _fleet_csv(tmp_path, sidecar=sidecar)
+    before = checksums(tmp_path)
+    refused(["train", "--data", "fleet.csv", "--per-building", "--seeds", "1", "--epochs", "1",
+             "--out", "m"], capsys, message)
+    assert checksums(tmp_path) == before
+
+
+def test_simulate_spread_records_its_data_for_training(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert main(["simulate", "--scenario", "winter_household", "--days", "1", "--buildings", "2",
+                 "--spread", "0.2", "--out", "f.csv"]) == 0
+    assert capsys.readouterr().out.strip().endswith("; wrote their parameters to f.fleet.json")
+    assert json.loads((tmp_path / "f.fleet.json").read_text())["data_sha256"] == file_sha256(tmp_path / "f.csv")
+
+
+@pytest.mark.parametrize(
+    ("stored", "message"),
+    [
+        ({"data_sha256": {"0": "x", "1": "y"}}, "holds models trained on other data (building 0's rows "
+                                                "differ, and 1 more)"),
+        ({}, "its fleet.json records no data digests"),
+        ({"config": {"epochs": 3}}, "holds models trained otherwise (epochs 3 -> 2)"),
+    ],
+    ids=["other-data", "no-digests", "other-settings"],
+)
+def test_per_building_training_never_resumes_a_foreign_directory(tmp_path, stored, message):
+    frames = read_fleet_timeseries(_fleet_csv(tmp_path))
+    config = TrainConfig(n_seeds=1, epochs=2)
+    settings = json.loads(json.dumps({k: v for k, v in dataclasses.asdict(config).items() if k != "prior"}))
+    mine = {"arch": "hybrid", "config": settings, "buildings": [0, 1],
+            "data_sha256": {str(b): frame_digest(f) for b, f in frames.items()}}
+    out = tmp_path / "models"
+    (out / "buildings" / "b00000").mkdir(parents=True)
+    (out / "buildings" / "b00000" / "model.json").write_text("{}")
+    record = {**mine, **stored, "config": {**settings, **stored.get("config", {})}}
+    if not stored:
+        del record["data_sha256"]
+    atomic_write_json(out / "fleet.json", record)
+    before = checksums(out)
+    with pytest.raises(InputError, match=re.escape(message)):
+        train_per_building(frames, out, arch="hybrid", config=config, workers=1)
+    assert checksums(out) == before
+
+
+@pytest.mark.parametrize("target", ["fleet.json", "buildings/b00001/model.json",
+                                    "buildings/b00000/weights.safetensors"])
+def test_no_fleet_output_replaces_a_per_building_model(tmp_path, capsys, monkeypatch, target):
+    monkeypatch.chdir(tmp_path)
+    for b in (0, 1):
+        (tmp_path / "m" / "buildings" / f"b{b:05d}").mkdir(parents=True)
+        for name in ("model.json", "weights.safetensors"):
+            (tmp_path / "m" / "buildings" / f"b{b:05d}" / name).write_text(f"{b} {name}")
+    (tmp_path / "m" / "fleet.json").write_text('{"buildings": [0, 1]}')
+    before = checksums(tmp_path)
+    refused(["closed-loop", "--scenario", "winter_household", "--controller", "cem", "--days", "1",
+             "--buildings", "2", "--model", "m", "--json", f"m/{target}"], capsys,
+            f"--json m/{target} is the same file as the input --model")
+    assert checksums(tmp_path) == before
+
+
+@pytest.mark.parametrize("controller", ["cem", "random-shooting"])
+def test_per_building_models_are_not_one_model(tmp_path, capsys, monkeypatch, controller):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "m" / "buildings" / "b00000").mkdir(parents=True)
+    (tmp_path / "m" / "fleet.json").write_text('{"buildings": [0]}')
+    refused(["closed-loop", "--scenario", "winter_household", "--controller", controller, "--days",
+             "1", "--model", "m", "--json", "k.json"], capsys,
+            "--model m holds one model per building (train --per-building), not one model",
+            "--buildings N")
+    assert not (tmp_path / "k.json").exists()
+
+
+def test_per_building_models_are_checked_against_the_scenario(tmp_path, capsys, monkeypatch):
+    """Models of 10 kW buildings driving 4 kW heat pumps: refused as one model is."""
+    monkeypatch.chdir(tmp_path)
+    frames = read_fleet_timeseries(_fleet_csv(tmp_path, days=2, sidecar={}))
+    config = TrainConfig(n_seeds=1, epochs=1)
+    (tmp_path / "m" / "buildings").mkdir(parents=True)
+    for b, frame in frames.items():
+        save_model(train_model(frame, arch="hybrid", config=config, progress=False),
+                   building_model_dir(tmp_path / "m", b))
+    params = json.loads((tmp_path / "fleet.fleet.json").read_text())["params"]
+    atomic_write_json(tmp_path / "m" / "fleet.json", {"buildings": [0, 1], "params": params})
+    refused(["closed-loop", "--scenario", "heat_pump_household", "--controller", "cem", "--days",
+             "1", "--buildings", "2", "--model", "m", "--json", "k.json"], capsys,
+            "--model m, building 0: the model was trained on powers up to",
+            "'heat_pump_household''s actuator gives at most 4000 W")
+    assert not (tmp_path / "k.json").exists()
