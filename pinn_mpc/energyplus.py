@@ -63,6 +63,7 @@ __all__ = [
     "extreme_window",
     "prepare_model",
     "prepare_plant",
+    "resolve_building",
     "resolve_weather",
     "schedule_gains",
     "size_heater",
@@ -157,7 +158,9 @@ def resolve_weather(name_or_path: str) -> Path:
     return path
 
 
-def _resolve_building(name_or_path: str) -> Path:
+def resolve_building(name_or_path: str) -> Path:
+    """A building model: a bundled reference building's name (``small_office``) or a path to an
+    ``.idf`` or ``.epJSON`` file."""
     bundled = bundled_buildings()
     if name_or_path in bundled:
         return Path(bundled[name_or_path])
@@ -446,7 +449,7 @@ def prepare_model(
     if isinstance(radiant_fraction, bool) or not 0.0 <= radiant_fraction <= 1.0:
         raise InputError(f"plant.radiant_fraction = {radiant_fraction!r} must lie in [0, 1]")
     _require_energyplus()
-    path = _resolve_building(building)
+    path = resolve_building(building)
     src = _read_model(path)
     found = code_objects(src)
     if found and not allow_code:

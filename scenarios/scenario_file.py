@@ -326,7 +326,7 @@ def _energyplus_defaults(data: dict[str, Any], base: Path) -> None:
     plant = simulation.get("plant") if isinstance(simulation, dict) else None
     if not (isinstance(plant, dict) and plant.get("kind") == "energyplus"):
         return
-    from pinn_mpc.energyplus import resolve_weather
+    from pinn_mpc.energyplus import resolve_building, resolve_weather
     from pinn_mpc.simulator import MAX_ACTUATOR_W
     from scenarios.registry import ENERGYPLUS_DATA_POLICY, EPLUS_NOMINAL, eplus_weather
 
@@ -336,11 +336,13 @@ def _energyplus_defaults(data: dict[str, Any], base: Path) -> None:
             building.setdefault(key, value)
     data.setdefault("data_policy", ENERGYPLUS_DATA_POLICY)
     weather = plant.get("weather")
-    if isinstance(weather, str) and weather:
-        try:
-            resolve_weather(_resolve(weather, base))
-        except InputError as exc:
-            raise InputError(f"simulation.plant.weather: {exc}") from None
+    for key, resolve in (("weather", resolve_weather), ("building", resolve_building)):
+        named = plant.get(key)
+        if isinstance(named, str) and named:
+            try:
+                resolve(_resolve(named, base))
+            except InputError as exc:
+                raise InputError(f"simulation.plant.{key}: {exc}") from None
     if "weather" not in data and isinstance(weather, str):
         data["weather"] = {"type": "TMY3Weather", **_plain(eplus_weather(weather), Any)}
     heater = plant.get("heater_w")

@@ -452,6 +452,15 @@ def test_a_bad_energyplus_weather_is_named_as_the_plants(office, weather, messag
 
 
 @needs_energyplus
+@pytest.mark.parametrize("building", ["small_ofice", "nothere.idf"])
+def test_a_bad_energyplus_building_is_refused_when_the_file_is_read(office, building):
+    """A misspelled building was accepted by `scenario show` and refused ~10 s into a run."""
+    with pytest.raises(InputError, match=re.escape(
+            f"simulation.plant.building: EnergyPlus building {building!r} is neither a bundled")):
+        load_scenario_file(_eplus_file(office, "b.toml", building=building))
+
+
+@needs_energyplus
 def test_a_heater_in_the_wrong_unit_is_refused_before_energyplus_runs(office):
     """1e12 W (u_max_w left to follow it) ran into EnergyPlus's 'temperature of 1136702 C ...
     malformed zone' after a minute."""

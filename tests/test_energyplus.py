@@ -16,8 +16,8 @@ from controllers.thermostat import Thermostat  # noqa: E402
 from pinn_mpc.energyplus import (  # noqa: E402
     EnergyPlusRun,
     _read_model,
-    _resolve_building,
     prepare_model,
+    resolve_building,
 )
 from pinn_mpc.errors import InputError  # noqa: E402
 from scenarios.closed_loop import run_closed_loop  # noqa: E402
@@ -75,7 +75,7 @@ def _energyplus_threads() -> list[threading.Thread]:
 
 
 def _small_office_with(tmp_path: Path, change) -> Path:
-    model = _read_model(_resolve_building("small_office"))
+    model = _read_model(resolve_building("small_office"))
     change(model)
     path = tmp_path / "office.epJSON"
     path.write_text(json.dumps(model))
