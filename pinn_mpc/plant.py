@@ -70,7 +70,7 @@ class Plant:
 
     def __post_init__(self) -> None:
         if self.kind not in PLANT_KINDS:
-            raise InputError(f"plant.kind {self.kind!r} is unknown; choose one of {', '.join(PLANT_KINDS)}")
+            raise InputError(f"Plant.kind {self.kind!r} is unknown; choose one of {', '.join(PLANT_KINDS)}")
         if self.kind == "energyplus":
             if not (self.building and self.weather):
                 raise InputError(
@@ -83,19 +83,19 @@ class Plant:
                 isinstance(h, bool) or not (isinstance(h, int | float) and math.isfinite(h) and h >= 0)
             ):
                 raise InputError(
-                    f"plant.heater_w = {h!r} must be a power >= 0 W (0: simulation.u_max_w) or "
+                    f"Plant.heater_w = {h!r} must be a power >= 0 W (0: simulation.u_max_w) or "
                     "\"auto\" (sized for the weather file's coldest days)"
                 )
             for key, allowed in (("zones", ZONE_LAYOUTS), ("gains", GAINS_KNOWLEDGE)):
                 if getattr(self, key) not in allowed:
                     raise InputError(
-                        f"plant.{key} = {getattr(self, key)!r} is not one of "
+                        f"Plant.{key} = {getattr(self, key)!r} is not one of "
                         f"{', '.join(map(repr, allowed))}"
                     )
             f = self.radiant_fraction
             if isinstance(f, bool) or not (isinstance(f, int | float) and 0.0 <= f <= 1.0):
                 raise InputError(
-                    f"plant.radiant_fraction = {f!r} must lie in [0, 1] (the heater's radiant "
+                    f"Plant.radiant_fraction = {f!r} must lie in [0, 1] (the heater's radiant "
                     "share; 0: all convective)"
                 )
         elif (
@@ -106,11 +106,11 @@ class Plant:
                 "plant: building, weather, heater_w, allow_code, zones, radiant_fraction and "
                 f"gains belong to kind = \"energyplus\", not {self.kind!r}"
             )
-        check_plausible("c_r_j_per_k", self.envelope_capacity_j_per_k, name="plant.envelope_capacity_j_per_k")
+        check_plausible("c_r_j_per_k", self.envelope_capacity_j_per_k, name="Plant.envelope_capacity_j_per_k")
         f = self.envelope_resistance_fraction
         if isinstance(f, bool) or not (isinstance(f, int | float) and math.isfinite(f) and 0 < f < 1):
             raise InputError(
-                f"plant.envelope_resistance_fraction = {f!r} must lie strictly between 0 and 1 "
+                f"Plant.envelope_resistance_fraction = {f!r} must lie strictly between 0 and 1 "
                 "(the share of R_ra between the envelope node and the outdoor air)"
             )
 

@@ -73,10 +73,12 @@ def parse_cap_window(text: str) -> tuple[float, float]:
         raise InputError(f"--cap-window {text!r} is not HH:MM-HH:MM (e.g. 17:00-19:00)")
     h0, m0, h1, m1 = (int(g) for g in match.groups())
     start, end = h0 + m0 / 60.0, h1 + m1 / 60.0
-    if m0 >= 60 or m1 >= 60 or start >= 24 or end > 24 or start == end:
+    if m0 >= 60 or m1 >= 60 or start >= 24 or end > 24:
+        raise InputError(f"--cap-window {text!r}: times must lie in 00:00..24:00 with minutes < 60")
+    if start == end:
         raise InputError(
-            f"--cap-window {text!r}: times must lie in 00:00..24:00 with minutes < 60 and the "
-            "window must not be empty"
+            f"--cap-window {text!r} is empty (it starts where it ends); leave --cap-window out "
+            "to cap all day"
         )
     return start, end
 

@@ -385,7 +385,7 @@ def _fleet_closed_loop(a: argparse.Namespace, scenario: Scenario, inputs: dict[s
     if result.cap is not None:
         c = result.cap
         lines.append(
-            f"cap {c['kw']:.1f} kW ({c['window'] or 'all day'}): {c['intervals_over']} of "
+            f"cap {c['kw']:.4g} kW ({c['window'] or 'all day'}): {c['intervals_over']} of "
             f"{c['intervals']} capped intervals over it, {c['kwh_over']:.2f} kWh over"
         )
     if result.errors:

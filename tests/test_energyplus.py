@@ -421,14 +421,15 @@ def test_energyplus_plant_keys_in_scenario_files(tmp_path):
     for extra, named in (
         ('zones = "rooms"', "simulation.plant.zones: 'rooms' is not one of 'merged', 'separate'"),
         ('gains = "known"', "simulation.plant.gains: 'known' is not one of 'unknown', 'measured'"),
-        ("radiant_fraction = 1.5", "plant.radiant_fraction = 1.5 must lie in [0, 1]"),
-        ('heater_w = "big"', "plant.heater_w = 'big' must be a power >= 0 W (0: simulation.u_max_w) or \"auto\""),
+        ("radiant_fraction = 1.5", "simulation.plant.radiant_fraction = 1.5 must lie in [0, 1]"),
+        ('heater_w = "big"', "simulation.plant.heater_w = 'big' must be a power >= 0 W (0: simulation.u_max_w) or \"auto\""),
     ):
         text = FILE.format(building="small_office", extra=extra).replace("heater_w = 20000.0\n", "", extra.startswith("heater"))
         (tmp_path / "bad.toml").write_text(text)
         with pytest.raises(InputError) as error:
             get_scenario(str(tmp_path / "bad.toml"))
         assert named in str(error.value) and "\n" not in str(error.value)
+        assert str(error.value).count("plant.") == 1  # the key named once, not "simulation.plant: plant."
     result = run_cli("scenario", "show", "bad.toml", cwd=tmp_path)  # the CLI: exit 2, one line
     assert result.returncode == 2 and result.stderr.count("\n") == 1 and "heater_w" in result.stderr
     (tmp_path / "bad.toml").write_text(

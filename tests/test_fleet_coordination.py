@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -125,8 +126,10 @@ def test_district_kpis_as_citylearn_defines_them():
 def test_cap_window_parsing():
     assert parse_cap_window("17:00-19:30") == (17.0, 19.5)
     assert parse_cap_window("22:00-06:00") == (22.0, 6.0)
-    for bad in ("17-19", "17:00-17:00", "25:00-26:00", "17:75-18:00"):
-        with pytest.raises(InputError, match="--cap-window"):
+    for bad, says in (("17-19", "is not HH:MM-HH:MM"), ("17:00-17:00", "is empty (it starts where it ends)"),
+                      ("25:00-26:00", "times must lie in 00:00..24:00"),
+                      ("17:75-18:00", "with minutes < 60")):
+        with pytest.raises(InputError, match=re.escape(f"--cap-window '{bad}'") + ".*" + re.escape(says)):
             parse_cap_window(bad)
     hours = cap_in_force(["2023-02-12T16:30:00", "2023-02-12T17:00:00", "2023-02-12T19:00:00"],
                          {"kw": 5.0, "window": "17:00-19:00"})

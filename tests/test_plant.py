@@ -87,9 +87,9 @@ def test_simulator_api_hides_the_envelope():
 @pytest.mark.parametrize(
     ("change", "key"),
     [
-        ({"kind": "4r4c"}, "plant.kind"),
-        ({"envelope_capacity_j_per_k": -1.0}, "plant.envelope_capacity_j_per_k"),
-        ({"envelope_resistance_fraction": 1.0}, "plant.envelope_resistance_fraction"),
+        ({"kind": "4r4c"}, "Plant.kind"),
+        ({"envelope_capacity_j_per_k": -1.0}, "Plant.envelope_capacity_j_per_k"),
+        ({"envelope_resistance_fraction": 1.0}, "Plant.envelope_resistance_fraction"),
     ],
 )
 def test_bad_plant_settings_name_the_key(change: dict, key: str):
