@@ -165,6 +165,8 @@ def export_rc_json(a: argparse.Namespace) -> str:
     data = export_rc(
         learned, source=f"export-rc of {learned.arch} x{learned.n_members} from {a.model}"
     )
+    data["power_range_w"] = [float(v) for v in learned.record.u_phys_range_w]
+    data["heat_pump_data"] = "cop" in learned.record.training_data.get("columns", [])
     atomic_write_json(a.out, data)
     return (
         f"R_ra={data['R_ra_K_per_W']:.4g} K/W R_rm={data['R_rm_K_per_W']:.4g} K/W "
@@ -184,6 +186,9 @@ def identify(a: argparse.Namespace) -> str:
     result = identify_rc(df, eta=_eta(a.eta))
     summary = rc_summary(result.params, source=f"identify:{a.data}")
     summary["fit"] = result.fit_statistics()
+    power = df["u_phys"].to_numpy(dtype=float)
+    summary["power_range_w"] = [float(power.min()), float(power.max())]
+    summary["heat_pump_data"] = "cop" in df.columns
     for note in result.notes:
         warn(note)
     atomic_write_json(a.out, summary)

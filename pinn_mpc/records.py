@@ -57,6 +57,11 @@ class RcSummary(TypedDict):
     fit: NotRequired[dict[str, Any]]
     """``identify`` only: the fit's statistics
     (:meth:`pinn_mpc.identify.IdentifyResult.fit_statistics`)."""
+    power_range_w: NotRequired[list[float]]
+    """``identify`` and ``export-rc``: the lowest and highest actuator power [W] of the data the
+    values come from (electrical for a heat pump), checked against a scenario's actuator."""
+    heat_pump_data: NotRequired[bool]
+    """``identify`` and ``export-rc``: whether those data were a heat pump's (a ``cop`` column)."""
 
 
 class OneStepErrors(TypedDict):

@@ -45,6 +45,7 @@ __all__ = [
     "TRUTH_CONTROLLERS",
     "build_controller",
     "check_model_fits",
+    "check_rc_fits",
     "make_controller",
     "model_guard",
     "read_rc",
@@ -124,40 +125,76 @@ def check_model_fits(model: BatchDynamics, scenario: Scenario) -> list[str]:
     record = _record(model)
     if record is None:
         return []
-    columns = record.training_data.get("columns", [])
+    rc = record.identified_rc
+    return _check_fits(
+        "the model", "trained on", "train", scenario,
+        heat_pump_data=None if not record.training_data.get("columns") else "cop" in record.training_data["columns"],
+        power_max_w=float(record.u_phys_range_w[1]),
+        identified=params_from_summary(rc) if isinstance(rc, dict) else None,
+    )
+
+
+def check_rc_fits(path: str | os.PathLike[str], scenario: Scenario) -> list[str]:
+    """:func:`check_model_fits` for an RC JSON (``identify``, ``export-rc``): refused when its
+    data were another actuator's or went above the scenario's power; warnings when they stayed
+    under half of it or its time constants differ from the scenario's building by more than a
+    factor of 3. An RC JSON without the data's power range (written by hand, or before it was
+    recorded) is checked for its time constants only."""
+    data = json.loads(Path(path).read_text(encoding="utf-8"))
+    power = data.get("power_range_w")
+    hp = data.get("heat_pump_data")
+    return _check_fits(
+        f"the RC of {Path(path).name}", "identified on", "identify", scenario,
+        heat_pump_data=hp if isinstance(hp, bool) else None,
+        power_max_w=float(power[1]) if isinstance(power, list) and len(power) == 2 else None,
+        identified=params_from_summary(data),
+    )
+
+
+def _check_fits(
+    what: str,
+    made: str,
+    command: str,
+    scenario: Scenario,
+    *,
+    heat_pump_data: bool | None,
+    power_max_w: float | None,
+    identified: RCParams | None,
+) -> list[str]:
+    """The checks of :func:`check_model_fits` for ``what`` (``made`` on data; ``command`` makes
+    another): refusals raised, warnings returned."""
     heat_pump = not scenario.sim.actuator.is_ideal
-    if "cop" in columns and not heat_pump:
+    if heat_pump_data and not heat_pump:
         raise InputError(
-            f"the model was trained on heat-pump data (a cop column), but scenario "
-            f"{scenario.name!r} has an ideal heater or chiller; train on data of this scenario"
+            f"{what} was {made} heat-pump data (a cop column), but scenario "
+            f"{scenario.name!r} has an ideal heater or chiller; {command} on data of this scenario"
         )
     notes = []
-    if heat_pump and columns and "cop" not in columns:
+    if heat_pump and heat_pump_data is False:
         notes.append(
-            f"scenario {scenario.name!r} has a heat pump, but the model's data had no cop "
+            f"scenario {scenario.name!r} has a heat pump, but {what}'s data had no cop "
             "column: it sees electrical power only (add the COP per row as a cop column)"
         )
-    hi = float(record.u_phys_range_w[1])
     u_max = scenario.sim.u_max_w
-    if hi > 1.05 * u_max:
+    if power_max_w is not None and power_max_w > 1.05 * u_max:
         raise InputError(
-            f"the model was trained on powers up to {hi:.0f} W, but scenario {scenario.name!r}'s "
+            f"{what} was {made} powers up to {power_max_w:.0f} W, but scenario {scenario.name!r}'s "
             f"actuator gives at most {u_max:.0f} W: it was made for another building; "
-            "train on data of this scenario"
+            f"{command} on data of this scenario"
         )
-    if 0 < hi < 0.5 * u_max:
+    if power_max_w is not None and 0 < power_max_w < 0.5 * u_max:
         notes.append(
-            f"the model's data reach {hi:.0f} W, under half the scenario's {u_max:.0f} W: "
-            "it extrapolates at high power"
+            f"{what}'s data reach {power_max_w:.0f} W, under half the scenario's {u_max:.0f} W: "
+            "it extrapolates at high power (was it made for this building?)"
         )
     # A plant without true parameters (EnergyPlus) has only nominal ones: nothing to compare.
-    if isinstance(record.identified_rc, dict) and scenario.reference == "oracle":
-        mine = time_constants_h(params_from_summary(record.identified_rc))
+    if identified is not None and scenario.reference == "oracle":
+        mine = time_constants_h(identified)
         theirs = time_constants_h(scenario.sim.params)
         ratio = max(max(a / b, b / a) for a, b in zip(mine, theirs, strict=True))
         if ratio > 3:
             notes.append(
-                f"the model's data show time constants of {mine[0]:.2g} h and {mine[1]:.2g} h, "
+                f"{what}'s data show time constants of {mine[0]:.2g} h and {mine[1]:.2g} h, "
                 f"the scenario's building {theirs[0]:.2g} h and {theirs[1]:.2g} h: "
                 "is it the same building?"
             )
@@ -327,5 +364,9 @@ def make_controller(
         if name == "qp-mpc" and not is_arx_directory(model_dir):
             raise _not_linear()
         model = load_arx(model_dir) if is_arx_directory(model_dir) else load_model(model_dir)
-    rc_params = read_rc(rc_path) if rc_path is not None else None
+    rc_params = None
+    if rc_path is not None:
+        rc_params = read_rc(rc_path)
+        for note in check_rc_fits(rc_path, scenario):
+            warn(note)
     return build_controller(name, scenario, model=model, rc_params=rc_params, n_steps=n_steps)

@@ -608,3 +608,53 @@ def test_per_building_models_are_checked_against_the_scenario(tmp_path, capsys, 
             "--model m, building 0: the model was trained on powers up to",
             "'heat_pump_household''s actuator gives at most 4000 W")
     assert not (tmp_path / "k.json").exists()
+
+
+@pytest.fixture(scope="module")
+def identified_rcs(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """rc.json files `identify` writes from 4 days of three scenarios' data."""
+    folder = tmp_path_factory.mktemp("rcs")
+    for name in ("winter_household", "paper_household", "heat_pump_household"):
+        assert main(["simulate", "--scenario", name, "--days", "4", "--seed", "1",
+                     "--out", str(folder / f"{name}.csv")]) == 0
+        assert main(["identify", "--data", str(folder / f"{name}.csv"),
+                     "--out", str(folder / f"{name}.json")]) == 0
+    return folder
+
+
+def test_identify_records_the_power_range_and_actuator_of_its_data(identified_rcs):
+    data = pd.read_csv(identified_rcs / "winter_household.csv")
+    rc = json.loads((identified_rcs / "winter_household.json").read_text())
+    assert rc["power_range_w"] == pytest.approx([data["u_phys"].min(), data["u_phys"].max()])
+    assert rc["heat_pump_data"] is False
+    assert json.loads((identified_rcs / "heat_pump_household.json").read_text())["heat_pump_data"] is True
+
+
+@pytest.mark.parametrize(
+    ("rc", "scenario", "fragments"),
+    [
+        ("winter_household", "paper_household",
+         ("the RC of winter_household.json was identified on powers up to 9", "at most 5000 W")),
+        ("heat_pump_household", "winter_household",
+         ("the RC of heat_pump_household.json was identified on heat-pump data",)),
+    ],
+)
+def test_an_rc_identified_on_another_actuator_is_refused(identified_rcs, capsys, tmp_path, rc, scenario, fragments):
+    """qp-mpc with an rc.json of another building's data ran without a word (a 5 kW household's
+    RC on the 25 kW office, the second probe's E38)."""
+    refused(["closed-loop", "--scenario", scenario, "--controller", "qp-mpc", "--days", "1",
+             "--rc", str(identified_rcs / f"{rc}.json"), "--json", str(tmp_path / "k.json")],
+            capsys, *fragments)
+    assert not (tmp_path / "k.json").exists()
+
+
+def test_an_rc_of_a_smaller_actuator_is_warned_about(identified_rcs, capsys, tmp_path):
+    from scenarios.factory import check_rc_fits
+
+    notes = check_rc_fits(identified_rcs / "paper_household.json", get_scenario("eplus_small_office"))
+    assert len(notes) == 1 and "data reach 4" in notes[0] and "under half the scenario's 25000 W" in notes[0]
+    assert check_rc_fits(identified_rcs / "winter_household.json", get_scenario("winter_household")) == []
+    old = json.loads((identified_rcs / "winter_household.json").read_text())
+    del old["power_range_w"], old["heat_pump_data"]  # an rc.json written before they were recorded
+    (tmp_path / "old.json").write_text(json.dumps(old))
+    assert check_rc_fits(tmp_path / "old.json", get_scenario("paper_household")) == []
