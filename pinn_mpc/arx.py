@@ -44,7 +44,7 @@ import torch
 
 from pinn_mpc.errors import InputError
 from pinn_mpc.io import DirectoryLayout
-from pinn_mpc.models.registry import ARX
+from pinn_mpc.models.registry import ARX, PHYSICS_ARX
 from pinn_mpc.models.rollout import Rollout
 
 __all__ = [
@@ -54,6 +54,7 @@ __all__ = [
     "BLOCK_H",
     "DEFAULT_LAGS",
     "fit_arx",
+    "fit_linear",
     "fit_physics_informed_arx",
     "is_arx_directory",
     "load_arx",
@@ -320,6 +321,16 @@ def fit_physics_informed_arx(
             "e.g. simulate --policy random-level or closed-loop)"
         )
     return model
+
+
+def fit_linear(name: str, df: pd.DataFrame, *, eta: float = 1.0) -> ARXModel:
+    """The linear baseline ``name`` (the registry's ARX or physics-informed ARX) fitted on
+    ``df``; ``eta`` the actuator's sign, as :func:`fit_physics_informed_arx` takes it."""
+    if name == ARX.name:
+        return fit_arx(df)
+    if name == PHYSICS_ARX.name:
+        return fit_physics_informed_arx(df, eta=eta)
+    raise InputError(f"{name!r} is not a linear baseline; choose {ARX.name} or {PHYSICS_ARX.name}")
 
 
 def is_arx_directory(path: str | os.PathLike[str]) -> bool:

@@ -69,7 +69,7 @@ def train(a: argparse.Namespace) -> str:
 def _train_arx(a: argparse.Namespace) -> str:
     """``train --arch arx`` (the least-squares ARX baseline, :mod:`pinn_mpc.arx`) or its
     physics-informed variant into ``--out``."""
-    from pinn_mpc.arx import ARX_DIRECTORY, fit_arx, fit_physics_informed_arx, save_arx
+    from pinn_mpc.arx import ARX_DIRECTORY, fit_linear, save_arx
 
     given = [f"--{n}" for n in ("depth", "epochs", "lam", "recipe") if getattr(a, n, None) is not None]
     if given:
@@ -84,7 +84,7 @@ def _train_arx(a: argparse.Namespace) -> str:
     if "building" in df.columns:
         raise InputError(f"{a.data}: a fleet's data (a building column); train --arch {a.arch} takes one building's")
     start = time.perf_counter()
-    model = fit_arx(df) if a.arch == ARX.name else fit_physics_informed_arx(df, eta=_eta(a.eta))
+    model = fit_linear(a.arch, df, eta=_eta(a.eta))
     written = save_arx(model, a.out)
     return (
         f"fitted {a.arch} ({model.lags} lags of {', '.join(model.columns)}, a weekly schedule) on "

@@ -401,7 +401,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--spec", default=None,
         help="a sweep definition (TOML: scenarios, controllers, seeds, train_days, days, "
-        "baseline), e.g. sweeps/robustness.toml; options given here override it",
+        "baseline, arch), e.g. sweeps/robustness.toml; options given here override it",
     )
     p.add_argument("--scenarios", default=None, help="comma-separated scenario names")
     p.add_argument("--controllers", default=None, help="comma-separated, e.g. oracle,qp-mpc,cem")
@@ -413,6 +413,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--address", default=None, help="Ray cluster (HOST:PORT, ray://HOST:PORT, auto)")
     p.add_argument("--workers", type=_positive_int, default=None, help="local CPUs (default all)")
     p.add_argument("--baseline", default=None, help="controller of the paired differences")
+    p.add_argument(
+        "--arch", default=None, choices=MODEL_CHOICES,
+        help=f"the model cem and random-shooting plan over (default {DEFAULT_ARCH}, as train's)",
+    )
     p.add_argument(
         "--large", action="store_true", help="confirm a grid of more than 1000 cells"
     )

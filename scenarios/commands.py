@@ -597,6 +597,7 @@ def reproduce(a: argparse.Namespace) -> str:
 def sweep(a: argparse.Namespace) -> str:
     """Parse the grid, run it on Ray (:func:`scenarios.sweep.run_sweep`), return what was run
     and written."""
+    from pinn_mpc.choices import DEFAULT_ARCH
     from scenarios.budget import check_grid_size
     from scenarios.registry import is_scenario_file
     from scenarios.sweep import (
@@ -638,7 +639,7 @@ def sweep(a: argparse.Namespace) -> str:
         what=f"{len(grid.scenarios)} scenario(s) x {len(grid.controllers)} controller(s) and "
         f"the reference x {len(grid.seeds)} seed(s) x {len(grid.train_days)} training length(s)",
     )
-    settings = SweepSettings.for_run(days=days, quick=quick)
+    settings = SweepSettings.for_run(days=days, quick=quick, arch=given("arch", DEFAULT_ARCH))
     outcome = run_sweep(
         grid,
         settings,

@@ -47,7 +47,7 @@ from typing import TYPE_CHECKING, Any, TypeAlias, TypedDict, cast
 from tqdm import tqdm
 
 from pinn_mpc import __version__
-from pinn_mpc.choices import DEFAULT_ARCH
+from pinn_mpc.choices import ARX, DEFAULT_ARCH, MODEL_CHOICES, PHYSICS_ARX
 from pinn_mpc.errors import InputError
 from pinn_mpc.io import atomic_write_json, atomic_write_text
 from pinn_mpc.physics import RCParams, params_from_summary, rc_summary
@@ -65,14 +65,18 @@ from scenarios.registry import get_scenario, is_scenario_file
 from scenarios.sweep_report import REFERENCE, plot_sweep, render_sweep_report, summarise
 
 if TYPE_CHECKING:
+    from pinn_mpc.arx import ARXModel
     from pinn_mpc.models.learned import LearnedModel
     from pinn_mpc.models.rollout import BatchDynamics
 
 #: What a sweep trains for a cell (:func:`fit_model`): a learned ensemble or an identified RC.
-SweepModel: TypeAlias = "LearnedModel | RCParams"
+SweepModel: TypeAlias = "LearnedModel | ARXModel | RCParams"
 
-#: The architecture the model-based controllers plan over: the one ``train`` makes by default.
+#: The architecture the model-based controllers plan over by default: the one ``train`` makes by
+#: default (``SweepSettings.arch`` another, e.g. the physics-informed ARX).
 ARCH = DEFAULT_ARCH
+#: The linear baselines a sweep fits instead of training (:func:`pinn_mpc.arx.fit_linear`).
+_LINEAR = (ARX.name, PHYSICS_ARX.name)
 RC_KIND = "rc"
 FIGURE = "objective_to_oracle.png"
 #: Tasks an engine worker runs before it is replaced when the grid has an EnergyPlus scenario.
@@ -97,6 +101,8 @@ class SweepSettings:
     #: on the RC plants, closed-loop on EnergyPlus), as ``simulate`` and ``compare`` default to.
     policy: str = "scenario"
     quick: bool = False
+    #: The architecture ``cem`` and ``random-shooting`` plan over (``train --arch``'s choices).
+    arch: str = ARCH
 
     def __post_init__(self) -> None:
         for name in ("test_days", "n_members", "depth"):
@@ -104,15 +110,17 @@ class SweepSettings:
                 raise InputError(f"sweep: {name} must be >= 1, got {getattr(self, name)}")
         if self.epochs is not None and self.epochs < 1:
             raise InputError(f"sweep: epochs must be >= 1, got {self.epochs}")
+        if self.arch not in MODEL_CHOICES:
+            raise InputError(f"sweep: arch {self.arch!r} is unknown; choose one of {', '.join(MODEL_CHOICES)}")
         if self.policy not in _POLICIES:
             raise InputError(f"sweep: policy {self.policy!r} is unknown; choose one of {', '.join(_POLICIES)}")
 
     @classmethod
-    def for_run(cls, *, days: int, quick: bool) -> SweepSettings:
+    def for_run(cls, *, days: int, quick: bool, arch: str = ARCH) -> SweepSettings:
         """Defaults, or with ``quick`` 2-member ensembles, 30 epochs and at most 2 test days."""
         if not quick:
-            return cls(test_days=days)
-        return cls(test_days=min(days, 2), n_members=2, epochs=30, quick=True)
+            return cls(test_days=days, arch=arch)
+        return cls(test_days=min(days, 2), n_members=2, epochs=30, quick=True, arch=arch)
 
 
 @dataclass(frozen=True, kw_only=True, order=True)
@@ -175,6 +183,15 @@ def _digest(scenario: str, mtime_ns: int, size: int) -> str:
             digest.update(f"\n{key}\n".encode())
             digest.update(path.read_bytes())
     return digest.hexdigest()
+
+
+def _model_key(cell: Cell, settings: SweepSettings) -> ModelKey | None:
+    """The model ``cell`` needs under ``settings``: its learned model of the settings'
+    architecture, its identified RC, or None."""
+    key = cell.model
+    if key is not None and key.kind == ARCH:
+        return dataclasses.replace(key, kind=settings.arch)
+    return key
 
 
 def model_kind(controller: str) -> str | None:
@@ -252,13 +269,14 @@ def parse_names(text: str, what: str) -> tuple[str, ...]:
 
 
 #: Keys of a sweep definition file (``pinn-mpc sweep --spec FILE.toml``).
-SPEC_KEYS = ("description", "scenarios", "controllers", "seeds", "train_days", "days", "baseline")
+SPEC_KEYS = ("description", "scenarios", "controllers", "seeds", "train_days", "days", "baseline", "arch")
 
 
 def read_sweep_spec(path: str | os.PathLike[str]) -> dict[str, Any]:
     """A sweep definition (TOML): lists or comma-separated strings for ``scenarios``,
     ``controllers``, ``seeds`` and ``train_days`` (ranges as ``"0-7"``), an integer ``days``,
-    a controller name ``baseline``; scenario files named relative to the definition file.
+    a controller name ``baseline``, an architecture ``arch``; scenario files named relative to the
+    definition file.
     Returns the values as the command line gives them."""
     import tomllib
 
@@ -290,10 +308,11 @@ def read_sweep_spec(path: str | os.PathLike[str]) -> dict[str, Any]:
         if isinstance(data["days"], bool) or not isinstance(data["days"], int) or data["days"] < 1:
             raise InputError(f"{source}: days must be a whole number >= 1, got {data['days']!r}")
         out["days"] = data["days"]
-    if "baseline" in data:
-        if not isinstance(data["baseline"], str):
-            raise InputError(f"{source}: baseline must be a controller name")
-        out["baseline"] = data["baseline"]
+    for key, what in (("baseline", "a controller name"), ("arch", f"one of {', '.join(MODEL_CHOICES)}")):
+        if key in data:
+            if not isinstance(data[key], str) or (key == "arch" and data[key] not in MODEL_CHOICES):
+                raise InputError(f"{source}: {key} must be {what}, got {data[key]!r}")
+            out[key] = data[key]
     return out
 
 
@@ -333,6 +352,10 @@ def fit_model(key: ModelKey, settings: SweepSettings) -> SweepModel:
     data = generate(scenario, days=key.train_days, seed=key.seed, policy=policy)
     if key.kind == RC_KIND:  # as compare identifies (on delivered heat under a heat pump)
         return identify_scenario_rc(scenario, data)
+    if key.kind in _LINEAR:
+        from pinn_mpc.arx import fit_linear
+
+        return fit_linear(key.kind, data, eta=scenario.sim.params.eta)
     from pinn_mpc.training import TrainConfig, train_model
 
     epochs = CompareSettings(
@@ -386,7 +409,7 @@ def run_cell(
 
 
 def _settings_record(settings: SweepSettings) -> SweepSettingsRecord:
-    record = {**dataclasses.asdict(settings), "arch": ARCH, "package_version": __version__}
+    record = {**dataclasses.asdict(settings), "package_version": __version__}
     return cast(SweepSettingsRecord, record)  # SweepSettings' fields, then two
 
 
@@ -451,6 +474,10 @@ def _load_model(out: Path, key: ModelKey) -> SweepModel | None:
         return None
     if key.kind == RC_KIND:
         return params_from_summary(_read_json(path))
+    from pinn_mpc.arx import is_arx_directory, load_arx
+
+    if is_arx_directory(path):
+        return load_arx(path)
     from pinn_mpc.artifacts import load_model
 
     return load_model(path)
@@ -460,6 +487,11 @@ def _store_model(out: Path, key: ModelKey, model: SweepModel) -> None:
     path = _model_path(out, key)
     if isinstance(model, RCParams):
         atomic_write_json(path, rc_summary(model, source=f"identify ({key.name})"))
+        return
+    from pinn_mpc.arx import ARXModel, save_arx
+
+    if isinstance(model, ARXModel):
+        save_arx(model, path)
         return
     from pinn_mpc.artifacts import save_model
 
@@ -592,7 +624,7 @@ def run_sweep(
     records = {c: _read_cell(root / "cells" / f"{c.name}.json", c) for c in cells}
     missing = [c for c in cells if records[c] is None]
     reused = len(cells) - len(missing)
-    keys = sorted({c.model for c in missing if c.model is not None})
+    keys = sorted({k for c in missing if (k := _model_key(c, settings)) is not None})
     trained = 0
     with ray_engine(address, workers) as engine:
         # Only now that the engine runs: a refused address leaves no directory behind.
@@ -612,7 +644,8 @@ def run_sweep(
                 model_refs[key] = task.remote(fit_model, key, settings)
                 pending[model_refs[key]] = ("model", key)
         for cell in missing:
-            ref = task.remote(run_cell, cell, settings, model_refs.get(cell.model) if cell.model else None)
+            needed = _model_key(cell, settings)
+            ref = task.remote(run_cell, cell, settings, model_refs.get(needed) if needed else None)
             pending[ref] = ("cell", cell)
         from scenarios.closed_loop import PROGRESS_EVERY_S, duration_text
 

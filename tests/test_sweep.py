@@ -302,3 +302,43 @@ def _export(tmp_path: Path) -> str:
         check=True, capture_output=True,
     )
     return str(out)
+
+
+@pytest.mark.slow
+def test_a_sweep_plans_over_the_architecture_it_is_given(tmp_path):
+    """--arch: cem plans over the physics-informed ARX, fitted once per scenario x seed x
+    training days and stored in the sweep's directory as an ARX model (numbers only); a rerun
+    reuses it and another architecture is other settings."""
+    from pinn_mpc.arx import load_arx
+    from pinn_mpc.choices import PHYSICS_ARX
+
+    out = tmp_path / "sweep"
+    grid = ["--scenarios", "winter_household", "--controllers", "cem", "--seeds", "0",
+            "--train-days", "7", "--days", "1", "--workers", "2", "--out", str(out)]
+    result = sweep_cli(*grid, "--arch", PHYSICS_ARX.name)
+    assert result.returncode == 0, result.stderr[-3000:]
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["models_trained"] == 1 and summary["cells_run"] == 2
+    assert json.loads((out / "sweep.json").read_text())["settings"]["arch"] == PHYSICS_ARX.name
+    [stored] = (out / "models").iterdir()
+    assert stored.name == f"winter_household--{PHYSICS_ARX.name}--seed0--train7"
+    assert load_arx(stored).interaction  # the physics-informed variant
+    cem = json.loads((out / "cells" / "winter_household--cem--seed0--train7.json").read_text())
+    assert cem["kpis"]["controller"] == "cem" and cem["kpis"]["objective"] > 0
+    again = sweep_cli(*grid, "--arch", PHYSICS_ARX.name)
+    assert again.returncode == 0 and "all 2 cells reused" in again.stdout
+    other = sweep_cli(*grid)
+    assert other.returncode == 2 and f"arch {PHYSICS_ARX.name!r} -> {ARCH!r}" in other.stderr, other.stderr
+
+
+def test_a_sweep_definition_names_a_known_architecture(tmp_path):
+    from scenarios.sweep import SweepSettings, read_sweep_spec
+
+    good, bad = tmp_path / "good.toml", tmp_path / "bad.toml"
+    good.write_text(f"arch = \"{SweepSettings().arch}\"\n")
+    bad.write_text('arch = "transformer"\n')
+    assert read_sweep_spec(good) == {"arch": SweepSettings().arch}
+    with pytest.raises(InputError, match="arch must be one of"):
+        read_sweep_spec(bad)
+    with pytest.raises(InputError, match="arch 'transformer' is unknown"):
+        SweepSettings(arch="transformer")
