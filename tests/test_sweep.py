@@ -232,6 +232,12 @@ def test_sweep_definition_files_are_read_and_checked(tmp_path):
     assert spec["train_days"] == "14,30,60" and spec["seeds"] == "0-2" and spec["days"] == 3
     assert parse_ints(spec["train_days"], "training days") == (14, 30, 60)
     assert len(parse_names(spec["scenarios"], "scenarios")) == 5
+    for committed in sorted((root / "sweeps").glob("*.toml")):  # every one a sweep can run
+        read = read_sweep_spec(committed)
+        SweepGrid(scenarios=parse_names(read["scenarios"], "scenarios"),
+                  controllers=parse_names(read["controllers"], "controllers"),
+                  seeds=parse_ints(read["seeds"], "seeds"),
+                  train_days=parse_ints(read.get("train_days", "30"), "training days"))
     own = tmp_path / "mine.toml"
     own.write_text('scenarios = ["my.toml", "winter_household"]\nseeds = [0, 3]\n')
     assert read_sweep_spec(own)["scenarios"] == f"{tmp_path / 'my.toml'},winter_household"
