@@ -365,7 +365,10 @@ def _fleet_closed_loop(a: argparse.Namespace, scenario: Scenario, inputs: dict[s
         planner = learned_fleet_planner(models, rc_candidates=candidates)
     elif a.rc_candidates != "auto":
         raise InputError("--rc-candidates applies to the batched cem over learned models: add --model DIR")
-    threads = one_torch_thread() if a.controller in MODEL_CONTROLLERS else contextlib.nullcontext()
+    # One building's planner rolls out small tensors (one thread is fastest); a fleet's batched
+    # rollout (buildings x samples x horizon) is large enough for torch's threads to pay.
+    small = a.controller in MODEL_CONTROLLERS and a.model is None
+    threads = one_torch_thread() if small else contextlib.nullcontext()
     with threads:
         if batched:
             from scenarios.aggregator import run_coordinated_fleet
