@@ -167,13 +167,10 @@ class FleetCEM:
     chosen plans (None: not measured); ``shadow`` is the fallback RC MPC of every building
     (None: the models always drive). ``planner`` holds the CEM settings (bounds are the
     actuator's); a re-plan within a step (the next coordination price) runs ``replan_iters``
-    CEM iterations from the step's last plans. With ``rc_candidates`` the first plan of a step also
-    scores the shadow RC MPC's plan under the same prices as one of its first samples (one
-    warm-started QP per building), so the CEM starts from the RC's optimum where its own samples
-    do not beat it, e.g. when a coordination price comes or goes and the warm start is far off;
-    the step's re-plans start from those plans (scoring the RC's plan in every re-plan too
-    cost 2.5 x the QP solves for the same comfort under a cap: 200 buildings +0.088 against
-    +0.089 K h per building).
+    CEM iterations from the step's last plans. With ``rc_candidates`` every plan also scores
+    the shadow RC MPC's plan under the same prices as one of its first samples (one warm-started
+    QP per building and plan), so the CEM starts from the RC's optimum where its own samples do
+    not beat it, e.g. when a coordination price comes or goes and the warm start is far off.
     """
 
     name = "cem"
@@ -350,9 +347,7 @@ class FleetCEM:
             x0 = self._best
             planner = dataclasses.replace(self.planner, n_iters=self.replan_iters)
         candidates = None
-        if self.rc_candidates and self.shadow is not None and self._best is None:
-            # The step's first plan only: a re-plan starts from its best plans, which hold the
-            # RC's plan wherever that won.
+        if self.rc_candidates and self.shadow is not None:
             rc = self.shadow.plan(extra)
             # Where the RC did not plan, its warm start stands in (a sample like any other).
             candidates = torch.as_tensor(np.where(rc.ok[:, None], rc.power_w, x0.numpy()), dtype=x0.dtype)[:, None]

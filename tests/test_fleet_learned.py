@@ -148,10 +148,11 @@ def test_a_batched_rollout_that_would_not_fit_is_refused_before_it_starts():
                                    available=8_000_000_000)
 
 
-def test_rc_candidates_are_scored_in_the_first_plan_of_a_step_only(fleet_models):
-    """The RC MPC's plan is a candidate of a step's first plan (kept unless a sample beats it on
-    the model); the step's re-plans under other prices start from those plans instead of
-    solving every building's QP again."""
+def test_rc_candidates_are_scored_in_every_plan_of_a_step(fleet_models):
+    """The RC MPC's plan under each plan's prices is one of its candidates (kept unless a sample
+    beats it on the model), in the re-plans of a step too: scoring it in a step's first plan
+    only left the first capped interval of 1,000 learned buildings at 16 % of the cap (cap
+    comfort +0.17 instead of +0.05 K h per building)."""
     scenario, fleet, models = fleet_models
     spec = scenario.control_spec()
     planner = learned_fleet_planner(models, rc_candidates=True)(fleet, spec)
@@ -175,8 +176,8 @@ def test_rc_candidates_are_scored_in_the_first_plan_of_a_step_only(fleet_models)
     cost = lambda u: planner._costs(step, np.zeros(spec.horizon_steps), torch.as_tensor(u, dtype=torch.float32)[:, None])[:, 0]  # noqa: E731
     assert torch.all(cost(first.power_w) <= cost(rc.power_w) + 1e-4)
     planner.plan(np.full(spec.horizon_steps, 0.5))
-    assert len(solves) == 1
+    assert len(solves) == 2
     planner.commit(first)
     planner.observe(observations, forecast)
     planner.plan()
-    assert len(solves) == 2
+    assert len(solves) == 3
