@@ -17,7 +17,7 @@ everything the controllers do in a step: observe, plan, coordinate, commit; the 
 - ``cem``: :class:`controllers.fleet_sampling.FleetCEM` over each building's learned hybrid in
   one batched rollout (32 samples x 2 CEM iterations a plan, 1 member planning, all members for
   the disagreement, the shadow RC MPC per building; under the cap each building's RC MPC plan
-  scored in the first plan of a step, as ``closed-loop --rc-candidates auto`` plans). The fleet's models are ``--models``
+  scored among the samples of every plan, as ``closed-loop --rc-candidates auto`` plans). The fleet's models are ``--models``
   hybrids trained here on 14 days of their buildings' data, assigned round-robin: the timing
   does not depend on the weights (every building's constants are its own copy in the batch).
 
