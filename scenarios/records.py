@@ -180,10 +180,11 @@ class SweepSettingsRecord(TypedDict):
     depth: int
     """History steps the learned models see."""
     policy: str
-    """The training data's random policy."""
+    """The training data's policy: ``scenario`` (each scenario's own ``data_policy``) or one
+    for all."""
     quick: bool
     arch: str
-    """The architecture the model-based controllers plan over."""
+    """The architecture the model-based controllers plan over (``sweep --arch``)."""
     package_version: str
 
 
