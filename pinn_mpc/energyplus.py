@@ -1066,11 +1066,11 @@ class EnergyPlusPlant:
 
 def _daily_mean_dry_bulb(epw: Path) -> np.ndarray:
     """(365,) the EPW's daily mean dry-bulb temperature [C] (column 7 of its hourly rows)."""
+    import pvlib
+
     try:
-        with open(epw, encoding="latin-1") as f:
-            rows = [line.split(",") for line in f.readlines()[8:] if line.strip()]
-        dry_bulb = np.array([float(r[6]) for r in rows])
-    except (OSError, ValueError, IndexError):
+        dry_bulb = pvlib.iotools.read_epw(epw)[0]["temp_air"].to_numpy(dtype=float)
+    except Exception:  # pvlib raises many kinds on a malformed file; one line for the user
         raise InputError(f"{epw}: not a readable EPW weather file (no dry-bulb column)") from None
     if len(dry_bulb) < 365 * 24:
         raise InputError(f"{epw}: {len(dry_bulb)} hourly rows; sizing needs a whole year (8760)")
@@ -1133,13 +1133,18 @@ def _plant_key(plant: Any) -> tuple[str, bool, str, float]:
     return (plant.building, bool(plant.allow_code), plant.zones, float(plant.radiant_fraction))
 
 
+def _prepared(key: tuple[str, bool, str, float]) -> PreparedModel:
+    """:func:`prepare_model` of a :func:`_plant_key` (the cached runs' hashable argument)."""
+    building, allow_code, zones, radiant = key
+    return prepare_model(building, allow_code=allow_code, zones=zones, radiant_fraction=radiant)
+
+
 @functools.lru_cache(maxsize=16)
 def _size_heater_cached(
     prepared_key: tuple[str, bool, str, float], weather: str, setpoint_c: float, heat_per_w: float,
     margin: float, days: int, dt_s: float,
 ) -> HeaterSizing:
-    building, allow_code, zones, radiant = prepared_key
-    prepared = prepare_model(building, allow_code=allow_code, zones=zones, radiant_fraction=radiant)
+    prepared = _prepared(prepared_key)
     epw = resolve_weather(weather)
     cooling = heat_per_w < 0
     start_day = extreme_window(epw, days, hottest=cooling)
@@ -1188,8 +1193,7 @@ def _schedule_gains_cached(
     prepared_key: tuple[str, bool, str, float], weather: str, setpoint_c: float, heat_per_w: float,
     dt_s: float, start_day: int, days: int, year: int,
 ) -> np.ndarray:
-    building, allow_code, zones, radiant = prepared_key
-    prepared = prepare_model(building, allow_code=allow_code, zones=zones, radiant_fraction=radiant)
+    prepared = _prepared(prepared_key)
     means = _held_run(prepared, weather, setpoint_c, heat_per_w, dt_s, start_day, days, year)
     gains = np.array([m.i_g_w for m in means])
     gains.flags.writeable = False

@@ -63,6 +63,11 @@ def _unknown(name: str) -> InputError:
 
 def read_rc(path: str | os.PathLike[str]) -> RCParams:
     """RC parameters from the JSON written by ``identify`` / ``export-rc``."""
+    return _read_rc_json(path)[0]
+
+
+def _read_rc_json(path: str | os.PathLike[str]) -> tuple[RCParams, dict[str, Any]]:
+    """:func:`read_rc`'s parameters and the JSON object they were read from."""
     source = Path(path)
     if not source.is_file():
         raise InputError(
@@ -79,7 +84,7 @@ def read_rc(path: str | os.PathLike[str]) -> RCParams:
             f"{source}: expected a JSON object of RC parameters, got {type(data).__name__}"
         )
     try:
-        return params_from_summary(data)
+        return params_from_summary(data), data
     except InputError as exc:
         raise InputError(f"{source}: {exc}") from exc
 
@@ -126,9 +131,10 @@ def check_model_fits(model: BatchDynamics, scenario: Scenario) -> list[str]:
     if record is None:
         return []
     rc = record.identified_rc
+    columns = record.training_data.get("columns", [])
     return _check_fits(
         "the model", "trained on", "train", scenario,
-        heat_pump_data=None if not record.training_data.get("columns") else "cop" in record.training_data["columns"],
+        heat_pump_data="cop" in columns if columns else None,
         power_max_w=float(record.u_phys_range_w[1]),
         identified=params_from_summary(rc) if isinstance(rc, dict) else None,
     )
@@ -140,14 +146,19 @@ def check_rc_fits(path: str | os.PathLike[str], scenario: Scenario) -> list[str]
     under half of it or its time constants differ from the scenario's building by more than a
     factor of 3. An RC JSON without the data's power range (written by hand, or before it was
     recorded) is checked for its time constants only."""
-    data = json.loads(Path(path).read_text(encoding="utf-8"))
+    params, data = _read_rc_json(path)
+    return _rc_fit_notes(Path(path).name, params, data, scenario)
+
+
+def _rc_fit_notes(name: str, params: RCParams, data: Mapping[str, Any], scenario: Scenario) -> list[str]:
+    """:func:`check_rc_fits` of the RC JSON ``name``, already read as ``params`` and ``data``."""
     power = data.get("power_range_w")
     hp = data.get("heat_pump_data")
     return _check_fits(
-        f"the RC of {Path(path).name}", "identified on", "identify", scenario,
+        f"the RC of {name}", "identified on", "identify", scenario,
         heat_pump_data=hp if isinstance(hp, bool) else None,
         power_max_w=float(power[1]) if isinstance(power, list) and len(power) == 2 else None,
-        identified=params_from_summary(data),
+        identified=params,
     )
 
 
@@ -365,8 +376,8 @@ def make_controller(
             raise _not_linear()
         model = load_arx(model_dir) if is_arx_directory(model_dir) else load_model(model_dir)
     rc_params = None
-    if rc_path is not None:
-        rc_params = read_rc(rc_path)
-        for note in check_rc_fits(rc_path, scenario):
+    if rc_path is not None:  # read once: the parameters and what the file says of its data
+        rc_params, data = _read_rc_json(rc_path)
+        for note in _rc_fit_notes(Path(rc_path).name, rc_params, data, scenario):
             warn(note)
     return build_controller(name, scenario, model=model, rc_params=rc_params, n_steps=n_steps)

@@ -308,11 +308,14 @@ def read_sweep_spec(path: str | os.PathLike[str]) -> dict[str, Any]:
         if isinstance(data["days"], bool) or not isinstance(data["days"], int) or data["days"] < 1:
             raise InputError(f"{source}: days must be a whole number >= 1, got {data['days']!r}")
         out["days"] = data["days"]
-    for key, what in (("baseline", "a controller name"), ("arch", f"one of {', '.join(MODEL_CHOICES)}")):
-        if key in data:
-            if not isinstance(data[key], str) or (key == "arch" and data[key] not in MODEL_CHOICES):
-                raise InputError(f"{source}: {key} must be {what}, got {data[key]!r}")
-            out[key] = data[key]
+    if "baseline" in data:
+        if not isinstance(data["baseline"], str):
+            raise InputError(f"{source}: baseline must be a controller name, got {data['baseline']!r}")
+        out["baseline"] = data["baseline"]
+    if "arch" in data:
+        if data["arch"] not in MODEL_CHOICES:
+            raise InputError(f"{source}: arch must be one of {', '.join(MODEL_CHOICES)}, got {data['arch']!r}")
+        out["arch"] = data["arch"]
     return out
 
 
