@@ -36,6 +36,7 @@ __all__ = [
     "check_output_directory",
     "check_writable",
     "file_sha256",
+    "setting_changes",
 ]
 
 PathArg = str | os.PathLike[str]
@@ -285,3 +286,9 @@ def atomic_directory(
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
+
+
+def setting_changes(before: Mapping[str, Any], now: Mapping[str, Any]) -> str:
+    """``"key before -> now"`` for each key of ``now`` whose value ``before`` differs, comma
+    separated (empty when none does): what a refused rerun of a stored run names."""
+    return ", ".join(f"{k} {before.get(k)!r} -> {v!r}" for k, v in now.items() if before.get(k) != v)

@@ -30,7 +30,7 @@ from typing import Any
 import pandas as pd
 
 from pinn_mpc.errors import InputError
-from pinn_mpc.io import atomic_write_json
+from pinn_mpc.io import atomic_write_json, setting_changes
 from pinn_mpc.models.registry import DEFAULT_ARCH
 from pinn_mpc.physics import RCParams
 from pinn_mpc.training import TrainConfig
@@ -219,9 +219,9 @@ def _check_resumable(
         )
     was = {"arch": previous.get("arch"), **(previous.get("config") or {})}
     now = {"arch": arch, **config}
-    changed = [f"{k} {was.get(k)!r} -> {v!r}" for k, v in now.items() if was.get(k) != v]
+    changed = setting_changes(was, now)
     if changed:
-        raise InputError(f"--out {root} holds models trained otherwise ({', '.join(changed)}); {fix}")
+        raise InputError(f"--out {root} holds models trained otherwise ({changed}); {fix}")
 
 
 def _read_fleet(root: Path) -> dict[str, Any] | None:

@@ -49,7 +49,7 @@ from tqdm import tqdm
 from pinn_mpc import __version__
 from pinn_mpc.choices import ARX, DEFAULT_ARCH, MODEL_CHOICES, PHYSICS_ARX
 from pinn_mpc.errors import InputError
-from pinn_mpc.io import atomic_write_json, atomic_write_text
+from pinn_mpc.io import atomic_write_json, atomic_write_text, setting_changes
 from pinn_mpc.physics import RCParams, params_from_summary, rc_summary
 from scenarios.choices import TRUTH_CONTROLLERS
 from scenarios.factory import CONTROLLER_NAMES, MODEL_CONTROLLERS, RC_CONTROLLERS
@@ -436,9 +436,7 @@ def _check_settings(out: Path, settings: SweepSettings) -> None:
     before = stored.get("settings") if isinstance(stored, dict) else None
     before = before if isinstance(before, dict) else {}
     if before != record:
-        diff = ", ".join(
-            f"{k} {before.get(k)!r} -> {v!r}" for k, v in record.items() if before.get(k) != v
-        )
+        diff = setting_changes(before, record)
         raise InputError(
             f"sweep: {out} holds a sweep with other settings ({diff}); "
             "use another --out, or the same settings to extend it"
