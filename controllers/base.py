@@ -17,6 +17,7 @@ import numpy as np
 
 from pinn_mpc.actuator import Actuator
 from pinn_mpc.errors import InputError
+from pinn_mpc.solar import FACADE_COLUMNS
 
 __all__ = [
     "EXOGENOUS_NAMES",
@@ -33,8 +34,9 @@ __all__ = [
 ]
 
 #: Exogenous inputs a model may take, in the data format's names (fields of Forecast and
-#: LastInterval alike).
-EXOGENOUS_NAMES = ("time_of_day_h", "T_a", "G", "I_g", "day_of_week")
+#: LastInterval alike); the facades' irradiance (:data:`pinn_mpc.solar.FACADE_COLUMNS`) only
+#: where the run has it (an EnergyPlus building's weather file).
+EXOGENOUS_NAMES = ("time_of_day_h", "T_a", "G", "I_g", "day_of_week", *FACADE_COLUMNS)
 
 
 class Forecast(NamedTuple):
@@ -49,6 +51,12 @@ class Forecast(NamedTuple):
     T_max: np.ndarray  # comfort band, upper [C]
     # day of the week of each interval's start, 0 = Monday (NaN where the dates are unknown)
     day_of_week: np.ndarray | None = None
+    # irradiance on the site's vertical south, east, west and north facades [W/m2], where the
+    # run has it (pinn_mpc.solar)
+    G_south: np.ndarray | None = None
+    G_east: np.ndarray | None = None
+    G_west: np.ndarray | None = None
+    G_north: np.ndarray | None = None
 
     @property
     def horizon(self) -> int:
@@ -59,6 +67,12 @@ class Forecast(NamedTuple):
         fields = self._asdict()
         if "day_of_week" in names and self.day_of_week is None:
             raise InputError("the forecast has no calendar (day_of_week) that the model needs")
+        missing = [name for name in names if name in FACADE_COLUMNS and fields[name] is None]
+        if missing:
+            raise InputError(
+                f"the forecast has no facade irradiance ({', '.join(missing)}) that the model "
+                "needs: a model trained on an EnergyPlus building's data plans on its scenario"
+            )
         return {name: np.array(fields[name][:h]) for name in names}
 
 
@@ -72,6 +86,11 @@ class LastInterval(NamedTuple):
     u: float  # demanded power [W]
     u_phys: float  # delivered power [W]
     day_of_week: float = math.nan  # of its start, 0 = Monday (NaN when the dates are unknown)
+    # the facades' irradiance [W/m2] (NaN where the run has none)
+    G_south: float = math.nan
+    G_east: float = math.nan
+    G_west: float = math.nan
+    G_north: float = math.nan
 
 
 class Observation(NamedTuple):
@@ -80,7 +99,8 @@ class Observation(NamedTuple):
     ``history`` holds the past in the data format's names: ``T_r`` (k+1,) measured room
     temperatures up to and including now; ``u`` and ``u_phys`` (k,) demanded and delivered power
     of past intervals [W]; ``T_a``, ``G``, ``I_g``, ``time_of_day_h`` (k+1,) up to now, and
-    ``day_of_week`` (k+1,, 0 = Monday) where the run has dates.
+    ``day_of_week`` (k+1,, 0 = Monday) where the run has dates, and the facades' irradiance
+    (:data:`pinn_mpc.solar.FACADE_COLUMNS`, (k+1,)) where the run has it.
     ``last`` is the interval that just ended (None at the first step), so nobody reads it back
     out of ``history`` by index. ``t_m_true_c`` is the simulator's hidden thermal-mass
     temperature: only the true-state estimator (oracle) may use it.
@@ -116,6 +136,7 @@ class Observation(NamedTuple):
                 u=float(u[-1]),
                 u_phys=float(u_phys[-1]),
                 day_of_week=before_now("day_of_week") if "day_of_week" in history else math.nan,
+                **{name: before_now(name) for name in FACADE_COLUMNS if name in history},
             )
         return cls(k=k, t_r_c=float(t_r[-1]), history=history, t_m_true_c=t_m_true_c, last=last)
 

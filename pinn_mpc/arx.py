@@ -6,10 +6,12 @@ and weather values, plus a weekly schedule standing in for unmeasured internal g
 (occupancy, equipment, lighting)::
 
     T_r,k+1 = sum_j a_j T_r,k-j + sum_j b_j u_phys,k-j + sum_j c_j T_a,k-j + sum_j d_j G,k-j
-              [+ sum_j e_j I_g,k-j] + s(block of day of t_k, workday of t_k)
+              [+ sum_f sum_j d_f,j G_f,k-j] [+ sum_j e_j I_g,k-j]
+              + s(block of day of t_k, workday of t_k)
 
-with ``j = 0 .. lags-1`` and ``s`` one coefficient per 2-hour block of the day, separately for
-workdays (Monday-Friday) and weekends.
+with ``j = 0 .. lags-1``, ``G_f`` the irradiance on each facade ``f`` where the data has it
+(:mod:`pinn_mpc.solar`: what the windows of each side let in) and ``s`` one coefficient per
+2-hour block of the day, separately for workdays (Monday-Friday) and weekends.
 
 The physics-informed variant (:func:`fit_physics_informed_arx`) adds what a building's
 unmeasured occupancy does besides adding heat: ventilation and infiltration that follow the
@@ -46,6 +48,7 @@ from pinn_mpc.errors import InputError
 from pinn_mpc.io import DirectoryLayout
 from pinn_mpc.models.registry import ARX, PHYSICS_ARX
 from pinn_mpc.models.rollout import Rollout
+from pinn_mpc.solar import FACADE_COLUMNS
 
 __all__ = [
     "ARX_DIRECTORY",
@@ -76,7 +79,12 @@ _BLOCKS = int(round(24 / BLOCK_H))
 #: Ridge weight relative to each regressor's own sum of squares (keeps collinear lags well posed).
 _RIDGE = 1e-9
 #: Scales that bring the inputs to order one: W -> kW, W/m2 -> 100 W/m2, W -> kW.
-_SCALE = {"T_r": 1.0, "u_phys": 1e-3, "T_a": 1.0, "G": 1e-2, "I_g": 1e-3}
+_SCALE = {
+    "T_r": 1.0, "u_phys": 1e-3, "T_a": 1.0, "G": 1e-2, **dict.fromkeys(FACADE_COLUMNS, 1e-2),
+    "I_g": 1e-3,
+}
+#: Optional inputs a fit takes when the data has them, in this order after ``T_a``.
+_OPTIONAL_INPUTS = ("G", *FACADE_COLUMNS, "I_g")
 
 
 def _schedule_index(time_of_day_h: np.ndarray, day_of_week: np.ndarray, day_types: int = 2) -> np.ndarray:
@@ -275,13 +283,13 @@ def fit_arx(
     df: pd.DataFrame, *, lags: int = DEFAULT_LAGS, day_types: int = 2, interaction: bool = False
 ) -> ARXModel:
     """Least-squares ARX fit of ``df`` (data format: ``time``, ``T_r``, ``u_phys``, ``T_a``,
-    optional ``G`` and ``I_g``; consecutive rows at ``df.attrs["dt_s"]``); ``day_types`` and
+    optional ``G``, the facades' irradiance (:data:`pinn_mpc.solar.FACADE_COLUMNS`) and ``I_g``; consecutive rows at ``df.attrs["dt_s"]``); ``day_types`` and
     ``interaction`` as :class:`ARXModel` has them."""
     if lags < 1:
         raise InputError(f"ARX model: lags must be >= 1, got {lags}")
     if day_types not in (2, 3):
         raise InputError(f"ARX model: day_types must be 2 or 3, got {day_types}")
-    columns = ("T_r", "u_phys", "T_a", *(c for c in ("G", "I_g") if c in df))
+    columns = ("T_r", "u_phys", "T_a", *(c for c in _OPTIONAL_INPUTS if c in df))
     model = ARXModel(
         columns=columns, lags=lags, coef=np.zeros(0), dt_s=float(df.attrs.get("dt_s", 1800.0)),
         train_mae_c=0.0, day_types=day_types, interaction=interaction,

@@ -3,8 +3,9 @@
 Columns: ``time`` (start of the interval, ISO 8601 or numeric seconds), ``T_r`` [C] at the
 start of the interval, optional ``T_m`` [C] (simulated data only), ``u`` [W] demanded during
 the interval, ``u_phys`` [W] mean delivered during the interval, ``T_a`` [C]; optional
-``G`` [W/m2], ``I_g`` [W], ``price`` [EUR/kWh], ``T_min``/``T_max`` [C] comfort band, ``cop``
-[-] heat delivered per electrical watt of ``u_phys`` (a heat pump's COP; absent or 1 for a
+``G`` [W/m2], the irradiance on the site's vertical facades ``G_south``, ``G_east``,
+``G_west``, ``G_north`` [W/m2] (:mod:`pinn_mpc.solar`), ``I_g`` [W], ``price`` [EUR/kWh],
+``T_min``/``T_max`` [C] comfort band, ``cop`` [-] heat delivered per electrical watt of ``u_phys`` (a heat pump's COP; absent or 1 for a
 resistance heater; :func:`pinn_mpc.identify.identify_rc` then fits on ``cop`` x ``u_phys``).
 
 :func:`read_timeseries` validates a file and returns a DataFrame whose ``time`` column is
@@ -25,6 +26,7 @@ import pandas as pd
 from pinn_mpc.errors import InputError
 from pinn_mpc.io import atomic_write
 from pinn_mpc.physics import DT_RANGE_S, MAX_POWER_W
+from pinn_mpc.solar import FACADE_COLUMNS
 
 __all__ = [
     "COLUMNS",
@@ -41,9 +43,10 @@ __all__ = [
 ]
 
 REQUIRED = ("time", "T_r", "u", "u_phys", "T_a")
-OPTIONAL = ("T_m", "G", "I_g", "price", "T_min", "T_max", "cop")
+OPTIONAL = ("T_m", "G", *FACADE_COLUMNS, "I_g", "price", "T_min", "T_max", "cop")
 COLUMNS = (
-    "time", "T_r", "T_m", "u", "u_phys", "T_a", "G", "I_g", "price", "T_min", "T_max", "cop",
+    "time", "T_r", "T_m", "u", "u_phys", "T_a", "G", *FACADE_COLUMNS, "I_g", "price", "T_min",
+    "T_max", "cop",
 )
 #: Plausible heat per electrical watt (``cop`` column): a resistance heater 1, heat pumps 2-6.
 COP_RANGE = (0.5, 10.0)

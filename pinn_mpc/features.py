@@ -4,7 +4,7 @@ For sample ``i`` and depth ``k``::
 
     x_f   = (T_r,i-k .. T_r,i-1,  u_phys,i-k-1 .. u_phys,i-2)  [+ T_a,i-k .. T_a,i-1, ...]
     x_obs = (T_r,i,  u_phys,i-1)
-    w     = (time of day t_i, T_a,i [, G_i, I_g,i when the data has them])
+    w     = (time of day t_i, T_a,i [, G_i, G_south,i .. G_north,i, I_g,i when the data has them])
     u_i   = demanded power;  targets T_r,i+1, u_phys,i  (and T_m,i for evaluation only)
 
 Beyond the paper, ``x_f`` also holds the past k values of each exogenous input other than
@@ -15,11 +15,13 @@ Sample ``i`` needs rows ``i-k-1 .. i+1``, so a frame of ``n`` rows gives ``n - k
 samples. The scaled feature vector is laid out so that a recursive rollout only shifts
 windows (see :class:`FeatureConfig` for the index sets)::
 
-    [T_r,i-k .. T_r,i] [u_phys,i-k-1 .. u_phys,i-1] [T_a,i-k .. T_a,i] ([G ..] [I_g ..]) [u_i]
+    [T_r,i-k .. T_r,i] [u_phys,i-k-1 .. u_phys,i-1] [T_a,i-k .. T_a,i] ([G ..] [facades ..]
+    [I_g ..]) [u_i]
     [sin, cos of the daily phase of t_i]
 
 each window k+1 long. All temperatures (T_r, T_m) share one scale, all powers (u, u_phys)
-another; T_a, G, I_g are standardised each.
+another; T_a, G, the facades' irradiance (:mod:`pinn_mpc.solar`) and I_g are standardised
+each.
 """
 
 from __future__ import annotations
@@ -33,6 +35,7 @@ import pandas as pd
 
 from pinn_mpc.errors import InputError
 from pinn_mpc.physics import DT_RANGE_S
+from pinn_mpc.solar import FACADE_COLUMNS
 
 __all__ = [
     "EXOG_COLUMNS",
@@ -51,7 +54,10 @@ __all__ = [
 ]
 
 #: Exogenous inputs a model can use, in this order, with the data column each comes from.
-EXOG_COLUMNS = {"time_of_day_h": "time", "T_a": "T_a", "G": "G", "I_g": "I_g"}
+EXOG_COLUMNS = {
+    "time_of_day_h": "time", "T_a": "T_a", "G": "G", **{c: c for c in FACADE_COLUMNS},
+    "I_g": "I_g",
+}
 #: Samples a training set must have at least.
 MIN_TRAIN_SAMPLES = 32
 #: Largest history depth (intervals): 3 weeks at 30 min, far beyond the paper's 8; it bounds
@@ -81,8 +87,9 @@ def check_interval(model_dt_s: float, dt_s: float, *, what: str) -> None:
 
 
 def exog_names_for(df: pd.DataFrame) -> tuple[str, ...]:
-    """Exogenous inputs of a model trained on ``df``: time of day, T_a (+ G, I_g if present)."""
-    return ("time_of_day_h", "T_a") + tuple(c for c in ("G", "I_g") if c in df.columns)
+    """Exogenous inputs of a model trained on ``df``: time of day, T_a (+ G, the facades'
+    irradiance, I_g if present)."""
+    return ("time_of_day_h", "T_a") + tuple(c for c in list(EXOG_COLUMNS)[2:] if c in df.columns)
 
 
 def time_of_day_h(time: pd.Series) -> np.ndarray:

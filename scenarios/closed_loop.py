@@ -36,6 +36,7 @@ from pinn_mpc.data import write_timeseries
 from pinn_mpc.errors import InputError
 from pinn_mpc.physics import RCParams
 from pinn_mpc.records import TrustReport
+from pinn_mpc.solar import FACADE_COLUMNS
 from scenarios.engine import ClosedLoop, ExogenousSeries, LoopRecord
 from scenarios.inputs import day_span
 from scenarios.kpis import compute_kpis
@@ -221,7 +222,9 @@ def run_closed_loop(
         rec = loop.record()
     series, counted, exo = run.series, run.counted, run.exo
     # The inputs the plant had: the series' rows on the RC plant, EnergyPlus's own otherwise.
-    cols = {c: getattr(series, c) for c in _EXOGENOUS}
+    # The facades' irradiance, where the run has it, is the weather file's.
+    exogenous = (*_EXOGENOUS, *(FACADE_COLUMNS if series.has_facades else ()))
+    cols = {c: getattr(series, c) for c in exogenous}
     cols.update(T_a=rec.t_a_c, G=rec.g_w_per_m2, I_g=rec.i_g_w)
     trajectory = pd.DataFrame(
         {
@@ -230,7 +233,7 @@ def run_closed_loop(
             "T_m": rec.t_m_c[counted],
             "u": rec.u_w[counted],
             "u_phys": rec.u_phys_w[counted],
-            **{c: cols[c][counted] for c in _EXOGENOUS},
+            **{c: cols[c][counted] for c in exogenous},
             "overridden": rec.overridden[counted].astype(int),
             "fallback": rec.fallback[counted].astype(int),
             "decision_ms": rec.decision_s[counted] * 1000.0,

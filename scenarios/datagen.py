@@ -48,6 +48,7 @@ from controllers.thermostat import Thermostat
 from pinn_mpc.errors import InputError
 from pinn_mpc.physics import RCParams
 from pinn_mpc.simulator import Simulator
+from pinn_mpc.solar import FACADE_COLUMNS
 from scenarios.choices import POLICIES
 from scenarios.registry import Scenario, check_seed
 
@@ -282,5 +283,7 @@ def _generate_energyplus(
     )
     if scenario.sim.plant.gains == "measured":  # the gains as they happened, measured
         frame["I_g"] = i_g
+    for name in FACADE_COLUMNS:  # the facades' irradiance of the plant's weather file
+        frame[name] = exo[name].to_numpy(dtype=float)[:n]
     frame.attrs["dt_s"] = float(scenario.sim.dt_s)
     return frame

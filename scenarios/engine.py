@@ -49,6 +49,7 @@ from controllers.estimators import TrueState
 from pinn_mpc.errors import InputError
 from pinn_mpc.physics import RCParams
 from pinn_mpc.simulator import PlantStep, SimConfig, Simulator, StepResult
+from pinn_mpc.solar import FACADE_COLUMNS
 from scenarios.inputs import time_of_day_h
 
 __all__ = [
@@ -74,7 +75,8 @@ class ForecastErrors:
 
     - ``t_a_error_std_c`` [K]: standard deviation of the outdoor-temperature error at 24 h lead.
     - ``g_error_rel_std``: the same for irradiance as a relative error (0.3: +-30 % at 24 h
-      lead); the forecast is ``G * max(0, 1 + e)``, so it stays >= 0 and is 0 at night.
+      lead); the forecast is ``G * max(0, 1 + e)``, so it stays >= 0 and is 0 at night; the
+      facades' irradiance, where the run has it, is scaled by the same factor.
     - ``error_correlation_h`` [h]: correlation time of both errors along the lead (AR(1)).
     - ``gains_known``: False -> the controller sees the gains schedule's expectation (base +
       occupancy + event probability x event power), in its forecast and in the past it
@@ -146,6 +148,12 @@ class ExogenousSeries:
     #: (N,) day of the week of each interval's start, 0 = Monday; by default from ``times``
     #: (NaN without them).
     day_of_week: np.ndarray | None = None
+    #: (N,) the irradiance on the site's facades [W/m2] (:data:`pinn_mpc.solar.FACADE_COLUMNS`),
+    #: where the run has it (an EnergyPlus scenario's); None otherwise.
+    G_south: np.ndarray | None = None
+    G_east: np.ndarray | None = None
+    G_west: np.ndarray | None = None
+    G_north: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if self.day_of_week is None:
@@ -154,19 +162,33 @@ class ExogenousSeries:
             else:  # 1970-01-01 was a Thursday
                 dow = ((np.asarray(self.times, dtype="datetime64[D]").astype(np.int64) + 3) % 7).astype(float)
             object.__setattr__(self, "day_of_week", dow)
-        lengths = {len(getattr(self, name)) for name in Forecast._fields}
+        given = [getattr(self, name) for name in Forecast._fields]
+        lengths = {len(series) for series in given if series is not None}
         if len(lengths) != 1:
             raise InputError(f"ExogenousSeries: all series need one length, got {sorted(lengths)}")
+        facades = [getattr(self, name) is None for name in FACADE_COLUMNS]
+        if any(facades) and not all(facades):
+            raise InputError(f"ExogenousSeries: give all of {', '.join(FACADE_COLUMNS)} or none")
+
+    @property
+    def has_facades(self) -> bool:
+        """Whether the series holds the facades' irradiance."""
+        return self.G_south is not None
 
     @classmethod
     def from_frame(cls, frame: pd.DataFrame) -> ExogenousSeries:
-        """From a frame with ``time`` and :data:`EXOGENOUS_FIELDS` (as Scenario.exogenous makes it)."""
+        """From a frame with ``time`` and :data:`EXOGENOUS_FIELDS` (as Scenario.exogenous makes
+        it), and the facades' irradiance when the frame has it."""
         missing = [c for c in ("time", *EXOGENOUS_FIELDS) if c not in frame.columns]
         if missing:
             raise InputError(
                 f"exogenous frame lacks column(s) {missing}; have {list(frame.columns)}"
             )
-        cols = {c: frame[c].to_numpy(dtype=float) for c in EXOGENOUS_FIELDS}
+        cols = {
+            c: frame[c].to_numpy(dtype=float)
+            for c in (*EXOGENOUS_FIELDS, *FACADE_COLUMNS)
+            if c in frame.columns
+        }
         times = pd.DatetimeIndex(frame["time"]).to_numpy()
         return cls(time_of_day_h=time_of_day_h(frame["time"]), times=times, **cols)
 
@@ -174,8 +196,12 @@ class ExogenousSeries:
         return len(self.T_a)
 
     def forecast(self, row: int) -> Forecast:
-        """Fresh arrays of every row from ``row`` to the end."""
-        return Forecast(*(np.array(getattr(self, name)[row:]) for name in Forecast._fields))
+        """Fresh arrays of every row from ``row`` to the end (None where the series has none)."""
+        rows: dict[str, Any] = {}
+        for name in Forecast._fields:
+            series = getattr(self, name)
+            rows[name] = None if series is None else np.array(series[row:])
+        return Forecast(**rows)
 
 
 class Decision(NamedTuple):
@@ -471,6 +497,8 @@ class ClosedLoop:
             "u": np.array(self._u[:k, building]),
             "u_phys": np.array(self._u_phys[:k, building]),
         }
+        if exo.has_facades:  # the weather file's, as the plant had it
+            history.update({name: np.array(getattr(exo, name)[rows]) for name in FACADE_COLUMNS})
         return Observation.from_history(k, history, float(self._t_m[k, building]))
 
     def forecast(self, *, perfect: bool = False) -> Forecast:
@@ -495,8 +523,12 @@ class ClosedLoop:
             )[0]
             if stream == _T_A_STREAM:
                 forecast.T_a[:] += e
-            else:
-                forecast.G[:] *= np.maximum(1.0 + e, 0.0)
+                continue
+            # One error of the sky's brightness: the facades' irradiance shares G's.
+            for name in ("G", *FACADE_COLUMNS):
+                series = getattr(forecast, name)
+                if series is not None:
+                    series[:] *= np.maximum(1.0 + e, 0.0)
         return forecast
 
     def step(

@@ -34,6 +34,7 @@ import numpy as np
 import pandas as pd
 
 from pinn_mpc.errors import InputError
+from pinn_mpc.solar import FACADE_COLUMNS, facade_irradiance
 from scenarios.choices import WEATHER_PARTS, WeatherPart
 
 __all__ = [
@@ -47,6 +48,7 @@ __all__ = [
     "TMY3Weather",
     "day_span",
     "interval_starts",
+    "load_facades",
     "load_tmy3",
     "resample_typical_year",
     "steps_per_day",
@@ -283,8 +285,6 @@ def load_tmy3(file_name: str) -> tuple[np.ndarray, np.ndarray, str]:
     1 January 00:00 local standard time; temperature is the value at that instant, GHI the
     mean over the hour (the TMY3 and EPW convention).
     """
-    import pvlib
-
     path = tmy3_path(file_name)
     if not path.is_file():
         raise InputError(
@@ -301,12 +301,8 @@ def load_tmy3(file_name: str) -> tuple[np.ndarray, np.ndarray, str]:
                 "8760 hourly rows); give an EPW as EnergyPlus's weather site writes it"
             )
     try:
-        if epw:
-            frame, meta = pvlib.iotools.read_epw(path)
-            station = meta.get("city", file_name)
-        else:
-            frame, meta = pvlib.iotools.read_tmy3(path, map_variables=True)
-            station = meta.get("Name", file_name)
+        frame, meta = _read_weather(path, epw)
+        station = meta.get("city" if epw else "Name", file_name)
         t_a = frame["temp_air"].to_numpy(dtype=float)
         ghi = frame["ghi"].to_numpy(dtype=float)
     except Exception as exc:  # pvlib raises many kinds on a malformed file; one line for the user
@@ -317,6 +313,44 @@ def load_tmy3(file_name: str) -> tuple[np.ndarray, np.ndarray, str]:
     if not (np.isfinite(t_a).all() and np.isfinite(ghi).all()):
         raise InputError(f"weather file {path} has missing temperature or GHI values")
     return t_a, np.maximum(ghi, 0.0), str(station).strip('"')
+
+
+def _read_weather(path: pathlib.Path, epw: bool) -> tuple[pd.DataFrame, dict]:
+    """pvlib's reading of an EPW (``epw``) or TMY3 file: its hourly frame and its metadata."""
+    import pvlib
+
+    if epw:
+        return pvlib.iotools.read_epw(path)
+    return pvlib.iotools.read_tmy3(path, map_variables=True)
+
+
+@functools.lru_cache(maxsize=4)
+def load_facades(file_name: str) -> dict[str, np.ndarray]:
+    """Hourly irradiance on the four facades of a typical year (:data:`FACADE_COLUMNS` ->
+    (8760,) [W/m2], :func:`pinn_mpc.solar.facade_irradiance`) from the weather file's beam
+    normal and diffuse horizontal irradiance at its site; ``file_name`` as :func:`load_tmy3`
+    takes it (which has checked the file by then)."""
+    load_tmy3(file_name)
+    path = tmy3_path(file_name)
+    epw = path.suffix.lower() == ".epw"
+    try:
+        frame, meta = _read_weather(path, epw)
+        irradiance = {k: frame[k].to_numpy(dtype=float) for k in ("ghi", "dni", "dhi")}
+        site = {k: float(meta[k]) for k in ("latitude", "longitude", "TZ", "altitude")}
+    except Exception as exc:  # pvlib raises many kinds on a malformed file; one line for the user
+        raise InputError(
+            f"weather file {path}: no beam and diffuse irradiance or site for the facades ({exc})"
+        ) from None
+    return facade_irradiance(
+        ghi_w_per_m2=irradiance["ghi"],
+        dni_w_per_m2=irradiance["dni"],
+        dhi_w_per_m2=irradiance["dhi"],
+        latitude_deg=site["latitude"],
+        longitude_deg=site["longitude"],
+        utc_offset_h=site["TZ"],
+        altitude_m=site["altitude"],
+        year=BASE_YEAR,
+    )
 
 
 def resample_typical_year(
@@ -333,15 +367,24 @@ def resample_typical_year(
     starts = start_s + np.arange(n) * dt_s
     knots_s = (np.arange(HOURS_PER_TYPICAL_YEAR) + 1) * 3600.0
     t_a = np.interp(starts + 0.5 * dt_s, knots_s, t_a_hourly_c, period=period_s)
-    energy_knots = np.concatenate([[0.0], np.cumsum(ghi_hourly_w_per_m2) * 3600.0])
-    energy_t = np.concatenate([[0.0], knots_s])
+    return t_a, _interval_means(ghi_hourly_w_per_m2, start_s=start_s, n=n, dt_s=dt_s)
+
+
+def _interval_means(
+    hourly_w_per_m2: np.ndarray, *, start_s: float, n: int, dt_s: float
+) -> np.ndarray:
+    """Hourly means of a typical year (8760,) -> the exact interval means (n,) of the
+    piecewise-constant hourly series (its energy preserved), wrapping around the year, >= 0."""
+    period_s = HOURS_PER_TYPICAL_YEAR * 3600.0
+    starts = start_s + np.arange(n) * dt_s
+    energy_knots = np.concatenate([[0.0], np.cumsum(hourly_w_per_m2) * 3600.0])
+    energy_t = np.arange(HOURS_PER_TYPICAL_YEAR + 1) * 3600.0
 
     def energy(t_s: np.ndarray) -> np.ndarray:
         years = np.floor(t_s / period_s)
         return years * energy_knots[-1] + np.interp(t_s - years * period_s, energy_t, energy_knots)
 
-    ghi = (energy(starts + dt_s) - energy(starts)) / dt_s
-    return t_a, np.maximum(ghi, 0.0)
+    return np.maximum((energy(starts + dt_s) - energy(starts)) / dt_s, 0.0)
 
 
 def _day_of_year(owner: str, month_day: str) -> int:
@@ -448,6 +491,22 @@ class TMY3Weather:
             )
             raise _too_long("training", need_days, room)
         return core - need_days
+
+    def facades(self, times: pd.DatetimeIndex, *, dt_s: float) -> dict[str, np.ndarray]:
+        """The facades' irradiance (:data:`FACADE_COLUMNS` -> (n,) [W/m2]) in the intervals
+        starting at ``times`` (consecutive, as :meth:`sample` gives them): interval means of
+        :func:`load_facades`, placed in the typical year by the day of the year of the first
+        time stamp, as :meth:`sample` places ``G``."""
+        times = pd.DatetimeIndex(times)
+        if len(times) == 0:
+            return {name: np.zeros(0) for name in FACADE_COLUMNS}
+        first = times[0]
+        start_s = (first - pd.Timestamp(year=first.year, month=1, day=1)).total_seconds()
+        hourly = load_facades(self.file_name)
+        return {
+            name: _interval_means(hourly[name], start_s=start_s, n=len(times), dt_s=dt_s)
+            for name in FACADE_COLUMNS
+        }
 
     def sample(
         self, *, n: int, dt_s: float, run_days: int, part: WeatherPart, rng: np.random.Generator

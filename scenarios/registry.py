@@ -18,7 +18,7 @@ import math
 import os
 import sys
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import Any, Literal, cast
 
 import numpy as np
 import pandas as pd
@@ -29,6 +29,7 @@ from pinn_mpc.errors import InputError
 from pinn_mpc.physics import PAPER_HOUSEHOLD, RCParams
 from pinn_mpc.plant import Plant
 from pinn_mpc.simulator import SimConfig
+from pinn_mpc.solar import FACADE_COLUMNS
 from scenarios.engine import ForecastErrors
 from scenarios.inputs import (
     ComfortSchedule,
@@ -173,7 +174,9 @@ class Scenario:
         """Exogenous inputs of a run: ``days * steps_per_day + lead_steps`` rows.
 
         Columns ``time`` (datetime64, interval start), ``T_a`` [C], ``G`` [W/m2], ``I_g`` [W],
-        ``price`` [EUR/kWh], ``T_min``/``T_max`` [C]. ``part`` is the weather part the run is
+        ``price`` [EUR/kWh], ``T_min``/``T_max`` [C]; for an EnergyPlus plant also the
+        irradiance on its site's facades (:data:`pinn_mpc.solar.FACADE_COLUMNS` [W/m2], from
+        the plant's weather file, :meth:`scenarios.inputs.TMY3Weather.facades`). ``part`` is the weather part the run is
         drawn from (``train``, ``test`` or ``whole``, see :mod:`scenarios.inputs`); a run that
         does not fit in its part raises InputError. The ``lead_steps`` extra rows at the end
         give a controller at the last step a full-horizon forecast; with ``whole`` they never
@@ -222,6 +225,10 @@ class Scenario:
                 "T_max": t_max,
             }
         )
+        if plant.is_energyplus:  # the plant's EPW (checked): its facades' irradiance too
+            facades = cast(TMY3Weather, self.weather).facades(times, dt_s=dt_s)
+            for name in FACADE_COLUMNS:
+                frame[name] = facades[name]
         frame.attrs["dt_s"] = float(dt_s)
         return frame
 
