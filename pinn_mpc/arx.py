@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -56,6 +57,9 @@ __all__ = [
     "ARXModel",
     "BLOCK_H",
     "DEFAULT_LAGS",
+    "MEASURED_INPUTS",
+    "SELECTION_HORIZON_S",
+    "SELECTION_SHARE",
     "fit_arx",
     "fit_linear",
     "fit_physics_informed_arx",
@@ -83,8 +87,14 @@ _SCALE = {
     "T_r": 1.0, "u_phys": 1e-3, "T_a": 1.0, "G": 1e-2, **dict.fromkeys(FACADE_COLUMNS, 1e-2),
     "I_g": 1e-3,
 }
-#: Optional inputs a fit takes when the data has them, in this order after ``T_a``.
-_OPTIONAL_INPUTS = ("G", *FACADE_COLUMNS, "I_g")
+#: The measured inputs a fit takes when the data has them, in this order after ``T_a``.
+MEASURED_INPUTS = ("G", "I_g")
+#: Order of every optional input in a model's columns (the facades' after ``G``).
+_INPUT_ORDER = ("G", *FACADE_COLUMNS, "I_g")
+#: Share of the training data the physics-informed ARX holds out to choose its inputs, and
+#: the horizon [s] of the prediction it judges them by (12 h, the comparison's 24 steps).
+SELECTION_SHARE = 0.25
+SELECTION_HORIZON_S = 12 * 3600.0
 
 
 def _schedule_index(time_of_day_h: np.ndarray, day_of_week: np.ndarray, day_types: int = 2) -> np.ndarray:
@@ -280,16 +290,26 @@ class ARXModel:
 
 
 def fit_arx(
-    df: pd.DataFrame, *, lags: int = DEFAULT_LAGS, day_types: int = 2, interaction: bool = False
+    df: pd.DataFrame,
+    *,
+    lags: int = DEFAULT_LAGS,
+    day_types: int = 2,
+    interaction: bool = False,
+    inputs: tuple[str, ...] = MEASURED_INPUTS,
 ) -> ARXModel:
     """Least-squares ARX fit of ``df`` (data format: ``time``, ``T_r``, ``u_phys``, ``T_a``,
-    optional ``G``, the facades' irradiance (:data:`pinn_mpc.solar.FACADE_COLUMNS`) and ``I_g``; consecutive rows at ``df.attrs["dt_s"]``); ``day_types`` and
-    ``interaction`` as :class:`ARXModel` has them."""
+    optional ``G``, the facades' irradiance (:data:`pinn_mpc.solar.FACADE_COLUMNS`) and ``I_g``;
+    consecutive rows at ``df.attrs["dt_s"]``); ``day_types`` and ``interaction`` as
+    :class:`ARXModel` has them; ``inputs`` the optional inputs it takes where the data has
+    them (by default the measured ones, :data:`MEASURED_INPUTS`)."""
     if lags < 1:
         raise InputError(f"ARX model: lags must be >= 1, got {lags}")
     if day_types not in (2, 3):
         raise InputError(f"ARX model: day_types must be 2 or 3, got {day_types}")
-    columns = ("T_r", "u_phys", "T_a", *(c for c in _OPTIONAL_INPUTS if c in df))
+    unknown = set(inputs) - set(_INPUT_ORDER)
+    if unknown:
+        raise InputError(f"ARX model: unknown input(s) {sorted(unknown)}; known {list(_INPUT_ORDER)}")
+    columns = ("T_r", "u_phys", "T_a", *(c for c in _INPUT_ORDER if c in inputs and c in df))
     model = ARXModel(
         columns=columns, lags=lags, coef=np.zeros(0), dt_s=float(df.attrs.get("dt_s", 1800.0)),
         train_mae_c=0.0, day_types=day_types, interaction=interaction,
@@ -319,8 +339,21 @@ def fit_physics_informed_arx(
     """The physics-informed ARX (module docstring): workday, Saturday and Sunday schedules,
     each block also weighing the indoor-outdoor difference; InputError when the fit's power
     acts against the sign of ``eta`` (> 0 a heater: more power must warm the room; < 0 a
-    cooling machine: it must cool), as then the data do not identify the actuator."""
-    model = fit_arx(df, lags=lags, day_types=3, interaction=True)
+    cooling machine: it must cool), as then the data do not identify the actuator.
+
+    Where the data has the facades' irradiance (:data:`pinn_mpc.solar.FACADE_COLUMNS`), the
+    fit chooses whether to take it besides the measured inputs: fitted on the first three
+    quarters of the data each way, the one whose 12-hour prediction of the last quarter
+    (:data:`SELECTION_SHARE`, :data:`SELECTION_HORIZON_S`) errs less is fitted on all of it
+    (the facades are four more irradiance inputs; how much a building's windows make of them
+    is in the data). With too little data to hold a quarter out, the measured inputs alone."""
+    inputs: tuple[str, ...] = MEASURED_INPUTS
+    if all(c in df for c in FACADE_COLUMNS):
+        with_facades = (*MEASURED_INPUTS, *FACADE_COLUMNS)
+        errors = {chosen: _held_out_error(df, chosen, lags) for chosen in (inputs, with_facades)}
+        if errors[with_facades] < errors[inputs]:
+            inputs = with_facades
+    model = fit_arx(df, lags=lags, day_types=3, interaction=True, inputs=inputs)
     n_col = len(model.columns)
     if float(np.sum(model.coef[1 : lags * n_col : n_col])) * float(np.sign(eta)) <= 0:
         raise InputError(
@@ -329,6 +362,28 @@ def fit_physics_informed_arx(
             "e.g. simulate --policy random-level or closed-loop)"
         )
     return model
+
+
+def _held_out_error(df: pd.DataFrame, inputs: tuple[str, ...], lags: int) -> float:
+    """MAE [K] of the physics-informed ARX with ``inputs``, fitted on all but the last
+    :data:`SELECTION_SHARE` of ``df``, predicting that last part :data:`SELECTION_HORIZON_S`
+    ahead from every start (its history overlapping the fitted part); inf when either part is
+    too short."""
+    dt_s = float(df.attrs.get("dt_s", 1800.0))
+    horizon = max(1, round(SELECTION_HORIZON_S / dt_s))
+    cut = len(df) - int(len(df) * SELECTION_SHARE)
+    fitted = df.iloc[:cut].reset_index(drop=True)
+    held_out = df.iloc[max(cut - lags + 1, 0) :].reset_index(drop=True)
+    fitted.attrs = held_out.attrs = dict(df.attrs)
+    if len(held_out) < lags + horizon:
+        return math.inf
+    try:
+        model = fit_arx(fitted, lags=lags, day_types=3, interaction=True, inputs=inputs)
+    except InputError:
+        return math.inf
+    starts = np.arange(lags - 1, len(held_out) - horizon)
+    truth = held_out["T_r"].to_numpy(dtype=float)[starts + horizon]
+    return float(np.mean(np.abs(model.predict_t_r(held_out, horizon, starts) - truth)))
 
 
 def fit_linear(name: str, df: pd.DataFrame, *, eta: float = 1.0) -> ARXModel:
