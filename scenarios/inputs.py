@@ -28,13 +28,13 @@ import functools
 import math
 import pathlib
 from dataclasses import dataclass
-from typing import ClassVar, Literal, cast
+from typing import Any, ClassVar, Literal, cast
 
 import numpy as np
 import pandas as pd
 
 from pinn_mpc.errors import InputError
-from pinn_mpc.solar import FACADE_COLUMNS, facade_irradiance
+from pinn_mpc.solar import FACADE_COLUMNS, interval_means
 from scenarios.choices import WEATHER_PARTS, WeatherPart
 
 __all__ = [
@@ -48,7 +48,7 @@ __all__ = [
     "TMY3Weather",
     "day_span",
     "interval_starts",
-    "load_facades",
+    "load_site_irradiance",
     "load_tmy3",
     "resample_typical_year",
     "steps_per_day",
@@ -325,32 +325,28 @@ def _read_weather(path: pathlib.Path, epw: bool) -> tuple[pd.DataFrame, dict]:
 
 
 @functools.lru_cache(maxsize=4)
-def load_facades(file_name: str) -> dict[str, np.ndarray]:
-    """Hourly irradiance on the four facades of a typical year (:data:`FACADE_COLUMNS` ->
-    (8760,) [W/m2], :func:`pinn_mpc.solar.facade_irradiance`) from the weather file's beam
-    normal and diffuse horizontal irradiance at its site; ``file_name`` as :func:`load_tmy3`
-    takes it (which has checked the file by then)."""
+def load_site_irradiance(file_name: str) -> dict[str, Any]:
+    """What :func:`pinn_mpc.solar.facade_irradiance` needs of a weather file besides the
+    instants: its hourly global, beam normal and diffuse horizontal irradiance (8760,) [W/m2]
+    and its site (latitude, longitude, time zone, altitude), as keyword arguments;
+    ``file_name`` as :func:`load_tmy3` takes it (which has checked the file by then)."""
     load_tmy3(file_name)
     path = tmy3_path(file_name)
-    epw = path.suffix.lower() == ".epw"
     try:
-        frame, meta = _read_weather(path, epw)
-        irradiance = {k: frame[k].to_numpy(dtype=float) for k in ("ghi", "dni", "dhi")}
-        site = {k: float(meta[k]) for k in ("latitude", "longitude", "TZ", "altitude")}
+        frame, meta = _read_weather(path, path.suffix.lower() == ".epw")
+        return {
+            "ghi_w_per_m2": frame["ghi"].to_numpy(dtype=float),
+            "dni_w_per_m2": frame["dni"].to_numpy(dtype=float),
+            "dhi_w_per_m2": frame["dhi"].to_numpy(dtype=float),
+            "latitude_deg": float(meta["latitude"]),
+            "longitude_deg": float(meta["longitude"]),
+            "utc_offset_h": float(meta["TZ"]),
+            "altitude_m": float(meta["altitude"]),
+        }
     except Exception as exc:  # pvlib raises many kinds on a malformed file; one line for the user
         raise InputError(
             f"weather file {path}: no beam and diffuse irradiance or site for the facades ({exc})"
         ) from None
-    return facade_irradiance(
-        ghi_w_per_m2=irradiance["ghi"],
-        dni_w_per_m2=irradiance["dni"],
-        dhi_w_per_m2=irradiance["dhi"],
-        latitude_deg=site["latitude"],
-        longitude_deg=site["longitude"],
-        utc_offset_h=site["TZ"],
-        altitude_m=site["altitude"],
-        year=BASE_YEAR,
-    )
 
 
 def resample_typical_year(
@@ -494,19 +490,17 @@ class TMY3Weather:
 
     def facades(self, times: pd.DatetimeIndex, *, dt_s: float) -> dict[str, np.ndarray]:
         """The facades' irradiance (:data:`FACADE_COLUMNS` -> (n,) [W/m2]) in the intervals
-        starting at ``times`` (consecutive, as :meth:`sample` gives them): interval means of
-        :func:`load_facades`, placed in the typical year by the day of the year of the first
-        time stamp, as :meth:`sample` places ``G``."""
+        starting at ``times`` (consecutive, as :meth:`sample` gives them): interval means
+        (:func:`pinn_mpc.solar.interval_means`) from the weather file's irradiance at its site
+        (:func:`load_site_irradiance`), placed in the typical year by the day of the year of
+        the first time stamp, as :meth:`sample` places ``G``."""
         times = pd.DatetimeIndex(times)
         if len(times) == 0:
             return {name: np.zeros(0) for name in FACADE_COLUMNS}
         first = times[0]
         start_s = (first - pd.Timestamp(year=first.year, month=1, day=1)).total_seconds()
-        hourly = load_facades(self.file_name)
-        return {
-            name: _interval_means(hourly[name], start_s=start_s, n=len(times), dt_s=dt_s)
-            for name in FACADE_COLUMNS
-        }
+        site = load_site_irradiance(self.file_name)
+        return interval_means(start_s, len(times), dt_s, year=first.year, **site)
 
     def sample(
         self, *, n: int, dt_s: float, run_days: int, part: WeatherPart, rng: np.random.Generator
