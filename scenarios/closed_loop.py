@@ -32,7 +32,7 @@ from tqdm import tqdm
 from controllers.base import Controller
 from controllers.estimators import TrueState
 from controllers.thermostat import Thermostat
-from pinn_mpc.data import write_timeseries
+from pinn_mpc.data import COLUMNS, write_timeseries
 from pinn_mpc.errors import InputError
 from pinn_mpc.physics import RCParams
 from pinn_mpc.records import TrustReport
@@ -223,7 +223,8 @@ def run_closed_loop(
     series, counted, exo = run.series, run.counted, run.exo
     # The inputs the plant had: the series' rows on the RC plant, EnergyPlus's own otherwise.
     # The facades' irradiance, where the run has it, is the weather file's.
-    exogenous = (*_EXOGENOUS, *(FACADE_COLUMNS if series.has_facades else ()))
+    given = {*_EXOGENOUS, *(FACADE_COLUMNS if series.has_facades else ())}
+    exogenous = tuple(c for c in COLUMNS if c in given)  # in the data format's order
     cols = {c: getattr(series, c) for c in exogenous}
     cols.update(T_a=rec.t_a_c, G=rec.g_w_per_m2, I_g=rec.i_g_w)
     trajectory = pd.DataFrame(

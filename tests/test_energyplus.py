@@ -111,7 +111,9 @@ def test_same_seed_same_csv(tmp_path):
         assert result.returncode == 0, result.stderr
     a, b = (tmp_path / "a.csv").read_text(), (tmp_path / "b.csv").read_text()
     assert a == b
-    assert a.splitlines()[0] == "time,T_r,u,u_phys,T_a,G,price,T_min,T_max"
+    assert a.splitlines()[0] == (
+        "time,T_r,u,u_phys,T_a,G,G_south,G_east,G_west,G_north,price,T_min,T_max"
+    )
     assert len(a.splitlines()) == 49
 
 
@@ -178,6 +180,40 @@ def test_thermostat_closed_loop_and_no_oracle(tmp_path):
     result = run_cli("closed-loop", "--scenario", SCENARIO, "--controller", "oracle", "--days", "1",
                      "--seed", "0", "--json", "k.json", cwd=tmp_path)
     assert result.returncode == 2 and "oracle and the clairvoyant do not apply" in result.stderr
+
+
+def test_facade_irradiance_of_the_epw_reaches_data_trajectories_and_forecasts():
+    """The facades' irradiance of the plant's weather file: in the training data (as the
+    scenario's exogenous frame has it), in a closed loop's trajectory, the controllers' past
+    and forecast; lit when EnergyPlus's own G is, and a February sun on the south facade."""
+    from pinn_mpc.solar import FACADE_COLUMNS
+    from scenarios.closed_loop import build_loop, prepare_run
+    from scenarios.datagen import generate
+
+    scenario = get_scenario(SCENARIO)
+    data = generate(scenario, days=1, seed=0, policy="random-level")
+    exo = scenario.exogenous(days=1, seed=0, part="train")
+    for name in FACADE_COLUMNS:
+        assert np.array_equal(data[name].to_numpy(), exo[name].to_numpy())
+    lit = data["G"].to_numpy() > 20.0
+    assert np.all(data.loc[lit, "G_south"] > 10.0) and np.all(data.loc[data["G"] == 0, "G_north"] < 30.0)
+    seen = {}
+
+    class Recording(Thermostat):
+        def act(self, obs, forecast):
+            if obs.k == 30:
+                seen["past"], seen["forecast"] = obs.history["G_south"], forecast.G_south
+            return super().act(obs, forecast)
+
+    run = prepare_run(scenario, days=1, seed=0, warmup_steps=0, weather_part="test")
+    with build_loop(scenario, run, seed=0) as loop:
+        controller = Recording(scenario.control_spec())
+        for _ in range(31):
+            loop.step(controller.act(loop.observation(), loop.forecast()))
+    assert np.array_equal(seen["past"], run.series.G_south[:31])
+    assert np.array_equal(seen["forecast"], run.series.G_south[30:])
+    trajectory = run_closed_loop(scenario, Thermostat(scenario.control_spec()), days=1, seed=0).trajectory
+    assert set(FACADE_COLUMNS) <= set(trajectory.columns) and trajectory["G_south"].max() > 50.0
 
 
 def test_scenario_file_energyplus_defaults_and_checks(tmp_path):
