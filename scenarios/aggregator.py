@@ -263,9 +263,12 @@ def learned_fleet_planner(
     plan_members: int = 1,
     n_samples: int = 32,
     n_iters: int = 2,
-    replan_iters: int = 2,
+    replan_iters: int = 0,
     rc_fallback: bool = True,
     rc_candidates: bool = False,
+    fast_candidates: bool = False,
+    rc_refresh: int = 2,
+    spread_members: int | None = 5,
 ) -> FleetPlannerFactory:
     """The factory of a batched ``cem`` over each building's learned hybrid (``models[b]``):
     :class:`controllers.fleet_sampling.FleetCEM` planning with each ensemble's first
@@ -303,9 +306,14 @@ def learned_fleet_planner(
             spec,
             planner=CEMPlanner(lower=0.0, upper=spec.u_max_w, n_samples=n_samples, n_iters=n_iters),
             shadow=shadow,
-            spread_dynamics=FleetHybrid(models) if models[0].n_members > 1 else None,
+            spread_dynamics=(
+                FleetHybrid(models, members=min(spread_members or models[0].n_members, models[0].n_members))
+                if models[0].n_members > 1 else None
+            ),
             replan_iters=replan_iters,
             rc_candidates=rc_candidates,
+            fast_candidates=fast_candidates,
+            rc_refresh=rc_refresh,
         )
 
     return make
