@@ -292,7 +292,9 @@ class FleetQPMPC:
             statuses.add(status)
             if status == "solved":
                 block = self._blocks[j]
-                x[block] = self._solutions[j][0].reshape(-1, 4 * h)  # type: ignore[index]
+                solution = self._solutions[j]
+                assert solution is not None  # solve() stored it
+                x[block] = solution[0].reshape(-1, 4 * h)
                 solved[block] = True
         iterations = max((it for _, it in results), default=0)
         p_kw = x[:, :h] / self._stage.cop

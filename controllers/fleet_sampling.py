@@ -163,14 +163,21 @@ class FleetCEM:
     """CEM over B buildings' learned models, planned in one batch (module docstring).
 
     ``dynamics`` plans (e.g. ``FleetHybrid(models, members=1)``: fewer members, a cheaper
-    rollout); ``spread_dynamics`` (all members) measures the members' disagreement along the
-    chosen plans (None: not measured); ``shadow`` is the fallback RC MPC of every building
+    rollout); ``spread_dynamics`` (e.g. a few members) measures the members' disagreement along
+    the chosen plans (None: not measured); ``shadow`` is the fallback RC MPC of every building
     (None: the models always drive). ``planner`` holds the CEM settings (bounds are the
-    actuator's); a re-plan within a step (the next coordination price) runs ``replan_iters``
-    CEM iterations from the step's last plans. With ``rc_candidates`` every plan also scores
-    the shadow RC MPC's plan under the same prices as one of its first samples (one warm-started
-    QP per building and plan), so the CEM starts from the RC's optimum where its own samples do
-    not beat it, e.g. when a coordination price comes or goes and the warm start is far off.
+    actuator's). A re-plan within a step (the next coordination price) picks each building's
+    best of the plans the step has scored (the price enters the objective linearly: each plan's
+    rollout is kept with its energy per interval and comfort cost, no rollout is repeated);
+    ``replan_iters`` > 0 runs that many CEM iterations from the step's last plans instead.
+
+    With ``rc_candidates`` a step's first plan also scores the shadow RC MPC's plan as one of
+    its first samples, so the CEM starts from the RC's optimum where its own samples do not
+    beat it, e.g. when a coordination price comes or goes and the warm start is far off. Each
+    building's RC plan is solved every ``rc_refresh`` steps, the buildings in turn (its last
+    plan shifted one interval stands in between; before its first, the warm start), to
+    :data:`controllers.fleet.CANDIDATE_OPTIONS` with ``fast_candidates``; with CEM re-plans
+    every re-plan solves them all under its prices.
     """
 
     name = "cem"
