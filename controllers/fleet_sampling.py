@@ -163,14 +163,21 @@ class FleetCEM:
     """CEM over B buildings' learned models, planned in one batch (module docstring).
 
     ``dynamics`` plans (e.g. ``FleetHybrid(models, members=1)``: fewer members, a cheaper
-    rollout); ``spread_dynamics`` (all members) measures the members' disagreement along the
-    chosen plans (None: not measured); ``shadow`` is the fallback RC MPC of every building
+    rollout); ``spread_dynamics`` (e.g. a few members) measures the members' disagreement along
+    the chosen plans (None: not measured); ``shadow`` is the fallback RC MPC of every building
     (None: the models always drive). ``planner`` holds the CEM settings (bounds are the
-    actuator's); a re-plan within a step (the next coordination price) runs ``replan_iters``
-    CEM iterations from the step's last plans. With ``rc_candidates`` every plan also scores
-    the shadow RC MPC's plan under the same prices as one of its first samples (one warm-started
-    QP per building and plan), so the CEM starts from the RC's optimum where its own samples do
-    not beat it, e.g. when a coordination price comes or goes and the warm start is far off.
+    actuator's). A re-plan within a step (the next coordination price) picks each building's
+    best of the plans the step has scored (the price enters the objective linearly: each plan's
+    rollout is kept with its energy per interval and comfort cost, no rollout is repeated);
+    ``replan_iters`` > 0 runs that many CEM iterations from the step's last plans instead.
+
+    With ``rc_candidates`` a step's first plan also scores the shadow RC MPC's plan as one of
+    its first samples, so the CEM starts from the RC's optimum where its own samples do not
+    beat it, e.g. when a coordination price comes or goes and the warm start is far off. Each
+    building's RC plan is solved every ``rc_refresh`` steps, the buildings in turn (its last
+    plan shifted one interval stands in between; before its first, the warm start), to
+    :data:`controllers.fleet.CANDIDATE_OPTIONS` with ``fast_candidates``; with CEM re-plans
+    every re-plan solves them all under its prices.
     """
 
     name = "cem"
@@ -188,6 +195,8 @@ class FleetCEM:
         spread_dynamics: FleetDynamics | None = None,
         replan_iters: int = 2,
         rc_candidates: bool = False,
+        fast_candidates: bool = False,
+        rc_refresh: int = 1,
     ) -> None:
         check_heating(dynamics.eta, spec, what="the fleet's models")
         if not 0.0 <= offset_gain <= 1.0:
@@ -198,8 +207,12 @@ class FleetCEM:
             raise InputError("FleetCEM: the shadow RC MPC must have one building per model")
         self.dynamics, self.spec = dynamics, spec
         self.planner = planner if planner is not None else CEMPlanner(lower=0.0, upper=spec.u_max_w, n_samples=32)
-        if replan_iters < 1:
-            raise InputError(f"FleetCEM.replan_iters must be >= 1, got {replan_iters}")
+        if replan_iters < 0:
+            raise InputError(f"FleetCEM.replan_iters must be >= 0, got {replan_iters}")
+        if not (isinstance(rc_refresh, int) and rc_refresh >= 1):
+            raise InputError(f"FleetCEM.rc_refresh must be a whole number >= 1, got {rc_refresh!r}")
+        self.fast_candidates, self.rc_refresh = fast_candidates, rc_refresh
+        self._pool: list[tuple[torch.Tensor, torch.Tensor, torch.Tensor]] = []
         self.offset_gain, self.comfort_margin_k = offset_gain, comfort_margin_k
         self.replan_iters = replan_iters
         if rc_candidates and shadow is None:
@@ -245,6 +258,9 @@ class FleetCEM:
             self.shadow.reset(seed)
         self._step: _Step | None = None
         self._best: torch.Tensor | None = None
+        self._steps = 0
+        self._rc_plans = np.zeros((self.n_buildings, self.horizon_steps))
+        self._rc_valid = np.zeros(self.n_buildings, dtype=bool)
 
     def observe(self, observations: Sequence[Observation], forecast: Forecast) -> None:
         """Offsets and trust from the interval that just ended (one batched replay), the
@@ -319,15 +335,24 @@ class FleetCEM:
         return x0
 
     def _costs(self, step: _Step, extra: np.ndarray, u_w: torch.Tensor) -> torch.Tensor:
-        """(B, N) objective of plans (B, N, H) under the members' mean prediction + offset."""
+        """(B, N) objective of plans (B, N, H) under the members' mean prediction + offset;
+        the plans, their energy per interval and comfort cost join the step's pool."""
         assert step.start is not None
         roll = self.dynamics.roll(step.start, u_w)
         t_r = roll.t_r_c.mean(1) + step.offset[:, None, None]
-        u_phys = roll.u_phys_w.mean(1)
-        price = torch.as_tensor(step.price + extra, dtype=torch.float32)
-        energy = (u_phys * (self.spec.dt_h / 1000.0) * price).sum(-1)
+        kwh = roll.u_phys_w.mean(1) * (self.spec.dt_h / 1000.0)  # (B, N, H)
         violation = (torch.relu(step.t_min[:, None] - t_r) + torch.relu(t_r - step.t_max[:, None])).sum(-1)
-        return energy + self.spec.comfort_weight_eur_per_kh * self.spec.dt_h * violation
+        comfort = self.spec.comfort_weight_eur_per_kh * self.spec.dt_h * violation
+        if self.replan_iters == 0:
+            self._pool.append((u_w, kwh, comfort))
+        return self._pool_costs(step, extra, kwh, comfort)
+
+    @staticmethod
+    def _pool_costs(step: _Step, extra: np.ndarray, kwh: torch.Tensor, comfort: torch.Tensor) -> torch.Tensor:
+        """(B, N) objective of plans whose energy (B, N, H) [kWh] and comfort cost (B, N) are
+        known, under the step's prices plus ``extra`` (H,)."""
+        price = torch.as_tensor(step.price + extra, dtype=torch.float32)
+        return (kwh * price).sum(-1) + comfort
 
     def plan(self, extra_price_eur_per_kwh: np.ndarray | None = None) -> FleetPlan:
         """Every building's CEM plan under the forecast plus the extra price (H,); a second
@@ -343,20 +368,45 @@ class FleetCEM:
             return FleetPlan(np.zeros((b, h)), np.zeros(b, dtype=bool), "short history", 0)
         if self._best is None:
             x0, planner = step.x0, self.planner
+            self._pool = []
         else:  # a re-plan of the step (a new coordination price): from the last plans
             x0 = self._best
-            planner = dataclasses.replace(self.planner, n_iters=self.replan_iters)
-        candidates = None
-        if self.rc_candidates and self.shadow is not None:
-            rc = self.shadow.plan(extra)
-            # Where the RC did not plan, its warm start stands in (a sample like any other).
-            candidates = torch.as_tensor(np.where(rc.ok[:, None], rc.power_w, x0.numpy()), dtype=x0.dtype)[:, None]
-        plans, costs = optimize_fleet(
-            planner, lambda u: self._costs(step, extra, u), x0, self.generators, candidates
-        )
+            planner = dataclasses.replace(self.planner, n_iters=max(self.replan_iters, 1))
+        rescore = self._best is not None and self.replan_iters == 0
+        if self.rc_candidates and self.shadow is not None and not rescore:
+            # The first plan of a step solves the buildings due (all of them every rc_refresh
+            # steps, in turn); a CEM re-plan under a new price solves them all.
+            due = (np.arange(b) + self._steps) % self.rc_refresh == 0 if self._best is None else np.ones(b, bool)
+            rc = self.shadow.plan(extra, only=None if due.all() else due, fast=self.fast_candidates)
+            fresh = rc.ok & due
+            self._rc_plans[fresh] = rc.power_w[fresh]
+            self._rc_valid |= fresh
+        if rescore:
+            plans, costs = self._rescore(step, extra)
+        else:
+            candidates = None
+            if self.rc_candidates and self._rc_valid.any():
+                # Where the RC has no plan, the warm start stands in (a sample like any other).
+                candidates = torch.as_tensor(
+                    np.where(self._rc_valid[:, None], self._rc_plans, x0.numpy()), dtype=x0.dtype
+                )[:, None]
+            plans, costs = optimize_fleet(
+                planner, lambda u: self._costs(step, extra, u), x0, self.generators, candidates
+            )
         self._best = plans
         ok = torch.isfinite(costs).numpy()
-        return FleetPlan(plans.double().numpy(), ok, "ok", planner.n_iters)
+        return FleetPlan(plans.double().numpy(), ok, "ok", 0 if rescore else planner.n_iters)
+
+    def _rescore(self, step: _Step, extra: np.ndarray) -> tuple[torch.Tensor, torch.Tensor]:
+        """Every building's best plan of the step's pool under the prices plus ``extra``."""
+        plans = torch.cat([p[0] for p in self._pool], dim=1)
+        costs = torch.cat(
+            [self._pool_costs(step, extra, kwh, comfort) for _, kwh, comfort in self._pool], dim=1
+        ).double()
+        costs = torch.where(torch.isfinite(costs), costs, torch.full_like(costs, math.inf))
+        best = costs.argmin(dim=1)
+        rows = torch.arange(plans.shape[0])
+        return plans[rows, best], costs[rows, best]
 
     def commit(self, plan: FleetPlan) -> FleetDecision:
         """Apply ``plan``: each trusted building's first action, the shadow RC MPC's for the
@@ -386,6 +436,8 @@ class FleetCEM:
             u[distrusted] = rc_plan.power_w[distrusted, 0]
             self.shadow.commit(rc_plan, active=distrusted)
         self._step = None
+        self._steps += 1
+        self._rc_plans = np.concatenate([self._rc_plans[:, 1:], self._rc_plans[:, -1:]], axis=1)
         return FleetDecision(u_w=np.clip(u, 0.0, self.spec.u_max_w), fallback=~plan.ok, model_fallback=distrusted)
 
     @property

@@ -262,18 +262,25 @@ def learned_fleet_planner(
     *,
     plan_members: int = 1,
     n_samples: int = 32,
-    n_iters: int = 2,
-    replan_iters: int = 2,
+    n_iters: int | None = None,
+    replan_iters: int = 0,
     rc_fallback: bool = True,
     rc_candidates: bool = False,
+    fast_candidates: bool = True,
+    rc_refresh: int = 2,
+    spread_members: int | None = 5,
 ) -> FleetPlannerFactory:
     """The factory of a batched ``cem`` over each building's learned hybrid (``models[b]``):
     :class:`controllers.fleet_sampling.FleetCEM` planning with each ensemble's first
-    ``plan_members`` members (the disagreement measured over all), ``n_samples`` x ``n_iters``
-    per plan (``replan_iters`` for each further plan of a step under a new coordination price),
-    and with ``rc_fallback`` a shadow :class:`FleetQPMPC` on the RCs identified from
-    the models' training data (every model must have one); ``rc_candidates`` scores that RC
-    MPC's plan in every CEM plan (:class:`controllers.fleet_sampling.FleetCEM`)."""
+    ``plan_members`` members (the disagreement measured over its first ``spread_members``;
+    None: all), ``n_samples`` x ``n_iters`` per plan (None: 1 with ``rc_candidates``, whose
+    plan starts the CEM near the optimum, 2 without); a further plan of a step under a new
+    coordination price rescores the step's samples (``replan_iters`` > 0: runs that many CEM
+    iterations instead). With ``rc_fallback`` a shadow :class:`FleetQPMPC` on the RCs
+    identified from the models' training data (every model must have one);
+    ``rc_candidates`` scores that RC MPC's plan among the samples of a step's first plan,
+    each building's solved every ``rc_refresh`` steps in turn (its last one shifted
+    otherwise), to the candidate tolerances with ``fast_candidates``."""
     from controllers.fleet_sampling import FleetCEM
     from controllers.planners import CEMPlanner
     from pinn_mpc.fleet_rollout import FleetHybrid
@@ -301,11 +308,19 @@ def learned_fleet_planner(
         return FleetCEM(
             FleetHybrid(models, members=plan_members),
             spec,
-            planner=CEMPlanner(lower=0.0, upper=spec.u_max_w, n_samples=n_samples, n_iters=n_iters),
+            planner=CEMPlanner(
+                lower=0.0, upper=spec.u_max_w, n_samples=n_samples,
+                n_iters=n_iters if n_iters is not None else (1 if rc_candidates else 2),
+            ),
             shadow=shadow,
-            spread_dynamics=FleetHybrid(models) if models[0].n_members > 1 else None,
+            spread_dynamics=(
+                FleetHybrid(models, members=min(spread_members or models[0].n_members, models[0].n_members))
+                if models[0].n_members > 1 else None
+            ),
             replan_iters=replan_iters,
             rc_candidates=rc_candidates,
+            fast_candidates=fast_candidates,
+            rc_refresh=rc_refresh,
         )
 
     return make

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from controllers.coordination import Coordination, DualAscent, planned_aggregate_w
-from controllers.fleet import FleetQPMPC
+from controllers.fleet import CANDIDATE_OPTIONS, FleetQPMPC
 from controllers.rc_mpc.osqp import QPMPC
 from pinn_mpc.errors import InputError
 from pinn_mpc.simulator import draw_fleet
@@ -68,6 +68,71 @@ def test_batched_qp_solves_each_buildings_qp_mpc_problem():
         assert not decision.fallback.any()
         loop.step(decision.u_w, decision_s=np.zeros(3), fallback=decision.fallback)
     assert heated > 1e4  # the day needs heat: the plans are not trivially zero
+
+
+def test_threads_share_the_blocks_and_plan_exactly_as_one_thread():
+    scenario, fleet, loop = _fleet_loop(5, warmup=2)
+    spec = scenario.control_spec()
+    one, two = FleetQPMPC(fleet, spec, threads=1), FleetQPMPC(fleet, spec, threads=2)
+    extra = np.zeros(spec.horizon_steps)
+    extra[10:14] = 0.4
+    for _ in range(3):
+        _observe(one, loop)
+        _observe(two, loop)
+        for price in (None, extra):
+            a, b = one.plan(price), two.plan(price)
+            np.testing.assert_array_equal(a.power_w, b.power_w)
+            assert a.ok.all() and b.ok.all() and a.status == b.status == "solved"
+        decision = one.commit(a)
+        two.commit(b)
+        loop.step(decision.u_w, decision_s=np.zeros(5), fallback=decision.fallback)
+    with pytest.raises(InputError, match="threads must be a whole number >= 1"):
+        FleetQPMPC(fleet, spec, threads=0)
+
+
+def test_a_fast_candidate_plan_is_near_the_optimum_and_leaves_the_exact_settings_alone():
+    scenario, fleet, loop = _fleet_loop(4, warmup=2)
+    spec = scenario.control_spec()
+    planner = FleetQPMPC(fleet, spec)
+    exact = FleetQPMPC(fleet, spec, solver_options=TIGHT)
+    _observe(planner, loop)
+    _observe(exact, loop)
+    singles = [QPMPC(p, spec) for p in fleet]
+    observations = [loop.observation(building=i) for i in range(4)]
+    forecast = loop.forecast()
+    optimum = exact.plan()
+    fast = planner.plan(fast=True)
+    assert planner._solvers[0].settings.eps_abs == CANDIDATE_OPTIONS["eps_abs"]
+    again = planner.plan()  # the exact settings are back: the plan of a planner never run fast
+    settings = planner._solvers[0].settings
+    assert (settings.eps_abs, settings.polishing, settings.max_iter) == (1e-3, True, 10000)
+    fresh = FleetQPMPC(fleet, spec)
+    _observe(fresh, loop)
+    for i, (controller, obs) in enumerate(zip(singles, observations, strict=True)):
+        controller.act(obs, forecast)
+        stage = controller.problem.stage(batched_estimate(planner, i), forecast)
+        best = controller.problem.objective(stage, optimum.power_w[i] / 1000.0)
+        assert controller.problem.objective(stage, fast.power_w[i] / 1000.0) == pytest.approx(best, rel=0.1)
+        assert controller.problem.objective(stage, again.power_w[i] / 1000.0) == pytest.approx(best, rel=3e-2)
+    np.testing.assert_allclose(again.power_w, fresh.plan().power_w, atol=5.0)
+    assert fast.iterations <= CANDIDATE_OPTIONS["max_iter"]
+
+
+def test_a_block_left_unsolved_for_steps_starts_from_its_solution_shifted_as_many_steps():
+    scenario, fleet, loop = _fleet_loop(2, warmup=2)
+    planner = FleetQPMPC(fleet, scenario.control_spec())
+    h = planner.horizon_steps
+    _observe(planner, loop)
+    plan = planner.plan()
+    heat = planner._solutions[1][0][:h].copy()  # building 1's planned heat
+    skip = np.array([True, False])
+    for k in range(1, 4):
+        decision = planner.commit(plan)
+        loop.step(decision.u_w, decision_s=np.zeros(2), fallback=decision.fallback)
+        _observe(planner, loop)
+        np.testing.assert_array_equal(planner._solutions[1][0][: h - k], heat[k:])
+        plan = planner.plan(only=skip)  # building 1 is not solved
+        assert plan.ok.tolist() == [True, False]
 
 
 def batched_estimate(planner: FleetQPMPC, i: int) -> np.ndarray:

@@ -148,36 +148,87 @@ def test_a_batched_rollout_that_would_not_fit_is_refused_before_it_starts():
                                    available=8_000_000_000)
 
 
-def test_rc_candidates_are_scored_in_every_plan_of_a_step(fleet_models):
-    """The RC MPC's plan under each plan's prices is one of its candidates (kept unless a sample
-    beats it on the model), in the re-plans of a step too: scoring it in a step's first plan
-    only left the first capped interval of 1,000 learned buildings at 16 % of the cap (cap
-    comfort +0.17 instead of +0.05 K h per building)."""
-    scenario, fleet, models = fleet_models
-    spec = scenario.control_spec()
-    planner = learned_fleet_planner(models, rc_candidates=True)(fleet, spec)
-    planner.reset(0)
-    shadow = planner.shadow
-    solves = []
-    real_plan = shadow.plan
+def _counting_candidates(planner):
+    """Record the ``only`` mask of every candidate solve of ``planner``'s shadow RC MPC (None:
+    every building); commit's solves for the distrusted are not candidates."""
+    shadow, real_plan, solves = planner.shadow, planner.shadow.plan, []
 
-    def counted(*args, **kwargs):  # the candidates' solves (commit's for the distrusted pass `only`)
-        if "only" not in kwargs:
-            solves.append(1)
+    def counted(*args, **kwargs):
+        if "fast" in kwargs:
+            solves.append(kwargs.get("only"))
         return real_plan(*args, **kwargs)
 
     shadow.plan = counted
+    return solves, real_plan
+
+
+def test_rc_candidates_are_scored_in_the_first_plan_and_the_re_plans_rescore_the_pool(fleet_models):
+    """The RC MPC's plan is a candidate of a step's first plan (kept unless a sample beats it
+    on the model); a re-plan under a new coordination price picks each building's best of
+    the step's scored plans under the new prices, without a rollout or a solve."""
+    scenario, fleet, models = fleet_models
+    spec = scenario.control_spec()
+    h = spec.horizon_steps
+    planner = learned_fleet_planner(models, rc_candidates=True, rc_refresh=1)(fleet, spec)
+    planner.reset(0)
+    solves, real_plan = _counting_candidates(planner)
     observations, forecast = _observations(scenario, fleet)
     planner.observe(observations, forecast)
     first = planner.plan()
-    assert len(solves) == 1
+    assert solves == [None]
     rc = real_plan()
     step = planner._step
-    cost = lambda u: planner._costs(step, np.zeros(spec.horizon_steps), torch.as_tensor(u, dtype=torch.float32)[:, None])[:, 0]  # noqa: E731
+    pool = [kwh for _, kwh, _ in planner._pool]
+    cost = lambda u: planner._costs(step, np.zeros(h), torch.as_tensor(u, dtype=torch.float32)[:, None])[:, 0]  # noqa: E731
     assert torch.all(cost(first.power_w) <= cost(rc.power_w) + 1e-4)
-    planner.plan(np.full(spec.horizon_steps, 0.5))
-    assert len(solves) == 2
-    planner.commit(first)
+    planner._pool = planner._pool[: len(pool)]  # the scoring above is not a sample of the step
+    np.testing.assert_array_equal(planner.plan().power_w, first.power_w)  # same prices, same plans
+    extra = np.zeros(h)
+    extra[:8] = 2.0
+    pricey = planner.plan(extra)
+    assert len(solves) == 1
+    plans = torch.cat([u for u, _, _ in planner._pool], dim=1)
+    kwh = torch.cat(pool, dim=1)
+    for b in range(2):
+        row = int(np.flatnonzero(np.all(plans[b].numpy() == pricey.power_w[b].astype(np.float32), axis=1))[0])
+        first_row = int(np.flatnonzero(np.all(plans[b].numpy() == first.power_w[b].astype(np.float32), axis=1))[0])
+        # A price on the first 8 intervals never raises the energy the model delivers there.
+        assert kwh[b, row, :8].sum() <= kwh[b, first_row, :8].sum() + 1e-6
+    planner.commit(pricey)
     planner.observe(observations, forecast)
     planner.plan()
-    assert len(solves) == 3
+    assert solves == [None, None]
+
+
+def test_cem_re_plans_solve_the_rc_candidates_under_each_price(fleet_models):
+    scenario, fleet, models = fleet_models
+    spec = scenario.control_spec()
+    planner = learned_fleet_planner(models, rc_candidates=True, replan_iters=2, rc_refresh=1)(fleet, spec)
+    planner.reset(0)
+    solves, _ = _counting_candidates(planner)
+    planner.observe(*_observations(scenario, fleet))
+    planner.plan()
+    planner.plan(np.full(spec.horizon_steps, 0.5))
+    assert solves == [None, None] and planner._pool == []
+
+
+def test_rc_candidates_refreshed_in_turn_keep_each_buildings_last_plan_shifted(fleet_models):
+    scenario, fleet, models = fleet_models
+    spec = scenario.control_spec()
+    planner = learned_fleet_planner(models, rc_candidates=True, rc_refresh=2)(fleet, spec)
+    planner.reset(0)
+    solves, _ = _counting_candidates(planner)
+    observations, forecast = _observations(scenario, fleet)
+    planner.observe(observations, forecast)
+    plan = planner.plan()
+    assert [m.tolist() for m in solves] == [[True, False]]
+    assert planner._rc_valid.tolist() == [True, False]
+    kept = planner._rc_plans[0].copy()
+    planner.commit(plan)
+    planner.observe(observations, forecast)
+    planner.plan()
+    assert [m.tolist() for m in solves] == [[True, False], [False, True]]
+    np.testing.assert_array_equal(planner._rc_plans[0, :-1], kept[1:])  # building 0's, shifted
+    assert planner._rc_valid.all()
+    with pytest.raises(InputError, match="rc_refresh must be a whole number >= 1"):
+        learned_fleet_planner(models, rc_candidates=True, rc_refresh=0)(fleet, spec)
