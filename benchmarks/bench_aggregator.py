@@ -15,9 +15,11 @@ everything the controllers do in a step: observe, plan, coordinate, commit; the 
   06:00, so the timed steps are those before and in the event; 4 dual-ascent plans a step: the
   first steps after the cap enters the horizon, while the prices move most, take longest);
 - ``cem``: :class:`controllers.fleet_sampling.FleetCEM` over each building's learned hybrid in
-  one batched rollout (32 samples x 2 CEM iterations a plan, 1 member planning, all members for
-  the disagreement, the shadow RC MPC per building; under the cap each building's RC MPC plan
-  scored among the samples of every plan, as ``closed-loop --rc-candidates auto`` plans). The fleet's models are ``--models``
+  one batched rollout (``learned_fleet_planner``'s defaults: 32 samples x 2 CEM iterations a
+  plan, 1 member planning, 5 for the disagreement, the shadow RC MPC per building; under the
+  cap, as ``closed-loop --rc-candidates auto`` plans, each building's RC MPC plan scored among
+  the samples of a step's first plan, one CEM iteration, the step's further plans rescoring
+  the plans rolled out). The fleet's models are ``--models
   hybrids trained here on 14 days of their buildings' data, assigned round-robin: the timing
   does not depend on the weights (every building's constants are its own copy in the batch).
 
