@@ -30,7 +30,11 @@ from pinn_mpc.models.hybrid import HybridConstants, HybridNet, saturate_backup
 from pinn_mpc.models.learned import LearnedModel
 from pinn_mpc.models.rollout import Rollout
 
-__all__ = ["FleetHybrid", "FleetStart"]
+__all__ = ["FEW_PLANS", "FleetHybrid", "FleetStart"]
+
+#: Plans per building up to which a rollout's first layer adds the state's rows one by one
+#: instead of a batched product (the members' disagreement along one plan, the offset replay).
+FEW_PLANS = 4
 
 
 class FleetStart(NamedTuple):
@@ -84,6 +88,11 @@ class FleetHybrid:
             self.p_lo = ranges[:, 0].repeat_interleave(m)[:, None, None]  # (B*M, 1, 1)
             self.p_hi = ranges[:, 1].repeat_interleave(m)[:, None, None]
             self.n_buildings = b
+            # The first layer's weights on each state row, (B*M, out+2, 1) apiece: a rollout of
+            # a few plans adds them row by row (a batched product of that many columns is
+            # several times slower).
+            self._w_state_rows = [self.constants.w_state[:, :, i : i + 1].contiguous() for i in range(3)]
+            self._w_last_column = self.constants.w_last.transpose(1, 2).contiguous()  # (B*M, in, 1)
         # Each building's scaling of its exogenous series (B, S, 1).
         self._exog_mean = np.array([[[mod.features.exog[n].mean] for n in self.exog_series] for mod in models])
         self._exog_std = np.array([[[mod.features.exog[n].std] for n in self.exog_series] for mod in models])
@@ -198,9 +207,14 @@ class FleetHybrid:
             pre, b_step = start.pre, start.b_step
             u_steps = u_w.permute(2, 0, 1).repeat_interleave(m, dim=1)[:, :, None]  # (H, B*M, 1, N)
             b_t_r = b_step[:, :, 1:]
+            few = n <= FEW_PLANS
             for h in range(h_len):
                 now, nxt = states[h], states[h + 1]
-                y = torch.baddbmm(pre[h], c.w_state, now)
+                if few:
+                    y = torch.addcmul(pre[h], self._w_state_rows[0], now[:, :1])
+                    y.addcmul_(self._w_state_rows[1], now[:, 1:2]).addcmul_(self._w_state_rows[2], now[:, 2:])
+                else:
+                    y = torch.baddbmm(pre[h], c.w_state, now)
                 x = y[:, :hidden].sigmoid_()
                 for w, bias in c.middle:
                     x = torch.baddbmm(bias, w, x).sigmoid_()
@@ -209,7 +223,10 @@ class FleetHybrid:
                 p_w = saturate_backup(u_steps[h], t_free, b_t_r[hb], c.t_off, c.t_full, c.full_power_w)
                 nxt[:, :1] = torch.minimum(torch.maximum(p_w, self.p_lo), self.p_hi)
                 torch.addcmul(y[:, hidden:], b_step[hb], nxt[:, :1], out=nxt[:, 1:])
-                res = torch.baddbmm(c.b_last, c.w_last, x)
+                if few:
+                    res = torch.sum(self._w_last_column * x, dim=1, keepdim=True).add_(c.b_last)
+                else:
+                    res = torch.baddbmm(c.b_last, c.w_last, x)
                 nxt[:, 2:] += torch.minimum(torch.maximum(res, -c.residual_bound_k), c.residual_bound_k)
             series = states.permute(1, 2, 3, 0).reshape(b, m, 3, n, h_len + 1)
             return Rollout(

@@ -357,8 +357,8 @@ def build_parser() -> argparse.ArgumentParser:
         default="auto",
         help="with --model (the batched cem): score each building's RC MPC plan (on the RC "
         "identified from its model's data) among the samples of each step's first plan, "
-        "every building's re-solved every second step in turn; plans closer to qp-mpc's, at "
-        "one more QP per two buildings and step; auto (the default): on under "
+        "every building's re-solved every third step in turn; plans closer to qp-mpc's, at "
+        "one more QP per three buildings and step; auto (the default): on under "
         "--cap-kw (where the cem's own samples lose the comfort), off without it",
     )
 

@@ -267,7 +267,7 @@ def learned_fleet_planner(
     rc_fallback: bool = True,
     rc_candidates: bool = False,
     fast_candidates: bool = True,
-    rc_refresh: int = 2,
+    rc_refresh: int = 3,
     spread_members: int | None = 5,
 ) -> FleetPlannerFactory:
     """The factory of a batched ``cem`` over each building's learned hybrid (``models[b]``):
