@@ -28,7 +28,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Sequence
-from typing import NamedTuple, Protocol
+from typing import NamedTuple, Protocol, cast
 
 import numpy as np
 import torch
@@ -147,6 +147,11 @@ def colored_noise_filter(h: int, beta: float, dtype: torch.dtype) -> tuple[torch
     return scale, torch.linalg.vector_norm(torch.fft.irfft(scale, n=h))
 
 
+#: Plans a step has scored (B, N, H) [W], their energy per interval (B, N, H) [kWh] and comfort
+#: cost (B, N) [EUR].
+PoolEntry = tuple[torch.Tensor, torch.Tensor, torch.Tensor]
+
+
 class _Step(NamedTuple):
     observations: tuple[Observation, ...]
     forecast: Forecast
@@ -212,7 +217,7 @@ class FleetCEM:
         if not (isinstance(rc_refresh, int) and rc_refresh >= 1):
             raise InputError(f"FleetCEM.rc_refresh must be a whole number >= 1, got {rc_refresh!r}")
         self.fast_candidates, self.rc_refresh = fast_candidates, rc_refresh
-        self._pool: list[tuple[torch.Tensor, torch.Tensor, torch.Tensor]] = []
+        self._pool: list[PoolEntry] = []
         self.offset_gain, self.comfort_margin_k = offset_gain, comfort_margin_k
         self.replan_iters = replan_iters
         if rc_candidates and shadow is None:
@@ -399,10 +404,10 @@ class FleetCEM:
 
     def _rescore(self, step: _Step, extra: np.ndarray) -> tuple[torch.Tensor, torch.Tensor]:
         """Every building's best plan of the step's pool under the prices plus ``extra``."""
-        plans = torch.cat([p[0] for p in self._pool], dim=1)
-        costs = torch.cat(
-            [self._pool_costs(step, extra, kwh, comfort) for _, kwh, comfort in self._pool], dim=1
-        ).double()
+        if len(self._pool) > 1:  # joined once: a step's further re-plans read it as it is
+            self._pool = [cast(PoolEntry, tuple(torch.cat(parts, dim=1) for parts in zip(*self._pool, strict=True)))]
+        plans, kwh, comfort = self._pool[0]
+        costs = self._pool_costs(step, extra, kwh, comfort).double()
         costs = torch.where(torch.isfinite(costs), costs, torch.full_like(costs, math.inf))
         best = costs.argmin(dim=1)
         rows = torch.arange(plans.shape[0])
