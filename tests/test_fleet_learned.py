@@ -167,18 +167,24 @@ def _counting_candidates(planner):
     return solves, real_plan
 
 
-def test_rc_candidates_are_scored_in_the_first_plan_and_the_re_plans_rescore_the_pool(fleet_models):
-    """The RC MPC's plan is a candidate of a step's first plan (kept unless a sample beats it
-    on the model); a re-plan under a new coordination price picks each building's best of
-    the step's scored plans under the new prices, without a rollout or a solve."""
+def _observed_candidate_planner(fleet_models, **options):
+    """The batched cem with RC candidates (``options`` for ``learned_fleet_planner``) reset
+    and observing a step, its candidate solves counted (:func:`_counting_candidates`)."""
     scenario, fleet, models = fleet_models
-    spec = scenario.control_spec()
-    h = spec.horizon_steps
-    planner = learned_fleet_planner(models, rc_candidates=True, rc_refresh=1)(fleet, spec)
+    planner = learned_fleet_planner(models, rc_candidates=True, **options)(fleet, scenario.control_spec())
     planner.reset(0)
     solves, real_plan = _counting_candidates(planner)
     observations, forecast = _observations(scenario, fleet)
     planner.observe(observations, forecast)
+    return planner, solves, real_plan, observations, forecast
+
+
+def test_rc_candidates_are_scored_in_the_first_plan_and_the_re_plans_rescore_the_pool(fleet_models):
+    """The RC MPC's plan is a candidate of a step's first plan (kept unless a sample beats it
+    on the model); a re-plan under a new coordination price picks each building's best of
+    the step's scored plans under the new prices, without a rollout or a solve."""
+    planner, solves, real_plan, observations, forecast = _observed_candidate_planner(fleet_models, rc_refresh=1)
+    h = planner.horizon_steps
     first = planner.plan()
     assert solves == [None]
     rc = real_plan()
@@ -206,25 +212,14 @@ def test_rc_candidates_are_scored_in_the_first_plan_and_the_re_plans_rescore_the
 
 
 def test_cem_re_plans_solve_the_rc_candidates_under_each_price(fleet_models):
-    scenario, fleet, models = fleet_models
-    spec = scenario.control_spec()
-    planner = learned_fleet_planner(models, rc_candidates=True, replan_iters=2, rc_refresh=1)(fleet, spec)
-    planner.reset(0)
-    solves, _ = _counting_candidates(planner)
-    planner.observe(*_observations(scenario, fleet))
+    planner, solves, *_ = _observed_candidate_planner(fleet_models, replan_iters=2, rc_refresh=1)
     planner.plan()
-    planner.plan(np.full(spec.horizon_steps, 0.5))
+    planner.plan(np.full(planner.horizon_steps, 0.5))
     assert solves == [None, None] and planner._pool == []
 
 
 def test_rc_candidates_refreshed_in_turn_keep_each_buildings_last_plan_shifted(fleet_models):
-    scenario, fleet, models = fleet_models
-    spec = scenario.control_spec()
-    planner = learned_fleet_planner(models, rc_candidates=True, rc_refresh=2)(fleet, spec)
-    planner.reset(0)
-    solves, _ = _counting_candidates(planner)
-    observations, forecast = _observations(scenario, fleet)
-    planner.observe(observations, forecast)
+    planner, solves, _, observations, forecast = _observed_candidate_planner(fleet_models, rc_refresh=2)
     plan = planner.plan()
     assert [m.tolist() for m in solves] == [[True, False]]
     assert planner._rc_valid.tolist() == [True, False]
@@ -236,4 +231,4 @@ def test_rc_candidates_refreshed_in_turn_keep_each_buildings_last_plan_shifted(f
     np.testing.assert_array_equal(planner._rc_plans[0, :-1], kept[1:])  # building 0's, shifted
     assert planner._rc_valid.all()
     with pytest.raises(InputError, match="rc_refresh must be a whole number >= 1"):
-        learned_fleet_planner(models, rc_candidates=True, rc_refresh=0)(fleet, spec)
+        _observed_candidate_planner(fleet_models, rc_refresh=0)
