@@ -11,13 +11,19 @@ and weather values, plus a weekly schedule standing in for unmeasured internal g
 
 with ``j = 0 .. lags-1``, ``G_f`` the irradiance on each facade ``f`` where the data has it
 (:mod:`pinn_mpc.solar`: what the windows of each side let in) and ``s`` one coefficient per
-2-hour block of the day, separately for workdays (Monday-Friday) and weekends.
+block of the day (2 hours unless the model says otherwise), separately for workdays
+(Monday-Friday) and weekends. A building's holidays (the data's ``holiday`` column, the
+forecast's day of the week 6) count as Sundays, as reference buildings run their
+Sunday-or-holiday schedules on them.
 
 The physics-informed variant (:func:`fit_physics_informed_arx`) adds what a building's
 unmeasured occupancy does besides adding heat: ventilation and infiltration that follow the
 occupancy schedule scale the heat loss, so each schedule block gets a second coefficient on the
 indoor-outdoor difference, ``+ q(block) (T_r,k - T_a,k)``, and the schedule tells Saturdays
-from Sundays (reference office buildings run a Saturday schedule of their own). The fit must
+from Sundays (reference office buildings run a Saturday schedule of their own). It chooses
+its schedule's block length (1 or 2 hours: an office's hourly schedules against fewer
+coefficients to fit) and whether to take the facades' irradiance by a held-out prediction of
+its own training data. The fit must
 say that more power warms the room (the sum of the power's coefficients positive, as a heater
 does; negative for a cooling machine), or it is refused. It is fitted by least squares on the one-step error
 (a tiny ridge keeps it well posed), has no hidden state and no network, and is linear in the
@@ -55,6 +61,7 @@ __all__ = [
     "ARX_DIRECTORY",
     "ARX_FILE",
     "ARXModel",
+    "BLOCK_CHOICES_H",
     "BLOCK_H",
     "DEFAULT_LAGS",
     "MEASURED_INPUTS",
@@ -75,11 +82,11 @@ ARX_DIRECTORY = DirectoryLayout(kind="ARX model directory", files=(ARX_FILE,), m
 
 #: Lags of every input (4 h at 30-min intervals).
 DEFAULT_LAGS = 8
-#: Length of one block of the daily schedule [h].
+#: Length of one block of the daily schedule [h], unless a model says otherwise; the
+#: schedule has one coefficient per block for workdays, then one per block for weekends.
 BLOCK_H = 2.0
-#: Blocks of the daily schedule; the schedule has one coefficient per block for workdays,
-#: then one per block for weekends.
-_BLOCKS = int(round(24 / BLOCK_H))
+#: The block lengths [h] the physics-informed ARX chooses from (each divides the day).
+BLOCK_CHOICES_H = (1.0, 2.0)
 #: Ridge weight relative to each regressor's own sum of squares (keeps collinear lags well posed).
 _RIDGE = 1e-9
 #: Scales that bring the inputs to order one: W -> kW, W/m2 -> 100 W/m2, W -> kW.
@@ -97,22 +104,39 @@ SELECTION_SHARE = 0.25
 SELECTION_HORIZON_S = 12 * 3600.0
 
 
-def _schedule_index(time_of_day_h: np.ndarray, day_of_week: np.ndarray, day_types: int = 2) -> np.ndarray:
+def _blocks(block_h: float) -> int:
+    """Blocks of a day of ``block_h`` hours."""
+    return int(round(24 / block_h))
+
+
+def _schedule_index(
+    time_of_day_h: np.ndarray, day_of_week: np.ndarray, day_types: int = 2, block_h: float = BLOCK_H
+) -> np.ndarray:
     """(N,) each interval's schedule coefficient: its block of the day, the weekend's after
-    the workdays' (day_of_week 0 = Monday); with 3 ``day_types`` Saturday's, then Sunday's."""
-    block = (np.asarray(time_of_day_h, dtype=float) // BLOCK_H).astype(int)
+    the workdays' (day_of_week 0 = Monday, 6 = Sunday or a holiday); with 3 ``day_types``
+    Saturday's, then Sunday's."""
+    block = (np.asarray(time_of_day_h, dtype=float) // block_h).astype(int)
     dow = np.asarray(day_of_week)
     day = (dow >= 5).astype(int) if day_types == 2 else np.clip(dow - 4, 0, 2).astype(int)
-    return block + _BLOCKS * day
+    return block + _blocks(block_h) * day
 
 
-def _schedule(times: pd.Series, day_types: int = 2) -> np.ndarray:
-    """(N, day_types * blocks per day) one-hot of each time's schedule coefficient."""
-    t = pd.to_datetime(times)
+def _day_of_week(df: pd.DataFrame) -> np.ndarray:
+    """(N,) each row's day of the week (0 = Monday), 6 on the building's holidays (the data's
+    ``holiday`` column, where it has one)."""
+    dow = pd.to_datetime(df["time"]).dt.day_of_week.to_numpy().copy()
+    if "holiday" in df:
+        dow[df["holiday"].to_numpy(dtype=float) > 0] = 6
+    return dow
+
+
+def _schedule(df: pd.DataFrame, day_types: int = 2, block_h: float = BLOCK_H) -> np.ndarray:
+    """(N, day_types * blocks per day) one-hot of each row's schedule coefficient."""
+    t = pd.to_datetime(df["time"])
     index = _schedule_index(
-        (t.dt.hour + t.dt.minute / 60.0).to_numpy(), t.dt.day_of_week.to_numpy(), day_types
+        (t.dt.hour + t.dt.minute / 60.0).to_numpy(), _day_of_week(df), day_types, block_h
     )
-    out = np.zeros((len(t), day_types * _BLOCKS))
+    out = np.zeros((len(t), day_types * _blocks(block_h)))
     out[np.arange(len(t)), index] = 1.0
     return out
 
@@ -126,7 +150,8 @@ class ARXModel:
     interaction columns],) in scaled units; ``dt_s`` the interval it steps; ``train_mae_c`` its
     one-step MAE on the training data; ``day_types`` 2 (workdays, weekends) or 3 (workdays,
     Saturdays, Sundays); ``interaction`` whether each schedule block also weighs
-    ``T_r,k - T_a,k`` (the physics-informed variant, module docstring).
+    ``T_r,k - T_a,k`` (the physics-informed variant, module docstring); ``block_h`` the length
+    of the schedule's blocks [h].
     """
 
     columns: tuple[str, ...]
@@ -136,11 +161,12 @@ class ARXModel:
     train_mae_c: float
     day_types: int = 2
     interaction: bool = False
+    block_h: float = BLOCK_H
 
     @property
     def n_schedule(self) -> int:
         """Coefficients of the schedule (and as many of its interaction, if any)."""
-        return self.day_types * _BLOCKS
+        return self.day_types * _blocks(self.block_h)
 
     def _interaction_coef(self) -> np.ndarray:
         start = self.lags * len(self.columns) + self.n_schedule
@@ -158,7 +184,7 @@ class ARXModel:
         values = np.stack(
             [df[c].to_numpy(dtype=float) * _SCALE[c] for c in self.columns], axis=1
         )
-        return values, _schedule(df["time"], self.day_types)
+        return values, _schedule(df, self.day_types, self.block_h)
 
     def predict_t_r(self, df: pd.DataFrame, horizon: int, starts: np.ndarray) -> np.ndarray:
         """``T_r`` [C] at ``starts + horizon`` (N,): the model's own recursion from the
@@ -245,7 +271,7 @@ class ARXModel:
                 if name == "u_phys":
                     gain += coef[j * n_col + c] * _SCALE[name] * np.eye(h, k=-j)
         index = _schedule_index(
-            np.asarray(exog["time_of_day_h"], dtype=float)[:h], dow, self.day_types
+            np.asarray(exog["time_of_day_h"], dtype=float)[:h], dow, self.day_types, self.block_h
         )
         free += coef[lags * n_col : lags * n_col + self.n_schedule][index]
         q = self._interaction_coef()[index]  # (h,)
@@ -282,7 +308,7 @@ class ARXModel:
             "lags": self.lags,
             "coef": [float(c) for c in self.coef],
             "dt_s": self.dt_s,
-            "block_h": BLOCK_H,
+            "block_h": self.block_h,
             "day_types": self.day_types,
             "interaction": self.interaction,
             "train_mae_c": self.train_mae_c,
@@ -296,23 +322,27 @@ def fit_arx(
     day_types: int = 2,
     interaction: bool = False,
     inputs: tuple[str, ...] = MEASURED_INPUTS,
+    block_h: float = BLOCK_H,
 ) -> ARXModel:
     """Least-squares ARX fit of ``df`` (data format: ``time``, ``T_r``, ``u_phys``, ``T_a``,
     optional ``G``, the facades' irradiance (:data:`pinn_mpc.solar.FACADE_COLUMNS`) and ``I_g``;
     consecutive rows at ``df.attrs["dt_s"]``); ``day_types`` and ``interaction`` as
     :class:`ARXModel` has them; ``inputs`` the optional inputs it takes where the data has
-    them (by default the measured ones, :data:`MEASURED_INPUTS`)."""
+    them (by default the measured ones, :data:`MEASURED_INPUTS`); ``block_h`` the length [h] of
+    the schedule's blocks (it must divide the day)."""
     if lags < 1:
         raise InputError(f"ARX model: lags must be >= 1, got {lags}")
     if day_types not in (2, 3):
         raise InputError(f"ARX model: day_types must be 2 or 3, got {day_types}")
+    if not _valid_block(block_h):
+        raise InputError(f"ARX model: block_h must divide the day into whole hours' blocks, got {block_h}")
     unknown = set(inputs) - set(_INPUT_ORDER)
     if unknown:
         raise InputError(f"ARX model: unknown input(s) {sorted(unknown)}; known {list(_INPUT_ORDER)}")
     columns = ("T_r", "u_phys", "T_a", *(c for c in _INPUT_ORDER if c in inputs and c in df))
     model = ARXModel(
         columns=columns, lags=lags, coef=np.zeros(0), dt_s=float(df.attrs.get("dt_s", 1800.0)),
-        train_mae_c=0.0, day_types=day_types, interaction=interaction,
+        train_mae_c=0.0, day_types=day_types, interaction=interaction, block_h=float(block_h),
     )
     n_coef = lags * len(columns) + model.n_schedule * (2 if interaction else 1)
     if len(df) < lags + 2 * n_coef:
@@ -341,19 +371,23 @@ def fit_physics_informed_arx(
     acts against the sign of ``eta`` (> 0 a heater: more power must warm the room; < 0 a
     cooling machine: it must cool), as then the data do not identify the actuator.
 
-    Where the data has the facades' irradiance (:data:`pinn_mpc.solar.FACADE_COLUMNS`), the
-    fit chooses whether to take it besides the measured inputs: fitted on the first three
-    quarters of the data each way, the one whose 12-hour prediction of the last quarter
-    (:data:`SELECTION_SHARE`, :data:`SELECTION_HORIZON_S`) errs less is fitted on all of it
-    (the facades are four more irradiance inputs; how much a building's windows make of them
-    is in the data). With too little data to hold a quarter out, the measured inputs alone."""
-    inputs: tuple[str, ...] = MEASURED_INPUTS
+    The fit chooses its schedule's block length from :data:`BLOCK_CHOICES_H` and, where the
+    data has the facades' irradiance (:data:`pinn_mpc.solar.FACADE_COLUMNS`), whether to take
+    it besides the measured inputs: fitted on the first three quarters of the data each way,
+    the one whose 12-hour prediction of the last quarter (:data:`SELECTION_SHARE`,
+    :data:`SELECTION_HORIZON_S`) errs least is fitted on all of it (hourly blocks follow an
+    office's hourly schedules but have twice the coefficients to fit; the facades are four more
+    irradiance inputs, and how much a building's windows make of them is in the data). Ties,
+    and data too short to hold a quarter out, keep the first choice: 2-hour blocks, the
+    measured inputs alone."""
+    choices: list[tuple[tuple[str, ...], float]] = [
+        (MEASURED_INPUTS, BLOCK_H), *((MEASURED_INPUTS, b) for b in BLOCK_CHOICES_H if b != BLOCK_H)
+    ]
     if all(c in df for c in FACADE_COLUMNS):
-        with_facades = (*MEASURED_INPUTS, *FACADE_COLUMNS)
-        errors = {chosen: _held_out_error(df, chosen, lags) for chosen in (inputs, with_facades)}
-        if errors[with_facades] < errors[inputs]:
-            inputs = with_facades
-    model = fit_arx(df, lags=lags, day_types=3, interaction=True, inputs=inputs)
+        choices += [((*MEASURED_INPUTS, *FACADE_COLUMNS), b) for _, b in list(choices)]
+    errors = [_held_out_error(df, inputs, lags, block_h) for inputs, block_h in choices]
+    inputs, block_h = choices[int(np.argmin(errors))]
+    model = fit_arx(df, lags=lags, day_types=3, interaction=True, inputs=inputs, block_h=block_h)
     n_col = len(model.columns)
     if float(np.sum(model.coef[1 : lags * n_col : n_col])) * float(np.sign(eta)) <= 0:
         raise InputError(
@@ -364,8 +398,9 @@ def fit_physics_informed_arx(
     return model
 
 
-def _held_out_error(df: pd.DataFrame, inputs: tuple[str, ...], lags: int) -> float:
-    """MAE [K] of the physics-informed ARX with ``inputs``, fitted on all but the last
+def _held_out_error(df: pd.DataFrame, inputs: tuple[str, ...], lags: int, block_h: float) -> float:
+    """MAE [K] of the physics-informed ARX with ``inputs`` and schedule blocks of ``block_h``
+    hours, fitted on all but the last
     :data:`SELECTION_SHARE` of ``df``, predicting that last part :data:`SELECTION_HORIZON_S`
     ahead from every start (its history overlapping the fitted part); inf when either part is
     too short."""
@@ -378,7 +413,7 @@ def _held_out_error(df: pd.DataFrame, inputs: tuple[str, ...], lags: int) -> flo
     if len(held_out) < lags + horizon:
         return math.inf
     try:
-        model = fit_arx(fitted, lags=lags, day_types=3, interaction=True, inputs=inputs)
+        model = fit_arx(fitted, lags=lags, day_types=3, interaction=True, inputs=inputs, block_h=block_h)
     except InputError:
         return math.inf
     starts = np.arange(lags - 1, len(held_out) - horizon)
@@ -426,7 +461,9 @@ def load_arx(path: str | os.PathLike[str]) -> ARXModel:
         interaction = data.get("interaction", False)
     except (OSError, ValueError, KeyError, TypeError) as exc:
         raise InputError(f"{file}: not a readable ARX model ({exc}); write it with `pinn-mpc train --arch arx`") from None
-    expected = lags * len(columns) + day_types * _BLOCKS * (2 if interaction is True else 1)
+    if not _valid_block(block_h):
+        raise InputError(f"{file}: not a valid ARX model (block_h {block_h:g} does not divide the day)")
+    expected = lags * len(columns) + day_types * _blocks(block_h) * (2 if interaction is True else 1)
     if (
         day_types not in (2, 3)
         or not isinstance(interaction, bool)
@@ -436,7 +473,6 @@ def load_arx(path: str | os.PathLike[str]) -> ARXModel:
         or not 1 <= lags <= 1000
         or coef.shape != (expected,)
         or not np.all(np.isfinite(coef))
-        or block_h != BLOCK_H
         or not 0 < dt_s <= 86400
     ):
         raise InputError(
@@ -446,5 +482,10 @@ def load_arx(path: str | os.PathLike[str]) -> ARXModel:
     return ARXModel(
         columns=columns, lags=lags, coef=coef, dt_s=dt_s,
         train_mae_c=float(data.get("train_mae_c", float("nan"))),
-        day_types=day_types, interaction=bool(interaction),
+        day_types=day_types, interaction=bool(interaction), block_h=block_h,
     )
+
+
+def _valid_block(block_h: float) -> bool:
+    """Whether ``block_h`` [h] is a whole number of hours that divides the day."""
+    return block_h in (1.0, 2.0, 3.0, 4.0, 6.0, 8.0, 12.0, 24.0)

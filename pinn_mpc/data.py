@@ -5,7 +5,9 @@ start of the interval, optional ``T_m`` [C] (simulated data only), ``u`` [W] dem
 the interval, ``u_phys`` [W] mean delivered during the interval, ``T_a`` [C]; optional
 ``G`` [W/m2], the irradiance on the site's vertical facades ``G_south``, ``G_east``,
 ``G_west``, ``G_north`` [W/m2] (:mod:`pinn_mpc.solar`), ``I_g`` [W], ``price`` [EUR/kWh],
-``T_min``/``T_max`` [C] comfort band, ``cop`` [-] heat delivered per electrical watt of ``u_phys`` (a heat pump's COP; absent or 1 for a
+``T_min``/``T_max`` [C] comfort band, ``holiday`` (1 on the days the building runs its
+Sunday-or-holiday schedules, else 0; an EnergyPlus building's ``RunPeriodControl:SpecialDays``),
+``cop`` [-] heat delivered per electrical watt of ``u_phys`` (a heat pump's COP; absent or 1 for a
 resistance heater; :func:`pinn_mpc.identify.identify_rc` then fits on ``cop`` x ``u_phys``).
 
 :func:`read_timeseries` validates a file and returns a DataFrame whose ``time`` column is
@@ -43,10 +45,10 @@ __all__ = [
 ]
 
 REQUIRED = ("time", "T_r", "u", "u_phys", "T_a")
-OPTIONAL = ("T_m", "G", *FACADE_COLUMNS, "I_g", "price", "T_min", "T_max", "cop")
+OPTIONAL = ("T_m", "G", *FACADE_COLUMNS, "I_g", "price", "T_min", "T_max", "holiday", "cop")
 COLUMNS = (
     "time", "T_r", "T_m", "u", "u_phys", "T_a", "G", *FACADE_COLUMNS, "I_g", "price", "T_min",
-    "T_max", "cop",
+    "T_max", "holiday", "cop",
 )
 #: Plausible heat per electrical watt (``cop`` column): a resistance heater 1, heat pumps 2-6.
 COP_RANGE = (0.5, 10.0)
@@ -233,6 +235,12 @@ def validate_timeseries(
                 f"{source}: column 'cop' row {row + 1} is {out['cop'].iloc[row]:g}, outside the "
                 f"plausible {lo:g} .. {hi:g} (heat delivered per electrical watt)"
             )
+    if "holiday" in out.columns and not out["holiday"].isin((0.0, 1.0)).all():
+        row = int(np.flatnonzero(~out["holiday"].isin((0.0, 1.0)).to_numpy())[0])
+        raise InputError(
+            f"{source}: column 'holiday' row {row + 1} is {out['holiday'].iloc[row]:g}; it must "
+            "be 1 on the building's holidays and 0 on other days"
+        )
     dt_s = _check_steps(out["time"], raw_time, source)
     ordered = [c for c in COLUMNS if c in out.columns]
     out = out[ordered]

@@ -61,12 +61,15 @@ __all__ = [
     "bundled_weather",
     "energyplus_available",
     "extreme_window",
+    "holiday_dates",
+    "holidays",
     "prepare_model",
     "prepare_plant",
     "resolve_building",
     "resolve_weather",
     "schedule_gains",
     "size_heater",
+    "special_day_date",
     "weather_year",
 ]
 
@@ -106,6 +109,10 @@ _LOAD_TYPES = (
 #: Calendar years (not leap years) whose 1 January falls on each weekday, Monday first.
 _YEAR_BY_WEEKDAY = {0: 2018, 1: 2019, 2: 2014, 3: 2015, 4: 2010, 5: 2011, 6: 2017}
 _WEEKDAYS = ("monday", "tuesday", "wednesday", "thursday", "friday", "saturday", "sunday")
+_MONTHS = {name.lower(): i for i, name in enumerate(calendar.month_name) if name} | {
+    name.lower(): i for i, name in enumerate(calendar.month_abbr) if name
+}
+_ORDINALS = {"1st": 1, "2nd": 2, "3rd": 3, "4th": 4, "5th": 5, "last": -1}
 
 
 def energyplus_available() -> bool:
@@ -1186,6 +1193,62 @@ def size_heater(
     if not (math.isfinite(margin) and margin >= 1.0):
         raise InputError(f"size_heater: margin must be >= 1, got {margin!r}")
     return _size_heater_cached(_plant_key(plant), plant.weather, float(setpoint_c), float(heat_per_w), margin, days, dt_s)
+
+
+def special_day_date(text: str, year: int) -> dt.date:
+    """The date in ``year`` of a ``RunPeriodControl:SpecialDays`` start date, in any form
+    EnergyPlus reads: ``1/15`` (month/day), ``January 15`` or ``15 January``, ``3rd Monday in
+    January``, ``Last Monday in May``. InputError on anything else."""
+    words = str(text).strip().lower().replace(",", " ").split()
+    try:
+        if len(words) == 1 and "/" in words[0]:
+            month, day = (int(x) for x in words[0].split("/"))
+            return dt.date(year, month, day)
+        if len(words) == 2:
+            month_word, day_word = words if words[0] in _MONTHS else words[::-1]
+            return dt.date(year, _MONTHS[month_word], int(day_word))
+        if len(words) == 4 and words[2] == "in":
+            nth, weekday, month = _ORDINALS[words[0]], _WEEKDAYS.index(words[1]), _MONTHS[words[3]]
+            days = [
+                d for d in range(1, calendar.monthrange(year, month)[1] + 1)
+                if dt.date(year, month, d).weekday() == weekday
+            ]
+            return dt.date(year, month, days[nth if nth < 0 else nth - 1])
+    except (KeyError, ValueError, IndexError):
+        pass
+    raise InputError(
+        f"RunPeriodControl:SpecialDays start date {text!r} is not a date EnergyPlus reads "
+        "(e.g. 1/15, January 15, 3rd Monday in January, Last Monday in May)"
+    )
+
+
+def holiday_dates(model: dict[str, Any], year: int) -> frozenset[dt.date]:
+    """The days of ``year`` on which the building (an epJSON model) runs its holiday schedules:
+    its ``RunPeriodControl:SpecialDays`` of type Holiday, each for its duration."""
+    out: set[dt.date] = set()
+    for obj in model.get("RunPeriodControl:SpecialDays", {}).values():
+        if str(obj.get("special_day_type", "Holiday")).lower() != "holiday":
+            continue
+        first = special_day_date(obj.get("start_date", ""), year)
+        out.update(first + dt.timedelta(days=i) for i in range(int(obj.get("duration", 1))))
+    return frozenset(d for d in out if d.year == year)
+
+
+@functools.lru_cache(maxsize=16)
+def _holiday_dates_cached(prepared_key: tuple[str, bool, str, float], year: int) -> frozenset[dt.date]:
+    return holiday_dates(_prepared(prepared_key).model, year)
+
+
+def holidays(plant: Any, times: np.ndarray) -> np.ndarray:
+    """(N,) 1.0 where the interval starting at ``times`` falls on one of the building's
+    holidays (:func:`holiday_dates`: the days it runs its Sunday-or-holiday schedules), else 0.0.
+    A building's holiday calendar is known in advance, like its gains schedules."""
+    days = np.asarray(times, dtype="datetime64[D]")
+    years = days.astype("datetime64[Y]").astype(int) + 1970
+    found: set[np.datetime64] = set()
+    for year in np.unique(years):
+        found.update(np.datetime64(d, "D") for d in _holiday_dates_cached(_plant_key(plant), int(year)))
+    return np.isin(days, np.array(sorted(found), dtype="datetime64[D]")).astype(float)
 
 
 @functools.lru_cache(maxsize=16)

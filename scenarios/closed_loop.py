@@ -223,7 +223,10 @@ def run_closed_loop(
     series, counted, exo = run.series, run.counted, run.exo
     # The inputs the plant had: the series' rows on the RC plant, EnergyPlus's own otherwise.
     # The facades' irradiance, where the run has it, is the weather file's.
-    given = {*_EXOGENOUS, *(FACADE_COLUMNS if series.has_facades else ())}
+    given = {
+        *_EXOGENOUS, *(FACADE_COLUMNS if series.has_facades else ()),
+        *(("holiday",) if series.holiday is not None else ()),
+    }
     exogenous = tuple(c for c in COLUMNS if c in given)  # in the data format's order
     cols = {c: getattr(series, c) for c in exogenous}
     cols.update(T_a=rec.t_a_c, G=rec.g_w_per_m2, I_g=rec.i_g_w)

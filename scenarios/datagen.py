@@ -285,5 +285,7 @@ def _generate_energyplus(
         frame["I_g"] = i_g
     for name in FACADE_COLUMNS:  # the facades' irradiance of the plant's weather file
         frame[name] = exo[name].to_numpy(dtype=float)[:n]
+    if "holiday" in exo:  # the building's holiday calendar
+        frame["holiday"] = exo["holiday"].to_numpy(dtype=float)[:n]
     frame.attrs["dt_s"] = float(scenario.sim.dt_s)
     return frame

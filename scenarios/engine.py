@@ -146,8 +146,11 @@ class ExogenousSeries:
     times: np.ndarray | None = None
 
     #: (N,) day of the week of each interval's start, 0 = Monday; by default from ``times``
-    #: (NaN without them).
+    #: (NaN without them), 6 (Sunday) on the building's holidays.
     day_of_week: np.ndarray | None = None
+    #: (N,) 1 where the interval falls on one of the building's holidays (the days it runs its
+    #: Sunday-or-holiday schedules; an EnergyPlus building's), 0 elsewhere; None: no calendar.
+    holiday: np.ndarray | None = None
     #: (N,) the irradiance on the site's facades [W/m2] (:data:`pinn_mpc.solar.FACADE_COLUMNS`),
     #: where the run has it (an EnergyPlus scenario's); None otherwise.
     G_south: np.ndarray | None = None
@@ -161,8 +164,10 @@ class ExogenousSeries:
                 dow = np.full(len(self.T_a), np.nan)
             else:  # 1970-01-01 was a Thursday
                 dow = ((np.asarray(self.times, dtype="datetime64[D]").astype(np.int64) + 3) % 7).astype(float)
+                if self.holiday is not None:
+                    dow[np.asarray(self.holiday) > 0] = 6.0
             object.__setattr__(self, "day_of_week", dow)
-        given = [getattr(self, name) for name in Forecast._fields]
+        given = [getattr(self, name) for name in (*Forecast._fields, "holiday")]
         lengths = {len(series) for series in given if series is not None}
         if len(lengths) != 1:
             raise InputError(f"ExogenousSeries: all series need one length, got {sorted(lengths)}")
@@ -178,7 +183,7 @@ class ExogenousSeries:
     @classmethod
     def from_frame(cls, frame: pd.DataFrame) -> ExogenousSeries:
         """From a frame with ``time`` and :data:`EXOGENOUS_FIELDS` (as Scenario.exogenous makes
-        it), and the facades' irradiance when the frame has it."""
+        it), and the facades' irradiance and ``holiday`` when the frame has them."""
         missing = [c for c in ("time", *EXOGENOUS_FIELDS) if c not in frame.columns]
         if missing:
             raise InputError(
@@ -186,7 +191,7 @@ class ExogenousSeries:
             )
         cols = {
             c: frame[c].to_numpy(dtype=float)
-            for c in (*EXOGENOUS_FIELDS, *FACADE_COLUMNS)
+            for c in (*EXOGENOUS_FIELDS, *FACADE_COLUMNS, "holiday")
             if c in frame.columns
         }
         times = pd.DatetimeIndex(frame["time"]).to_numpy()

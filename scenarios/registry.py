@@ -176,7 +176,8 @@ class Scenario:
         Columns ``time`` (datetime64, interval start), ``T_a`` [C], ``G`` [W/m2], ``I_g`` [W],
         ``price`` [EUR/kWh], ``T_min``/``T_max`` [C]; for an EnergyPlus plant also the
         irradiance on its site's facades (:data:`pinn_mpc.solar.FACADE_COLUMNS` [W/m2], from
-        the plant's weather file, :meth:`scenarios.inputs.TMY3Weather.facades`). ``part`` is the weather part the run is
+        the plant's weather file, :meth:`scenarios.inputs.TMY3Weather.facades`) and ``holiday``
+        (1 on the building's holidays, :func:`pinn_mpc.energyplus.holidays`). ``part`` is the weather part the run is
         drawn from (``train``, ``test`` or ``whole``, see :mod:`scenarios.inputs`); a run that
         does not fit in its part raises InputError. The ``lead_steps`` extra rows at the end
         give a controller at the last step a full-horizon forecast; with ``whole`` they never
@@ -229,6 +230,9 @@ class Scenario:
             facades = cast(TMY3Weather, self.weather).facades(times, dt_s=dt_s)
             for name in FACADE_COLUMNS:
                 frame[name] = facades[name]
+            from pinn_mpc.energyplus import holidays
+
+            frame["holiday"] = holidays(plant, times.to_numpy())
         frame.attrs["dt_s"] = float(dt_s)
         return frame
 

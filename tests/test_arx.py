@@ -134,15 +134,21 @@ def test_train_arch_arx_writes_numbers_that_evaluate_and_closed_loop_load(tmp_pa
     assert len(err.splitlines()) == 1 and "not a valid ARX model" in err
 
 
-def _occupied_data(days: int, seed: int, *, heater_gain: float = 0.002) -> pd.DataFrame:
+def _occupied_data(
+    days: int, seed: int, *, heater_gain: float = 0.002, start_h: int = 8,
+    holidays: tuple[str, ...] = (), start: str = "2022-01-03",
+) -> pd.DataFrame:
     """A first-order room whose heat loss and gains follow a workday / Saturday / Sunday
-    schedule (occupancy-driven ventilation): exactly a physics-informed ARX of one lag."""
+    schedule (occupancy-driven ventilation, from ``start_h`` to 18 h on workdays), with
+    Sunday's on ``holidays`` (marked in a ``holiday`` column when there are any): exactly a
+    physics-informed ARX of one lag."""
     rng = np.random.default_rng(seed)
     n = days * 48
-    time = pd.date_range("2022-01-03", periods=n, freq="30min")  # a Monday
+    time = pd.date_range(start, periods=n, freq="30min")  # 2022-01-03 a Monday
     hour = time.hour.to_numpy()
-    dow = time.day_of_week.to_numpy()
-    occupied = (hour >= 8) & (hour < 18) & ((dow < 5) | ((dow == 5) & (hour < 12)))
+    holiday = np.isin(time.normalize(), pd.DatetimeIndex(holidays))
+    dow = np.where(holiday, 6, time.day_of_week.to_numpy())
+    occupied = (hour >= start_h) & (hour < 18) & ((dow < 5) | ((dow == 5) & (hour < 12)))
     loss = np.where(occupied, 0.12, 0.05)  # share of T_r - T_a lost per interval
     gains = np.where(occupied, 0.6, 0.1) + np.where(dow == 5, 0.2, 0.0)  # K per interval
     u = rng.uniform(0, 1000, n)
@@ -152,6 +158,8 @@ def _occupied_data(days: int, seed: int, *, heater_gain: float = 0.002) -> pd.Da
     for k in range(n - 1):
         t_r[k + 1] = t_r[k] - loss[k] * (t_r[k] - t_a[k]) + heater_gain * u[k] + gains[k]
     df = pd.DataFrame({"time": time, "T_r": t_r, "u": u, "u_phys": u, "T_a": t_a})
+    if holidays:
+        df["holiday"] = holiday.astype(float)
     df.attrs["dt_s"] = 1800.0
     return df
 
@@ -168,6 +176,7 @@ def test_physics_informed_arx_recovers_an_occupancy_scaled_heat_loss_exactly():
     n_lag = len(model.columns)  # one lag of T_r, u_phys, T_a
     assert model.coef[1] * 1e-3 == pytest.approx(0.002, rel=1e-6)  # scaled: K per kW
     q = model.coef[n_lag + model.n_schedule :]
+    assert model.block_h == BLOCK_H  # the schedule changes on even hours: the coarser blocks
     blocks = int(24 / BLOCK_H)
     # workday 08-18 h is blocks 4-8, the T_r coefficient itself absorbs the unoccupied loss
     assert q[4] - q[0] == pytest.approx(-0.07, abs=1e-6)
@@ -180,6 +189,27 @@ def test_physics_informed_arx_recovers_an_occupancy_scaled_heat_loss_exactly():
         assert np.max(np.abs(err)) < 1e-4  # the ridge of 1e-9 only
     plain = fit_arx(train, lags=1)
     assert np.mean(np.abs(plain.predict_t_r(test, 24, starts) - truth[starts + 24])) > 0.1
+
+
+def test_physics_informed_arx_counts_holidays_as_sundays_and_takes_hourly_blocks_when_needed(tmp_path):
+    """Occupancy from 07 h, and a Monday holiday run on the Sunday schedule in both the
+    training and the test days: the fit takes hourly blocks and the ``holiday`` column, and
+    predicts exactly, the holiday too; the saved model keeps its blocks. Without the column
+    the holiday looks like a workday and the prediction of that day is off."""
+    from pinn_mpc.arx import fit_physics_informed_arx, load_arx, save_arx
+
+    train = _occupied_data(28, seed=0, start_h=7, holidays=("2022-01-17",))
+    test = _occupied_data(14, seed=1, start_h=7, holidays=("2022-02-21",), start="2022-02-14")
+    model = fit_physics_informed_arx(train, lags=1)
+    assert model.block_h == 1.0
+    starts = np.arange(0, len(test) - 48)
+    truth = test["T_r"].to_numpy()
+    err = model.predict_t_r(test, 24, starts) - truth[starts + 24]
+    assert np.max(np.abs(err)) < 1e-4
+    assert load_arx(save_arx(model, tmp_path / "m").parent).block_h == 1.0
+    blind = fit_physics_informed_arx(train.drop(columns="holiday"), lags=1)
+    off = blind.predict_t_r(test.drop(columns="holiday"), 24, starts) - truth[starts + 24]
+    assert np.max(np.abs(off)) > 0.5
 
 
 def test_physics_informed_arx_round_trips_plans_as_it_predicts_and_refuses_cooling_heat(tmp_path):

@@ -76,6 +76,11 @@ def test_column_mapping_and_single_power_column(tmp_path):
             lambda d: d.assign(time=pd.date_range("2024-01-01", periods=len(d), freq="12h")),
             "time step is 43200 s, outside the plausible",
         ),
+        # A building's holiday calendar is a 0/1 mark per row.
+        (
+            lambda d: d.assign(holiday=np.where(d.index == 3, 2.0, 0.0)),
+            r"'holiday' row 4 is 2; it must be 1 on the building's holidays and 0 on other days",
+        ),
         (
             lambda d: d.iloc[::-1],
             r"'time' goes backwards at row 2 \(2024-01-01 02:30:00 then 2024-01-01 02:00:00\)",

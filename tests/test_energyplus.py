@@ -8,6 +8,7 @@ import threading
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 
 pytest.importorskip("pyenergyplus.api")
@@ -112,7 +113,7 @@ def test_same_seed_same_csv(tmp_path):
     a, b = (tmp_path / "a.csv").read_text(), (tmp_path / "b.csv").read_text()
     assert a == b
     assert a.splitlines()[0] == (
-        "time,T_r,u,u_phys,T_a,G,G_south,G_east,G_west,G_north,price,T_min,T_max"
+        "time,T_r,u,u_phys,T_a,G,G_south,G_east,G_west,G_north,price,T_min,T_max,holiday"
     )
     assert len(a.splitlines()) == 49
 
@@ -214,6 +215,28 @@ def test_facade_irradiance_of_the_epw_reaches_data_trajectories_and_forecasts():
     assert np.array_equal(seen["forecast"], run.series.G_south[30:])
     trajectory = run_closed_loop(scenario, Thermostat(scenario.control_spec()), days=1, seed=0).trajectory
     assert set(FACADE_COLUMNS) <= set(trajectory.columns) and trajectory["G_south"].max() > 50.0
+
+
+def test_the_buildings_holidays_reach_data_and_the_forecasts_day_of_the_week():
+    """The small office's special days (New Year, MLK Day, Presidents' Day in 2022's first two
+    months) mark the scenario's ``holiday`` column, and the series reads them as Sundays."""
+    import datetime as dt
+
+    from pinn_mpc.energyplus import holidays
+    from scenarios.engine import ExogenousSeries
+
+    scenario = get_scenario(SCENARIO)
+    times = pd.date_range("2022-01-01", "2022-02-28 23:30", freq="30min")
+    marked = holidays(scenario.sim.plant, times.to_numpy())
+    days = sorted({t.date() for t in times[marked > 0]})
+    assert days == [dt.date(2022, 1, 1), dt.date(2022, 1, 17), dt.date(2022, 2, 21)]
+    exo = scenario.exogenous(days=1, seed=0, part="train")
+    assert "holiday" in exo and set(exo["holiday"]) <= {0.0, 1.0}
+    frame = pd.DataFrame({"time": times, "holiday": marked, **{
+        c: np.zeros(len(times)) for c in ("T_a", "G", "I_g", "price", "T_min", "T_max")
+    }})
+    dow = ExogenousSeries.from_frame(frame).day_of_week
+    assert np.all(dow[marked > 0] == 6) and np.array_equal(dow[marked == 0], times.day_of_week[marked == 0])
 
 
 def test_scenario_file_energyplus_defaults_and_checks(tmp_path):
