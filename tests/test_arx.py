@@ -212,6 +212,42 @@ def test_physics_informed_arx_counts_holidays_as_sundays_and_takes_hourly_blocks
     assert np.max(np.abs(off)) > 0.5
 
 
+def test_polish_linearises_the_physics_informed_arx_exactly_by_probing_every_step():
+    """The physics-informed ARX's horizon is affine in the plan but time-varying (its heat
+    loss follows the schedule), so the LP polish's sensitivities equal the model's own gain
+    matrix only when every step is probed, which the sampling planners do for it."""
+    import torch
+
+    from controllers.lp_polish import jacobians, probes
+    from controllers.sampling import CEM
+    from pinn_mpc.arx import fit_physics_informed_arx
+    from pinn_mpc.features import time_of_day_h
+    from scenarios.registry import get_scenario
+
+    data = _occupied_data(28, seed=0)
+    model = fit_physics_informed_arx(data, lags=1)
+    k, h = 40, 48
+    time = pd.to_datetime(data["time"])
+    history = {c: data[c].to_numpy()[: k + 1] for c in ("T_r", "T_a")}
+    history["u_phys"] = data["u_phys"].to_numpy()[:k]
+    exog = {
+        "time_of_day_h": time_of_day_h(data["time"])[k : k + h],
+        "day_of_week": time.dt.day_of_week.to_numpy(dtype=float)[k : k + h],
+        "T_a": data["T_a"].to_numpy()[k : k + h],
+    }
+    _, gain = model.prediction_matrices(history, exog, h)
+    u0 = torch.full((h,), 500.0, dtype=torch.float64)
+    errors = {}
+    for stride in (1, 4):
+        batch, step = probes(u0, 10.0, 1000.0, stride)
+        roll = model.rollout(history, batch, exog)
+        jr = jacobians(roll.t_r_c, roll.u_phys_w, step)[2][0]
+        errors[stride] = np.max(np.abs(jr - gain))
+    assert errors[1] < 1e-9 < 1e-5 < errors[4]
+    spec = get_scenario("winter_household").control_spec()
+    assert CEM(model, spec).polish.probe_stride == 1
+
+
 def test_physics_informed_arx_round_trips_plans_as_it_predicts_and_refuses_cooling_heat(tmp_path):
     import torch
 
