@@ -15,6 +15,7 @@ from pinn_mpc.models.registry import (
     DEFAULT_ARCH,
     MODEL_CHOICES,
     PHYSICS_ARX,
+    TRAIN_CHOICES,
 )
 
 __all__ = [
@@ -27,6 +28,7 @@ __all__ = [
     "PHYSICS_ARX",
     "RECIPES",
     "RESIDUALS",
+    "TRAIN_CHOICES",
 ]
 
 #: Physics residuals of the training loss (:class:`pinn_mpc.training.TrainConfig`).

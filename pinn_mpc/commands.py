@@ -46,6 +46,8 @@ def train(a: argparse.Namespace) -> str:
 
     if a.arch in (ARX.name, PHYSICS_ARX.name):
         return _train_arx(a)
+    if a.arch == "auto":
+        return _train_auto(a)
     check_output_directory(a.out, MODEL_DIRECTORY, force=a.force)
     files = MODEL_DIRECTORY.paths(a.out)
     check_distinct(inputs={"--data": a.data}, outputs={"--out": files})
@@ -63,6 +65,50 @@ def train(a: argparse.Namespace) -> str:
         f"trained {a.arch} x{a.seeds} on {len(df)} rows in {model.record.train_seconds:.1f} s "
         f"(final loss reg {loss['reg']:.3g}, phys {loss['phys']:.3g}); "
         f"wrote {', '.join(map(str, files))}"
+    )
+
+
+def _train_auto(a: argparse.Namespace) -> str:
+    """``train --arch auto`` (the default): the hybrid or the physics-informed ARX, whichever
+    predicts the data's last quarter better (:mod:`pinn_mpc.model_choice`), into ``--out``.
+    ``--out`` may hold a model of either kind; the one not chosen is removed from it."""
+    from pinn_mpc.artifacts import MODEL_DIRECTORY, save_model
+    from pinn_mpc.arx import ARX_DIRECTORY, save_arx
+    from pinn_mpc.io import DirectoryLayout
+    from pinn_mpc.model_choice import choose_model
+    from pinn_mpc.training import TrainConfig
+
+    either = DirectoryLayout(
+        kind="model directory", files=(*MODEL_DIRECTORY.files, *ARX_DIRECTORY.files), markers=()
+    )
+    check_output_directory(a.out, either, force=a.force)
+    check_distinct(inputs={"--data": a.data}, outputs={"--out": either.paths(a.out)})
+    df = read_timeseries(a.data, columns=a.columns)
+    config = TrainConfig(
+        depth=a.depth, n_seeds=a.seeds, first_seed=a.seed, epochs=a.epochs, lam=a.lam,
+        recipe=a.recipe, eta=_eta(a.eta),
+    )
+    start = time.perf_counter()
+    choice = choose_model(df, config, progress=True)
+    # The other kind's files would make the directory ambiguous to load: they go.
+    stale = ARX_DIRECTORY if choice.chosen != PHYSICS_ARX.name else MODEL_DIRECTORY
+    from pinn_mpc.arx import ARXModel
+
+    if isinstance(choice.model, ARXModel):
+        unused = [f"--{n}" for n in ("depth", "epochs", "lam", "recipe") if getattr(a, n, None) is not None]
+        if unused:
+            warn(f"{', '.join(unused).replace('--lam', '--lambda')} did not apply: the chosen model has no network")
+        written = [str(save_arx(choice.model, a.out))]
+    else:
+        for message in choice.model.record.data_warnings:
+            warn(f"{a.data}: {message}")
+        written = [str(p) for p in MODEL_DIRECTORY.paths(a.out)]
+        save_model(choice.model, a.out, force=True)  # --out was checked above
+    for path in stale.paths(a.out):
+        path.unlink(missing_ok=True)
+    return (
+        f"chose {choice.chosen} ({choice.why}) on {len(df)} rows in "
+        f"{time.perf_counter() - start:.1f} s; wrote {', '.join(written)}"
     )
 
 

@@ -20,7 +20,7 @@ from collections.abc import Sequence
 from typing import Any, NoReturn
 
 from pinn_mpc import __version__
-from pinn_mpc.choices import DEFAULT_ARCH, MODEL_CHOICES, RECIPES
+from pinn_mpc.choices import DEFAULT_ARCH, MODEL_CHOICES, RECIPES, TRAIN_CHOICES
 from pinn_mpc.errors import InputError
 from pinn_mpc.models.registry import arch_help
 from scenarios.choices import CONTROLLER_NAMES, POLICIES, RANDOM_POLICIES, WEATHER_PARTS
@@ -203,13 +203,14 @@ def build_parser() -> argparse.ArgumentParser:
     p = add(
         "train",
         "scenarios.commands:train",
-        "train a seed ensemble of hybrid, mlp, physreg or physnet on data",
+        "train a model on data: by default the hybrid or the physics-informed ARX, whichever "
+        "predicts it better; or a seed ensemble of hybrid, mlp, physreg or physnet, or an ARX",
     )
     data(p, "training data")
     p.add_argument(
         "--arch",
-        choices=MODEL_CHOICES,
-        default=DEFAULT_ARCH,
+        choices=TRAIN_CHOICES,
+        default="auto",
         help=f"the architecture, each with its own defaults: {arch_help()}",
     )
     p.add_argument(
@@ -416,7 +417,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--baseline", default=None, help="controller of the paired differences")
     p.add_argument(
         "--arch", default=None, choices=MODEL_CHOICES,
-        help=f"the model cem and random-shooting plan over (default {DEFAULT_ARCH}, as train's)",
+        help=f"the model cem and random-shooting plan over (default {DEFAULT_ARCH}, the network train --arch auto chooses)",
     )
     p.add_argument(
         "--large", action="store_true", help="confirm a grid of more than 1000 cells"

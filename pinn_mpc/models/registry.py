@@ -31,6 +31,7 @@ __all__ = [
     "COMPARED_ARCHS",
     "DEFAULT_ARCH",
     "MODEL_CHOICES",
+    "TRAIN_CHOICES",
     "ArchSpec",
     "BaselineSpec",
     "arch_help",
@@ -144,8 +145,11 @@ PHYSICS_ARX = BaselineSpec(
 )
 #: Models ``train`` fits that are not architectures of networks.
 BASELINES: dict[str, BaselineSpec] = {ARX.name: ARX, PHYSICS_ARX.name: PHYSICS_ARX}
-#: Every name ``train --arch`` takes.
+#: Every model ``train --arch`` fits by name.
 MODEL_CHOICES = (*ALL_ARCHS, *BASELINES)
+#: What ``train --arch`` takes: ``auto`` (its default, :mod:`pinn_mpc.model_choice`), then every
+#: model by name.
+TRAIN_CHOICES = ("auto", *MODEL_CHOICES)
 
 
 def get_spec(name: str) -> ArchSpec:
@@ -170,8 +174,13 @@ def arch_help() -> str:
     return "; ".join(
         [
             f"{s.name}: {s.summary} (depth {s.depth}, recipe {s.recipe}, data of "
-            f"`simulate --policy {s.policy}`{', the default' if s.name == DEFAULT_ARCH else ''})"
+            f"`simulate --policy {s.policy}`{', the network auto chooses' if s.name == DEFAULT_ARCH else ''})"
             for s in ARCHITECTURES.values()
         ]
         + [f"{b.name}: {b.summary}" for b in BASELINES.values()]
+        + [
+            f"auto (the default): {DEFAULT_ARCH} or {PHYSICS_ARX.name}, whichever predicts the "
+            f"data's last quarter 12 h ahead better ({PHYSICS_ARX.name} when its error is at most "
+            "half the hybrid's), fitted on all of it"
+        ]
     )

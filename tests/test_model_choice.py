@@ -1,0 +1,79 @@
+"""``train --arch auto``, train's default: the hybrid where it predicts the building, the
+physics-informed ARX where that predicts it at least twice as well."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from pinn_mpc.arx import ARXModel, fit_physics_informed_arx
+from pinn_mpc.data import write_timeseries
+from pinn_mpc.model_choice import AUTO_RATIO, choose_model
+from pinn_mpc.models.learned import LearnedModel
+from pinn_mpc.training import TrainConfig
+from tests.model_data import household_data
+from tests.test_arx import _occupied_data
+
+SMALL = TrainConfig(n_seeds=2)
+
+
+def test_auto_keeps_the_hybrid_on_the_2r2c_it_was_made_for():
+    choice = choose_model(household_data(14, seed=0), SMALL)
+    assert choice.chosen == "hybrid" and isinstance(choice.model, LearnedModel)
+    assert choice.horizon_steps == 24
+    assert choice.held_out_mae_c["hybrid"] < 0.3
+    assert choice.held_out_mae_c["parx"] > AUTO_RATIO * choice.held_out_mae_c["hybrid"]
+
+
+def test_auto_takes_the_physics_informed_arx_where_the_hybrid_cannot_predict():
+    """A room whose heat loss follows an occupancy schedule (exactly a physics-informed ARX):
+    the hybrid's 2R2C cannot hold it, the ARX is chosen and fitted on all the data."""
+    data = _occupied_data(28, seed=0)
+    choice = choose_model(data, SMALL)
+    assert choice.chosen == "parx" and isinstance(choice.model, ARXModel)
+    assert choice.held_out_mae_c["parx"] <= AUTO_RATIO * choice.held_out_mae_c["hybrid"]
+    assert np.allclose(choice.model.coef, fit_physics_informed_arx(data).coef)
+    assert "parx" in choice.why and "hybrid" in choice.why
+
+
+def test_auto_without_a_quarter_to_hold_out_trains_the_hybrid():
+    choice = choose_model(household_data(3, seed=0), SMALL)
+    assert choice.chosen == "hybrid" and choice.held_out_mae_c == {}
+    assert "too little data" in choice.why
+
+
+def test_train_default_replaces_a_model_of_the_other_kind_and_keeps_the_users_files(tmp_path, capsys):
+    """``train`` with no --arch writes the chosen kind into a directory that held the other
+    (its files go, so loading is unambiguous); a directory with a user's file is refused
+    before any work, and with --force that file stays."""
+    from pinn_mpc_cli.cli import main
+
+    data = tmp_path / "occupied.csv"
+    write_timeseries(_occupied_data(28, seed=0), data)
+    out = tmp_path / "model"
+    out.mkdir()
+    (out / "model.json").write_text("{}")
+    (out / "weights.safetensors").write_bytes(b"")
+    assert main(["train", "--data", str(data), "--out", str(out), "--seeds", "2"]) == 0
+    assert sorted(p.name for p in out.iterdir()) == ["arx.json"]
+    assert json.loads((out / "arx.json").read_text())["interaction"] is True
+    assert "chose parx" in capsys.readouterr().out
+    (out / "notes.txt").write_text("mine")
+    before = (out / "arx.json").read_bytes()
+    assert main(["train", "--data", str(data), "--out", str(out), "--seeds", "2"]) == 2
+    assert "notes.txt" in capsys.readouterr().err and (out / "arx.json").read_bytes() == before
+    assert main(["train", "--data", str(data), "--out", str(out), "--seeds", "2", "--force"]) == 0
+    assert (out / "notes.txt").read_text() == "mine"
+
+
+@pytest.mark.parametrize("arch", ["auto", "hybrid"])
+def test_train_hybrid_by_name_or_by_choice_writes_a_model_directory(tmp_path, arch):
+    from pinn_mpc_cli.cli import main
+
+    data = tmp_path / "household.csv"
+    write_timeseries(household_data(14, seed=0), data)
+    out = tmp_path / arch
+    assert main(["train", "--data", str(data), "--out", str(out), "--seeds", "2", "--arch", arch]) == 0
+    assert sorted(p.name for p in out.iterdir()) == ["model.json", "weights.safetensors"]
