@@ -572,7 +572,8 @@ class EnergyPlusRun:
     """One EnergyPlus simulation of a :class:`PreparedModel`, stepped one interval at a time.
 
     :meth:`start` begins a run at 00:00 of ``start_day`` (day of the year, 1 = 1 January) for
-    ``days`` days; EnergyPlus's warm-up days hold the room near ``warmup_setpoint_c`` and the
+    ``days`` days (at most a year, into the next year too: the weather file's typical year
+    repeats); EnergyPlus's warm-up days hold the room near ``warmup_setpoint_c`` and the
     call returns the room temperature then. :meth:`step` holds a heater power for one control
     interval (``dt_s``) and returns its :class:`IntervalMeans`. A backup thermostat (full power
     below ``backup_c[0]``, none above ``backup_c[1]``; mirrored for a chiller) acts per zone
@@ -622,37 +623,42 @@ class EnergyPlusRun:
         self._callbacks: list[Any] = []
         self._tmp: Path | None = None
         self._done = True
+        self._start_day = 1
 
     # ---- the caller's side --------------------------------------------------------------
 
     def start(self, start_day: int, days: int, *, year: int | None = None) -> float:
         """Start a fresh run (closing one in progress); the room temperature at its start.
 
-        ``year`` (a non-leap year) sets the calendar, so the building's weekday schedules
-        follow the caller's dates; by default the year whose weekdays match the weather file.
+        ``year`` (a non-leap year, and so the next one when the run crosses 31 December) sets
+        the calendar, so the building's weekday schedules follow the caller's dates; by default
+        the year whose weekdays match the weather file.
         """
         from pyenergyplus import runtime as ep_runtime
         from pyenergyplus.api import EnergyPlusAPI
 
         self.close()
-        if not (1 <= start_day and days >= 1 and start_day + days - 1 <= 365):
+        if not (1 <= start_day <= 365 and 1 <= days <= 365):
             raise InputError(
-                f"EnergyPlus runs one calendar year: {days} day(s) from day {start_day} of the "
-                "year would cross 31 December; use fewer days or a later window"
-            )
-        if year is not None and calendar.isleap(year):
-            raise InputError(
-                f"EnergyPlus runs on a typical (365-day) weather year, so a run cannot be dated "
-                f"in the leap year {year}; date the series in a non-leap year"
+                f"EnergyPlus runs at most a year from a day of the year: {days} day(s) from day "
+                f"{start_day}; use 1 .. 365 of each"
             )
         run_year = self.year if year is None else int(year)
+        crosses = start_day + days - 1 > 365
+        for y in (run_year, run_year + 1) if crosses else (run_year,):
+            if calendar.isleap(y):
+                raise InputError(
+                    f"EnergyPlus runs on a typical (365-day) weather year, so a run cannot be "
+                    f"dated in the leap year {y}; date the series in non-leap years"
+                )
         begin = dt.date(run_year, 1, 1) + dt.timedelta(days=start_day - 1)
         end = begin + dt.timedelta(days=days - 1)
+        self._start_day = start_day
         model = copy.deepcopy(self.prepared.model)
         model["RunPeriod"] = {
             "PINN-MPC Run": {
                 "begin_month": begin.month, "begin_day_of_month": begin.day, "begin_year": run_year,
-                "end_month": end.month, "end_day_of_month": end.day, "end_year": run_year,
+                "end_month": end.month, "end_day_of_month": end.day, "end_year": end.year,
                 "use_weather_file_holidays_and_special_days": "No",
                 "use_weather_file_daylight_saving_period": "No",
                 "apply_weekend_holiday_rule": "No",
@@ -842,12 +848,16 @@ class EnergyPlusRun:
         }
 
     def _seconds(self, state: Any) -> int:
-        """Seconds from 1 January 00:00 to the start of this zone timestep (from the day, the
-        hour and the zone timestep's number, not the system timestep's clock)."""
+        """Seconds from 1 January 00:00 of the run's first year to the start of this zone
+        timestep (from the day, the hour and the zone timestep's number, not the system
+        timestep's clock; a day of the year before the run's first is in the next year)."""
         ex = self.api.exchange
         step_s = 3600 // self.prepared.timesteps_per_hour
         n = ex.zone_time_step_number(state) - 1
-        return int((ex.day_of_year(state) - 1) * SECONDS_PER_DAY + ex.hour(state) * 3600 + n * step_s)
+        day = ex.day_of_year(state)
+        if day < self._start_day:
+            day += 365
+        return int((day - 1) * SECONDS_PER_DAY + ex.hour(state) * 3600 + n * step_s)
 
     @staticmethod
     def _new_acc() -> dict[str, Any]:
@@ -1016,11 +1026,6 @@ class EnergyPlusPlant:
         if first != first.astype("datetime64[D]"):
             raise InputError(f"an EnergyPlus run starts at midnight, not at {first}")
         days = self.times[start:].astype("datetime64[D]")
-        if days[-1].astype("datetime64[Y]") != days[0].astype("datetime64[Y]"):
-            raise InputError(
-                f"an EnergyPlus run stays in one calendar year, but this one runs from {days[0]} "
-                f"to {days[-1]}; use fewer days (or a window that does not cross 31 December)"
-            )
         start_day = int((days[0] - days[0].astype("datetime64[Y]")).astype(int)) + 1
         n_days = int((days[-1] - days[0]).astype(int)) + 1
         self.run.warmup_setpoint_c = float(t_r_c)
@@ -1277,11 +1282,6 @@ def schedule_gains(
     """
     times = np.asarray(times, dtype="datetime64[s]")
     days = times.astype("datetime64[D]")
-    if days[-1].astype("datetime64[Y]") != days[0].astype("datetime64[Y]"):
-        raise InputError(
-            f"the gains of an EnergyPlus building come from a run inside one calendar year, but "
-            f"this series runs from {days[0]} to {days[-1]}"
-        )
     year = int(days[0].astype("datetime64[Y]").astype(int)) + 1970
     start_day = int((days[0] - days[0].astype("datetime64[Y]")).astype(int)) + 1
     n_days = int((days[-1] - days[0]).astype(int)) + 1

@@ -253,10 +253,27 @@ def test_scenario_file_energyplus_defaults_and_checks(tmp_path):
         get_scenario(str(path))
 
 
-def test_run_refuses_a_year_crossing():
-    with EnergyPlusRun(prepare_model("small_office"), weather="usa_il_chicago", u_max_w=1000.0) as run:
-        with pytest.raises(InputError, match="31 December"):
-            run.start(360, 10)
+def test_a_run_crosses_the_year_on_the_typical_years_weather():
+    """A run from 30 December 2021 into 2022 (a 60-day training run ending in January does):
+    three days of intervals, the new year's day with the same weather as a run that starts on
+    it (the typical year repeats; its first hour is interpolated from the last of 31 December),
+    then the run's end. More than a year, or a leap year on
+    the way, is refused."""
+    prepared = prepare_model("small_office")
+    with EnergyPlusRun(prepared, weather="usa_il_chicago", u_max_w=1000.0) as run:
+        run.start(364, 3, year=2021)
+        crossing = np.array([run.step(0.0).t_a_c for _ in range(3 * 48)])
+        with pytest.raises(InputError, match="the run has ended"):
+            run.step(0.0)
+        run.start(1, 1, year=2022)
+        new_year = np.array([run.step(0.0).t_a_c for _ in range(48)])
+        # after the first hour, which EnergyPlus interpolates from the hour before the run's
+        assert crossing[2 * 48 + 2 :] == pytest.approx(new_year[2:], abs=1e-9)
+        assert not np.allclose(crossing[48:96], new_year)
+        with pytest.raises(InputError, match="at most a year"):
+            run.start(1, 366)
+        with pytest.raises(InputError, match="leap year 2024"):
+            run.start(360, 10, year=2023)
     assert _energyplus_threads() == []
 
 
