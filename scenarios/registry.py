@@ -310,7 +310,7 @@ def with_sized_heater(scenario: Scenario, *, given_u_max_w: float | None = None)
 
 def eplus_weather(file_name: str) -> TMY3Weather:
     """The weather of an EnergyPlus scenario: the plant's EPW, January and February, trained
-    on January, tested on February (EnergyPlus runs stay inside one calendar year)."""
+    on January (a longer training run reaches back into December), tested on February."""
     return TMY3Weather(
         file_name=file_name, window_start="01-01", window_days=59, test_start="02-01", test_days=28
     )
