@@ -19,11 +19,11 @@ Sunday-or-holiday schedules on them.
 The physics-informed variant (:func:`fit_physics_informed_arx`) adds what a building's
 unmeasured occupancy does besides adding heat: ventilation and infiltration that follow the
 occupancy schedule scale the heat loss, so each schedule block gets a second coefficient on the
-indoor-outdoor difference, ``+ q(block) (T_r,k - T_a,k)``, and the schedule tells Saturdays
-from Sundays (reference office buildings run a Saturday schedule of their own). It chooses
-its schedule's block length (1 or 2 hours: an office's hourly schedules against fewer
-coefficients to fit) and whether to take the facades' irradiance by a held-out prediction of
-its own training data. The fit must
+indoor-outdoor difference, ``+ q(block) (T_r,k - T_a,k)``. It chooses by cross-validation
+on its own training data whether its schedule tells Saturdays from Sundays (reference office
+buildings run a Saturday schedule of their own), the schedule's block length (1 or 2 hours:
+an office's hourly schedules against fewer coefficients to fit) and whether to take the
+facades' irradiance. The fit must
 say that more power warms the room (the sum of the power's coefficients positive, as a heater
 does; negative for a cooling machine), or it is refused. It is fitted by least squares on the one-step error
 (a tiny ridge keeps it well posed), has no hidden state and no network, and is linear in the
@@ -65,6 +65,7 @@ __all__ = [
     "BLOCK_H",
     "DEFAULT_LAGS",
     "MEASURED_INPUTS",
+    "SELECTION_FOLDS",
     "SELECTION_HORIZON_S",
     "SELECTION_SHARE",
     "fit_arx",
@@ -98,9 +99,11 @@ _SCALE = {
 MEASURED_INPUTS = ("G", "I_g")
 #: Order of every optional input in a model's columns (the facades' after ``G``).
 _INPUT_ORDER = ("G", *FACADE_COLUMNS, "I_g")
-#: Share of the training data the physics-informed ARX holds out to choose its inputs, and
-#: the horizon [s] of the prediction it judges them by (12 h, the comparison's 24 steps).
+#: Share of the training data a model choice holds out (:mod:`pinn_mpc.model_choice`), the
+#: consecutive parts the physics-informed ARX's cross-validation cuts it into, and the horizon
+#: [s] of the prediction both judge by (12 h, the comparison's 24 steps).
 SELECTION_SHARE = 0.25
+SELECTION_FOLDS = 4
 SELECTION_HORIZON_S = 12 * 3600.0
 
 
@@ -323,13 +326,15 @@ def fit_arx(
     interaction: bool = False,
     inputs: tuple[str, ...] = MEASURED_INPUTS,
     block_h: float = BLOCK_H,
+    rows: np.ndarray | None = None,
 ) -> ARXModel:
     """Least-squares ARX fit of ``df`` (data format: ``time``, ``T_r``, ``u_phys``, ``T_a``,
     optional ``G``, the facades' irradiance (:data:`pinn_mpc.solar.FACADE_COLUMNS`) and ``I_g``;
     consecutive rows at ``df.attrs["dt_s"]``); ``day_types`` and ``interaction`` as
     :class:`ARXModel` has them; ``inputs`` the optional inputs it takes where the data has
     them (by default the measured ones, :data:`MEASURED_INPUTS`); ``block_h`` the length [h] of
-    the schedule's blocks (it must divide the day)."""
+    the schedule's blocks (it must divide the day). ``rows``: fit only the steps from these
+    rows to the next (each at least ``lags - 1``, before the last; default all of them)."""
     if lags < 1:
         raise InputError(f"ARX model: lags must be >= 1, got {lags}")
     if day_types not in (2, 3):
@@ -345,13 +350,13 @@ def fit_arx(
         train_mae_c=0.0, day_types=day_types, interaction=interaction, block_h=float(block_h),
     )
     n_coef = lags * len(columns) + model.n_schedule * (2 if interaction else 1)
-    if len(df) < lags + 2 * n_coef:
+    k = np.arange(lags - 1, len(df) - 1) if rows is None else np.asarray(rows, dtype=int)
+    if len(k) < 2 * n_coef:
         raise InputError(
-            f"ARX model: {len(df)} rows are too few to fit {lags} lags of {len(columns)} inputs; "
-            "give more days of data"
+            f"ARX model: {len(k) + lags} rows are too few to fit {lags} lags of {len(columns)} "
+            "inputs; give more days of data"
         )
     values, sched = model._inputs(df)
-    k = np.arange(lags - 1, len(df) - 1)
     parts = [model._regressors(values, k), sched[k]]
     if interaction:
         parts.append(sched[k] * (values[k, 0] - values[k, 2])[:, None])
@@ -366,28 +371,44 @@ def fit_arx(
 def fit_physics_informed_arx(
     df: pd.DataFrame, *, lags: int = DEFAULT_LAGS, eta: float = 1.0
 ) -> ARXModel:
-    """The physics-informed ARX (module docstring): workday, Saturday and Sunday schedules,
-    each block also weighing the indoor-outdoor difference; InputError when the fit's power
-    acts against the sign of ``eta`` (> 0 a heater: more power must warm the room; < 0 a
-    cooling machine: it must cool), as then the data do not identify the actuator.
+    """The physics-informed ARX (module docstring): workday and weekend (or workday, Saturday
+    and Sunday) schedules, each block also weighing the indoor-outdoor difference; InputError
+    when the fit's power acts against the sign of ``eta`` (> 0 a heater: more power must warm
+    the room; < 0 a cooling machine: it must cool), as then the data do not identify the
+    actuator.
 
-    The fit chooses its schedule's block length from :data:`BLOCK_CHOICES_H` and, where the
-    data has the facades' irradiance (:data:`pinn_mpc.solar.FACADE_COLUMNS`), whether to take
-    it besides the measured inputs: fitted on the first three quarters of the data each way,
-    the one whose 12-hour prediction of the last quarter (:data:`SELECTION_SHARE`,
-    :data:`SELECTION_HORIZON_S`) errs least is fitted on all of it (hourly blocks follow an
-    office's hourly schedules but have twice the coefficients to fit; the facades are four more
-    irradiance inputs, and how much a building's windows make of them is in the data). Ties,
-    and data too short to hold a quarter out, keep the first choice: 2-hour blocks, the
-    measured inputs alone."""
-    choices: list[tuple[tuple[str, ...], float]] = [
-        (MEASURED_INPUTS, BLOCK_H), *((MEASURED_INPUTS, b) for b in BLOCK_CHOICES_H if b != BLOCK_H)
+    The fit chooses its schedule's block length (:data:`BLOCK_CHOICES_H`), whether Saturdays
+    get a schedule of their own and, where the data has the facades' irradiance
+    (:data:`pinn_mpc.solar.FACADE_COLUMNS`), whether to take it besides the measured inputs,
+    by blocked cross-validation: the data cut into :data:`SELECTION_FOLDS` consecutive parts,
+    each predicted :data:`SELECTION_HORIZON_S` ahead by the fit on the steps of the others.
+    Of the choices whose mean error over the parts is within one standard error of the best's
+    (the one-standard-error rule), the one with the fewest coefficients is fitted on all of it.
+    Hourly blocks follow an office's hourly schedules and a Saturday schedule a reference
+    office's, but each doubles or adds half the schedule's coefficients, which two weeks of
+    data cannot all fix; the facades are four more irradiance inputs, and how much a
+    building's windows make of them is in the data. A choice that cannot be fitted on every
+    part is not taken; if none can, the first: 2-hour blocks, three day types, the measured
+    inputs alone."""
+    facades = (*MEASURED_INPUTS, *FACADE_COLUMNS) if all(c in df for c in FACADE_COLUMNS) else None
+    choices = [
+        (inputs, block_h, day_types)
+        for inputs in (MEASURED_INPUTS, *((facades,) if facades else ()))
+        for block_h in (BLOCK_H, *(b for b in BLOCK_CHOICES_H if b != BLOCK_H))
+        for day_types in (3, 2)
     ]
-    if all(c in df for c in FACADE_COLUMNS):
-        choices += [((*MEASURED_INPUTS, *FACADE_COLUMNS), b) for _, b in list(choices)]
-    errors = [_held_out_error(df, inputs, lags, block_h) for inputs, block_h in choices]
-    inputs, block_h = choices[int(np.argmin(errors))]
-    model = fit_arx(df, lags=lags, day_types=3, interaction=True, inputs=inputs, block_h=block_h)
+    scores = [_cross_validated_error(df, i, lags, b, d) for i, b, d in choices]
+    best = int(np.argmin([mean for mean, _ in scores]))
+    limit = scores[best][0] + scores[best][1]
+    within = [c for c, (mean, _) in zip(choices, scores, strict=True) if mean <= limit] or [choices[0]]
+
+    def n_coef(choice: tuple[tuple[str, ...], float, int]) -> int:
+        inputs, block_h, day_types = choice
+        n_col = 3 + sum(c in df for c in inputs)
+        return lags * n_col + 2 * day_types * _blocks(block_h)
+
+    inputs, block_h, day_types = min(within, key=n_coef)
+    model = fit_arx(df, lags=lags, day_types=day_types, interaction=True, inputs=inputs, block_h=block_h)
     n_col = len(model.columns)
     if float(np.sum(model.coef[1 : lags * n_col : n_col])) * float(np.sign(eta)) <= 0:
         raise InputError(
@@ -398,27 +419,36 @@ def fit_physics_informed_arx(
     return model
 
 
-def _held_out_error(df: pd.DataFrame, inputs: tuple[str, ...], lags: int, block_h: float) -> float:
-    """MAE [K] of the physics-informed ARX with ``inputs`` and schedule blocks of ``block_h``
-    hours, fitted on all but the last
-    :data:`SELECTION_SHARE` of ``df``, predicting that last part :data:`SELECTION_HORIZON_S`
-    ahead from every start (its history overlapping the fitted part); inf when either part is
-    too short."""
+def _cross_validated_error(
+    df: pd.DataFrame, inputs: tuple[str, ...], lags: int, block_h: float, day_types: int
+) -> tuple[float, float]:
+    """The mean and standard error [K] over :data:`SELECTION_FOLDS` consecutive parts of
+    ``df`` of the MAE of the physics-informed ARX with ``inputs``, schedule blocks of
+    ``block_h`` hours and ``day_types``, predicting the part :data:`SELECTION_HORIZON_S` ahead
+    from every start in it (its history measured), fitted on the steps whose rows lie outside
+    it; (inf, 0) when a part cannot be fitted or is shorter than the horizon."""
     dt_s = float(df.attrs.get("dt_s", 1800.0))
     horizon = max(1, round(SELECTION_HORIZON_S / dt_s))
-    cut = len(df) - int(len(df) * SELECTION_SHARE)
-    fitted = df.iloc[:cut].reset_index(drop=True)
-    held_out = df.iloc[max(cut - lags + 1, 0) :].reset_index(drop=True)
-    fitted.attrs = held_out.attrs = dict(df.attrs)
-    if len(held_out) < lags + horizon:
-        return math.inf
-    try:
-        model = fit_arx(fitted, lags=lags, day_types=3, interaction=True, inputs=inputs, block_h=block_h)
-    except InputError:
-        return math.inf
-    starts = np.arange(lags - 1, len(held_out) - horizon)
-    truth = held_out["T_r"].to_numpy(dtype=float)[starts + horizon]
-    return float(np.mean(np.abs(model.predict_t_r(held_out, horizon, starts) - truth)))
+    n = len(df)
+    edges = np.linspace(0, n, SELECTION_FOLDS + 1).astype(int)
+    truth = df["T_r"].to_numpy(dtype=float)
+    steps = np.arange(lags - 1, n - 1)  # the step from row k to k + 1 reads rows k-lags+1 .. k+1
+    errors = []
+    for lo, hi in zip(edges[:-1], edges[1:], strict=True):
+        starts = np.arange(max(lo, lags - 1), hi - horizon)
+        if starts.size == 0:
+            return math.inf, 0.0
+        outside = (steps + 1 < lo) | (steps - lags + 1 >= hi)
+        try:
+            model = fit_arx(
+                df, lags=lags, day_types=day_types, interaction=True, inputs=inputs,
+                block_h=block_h, rows=steps[outside],
+            )
+        except (InputError, np.linalg.LinAlgError):
+            return math.inf, 0.0
+        errors.append(float(np.mean(np.abs(model.predict_t_r(df, horizon, starts) - truth[starts + horizon]))))
+    mean = float(np.mean(errors))
+    return (mean, float(np.std(errors, ddof=1) / math.sqrt(len(errors)))) if math.isfinite(mean) else (math.inf, 0.0)
 
 
 def fit_linear(name: str, df: pd.DataFrame, *, eta: float = 1.0) -> ARXModel:
