@@ -14,7 +14,8 @@ the last quarter 12 hours ahead (:data:`pinn_mpc.arx.SELECTION_SHARE`,
 both, the history before them measured). The physics-informed ARX is taken when its error is
 at most :data:`AUTO_RATIO` times the hybrid's, and then fitted on all the data; otherwise the
 hybrid is trained on all of it. The ratio keeps the hybrid, with its trust guard and RC
-fallback, wherever the two predict alike (on the 2R2C scenarios both err by about 0.02 K).
+fallback, wherever the two predict alike (on the 2R2C scenarios the hybrid errs as little or
+less).
 Data too short to hold a quarter out, and data the ARX cannot fit (a power that does not warm
 the room), keep the hybrid without a comparison.
 """
