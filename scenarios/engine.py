@@ -536,6 +536,15 @@ class ClosedLoop:
                     series[:] *= np.maximum(1.0 + e, 0.0)
         return forecast
 
+    def last_means(self, building: int = 0) -> tuple[float, float, float]:
+        """``T_a`` [C], ``G`` [W/m2] and ``I_g`` [W] of the interval just stepped, as the plant
+        had them (EnergyPlus's own weather and the building's actual internal gains; the
+        series' row on the RC plant)."""
+        if self.k == 0:
+            raise InputError("ClosedLoop.last_means: no interval has been stepped since reset()")
+        t_a, g, i_g = self._means[self.k - 1, building]
+        return float(t_a), float(g), float(i_g)
+
     def step(
         self,
         u_w: float | np.ndarray,

@@ -9,7 +9,10 @@ demanded power in [0, u_max_w] W (clipped). Reward: minus the objective of the i
 interval [K] x interval [h])``: :class:`controllers.objective.HorizonObjective` of one interval
 against that interval's band, the objective the controllers use. ``info`` carries the
 hidden ``T_m`` [C], the true ``T_r`` [C], ``u_phys`` [W], ``overridden`` (the backup acted),
-``energy_kwh``, ``cost_eur`` and ``discomfort_kh``.
+``energy_kwh``, ``cost_eur``, ``discomfort_kh`` and the interval's ``T_a`` [C], ``G`` [W/m2]
+and ``I_g`` [W] as the plant had them: on an EnergyPlus building its own weather and the
+internal gains that happened, which the observation's ``I_g`` (the frame's: the building's
+gains schedule where the scenario says ``gains = "measured"``) does not show.
 
 The exogenous inputs come as a frame (as :meth:`scenarios.registry.Scenario.exogenous` makes
 it); an episode covers ``episode_steps`` consecutive rows. When the frame is longer than an
@@ -169,6 +172,7 @@ class BuildingEnv(gym.Env[np.ndarray, np.ndarray]):
             "cost_eur": float(energy_cost_eur(u_phys, price, dt_h)),
             "discomfort_kh": float(band_violation_k(t_r_next, t_min, t_max)) * dt_h,
         }
+        info["T_a"], info["G"], info["I_g"] = self._loop.last_means()
         return self._observation(), reward, False, truncated, info
 
     def close(self) -> None:

@@ -320,7 +320,8 @@ def test_sweep_on_energyplus_against_the_thermostat(tmp_path):
 def test_gymnasium_env_on_energyplus_starts_at_midnight_and_closes_its_thread():
     """The env on an EnergyPlus building: random episodes start at a midnight row (where an
     EnergyPlus run can start), the heat delivered is the power asked when the backup is out
-    of reach, and close() ends the run's thread."""
+    of reach, the info carries the internal gains that happened (an office's rise by noon on a
+    workday), and close() ends the run's thread."""
     from scenarios.gym_env import BuildingEnv
 
     scenario = get_scenario(SCENARIO)
@@ -334,6 +335,11 @@ def test_gymnasium_env_on_energyplus_starts_at_midnight_and_closes_its_thread():
             _, reward, _, _, info = env.step(np.array([5000.0], dtype=np.float32))
             assert info["u_phys"] == pytest.approx(5000.0) and reward < 0
             assert np.isnan(info["T_m"])
+            gains = [info["I_g"]]
+            for _ in range(23):  # to noon: the office's gains, as EnergyPlus had them
+                gains.append(env.step(np.array([5000.0], dtype=np.float32))[4]["I_g"])
+            day = pd.Timestamp(exo["time"].iloc[env._loop.start]).day_of_week
+            assert gains[-1] > 2.0 * gains[0] > 0 if day < 5 else gains[-1] > 0
     finally:
         env.close()
     assert threading.active_count() <= before
