@@ -11,6 +11,7 @@ from pinn_mpc.models.registry import (
     ALL_ARCHS,
     ARCHS,
     ARX,
+    AUTO,
     COMPARED_ARCHS,
     DEFAULT_ARCH,
     MODEL_CHOICES,
@@ -21,6 +22,7 @@ from pinn_mpc.models.registry import (
 __all__ = [
     "ALL_ARCHS",
     "ARCHS",
+    "AUTO",
     "ARX",
     "COMPARED_ARCHS",
     "DEFAULT_ARCH",

@@ -14,7 +14,7 @@ import time
 
 import numpy as np
 
-from pinn_mpc.choices import ARX, PHYSICS_ARX
+from pinn_mpc.choices import ARX, AUTO, PHYSICS_ARX
 from pinn_mpc.data import read_timeseries
 from pinn_mpc.errors import InputError, warn
 from pinn_mpc.io import (
@@ -46,7 +46,7 @@ def train(a: argparse.Namespace) -> str:
 
     if a.arch in (ARX.name, PHYSICS_ARX.name):
         return _train_arx(a)
-    if a.arch == "auto":
+    if a.arch == AUTO:
         return _train_auto(a)
     check_output_directory(a.out, MODEL_DIRECTORY, force=a.force)
     files = MODEL_DIRECTORY.paths(a.out)
@@ -73,7 +73,7 @@ def _train_auto(a: argparse.Namespace) -> str:
     predicts the data's last quarter better (:mod:`pinn_mpc.model_choice`), into ``--out``.
     ``--out`` may hold a model of either kind; the one not chosen is removed from it."""
     from pinn_mpc.artifacts import MODEL_DIRECTORY, save_model
-    from pinn_mpc.arx import ARX_DIRECTORY, save_arx
+    from pinn_mpc.arx import ARX_DIRECTORY, ARXModel, save_arx
     from pinn_mpc.io import DirectoryLayout
     from pinn_mpc.model_choice import choose_model
     from pinn_mpc.training import TrainConfig
@@ -92,8 +92,6 @@ def _train_auto(a: argparse.Namespace) -> str:
     choice = choose_model(df, config, progress=True)
     # The other kind's files would make the directory ambiguous to load: they go.
     stale = ARX_DIRECTORY if choice.chosen != PHYSICS_ARX.name else MODEL_DIRECTORY
-    from pinn_mpc.arx import ARXModel
-
     if isinstance(choice.model, ARXModel):
         unused = [f"--{n}" for n in ("depth", "epochs", "lam", "recipe") if getattr(a, n, None) is not None]
         if unused:

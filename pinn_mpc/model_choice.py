@@ -32,13 +32,11 @@ from pinn_mpc.arx import SELECTION_HORIZON_S, SELECTION_SHARE, ARXModel, fit_phy
 from pinn_mpc.errors import InputError
 from pinn_mpc.evaluation import recursive_t_r
 from pinn_mpc.models.learned import LearnedModel
-from pinn_mpc.models.registry import DEFAULT_ARCH, PHYSICS_ARX
+from pinn_mpc.models.registry import AUTO, DEFAULT_ARCH, PHYSICS_ARX
 from pinn_mpc.training import TrainConfig, train_model
 
 __all__ = ["AUTO", "AUTO_RATIO", "HISTORY_ROWS", "ModelChoice", "choose_model"]
 
-#: The ``train --arch`` choice that picks the model by :func:`choose_model`.
-AUTO = "auto"
 #: The physics-informed ARX replaces the hybrid when its held-out error is at most this
 #: share of the hybrid's.
 AUTO_RATIO = 0.5

@@ -20,7 +20,7 @@ from collections.abc import Sequence
 from typing import Any, NoReturn
 
 from pinn_mpc import __version__
-from pinn_mpc.choices import DEFAULT_ARCH, MODEL_CHOICES, RECIPES, TRAIN_CHOICES
+from pinn_mpc.choices import AUTO, DEFAULT_ARCH, MODEL_CHOICES, RECIPES, TRAIN_CHOICES
 from pinn_mpc.errors import InputError
 from pinn_mpc.models.registry import arch_help
 from scenarios.choices import CONTROLLER_NAMES, POLICIES, RANDOM_POLICIES, WEATHER_PARTS
@@ -210,7 +210,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--arch",
         choices=TRAIN_CHOICES,
-        default="auto",
+        default=AUTO,
         help=f"the architecture, each with its own defaults: {arch_help()}",
     )
     p.add_argument(

@@ -23,6 +23,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "ALL_ARCHS",
+    "AUTO",
     "ARCHITECTURES",
     "ARCHS",
     "ARX",
@@ -147,9 +148,10 @@ PHYSICS_ARX = BaselineSpec(
 BASELINES: dict[str, BaselineSpec] = {ARX.name: ARX, PHYSICS_ARX.name: PHYSICS_ARX}
 #: Every model ``train --arch`` fits by name.
 MODEL_CHOICES = (*ALL_ARCHS, *BASELINES)
-#: What ``train --arch`` takes: ``auto`` (its default, :mod:`pinn_mpc.model_choice`), then every
-#: model by name.
-TRAIN_CHOICES = ("auto", *MODEL_CHOICES)
+#: The ``train --arch`` choice that picks the model (its default, :mod:`pinn_mpc.model_choice`).
+AUTO = "auto"
+#: What ``train --arch`` takes: :data:`AUTO`, then every model by name.
+TRAIN_CHOICES = (AUTO, *MODEL_CHOICES)
 
 
 def get_spec(name: str) -> ArchSpec:
@@ -179,7 +181,7 @@ def arch_help() -> str:
         ]
         + [f"{b.name}: {b.summary}" for b in BASELINES.values()]
         + [
-            f"auto (the default): {DEFAULT_ARCH} or {PHYSICS_ARX.name}, whichever predicts the "
+            f"{AUTO} (the default): {DEFAULT_ARCH} or {PHYSICS_ARX.name}, whichever predicts the "
             f"data's last quarter 12 h ahead better ({PHYSICS_ARX.name} when its error is at most "
             "half the hybrid's), fitted on all of it"
         ]
