@@ -51,6 +51,7 @@ import numpy as np
 import pandas as pd
 import torch
 
+from pinn_mpc.data import day_of_week
 from pinn_mpc.errors import InputError
 from pinn_mpc.io import DirectoryLayout
 from pinn_mpc.models.registry import ARX, PHYSICS_ARX
@@ -112,6 +113,12 @@ def _blocks(block_h: float) -> int:
     return int(round(24 / block_h))
 
 
+def _n_coef(lags: int, n_columns: int, day_types: int, block_h: float, interaction: bool) -> int:
+    """Coefficients of an ARX model: its lags of every column, then its schedule (and as many
+    interaction weights, if any)."""
+    return lags * n_columns + day_types * _blocks(block_h) * (2 if interaction else 1)
+
+
 def _schedule_index(
     time_of_day_h: np.ndarray, day_of_week: np.ndarray, day_types: int = 2, block_h: float = BLOCK_H
 ) -> np.ndarray:
@@ -124,20 +131,13 @@ def _schedule_index(
     return block + _blocks(block_h) * day
 
 
-def _day_of_week(df: pd.DataFrame) -> np.ndarray:
-    """(N,) each row's day of the week (0 = Monday), 6 on the building's holidays (the data's
-    ``holiday`` column, where it has one)."""
-    dow = pd.to_datetime(df["time"]).dt.day_of_week.to_numpy().copy()
-    if "holiday" in df:
-        dow[df["holiday"].to_numpy(dtype=float) > 0] = 6
-    return dow
-
-
 def _schedule(df: pd.DataFrame, day_types: int = 2, block_h: float = BLOCK_H) -> np.ndarray:
     """(N, day_types * blocks per day) one-hot of each row's schedule coefficient."""
     t = pd.to_datetime(df["time"])
     index = _schedule_index(
-        (t.dt.hour + t.dt.minute / 60.0).to_numpy(), _day_of_week(df), day_types, block_h
+        (t.dt.hour + t.dt.minute / 60.0).to_numpy(),
+        day_of_week(t.to_numpy(), df["holiday"].to_numpy() if "holiday" in df else None),
+        day_types, block_h,
     )
     out = np.zeros((len(t), day_types * _blocks(block_h)))
     out[np.arange(len(t)), index] = 1.0
@@ -349,7 +349,7 @@ def fit_arx(
         columns=columns, lags=lags, coef=np.zeros(0), dt_s=float(df.attrs.get("dt_s", 1800.0)),
         train_mae_c=0.0, day_types=day_types, interaction=interaction, block_h=float(block_h),
     )
-    n_coef = lags * len(columns) + model.n_schedule * (2 if interaction else 1)
+    n_coef = _n_coef(lags, len(columns), day_types, block_h, interaction)
     k = np.arange(lags - 1, len(df) - 1) if rows is None else np.asarray(rows, dtype=int)
     if len(k) < 2 * n_coef:
         raise InputError(
@@ -402,12 +402,11 @@ def fit_physics_informed_arx(
     limit = scores[best][0] + scores[best][1]
     within = [c for c, (mean, _) in zip(choices, scores, strict=True) if mean <= limit] or [choices[0]]
 
-    def n_coef(choice: tuple[tuple[str, ...], float, int]) -> int:
+    def size(choice: tuple[tuple[str, ...], float, int]) -> int:
         inputs, block_h, day_types = choice
-        n_col = 3 + sum(c in df for c in inputs)
-        return lags * n_col + 2 * day_types * _blocks(block_h)
+        return _n_coef(lags, 3 + sum(c in df for c in inputs), day_types, block_h, interaction=True)
 
-    inputs, block_h, day_types = min(within, key=n_coef)
+    inputs, block_h, day_types = min(within, key=size)
     model = fit_arx(df, lags=lags, day_types=day_types, interaction=True, inputs=inputs, block_h=block_h)
     n_col = len(model.columns)
     if float(np.sum(model.coef[1 : lags * n_col : n_col])) * float(np.sign(eta)) <= 0:
@@ -493,7 +492,7 @@ def load_arx(path: str | os.PathLike[str]) -> ARXModel:
         raise InputError(f"{file}: not a readable ARX model ({exc}); write it with `pinn-mpc train --arch arx`") from None
     if not _valid_block(block_h):
         raise InputError(f"{file}: not a valid ARX model (block_h {block_h:g} does not divide the day)")
-    expected = lags * len(columns) + day_types * _blocks(block_h) * (2 if interaction is True else 1)
+    expected = _n_coef(lags, len(columns), day_types, block_h, interaction is True)
     if (
         day_types not in (2, 3)
         or not isinstance(interaction, bool)
@@ -518,4 +517,4 @@ def load_arx(path: str | os.PathLike[str]) -> ARXModel:
 
 def _valid_block(block_h: float) -> bool:
     """Whether ``block_h`` [h] is a whole number of hours that divides the day."""
-    return block_h in (1.0, 2.0, 3.0, 4.0, 6.0, 8.0, 12.0, 24.0)
+    return float(block_h).is_integer() and 1 <= block_h <= 24 and 24 % int(block_h) == 0

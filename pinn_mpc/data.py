@@ -37,6 +37,7 @@ __all__ = [
     "POWER",
     "REQUIRED",
     "TEMPERATURE_RANGE_C",
+    "day_of_week",
     "parse_column_map",
     "parse_times",
     "read_timeseries",
@@ -57,6 +58,15 @@ NUMERIC = tuple(c for c in COLUMNS if c != "time")
 TEMPERATURE_RANGE_C = (-60.0, 90.0)
 #: Power columns: the actuator's input [W], >= 0 for heating and cooling alike (eta has the sign).
 POWER = ("u", "u_phys")
+
+
+def day_of_week(times: np.ndarray, holiday: np.ndarray | None = None) -> np.ndarray:
+    """(N,) the day of the week (0 = Monday) of each time (datetime64), as floats; 6 (Sunday)
+    where ``holiday`` is 1: a building runs its Sunday-or-holiday schedules on its holidays."""
+    dow = ((np.asarray(times, dtype="datetime64[D]").astype(np.int64) + 3) % 7).astype(float)  # 1970-01-01: Thursday
+    if holiday is not None:
+        dow[np.asarray(holiday, dtype=float) > 0] = 6.0
+    return dow
 
 
 def parse_column_map(text: str | None) -> dict[str, str]:

@@ -46,6 +46,7 @@ import pandas as pd
 
 from controllers.base import Controller, ControlSpec, Forecast, Observation, fallback_power
 from controllers.estimators import TrueState
+from pinn_mpc.data import day_of_week
 from pinn_mpc.errors import InputError
 from pinn_mpc.physics import RCParams
 from pinn_mpc.simulator import PlantStep, SimConfig, Simulator, StepResult
@@ -162,10 +163,8 @@ class ExogenousSeries:
         if self.day_of_week is None:
             if self.times is None:
                 dow = np.full(len(self.T_a), np.nan)
-            else:  # 1970-01-01 was a Thursday
-                dow = ((np.asarray(self.times, dtype="datetime64[D]").astype(np.int64) + 3) % 7).astype(float)
-                if self.holiday is not None:
-                    dow[np.asarray(self.holiday) > 0] = 6.0
+            else:
+                dow = day_of_week(self.times, self.holiday)
             object.__setattr__(self, "day_of_week", dow)
         given = [getattr(self, name) for name in (*Forecast._fields, "holiday")]
         lengths = {len(series) for series in given if series is not None}
