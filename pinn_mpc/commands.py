@@ -90,6 +90,8 @@ def _train_auto(a: argparse.Namespace) -> str:
     )
     start = time.perf_counter()
     choice = choose_model(df, config, progress=True)
+    if choice.caution:
+        warn(f"{a.data}: {choice.caution}")
     # The other kind's files would make the directory ambiguous to load: they go.
     stale = ARX_DIRECTORY if choice.chosen != PHYSICS_ARX.name else MODEL_DIRECTORY
     if isinstance(choice.model, ARXModel):

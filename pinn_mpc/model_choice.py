@@ -18,6 +18,11 @@ fallback, wherever the two predict alike (on the 2R2C scenarios the hybrid errs 
 less).
 Data too short to hold a quarter out, and data the ARX cannot fit (a power that does not warm
 the room), keep the hybrid without a comparison.
+
+Where even the chosen model errs more than :data:`ROUGH_MAE_C` on the held-out quarter,
+:attr:`ModelChoice.caution` says so (``train`` prints it): neither candidate predicts this data
+well, a planner over it makes rough plans and leans on its RC fallback, and more days of data
+are the usual remedy.
 """
 
 from __future__ import annotations
@@ -35,7 +40,7 @@ from pinn_mpc.models.learned import LearnedModel
 from pinn_mpc.models.registry import AUTO, DEFAULT_ARCH, PHYSICS_ARX
 from pinn_mpc.training import TrainConfig, train_model
 
-__all__ = ["AUTO", "AUTO_RATIO", "HISTORY_ROWS", "ModelChoice", "choose_model"]
+__all__ = ["AUTO", "AUTO_RATIO", "HISTORY_ROWS", "ROUGH_MAE_C", "ModelChoice", "choose_model"]
 
 #: The physics-informed ARX replaces the hybrid when its held-out error is at most this
 #: share of the hybrid's.
@@ -43,6 +48,9 @@ AUTO_RATIO = 0.5
 #: Measured rows before the held-out quarter that both models may read as history (more than
 #: any default depth or lag count).
 HISTORY_ROWS = 64
+#: A chosen model whose held-out error [K] exceeds this draws a caution
+#: (:attr:`ModelChoice.caution`).
+ROUGH_MAE_C = 0.5
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -57,6 +65,20 @@ class ModelChoice:
     held_out_mae_c: dict[str, float]
     horizon_steps: int
     why: str
+
+    @property
+    def caution(self) -> str | None:
+        """One sentence when the chosen model's held-out error exceeds :data:`ROUGH_MAE_C`
+        (None otherwise, and without a comparison)."""
+        error = self.held_out_mae_c.get(self.chosen, math.nan)
+        if not error > ROUGH_MAE_C:
+            return None
+        return (
+            f"the chosen {self.chosen} predicts the held-out quarter {self.horizon_steps} steps "
+            f"ahead at {error:.2f} C (more than {ROUGH_MAE_C} C): its plans will be rough and a "
+            "controller over it will hand more decisions to its RC fallback; more days of "
+            "training data usually help"
+        )
 
 
 def _held_out(df: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame, np.ndarray, int] | None:

@@ -10,7 +10,7 @@ import pytest
 
 from pinn_mpc.arx import ARXModel, fit_physics_informed_arx
 from pinn_mpc.data import write_timeseries
-from pinn_mpc.model_choice import AUTO_RATIO, choose_model
+from pinn_mpc.model_choice import AUTO_RATIO, ROUGH_MAE_C, choose_model
 from pinn_mpc.models.learned import LearnedModel
 from pinn_mpc.training import TrainConfig
 from tests.model_data import household_data
@@ -25,6 +25,7 @@ def test_auto_keeps_the_hybrid_on_the_2r2c_it_was_made_for():
     assert choice.horizon_steps == 24
     assert choice.held_out_mae_c["hybrid"] < 0.3
     assert choice.held_out_mae_c["parx"] > AUTO_RATIO * choice.held_out_mae_c["hybrid"]
+    assert choice.caution is None
 
 
 def test_auto_takes_the_physics_informed_arx_where_the_hybrid_cannot_predict():
@@ -77,3 +78,26 @@ def test_train_hybrid_by_name_or_by_choice_writes_a_model_directory(tmp_path, ar
     out = tmp_path / arch
     assert main(["train", "--data", str(data), "--out", str(out), "--seeds", "2", "--arch", arch]) == 0
     assert sorted(p.name for p in out.iterdir()) == ["model.json", "weights.safetensors"]
+
+
+def test_train_cautions_when_even_the_chosen_model_cannot_predict_the_held_out_days(tmp_path, capsys):
+    """An unmeasured disturbance (a slow AR(1) heat of about 1 K std) that no model can
+    foresee 12 h ahead: train still writes the better model, and says in one warning line that
+    its held-out error exceeds ROUGH_MAE_C."""
+    from pinn_mpc_cli.cli import main
+
+    df = household_data(14, seed=0)
+    rng = np.random.default_rng(3)
+    disturbance = np.zeros(len(df))
+    for k in range(1, len(df)):
+        disturbance[k] = 0.98 * disturbance[k - 1] + 0.25 * rng.standard_normal()
+    df["T_r"] = df["T_r"] + disturbance
+    data = tmp_path / "disturbed.csv"
+    write_timeseries(df, data)
+    assert main(["train", "--data", str(data), "--out", str(tmp_path / "m"), "--seeds", "2"]) == 0
+    captured = capsys.readouterr()
+    warnings = [line for line in captured.err.splitlines() if "held-out quarter" in line]
+    assert len(warnings) == 1 and "warning" in warnings[0] and str(data) in warnings[0]
+    error = float(warnings[0].split(" at ")[1].split(" C")[0])
+    assert error > ROUGH_MAE_C
+    assert "chose" in captured.out
