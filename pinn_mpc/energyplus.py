@@ -352,12 +352,73 @@ def _absolute_loads(model: dict[str, Any], zones: list[str], geo: dict[str, dict
                 obj["design_level_calculation_method"] = "LightingLevel" if kind == "Lights" else "EquipmentLevel"
 
 
+def _zone_offsets(model: dict[str, Any], zones: list[str]) -> dict[str, tuple[float, float, float]]:
+    """Each zone's origin in the building's coordinates, by which its surfaces' vertices move
+    when it joins a zone at the building's origin: zeros when the model gives vertices in
+    world coordinates. InputError for a zone rotated against the building's axes."""
+    rules: dict[str, Any] = next(iter(model.get("GlobalGeometryRules", {}).values()), {})
+    relative = str(rules.get("coordinate_system", "Relative")).lower() == "relative"
+
+    def number(zone: dict[str, Any], key: str) -> float:
+        value = zone.get(key, 0.0)
+        return float(value) if isinstance(value, int | float) else 0.0  # "" or absent: 0
+
+    offsets: dict[str, tuple[float, float, float]] = {}
+    for z in zones:
+        zone = model["Zone"][z]
+        turn = number(zone, "direction_of_relative_north")
+        if relative and turn % 360.0:
+            raise InputError(
+                f'zone "{z}" is turned {turn:g} degrees against the building\'s axes; zones = '
+                "'merged' takes zones on the building's axes only: use zones = 'separate'"
+            )
+        offsets[z] = (
+            (number(zone, "x_origin"), number(zone, "y_origin"), number(zone, "z_origin"))
+            if relative else (0.0, 0.0, 0.0)
+        )
+    return offsets
+
+
+def _to_building_coordinates(model: dict[str, Any], zones: list[str]) -> None:
+    """Move the vertices of ``zones``' surfaces, windows and zone shading from each zone's own
+    coordinates (relative to its origin) into the building's, so that, merged into one zone
+    at the building's origin, every floor stays where it stood (floors above the ground floor
+    at their height, wings beside each other)."""
+    offsets = _zone_offsets(model, zones)
+    surfaces = model.get("BuildingSurface:Detailed", {})
+    zone_of = {name: s["zone_name"] for name, s in surfaces.items()}
+    axes = ("x", "y", "z")
+
+    def shift_list(obj: dict[str, Any], offset: tuple[float, float, float]) -> None:
+        for v in obj.get("vertices", []):
+            for axis, d in zip(axes, offset, strict=True):
+                v[f"vertex_{axis}_coordinate"] += d
+
+    for s in surfaces.values():
+        if s["zone_name"] in offsets:
+            shift_list(s, offsets[s["zone_name"]])
+    for shade in model.get("Shading:Zone:Detailed", {}).values():
+        zone = zone_of.get(shade.get("base_surface_name", ""))
+        if zone in offsets:
+            shift_list(shade, offsets[zone])
+    for window in model.get("FenestrationSurface:Detailed", {}).values():
+        zone = zone_of.get(window.get("building_surface_name", ""))
+        if zone in offsets:
+            for i in range(1, 5):
+                for axis, d in zip(axes, offsets[zone], strict=True):
+                    key = f"vertex_{i}_{axis}_coordinate"
+                    if isinstance(window.get(key), int | float):
+                        window[key] += d
+
+
 def _merge_zones(model: dict[str, Any], zones: list[str], geo: dict[str, dict[str, float]]) -> int:
-    """Merge ``zones`` into one: partitions between them become internal mass (both faces
+    """Merge ``zones`` into one at the building's origin: their geometry moves into the
+    building's coordinates, partitions between them become internal mass (both faces
     exposed: twice the area of a half-thickness construction when the construction is
     symmetric), every other surface and load moves to the merged zone. Returns the number of
     partitions turned into mass."""
     _absolute_loads(model, zones, geo)
+    _to_building_coordinates(model, zones)
     surfaces = model["BuildingSurface:Detailed"]
     constructions = model.get("Construction", {})
     removed: set[str] = set()
@@ -403,7 +464,10 @@ def _merge_zones(model: dict[str, Any], zones: list[str], geo: dict[str, dict[st
     first = model["Zone"][zones[0]]
     for z in zones:
         del model["Zone"][z]
-    model["Zone"][MERGED_ZONE] = {**first, "floor_area": "Autocalculate", "part_of_total_floor_area": "Yes"}
+    model["Zone"][MERGED_ZONE] = {
+        **first, "floor_area": "Autocalculate", "part_of_total_floor_area": "Yes",
+        "x_origin": 0.0, "y_origin": 0.0, "z_origin": 0.0, "direction_of_relative_north": 0.0,
+    }
     return len(partitions)
 
 

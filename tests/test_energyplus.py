@@ -606,3 +606,47 @@ def test_separate_zones_with_multipliers_deliver_the_power_asked():
                 "where coalesce(t.WarmupFlag, 0) = 0 order by v.TimeIndex")])
     assert delivered == pytest.approx(asked, rel=1e-9)
     assert joules / 600.0 == pytest.approx(np.repeat(asked, 3), rel=1e-9)
+
+
+def _merged_surfaces(prepared, kind="BuildingSurface:Detailed"):
+    from pinn_mpc.energyplus import MERGED_ZONE
+
+    return [s for s in prepared.model[kind].values() if s.get("zone_name") == MERGED_ZONE]
+
+
+def test_merged_zones_keep_each_floor_and_wing_where_it_stands():
+    """Zones give their vertices relative to their own origins: merged into one zone at the
+    building's origin, each surface and window moves by its zone's origin, so the apartment's
+    top floor keeps its roof at 12.19 m (not on the ground floor's ceiling, where the floors
+    would overlap and the sun through each window would be counted on every floor it
+    overlaps), and the retail store's zones tile its rectangular footprint without overlap."""
+    from pinn_mpc.energyplus import MERGED_ZONE, _area, _vertices
+
+    source = _read_model(resolve_building("midrise_apartment"))
+    prepared = prepare_model("midrise_apartment")
+    roofs = [s for s in _merged_surfaces(prepared) if s["surface_type"] == "Roof"]
+    assert roofs and all(v[2] == pytest.approx(9.1435 + 3.0478) for s in roofs for v in _vertices(s))
+    for name, s in prepared.model["BuildingSurface:Detailed"].items():
+        if name in source["BuildingSurface:Detailed"] and s.get("zone_name") == MERGED_ZONE:
+            zone = source["Zone"][source["BuildingSurface:Detailed"][name]["zone_name"]]
+            origin = np.array([zone.get(k, 0.0) for k in ("x_origin", "y_origin", "z_origin")])
+            assert np.allclose(np.array(_vertices(s)), np.array(_vertices(source["BuildingSurface:Detailed"][name])) + origin)
+    windows = prepared.model["FenestrationSurface:Detailed"].values()
+    top = [w for w in windows if w["building_surface_name"].lower().startswith("t ")]  # top floor
+    assert top and all(w["vertex_1_z_coordinate"] > 9.1435 for w in top)
+
+    retail = prepare_model("standalone_retail")
+    floors = [s for s in _merged_surfaces(retail) if s["surface_type"] == "Floor"]
+    points = np.array([v for s in floors for v in _vertices(s)])
+    footprint = np.ptp(points[:, 0]) * np.ptp(points[:, 1])
+    assert sum(_area(_vertices(s)) for s in floors) == pytest.approx(footprint, rel=1e-6)
+
+
+def test_merging_a_zone_turned_against_the_building_is_refused(tmp_path):
+    def turn(model):
+        model["Zone"]["Core_ZN"]["direction_of_relative_north"] = 30.0
+
+    path = _small_office_with(tmp_path, turn)
+    with pytest.raises(InputError, match="turned 30 degrees.*zones = 'separate'"):
+        prepare_model(str(path))
+    assert prepare_model(str(path), zones="separate").zones
