@@ -520,7 +520,8 @@ _SCENARIOS["eplus_midrise_apartment"] = _energyplus_scenario(
         "DOE's mid-rise apartment building (EnergyPlus reference building, four floors, "
         "3,135 m2; merged, its middle floor, which stands for two, counts once: 2,351 m2) in "
         "Denver (TMY3), its HVAC removed, its conditioned zones merged into one, "
-        "heated by an ideal 30 kW electric heater; run by EnergyPlus (no R/C parameters, no "
+        "heated by an ideal 71 kW electric heater (what heater_w = \"auto\" sizes for it); "
+        "run by EnergyPlus (no R/C parameters, no "
         "oracle). Residential comfort 20-24 C 06-23 h, 18-24 C at night, winter_household's "
         "dynamic price, backup 14/28 C; the residents' internal gains are unmeasured. A "
         "second building and city, not the one the package's EnergyPlus defaults were "
@@ -528,7 +529,7 @@ _SCENARIOS["eplus_midrise_apartment"] = _energyplus_scenario(
     ),
     building="midrise_apartment",
     weather="usa_co_denver",
-    heater_w=30000.0,
+    heater_w=71000.0,
     initial_t_r_c=21.0,
     comfort=ComfortSchedule(
         day_min_c=20.0, day_max_c=24.0, night_min_c=18.0, night_max_c=24.0,
