@@ -16,8 +16,8 @@ from typing import NamedTuple, Protocol, runtime_checkable
 import numpy as np
 
 from pinn_mpc.actuator import Actuator
+from pinn_mpc.data import SITE_COLUMNS
 from pinn_mpc.errors import InputError
-from pinn_mpc.solar import FACADE_COLUMNS
 
 __all__ = [
     "EXOGENOUS_NAMES",
@@ -34,9 +34,10 @@ __all__ = [
 ]
 
 #: Exogenous inputs a model may take, in the data format's names (fields of Forecast and
-#: LastInterval alike); the facades' irradiance (:data:`pinn_mpc.solar.FACADE_COLUMNS`) only
-#: where the run has it (an EnergyPlus building's weather file).
-EXOGENOUS_NAMES = ("time_of_day_h", "T_a", "G", "I_g", "day_of_week", *FACADE_COLUMNS)
+#: LastInterval alike); the facades' irradiance and the wind speed
+#: (:data:`pinn_mpc.data.SITE_COLUMNS`) only where the run has them (an EnergyPlus building's
+#: weather file).
+EXOGENOUS_NAMES = ("time_of_day_h", "T_a", "G", "I_g", "day_of_week", *SITE_COLUMNS)
 
 
 class Forecast(NamedTuple):
@@ -57,6 +58,8 @@ class Forecast(NamedTuple):
     G_east: np.ndarray | None = None
     G_west: np.ndarray | None = None
     G_north: np.ndarray | None = None
+    # wind speed at the weather station [m/s], where the run has it (the weather file's)
+    wind: np.ndarray | None = None
 
     @property
     def horizon(self) -> int:
@@ -67,11 +70,12 @@ class Forecast(NamedTuple):
         fields = self._asdict()
         if "day_of_week" in names and self.day_of_week is None:
             raise InputError("the forecast has no calendar (day_of_week) that the model needs")
-        missing = [name for name in names if name in FACADE_COLUMNS and fields[name] is None]
+        missing = [name for name in names if name in SITE_COLUMNS and fields[name] is None]
         if missing:
             raise InputError(
-                f"the forecast has no facade irradiance ({', '.join(missing)}) that the model "
-                "needs: a model trained on an EnergyPlus building's data plans on its scenario"
+                f"the forecast has no {', '.join(missing)} (a weather file's facade irradiance "
+                "or wind) that the model needs: a model trained on an EnergyPlus building's data "
+                "plans on its scenario"
             )
         return {name: np.array(fields[name][:h]) for name in names}
 
@@ -91,6 +95,7 @@ class LastInterval(NamedTuple):
     G_east: float = math.nan
     G_west: float = math.nan
     G_north: float = math.nan
+    wind: float = math.nan  # wind speed [m/s] (NaN where the run has none)
 
 
 class Observation(NamedTuple):
@@ -99,8 +104,8 @@ class Observation(NamedTuple):
     ``history`` holds the past in the data format's names: ``T_r`` (k+1,) measured room
     temperatures up to and including now; ``u`` and ``u_phys`` (k,) demanded and delivered power
     of past intervals [W]; ``T_a``, ``G``, ``I_g``, ``time_of_day_h`` (k+1,) up to now, and
-    ``day_of_week`` (k+1,, 0 = Monday) where the run has dates, and the facades' irradiance
-    (:data:`pinn_mpc.solar.FACADE_COLUMNS`, (k+1,)) where the run has it.
+    ``day_of_week`` (k+1,, 0 = Monday) where the run has dates, and the facades' irradiance and
+    the wind speed (:data:`pinn_mpc.data.SITE_COLUMNS`, (k+1,)) where the run has them.
     ``last`` is the interval that just ended (None at the first step), so nobody reads it back
     out of ``history`` by index. ``t_m_true_c`` is the simulator's hidden thermal-mass
     temperature: only the true-state estimator (oracle) may use it.
@@ -136,7 +141,7 @@ class Observation(NamedTuple):
                 u=float(u[-1]),
                 u_phys=float(u_phys[-1]),
                 day_of_week=before_now("day_of_week") if "day_of_week" in history else math.nan,
-                **{name: before_now(name) for name in FACADE_COLUMNS if name in history},
+                **{name: before_now(name) for name in SITE_COLUMNS if name in history},
             )
         return cls(k=k, t_r_c=float(t_r[-1]), history=history, t_m_true_c=t_m_true_c, last=last)
 

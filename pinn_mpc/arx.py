@@ -19,7 +19,9 @@ Sunday-or-holiday schedules on them.
 The physics-informed variant (:func:`fit_physics_informed_arx`) adds what a building's
 unmeasured occupancy does besides adding heat: ventilation and infiltration that follow the
 occupancy schedule scale the heat loss, so each schedule block gets a second coefficient on the
-indoor-outdoor difference, ``+ q(block) (T_r,k - T_a,k)``. It chooses by cross-validation
+indoor-outdoor difference, ``+ q(block) (T_r,k - T_a,k)``; and where the data has the wind
+speed (``wind``, an EnergyPlus building's weather file), infiltration that the wind drives
+(as the DOE reference buildings' does) adds ``+ c_w wind_k (T_r,k - T_a,k)``. It chooses by cross-validation
 on its own training data whether its schedule tells Saturdays from Sundays (reference office
 buildings run a Saturday schedule of their own), the schedule's block length (1 or 2 hours:
 an office's hourly schedules against fewer coefficients to fit) and whether to take the
@@ -51,7 +53,7 @@ import numpy as np
 import pandas as pd
 import torch
 
-from pinn_mpc.data import day_of_week
+from pinn_mpc.data import WIND, day_of_week
 from pinn_mpc.errors import InputError
 from pinn_mpc.io import DirectoryLayout
 from pinn_mpc.models.registry import ARX, PHYSICS_ARX
@@ -94,7 +96,7 @@ _RIDGE = 1e-9
 #: Scales that bring the inputs to order one: W -> kW, W/m2 -> 100 W/m2, W -> kW.
 _SCALE = {
     "T_r": 1.0, "u_phys": 1e-3, "T_a": 1.0, "G": 1e-2, **dict.fromkeys(FACADE_COLUMNS, 1e-2),
-    "I_g": 1e-3,
+    "I_g": 1e-3, WIND: 0.1,
 }
 #: The measured inputs a fit takes when the data has them, in this order after ``T_a``.
 MEASURED_INPUTS = ("G", "I_g")
@@ -113,10 +115,12 @@ def _blocks(block_h: float) -> int:
     return int(round(24 / block_h))
 
 
-def _n_coef(lags: int, n_columns: int, day_types: int, block_h: float, interaction: bool) -> int:
+def _n_coef(
+    lags: int, n_columns: int, day_types: int, block_h: float, interaction: bool, wind: bool = False
+) -> int:
     """Coefficients of an ARX model: its lags of every column, then its schedule (and as many
-    interaction weights, if any)."""
-    return lags * n_columns + day_types * _blocks(block_h) * (2 if interaction else 1)
+    interaction weights, if any), then the wind's weight (if any)."""
+    return lags * n_columns + day_types * _blocks(block_h) * (2 if interaction else 1) + int(wind)
 
 
 def _schedule_index(
@@ -154,7 +158,8 @@ class ARXModel:
     one-step MAE on the training data; ``day_types`` 2 (workdays, weekends) or 3 (workdays,
     Saturdays, Sundays); ``interaction`` whether each schedule block also weighs
     ``T_r,k - T_a,k`` (the physics-informed variant, module docstring); ``block_h`` the length
-    of the schedule's blocks [h].
+    of the schedule's blocks [h]; ``wind`` whether the last coefficient weighs
+    ``wind_k (T_r,k - T_a,k)`` (wind-driven infiltration).
     """
 
     columns: tuple[str, ...]
@@ -165,6 +170,7 @@ class ARXModel:
     day_types: int = 2
     interaction: bool = False
     block_h: float = BLOCK_H
+    wind: bool = False
 
     @property
     def n_schedule(self) -> int:
@@ -173,7 +179,20 @@ class ARXModel:
 
     def _interaction_coef(self) -> np.ndarray:
         start = self.lags * len(self.columns) + self.n_schedule
-        return self.coef[start:] if self.interaction else np.zeros(self.n_schedule)
+        return self.coef[start : start + self.n_schedule] if self.interaction else np.zeros(self.n_schedule)
+
+    @property
+    def _wind_coef(self) -> float:
+        """The weight of ``wind_k (T_r,k - T_a,k)`` in scaled units (0 without the term)."""
+        return float(self.coef[-1]) if self.wind else 0.0
+
+    def _wind(self, df: pd.DataFrame) -> np.ndarray:
+        """(N,) the data's scaled wind speed (zeros for a model without the term)."""
+        if not self.wind:
+            return np.zeros(len(df))
+        if WIND not in df:
+            raise InputError(f"ARX model: the data lacks column {WIND!r}, which the model weighs")
+        return df[WIND].to_numpy(dtype=float) * _SCALE[WIND]
 
     def _regressors(self, values: np.ndarray, k: np.ndarray) -> np.ndarray:
         """(len(k), lags * columns) of the scaled inputs at rows k, k-1, .., k-lags+1."""
@@ -199,6 +218,7 @@ class ARXModel:
                 f"ARX model: starts must lie in {self.lags - 1} .. {len(df) - 1 - horizon}"
             )
         values, sched = self._inputs(df)
+        wind = self._wind(df) * self._wind_coef
         n_lag = self.lags * len(self.columns)
         a_tr = self.coef[0:n_lag:len(self.columns)]  # weights of T_r,k-j
         s_coef = self.coef[n_lag : n_lag + self.n_schedule]
@@ -211,7 +231,7 @@ class ARXModel:
             other = reg @ self.coef[:n_lag] - reg[:, 0::len(self.columns)] @ a_tr
             t_next = (
                 other + t_hist @ a_tr + sched[k] @ s_coef
-                + (sched[k] @ q_coef) * (t_hist[:, 0] - values[k, 2])
+                + (sched[k] @ q_coef + wind[k]) * (t_hist[:, 0] - values[k, 2])
             )
             t_hist = np.concatenate([t_next[:, None], t_hist[:, :-1]], axis=1)
         return t_hist[:, 0] / _SCALE["T_r"]
@@ -232,7 +252,7 @@ class ARXModel:
 
     @property
     def exog_names(self) -> tuple[str, ...]:
-        return ("time_of_day_h", "day_of_week", *self.columns[2:])
+        return ("time_of_day_h", "day_of_week", *self.columns[2:], *((WIND,) if self.wind else ()))
 
     def prediction_matrices(
         self, history: dict[str, np.ndarray], exog: dict[str, np.ndarray], h: int
@@ -243,6 +263,7 @@ class ARXModel:
         end of each. ``history`` and ``exog`` as :meth:`rollout` takes them. The recursion is
         linear in the lagged ``T_r`` and power and the rest (weather, schedule, and the
         schedule's ``T_r - T_a`` interaction, whose weight is known from the dates) is given,
+        (and the wind's, from the forecast's wind speed)
         so ``free`` (h,) is the prediction under a zero plan and ``gain`` (h, h) [K/W] is
         lower triangular (a power acts on the temperatures after it)."""
         n_col, lags = len(self.columns), self.lags
@@ -278,6 +299,11 @@ class ARXModel:
         )
         free += coef[lags * n_col : lags * n_col + self.n_schedule][index]
         q = self._interaction_coef()[index]  # (h,)
+        if self.wind:
+            speed = np.asarray(exog[WIND], dtype=float)[:h]
+            if len(speed) < h or not np.all(np.isfinite(speed)):
+                raise InputError(f"ARX model: its wind term needs the forecast's {WIND!r}")
+            q = q + self._wind_coef * speed * _SCALE[WIND]
         t_a = np.asarray(exog["T_a"], dtype=float)[:h] * _SCALE["T_a"]
         a_tr = coef[0 : lags * n_col : n_col]
         # The recursion on both parts: the past T_r enter ``free``, the plan none of them.
@@ -314,6 +340,7 @@ class ARXModel:
             "block_h": self.block_h,
             "day_types": self.day_types,
             "interaction": self.interaction,
+            "wind": self.wind,
             "train_mae_c": self.train_mae_c,
         }
 
@@ -327,6 +354,7 @@ def fit_arx(
     inputs: tuple[str, ...] = MEASURED_INPUTS,
     block_h: float = BLOCK_H,
     rows: np.ndarray | None = None,
+    wind: bool = False,
 ) -> ARXModel:
     """Least-squares ARX fit of ``df`` (data format: ``time``, ``T_r``, ``u_phys``, ``T_a``,
     optional ``G``, the facades' irradiance (:data:`pinn_mpc.solar.FACADE_COLUMNS`) and ``I_g``;
@@ -334,7 +362,8 @@ def fit_arx(
     :class:`ARXModel` has them; ``inputs`` the optional inputs it takes where the data has
     them (by default the measured ones, :data:`MEASURED_INPUTS`); ``block_h`` the length [h] of
     the schedule's blocks (it must divide the day). ``rows``: fit only the steps from these
-    rows to the next (each at least ``lags - 1``, before the last; default all of them)."""
+    rows to the next (each at least ``lags - 1``, before the last; default all of them).
+    ``wind``: also weigh ``wind_k (T_r,k - T_a,k)`` (the data must have ``wind``)."""
     if lags < 1:
         raise InputError(f"ARX model: lags must be >= 1, got {lags}")
     if day_types not in (2, 3):
@@ -348,8 +377,9 @@ def fit_arx(
     model = ARXModel(
         columns=columns, lags=lags, coef=np.zeros(0), dt_s=float(df.attrs.get("dt_s", 1800.0)),
         train_mae_c=0.0, day_types=day_types, interaction=interaction, block_h=float(block_h),
+        wind=wind,
     )
-    n_coef = _n_coef(lags, len(columns), day_types, block_h, interaction)
+    n_coef = _n_coef(lags, len(columns), day_types, block_h, interaction, wind)
     k = np.arange(lags - 1, len(df) - 1) if rows is None else np.asarray(rows, dtype=int)
     if len(k) < 2 * n_coef:
         raise InputError(
@@ -360,6 +390,8 @@ def fit_arx(
     parts = [model._regressors(values, k), sched[k]]
     if interaction:
         parts.append(sched[k] * (values[k, 0] - values[k, 2])[:, None])
+    if wind:
+        parts.append((model._wind(df)[k] * (values[k, 0] - values[k, 2]))[:, None])
     x = np.concatenate(parts, axis=1)
     y = values[k + 1, 0]
     gram = x.T @ x
@@ -378,8 +410,8 @@ def fit_physics_informed_arx(
     actuator.
 
     The fit chooses its schedule's block length (:data:`BLOCK_CHOICES_H`), whether Saturdays
-    get a schedule of their own and, where the data has the facades' irradiance
-    (:data:`pinn_mpc.solar.FACADE_COLUMNS`), whether to take it besides the measured inputs,
+    get a schedule of their own, where the data has the facades' irradiance
+    (:data:`pinn_mpc.solar.FACADE_COLUMNS`) whether to take it besides the measured inputs,
     by blocked cross-validation: the data cut into :data:`SELECTION_FOLDS` consecutive parts,
     each predicted :data:`SELECTION_HORIZON_S` ahead by the fit on the steps of the others.
     Of the choices whose mean error over the parts is within one standard error of the best's
@@ -387,27 +419,33 @@ def fit_physics_informed_arx(
     Hourly blocks follow an office's hourly schedules and a Saturday schedule a reference
     office's, but each doubles or adds half the schedule's coefficients, which two weeks of
     data cannot all fix; the facades are four more irradiance inputs, and how much a
-    building's windows make of them is in the data. A choice that cannot be fitted on every
-    part is not taken; if none can, the first: 2-hour blocks, three day types, the measured
-    inputs alone."""
+    building's windows make of them is in the data. Where the data has the wind speed, every
+    choice takes the wind's term: one coefficient whose use a month of the same season's wind
+    hardly shows, but a building's infiltration follows the wind (the DOE reference buildings'
+    does). A choice that cannot be fitted on every part is not taken; if none can, the first:
+    2-hour blocks, three day types, the measured inputs alone."""
     facades = (*MEASURED_INPUTS, *FACADE_COLUMNS) if all(c in df for c in FACADE_COLUMNS) else None
+    wind = WIND in df
     choices = [
-        (inputs, block_h, day_types)
+        (inputs, block_h, day_types, wind)
         for inputs in (MEASURED_INPUTS, *((facades,) if facades else ()))
         for block_h in (BLOCK_H, *(b for b in BLOCK_CHOICES_H if b != BLOCK_H))
         for day_types in (3, 2)
     ]
-    scores = [_cross_validated_error(df, i, lags, b, d) for i, b, d in choices]
+    scores = [_cross_validated_error(df, i, lags, b, d, w) for i, b, d, w in choices]
     best = int(np.argmin([mean for mean, _ in scores]))
     limit = scores[best][0] + scores[best][1]
     within = [c for c, (mean, _) in zip(choices, scores, strict=True) if mean <= limit] or [choices[0]]
 
-    def size(choice: tuple[tuple[str, ...], float, int]) -> int:
-        inputs, block_h, day_types = choice
-        return _n_coef(lags, 3 + sum(c in df for c in inputs), day_types, block_h, interaction=True)
+    def size(choice: tuple[tuple[str, ...], float, int, bool]) -> int:
+        inputs, block_h, day_types, wind = choice
+        return _n_coef(lags, 3 + sum(c in df for c in inputs), day_types, block_h, True, wind)
 
-    inputs, block_h, day_types = min(within, key=size)
-    model = fit_arx(df, lags=lags, day_types=day_types, interaction=True, inputs=inputs, block_h=block_h)
+    inputs, block_h, day_types, wind = min(within, key=size)
+    model = fit_arx(
+        df, lags=lags, day_types=day_types, interaction=True, inputs=inputs, block_h=block_h,
+        wind=wind,
+    )
     n_col = len(model.columns)
     if float(np.sum(model.coef[1 : lags * n_col : n_col])) * float(np.sign(eta)) <= 0:
         raise InputError(
@@ -419,11 +457,12 @@ def fit_physics_informed_arx(
 
 
 def _cross_validated_error(
-    df: pd.DataFrame, inputs: tuple[str, ...], lags: int, block_h: float, day_types: int
+    df: pd.DataFrame, inputs: tuple[str, ...], lags: int, block_h: float, day_types: int,
+    wind: bool = False,
 ) -> tuple[float, float]:
     """The mean and standard error [K] over :data:`SELECTION_FOLDS` consecutive parts of
     ``df`` of the MAE of the physics-informed ARX with ``inputs``, schedule blocks of
-    ``block_h`` hours and ``day_types``, predicting the part :data:`SELECTION_HORIZON_S` ahead
+    ``block_h`` hours, ``day_types`` and the wind's term if ``wind``, predicting the part :data:`SELECTION_HORIZON_S` ahead
     from every start in it (its history measured), fitted on the steps whose rows lie outside
     it; (inf, 0) when a part cannot be fitted or is shorter than the horizon."""
     dt_s = float(df.attrs.get("dt_s", 1800.0))
@@ -441,7 +480,7 @@ def _cross_validated_error(
         try:
             model = fit_arx(
                 df, lags=lags, day_types=day_types, interaction=True, inputs=inputs,
-                block_h=block_h, rows=steps[outside],
+                block_h=block_h, rows=steps[outside], wind=wind,
             )
         except (InputError, np.linalg.LinAlgError):
             return math.inf, 0.0
@@ -488,14 +527,16 @@ def load_arx(path: str | os.PathLike[str]) -> ARXModel:
         block_h = float(data.get("block_h", BLOCK_H))
         day_types = int(data.get("day_types", 2))
         interaction = data.get("interaction", False)
+        wind = data.get("wind", False)
     except (OSError, ValueError, KeyError, TypeError) as exc:
         raise InputError(f"{file}: not a readable ARX model ({exc}); write it with `pinn-mpc train --arch arx`") from None
     if not _valid_block(block_h):
         raise InputError(f"{file}: not a valid ARX model (block_h {block_h:g} does not divide the day)")
-    expected = _n_coef(lags, len(columns), day_types, block_h, interaction is True)
+    expected = _n_coef(lags, len(columns), day_types, block_h, interaction is True, wind is True)
     if (
         day_types not in (2, 3)
         or not isinstance(interaction, bool)
+        or not isinstance(wind, bool)
         or data.get("kind") != ARX.name
         or columns[:3] != ("T_r", "u_phys", "T_a")
         or not set(columns) <= set(_SCALE)
@@ -511,7 +552,7 @@ def load_arx(path: str | os.PathLike[str]) -> ARXModel:
     return ARXModel(
         columns=columns, lags=lags, coef=coef, dt_s=dt_s,
         train_mae_c=float(data.get("train_mae_c", float("nan"))),
-        day_types=day_types, interaction=bool(interaction), block_h=block_h,
+        day_types=day_types, interaction=bool(interaction), block_h=block_h, wind=bool(wind),
     )
 
 

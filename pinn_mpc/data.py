@@ -5,7 +5,9 @@ start of the interval, optional ``T_m`` [C] (simulated data only), ``u`` [W] dem
 the interval, ``u_phys`` [W] mean delivered during the interval, ``T_a`` [C]; optional
 ``G`` [W/m2], the irradiance on the site's vertical facades ``G_south``, ``G_east``,
 ``G_west``, ``G_north`` [W/m2] (:mod:`pinn_mpc.solar`), ``I_g`` [W], ``price`` [EUR/kWh],
-``T_min``/``T_max`` [C] comfort band, ``holiday`` (1 on the days the building runs its
+``T_min``/``T_max`` [C] comfort band, ``wind`` [m/s] the wind speed at the weather station
+(an EnergyPlus building's weather file: it drives the reference buildings' infiltration),
+``holiday`` (1 on the days the building runs its
 Sunday-or-holiday schedules, else 0; an EnergyPlus building's ``RunPeriodControl:SpecialDays``),
 ``cop`` [-] heat delivered per electrical watt of ``u_phys`` (a heat pump's COP; absent or 1 for a
 resistance heater; :func:`pinn_mpc.identify.identify_rc` then fits on ``cop`` x ``u_phys``).
@@ -36,7 +38,10 @@ __all__ = [
     "OPTIONAL",
     "POWER",
     "REQUIRED",
+    "SITE_COLUMNS",
     "TEMPERATURE_RANGE_C",
+    "WIND",
+    "WIND_RANGE_M_S",
     "day_of_week",
     "parse_column_map",
     "parse_times",
@@ -45,12 +50,19 @@ __all__ = [
     "write_timeseries",
 ]
 
+#: The wind speed column [m/s] (a weather station's, at its 10 m mast).
+WIND = "wind"
+#: What a site's weather file adds to a run's inputs beyond ``T_a`` and ``G``: the facades'
+#: irradiance and the wind speed (an EnergyPlus scenario's data, trajectories and forecasts).
+SITE_COLUMNS = (*FACADE_COLUMNS, WIND)
 REQUIRED = ("time", "T_r", "u", "u_phys", "T_a")
-OPTIONAL = ("T_m", "G", *FACADE_COLUMNS, "I_g", "price", "T_min", "T_max", "holiday", "cop")
+OPTIONAL = ("T_m", "G", *FACADE_COLUMNS, "I_g", "price", "T_min", "T_max", WIND, "holiday", "cop")
 COLUMNS = (
     "time", "T_r", "T_m", "u", "u_phys", "T_a", "G", *FACADE_COLUMNS, "I_g", "price", "T_min",
-    "T_max", "holiday", "cop",
+    "T_max", WIND, "holiday", "cop",
 )
+#: Plausible wind speeds [m/s] (``wind`` column): calm to the strongest gusts weather files hold.
+WIND_RANGE_M_S = (0.0, 60.0)
 #: Plausible heat per electrical watt (``cop`` column): a resistance heater 1, heat pumps 2-6.
 COP_RANGE = (0.5, 10.0)
 NUMERIC = tuple(c for c in COLUMNS if c != "time")
@@ -244,6 +256,15 @@ def validate_timeseries(
             raise InputError(
                 f"{source}: column 'cop' row {row + 1} is {out['cop'].iloc[row]:g}, outside the "
                 f"plausible {lo:g} .. {hi:g} (heat delivered per electrical watt)"
+            )
+    if WIND in out.columns:
+        lo, hi = WIND_RANGE_M_S
+        outside = (out[WIND] < lo) | (out[WIND] > hi)
+        if outside.any():
+            row = int(np.flatnonzero(outside.to_numpy())[0])
+            raise InputError(
+                f"{source}: column {WIND!r} row {row + 1} is {out[WIND].iloc[row]:g}, outside the "
+                f"plausible {lo:g} .. {hi:g} m/s; is it in km/h or knots?"
             )
     if "holiday" in out.columns and not out["holiday"].isin((0.0, 1.0)).all():
         row = int(np.flatnonzero(~out["holiday"].isin((0.0, 1.0)).to_numpy())[0])

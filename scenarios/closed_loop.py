@@ -32,11 +32,10 @@ from tqdm import tqdm
 from controllers.base import Controller
 from controllers.estimators import TrueState
 from controllers.thermostat import Thermostat
-from pinn_mpc.data import COLUMNS, write_timeseries
+from pinn_mpc.data import COLUMNS, SITE_COLUMNS, write_timeseries
 from pinn_mpc.errors import InputError
 from pinn_mpc.physics import RCParams
 from pinn_mpc.records import TrustReport
-from pinn_mpc.solar import FACADE_COLUMNS
 from scenarios.engine import ClosedLoop, ExogenousSeries, LoopRecord
 from scenarios.inputs import day_span
 from scenarios.kpis import compute_kpis
@@ -222,9 +221,9 @@ def run_closed_loop(
         rec = loop.record()
     series, counted, exo = run.series, run.counted, run.exo
     # The inputs the plant had: the series' rows on the RC plant, EnergyPlus's own otherwise.
-    # The facades' irradiance, where the run has it, is the weather file's.
+    # The facades' irradiance and the wind, where the run has them, are the weather file's.
     given = {
-        *_EXOGENOUS, *(FACADE_COLUMNS if series.has_facades else ()),
+        *_EXOGENOUS, *(c for c in SITE_COLUMNS if getattr(series, c) is not None),
         *(("holiday",) if series.holiday is not None else ()),
     }
     exogenous = tuple(c for c in COLUMNS if c in given)  # in the data format's order

@@ -45,10 +45,10 @@ import numpy as np
 import pandas as pd
 
 from controllers.thermostat import Thermostat
+from pinn_mpc.data import SITE_COLUMNS
 from pinn_mpc.errors import InputError
 from pinn_mpc.physics import RCParams
 from pinn_mpc.simulator import Simulator
-from pinn_mpc.solar import FACADE_COLUMNS
 from scenarios.choices import POLICIES
 from scenarios.registry import Scenario, check_seed
 
@@ -283,8 +283,9 @@ def _generate_energyplus(
     )
     if scenario.sim.plant.gains == "measured":  # the gains as they happened, measured
         frame["I_g"] = i_g
-    for name in FACADE_COLUMNS:  # the facades' irradiance of the plant's weather file
-        frame[name] = exo[name].to_numpy(dtype=float)[:n]
+    for name in SITE_COLUMNS:  # the facades' irradiance and wind of the plant's weather file
+        if name in exo:
+            frame[name] = exo[name].to_numpy(dtype=float)[:n]
     if "holiday" in exo:  # the building's holiday calendar
         frame["holiday"] = exo["holiday"].to_numpy(dtype=float)[:n]
     frame.attrs["dt_s"] = float(scenario.sim.dt_s)

@@ -46,7 +46,7 @@ import pandas as pd
 
 from controllers.base import Controller, ControlSpec, Forecast, Observation, fallback_power
 from controllers.estimators import TrueState
-from pinn_mpc.data import day_of_week
+from pinn_mpc.data import SITE_COLUMNS, day_of_week
 from pinn_mpc.errors import InputError
 from pinn_mpc.physics import RCParams
 from pinn_mpc.simulator import PlantStep, SimConfig, Simulator, StepResult
@@ -158,6 +158,9 @@ class ExogenousSeries:
     G_east: np.ndarray | None = None
     G_west: np.ndarray | None = None
     G_north: np.ndarray | None = None
+    #: (N,) the wind speed at the weather station [m/s], where the run has it (an EnergyPlus
+    #: scenario's weather file); None otherwise. Forecast as the file has it (no error).
+    wind: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if self.day_of_week is None:
@@ -182,7 +185,7 @@ class ExogenousSeries:
     @classmethod
     def from_frame(cls, frame: pd.DataFrame) -> ExogenousSeries:
         """From a frame with ``time`` and :data:`EXOGENOUS_FIELDS` (as Scenario.exogenous makes
-        it), and the facades' irradiance and ``holiday`` when the frame has them."""
+        it), and the facades' irradiance, the wind and ``holiday`` when the frame has them."""
         missing = [c for c in ("time", *EXOGENOUS_FIELDS) if c not in frame.columns]
         if missing:
             raise InputError(
@@ -190,7 +193,7 @@ class ExogenousSeries:
             )
         cols = {
             c: frame[c].to_numpy(dtype=float)
-            for c in (*EXOGENOUS_FIELDS, *FACADE_COLUMNS, "holiday")
+            for c in (*EXOGENOUS_FIELDS, *SITE_COLUMNS, "holiday")
             if c in frame.columns
         }
         times = pd.DatetimeIndex(frame["time"]).to_numpy()
@@ -501,8 +504,9 @@ class ClosedLoop:
             "u": np.array(self._u[:k, building]),
             "u_phys": np.array(self._u_phys[:k, building]),
         }
-        if exo.has_facades:  # the weather file's, as the plant had it
-            history.update({name: np.array(getattr(exo, name)[rows]) for name in FACADE_COLUMNS})
+        for name in SITE_COLUMNS:  # the weather file's, as the plant had it, where the run has it
+            if getattr(exo, name) is not None:
+                history[name] = np.array(getattr(exo, name)[rows])
         return Observation.from_history(k, history, float(self._t_m[k, building]))
 
     def forecast(self, *, perfect: bool = False) -> Forecast:

@@ -349,6 +349,28 @@ def load_site_irradiance(file_name: str) -> dict[str, Any]:
         ) from None
 
 
+@functools.lru_cache(maxsize=4)
+def load_site_wind(file_name: str) -> np.ndarray:
+    """The weather file's hourly wind speed (8760,) [m/s]; ``file_name`` as :func:`load_tmy3`
+    takes it. InputError when the file has none or it is not plausible."""
+    from pinn_mpc.data import WIND_RANGE_M_S
+
+    load_tmy3(file_name)
+    path = tmy3_path(file_name)
+    try:
+        frame, _ = _read_weather(path, path.suffix.lower() == ".epw")
+        speed = frame["wind_speed"].to_numpy(dtype=float)
+    except Exception as exc:  # pvlib raises many kinds on a malformed file; one line for the user
+        raise InputError(f"weather file {path}: no wind speed ({exc})") from None
+    lo, hi = WIND_RANGE_M_S
+    if len(speed) != HOURS_PER_TYPICAL_YEAR or not np.all((speed >= lo) & (speed <= hi)):
+        raise InputError(
+            f"weather file {path}: its wind speeds must be {HOURS_PER_TYPICAL_YEAR} hourly values "
+            f"in {lo:g} .. {hi:g} m/s"
+        )
+    return speed
+
+
 def resample_typical_year(
     t_a_hourly_c: np.ndarray, ghi_hourly_w_per_m2: np.ndarray, *, start_s: float, n: int, dt_s: float
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -501,6 +523,22 @@ class TMY3Weather:
         start_s = (first - pd.Timestamp(year=first.year, month=1, day=1)).total_seconds()
         site = load_site_irradiance(self.file_name)
         return interval_means(start_s, len(times), dt_s, year=first.year, **site)
+
+    def wind(self, times: pd.DatetimeIndex, *, dt_s: float) -> np.ndarray:
+        """The weather file's wind speed (n,) [m/s] in the intervals starting at ``times``
+        (consecutive, placed in the typical year as :meth:`facades` places them): its hourly
+        values, which EnergyPlus interpolates linearly between the hours, at each interval's
+        middle, as ``T_a``."""
+        times = pd.DatetimeIndex(times)
+        if len(times) == 0:
+            return np.zeros(0)
+        first = times[0]
+        start_s = (first - pd.Timestamp(year=first.year, month=1, day=1)).total_seconds()
+        speed, _ = resample_typical_year(
+            load_site_wind(self.file_name), np.zeros(HOURS_PER_TYPICAL_YEAR),
+            start_s=start_s, n=len(times), dt_s=dt_s,
+        )
+        return speed
 
     def sample(
         self, *, n: int, dt_s: float, run_days: int, part: WeatherPart, rng: np.random.Generator

@@ -25,6 +25,7 @@ import pandas as pd
 
 from controllers.base import ControlSpec
 from pinn_mpc.actuator import Actuator
+from pinn_mpc.data import WIND
 from pinn_mpc.errors import InputError
 from pinn_mpc.physics import PAPER_HOUSEHOLD, RCParams
 from pinn_mpc.plant import Plant
@@ -176,7 +177,8 @@ class Scenario:
         Columns ``time`` (datetime64, interval start), ``T_a`` [C], ``G`` [W/m2], ``I_g`` [W],
         ``price`` [EUR/kWh], ``T_min``/``T_max`` [C]; for an EnergyPlus plant also the
         irradiance on its site's facades (:data:`pinn_mpc.solar.FACADE_COLUMNS` [W/m2], from
-        the plant's weather file, :meth:`scenarios.inputs.TMY3Weather.facades`) and ``holiday``
+        the plant's weather file, :meth:`scenarios.inputs.TMY3Weather.facades`), its wind speed
+        (``wind`` [m/s], :meth:`scenarios.inputs.TMY3Weather.wind`) and ``holiday``
         (1 on the building's holidays, :func:`pinn_mpc.energyplus.holidays`). ``part`` is the weather part the run is
         drawn from (``train``, ``test`` or ``whole``, see :mod:`scenarios.inputs`); a run that
         does not fit in its part raises InputError. The ``lead_steps`` extra rows at the end
@@ -226,10 +228,12 @@ class Scenario:
                 "T_max": t_max,
             }
         )
-        if plant.is_energyplus:  # the plant's EPW (checked): its facades' irradiance too
-            facades = cast(TMY3Weather, self.weather).facades(times, dt_s=dt_s)
+        if plant.is_energyplus:  # the plant's EPW (checked): its facades' irradiance and wind too
+            epw = cast(TMY3Weather, self.weather)
+            facades = epw.facades(times, dt_s=dt_s)
             for name in FACADE_COLUMNS:
                 frame[name] = facades[name]
+            frame[WIND] = epw.wind(times, dt_s=dt_s)
             from pinn_mpc.energyplus import holidays
 
             frame["holiday"] = holidays(plant, times.to_numpy())
