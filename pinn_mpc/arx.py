@@ -300,7 +300,7 @@ class ARXModel:
         free += coef[lags * n_col : lags * n_col + self.n_schedule][index]
         q = self._interaction_coef()[index]  # (h,)
         if self.wind:
-            speed = np.asarray(exog[WIND], dtype=float)[:h]
+            speed = np.asarray(exog.get(WIND, []), dtype=float)[:h]
             if len(speed) < h or not np.all(np.isfinite(speed)):
                 raise InputError(f"ARX model: its wind term needs the forecast's {WIND!r}")
             q = q + self._wind_coef * speed * _SCALE[WIND]

@@ -277,3 +277,58 @@ def test_physics_informed_arx_round_trips_plans_as_it_predicts_and_refuses_cooli
     assert cooling.eta == -1.0
     with pytest.raises(InputError, match="more power warms"):
         fit_physics_informed_arx(_occupied_data(21, seed=0), lags=1, eta=-3.0)
+
+
+def _windy_data(days: int, seed: int, wind_loss: float = 0.01) -> pd.DataFrame:
+    """:func:`_occupied_data`'s room, whose heat loss also grows with the wind speed (as
+    wind-driven infiltration): ``wind_loss`` more of ``T_r - T_a`` per interval per m/s."""
+    df = _occupied_data(days, seed)
+    rng = np.random.default_rng(seed + 100)
+    wind = np.clip(3.0 + np.cumsum(rng.normal(0, 0.4, len(df))) * 0.3, 0.0, 12.0)
+    time = pd.DatetimeIndex(df["time"])
+    hour, dow = time.hour.to_numpy(), time.day_of_week.to_numpy()
+    occupied = (hour >= 8) & (hour < 18) & ((dow < 5) | ((dow == 5) & (hour < 12)))
+    loss = np.where(occupied, 0.12, 0.05) + wind_loss * wind
+    gains = np.where(occupied, 0.6, 0.1) + np.where(dow == 5, 0.2, 0.0)
+    t_r, t_a, u = df["T_r"].to_numpy().copy(), df["T_a"].to_numpy(), df["u_phys"].to_numpy()
+    for k in range(len(df) - 1):
+        t_r[k + 1] = t_r[k] - loss[k] * (t_r[k] - t_a[k]) + 0.002 * u[k] + gains[k]
+    out = df.assign(T_r=t_r, wind=wind)
+    out.attrs["dt_s"] = 1800.0
+    return out
+
+
+def test_physics_informed_arx_recovers_wind_driven_infiltration(tmp_path):
+    """A room whose loss follows the wind as well as the occupancy: the physics-informed ARX
+    weighs wind x (T_r - T_a) where the data has the wind, recovers its weight (scaled by 0.1
+    per m/s) and predicts 48 steps ahead exactly; its horizon stays affine in the plan (the
+    wind's weight from the forecast) and the file keeps the term."""
+    from pinn_mpc.arx import fit_physics_informed_arx, load_arx, save_arx
+
+    train, test = _windy_data(28, seed=0), _windy_data(14, seed=1)
+    model = fit_physics_informed_arx(train, lags=1)
+    assert model.wind and "wind" in model.exog_names
+    assert model.coef[-1] * 0.1 == pytest.approx(-0.01, rel=1e-5)
+    starts = np.arange(10, len(test) - 48)
+    assert np.allclose(model.predict_t_r(test, 48, starts), test["T_r"].to_numpy()[starts + 48], atol=1e-6)
+    without = fit_physics_informed_arx(train.drop(columns="wind"), lags=1)
+    assert not without.wind
+    assert np.abs(without.predict_t_r(test.drop(columns="wind"), 48, starts) - test["T_r"].to_numpy()[starts + 48]).mean() > 0.05
+    k, h = 200, 24
+    t = pd.DatetimeIndex(test["time"])
+    history = {c: test[c].to_numpy()[: k + 1] for c in ("T_r", "T_a")}
+    history["u_phys"] = test["u_phys"].to_numpy()[:k]
+    exog = {
+        "time_of_day_h": (t.hour + t.minute / 60).to_numpy()[k : k + h],
+        "day_of_week": t.day_of_week.to_numpy()[k : k + h].astype(float),
+        "T_a": test["T_a"].to_numpy()[k : k + h],
+        "wind": test["wind"].to_numpy()[k : k + h],
+    }
+    free, gain = model.prediction_matrices(history, exog, h)
+    plan = test["u_phys"].to_numpy()[k : k + h]
+    recursion = [model.predict_t_r(test, j, np.array([k]))[0] for j in range(1, h + 1)]
+    assert np.allclose(free + gain @ plan, recursion, atol=1e-6)
+    with pytest.raises(InputError, match="wind"):
+        model.prediction_matrices(history, {n: v for n, v in exog.items() if n != "wind"}, h)
+    loaded = load_arx(save_arx(model, tmp_path / "m").parent)
+    assert loaded.wind and np.array_equal(loaded.coef, model.coef)

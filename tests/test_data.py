@@ -76,6 +76,15 @@ def test_column_mapping_and_single_power_column(tmp_path):
             lambda d: d.assign(time=pd.date_range("2024-01-01", periods=len(d), freq="12h")),
             "time step is 43200 s, outside the plausible",
         ),
+        # Wind speed in m/s: km/h or knots of a storm leave the plausible range.
+        (
+            lambda d: d.assign(wind=np.where(d.index == 2, 90.0, 3.0)),
+            r"'wind' row 3 is 90, outside the plausible 0 \.\. 60 m/s; is it in km/h or knots\?",
+        ),
+        (
+            lambda d: d.assign(wind=np.where(d.index == 0, -1.0, 3.0)),
+            r"'wind' row 1 is -1, outside the plausible",
+        ),
         # A building's holiday calendar is a 0/1 mark per row.
         (
             lambda d: d.assign(holiday=np.where(d.index == 3, 2.0, 0.0)),

@@ -650,3 +650,42 @@ def test_merging_a_zone_turned_against_the_building_is_refused(tmp_path):
     with pytest.raises(InputError, match="turned 30 degrees.*zones = 'separate'"):
         prepare_model(str(path))
     assert prepare_model(str(path), zones="separate").zones
+
+
+def test_the_weather_files_wind_reaches_data_trajectories_and_forecasts():
+    """The EPW's hourly wind speed, interpolated linearly between its hours as EnergyPlus does
+    (each hourly value stands at the hour's end): an interval from hh:00 to hh:30 has the
+    interpolant's value at hh:15, 3/4 of hour hh's value and 1/4 of the next. It reaches the
+    data, the controllers' past and forecast, and the trajectory."""
+    import pvlib
+
+    from pinn_mpc.energyplus import resolve_weather
+    from scenarios.closed_loop import build_loop, prepare_run
+    from scenarios.datagen import generate
+
+    scenario = get_scenario(SCENARIO)
+    data = generate(scenario, days=1, seed=0, policy="random-level")
+    hourly = pvlib.iotools.read_epw(resolve_weather("usa_il_chicago"))[0]["wind_speed"].to_numpy()
+    t = pd.DatetimeIndex(data["time"])
+    hour_of_year = (t.day_of_year.to_numpy() - 1) * 24 + t.hour.to_numpy()  # row of hour hh+1
+    ending_now = hourly[(hour_of_year - 1) % 8760]  # the value at hh:00
+    ending_next = hourly[hour_of_year % 8760]  # the value at hh+1:00
+    frac = (t.minute.to_numpy() + 15) / 60.0
+    assert np.allclose(data["wind"].to_numpy(), (1 - frac) * ending_now + frac * ending_next)
+    seen = {}
+
+    class Recording(Thermostat):
+        def act(self, obs, forecast):
+            if obs.k == 30:
+                seen["past"], seen["forecast"] = obs.history["wind"], forecast.wind
+            return super().act(obs, forecast)
+
+    run = prepare_run(scenario, days=1, seed=0, warmup_steps=0, weather_part="test")
+    with build_loop(scenario, run, seed=0) as loop:
+        controller = Recording(scenario.control_spec())
+        for _ in range(31):
+            loop.step(controller.act(loop.observation(), loop.forecast()))
+    assert np.array_equal(seen["past"], run.series.wind[:31])
+    assert np.array_equal(seen["forecast"], run.series.wind[30:])
+    trajectory = run_closed_loop(scenario, Thermostat(scenario.control_spec()), days=1, seed=0).trajectory
+    assert "wind" in trajectory.columns and trajectory["wind"].max() > 0.5
