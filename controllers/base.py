@@ -73,9 +73,9 @@ class Forecast(NamedTuple):
         missing = [name for name in names if name in SITE_COLUMNS and fields[name] is None]
         if missing:
             raise InputError(
-                f"the forecast has no {', '.join(missing)} (a weather file's facade irradiance "
-                "or wind) that the model needs: a model trained on an EnergyPlus building's data "
-                "plans on its scenario"
+                f"the forecast has no facade irradiance or wind ({', '.join(missing)}) that the "
+                "model needs: a model trained on an EnergyPlus building's data plans on its "
+                "scenario"
             )
         return {name: np.array(fields[name][:h]) for name in names}
 

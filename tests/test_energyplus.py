@@ -113,7 +113,7 @@ def test_same_seed_same_csv(tmp_path):
     a, b = (tmp_path / "a.csv").read_text(), (tmp_path / "b.csv").read_text()
     assert a == b
     assert a.splitlines()[0] == (
-        "time,T_r,u,u_phys,T_a,G,G_south,G_east,G_west,G_north,price,T_min,T_max,holiday"
+        "time,T_r,u,u_phys,T_a,G,G_south,G_east,G_west,G_north,price,T_min,T_max,wind,holiday"
     )
     assert len(a.splitlines()) == 49
 
