@@ -25,7 +25,7 @@ speed (``wind``, an EnergyPlus building's weather file), infiltration that the w
 on its own training data whether its schedule tells Saturdays from Sundays (reference office
 buildings run a Saturday schedule of their own), the schedule's block length (1 or 2 hours:
 an office's hourly schedules against fewer coefficients to fit) and whether to take the
-facades' irradiance. The fit must
+facades' irradiance instead of ``G``. The fit must
 say that more power warms the room (the sum of the power's coefficients positive, as a heater
 does; negative for a cooling machine), or it is refused. It is fitted by least squares on the one-step error
 (a tiny ridge keeps it well posed), has no hidden state and no network, and is linear in the
@@ -410,21 +410,23 @@ def fit_physics_informed_arx(
     actuator.
 
     The fit chooses its schedule's block length (:data:`BLOCK_CHOICES_H`), whether Saturdays
-    get a schedule of their own, where the data has the facades' irradiance
-    (:data:`pinn_mpc.solar.FACADE_COLUMNS`) whether to take it besides the measured inputs,
-    by blocked cross-validation: the data cut into :data:`SELECTION_FOLDS` consecutive parts,
-    each predicted :data:`SELECTION_HORIZON_S` ahead by the fit on the steps of the others.
-    Of the choices whose mean error over the parts is within one standard error of the best's
-    (the one-standard-error rule), the one with the fewest coefficients is fitted on all of it.
-    Hourly blocks follow an office's hourly schedules and a Saturday schedule a reference
-    office's, but each doubles or adds half the schedule's coefficients, which two weeks of
-    data cannot all fix; the facades are four more irradiance inputs, and how much a
-    building's windows make of them is in the data. Where the data has the wind speed, every
+    get a schedule of their own and, where the data has the facades' irradiance
+    (:data:`pinn_mpc.solar.FACADE_COLUMNS`), whether to take it instead of ``G``, by blocked
+    cross-validation: the data cut into :data:`SELECTION_FOLDS` consecutive parts, each
+    predicted :data:`SELECTION_HORIZON_S` ahead by the fit on the steps of the others. Of the
+    choices whose mean error over the parts is within one standard error of the best's (the
+    one-standard-error rule), the one with the smallest schedule is fitted on all of it, with
+    the facades rather than ``G`` where both are within. Hourly blocks follow an office's
+    hourly schedules and a Saturday schedule a reference office's, but each doubles or adds
+    half the schedule's coefficients, which two weeks of data cannot all fix. The facades are
+    what a building's windows see: a month of one season's data hardly tells them from ``G``,
+    but the next month's higher sun does, and with both ``G`` and the facades a fit weighs
+    them against each other and extrapolates poorly. Where the data has the wind speed, every
     choice takes the wind's term: one coefficient whose use a month of the same season's wind
     hardly shows, but a building's infiltration follows the wind (the DOE reference buildings'
     does). A choice that cannot be fitted on every part is not taken; if none can, the first:
     2-hour blocks, three day types, the measured inputs alone."""
-    facades = (*MEASURED_INPUTS, *FACADE_COLUMNS) if all(c in df for c in FACADE_COLUMNS) else None
+    facades = ("I_g", *FACADE_COLUMNS) if all(c in df for c in FACADE_COLUMNS) else None
     wind = WIND in df
     choices = [
         (inputs, block_h, day_types, wind)
@@ -437,11 +439,11 @@ def fit_physics_informed_arx(
     limit = scores[best][0] + scores[best][1]
     within = [c for c, (mean, _) in zip(choices, scores, strict=True) if mean <= limit] or [choices[0]]
 
-    def size(choice: tuple[tuple[str, ...], float, int, bool]) -> int:
-        inputs, block_h, day_types, wind = choice
-        return _n_coef(lags, 3 + sum(c in df for c in inputs), day_types, block_h, True, wind)
+    def simplest(choice: tuple[tuple[str, ...], float, int, bool]) -> tuple[int, bool]:
+        inputs, block_h, day_types, _ = choice
+        return day_types * _blocks(block_h), inputs != facades
 
-    inputs, block_h, day_types, wind = min(within, key=size)
+    inputs, block_h, day_types, wind = min(within, key=simplest)
     model = fit_arx(
         df, lags=lags, day_types=day_types, interaction=True, inputs=inputs, block_h=block_h,
         wind=wind,
