@@ -13,9 +13,11 @@ the last quarter 12 hours ahead (:data:`pinn_mpc.arx.SELECTION_SHARE`,
 :data:`pinn_mpc.arx.SELECTION_HORIZON_S`; every start in that quarter, the same starts for
 both, the history before them measured). The physics-informed ARX is taken when its error is
 at most :data:`AUTO_RATIO` times the hybrid's, and then fitted on all the data; otherwise the
-hybrid is trained on all of it. The ratio keeps the hybrid, with its trust guard and RC
-fallback, wherever the two predict alike (on the 2R2C scenarios the hybrid errs as little or
-less).
+hybrid is trained on all of it. The ratio keeps the hybrid, the model whose 2R2C the package
+exports, wherever the two predict alike (on the 2R2C scenarios the hybrid errs as little or
+less). The last quarter is the same season as the rest: it understates how much better the
+ARX extrapolates to the next month on a building a 2R2C does not hold, hence a ratio of 3/4,
+not 1/2.
 Data too short to hold a quarter out, and data the ARX cannot fit (a power that does not warm
 the room), keep the hybrid without a comparison.
 
@@ -44,7 +46,7 @@ __all__ = ["AUTO", "AUTO_RATIO", "HISTORY_ROWS", "ROUGH_MAE_C", "ModelChoice", "
 
 #: The physics-informed ARX replaces the hybrid when its held-out error is at most this
 #: share of the hybrid's.
-AUTO_RATIO = 0.5
+AUTO_RATIO = 0.75
 #: Measured rows before the held-out quarter that both models may read as history (more than
 #: any default depth or lag count).
 HISTORY_ROWS = 64

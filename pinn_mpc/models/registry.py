@@ -183,6 +183,6 @@ def arch_help() -> str:
         + [
             f"{AUTO} (the default): {DEFAULT_ARCH} or {PHYSICS_ARX.name}, whichever predicts the "
             f"data's last quarter 12 h ahead better ({PHYSICS_ARX.name} when its error is at most "
-            "half the hybrid's), fitted on all of it"
+            "three quarters of the hybrid's), fitted on all of it"
         ]
     )
