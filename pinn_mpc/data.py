@@ -129,6 +129,24 @@ def parse_times(values: pd.Series, source: str) -> pd.Series:
     return pd.Series(parsed.dt.tz_convert("UTC").dt.tz_localize(None)).astype("datetime64[ns]")
 
 
+
+def _check_range(
+    out: pd.DataFrame, col: str, bounds: tuple[float, float], source: str, unit: str, hint: str
+) -> None:
+    """InputError naming the first row of ``col`` (where the frame has it) outside ``bounds``
+    (``unit`` after them, then ``hint``)."""
+    if col not in out.columns:
+        return
+    lo, hi = bounds
+    outside = (out[col] < lo) | (out[col] > hi)
+    if outside.any():
+        row = int(np.flatnonzero(outside.to_numpy())[0])
+        raise InputError(
+            f"{source}: column {col!r} row {row + 1} is {out[col].iloc[row]:g}, outside the "
+            f"plausible {lo:g} .. {hi:g}{unit}{hint}"
+        )
+
+
 def _check_power(out: pd.DataFrame, source: str, u_max_w: float | None) -> None:
     """Power columns within 0 .. min(MAX_POWER_W, u_max_w) [W], or InputError naming the row."""
     for col in (c for c in POWER if c in out.columns):
@@ -248,24 +266,8 @@ def validate_timeseries(
                     f"[{lo}, {hi}] C; is it in kelvin or Fahrenheit?"
                 )
     _check_power(out, source, u_max_w)
-    if "cop" in out.columns:
-        lo, hi = COP_RANGE
-        outside = (out["cop"] < lo) | (out["cop"] > hi)
-        if outside.any():
-            row = int(np.flatnonzero(outside.to_numpy())[0])
-            raise InputError(
-                f"{source}: column 'cop' row {row + 1} is {out['cop'].iloc[row]:g}, outside the "
-                f"plausible {lo:g} .. {hi:g} (heat delivered per electrical watt)"
-            )
-    if WIND in out.columns:
-        lo, hi = WIND_RANGE_M_S
-        outside = (out[WIND] < lo) | (out[WIND] > hi)
-        if outside.any():
-            row = int(np.flatnonzero(outside.to_numpy())[0])
-            raise InputError(
-                f"{source}: column {WIND!r} row {row + 1} is {out[WIND].iloc[row]:g}, outside the "
-                f"plausible {lo:g} .. {hi:g} m/s; is it in km/h or knots?"
-            )
+    _check_range(out, "cop", COP_RANGE, source, "", " (heat delivered per electrical watt)")
+    _check_range(out, WIND, WIND_RANGE_M_S, source, " m/s", "; is it in km/h or knots?")
     if "holiday" in out.columns and not out["holiday"].isin((0.0, 1.0)).all():
         row = int(np.flatnonzero(~out["holiday"].isin((0.0, 1.0)).to_numpy())[0])
         raise InputError(

@@ -183,12 +183,33 @@ def test_thermostat_closed_loop_and_no_oracle(tmp_path):
     assert result.returncode == 2 and "oracle and the clairvoyant do not apply" in result.stderr
 
 
+def _assert_the_series_reaches_past_and_forecast(scenario, name: str, k: int = 30) -> None:
+    """At step ``k`` of a test run, a controller's past of ``name`` is the run's series up to
+    now and its forecast the series from now on."""
+    from scenarios.closed_loop import build_loop, prepare_run
+
+    seen = {}
+
+    class Recording(Thermostat):
+        def act(self, obs, forecast):
+            if obs.k == k:
+                seen["past"], seen["forecast"] = obs.history[name], getattr(forecast, name)
+            return super().act(obs, forecast)
+
+    run = prepare_run(scenario, days=1, seed=0, warmup_steps=0, weather_part="test")
+    with build_loop(scenario, run, seed=0) as loop:
+        controller = Recording(scenario.control_spec())
+        for _ in range(k + 1):
+            loop.step(controller.act(loop.observation(), loop.forecast()))
+    assert np.array_equal(seen["past"], getattr(run.series, name)[: k + 1])
+    assert np.array_equal(seen["forecast"], getattr(run.series, name)[k:])
+
+
 def test_facade_irradiance_of_the_epw_reaches_data_trajectories_and_forecasts():
     """The facades' irradiance of the plant's weather file: in the training data (as the
     scenario's exogenous frame has it), in a closed loop's trajectory, the controllers' past
     and forecast; lit when EnergyPlus's own G is, and a February sun on the south facade."""
     from pinn_mpc.solar import FACADE_COLUMNS
-    from scenarios.closed_loop import build_loop, prepare_run
     from scenarios.datagen import generate
 
     scenario = get_scenario(SCENARIO)
@@ -198,21 +219,7 @@ def test_facade_irradiance_of_the_epw_reaches_data_trajectories_and_forecasts():
         assert np.array_equal(data[name].to_numpy(), exo[name].to_numpy())
     lit = data["G"].to_numpy() > 20.0
     assert np.all(data.loc[lit, "G_south"] > 10.0) and np.all(data.loc[data["G"] == 0, "G_north"] < 30.0)
-    seen = {}
-
-    class Recording(Thermostat):
-        def act(self, obs, forecast):
-            if obs.k == 30:
-                seen["past"], seen["forecast"] = obs.history["G_south"], forecast.G_south
-            return super().act(obs, forecast)
-
-    run = prepare_run(scenario, days=1, seed=0, warmup_steps=0, weather_part="test")
-    with build_loop(scenario, run, seed=0) as loop:
-        controller = Recording(scenario.control_spec())
-        for _ in range(31):
-            loop.step(controller.act(loop.observation(), loop.forecast()))
-    assert np.array_equal(seen["past"], run.series.G_south[:31])
-    assert np.array_equal(seen["forecast"], run.series.G_south[30:])
+    _assert_the_series_reaches_past_and_forecast(scenario, "G_south")
     trajectory = run_closed_loop(scenario, Thermostat(scenario.control_spec()), days=1, seed=0).trajectory
     assert set(FACADE_COLUMNS) <= set(trajectory.columns) and trajectory["G_south"].max() > 50.0
 
@@ -660,7 +667,6 @@ def test_the_weather_files_wind_reaches_data_trajectories_and_forecasts():
     import pvlib
 
     from pinn_mpc.energyplus import resolve_weather
-    from scenarios.closed_loop import build_loop, prepare_run
     from scenarios.datagen import generate
 
     scenario = get_scenario(SCENARIO)
@@ -672,20 +678,6 @@ def test_the_weather_files_wind_reaches_data_trajectories_and_forecasts():
     ending_next = hourly[hour_of_year % 8760]  # the value at hh+1:00
     frac = (t.minute.to_numpy() + 15) / 60.0
     assert np.allclose(data["wind"].to_numpy(), (1 - frac) * ending_now + frac * ending_next)
-    seen = {}
-
-    class Recording(Thermostat):
-        def act(self, obs, forecast):
-            if obs.k == 30:
-                seen["past"], seen["forecast"] = obs.history["wind"], forecast.wind
-            return super().act(obs, forecast)
-
-    run = prepare_run(scenario, days=1, seed=0, warmup_steps=0, weather_part="test")
-    with build_loop(scenario, run, seed=0) as loop:
-        controller = Recording(scenario.control_spec())
-        for _ in range(31):
-            loop.step(controller.act(loop.observation(), loop.forecast()))
-    assert np.array_equal(seen["past"], run.series.wind[:31])
-    assert np.array_equal(seen["forecast"], run.series.wind[30:])
+    _assert_the_series_reaches_past_and_forecast(scenario, "wind")
     trajectory = run_closed_loop(scenario, Thermostat(scenario.control_spec()), days=1, seed=0).trajectory
     assert "wind" in trajectory.columns and trajectory["wind"].max() > 0.5
