@@ -262,9 +262,8 @@ class ARXModel:
         ``u`` (h,) [W] the delivered power of the next ``h`` intervals; ``T_r`` (h,) [C] at the
         end of each. ``history`` and ``exog`` as :meth:`rollout` takes them. The recursion is
         linear in the lagged ``T_r`` and power and the rest (weather, schedule, and the
-        schedule's ``T_r - T_a`` interaction, whose weight is known from the dates) is given,
-        (and the wind's, from the forecast's wind speed)
-        so ``free`` (h,) is the prediction under a zero plan and ``gain`` (h, h) [K/W] is
+        schedule's ``T_r - T_a`` interaction, whose weight is known from the dates, as the
+        wind's is from the forecast's wind speed) is given, so ``free`` (h,) is the prediction under a zero plan and ``gain`` (h, h) [K/W] is
         lower triangular (a power acts on the temperatures after it)."""
         n_col, lags = len(self.columns), self.lags
         dow = np.asarray(exog["day_of_week"], dtype=float)[:h]

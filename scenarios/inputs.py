@@ -363,10 +363,12 @@ def load_site_wind(file_name: str) -> np.ndarray:
     except Exception as exc:  # pvlib raises many kinds on a malformed file; one line for the user
         raise InputError(f"weather file {path}: no wind speed ({exc})") from None
     lo, hi = WIND_RANGE_M_S
-    if len(speed) != HOURS_PER_TYPICAL_YEAR or not np.all((speed >= lo) & (speed <= hi)):
+    bad = np.flatnonzero(~((speed >= lo) & (speed <= hi)))
+    if len(speed) != HOURS_PER_TYPICAL_YEAR or bad.size:
+        where = f"; hour {bad[0] + 1} has {speed[bad[0]]:g} (an EPW's 999 is a missing value)" if bad.size else ""
         raise InputError(
             f"weather file {path}: its wind speeds must be {HOURS_PER_TYPICAL_YEAR} hourly values "
-            f"in {lo:g} .. {hi:g} m/s"
+            f"in {lo:g} .. {hi:g} m/s{where}; fill the gaps first"
         )
     return speed
 

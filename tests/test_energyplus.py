@@ -681,3 +681,17 @@ def test_the_weather_files_wind_reaches_data_trajectories_and_forecasts():
     _assert_the_series_reaches_past_and_forecast(scenario, "wind")
     trajectory = run_closed_loop(scenario, Thermostat(scenario.control_spec()), days=1, seed=0).trajectory
     assert "wind" in trajectory.columns and trajectory["wind"].max() > 0.5
+
+
+def test_a_weather_file_with_a_missing_wind_speed_is_refused_naming_the_hour(tmp_path):
+    from pinn_mpc.energyplus import resolve_weather
+    from scenarios.inputs import load_site_wind
+
+    lines = resolve_weather("usa_il_chicago").read_text().splitlines()
+    fields = lines[8 + 12].split(",")  # 8 header lines, then hour 13
+    fields[21] = "999"  # the EPW's wind speed field, 999 where missing
+    lines[8 + 12] = ",".join(fields)
+    path = tmp_path / "gap.epw"
+    path.write_text("\n".join(lines) + "\n")
+    with pytest.raises(InputError, match=r"hour 13 has 999 \(an EPW's 999 is a missing value\)"):
+        load_site_wind(str(path))
