@@ -383,11 +383,23 @@ def resample_typical_year(
     mean of the interpolant); GHI, an hourly mean, becomes the exact interval mean of the
     piecewise-constant hourly series, so daily energy is preserved.
     """
-    period_s = HOURS_PER_TYPICAL_YEAR * 3600.0
-    starts = start_s + np.arange(n) * dt_s
-    knots_s = (np.arange(HOURS_PER_TYPICAL_YEAR) + 1) * 3600.0
-    t_a = np.interp(starts + 0.5 * dt_s, knots_s, t_a_hourly_c, period=period_s)
+    t_a = _interpolated_hourly(t_a_hourly_c, start_s=start_s, n=n, dt_s=dt_s)
     return t_a, _interval_means(ghi_hourly_w_per_m2, start_s=start_s, n=n, dt_s=dt_s)
+
+
+def _interpolated_hourly(hourly: np.ndarray, *, start_s: float, n: int, dt_s: float) -> np.ndarray:
+    """A typical year's hourly values (8760,), each standing at its hour's end and linearly
+    interpolated between (as EnergyPlus reads temperature and wind), at the middles of ``n``
+    intervals of ``dt_s`` from ``start_s`` [s after 1 January 00:00], wrapping around the year."""
+    period_s = HOURS_PER_TYPICAL_YEAR * 3600.0
+    middles = start_s + np.arange(n) * dt_s + 0.5 * dt_s
+    knots_s = (np.arange(HOURS_PER_TYPICAL_YEAR) + 1) * 3600.0
+    return np.interp(middles, knots_s, hourly, period=period_s)
+
+
+def _seconds_into_year(first: pd.Timestamp) -> float:
+    """Seconds from 1 January 00:00 of ``first``'s year to ``first``."""
+    return (first - pd.Timestamp(year=first.year, month=1, day=1)).total_seconds()
 
 
 def _interval_means(
@@ -521,10 +533,8 @@ class TMY3Weather:
         times = pd.DatetimeIndex(times)
         if len(times) == 0:
             return {name: np.zeros(0) for name in FACADE_COLUMNS}
-        first = times[0]
-        start_s = (first - pd.Timestamp(year=first.year, month=1, day=1)).total_seconds()
         site = load_site_irradiance(self.file_name)
-        return interval_means(start_s, len(times), dt_s, year=first.year, **site)
+        return interval_means(_seconds_into_year(times[0]), len(times), dt_s, year=times[0].year, **site)
 
     def wind(self, times: pd.DatetimeIndex, *, dt_s: float) -> np.ndarray:
         """The weather file's wind speed (n,) [m/s] in the intervals starting at ``times``
@@ -534,13 +544,9 @@ class TMY3Weather:
         times = pd.DatetimeIndex(times)
         if len(times) == 0:
             return np.zeros(0)
-        first = times[0]
-        start_s = (first - pd.Timestamp(year=first.year, month=1, day=1)).total_seconds()
-        speed, _ = resample_typical_year(
-            load_site_wind(self.file_name), np.zeros(HOURS_PER_TYPICAL_YEAR),
-            start_s=start_s, n=len(times), dt_s=dt_s,
+        return _interpolated_hourly(
+            load_site_wind(self.file_name), start_s=_seconds_into_year(times[0]), n=len(times), dt_s=dt_s
         )
-        return speed
 
     def sample(
         self, *, n: int, dt_s: float, run_days: int, part: WeatherPart, rng: np.random.Generator
