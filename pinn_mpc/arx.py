@@ -428,21 +428,21 @@ def fit_physics_informed_arx(
     facades = ("I_g", *FACADE_COLUMNS) if all(c in df for c in FACADE_COLUMNS) else None
     wind = WIND in df
     choices = [
-        (inputs, block_h, day_types, wind)
+        (inputs, block_h, day_types)
         for inputs in (MEASURED_INPUTS, *((facades,) if facades else ()))
         for block_h in (BLOCK_H, *(b for b in BLOCK_CHOICES_H if b != BLOCK_H))
         for day_types in (3, 2)
     ]
-    scores = [_cross_validated_error(df, i, lags, b, d, w) for i, b, d, w in choices]
+    scores = [_cross_validated_error(df, i, lags, b, d, wind) for i, b, d in choices]
     best = int(np.argmin([mean for mean, _ in scores]))
     limit = scores[best][0] + scores[best][1]
     within = [c for c, (mean, _) in zip(choices, scores, strict=True) if mean <= limit] or [choices[0]]
 
-    def simplest(choice: tuple[tuple[str, ...], float, int, bool]) -> tuple[int, bool]:
-        inputs, block_h, day_types, _ = choice
+    def simplest(choice: tuple[tuple[str, ...], float, int]) -> tuple[int, bool]:
+        inputs, block_h, day_types = choice
         return day_types * _blocks(block_h), inputs != facades
 
-    inputs, block_h, day_types, wind = min(within, key=simplest)
+    inputs, block_h, day_types = min(within, key=simplest)
     model = fit_arx(
         df, lags=lags, day_types=day_types, interaction=True, inputs=inputs, block_h=block_h,
         wind=wind,
