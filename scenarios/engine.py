@@ -78,7 +78,9 @@ class ForecastErrors:
     - ``g_error_rel_std``: the same for irradiance as a relative error (0.3: +-30 % at 24 h
       lead); the forecast is ``G * max(0, 1 + e)``, so it stays >= 0 and is 0 at night; the
       facades' irradiance, where the run has it, is scaled by the same factor.
-    - ``error_correlation_h`` [h]: correlation time of both errors along the lead (AR(1)).
+    - ``wind_error_rel_std``: the same for the wind speed, where the run has it (an EnergyPlus
+      building's weather file): ``wind * max(0, 1 + e)``, an error of its own.
+    - ``error_correlation_h`` [h]: correlation time of the errors along the lead (AR(1)).
     - ``gains_known``: False -> the controller sees the gains schedule's expectation (base +
       occupancy + event probability x event power), in its forecast and in the past it
       observes, instead of the gains that happened.
@@ -91,11 +93,12 @@ class ForecastErrors:
 
     t_a_error_std_c: float = 0.0
     g_error_rel_std: float = 0.0
+    wind_error_rel_std: float = 0.0
     error_correlation_h: float = 12.0
     gains_known: bool = True
 
     def __post_init__(self) -> None:
-        for name in ("t_a_error_std_c", "g_error_rel_std"):
+        for name in ("t_a_error_std_c", "g_error_rel_std", "wind_error_rel_std"):
             value = getattr(self, name)
             if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0):
                 raise InputError(f"ForecastErrors.{name} must be a number >= 0, got {value!r}")
@@ -107,7 +110,12 @@ class ForecastErrors:
 
     @property
     def perfect(self) -> bool:
-        return self.t_a_error_std_c == 0 and self.g_error_rel_std == 0 and self.gains_known
+        return (
+            self.t_a_error_std_c == 0
+            and self.g_error_rel_std == 0
+            and self.wind_error_rel_std == 0
+            and self.gains_known
+        )
 
 
 def lead_error_paths(
@@ -127,8 +135,8 @@ def lead_error_paths(
     return errors
 
 
-#: Streams of the forecast-error generator, so the two errors are independent.
-_T_A_STREAM, _G_STREAM = 0, 1
+#: Streams of the forecast-error generator, so the errors are independent.
+_T_A_STREAM, _G_STREAM, _WIND_STREAM = 0, 1, 2
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -521,7 +529,12 @@ class ClosedLoop:
         if not errors.gains_known:
             forecast.I_g[:] = self._seen_gains_w[row:]
         n = forecast.horizon
-        for stream, std in ((_T_A_STREAM, errors.t_a_error_std_c), (_G_STREAM, errors.g_error_rel_std)):
+        streams = (
+            (_T_A_STREAM, errors.t_a_error_std_c),
+            (_G_STREAM, errors.g_error_rel_std),
+            (_WIND_STREAM, errors.wind_error_rel_std),
+        )
+        for stream, std in streams:
             if std == 0:
                 continue
             rng = np.random.default_rng([*self._forecast_seed, row, stream])
@@ -531,6 +544,10 @@ class ClosedLoop:
             )[0]
             if stream == _T_A_STREAM:
                 forecast.T_a[:] += e
+                continue
+            if stream == _WIND_STREAM:
+                if forecast.wind is not None:
+                    forecast.wind[:] *= np.maximum(1.0 + e, 0.0)
                 continue
             # One error of the sky's brightness: the facades' irradiance shares G's.
             for name in ("G", *FACADE_COLUMNS):

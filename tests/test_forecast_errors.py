@@ -1,5 +1,6 @@
 """Forecast errors made by the engine: growth with lead, seeding, perfect knowledge, gains."""
 
+import dataclasses
 import math
 
 import numpy as np
@@ -68,6 +69,31 @@ def test_engine_forecast_error_std_at_24h_matches_the_setting_over_seeds():
     assert np.std(g_ratio) == pytest.approx(0.4 * 1.0, rel=0.12)
 
 
+def test_wind_forecast_error_is_relative_and_its_own():
+    """The wind's error: wind * max(0, 1 + e), e of std 0.5 at 24 h lead, independent of G's."""
+    base = _series(100)
+    wind = 2.0 + 3.0 * (np.arange(100) % 7)
+    truth = dataclasses.replace(base, wind=wind)
+    errors = ForecastErrors(g_error_rel_std=0.4, wind_error_rel_std=0.5)
+    ratio, g_ratio = [], []
+    for seed in range(600):
+        loop = ClosedLoop(SimConfig(), truth, spec=SPEC, initial_t_r_c=20.0, initial_t_m_c=20.0,
+                          forecast_errors=errors, forecast_seed=seed)
+        forecast = loop.forecast()
+        assert forecast.wind is not None and forecast.wind[0] == wind[0]  # lead 0: measured
+        assert (forecast.wind >= 0).all()
+        ratio.append(forecast.wind[LEAD_24H] / wind[LEAD_24H])
+        g_ratio.append(forecast.G[LEAD_24H + 22] / truth.G[LEAD_24H + 22])
+    # Clipping at 0 (e < -1, a 2-sigma event at 0.5) narrows the ratio's spread a little.
+    assert np.std(ratio) == pytest.approx(0.5, rel=0.15)
+    assert abs(np.corrcoef(ratio, g_ratio)[0, 1]) < 0.15  # 600 draws: |r| < 3.7 standard errors
+    # Without wind in the run the setting changes nothing, and no other series.
+    plain = _loop(ForecastErrors(wind_error_rel_std=0.5)).forecast()
+    assert plain.wind is None
+    np.testing.assert_array_equal(plain.T_a, base.T_a)
+    np.testing.assert_array_equal(plain.G, base.G)
+
+
 def test_forecast_is_deterministic_per_seed_and_row():
     errors = ForecastErrors(t_a_error_std_c=2.0)
     a, b, c = _loop(errors, forecast_seed=3), _loop(errors, forecast_seed=3), _loop(errors, forecast_seed=4)
@@ -119,6 +145,7 @@ def test_unknown_gains_are_the_schedules_expectation_in_forecast_and_past():
     [
         ({"t_a_error_std_c": -1.0}, "t_a_error_std_c must be a number >= 0"),
         ({"g_error_rel_std": float("nan")}, "g_error_rel_std"),
+        ({"wind_error_rel_std": -0.1}, "wind_error_rel_std must be a number >= 0"),
         ({"error_correlation_h": 0.0}, "error_correlation_h must be > 0"),
         ({"gains_known": 1}, "gains_known must be true or false"),
     ],
