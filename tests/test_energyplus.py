@@ -328,17 +328,21 @@ def test_gymnasium_env_on_energyplus_starts_at_midnight_and_closes_its_thread():
     """The env on an EnergyPlus building: random episodes start at a midnight row (where an
     EnergyPlus run can start), the heat delivered is the power asked when the backup is out
     of reach, the info carries the internal gains that happened (an office's rise by noon on a
-    workday), and close() ends the run's thread."""
-    from scenarios.gym_env import BuildingEnv
+    workday), the observation ends with the facades' irradiance and the wind of the weather
+    file, and close() ends the run's thread."""
+    from scenarios.gym_env import OBSERVATION_NAMES, BuildingEnv
 
     scenario = get_scenario(SCENARIO)
     exo = scenario.exogenous(days=2, seed=0, part="test")
     env = BuildingEnv(scenario.sim, exo, comfort_weight_eur_per_kh=5.0, episode_steps=48)
     before = threading.active_count()
     try:
+        assert env.observation_names == (*OBSERVATION_NAMES, "G_south", "G_east", "G_west", "G_north", "wind")
+        assert env.observation_space.shape == (len(env.observation_names),)
         for seed in (0, 1):
-            env.reset(seed=seed)
+            observation, _ = env.reset(seed=seed)
             assert env._loop.start % scenario.steps_per_day == 0
+            assert observation[-1] == pytest.approx(exo["wind"].iloc[env._loop.start], rel=1e-6)
             _, reward, _, _, info = env.step(np.array([5000.0], dtype=np.float32))
             assert info["u_phys"] == pytest.approx(5000.0) and reward < 0
             assert np.isnan(info["T_m"])
