@@ -22,10 +22,11 @@ occupancy schedule scale the heat loss, so each schedule block gets a second coe
 indoor-outdoor difference, ``+ q(block) (T_r,k - T_a,k)``; and where the data has the wind
 speed (``wind``, an EnergyPlus building's weather file), infiltration that the wind drives
 (as the DOE reference buildings' does) adds ``+ c_w wind_k (T_r,k - T_a,k)``. It chooses by cross-validation
-on its own training data whether its schedule tells Saturdays from Sundays (reference office
-buildings run a Saturday schedule of their own), the schedule's block length (1 or 2 hours:
-an office's hourly schedules against fewer coefficients to fit) and whether to take the
-facades' irradiance instead of ``G``. The fit must
+on its own training data whether to take the facades' irradiance instead of ``G``, then by
+the Bayesian information criterion of its one-step fit whether its schedule tells Saturdays
+from Sundays (reference office and retail buildings run a Saturday schedule of their own) and
+the schedule's block length (1 or 2 hours: an office's hourly schedules against fewer
+coefficients to fit). The fit must
 say that more power warms the room (the sum of the power's coefficients positive, as a heater
 does; negative for a cooling machine), or it is refused. It is fitted by least squares on the one-step error
 (a tiny ridge keeps it well posed), has no hidden state and no network, and is linear in the
@@ -64,6 +65,7 @@ __all__ = [
     "ARX_DIRECTORY",
     "ARX_FILE",
     "ARXModel",
+    "BIC_RESOLUTION_C",
     "BLOCK_CHOICES_H",
     "BLOCK_H",
     "DEFAULT_LAGS",
@@ -77,6 +79,7 @@ __all__ = [
     "is_arx_directory",
     "load_arx",
     "save_arx",
+    "schedule_bic",
 ]
 
 #: The file of an ARX model directory (``train --arch arx``): numbers only, no code.
@@ -108,6 +111,10 @@ _INPUT_ORDER = ("G", *FACADE_COLUMNS, "I_g")
 SELECTION_SHARE = 0.25
 SELECTION_FOLDS = 4
 SELECTION_HORIZON_S = 12 * 3600.0
+#: One-step errors [K] below this (far below any room sensor's resolution) count as exact when
+#: the physics-informed ARX compares schedules, so fits exact up to rounding compare by their
+#: number of coefficients alone.
+BIC_RESOLUTION_C = 1e-3
 
 
 def _blocks(block_h: float) -> int:
@@ -193,6 +200,26 @@ class ARXModel:
         if WIND not in df:
             raise InputError(f"ARX model: the data lacks column {WIND!r}, which the model weighs")
         return df[WIND].to_numpy(dtype=float) * _SCALE[WIND]
+
+    def offset_response(self, horizon_steps: int, wind_m_s: float = 0.0) -> float:
+        """The largest ``T_r`` deviation, over every start in a week of the schedule, that the
+        room's own dynamics leave ``horizon_steps`` later from a history 1 K warmer (every
+        lagged ``T_r``; inputs and wind at ``wind_m_s`` unchanged). A real room left alone
+        settles towards the outdoor temperature, so at most 1; a fit whose schedule makes the
+        room amplify its own deviations predicts runaway temperatures."""
+        n_lag = self.lags * len(self.columns)
+        a_tr = self.coef[0:n_lag:len(self.columns)]
+        steps = max(1, round(7 * 86400.0 / self.dt_s))
+        t = np.arange(steps) * self.dt_s / 3600.0  # from a Monday midnight [h]
+        index = _schedule_index(t % 24.0, (t // 24.0).astype(int), self.day_types, self.block_h)
+        loss = self._interaction_coef()[index] + wind_m_s * _SCALE[WIND] * self._wind_coef
+        history = np.ones((steps, self.lags))  # one row per start of the week
+        with np.errstate(over="ignore", invalid="ignore"):
+            for j in range(horizon_steps):
+                t_next = history @ a_tr + np.roll(loss, -j) * history[:, 0]
+                history = np.concatenate([t_next[:, None], history[:, :-1]], axis=1)
+        worst = float(np.max(np.abs(history[:, 0])))
+        return worst if math.isfinite(worst) else math.inf
 
     def _regressors(self, values: np.ndarray, k: np.ndarray) -> np.ndarray:
         """(len(k), lags * columns) of the scaled inputs at rows k, k-1, .., k-lags+1."""
@@ -408,23 +435,35 @@ def fit_physics_informed_arx(
     the room; < 0 a cooling machine: it must cool), as then the data do not identify the
     actuator.
 
-    The fit chooses its schedule's block length (:data:`BLOCK_CHOICES_H`), whether Saturdays
-    get a schedule of their own and, where the data has the facades' irradiance
-    (:data:`pinn_mpc.solar.FACADE_COLUMNS`), whether to take it instead of ``G``, by blocked
-    cross-validation: the data cut into :data:`SELECTION_FOLDS` consecutive parts, each
-    predicted :data:`SELECTION_HORIZON_S` ahead by the fit on the steps of the others. Of the
-    choices whose mean error over the parts is within one standard error of the best's (the
-    one-standard-error rule), the one with the smallest schedule is fitted on all of it, with
-    the facades rather than ``G`` where both are within. Hourly blocks follow an office's
-    hourly schedules and a Saturday schedule a reference office's, but each doubles or adds
-    half the schedule's coefficients, which two weeks of data cannot all fix. The facades are
-    what a building's windows see: a month of one season's data hardly tells them from ``G``,
-    but the next month's higher sun does, and with both ``G`` and the facades a fit weighs
-    them against each other and extrapolates poorly. Where the data has the wind speed, every
-    choice takes the wind's term: one coefficient whose use a month of the same season's wind
-    hardly shows, but a building's infiltration follows the wind (the DOE reference buildings'
-    does). A choice that cannot be fitted on every part is not taken; if none can, the first:
-    2-hour blocks, three day types, the measured inputs alone."""
+    Where the data has the facades' irradiance (:data:`pinn_mpc.solar.FACADE_COLUMNS`), the
+    fit chooses whether to take it instead of ``G`` by blocked cross-validation over every
+    schedule: the data cut into :data:`SELECTION_FOLDS` consecutive parts, each predicted
+    :data:`SELECTION_HORIZON_S` ahead by the fit on the steps of the others. Of the choices
+    whose mean error over the parts is within one standard error of the best's (the
+    one-standard-error rule), the smallest schedule's inputs are taken, the facades rather
+    than ``G`` where both are within. The facades are what a building's windows see: a month
+    of one season's data hardly tells them from ``G``, but the next month's higher sun does,
+    and with both ``G`` and the facades a fit weighs them against each other and
+    extrapolates poorly. A choice that cannot be fitted on every part is not taken; if none
+    can, the measured inputs alone.
+
+    With those inputs, the schedule's block length (:data:`BLOCK_CHOICES_H`) and whether
+    Saturdays get a schedule of their own are chosen by the Bayesian information criterion
+    of the fit on all the data, ``n log(MSE) + k log(n)`` over its ``n`` one-step errors and
+    ``k`` coefficients (:func:`schedule_bic`), among the schedules whose room left alone
+    settles: a history 1 K warmer leaves at most 1 K :data:`SELECTION_HORIZON_S` later, from
+    every start in a week (:meth:`ARXModel.offset_response`, at the data's mean wind; all
+    of them if none does). Hourly blocks follow an office's hourly
+    schedules and a Saturday schedule a reference office's or store's, but each doubles or
+    adds half the schedule's coefficients. Cross-validation cannot judge a Saturday
+    schedule on two weeks of data: a part that holds out one of the two Saturdays leaves its
+    blocks fitted on one day, and that part's predictions run away (tens to hundreds of
+    kelvin), while the fit on both Saturdays predicts the next month well. With one Saturday
+    in the data its blocks can fit that day with a room that does not settle, whose
+    predictions run away just the same: the settling requirement rules it out. Where the data has
+    the wind speed, every choice takes the wind's term: one coefficient whose use a month of
+    the same season's wind hardly shows, but a building's infiltration follows the wind (the
+    DOE reference buildings' does)."""
     facades = ("I_g", *FACADE_COLUMNS) if all(c in df for c in FACADE_COLUMNS) else None
     wind = WIND in df
     choices = [
@@ -442,11 +481,23 @@ def fit_physics_informed_arx(
         inputs, block_h, day_types = choice
         return day_types * _blocks(block_h), inputs != facades
 
-    inputs, block_h, day_types = min(within, key=simplest)
-    model = fit_arx(
-        df, lags=lags, day_types=day_types, interaction=True, inputs=inputs, block_h=block_h,
-        wind=wind,
-    )
+    inputs = min(within, key=simplest)[0]
+    fits = []
+    for block_h in (BLOCK_H, *(b for b in BLOCK_CHOICES_H if b != BLOCK_H)):
+        for day_types in (3, 2):
+            try:
+                fits.append(fit_arx(
+                    df, lags=lags, day_types=day_types, interaction=True, inputs=inputs,
+                    block_h=block_h, wind=wind,
+                ))
+            except np.linalg.LinAlgError:
+                continue
+    if not fits:
+        raise InputError("physics-informed ARX: no schedule could be fitted on the data")
+    wind_m_s = float(df[WIND].mean()) if wind else 0.0
+    horizon = max(1, round(SELECTION_HORIZON_S / float(df.attrs.get("dt_s", 1800.0))))
+    settling = [fit for fit in fits if fit.offset_response(horizon, wind_m_s) <= 1.0]
+    model = min(settling or fits, key=lambda fit: schedule_bic(fit, df))
     n_col = len(model.columns)
     if float(np.sum(model.coef[1 : lags * n_col : n_col])) * float(np.sign(eta)) <= 0:
         raise InputError(
@@ -455,6 +506,16 @@ def fit_physics_informed_arx(
             "e.g. simulate --policy random-level or closed-loop)"
         )
     return model
+
+
+def schedule_bic(model: ARXModel, df: pd.DataFrame) -> float:
+    """The Bayesian information criterion of ``model``'s fit of ``df`` (the data it was fitted
+    on): ``n log(MSE) + k log(n)`` over its ``n`` one-step errors of ``T_r`` (the MSE at least
+    :data:`BIC_RESOLUTION_C` squared) and its ``k`` coefficients; lower is better."""
+    steps = np.arange(model.lags - 1, len(df) - 1)
+    errors = model.predict_t_r(df, 1, steps) - df["T_r"].to_numpy(dtype=float)[steps + 1]
+    mse = max(float(np.mean(np.square(errors))), BIC_RESOLUTION_C**2)
+    return steps.size * math.log(mse) + model.coef.size * math.log(steps.size)
 
 
 def _cross_validated_error(
