@@ -17,7 +17,9 @@ hybrid is trained on all of it. The ratio keeps the hybrid, the model whose 2R2C
 exports, wherever the two predict alike (on the 2R2C scenarios the hybrid errs as little or
 less). The last quarter is the same season as the rest: it understates how much better the
 ARX extrapolates to the next month on a building a 2R2C does not hold, hence a ratio of 3/4,
-not 1/2.
+not 1/2. Where the hybrid errs more than :data:`ROUGH_MAE_C` on the held-out quarter, its
+2R2C does not hold the data and there is nothing to keep it for: the ARX is taken if it errs
+less at all.
 Data too short to hold a quarter out, and data the ARX cannot fit (a power that does not warm
 the room), keep the hybrid without a comparison.
 
@@ -130,7 +132,8 @@ def choose_model(df: pd.DataFrame, config: TrainConfig, *, progress: bool = Fals
         f"{hours:g}-h MAE on the last quarter: {PHYSICS_ARX.name} {errors[PHYSICS_ARX.name]:.3f} C, "
         f"{DEFAULT_ARCH} {errors[DEFAULT_ARCH]:.3f} C"
     )
-    if errors[PHYSICS_ARX.name] <= AUTO_RATIO * errors[DEFAULT_ARCH]:
+    hybrid_rough = errors[DEFAULT_ARCH] > ROUGH_MAE_C and errors[PHYSICS_ARX.name] < errors[DEFAULT_ARCH]
+    if errors[PHYSICS_ARX.name] <= AUTO_RATIO * errors[DEFAULT_ARCH] or hybrid_rough:
         return ModelChoice(
             chosen=PHYSICS_ARX.name, model=fit_physics_informed_arx(df, eta=config.eta),
             held_out_mae_c=errors, horizon_steps=horizon, why=said,
