@@ -453,8 +453,9 @@ def fit_physics_informed_arx(
     ``k`` coefficients (:func:`schedule_bic`), among the schedules whose room left alone
     settles: a history 1 K warmer leaves at most 1 K :data:`SELECTION_HORIZON_S` later, from
     every start in a week (:meth:`ARXModel.offset_response`, at the data's mean wind; all
-    of them if none does). Hourly blocks follow an office's hourly
-    schedules and a Saturday schedule a reference office's or store's, but each doubles or
+    of them if none does), of those with no more coefficients than the data can fit. Hourly
+    blocks follow an office's hourly schedules and a Saturday schedule a reference office's
+    or store's, but each doubles or
     adds half the schedule's coefficients. Cross-validation cannot judge a Saturday
     schedule on two weeks of data: a part that holds out one of the two Saturdays leaves its
     blocks fitted on one day, and that part's predictions run away (tens to hundreds of
@@ -482,7 +483,7 @@ def fit_physics_informed_arx(
         return day_types * _blocks(block_h), inputs != facades
 
     inputs = min(within, key=simplest)[0]
-    fits = []
+    fits, failures = [], []
     for block_h in (BLOCK_H, *(b for b in BLOCK_CHOICES_H if b != BLOCK_H)):
         for day_types in (3, 2):
             try:
@@ -490,10 +491,12 @@ def fit_physics_informed_arx(
                     df, lags=lags, day_types=day_types, interaction=True, inputs=inputs,
                     block_h=block_h, wind=wind,
                 ))
-            except np.linalg.LinAlgError:
-                continue
+            except (InputError, np.linalg.LinAlgError) as exc:  # e.g. too few rows for it
+                failures.append(exc)
     if not fits:
-        raise InputError("physics-informed ARX: no schedule could be fitted on the data")
+        raise failures[-1] if isinstance(failures[-1], InputError) else InputError(
+            f"physics-informed ARX: no schedule could be fitted on the data ({failures[-1]})"
+        )
     wind_m_s = float(df[WIND].mean()) if wind else 0.0
     horizon = max(1, round(SELECTION_HORIZON_S / float(df.attrs.get("dt_s", 1800.0))))
     settling = [fit for fit in fits if fit.offset_response(horizon, wind_m_s) <= 1.0]

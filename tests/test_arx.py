@@ -227,6 +227,18 @@ def test_offset_response_is_the_product_of_the_rooms_own_decay():
     assert model.offset_response(1) == pytest.approx(0.95, rel=1e-4)
 
 
+def test_physics_informed_arx_on_a_week_takes_a_schedule_the_rows_can_fit():
+    """A week (336 rows) cannot fit hourly blocks of three day types with 8 lags (more than
+    half as many coefficients as rows), but 2-hour blocks: the fit takes those; a day of data
+    fits none and is refused in one line."""
+    from pinn_mpc.arx import fit_physics_informed_arx
+
+    model = fit_physics_informed_arx(_occupied_data(7, seed=0))
+    assert model.block_h == 2.0
+    with pytest.raises(InputError, match="too few to fit"):
+        fit_physics_informed_arx(_occupied_data(1, seed=0))
+
+
 @pytest.mark.parametrize(("seed", "days"), [(0, 11), (6, 10)])
 def test_physics_informed_arx_refuses_a_schedule_whose_room_runs_away(seed, days):
     """With one Saturday in noisy data the schedule of the lowest information criterion fits
