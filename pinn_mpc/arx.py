@@ -23,7 +23,7 @@ indoor-outdoor difference, ``+ q(block) (T_r,k - T_a,k)``; and where the data ha
 speed (``wind``, an EnergyPlus building's weather file), infiltration that the wind drives
 (as the DOE reference buildings' does) adds ``+ c_w wind_k (T_r,k - T_a,k)``. It chooses by cross-validation
 on its own training data whether to take the facades' irradiance instead of ``G``, then by
-the Bayesian information criterion of its one-step fit whether its schedule tells Saturdays
+Akaike's information criterion of its one-step fit whether its schedule tells Saturdays
 from Sundays (reference office and retail buildings run a Saturday schedule of their own) and
 the schedule's block length (1 or 2 hours: an office's hourly schedules against fewer
 coefficients to fit). The fit must
@@ -65,7 +65,7 @@ __all__ = [
     "ARX_DIRECTORY",
     "ARX_FILE",
     "ARXModel",
-    "BIC_RESOLUTION_C",
+    "AIC_RESOLUTION_C",
     "BLOCK_CHOICES_H",
     "BLOCK_H",
     "DEFAULT_LAGS",
@@ -79,7 +79,7 @@ __all__ = [
     "is_arx_directory",
     "load_arx",
     "save_arx",
-    "schedule_bic",
+    "schedule_aic",
 ]
 
 #: The file of an ARX model directory (``train --arch arx``): numbers only, no code.
@@ -114,7 +114,7 @@ SELECTION_HORIZON_S = 12 * 3600.0
 #: One-step errors [K] below this (far below any room sensor's resolution) count as exact when
 #: the physics-informed ARX compares schedules, so fits exact up to rounding compare by their
 #: number of coefficients alone.
-BIC_RESOLUTION_C = 1e-3
+AIC_RESOLUTION_C = 1e-3
 
 
 def _blocks(block_h: float) -> int:
@@ -448,12 +448,14 @@ def fit_physics_informed_arx(
     can, the measured inputs alone.
 
     With those inputs, the schedule's block length (:data:`BLOCK_CHOICES_H`) and whether
-    Saturdays get a schedule of their own are chosen by the Bayesian information criterion
-    of the fit on all the data, ``n log(MSE) + k log(n)`` over its ``n`` one-step errors and
-    ``k`` coefficients (:func:`schedule_bic`), among the schedules whose room left alone
-    settles: a history 1 K warmer leaves at most 1 K :data:`SELECTION_HORIZON_S` later, from
-    every start in a week (:meth:`ARXModel.offset_response`, at the data's mean wind; all
-    of them if none does), of those with no more coefficients than the data can fit. Hourly
+    Saturdays get a schedule of their own are chosen by Akaike's information criterion of
+    the fit on all the data, ``n log(MSE) + 2 k`` over its ``n`` one-step errors and ``k``
+    coefficients (:func:`schedule_aic`; the criterion aimed at prediction, where Schwarz's
+    ``k log(n)`` keeps a reference office's Saturdays out of two weeks' fits that predict
+    the next month worse without them), among the schedules whose room left alone settles:
+    a history 1 K warmer leaves at most 1 K :data:`SELECTION_HORIZON_S` later, from every
+    start in a week (:meth:`ARXModel.offset_response`, at the data's mean wind; all of them
+    if none does), and of those with no more coefficients than the data can fit. Hourly
     blocks follow an office's hourly schedules and a Saturday schedule a reference office's
     or store's, but each doubles or
     adds half the schedule's coefficients. Cross-validation cannot judge a Saturday
@@ -500,7 +502,7 @@ def fit_physics_informed_arx(
     wind_m_s = float(df[WIND].mean()) if wind else 0.0
     horizon = max(1, round(SELECTION_HORIZON_S / float(df.attrs.get("dt_s", 1800.0))))
     settling = [fit for fit in fits if fit.offset_response(horizon, wind_m_s) <= 1.0]
-    model = min(settling or fits, key=lambda fit: schedule_bic(fit, df))
+    model = min(settling or fits, key=lambda fit: schedule_aic(fit, df))
     n_col = len(model.columns)
     if float(np.sum(model.coef[1 : lags * n_col : n_col])) * float(np.sign(eta)) <= 0:
         raise InputError(
@@ -511,14 +513,14 @@ def fit_physics_informed_arx(
     return model
 
 
-def schedule_bic(model: ARXModel, df: pd.DataFrame) -> float:
-    """The Bayesian information criterion of ``model``'s fit of ``df`` (the data it was fitted
-    on): ``n log(MSE) + k log(n)`` over its ``n`` one-step errors of ``T_r`` (the MSE at least
-    :data:`BIC_RESOLUTION_C` squared) and its ``k`` coefficients; lower is better."""
+def schedule_aic(model: ARXModel, df: pd.DataFrame) -> float:
+    """Akaike's information criterion of ``model``'s fit of ``df`` (the data it was fitted
+    on): ``n log(MSE) + 2 k`` over its ``n`` one-step errors of ``T_r`` (the MSE at least
+    :data:`AIC_RESOLUTION_C` squared) and its ``k`` coefficients; lower is better."""
     steps = np.arange(model.lags - 1, len(df) - 1)
     errors = model.predict_t_r(df, 1, steps) - df["T_r"].to_numpy(dtype=float)[steps + 1]
-    mse = max(float(np.mean(np.square(errors))), BIC_RESOLUTION_C**2)
-    return steps.size * math.log(mse) + model.coef.size * math.log(steps.size)
+    mse = max(float(np.mean(np.square(errors))), AIC_RESOLUTION_C**2)
+    return steps.size * math.log(mse) + 2.0 * model.coef.size
 
 
 def _cross_validated_error(

@@ -198,7 +198,7 @@ def test_physics_informed_arx_keeps_the_saturday_schedule_of_two_noisy_weeks(see
     schedule without Saturdays on these seeds (24-step MAE 0.24-0.27 K on the next two
     weeks); the schedule's information criterion on all the data keeps Saturdays, and the
     next two weeks are predicted at the noise's scale."""
-    from pinn_mpc.arx import fit_physics_informed_arx, schedule_bic
+    from pinn_mpc.arx import fit_physics_informed_arx, schedule_aic
 
     train = _occupied_data(14, seed=seed)
     train["T_r"] += np.random.default_rng(seed + 100).normal(0.0, 0.05, len(train))
@@ -208,12 +208,12 @@ def test_physics_informed_arx_keeps_the_saturday_schedule_of_two_noisy_weeks(see
     starts = np.arange(1, len(test) - 48)
     err = model.predict_t_r(test, 24, starts) - test["T_r"].to_numpy()[starts + 24]
     assert np.mean(np.abs(err)) < 0.1
-    # The criterion by hand: n log(MSE) + k log(n) over the one-step errors of the fit.
+    # The criterion by hand: n log(MSE) + 2 k over the one-step errors of the fit.
     steps = np.arange(1, len(train) - 1)
     one_step = model.predict_t_r(train, 1, steps) - train["T_r"].to_numpy()[steps + 1]
     n = steps.size
-    expected = n * np.log(np.mean(one_step**2)) + model.coef.size * np.log(n)
-    assert schedule_bic(model, train) == pytest.approx(expected, rel=1e-12)
+    expected = n * np.log(np.mean(one_step**2)) + 2 * model.coef.size
+    assert schedule_aic(model, train) == pytest.approx(expected, rel=1e-12)
 
 
 def test_offset_response_is_the_product_of_the_rooms_own_decay():
@@ -245,7 +245,7 @@ def test_physics_informed_arx_refuses_a_schedule_whose_room_runs_away(seed, days
     that day with a room that amplifies its own deviations (a history 1 K warmer is 1.5 K
     warmer 12 h later); the fit takes the best schedule whose room settles, which predicts the
     next two weeks better."""
-    from pinn_mpc.arx import fit_arx, fit_physics_informed_arx, schedule_bic
+    from pinn_mpc.arx import fit_arx, fit_physics_informed_arx, schedule_aic
 
     train = _occupied_data(days, seed=seed)
     train["T_r"] += np.random.default_rng(seed).normal(0.0, 0.1, len(train))
@@ -253,7 +253,7 @@ def test_physics_informed_arx_refuses_a_schedule_whose_room_runs_away(seed, days
     fits = [
         fit_arx(train, lags=3, day_types=d, interaction=True, block_h=b) for b in (2.0, 1.0) for d in (3, 2)
     ]
-    lowest = min(fits, key=lambda fit: schedule_bic(fit, train))
+    lowest = min(fits, key=lambda fit: schedule_aic(fit, train))
     assert lowest.offset_response(24) > 1.0
     model = fit_physics_informed_arx(train, lags=3)
     assert model.offset_response(24) <= 1.0
