@@ -62,10 +62,10 @@ from pinn_mpc.models.rollout import Rollout
 from pinn_mpc.solar import FACADE_COLUMNS
 
 __all__ = [
+    "AIC_RESOLUTION_C",
     "ARX_DIRECTORY",
     "ARX_FILE",
     "ARXModel",
-    "AIC_RESOLUTION_C",
     "BLOCK_CHOICES_H",
     "BLOCK_H",
     "DEFAULT_LAGS",
@@ -448,25 +448,24 @@ def fit_physics_informed_arx(
     can, the measured inputs alone.
 
     With those inputs, the schedule's block length (:data:`BLOCK_CHOICES_H`) and whether
-    Saturdays get a schedule of their own are chosen by Akaike's information criterion of
-    the fit on all the data, ``n log(MSE) + 2 k`` over its ``n`` one-step errors and ``k``
-    coefficients (:func:`schedule_aic`; the criterion aimed at prediction, where Schwarz's
-    ``k log(n)`` keeps a reference office's Saturdays out of two weeks' fits that predict
-    the next month worse without them), among the schedules whose room left alone settles:
-    a history 1 K warmer leaves at most 1 K :data:`SELECTION_HORIZON_S` later, from every
-    start in a week (:meth:`ARXModel.offset_response`, at the data's mean wind; all of them
-    if none does), and of those with no more coefficients than the data can fit. Hourly
-    blocks follow an office's hourly schedules and a Saturday schedule a reference office's
-    or store's, but each doubles or
-    adds half the schedule's coefficients. Cross-validation cannot judge a Saturday
+    Saturdays get a schedule of their own are chosen by Akaike's information criterion of the
+    fit on all the data, ``n log(MSE) + 2 k`` over its ``n`` one-step errors and ``k``
+    coefficients (:func:`schedule_aic`; the criterion aimed at prediction, where Schwarz's ``k
+    log(n)`` keeps a reference office's Saturdays out of two weeks' fits that predict the next
+    month worse without them), among the schedules whose room left alone settles: a history 1
+    K warmer leaves at most 1 K :data:`SELECTION_HORIZON_S` later, from every start in a week
+    (:meth:`ARXModel.offset_response`, at the data's mean wind; all of them if none does), and
+    of those with no more coefficients than the data can fit. Hourly blocks follow an office's
+    hourly schedules and a Saturday schedule a reference office's or store's, but each doubles
+    or adds half the schedule's coefficients. Cross-validation cannot judge a Saturday
     schedule on two weeks of data: a part that holds out one of the two Saturdays leaves its
     blocks fitted on one day, and that part's predictions run away (tens to hundreds of
     kelvin), while the fit on both Saturdays predicts the next month well. With one Saturday
     in the data its blocks can fit that day with a room that does not settle, whose
-    predictions run away just the same: the settling requirement rules it out. Where the data has
-    the wind speed, every choice takes the wind's term: one coefficient whose use a month of
-    the same season's wind hardly shows, but a building's infiltration follows the wind (the
-    DOE reference buildings' does)."""
+    predictions run away just the same: the settling requirement rules it out. Where the data
+    has the wind speed, every choice takes the wind's term: one coefficient whose use a month
+    of the same season's wind hardly shows, but a building's infiltration follows the wind
+    (the DOE reference buildings' does)."""
     facades = ("I_g", *FACADE_COLUMNS) if all(c in df for c in FACADE_COLUMNS) else None
     wind = WIND in df
     choices = [
