@@ -129,7 +129,6 @@ def parse_times(values: pd.Series, source: str) -> pd.Series:
     return pd.Series(parsed.dt.tz_convert("UTC").dt.tz_localize(None)).astype("datetime64[ns]")
 
 
-
 def _check_range(
     out: pd.DataFrame, col: str, bounds: tuple[float, float], source: str, unit: str, hint: str
 ) -> None:
@@ -256,15 +255,7 @@ def validate_timeseries(
     if "u" not in out.columns:
         out["u"] = out["u_phys"]
     for col in ("T_r", "T_m", "T_a", "T_min", "T_max"):
-        if col in out.columns:
-            lo, hi = TEMPERATURE_RANGE_C
-            outside = (out[col] < lo) | (out[col] > hi)
-            if outside.any():
-                row = int(np.flatnonzero(outside.to_numpy())[0])
-                raise InputError(
-                    f"{source}: column {col!r} row {row + 1} is {out[col].iloc[row]}, outside "
-                    f"[{lo}, {hi}] C; is it in kelvin or Fahrenheit?"
-                )
+        _check_range(out, col, TEMPERATURE_RANGE_C, source, " C", "; is it in kelvin or Fahrenheit?")
     _check_power(out, source, u_max_w)
     _check_range(out, "cop", COP_RANGE, source, "", " (heat delivered per electrical watt)")
     _check_range(out, WIND, WIND_RANGE_M_S, source, " m/s", "; is it in km/h or knots?")

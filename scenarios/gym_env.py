@@ -5,8 +5,8 @@ Observation (float32, shape (9,) or more): what a controller may see at the star
 k: ``(T_r measured [C], T_a [C], G [W/m2], I_g [W], price [EUR/kWh], T_min [C], T_max [C],
 sin(2 pi h/24), cos(2 pi h/24))`` with h the hour of day (:data:`OBSERVATION_NAMES`), then
 the site's inputs the frame has (:data:`pinn_mpc.data.SITE_COLUMNS`: an EnergyPlus building's
-facade irradiance [W/m2] and wind speed [m/s]); ``env.observation_names`` names them all. Action (float32, shape (1,)): the
-demanded power in [0, u_max_w] W (clipped). Reward: minus the objective of the interval, i.e.
+facade irradiance [W/m2] and wind speed [m/s]); ``env.observation_names`` names them all.
+Action (float32, shape (1,)): the demanded power in [0, u_max_w] W (clipped). Reward: minus the objective of the interval, i.e.
 ``-(price x delivered energy [kWh] + comfort_weight x band violation of T_r at the end of the
 interval [K] x interval [h])``: :class:`controllers.objective.HorizonObjective` of one interval
 against that interval's band, the objective the controllers use. ``info`` carries the
@@ -90,11 +90,14 @@ class BuildingEnv(gym.Env[np.ndarray, np.ndarray]):
         self._clock = np.column_stack([np.sin(angle), np.cos(angle)])
         site = tuple(name for name in SITE_COLUMNS if getattr(series, name) is not None)
         self.observation_names = (*OBSERVATION_NAMES, *site)
-        self._site = np.column_stack([getattr(series, name) for name in site] or [np.empty((len(exogenous), 0))])
+        self._site = np.column_stack(
+            [getattr(series, name) for name in site] or [np.empty((len(exogenous), 0))]
+        )
 
         t_lo, t_hi = TEMPERATURE_RANGE_C
+        site_low = [0.0] * len(site)
         site_high = [WIND_RANGE_M_S[1] if name == WIND else 2000.0 for name in site]
-        low = np.array([t_lo, t_lo, 0.0, 0.0, -10.0, t_lo, t_lo, -1.0, -1.0, *[0.0] * len(site)], dtype=np.float32)
+        low = np.array([t_lo, t_lo, 0.0, 0.0, -10.0, t_lo, t_lo, -1.0, -1.0, *site_low], dtype=np.float32)
         high = np.array([t_hi, t_hi, 2000.0, 1e6, 10.0, t_hi, t_hi, 1.0, 1.0, *site_high], dtype=np.float32)
         self._obs_low, self._obs_high = low, high
         self.observation_space = gym.spaces.Box(low=low, high=high, dtype=np.float32)
@@ -122,7 +125,9 @@ class BuildingEnv(gym.Env[np.ndarray, np.ndarray]):
     def _observation(self) -> np.ndarray:
         # After the last interval the next row may not exist: reuse the last row's inputs.
         row = min(self._loop.start + self._loop.k, len(self._exo) - 1)
-        raw = np.concatenate([[self._loop.measure()], self._exo[row], self._clock[row], self._site[row]])
+        raw = np.concatenate(
+            [[self._loop.measure()], self._exo[row], self._clock[row], self._site[row]]
+        )
         return np.clip(raw, self._obs_low, self._obs_high).astype(np.float32)
 
     def reset(
