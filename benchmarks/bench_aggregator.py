@@ -24,7 +24,7 @@ everything the controllers do in a step: observe, plan, coordinate, commit; the 
   does not depend on the weights (every building's constants are its own copy in the batch).
 
 ``--partitions P`` splits each fleet into P partitions, one Ray worker each
-(:mod:`scenarios.partitions`): the driver keeps the loop and the coordination and exchanges the
+(:mod:`scenarios.fleets.partitions`): the driver keeps the loop and the coordination and exchanges the
 observations, the prices and the plans with the workers every step.
 
 The machine is shared (the load average is printed): read the medians.
@@ -48,9 +48,9 @@ from controllers.fleet import FleetPlanner, FleetQPMPC
 from controllers.thermostat import Thermostat
 from pinn_mpc.physics import RCParams
 from pinn_mpc.simulator import draw_fleet
-from scenarios.aggregator import learned_fleet_planner
-from scenarios.closed_loop import build_loop, one_torch_thread, prepare_run
-from scenarios.registry import get_scenario
+from scenarios.fleets.aggregator import learned_fleet_planner
+from scenarios.inputs.registry import get_scenario
+from scenarios.running.closed_loop import build_loop, one_torch_thread, prepare_run
 
 SCENARIO, SEED, WARMUP = "winter_household", 13, 30
 
@@ -96,7 +96,7 @@ def _qp(fleet: Sequence[RCParams], spec: ControlSpec) -> FleetPlanner:
 
 def learned_models(n_models: int) -> list:
     from pinn_mpc import TrainConfig, train_model
-    from scenarios.datagen import generate
+    from scenarios.running.datagen import generate
 
     scenario = get_scenario(SCENARIO)
     fleet = draw_fleet(scenario.sim.params, n_models, spread=0.2, rng=np.random.default_rng(0))
@@ -121,8 +121,8 @@ def main() -> int:
     )
     args = parser.parse_args()
     if args.partitions > 1:
-        from scenarios.partitions import partitioned
-        from scenarios.sweep import ray_engine
+        from scenarios.fleets.partitions import partitioned
+        from scenarios.running.ray_engine import ray_engine
 
         with ray_engine(None, args.partitions):
             return run(args, lambda of, name: partitioned(of, args.partitions, name))

@@ -1,7 +1,7 @@
 """EnergyPlus closed-loop throughput: simulated days per wall second under the thermostat.
 
 Run: ``python benchmarks/bench_energyplus.py [--days 20] [--scenario eplus_small_office]``.
-Times :func:`scenarios.closed_loop.run_closed_loop` of the thermostat on the test part of the
+Times :func:`scenarios.running.closed_loop.run_closed_loop` of the thermostat on the test part of the
 scenario's weather in this process (imports and the first EnergyPlus start excluded by a
 1-day run before), best of ``--repeats``, counting the warm-up day the loop also simulates.
 Prints the figure and the load average (other work on the cores lowers it); exit status 1
@@ -16,9 +16,9 @@ import sys
 import time
 
 from controllers.base import Controller
-from scenarios.closed_loop import run_closed_loop
-from scenarios.factory import build_controller
-from scenarios.registry import get_scenario
+from scenarios.inputs.registry import get_scenario
+from scenarios.running.closed_loop import run_closed_loop
+from scenarios.running.factory import build_controller
 
 
 def days_per_second(scenario_name: str, days: int, repeats: int) -> float:

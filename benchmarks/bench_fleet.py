@@ -2,7 +2,7 @@
 
 Run: ``python benchmarks/bench_fleet.py [--buildings 1000] [--days 1] [--cem-buildings 0]``.
 The fleet is drawn around ``winter_household``'s building (spread 0.2) and run by
-:func:`scenarios.fleet.run_fleet_closed_loop` on the test part of the weather, seed 13: the
+:func:`scenarios.fleets.fleet.run_fleet_closed_loop` on the test part of the weather, seed 13: the
 test day 2023-02-12 (-1.7 .. 4.3 C), when every building heats all day (seed 0's day, 21 C on
 average, needed almost no heat, so it timed decisions that did not matter): a day of
 thermostat warm-up, then ``--days`` counted days (48 control steps a day), each building with
@@ -22,10 +22,10 @@ import os
 import sys
 import time
 
-from scenarios.closed_loop import one_torch_thread
-from scenarios.fleet import FleetResult, run_fleet_closed_loop
-from scenarios.registry import get_scenario
-from scenarios.report import format_fleet
+from scenarios.fleets.fleet import FleetResult, run_fleet_closed_loop
+from scenarios.inputs.registry import get_scenario
+from scenarios.reports.report import format_fleet
+from scenarios.running.closed_loop import one_torch_thread
 
 SCENARIO = "winter_household"
 #: The test day with heating demand (see the module docstring).

@@ -29,9 +29,9 @@ import torch
 from pinn_mpc import TrainConfig, train_model
 from pinn_mpc.evaluation import evaluate_model
 from pinn_mpc.simulator import draw_fleet
-from scenarios.datagen import generate
-from scenarios.fleet_training import building_frames, pretrain_and_fine_tune
-from scenarios.registry import get_scenario
+from scenarios.fleets.training import building_frames, pretrain_and_fine_tune
+from scenarios.inputs.registry import get_scenario
+from scenarios.running.datagen import generate
 
 SCENARIO, HORIZON = "winter_household", 24
 

@@ -8,7 +8,7 @@ models ``train --per-building`` wrote there, their first N, else a draw), one te
 13, 2023-02-12, heating all day), a cap from 17:00 to 19:00 at 60 % of the uncoordinated
 fleet's peak in that window:
 
-- the bound (:func:`scenarios.fleet_reference.fleet_reference`): the day as one convex
+- the bound (:func:`scenarios.fleets.reference.fleet_reference`): the day as one convex
   problem over all buildings' exact RCs with perfect forecasts, run open loop on the plant,
   uncapped and capped at the same cap as each closed loop below (60 % of that closed loop's own
   uncapped window peak): under the MPC's objective over the day and the forecast lead the last
@@ -17,7 +17,7 @@ fleet's peak in that window:
   comfort weight of 1e3 EUR/K h (``least_discomfort``: the least discomfort the cap allows at
   any energy cost);
 - ``--closed-loop rc``: the batched qp-mpc on the buildings' exact RCs
-  (:func:`scenarios.aggregator.run_coordinated_fleet`) uncapped and capped;
+  (:func:`scenarios.fleets.aggregator.run_coordinated_fleet`) uncapped and capped;
 - ``--closed-loop cem``: the batched cem over the buildings' learned models (``--models``;
   ``--rc-candidates``: scoring the shadow RC MPC's plan in every plan).
 
@@ -40,10 +40,10 @@ from typing import Any
 import numpy as np
 
 from controllers.coordination import DualAscent
-from scenarios.aggregator import cap_in_force, learned_fleet_planner, run_coordinated_fleet
-from scenarios.closed_loop import one_torch_thread
-from scenarios.fleet_reference import fleet_reference
-from scenarios.registry import get_scenario
+from scenarios.fleets.aggregator import cap_in_force, learned_fleet_planner, run_coordinated_fleet
+from scenarios.fleets.reference import fleet_reference
+from scenarios.inputs.registry import get_scenario
+from scenarios.running.closed_loop import one_torch_thread
 
 SCENARIO, SEED, WINDOW, SHARE = "winter_household", 13, "17:00-19:00", 0.6
 STIFF_COMFORT = 1e3  # EUR per K h: the least discomfort at any energy cost
@@ -131,7 +131,7 @@ def main() -> int:
     scenario = get_scenario(SCENARIO)
     models, params = None, None
     if args.models:
-        from scenarios.fleet_training import load_fleet_models
+        from scenarios.fleets.training import load_fleet_models
 
         models, params = load_fleet_models(args.models)
     loops = [v for v in args.closed_loop.split(",") if v]

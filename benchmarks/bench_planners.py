@@ -32,10 +32,10 @@ from controllers.planners import CEMPlanner
 from controllers.sampling import CEM, RandomShooting
 from pinn_mpc.models.rollout import BatchDynamics
 from pinn_mpc.rc_batch_model import RCBatchModel
-from scenarios.compare import CompareSettings
-from scenarios.datagen import generate
-from scenarios.inputs import time_of_day_h
-from scenarios.registry import get_scenario
+from scenarios.experiments.compare import CompareSettings
+from scenarios.inputs.exogenous import time_of_day_h
+from scenarios.inputs.registry import get_scenario
+from scenarios.running.datagen import generate
 
 TARGET_MS = 30.0  # CPU time of a CEM decision (issue 10)
 _CEM = CEMPlanner(lower=0.0, upper=1.0)  # the defaults
@@ -128,7 +128,7 @@ def main() -> None:
             ("", RandomShooting(model, spec)),
         ]
         if args.guard and name != "rc":
-            from scenarios.factory import model_guard
+            from scenarios.running.factory import model_guard
 
             guard = model_guard(model)
             controllers += [

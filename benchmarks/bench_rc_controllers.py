@@ -20,7 +20,8 @@ from controllers.rc_mpc.osqp import QPMPC
 from controllers.rc_mpc.problem import RCMPC
 from pinn_mpc.physics import PAPER_HOUSEHOLD
 from pinn_mpc.simulator import SimConfig
-from scenarios.engine import ClosedLoop, ExogenousSeries
+from scenarios.inputs.series import ExogenousSeries
+from scenarios.running.engine import ClosedLoop
 
 TARGET_MS = {"qp-mpc": 5.0, "casadi-mpc": 20.0}
 

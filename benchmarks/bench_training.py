@@ -19,8 +19,8 @@ from pinn_mpc.data import validate_timeseries
 from pinn_mpc.evaluation import evaluate_model
 from pinn_mpc.features import time_of_day_h
 from pinn_mpc.training import TrainConfig, train_model
-from scenarios.datagen import generate
-from scenarios.registry import get_scenario
+from scenarios.inputs.registry import get_scenario
+from scenarios.running.datagen import generate
 
 
 def _rollout_ms(model, df, n_plans: int = 256, horizon: int = 48, repeats: int = 20) -> float:

@@ -15,7 +15,7 @@ from typing import Any
 
 from pinn_mpc import TrainConfig, train_model
 from scenarios import build_controller, generate, get_scenario, run_closed_loop
-from scenarios.plots import (
+from scenarios.reports.plots import (
     draw_band,
     draw_power,
     draw_price,

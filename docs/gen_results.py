@@ -29,7 +29,7 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
-from scenarios.sweep_report import ratio
+from scenarios.reports.sweep_report import ratio
 
 ROOT = Path(__file__).resolve().parents[1]
 #: What the results depend on: an uncommitted change here is stated on the page.

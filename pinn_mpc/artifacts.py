@@ -41,6 +41,8 @@ __all__ = [
     "MODEL_DIRECTORY",
     "WEIGHTS",
     "load_model",
+    "read_rc",
+    "read_rc_json",
     "save_model",
 ]
 
@@ -240,3 +242,31 @@ def load_model(path: str | os.PathLike[str]) -> LearnedModel:
     return LearnedModel(
         features=features, module=module, record=ModelRecord.from_dict({**meta, "eta": eta})
     )
+
+
+def read_rc(path: str | os.PathLike[str]) -> physics.RCParams:
+    """RC parameters from the JSON written by ``identify`` / ``export-rc``."""
+    return read_rc_json(path)[0]
+
+
+def read_rc_json(path: str | os.PathLike[str]) -> tuple[physics.RCParams, dict[str, Any]]:
+    """:func:`read_rc`'s parameters and the JSON object they were read from."""
+    source = Path(path)
+    if not source.is_file():
+        raise InputError(
+            f"{source}: no such RC file; write one with `pinn-mpc identify` or `pinn-mpc export-rc`"
+        )
+    try:
+        data = json.loads(source.read_text(encoding="utf-8"))
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise InputError(
+            f"{source}: not valid JSON ({exc}); expected the RC JSON of identify or export-rc"
+        ) from exc
+    if not isinstance(data, dict):
+        raise InputError(
+            f"{source}: expected a JSON object of RC parameters, got {type(data).__name__}"
+        )
+    try:
+        return physics.params_from_summary(data), data
+    except InputError as exc:
+        raise InputError(f"{source}: {exc}") from exc

@@ -32,7 +32,7 @@ does; negative for a cooling machine), or it is refused. It is fitted by least s
 (a tiny ridge keeps it well posed), has no hidden state and no network, and is linear in the
 power, so it predicts any power plan by recursion. :func:`fit_arx` fits it,
 :meth:`ARXModel.predict_t_r` predicts ``h`` steps ahead from given starts; it serves as the
-reference every learned model of a comparison must beat (:mod:`scenarios.prediction`).
+reference every learned model of a comparison must beat (:mod:`scenarios.experiments.prediction`).
 :meth:`ARXModel.rollout` is the planners' rollout interface, so ``cem`` and
 ``random-shooting`` plan over it (its schedule reads the forecast's day of the week).
 Being linear in the lagged ``T_r`` and power, its horizon is an affine map of a power plan

@@ -18,9 +18,9 @@ controllers and models never see ``T_e``.
 
 ``energyplus`` is not an RC network: an EnergyPlus building model (``building``, a bundled DOE
 reference building or an IDF/epJSON path) run on ``weather`` (a bundled EPW name or a path) by
-:mod:`pinn_mpc.energyplus`; ``heater_w`` is its heater's power (0: the simulation's
+:mod:`scenarios.plants.energyplus`; ``heater_w`` is its heater's power (0: the simulation's
 ``u_max_w``; ``"auto"``: sized to hold the comfort band through the weather file's coldest
-days, :func:`pinn_mpc.energyplus.size_heater`), ``allow_code`` lets a model that declares
+days, :func:`scenarios.plants.energyplus.sizing.size_heater`), ``allow_code`` lets a model that declares
 Python plugins or external co-simulation run them. ``zones`` says whether the conditioned zones
 are ``merged`` into one thermal zone or kept ``separate`` (one ideal heater per zone, the power
 split by floor area, T_r the floor-area-weighted mean); ``radiant_fraction`` is the heater's

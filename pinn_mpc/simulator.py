@@ -31,7 +31,7 @@ from pinn_mpc.errors import InputError
 from pinn_mpc.physics import N_INPUTS, PAPER_HOUSEHOLD, RCParams
 from pinn_mpc.plant import Plant, plant_matrices
 
-__all__ = ["MAX_ACTUATOR_W", "PlantStep", "SimConfig", "Simulator", "StepResult", "backup_power"]
+__all__ = ["MAX_ACTUATOR_W", "SimConfig", "Simulator", "StepResult", "backup_power"]
 
 #: The largest plausible actuator of one building [W] (a hospital's heating plant is a few MW):
 #: above it a power was given in the wrong unit.
@@ -97,16 +97,6 @@ class StepResult(NamedTuple):
     u_phys_w: np.ndarray  # (B,) mean electrical power delivered over the interval [W]
     overridden: np.ndarray  # (B,) bool, the backup changed the demand in some substep
     t_r_sub_c: np.ndarray  # (B, n_substeps) room temperature at the end of each substep [C]
-
-
-class PlantStep(NamedTuple):
-    """One control interval of any plant (:class:`scenarios.engine.LoopPlant`): the step
-    result and the interval's means of the exogenous inputs as the plant had them, (B,) each."""
-
-    result: StepResult
-    t_a_c: np.ndarray  # outdoor temperature [C]
-    g_w_per_m2: np.ndarray  # global horizontal irradiance [W/m2]
-    i_g_w: np.ndarray  # internal gains [W]
 
 
 def backup_power(t_r_c: np.ndarray, u_w: np.ndarray, config: SimConfig) -> np.ndarray:
@@ -206,7 +196,7 @@ class Simulator:
         if config.plant.is_energyplus:
             raise InputError(
                 "Simulator: the scenario's plant is an EnergyPlus building; it runs in "
-                "EnergyPlus (pinn_mpc.energyplus.EnergyPlusPlant), not in the RC simulator"
+                "EnergyPlus (scenarios.plants.energyplus.plant.EnergyPlusPlant), not in the RC simulator"
             )
         if n_buildings < 1:
             raise InputError(f"n_buildings must be >= 1, got {n_buildings}")

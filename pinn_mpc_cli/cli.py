@@ -93,7 +93,7 @@ def _horizons(text: str) -> list[int]:
 
 def _scenario_names() -> str:
     """Scenario names from the registry (imported only to print help: scenarios are data)."""
-    from scenarios.registry import scenario_names
+    from scenarios.inputs.registry import scenario_names
 
     return ", ".join(scenario_names())
 

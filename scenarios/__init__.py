@@ -20,25 +20,19 @@ from typing import TYPE_CHECKING
 from pinn_mpc.lazy import lazy_exports
 
 if TYPE_CHECKING:
+    from pinn_mpc.artifacts import read_rc as read_rc
     from scenarios.choices import CONTROLLER_NAMES as CONTROLLER_NAMES
-    from scenarios.closed_loop import ClosedLoopResult as ClosedLoopResult
-    from scenarios.closed_loop import run_closed_loop as run_closed_loop
-    from scenarios.compare import CompareSettings as CompareSettings
-    from scenarios.compare import ComparisonResult as ComparisonResult
-    from scenarios.compare import run_comparison as run_comparison
-    from scenarios.datagen import generate as generate
-    from scenarios.engine import ClosedLoop as ClosedLoop
-    from scenarios.engine import ExogenousSeries as ExogenousSeries
-    from scenarios.factory import build_controller as build_controller
-    from scenarios.factory import make_controller as make_controller
-    from scenarios.factory import read_rc as read_rc
-    from scenarios.fleet import FleetResult as FleetResult
-    from scenarios.fleet import run_fleet_closed_loop as run_fleet_closed_loop
-    from scenarios.gym_env import BuildingEnv as BuildingEnv
-    from scenarios.kpis import KPI_KEYS as KPI_KEYS
-    from scenarios.kpis import compute_kpis as compute_kpis
-    from scenarios.plots import plot_comparison as plot_comparison
-    from scenarios.plots import plot_trajectory as plot_trajectory
+    from scenarios.experiments.compare import CompareSettings as CompareSettings
+    from scenarios.experiments.compare import ComparisonResult as ComparisonResult
+    from scenarios.experiments.compare import run_comparison as run_comparison
+    from scenarios.experiments.reproduce import ReproduceConfig as ReproduceConfig
+    from scenarios.experiments.reproduce import run_reproduction as run_reproduction
+    from scenarios.fleets.fleet import FleetResult as FleetResult
+    from scenarios.fleets.fleet import run_fleet_closed_loop as run_fleet_closed_loop
+    from scenarios.inputs.registry import Scenario as Scenario
+    from scenarios.inputs.registry import get_scenario as get_scenario
+    from scenarios.inputs.registry import scenario_names as scenario_names
+    from scenarios.inputs.series import ExogenousSeries as ExogenousSeries
     from scenarios.records import BuildingKpis as BuildingKpis
     from scenarios.records import CellRecord as CellRecord
     from scenarios.records import CompareRow as CompareRow
@@ -48,25 +42,33 @@ if TYPE_CHECKING:
     from scenarios.records import RunKpis as RunKpis
     from scenarios.records import SweepRow as SweepRow
     from scenarios.records import SweepSummary as SweepSummary
-    from scenarios.registry import Scenario as Scenario
-    from scenarios.registry import get_scenario as get_scenario
-    from scenarios.registry import scenario_names as scenario_names
-    from scenarios.report import format_fleet as format_fleet
-    from scenarios.report import format_kpis as format_kpis
-    from scenarios.report import kpi_table_text as kpi_table_text
-    from scenarios.reproduce import ReproduceConfig as ReproduceConfig
-    from scenarios.reproduce import run_reproduction as run_reproduction
+    from scenarios.reports.plots import plot_comparison as plot_comparison
+    from scenarios.reports.plots import plot_trajectory as plot_trajectory
+    from scenarios.reports.report import format_fleet as format_fleet
+    from scenarios.reports.report import format_kpis as format_kpis
+    from scenarios.reports.report import kpi_table_text as kpi_table_text
+    from scenarios.running.closed_loop import ClosedLoopResult as ClosedLoopResult
+    from scenarios.running.closed_loop import run_closed_loop as run_closed_loop
+    from scenarios.running.datagen import generate as generate
+    from scenarios.running.engine import ClosedLoop as ClosedLoop
+    from scenarios.running.factory import build_controller as build_controller
+    from scenarios.running.factory import make_controller as make_controller
+    from scenarios.running.gym_env import BuildingEnv as BuildingEnv
+    from scenarios.running.kpis import KPI_KEYS as KPI_KEYS
+    from scenarios.running.kpis import compute_kpis as compute_kpis
 
 _EXPORTS = {
     "scenarios.choices": ("CONTROLLER_NAMES",),
-    "scenarios.closed_loop": ("ClosedLoopResult", "run_closed_loop"),
-    "scenarios.compare": ("CompareSettings", "ComparisonResult", "run_comparison"),
-    "scenarios.datagen": ("generate",),
-    "scenarios.engine": ("ClosedLoop", "ExogenousSeries"),
-    "scenarios.factory": ("build_controller", "make_controller", "read_rc"),
-    "scenarios.fleet": ("FleetResult", "run_fleet_closed_loop"),
-    "scenarios.gym_env": ("BuildingEnv",),
-    "scenarios.kpis": ("KPI_KEYS", "compute_kpis"),
+    "scenarios.running.closed_loop": ("ClosedLoopResult", "run_closed_loop"),
+    "scenarios.experiments.compare": ("CompareSettings", "ComparisonResult", "run_comparison"),
+    "scenarios.running.datagen": ("generate",),
+    "scenarios.running.engine": ("ClosedLoop",),
+    "scenarios.inputs.series": ("ExogenousSeries",),
+    "scenarios.running.factory": ("build_controller", "make_controller"),
+    "pinn_mpc.artifacts": ("read_rc",),
+    "scenarios.fleets.fleet": ("FleetResult", "run_fleet_closed_loop"),
+    "scenarios.running.gym_env": ("BuildingEnv",),
+    "scenarios.running.kpis": ("KPI_KEYS", "compute_kpis"),
     "scenarios.records": (
         "BuildingKpis",
         "CellRecord",
@@ -78,10 +80,10 @@ _EXPORTS = {
         "SweepRow",
         "SweepSummary",
     ),
-    "scenarios.plots": ("plot_comparison", "plot_trajectory"),
-    "scenarios.registry": ("Scenario", "get_scenario", "scenario_names"),
-    "scenarios.report": ("format_fleet", "format_kpis", "kpi_table_text"),
-    "scenarios.reproduce": ("ReproduceConfig", "run_reproduction"),
+    "scenarios.reports.plots": ("plot_comparison", "plot_trajectory"),
+    "scenarios.inputs.registry": ("Scenario", "get_scenario", "scenario_names"),
+    "scenarios.reports.report": ("format_fleet", "format_kpis", "kpi_table_text"),
+    "scenarios.experiments.reproduce": ("ReproduceConfig", "run_reproduction"),
 }
 __all__ = [name for names in _EXPORTS.values() for name in names]
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

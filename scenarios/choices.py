@@ -1,9 +1,9 @@
 """The named choices of the experiment layer: data policies, weather parts, controllers.
 
 They live in this light module (no numpy, pandas or torch) so that the CLI can offer them as
-choices and print its help without loading what implements them; :mod:`scenarios.datagen`,
-:mod:`scenarios.inputs` and :mod:`scenarios.factory` take them from here. Scenario names are
-data (:func:`scenarios.registry.scenario_names`).
+choices and print its help without loading what implements them; :mod:`scenarios.running.datagen`,
+:mod:`scenarios.inputs.exogenous` and :mod:`scenarios.running.factory` take them from here. Scenario names are
+data (:func:`scenarios.inputs.registry.scenario_names`).
 """
 
 from __future__ import annotations
@@ -21,17 +21,17 @@ __all__ = [
     "WeatherPart",
 ]
 
-#: Demand policies of generated data (:mod:`scenarios.datagen`).
+#: Demand policies of generated data (:mod:`scenarios.running.datagen`).
 POLICIES = ("random", "random-level", "thermostat", "closed-loop")
 #: The policies of training data for learned models and identification: random (on/off or
 #: levels) and closed-loop (random setpoints tracked, the EnergyPlus scenarios' default).
 RANDOM_POLICIES = ("random", "random-level", "closed-loop")
 
-#: Parts of a scenario's weather (:mod:`scenarios.inputs`).
+#: Parts of a scenario's weather (:mod:`scenarios.inputs.exogenous`).
 WeatherPart = Literal["train", "test", "whole"]
 WEATHER_PARTS: tuple[str, ...] = get_args(WeatherPart)
 
-#: Controllers by what they run on (:mod:`scenarios.factory`): a trained model, RC
+#: Controllers by what they run on (:mod:`scenarios.running.factory`): a trained model, RC
 #: parameters, or the scenario's true parameters (references).
 MODEL_CONTROLLERS = ("random-shooting", "cem")
 RC_CONTROLLERS = ("casadi-mpc", "qp-mpc")

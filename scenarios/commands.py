@@ -29,30 +29,30 @@ from pinn_mpc.io import (
     file_sha256,
 )
 from scenarios.choices import MODEL_CONTROLLERS
-from scenarios.closed_loop import one_torch_thread, run_closed_loop
-from scenarios.datagen import generate
-from scenarios.factory import make_controller
-from scenarios.inputs import day_span
+from scenarios.inputs.exogenous import day_span
+from scenarios.inputs.registry import Scenario, get_scenario
 from scenarios.records import CompareTable, FleetInfo, FleetJson, RunKpis
-from scenarios.registry import Scenario, get_scenario
-from scenarios.report import (
+from scenarios.reports.report import (
     format_fleet,
     format_kpis,
     kpi_table_text,
     prediction_table_text,
     render_report,
 )
+from scenarios.running.closed_loop import one_torch_thread, run_closed_loop
+from scenarios.running.datagen import generate
+from scenarios.running.factory import make_controller
 
 if TYPE_CHECKING:  # compare loads torch: only the compare command imports it
-    from scenarios.compare import CompareSettings, ComparisonResult
-    from scenarios.fleet import FleetResult
+    from scenarios.experiments.compare import CompareSettings, ComparisonResult
+    from scenarios.fleets.fleet import FleetResult
 
 __all__ = ["closed_loop", "compare", "reproduce", "scenario", "simulate", "sweep"]
 
 
 def _scenario_inputs(name: str) -> dict[str, PathsArg]:
     """The files ``--scenario`` reads (the file and the files it names), as inputs to protect."""
-    from scenarios.scenario_file import scenario_inputs
+    from scenarios.inputs.scenario_file import scenario_inputs
 
     return {
         f"--scenario {name}'s {key}" if key else "--scenario": path
@@ -63,7 +63,7 @@ def _scenario_inputs(name: str) -> dict[str, PathsArg]:
 def _scenario_label(name: str, scenario: Scenario) -> str:
     """The scenario as results name it: its name, and for a file the file too (a file may
     carry any name, a built-in's included)."""
-    from scenarios.registry import is_scenario_file
+    from scenarios.inputs.registry import is_scenario_file
 
     return f"{scenario.name} (file {name})" if is_scenario_file(name) else scenario.name
 
@@ -71,7 +71,7 @@ def _scenario_label(name: str, scenario: Scenario) -> str:
 def simulate(a: argparse.Namespace) -> str:
     """Generate data and write it atomically to ``--out`` (never onto a file the scenario
     reads); a run that would not fit in memory is refused before it starts."""
-    from scenarios.budget import check_simulate_memory
+    from scenarios.running.budget import check_simulate_memory
 
     sidecar = None
     if a.spread is not None:
@@ -92,7 +92,7 @@ def simulate(a: argparse.Namespace) -> str:
     fleet = None
     if a.spread is not None:
         from pinn_mpc.simulator import draw_fleet
-        from scenarios.fleet import FLEET_STREAM
+        from scenarios.fleets.fleet import FLEET_STREAM
 
         rng = np.random.default_rng([a.seed, FLEET_STREAM])
         fleet = draw_fleet(chosen.sim.params, a.buildings, spread=a.spread, rng=rng)
@@ -131,7 +131,7 @@ def fleet_params_path(data: str | os.PathLike[str]) -> Path:
 
 def train(a: argparse.Namespace) -> str:
     """``train``: one ensemble (:func:`pinn_mpc.commands.train`), or with ``--per-building``
-    one model per building of a fleet data set on Ray (:mod:`scenarios.fleet_training`)."""
+    one model per building of a fleet data set on Ray (:mod:`scenarios.fleets.training`)."""
     from pinn_mpc.commands import train as train_one
 
     if not a.per_building:
@@ -144,7 +144,7 @@ def train(a: argparse.Namespace) -> str:
     from pinn_mpc.data import read_fleet_timeseries
     from pinn_mpc.physics import RCParams
     from pinn_mpc.training import TrainConfig
-    from scenarios.fleet_training import train_per_building
+    from scenarios.fleets.training import train_per_building
 
     frames = read_fleet_timeseries(a.data, columns=a.columns)
     params = None
@@ -191,7 +191,7 @@ def closed_loop(a: argparse.Namespace) -> str:
     inputs: dict[str, PathsArg] = {"--rc": a.rc, **_scenario_inputs(a.scenario)}
     if a.model is not None:
         from pinn_mpc.artifacts import MODEL_DIRECTORY  # torch: only when a model is given
-        from scenarios.fleet_training import FLEET_FILE, fleet_model_files
+        from scenarios.fleets.training import FLEET_FILE, fleet_model_files
 
         fleet_dir = (Path(a.model) / FLEET_FILE).is_file()  # per-building models
         inputs["--model"] = fleet_model_files(a.model) if fleet_dir else MODEL_DIRECTORY.paths(a.model)
@@ -224,14 +224,14 @@ def closed_loop(a: argparse.Namespace) -> str:
     if a.csv is not None:
         write_timeseries(result.trajectory, a.csv)
     if a.plot is not None:
-        from scenarios.plots import plot_trajectory  # matplotlib only when plotting
+        from scenarios.reports.plots import plot_trajectory  # matplotlib only when plotting
 
         plot_trajectory(result.trajectory, a.plot, title=f"{a.controller} on {a.scenario}")
     kpis = _with_scenario_file(result.kpis, a.scenario)
     atomic_write_json(a.json, kpis)
     lines = [format_kpis({**kpis, "scenario": _scenario_label(a.scenario, scenario)})]
     if a.model is not None:
-        from scenarios.factory import weather_range_note
+        from scenarios.running.factory import weather_range_note
 
         note = weather_range_note(getattr(controller, "model", None), result.trajectory)
         if note is not None:
@@ -260,7 +260,7 @@ def _check_controller_inputs(a: argparse.Namespace) -> None:
             "data from `pinn-mpc simulate`)"
         )
     if a.model is not None:
-        from scenarios.fleet_training import FLEET_FILE  # torch: only when a model is given
+        from scenarios.fleets.training import FLEET_FILE  # torch: only when a model is given
 
         if (Path(a.model) / FLEET_FILE).is_file():
             raise InputError(
@@ -288,7 +288,7 @@ _Labelled = TypeVar("_Labelled", RunKpis, FleetInfo)
 def _with_scenario_file(kpis: _Labelled, name: str) -> _Labelled:
     """The KPIs with ``scenario_file`` (absolute) when ``--scenario`` is a file: its ``name``
     alone may be anything, a built-in's included."""
-    from scenarios.registry import is_scenario_file
+    from scenarios.inputs.registry import is_scenario_file
 
     if not is_scenario_file(name):
         return kpis
@@ -311,8 +311,8 @@ def _fleet_closed_loop(a: argparse.Namespace, scenario: Scenario, inputs: dict[s
     is built on its own parameters, one after another, or the fleet is planned in one batch
     (``--batched``, ``--cap-kw``; then the fleet figure is written next to the JSON). A fleet
     that would not fit in memory is refused before anything is built."""
-    from scenarios.budget import check_fleet_memory, check_fleet_size
-    from scenarios.fleet import run_fleet_closed_loop
+    from scenarios.fleets.fleet import run_fleet_closed_loop
+    from scenarios.running.budget import check_fleet_memory, check_fleet_size
 
     batched = a.batched or a.cap_kw is not None or a.model is not None
     for option, value in (("--rc", a.rc), ("--csv", a.csv), ("--plot", a.plot)):
@@ -325,7 +325,7 @@ def _fleet_closed_loop(a: argparse.Namespace, scenario: Scenario, inputs: dict[s
         raise InputError("--cap-window needs --cap-kw (the cap in that window)")
     figure = None
     if batched:
-        from scenarios.aggregator import BATCHED_CONTROLLERS, parse_cap_window
+        from scenarios.fleets.aggregator import BATCHED_CONTROLLERS, parse_cap_window
 
         wanted = "cem" if a.model is not None else "qp-mpc"
         if a.controller != wanted:
@@ -346,8 +346,8 @@ def _fleet_closed_loop(a: argparse.Namespace, scenario: Scenario, inputs: dict[s
     planner: Any = a.controller
     fleet = None
     if a.model is not None:
-        from scenarios.aggregator import learned_fleet_planner
-        from scenarios.fleet_training import load_fleet_models
+        from scenarios.fleets.aggregator import learned_fleet_planner
+        from scenarios.fleets.training import load_fleet_models
 
         models, fleet = load_fleet_models(a.model)
         if fleet is None:
@@ -371,7 +371,7 @@ def _fleet_closed_loop(a: argparse.Namespace, scenario: Scenario, inputs: dict[s
     threads = one_torch_thread() if small else contextlib.nullcontext()
     with threads:
         if batched:
-            from scenarios.aggregator import run_coordinated_fleet
+            from scenarios.fleets.aggregator import run_coordinated_fleet
 
             result = run_coordinated_fleet(
                 scenario, planner, n_buildings=a.buildings, days=a.days, seed=a.seed,
@@ -394,8 +394,8 @@ def _fleet_closed_loop(a: argparse.Namespace, scenario: Scenario, inputs: dict[s
     if result.errors:
         lines.append(f"{len(result.errors)} controller error(s), first: {result.errors[0]}")
     if figure is not None:
-        from scenarios.aggregator import cap_in_force
-        from scenarios.plots import fleet_figure, save_figure
+        from scenarios.fleets.aggregator import cap_in_force
+        from scenarios.reports.plots import fleet_figure, save_figure
 
         cap_kw = None if result.cap is None else cap_in_force(result.times, result.cap)
         discomfort = np.array([k["discomfort_kh"] for k in result.kpis])
@@ -411,9 +411,9 @@ def _fleet_closed_loop(a: argparse.Namespace, scenario: Scenario, inputs: dict[s
 
 def _check_fleet_models_fit(root: str, models: list[Any], scenario: Scenario) -> None:
     """Each building's model checked against the scenario as one model is (actuator, power
-    range, time constants: :func:`scenarios.factory.check_model_fits`): the first refusal
+    range, time constants: :func:`scenarios.running.factory.check_model_fits`): the first refusal
     names its building; the first building's warnings are shown with a count of the others."""
-    from scenarios.factory import check_model_fits
+    from scenarios.running.factory import check_model_fits
 
     noted = []
     for b, model in enumerate(models):
@@ -477,7 +477,7 @@ def _settings_table(
 ) -> dict[str, Any]:
     """What the comparison depended on, for the report and the JSON table (``name``: the
     ``--scenario`` given, a built-in name or a file)."""
-    from scenarios.registry import is_scenario_file
+    from scenarios.inputs.registry import is_scenario_file
 
     return {
         **dataclasses.asdict(settings),
@@ -498,8 +498,8 @@ def _settings_table(
 
 def compare(a: argparse.Namespace) -> str:
     """Run the comparison, write the JSON table, the report and its figure (parents created)."""
-    from scenarios.compare import CompareSettings, run_comparison
-    from scenarios.prediction import PREDICTION_HORIZON
+    from scenarios.experiments.compare import CompareSettings, run_comparison
+    from scenarios.experiments.prediction import PREDICTION_HORIZON
 
     check_writable(a.json, a.report, create_parents=True)
     report = Path(a.report)
@@ -535,7 +535,7 @@ def compare(a: argparse.Namespace) -> str:
     notes += [f"wall time of {stage}: {sec:.1f} s" for stage, sec in result.wall_time_s.items()]
     for path in (Path(a.json), report, figure):
         path.parent.mkdir(parents=True, exist_ok=True)
-    from scenarios.plots import plot_comparison  # matplotlib only when plotting
+    from scenarios.reports.plots import plot_comparison  # matplotlib only when plotting
 
     first, last = result.days["test"]
     title = f"{scenario.name}: test days {first} to {last}, seed {settings.test_seed}"
@@ -573,8 +573,8 @@ def compare(a: argparse.Namespace) -> str:
 def reproduce(a: argparse.Namespace) -> str:
     """Run the paper's experiments into ``--out``; the summary is the validation table and
     the files written."""
-    from scenarios.reproduce import ReproduceConfig, run_reproduction, validation_table
-    from scenarios.reproduce.render import OUTPUT
+    from scenarios.experiments.reproduce import ReproduceConfig, run_reproduction, validation_table
+    from scenarios.experiments.reproduce.render import OUTPUT
 
     config = ReproduceConfig.quick(a.seeds) if a.quick else ReproduceConfig(seeds=a.seeds or 20)
     started = time.perf_counter()
@@ -598,12 +598,10 @@ def reproduce(a: argparse.Namespace) -> str:
 
 
 def sweep(a: argparse.Namespace) -> str:
-    """Parse the grid, run it on Ray (:func:`scenarios.sweep.run_sweep`), return what was run
+    """Parse the grid, run it on Ray (:func:`scenarios.experiments.sweep.run_sweep`), return what was run
     and written."""
     from pinn_mpc.choices import DEFAULT_ARCH
-    from scenarios.budget import check_grid_size
-    from scenarios.registry import is_scenario_file
-    from scenarios.sweep import (
+    from scenarios.experiments.sweep import (
         SweepGrid,
         SweepSettings,
         parse_ints,
@@ -611,7 +609,9 @@ def sweep(a: argparse.Namespace) -> str:
         read_sweep_spec,
         run_sweep,
     )
-    from scenarios.sweep_report import ratio
+    from scenarios.inputs.registry import is_scenario_file
+    from scenarios.reports.sweep_report import ratio
+    from scenarios.running.budget import check_grid_size
 
     spec = read_sweep_spec(a.spec) if a.spec is not None else {}
 
@@ -675,7 +675,7 @@ def sweep(a: argparse.Namespace) -> str:
 
 def scenario(a: argparse.Namespace) -> str:
     """``pinn-mpc scenario list | show NAME | export NAME --out FILE.toml``."""
-    from scenarios.scenario_file import scenario_command
+    from scenarios.inputs.scenario_file import scenario_command
 
     return scenario_command(
         a.action,

@@ -43,8 +43,8 @@ __all__ = [
 
 
 class Kpis(TypedDict):
-    """The KPIs of one building's counted intervals (:func:`scenarios.kpis.compute_kpis`; the
-    definitions are in :mod:`scenarios.kpis`), in the order of :data:`scenarios.kpis.KPI_KEYS`."""
+    """The KPIs of one building's counted intervals (:func:`scenarios.running.kpis.compute_kpis`; the
+    definitions are in :mod:`scenarios.running.kpis`), in the order of :data:`scenarios.running.kpis.KPI_KEYS`."""
 
     energy_kwh: float
     """Delivered electrical energy [kWh]."""
@@ -71,7 +71,7 @@ class Kpis(TypedDict):
 
 
 class RunKpis(Kpis):
-    """A closed loop's KPI JSON (:attr:`scenarios.closed_loop.ClosedLoopResult.kpis`,
+    """A closed loop's KPI JSON (:attr:`scenarios.running.closed_loop.ClosedLoopResult.kpis`,
     ``closed-loop --json``): the :class:`Kpis`, the run's labels, and a planner over a learned
     model's :class:`~pinn_mpc.records.TrustReport`."""
 
@@ -103,7 +103,7 @@ class RunKpis(Kpis):
 
 
 class CompareRow(RunKpis):
-    """A row of a comparison (:attr:`scenarios.compare.ComparisonResult.rows`): a run's KPIs,
+    """A row of a comparison (:attr:`scenarios.experiments.compare.ComparisonResult.rows`): a run's KPIs,
     what ran, and its objective relative to the scenario's reference."""
 
     name: str
@@ -120,7 +120,7 @@ class CompareRow(RunKpis):
 
 class PredictionRow(TypedDict):
     """A model's prediction error of the room temperature
-    (:func:`scenarios.prediction.prediction_errors`)."""
+    (:func:`scenarios.experiments.prediction.prediction_errors`)."""
 
     model: str
     """The model's name (``hybrid``, ``ARX``, ``identified RC``, ...)."""
@@ -156,7 +156,7 @@ class CompareTable(TypedDict):
 
 
 class CellKey(TypedDict):
-    """What a sweep cell is (the fields of :class:`scenarios.sweep.Cell`)."""
+    """What a sweep cell is (the fields of :class:`scenarios.experiments.sweep.Cell`)."""
 
     scenario: str
     """A built-in scenario's name or a scenario file."""
@@ -169,7 +169,7 @@ class CellKey(TypedDict):
 
 class SweepSettingsRecord(TypedDict):
     """What every cell of a sweep shares (``sweep.json``, each cell's and the summary's
-    ``settings``): the fields of :class:`scenarios.sweep.SweepSettings`, the architecture and
+    ``settings``): the fields of :class:`scenarios.experiments.sweep.SweepSettings`, the architecture and
     the package version."""
 
     test_days: int
@@ -189,7 +189,7 @@ class SweepSettingsRecord(TypedDict):
 
 
 class CellResult(TypedDict):
-    """What a cell's task returns (:func:`scenarios.sweep.run_cell`)."""
+    """What a cell's task returns (:func:`scenarios.experiments.sweep.run_cell`)."""
 
     kpis: RunKpis
     errors: list[str]
@@ -206,13 +206,13 @@ class CellRecord(CellResult):
 
     cell: CellKey
     scenario_sha256: str | None
-    """sha256 of a scenario file's content (:func:`scenarios.sweep.scenario_digest`); None
+    """sha256 of a scenario file's content (:func:`scenarios.experiments.sweep.scenario_digest`); None
     for a built-in scenario."""
     settings: SweepSettingsRecord
 
 
 class SweepRow(TypedDict):
-    """A row of ``summary.json`` (:func:`scenarios.sweep_report.summarise`): one scenario x
+    """A row of ``summary.json`` (:func:`scenarios.reports.sweep_report.summarise`): one scenario x
     controller (x training days). The ratio keys are named after the scenario's reference:
     ``objective_to_oracle_*``, or ``objective_to_thermostat_*`` on a plant without an oracle."""
 
@@ -243,7 +243,7 @@ class SweepRow(TypedDict):
 
 
 class EngineRecord(TypedDict):
-    """The engine a sweep ran on (:func:`scenarios.sweep.ray_engine`)."""
+    """The engine a sweep ran on (:func:`scenarios.running.ray_engine.ray_engine`)."""
 
     name: str
     version: str
@@ -261,7 +261,7 @@ class GridRecord(TypedDict):
 
 
 class SweepSummary(TypedDict):
-    """``summary.json`` of a sweep (:attr:`scenarios.sweep.SweepOutcome.summary`)."""
+    """``summary.json`` of a sweep (:attr:`scenarios.experiments.sweep.SweepOutcome.summary`)."""
 
     rows: list[SweepRow]
     baseline: str
@@ -281,7 +281,7 @@ class SweepSummary(TypedDict):
 
 
 class BuildingKpis(Kpis):
-    """One building's KPIs in a fleet run (:attr:`scenarios.fleet.FleetResult.kpis`)."""
+    """One building's KPIs in a fleet run (:attr:`scenarios.fleets.fleet.FleetResult.kpis`)."""
 
     building: int
     """The building's index in the fleet."""
@@ -290,8 +290,8 @@ class BuildingKpis(Kpis):
 
 
 class FleetTotals(TypedDict):
-    """A fleet's totals (:func:`scenarios.fleet.fleet_totals`), in the order of
-    :data:`scenarios.fleet.FLEET_TOTAL_KEYS`."""
+    """A fleet's totals (:func:`scenarios.fleets.fleet.fleet_totals`), in the order of
+    :data:`scenarios.fleets.fleet.FLEET_TOTAL_KEYS`."""
 
     energy_kwh: float
     """Summed over the buildings [kWh]."""
@@ -320,7 +320,7 @@ class DualAscentRecord(TypedDict):
 
 
 class FleetInfo(TypedDict):
-    """What a fleet run was (:attr:`scenarios.fleet.FleetResult.info`, the fleet JSON's
+    """What a fleet run was (:attr:`scenarios.fleets.fleet.FleetResult.info`, the fleet JSON's
     ``fleet``)."""
 
     scenario: str
@@ -333,7 +333,7 @@ class FleetInfo(TypedDict):
     """Log-normal spread of the fleet's R, C and solar aperture [-]."""
     weather_part: str
     batched: NotRequired[bool]
-    """A batched run (:func:`scenarios.aggregator.run_coordinated_fleet`): True."""
+    """A batched run (:func:`scenarios.fleets.aggregator.run_coordinated_fleet`): True."""
     plans_per_step: NotRequired[float]
     """A batched run: fleet plans per counted step (above 1 when the cap's price iterated)."""
     rc_candidates: NotRequired[bool]
@@ -346,7 +346,7 @@ class FleetInfo(TypedDict):
 
 
 class CapAccount(TypedDict):
-    """A capped fleet run's account (:func:`scenarios.aggregator.cap_account`), measured on
+    """A capped fleet run's account (:func:`scenarios.fleets.aggregator.cap_account`), measured on
     the plant's delivered power."""
 
     kw: float | None
@@ -387,7 +387,7 @@ class FleetJson(TypedDict):
     fleet: FleetInfo
     totals: FleetTotals
     district: dict[str, float]
-    """District KPIs of the aggregate power (:func:`scenarios.fleet.district_kpis`)."""
+    """District KPIs of the aggregate power (:func:`scenarios.fleets.fleet.district_kpis`)."""
     aggregate: AggregateSeries
     cap: CapAccount | None
     """None without a cap."""

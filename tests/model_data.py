@@ -1,6 +1,6 @@
 """Data for the learned-model tests: the paper's simulated household (section 4.3.1).
 
-``scenarios.datagen.generate`` of ``paper_household`` with the random on/off policy: 2R2C
+``scenarios.running.datagen.generate`` of ``paper_household`` with the random on/off policy: 2R2C
 with the backup thermostat, 30-min intervals, T_r = T_m = 17 C at the start. Frames are
 cached per (days, seed) and returned as copies.
 """
@@ -12,8 +12,8 @@ import functools
 import pandas as pd
 
 from pinn_mpc.data import validate_timeseries
-from scenarios.datagen import generate
-from scenarios.registry import get_scenario
+from scenarios.inputs.registry import get_scenario
+from scenarios.running.datagen import generate
 
 
 @functools.lru_cache(maxsize=8)

@@ -17,7 +17,8 @@ from pinn_mpc.errors import InputError
 from pinn_mpc.features import time_of_day_h
 from pinn_mpc.physics import PAPER_HOUSEHOLD, RCParams, discretise
 from pinn_mpc.simulator import SimConfig
-from scenarios.engine import ClosedLoop, ExogenousSeries
+from scenarios.inputs.series import ExogenousSeries
+from scenarios.running.engine import ClosedLoop
 from tests.test_arx import _occupied_data, _rc_data
 
 SPEC = ControlSpec(u_max_w=5000.0)

@@ -19,12 +19,6 @@ import pytest
 
 from pinn_mpc.artifacts import save_model
 from pinn_mpc.data import read_fleet_timeseries, read_timeseries, write_timeseries
-from pinn_mpc.energyplus import (
-    bundled_buildings,
-    bundled_weather,
-    energyplus_available,
-    prepare_model,
-)
 from pinn_mpc.errors import InputError
 from pinn_mpc.identify import identify_rc
 from pinn_mpc.io import atomic_write_json, file_sha256
@@ -33,17 +27,19 @@ from pinn_mpc.simulator import draw_fleet
 from pinn_mpc.training import TrainConfig, train_model
 from pinn_mpc_cli.cli import main
 from scenarios import budget
-from scenarios.closed_loop import progress_steps
 from scenarios.commands import fleet_params_path
-from scenarios.datagen import generate
-from scenarios.fleet_training import (
-    building_model_dir,
-    frame_digest,
-    train_per_building,
+from scenarios.experiments.sweep import Cell, _label, _read_cell, scenario_digest
+from scenarios.fleets.training import building_model_dir, frame_digest, train_per_building
+from scenarios.inputs.registry import get_scenario
+from scenarios.inputs.scenario_file import load_scenario_file, scenario_inputs, scenario_to_toml
+from scenarios.plants.energyplus.files import (
+    bundled_buildings,
+    bundled_weather,
+    energyplus_available,
 )
-from scenarios.registry import get_scenario
-from scenarios.scenario_file import load_scenario_file, scenario_inputs, scenario_to_toml
-from scenarios.sweep import Cell, _label, _read_cell, scenario_digest
+from scenarios.plants.energyplus.model import prepare_model
+from scenarios.running.closed_loop import progress_steps
+from scenarios.running.datagen import generate
 
 HOURS = pd.date_range("2023-01-01", periods=24 * 30, freq="h")
 
@@ -649,7 +645,7 @@ def test_an_rc_identified_on_another_actuator_is_refused(identified_rcs, capsys,
 
 
 def test_an_rc_of_a_smaller_actuator_is_warned_about(identified_rcs, capsys, tmp_path):
-    from scenarios.factory import check_rc_fits
+    from scenarios.running.factory import check_rc_fits
 
     notes = check_rc_fits(identified_rcs / "paper_household.json", get_scenario("eplus_small_office"))
     assert len(notes) == 1 and "data reach 4" in notes[0] and "under half the scenario's 25000 W" in notes[0]

@@ -20,8 +20,8 @@ from pinn_mpc.artifacts import MODEL_DIRECTORY, load_model
 from pinn_mpc.errors import InputError
 from pinn_mpc.io import DirectoryLayout, atomic_directory, check_distinct
 from pinn_mpc_cli.cli import MAX_DAYS, build_parser, main
-from scenarios.factory import CONTROLLER_NAMES
-from scenarios.registry import scenario_names
+from scenarios.inputs.registry import scenario_names
+from scenarios.running.factory import CONTROLLER_NAMES
 
 TINY = ["--arch", "mlp", "--seeds", "1", "--epochs", "1"]
 LOOP = ["closed-loop", "--scenario", "paper_household", "--controller", "thermostat", "--days", "1"]

@@ -11,7 +11,7 @@ import pytest
 
 from pinn_mpc.physics import PAPER_HOUSEHOLD, discretise
 from pinn_mpc_cli.cli import main
-from scenarios.registry import scenario_names
+from scenarios.inputs.registry import scenario_names
 
 ARGS = ["simulate", "--scenario", "paper_household", "--days", "6"]
 

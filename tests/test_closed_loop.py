@@ -11,11 +11,16 @@ from controllers.base import Controller, Forecast, Observation, SolveStats, fall
 from controllers.thermostat import Thermostat
 from pinn_mpc.data import read_timeseries
 from pinn_mpc_cli.cli import main
-from scenarios.closed_loop import EXTRA_COLUMNS, run_closed_loop
-from scenarios.engine import ForecastErrors
-from scenarios.factory import CONTROLLER_NAMES, MODEL_CONTROLLERS, RC_CONTROLLERS, make_controller
-from scenarios.kpis import KPI_KEYS
-from scenarios.registry import get_scenario
+from scenarios.inputs.registry import get_scenario
+from scenarios.inputs.series import ForecastErrors
+from scenarios.running.closed_loop import EXTRA_COLUMNS, run_closed_loop
+from scenarios.running.factory import (
+    CONTROLLER_NAMES,
+    MODEL_CONTROLLERS,
+    RC_CONTROLLERS,
+    make_controller,
+)
+from scenarios.running.kpis import KPI_KEYS
 
 TIME_KEYS = {"decision_ms_median", "decision_ms_mean", "decision_ms_p95", "time_ratio"}
 
@@ -267,7 +272,7 @@ def files(tmp_path_factory, scenario):
     from pinn_mpc.artifacts import save_model
     from pinn_mpc.physics import rc_summary
     from pinn_mpc.training import TrainConfig, train_model
-    from scenarios.datagen import generate
+    from scenarios.running.datagen import generate
 
     root = tmp_path_factory.mktemp("factory")
     data = generate(scenario, days=3, seed=0, policy="random")

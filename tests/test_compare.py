@@ -8,11 +8,11 @@ import pytest
 from pinn_mpc.errors import InputError
 from pinn_mpc.physics import PAPER_HOUSEHOLD, rc_summary
 from pinn_mpc_cli.cli import main
-from scenarios.compare import CompareSettings
-from scenarios.kpis import KPI_KEYS
+from scenarios.experiments.compare import CompareSettings
+from scenarios.inputs.registry import get_scenario
 from scenarios.records import CompareTable
-from scenarios.registry import get_scenario
-from scenarios.report import kpi_table_text, objective_ratios, render_report
+from scenarios.reports.report import kpi_table_text, objective_ratios, render_report
+from scenarios.running.kpis import KPI_KEYS
 from tests.test_records import assert_record
 
 

@@ -6,9 +6,15 @@ import pytest
 
 from controllers.base import Controller
 from pinn_mpc.rc_batch_model import RCBatchModel
-from scenarios.engine import ClosedLoop, ExogenousSeries
-from scenarios.factory import CONTROLLER_NAMES, MODEL_CONTROLLERS, RC_CONTROLLERS, build_controller
-from scenarios.registry import get_scenario
+from scenarios.inputs.registry import get_scenario
+from scenarios.inputs.series import ExogenousSeries
+from scenarios.running.engine import ClosedLoop
+from scenarios.running.factory import (
+    CONTROLLER_NAMES,
+    MODEL_CONTROLLERS,
+    RC_CONTROLLERS,
+    build_controller,
+)
 
 N_STEPS = 6
 SCENARIO = get_scenario("paper_household")

@@ -9,8 +9,8 @@ from controllers.thermostat import Thermostat
 from pinn_mpc.data import validate_timeseries
 from pinn_mpc.errors import InputError
 from pinn_mpc.simulator import Simulator
-from scenarios.datagen import generate
-from scenarios.registry import get_scenario
+from scenarios.inputs.registry import get_scenario
+from scenarios.running.datagen import generate
 
 
 def test_random_policy_frame_is_valid_and_seeded():
@@ -112,7 +112,7 @@ def test_closed_loop_policy_tracks_random_setpoints_inside_the_backup_band():
     controller with a dither: the room stays where a controller keeps it (the backup acts in
     1 % of the intervals, 44 % under random levels), the power still takes levels across its
     range, and the frame is seeded."""
-    from scenarios.datagen import SetpointPolicy
+    from scenarios.running.datagen import SetpointPolicy
 
     scenario = get_scenario("winter_household")
     frame = generate(scenario, days=14, seed=4, policy="closed-loop")

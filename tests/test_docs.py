@@ -225,7 +225,7 @@ def _gen_results():
 
 def test_results_page_states_command_commit_machine_and_cells(tmp_path: Path) -> None:
     """The results generator's page from a sweep directory (two seeds, two controllers)."""
-    from scenarios.sweep_report import summarise
+    from scenarios.reports.sweep_report import summarise
 
     gen = _gen_results()
     cells = []

@@ -14,15 +14,12 @@ import pytest
 pytest.importorskip("pyenergyplus.api")
 
 from controllers.thermostat import Thermostat  # noqa: E402
-from pinn_mpc.energyplus import (  # noqa: E402
-    EnergyPlusRun,
-    _read_model,
-    prepare_model,
-    resolve_building,
-)
 from pinn_mpc.errors import InputError  # noqa: E402
-from scenarios.closed_loop import run_closed_loop  # noqa: E402
-from scenarios.registry import get_scenario  # noqa: E402
+from scenarios.inputs.registry import get_scenario  # noqa: E402
+from scenarios.plants.energyplus.files import resolve_building
+from scenarios.plants.energyplus.model import _read_model, prepare_model
+from scenarios.plants.energyplus.run import EnergyPlusRun
+from scenarios.running.closed_loop import run_closed_loop  # noqa: E402
 
 SCENARIO = "eplus_small_office"
 FILE = """
@@ -186,7 +183,7 @@ def test_thermostat_closed_loop_and_no_oracle(tmp_path):
 def _assert_the_series_reaches_past_and_forecast(scenario, name: str, k: int = 30) -> None:
     """At step ``k`` of a test run, a controller's past of ``name`` is the run's series up to
     now and its forecast the series from now on."""
-    from scenarios.closed_loop import build_loop, prepare_run
+    from scenarios.running.closed_loop import build_loop, prepare_run
 
     seen = {}
 
@@ -210,7 +207,7 @@ def test_facade_irradiance_of_the_epw_reaches_data_trajectories_and_forecasts():
     scenario's exogenous frame has it), in a closed loop's trajectory, the controllers' past
     and forecast; lit when EnergyPlus's own G is, and a February sun on the south facade."""
     from pinn_mpc.solar import FACADE_COLUMNS
-    from scenarios.datagen import generate
+    from scenarios.running.datagen import generate
 
     scenario = get_scenario(SCENARIO)
     data = generate(scenario, days=1, seed=0, policy="random-level")
@@ -229,8 +226,8 @@ def test_the_buildings_holidays_reach_data_and_the_forecasts_day_of_the_week():
     months) mark the scenario's ``holiday`` column, and the series reads them as Sundays."""
     import datetime as dt
 
-    from pinn_mpc.energyplus import holidays
-    from scenarios.engine import ExogenousSeries
+    from scenarios.inputs.series import ExogenousSeries
+    from scenarios.plants.energyplus.schedules import holidays
 
     scenario = get_scenario(SCENARIO)
     times = pd.date_range("2022-01-01", "2022-02-28 23:30", freq="30min")
@@ -330,7 +327,7 @@ def test_gymnasium_env_on_energyplus_starts_at_midnight_and_closes_its_thread():
     of reach, the info carries the internal gains that happened (an office's rise by noon on a
     workday), the observation ends with the facades' irradiance and the wind of the weather
     file, and close() ends the run's thread."""
-    from scenarios.gym_env import OBSERVATION_NAMES, BuildingEnv
+    from scenarios.running.gym_env import OBSERVATION_NAMES, BuildingEnv
 
     scenario = get_scenario(SCENARIO)
     exo = scenario.exogenous(days=2, seed=0, part="test")
@@ -468,7 +465,7 @@ def _thermostat_on_days(scenario, power_w, start_day, days):
 
     import pandas as pd
 
-    from pinn_mpc.energyplus import prepare_plant
+    from scenarios.plants.energyplus.model import prepare_plant
 
     times = pd.date_range("2001-01-01", periods=days * 48, freq="1800s") + pd.Timedelta(days=start_day - 1)
     t_min, t_max = scenario.comfort.sample(times)
@@ -540,7 +537,7 @@ def test_measured_gains_reach_the_controllers(tmp_path):
     their forecast the gains the building's schedules give (a run of its own held at the
     band's lower bound), which the measured ones follow closely; the data carry the measured
     ones as I_g. With the default ("unknown") the controllers see none."""
-    from scenarios.closed_loop import build_loop, prepare_run
+    from scenarios.running.closed_loop import build_loop, prepare_run
 
     seen = {}
 
@@ -620,7 +617,7 @@ def test_separate_zones_with_multipliers_deliver_the_power_asked():
 
 
 def _merged_surfaces(prepared, kind="BuildingSurface:Detailed"):
-    from pinn_mpc.energyplus import MERGED_ZONE
+    from scenarios.plants.energyplus.model import MERGED_ZONE
 
     return [s for s in prepared.model[kind].values() if s.get("zone_name") == MERGED_ZONE]
 
@@ -631,7 +628,7 @@ def test_merged_zones_keep_each_floor_and_wing_where_it_stands():
     top floor keeps its roof at 12.19 m (not on the ground floor's ceiling, where the floors
     would overlap and the sun through each window would be counted on every floor it
     overlaps), and the retail store's zones tile its rectangular footprint without overlap."""
-    from pinn_mpc.energyplus import MERGED_ZONE, _area, _vertices
+    from scenarios.plants.energyplus.model import MERGED_ZONE, _area, _vertices
 
     source = _read_model(resolve_building("midrise_apartment"))
     prepared = prepare_model("midrise_apartment")
@@ -670,8 +667,8 @@ def test_the_weather_files_wind_reaches_data_trajectories_and_forecasts():
     data, the controllers' past and forecast, and the trajectory."""
     import pvlib
 
-    from pinn_mpc.energyplus import resolve_weather
-    from scenarios.datagen import generate
+    from scenarios.plants.energyplus.files import resolve_weather
+    from scenarios.running.datagen import generate
 
     scenario = get_scenario(SCENARIO)
     data = generate(scenario, days=1, seed=0, policy="random-level")
@@ -688,8 +685,8 @@ def test_the_weather_files_wind_reaches_data_trajectories_and_forecasts():
 
 
 def test_a_weather_file_with_a_missing_wind_speed_is_refused_naming_the_hour(tmp_path):
-    from pinn_mpc.energyplus import resolve_weather
-    from scenarios.inputs import load_site_wind
+    from scenarios.inputs.exogenous import load_site_wind
+    from scenarios.plants.energyplus.files import resolve_weather
 
     lines = resolve_weather("usa_il_chicago").read_text().splitlines()
     fields = lines[8 + 12].split(",")  # 8 header lines, then hour 13

@@ -16,7 +16,8 @@ from pinn_mpc.errors import InputError
 from pinn_mpc.physics import PAPER_HOUSEHOLD, discretise
 from pinn_mpc.rc_batch_model import RCBatchModel
 from pinn_mpc.simulator import SimConfig
-from scenarios.engine import ClosedLoop, ExogenousSeries
+from scenarios.inputs.series import ExogenousSeries
+from scenarios.running.engine import ClosedLoop
 
 SPEC = ControlSpec(u_max_w=5000.0)
 H = SPEC.horizon_steps

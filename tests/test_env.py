@@ -8,8 +8,8 @@ from gymnasium.utils.env_checker import check_env
 
 from pinn_mpc.errors import InputError
 from pinn_mpc.simulator import Simulator
-from scenarios.gym_env import OBSERVATION_NAMES, BuildingEnv
-from scenarios.registry import get_scenario
+from scenarios.inputs.registry import get_scenario
+from scenarios.running.gym_env import OBSERVATION_NAMES, BuildingEnv
 
 
 def make_env(episode_steps=48, name="winter_household"):

@@ -12,8 +12,8 @@ from pathlib import Path
 import pytest
 
 from pinn_mpc.physics import params_from_summary
-from scenarios.kpis import KPI_KEYS
-from scenarios.registry import get_scenario
+from scenarios.inputs.registry import get_scenario
+from scenarios.running.kpis import KPI_KEYS
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -1,4 +1,4 @@
-"""The fleet closed loop (scenarios.fleet): one batched plant, one controller per building."""
+"""The fleet closed loop (scenarios.fleets.fleet): one batched plant, one controller per building."""
 
 import dataclasses
 import json
@@ -10,12 +10,12 @@ from controllers.rc_mpc.osqp import QPMPC
 from controllers.thermostat import Thermostat
 from pinn_mpc.errors import InputError
 from pinn_mpc_cli.cli import main
-from scenarios.closed_loop import build_loop, prepare_run, run_closed_loop
-from scenarios.engine import ForecastErrors
-from scenarios.factory import build_controller
-from scenarios.fleet import FLEET_TOTAL_KEYS, run_fleet_closed_loop
-from scenarios.kpis import KPI_KEYS
-from scenarios.registry import get_scenario
+from scenarios.fleets.fleet import FLEET_TOTAL_KEYS, run_fleet_closed_loop
+from scenarios.inputs.registry import get_scenario
+from scenarios.inputs.series import ForecastErrors
+from scenarios.running.closed_loop import build_loop, prepare_run, run_closed_loop
+from scenarios.running.factory import build_controller
+from scenarios.running.kpis import KPI_KEYS
 
 TIME_KEYS = {"decision_ms_median", "decision_ms_mean", "decision_ms_p95", "time_ratio"}
 PLANT_KEYS = [k for k in KPI_KEYS if k not in TIME_KEYS]

@@ -14,10 +14,15 @@ from controllers.rc_mpc.osqp import QPMPC
 from pinn_mpc.errors import InputError
 from pinn_mpc.simulator import draw_fleet
 from pinn_mpc_cli.cli import main
-from scenarios.aggregator import cap_account, cap_in_force, parse_cap_window, run_coordinated_fleet
-from scenarios.closed_loop import build_loop, prepare_run
-from scenarios.fleet import district_kpis
-from scenarios.registry import get_scenario
+from scenarios.fleets.aggregator import (
+    cap_account,
+    cap_in_force,
+    parse_cap_window,
+    run_coordinated_fleet,
+)
+from scenarios.fleets.fleet import district_kpis
+from scenarios.inputs.registry import get_scenario
+from scenarios.running.closed_loop import build_loop, prepare_run
 
 #: A test day of winter_household with heating demand (2023-02-12, -1.7 .. 4.3 C).
 COLD_SEED = 13
@@ -267,8 +272,8 @@ def test_cli_cap_bad_input_exits_2_with_one_line(tmp_path, capsys, args, message
 
 @pytest.mark.slow
 def test_a_fleet_partitioned_across_ray_workers_plans_as_one():
-    from scenarios.partitions import partitioned
-    from scenarios.sweep import ray_engine
+    from scenarios.fleets.partitions import partitioned
+    from scenarios.running.ray_engine import ray_engine
 
     scenario = get_scenario("winter_household")
 

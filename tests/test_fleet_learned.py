@@ -12,10 +12,10 @@ from pinn_mpc import TrainConfig, train_model
 from pinn_mpc.errors import InputError
 from pinn_mpc.fleet_rollout import FEW_PLANS, FleetHybrid
 from pinn_mpc.simulator import draw_fleet
-from scenarios.aggregator import cap_in_force, learned_fleet_planner, run_coordinated_fleet
-from scenarios.closed_loop import build_loop, prepare_run
-from scenarios.datagen import generate
-from scenarios.registry import get_scenario
+from scenarios.fleets.aggregator import cap_in_force, learned_fleet_planner, run_coordinated_fleet
+from scenarios.inputs.registry import get_scenario
+from scenarios.running.closed_loop import build_loop, prepare_run
+from scenarios.running.datagen import generate
 
 COLD_SEED = 13  # winter_household's test day 2023-02-12: heating all day
 
@@ -144,7 +144,7 @@ def test_batched_cem_over_learned_models_keeps_comfort_and_a_cap(fleet_models):
 
 
 def test_a_batched_rollout_that_would_not_fit_is_refused_before_it_starts():
-    from scenarios.budget import check_batched_fleet_memory
+    from scenarios.running.budget import check_batched_fleet_memory
 
     check_batched_fleet_memory(buildings=1000, members=1, samples=32, horizon_steps=48,
                                available=8_000_000_000)

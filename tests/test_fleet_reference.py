@@ -1,4 +1,4 @@
-"""The centralised reference of a capped fleet (scenarios/fleet_reference.py) against analytic
+"""The centralised reference of a capped fleet (scenarios/fleets/reference.py) against analytic
 truths: a cap of zero leaves the 2R2C's free response, a cap above the fleet's peak changes
 nothing, a building's problem is the qp-mpc's own objective."""
 
@@ -13,9 +13,9 @@ from controllers.rc_mpc.osqp import QPMPC
 from controllers.rc_mpc.problem import DEFAULT_REGULARISATION
 from pinn_mpc.physics import discretise
 from pinn_mpc.simulator import draw_fleet, fleet_matrices
-from scenarios.closed_loop import build_loop, prepare_run
-from scenarios.fleet_reference import fleet_reference, solve_fleet_reference
-from scenarios.registry import get_scenario
+from scenarios.fleets.reference import fleet_reference, solve_fleet_reference
+from scenarios.inputs.registry import get_scenario
+from scenarios.running.closed_loop import build_loop, prepare_run
 
 COLD_SEED = 13  # winter_household's test day 2023-02-12: heating all day
 

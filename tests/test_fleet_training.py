@@ -16,8 +16,7 @@ from pinn_mpc.physics import params_from_summary
 from pinn_mpc.simulator import draw_fleet
 from pinn_mpc.training import TrainConfig, train_model
 from pinn_mpc_cli.cli import main
-from scenarios.datagen import generate
-from scenarios.fleet_training import (
+from scenarios.fleets.training import (
     TRANSFERRED,
     building_frames,
     building_model_dir,
@@ -25,7 +24,8 @@ from scenarios.fleet_training import (
     pretrain_and_fine_tune,
     train_per_building,
 )
-from scenarios.registry import get_scenario
+from scenarios.inputs.registry import get_scenario
+from scenarios.running.datagen import generate
 
 TINY = TrainConfig(n_seeds=2, epochs=2, u_max_w=10000.0)
 

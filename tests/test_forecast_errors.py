@@ -13,8 +13,9 @@ from controllers.thermostat import Thermostat
 from pinn_mpc.errors import InputError
 from pinn_mpc.physics import PAPER_HOUSEHOLD
 from pinn_mpc.simulator import SimConfig
-from scenarios.engine import ClosedLoop, ForecastErrors, lead_error_paths
-from scenarios.inputs import GainsSchedule
+from scenarios.inputs.exogenous import GainsSchedule
+from scenarios.inputs.series import ForecastErrors, lead_error_paths
+from scenarios.running.engine import ClosedLoop
 from tests.test_engine import _series  # the engine tests' day of exogenous inputs
 
 SPEC = ControlSpec(u_max_w=5000.0)

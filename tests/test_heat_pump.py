@@ -12,9 +12,9 @@ from pinn_mpc.actuator import Actuator
 from pinn_mpc.errors import InputError
 from pinn_mpc.rc_batch_model import RCBatchModel
 from pinn_mpc.simulator import SimConfig, Simulator, backup_power, draw_fleet
-from scenarios.closed_loop import run_closed_loop
-from scenarios.factory import build_controller
-from scenarios.registry import get_scenario
+from scenarios.inputs.registry import get_scenario
+from scenarios.running.closed_loop import run_closed_loop
+from scenarios.running.factory import build_controller
 
 HP = Actuator(kind="heat_pump", supply_temp_c=35.0, carnot_efficiency=0.45, cop_min=1.0, cop_max=6.0)
 WIDE = SimConfig(backup_low_c=-50.0, backup_high_c=80.0)
@@ -148,7 +148,7 @@ def test_rc_problem_plans_on_the_cop_of_the_forecast():
     spec = scenario.control_spec()
     problem = RCProblem(params=scenario.sim.params, spec=spec, horizon_steps=4)
     frame = scenario.exogenous(days=1, seed=0, part="test", lead_steps=4)
-    from scenarios.engine import ExogenousSeries
+    from scenarios.inputs.series import ExogenousSeries
 
     forecast = ExogenousSeries.from_frame(frame).forecast(0)
     stage = problem.stage(np.array([20.0, 20.0]), forecast)

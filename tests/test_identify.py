@@ -146,8 +146,8 @@ def test_rejects_unexcited_data(solar_frame: pd.DataFrame) -> None:
 
 @pytest.mark.slow
 def test_winter_household_sixty_days_of_random_policy() -> None:
-    from scenarios.datagen import generate
-    from scenarios.registry import get_scenario
+    from scenarios.inputs.registry import get_scenario
+    from scenarios.running.datagen import generate
 
     scenario = get_scenario("winter_household")
     frame = generate(scenario, days=60, seed=0, policy="random")

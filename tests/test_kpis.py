@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from pinn_mpc.errors import InputError
-from scenarios.kpis import KPI_KEYS, compute_kpis
+from scenarios.running.kpis import KPI_KEYS, compute_kpis
 
 DT_S = 1800.0
 

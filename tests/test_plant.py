@@ -9,9 +9,9 @@ from pinn_mpc import physics
 from pinn_mpc.errors import InputError
 from pinn_mpc.plant import Plant, plant_matrices
 from pinn_mpc.simulator import SimConfig, Simulator
-from scenarios.closed_loop import run_closed_loop
-from scenarios.factory import build_controller
-from scenarios.registry import get_scenario
+from scenarios.inputs.registry import get_scenario
+from scenarios.running.closed_loop import run_closed_loop
+from scenarios.running.factory import build_controller
 
 PARAMS = dataclasses.replace(
     physics.PAPER_HOUSEHOLD, solar_aperture_m2=3.0, solar_to_air_fraction=0.3, gain_to_air_fraction=0.5

@@ -12,16 +12,16 @@ from matplotlib.axes import Axes
 from matplotlib.collections import PolyCollection
 
 from pinn_mpc.rc_batch_model import RCBatchModel
-from scenarios.closed_loop import run_closed_loop
-from scenarios.factory import CONTROLLER_NAMES, build_controller
-from scenarios.plots import (
+from scenarios.inputs.registry import get_scenario
+from scenarios.reports.plots import (
     FAMILIES,
     comparison_figure,
     group_by_family,
     plot_comparison,
     trajectory_figure,
 )
-from scenarios.registry import get_scenario
+from scenarios.running.closed_loop import run_closed_loop
+from scenarios.running.factory import CONTROLLER_NAMES, build_controller
 
 
 def _runs(scenario_name: str) -> dict[str, pd.DataFrame]:

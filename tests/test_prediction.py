@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from pinn_mpc.actuator import Actuator
-from scenarios.datagen import generate
-from scenarios.prediction import prediction_errors, rc_recursive_t_r
-from scenarios.registry import get_scenario
+from scenarios.experiments.prediction import prediction_errors, rc_recursive_t_r
+from scenarios.inputs.registry import get_scenario
+from scenarios.running.datagen import generate
 
 
 def _data(name: str, **sim_changes):

@@ -136,7 +136,7 @@ def test_readme_command_line_matches_the_parser() -> None:
 
 def test_readme_names_the_scenarios_and_controllers() -> None:
     from scenarios.choices import CONTROLLER_NAMES
-    from scenarios.registry import scenario_names
+    from scenarios.inputs.registry import scenario_names
 
     line = re.search(r"Scenarios: (.*?)\. Controllers: (.*?)\.\n", README.replace("\n`", " `"))
     assert line, "the sentence naming scenarios and controllers is missing"

@@ -21,7 +21,8 @@ from controllers.rc_mpc.problem import RCMPC
 from controllers.rc_mpc.references import clairvoyant_mpc, oracle_mpc
 from pinn_mpc.physics import PAPER_HOUSEHOLD, steady_state
 from pinn_mpc.simulator import SimConfig
-from scenarios.engine import ClosedLoop, ExogenousSeries
+from scenarios.inputs.series import ExogenousSeries
+from scenarios.running.engine import ClosedLoop
 
 SPEC = ControlSpec(u_max_w=5000.0)
 PARAMS = PAPER_HOUSEHOLD

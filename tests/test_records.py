@@ -20,6 +20,7 @@ import pytest
 
 from pinn_mpc.records import EvaluationMetrics, RcSummary, TrustReport
 from pinn_mpc_cli.cli import main
+from scenarios.inputs.registry import get_scenario
 from scenarios.records import (
     BuildingKpis,
     CapAccount,
@@ -35,7 +36,6 @@ from scenarios.records import (
     SweepRow,
     SweepSettingsRecord,
 )
-from scenarios.registry import get_scenario
 
 _LEAVES: dict[Any, tuple[type, ...]] = {
     float: (float, int), int: (int,), str: (str,), bool: (bool,), type(None): (type(None),),
@@ -99,8 +99,8 @@ def test_the_check_refuses_an_undeclared_a_missing_and_a_mistyped_key():
 
 
 def test_kpi_and_fleet_total_keys_are_the_records_in_order():
-    from scenarios.fleet import FLEET_TOTAL_KEYS
-    from scenarios.kpis import KPI_KEYS
+    from scenarios.fleets.fleet import FLEET_TOTAL_KEYS
+    from scenarios.running.kpis import KPI_KEYS
 
     assert tuple(Kpis.__annotations__) == KPI_KEYS
     assert tuple(FleetTotals.__annotations__) == FLEET_TOTAL_KEYS
@@ -112,7 +112,7 @@ def test_kpi_and_fleet_total_keys_are_the_records_in_order():
 
 def test_a_closed_loop_writes_run_kpis(tmp_path):
     from controllers.thermostat import Thermostat
-    from scenarios.closed_loop import run_closed_loop
+    from scenarios.running.closed_loop import run_closed_loop
 
     scenario = get_scenario("winter_household")
     result = run_closed_loop(scenario, Thermostat(scenario.control_spec()), days=1, seed=0, warmup_steps=4)
@@ -132,8 +132,8 @@ def test_a_closed_loop_writes_run_kpis(tmp_path):
 
 def test_a_planner_over_a_learned_model_adds_its_trust_report():
     from pinn_mpc.rc_batch_model import RCBatchModel
-    from scenarios.closed_loop import run_closed_loop
-    from scenarios.factory import build_controller
+    from scenarios.running.closed_loop import run_closed_loop
+    from scenarios.running.factory import build_controller
 
     scenario = get_scenario("winter_household")
     sim = scenario.sim
@@ -152,8 +152,8 @@ def test_a_planner_over_a_learned_model_adds_its_trust_report():
 def test_prediction_rows_and_rc_summaries():
     from pinn_mpc.arx import fit_arx
     from pinn_mpc.physics import rc_summary
-    from scenarios.datagen import generate
-    from scenarios.prediction import prediction_errors
+    from scenarios.experiments.prediction import prediction_errors
+    from scenarios.running.datagen import generate
 
     scenario = get_scenario("winter_household")
     data = generate(scenario, days=3, seed=0, policy="random-level")
@@ -200,7 +200,7 @@ def test_identify_evaluate_and_export_write_their_records(tmp_path):
 
 def test_a_fleet_writes_its_records():
     from scenarios.commands import fleet_json
-    from scenarios.fleet import run_fleet_closed_loop
+    from scenarios.fleets.fleet import run_fleet_closed_loop
 
     scenario = get_scenario("winter_household")
     result = run_fleet_closed_loop(scenario, "thermostat", n_buildings=2, days=1, seed=0, warmup_steps=4)
@@ -213,8 +213,8 @@ def test_a_fleet_writes_its_records():
 
 
 def test_a_capped_batched_fleet_writes_its_records():
-    from scenarios.aggregator import run_coordinated_fleet
     from scenarios.commands import fleet_json
+    from scenarios.fleets.aggregator import run_coordinated_fleet
 
     scenario = get_scenario("winter_household")
     result = run_coordinated_fleet(scenario, "qp-mpc", n_buildings=2, days=1, seed=0, cap_kw=3.0,
@@ -231,7 +231,7 @@ def test_a_capped_batched_fleet_writes_its_records():
 
 
 def test_a_sweep_cell_its_record_and_the_summary_rows(tmp_path):
-    from scenarios.sweep import (
+    from scenarios.experiments.sweep import (
         Cell,
         SweepSettings,
         _cell_record_key,
@@ -239,7 +239,7 @@ def test_a_sweep_cell_its_record_and_the_summary_rows(tmp_path):
         _settings_record,
         run_cell,
     )
-    from scenarios.sweep_report import summarise
+    from scenarios.reports.sweep_report import summarise
 
     settings = SweepSettings(test_days=1)
     record_settings = _settings_record(settings)

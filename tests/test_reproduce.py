@@ -13,15 +13,15 @@ import pytest
 
 from pinn_mpc.errors import InputError
 from pinn_mpc_cli.cli import main
-from scenarios.datagen import generate
-from scenarios.registry import get_scenario
-from scenarios.reproduce import (
+from scenarios.experiments.reproduce import (
     PAPER_VALIDATION,
     ReproduceConfig,
     ReproductionResults,
     run_reproduction,
     validation_table,
 )
+from scenarios.inputs.registry import get_scenario
+from scenarios.running.datagen import generate
 
 TINY = ReproduceConfig(
     seeds=2,

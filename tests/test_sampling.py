@@ -19,7 +19,8 @@ from pinn_mpc.errors import InputError
 from pinn_mpc.physics import PAPER_HOUSEHOLD, discretise
 from pinn_mpc.rc_batch_model import RCBatchModel
 from pinn_mpc.simulator import SimConfig, Simulator
-from scenarios.engine import ClosedLoop, ExogenousSeries
+from scenarios.inputs.series import ExogenousSeries
+from scenarios.running.engine import ClosedLoop
 
 H = 48
 DT_S = 1800.0

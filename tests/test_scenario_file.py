@@ -12,11 +12,11 @@ import pytest
 
 from pinn_mpc.errors import InputError
 from pinn_mpc_cli.cli import main
-from scenarios.engine import ForecastErrors
-from scenarios.inputs import load_tmy3
-from scenarios.measured import CSVWeather, PriceCSV
-from scenarios.registry import get_scenario, scenario_names
-from scenarios.scenario_file import load_scenario_file, scenario_to_toml
+from scenarios.inputs.exogenous import load_tmy3
+from scenarios.inputs.measured import CSVWeather, PriceCSV
+from scenarios.inputs.registry import get_scenario, scenario_names
+from scenarios.inputs.scenario_file import load_scenario_file, scenario_to_toml
+from scenarios.inputs.series import ForecastErrors
 
 TIME_KEYS = {"decision_ms_median", "decision_ms_mean", "decision_ms_p95", "time_ratio"}
 

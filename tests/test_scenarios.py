@@ -6,14 +6,14 @@ import pytest
 
 from pinn_mpc.errors import InputError
 from pinn_mpc.physics import steady_state
-from scenarios.inputs import (
+from scenarios.inputs.exogenous import (
     HOURS_PER_TYPICAL_YEAR,
     PriceProfile,
     load_tmy3,
     resample_typical_year,
     time_of_day_h,
 )
-from scenarios.registry import EXOGENOUS_COLUMNS, get_scenario, scenario_names
+from scenarios.inputs.registry import EXOGENOUS_COLUMNS, get_scenario, scenario_names
 
 NAMES = ("paper_household", "winter_household", "cold_storage")
 

@@ -11,8 +11,8 @@ from pathlib import Path
 import pytest
 
 from pinn_mpc.errors import InputError
-from scenarios.sweep import ARCH, SweepGrid, parse_ints, parse_names
-from scenarios.sweep_report import mean_ci95, summarise
+from scenarios.experiments.sweep import ARCH, SweepGrid, parse_ints, parse_names
+from scenarios.reports.sweep_report import mean_ci95, summarise
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -225,7 +225,7 @@ def test_sigint_keeps_finished_cells_and_the_rerun_completes_the_rest(tmp_path):
 
 
 def test_sweep_definition_files_are_read_and_checked(tmp_path):
-    from scenarios.sweep import read_sweep_spec
+    from scenarios.experiments.sweep import read_sweep_spec
 
     root = Path(__file__).resolve().parents[1]
     spec = read_sweep_spec(root / "sweeps" / "robustness.toml")
@@ -265,10 +265,10 @@ def test_sweep_without_a_grid_or_spec_exits_2(tmp_path):
 def test_a_sweep_logs_its_progress_when_stderr_is_not_a_terminal(tmp_path, monkeypatch, capsys):
     """Off a terminal (a log file, CI) the sweep prints a progress line every PROGRESS_EVERY_S
     with the cells done and the models trained."""
-    import scenarios.closed_loop
+    import scenarios.running.closed_loop
     from pinn_mpc_cli.cli import main
 
-    monkeypatch.setattr(scenarios.closed_loop, "PROGRESS_EVERY_S", 0.05)
+    monkeypatch.setattr(scenarios.running.closed_loop, "PROGRESS_EVERY_S", 0.05)
     out = tmp_path / "sweep"
     args = ["--scenarios", "winter_household", "--controllers", "oracle,qp-mpc", "--seeds", "0-1"]
     assert main(["sweep", *args, "--days", "1", "--quick", "--out", str(out)]) == 0
@@ -279,10 +279,10 @@ def test_a_sweep_logs_its_progress_when_stderr_is_not_a_terminal(tmp_path, monke
 def test_sweep_trains_on_each_scenarios_own_data_policy(tmp_path):
     """By default a sweep's models learn from the data the scenario's `data_policy` names (as
     simulate and compare use), not one policy for all; an explicit policy still applies to all."""
-    from scenarios.compare import identify_scenario_rc
-    from scenarios.datagen import generate
-    from scenarios.registry import get_scenario
-    from scenarios.sweep import RC_KIND, ModelKey, SweepSettings, fit_model
+    from scenarios.experiments.compare import identify_scenario_rc
+    from scenarios.experiments.sweep import RC_KIND, ModelKey, SweepSettings, fit_model
+    from scenarios.inputs.registry import get_scenario
+    from scenarios.running.datagen import generate
 
     text = Path(_export(tmp_path)).read_text().replace(
         'data_policy = "random-level"', 'data_policy = "closed-loop"'
@@ -338,7 +338,7 @@ def test_a_sweep_plans_over_the_architecture_it_is_given(tmp_path):
 
 
 def test_a_sweep_definition_names_a_known_architecture(tmp_path):
-    from scenarios.sweep import SweepSettings, read_sweep_spec
+    from scenarios.experiments.sweep import SweepSettings, read_sweep_spec
 
     good, bad = tmp_path / "good.toml", tmp_path / "bad.toml"
     good.write_text(f"arch = \"{SweepSettings().arch}\"\n")

@@ -15,10 +15,10 @@ import pytest
 from pinn_mpc.errors import InputError
 from pinn_mpc_cli.cli import build_parser, main
 from scenarios.choices import WEATHER_PARTS
-from scenarios.compare import CompareSettings
-from scenarios.inputs import BASE_YEAR, TMY3Weather
-from scenarios.registry import get_scenario, scenario_names
-from scenarios.reproduce import ReproduceConfig
+from scenarios.experiments.compare import CompareSettings
+from scenarios.experiments.reproduce import ReproduceConfig
+from scenarios.inputs.exogenous import BASE_YEAR, TMY3Weather
+from scenarios.inputs.registry import get_scenario, scenario_names
 
 SEEDS = range(10)
 TMY3_SCENARIOS = ("winter_household", "cold_storage")

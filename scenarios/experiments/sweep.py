@@ -1,0 +1,655 @@
+"""``pinn-mpc sweep``: grids of closed loops on Ray, each model trained once, each cell kept.
+
+A cell is one closed loop: (scenario, controller, seed[, training days]). The seed fixes the
+training data (``seed``) and the test days (``seed + 1``), as in ``compare``. Controllers that
+plan over a learned model (``random-shooting``, ``cem``) use an ensemble of the architecture
+``train`` makes by default (the hybrid) trained on the scenario's simulated data, as ``compare``
+trains it; ``qp-mpc`` / ``casadi-mpc`` the RC identified from the same data (on delivered heat
+under a heat pump, as ``compare``).
+Each model is trained once per scenario x seed x kind x training days, as a Ray task whose
+result every cell needing it receives (Ray passes it through its object store, also between
+nodes); the oracle of each scenario and seed always runs, as the denominator.
+
+Everything is written by the driver (this process), so results land in ``DIR`` on the machine
+that runs ``pinn-mpc sweep``, whatever nodes did the work:
+
+- ``DIR/sweep.json``: the settings (test days, ensemble sizes, architecture, ...). A rerun with other
+  settings is refused; the grid itself (scenarios, controllers, seeds, training days) may grow.
+- ``DIR/cells/<scenario>--<controller>--seed<S>[--train<D>].json``: one file per finished
+  cell, written atomically the moment it arrives. A rerun reads them and runs only the missing
+  cells, so an interrupted sweep loses at most the cells in flight. A scenario file is named
+  by its stem and a digest of its content (:func:`scenario_digest`): files of the same stem
+  never share a cell, and a rerun after the file (or a CSV it reads) changed runs new cells.
+- ``DIR/models/``: the trained models (model directories) and identified RC JSONs, reused
+  by reruns that need more cells of the same scenario and seed.
+- ``DIR/summary.json``, ``DIR/report.md``, ``DIR/objective_to_oracle.png``: see
+  :mod:`scenarios.reports.sweep_report`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import hashlib
+import json
+import os
+import re
+import socket
+import sys
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, TypeAlias, TypedDict, cast
+
+from tqdm import tqdm
+
+from pinn_mpc import __version__
+from pinn_mpc.choices import ARX, DEFAULT_ARCH, MODEL_CHOICES, PHYSICS_ARX
+from pinn_mpc.errors import InputError
+from pinn_mpc.io import atomic_write_json, atomic_write_text, setting_changes
+from pinn_mpc.physics import RCParams, params_from_summary, rc_summary
+from scenarios.choices import TRUTH_CONTROLLERS
+from scenarios.inputs.registry import get_scenario, is_scenario_file
+from scenarios.records import (
+    CellKey,
+    CellRecord,
+    CellResult,
+    SweepSettingsRecord,
+    SweepSummary,
+)
+from scenarios.reports.sweep_report import REFERENCE, plot_sweep, render_sweep_report, summarise
+from scenarios.running.factory import CONTROLLER_NAMES, MODEL_CONTROLLERS, RC_CONTROLLERS
+from scenarios.running.ray_engine import check_engine_options, ray_engine
+
+if TYPE_CHECKING:
+    from pinn_mpc.arx import ARXModel
+    from pinn_mpc.models.learned import LearnedModel
+    from pinn_mpc.models.rollout import BatchDynamics
+
+#: What a sweep trains for a cell (:func:`fit_model`): a learned ensemble or an identified RC.
+SweepModel: TypeAlias = "LearnedModel | ARXModel | RCParams"
+
+#: The architecture the model-based controllers plan over by default: the one ``train`` makes by
+#: default (``SweepSettings.arch`` another, e.g. the physics-informed ARX).
+ARCH = DEFAULT_ARCH
+#: The linear baselines a sweep fits instead of training (:func:`pinn_mpc.arx.fit_linear`).
+_LINEAR = (ARX.name, PHYSICS_ARX.name)
+RC_KIND = "rc"
+FIGURE = "objective_to_oracle.png"
+#: Tasks an engine worker runs before it is replaced when the grid has an EnergyPlus scenario.
+ENERGYPLUS_CALLS_PER_WORKER = 20
+
+__all__ = ["Cell", "ModelKey", "SweepGrid", "SweepOutcome", "SweepSettings", "fit_model", "model_kind", "parse_ints", "parse_names", "run_cell", "run_sweep", "scenario_digest"]
+#: Training-data policies of a sweep: each scenario's own, or one for all.
+_POLICIES = ("scenario", "random", "random-level", "closed-loop")
+
+
+@dataclass(frozen=True, kw_only=True)
+class SweepSettings:
+    """What every cell shares (the grid axes are separate, see :class:`SweepGrid`)."""
+
+    test_days: int = 3
+    n_members: int = 10
+    epochs: int | None = None  # None: compare's rule, 7200 / train_days within 60..240
+    depth: int = 16
+    #: The training data's policy; ``scenario``: each scenario's own ``data_policy`` (random-level
+    #: on the RC plants, closed-loop on EnergyPlus), as ``simulate`` and ``compare`` default to.
+    policy: str = "scenario"
+    quick: bool = False
+    #: The architecture ``cem`` and ``random-shooting`` plan over (``train --arch``'s choices).
+    arch: str = ARCH
+
+    def __post_init__(self) -> None:
+        for name in ("test_days", "n_members", "depth"):
+            if getattr(self, name) < 1:
+                raise InputError(f"sweep: {name} must be >= 1, got {getattr(self, name)}")
+        if self.epochs is not None and self.epochs < 1:
+            raise InputError(f"sweep: epochs must be >= 1, got {self.epochs}")
+        if self.arch not in MODEL_CHOICES:
+            raise InputError(f"sweep: arch {self.arch!r} is unknown; choose one of {', '.join(MODEL_CHOICES)}")
+        if self.policy not in _POLICIES:
+            raise InputError(f"sweep: policy {self.policy!r} is unknown; choose one of {', '.join(_POLICIES)}")
+
+    @classmethod
+    def for_run(cls, *, days: int, quick: bool, arch: str = ARCH) -> SweepSettings:
+        """Defaults, or with ``quick`` 2-member ensembles, 30 epochs and at most 2 test days."""
+        if not quick:
+            return cls(test_days=days, arch=arch)
+        return cls(test_days=min(days, 2), n_members=2, epochs=30, quick=True, arch=arch)
+
+
+@dataclass(frozen=True, kw_only=True, order=True)
+class Cell:
+    scenario: str
+    controller: str
+    seed: int
+    train_days: int | None  # None for controllers that need no model
+
+    @property
+    def name(self) -> str:
+        days = "" if self.train_days is None else f"--train{self.train_days}"
+        return f"{_label(self.scenario)}--{self.controller}--seed{self.seed}{days}"
+
+    @property
+    def model(self) -> ModelKey | None:
+        kind = model_kind(self.controller)
+        if kind is None or self.train_days is None:
+            return None
+        return ModelKey(scenario=self.scenario, kind=kind, seed=self.seed, train_days=self.train_days)
+
+
+@dataclass(frozen=True, kw_only=True, order=True)
+class ModelKey:
+    scenario: str
+    kind: str  # ARCH or RC_KIND
+    seed: int
+    train_days: int
+
+    @property
+    def name(self) -> str:
+        return f"{_label(self.scenario)}--{self.kind}--seed{self.seed}--train{self.train_days}"
+
+
+def _label(scenario: str) -> str:
+    """A scenario in file names: a built-in's name, or a scenario file's stem followed by the
+    first 12 hex digits of :func:`scenario_digest`, so that two files of the same stem never
+    share a cell and an edited file makes new cells (built-ins change only with the package
+    version, which ``sweep.json`` pins)."""
+    if not is_scenario_file(scenario):
+        return scenario
+    return f"{Path(scenario).stem}-{scenario_digest(scenario)[:12]}"
+
+
+def scenario_digest(scenario: str) -> str:
+    """The sha256 of a scenario's content: the complete TOML of the resolved scenario (every
+    default filled in) and the bytes of each weather, price or RC file it reads."""
+    stat = os.stat(scenario)
+    return _digest(scenario, stat.st_mtime_ns, stat.st_size)
+
+
+@functools.lru_cache(maxsize=64)
+def _digest(scenario: str, mtime_ns: int, size: int) -> str:
+    """:func:`scenario_digest`, computed once per version of the file (its time and size)."""
+    from scenarios.inputs.scenario_file import scenario_inputs, scenario_to_toml
+
+    digest = hashlib.sha256(scenario_to_toml(get_scenario(scenario)).encode("utf-8"))
+    for key, path in sorted(scenario_inputs(scenario).items()):
+        if key:  # the TOML file itself is in the resolved text
+            digest.update(f"\n{key}\n".encode())
+            digest.update(path.read_bytes())
+    return digest.hexdigest()
+
+
+def _model_key(cell: Cell, settings: SweepSettings) -> ModelKey | None:
+    """The model ``cell`` needs under ``settings``: its learned model of the settings'
+    architecture, its identified RC, or None."""
+    key = cell.model
+    if key is not None and key.kind == ARCH:
+        return dataclasses.replace(key, kind=settings.arch)
+    return key
+
+
+def model_kind(controller: str) -> str | None:
+    """What a controller needs trained: the learned architecture, an identified RC, or nothing."""
+    if controller in MODEL_CONTROLLERS:
+        return ARCH
+    if controller in RC_CONTROLLERS:
+        return RC_KIND
+    return None
+
+
+@dataclass(frozen=True, kw_only=True)
+class SweepGrid:
+    scenarios: tuple[str, ...]
+    controllers: tuple[str, ...]
+    seeds: tuple[int, ...]
+    train_days: tuple[int, ...]
+
+    def __post_init__(self) -> None:
+        for scenario in self.scenarios:
+            # an unknown name raises InputError listing the valid ones
+            truth = [c for c in self.controllers if c in TRUTH_CONTROLLERS]
+            if get_scenario(scenario).reference != REFERENCE and truth:
+                raise InputError(
+                    f"sweep: scenario {scenario!r} has no true parameters or state (EnergyPlus), "
+                    f"so {', '.join(truth)} cannot run on it; leave them out (its cells are "
+                    "measured against the thermostat)"
+                )
+        unknown = [c for c in self.controllers if c not in CONTROLLER_NAMES]
+        if unknown:
+            raise InputError(
+                f"sweep: unknown controller(s) {', '.join(unknown)}; "
+                f"choose from {', '.join(CONTROLLER_NAMES)}"
+            )
+        for name in ("scenarios", "controllers", "seeds", "train_days"):
+            if not getattr(self, name):
+                raise InputError(f"sweep: no {name.replace('_', ' ')} given")
+        if min(self.train_days) < 2:
+            raise InputError(f"sweep: training days must be >= 2, got {min(self.train_days)}")
+
+    @functools.cached_property
+    def references(self) -> dict[str, str]:
+        """Each scenario's reference controller (the oracle, or the thermostat on a plant
+        without an oracle, EnergyPlus): the denominator of its cells (read once: a scenario
+        file is parsed on every look-up)."""
+        return {s: get_scenario(s).reference for s in self.scenarios}
+
+    @property
+    def has_energyplus(self) -> bool:
+        return any(ref != REFERENCE for ref in self.references.values())
+
+    def cells(self) -> list[Cell]:
+        """Every cell of the grid, plus the reference of each scenario and seed (the
+        denominator)."""
+        out = []
+        for scenario in self.scenarios:
+            for controller in dict.fromkeys([*self.controllers, self.references[scenario]]):
+                days: Sequence[int | None] = (
+                    self.train_days if model_kind(controller) else (None,)
+                )
+                out += [
+                    Cell(scenario=scenario, controller=controller, seed=s, train_days=d)
+                    for s in self.seeds
+                    for d in days
+                ]
+        return out
+
+
+def parse_names(text: str, what: str) -> tuple[str, ...]:
+    """``"a,b"`` -> ("a", "b"), duplicates dropped; empty -> InputError."""
+    names = tuple(dict.fromkeys(n.strip() for n in text.split(",") if n.strip()))
+    if not names:
+        raise InputError(f"sweep: no {what} given in {text!r}; give a comma-separated list")
+    return names
+
+
+#: Keys of a sweep definition file (``pinn-mpc sweep --spec FILE.toml``).
+SPEC_KEYS = ("description", "scenarios", "controllers", "seeds", "train_days", "days", "baseline", "arch")
+
+
+def read_sweep_spec(path: str | os.PathLike[str]) -> dict[str, Any]:
+    """A sweep definition (TOML): lists or comma-separated strings for ``scenarios``,
+    ``controllers``, ``seeds`` and ``train_days`` (ranges as ``"0-7"``), an integer ``days``,
+    a controller name ``baseline``, an architecture ``arch``; scenario files named relative to the
+    definition file.
+    Returns the values as the command line gives them."""
+    import tomllib
+
+    source = Path(path)
+    if not source.is_file():
+        raise InputError(f"{source}: no such sweep definition; see sweeps/ for examples")
+    try:
+        data = tomllib.loads(source.read_text(encoding="utf-8-sig"))
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise InputError(f"{source}: not a valid TOML file ({exc})") from exc
+    unknown = sorted(set(data) - set(SPEC_KEYS))
+    if unknown:
+        raise InputError(f"{source}: unknown key(s) {', '.join(unknown)}; known: {', '.join(SPEC_KEYS)}")
+    out: dict[str, Any] = {}
+    for key in ("scenarios", "controllers", "seeds", "train_days"):
+        if key not in data:
+            continue
+        value = data[key]
+        items = value if isinstance(value, list) else [value]
+        if not all(isinstance(v, str | int) and not isinstance(v, bool) for v in items):
+            raise InputError(f"{source}: {key} must be a list of names or numbers, or a string")
+        if key == "scenarios":  # a scenario file is relative to the definition
+            items = [
+                str(source.parent / v) if isinstance(v, str) and v.endswith(".toml") else v
+                for v in items
+            ]
+        out[key] = ",".join(str(v) for v in items)
+    if "days" in data:
+        if isinstance(data["days"], bool) or not isinstance(data["days"], int) or data["days"] < 1:
+            raise InputError(f"{source}: days must be a whole number >= 1, got {data['days']!r}")
+        out["days"] = data["days"]
+    if "baseline" in data:
+        if not isinstance(data["baseline"], str):
+            raise InputError(f"{source}: baseline must be a controller name, got {data['baseline']!r}")
+        out["baseline"] = data["baseline"]
+    if "arch" in data:
+        if data["arch"] not in MODEL_CHOICES:
+            raise InputError(f"{source}: arch must be one of {', '.join(MODEL_CHOICES)}, got {data['arch']!r}")
+        out["arch"] = data["arch"]
+    return out
+
+
+def parse_ints(text: str, what: str) -> tuple[int, ...]:
+    """``"0-7"``, ``"0,3,5"`` or ``"0-3,8"`` -> sorted whole numbers >= 0; an empty range
+    (``"5-2"``) or nothing at all is an InputError."""
+    values: set[int] = set()
+    for part in (p.strip() for p in text.split(",")):
+        if not part:
+            continue
+        match = re.fullmatch(r"(\d+)(?:-(\d+))?", part)
+        if match is None:
+            raise InputError(
+                f"sweep: {what} {part!r} is not a whole number >= 0 or a range like 0-7"
+            )
+        first = int(match.group(1))
+        last = int(match.group(2)) if match.group(2) is not None else first
+        if last < first:
+            raise InputError(f"sweep: {what} range {part!r} is empty; write it low-high, e.g. 0-7")
+        values.update(range(first, last + 1))
+    if not values:
+        raise InputError(f"sweep: no {what} given in {text!r}; write e.g. 0-7 or 0,3,5")
+    return tuple(sorted(values))
+
+
+# ---- the adapter: the one place that calls the package's closed loop and model fitting ----
+
+
+def fit_model(key: ModelKey, settings: SweepSettings) -> SweepModel:
+    """Train the learned ensemble (:data:`ARCH`) or identify the RC of ``key`` on the scenario's simulated data
+    (``train_days`` days under the settings' policy, by default the scenario's, seed ``key.seed``)."""
+    from scenarios.experiments.compare import CompareSettings, identify_scenario_rc
+    from scenarios.running.datagen import generate
+
+    scenario = get_scenario(key.scenario)
+    policy = scenario.data_policy if settings.policy == "scenario" else settings.policy
+    data = generate(scenario, days=key.train_days, seed=key.seed, policy=policy)
+    if key.kind == RC_KIND:  # as compare identifies (on delivered heat under a heat pump)
+        return identify_scenario_rc(scenario, data)
+    if key.kind in _LINEAR:
+        from pinn_mpc.arx import fit_linear
+
+        return fit_linear(key.kind, data, eta=scenario.sim.params.eta)
+    from pinn_mpc.training import TrainConfig, train_model
+
+    epochs = CompareSettings(
+        train_days=key.train_days, test_days=1, seed=key.seed, epochs=settings.epochs
+    ).training_epochs
+    config = TrainConfig(
+        depth=settings.depth,
+        n_seeds=settings.n_members,
+        first_seed=key.seed,
+        epochs=epochs,
+        eta=scenario.sim.params.eta,
+        u_max_w=scenario.sim.u_max_w,
+    )
+    return train_model(data, arch=key.kind, config=config, progress=False)
+
+
+def run_cell(
+    cell: Cell, settings: SweepSettings, model: BatchDynamics | RCParams | None
+) -> CellResult:
+    """One closed loop on the test days (seed + 1): ``{"kpis", "errors", "host", "wall_time_s"}``.
+
+    ``model`` is what :func:`fit_model` returned for ``cell.model`` (None when it has none):
+    the learned model a planner plans over, or the RC an RC MPC works on.
+    """
+    from scenarios.running.closed_loop import one_torch_thread, run_closed_loop
+    from scenarios.running.factory import build_controller
+
+    start = time.perf_counter()
+    scenario = get_scenario(cell.scenario)
+    kind = model_kind(cell.controller)
+    controller = build_controller(
+        cell.controller,
+        scenario,
+        model=model if kind == ARCH and not isinstance(model, RCParams) else None,
+        rc_params=model if kind == RC_KIND and isinstance(model, RCParams) else None,
+        n_steps=settings.test_days * scenario.steps_per_day,
+    )
+    with one_torch_thread():
+        result = run_closed_loop(
+            scenario, controller, days=settings.test_days, seed=cell.seed + 1
+        )
+    return {
+        "kpis": result.kpis,
+        "errors": list(result.errors),
+        "host": socket.gethostname(),
+        "wall_time_s": time.perf_counter() - start,
+    }
+
+
+# ---- storage in DIR ----
+
+
+def _settings_record(settings: SweepSettings) -> SweepSettingsRecord:
+    record = {**dataclasses.asdict(settings), "package_version": __version__}
+    return cast(SweepSettingsRecord, record)  # SweepSettings' fields, then two
+
+
+def _read_json(path: Path) -> Any:
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise InputError(
+            f"{path}: not valid JSON ({exc}); it was not written by pinn-mpc sweep "
+            "(whose writes are atomic): move it away and rerun"
+        ) from exc
+
+
+def _check_settings(out: Path, settings: SweepSettings) -> None:
+    """Refuse a rerun in ``out`` with other settings than its ``sweep.json``."""
+    path = out / "sweep.json"
+    record = _settings_record(settings)
+    if not path.exists():
+        return
+    stored = _read_json(path)
+    before = stored.get("settings") if isinstance(stored, dict) else None
+    before = before if isinstance(before, dict) else {}
+    if before != record:
+        diff = setting_changes(before, record)
+        raise InputError(
+            f"sweep: {out} holds a sweep with other settings ({diff}); "
+            "use another --out, or the same settings to extend it"
+        )
+
+
+class _CellRecordKey(TypedDict):
+    cell: CellKey
+    scenario_sha256: str | None
+
+
+def _cell_record_key(cell: Cell) -> _CellRecordKey:
+    """What identifies a cell in its record: its fields and its scenario's content digest."""
+    digest = scenario_digest(cell.scenario) if is_scenario_file(cell.scenario) else None
+    return {"cell": cast(CellKey, dataclasses.asdict(cell)), "scenario_sha256": digest}
+
+
+def _read_cell(path: Path, cell: Cell) -> CellRecord | None:
+    if not path.exists():
+        return None
+    record = _read_json(path)
+    key = _cell_record_key(cell)
+    if not isinstance(record, dict) or any(record.get(k) != v for k, v in key.items()):
+        raise InputError(f"{path}: not the record of cell {cell.name}; move it away and rerun")
+    return cast(CellRecord, record)  # written by this module
+
+
+def _model_path(out: Path, key: ModelKey) -> Path:
+    suffix = ".json" if key.kind == RC_KIND else ""
+    return out / "models" / f"{key.name}{suffix}"
+
+
+def _load_model(out: Path, key: ModelKey) -> SweepModel | None:
+    path = _model_path(out, key)
+    if not path.exists():
+        return None
+    if key.kind == RC_KIND:
+        return params_from_summary(_read_json(path))
+    from pinn_mpc.arx import is_arx_directory, load_arx
+
+    if is_arx_directory(path):
+        return load_arx(path)
+    from pinn_mpc.artifacts import load_model
+
+    return load_model(path)
+
+
+def _store_model(out: Path, key: ModelKey, model: SweepModel) -> None:
+    path = _model_path(out, key)
+    if isinstance(model, RCParams):
+        atomic_write_json(path, rc_summary(model, source=f"identify ({key.name})"))
+        return
+    from pinn_mpc.arx import ARXModel, save_arx
+
+    if isinstance(model, ARXModel):
+        save_arx(model, path)
+        return
+    from pinn_mpc.artifacts import save_model
+
+    save_model(model, path)
+
+
+def _one_blas_thread(function: Callable[..., Any], *args: Any) -> Any:
+    """A Ray task body: each task holds one CPU, so its linear algebra gets one thread."""
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=1):
+        return function(*args)
+
+
+def _task_failure(what: str, exc: Exception) -> InputError:
+    cause = getattr(exc, "cause", None) or exc
+    first = (str(cause).strip().splitlines() or [""])[0]
+    return InputError(f"sweep: {what} failed: {type(cause).__name__}: {first}")
+
+
+@dataclass(frozen=True, kw_only=True)
+class SweepOutcome:
+    summary: SweepSummary
+    summary_path: Path
+    report_path: Path
+    figure_path: Path
+
+
+def run_sweep(
+    grid: SweepGrid,
+    settings: SweepSettings,
+    out: str | os.PathLike[str],
+    *,
+    baseline: str,
+    address: str | None = None,
+    workers: int | None = None,
+    force: bool = False,
+) -> SweepOutcome:
+    """Run the missing cells of ``grid`` on Ray, then write the summary, report and figure.
+
+    ``out`` must be new, empty or an earlier sweep's directory (it holds ``sweep.json``); any
+    other directory needs ``force`` (then the sweep's files are added and nothing else in it is
+    touched, but a ``summary.json`` or ``report.md`` of the user's would be replaced)."""
+    import ray
+
+    if baseline not in (*grid.controllers, *grid.references.values()):
+        raise InputError(
+            f"sweep: baseline {baseline!r} is not among the controllers ({', '.join(grid.controllers)})"
+        )
+    check_engine_options(address, workers)
+    start = time.perf_counter()
+    root = Path(out)
+    if root.exists() and not root.is_dir():
+        raise InputError(f"sweep: --out {root} is a file; give a directory")
+    if root.is_dir() and not force and not (root / "sweep.json").is_file():
+        foreign = sorted(p.name + ("/" if p.is_dir() else "") for p in root.iterdir())
+        if foreign:
+            shown = ", ".join(foreign[:5]) + (", ..." if len(foreign) > 5 else "")
+            raise InputError(
+                f"sweep: --out {root} already holds {shown} and is not a sweep directory (no "
+                "sweep.json); give a new or empty directory, or add --force to write the sweep's "
+                "files there (nothing else in it is touched)"
+            )
+    _check_settings(root, settings)
+    cells = grid.cells()
+    records = {c: _read_cell(root / "cells" / f"{c.name}.json", c) for c in cells}
+    missing = [c for c in cells if records[c] is None]
+    reused = len(cells) - len(missing)
+    keys = sorted({k for c in missing if (k := _model_key(c, settings)) is not None})
+    trained = 0
+    with ray_engine(address, workers) as engine:
+        # Only now that the engine runs: a refused address leaves no directory behind.
+        (root / "models").mkdir(parents=True, exist_ok=True)
+        (root / "cells").mkdir(exist_ok=True)
+        atomic_write_json(root / "sweep.json", {"settings": _settings_record(settings)})
+        # EnergyPlus leaks ~0.55 MB per run inside the engine: its workers are recycled.
+        max_calls = ENERGYPLUS_CALLS_PER_WORKER if grid.has_energyplus else 0  # 0: never
+        task = ray.remote(num_cpus=1, max_calls=max_calls)(_one_blas_thread)
+        pending: dict[Any, tuple[str, Any]] = {}
+        model_refs: dict[ModelKey, Any] = {}
+        for key in keys:
+            stored = _load_model(root, key)
+            if stored is not None:
+                model_refs[key] = ray.put(stored)
+            else:
+                model_refs[key] = task.remote(fit_model, key, settings)
+                pending[model_refs[key]] = ("model", key)
+        for cell in missing:
+            needed = _model_key(cell, settings)
+            ref = task.remote(run_cell, cell, settings, model_refs.get(needed) if needed else None)
+            pending[ref] = ("cell", cell)
+        from scenarios.running.closed_loop import PROGRESS_EVERY_S, duration_text
+
+        terminal = sys.stderr.isatty()
+        began = last = time.monotonic()
+        with tqdm(total=len(cells), initial=reused, desc="sweep", unit="cell", disable=None) as bar:
+            while pending:
+                now = time.monotonic()
+                if not terminal and now - last >= PROGRESS_EVERY_S:  # a log: a line a minute
+                    last = now
+                    run_now = bar.n - reused
+                    left = (
+                        f"about {duration_text((now - began) / run_now * (len(cells) - bar.n))} left"
+                        if run_now
+                        else "no cell finished yet"
+                    )
+                    print(
+                        f"sweep: {bar.n} of {len(cells)} cells ({reused} reused), {trained} model(s) "
+                        f"trained, {duration_text(now - began)} elapsed, {left}",
+                        file=sys.stderr,
+                        flush=True,
+                    )
+                ready, _ = ray.wait(list(pending), num_returns=1, timeout=PROGRESS_EVERY_S)
+                if not ready:  # nothing finished within a minute: report progress, wait again
+                    continue
+                kind, what = pending.pop(ready[0])
+                try:
+                    value = ray.get(ready[0])
+                except ray.exceptions.RayError as exc:
+                    raise _task_failure(f"{kind} {what.name}", exc) from None
+                if kind == "model":
+                    _store_model(root, what, value)
+                    trained += 1
+                    continue
+                record: CellRecord = {
+                    **_cell_record_key(what),
+                    "settings": _settings_record(settings),
+                    **cast(CellResult, value),
+                }
+                atomic_write_json(root / "cells" / f"{what.name}.json", record)
+                records[what] = record
+                bar.update()
+    done = [r for r in records.values() if r is not None]
+    rows = summarise(
+        done,
+        baseline=baseline,
+        order=[*grid.controllers, *dict.fromkeys(grid.references.values())],
+        references=grid.references,
+    )
+    summary: SweepSummary = {
+        "rows": rows,
+        "baseline": baseline,
+        "engine": engine,
+        "cells_run": len(missing),
+        "cells_reused": reused,
+        "models_trained": trained,
+        "models_reused": len(keys) - trained,
+        "grid": {
+            "scenarios": list(grid.scenarios),
+            "controllers": list(grid.controllers),
+            "seeds": list(grid.seeds),
+            "train_days": list(grid.train_days),
+        },
+        "settings": _settings_record(settings),
+        "wall_time_s": time.perf_counter() - start,
+    }
+    summary_path = atomic_write_json(root / "summary.json", summary)
+    figure_path = plot_sweep(rows, root / FIGURE)
+    report_path = atomic_write_text(
+        root / "report.md", render_sweep_report(summary, figure_name=FIGURE)
+    )
+    return SweepOutcome(
+        summary=summary, summary_path=summary_path, report_path=report_path, figure_path=figure_path
+    )

@@ -1,0 +1,326 @@
+"""The aggregator's fleet run: every building planned in one batch, coordinated under a cap.
+
+:func:`run_coordinated_fleet` runs the fleet of :func:`scenarios.fleets.fleet.run_fleet_closed_loop`
+(the same draw, weather, warm-up, plant and KPIs) but decides with one fleet planner
+(:mod:`controllers.fleet`: every building's ``qp-mpc``, data built in one pass, or
+:mod:`controllers.fleet_sampling`: ``cem`` over each building's learned model in one batched
+rollout)
+instead of one controller per building, and, with a cap, coordinates it by the dual-ascent
+price signal of :mod:`controllers.coordination`: at most ``cap_kw`` of aggregate electrical
+power in the window (every day) or all day.
+
+Beyond the fleet run's output, the result holds the aggregate power per counted interval with
+its times, the cap's account (:func:`cap_account`: capped intervals, those over the cap and the
+energy over it, measured on the plant's delivered power, never hidden) and the district KPIs
+CityLearn reports (:func:`scenarios.fleets.fleet.district_kpis`).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import time
+from collections.abc import Callable, Mapping, Sequence
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import pandas as pd
+
+from controllers.base import ControlSpec
+from controllers.coordination import Coordination, DualAscent
+from controllers.fleet import FleetPlanner, FleetQPMPC
+from controllers.thermostat import Thermostat
+from pinn_mpc.errors import InputError
+from pinn_mpc.physics import RCParams
+from pinn_mpc.simulator import draw_fleet
+from scenarios.fleets.fleet import FLEET_STREAM, FleetResult, fleet_info, fleet_result
+from scenarios.inputs.registry import Scenario, check_seed
+from scenarios.records import CapAccount, FleetInfo
+from scenarios.running.closed_loop import build_loop, prepare_run, progress_steps
+
+if TYPE_CHECKING:
+    from pinn_mpc.models.learned import LearnedModel
+
+__all__ = [
+    "BATCHED_CONTROLLERS",
+    "DEFAULT_DUAL_ASCENT",
+    "FleetPlannerFactory",
+    "cap_account",
+    "cap_in_force",
+    "cap_series",
+    "learned_fleet_planner",
+    "parse_cap_window",
+    "run_coordinated_fleet",
+]
+
+#: Controllers a fleet can be planned in one batch with (by name).
+BATCHED_CONTROLLERS = ("qp-mpc", "cem")
+
+#: The fleet planner for buildings ``fleet`` under ``spec``.
+FleetPlannerFactory = Callable[[Sequence[RCParams], ControlSpec], FleetPlanner]
+
+#: The coordination's default settings.
+DEFAULT_DUAL_ASCENT = DualAscent()
+
+_WINDOW = re.compile(r"^(\d{1,2}):(\d{2})-(\d{1,2}):(\d{2})$")
+
+
+def parse_cap_window(text: str) -> tuple[float, float]:
+    """``"HH:MM-HH:MM"`` -> (start, end) hours since midnight; the end may be ``24:00`` and
+    may come before the start (a window over midnight)."""
+    match = _WINDOW.match(text.strip())
+    if match is None:
+        raise InputError(f"--cap-window {text!r} is not HH:MM-HH:MM (e.g. 17:00-19:00)")
+    h0, m0, h1, m1 = (int(g) for g in match.groups())
+    start, end = h0 + m0 / 60.0, h1 + m1 / 60.0
+    if m0 >= 60 or m1 >= 60 or start >= 24 or end > 24:
+        raise InputError(f"--cap-window {text!r}: times must lie in 00:00..24:00 with minutes < 60")
+    if start == end:
+        raise InputError(
+            f"--cap-window {text!r} is empty (it starts where it ends); leave --cap-window out "
+            "to cap all day"
+        )
+    return start, end
+
+
+def _in_window(hours: np.ndarray, window: tuple[float, float] | None) -> np.ndarray:
+    if window is None:
+        return np.ones(hours.shape, dtype=bool)
+    start, end = window
+    if start < end:
+        return (hours >= start - 1e-9) & (hours < end - 1e-9)
+    return (hours >= start - 1e-9) | (hours < end - 1e-9)
+
+
+def cap_series(
+    time_of_day_h: np.ndarray, cap_kw: float, window: tuple[float, float] | None, first_row: int
+) -> np.ndarray:
+    """(N,) the cap [W] on each row of a run's series: ``cap_kw`` on the rows from
+    ``first_row`` on (the counted intervals and the forecast lead) whose interval starts in
+    ``window`` (every day; None: all day), ``inf`` elsewhere."""
+    if not (math.isfinite(cap_kw) and cap_kw > 0):
+        raise InputError(f"--cap-kw must be a positive number of kW, got {cap_kw!r}")
+    hours = np.asarray(time_of_day_h, dtype=float)
+    capped = _in_window(hours, window)
+    capped[:first_row] = False
+    return np.where(capped, cap_kw * 1000.0, np.inf)
+
+
+def cap_in_force(times: Sequence[str], cap: Mapping[str, Any]) -> np.ndarray:
+    """(K,) the cap [kW] at each of the interval start ``times`` (ISO 8601) of a run whose cap
+    account is ``cap`` (:func:`cap_account`), NaN where it does not hold."""
+    stamps = pd.DatetimeIndex(pd.to_datetime(list(times)))
+    hours = np.asarray(stamps.hour + stamps.minute / 60.0, dtype=float)
+    window = None if cap.get("window") is None else parse_cap_window(cap["window"])
+    return np.where(_in_window(hours, window), float(cap["kw"]), np.nan)
+
+
+def cap_account(
+    aggregate_w: np.ndarray, cap_w: np.ndarray, *, dt_s: float, window: str | None
+) -> CapAccount:
+    """The cap's account over the counted intervals: ``kw``, ``window`` (``HH:MM-HH:MM`` or
+    None for all day), ``intervals`` capped, ``intervals_over`` (aggregate delivered power
+    above the cap by more than 1 W), ``kwh_over`` (energy above the cap in them)."""
+    capped = np.isfinite(cap_w)
+    over = np.where(capped, aggregate_w - cap_w, 0.0)
+    return {
+        "kw": float(np.min(cap_w[capped]) / 1000.0) if capped.any() else None,
+        "window": window,
+        "intervals": int(capped.sum()),
+        "intervals_over": int(np.sum(over > 1.0)),
+        "kwh_over": float(np.sum(np.clip(over, 0.0, None)) * dt_s / 3.6e6),
+        "max_over_kw": float(max(np.max(over, initial=0.0), 0.0) / 1000.0),
+    }
+
+
+def _qp_factory(fleet: Sequence[RCParams], spec: ControlSpec) -> FleetPlanner:
+    return FleetQPMPC(fleet, spec)
+
+
+def run_coordinated_fleet(
+    scenario: Scenario,
+    planner: str | FleetPlannerFactory = "qp-mpc",
+    *,
+    n_buildings: int,
+    days: int,
+    seed: int,
+    spread: float = 0.2,
+    cap_kw: float | None = None,
+    cap_window: str | None = None,
+    dual: DualAscent = DEFAULT_DUAL_ASCENT,
+    warmup_steps: int | None = None,
+    weather_part: str = "test",
+    fleet: Sequence[RCParams] | None = None,
+    progress: bool = False,
+) -> FleetResult:
+    """Run ``n_buildings`` buildings around ``scenario``'s under one fleet planner.
+
+    ``planner`` is ``"qp-mpc"`` (each building's RC MPC on its own parameters, planned together) or
+    a factory ``(fleet, spec) -> FleetPlanner`` (e.g. the batched sampling planner over the
+    buildings' learned models). ``cap_kw`` (None: no cap, one plan a step) caps the aggregate
+    electrical power in ``cap_window`` (``"HH:MM-HH:MM"``; None: all day) of every counted day,
+    by ``dual`` (:class:`controllers.coordination.DualAscent`). The rest as
+    :func:`scenarios.fleets.fleet.run_fleet_closed_loop`; ``kpis`` report each building's share of the
+    batched decision time (the step's planning time / B) as its decision time, and
+    ``model_fallback_steps`` (the decisions its RC MPC made for a distrusted model). ``fleet``
+    gives the buildings (e.g. those the learned models were trained on) instead of the draw
+    around the scenario's (``n_buildings`` must match).
+    """
+    check_seed(seed)
+    if cap_kw is None and cap_window is not None:
+        raise InputError("--cap-window needs --cap-kw (the cap in that window)")
+    window = parse_cap_window(cap_window) if cap_window is not None else None
+    if isinstance(planner, str):
+        if planner != "qp-mpc":
+            raise InputError(
+                f"a batched fleet without models plans with qp-mpc, got {planner!r}; cem needs "
+                "each building's learned model (--model DIR)"
+            )
+        factory: FleetPlannerFactory = _qp_factory
+    else:
+        factory = planner
+    if fleet is None:
+        fleet = draw_fleet(
+            scenario.sim.params, n_buildings, spread=spread, rng=np.random.default_rng([seed, FLEET_STREAM])
+        )
+    elif len(fleet) != n_buildings:
+        raise InputError(f"run_coordinated_fleet: {len(fleet)} buildings given for n_buildings={n_buildings}")
+    run = prepare_run(scenario, days=days, seed=seed, warmup_steps=warmup_steps, weather_part=weather_part)
+    spec = scenario.control_spec()
+    fleet_planner = factory(fleet, spec)
+    fleet_planner.reset(seed)
+    series = run.series
+    cap = (
+        cap_series(series.time_of_day_h, cap_kw, window, run.warmup)
+        if cap_kw is not None
+        else np.full(len(series), np.inf)
+    )
+    coordination = Coordination(cap, dual)
+    warmup_controllers = [Thermostat(spec) for _ in fleet]
+    for c in warmup_controllers:
+        c.reset(seed)
+    loop = build_loop(scenario, run, seed=seed, fleet=fleet)
+    n_counted, b = run.total - run.warmup, len(fleet)
+    times_s = np.zeros((n_counted, 2))
+    prices = np.zeros(n_counted)
+    curtailed = plans = 0
+    model_fallbacks = np.zeros(b, dtype=int)
+    label = f"{fleet_planner.name} x {b} (batched{', capped' if cap_kw is not None else ''})"
+    for k in progress_steps(run.total, label, progress):
+        if k < run.warmup:
+            loop.advance_fleet(warmup_controllers)
+            continue
+        start = time.perf_counter()
+        forecast = loop.forecast()
+        observations = [loop.observation(building=i) for i in range(b)]
+        fleet_planner.observe(observations, forecast)
+        step = coordination.step(fleet_planner, loop.start + loop.k)
+        decided = time.perf_counter()
+        share = np.full(b, (decided - start) / b)
+        loop.step(step.decision.u_w, decision_s=share, fallback=step.decision.fallback)
+        times_s[k - run.warmup] = decided - start, time.perf_counter() - decided
+        prices[k - run.warmup] = step.price_eur_per_kwh[0]
+        curtailed += int(step.curtailed)
+        if step.decision.model_fallback is not None:
+            model_fallbacks += step.decision.model_fallback
+        plans += step.plans
+    cap_info = None
+    if cap_kw is not None:
+        aggregate = loop.aggregate_u_phys_w()[run.counted]
+        cap_info = cap_account(aggregate, cap[run.counted], dt_s=scenario.sim.dt_s, window=cap_window)
+        cap_info["kw"] = float(cap_kw)
+        cap_info["curtailed_steps"] = curtailed
+    info: FleetInfo = {
+        **fleet_info(
+            scenario, fleet_planner.name, n_buildings=b, days=days, seed=seed,
+            spread=spread, weather_part=weather_part,
+        ),
+        "batched": True,
+        "plans_per_step": plans / max(n_counted, 1),
+        "dual_ascent": {
+            "iterations": dual.iterations,
+            "step_eur_per_kwh": dual.step_eur_per_kwh,
+            "max_price_eur_per_kwh": dual.max_price_eur_per_kwh,
+            "secant": dual.secant,
+            "interpolate": dual.interpolate,
+        },
+    }
+    candidates = getattr(fleet_planner, "rc_candidates", None)
+    if candidates is not None:  # a batched cem over learned models
+        info["rc_candidates"] = bool(candidates)
+    return fleet_result(
+        scenario, run, loop, times_s, params=fleet, errors=(),
+        cap=cap_info,
+        prices=prices,
+        extra_kpis={"model_fallback_steps": model_fallbacks},
+        info=info,
+    )
+
+
+def learned_fleet_planner(
+    models: Sequence[LearnedModel],
+    *,
+    plan_members: int = 1,
+    n_samples: int = 32,
+    n_iters: int | None = None,
+    replan_iters: int = 0,
+    rc_fallback: bool = True,
+    rc_candidates: bool = False,
+    fast_candidates: bool = True,
+    rc_refresh: int = 3,
+    spread_members: int | None = 5,
+) -> FleetPlannerFactory:
+    """The factory of a batched ``cem`` over each building's learned hybrid (``models[b]``):
+    :class:`controllers.fleet_sampling.FleetCEM` planning with each ensemble's first
+    ``plan_members`` members (the disagreement measured over its first ``spread_members``;
+    None: all), ``n_samples`` x ``n_iters`` per plan (None: 1 with ``rc_candidates``, whose
+    plan starts the CEM near the optimum, 2 without); a further plan of a step under a new
+    coordination price rescores the step's samples (``replan_iters`` > 0: runs that many CEM
+    iterations instead). With ``rc_fallback`` a shadow :class:`FleetQPMPC` on the RCs
+    identified from the models' training data (every model must have one);
+    ``rc_candidates`` scores that RC MPC's plan among the samples of a step's first plan,
+    each building's solved every ``rc_refresh`` steps in turn (its last one shifted
+    otherwise), to the candidate tolerances with ``fast_candidates``."""
+    from controllers.fleet_sampling import FleetCEM
+    from controllers.planners import CEMPlanner
+    from pinn_mpc.fleet_rollout import FleetHybrid
+    from pinn_mpc.physics import params_from_summary
+
+    def make(fleet: Sequence[RCParams], spec: ControlSpec) -> FleetPlanner:
+        from scenarios.running.budget import check_batched_fleet_memory
+
+        if len(fleet) != len(models):
+            raise InputError(f"{len(models)} learned models for a fleet of {len(fleet)} buildings")
+        check_batched_fleet_memory(
+            buildings=len(models), members=plan_members, samples=n_samples,
+            horizon_steps=spec.horizon_steps,
+        )
+        shadow = None
+        if rc_fallback:
+            rcs = [m.record.identified_rc for m in models]
+            missing = [i for i, rc in enumerate(rcs) if not isinstance(rc, dict)]
+            if missing:
+                raise InputError(
+                    f"building(s) {missing[:5]}: the model has no identified RC to fall back on; "
+                    "retrain it with `train`, or plan without the RC fallback"
+                )
+            shadow = FleetQPMPC([params_from_summary(rc) for rc in rcs if isinstance(rc, dict)], spec)
+        return FleetCEM(
+            FleetHybrid(models, members=plan_members),
+            spec,
+            planner=CEMPlanner(
+                lower=0.0, upper=spec.u_max_w, n_samples=n_samples,
+                n_iters=n_iters if n_iters is not None else (1 if rc_candidates else 2),
+            ),
+            shadow=shadow,
+            spread_dynamics=(
+                FleetHybrid(models, members=min(spread_members or models[0].n_members, models[0].n_members))
+                if models[0].n_members > 1 else None
+            ),
+            replan_iters=replan_iters,
+            rc_candidates=rc_candidates,
+            fast_candidates=fast_candidates,
+            rc_refresh=rc_refresh,
+        )
+
+    return make

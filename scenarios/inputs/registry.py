@@ -1,0 +1,589 @@
+"""Named scenarios: building, actuator, backup thermostat, weather, price, comfort, gains.
+
+A :class:`Scenario` is an immutable description; :meth:`Scenario.exogenous` turns it into the
+exogenous frame of a run (deterministic in the seed and the weather part) and
+:meth:`Scenario.control_spec` into the objective every controller shares. Each built-in's
+description ends with its weather split (:attr:`Scenario.weather_split`): training and test
+runs never share a calendar day (see :mod:`scenarios.inputs.exogenous`).
+
+The comfort weights price discomfort well above the energy it would take to avoid it: in
+``winter_household`` keeping the room 1 K warmer for an hour costs about UA x 1 K x 1 h =
+0.27 kWh, i.e. under 0.1 EUR at the dynamic price, while 1 K h of discomfort costs 5 EUR.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+import sys
+from dataclasses import dataclass, field
+from typing import Any, Literal, cast
+
+import numpy as np
+import pandas as pd
+
+from controllers.base import ControlSpec
+from pinn_mpc.actuator import Actuator
+from pinn_mpc.data import WIND
+from pinn_mpc.errors import InputError
+from pinn_mpc.physics import PAPER_HOUSEHOLD, RCParams
+from pinn_mpc.plant import Plant
+from pinn_mpc.simulator import SimConfig
+from pinn_mpc.solar import FACADE_COLUMNS
+from scenarios.inputs.exogenous import (
+    ComfortSchedule,
+    GainsSchedule,
+    PriceProfile,
+    SyntheticWeather,
+    TMY3Weather,
+    steps_per_day,
+    tmy3_path,
+    weather_part,
+)
+from scenarios.inputs.measured import CSVWeather, PriceCSV
+from scenarios.inputs.series import ForecastErrors
+from scenarios.plants.kinds import holiday_calendar, scheduled_gains
+
+__all__ = [
+    "COLD_ROOM",
+    "ENERGYPLUS_DATA_POLICY",
+    "EPLUS_NOMINAL",
+    "eplus_weather",
+    "with_sized_heater",
+    "EXOGENOUS_COLUMNS",
+    "INITIAL_TEMPERATURE_RANGE_C",
+    "Scenario",
+    "check_seed",
+    "get_scenario",
+    "scenario_names",
+]
+
+#: Plausible starting temperatures of a building's room and mass [C] (a cold store at -40 C
+#: to a sauna); beyond them a value is a typo or another unit.
+INITIAL_TEMPERATURE_RANGE_C = (-50.0, 80.0)
+#: The training-data policy of EnergyPlus scenarios (:attr:`Scenario.data_policy`): random
+#: setpoints tracked, which keep the room inside the 14/28 C backup thermostat's band.
+ENERGYPLUS_DATA_POLICY: Literal["closed-loop"] = "closed-loop"
+#: Columns of :meth:`Scenario.exogenous`, in order.
+EXOGENOUS_COLUMNS = ("time", "T_a", "G", "I_g", "price", "T_min", "T_max")
+# Independent random streams per input, so changing one input's settings leaves the others.
+_WEATHER_STREAM, _PRICE_STREAM, _GAINS_STREAM = 1, 2, 3
+# Test runs draw from streams of their own: the same seed never repeats a training draw (on
+# stationary synthetic weather only the dates would differ otherwise).
+_TEST_PART_STREAM = 1
+
+
+@dataclass(frozen=True, kw_only=True)
+class Scenario:
+    """A named experiment setting. ``sim`` holds the building, actuator limit, control interval,
+    substep, backup-thermostat limits and sensor noise; the rest describes the exogenous inputs
+    and (``forecast``) what the controllers' forecasts get wrong."""
+
+    name: str
+    description: str
+    sim: SimConfig
+    comfort_weight_eur_per_kh: float
+    horizon_steps: int = 48
+    initial_t_r_c: float
+    initial_t_m_c: float
+    weather: SyntheticWeather | TMY3Weather | CSVWeather
+    price: PriceProfile | PriceCSV
+    comfort: ComfortSchedule
+    gains: GainsSchedule = field(default_factory=GainsSchedule)
+    forecast: ForecastErrors = field(default_factory=ForecastErrors)
+    #: The policy of the scenario's training data when none is asked for (``simulate``,
+    #: ``compare``; :mod:`scenarios.running.datagen`): uniform random levels on the RC plants,
+    #: ``closed-loop`` (random setpoints tracked) on EnergyPlus, where random levels overheat
+    #: the room into the backup thermostat, which then cuts the heat inside intervals.
+    data_policy: Literal["random", "random-level", "closed-loop"] = "random-level"
+
+    def __post_init__(self) -> None:
+        steps_per_day(self.sim.dt_s)
+        if not (math.isfinite(self.comfort_weight_eur_per_kh) and self.comfort_weight_eur_per_kh >= 0):
+            raise InputError(
+                f"Scenario {self.name!r}: comfort_weight_eur_per_kh must be >= 0, "
+                f"got {self.comfort_weight_eur_per_kh!r}"
+            )
+        if self.horizon_steps < 1:
+            raise InputError(f"Scenario {self.name!r}: horizon_steps must be >= 1, got {self.horizon_steps}")
+        lo, hi = INITIAL_TEMPERATURE_RANGE_C
+        for key in ("initial_t_r_c", "initial_t_m_c"):
+            value = getattr(self, key)
+            if not (math.isfinite(value) and lo <= value <= hi):
+                raise InputError(
+                    f"Scenario.{key} = {value:g} C is outside the plausible {lo:g} .. {hi:g} C of "
+                    "a building's starting temperature; give it in Celsius"
+                )
+        if self.sim.plant.is_energyplus:
+            self._check_energyplus()
+
+    def _check_energyplus(self) -> None:
+        """An EnergyPlus building brings its own weather file and internal gains: the
+        scenario's weather must be that file (the controllers' forecasts), its gains none."""
+        plant, weather = self.sim.plant, self.weather
+        same = isinstance(weather, TMY3Weather) and (
+            weather.file_name == plant.weather
+            or str(tmy3_path(weather.file_name)) == str(tmy3_path(plant.weather))
+        )
+        if not same:
+            raise InputError(
+                f"Scenario {self.name!r}: the EnergyPlus plant runs on weather {plant.weather!r}, "
+                "so [weather] must be a TMY3Weather of the same file (leave [weather] out to get "
+                "it with a January / February split)"
+            )
+        if self.gains.active:
+            raise InputError(
+                f"Scenario {self.name!r}: an EnergyPlus building has its own internal gains; "
+                "leave [gains] out"
+            )
+        if plant.gains == "measured" and not self.forecast.gains_known:
+            raise InputError(
+                f"Scenario {self.name!r}: simulation.plant.gains = \"measured\" makes the "
+                "building's gains known, but forecast.gains_known = false hides them; give one"
+            )
+
+    @property
+    def steps_per_day(self) -> int:
+        return steps_per_day(self.sim.dt_s)
+
+    @property
+    def band_setpoint_c(self) -> float:
+        """The comfort band's highest lower bound over a day (a cooled building: its lowest
+        upper bound), where an EnergyPlus plant's heater is sized and its gains schedule is
+        evaluated."""
+        day = pd.date_range("2001-01-01", periods=self.steps_per_day, freq=f"{int(self.sim.dt_s)}s")
+        t_min, t_max = self.comfort.sample(day)
+        return float(np.max(t_min)) if self.sim.params.heating else float(np.min(t_max))
+
+    @property
+    def reference(self) -> Literal["oracle", "thermostat"]:
+        """The controller every other is measured against: the oracle on a plant with true
+        parameters and state, the thermostat on one without (EnergyPlus), where no oracle
+        exists."""
+        return "thermostat" if self.sim.plant.is_energyplus else "oracle"
+
+    @property
+    def uses_solar(self) -> bool:
+        return self.sim.params.solar_aperture_m2 > 0
+
+    @property
+    def weather_split(self) -> str:
+        """One sentence: the calendar days of the training and the test part."""
+        return self.weather.split_text()
+
+    def exogenous(self, *, days: int, seed: int, part: str, lead_steps: int = 0) -> pd.DataFrame:
+        """Exogenous inputs of a run: ``days * steps_per_day + lead_steps`` rows.
+
+        Columns ``time`` (datetime64, interval start), ``T_a`` [C], ``G`` [W/m2], ``I_g`` [W],
+        ``price`` [EUR/kWh], ``T_min``/``T_max`` [C]; for an EnergyPlus plant also the
+        irradiance on its site's facades (:data:`pinn_mpc.solar.FACADE_COLUMNS` [W/m2], from
+        the plant's weather file, :meth:`scenarios.inputs.exogenous.TMY3Weather.facades`), its wind speed
+        (``wind`` [m/s], :meth:`scenarios.inputs.exogenous.TMY3Weather.wind`) and ``holiday``
+        (1 on the building's holidays, :func:`scenarios.plants.energyplus.schedules.holidays`). ``part`` is the weather part the run is
+        drawn from (``train``, ``test`` or ``whole``, see :mod:`scenarios.inputs.exogenous`); a run that
+        does not fit in its part raises InputError. The ``lead_steps`` extra rows at the end
+        give a controller at the last step a full-horizon forecast; with ``whole`` they never
+        change the first rows, in a part they are placed inside it too. Same seed and part ->
+        identical frame; ``test`` draws every random input from streams of its own.
+        ``attrs['dt_s']`` is the control interval.
+        """
+        if days < 1:
+            raise InputError(f"scenario {self.name!r}: days must be >= 1, got {days}")
+        if lead_steps < 0:
+            raise InputError(f"scenario {self.name!r}: lead_steps must be >= 0, got {lead_steps}")
+        check_seed(seed)
+        chosen = weather_part(part)
+        extra = (_TEST_PART_STREAM,) if chosen == "test" else ()
+
+        def rng(stream: int) -> np.random.Generator:
+            return np.random.default_rng([seed, stream, *extra])
+
+        dt_s = self.sim.dt_s
+        n = days * self.steps_per_day + lead_steps
+        try:
+            times, t_a, g = self.weather.sample(
+                n=n, dt_s=dt_s, run_days=days, part=chosen, rng=rng(_WEATHER_STREAM)
+            )
+        except InputError as exc:
+            raise InputError(f"scenario {self.name!r}: {exc}") from None
+        price = self.price.sample(times, dt_s=dt_s, rng=rng(_PRICE_STREAM))
+        i_g = self.gains.sample(times, rng=rng(_GAINS_STREAM))
+        plant = self.sim.plant
+        scheduled = scheduled_gains(  # a plant whose gains are measured: its own schedules'
+            plant, times.to_numpy(), setpoint_c=self.band_setpoint_c, dt_s=dt_s,
+            heat_per_w=self.sim.params.eta,
+        )
+        if scheduled is not None:
+            i_g = scheduled
+        t_min, t_max = self.comfort.sample(times)
+        frame = pd.DataFrame(
+            {
+                "time": times,
+                "T_a": t_a,
+                "G": g,
+                "I_g": i_g,
+                "price": price,
+                "T_min": t_min,
+                "T_max": t_max,
+            }
+        )
+        if plant.is_energyplus:  # the plant's EPW (checked): its facades' irradiance and wind too
+            epw = cast(TMY3Weather, self.weather)
+            facades = epw.facades(times, dt_s=dt_s)
+            for name in FACADE_COLUMNS:
+                frame[name] = facades[name]
+            frame[WIND] = epw.wind(times, dt_s=dt_s)
+        holiday = holiday_calendar(plant, times.to_numpy())  # the plant kind's calendar, if any
+        if holiday is not None:
+            frame["holiday"] = holiday
+        frame.attrs["dt_s"] = float(dt_s)
+        return frame
+
+    def control_spec(self) -> ControlSpec:
+        """The objective and actuator limits every controller of this scenario shares."""
+        return ControlSpec(
+            u_max_w=self.sim.u_max_w,
+            dt_s=self.sim.dt_s,
+            horizon_steps=self.horizon_steps,
+            comfort_weight_eur_per_kh=self.comfort_weight_eur_per_kh,
+            heating=self.sim.params.heating,
+            actuator=self.sim.actuator,
+            sensor_noise_std_c=self.sim.noise_std_c,
+        )
+
+
+def check_seed(seed: int) -> None:
+    """Seeds feed ``np.random.default_rng``, which needs a non-negative integer."""
+    if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
+        raise InputError(f"seed must be a non-negative whole number, got {seed!r}")
+
+
+#: Cold room of about 50 m2: well insulated (UA 80 W/K), racks and air in C_r, about 14 t of
+#: stored goods in C_m, a cooling machine with COP 2.5 (eta = -2.5 per electrical watt).
+COLD_ROOM = RCParams(
+    r_ra_k_per_w=1.0 / 80.0,
+    r_rm_k_per_w=1.0 / 500.0,
+    c_r_j_per_k=3.0e6,
+    c_m_j_per_k=5.0e7,
+    eta=-2.5,
+    gain_to_air_fraction=0.8,
+)
+
+#: What the controllers' side of a scenario assumes of an EnergyPlus building (eta = 1: an
+#: electric heater; a solar aperture, so data carry G): nominal values of the order identify
+#: finds for DOE's small office (so a model of it is recognised as this building's), not the
+#: plant's, which has no R/C parameters. Models and RC MPCs learn their own.
+EPLUS_NOMINAL = RCParams(
+    r_ra_k_per_w=1.0 / 800.0,
+    r_rm_k_per_w=1.0 / 5000.0,
+    c_r_j_per_k=3.0e6,
+    c_m_j_per_k=6.0e8,
+    eta=1.0,
+    solar_aperture_m2=10.0,
+    solar_to_air_fraction=0.3,
+    gain_to_air_fraction=0.5,
+)
+
+
+_SIZING_REPORTED: set[str] = set()
+
+
+def with_sized_heater(scenario: Scenario, *, given_u_max_w: float | None = None) -> Scenario:
+    """The scenario of an EnergyPlus plant with ``heater_w = "auto"``, its ``u_max_w`` the
+    heater :func:`scenarios.plants.energyplus.sizing.size_heater` finds for it: holding the comfort band's
+    highest lower bound (a chiller, ``eta < 0``: its lowest upper bound) through the weather
+    file's coldest (hottest) three days. One line on stderr says what was sized (once per
+    process). A ``given_u_max_w`` must be that value (a file ``scenario export`` wrote)."""
+    from scenarios.plants.energyplus.sizing import size_heater
+
+    sim = scenario.sim
+    sizing = size_heater(sim.plant, scenario.band_setpoint_c, heat_per_w=sim.params.eta, dt_s=sim.dt_s)
+    if given_u_max_w is not None and abs(given_u_max_w - sizing.power_w) > 1e-6 * sizing.power_w:
+        raise InputError(
+            f"simulation.u_max_w = {given_u_max_w:g} W, but plant.heater_w = \"auto\" sizes "
+            f"{sizing.power_w:g} W; give the heater's power once (a number in heater_w, or "
+            "leave u_max_w out)"
+        )
+    line = f"pinn-mpc: scenario {scenario.name!r}: {sizing.line()}"
+    if line not in _SIZING_REPORTED:
+        _SIZING_REPORTED.add(line)
+        print(line, file=sys.stderr)
+    return dataclasses.replace(scenario, sim=dataclasses.replace(sim, u_max_w=sizing.power_w))
+
+
+def eplus_weather(file_name: str) -> TMY3Weather:
+    """The weather of an EnergyPlus scenario: the plant's EPW, January and February, trained
+    on January (a longer training run reaches back into December), tested on February."""
+    return TMY3Weather(
+        file_name=file_name, window_start="01-01", window_days=59, test_start="02-01", test_days=28
+    )
+
+
+def _with_split(scenario: Scenario) -> Scenario:
+    """The scenario with its weather split appended to the description."""
+    return dataclasses.replace(
+        scenario, description=f"{scenario.description} {scenario.weather_split}"
+    )
+
+
+_SCENARIOS: dict[str, Scenario] = {
+    s.name: _with_split(s)
+    for s in (
+        Scenario(
+            name="paper_household",
+            description=(
+                "The paper's simulated household: default 2R2C, electric heater 0-5000 W, backup "
+                "17/20.5 C, synthetic spring weather, no solar or internal gains, T_r=T_m=17 C at "
+                "start, day/night price, comfort 18-20.5 C."
+            ),
+            sim=SimConfig(params=PAPER_HOUSEHOLD, u_max_w=5000.0, backup_low_c=17.0, backup_high_c=20.5),
+            comfort_weight_eur_per_kh=5.0,
+            initial_t_r_c=17.0,
+            initial_t_m_c=17.0,
+            # Peaks stay near 24 C: with the room held at 20.5 C by the backup, a warmer
+            # afternoon would push T_r past the backup's upper limit (it cannot cool).
+            weather=SyntheticWeather(
+                mean_c=14.5, daily_amplitude_c=4.0, slow_amplitude_c=3.5, noise_std_c=0.6
+            ),
+            price=PriceProfile(kind="day_night", level_eur_per_kwh=0.30, night_eur_per_kwh=0.15),
+            comfort=ComfortSchedule(day_min_c=18.0, day_max_c=20.5, night_min_c=18.0, night_max_c=20.5),
+        ),
+        Scenario(
+            name="winter_household",
+            description=(
+                "The paper's household with 3 m2 of solar aperture (30 % to the air), occupancy "
+                "gains, a 10 kW heater (enough for the coldest TMY3 hours), real TMY3 winter "
+                "weather (Greensboro NC, Nov-Mar), a dynamic price, comfort 20-22 C 07-22 h and "
+                "17-22 C at night, backup 16/24 C."
+            ),
+            sim=SimConfig(
+                params=dataclasses.replace(
+                    PAPER_HOUSEHOLD,
+                    solar_aperture_m2=3.0,
+                    solar_to_air_fraction=0.3,
+                    gain_to_air_fraction=0.5,
+                ),
+                u_max_w=10000.0,
+                backup_low_c=16.0,
+                backup_high_c=24.0,
+            ),
+            comfort_weight_eur_per_kh=5.0,
+            initial_t_r_c=20.0,
+            initial_t_m_c=20.0,
+            # Trained on the first three months of the heating season, tested on the last two (a
+            # model fitted on the season so far, then used): February keeps cold test days
+            # (mean 5.0 C against 0.3 C in January and 11.4 C in March), and 59 test days hold
+            # a 57-day closed-loop run. 120 training days reach back into October.
+            weather=TMY3Weather(
+                file_name="723170TYA.CSV",
+                window_start="11-01",
+                window_days=151,
+                test_start="02-01",
+                test_days=59,
+            ),
+            price=PriceProfile(kind="dynamic", level_eur_per_kwh=0.22, peak_eur_per_kwh=0.15),
+            comfort=ComfortSchedule(day_min_c=20.0, day_max_c=22.0, night_min_c=17.0, night_max_c=22.0),
+            gains=GainsSchedule(base_w=100.0, scheduled_w=400.0, periods_h=((6.0, 8.5), (17.0, 23.0))),
+        ),
+        Scenario(
+            name="cold_storage",
+            description=(
+                "A cold room (UA 80 W/K) cooled by a 2.5 kW (electrical) machine with COP 2.5, "
+                "band 2-6 C, backup 0/8 C, TMY3 summer weather (Greensboro NC, Jun-Aug), door "
+                "openings 07-19 h, day/night price, no windows."
+            ),
+            sim=SimConfig(params=COLD_ROOM, u_max_w=2500.0, backup_low_c=0.0, backup_high_c=8.0),
+            comfort_weight_eur_per_kh=10.0,
+            initial_t_r_c=4.0,
+            initial_t_m_c=4.0,
+            # Tested on the last five weeks of summer (August is nearly as hot as July: 24.8 C
+            # against 25.4 C mean), enough for a 33-day closed-loop run; training on June and
+            # July, reaching back into May (60 days) or March (120 days) for longer runs.
+            weather=TMY3Weather(
+                file_name="723170TYA.CSV",
+                window_start="06-01",
+                window_days=92,
+                test_start="07-28",
+                test_days=35,
+            ),
+            price=PriceProfile(kind="day_night", level_eur_per_kwh=0.25, night_eur_per_kwh=0.12),
+            comfort=ComfortSchedule(day_min_c=2.0, day_max_c=6.0, night_min_c=2.0, night_max_c=6.0),
+            gains=GainsSchedule(
+                base_w=150.0, periods_h=((7.0, 19.0),), event_w=2500.0, event_probability=0.3
+            ),
+        ),
+    )
+}
+
+
+
+def _winter_variant(name: str, description: str, **sim_changes: Any) -> Scenario:
+    """winter_household with other simulation settings (its weather, price, comfort, gains)."""
+    base = _SCENARIOS["winter_household"]
+    return _with_split(
+        dataclasses.replace(
+            base,
+            name=name,
+            description=description,
+            sim=dataclasses.replace(base.sim, **sim_changes),
+        )
+    )
+
+
+_SCENARIOS.update(
+    (s.name, s)
+    for s in (
+        _winter_variant(
+            "heat_pump_household",
+            "winter_household heated by an air-source heat pump of 4 kW electrical (COP = 45 % "
+            "of Carnot to a 35 C supply, clipped to 1..6: about 4.0 at 0 C, 3.1 at -10 C), "
+            "minimum modulation 30 % (a lower demand runs at 30 % or is off, whichever is "
+            "nearer); power, energy and cost are electrical.",
+            u_max_w=4000.0,
+            actuator=Actuator(
+                kind="heat_pump",
+                supply_temp_c=35.0,
+                carnot_efficiency=0.45,
+                cop_min=1.0,
+                cop_max=6.0,
+                min_modulation=0.3,
+            ),
+        ),
+        _winter_variant(
+            "mismatch_household",
+            "winter_household on a 3R3C plant the models cannot represent: R_ra split in halves "
+            "at an envelope node of 1e7 J/K (outer wall layers; a third time constant of 2.6 h, "
+            "same steady state). Models, RC MPCs and the oracle are 2R2C; the oracle plans on the "
+            "plant's R/C without the envelope (the 2R2C it reduces to as C_e -> 0) with the true "
+            "T_r and T_m, so it is no longer a lower bound, nor is the clairvoyant.",
+            plant=Plant(
+                kind="3r3c", envelope_capacity_j_per_k=1.0e7, envelope_resistance_fraction=0.5
+            ),
+        ),
+    )
+)
+
+
+def _energyplus_scenario(
+    *,
+    name: str,
+    description: str,
+    building: str,
+    weather: str,
+    heater_w: float,
+    initial_t_r_c: float,
+    comfort: ComfortSchedule,
+) -> Scenario:
+    """A built-in EnergyPlus scenario: the bundled ``building`` in the bundled ``weather``,
+    heated by an ideal ``heater_w`` electric heater, backup 14/28 C, winter_household's
+    dynamic price, January to train and February to test (:func:`eplus_weather`)."""
+    return _with_split(
+        Scenario(
+            name=name,
+            description=description,
+            sim=SimConfig(
+                params=EPLUS_NOMINAL,
+                u_max_w=heater_w,
+                backup_low_c=14.0,
+                backup_high_c=28.0,
+                plant=Plant(kind="energyplus", building=building, weather=weather, heater_w=heater_w),
+            ),
+            comfort_weight_eur_per_kh=5.0,
+            initial_t_r_c=initial_t_r_c,
+            initial_t_m_c=initial_t_r_c,
+            data_policy=ENERGYPLUS_DATA_POLICY,
+            weather=eplus_weather(weather),
+            price=PriceProfile(kind="dynamic", level_eur_per_kwh=0.22, peak_eur_per_kwh=0.15),
+            comfort=comfort,
+        )
+    )
+
+
+_SCENARIOS["eplus_small_office"] = _energyplus_scenario(
+    name="eplus_small_office",
+    description=(
+        "DOE's small office (EnergyPlus reference building, 511 m2) in Chicago (TMY3), its "
+        "HVAC removed, its five conditioned zones merged into one, heated by an ideal 25 kW "
+        "electric heater; run by EnergyPlus (no R/C parameters, no oracle). Office comfort "
+        "20-23 C 07-19 h, 16-25 C otherwise, winter_household's dynamic "
+        "price, backup 14/28 C; the office's internal gains are unmeasured."
+    ),
+    building="small_office",
+    weather="usa_il_chicago",
+    heater_w=25000.0,
+    initial_t_r_c=20.0,
+    comfort=ComfortSchedule(
+        day_min_c=20.0, day_max_c=23.0, night_min_c=16.0, night_max_c=25.0,
+        day_start_h=7.0, day_end_h=19.0,
+    ),
+)
+_SCENARIOS["eplus_midrise_apartment"] = _energyplus_scenario(
+    name="eplus_midrise_apartment",
+    description=(
+        "DOE's mid-rise apartment building (EnergyPlus reference building, four floors, "
+        "3,135 m2; merged, its middle floor, which stands for two, counts once: 2,351 m2) in "
+        "Denver (TMY3), its HVAC removed, its conditioned zones merged into one, "
+        "heated by an ideal 71 kW electric heater (what heater_w = \"auto\" sizes for it); "
+        "run by EnergyPlus (no R/C parameters, no "
+        "oracle). Residential comfort 20-24 C 06-23 h, 18-24 C at night, winter_household's "
+        "dynamic price, backup 14/28 C; the residents' internal gains are unmeasured. A "
+        "second building and city, not the one the package's EnergyPlus defaults were "
+        "tuned on."
+    ),
+    building="midrise_apartment",
+    weather="usa_co_denver",
+    heater_w=71000.0,
+    initial_t_r_c=21.0,
+    comfort=ComfortSchedule(
+        day_min_c=20.0, day_max_c=24.0, night_min_c=18.0, night_max_c=24.0,
+        day_start_h=6.0, day_end_h=23.0,
+    ),
+)
+
+
+def scenario_names() -> list[str]:
+    """Names of the registered scenarios, sorted."""
+    return sorted(_SCENARIOS)
+
+
+def is_scenario_file(name_or_path: str) -> bool:
+    """True when ``--scenario`` names a file (a ``.toml`` name or a path), not a built-in."""
+    return name_or_path.lower().endswith(".toml") or "/" in name_or_path or os.sep in name_or_path
+
+
+def get_scenario(name_or_path: str) -> Scenario:
+    """A built-in scenario by name, or a scenario file: the one resolver behind every
+    ``--scenario``.
+
+    Parameters
+    ----------
+    name_or_path
+        A built-in name (:func:`scenarios.scenario_names`) or the path of a ``.toml`` scenario
+        file (see :mod:`scenarios.inputs.scenario_file`).
+
+    Returns
+    -------
+    Scenario
+
+    Raises
+    ------
+    InputError
+        An unknown name (the message lists the valid ones); a bad file (the message names
+        the file and the key).
+    """
+    if name_or_path in _SCENARIOS:
+        return _SCENARIOS[name_or_path]
+    if is_scenario_file(name_or_path):
+        from scenarios.inputs.scenario_file import load_scenario_file  # it imports this module
+
+        return load_scenario_file(name_or_path)
+    if os.path.isfile(name_or_path):
+        raise InputError(
+            f"{name_or_path!r} is a file, but scenario files end in .toml (without it the name "
+            f"is taken for a built-in); rename it {name_or_path}.toml"
+        )
+    raise InputError(
+        f"unknown scenario {name_or_path!r}; choose one of: {', '.join(scenario_names())}, or give "
+        "a scenario file (.toml; write one with `pinn-mpc scenario export NAME --out FILE.toml`)"
+    )

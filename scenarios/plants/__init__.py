@@ -1,0 +1,9 @@
+"""Plants: what the closed loop steps, one protocol and one result of a step (:mod:`.base`).
+
+The RC simulator (:mod:`.rc`, the 2R2C or 3R3C of :mod:`pinn_mpc.simulator`) and EnergyPlus
+(:mod:`.energyplus`) implement it; :mod:`.kinds` makes a scenario's plant by its kind and
+answers what a kind knows in advance (a calendar, scheduled gains). A plant knows no scenario,
+controller or experiment: this layer imports only :mod:`pinn_mpc` and itself.
+"""
+
+__all__: list[str] = []

@@ -1,0 +1,265 @@
+"""Text and markdown tables, and the report of a controller comparison (see :mod:`scenarios.experiments.compare`).
+
+:func:`markdown_table` and :func:`text_table` are the table helpers of every report of the
+package (the comparison here, the paper reproduction in :mod:`scenarios.experiments.reproduce`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING, Any
+
+from pinn_mpc.records import RcSummary
+from scenarios.records import CompareRow, PredictionRow, RunKpis
+
+if TYPE_CHECKING:
+    from scenarios.fleets.fleet import FleetResult
+
+__all__ = [
+    "KPI_COLUMNS",
+    "RC_ROWS",
+    "format_fleet",
+    "format_kpis",
+    "kpi_columns",
+    "kpi_table_text",
+    "markdown_table",
+    "objective_ratios",
+    "rc_table_markdown",
+    "reference_of",
+    "render_report",
+    "text_table",
+]
+
+#: Prefix of a row's objective divided by the reference controller's.
+_RATIO_PREFIX = "objective_to_"
+#: (row key, column header, format) of the KPI tables.
+KPI_COLUMNS = (
+    ("objective", "objective EUR", "{:.3f}"),
+    ("objective_to_oracle", "/ oracle", "{:.3f}"),
+    ("cost_eur", "cost EUR", "{:.3f}"),
+    ("energy_kwh", "energy kWh", "{:.2f}"),
+    ("discomfort_kh", "discomfort K h", "{:.3f}"),
+    ("peak_kw", "peak kW", "{:.2f}"),
+    ("decision_ms_median", "decision ms (median)", "{:.3g}"),
+    ("decision_ms_p95", "decision ms (p95)", "{:.3g}"),
+    ("time_ratio", "time ratio", "{:.2e}"),
+    ("backup_overrides", "overrides", "{}"),
+    ("fallbacks", "fallbacks", "{}"),
+)
+
+#: What the ratio column of a report means, by reference controller.
+_REFERENCE_TEXT = {
+    "oracle": "`/ oracle` divides each objective by the oracle's (true parameters, true T_m, "
+    "perfect forecasts).",
+    "thermostat": "`/ thermostat` divides each objective by the thermostat's: this plant has "
+    "no true parameters or state, so no oracle bound exists and the baseline is the "
+    "thermostat (as BOPTEST reports controllers against a building's baseline control).",
+}
+
+#: (rc_summary key, label, scale, unit) of the RC parameter table.
+RC_ROWS = (
+    ("R_ra_K_per_W", "R_ra", 1e3, "mK/W"),
+    ("R_rm_K_per_W", "R_rm", 1e3, "mK/W"),
+    ("C_r_J_per_K", "C_r", 1e-6, "MJ/K"),
+    ("C_m_J_per_K", "C_m", 1e-6, "MJ/K"),
+    ("eta", "eta", 1.0, "-"),
+    ("solar_aperture_m2", "solar aperture", 1.0, "m2"),
+)
+
+
+def _cell(value: Any, fmt: str) -> str:
+    if value is None or (isinstance(value, float) and not math.isfinite(value)):
+        return "n/a"
+    return fmt.format(value)
+
+
+def objective_ratios(rows: Sequence[RunKpis], *, reference: str) -> list[float | None]:
+    """Each row's objective divided by that of the row labelled ``reference`` (None if absent
+    or not positive)."""
+    ref = next((r["objective"] for r in rows if r["controller"] == reference), None)
+    if ref is None or not ref > 0:
+        return [None] * len(rows)
+    return [float(r["objective"]) / ref for r in rows]
+
+
+def text_table(headers: Sequence[str], body: Sequence[Sequence[str]]) -> str:
+    """Fixed-width table for a terminal: first column left-aligned, the others right-aligned."""
+    widths = [max(len(line[i]) for line in [headers, *body]) for i in range(len(headers))]
+
+    def fmt(line: Sequence[str]) -> str:
+        first = line[0].ljust(widths[0])
+        return "  ".join([first, *(c.rjust(w) for c, w in zip(line[1:], widths[1:], strict=True))])
+
+    return "\n".join(fmt(line) for line in [headers, *body])
+
+
+def markdown_table(headers: Sequence[str], body: Sequence[Sequence[str]]) -> list[str]:
+    """A markdown (GitHub) table as lines: header, separator, one line per body row."""
+    lines = ["| " + " | ".join(headers) + " |", "|" + "---|" * len(headers)]
+    lines += ["| " + " | ".join(line) + " |" for line in body]
+    return lines
+
+
+def reference_of(rows: Sequence[RunKpis]) -> str:
+    """The controller the rows' objectives are divided by: the key ``objective_to_NAME`` a
+    row holds (``oracle`` when none does)."""
+    keys = (k for r in rows for k in r if k.startswith(_RATIO_PREFIX))
+    return next(keys, f"{_RATIO_PREFIX}oracle").removeprefix(_RATIO_PREFIX)
+
+
+def kpi_columns(rows: Sequence[RunKpis]) -> tuple[tuple[str, str, str], ...]:
+    """:data:`KPI_COLUMNS` with the ratio column of the rows' reference (:func:`reference_of`)."""
+    ref = reference_of(rows)
+    return tuple(
+        (f"{_RATIO_PREFIX}{ref}", f"/ {ref}", f) if k.startswith(_RATIO_PREFIX) else (k, h, f)
+        for k, h, f in KPI_COLUMNS
+    )
+
+
+def kpi_table_text(rows: Sequence[RunKpis]) -> str:
+    """Fixed-width KPI table for a terminal, one line per controller."""
+    columns = kpi_columns(rows)
+    headers = ["controller", *(h for _, h, _ in columns)]
+    body = [[str(r["controller"]), *(_cell(r.get(k), f) for k, _, f in columns)] for r in rows]
+    return text_table(headers, body)
+
+
+def _prediction_cells(rows: Sequence[PredictionRow]) -> tuple[list[str], list[list[str]]]:
+    horizons = list(dict.fromkeys(h for r in rows for h in r.get("T_r_mae_by_horizon_c", {})))
+    headers = ["model", "kind", *(f"MAE {h} [K]" for h in horizons), "T_r bias [K]", "starts"]
+    body = [
+        [
+            str(r["model"]),
+            str(r["kind"]),
+            *(_cell(r.get("T_r_mae_by_horizon_c", {}).get(h), "{:.3f}") for h in horizons),
+            _cell(r["T_r_bias_c"], "{:+.3f}"),
+            str(r["n_starts"]),
+        ]
+        for r in rows
+    ]
+    return headers, body
+
+
+def prediction_table_text(rows: Sequence[PredictionRow]) -> str:
+    """The prediction errors as a plain-text table (the CLI's summary)."""
+    return text_table(*_prediction_cells(rows)) if rows else ""
+
+
+def rc_table_markdown(rc: Mapping[str, Mapping[str, Any]]) -> list[str]:
+    """RC parameters of each source (columns) against each other, plus time constants."""
+    sources = list(rc)
+    body = []
+    for key, label, scale, unit in RC_ROWS:
+        cells = [
+            _cell(float(rc[s][key]) * scale if key in rc[s] else None, "{:.4g}") for s in sources
+        ]
+        body.append([f"{label} [{unit}]", *cells])
+    for which in ("fast", "slow"):
+        cells = [_cell(rc[s].get("time_constants_h", {}).get(which), "{:.3g}") for s in sources]
+        body.append([f"time constant, {which} [h]", *cells])
+    return markdown_table(["parameter", *sources], body)
+
+
+def render_report(
+    *,
+    scenario: str,
+    description: str,
+    rows: Sequence[CompareRow],
+    rc: Mapping[str, RcSummary],
+    settings: Mapping[str, Any],
+    figure_name: str,
+    dates: str,
+    notes: Sequence[str] = (),
+    prediction: Sequence[PredictionRow] = (),
+    prediction_horizon: int = 24,
+) -> str:
+    """The markdown report of a comparison; ``dates`` says when the training data and the
+    test days are; ``prediction`` the rows of :func:`scenarios.experiments.prediction.prediction_errors`."""
+    reference = reference_of(rows)
+    lines = [
+        f"# Closed-loop comparison on `{scenario}`",
+        "",
+        description,
+        "",
+        dates,
+        "",
+        "Every controller ran on the same test days (same weather, prices, comfort band and "
+        "perfect forecasts) after the same one-day thermostat warm-up, which is not counted. "
+        "KPIs follow BOPTEST: discomfort is the time integral of the comfort-band violation "
+        "(1-min resolution), cost is price x delivered energy, the objective is cost + comfort "
+        "weight x discomfort, the time ratio is decision time / simulated time. "
+        + _REFERENCE_TEXT.get(reference, f"`/ {reference}` divides each objective by the "
+                              f"{reference}'s."),
+        "",
+        "## KPIs",
+        "",
+    ]
+    columns = kpi_columns(rows)
+    headers = ["controller", *(h for _, h, _ in columns)]
+    body = [[f"`{r['controller']}`", *(_cell(r.get(k), f) for k, _, f in columns)] for r in rows]
+    lines += markdown_table(headers, body)
+    if prediction:
+        lines += [
+            "",
+            "## Prediction",
+            "",
+            f"Each model predicts the room temperature {prediction_horizon} intervals ahead from "
+            "the same starts of held-out data (test part of the weather, the training data's "
+            "random policy, not the closed loop): learned models by their own rollout on the "
+            "demanded power, RC parameter sets from a Kalman estimate of the state on the "
+            "delivered power (see `scenarios.experiments.prediction`). MAE and bias (prediction - truth).",
+            "",
+            *markdown_table(*_prediction_cells(prediction)),
+        ]
+    lines += [
+        "",
+        "## RC parameters",
+        "",
+        "The true building (where the plant has one), the parameters identified from the training data (grey-box, T_m "
+        "hidden) and those exported from the trained ensembles (hybrid and PhysNet; geometric "
+        "mean over members). Under a heat pump the exports' eta holds the training data's mean "
+        "COP; the RC MPCs use the building's own eta and apply the COP per step.",
+        "",
+        *rc_table_markdown(rc),
+        "",
+        "## Trajectories",
+        "",
+        f"![room temperature and delivered power of every controller]({figure_name})",
+        "",
+        "## Settings",
+        "",
+    ]
+    lines += markdown_table(["setting", "value"], [[k, f"`{v}`"] for k, v in settings.items()])
+    if notes:
+        lines += ["", "## Notes", "", *(f"- {n}" for n in notes)]
+    return "\n".join(lines) + "\n"
+
+
+def format_kpis(kpis: RunKpis) -> str:
+    """One line: the main KPIs of a run."""
+    return (
+        f"{kpis['controller']} on {kpis['scenario']}, {kpis['days']} d: "
+        f"energy {kpis['energy_kwh']:.2f} kWh, cost {kpis['cost_eur']:.2f} EUR, "
+        f"discomfort {kpis['discomfort_kh']:.2f} K h, peak {kpis['peak_kw']:.2f} kW, "
+        f"objective {kpis['objective']:.2f} EUR, decision {kpis['decision_ms_median']:.1f} ms "
+        f"(median), overrides {kpis['backup_overrides']}, fallbacks {kpis['fallbacks']}"
+    )
+
+
+def format_fleet(result: FleetResult) -> str:
+    """Two lines: a fleet run's totals, and its wall time per control step."""
+    info, totals, t = result.info, result.totals, result.step_time
+    times = ", ".join(
+        f"{part} {t[f'{part}_ms_median']:.1f} ms (p95 {t[f'{part}_ms_p95']:.1f})"
+        for part in ("controllers", "plant", "total")
+    )
+    return (
+        f"{info['controller']} x {info['n_buildings']} buildings on {info['scenario']}, "
+        f"{info['days']} d: energy {totals['energy_kwh']:.2f} kWh, cost {totals['cost_eur']:.2f} "
+        f"EUR, discomfort {totals['discomfort_kh']:.2f} K h, aggregate peak "
+        f"{totals['peak_kw']:.2f} kW, objective {totals['objective']:.2f} EUR, overrides "
+        f"{totals['backup_overrides']}, fallbacks {totals['fallbacks']} in "
+        f"{totals['buildings_with_fallbacks']} building(s)\n"
+        f"time per control step (median): {times}"
+    )

@@ -1,0 +1,332 @@
+"""A controller on a scenario: the closed loop of :mod:`scenarios.running.engine`, warm-up, KPIs.
+
+Every control interval k runs :meth:`scenarios.running.engine.ClosedLoop.advance` (observe, forecast,
+decide, step, in the do-mpc order).
+
+Warm-up: learned models need a history of at least ``depth + 1`` steps and observers need
+time to settle, so every run starts with ``warmup_steps`` intervals (default one day) driven by
+the thermostat. They are not counted in the KPIs nor written to the trajectory; the counted
+steps are the ``days`` that follow, and observations keep the whole past, warm-up included, with
+``Observation.k`` counting from the start of the warm-up.
+
+At step k the controller gets a forecast of every future row, from k to the end of the run plus
+``scenario.horizon_steps`` lead rows: perfect, or with the errors of ``scenario.forecast``
+(:class:`scenarios.inputs.series.ForecastErrors`, made by the engine); they depend only on ``seed``, so
+every controller sees the same forecasts.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import sys
+import time
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TextIO
+
+import pandas as pd
+from tqdm import tqdm
+
+from controllers.base import Controller
+from controllers.estimators import TrueState
+from controllers.thermostat import Thermostat
+from pinn_mpc.data import COLUMNS, SITE_COLUMNS, write_timeseries
+from pinn_mpc.errors import InputError
+from pinn_mpc.physics import RCParams
+from pinn_mpc.records import TrustReport
+from scenarios.inputs.exogenous import day_span
+from scenarios.inputs.registry import EXOGENOUS_COLUMNS, Scenario, check_seed
+from scenarios.inputs.series import ExogenousSeries
+from scenarios.records import Kpis, RunKpis
+from scenarios.running.engine import ClosedLoop, LoopRecord
+from scenarios.running.kpis import compute_kpis
+
+__all__ = [
+    "EXTRA_COLUMNS",
+    "ClosedLoopResult",
+    "RunInputs",
+    "build_loop",
+    "check_plant_supports",
+    "counted_kpis",
+    "one_torch_thread",
+    "prepare_run",
+    "progress_steps",
+    "run_closed_loop",
+    "write_trajectory",
+]
+
+#: Columns the trajectory adds to the data format.
+EXTRA_COLUMNS = ("overridden", "fallback", "decision_ms")
+_FORECAST_ERROR_STREAM = 1
+_EXOGENOUS = EXOGENOUS_COLUMNS[1:]  # all but time
+
+
+@dataclass(frozen=True, kw_only=True)
+class ClosedLoopResult:
+    """One run: ``trajectory`` has one row per counted interval (data format + EXTRA_COLUMNS,
+    ``attrs['dt_s']``); ``kpis`` the KPI dict (see :mod:`scenarios.running.kpis`) plus ``controller``,
+    ``scenario``, ``days``, ``seed``, ``weather_part`` and the [first, last] dates of the
+    ``counted_days`` and of the ``weather_days`` (warm-up and forecast lead included), and a
+    planner's trust report (:class:`scenarios.records.RunKpis`); ``errors`` one line per
+    controller exception."""
+
+    trajectory: pd.DataFrame
+    kpis: RunKpis
+    errors: tuple[str, ...]
+
+
+@dataclass(frozen=True, kw_only=True)
+class RunInputs:
+    """What a run is driven by: the exogenous frame (``warmup + counted`` rows plus the
+    forecast lead) and its series, and the interval counts."""
+
+    exo: pd.DataFrame
+    series: ExogenousSeries
+    warmup: int
+    total: int  # warm-up and counted intervals
+
+    @property
+    def counted(self) -> slice:
+        return slice(self.warmup, self.total)
+
+
+def prepare_run(
+    scenario: Scenario, *, days: int, seed: int, warmup_steps: int | None, weather_part: str
+) -> RunInputs:
+    """The inputs of a run of ``days`` counted days after ``warmup_steps`` (default one day)."""
+    if days < 1:
+        raise InputError(f"closed loop: days must be >= 1, got {days}")
+    check_seed(seed)
+    spd = scenario.steps_per_day
+    warmup = spd if warmup_steps is None else warmup_steps
+    if warmup < 0:
+        raise InputError(f"closed loop: warmup_steps must be >= 0, got {warmup}")
+    total = warmup + days * spd
+    horizon = scenario.horizon_steps
+    exo = scenario.exogenous(
+        days=days + math.ceil(warmup / spd), seed=seed, part=weather_part, lead_steps=horizon
+    )
+    if len(exo) < total + horizon:
+        raise InputError(
+            f"scenario {scenario.name!r} gave {len(exo)} exogenous rows, need {total + horizon}"
+        )
+    exo = exo.iloc[: total + horizon].reset_index(drop=True)
+    return RunInputs(exo=exo, series=ExogenousSeries.from_frame(exo), warmup=warmup, total=total)
+
+
+def build_loop(
+    scenario: Scenario, run: RunInputs, *, seed: int, fleet: Sequence[RCParams] | None = None
+) -> ClosedLoop:
+    """The engine of a run: sensor noise and forecast errors seeded by ``seed``; ``fleet``
+    gives many buildings their own parameters (see :class:`ClosedLoop`)."""
+    return ClosedLoop(
+        scenario.sim,
+        run.series,
+        spec=scenario.control_spec(),
+        initial_t_r_c=scenario.initial_t_r_c,
+        initial_t_m_c=scenario.initial_t_m_c,
+        seed=seed,
+        forecast_errors=scenario.forecast,
+        forecast_seed=[seed, _FORECAST_ERROR_STREAM],
+        expected_gains_w=scenario.gains.expected(pd.DatetimeIndex(run.exo["time"])),
+        fleet=fleet,
+        measured_gains=scenario.sim.plant.gains == "measured",
+    )
+
+
+def check_plant_supports(scenario: Scenario, controller: Controller) -> None:
+    """Refuse, before anything runs, a controller with perfect knowledge (``oracle``,
+    ``clairvoyant``) on a plant without a true state to know (EnergyPlus)."""
+    if scenario.sim.plant.is_energyplus and isinstance(getattr(controller, "estimator", None), TrueState):
+        raise InputError(
+            f"controller {controller.name!r} knows the plant's true RC model and state, which an "
+            f"EnergyPlus building ({scenario.name!r}) does not have: the oracle and the "
+            "clairvoyant do not apply; compare against the thermostat"
+        )
+
+
+def counted_kpis(scenario: Scenario, run: RunInputs, rec: LoopRecord) -> Kpis:
+    """The KPIs (:func:`scenarios.running.kpis.compute_kpis`) of one building's counted intervals."""
+    counted, series = run.counted, run.series
+    return compute_kpis(
+        u_phys_w=rec.u_phys_w[counted],
+        price_eur_per_kwh=series.price[counted],
+        t_r_sub_c=rec.t_r_sub_c[counted],
+        t_min_c=series.T_min[counted],
+        t_max_c=series.T_max[counted],
+        decision_s=rec.decision_s[counted],
+        overridden=rec.overridden[counted],
+        fallback=rec.fallback[counted],
+        dt_s=scenario.sim.dt_s,
+        comfort_weight_eur_per_kh=scenario.comfort_weight_eur_per_kh,
+    )
+
+
+def run_closed_loop(
+    scenario: Scenario,
+    controller: Controller,
+    *,
+    days: int,
+    seed: int,
+    warmup_steps: int | None = None,
+    label: str | None = None,
+    weather_part: str = "test",
+    progress: bool = False,
+) -> ClosedLoopResult:
+    """Run ``controller`` on ``scenario`` for ``days`` counted days after the warm-up.
+
+    A thermostat drives the warm-up (not counted); then ``controller`` decides every interval.
+
+    Parameters
+    ----------
+    scenario
+        The building, weather, price and comfort band (:func:`scenarios.get_scenario`).
+    controller
+        Any :class:`controllers.Controller`, e.g. from :func:`scenarios.build_controller`.
+    days
+        Counted days after the warm-up.
+    seed
+        Fixes the weather/price draw of the scenario, the sensor noise and the forecast errors,
+        so two runs with the same seed see the same disturbances.
+    warmup_steps
+        Warm-up intervals; default one day.
+    label
+        Names the controller in the KPIs; default its ``name``.
+    weather_part
+        The part of the scenario's weather the run is drawn from: ``"test"`` (default),
+        ``"train"`` or ``"whole"`` (see :mod:`scenarios.inputs.exogenous`).
+    progress
+        Show progress on stderr (:func:`progress_steps`).
+
+    Returns
+    -------
+    ClosedLoopResult
+        ``kpis`` (the dict of :func:`scenarios.compute_kpis` and the run's labels) and
+        ``trajectory`` (one row per counted interval).
+    """
+    check_plant_supports(scenario, controller)
+    run = prepare_run(
+        scenario, days=days, seed=seed, warmup_steps=warmup_steps, weather_part=weather_part
+    )
+    warmup_controller = Thermostat(scenario.control_spec())
+    warmup_controller.reset(seed)
+    controller.reset(seed)
+    errors: list[str] = []
+    with build_loop(scenario, run, seed=seed) as loop:
+        for k in progress_steps(run.total, label or controller.name, progress):
+            decision = loop.advance(warmup_controller if k < run.warmup else controller)
+            if decision.error is not None:
+                errors.append(f"step {k}: {decision.error}")
+        rec = loop.record()
+    series, counted, exo = run.series, run.counted, run.exo
+    # The inputs the plant had: the series' rows on the RC plant, EnergyPlus's own otherwise.
+    # The facades' irradiance and the wind, where the run has them, are the weather file's.
+    given = {
+        *_EXOGENOUS, *(c for c in SITE_COLUMNS if getattr(series, c) is not None),
+        *(("holiday",) if series.holiday is not None else ()),
+    }
+    exogenous = tuple(c for c in COLUMNS if c in given)  # in the data format's order
+    cols = {c: getattr(series, c) for c in exogenous}
+    cols.update(T_a=rec.t_a_c, G=rec.g_w_per_m2, I_g=rec.i_g_w)
+    trajectory = pd.DataFrame(
+        {
+            "time": exo["time"].iloc[counted].reset_index(drop=True),
+            "T_r": rec.t_r_c[counted],
+            "T_m": rec.t_m_c[counted],
+            "u": rec.u_w[counted],
+            "u_phys": rec.u_phys_w[counted],
+            **{c: cols[c][counted] for c in exogenous},
+            "overridden": rec.overridden[counted].astype(int),
+            "fallback": rec.fallback[counted].astype(int),
+            "decision_ms": rec.decision_s[counted] * 1000.0,
+        }
+    )
+    if scenario.sim.plant.is_energyplus:  # no true mass temperature
+        trajectory = trajectory.drop(columns="T_m")
+    trajectory.attrs["dt_s"] = float(scenario.sim.dt_s)
+    kpis: RunKpis = {
+        **counted_kpis(scenario, run, rec),
+        "controller": label or controller.name,
+        "scenario": scenario.name,
+        "days": days,
+        "seed": seed,
+        "weather_part": weather_part,
+        "counted_days": day_span(trajectory["time"]),
+        "weather_days": day_span(exo["time"]),  # warm-up and forecast lead included
+    }
+    report: TrustReport | None = getattr(controller, "trust_report", None)
+    if isinstance(report, dict):  # a planner over a learned model: how often it fell back
+        kpis.update(report)
+    return ClosedLoopResult(trajectory=trajectory, kpis=kpis, errors=tuple(errors))
+
+
+#: Seconds between two progress lines when stderr is not a terminal (a log file, a pipe).
+PROGRESS_EVERY_S = 60.0
+
+
+def progress_steps(
+    total: int,
+    label: str,
+    progress: bool,
+    *,
+    unit: str = "step",
+    stream: TextIO | None = None,
+    clock: Callable[[], float] = time.monotonic,
+    every_s: float = PROGRESS_EVERY_S,
+) -> Iterable[int]:
+    """``range(total)``, with progress on ``stream`` (default stderr) when ``progress``: a bar
+    after a second on a terminal; otherwise (a log file, a pipe) one line every ``every_s``
+    seconds of ``clock`` with the steps done and an estimate of the time left."""
+    out = sys.stderr if stream is None else stream
+    if not progress:
+        return range(total)
+    if out.isatty():
+        return tqdm(range(total), desc=label, unit=unit, delay=1.0, leave=False, file=out)
+    return _progress_lines(total, label, unit, out, clock, every_s)
+
+
+def duration_text(seconds: float) -> str:
+    """``seconds`` as ``45 s``, ``12 min`` or ``3 h 05 min``."""
+    if seconds < 90:
+        return f"{seconds:.0f} s"
+    minutes = round(seconds / 60)
+    return f"{minutes} min" if minutes < 90 else f"{minutes // 60} h {minutes % 60:02d} min"
+
+
+def _progress_lines(
+    total: int, label: str, unit: str, out: TextIO, clock: Callable[[], float], every_s: float
+) -> Iterator[int]:
+    start = last = clock()
+    for k in range(total):
+        yield k
+        now = clock()
+        if now - last >= every_s and k + 1 < total:
+            last = now
+            done = k + 1
+            left = (now - start) / done * (total - done)
+            print(
+                f"{label}: {done:,} of {total:,} {unit}s ({100 * done / total:.0f} %), "
+                f"{duration_text(now - start)} elapsed, about {duration_text(left)} left",
+                file=out,
+                flush=True,
+            )
+
+
+@contextlib.contextmanager
+def one_torch_thread() -> Iterator[None]:
+    """Planners roll out small tensors: one intra-op thread is fastest on a shared machine."""
+    import torch
+
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(before)
+
+
+def write_trajectory(result: ClosedLoopResult, path: str | Path) -> Path:
+    """The trajectory CSV: the data format's columns, then :data:`EXTRA_COLUMNS`."""
+    return write_timeseries(result.trajectory, path)

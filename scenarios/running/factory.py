@@ -1,0 +1,354 @@
+"""Build any controller by its CLI name for a scenario.
+
+``thermostat`` needs nothing; ``random-shooting`` and ``cem`` plan over a trained model
+(``--model``); ``casadi-mpc`` and ``qp-mpc`` work on an RC parameter set (``--rc``, from
+``pinn-mpc identify`` or ``pinn-mpc export-rc``), and ``qp-mpc`` also on an ARX model
+(``--model`` of ``train --arch arx`` or ``parx``, :mod:`controllers.arx_mpc`); ``oracle`` and ``clairvoyant`` use the
+scenario's true parameters (and the true T_m), as references: the QP MPC composed with the
+true-state estimator (:mod:`controllers.rc_mpc.references`). On a plant of higher order than
+the models (``SimConfig.plant`` 3r3c, :mod:`pinn_mpc.plant`) no 2-state QP has the true model:
+they then plan on the plant's R/C without its envelope node (the 2R2C it reduces to as C_e ->
+0, same steady state) with the true T_r and T_m, so they are strong references there, not
+bounds. With a heat pump they plan on its COP curve at the forecast T_a (exact).
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from controllers.base import Controller
+from pinn_mpc.artifacts import read_rc_json
+from pinn_mpc.errors import InputError, warn
+from pinn_mpc.models.rollout import BatchDynamics
+from pinn_mpc.physics import RCParams, params_from_summary, time_constants_h
+from scenarios.choices import (
+    CONTROLLER_NAMES,
+    MODEL_CONTROLLERS,
+    RC_CONTROLLERS,
+    TRUTH_CONTROLLERS,
+)
+from scenarios.inputs.registry import Scenario
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from controllers.sampling import Guard
+    from pinn_mpc.models.learned import ModelRecord
+
+__all__ = [
+    "CONTROLLER_NAMES",
+    "MODEL_CONTROLLERS",
+    "RC_CONTROLLERS",
+    "TRUTH_CONTROLLERS",
+    "build_controller",
+    "check_model_fits",
+    "check_rc_fits",
+    "make_controller",
+    "model_guard",
+    "weather_range_note",
+]
+
+#: Ranges of the training data's inputs a planner watches (see controllers.trust).
+_WATCHED = ("T_a", "G")
+
+
+
+def _unknown(name: str) -> InputError:
+    return InputError(f"unknown controller {name!r}; choose one of {', '.join(CONTROLLER_NAMES)}")
+
+
+def _record(model: BatchDynamics | None) -> ModelRecord | None:
+    """The training record of a model from ``train`` (None for others, e.g. the RC model)."""
+    from pinn_mpc.models.learned import ModelRecord
+
+    record = getattr(model, "record", None)
+    return record if isinstance(record, ModelRecord) else None
+
+
+def _ranges(record: ModelRecord | None) -> dict[str, tuple[float, float]]:
+    """The training data's ranges of the watched inputs (none without a record)."""
+    summary = record.training_data if record is not None else {}
+    return {
+        name: (float(summary[f"{name}_range"][0]), float(summary[f"{name}_range"][1]))
+        for name in _WATCHED
+        if f"{name}_range" in summary
+    }
+
+
+def model_guard(model: BatchDynamics) -> Guard:
+    """The fallback of a planner over ``model`` (:class:`controllers.sampling.Guard`): the RC
+    identified from its training data, which ``train`` stores in ``model.json``, and the
+    training data's input ranges. Models without them (older, or not from ``train``) get no
+    RC fallback."""
+    from controllers.sampling import Guard
+
+    record = _record(model)
+    rc = None
+    if record is not None and isinstance(record.identified_rc, dict):
+        rc = params_from_summary(record.identified_rc)
+    return Guard(rc=rc, training_ranges=_ranges(record))
+
+
+def check_model_fits(model: BatchDynamics, scenario: Scenario) -> list[str]:
+    """Refuse a model made for another actuator (a heat pump's data has a ``cop`` column) or
+    for a larger one (training power above the scenario's limit); return warnings for a model
+    whose data never came near the scenario's full power or whose identified time constants
+    differ from the scenario's building (where it has true parameters) by more than a factor
+    of 3."""
+    record = _record(model)
+    if record is None:
+        return []
+    rc = record.identified_rc
+    columns = record.training_data.get("columns", [])
+    return _check_fits(
+        "the model", "trained on", "train", scenario,
+        heat_pump_data="cop" in columns if columns else None,
+        power_max_w=float(record.u_phys_range_w[1]),
+        identified=params_from_summary(rc) if isinstance(rc, dict) else None,
+    )
+
+
+def check_rc_fits(path: str | os.PathLike[str], scenario: Scenario) -> list[str]:
+    """:func:`check_model_fits` for an RC JSON (``identify``, ``export-rc``): refused when its
+    data were another actuator's or went above the scenario's power; warnings when they stayed
+    under half of it or its time constants differ from the scenario's building by more than a
+    factor of 3. An RC JSON without the data's power range (written by hand, or before it was
+    recorded) is checked for its time constants only."""
+    params, data = read_rc_json(path)
+    return _rc_fit_notes(Path(path).name, params, data, scenario)
+
+
+def _rc_fit_notes(name: str, params: RCParams, data: Mapping[str, Any], scenario: Scenario) -> list[str]:
+    """:func:`check_rc_fits` of the RC JSON ``name``, already read as ``params`` and ``data``."""
+    power = data.get("power_range_w")
+    hp = data.get("heat_pump_data")
+    return _check_fits(
+        f"the RC of {name}", "identified on", "identify", scenario,
+        heat_pump_data=hp if isinstance(hp, bool) else None,
+        power_max_w=float(power[1]) if isinstance(power, list) and len(power) == 2 else None,
+        identified=params,
+    )
+
+
+def _check_fits(
+    what: str,
+    made: str,
+    command: str,
+    scenario: Scenario,
+    *,
+    heat_pump_data: bool | None,
+    power_max_w: float | None,
+    identified: RCParams | None,
+) -> list[str]:
+    """The checks of :func:`check_model_fits` for ``what`` (``made`` on data; ``command`` makes
+    another): refusals raised, warnings returned."""
+    heat_pump = not scenario.sim.actuator.is_ideal
+    if heat_pump_data and not heat_pump:
+        raise InputError(
+            f"{what} was {made} heat-pump data (a cop column), but scenario "
+            f"{scenario.name!r} has an ideal heater or chiller; {command} on data of this scenario"
+        )
+    notes = []
+    if heat_pump and heat_pump_data is False:
+        notes.append(
+            f"scenario {scenario.name!r} has a heat pump, but {what}'s data had no cop "
+            "column: it sees electrical power only (add the COP per row as a cop column)"
+        )
+    u_max = scenario.sim.u_max_w
+    if power_max_w is not None and power_max_w > 1.05 * u_max:
+        raise InputError(
+            f"{what} was {made} powers up to {power_max_w:.0f} W, but scenario {scenario.name!r}'s "
+            f"actuator gives at most {u_max:.0f} W: it was made for another building; "
+            f"{command} on data of this scenario"
+        )
+    if power_max_w is not None and 0 < power_max_w < 0.5 * u_max:
+        notes.append(
+            f"{what}'s data reach {power_max_w:.0f} W, under half the scenario's {u_max:.0f} W: "
+            "it extrapolates at high power (was it made for this building?)"
+        )
+    # A plant without true parameters (EnergyPlus) has only nominal ones: nothing to compare.
+    if identified is not None and scenario.reference == "oracle":
+        mine = time_constants_h(identified)
+        theirs = time_constants_h(scenario.sim.params)
+        ratio = max(max(a / b, b / a) for a, b in zip(mine, theirs, strict=True))
+        if ratio > 3:
+            notes.append(
+                f"{what}'s data show time constants of {mine[0]:.2g} h and {mine[1]:.2g} h, "
+                f"the scenario's building {theirs[0]:.2g} h and {theirs[1]:.2g} h: "
+                "is it the same building?"
+            )
+    return notes
+
+
+def weather_range_note(model: BatchDynamics | None, trajectory: pd.DataFrame) -> str | None:
+    """How far a run's weather left the model's training data (None when it stayed inside)."""
+    parts = []
+    units = {"T_a": "K", "G": "W/m2"}
+    for name, (lo, hi) in _ranges(_record(model)).items():
+        if name not in trajectory.columns:
+            continue
+        v = trajectory[name].to_numpy(dtype=float)
+        above, below = float(v.max()) - hi, lo - float(v.min())
+        if above > 0:
+            parts.append(f"{name} up to {v.max():.1f}, {above:.1f} {units[name]} above the training data's {hi:.1f}")
+        if below > 0:
+            parts.append(f"{name} down to {v.min():.1f}, {below:.1f} {units[name]} below the training data's {lo:.1f}")
+    if not parts:
+        return None
+    return "the test weather leaves the model's training range: " + "; ".join(parts)
+
+
+def build_controller(
+    name: str,
+    scenario: Scenario,
+    *,
+    model: BatchDynamics | None = None,
+    rc_params: RCParams | None = None,
+    n_steps: int,
+    planner_options: Mapping[str, Any] | None = None,
+) -> Controller:
+    """A controller by its command-line name, from objects already in memory.
+
+    Parameters
+    ----------
+    name
+        One of :data:`scenarios.CONTROLLER_NAMES`.
+    scenario
+        The scenario the controller will run on (its control spec, and the true parameters
+        for ``oracle`` and ``clairvoyant``).
+    model
+        For ``cem`` and ``random-shooting``: a model with the rollout interface, such as a
+        :class:`pinn_mpc.LearnedModel`. For ``qp-mpc``: an ARX model
+        (:class:`pinn_mpc.arx.ARXModel`, :class:`controllers.arx_mpc.ARXQPMPC`) in place
+        of ``rc_params``.
+    rc_params
+        For ``qp-mpc`` and ``casadi-mpc``: the RC parameters they plan on.
+    n_steps
+        The number of counted intervals of the run (used by ``clairvoyant``).
+    planner_options
+        Keyword arguments of ``random-shooting`` / ``cem`` (e.g. samples).
+
+    Returns
+    -------
+    Controller
+        Ready for :func:`scenarios.run_closed_loop`.
+
+    Raises
+    ------
+    InputError
+        An unknown name, a missing model or RC, or one that does not fit the scenario.
+    """
+    spec = scenario.control_spec()
+    options = dict(planner_options or {})
+    if name == "thermostat":
+        from controllers.thermostat import Thermostat
+
+        return Thermostat(spec)
+    if name in MODEL_CONTROLLERS:
+        if model is None:
+            raise InputError(
+                f"controller {name!r} plans over a trained model: add --model MODEL_DIR "
+                "(make one with `pinn-mpc train --data data.csv --out MODEL_DIR`)"
+            )
+        from controllers.sampling import CEM, RandomShooting
+
+        options.setdefault("guard", model_guard(model))
+        planner = RandomShooting if name == "random-shooting" else CEM
+        controller = planner(model, spec, **options)  # checks heating vs cooling and interval
+        for note in check_model_fits(model, scenario):
+            warn(note)
+        return controller
+    if name == "qp-mpc" and model is not None:
+        return _arx_mpc(model, scenario, rc_params)
+    if name in RC_CONTROLLERS:
+        if rc_params is None:
+            also = " or --model ARX_DIR (`pinn-mpc train --arch arx`)" if name == "qp-mpc" else ""
+            raise InputError(
+                f"controller {name!r} needs RC parameters: add --rc rc.json{also} "
+                "(write one with `pinn-mpc identify --data data.csv --out rc.json`)"
+            )
+        if name == "casadi-mpc":
+            from controllers.rc_mpc.casadi import CasadiMPC
+
+            return CasadiMPC(rc_params, spec)
+        from controllers.rc_mpc.osqp import QPMPC
+
+        return QPMPC(rc_params, spec)
+    if name == "oracle":
+        from controllers.rc_mpc.references import oracle_mpc
+
+        return oracle_mpc(scenario.sim.params, spec)
+    if name == "clairvoyant":
+        from controllers.rc_mpc.references import clairvoyant_mpc
+
+        return clairvoyant_mpc(scenario.sim.params, spec, n_steps)
+    raise _unknown(name)
+
+
+def _not_linear() -> InputError:
+    return InputError(
+        "qp-mpc plans on a linear model: an ARX model directory (`pinn-mpc train --arch "
+        "arx` or parx) or RC parameters (--rc); this --model is a learned network: plan "
+        "over it with cem or random-shooting, or write its RC with `pinn-mpc export-rc`"
+    )
+
+
+def _both() -> InputError:
+    return InputError("qp-mpc plans on either RC parameters (--rc) or an ARX model (--model), not both")
+
+
+def _arx_mpc(model: BatchDynamics, scenario: Scenario, rc_params: RCParams | None) -> Controller:
+    """``qp-mpc`` over a model: only a linear one (the ARX) makes its horizon a QP."""
+    from pinn_mpc.arx import ARXModel
+
+    if rc_params is not None:
+        raise _both()
+    if not isinstance(model, ARXModel):
+        raise _not_linear()
+    from controllers.arx_mpc import ARXQPMPC
+
+    return ARXQPMPC(model, scenario.control_spec())
+
+
+def make_controller(
+    name: str,
+    scenario: Scenario,
+    *,
+    model_dir: str | os.PathLike[str] | None = None,
+    rc_path: str | os.PathLike[str] | None = None,
+    n_steps: int,
+) -> Controller:
+    """The controller ``name`` (see :data:`CONTROLLER_NAMES`), reading ``--model`` / ``--rc``.
+
+    A model or RC file given to a controller that does not use it is an error, not ignored.
+    """
+    if name not in CONTROLLER_NAMES:
+        raise _unknown(name)
+    if model_dir is not None and name not in (*MODEL_CONTROLLERS, "qp-mpc"):
+        raise InputError(
+            f"--model is not used by controller {name!r}; "
+            f"only {', '.join(MODEL_CONTROLLERS)} and qp-mpc (an ARX model) take it"
+        )
+    if rc_path is not None and name not in RC_CONTROLLERS:
+        raise InputError(
+            f"--rc is not used by controller {name!r}; only {', '.join(RC_CONTROLLERS)} take it"
+        )
+    if model_dir is not None and rc_path is not None:
+        raise _both()
+    model: BatchDynamics | None = None
+    if model_dir is not None:
+        from pinn_mpc.artifacts import load_model
+        from pinn_mpc.arx import is_arx_directory, load_arx
+
+        if name == "qp-mpc" and not is_arx_directory(model_dir):
+            raise _not_linear()
+        model = load_arx(model_dir) if is_arx_directory(model_dir) else load_model(model_dir)
+    rc_params = None
+    if rc_path is not None:  # read once: the parameters and what the file says of its data
+        rc_params, data = read_rc_json(rc_path)
+        for note in _rc_fit_notes(Path(rc_path).name, rc_params, data, scenario):
+            warn(note)
+    return build_controller(name, scenario, model=model, rc_params=rc_params, n_steps=n_steps)
