@@ -49,7 +49,7 @@ from controllers.thermostat import Thermostat
 from pinn_mpc.physics import RCParams
 from pinn_mpc.simulator import draw_fleet
 from scenarios.fleets.aggregator import learned_fleet_planner
-from scenarios.inputs.registry import get_scenario
+from scenarios.inputs.scenario_file import get_scenario
 from scenarios.running.closed_loop import build_loop, one_torch_thread, prepare_run
 
 SCENARIO, SEED, WARMUP = "winter_household", 13, 30

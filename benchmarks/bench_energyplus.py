@@ -16,7 +16,7 @@ import sys
 import time
 
 from controllers.base import Controller
-from scenarios.inputs.registry import get_scenario
+from scenarios.inputs.scenario_file import get_scenario
 from scenarios.running.closed_loop import run_closed_loop
 from scenarios.running.factory import build_controller
 

@@ -23,7 +23,7 @@ import sys
 import time
 
 from scenarios.fleets.fleet import FleetResult, run_fleet_closed_loop
-from scenarios.inputs.registry import get_scenario
+from scenarios.inputs.scenario_file import get_scenario
 from scenarios.reports.report import format_fleet
 from scenarios.running.closed_loop import one_torch_thread
 

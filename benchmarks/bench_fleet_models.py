@@ -30,7 +30,7 @@ from pinn_mpc import TrainConfig, train_model
 from pinn_mpc.evaluation import evaluate_model
 from pinn_mpc.simulator import draw_fleet
 from scenarios.fleets.training import building_frames, pretrain_and_fine_tune
-from scenarios.inputs.registry import get_scenario
+from scenarios.inputs.scenario_file import get_scenario
 from scenarios.running.datagen import generate
 
 SCENARIO, HORIZON = "winter_household", 24

@@ -42,7 +42,7 @@ import numpy as np
 from controllers.coordination import DualAscent
 from scenarios.fleets.aggregator import cap_in_force, learned_fleet_planner, run_coordinated_fleet
 from scenarios.fleets.reference import fleet_reference
-from scenarios.inputs.registry import get_scenario
+from scenarios.inputs.scenario_file import get_scenario
 from scenarios.running.closed_loop import one_torch_thread
 
 SCENARIO, SEED, WINDOW, SHARE = "winter_household", 13, "17:00-19:00", 0.6

@@ -34,7 +34,7 @@ from pinn_mpc.models.rollout import BatchDynamics
 from pinn_mpc.rc_batch_model import RCBatchModel
 from scenarios.experiments.compare import CompareSettings
 from scenarios.inputs.exogenous import time_of_day_h
-from scenarios.inputs.registry import get_scenario
+from scenarios.inputs.scenario_file import get_scenario
 from scenarios.running.datagen import generate
 
 TARGET_MS = 30.0  # CPU time of a CEM decision (issue 10)

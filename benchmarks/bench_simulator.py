@@ -20,7 +20,7 @@ import numpy as np
 
 from pinn_mpc.physics import RCParams
 from pinn_mpc.simulator import Simulator, draw_fleet
-from scenarios.inputs.registry import get_scenario
+from scenarios.inputs.scenario_file import get_scenario
 
 MIN_SPEEDUP = 100.0
 FLEET_SIZE = 10_000

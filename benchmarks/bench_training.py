@@ -19,7 +19,7 @@ from pinn_mpc.data import validate_timeseries
 from pinn_mpc.evaluation import evaluate_model
 from pinn_mpc.features import time_of_day_h
 from pinn_mpc.training import TrainConfig, train_model
-from scenarios.inputs.registry import get_scenario
+from scenarios.inputs.scenario_file import get_scenario
 from scenarios.running.datagen import generate
 
 

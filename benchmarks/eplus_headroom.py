@@ -27,7 +27,8 @@ import numpy as np
 from pinn_mpc.arx import ARXModel, fit_physics_informed_arx
 from scenarios.experiments.compare import identify_scenario_rc, rc_for_mpc
 from scenarios.inputs.exogenous import TMY3Weather
-from scenarios.inputs.registry import Scenario, get_scenario
+from scenarios.inputs.registry import Scenario
+from scenarios.inputs.scenario_file import get_scenario
 from scenarios.running.closed_loop import one_torch_thread, run_closed_loop
 from scenarios.running.datagen import generate
 from scenarios.running.factory import build_controller

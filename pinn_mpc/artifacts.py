@@ -1,4 +1,5 @@
-"""Model directories: ``weights.safetensors`` (cannot run code on load) + ``model.json``.
+"""Model directories: ``weights.safetensors`` (cannot run code on load) + ``model.json``; and
+the RC files (``rc.json``) that ``identify`` and ``export-rc`` write (:func:`read_rc`).
 
 ``model.json`` holds the architecture, feature config and scaling, the learned physics
 coefficients, ``eta`` (heat per W of actuator power: > 0 the model heats, < 0 it cools), the

@@ -30,8 +30,8 @@ if TYPE_CHECKING:
     from scenarios.fleets.fleet import FleetResult as FleetResult
     from scenarios.fleets.fleet import run_fleet_closed_loop as run_fleet_closed_loop
     from scenarios.inputs.registry import Scenario as Scenario
-    from scenarios.inputs.registry import get_scenario as get_scenario
     from scenarios.inputs.registry import scenario_names as scenario_names
+    from scenarios.inputs.scenario_file import get_scenario as get_scenario
     from scenarios.inputs.series import ExogenousSeries as ExogenousSeries
     from scenarios.records import BuildingKpis as BuildingKpis
     from scenarios.records import CellRecord as CellRecord
@@ -81,7 +81,8 @@ _EXPORTS = {
         "SweepSummary",
     ),
     "scenarios.reports.plots": ("plot_comparison", "plot_trajectory"),
-    "scenarios.inputs.registry": ("Scenario", "get_scenario", "scenario_names"),
+    "scenarios.inputs.registry": ("Scenario", "scenario_names"),
+    "scenarios.inputs.scenario_file": ("get_scenario",),
     "scenarios.reports.report": ("format_fleet", "format_kpis", "kpi_table_text"),
     "scenarios.experiments.reproduce": ("ReproduceConfig", "run_reproduction"),
 }

@@ -30,7 +30,8 @@ from pinn_mpc.io import (
 )
 from scenarios.choices import MODEL_CONTROLLERS
 from scenarios.inputs.exogenous import day_span
-from scenarios.inputs.registry import Scenario, get_scenario
+from scenarios.inputs.registry import Scenario
+from scenarios.inputs.scenario_file import get_scenario
 from scenarios.records import CompareTable, FleetInfo, FleetJson, RunKpis
 from scenarios.reports.report import (
     format_fleet,

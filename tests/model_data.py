@@ -12,7 +12,7 @@ import functools
 import pandas as pd
 
 from pinn_mpc.data import validate_timeseries
-from scenarios.inputs.registry import get_scenario
+from scenarios.inputs.scenario_file import get_scenario
 from scenarios.running.datagen import generate
 
 

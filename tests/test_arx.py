@@ -297,7 +297,7 @@ def test_polish_linearises_the_physics_informed_arx_exactly_by_probing_every_ste
     from controllers.sampling import CEM
     from pinn_mpc.arx import fit_physics_informed_arx
     from pinn_mpc.features import time_of_day_h
-    from scenarios.inputs.registry import get_scenario
+    from scenarios.inputs.scenario_file import get_scenario
 
     data = _occupied_data(28, seed=0)
     model = fit_physics_informed_arx(data, lags=1)

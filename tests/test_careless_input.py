@@ -30,8 +30,12 @@ from scenarios import budget
 from scenarios.commands import fleet_params_path
 from scenarios.experiments.sweep import Cell, _label, _read_cell, scenario_digest
 from scenarios.fleets.training import building_model_dir, frame_digest, train_per_building
-from scenarios.inputs.registry import get_scenario
-from scenarios.inputs.scenario_file import load_scenario_file, scenario_inputs, scenario_to_toml
+from scenarios.inputs.scenario_file import (
+    get_scenario,
+    load_scenario_file,
+    scenario_inputs,
+    scenario_to_toml,
+)
 from scenarios.plants.energyplus.files import (
     bundled_buildings,
     bundled_weather,

@@ -113,7 +113,7 @@ def test_model_that_does_not_fit_the_scenario_is_refused(
 def test_cooling_model_runs_on_the_cooling_scenario(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    from scenarios.inputs.registry import get_scenario
+    from scenarios.inputs.scenario_file import get_scenario
     from scenarios.running.datagen import generate
 
     write_timeseries(generate(get_scenario("cold_storage"), days=3, seed=0, policy="random"),

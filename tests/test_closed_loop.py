@@ -11,7 +11,7 @@ from controllers.base import Controller, Forecast, Observation, SolveStats, fall
 from controllers.thermostat import Thermostat
 from pinn_mpc.data import read_timeseries
 from pinn_mpc_cli.cli import main
-from scenarios.inputs.registry import get_scenario
+from scenarios.inputs.scenario_file import get_scenario
 from scenarios.inputs.series import ForecastErrors
 from scenarios.running.closed_loop import EXTRA_COLUMNS, run_closed_loop
 from scenarios.running.factory import (

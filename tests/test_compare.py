@@ -9,7 +9,7 @@ from pinn_mpc.errors import InputError
 from pinn_mpc.physics import PAPER_HOUSEHOLD, rc_summary
 from pinn_mpc_cli.cli import main
 from scenarios.experiments.compare import CompareSettings
-from scenarios.inputs.registry import get_scenario
+from scenarios.inputs.scenario_file import get_scenario
 from scenarios.records import CompareTable
 from scenarios.reports.report import kpi_table_text, objective_ratios, render_report
 from scenarios.running.kpis import KPI_KEYS

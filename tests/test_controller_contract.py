@@ -6,7 +6,7 @@ import pytest
 
 from controllers.base import Controller
 from pinn_mpc.rc_batch_model import RCBatchModel
-from scenarios.inputs.registry import get_scenario
+from scenarios.inputs.scenario_file import get_scenario
 from scenarios.inputs.series import ExogenousSeries
 from scenarios.running.engine import ClosedLoop
 from scenarios.running.factory import (

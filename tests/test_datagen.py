@@ -9,7 +9,7 @@ from controllers.thermostat import Thermostat
 from pinn_mpc.data import validate_timeseries
 from pinn_mpc.errors import InputError
 from pinn_mpc.simulator import Simulator
-from scenarios.inputs.registry import get_scenario
+from scenarios.inputs.scenario_file import get_scenario
 from scenarios.running.datagen import generate
 
 

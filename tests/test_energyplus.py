@@ -15,7 +15,7 @@ pytest.importorskip("pyenergyplus.api")
 
 from controllers.thermostat import Thermostat  # noqa: E402
 from pinn_mpc.errors import InputError  # noqa: E402
-from scenarios.inputs.registry import get_scenario  # noqa: E402
+from scenarios.inputs.scenario_file import get_scenario  # noqa: E402
 from scenarios.plants.energyplus.files import resolve_building
 from scenarios.plants.energyplus.model import _read_model, prepare_model
 from scenarios.plants.energyplus.run import EnergyPlusRun

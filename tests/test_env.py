@@ -8,7 +8,7 @@ from gymnasium.utils.env_checker import check_env
 
 from pinn_mpc.errors import InputError
 from pinn_mpc.simulator import Simulator
-from scenarios.inputs.registry import get_scenario
+from scenarios.inputs.scenario_file import get_scenario
 from scenarios.running.gym_env import OBSERVATION_NAMES, BuildingEnv
 
 

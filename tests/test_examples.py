@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from pinn_mpc.physics import params_from_summary
-from scenarios.inputs.registry import get_scenario
+from scenarios.inputs.scenario_file import get_scenario
 from scenarios.running.kpis import KPI_KEYS
 
 ROOT = Path(__file__).resolve().parents[1]

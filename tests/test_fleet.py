@@ -16,7 +16,7 @@ from pinn_mpc.simulator import (
     draw_fleet,
     fleet_matrices,
 )
-from scenarios.inputs.registry import get_scenario
+from scenarios.inputs.scenario_file import get_scenario
 
 
 def reference_interval(x, u, t_a, g, i_g, config, params):

@@ -23,7 +23,7 @@ from pinn_mpc import TrainConfig
 from pinn_mpc.simulator import draw_fleet
 from scenarios.fleets.aggregator import cap_in_force, learned_fleet_planner, run_coordinated_fleet
 from scenarios.fleets.training import building_frames, load_fleet_models, train_per_building
-from scenarios.inputs.registry import get_scenario
+from scenarios.inputs.scenario_file import get_scenario
 from scenarios.running.closed_loop import one_torch_thread
 from scenarios.running.datagen import generate
 

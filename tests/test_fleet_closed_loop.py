@@ -11,7 +11,7 @@ from controllers.thermostat import Thermostat
 from pinn_mpc.errors import InputError
 from pinn_mpc_cli.cli import main
 from scenarios.fleets.fleet import FLEET_TOTAL_KEYS, run_fleet_closed_loop
-from scenarios.inputs.registry import get_scenario
+from scenarios.inputs.scenario_file import get_scenario
 from scenarios.inputs.series import ForecastErrors
 from scenarios.running.closed_loop import build_loop, prepare_run, run_closed_loop
 from scenarios.running.factory import build_controller

@@ -21,7 +21,7 @@ from scenarios.fleets.aggregator import (
     run_coordinated_fleet,
 )
 from scenarios.fleets.fleet import district_kpis
-from scenarios.inputs.registry import get_scenario
+from scenarios.inputs.scenario_file import get_scenario
 from scenarios.running.closed_loop import build_loop, prepare_run
 
 #: A test day of winter_household with heating demand (2023-02-12, -1.7 .. 4.3 C).

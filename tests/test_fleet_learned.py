@@ -13,7 +13,7 @@ from pinn_mpc.errors import InputError
 from pinn_mpc.fleet_rollout import FEW_PLANS, FleetHybrid
 from pinn_mpc.simulator import draw_fleet
 from scenarios.fleets.aggregator import cap_in_force, learned_fleet_planner, run_coordinated_fleet
-from scenarios.inputs.registry import get_scenario
+from scenarios.inputs.scenario_file import get_scenario
 from scenarios.running.closed_loop import build_loop, prepare_run
 from scenarios.running.datagen import generate
 

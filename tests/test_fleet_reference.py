@@ -14,7 +14,7 @@ from controllers.rc_mpc.problem import DEFAULT_REGULARISATION
 from pinn_mpc.physics import discretise
 from pinn_mpc.simulator import draw_fleet, fleet_matrices
 from scenarios.fleets.reference import fleet_reference, solve_fleet_reference
-from scenarios.inputs.registry import get_scenario
+from scenarios.inputs.scenario_file import get_scenario
 from scenarios.running.closed_loop import build_loop, prepare_run
 
 COLD_SEED = 13  # winter_household's test day 2023-02-12: heating all day

@@ -24,7 +24,7 @@ from scenarios.fleets.training import (
     pretrain_and_fine_tune,
     train_per_building,
 )
-from scenarios.inputs.registry import get_scenario
+from scenarios.inputs.scenario_file import get_scenario
 from scenarios.running.datagen import generate
 
 TINY = TrainConfig(n_seeds=2, epochs=2, u_max_w=10000.0)

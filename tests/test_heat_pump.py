@@ -12,7 +12,7 @@ from pinn_mpc.actuator import Actuator
 from pinn_mpc.errors import InputError
 from pinn_mpc.rc_batch_model import RCBatchModel
 from pinn_mpc.simulator import SimConfig, Simulator, backup_power, draw_fleet
-from scenarios.inputs.registry import get_scenario
+from scenarios.inputs.scenario_file import get_scenario
 from scenarios.running.closed_loop import run_closed_loop
 from scenarios.running.factory import build_controller
 

@@ -146,7 +146,7 @@ def test_rejects_unexcited_data(solar_frame: pd.DataFrame) -> None:
 
 @pytest.mark.slow
 def test_winter_household_sixty_days_of_random_policy() -> None:
-    from scenarios.inputs.registry import get_scenario
+    from scenarios.inputs.scenario_file import get_scenario
     from scenarios.running.datagen import generate
 
     scenario = get_scenario("winter_household")

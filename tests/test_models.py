@@ -181,7 +181,7 @@ def test_one_step_predictions_have_member_axis(small_model: LearnedModel) -> Non
 
 def _winter_data(days: int, seed: int):
     from pinn_mpc.data import validate_timeseries
-    from scenarios.inputs.registry import get_scenario
+    from scenarios.inputs.scenario_file import get_scenario
     from scenarios.running.datagen import generate
 
     scenario = get_scenario("winter_household")

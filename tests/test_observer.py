@@ -139,7 +139,7 @@ def test_fleet_estimator_is_each_buildings_kalman_estimator(scenario_name: str) 
     from controllers.base import LastInterval, Observation
     from controllers.estimators import FleetKalmanEstimator, KalmanEstimator
     from pinn_mpc.simulator import draw_fleet, fleet_matrices
-    from scenarios.inputs.registry import get_scenario
+    from scenarios.inputs.scenario_file import get_scenario
 
     scenario = get_scenario(scenario_name)
     spec = scenario.control_spec()

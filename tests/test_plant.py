@@ -9,7 +9,7 @@ from pinn_mpc import physics
 from pinn_mpc.errors import InputError
 from pinn_mpc.plant import Plant, plant_matrices
 from pinn_mpc.simulator import SimConfig, Simulator
-from scenarios.inputs.registry import get_scenario
+from scenarios.inputs.scenario_file import get_scenario
 from scenarios.running.closed_loop import run_closed_loop
 from scenarios.running.factory import build_controller
 

@@ -12,7 +12,7 @@ from matplotlib.axes import Axes
 from matplotlib.collections import PolyCollection
 
 from pinn_mpc.rc_batch_model import RCBatchModel
-from scenarios.inputs.registry import get_scenario
+from scenarios.inputs.scenario_file import get_scenario
 from scenarios.reports.plots import (
     FAMILIES,
     comparison_figure,

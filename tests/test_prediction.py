@@ -7,7 +7,7 @@ import pytest
 
 from pinn_mpc.actuator import Actuator
 from scenarios.experiments.prediction import prediction_errors, rc_recursive_t_r
-from scenarios.inputs.registry import get_scenario
+from scenarios.inputs.scenario_file import get_scenario
 from scenarios.running.datagen import generate
 
 

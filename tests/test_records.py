@@ -20,7 +20,7 @@ import pytest
 
 from pinn_mpc.records import EvaluationMetrics, RcSummary, TrustReport
 from pinn_mpc_cli.cli import main
-from scenarios.inputs.registry import get_scenario
+from scenarios.inputs.scenario_file import get_scenario
 from scenarios.records import (
     BuildingKpis,
     CapAccount,

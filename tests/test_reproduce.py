@@ -20,7 +20,7 @@ from scenarios.experiments.reproduce import (
     run_reproduction,
     validation_table,
 )
-from scenarios.inputs.registry import get_scenario
+from scenarios.inputs.scenario_file import get_scenario
 from scenarios.running.datagen import generate
 
 TINY = ReproduceConfig(

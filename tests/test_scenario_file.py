@@ -14,8 +14,8 @@ from pinn_mpc.errors import InputError
 from pinn_mpc_cli.cli import main
 from scenarios.inputs.exogenous import load_tmy3
 from scenarios.inputs.measured import CSVWeather, PriceCSV
-from scenarios.inputs.registry import get_scenario, scenario_names
-from scenarios.inputs.scenario_file import load_scenario_file, scenario_to_toml
+from scenarios.inputs.registry import scenario_names
+from scenarios.inputs.scenario_file import get_scenario, load_scenario_file, scenario_to_toml
 from scenarios.inputs.series import ForecastErrors
 
 TIME_KEYS = {"decision_ms_median", "decision_ms_mean", "decision_ms_p95", "time_ratio"}

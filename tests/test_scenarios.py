@@ -13,7 +13,8 @@ from scenarios.inputs.exogenous import (
     resample_typical_year,
     time_of_day_h,
 )
-from scenarios.inputs.registry import EXOGENOUS_COLUMNS, get_scenario, scenario_names
+from scenarios.inputs.registry import EXOGENOUS_COLUMNS, scenario_names
+from scenarios.inputs.scenario_file import get_scenario
 
 NAMES = ("paper_household", "winter_household", "cold_storage")
 

@@ -14,7 +14,8 @@ from pinn_mpc.arx import MEASURED_INPUTS, fit_arx, fit_physics_informed_arx
 from pinn_mpc.errors import InputError
 from pinn_mpc.simulator import SimConfig
 from pinn_mpc.solar import FACADE_COLUMNS, facade_irradiance, interval_means
-from scenarios.inputs.registry import EXOGENOUS_COLUMNS, get_scenario
+from scenarios.inputs.registry import EXOGENOUS_COLUMNS
+from scenarios.inputs.scenario_file import get_scenario
 from scenarios.inputs.series import ExogenousSeries, ForecastErrors
 from scenarios.running.engine import ClosedLoop
 

@@ -281,7 +281,7 @@ def test_sweep_trains_on_each_scenarios_own_data_policy(tmp_path):
     simulate and compare use), not one policy for all; an explicit policy still applies to all."""
     from scenarios.experiments.compare import identify_scenario_rc
     from scenarios.experiments.sweep import RC_KIND, ModelKey, SweepSettings, fit_model
-    from scenarios.inputs.registry import get_scenario
+    from scenarios.inputs.scenario_file import get_scenario
     from scenarios.running.datagen import generate
 
     text = Path(_export(tmp_path)).read_text().replace(

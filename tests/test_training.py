@@ -122,7 +122,7 @@ def test_hybrid_export_stays_physical(scenario_name: str) -> None:
     solar aperture within 10 % of the truth (PhysNet's drifted by up to 53 % on these), and
     its one-step T_r error is no worse than 0.1 C on other days."""
     from pinn_mpc.data import validate_timeseries
-    from scenarios.inputs.registry import get_scenario
+    from scenarios.inputs.scenario_file import get_scenario
     from scenarios.running.datagen import generate
 
     scenario = get_scenario(scenario_name)

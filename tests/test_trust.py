@@ -16,7 +16,7 @@ from pinn_mpc.actuator import Actuator, CopCurve
 from pinn_mpc.errors import InputError
 from pinn_mpc.identify import identify_rc
 from pinn_mpc.training import TrainConfig, data_warnings, train_model
-from scenarios.inputs.registry import get_scenario
+from scenarios.inputs.scenario_file import get_scenario
 from scenarios.running.closed_loop import run_closed_loop
 from scenarios.running.datagen import generate
 from scenarios.running.factory import build_controller, check_model_fits, model_guard

@@ -18,7 +18,8 @@ from scenarios.choices import WEATHER_PARTS
 from scenarios.experiments.compare import CompareSettings
 from scenarios.experiments.reproduce import ReproduceConfig
 from scenarios.inputs.exogenous import BASE_YEAR, TMY3Weather
-from scenarios.inputs.registry import get_scenario, scenario_names
+from scenarios.inputs.registry import scenario_names
+from scenarios.inputs.scenario_file import get_scenario
 
 SEEDS = range(10)
 TMY3_SCENARIOS = ("winter_household", "cold_storage")

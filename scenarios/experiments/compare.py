@@ -41,7 +41,7 @@ from __future__ import annotations
 import dataclasses
 import time
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import pandas as pd
 from tqdm import tqdm
@@ -59,6 +59,10 @@ from scenarios.records import CompareRow, PredictionRow
 from scenarios.reports.report import objective_ratios
 from scenarios.running.closed_loop import one_torch_thread, run_closed_loop
 from scenarios.running.factory import build_controller, weather_range_note
+
+if TYPE_CHECKING:
+    from pinn_mpc.arx import ARXModel
+    from pinn_mpc.models.learned import LearnedModel
 
 __all__ = [
     "ARCHS",
@@ -247,30 +251,7 @@ def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonR
     wall["prediction"] = time.perf_counter() - start
 
     n_steps = settings.test_days * scenario.steps_per_day
-    shooting = {"n_samples": settings.shooting_samples}
-    cem = {"n_samples": settings.cem_samples, "n_iters": settings.cem_iters}
-    # (controller name, what it runs on, keyword arguments of build_controller)
-    plan: list[tuple[str, str, dict[str, Any]]] = [
-        ("thermostat", "-", {}),
-        ("random-shooting", DEFAULT_ARCH, {"model": best, "planner_options": shooting}),
-        (
-            "cem",
-            f"{DEFAULT_ARCH}, no LP polish",
-            {"model": best, "planner_options": {**cem, "polish_iters": 0}},
-        ),
-        *(
-            ("cem", arch, {"model": model, "planner_options": cem})
-            for arch, model in models.items()
-        ),
-        ("cem", ARX.label, {"model": arx, "planner_options": cem}),
-        ("cem", PHYSICS_ARX.label, {"model": parx, "planner_options": cem}),
-        ("casadi-mpc", "identified RC", {"rc_params": rc_params["identified RC"]}),
-        ("qp-mpc", "identified RC", {"rc_params": rc_params["identified RC"]}),
-        *(("qp-mpc", f"{arch} RC", {"rc_params": rc_params[f"{arch} RC"]}) for arch in ARCHS[:2]),
-        ("qp-mpc", ARX.label, {"model": arx}),
-        ("qp-mpc", PHYSICS_ARX.label, {"model": parx}),
-        *((("oracle", "true", {}), ("clairvoyant", "true", {})) if has_truth else ()),
-    ]
+    plan = _controller_plan(settings, models, best, arx, parx, rc_params, has_truth=has_truth)
     rows: list[CompareRow] = []
     trajectories: dict[str, pd.DataFrame] = {}
     errors: dict[str, tuple[str, ...]] = {}
@@ -298,17 +279,7 @@ def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonR
             row["objective_to_oracle"] = ratio
         else:
             row["objective_to_thermostat"] = ratio
-    notes = []
-    note = weather_range_note(best, trajectories[rows[0]["controller"]])
-    if note is not None:
-        notes.append(note)
-    for row in rows:
-        if row.get("model_fallback_steps"):
-            notes.append(
-                f"{row['controller']}: the RC MPC fallback made {row['model_fallback_steps']} "
-                f"decisions ({row['model_fallback_switches']} switch(es): "
-                f"{row['model_fallback_reasons']})"
-            )
+    notes = _notes(rows, weather_range_note(best, trajectories[rows[0]["controller"]]))
     days = {
         "training": day_span(data["time"]),
         "test": rows[0]["counted_days"],
@@ -324,6 +295,59 @@ def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonR
         prediction=prediction,
         notes=tuple(notes),
     )
+
+
+def _controller_plan(
+    settings: CompareSettings,
+    models: dict[str, LearnedModel],
+    best: LearnedModel,
+    arx: ARXModel,
+    parx: ARXModel,
+    rc_params: dict[str, RCParams],
+    *,
+    has_truth: bool,
+) -> list[tuple[str, str, dict[str, Any]]]:
+    """Every closed loop of a comparison: (controller name, what it runs on, keyword arguments
+    of build_controller), in the table's order."""
+    shooting = {"n_samples": settings.shooting_samples}
+    cem = {"n_samples": settings.cem_samples, "n_iters": settings.cem_iters}
+    return [
+        ("thermostat", "-", {}),
+        ("random-shooting", DEFAULT_ARCH, {"model": best, "planner_options": shooting}),
+        (
+            "cem",
+            f"{DEFAULT_ARCH}, no LP polish",
+            {"model": best, "planner_options": {**cem, "polish_iters": 0}},
+        ),
+        *(
+            ("cem", arch, {"model": model, "planner_options": cem})
+            for arch, model in models.items()
+        ),
+        ("cem", ARX.label, {"model": arx, "planner_options": cem}),
+        ("cem", PHYSICS_ARX.label, {"model": parx, "planner_options": cem}),
+        ("casadi-mpc", "identified RC", {"rc_params": rc_params["identified RC"]}),
+        ("qp-mpc", "identified RC", {"rc_params": rc_params["identified RC"]}),
+        *(("qp-mpc", f"{arch} RC", {"rc_params": rc_params[f"{arch} RC"]}) for arch in ARCHS[:2]),
+        ("qp-mpc", ARX.label, {"model": arx}),
+        ("qp-mpc", PHYSICS_ARX.label, {"model": parx}),
+        *((("oracle", "true", {}), ("clairvoyant", "true", {})) if has_truth else ()),
+    ]
+
+
+def _notes(rows: list[CompareRow], weather_note: str | None) -> list[str]:
+    """The comparison's notes: the weather outside the training range, and every RC MPC
+    fallback of a planner over a learned model."""
+    notes = []
+    if weather_note is not None:
+        notes.append(weather_note)
+    for row in rows:
+        if row.get("model_fallback_steps"):
+            notes.append(
+                f"{row['controller']}: the RC MPC fallback made {row['model_fallback_steps']} "
+                f"decisions ({row['model_fallback_switches']} switch(es): "
+                f"{row['model_fallback_reasons']})"
+            )
+    return notes
 
 
 def identify_scenario_rc(scenario: Scenario, data: pd.DataFrame) -> RCParams:

@@ -50,7 +50,8 @@ from pinn_mpc.errors import InputError
 from pinn_mpc.io import atomic_write_json, atomic_write_text, setting_changes
 from pinn_mpc.physics import RCParams, params_from_summary, rc_summary
 from scenarios.choices import TRUTH_CONTROLLERS
-from scenarios.inputs.registry import get_scenario, is_scenario_file
+from scenarios.inputs.registry import is_scenario_file
+from scenarios.inputs.scenario_file import get_scenario
 from scenarios.records import (
     CellKey,
     CellRecord,
@@ -517,6 +518,38 @@ class SweepOutcome:
     figure_path: Path
 
 
+def _check_out(root: Path, *, force: bool) -> None:
+    """Refuse an ``--out`` that is a file, or a directory of something else than a sweep
+    (unless ``force``)."""
+    if root.exists() and not root.is_dir():
+        raise InputError(f"sweep: --out {root} is a file; give a directory")
+    if root.is_dir() and not force and not (root / "sweep.json").is_file():
+        foreign = sorted(p.name + ("/" if p.is_dir() else "") for p in root.iterdir())
+        if foreign:
+            shown = ", ".join(foreign[:5]) + (", ..." if len(foreign) > 5 else "")
+            raise InputError(
+                f"sweep: --out {root} already holds {shown} and is not a sweep directory (no "
+                "sweep.json); give a new or empty directory, or add --force to write the sweep's "
+                "files there (nothing else in it is touched)"
+            )
+
+
+def _progress_line(done: float, total: int, reused: int, trained: int, elapsed_s: float) -> str:
+    """The sweep's progress in a log: cells done of ``total``, models trained, time left."""
+    from scenarios.running.closed_loop import duration_text
+
+    run_now = done - reused
+    left = (
+        f"about {duration_text(elapsed_s / run_now * (total - done))} left"
+        if run_now
+        else "no cell finished yet"
+    )
+    return (
+        f"sweep: {done} of {total} cells ({reused} reused), {trained} model(s) "
+        f"trained, {duration_text(elapsed_s)} elapsed, {left}"
+    )
+
+
 def run_sweep(
     grid: SweepGrid,
     settings: SweepSettings,
@@ -541,17 +574,7 @@ def run_sweep(
     check_engine_options(address, workers)
     start = time.perf_counter()
     root = Path(out)
-    if root.exists() and not root.is_dir():
-        raise InputError(f"sweep: --out {root} is a file; give a directory")
-    if root.is_dir() and not force and not (root / "sweep.json").is_file():
-        foreign = sorted(p.name + ("/" if p.is_dir() else "") for p in root.iterdir())
-        if foreign:
-            shown = ", ".join(foreign[:5]) + (", ..." if len(foreign) > 5 else "")
-            raise InputError(
-                f"sweep: --out {root} already holds {shown} and is not a sweep directory (no "
-                "sweep.json); give a new or empty directory, or add --force to write the sweep's "
-                "files there (nothing else in it is touched)"
-            )
+    _check_out(root, force=force)
     _check_settings(root, settings)
     cells = grid.cells()
     records = {c: _read_cell(root / "cells" / f"{c.name}.json", c) for c in cells}
@@ -580,7 +603,7 @@ def run_sweep(
             needed = _model_key(cell, settings)
             ref = task.remote(run_cell, cell, settings, model_refs.get(needed) if needed else None)
             pending[ref] = ("cell", cell)
-        from scenarios.running.closed_loop import PROGRESS_EVERY_S, duration_text
+        from scenarios.running.closed_loop import PROGRESS_EVERY_S
 
         terminal = sys.stderr.isatty()
         began = last = time.monotonic()
@@ -589,15 +612,8 @@ def run_sweep(
                 now = time.monotonic()
                 if not terminal and now - last >= PROGRESS_EVERY_S:  # a log: a line a minute
                     last = now
-                    run_now = bar.n - reused
-                    left = (
-                        f"about {duration_text((now - began) / run_now * (len(cells) - bar.n))} left"
-                        if run_now
-                        else "no cell finished yet"
-                    )
                     print(
-                        f"sweep: {bar.n} of {len(cells)} cells ({reused} reused), {trained} model(s) "
-                        f"trained, {duration_text(now - began)} elapsed, {left}",
+                        _progress_line(bar.n, len(cells), reused, trained, now - began),
                         file=sys.stderr,
                         flush=True,
                     )

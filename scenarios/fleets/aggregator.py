@@ -137,6 +137,18 @@ def _qp_factory(fleet: Sequence[RCParams], spec: ControlSpec) -> FleetPlanner:
     return FleetQPMPC(fleet, spec)
 
 
+def _planner_factory(planner: str | FleetPlannerFactory) -> FleetPlannerFactory:
+    """The factory of a batched fleet's planner: a given one, or each building's qp-mpc."""
+    if not isinstance(planner, str):
+        return planner
+    if planner != "qp-mpc":
+        raise InputError(
+            f"a batched fleet without models plans with qp-mpc, got {planner!r}; cem needs "
+            "each building's learned model (--model DIR)"
+        )
+    return _qp_factory
+
+
 def run_coordinated_fleet(
     scenario: Scenario,
     planner: str | FleetPlannerFactory = "qp-mpc",
@@ -170,15 +182,7 @@ def run_coordinated_fleet(
     if cap_kw is None and cap_window is not None:
         raise InputError("--cap-window needs --cap-kw (the cap in that window)")
     window = parse_cap_window(cap_window) if cap_window is not None else None
-    if isinstance(planner, str):
-        if planner != "qp-mpc":
-            raise InputError(
-                f"a batched fleet without models plans with qp-mpc, got {planner!r}; cem needs "
-                "each building's learned model (--model DIR)"
-            )
-        factory: FleetPlannerFactory = _qp_factory
-    else:
-        factory = planner
+    factory = _planner_factory(planner)
     if fleet is None:
         fleet = draw_fleet(
             scenario.sim.params, n_buildings, spread=spread, rng=np.random.default_rng([seed, FLEET_STREAM])

@@ -55,7 +55,8 @@ __all__ = [
     "INITIAL_TEMPERATURE_RANGE_C",
     "Scenario",
     "check_seed",
-    "get_scenario",
+    "builtin_scenario",
+    "is_scenario_file",
     "scenario_names",
 ]
 
@@ -552,38 +553,9 @@ def is_scenario_file(name_or_path: str) -> bool:
     return name_or_path.lower().endswith(".toml") or "/" in name_or_path or os.sep in name_or_path
 
 
-def get_scenario(name_or_path: str) -> Scenario:
-    """A built-in scenario by name, or a scenario file: the one resolver behind every
-    ``--scenario``.
-
-    Parameters
-    ----------
-    name_or_path
-        A built-in name (:func:`scenarios.scenario_names`) or the path of a ``.toml`` scenario
-        file (see :mod:`scenarios.inputs.scenario_file`).
-
-    Returns
-    -------
-    Scenario
-
-    Raises
-    ------
-    InputError
-        An unknown name (the message lists the valid ones); a bad file (the message names
-        the file and the key).
-    """
-    if name_or_path in _SCENARIOS:
-        return _SCENARIOS[name_or_path]
-    if is_scenario_file(name_or_path):
-        from scenarios.inputs.scenario_file import load_scenario_file  # it imports this module
-
-        return load_scenario_file(name_or_path)
-    if os.path.isfile(name_or_path):
-        raise InputError(
-            f"{name_or_path!r} is a file, but scenario files end in .toml (without it the name "
-            f"is taken for a built-in); rename it {name_or_path}.toml"
-        )
-    raise InputError(
-        f"unknown scenario {name_or_path!r}; choose one of: {', '.join(scenario_names())}, or give "
-        "a scenario file (.toml; write one with `pinn-mpc scenario export NAME --out FILE.toml`)"
-    )
+def builtin_scenario(name: str) -> Scenario:
+    """The built-in scenario ``name`` (one of :func:`scenario_names`; a name or a file:
+    :func:`scenarios.inputs.scenario_file.get_scenario`)."""
+    if name not in _SCENARIOS:
+        raise InputError(f"unknown built-in scenario {name!r}; choose one of: {', '.join(scenario_names())}")
+    return _SCENARIOS[name]

@@ -41,11 +41,21 @@ import tomlkit
 
 from pinn_mpc.errors import InputError
 from pinn_mpc.physics import PLAUSIBLE_RANGES
-from scenarios.inputs.registry import Scenario
+from scenarios.inputs.registry import (
+    ENERGYPLUS_DATA_POLICY,
+    EPLUS_NOMINAL,
+    Scenario,
+    builtin_scenario,
+    eplus_weather,
+    is_scenario_file,
+    scenario_names,
+    with_sized_heater,
+)
 
 __all__ = [
     "SECTIONS",
     "defaulted_keys",
+    "get_scenario",
     "load_scenario_file",
     "read_toml",
     "scenario_command",
@@ -327,7 +337,6 @@ def _energyplus_defaults(data: dict[str, Any], base: Path) -> None:
     if not (isinstance(plant, dict) and plant.get("kind") == "energyplus"):
         return
     from pinn_mpc.simulator import MAX_ACTUATOR_W
-    from scenarios.inputs.registry import ENERGYPLUS_DATA_POLICY, EPLUS_NOMINAL, eplus_weather
     from scenarios.plants.energyplus.files import resolve_building, resolve_weather
 
     building = data.setdefault("building", EPLUS_NOMINAL.to_dict())
@@ -421,7 +430,6 @@ def scenario_from_dict(data: dict[str, Any], *, base: Path, default_name: str) -
             del internal[section]
     scenario = typing.cast(Scenario, _build(Scenario, internal, "", base))
     if scenario.sim.plant.is_energyplus and scenario.sim.plant.heater_w == "auto":
-        from scenarios.inputs.registry import with_sized_heater
 
         given = data.get("simulation", {}).get("u_max_w")
         scenario = with_sized_heater(scenario, given_u_max_w=given)
@@ -462,7 +470,6 @@ def _warn_implausible(scenario: Scenario, source: Path) -> None:
     temperature is mostly above its comfort band (Fahrenheit?)."""
     from pinn_mpc.errors import warn_once
     from scenarios.inputs.measured import CSVWeather
-    from scenarios.inputs.registry import get_scenario, scenario_names
 
     if scenario.name in scenario_names():
         builtin = get_scenario(scenario.name)
@@ -512,7 +519,6 @@ def scenario_inputs(name_or_path: str) -> dict[str, Path]:
     epJSON, an EPW); for a built-in name, none. Commands protect them as inputs (no output
     may replace them)."""
     from scenarios.inputs.exogenous import tmy3_path
-    from scenarios.inputs.registry import get_scenario, is_scenario_file
 
     if not is_scenario_file(name_or_path):
         return {}
@@ -541,8 +547,6 @@ def scenario_inputs(name_or_path: str) -> dict[str, Path]:
 def scenario_list() -> str:
     """One line per built-in scenario: its name and description (which ends with its weather
     split)."""
-    from scenarios.inputs.registry import get_scenario, scenario_names
-
     return "\n".join(f"{name}: {get_scenario(name).description}" for name in scenario_names())
 
 
@@ -552,7 +556,6 @@ def scenario_command(
     """``pinn-mpc scenario list | show NAME | export NAME --out FILE.toml [--force]``: an
     existing ``--out`` is replaced only with ``force``, and never when the scenario reads it."""
     from pinn_mpc.io import atomic_write_text, check_distinct, check_writable
-    from scenarios.inputs.registry import get_scenario, is_scenario_file
 
     if action == "list":
         return scenario_list()
@@ -587,3 +590,38 @@ def scenario_command(
     text = scenario_to_toml(get_scenario(name))
     atomic_write_text(out, text)
     return f"wrote {out}"
+
+
+def get_scenario(name_or_path: str) -> Scenario:
+    """A built-in scenario by name, or a scenario file: the one resolver behind every
+    ``--scenario``.
+
+    Parameters
+    ----------
+    name_or_path
+        A built-in name (:func:`scenarios.scenario_names`) or the path of a ``.toml`` scenario
+        file (see :mod:`scenarios.inputs.scenario_file`).
+
+    Returns
+    -------
+    Scenario
+
+    Raises
+    ------
+    InputError
+        An unknown name (the message lists the valid ones); a bad file (the message names
+        the file and the key).
+    """
+    if name_or_path in scenario_names():
+        return builtin_scenario(name_or_path)
+    if is_scenario_file(name_or_path):
+        return load_scenario_file(name_or_path)
+    if os.path.isfile(name_or_path):
+        raise InputError(
+            f"{name_or_path!r} is a file, but scenario files end in .toml (without it the name "
+            f"is taken for a built-in); rename it {name_or_path}.toml"
+        )
+    raise InputError(
+        f"unknown scenario {name_or_path!r}; choose one of: {', '.join(scenario_names())}, or give "
+        "a scenario file (.toml; write one with `pinn-mpc scenario export NAME --out FILE.toml`)"
+    )

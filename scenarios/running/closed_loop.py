@@ -54,6 +54,7 @@ __all__ = [
     "prepare_run",
     "progress_steps",
     "run_closed_loop",
+    "run_trajectory",
     "write_trajectory",
 ]
 
@@ -147,6 +148,39 @@ def check_plant_supports(scenario: Scenario, controller: Controller) -> None:
         )
 
 
+def run_trajectory(scenario: Scenario, run: RunInputs, rec: LoopRecord) -> pd.DataFrame:
+    """The counted intervals of a run in the data format, with the plant's own inputs (the
+    series' rows on the RC plant, EnergyPlus's otherwise), the backup thermostat's overrides,
+    the fallbacks and the decision times; no ``T_m`` where the plant has none."""
+    series, counted, exo = run.series, run.counted, run.exo
+    # The inputs the plant had: the series' rows on the RC plant, EnergyPlus's own otherwise.
+    # The facades' irradiance and the wind, where the run has them, are the weather file's.
+    given = {
+        *_EXOGENOUS, *(c for c in SITE_COLUMNS if getattr(series, c) is not None),
+        *(("holiday",) if series.holiday is not None else ()),
+    }
+    exogenous = tuple(c for c in COLUMNS if c in given)  # in the data format's order
+    cols = {c: getattr(series, c) for c in exogenous}
+    cols.update(T_a=rec.t_a_c, G=rec.g_w_per_m2, I_g=rec.i_g_w)
+    trajectory = pd.DataFrame(
+        {
+            "time": exo["time"].iloc[counted].reset_index(drop=True),
+            "T_r": rec.t_r_c[counted],
+            "T_m": rec.t_m_c[counted],
+            "u": rec.u_w[counted],
+            "u_phys": rec.u_phys_w[counted],
+            **{c: cols[c][counted] for c in exogenous},
+            "overridden": rec.overridden[counted].astype(int),
+            "fallback": rec.fallback[counted].astype(int),
+            "decision_ms": rec.decision_s[counted] * 1000.0,
+        }
+    )
+    if scenario.sim.plant.is_energyplus:  # no true mass temperature
+        trajectory = trajectory.drop(columns="T_m")
+    trajectory.attrs["dt_s"] = float(scenario.sim.dt_s)
+    return trajectory
+
+
 def counted_kpis(scenario: Scenario, run: RunInputs, rec: LoopRecord) -> Kpis:
     """The KPIs (:func:`scenarios.running.kpis.compute_kpis`) of one building's counted intervals."""
     counted, series = run.counted, run.series
@@ -220,32 +254,7 @@ def run_closed_loop(
             if decision.error is not None:
                 errors.append(f"step {k}: {decision.error}")
         rec = loop.record()
-    series, counted, exo = run.series, run.counted, run.exo
-    # The inputs the plant had: the series' rows on the RC plant, EnergyPlus's own otherwise.
-    # The facades' irradiance and the wind, where the run has them, are the weather file's.
-    given = {
-        *_EXOGENOUS, *(c for c in SITE_COLUMNS if getattr(series, c) is not None),
-        *(("holiday",) if series.holiday is not None else ()),
-    }
-    exogenous = tuple(c for c in COLUMNS if c in given)  # in the data format's order
-    cols = {c: getattr(series, c) for c in exogenous}
-    cols.update(T_a=rec.t_a_c, G=rec.g_w_per_m2, I_g=rec.i_g_w)
-    trajectory = pd.DataFrame(
-        {
-            "time": exo["time"].iloc[counted].reset_index(drop=True),
-            "T_r": rec.t_r_c[counted],
-            "T_m": rec.t_m_c[counted],
-            "u": rec.u_w[counted],
-            "u_phys": rec.u_phys_w[counted],
-            **{c: cols[c][counted] for c in exogenous},
-            "overridden": rec.overridden[counted].astype(int),
-            "fallback": rec.fallback[counted].astype(int),
-            "decision_ms": rec.decision_s[counted] * 1000.0,
-        }
-    )
-    if scenario.sim.plant.is_energyplus:  # no true mass temperature
-        trajectory = trajectory.drop(columns="T_m")
-    trajectory.attrs["dt_s"] = float(scenario.sim.dt_s)
+    trajectory = run_trajectory(scenario, run, rec)
     kpis: RunKpis = {
         **counted_kpis(scenario, run, rec),
         "controller": label or controller.name,
@@ -254,7 +263,7 @@ def run_closed_loop(
         "seed": seed,
         "weather_part": weather_part,
         "counted_days": day_span(trajectory["time"]),
-        "weather_days": day_span(exo["time"]),  # warm-up and forecast lead included
+        "weather_days": day_span(run.exo["time"]),  # warm-up and forecast lead included
     }
     report: TrustReport | None = getattr(controller, "trust_report", None)
     if isinstance(report, dict):  # a planner over a learned model: how often it fell back

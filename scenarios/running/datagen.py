@@ -154,16 +154,34 @@ def generate(
     if n_buildings < 1:
         raise InputError(f"n_buildings must be >= 1, got {n_buildings}")
     check_seed(seed)
-    spec = scenario.control_spec()
     exo = scenario.exogenous(days=days, seed=seed, part=weather_part)
-    n = len(exo)
     cols = {c: exo[c].to_numpy(dtype=float) for c in ("T_a", "G", "I_g", "price", "T_min", "T_max")}
     if scenario.sim.plant.is_energyplus:
         if fleet is not None:
             raise InputError("a fleet with its own parameters runs on the RC simulator, not EnergyPlus")
         return _generate_energyplus(scenario, exo, cols, seed=seed, policy=policy,
                                     n_buildings=n_buildings, on_probability=on_probability)
+    return _generate_rc(
+        scenario, exo, cols, seed=seed, policy=policy, n_buildings=n_buildings,
+        on_probability=on_probability, fleet=fleet,
+    )
 
+
+def _generate_rc(
+    scenario: Scenario,
+    exo: pd.DataFrame,
+    cols: dict[str, np.ndarray],
+    *,
+    seed: int,
+    policy: str,
+    n_buildings: int,
+    on_probability: float,
+    fleet: Sequence[RCParams] | None,
+) -> pd.DataFrame:
+    """:func:`generate` on the RC simulator: ``n_buildings`` buildings (``fleet``'s own
+    parameters, or the scenario's) stepped in one batch under the policy."""
+    spec = scenario.control_spec()
+    n = len(exo)
     sensor_seed = int(np.random.default_rng([seed, _SENSOR_STREAM]).integers(2**63))
     sim = Simulator(scenario.sim, seed=sensor_seed, fleet=fleet, n_buildings=None if fleet else n_buildings)
     sim.reset(scenario.initial_t_r_c, scenario.initial_t_m_c)
@@ -195,6 +213,22 @@ def generate(
         result = sim.step(u[:, k], cols["T_a"][k], cols["G"][k], cols["I_g"][k])
         u_phys[:, k] = result.u_phys_w
 
+    return _rc_frame(scenario, exo, cols, t_r=t_r, t_m=t_m, u=u, u_phys=u_phys)
+
+
+def _rc_frame(
+    scenario: Scenario,
+    exo: pd.DataFrame,
+    cols: dict[str, np.ndarray],
+    *,
+    t_r: np.ndarray,
+    t_m: np.ndarray,
+    u: np.ndarray,
+    u_phys: np.ndarray,
+) -> pd.DataFrame:
+    """The data-format frame of :func:`_generate_rc`'s (buildings, intervals) arrays: the
+    buildings one after another, a ``building`` column when there is more than one."""
+    n_buildings, n = t_r.shape
     columns = ["T_a", "price", "T_min", "T_max"]
     if scenario.uses_solar:
         columns.append("G")

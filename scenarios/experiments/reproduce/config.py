@@ -39,7 +39,7 @@ class ReproduceConfig:
     also_scenarios: tuple[str, ...] = ("cold_storage",)
 
     def __post_init__(self) -> None:
-        from scenarios.inputs.registry import get_scenario
+        from scenarios.inputs.scenario_file import get_scenario
 
         for name in (self.scenario, *self.also_scenarios):
             get_scenario(name)  # an unknown name fails here, before any work

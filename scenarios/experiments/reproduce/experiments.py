@@ -26,7 +26,7 @@ from scenarios.experiments.reproduce.results import (
     ReproductionResults,
 )
 from scenarios.inputs.exogenous import day_span
-from scenarios.inputs.registry import get_scenario
+from scenarios.inputs.scenario_file import get_scenario
 from scenarios.running.datagen import generate
 
 __all__ = ["evaluate_members", "run_experiments"]

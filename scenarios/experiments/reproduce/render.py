@@ -24,7 +24,7 @@ from scenarios.experiments.reproduce.results import (
     ReproductionResults,
     SeriesBlock,
 )
-from scenarios.inputs.registry import get_scenario
+from scenarios.inputs.scenario_file import get_scenario
 from scenarios.reports.plots import new_figure, save_figure
 from scenarios.reports.report import markdown_table, text_table
 

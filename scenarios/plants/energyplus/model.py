@@ -372,6 +372,26 @@ class PreparedModel:
         return self.heaters[0]
 
 
+def _add_heaters(model: dict[str, Any], zones: list[str], radiant_fraction: float) -> list[str]:
+    """One ideal electric heater (``OtherEquipment``, 0 W until a run sets it, always on) in
+    each of ``zones``; their names."""
+    model.setdefault("Schedule:Constant", {})["PINN-MPC Always On"] = {"hourly_value": 1.0}
+    heaters = [f"{HEATER_PREFIX} {z}" for z in zones]
+    for zone, heater in zip(zones, heaters, strict=True):
+        model.setdefault("OtherEquipment", {})[heater] = {
+            "fuel_type": "Electricity",
+            "zone_or_zonelist_or_space_or_spacelist_name": zone,
+            "schedule_name": "PINN-MPC Always On",
+            "design_level_calculation_method": "EquipmentLevel",
+            "design_level": 0.0,
+            "fraction_latent": 0.0,
+            "fraction_radiant": float(radiant_fraction),
+            "fraction_lost": 0.0,
+            "end_use_subcategory": "PINN-MPC Heater",
+        }
+    return heaters
+
+
 def prepare_model(
     building: str,
     *,
@@ -427,20 +447,7 @@ def prepare_model(
         multipliers = [int(model["Zone"][z].get("multiplier", 1)) for z in heated]
         areas = [geo[z]["floor_m2"] * m for z, m in zip(heated, multipliers, strict=True)]
         weights = [a / sum(areas) for a in areas] if len(heated) > 1 else [1.0]
-    model.setdefault("Schedule:Constant", {})["PINN-MPC Always On"] = {"hourly_value": 1.0}
-    heaters = [f"{HEATER_PREFIX} {z}" for z in heated]
-    for zone, heater in zip(heated, heaters, strict=True):
-        model.setdefault("OtherEquipment", {})[heater] = {
-            "fuel_type": "Electricity",
-            "zone_or_zonelist_or_space_or_spacelist_name": zone,
-            "schedule_name": "PINN-MPC Always On",
-            "design_level_calculation_method": "EquipmentLevel",
-            "design_level": 0.0,
-            "fraction_latent": 0.0,
-            "fraction_radiant": float(radiant_fraction),
-            "fraction_lost": 0.0,
-            "end_use_subcategory": "PINN-MPC Heater",
-        }
+    heaters = _add_heaters(model, heated, radiant_fraction)
     return PreparedModel(
         model=model,
         source=str(path),
