@@ -26,7 +26,6 @@ from pinn_mpc.physics import PAPER_HOUSEHOLD, rc_summary
 from pinn_mpc.simulator import draw_fleet
 from pinn_mpc.training import TrainConfig, train_model
 from pinn_mpc_cli.cli import main
-from scenarios import budget
 from scenarios.commands import fleet_params_path
 from scenarios.experiments.sweep import Cell, _label, _read_cell, scenario_digest
 from scenarios.fleets.training import building_model_dir, frame_digest, train_per_building
@@ -42,6 +41,7 @@ from scenarios.plants.energyplus.files import (
     energyplus_available,
 )
 from scenarios.plants.energyplus.model import prepare_model
+from scenarios.running import budget
 from scenarios.running.closed_loop import progress_steps
 from scenarios.running.datagen import generate
 
