@@ -169,8 +169,6 @@ class ComparisonResult:
 def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonResult:
     """Steps 1-3 of the module docstring; progress bars when attached to a terminal."""
     from pinn_mpc.arx import fit_arx, fit_physics_informed_arx
-    from pinn_mpc.export import export_rc
-    from pinn_mpc.training import TrainConfig, train_model
     from scenarios.running.datagen import generate
 
     wall: dict[str, float] = {}
@@ -192,44 +190,12 @@ def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonR
     )
     wall["training data"] = time.perf_counter() - start
     actuator = scenario.sim.actuator
-    config = TrainConfig(
-        depth=settings.depth,
-        n_seeds=settings.n_seeds,
-        first_seed=settings.seed,
-        epochs=settings.training_epochs,
-        recipe=settings.recipe,
-        eta=scenario.sim.params.eta,
-        u_max_w=scenario.sim.u_max_w,
-    )
-    models = {}
-    # physreg and mlp only serve the CEM rows; without them only hybrid and physnet train.
-    for arch in ARCHS if settings.cem_all_models else ARCHS[:2]:
-        start = time.perf_counter()
-        models[arch] = train_model(data, arch=arch, config=config, progress=True)
-        wall[f"train {arch}"] = time.perf_counter() - start
+    models = _train_ensembles(scenario, settings, data, wall=wall)
     start = time.perf_counter()
     identified = identify_scenario_rc(scenario, data)
     wall["identify RC"] = time.perf_counter() - start
     has_truth = scenario.reference == "oracle"  # an EnergyPlus plant has no true RC or state
-    rc: dict[str, RcSummary] = {
-        **(
-            {"true": rc_summary(scenario.sim.params, source=f"scenario {scenario.name}")}
-            if has_truth
-            else {}
-        ),
-        "identified": rc_summary(identified, source="identify (training data)"),
-        **{
-            f"{arch} export": export_rc(models[arch], source=f"{arch} ensemble (compare)")
-            for arch in ARCHS[:2]
-        },
-    }
-    rc_params: dict[str, RCParams] = {
-        "identified RC": identified,
-        **{
-            f"{arch} RC": rc_for_mpc(params_from_summary(rc[f"{arch} export"]), scenario)
-            for arch in ARCHS[:2]
-        },
-    }
+    rc, rc_params = _rc_sets(scenario, identified, models, has_truth=has_truth)
     best = models[DEFAULT_ARCH]
     start = time.perf_counter()
     held_out = generate(
@@ -252,28 +218,7 @@ def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonR
 
     n_steps = settings.test_days * scenario.steps_per_day
     plan = _controller_plan(settings, models, best, arx, parx, rc_params, has_truth=has_truth)
-    rows: list[CompareRow] = []
-    trajectories: dict[str, pd.DataFrame] = {}
-    errors: dict[str, tuple[str, ...]] = {}
-    with one_torch_thread(), tqdm(plan, desc="closed loop", unit="controller", disable=None) as bar:
-        for name, model_name, kwargs in bar:
-            label = name if model_name in ("-", "true") else f"{name} / {model_name}"
-            bar.set_postfix_str(label)
-            start = time.perf_counter()
-            controller = build_controller(name, scenario, n_steps=n_steps, **kwargs)
-            result = run_closed_loop(
-                scenario,
-                controller,
-                days=settings.test_days,
-                seed=settings.test_seed,
-                label=label,
-                weather_part="test",
-            )
-            wall[f"run {label}"] = time.perf_counter() - start
-            rows.append({**result.kpis, "name": name, "model": model_name})
-            trajectories[label] = result.trajectory
-            if result.errors:
-                errors[label] = result.errors
+    rows, trajectories, errors = _run_plan(scenario, settings, plan, n_steps=n_steps, wall=wall)
     for row, ratio in zip(rows, objective_ratios(rows, reference=scenario.reference), strict=True):
         if scenario.reference == "oracle":
             row["objective_to_oracle"] = ratio
@@ -295,6 +240,60 @@ def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonR
         prediction=prediction,
         notes=tuple(notes),
     )
+
+
+def _train_ensembles(
+    scenario: Scenario, settings: CompareSettings, data: pd.DataFrame, *, wall: dict[str, float]
+) -> dict[str, LearnedModel]:
+    """The compared architectures' ensembles trained on ``data`` (each one's wall time added
+    to ``wall``)."""
+    from pinn_mpc.training import TrainConfig, train_model
+
+    config = TrainConfig(
+        depth=settings.depth,
+        n_seeds=settings.n_seeds,
+        first_seed=settings.seed,
+        epochs=settings.training_epochs,
+        recipe=settings.recipe,
+        eta=scenario.sim.params.eta,
+        u_max_w=scenario.sim.u_max_w,
+    )
+    models = {}
+    # physreg and mlp only serve the CEM rows; without them only hybrid and physnet train.
+    for arch in ARCHS if settings.cem_all_models else ARCHS[:2]:
+        start = time.perf_counter()
+        models[arch] = train_model(data, arch=arch, config=config, progress=True)
+        wall[f"train {arch}"] = time.perf_counter() - start
+    return models
+
+
+def _rc_sets(
+    scenario: Scenario, identified: RCParams, models: dict[str, LearnedModel], *, has_truth: bool
+) -> tuple[dict[str, RcSummary], dict[str, RCParams]]:
+    """The comparison's R/C values (true where the plant has them, identified, each
+    physics-informed ensemble's export) and the parameter sets its RC MPCs plan on."""
+    from pinn_mpc.export import export_rc
+
+    rc: dict[str, RcSummary] = {
+        **(
+            {"true": rc_summary(scenario.sim.params, source=f"scenario {scenario.name}")}
+            if has_truth
+            else {}
+        ),
+        "identified": rc_summary(identified, source="identify (training data)"),
+        **{
+            f"{arch} export": export_rc(models[arch], source=f"{arch} ensemble (compare)")
+            for arch in ARCHS[:2]
+        },
+    }
+    rc_params: dict[str, RCParams] = {
+        "identified RC": identified,
+        **{
+            f"{arch} RC": rc_for_mpc(params_from_summary(rc[f"{arch} export"]), scenario)
+            for arch in ARCHS[:2]
+        },
+    }
+    return rc, rc_params
 
 
 def _controller_plan(
@@ -332,6 +331,41 @@ def _controller_plan(
         ("qp-mpc", PHYSICS_ARX.label, {"model": parx}),
         *((("oracle", "true", {}), ("clairvoyant", "true", {})) if has_truth else ()),
     ]
+
+
+def _run_plan(
+    scenario: Scenario,
+    settings: CompareSettings,
+    plan: list[tuple[str, str, dict[str, Any]]],
+    *,
+    n_steps: int,
+    wall: dict[str, float],
+) -> tuple[list[CompareRow], dict[str, pd.DataFrame], dict[str, tuple[str, ...]]]:
+    """Every closed loop of ``plan`` on the test days: the table's rows, each run's trajectory
+    and the controller errors by label; each run's wall time is added to ``wall``."""
+    rows: list[CompareRow] = []
+    trajectories: dict[str, pd.DataFrame] = {}
+    errors: dict[str, tuple[str, ...]] = {}
+    with one_torch_thread(), tqdm(plan, desc="closed loop", unit="controller", disable=None) as bar:
+        for name, model_name, kwargs in bar:
+            label = name if model_name in ("-", "true") else f"{name} / {model_name}"
+            bar.set_postfix_str(label)
+            start = time.perf_counter()
+            controller = build_controller(name, scenario, n_steps=n_steps, **kwargs)
+            result = run_closed_loop(
+                scenario,
+                controller,
+                days=settings.test_days,
+                seed=settings.test_seed,
+                label=label,
+                weather_part="test",
+            )
+            wall[f"run {label}"] = time.perf_counter() - start
+            rows.append({**result.kpis, "name": name, "model": model_name})
+            trajectories[label] = result.trajectory
+            if result.errors:
+                errors[label] = result.errors
+    return rows, trajectories, errors
 
 
 def _notes(rows: list[CompareRow], weather_note: str | None) -> list[str]:
