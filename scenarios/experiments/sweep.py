@@ -550,6 +550,77 @@ def _progress_line(done: float, total: int, reused: int, trained: int, elapsed_s
     )
 
 
+def _run_on_ray(
+    root: Path,
+    grid: SweepGrid,
+    settings: SweepSettings,
+    *,
+    keys: Sequence[ModelKey],
+    missing: Sequence[Cell],
+    records: dict[Cell, CellRecord | None],
+    total: int,
+    reused: int,
+) -> int:
+    """Train the models ``keys`` (those stored under ``root`` are reused) and run the
+    ``missing`` cells (of ``total``, ``reused`` of them read back) as Ray tasks, writing each model and cell the moment it arrives and
+    entering each cell's record in ``records``; the number of models trained."""
+    import ray
+
+    from scenarios.running.closed_loop import PROGRESS_EVERY_S
+
+    trained = 0
+    # EnergyPlus leaks ~0.55 MB per run inside the engine: its workers are recycled.
+    max_calls = ENERGYPLUS_CALLS_PER_WORKER if grid.has_energyplus else 0  # 0: never
+    task = ray.remote(num_cpus=1, max_calls=max_calls)(_one_blas_thread)
+    pending: dict[Any, tuple[str, Any]] = {}
+    model_refs: dict[ModelKey, Any] = {}
+    for key in keys:
+        stored = _load_model(root, key)
+        if stored is not None:
+            model_refs[key] = ray.put(stored)
+        else:
+            model_refs[key] = task.remote(fit_model, key, settings)
+            pending[model_refs[key]] = ("model", key)
+    for cell in missing:
+        needed = _model_key(cell, settings)
+        ref = task.remote(run_cell, cell, settings, model_refs.get(needed) if needed else None)
+        pending[ref] = ("cell", cell)
+
+    terminal = sys.stderr.isatty()
+    began = last = time.monotonic()
+    with tqdm(total=total, initial=reused, desc="sweep", unit="cell", disable=None) as bar:
+        while pending:
+            now = time.monotonic()
+            if not terminal and now - last >= PROGRESS_EVERY_S:  # a log: a line a minute
+                last = now
+                print(
+                    _progress_line(bar.n, total, reused, trained, now - began),
+                    file=sys.stderr,
+                    flush=True,
+                )
+            ready, _ = ray.wait(list(pending), num_returns=1, timeout=PROGRESS_EVERY_S)
+            if not ready:  # nothing finished within a minute: report progress, wait again
+                continue
+            kind, what = pending.pop(ready[0])
+            try:
+                value = ray.get(ready[0])
+            except ray.exceptions.RayError as exc:
+                raise _task_failure(f"{kind} {what.name}", exc) from None
+            if kind == "model":
+                _store_model(root, what, value)
+                trained += 1
+                continue
+            record: CellRecord = {
+                **_cell_record_key(what),
+                "settings": _settings_record(settings),
+                **cast(CellResult, value),
+            }
+            atomic_write_json(root / "cells" / f"{what.name}.json", record)
+            records[what] = record
+            bar.update()
+    return trained
+
+
 def run_sweep(
     grid: SweepGrid,
     settings: SweepSettings,
@@ -565,7 +636,6 @@ def run_sweep(
     ``out`` must be new, empty or an earlier sweep's directory (it holds ``sweep.json``); any
     other directory needs ``force`` (then the sweep's files are added and nothing else in it is
     touched, but a ``summary.json`` or ``report.md`` of the user's would be replaced)."""
-    import ray
 
     if baseline not in (*grid.controllers, *grid.references.values()):
         raise InputError(
@@ -581,62 +651,15 @@ def run_sweep(
     missing = [c for c in cells if records[c] is None]
     reused = len(cells) - len(missing)
     keys = sorted({k for c in missing if (k := _model_key(c, settings)) is not None})
-    trained = 0
     with ray_engine(address, workers) as engine:
         # Only now that the engine runs: a refused address leaves no directory behind.
         (root / "models").mkdir(parents=True, exist_ok=True)
         (root / "cells").mkdir(exist_ok=True)
         atomic_write_json(root / "sweep.json", {"settings": _settings_record(settings)})
-        # EnergyPlus leaks ~0.55 MB per run inside the engine: its workers are recycled.
-        max_calls = ENERGYPLUS_CALLS_PER_WORKER if grid.has_energyplus else 0  # 0: never
-        task = ray.remote(num_cpus=1, max_calls=max_calls)(_one_blas_thread)
-        pending: dict[Any, tuple[str, Any]] = {}
-        model_refs: dict[ModelKey, Any] = {}
-        for key in keys:
-            stored = _load_model(root, key)
-            if stored is not None:
-                model_refs[key] = ray.put(stored)
-            else:
-                model_refs[key] = task.remote(fit_model, key, settings)
-                pending[model_refs[key]] = ("model", key)
-        for cell in missing:
-            needed = _model_key(cell, settings)
-            ref = task.remote(run_cell, cell, settings, model_refs.get(needed) if needed else None)
-            pending[ref] = ("cell", cell)
-        from scenarios.running.closed_loop import PROGRESS_EVERY_S
-
-        terminal = sys.stderr.isatty()
-        began = last = time.monotonic()
-        with tqdm(total=len(cells), initial=reused, desc="sweep", unit="cell", disable=None) as bar:
-            while pending:
-                now = time.monotonic()
-                if not terminal and now - last >= PROGRESS_EVERY_S:  # a log: a line a minute
-                    last = now
-                    print(
-                        _progress_line(bar.n, len(cells), reused, trained, now - began),
-                        file=sys.stderr,
-                        flush=True,
-                    )
-                ready, _ = ray.wait(list(pending), num_returns=1, timeout=PROGRESS_EVERY_S)
-                if not ready:  # nothing finished within a minute: report progress, wait again
-                    continue
-                kind, what = pending.pop(ready[0])
-                try:
-                    value = ray.get(ready[0])
-                except ray.exceptions.RayError as exc:
-                    raise _task_failure(f"{kind} {what.name}", exc) from None
-                if kind == "model":
-                    _store_model(root, what, value)
-                    trained += 1
-                    continue
-                record: CellRecord = {
-                    **_cell_record_key(what),
-                    "settings": _settings_record(settings),
-                    **cast(CellResult, value),
-                }
-                atomic_write_json(root / "cells" / f"{what.name}.json", record)
-                records[what] = record
-                bar.update()
+        trained = _run_on_ray(
+            root, grid, settings, keys=keys, missing=missing, records=records,
+            total=len(cells), reused=reused,
+        )
     done = [r for r in records.values() if r is not None]
     rows = summarise(
         done,
