@@ -21,12 +21,12 @@ import math
 import re
 import time
 from collections.abc import Callable, Mapping, Sequence
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 import pandas as pd
 
-from controllers.base import ControlSpec
+from controllers.base import Controller, ControlSpec
 from controllers.coordination import Coordination, DualAscent
 from controllers.fleet import FleetPlanner, FleetQPMPC
 from controllers.thermostat import Thermostat
@@ -36,7 +36,8 @@ from pinn_mpc.simulator import draw_fleet
 from scenarios.fleets.fleet import FLEET_STREAM, FleetResult, fleet_info, fleet_result
 from scenarios.inputs.registry import Scenario, check_seed
 from scenarios.records import CapAccount, FleetInfo
-from scenarios.running.closed_loop import build_loop, prepare_run, progress_steps
+from scenarios.running.closed_loop import RunInputs, build_loop, prepare_run, progress_steps
+from scenarios.running.engine import ClosedLoop
 
 if TYPE_CHECKING:
     from pinn_mpc.models.learned import LearnedModel
@@ -149,6 +150,54 @@ def _planner_factory(planner: str | FleetPlannerFactory) -> FleetPlannerFactory:
     return _qp_factory
 
 
+class _BatchedRun(NamedTuple):
+    """What :func:`_run_batched` measured over the counted intervals."""
+
+    times_s: np.ndarray  # (K, 2) planning and plant-step wall time of each interval [s]
+    prices: np.ndarray  # (K,) the coordination price [EUR/kWh]
+    curtailed: int  # intervals the cap curtailed
+    plans: int  # plans made (a capped step may re-plan)
+    model_fallbacks: np.ndarray  # (B,) decisions each building's RC MPC made for its model
+
+
+def _run_batched(
+    loop: ClosedLoop,
+    run: RunInputs,
+    planner: FleetPlanner,
+    coordination: Coordination,
+    warmup_controllers: Sequence[Controller],
+    *,
+    label: str,
+    progress: bool,
+) -> _BatchedRun:
+    """Every interval of ``run``: the thermostats through the warm-up, then one batched plan
+    of every building a step, settled on the cap by ``coordination``."""
+    n_counted, b = run.total - run.warmup, loop.n_buildings
+    times_s = np.zeros((n_counted, 2))
+    prices = np.zeros(n_counted)
+    curtailed = plans = 0
+    model_fallbacks = np.zeros(b, dtype=int)
+    for k in progress_steps(run.total, label, progress):
+        if k < run.warmup:
+            loop.advance_fleet(warmup_controllers)
+            continue
+        start = time.perf_counter()
+        forecast = loop.forecast()
+        observations = [loop.observation(building=i) for i in range(b)]
+        planner.observe(observations, forecast)
+        step = coordination.step(planner, loop.start + loop.k)
+        decided = time.perf_counter()
+        share = np.full(b, (decided - start) / b)
+        loop.step(step.decision.u_w, decision_s=share, fallback=step.decision.fallback)
+        times_s[k - run.warmup] = decided - start, time.perf_counter() - decided
+        prices[k - run.warmup] = step.price_eur_per_kwh[0]
+        curtailed += int(step.curtailed)
+        if step.decision.model_fallback is not None:
+            model_fallbacks += step.decision.model_fallback
+        plans += step.plans
+    return _BatchedRun(times_s, prices, curtailed, plans, model_fallbacks)
+
+
 def run_coordinated_fleet(
     scenario: Scenario,
     planner: str | FleetPlannerFactory = "qp-mpc",
@@ -205,29 +254,10 @@ def run_coordinated_fleet(
         c.reset(seed)
     loop = build_loop(scenario, run, seed=seed, fleet=fleet)
     n_counted, b = run.total - run.warmup, len(fleet)
-    times_s = np.zeros((n_counted, 2))
-    prices = np.zeros(n_counted)
-    curtailed = plans = 0
-    model_fallbacks = np.zeros(b, dtype=int)
     label = f"{fleet_planner.name} x {b} (batched{', capped' if cap_kw is not None else ''})"
-    for k in progress_steps(run.total, label, progress):
-        if k < run.warmup:
-            loop.advance_fleet(warmup_controllers)
-            continue
-        start = time.perf_counter()
-        forecast = loop.forecast()
-        observations = [loop.observation(building=i) for i in range(b)]
-        fleet_planner.observe(observations, forecast)
-        step = coordination.step(fleet_planner, loop.start + loop.k)
-        decided = time.perf_counter()
-        share = np.full(b, (decided - start) / b)
-        loop.step(step.decision.u_w, decision_s=share, fallback=step.decision.fallback)
-        times_s[k - run.warmup] = decided - start, time.perf_counter() - decided
-        prices[k - run.warmup] = step.price_eur_per_kwh[0]
-        curtailed += int(step.curtailed)
-        if step.decision.model_fallback is not None:
-            model_fallbacks += step.decision.model_fallback
-        plans += step.plans
+    times_s, prices, curtailed, plans, model_fallbacks = _run_batched(
+        loop, run, fleet_planner, coordination, warmup_controllers, label=label, progress=progress
+    )
     cap_info = None
     if cap_kw is not None:
         aggregate = loop.aggregate_u_phys_w()[run.counted]
