@@ -18,7 +18,12 @@ import pandas as pd
 import pytest
 
 from pinn_mpc.artifacts import save_model
-from pinn_mpc.data import read_fleet_timeseries, read_timeseries, write_timeseries
+from pinn_mpc.data import (
+    fleet_params_path,
+    read_fleet_timeseries,
+    read_timeseries,
+    write_timeseries,
+)
 from pinn_mpc.energyplus import (
     bundled_buildings,
     bundled_weather,
@@ -34,7 +39,6 @@ from pinn_mpc.training import TrainConfig, train_model
 from pinn_mpc_cli.cli import main
 from scenarios import budget
 from scenarios.closed_loop import progress_steps
-from scenarios.commands import fleet_params_path
 from scenarios.datagen import generate
 from scenarios.fleet_training import (
     building_model_dir,

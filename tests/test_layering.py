@@ -1,7 +1,7 @@
 """Imports only point downwards: pinn_mpc -> nothing of ours; controllers -> pinn_mpc;
-scenarios -> both; the application pinn_mpc_cli -> all three. A package's ``__main__.py``
-(``python -m pinn_mpc``) is a script that runs the application: it may import it, and no
-module may import a ``__main__``."""
+scenarios -> both; the application pinn_mpc_cli -> all three. No exception: ``python -m
+pinn_mpc`` finds the command through the installed entry point, and no module may import a
+``__main__``."""
 
 import ast
 from pathlib import Path
@@ -16,7 +16,6 @@ ALLOWED = {
     "scenarios": {"pinn_mpc", "controllers", "scenarios"},
     "pinn_mpc_cli": {"pinn_mpc", "controllers", "scenarios", "pinn_mpc_cli"},
 }
-APPLICATION = "pinn_mpc_cli"
 
 
 def imported_layers(source: str) -> set[str]:
@@ -50,9 +49,7 @@ def test_layer_imports_point_downwards(layer):
     bad = []
     for path in files:
         rel = path.relative_to(ROOT)
-        # A script run by `python -m`, not a module: it may start the application.
-        allowed = ALLOWED[layer] | ({APPLICATION} if path.name == "__main__.py" else set())
-        wrong = imported_layers(path.read_text(encoding="utf-8")) - allowed
+        wrong = imported_layers(path.read_text(encoding="utf-8")) - ALLOWED[layer]
         if wrong:
             bad.append(f"{rel} imports {sorted(wrong)}")
     assert not bad, "; ".join(bad)
