@@ -48,7 +48,7 @@ from typing import Any
 
 import numpy as np
 
-from pinn_mpc.errors import InputError
+from pinn_mpc.errors import InputError, InternalError
 
 __all__ = [
     "CODE_OBJECT_PREFIXES",
@@ -762,7 +762,7 @@ class EnergyPlusRun:
     def step(self, u_w: float) -> IntervalMeans:
         """Hold heater power ``u_w`` [W] (clipped to 0 .. u_max_w) for one control interval."""
         if self._done or self._thread is None:
-            raise InputError("EnergyPlusRun.step: no run in progress (start one, or the run has ended)")
+            raise InternalError("EnergyPlusRun.step: no run in progress (start one, or the run has ended)")
         self._act_q.put(min(max(float(u_w), 0.0), self.u_max_w), timeout=self.timeout_s)
         result = self._receive_or_close()
         assert isinstance(result, IntervalMeans)
@@ -828,7 +828,7 @@ class EnergyPlusRun:
             raise payload
         if kind == "done":
             self._done = True
-            raise InputError("EnergyPlusRun.step: the run has ended (start a longer one)")
+            raise InternalError("EnergyPlusRun.step: the run has ended (start a longer one)")
         return payload
 
     # ---- the EnergyPlus thread ----------------------------------------------------------
@@ -1113,10 +1113,10 @@ class EnergyPlusPlant:
         from pinn_mpc.simulator import PlantStep, StepResult
 
         if row != self._row:
-            raise InputError(f"EnergyPlusPlant.step: the run is at row {self._row}, not {row}")
+            raise InternalError(f"EnergyPlusPlant.step: the run is at row {self._row}, not {row}")
         u = np.asarray(u_w, dtype=float).reshape(-1)
         if u.size != 1 or not math.isfinite(float(u[0])):
-            raise InputError(f"EnergyPlusPlant.step: one finite power, got {u_w!r}")
+            raise InternalError(f"EnergyPlusPlant.step: one finite power, got {u_w!r}")
         m = self.run.step(float(u[0]))
         self._t_r, self._row = m.t_r_c, row + 1
         sub = m.t_r_sub_c

@@ -29,7 +29,7 @@ from typing import Any
 
 import pandas as pd
 
-from pinn_mpc.errors import InputError
+from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.io import atomic_write_json, setting_changes
 from pinn_mpc.models.registry import DEFAULT_ARCH
 from pinn_mpc.physics import RCParams
@@ -130,7 +130,7 @@ def train_per_building(
     from scenarios.sweep import check_engine_options, ray_engine
 
     if params is not None and len(params) != len(frames):
-        raise InputError(f"{len(params)} building parameters for {len(frames)} buildings in the data")
+        raise InternalError(f"{len(params)} building parameters for {len(frames)} buildings in the data")
     check_engine_options(address, workers)
     root = Path(out)
     if root.exists() and not root.is_dir():

@@ -21,7 +21,7 @@ from pinn_mpc.energyplus import (  # noqa: E402
     prepare_model,
     resolve_building,
 )
-from pinn_mpc.errors import InputError  # noqa: E402
+from pinn_mpc.errors import InputError, InternalError  # noqa: E402
 from scenarios.closed_loop import run_closed_loop  # noqa: E402
 from scenarios.registry import get_scenario  # noqa: E402
 
@@ -271,7 +271,7 @@ def test_a_run_crosses_the_year_on_the_typical_years_weather():
     with EnergyPlusRun(prepared, weather="usa_il_chicago", u_max_w=1000.0) as run:
         run.start(364, 3, year=2021)
         crossing = np.array([run.step(0.0).t_a_c for _ in range(3 * 48)])
-        with pytest.raises(InputError, match="the run has ended"):
+        with pytest.raises(InternalError, match="the run has ended"):
             run.step(0.0)
         run.start(1, 1, year=2022)
         new_year = np.array([run.step(0.0).t_a_c for _ in range(48)])
