@@ -203,31 +203,7 @@ def _fleet_closed_loop(a: argparse.Namespace, scenario: Scenario, inputs: dict[s
     from scenarios.fleet import fleet_json, run_fleet_closed_loop
 
     batched = a.batched or a.cap_kw is not None or a.model is not None
-    for option, value in (("--rc", a.rc), ("--csv", a.csv), ("--plot", a.plot)):
-        if value is not None:
-            raise InputError(
-                f"{option} does not apply to a fleet (--buildings {a.buildings}): "
-                f"{_FLEET_REASONS[option]}; leave it out, or drop --buildings for one building"
-            )
-    if a.cap_window is not None and a.cap_kw is None:
-        raise InputError("--cap-window needs --cap-kw (the cap in that window)")
-    figure = None
-    if batched:
-        from scenarios.aggregator import BATCHED_CONTROLLERS, parse_cap_window
-
-        wanted = "cem" if a.model is not None else "qp-mpc"
-        if a.controller != wanted:
-            raise InputError(
-                f"a batched fleet plans with qp-mpc (each building's RC) or, with --model DIR of "
-                f"per-building models, with cem; got --controller {a.controller} "
-                f"({'with' if a.model is not None else 'without'} --model); batched controllers: "
-                f"{', '.join(BATCHED_CONTROLLERS)}"
-            )
-        if a.cap_window is not None:
-            parse_cap_window(a.cap_window)
-        figure = str(Path(a.json).with_suffix(".fleet.png"))
-        check_writable(figure)
-        check_distinct(inputs=inputs, outputs={"--json": a.json, "figure": figure})
+    figure = _check_fleet_options(a, inputs, batched=batched)
     check_fleet_memory(scenario, a.controller, days=a.days, buildings=a.buildings)
     check_fleet_size(a.controller, buildings=a.buildings, days=a.days, large=a.large)
     spread = 0.2 if a.spread is None else a.spread
@@ -295,6 +271,37 @@ def _fleet_closed_loop(a: argparse.Namespace, scenario: Scenario, inputs: dict[s
         )
         lines.append(f"wrote {figure}")
     return "\n".join([*lines, f"wrote {a.json}"])
+
+
+def _check_fleet_options(a: argparse.Namespace, inputs: dict[str, PathsArg], *, batched: bool) -> str | None:
+    """Refuse the options a fleet does not take, and a batched fleet's wrong controller or cap
+    window; the fleet figure's path (written next to ``--json``) when the fleet is batched."""
+    for option, value in (("--rc", a.rc), ("--csv", a.csv), ("--plot", a.plot)):
+        if value is not None:
+            raise InputError(
+                f"{option} does not apply to a fleet (--buildings {a.buildings}): "
+                f"{_FLEET_REASONS[option]}; leave it out, or drop --buildings for one building"
+            )
+    if a.cap_window is not None and a.cap_kw is None:
+        raise InputError("--cap-window needs --cap-kw (the cap in that window)")
+    if not batched:
+        return None
+    from scenarios.aggregator import BATCHED_CONTROLLERS, parse_cap_window
+
+    wanted = "cem" if a.model is not None else "qp-mpc"
+    if a.controller != wanted:
+        raise InputError(
+            f"a batched fleet plans with qp-mpc (each building's RC) or, with --model DIR of "
+            f"per-building models, with cem; got --controller {a.controller} "
+            f"({'with' if a.model is not None else 'without'} --model); batched controllers: "
+            f"{', '.join(BATCHED_CONTROLLERS)}"
+        )
+    if a.cap_window is not None:
+        parse_cap_window(a.cap_window)
+    figure = str(Path(a.json).with_suffix(".fleet.png"))
+    check_writable(figure)
+    check_distinct(inputs=inputs, outputs={"--json": a.json, "figure": figure})
+    return figure
 
 
 def _check_fleet_models_fit(root: str, models: list[Any], scenario: Scenario) -> None:
