@@ -180,7 +180,11 @@ def train_per_building(
                 except ray.exceptions.RayError as exc:
                     cause = getattr(exc, "cause", None) or exc
                     first = (str(cause).strip().splitlines() or [""])[0]
-                    raise InputError(
+                    # The task's own exception is a bug unless it is about input, files or
+                    # memory; Ray's (a worker lost) are the machine's, reported as before.
+                    expected = (InputError, OSError, MemoryError, ray.exceptions.RayError)
+                    bug = isinstance(cause, Exception) and not isinstance(cause, expected)
+                    raise (InternalError if bug else InputError)(
                         f"training building {refs[ready[0]]} failed: {type(cause).__name__}: {first}"
                     ) from None
     summary.update(
