@@ -61,8 +61,8 @@ def bug_line(command: str, exc: BaseException) -> str:
 
 @contextlib.contextmanager
 def _library_messages() -> Iterator[None]:
-    """Within: every library warning printed (each one: the library itself says a note only
-    once where it should), and its notes printed; both as before, restored on exit."""
+    """Within: each library warning printed every time it is raised (``warn_once`` keeps its
+    own once per process), and the library's notes printed; the settings restored on exit."""
     handler = logging.StreamHandler(sys.stderr)
     handler.setFormatter(logging.Formatter("pinn-mpc: %(message)s"))
     loggers = [logging.getLogger(name) for name in _LOGGERS]
