@@ -5,6 +5,7 @@ CLI prints each as one line, as before."""
 
 from __future__ import annotations
 
+import logging
 import subprocess
 import sys
 import warnings
@@ -119,6 +120,22 @@ def test_the_cli_prints_library_warnings_as_one_line(monkeypatch, capsys):
     captured = capsys.readouterr()
     assert captured.err == "pinn-mpc: warning: something to look at\n"
     assert captured.out == "listed\n"
+
+
+def test_the_cli_prints_library_notes_as_one_line(monkeypatch, capsys):
+    """A note (``logging`` at INFO, as the heater sizing's) reaches stderr as ``pinn-mpc: ...``;
+    after the command the loggers are as they were."""
+    log = logging.getLogger("scenarios.registry")
+    level = log.level
+
+    def notes_then_lists() -> str:
+        log.info("scenario 'x': heater sized")
+        return "listed"
+
+    _inject(monkeypatch, notes_then_lists)
+    assert main(["scenario", "list"]) == 0
+    assert capsys.readouterr().err == "pinn-mpc: scenario 'x': heater sized\n"
+    assert log.level == level and not logging.getLogger("scenarios").handlers
 
 
 def test_python_m_pinn_mpc_runs_the_command_line():
