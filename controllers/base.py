@@ -17,7 +17,7 @@ import numpy as np
 
 from pinn_mpc.actuator import Actuator
 from pinn_mpc.data import SITE_COLUMNS
-from pinn_mpc.errors import InputError
+from pinn_mpc.errors import InputError, InternalError
 
 __all__ = [
     "EXOGENOUS_NAMES",
@@ -209,7 +209,7 @@ def first_values(values: np.ndarray, n: int) -> np.ndarray:
     """A fresh array of the first n values (n,), the last one repeated when there are fewer."""
     a = np.asarray(values, dtype=float).reshape(-1)
     if a.size == 0:
-        raise InputError("forecast array is empty; the controller needs at least one step")
+        raise InternalError("forecast array is empty; the controller needs at least one step")
     if a.size >= n:
         return a[:n].copy()
     return np.concatenate([a, np.full(n - a.size, a[-1])])

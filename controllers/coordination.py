@@ -41,7 +41,7 @@ from typing import NamedTuple
 import numpy as np
 
 from controllers.fleet import FleetDecision, FleetPlan, FleetPlanner
-from pinn_mpc.errors import InputError
+from pinn_mpc.errors import InputError, InternalError
 
 __all__ = ["Coordination", "CoordinationStep", "DualAscent", "planned_aggregate_w"]
 
@@ -94,7 +94,7 @@ class Coordination:
     def __init__(self, cap_w: np.ndarray, settings: DualAscent = DualAscent()) -> None:
         cap = np.asarray(cap_w, dtype=float)
         if cap.ndim != 1 or np.any(np.isnan(cap)) or np.any(cap <= 0):
-            raise InputError("Coordination: the cap must be one positive value (or inf) per interval")
+            raise InternalError("Coordination: the cap must be one positive value (or inf) per interval")
         self.cap_w, self.settings = cap, settings
         self.reset()
 

@@ -22,7 +22,7 @@ import numpy as np
 
 from controllers.base import ControlSpec, Observation
 from pinn_mpc.actuator import Actuator
-from pinn_mpc.errors import InputError
+from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.observer import DEFAULT_INITIAL_T_M_STD_C, DEFAULT_MEASUREMENT_STD_C, KalmanObserver
 from pinn_mpc.physics import RCParams
 
@@ -124,7 +124,7 @@ class FleetKalmanEstimator:
     def __init__(self, ad: np.ndarray, bd: np.ndarray, spec: ControlSpec) -> None:
         ad, bd = np.asarray(ad, dtype=float), np.asarray(bd, dtype=float)
         if ad.ndim != 3 or ad.shape[1:] != (2, 2) or bd.shape != (ad.shape[0], 2, 4):
-            raise InputError(f"FleetKalmanEstimator: ad (B, 2, 2) and bd (B, 2, 4), got {ad.shape}, {bd.shape}")
+            raise InternalError(f"FleetKalmanEstimator: ad (B, 2, 2) and bd (B, 2, 4), got {ad.shape}, {bd.shape}")
         process, measurement = observer_noise(spec)
         self.ad, self.bd, self.actuator = ad, bd, spec.actuator
         self.q = np.diag(np.square(np.asarray(process, dtype=float)))
@@ -151,7 +151,7 @@ class FleetKalmanEstimator:
         """Every building's :meth:`KalmanEstimator.update`; returns (B, 2) ``(T_r, T_m)`` [C]."""
         b = self.n_buildings
         if len(observations) != b:
-            raise InputError(f"FleetKalmanEstimator: {len(observations)} observations for {b} buildings")
+            raise InternalError(f"FleetKalmanEstimator: {len(observations)} observations for {b} buildings")
         k = np.fromiter((o.k for o in observations), dtype=np.int64, count=b)
         y = np.fromiter((o.t_r_c for o in observations), dtype=float, count=b)
         lasts = [o.last for o in observations]

@@ -42,7 +42,7 @@ from controllers.estimators import FleetKalmanEstimator
 from controllers.objective import HorizonObjective
 from controllers.rc_mpc.osqp import OSQP_OPTIONS
 from controllers.rc_mpc.problem import DEFAULT_REGULARISATION
-from pinn_mpc.errors import InputError
+from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.physics import RCParams
 from pinn_mpc.simulator import fleet_matrices
 
@@ -139,7 +139,7 @@ class FleetQPMPC:
         threads: int | None = None,
     ) -> None:
         if len(fleet) < 1:
-            raise InputError("FleetQPMPC needs at least one building")
+            raise InternalError("FleetQPMPC needs at least one building")
         for i, params in enumerate(fleet):
             check_heating(params.eta, spec, what=f"building {i}'s RC parameters")
         h = spec.horizon_steps if horizon_steps is None else horizon_steps
@@ -195,7 +195,7 @@ class FleetQPMPC:
     def observe(self, observations: Sequence[Observation], forecast: Forecast) -> None:
         """Every building's Kalman update on its observation; the step's QP data."""
         if len(observations) != self.n_buildings:
-            raise InputError(
+            raise InternalError(
                 f"FleetQPMPC.observe: {len(observations)} observations for {self.n_buildings} buildings"
             )
         with np.errstate(invalid="ignore", over="ignore"):
@@ -251,11 +251,11 @@ class FleetQPMPC:
         to :data:`CANDIDATE_OPTIONS` (looser tolerances, no polishing, at most 200 iterations;
         for plans that are only scored as candidates, never applied as they are)."""
         if self._stage is None:
-            raise InputError("FleetQPMPC.plan: call observe() first")
+            raise InternalError("FleetQPMPC.plan: call observe() first")
         h = self._h
         extra = np.zeros(h) if extra_price_eur_per_kwh is None else np.asarray(extra_price_eur_per_kwh, float)
         if extra.shape != (h,) or not np.all(np.isfinite(extra)):
-            raise InputError(f"FleetQPMPC.plan: the extra price must be {h} finite values, got {extra!r}")
+            raise InternalError(f"FleetQPMPC.plan: the extra price must be {h} finite values, got {extra!r}")
         q, lower, upper = (v.reshape(self.n_buildings, -1) for v in self._data(extra))
         todo = [j for j, block in enumerate(self._blocks) if only is None or np.any(only[block])]
 
@@ -310,7 +310,7 @@ class FleetQPMPC:
         acts only where its model is distrusted)."""
         s = self._stage
         if s is None:
-            raise InputError("FleetQPMPC.commit: call observe() and plan() first")
+            raise InternalError("FleetQPMPC.commit: call observe() and plan() first")
         u = np.zeros(self.n_buildings)
         for i, fallback in enumerate(self.fallbacks):
             if active is not None and not active[i]:

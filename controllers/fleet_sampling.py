@@ -38,7 +38,7 @@ from controllers.fleet import FleetDecision, FleetPlan, FleetQPMPC
 from controllers.objective import HorizonObjective
 from controllers.planners import CEMPlanner
 from controllers.trust import TrustMonitor, TrustSettings
-from pinn_mpc.errors import InputError
+from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.fleet_rollout import FleetStart
 from pinn_mpc.models.rollout import Rollout
 
@@ -91,7 +91,7 @@ def optimize_fleet(
     if planner.binary:
         raise InputError("the fleet CEM plans continuous power; on/off actions are not batched")
     if not callable(objective):
-        raise InputError("optimize_fleet: objective must be callable")
+        raise InternalError("optimize_fleet: objective must be callable")
     b, h = x0.shape
     dtype = x0.dtype
     n = planner.n_samples
@@ -103,7 +103,7 @@ def optimize_fleet(
     rows = torch.arange(b)
     if candidates is not None and (candidates.shape[0] != b or candidates.shape[2] != h
                                    or candidates.shape[1] > n - 2):
-        raise InputError(f"optimize_fleet: candidates must be (B, at most N - 2, H), got {tuple(candidates.shape)}")
+        raise InternalError(f"optimize_fleet: candidates must be (B, at most N - 2, H), got {tuple(candidates.shape)}")
     for it in range(planner.n_iters):
         noise = colored_noise_fleet(n, h, planner.noise_beta, generators, dtype)
         samples = (mean[:, None] + std[:, None] * noise).clamp(planner.lower, planner.upper)
@@ -209,7 +209,7 @@ class FleetCEM:
         if not (0 <= comfort_margin_k < 1):
             raise InputError(f"FleetCEM.comfort_margin_k must lie in [0, 1) K, got {comfort_margin_k}")
         if shadow is not None and shadow.n_buildings != dynamics.n_buildings:
-            raise InputError("FleetCEM: the shadow RC MPC must have one building per model")
+            raise InternalError("FleetCEM: the shadow RC MPC must have one building per model")
         self.dynamics, self.spec = dynamics, spec
         self.planner = planner if planner is not None else CEMPlanner(lower=0.0, upper=spec.u_max_w, n_samples=32)
         if replan_iters < 0:
@@ -221,7 +221,7 @@ class FleetCEM:
         self.offset_gain, self.comfort_margin_k = offset_gain, comfort_margin_k
         self.replan_iters = replan_iters
         if rc_candidates and shadow is None:
-            raise InputError("FleetCEM.rc_candidates needs the shadow RC MPC")
+            raise InternalError("FleetCEM.rc_candidates needs the shadow RC MPC")
         self.rc_candidates = rc_candidates
         self.shadow, self.spread_dynamics = shadow, spread_dynamics
         b = dynamics.n_buildings
@@ -272,7 +272,7 @@ class FleetCEM:
         step's objective and rollout start."""
         b, h = self.n_buildings, self.horizon_steps
         if len(observations) != b:
-            raise InputError(f"FleetCEM.observe: {len(observations)} observations for {b} buildings")
+            raise InternalError(f"FleetCEM.observe: {len(observations)} observations for {b} buildings")
         if self.shadow is not None:
             self.shadow.observe(observations, forecast)
         histories = [o.history for o in observations]
@@ -364,11 +364,11 @@ class FleetCEM:
         plan of the same step starts from the first one's plans."""
         step = self._step
         if step is None:
-            raise InputError("FleetCEM.plan: call observe() first")
+            raise InternalError("FleetCEM.plan: call observe() first")
         h, b = self.horizon_steps, self.n_buildings
         extra = np.zeros(h) if extra_price_eur_per_kwh is None else np.asarray(extra_price_eur_per_kwh, float)
         if extra.shape != (h,) or not np.all(np.isfinite(extra)):
-            raise InputError(f"FleetCEM.plan: the extra price must be {h} finite values")
+            raise InternalError(f"FleetCEM.plan: the extra price must be {h} finite values")
         if step.start is None:
             return FleetPlan(np.zeros((b, h)), np.zeros(b, dtype=bool), "short history", 0)
         if self._best is None:
@@ -418,7 +418,7 @@ class FleetCEM:
         distrusted ones, the band-keeping fallback where there is no plan."""
         step = self._step
         if step is None:
-            raise InputError("FleetCEM.commit: call observe() and plan() first")
+            raise InternalError("FleetCEM.commit: call observe() and plan() first")
         b = self.n_buildings
         spread = np.zeros(b)
         if self.spread_dynamics is not None and step.spread_start is not None and plan.ok.any():

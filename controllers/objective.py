@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from controllers.base import ControlSpec, Forecast, first_values
-from pinn_mpc.errors import InputError
+from pinn_mpc.errors import InternalError
 
 if TYPE_CHECKING:
     import torch
@@ -73,7 +73,7 @@ class HorizonObjective:
     def __post_init__(self) -> None:
         shapes = {np.shape(a) for a in (self.price_eur_per_kwh, self.t_min_c, self.t_max_c)}
         if len(shapes) != 1 or len(next(iter(shapes))) != 1:
-            raise InputError(
+            raise InternalError(
                 f"HorizonObjective: price and band must be arrays of one shape (H,), got {shapes}"
             )
 
@@ -125,7 +125,7 @@ class HorizonObjective:
         violation = band_violation_k(np.asarray(t_r_c, dtype=float), self.t_min_c, self.t_max_c)
         energy = energy_cost_eur(np.asarray(u_phys_w, dtype=float), self.price_eur_per_kwh, self.dt_h)
         if np.shape(violation)[-1] != h:
-            raise InputError(f"HorizonObjective: predictions must end in H={h}, got {np.shape(t_r_c)}")
+            raise InternalError(f"HorizonObjective: predictions must end in H={h}, got {np.shape(t_r_c)}")
         return energy + self.comfort_weight_eur_per_kh * self.dt_h * violation
 
     def cost(self, u_phys_w: np.ndarray, t_r_c: np.ndarray) -> np.ndarray:

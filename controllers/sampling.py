@@ -74,7 +74,7 @@ from controllers.objective import HorizonObjective
 from controllers.planners import CEMPlanner, Planner, PlanResult, RandomShootingPlanner
 from controllers.setpoint_space import SetpointSpace
 from controllers.trust import TrustMonitor, TrustSettings
-from pinn_mpc.errors import InputError
+from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.features import check_interval
 from pinn_mpc.models.rollout import BatchDynamics
 from pinn_mpc.physics import RCParams, discretise, step
@@ -326,7 +326,7 @@ class _SamplingController(PlanningController):
         along it [K])."""
         h = min(self.spec.horizon_steps, forecast.horizon)
         if h < 1:
-            raise InputError("the forecast is empty")
+            raise InternalError("the forecast is empty")
         offset = self.estimator.update(obs)
         self.monitor.observe(
             self.estimator.innovation_k, self.estimator.power_error_w, *self._replay_errors(obs)

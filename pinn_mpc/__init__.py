@@ -7,7 +7,8 @@ physics (:class:`RCParams`, :data:`PAPER_HOUSEHOLD`, :func:`discretise`, :func:`
 models (:class:`TrainConfig`, :func:`train_model`, :class:`LearnedModel`, :func:`save_model`,
 :func:`load_model`, :func:`evaluate_model`, :data:`ARCHS`, :data:`RECIPES`), and R/C values
 (:func:`identify_rc`, :class:`IdentifyResult`, :func:`export_rc`). Bad input raises
-:class:`InputError`. Controllers are in :mod:`controllers`, experiments in :mod:`scenarios`.
+:class:`InputError`; an internal inconsistency (a bug) raises :class:`InternalError`; input
+that is accepted but deserves attention warns with :class:`PinnMpcWarning`. Controllers are in :mod:`controllers`, experiments in :mod:`scenarios`.
 """
 
 from __future__ import annotations
@@ -27,6 +28,8 @@ if TYPE_CHECKING:
     from pinn_mpc.data import validate_timeseries as validate_timeseries
     from pinn_mpc.data import write_timeseries as write_timeseries
     from pinn_mpc.errors import InputError as InputError
+    from pinn_mpc.errors import InternalError as InternalError
+    from pinn_mpc.errors import PinnMpcWarning as PinnMpcWarning
     from pinn_mpc.evaluation import evaluate_model as evaluate_model
     from pinn_mpc.export import export_rc as export_rc
     from pinn_mpc.identify import IdentifyResult as IdentifyResult
@@ -49,7 +52,7 @@ _EXPORTS = {
     "pinn_mpc.artifacts": ("load_model", "save_model"),
     "pinn_mpc.choices": ("ARCHS", "RECIPES"),
     "pinn_mpc.data": ("read_timeseries", "validate_timeseries", "write_timeseries"),
-    "pinn_mpc.errors": ("InputError",),
+    "pinn_mpc.errors": ("InputError", "InternalError", "PinnMpcWarning"),
     "pinn_mpc.evaluation": ("evaluate_model",),
     "pinn_mpc.export": ("export_rc",),
     "pinn_mpc.identify": ("IdentifyResult", "identify_rc"),

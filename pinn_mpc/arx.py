@@ -55,7 +55,7 @@ import pandas as pd
 import torch
 
 from pinn_mpc.data import WIND, day_of_week
-from pinn_mpc.errors import InputError
+from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.io import DirectoryLayout
 from pinn_mpc.models.registry import ARX, PHYSICS_ARX
 from pinn_mpc.models.rollout import Rollout
@@ -241,7 +241,7 @@ class ARXModel:
         Every start must have ``lags - 1`` rows before it."""
         starts = np.asarray(starts, dtype=int)
         if starts.size and (starts.min() < self.lags - 1 or starts.max() + horizon > len(df) - 1):
-            raise InputError(
+            raise InternalError(
                 f"ARX model: starts must lie in {self.lags - 1} .. {len(df) - 1 - horizon}"
             )
         values, sched = self._inputs(df)
@@ -298,7 +298,7 @@ class ARXModel:
             raise InputError("ARX model: its schedule needs the forecast's dates (day_of_week)")
         t_r_past = np.asarray(history["T_r"], dtype=float)
         if len(t_r_past) < lags:
-            raise InputError(f"ARX model: needs {lags} past values of T_r")
+            raise InternalError(f"ARX model: needs {lags} past values of T_r")
         coef = self.coef
         # Every lagged input but T_r over rows k-lags+1 .. k+h-1 (the past, then the horizon):
         # its terms go into ``free``, the planned power's into ``gain``.
@@ -309,7 +309,7 @@ class ARXModel:
             if name != "u_phys":  # the weather history ends with now's row: exog[name][0]
                 past = past[:-1]
             if len(past) < lags - 1:
-                raise InputError(f"ARX model: needs {lags - 1} past intervals of {name}")
+                raise InternalError(f"ARX model: needs {lags - 1} past intervals of {name}")
             past = past[len(past) - (lags - 1):] * _SCALE[name]
             ahead = (
                 np.zeros(h) if name == "u_phys"

@@ -20,16 +20,18 @@ file, column, row and fix.
 
 from __future__ import annotations
 
+import dataclasses
+import json
 import os
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from pinn_mpc.errors import InputError
-from pinn_mpc.io import atomic_write
-from pinn_mpc.physics import DT_RANGE_S, MAX_POWER_W
+from pinn_mpc.io import atomic_write, atomic_write_json, file_sha256
+from pinn_mpc.physics import DT_RANGE_S, MAX_POWER_W, RCParams
 from pinn_mpc.solar import FACADE_COLUMNS
 
 __all__ = [
@@ -43,10 +45,13 @@ __all__ = [
     "WIND",
     "WIND_RANGE_M_S",
     "day_of_week",
+    "fleet_params_path",
     "parse_column_map",
     "parse_times",
+    "read_fleet_params",
     "read_timeseries",
     "validate_timeseries",
+    "write_fleet_params",
     "write_timeseries",
 ]
 
@@ -344,3 +349,44 @@ def write_timeseries(df: pd.DataFrame, path: str | os.PathLike[str]) -> Path:
     ]
     out = out[ordered]
     return atomic_write(path, lambda tmp: out.to_csv(tmp, index=False, float_format="%.6f"))
+
+
+def fleet_params_path(data: str | os.PathLike[str]) -> Path:
+    """The file next to a fleet data set with its buildings' parameters (``simulate
+    --spread``): ``fleet.csv`` -> ``fleet.fleet.json``."""
+    return Path(data).with_suffix(".fleet.json")
+
+
+def write_fleet_params(data: str | os.PathLike[str], params: Sequence[RCParams], *, spread: float) -> Path:
+    """Write the buildings' parameters of the fleet data set ``data`` (already written: the
+    file records its hash) next to it, atomically; the path written."""
+    path = fleet_params_path(data)
+    atomic_write_json(path, {"spread": spread, "params": [dataclasses.asdict(p) for p in params],
+                             "data_sha256": file_sha256(data)})
+    return path
+
+
+def read_fleet_params(data: str | os.PathLike[str], n_buildings: int) -> list[RCParams] | None:
+    """The buildings' parameters stored next to the fleet data set ``data`` (one per building,
+    ``n_buildings`` of them), or None without such a file. A file that is not one, that
+    describes another ``data`` (its hash differs) or another number of buildings is refused."""
+    sidecar = fleet_params_path(data)
+    if not sidecar.is_file():
+        return None
+    try:
+        stored = json.loads(sidecar.read_text())
+        params = [RCParams(**p) for p in stored["params"]]
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise InputError(f"{sidecar}: not a fleet parameter file ({exc})") from None
+    if stored.get("data_sha256") not in (None, file_sha256(data)):
+        raise InputError(
+            f"{sidecar} describes the buildings of another {data} (the data changed since "
+            f"`simulate --spread` wrote both); simulate the fleet again, or remove {sidecar} "
+            "to train without the buildings' parameters"
+        )
+    if len(params) != n_buildings:
+        raise InputError(
+            f"{sidecar} holds {len(params)} buildings' parameters, {data} {n_buildings} "
+            f"buildings; simulate the fleet again, or remove {sidecar}"
+        )
+    return params

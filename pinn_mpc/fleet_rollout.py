@@ -25,7 +25,7 @@ from typing import NamedTuple, cast
 import numpy as np
 import torch
 
-from pinn_mpc.errors import InputError
+from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.models.hybrid import HybridConstants, HybridNet, saturate_backup
 from pinn_mpc.models.learned import LearnedModel
 from pinn_mpc.models.rollout import Rollout
@@ -113,7 +113,7 @@ class FleetHybrid:
         (B, M, N, H)."""
         u_w = torch.as_tensor(u_w, dtype=torch.float32)
         if u_w.ndim != 3:
-            raise InputError(f"FleetHybrid.rollout: u_w must be (B, N, H), got {tuple(u_w.shape)}")
+            raise InternalError(f"FleetHybrid.rollout: u_w must be (B, N, H), got {tuple(u_w.shape)}")
         return self.roll(self.prepare(histories, exog, u_w.shape[2], drop_last=drop_last), u_w)
 
     def prepare(
@@ -128,12 +128,12 @@ class FleetHybrid:
         :meth:`roll` then takes any number of plans (B, N, h) from it."""
         b, k1 = self.n_buildings, self.depth + 1
         if len(histories) != b:
-            raise InputError(f"FleetHybrid: {len(histories)} histories for {b} buildings")
+            raise InternalError(f"FleetHybrid: {len(histories)} histories for {b} buildings")
         if drop_last < 0:
-            raise InputError(f"FleetHybrid: drop_last must be >= 0, got {drop_last}")
+            raise InternalError(f"FleetHybrid: drop_last must be >= 0, got {drop_last}")
         for name in self.exog_names:
             if name not in exog or np.shape(exog[name])[0] < h:
-                raise InputError(f"FleetHybrid: exog[{name!r}] must have at least H={h} values")
+                raise InternalError(f"FleetHybrid: exog[{name!r}] must have at least H={h} values")
         series_names = ("T_r", "u_phys", *self.exog_series)
         raw = {n: _windows(histories, n, k1, drop_last) for n in series_names}
         future = {n: np.asarray(exog[n], dtype=float)[:h] for n in self.exog_series}
@@ -198,7 +198,7 @@ class FleetHybrid:
         u_w = torch.as_tensor(u_w, dtype=torch.float32)
         h_len = start.pre.shape[0]
         if u_w.ndim != 3 or u_w.shape[0] != b or u_w.shape[2] != h_len:
-            raise InputError(f"FleetHybrid.roll: u_w must be (B={b}, N, H={h_len}), got {tuple(u_w.shape)}")
+            raise InternalError(f"FleetHybrid.roll: u_w must be (B={b}, N, H={h_len}), got {tuple(u_w.shape)}")
         n = u_w.shape[1]
         hidden = c.b_first.shape[1]
         with torch.no_grad():
@@ -243,7 +243,7 @@ def _windows(histories: Sequence[Mapping[str, np.ndarray]], name: str, k1: int, 
     lengths = {len(v) for v in values}
     for i, v in enumerate(values):
         if len(v) < k1 + drop:
-            raise InputError(
+            raise InternalError(
                 f"FleetHybrid: building {i} has {len(v)} past values of {name}, the models need "
                 f"depth+1={k1}{f' before its last {drop}' if drop else ''}"
             )

@@ -28,7 +28,7 @@ import pandas as pd
 import scipy.optimize
 import scipy.signal
 
-from pinn_mpc.errors import InputError
+from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.physics import PLAUSIBLE_RANGES, RCParams, check_plausible, discretise
 
 __all__ = ["IdentifyResult", "identify_rc", "simulate_rc"]
@@ -65,7 +65,7 @@ class IdentifyResult:
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.rmse_c) and self.rmse_c >= 0):
-            raise InputError(f"IdentifyResult.rmse_c must be finite and >= 0, got {self.rmse_c}")
+            raise InternalError(f"IdentifyResult.rmse_c must be finite and >= 0, got {self.rmse_c}")
 
     def fit_statistics(self) -> dict[str, Any]:
         return {

@@ -27,7 +27,7 @@ import numpy as np
 import scipy.linalg
 
 from pinn_mpc.actuator import Actuator
-from pinn_mpc.errors import InputError
+from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.physics import N_INPUTS, PAPER_HOUSEHOLD, RCParams
 from pinn_mpc.plant import Plant, plant_matrices
 
@@ -150,7 +150,7 @@ def fleet_matrices(
     if not (math.isfinite(dt_s) and dt_s > 0):
         raise InputError(f"dt_s must be a positive number of seconds, got {dt_s!r}")
     if len(params) == 0:
-        raise InputError("fleet_matrices: no buildings given")
+        raise InternalError("fleet_matrices: no buildings given")
     m = np.zeros((len(params), n + N_INPUTS, n + N_INPUTS))
     for i, p in enumerate(params):
         a, b = plant_matrices(p, plant)
@@ -260,7 +260,7 @@ class Simulator:
         shape = (self.n_buildings,)
         u = np.broadcast_to(np.asarray(u_w, dtype=float), shape)
         if not np.all(np.isfinite(u)):
-            raise InputError("Simulator.step: demanded power u_w has non-finite values")
+            raise InternalError("Simulator.step: demanded power u_w has non-finite values")
         cfg = self.config
         u = np.clip(u, 0.0, cfg.u_max_w)
         exog = np.stack(

@@ -36,7 +36,7 @@ from pinn_mpc import __version__, physics
 from pinn_mpc.actuator import CopCurve
 from pinn_mpc.choices import RECIPES, RESIDUALS
 from pinn_mpc.data import validate_timeseries
-from pinn_mpc.errors import InputError
+from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.features import (
     MAX_DEPTH,
     MIN_TRAIN_SAMPLES,
@@ -144,7 +144,7 @@ class TrainConfig:
         """Epochs, batch size, learning rates and lambda with the recipe's defaults filled in
         (the recipe must be set: see :meth:`for_arch`)."""
         if self.recipe is None:
-            raise InputError("TrainConfig.resolved needs a recipe; call for_arch first")
+            raise InternalError("TrainConfig.resolved needs a recipe; call for_arch first")
         r = RECIPES[self.recipe]
         lr = self.lr if self.lr is not None else r["lr"]
         return {

@@ -382,7 +382,7 @@ class BuildingRecord(BuildingKpis):
 
 
 class FleetJson(TypedDict):
-    """The fleet JSON of ``closed-loop --buildings N`` (:func:`scenarios.commands.fleet_json`)."""
+    """The fleet JSON of ``closed-loop --buildings N`` (:func:`scenarios.fleets.fleet.fleet_json`)."""
 
     fleet: FleetInfo
     totals: FleetTotals

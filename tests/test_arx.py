@@ -7,7 +7,7 @@ import pandas as pd
 import pytest
 
 from pinn_mpc.arx import ARXModel, fit_arx
-from pinn_mpc.errors import InputError
+from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.physics import RCParams, discretise
 
 
@@ -59,7 +59,7 @@ def test_arx_refuses_short_data_and_out_of_range_starts():
         fit_arx(_rc_data(1, seed=0))
     model: ARXModel = fit_arx(_rc_data(14, seed=0))
     test = _rc_data(2, seed=1)
-    with pytest.raises(InputError, match="starts must lie"):
+    with pytest.raises(InternalError, match="starts must lie"):
         model.predict_t_r(test, 24, np.array([len(test) - 10]))
     with pytest.raises(InputError, match="lacks column"):
         model.predict_t_r(test.drop(columns="G"), 1, np.array([10]))

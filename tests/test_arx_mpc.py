@@ -13,7 +13,7 @@ from controllers.base import ControlSpec, Forecast, Observation, fallback_power
 from controllers.objective import HorizonObjective
 from controllers.rc_mpc.references import oracle_mpc
 from pinn_mpc.arx import ARXModel, fit_arx, fit_physics_informed_arx
-from pinn_mpc.errors import InputError
+from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.features import time_of_day_h
 from pinn_mpc.physics import PAPER_HOUSEHOLD, RCParams, discretise
 from pinn_mpc.simulator import SimConfig
@@ -105,7 +105,7 @@ def test_prediction_matrices_are_the_arx_recursion(physics_informed: bool) -> No
     # with the interaction the response to a power depends on when it is given
     varies = not np.allclose(np.diag(gain, -1), np.diag(gain, -1)[0], rtol=1e-9, atol=0)
     assert varies == physics_informed
-    with pytest.raises(InputError, match="past values of T_r"):
+    with pytest.raises(InternalError, match="past values of T_r"):
         model.prediction_matrices({**history, "T_r": history["T_r"][-1:]}, exog, h)
 
 

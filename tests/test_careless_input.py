@@ -18,15 +18,19 @@ import pandas as pd
 import pytest
 
 from pinn_mpc.artifacts import save_model
-from pinn_mpc.data import read_fleet_timeseries, read_timeseries, write_timeseries
-from pinn_mpc.errors import InputError
+from pinn_mpc.data import (
+    fleet_params_path,
+    read_fleet_timeseries,
+    read_timeseries,
+    write_timeseries,
+)
+from pinn_mpc.errors import InputError, PinnMpcWarning
 from pinn_mpc.identify import identify_rc
 from pinn_mpc.io import atomic_write_json, file_sha256
 from pinn_mpc.physics import PAPER_HOUSEHOLD, rc_summary
 from pinn_mpc.simulator import draw_fleet
 from pinn_mpc.training import TrainConfig, train_model
 from pinn_mpc_cli.cli import main
-from scenarios.commands import fleet_params_path
 from scenarios.experiments.sweep import Cell, _label, _read_cell, scenario_digest
 from scenarios.fleets.training import building_model_dir, frame_digest, train_per_building
 from scenarios.inputs.scenario_file import (
@@ -288,10 +292,10 @@ def test_implausible_or_missing_scenario_values_are_refused(tmp_path, edit, mess
         (None, np.where(np.arange(len(HOURS)) % 24 == 12, 0.4, 0.0), "G never exceeds 0.4 W/m2"),
     ],
 )
-def test_implausible_units_are_warned_with_the_likely_cause(tmp_path, capsys, t_a, g, warning):
+def test_implausible_units_are_warned_with_the_likely_cause(tmp_path, t_a, g, warning):
     _weather(tmp_path / "units.csv", t_a=t_a, g=g)
-    load_scenario_file(_scenario(tmp_path, weather="units.csv"))
-    assert warning in capsys.readouterr().err
+    with pytest.warns(PinnMpcWarning, match=re.escape(warning)):
+        load_scenario_file(_scenario(tmp_path, weather="units.csv"))
 
 
 def test_a_file_with_a_builtins_name_is_named_in_the_results(tmp_path, capsys):

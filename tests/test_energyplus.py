@@ -1,6 +1,7 @@
 """EnergyPlus as the plant: energy balance, determinism, broken models, shutdown, code refused."""
 
 import json
+import logging
 import subprocess
 import sys
 import tempfile
@@ -14,12 +15,12 @@ import pytest
 pytest.importorskip("pyenergyplus.api")
 
 from controllers.thermostat import Thermostat  # noqa: E402
-from pinn_mpc.errors import InputError  # noqa: E402
-from scenarios.inputs.scenario_file import get_scenario  # noqa: E402
+from pinn_mpc.errors import InputError, InternalError  # noqa: E402
+from scenarios.inputs.scenario_file import get_scenario
 from scenarios.plants.energyplus.files import resolve_building
 from scenarios.plants.energyplus.model import _read_model, prepare_model
 from scenarios.plants.energyplus.run import EnergyPlusRun
-from scenarios.running.closed_loop import run_closed_loop  # noqa: E402
+from scenarios.running.closed_loop import run_closed_loop
 
 SCENARIO = "eplus_small_office"
 FILE = """
@@ -267,7 +268,7 @@ def test_a_run_crosses_the_year_on_the_typical_years_weather():
     with EnergyPlusRun(prepared, weather="usa_il_chicago", u_max_w=1000.0) as run:
         run.start(364, 3, year=2021)
         crossing = np.array([run.step(0.0).t_a_c for _ in range(3 * 48)])
-        with pytest.raises(InputError, match="the run has ended"):
+        with pytest.raises(InternalError, match="the run has ended"):
             run.step(0.0)
         run.start(1, 1, year=2022)
         new_year = np.array([run.step(0.0).t_a_c for _ in range(48)])
@@ -482,16 +483,17 @@ def _thermostat_on_days(scenario, power_w, start_day, days):
     return float(np.mean(held))
 
 
-def test_auto_heater_holds_the_band_on_the_coldest_days(tmp_path, capsys):
+def test_auto_heater_holds_the_band_on_the_coldest_days(tmp_path, caplog):
     """heater_w = "auto": the small office's heater, sized on Chicago's coldest three days
     (6-8 January), keeps the interval-mean T_r at or above the band's lower bound in >= 80 %
     of the intervals under the package's thermostat there (measured 85 %); a third of it
-    holds it in < 40 % (measured 25 %). The sized value reaches stderr, one line."""
+    holds it in < 40 % (measured 25 %). The sized value is one note (logging, level INFO)."""
+    caplog.set_level(logging.INFO, logger="scenarios")
     text = FILE.format(building="small_office", extra="").replace("heater_w = 20000.0\n", "")
     (tmp_path / "auto.toml").write_text(text.replace("day_max_c = 23.0", "day_max_c = 23.0\nday_end_h = 19.0"))
     scenario = get_scenario(str(tmp_path / "auto.toml"))
     assert scenario.sim.plant.heater_w == "auto"
-    line = [x for x in capsys.readouterr().err.splitlines() if "heater sized" in x]
+    line = [x for x in caplog.messages if "heater sized" in x]
     assert len(line) == 1 and f"{scenario.sim.u_max_w / 1000:g} kW" in line[0] and "06 Jan-08 Jan" in line[0]
     assert 15000 <= scenario.sim.u_max_w <= 30000 and scenario.sim.u_max_w % 1000 == 0
     assert _thermostat_on_days(scenario, scenario.sim.u_max_w, 6, 3) >= 0.8
@@ -572,7 +574,7 @@ def test_measured_gains_reach_the_controllers(tmp_path):
     assert not unknown.exogenous(days=1, seed=0, part="test")["I_g"].any()
 
 
-def test_cooling_scenario_file_runs_a_sized_chiller(tmp_path, capsys):
+def test_cooling_scenario_file_runs_a_sized_chiller(tmp_path, caplog):
     """[building] eta = -3 (the package's cooling convention, as cold_storage): the EnergyPlus
     plant's ideal equipment is a chiller of COP 3, sized on the weather file's hottest days to
     hold the band's upper bound; the thermostat cools with it (electrical power reported)."""
@@ -581,8 +583,9 @@ def test_cooling_scenario_file_runs_a_sized_chiller(tmp_path, capsys):
     text += '[weather]\ntype = "TMY3Weather"\nfile_name = "usa_il_chicago"\nwindow_start = "06-01"\n'
     text += 'window_days = 61\ntest_start = "07-01"\ntest_days = 31\n'
     (tmp_path / "cool.toml").write_text(text.replace("initial_t_r_c = 20.0", "initial_t_r_c = 24.0"))
+    caplog.set_level(logging.INFO, logger="scenarios")
     scenario = get_scenario(str(tmp_path / "cool.toml"))
-    assert "chiller sized" in capsys.readouterr().err and scenario.sim.params.eta == -3.0
+    assert any("chiller sized" in m for m in caplog.messages) and scenario.sim.params.eta == -3.0
     result = run_closed_loop(scenario, Thermostat(scenario.control_spec()), days=1, seed=0)
     traj = result.trajectory
     assert traj["u_phys"].max() == pytest.approx(scenario.sim.u_max_w) and traj["u_phys"].min() >= 0

@@ -12,7 +12,7 @@ from controllers.rc_mpc.osqp import QPMPC
 from controllers.rc_mpc.problem import DEFAULT_REGULARISATION
 from controllers.rc_mpc.references import oracle_mpc
 from controllers.thermostat import Thermostat
-from pinn_mpc.errors import InputError
+from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.physics import PAPER_HOUSEHOLD, discretise
 from pinn_mpc.rc_batch_model import RCBatchModel
 from pinn_mpc.simulator import SimConfig
@@ -144,10 +144,10 @@ def test_engine_validates_its_inputs():
             initial_t_r_c=19.0,
             initial_t_m_c=18.0,
         )
-    with pytest.raises(InputError, match="one length"):
+    with pytest.raises(InternalError, match="one length"):
         ExogenousSeries(**{**bad.__dict__, "G": np.zeros(3)})
     loop = _loop(n=1)
     for _ in range(1 + H):
         loop.step(0.0)
-    with pytest.raises(InputError, match="exhausted"):
+    with pytest.raises(InternalError, match="exhausted"):
         loop.step(0.0)

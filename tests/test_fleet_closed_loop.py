@@ -8,7 +8,7 @@ import pytest
 
 from controllers.rc_mpc.osqp import QPMPC
 from controllers.thermostat import Thermostat
-from pinn_mpc.errors import InputError
+from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc_cli.cli import main
 from scenarios.fleets.fleet import FLEET_TOTAL_KEYS, run_fleet_closed_loop
 from scenarios.inputs.scenario_file import get_scenario
@@ -111,11 +111,11 @@ def test_fleet_input_errors_are_one_clear_line():
         run_fleet_closed_loop(scenario, "thermostat", n_buildings=2, days=0, seed=0)
     run = prepare_run(scenario, days=1, seed=0, warmup_steps=0, weather_part="test")
     loop = build_loop(scenario, run, seed=0, fleet=(scenario.sim.params,) * 2)
-    with pytest.raises(InputError, match="use advance_fleet"):
+    with pytest.raises(InternalError, match="use advance_fleet"):
         loop.advance(Thermostat(scenario.control_spec()))
-    with pytest.raises(InputError, match="1 controllers for 2 buildings"):
+    with pytest.raises(InternalError, match="1 controllers for 2 buildings"):
         loop.advance_fleet([Thermostat(scenario.control_spec())])
-    with pytest.raises(InputError, match=r"building=2 must lie in \[0, 1\]"):
+    with pytest.raises(InternalError, match=r"building=2 must lie in \[0, 1\]"):
         loop.record(2)
 
 

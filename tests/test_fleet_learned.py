@@ -9,7 +9,7 @@ import torch
 
 from controllers.planners import CEMPlanner
 from pinn_mpc import TrainConfig, train_model
-from pinn_mpc.errors import InputError
+from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.fleet_rollout import FEW_PLANS, FleetHybrid
 from pinn_mpc.simulator import draw_fleet
 from scenarios.fleets.aggregator import cap_in_force, learned_fleet_planner, run_coordinated_fleet
@@ -112,7 +112,7 @@ def test_a_candidate_plan_is_scored_and_kept_unless_a_sample_beats_it():
     plans, costs = optimize_fleet(planner, cost, x0, generators(), candidates=target[:, None])
     torch.testing.assert_close(plans, target)
     assert float(costs.max()) == 0.0
-    with pytest.raises(InputError, match="candidates must be"):
+    with pytest.raises(InternalError, match="candidates must be"):
         optimize_fleet(planner, cost, x0, generators(), candidates=torch.zeros(2, 7, h))
 
 

@@ -10,7 +10,7 @@ import pytest
 from controllers.base import ControlSpec
 from controllers.rc_mpc.references import oracle_mpc
 from controllers.thermostat import Thermostat
-from pinn_mpc.errors import InputError
+from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.physics import PAPER_HOUSEHOLD
 from pinn_mpc.simulator import SimConfig
 from scenarios.inputs.exogenous import GainsSchedule
@@ -137,7 +137,7 @@ def test_unknown_gains_are_the_schedules_expectation_in_forecast_and_past():
     decision = loop.advance(Thermostat(SPEC))
     np.testing.assert_array_equal(decision.forecast.I_g, expected)
     np.testing.assert_array_equal(decision.observation.history["I_g"], expected[:1])
-    with pytest.raises(InputError, match="expected_gains_w"):
+    with pytest.raises(InternalError, match="expected_gains_w"):
         _loop(ForecastErrors(gains_known=False))
 
 

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from pinn_mpc.errors import InputError
+from pinn_mpc.errors import InternalError
 from scenarios.running.kpis import KPI_KEYS, compute_kpis
 
 DT_S = 1800.0
@@ -86,8 +86,8 @@ def test_decision_times_ratio_and_counts():
     assert (k["backup_overrides"], k["fallbacks"]) == (3, 1)
 
 
-def test_shape_mismatch_is_an_input_error():
-    with pytest.raises(InputError, match=r"price_eur_per_kwh must be \(3,\)"):
+def test_shape_mismatch_is_an_internal_error():
+    with pytest.raises(InternalError, match=r"price_eur_per_kwh must be \(3,\)"):
         compute_kpis(
             u_phys_w=np.zeros(3), price_eur_per_kwh=np.zeros(2), t_r_sub_c=np.zeros((3, 4)),
             t_min_c=np.zeros(3), t_max_c=np.zeros(3), decision_s=np.zeros(3),

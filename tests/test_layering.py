@@ -1,9 +1,9 @@
 """Imports only point downwards: pinn_mpc -> nothing of ours; controllers -> pinn_mpc;
-scenarios -> both; the application pinn_mpc_cli -> all three. Inside scenarios, the
-subpackages form a stack (SCENARIO_STACK): each imports only those before it and the shared
-modules (choices, records), which import none of them; plants come first, knowing no scenario. A package's ``__main__.py``
-(``python -m pinn_mpc``) is a script that runs the application: it may import it, and no
-module may import a ``__main__``."""
+scenarios -> both; the application pinn_mpc_cli -> all three, with no exception: ``python -m
+pinn_mpc`` finds the command through the installed entry point, and no module may import a
+``__main__``. Inside scenarios, the subpackages form a stack (SCENARIO_STACK): each imports
+only those before it and the shared modules (choices, records), which import none of them;
+plants come first, knowing no scenario."""
 
 import ast
 from pathlib import Path
@@ -18,7 +18,6 @@ ALLOWED = {
     "scenarios": {"pinn_mpc", "controllers", "scenarios"},
     "pinn_mpc_cli": {"pinn_mpc", "controllers", "scenarios", "pinn_mpc_cli"},
 }
-APPLICATION = "pinn_mpc_cli"
 #: The subpackages of scenarios, lowest first: each may import itself and those before it.
 SCENARIO_STACK = ("plants", "inputs", "running", "fleets", "reports", "experiments")
 #: Modules at the top of scenarios every subpackage may import; they import no subpackage.
@@ -67,9 +66,7 @@ def test_layer_imports_point_downwards(layer):
     bad = []
     for path in files:
         rel = path.relative_to(ROOT)
-        # A script run by `python -m`, not a module: it may start the application.
-        allowed = ALLOWED[layer] | ({APPLICATION} if path.name == "__main__.py" else set())
-        wrong = imported_layers(path.read_text(encoding="utf-8")) - allowed
+        wrong = imported_layers(path.read_text(encoding="utf-8")) - ALLOWED[layer]
         if wrong:
             bad.append(f"{rel} imports {sorted(wrong)}")
     assert not bad, "; ".join(bad)
@@ -107,7 +104,7 @@ def test_scenarios_subpackages_import_only_those_below():
             allowed: set[str] = set(SCENARIO_SHARED)
         elif own in SCENARIO_STACK:
             allowed = set(SCENARIO_SHARED) | set(SCENARIO_STACK[: SCENARIO_STACK.index(own) + 1])
-        else:  # the package's face and the commands: anything of scenarios
+        else:  # the package's face (__init__): anything of scenarios
             continue
         for module in imported_modules(path.read_text(encoding="utf-8")):
             part = _scenarios_part(module)
@@ -118,7 +115,7 @@ def test_scenarios_subpackages_import_only_those_below():
 
 def test_every_scenarios_module_has_a_place_in_the_stack():
     """A new module of scenarios goes into a subpackage of the stack (or is a shared one)."""
-    top = {p.stem for p in (ROOT / "scenarios").glob("*.py")} - {"__init__", "commands"}
+    top = {p.stem for p in (ROOT / "scenarios").glob("*.py")} - {"__init__"}
     subpackages = {p.name for p in (ROOT / "scenarios").iterdir() if (p / "__init__.py").is_file()}
     assert top == set(SCENARIO_SHARED)
     assert subpackages == set(SCENARIO_STACK)

@@ -9,7 +9,7 @@ import pytest
 import torch
 
 from pinn_mpc import physics
-from pinn_mpc.errors import InputError
+from pinn_mpc.errors import InternalError
 from pinn_mpc.features import time_of_day_h
 from pinn_mpc.models import (
     EnsembleLinear,
@@ -163,7 +163,7 @@ def test_rollout_feeds_predictions_back_like_a_step_by_step_loop(small_model: Le
 def test_rollout_rejects_short_history(small_model: LearnedModel) -> None:
     df = household_data(4, 5)
     hist, exog, _ = _history(df.iloc[:30], 3, small_model.depth)
-    with pytest.raises(InputError, match="depth\\+1=5"):
+    with pytest.raises(InternalError, match="depth\\+1=5"):
         small_model.rollout(hist, torch.zeros(1, 4), exog)
 
 

@@ -12,7 +12,7 @@ from controllers.objective import (
     energy_cost_eur,
     planning_band,
 )
-from pinn_mpc.errors import InputError
+from pinn_mpc.errors import InternalError
 
 SPEC = ControlSpec(u_max_w=5000.0, dt_s=1800.0, comfort_weight_eur_per_kh=2.0)
 
@@ -66,7 +66,7 @@ def test_until_frees_the_steps_after_the_run_end():
     assert cut.t_min_c[2:].tolist() == [OPEN_BAND_C[0]] * 2
     assert objective.price_eur_per_kwh[2] == 0.3  # the original is untouched
     assert objective.until(4) is objective
-    with pytest.raises(InputError, match="one shape"):
+    with pytest.raises(InternalError, match="one shape"):
         HorizonObjective(
             price_eur_per_kwh=np.zeros(3),
             t_min_c=np.zeros(2),

@@ -199,8 +199,7 @@ def test_identify_evaluate_and_export_write_their_records(tmp_path):
 
 
 def test_a_fleet_writes_its_records():
-    from scenarios.commands import fleet_json
-    from scenarios.fleets.fleet import run_fleet_closed_loop
+    from scenarios.fleets.fleet import fleet_json, run_fleet_closed_loop
 
     scenario = get_scenario("winter_household")
     result = run_fleet_closed_loop(scenario, "thermostat", n_buildings=2, days=1, seed=0, warmup_steps=4)
@@ -213,8 +212,8 @@ def test_a_fleet_writes_its_records():
 
 
 def test_a_capped_batched_fleet_writes_its_records():
-    from scenarios.commands import fleet_json
     from scenarios.fleets.aggregator import run_coordinated_fleet
+    from scenarios.fleets.fleet import fleet_json
 
     scenario = get_scenario("winter_household")
     result = run_coordinated_fleet(scenario, "qp-mpc", n_buildings=2, days=1, seed=0, cap_kw=3.0,

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from pinn_mpc import physics
-from pinn_mpc.errors import InputError
+from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.simulator import SimConfig, Simulator, backup_power
 
 WIDE = SimConfig(backup_low_c=-50.0, backup_high_c=80.0)
@@ -96,5 +96,5 @@ def test_config_errors_name_the_problem():
         SimConfig(dt_s=1000.0, substep_s=300.0)
     with pytest.raises(InputError, match="low < high"):
         SimConfig(backup_low_c=21.0, backup_high_c=20.0)
-    with pytest.raises(InputError, match="non-finite"):
+    with pytest.raises(InternalError, match="non-finite"):
         Simulator(SimConfig()).step(np.nan, 10.0)

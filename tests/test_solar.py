@@ -11,7 +11,7 @@ import pytest
 from controllers.arx_mpc import ARXQPMPC
 from controllers.base import ControlSpec, Forecast, Observation
 from pinn_mpc.arx import MEASURED_INPUTS, fit_arx, fit_physics_informed_arx
-from pinn_mpc.errors import InputError
+from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.simulator import SimConfig
 from pinn_mpc.solar import FACADE_COLUMNS, facade_irradiance, interval_means
 from scenarios.inputs.registry import EXOGENOUS_COLUMNS
@@ -155,7 +155,7 @@ def test_forecasts_and_observations_carry_the_facades_with_the_error_of_g():
     assert np.std(factor) > 0.05
     for name in FACADE_COLUMNS:
         assert getattr(noisy, name)[day] == pytest.approx(getattr(perfect, name)[day] * factor)
-    with pytest.raises(InputError, match="give all of"):
+    with pytest.raises(InternalError, match="give all of"):
         ExogenousSeries(**{**_fields(series), "G_north": None})
     without = Forecast(*perfect[:8])
     with pytest.raises(InputError, match="no facade irradiance"):

@@ -14,7 +14,7 @@ from torch import nn
 
 from pinn_mpc import physics
 from pinn_mpc.actuator import CopCurve
-from pinn_mpc.errors import InputError
+from pinn_mpc.errors import InternalError
 from pinn_mpc.features import FeatureConfig, make_windows
 from pinn_mpc.models.base import Architecture, NetParts, RolloutInputs
 from pinn_mpc.models.physics_block import Physics
@@ -219,17 +219,17 @@ class LearnedModel:
         short = {n: len(hist.get(n, ())) for n in ("T_r", "u_phys", *f.exog_series)}
         short = {n: v for n, v in short.items() if v < k1}
         if short:
-            raise InputError(
+            raise InternalError(
                 f"rollout needs at least depth+1={k1} past values of T_r, u_phys and "
                 f"{', '.join(f.exog_series)}; got {short}"
             )
         u_w = torch.as_tensor(u_w, dtype=torch.float32)
         if u_w.ndim != 2:
-            raise InputError(f"rollout u_w must have shape (N, H), got {tuple(u_w.shape)}")
+            raise InternalError(f"rollout u_w must have shape (N, H), got {tuple(u_w.shape)}")
         h_len = u_w.shape[1]
         for name in self.exog_names:
             if name not in exog or np.shape(exog[name])[0] < h_len:
-                raise InputError(f"rollout exog[{name!r}] must have at least H={h_len} values")
+                raise InternalError(f"rollout exog[{name!r}] must have at least H={h_len} values")
         t_win = (hist["T_r"][-k1:] - f.temperature.mean) / f.temperature.std
         p_win = (hist["u_phys"][-k1:] - f.power.mean) / f.power.std
         seq = {

@@ -27,7 +27,7 @@
    test part (:mod:`scenarios.experiments.prediction`): the learned models, a linear ARX baseline fitted on
    the same training data (:mod:`pinn_mpc.arx`), and the identified, exported and true RC as
    the RC MPCs use them.
-5. Outputs (written by the command, :func:`scenarios.commands.compare`; :func:`run_comparison`
+5. Outputs (written by the command, :func:`pinn_mpc_cli.experiment_commands.compare`; :func:`run_comparison`
    returns them as a :class:`ComparisonResult`): a JSON table (one row per controller with every KPI), a markdown report with the
    dates of the training data and of the test days, the KPI table, each objective relative to
    the reference's (oracle or thermostat), the RC parameters against the true ones and a

@@ -30,7 +30,7 @@ from controllers.base import Controller, ControlSpec
 from controllers.coordination import Coordination, DualAscent
 from controllers.fleet import FleetPlanner, FleetQPMPC
 from controllers.thermostat import Thermostat
-from pinn_mpc.errors import InputError
+from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.physics import RCParams
 from pinn_mpc.simulator import draw_fleet
 from scenarios.fleets.fleet import FLEET_STREAM, FleetResult, fleet_info, fleet_result
@@ -237,7 +237,7 @@ def run_coordinated_fleet(
             scenario.sim.params, n_buildings, spread=spread, rng=np.random.default_rng([seed, FLEET_STREAM])
         )
     elif len(fleet) != n_buildings:
-        raise InputError(f"run_coordinated_fleet: {len(fleet)} buildings given for n_buildings={n_buildings}")
+        raise InternalError(f"run_coordinated_fleet: {len(fleet)} buildings given for n_buildings={n_buildings}")
     run = prepare_run(scenario, days=days, seed=seed, warmup_steps=warmup_steps, weather_part=weather_part)
     spec = scenario.control_spec()
     fleet_planner = factory(fleet, spec)
@@ -324,7 +324,7 @@ def learned_fleet_planner(
         from scenarios.running.budget import check_batched_fleet_memory
 
         if len(fleet) != len(models):
-            raise InputError(f"{len(models)} learned models for a fleet of {len(fleet)} buildings")
+            raise InternalError(f"{len(models)} learned models for a fleet of {len(fleet)} buildings")
         check_batched_fleet_memory(
             buildings=len(models), members=plan_members, samples=n_samples,
             horizon_steps=spec.horizon_steps,

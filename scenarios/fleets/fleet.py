@@ -19,6 +19,7 @@ otherwise (e.g. on identified parameters with errors).
 from __future__ import annotations
 
 import dataclasses
+import os
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, cast
@@ -32,8 +33,8 @@ from pinn_mpc.errors import InputError
 from pinn_mpc.physics import RCParams
 from pinn_mpc.simulator import draw_fleet
 from scenarios.choices import CONTROLLER_NAMES, MODEL_CONTROLLERS, RC_CONTROLLERS
-from scenarios.inputs.registry import Scenario, check_seed
-from scenarios.records import BuildingKpis, CapAccount, FleetInfo, FleetTotals
+from scenarios.inputs.registry import Scenario, check_seed, is_scenario_file
+from scenarios.records import BuildingKpis, CapAccount, FleetInfo, FleetJson, FleetTotals
 from scenarios.running.closed_loop import (
     RunInputs,
     build_loop,
@@ -50,6 +51,7 @@ __all__ = [
     "district_kpis",
     "fleet_controller",
     "fleet_info",
+    "fleet_json",
     "fleet_result",
     "fleet_step_time",
     "fleet_totals",
@@ -315,4 +317,35 @@ def district_kpis(aggregate_w: np.ndarray, *, dt_s: float) -> dict[str, float]:
         )
         if days
         else 0.0,
+    }
+
+
+def fleet_json(result: FleetResult, scenario_arg: str) -> FleetJson:
+    """The fleet JSON of a run on ``scenario_arg`` (a scenario's name or file; a file is named
+    absolute in ``fleet``): ``fleet`` (what ran), ``totals``, ``district`` KPIs, ``aggregate``
+    (``time``, ``power_kw`` per counted interval), ``cap`` (None without one), ``fell_back``
+    (the buildings whose fallback or whose model's RC MPC acted at least once), ``step_time``
+    and ``buildings``."""
+    return {
+        "fleet": (
+            {**result.info, "scenario_file": os.path.abspath(scenario_arg)}
+            if is_scenario_file(scenario_arg)
+            else result.info
+        ),
+        "totals": result.totals,
+        "district": result.district,
+        "aggregate": {
+            "time": list(result.times),
+            "power_kw": [round(float(v) / 1000.0, 4) for v in result.aggregate_u_phys_w],
+        },
+        "cap": result.cap,
+        "fell_back": [
+            k["building"] for k in result.kpis
+            if k["fallbacks"] > 0 or k.get("model_fallback_steps", 0) > 0
+        ],
+        "step_time": result.step_time,
+        "buildings": [
+            {**kpis, "params": dataclasses.asdict(params)}
+            for kpis, params in zip(result.kpis, result.params, strict=True)
+        ],
     }

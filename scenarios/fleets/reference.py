@@ -31,7 +31,7 @@ import numpy as np
 
 from controllers.rc_mpc.problem import DEFAULT_REGULARISATION
 from controllers.thermostat import Thermostat
-from pinn_mpc.errors import InputError
+from pinn_mpc.errors import InternalError
 from pinn_mpc.physics import RCParams
 from pinn_mpc.simulator import fleet_matrices
 from scenarios.fleets.aggregator import cap_account, cap_series, parse_cap_window
@@ -87,11 +87,11 @@ def solve_fleet_reference(
 
     b, n = x0_c.shape[0], len(price_eur_per_kwh)
     if ad.shape != (b, 2, 2) or bd.shape != (b, 2, 4) or exogenous.shape != (n, 3):
-        raise InputError("solve_fleet_reference: ad (B,2,2), bd (B,2,4), x0 (B,2), exogenous (N,3)")
+        raise InternalError("solve_fleet_reference: ad (B,2,2), bd (B,2,4), x0 (B,2), exogenous (N,3)")
     cop_j = np.ones(n) if cop is None else np.asarray(cop, dtype=float)
     cap = np.full(n, np.inf) if cap_w is None else np.asarray(cap_w, dtype=float)
     if cap.shape != (n,) or np.any(np.isnan(cap)) or np.any(cap < 0):
-        raise InputError("solve_fleet_reference: the cap must be N values >= 0 (inf: none)")
+        raise InternalError("solve_fleet_reference: the cap must be N values >= 0 (inf: none)")
     drift = np.einsum("jc,brc->brj", exogenous, bd[:, :, 1:])  # (B, 2, N) [C]
     gain = bd[:, :, 0][:, :, None] * 1000.0 * cop_j[None, None, :]  # (B, 2, N) [K per kW]
     p = cp.Variable((b, n), nonneg=True)  # electrical power [kW]
@@ -124,7 +124,7 @@ def solve_fleet_reference(
     problem = cp.Problem(cp.Minimize(objective), constraints)
     problem.solve(solver=solver)
     if problem.status not in ("optimal", "optimal_inaccurate") or p.value is None:
-        raise InputError(f"the fleet reference did not solve: {problem.status}")
+        raise InternalError(f"the fleet reference did not solve: {problem.status}")
     shadow = np.zeros(n)
     if coupling is not None and coupling.dual_value is not None:
         shadow[capped] = np.asarray(coupling.dual_value, dtype=float) / dt_h
@@ -189,7 +189,7 @@ def fleet_reference(
     lead: the least objective of those intervals, which no closed loop on the same plant beats
     but for what the minute substeps see between the interval ends)."""
     if cap_kw is None and cap_window is not None:
-        raise InputError("fleet_reference: a cap window needs a cap")
+        raise InternalError("fleet_reference: a cap window needs a cap")
     run = prepare_run(scenario, days=days, seed=seed, warmup_steps=warmup_steps, weather_part=weather_part)
     spec = scenario.control_spec()
     loop = build_loop(scenario, run, seed=seed, fleet=fleet)

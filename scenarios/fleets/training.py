@@ -29,7 +29,7 @@ from typing import Any
 
 import pandas as pd
 
-from pinn_mpc.errors import InputError
+from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.io import atomic_write_json, setting_changes
 from pinn_mpc.models.registry import DEFAULT_ARCH
 from pinn_mpc.physics import RCParams
@@ -130,7 +130,7 @@ def train_per_building(
     from scenarios.running.ray_engine import check_engine_options, ray_engine
 
     if params is not None and len(params) != len(frames):
-        raise InputError(f"{len(params)} building parameters for {len(frames)} buildings in the data")
+        raise InternalError(f"{len(params)} building parameters for {len(frames)} buildings in the data")
     check_engine_options(address, workers)
     root = Path(out)
     if root.exists() and not root.is_dir():
@@ -180,7 +180,11 @@ def train_per_building(
                 except ray.exceptions.RayError as exc:
                     cause = getattr(exc, "cause", None) or exc
                     first = (str(cause).strip().splitlines() or [""])[0]
-                    raise InputError(
+                    # The task's own exception is a bug unless it is about input, files or
+                    # memory; Ray's (a worker lost) are the machine's, reported as before.
+                    expected = (InputError, OSError, MemoryError, ray.exceptions.RayError)
+                    bug = isinstance(cause, Exception) and not isinstance(cause, expected)
+                    raise (InternalError if bug else InputError)(
                         f"training building {refs[ready[0]]} failed: {type(cause).__name__}: {first}"
                     ) from None
     summary.update(

@@ -14,9 +14,9 @@ The comfort weights price discomfort well above the energy it would take to avoi
 from __future__ import annotations
 
 import dataclasses
+import logging
 import math
 import os
-import sys
 from dataclasses import dataclass, field
 from typing import Any, Literal, cast
 
@@ -288,14 +288,15 @@ EPLUS_NOMINAL = RCParams(
 
 
 _SIZING_REPORTED: set[str] = set()
+_LOG = logging.getLogger(__name__)
 
 
 def with_sized_heater(scenario: Scenario, *, given_u_max_w: float | None = None) -> Scenario:
     """The scenario of an EnergyPlus plant with ``heater_w = "auto"``, its ``u_max_w`` the
     heater :func:`scenarios.plants.energyplus.sizing.size_heater` finds for it: holding the comfort band's
     highest lower bound (a chiller, ``eta < 0``: its lowest upper bound) through the weather
-    file's coldest (hottest) three days. One line on stderr says what was sized (once per
-    process). A ``given_u_max_w`` must be that value (a file ``scenario export`` wrote)."""
+    file's coldest (hottest) three days. A note (``logging``, level INFO) says what was sized
+    (once per process). A ``given_u_max_w`` must be that value (a file ``scenario export`` wrote)."""
     from scenarios.plants.energyplus.sizing import size_heater
 
     sim = scenario.sim
@@ -306,10 +307,10 @@ def with_sized_heater(scenario: Scenario, *, given_u_max_w: float | None = None)
             f"{sizing.power_w:g} W; give the heater's power once (a number in heater_w, or "
             "leave u_max_w out)"
         )
-    line = f"pinn-mpc: scenario {scenario.name!r}: {sizing.line()}"
+    line = f"scenario {scenario.name!r}: {sizing.line()}"
     if line not in _SIZING_REPORTED:
         _SIZING_REPORTED.add(line)
-        print(line, file=sys.stderr)
+        _LOG.info(line)
     return dataclasses.replace(scenario, sim=dataclasses.replace(sim, u_max_w=sizing.power_w))
 
 

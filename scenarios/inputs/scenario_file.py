@@ -39,7 +39,7 @@ from typing import Any, Literal
 
 import tomlkit
 
-from pinn_mpc.errors import InputError
+from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.physics import PLAUSIBLE_RANGES
 from scenarios.inputs.registry import (
     ENERGYPLUS_DATA_POLICY,
@@ -560,7 +560,7 @@ def scenario_command(
     if action == "list":
         return scenario_list()
     if name is None:
-        raise InputError(f"scenario {action} needs a scenario name or file")
+        raise InternalError(f"scenario {action} needs a scenario name or file")
     if action == "show":
         text = scenario_to_toml(get_scenario(name)).rstrip("\n")
         if not is_scenario_file(name):
@@ -573,7 +573,7 @@ def scenario_command(
         )
         return f"{text}\n\n{note}"
     if action != "export" or out is None:
-        raise InputError(f"unknown scenario action {action!r}; use list, show or export")
+        raise InternalError(f"unknown scenario action {action!r}; use list, show or export")
     if not out.lower().endswith(".toml"):
         raise InputError(
             f"--out {out}: scenario files end in .toml (that is how --scenario tells a file from "

@@ -13,7 +13,7 @@ import pandas as pd
 
 from controllers.base import Forecast
 from pinn_mpc.data import SITE_COLUMNS, day_of_week
-from pinn_mpc.errors import InputError
+from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.solar import FACADE_COLUMNS
 from scenarios.inputs.exogenous import time_of_day_h
 
@@ -129,10 +129,10 @@ class ExogenousSeries:
         given = [getattr(self, name) for name in (*Forecast._fields, "holiday")]
         lengths = {len(series) for series in given if series is not None}
         if len(lengths) != 1:
-            raise InputError(f"ExogenousSeries: all series need one length, got {sorted(lengths)}")
+            raise InternalError(f"ExogenousSeries: all series need one length, got {sorted(lengths)}")
         facades = [getattr(self, name) is None for name in FACADE_COLUMNS]
         if any(facades) and not all(facades):
-            raise InputError(f"ExogenousSeries: give all of {', '.join(FACADE_COLUMNS)} or none")
+            raise InternalError(f"ExogenousSeries: give all of {', '.join(FACADE_COLUMNS)} or none")
 
     @property
     def has_facades(self) -> bool:

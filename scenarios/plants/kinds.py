@@ -8,7 +8,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from pinn_mpc.errors import InputError
+from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.physics import RCParams
 from pinn_mpc.plant import Plant
 from pinn_mpc.simulator import SimConfig
@@ -30,7 +30,7 @@ def make_plant(
     if fleet is not None:
         raise InputError("a fleet runs on the RC simulator; an EnergyPlus plant is one building")
     if times is None:
-        raise InputError("an EnergyPlus plant needs the series' dates (ExogenousSeries.times)")
+        raise InternalError("an EnergyPlus plant needs the series' dates (ExogenousSeries.times)")
     from scenarios.plants.energyplus.plant import EnergyPlusPlant
 
     return EnergyPlusPlant(config, times, seed=seed)

@@ -46,7 +46,7 @@ import pandas as pd
 
 from controllers.thermostat import Thermostat
 from pinn_mpc.data import SITE_COLUMNS
-from pinn_mpc.errors import InputError
+from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.physics import RCParams
 from pinn_mpc.simulator import Simulator
 from scenarios.choices import POLICIES
@@ -146,7 +146,7 @@ def generate(
         ``attrs['dt_s']`` is the control interval [s].
     """
     if fleet is not None and len(fleet) != n_buildings:
-        raise InputError(f"generate: {len(fleet)} fleet parameters for n_buildings={n_buildings}")
+        raise InternalError(f"generate: {len(fleet)} fleet parameters for n_buildings={n_buildings}")
     if policy not in POLICIES:
         raise InputError(f"unknown policy {policy!r}; choose one of: {', '.join(POLICIES)}")
     if not 0.0 <= on_probability <= 1.0:

@@ -47,7 +47,7 @@ import numpy as np
 from controllers.base import Controller, ControlSpec, Forecast, Observation, fallback_power
 from controllers.estimators import TrueState
 from pinn_mpc.data import SITE_COLUMNS
-from pinn_mpc.errors import InputError
+from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.physics import RCParams
 from pinn_mpc.simulator import SimConfig, Simulator, StepResult
 from pinn_mpc.solar import FACADE_COLUMNS
@@ -174,7 +174,7 @@ class ClosedLoop:
         seen_gains_w = exogenous.I_g
         if not forecast_errors.gains_known:
             if expected_gains_w is None or len(expected_gains_w) != len(exogenous):
-                raise InputError(
+                raise InternalError(
                     "ClosedLoop: gains_known = false needs expected_gains_w, one value per row"
                 )
             seen_gains_w = np.asarray(expected_gains_w, dtype=float)
@@ -199,7 +199,7 @@ class ClosedLoop:
     def sim(self) -> Simulator:
         """The RC simulator of an :class:`RCPlant` (its true state for tests and diagnostics)."""
         if not isinstance(self.plant, RCPlant):
-            raise InputError("ClosedLoop.sim: this loop's plant is not the RC simulator")
+            raise InternalError("ClosedLoop.sim: this loop's plant is not the RC simulator")
         return self.plant.sim
 
     def close(self) -> None:
@@ -223,7 +223,7 @@ class ClosedLoop:
         """Start an episode at row ``start`` from state (T_r, T_m) [C] (default the initial
         state); ``seed`` reseeds the sensor noise (None keeps the generator running)."""
         if not 0 <= start < len(self.exogenous):
-            raise InputError(f"ClosedLoop.reset: start={start} must lie in [0, {len(self.exogenous) - 1}]")
+            raise InternalError(f"ClosedLoop.reset: start={start} must lie in [0, {len(self.exogenous) - 1}]")
         t_r = self.initial_state_c[0] if t_r_c is None else t_r_c
         t_m = self.initial_state_c[1] if t_m_c is None else t_m_c
         self.plant.reset(t_r, t_m, start=start, seed=seed)
@@ -247,7 +247,7 @@ class ClosedLoop:
 
     def _check_building(self, building: int) -> None:
         if not 0 <= building < self.n_buildings:
-            raise InputError(
+            raise InternalError(
                 f"ClosedLoop: building={building} must lie in [0, {self.n_buildings - 1}]"
             )
 
@@ -336,7 +336,7 @@ class ClosedLoop:
         had them (EnergyPlus's own weather and the building's actual internal gains; the
         series' row on the RC plant)."""
         if self.k == 0:
-            raise InputError("ClosedLoop.last_means: no interval has been stepped since reset()")
+            raise InternalError("ClosedLoop.last_means: no interval has been stepped since reset()")
         t_a, g, i_g = self._means[self.k - 1, building]
         return float(t_a), float(g), float(i_g)
 
@@ -350,7 +350,7 @@ class ClosedLoop:
         """Apply demand ``u_w`` [W] over the current interval (a number, or (B,) one per
         building; likewise ``decision_s`` and ``fallback``); the plant's step result."""
         if self.steps_left <= 0:
-            raise InputError("ClosedLoop.step: the exogenous series is exhausted; call reset()")
+            raise InternalError("ClosedLoop.step: the exogenous series is exhausted; call reset()")
         self.measure()
         k, row = self.k, self.start + self.k
         stepped = self.plant.step(u_w, row)
@@ -367,7 +367,7 @@ class ClosedLoop:
         """One interval: observe, forecast, decide (:func:`decide`), step. A controller with
         the true-state estimator has perfect knowledge: it gets perfect forecasts too."""
         if self.n_buildings != 1:
-            raise InputError(
+            raise InternalError(
                 f"ClosedLoop.advance drives one building, this loop has {self.n_buildings}; "
                 "use advance_fleet with one controller per building"
             )
@@ -388,7 +388,7 @@ class ClosedLoop:
         :meth:`advance`)."""
         b = self.n_buildings
         if len(controllers) != b:
-            raise InputError(
+            raise InternalError(
                 f"ClosedLoop.advance_fleet: {len(controllers)} controllers for {b} buildings; "
                 "give one controller per building"
             )

@@ -21,7 +21,7 @@ from __future__ import annotations
 import numpy as np
 
 from controllers.objective import band_violation_k, energy_cost_eur
-from pinn_mpc.errors import InputError
+from pinn_mpc.errors import InternalError
 from scenarios.records import Kpis
 
 __all__ = ["KPI_KEYS", "compute_kpis"]
@@ -80,9 +80,9 @@ def compute_kpis(
     n = len(u)
     sub = np.asarray(t_r_sub_c, dtype=float)
     if n == 0:
-        raise InputError("compute_kpis: no control intervals; run at least one step")
+        raise InternalError("compute_kpis: no control intervals; run at least one step")
     if sub.ndim != 2 or sub.shape[0] != n:
-        raise InputError(f"compute_kpis: t_r_sub_c must be (N={n}, S), got shape {sub.shape}")
+        raise InternalError(f"compute_kpis: t_r_sub_c must be (N={n}, S), got shape {sub.shape}")
     for name, arr in (
         ("price_eur_per_kwh", price_eur_per_kwh),
         ("t_min_c", t_min_c),
@@ -92,7 +92,7 @@ def compute_kpis(
         ("fallback", fallback),
     ):
         if np.shape(arr) != (n,):
-            raise InputError(f"compute_kpis: {name} must be ({n},), got shape {np.shape(arr)}")
+            raise InternalError(f"compute_kpis: {name} must be ({n},), got shape {np.shape(arr)}")
     dt_h = dt_s / 3600.0
     energy_kwh_k = u / 1000.0 * dt_h
     violation = band_violation_k(

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from pinn_mpc.errors import InputError
+from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.simulator import SimConfig, StepResult
 from scenarios.plants.base import PlantStep
 from scenarios.plants.energyplus.model import prepare_plant
@@ -93,10 +93,10 @@ class EnergyPlusPlant:
     def step(self, u_w: float | np.ndarray, row: int) -> PlantStep:
         """One interval at row ``row`` (the next of the run)."""
         if row != self._row:
-            raise InputError(f"EnergyPlusPlant.step: the run is at row {self._row}, not {row}")
+            raise InternalError(f"EnergyPlusPlant.step: the run is at row {self._row}, not {row}")
         u = np.asarray(u_w, dtype=float).reshape(-1)
         if u.size != 1 or not math.isfinite(float(u[0])):
-            raise InputError(f"EnergyPlusPlant.step: one finite power, got {u_w!r}")
+            raise InternalError(f"EnergyPlusPlant.step: one finite power, got {u_w!r}")
         m = self.run.step(float(u[0]))
         self._t_r, self._row = m.t_r_c, row + 1
         sub = m.t_r_sub_c

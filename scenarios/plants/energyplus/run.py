@@ -35,7 +35,7 @@ from typing import Any
 
 import numpy as np
 
-from pinn_mpc.errors import InputError
+from pinn_mpc.errors import InputError, InternalError
 from scenarios.plants.energyplus.files import (
     first_severe,
     require_energyplus,
@@ -198,7 +198,7 @@ class EnergyPlusRun:
     def step(self, u_w: float) -> IntervalMeans:
         """Hold heater power ``u_w`` [W] (clipped to 0 .. u_max_w) for one control interval."""
         if self._done or self._thread is None:
-            raise InputError("EnergyPlusRun.step: no run in progress (start one, or the run has ended)")
+            raise InternalError("EnergyPlusRun.step: no run in progress (start one, or the run has ended)")
         self._act_q.put(min(max(float(u_w), 0.0), self.u_max_w), timeout=self.timeout_s)
         result = self._receive_or_close()
         assert isinstance(result, IntervalMeans)
@@ -264,7 +264,7 @@ class EnergyPlusRun:
             raise payload
         if kind == "done":
             self._done = True
-            raise InputError("EnergyPlusRun.step: the run has ended (start a longer one)")
+            raise InternalError("EnergyPlusRun.step: the run has ended (start a longer one)")
         return payload
 
     # ---- the EnergyPlus thread ----------------------------------------------------------

@@ -1,9 +1,8 @@
-"""The model commands of the CLI: ``train``, ``evaluate``, ``export-rc``, ``identify``.
+"""The model commands: ``train``, ``evaluate``, ``export-rc``, ``identify``.
 
 Each takes the parsed arguments, refuses outputs that cannot be written or would overwrite an
 input or another output (before any work), calls the library (which returns typed results and
-never writes), writes the outputs atomically and returns the summary the CLI prints. The
-experiment commands are in :mod:`scenarios.commands`; the parser is :mod:`pinn_mpc_cli.cli`.
+never writes), writes the outputs atomically and returns the summary the CLI prints.
 Libraries are imported inside the commands, so that ``identify`` does not wait for torch.
 """
 
@@ -30,12 +29,42 @@ from pinn_mpc.records import EvaluationMetrics, HorizonErrors
 __all__ = ["evaluate", "export_rc_json", "identify", "train"]
 
 
+def train(a: argparse.Namespace) -> str:
+    """``train``: one ensemble, or with ``--per-building`` one model per building of a fleet
+    data set on Ray (:func:`scenarios.fleets.training.train_per_building`)."""
+    if not a.per_building:
+        for option, value in (("--address", a.address), ("--workers", a.workers)):
+            if value is not None:
+                raise InputError(f"{option} runs --per-building training on Ray; add --per-building")
+        return _train_one(a)
+    from pinn_mpc.data import read_fleet_params, read_fleet_timeseries
+    from pinn_mpc.training import TrainConfig
+    from scenarios.fleets.training import train_per_building
+
+    frames = read_fleet_timeseries(a.data, columns=a.columns)
+    params = read_fleet_params(a.data, len(frames))
+    config = TrainConfig(
+        depth=a.depth, n_seeds=a.seeds, first_seed=a.seed, epochs=a.epochs, lam=a.lam,
+        recipe=a.recipe, eta=_eta(a.eta),
+    )
+    summary = train_per_building(
+        frames, a.out, arch=a.arch, config=config, params=params, address=a.address, workers=a.workers
+    )
+    times = list(summary["train_seconds"].values())
+    median = f", {float(np.median(times)):.1f} s per building (median)" if times else ""
+    return (
+        f"{len(summary['buildings'])} buildings: trained {len(summary['trained'])}, kept "
+        f"{len(summary['kept'])} already there, in {summary['wall_seconds']:.0f} s{median}; "
+        f"wrote {a.out}"
+    )
+
+
 def _eta(value: float | None) -> float:
     """``--eta`` not given means 1: a heater (a cooling machine gives minus its COP)."""
     return 1.0 if value is None else float(value)
 
 
-def train(a: argparse.Namespace) -> str:
+def _train_one(a: argparse.Namespace) -> str:
     """Read ``--data``, train the ensemble, save the model directory ``--out``.
 
     ``--out`` is checked before training: it must be new, empty or a model directory, or
@@ -244,3 +273,4 @@ def identify(a: argparse.Namespace) -> str:
         f"C_r={p.c_r_j_per_k:.4g} J/K C_m={p.c_m_j_per_k:.4g} J/K "
         f"(rmse {result.rmse_c:.3f} C over {result.n_rows} rows) -> {a.out}"
     )
+

@@ -1,0 +1,326 @@
+"""The closed-loop commands: ``simulate`` (data from a scenario) and ``closed-loop`` (one
+controller on one building, or a fleet of them).
+
+Each takes the parsed arguments, refuses outputs that cannot be written or would overwrite an
+input or another output (before any work), calls the library (which returns typed results),
+writes the outputs atomically and returns the summary the CLI prints.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pinn_mpc.data import fleet_params_path, write_fleet_params, write_timeseries
+from pinn_mpc.errors import InputError, warn
+from pinn_mpc.io import PathsArg, atomic_write_json, check_distinct, check_writable
+from pinn_mpc_cli.scenario_args import scenario_inputs, scenario_label, with_scenario_file
+from scenarios.choices import MODEL_CONTROLLERS
+from scenarios.inputs.exogenous import day_span
+from scenarios.inputs.registry import Scenario
+from scenarios.inputs.scenario_file import get_scenario
+from scenarios.reports.report import format_fleet, format_kpis
+from scenarios.running.closed_loop import one_torch_thread, run_closed_loop
+from scenarios.running.datagen import generate
+from scenarios.running.factory import make_controller
+
+__all__ = ["closed_loop", "simulate"]
+
+
+def simulate(a: argparse.Namespace) -> str:
+    """Generate data and write it atomically to ``--out`` (never onto a file the scenario
+    reads); a run that would not fit in memory is refused before it starts."""
+    from scenarios.running.budget import check_simulate_memory
+
+    sidecar = None
+    if a.spread is not None:
+        if a.buildings < 2:
+            raise InputError("--spread draws a fleet: add --buildings N with N > 1")
+        sidecar = fleet_params_path(a.out)
+    elif fleet_params_path(a.out).is_file():
+        stale = fleet_params_path(a.out)
+        raise InputError(
+            f"--out {a.out}: {stale} next to it holds the buildings of an earlier `simulate "
+            f"--spread` run and would no longer describe {a.out} (train --per-building reads "
+            f"it); add --spread, choose another --out, or remove {stale}"
+        )
+    check_writable(a.out, sidecar)
+    check_distinct(inputs=scenario_inputs(a.scenario), outputs={"--out": a.out, "fleet file": sidecar})
+    chosen = get_scenario(a.scenario)
+    check_simulate_memory(chosen, days=a.days, buildings=a.buildings)
+    fleet = None
+    if a.spread is not None:
+        from pinn_mpc.simulator import draw_fleet
+        from scenarios.fleets.fleet import FLEET_STREAM
+
+        rng = np.random.default_rng([a.seed, FLEET_STREAM])
+        fleet = draw_fleet(chosen.sim.params, a.buildings, spread=a.spread, rng=rng)
+    policy = a.policy or chosen.data_policy
+    frame = generate(
+        chosen,
+        days=a.days,
+        seed=a.seed,
+        policy=policy,
+        n_buildings=a.buildings,
+        weather_part=a.weather_part,
+        fleet=fleet,
+    )
+    write_timeseries(frame, a.out)
+    if sidecar is not None and fleet is not None:
+        write_fleet_params(a.out, fleet, spread=a.spread)
+    per_building = len(frame) // a.buildings
+    overridden = float(np.mean(~np.isclose(frame["u"], frame["u_phys"])))
+    first, last = day_span(frame["time"])
+    also = "" if sidecar is None else f"; wrote their parameters to {sidecar}"
+    return (
+        f"wrote {a.out}: scenario {scenario_label(a.scenario, chosen)}, {a.days} day(s) {first}..{last} "
+        f"({a.weather_part} weather), {a.buildings} building(s), {policy} policy, "
+        f"{per_building} rows per building at {chosen.sim.dt_s:g} s, T_r "
+        f"{frame['T_r'].min():.1f}..{frame['T_r'].max():.1f} C, backup acted in "
+        f"{100 * overridden:.0f} % of intervals{also}"
+    )
+
+
+def closed_loop(a: argparse.Namespace) -> str:
+    """Run, write the KPI JSON (and CSV, plot); the summary names every file written.
+    Outputs are checked before the run: writable, and none of them the same file as an input
+    (``--model``'s files, ``--rc``) or as another output."""
+    outputs = {"--json": a.json, "--csv": a.csv, "--plot": a.plot}
+    check_writable(*outputs.values())
+    inputs: dict[str, PathsArg] = {"--rc": a.rc, **scenario_inputs(a.scenario)}
+    if a.model is not None:
+        from pinn_mpc.artifacts import MODEL_DIRECTORY  # torch: only when a model is given
+        from scenarios.fleets.training import FLEET_FILE, fleet_model_files
+
+        fleet_dir = (Path(a.model) / FLEET_FILE).is_file()  # per-building models
+        inputs["--model"] = fleet_model_files(a.model) if fleet_dir else MODEL_DIRECTORY.paths(a.model)
+    check_distinct(inputs=inputs, outputs=outputs)
+    scenario = get_scenario(a.scenario)
+    if a.buildings > 1:
+        return _fleet_closed_loop(a, scenario, inputs)
+    for option, given in (("--batched", a.batched), ("--cap-kw", a.cap_kw is not None),
+                          ("--cap-window", a.cap_window is not None),
+                          ("--rc-candidates", a.rc_candidates != "auto")):
+        if given:
+            raise InputError(f"{option} coordinates a fleet: add --buildings N with N > 1")
+    if a.spread is not None:
+        raise InputError("--spread draws a fleet: add --buildings N with N > 1")
+    _check_controller_inputs(a)
+    controller = make_controller(
+        a.controller,
+        scenario,
+        model_dir=a.model,
+        rc_path=a.rc,
+        n_steps=a.days * scenario.steps_per_day,
+    )
+    # torch only for the planners over learned models; the others start faster without it.
+    threads = one_torch_thread() if a.controller in MODEL_CONTROLLERS else contextlib.nullcontext()
+    with threads:
+        result = run_closed_loop(
+            scenario, controller, days=a.days, seed=a.seed, weather_part=a.weather_part,
+            progress=True,
+        )
+    if a.csv is not None:
+        write_timeseries(result.trajectory, a.csv)
+    if a.plot is not None:
+        from scenarios.reports.plots import plot_trajectory
+
+        plot_trajectory(result.trajectory, a.plot, title=f"{a.controller} on {a.scenario}")
+    kpis = with_scenario_file(result.kpis, a.scenario)
+    atomic_write_json(a.json, kpis)
+    lines = [format_kpis({**kpis, "scenario": scenario_label(a.scenario, scenario)})]
+    if a.model is not None:
+        from scenarios.running.factory import weather_range_note
+
+        note = weather_range_note(getattr(controller, "model", None), result.trajectory)
+        if note is not None:
+            warn(note)
+    if "model_fallback_switches" in kpis:
+        n_decisions = kpis["days"] * scenario.steps_per_day
+        lines.append(
+            f"model trusted in {n_decisions - kpis['model_fallback_steps']} of {n_decisions} "
+            f"decisions; {kpis['model_fallback_switches']} switch(es) to the RC MPC fallback "
+            f"{kpis['model_fallback_reasons'] or ''}".rstrip()
+        )
+    if result.errors:
+        lines.append(f"{len(result.errors)} controller error(s), first: {result.errors[0]}")
+    written = [str(p) for p in (a.json, a.csv, a.plot) if p is not None]
+    return "\n".join([*lines, f"wrote {', '.join(written)}"])
+
+
+def _check_controller_inputs(a: argparse.Namespace) -> None:
+    """Refuse, in the user's terms, a controller without the file it plans with, a directory
+    of per-building models for one building, or an RC file that is a directory (a model
+    directory given to ``--rc``)."""
+    if a.controller in MODEL_CONTROLLERS and a.model is None:
+        raise InputError(
+            f"controller {a.controller!r} plans over a trained model: add --model MODEL_DIR "
+            "(make one with `pinn-mpc train --data data.csv --out MODEL_DIR`; "
+            "data from `pinn-mpc simulate`)"
+        )
+    if a.model is not None:
+        from scenarios.fleets.training import FLEET_FILE
+
+        if (Path(a.model) / FLEET_FILE).is_file():
+            raise InputError(
+                f"--model {a.model} holds one model per building (train --per-building), not "
+                "one model: run the fleet it was trained on with --buildings N --controller "
+                f"cem, or give a model directory of `pinn-mpc train` (one of {a.model}/buildings/*)"
+            )
+    if a.rc is not None and Path(a.rc).is_dir():
+        hint = (
+            " (it is a model directory: give it as --model to cem or random-shooting, or write "
+            f"its RC with `pinn-mpc export-rc --model {a.rc} --out rc.json`)"
+            if (Path(a.rc) / "model.json").is_file()
+            else ""
+        )
+        raise InputError(
+            f"--rc {a.rc} is a directory, not an RC JSON file{hint}; give the rc.json written "
+            "by `pinn-mpc identify` or `pinn-mpc export-rc`"
+        )
+
+
+_FLEET_REASONS = {
+    "--model": "each building's controller plans over that building's own RC, not a shared "
+    "model",
+    "--rc": "each building's controller works on that building's own RC",
+    "--csv": "a trajectory CSV holds one building; the KPI JSON (--json) holds every building",
+    "--plot": "a trajectory figure shows one building; the KPI JSON (--json) holds every "
+    "building",
+}
+
+
+def _fleet_closed_loop(a: argparse.Namespace, scenario: Scenario, inputs: dict[str, PathsArg]) -> str:
+    """``closed-loop --buildings N``: the fleet run, its JSON (fleet, totals, step times,
+    aggregate power, district KPIs, the cap's account, buildings); each building's controller
+    is built on its own parameters, one after another, or the fleet is planned in one batch
+    (``--batched``, ``--cap-kw``; then the fleet figure is written next to the JSON). A fleet
+    that would not fit in memory is refused before anything is built."""
+    from scenarios.fleets.fleet import fleet_json, run_fleet_closed_loop
+    from scenarios.running.budget import check_fleet_memory, check_fleet_size
+
+    batched = a.batched or a.cap_kw is not None or a.model is not None
+    figure = _check_fleet_options(a, inputs, batched=batched)
+    check_fleet_memory(scenario, a.controller, days=a.days, buildings=a.buildings)
+    check_fleet_size(a.controller, buildings=a.buildings, days=a.days, large=a.large)
+    spread = 0.2 if a.spread is None else a.spread
+    planner: Any = a.controller
+    fleet = None
+    if a.model is not None:
+        from scenarios.fleets.aggregator import learned_fleet_planner
+        from scenarios.fleets.training import load_fleet_models
+
+        models, fleet = load_fleet_models(a.model)
+        if fleet is None:
+            raise InputError(
+                f"--model {a.model}: the buildings' parameters are unknown (the data was "
+                "simulated without --spread); the closed loop needs the buildings the models "
+                "were trained on"
+            )
+        if len(models) != a.buildings:
+            raise InputError(f"--model {a.model} holds {len(models)} buildings, --buildings is {a.buildings}")
+        if a.spread is not None:
+            raise InputError("--spread does not apply with --model: the buildings are the models' own")
+        _check_fleet_models_fit(a.model, models, scenario)
+        candidates = a.rc_candidates == "on" or (a.rc_candidates == "auto" and a.cap_kw is not None)
+        planner = learned_fleet_planner(models, rc_candidates=candidates)
+    elif a.rc_candidates != "auto":
+        raise InputError("--rc-candidates applies to the batched cem over learned models: add --model DIR")
+    # One building's planner rolls out small tensors (one thread is fastest); a fleet's batched
+    # rollout (buildings x samples x horizon) is large enough for torch's threads to pay.
+    small = a.controller in MODEL_CONTROLLERS and a.model is None
+    threads = one_torch_thread() if small else contextlib.nullcontext()
+    with threads:
+        if batched:
+            from scenarios.fleets.aggregator import run_coordinated_fleet
+
+            result = run_coordinated_fleet(
+                scenario, planner, n_buildings=a.buildings, days=a.days, seed=a.seed,
+                spread=spread, weather_part=a.weather_part, cap_kw=a.cap_kw,
+                cap_window=a.cap_window, fleet=fleet, progress=True,
+            )
+        else:
+            result = run_fleet_closed_loop(
+                scenario, a.controller, n_buildings=a.buildings, days=a.days, seed=a.seed,
+                spread=spread, weather_part=a.weather_part, progress=True,
+            )
+    atomic_write_json(a.json, fleet_json(result, a.scenario))
+    lines = [format_fleet(result)]
+    if result.cap is not None:
+        c = result.cap
+        lines.append(
+            f"cap {c['kw']:.4g} kW ({c['window'] or 'all day'}): {c['intervals_over']} of "
+            f"{c['intervals']} capped intervals over it, {c['kwh_over']:.2f} kWh over"
+        )
+    if result.errors:
+        lines.append(f"{len(result.errors)} controller error(s), first: {result.errors[0]}")
+    if figure is not None:
+        from scenarios.fleets.aggregator import cap_in_force
+        from scenarios.reports.plots import fleet_figure, save_figure
+
+        cap_kw = None if result.cap is None else cap_in_force(result.times, result.cap)
+        discomfort = np.array([k["discomfort_kh"] for k in result.kpis])
+        title = f"{result.info['controller']} x {result.info['n_buildings']} on {result.info['scenario']}"
+        save_figure(
+            fleet_figure(result.times, result.aggregate_u_phys_w / 1000.0, discomfort,
+                         cap_kw=cap_kw, title=title),
+            figure,
+        )
+        lines.append(f"wrote {figure}")
+    return "\n".join([*lines, f"wrote {a.json}"])
+
+
+def _check_fleet_options(a: argparse.Namespace, inputs: dict[str, PathsArg], *, batched: bool) -> str | None:
+    """Refuse the options a fleet does not take, and a batched fleet's wrong controller or cap
+    window; the fleet figure's path (written next to ``--json``) when the fleet is batched."""
+    for option, value in (("--rc", a.rc), ("--csv", a.csv), ("--plot", a.plot)):
+        if value is not None:
+            raise InputError(
+                f"{option} does not apply to a fleet (--buildings {a.buildings}): "
+                f"{_FLEET_REASONS[option]}; leave it out, or drop --buildings for one building"
+            )
+    if a.cap_window is not None and a.cap_kw is None:
+        raise InputError("--cap-window needs --cap-kw (the cap in that window)")
+    if not batched:
+        return None
+    from scenarios.fleets.aggregator import BATCHED_CONTROLLERS, parse_cap_window
+
+    wanted = "cem" if a.model is not None else "qp-mpc"
+    if a.controller != wanted:
+        raise InputError(
+            f"a batched fleet plans with qp-mpc (each building's RC) or, with --model DIR of "
+            f"per-building models, with cem; got --controller {a.controller} "
+            f"({'with' if a.model is not None else 'without'} --model); batched controllers: "
+            f"{', '.join(BATCHED_CONTROLLERS)}"
+        )
+    if a.cap_window is not None:
+        parse_cap_window(a.cap_window)
+    figure = str(Path(a.json).with_suffix(".fleet.png"))
+    check_writable(figure)
+    check_distinct(inputs=inputs, outputs={"--json": a.json, "figure": figure})
+    return figure
+
+
+def _check_fleet_models_fit(root: str, models: list[Any], scenario: Scenario) -> None:
+    """Each building's model checked against the scenario as one model is (actuator, power
+    range, time constants: :func:`scenarios.running.factory.check_model_fits`): the first refusal
+    names its building; the first building's warnings are shown with a count of the others."""
+    from scenarios.running.factory import check_model_fits
+
+    noted = []
+    for b, model in enumerate(models):
+        try:
+            notes = check_model_fits(model, scenario)
+        except InputError as exc:
+            raise InputError(f"--model {root}, building {b}: {exc}") from None
+        if notes:
+            noted.append((b, notes))
+    if noted:
+        b, notes = noted[0]
+        others = f" (and notes on {len(noted) - 1} more of the {len(models)} buildings)" if len(noted) > 1 else ""
+        for note in notes:
+            warn(f"--model {root}, building {b}: {note}{others}")
