@@ -30,8 +30,8 @@ import torch
 from controllers.base import ControlSpec, Forecast, Observation
 from controllers.planners import CEMPlanner
 from controllers.sampling import CEM, RandomShooting
+from pinn_mpc.models.rc import RCBatchModel
 from pinn_mpc.models.rollout import BatchDynamics
-from pinn_mpc.rc_batch_model import RCBatchModel
 from scenarios.compare import CompareSettings
 from scenarios.datagen import generate
 from scenarios.inputs import time_of_day_h

@@ -24,7 +24,7 @@ import sys
 
 import numpy as np
 
-from pinn_mpc.arx import ARXModel, fit_physics_informed_arx
+from pinn_mpc.models.arx import ARXModel, fit_physics_informed_arx
 from scenarios.closed_loop import one_torch_thread, run_closed_loop
 from scenarios.compare import identify_scenario_rc, rc_for_mpc
 from scenarios.datagen import generate

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from controllers.base import Controller
-from pinn_mpc.rc_batch_model import RCBatchModel
+from pinn_mpc.models.rc import RCBatchModel
 from scenarios.engine import ClosedLoop, ExogenousSeries
 from scenarios.factory import CONTROLLER_NAMES, MODEL_CONTROLLERS, RC_CONTROLLERS, build_controller
 from scenarios.registry import get_scenario

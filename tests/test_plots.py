@@ -11,7 +11,7 @@ import pytest
 from matplotlib.axes import Axes
 from matplotlib.collections import PolyCollection
 
-from pinn_mpc.rc_batch_model import RCBatchModel
+from pinn_mpc.models.rc import RCBatchModel
 from scenarios.closed_loop import run_closed_loop
 from scenarios.factory import CONTROLLER_NAMES, build_controller
 from scenarios.plots import (
