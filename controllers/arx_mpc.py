@@ -50,8 +50,9 @@ from controllers.base import (
 )
 from controllers.estimators import OffsetFilter
 from controllers.objective import HorizonObjective
-from controllers.rc_mpc.osqp import OSQP_OPTIONS, shift_blocks
+from controllers.rc_mpc.osqp import OSQP_OPTIONS
 from controllers.rc_mpc.problem import DEFAULT_REGULARISATION
+from controllers.rc_mpc.qp import shift_steps
 from pinn_mpc.errors import InputError
 from pinn_mpc.features import check_interval
 from pinn_mpc.models.arx import ARXModel
@@ -172,7 +173,9 @@ class ARXQPMPC(PlanningController):
         result = self._osqp.solve(raise_error=False)
         status = str(result.info.status)
         if status == "solved":  # receding horizon: start the next solve shifted by one step
-            self._osqp.warm_start(x=shift_blocks(result.x, [(h, 1)] * 2), y=shift_blocks(result.y, [(h, 1)] * 4))
+            self._osqp.warm_start(
+                x=shift_steps(np.asarray(result.x), (1, 1), h), y=shift_steps(np.asarray(result.y), (1,) * 4, h)
+            )
         return np.asarray(result.x)[:h], status, int(result.info.iter)
 
 
