@@ -277,13 +277,13 @@ def _cvxpy_problem(problem: RCProblem, stage: StageData):
 
 @pytest.mark.parametrize(("h", "dt_s", "weight", "rho"), [(48, 1800.0, 1.0, 1e-4), (7, 900.0, 3.7, 2.3e-4), (1, 3600.0, 0.3, 1e-3)])
 def test_qp_data_are_cvxpys_canonical_form_value_for_value(h, dt_s, weight, rho) -> None:
-    """qp-mpc's OSQP data (the one-building case of the fleet's, controllers/rc_mpc/qp.py) are
-    exactly what cvxpy makes of the problem: same layout, signs and values, so OSQP takes the
+    """qp-mpc's OSQP data (the one-building case of the fleet's, controllers/rc_mpc/qp.py, in
+    the SPLIT layout) are exactly what cvxpy makes of the problem: same layout, signs and values, so OSQP takes the
     same iterates either way."""
     import cvxpy as cp
     import scipy.sparse as sp
 
-    from controllers.rc_mpc.qp import qp_matrices, qp_vectors
+    from controllers.rc_mpc.qp import SPLIT, qp_matrices, qp_vectors
     from pinn_mpc.actuator import Actuator
 
     spec = ControlSpec(
@@ -294,11 +294,11 @@ def test_qp_data_are_cvxpys_canonical_form_value_for_value(h, dt_s, weight, rho)
     assert np.ptp(stage.cop) > 0 or h == 1  # a COP that varies over the horizon
     data, _, _ = _cvxpy_problem(problem, stage).get_problem_data(cp.OSQP)
     ad, _ = problem.matrices
-    p_upper, a = qp_matrices(ad[None], problem.b_u_c_per_kw[None], h, 2.0 * spec.dt_h * rho)
+    p_upper, a = qp_matrices(ad[None], problem.b_u_c_per_kw[None], h, 2.0 * spec.dt_h * rho, SPLIT)
     drift = stage.free_c.copy()
     drift[0] += ad @ stage.x0_c
     q, lower, upper = (v[0] for v in qp_vectors(
-        drift[None], stage.heat_price_eur_per_kwh, stage.heat_max_kw(problem.u_max_kw), stage.objective
+        drift[None], stage.heat_price_eur_per_kwh, stage.heat_max_kw(problem.u_max_kw), stage.objective, SPLIT
     ))
     want_a = sp.csc_matrix(sp.vstack([data["A"], data["F"]], format="csc"))
     want_p = sp.csc_matrix(sp.triu(data["P"], format="csc"))
@@ -314,45 +314,67 @@ def test_qp_data_are_cvxpys_canonical_form_value_for_value(h, dt_s, weight, rho)
     assert np.all(np.isneginf(lower[n_eq:]))
 
 
-def test_a_fleet_of_one_building_takes_the_qp_mpcs_iterates() -> None:
-    """FleetQPMPC's data for one building are QPMPC's on the same stage (the fleet's vectorised
-    discretisation and drift apart, equal to round-off), so OSQP returns the same plan in the
-    same number of iterations."""
+def test_both_layouts_state_one_problem_and_a_fleet_of_one_plans_as_qp_mpc() -> None:
+    """The SPLIT rows (qp-mpc's) and the BOX rows (the fleet's) are one QP: solved tightly
+    they give the same plan; a one-building FleetQPMPC and QPMPC on the same stage plan alike
+    to the solver's tolerance."""
+    import osqp
+
     from controllers.fleet import FleetQPMPC
+    from controllers.rc_mpc.qp import BOX, SPLIT, qp_matrices, qp_vectors
 
     forecast = _forecast(SPEC.horizon_steps)
     single = QPMPC(PARAMS, SPEC)
+    stage = single.problem.stage(np.array([19.0, 18.0]), forecast)
+    ad, _ = single.problem.matrices
+    drift = stage.free_c.copy()
+    drift[0] += ad @ stage.x0_c
+    plans = {}
+    for layout in (SPLIT, BOX):
+        p_upper, a = qp_matrices(ad[None], single.problem.b_u_c_per_kw[None], SPEC.horizon_steps, 2e-4, layout)
+        q, lower, upper = (v[0] for v in qp_vectors(
+            drift[None], stage.heat_price_eur_per_kwh, stage.heat_max_kw(5.0), stage.objective, layout
+        ))
+        solver = osqp.OSQP()
+        solver.setup(P=p_upper, q=q, A=a, l=lower, u=upper, eps_abs=1e-8, eps_rel=1e-8, max_iter=10**6,
+                     polishing=True, verbose=False)
+        result = solver.solve()
+        assert str(result.info.status) == "solved"
+        plans[layout.name] = result.x[: SPEC.horizon_steps]
+    np.testing.assert_allclose(plans["box"], plans["split"], atol=1e-5)
     fleet = FleetQPMPC([PARAMS], SPEC)
     fleet.observe([_first_obs(19.0, 18.0)], forecast)
     assert fleet._stage is not None
     stage = single.problem.stage(fleet._stage.x0_c[0], forecast)
-    solved = single._solve(stage)
-    plan = fleet.plan()
-    assert solved.status == plan.status == "solved" and solved.iterations == plan.iterations
-    # Equal up to the round-off of the fleet's vectorised discretisation and drift.
-    np.testing.assert_allclose(plan.power_w[0], np.clip(solved.p_kw, 0.0, SPEC.u_max_w / 1000) * 1000.0, atol=1e-6)
+    own = single.problem.objective(stage, single._solve(stage).p_kw)
+    planned = single.problem.objective(stage, fleet.plan().power_w[0] / 1000.0)
+    assert planned == pytest.approx(own, rel=1e-3)
 
 
-def test_the_fleets_qp_is_the_buildings_qps_block_by_block() -> None:
+@pytest.mark.parametrize("layout_name", ["split", "box"])
+def test_the_fleets_qp_is_the_buildings_qps_block_by_block(layout_name: str) -> None:
     """B buildings' OSQP data are the one-building data of each, on the block diagonal."""
     import scipy.sparse as sp
 
-    from controllers.rc_mpc.qp import qp_matrices, qp_vectors
+    from controllers.rc_mpc.qp import BOX, SPLIT, qp_matrices, qp_vectors
+
+    layout = SPLIT if layout_name == "split" else BOX
     from pinn_mpc.simulator import draw_fleet, fleet_matrices
 
     h = 6
     fleet = draw_fleet(PARAMS, 3, spread=0.3, rng=np.random.default_rng(2))
     ad, bd = fleet_matrices(fleet, SPEC.dt_s)
     b_u = bd[:, :, 0] * 1000.0
-    p_upper, a = qp_matrices(ad, b_u, h, 1e-4)
-    ones = [qp_matrices(ad[i : i + 1], b_u[i : i + 1], h, 1e-4) for i in range(3)]
+    p_upper, a = qp_matrices(ad, b_u, h, 1e-4, layout)
+    ones = [qp_matrices(ad[i : i + 1], b_u[i : i + 1], h, 1e-4, layout) for i in range(3)]
     for got, want in ((p_upper, sp.block_diag([o[0] for o in ones], format="csc")),
                       (a, sp.block_diag([o[1] for o in ones], format="csc"))):
         assert (got != want).nnz == 0
     objective = HorizonObjective.from_forecast(_forecast(h), SPEC, h)
     drift = np.random.default_rng(0).normal(size=(3, h, 2))
     price = np.random.default_rng(1).uniform(0.1, 0.4, size=(3, h))
-    stacked = qp_vectors(drift, price, np.full(h, 5.0), objective)
+    stacked = qp_vectors(drift, price, np.full(h, 5.0), objective, layout)
     for i in range(3):
-        for got, want in zip(stacked, qp_vectors(drift[i : i + 1], price[i], np.full(h, 5.0), objective), strict=True):
+        one = qp_vectors(drift[i : i + 1], price[i], np.full(h, 5.0), objective, layout)
+        for got, want in zip(stacked, one, strict=True):
             np.testing.assert_array_equal(got[i], want[0])

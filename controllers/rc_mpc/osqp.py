@@ -1,12 +1,13 @@
 """``qp-mpc``: the RC MPC problem of :mod:`controllers.rc_mpc.problem`, solved by OSQP.
 
 The problem's OSQP data are those of :mod:`controllers.rc_mpc.qp` for one building, the
-one-building case of the fleet's (:class:`controllers.fleet.FleetQPMPC`): ``P`` and ``A`` built
-once, ``q``, ``l`` and ``u`` each step from the stage (the states' drift, the price and bound
-of the delivered heat, the comfort band), then a warm-started ``osqp.OSQP.update`` + ``solve``.
-The data are value for value those of cvxpy's canonicalisation of the problem written with the
-states as variables (the test suite checks it), so the clairvoyant, which uses the same class
-with the horizon of a whole run, keeps a sparse constraint matrix.
+one-building case of the fleet's (:class:`controllers.fleet.FleetQPMPC`), in its ``SPLIT``
+layout (one row per inequality: value for value cvxpy's canonical form of the problem, in
+which this controller's results were made): ``P`` and ``A`` built once, ``q``, ``l`` and ``u``
+each step from the stage (the states' drift, the price and bound of the delivered heat, the
+comfort band), then a warm-started ``osqp.OSQP.update`` + ``solve``. The states are variables,
+so the clairvoyant, which uses the same class with the horizon of a whole run, keeps a sparse
+constraint matrix.
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ import osqp
 
 from controllers.rc_mpc.problem import RCMPC, SolveResult, StageData
 from controllers.rc_mpc.qp import (
-    ROWS_PER_STEP,
+    SPLIT,
     VARIABLES_PER_STEP,
     qp_matrices,
     qp_vectors,
@@ -54,7 +55,9 @@ class QPMPC(RCMPC):
         prob = self.problem
         ad, _ = prob.matrices
         p_diag = 2.0 * self.spec.dt_h * prob.regularisation_eur_per_kw2h
-        self._p_upper, self._a = qp_matrices(ad[None], prob.b_u_c_per_kw[None], prob.horizon_steps, p_diag)
+        self._p_upper, self._a = qp_matrices(
+            ad[None], prob.b_u_c_per_kw[None], prob.horizon_steps, p_diag, SPLIT
+        )
         self._osqp = None
 
     def reset(self, seed: int | None = None) -> None:
@@ -69,7 +72,7 @@ class QPMPC(RCMPC):
         q, lower, upper = (
             v[0]
             for v in qp_vectors(
-                drift[None], stage.heat_price_eur_per_kwh, stage.heat_max_kw(self.problem.u_max_kw), stage.objective
+                drift[None], stage.heat_price_eur_per_kwh, stage.heat_max_kw(self.problem.u_max_kw), stage.objective, SPLIT
             )
         )
         if self._osqp is None:
@@ -83,7 +86,7 @@ class QPMPC(RCMPC):
             # Receding horizon: start the next solve from this solution shifted by one step.
             self._osqp.warm_start(
                 x=shift_steps(np.asarray(result.x), VARIABLES_PER_STEP, h),
-                y=shift_steps(np.asarray(result.y), ROWS_PER_STEP, h),
+                y=shift_steps(np.asarray(result.y), SPLIT.rows_per_step, h),
             )
         return SolveResult(
             p_kw=stage.electrical_kw(np.asarray(result.x)[:h]),

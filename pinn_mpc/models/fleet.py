@@ -43,8 +43,9 @@ FEW_PLANS = 4
 
 class FleetStart(NamedTuple):
     """What a fleet rollout needs besides the plans, computed once per decision
-    (:meth:`FleetHybrid.prepare`): states at the start (H+1, B*M, 3, 1), the plan-free terms
-    of every step (H, B*M, hidden+2, 1) and the heat per watt on both rows (H|1, B*M, 2, 1)."""
+    (:meth:`FleetHybrid.prepare`): the state now (B*M, 3, 1), the plan-free terms of every
+    step (H, B*M, hidden+2, 1) and the heat per watt on both rows (H|1, B*M, 2, 1), as
+    :func:`pinn_mpc.models.hybrid.roll_states` takes them."""
 
     state0: torch.Tensor
     pre: torch.Tensor
