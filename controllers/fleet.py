@@ -12,14 +12,13 @@ step under different prices without disturbing any building's state:
   each failed building's own :class:`controllers.base.Fallback` otherwise (counted), and the
   warm start of the next step.
 
-:class:`FleetQPMPC` is the ``qp-mpc`` of every building (:mod:`controllers.rc_mpc.osqp`: the
-OSQP data of :mod:`controllers.rc_mpc.qp`, of which ``QPMPC``'s are the one-building case, in
-its ``BOX`` layout, which OSQP solves in about half the iterations; the same OSQP settings,
-each building its own Kalman observer) as ONE sparse QP whose blocks are the buildings, built
-vectorised; a new extra price changes only the linear cost, so a coordination iteration is a
-warm-started OSQP solve. Per-building plans equal those of ``QPMPC`` within the solver's
-tolerance (tests/test_fleet_coordination.py; in the ``SPLIT`` layout, one building's are
-``QPMPC``'s, tests/test_rc_mpc.py).
+:class:`FleetQPMPC` is the ``qp-mpc`` of every building as ONE sparse QP whose blocks are the
+buildings: the OSQP data of :mod:`controllers.rc_mpc.qp` (``QPMPC``'s are their one-building
+case), built vectorised, in the ``BOX`` layout of its rows, on which OSQP converges in fewer
+iterations (``QPMPC`` keeps ``SPLIT``, the same problem), with the same OSQP settings and each
+building its own Kalman observer. A new extra price changes only the linear cost, so a
+coordination iteration is a warm-started OSQP solve. Per-building plans equal those of
+``QPMPC`` within the solver's tolerance (tests/test_fleet_coordination.py, tests/test_rc_mpc.py).
 """
 
 from __future__ import annotations

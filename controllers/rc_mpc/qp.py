@@ -19,10 +19,9 @@ then the inequalities in one of two layouts (:data:`SPLIT`, :data:`BOX`), the sa
 
       T_min,j <= T_r,j + s_j,   T_r,j - s_j <= T_max,j,   0 <= q_j <= q_max,j,   0 <= s_j
 
-OSQP's iterates depend on the layout: on a fleet's problems ``BOX`` converges in about half the
-iterations of ``SPLIT`` (its warm-started tight solves in a few thousand where ``SPLIT`` can
-exhaust 400,000). ``qp-mpc`` keeps ``SPLIT``, in which its recorded results were made; the
-fleet ``BOX``.
+OSQP's iterates depend on the layout, and ``BOX`` converges in fewer of them on a fleet's
+warm-started problems (at tight tolerances ``SPLIT`` may not converge at all), so the fleet
+plans in ``BOX``; ``qp-mpc`` keeps ``SPLIT``, in which its recorded results were made.
 """
 
 from __future__ import annotations
@@ -87,12 +86,12 @@ def qp_matrices(
         add(dyn, qi, -np.repeat(b_u_c_per_kw[:, r : r + 1], h, axis=1))
         for c in range(2):
             add(dyn[1:], xi[:-1] + c, -np.repeat(ad[:, r, c : c + 1], h - 1, axis=1))
-    sign = -1.0 if layout is SPLIT else 1.0  # SPLIT states the lower band as an upper one
+    sign = -1.0 if layout == SPLIT else 1.0  # SPLIT states the lower band as an upper one
     add(2 * h + j, xi, sign * ones)
     add(2 * h + j, si, sign * ones)
     add(3 * h + j, xi, ones)
     add(3 * h + j, si, -ones)
-    if layout is SPLIT:
+    if layout == SPLIT:
         add(4 * h + j, qi, -ones)
         add(5 * h + j, qi, ones)
         add(6 * h + j, si, -ones)
@@ -130,10 +129,10 @@ def qp_vectors(
     q[:, h : 2 * h] = dt_h * objective.comfort_weight_eur_per_kh
     m = layout.rows * h
     lower = np.full((b, m), -np.inf)
-    upper = np.zeros((b, m)) if layout is SPLIT else np.full((b, m), np.inf)
+    upper = np.zeros((b, m)) if layout == SPLIT else np.full((b, m), np.inf)
     lower[:, : 2 * h] = upper[:, : 2 * h] = drift_c.reshape(b, 2 * h)
     upper[:, 3 * h : 4 * h] = objective.t_max_c
-    if layout is SPLIT:
+    if layout == SPLIT:
         upper[:, 2 * h : 3 * h] = -objective.t_min_c
         upper[:, 5 * h : 6 * h] = heat_max_kw
     else:
