@@ -131,7 +131,7 @@ def roll_states(
     pre: torch.Tensor,
     b_step: torch.Tensor,
     u_w: torch.Tensor,
-    p_bounds_w: tuple[torch.Tensor, torch.Tensor],
+    p_bounds_w: tuple[float, float] | tuple[torch.Tensor, torch.Tensor],
     *,
     few: FewPlanWeights | None = None,
 ) -> torch.Tensor:
@@ -144,7 +144,7 @@ def roll_states(
     plan-free terms of each step (the residual net's first layer on the exogenous inputs and
     its bias, then the exogenous drive of the 2R2C's rows (T_m, T_r)); ``b_step`` (H|1, M, 2,
     N|1) each step's heat per watt on both rows [K/W]; ``u_w`` (H, M|1, 1, N) the demand [W];
-    ``p_bounds_w`` the delivered power's range [W] (0-d, or (M, 1, 1) each); ``few``: add
+    ``p_bounds_w`` the delivered power's range [W] (numbers, or (M, 1, 1) each); ``few``: add
     the first layer's state rows one by one (a few plans; same arithmetic, other round-off).
     Returns the states (H+1, M, 3, N) at each step's start.
 
@@ -174,7 +174,10 @@ def roll_states(
         hb = h if varies else 0
         t_free = y[:, hidden + 1 :]  # (M, 1, N): T_r,i+1 without power
         p_w = saturate_backup(u_w[h], t_free, b_t_r[hb], c.t_off, c.t_full, c.full_power_w)
-        torch.clamp(p_w, lo, hi, out=nxt[:, :1])
+        if isinstance(lo, torch.Tensor) and isinstance(hi, torch.Tensor):
+            torch.clamp(p_w, lo, hi, out=nxt[:, :1])
+        else:  # numbers: torch's faster scalar clamp
+            torch.clamp(p_w, float(lo), float(hi), out=nxt[:, :1])
         torch.addcmul(y[:, hidden:], b_step[hb], nxt[:, :1], out=nxt[:, 1:])
         if few is None:
             res = torch.baddbmm(c.b_last, c.w_last, x)
@@ -493,8 +496,7 @@ class HybridNet(nn.Module):
             g = self.gain(exog[:, k : k + h_len, 0])  # (N0, H) or None
             b_u = c.drive_b[..., :1]  # (M, 2, 1)
             b_step = b_u[None] if g is None else b_u[None] * g.T[:, None, None, :]  # (H|1, M, 2, N0)
-            bounds = (torch.tensor(p_bounds_w[0]), torch.tensor(p_bounds_w[1]))
-            series = roll_states(c, state0, pre, b_step, u_w, bounds).permute(1, 2, 3, 0)
+            series = roll_states(c, state0, pre, b_step, u_w, p_bounds_w).permute(1, 2, 3, 0)
             return (
                 series[:, 2, :, 1:].contiguous(),
                 series[:, 0, :, 1:].contiguous(),
