@@ -338,7 +338,7 @@ def test_both_layouts_state_one_problem_and_a_fleet_of_one_plans_as_qp_mpc() -> 
         solver = osqp.OSQP()
         solver.setup(P=p_upper, q=q, A=a, l=lower, u=upper, eps_abs=1e-8, eps_rel=1e-8, max_iter=10**6,
                      polishing=True, verbose=False)
-        result = solver.solve()
+        result = solver.solve(raise_error=False)
         assert str(result.info.status) == "solved"
         plans[layout.name] = result.x[: SPEC.horizon_steps]
     np.testing.assert_allclose(plans["box"], plans["split"], atol=1e-5)
