@@ -30,8 +30,8 @@ import torch
 from controllers.base import ControlSpec, Forecast, Observation
 from controllers.planners import CEMPlanner
 from controllers.sampling import CEM, RandomShooting
+from pinn_mpc.models.rc import RCBatchModel
 from pinn_mpc.models.rollout import BatchDynamics
-from pinn_mpc.rc_batch_model import RCBatchModel
 from scenarios.experiments.compare import CompareSettings
 from scenarios.inputs.exogenous import time_of_day_h
 from scenarios.inputs.scenario_file import get_scenario

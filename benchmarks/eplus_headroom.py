@@ -24,7 +24,7 @@ import sys
 
 import numpy as np
 
-from pinn_mpc.arx import ARXModel, fit_physics_informed_arx
+from pinn_mpc.models.arx import ARXModel, fit_physics_informed_arx
 from scenarios.experiments.compare import identify_scenario_rc, rc_for_mpc
 from scenarios.inputs.exogenous import TMY3Weather
 from scenarios.inputs.registry import Scenario

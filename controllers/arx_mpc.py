@@ -1,9 +1,9 @@
-"""``qp-mpc`` over an ARX model (:mod:`pinn_mpc.arx`): the QP MPC of the linear baseline.
+"""``qp-mpc`` over an ARX model (:mod:`pinn_mpc.models.arx`): the QP MPC of the linear baseline.
 
 The ARX is linear in its lagged ``T_r`` and power; everything else in it (weather, the weekly
 schedule, the physics-informed variant's schedule x ``(T_r - T_a)`` weight) is known over the
 horizon from the forecast and its dates. So the horizon's room temperatures are an affine
-function of the planned powers, ``T_r = free + gain @ p`` (:meth:`pinn_mpc.arx.ARXModel.
+function of the planned powers, ``T_r = free + gain @ p`` (:meth:`pinn_mpc.models.arx.ARXModel.
 prediction_matrices`, rebuilt at every decision), and the objective of every planner
 (:class:`controllers.objective.HorizonObjective`: energy cost + comfort weight x band
 violation, heater bounds) is, as in :class:`controllers.rc_mpc.osqp.QPMPC`, the QP::
@@ -50,17 +50,18 @@ from controllers.base import (
 )
 from controllers.estimators import OffsetFilter
 from controllers.objective import HorizonObjective
-from controllers.rc_mpc.osqp import OSQP_OPTIONS, shift_blocks
+from controllers.rc_mpc.osqp import OSQP_OPTIONS
 from controllers.rc_mpc.problem import DEFAULT_REGULARISATION
-from pinn_mpc.arx import ARXModel
+from controllers.rc_mpc.qp import shift_steps
 from pinn_mpc.errors import InputError
 from pinn_mpc.features import check_interval
+from pinn_mpc.models.arx import ARXModel
 
 __all__ = ["ARXQPMPC"]
 
 
 class ARXQPMPC(PlanningController):
-    """QP MPC over an :class:`~pinn_mpc.arx.ARXModel` (module docstring).
+    """QP MPC over an :class:`~pinn_mpc.models.arx.ARXModel` (module docstring).
 
     ``solver_options`` update :data:`controllers.rc_mpc.osqp.OSQP_OPTIONS`; ``offset_gain``
     as :class:`controllers.estimators.OffsetFilter` (0 plans on the model alone).
@@ -172,7 +173,9 @@ class ARXQPMPC(PlanningController):
         result = self._osqp.solve(raise_error=False)
         status = str(result.info.status)
         if status == "solved":  # receding horizon: start the next solve shifted by one step
-            self._osqp.warm_start(x=shift_blocks(result.x, [(h, 1)] * 2), y=shift_blocks(result.y, [(h, 1)] * 4))
+            self._osqp.warm_start(
+                x=shift_steps(np.asarray(result.x), (1, 1), h), y=shift_steps(np.asarray(result.y), (1,) * 4, h)
+            )
         return np.asarray(result.x)[:h], status, int(result.info.iter)
 
 

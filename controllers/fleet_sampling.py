@@ -2,7 +2,7 @@
 
 :class:`FleetCEM` is the ``cem`` controller of :mod:`controllers.sampling` for B buildings at
 once, behind :class:`controllers.fleet.FleetPlanner`: each CEM iteration rolls all buildings x
-samples x horizon out in ONE call of a fleet model (:class:`pinn_mpc.fleet_rollout.FleetHybrid`),
+samples x horizon out in ONE call of a fleet model (:class:`pinn_mpc.models.fleet.FleetHybrid`),
 scores them with the objective (price plus the coordination price, band violation; the
 members' mean prediction plus the building's offset, as ``ensemble="mean"``) and refits each
 building's sampling distribution (:func:`optimize_fleet`, the arithmetic of
@@ -28,7 +28,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Sequence
-from typing import NamedTuple, Protocol, cast
+from typing import NamedTuple, cast
 
 import numpy as np
 import torch
@@ -39,40 +39,9 @@ from controllers.objective import HorizonObjective
 from controllers.planners import CEMPlanner
 from controllers.trust import TrustMonitor, TrustSettings
 from pinn_mpc.errors import InputError, InternalError
-from pinn_mpc.fleet_rollout import FleetStart
-from pinn_mpc.models.rollout import Rollout
+from pinn_mpc.models.fleet import FleetDynamics, FleetStart
 
-__all__ = ["FleetCEM", "FleetDynamics", "colored_noise_fleet", "optimize_fleet"]
-
-
-class FleetDynamics(Protocol):
-    """B buildings' models rolled out together (:class:`pinn_mpc.fleet_rollout.FleetHybrid`)."""
-
-    n_buildings: int
-    n_members: int
-    depth: int
-    eta: float
-    exog_names: tuple[str, ...]
-
-    def prepare(
-        self,
-        histories: Sequence[dict[str, np.ndarray]],
-        exog: dict[str, np.ndarray],
-        h: int,
-        *,
-        drop_last: int = 0,
-    ) -> FleetStart: ...
-
-    def roll(self, start: FleetStart, u_w: torch.Tensor) -> Rollout: ...
-
-    def rollout(
-        self,
-        histories: Sequence[dict[str, np.ndarray]],
-        u_w: torch.Tensor,
-        exog: dict[str, np.ndarray],
-        *,
-        drop_last: int = 0,
-    ) -> Rollout: ...
+__all__ = ["FleetCEM", "colored_noise_fleet", "optimize_fleet"]
 
 
 def optimize_fleet(

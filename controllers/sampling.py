@@ -152,8 +152,7 @@ class _SamplingController(PlanningController):
         self.model, self.spec, self.planner, self.risk_weight = model, spec, planner, risk_weight
         # A model whose horizon is affine in the plan (the ARX) but time-varying (its schedule)
         # is linearised exactly only when every step is probed.
-        affine = hasattr(model, "prediction_matrices")
-        self.polish = PolishSettings(iters=options.polish_iters, probe_stride=1 if affine else 4)
+        self.polish = PolishSettings(iters=options.polish_iters, probe_stride=1 if model.affine_in_plan else 4)
         if ensemble not in ENSEMBLE_MODES:
             raise InputError(
                 f"{type(self).__name__}.ensemble must be one of {', '.join(ENSEMBLE_MODES)}, "

@@ -5,12 +5,12 @@ The hybrid (:data:`pinn_mpc.models.registry.DEFAULT_ARCH`: a 2R2C physics block 
 residual) is the package's model for the buildings a 2R2C describes. A building whose dynamics
 and unmeasured internal gains a 2R2C does not hold (EnergyPlus's reference buildings: a time
 scale between air and mass, office schedules) is predicted several times better 12 hours ahead
-by the physics-informed ARX (:func:`pinn_mpc.arx.fit_physics_informed_arx`), and a learned
+by the physics-informed ARX (:func:`pinn_mpc.models.arx.fit_physics_informed_arx`), and a learned
 model that cannot predict its building cannot plan for it.
 
 So :func:`choose_model` fits both on the first three quarters of the data and lets each predict
-the last quarter 12 hours ahead (:data:`pinn_mpc.arx.SELECTION_SHARE`,
-:data:`pinn_mpc.arx.SELECTION_HORIZON_S`; every start in that quarter, the same starts for
+the last quarter 12 hours ahead (:data:`pinn_mpc.models.arx.SELECTION_SHARE`,
+:data:`pinn_mpc.models.arx.SELECTION_HORIZON_S`; every start in that quarter, the same starts for
 both, the history before them measured). The physics-informed ARX is taken when its error is
 at most :data:`AUTO_RATIO` times the hybrid's, and then fitted on all the data; otherwise the
 hybrid is trained on all of it. The ratio keeps the hybrid, the model whose 2R2C the package
@@ -37,9 +37,14 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from pinn_mpc.arx import SELECTION_HORIZON_S, SELECTION_SHARE, ARXModel, fit_physics_informed_arx
 from pinn_mpc.errors import InputError
 from pinn_mpc.evaluation import recursive_t_r
+from pinn_mpc.models.arx import (
+    SELECTION_HORIZON_S,
+    SELECTION_SHARE,
+    ARXModel,
+    fit_physics_informed_arx,
+)
 from pinn_mpc.models.learned import LearnedModel
 from pinn_mpc.models.registry import AUTO, DEFAULT_ARCH, PHYSICS_ARX
 from pinn_mpc.training import TrainConfig, train_model

@@ -102,9 +102,9 @@ def _train_auto(a: argparse.Namespace) -> str:
     predicts the data's last quarter better (:mod:`pinn_mpc.model_choice`), into ``--out``.
     ``--out`` may hold a model of either kind; the one not chosen is removed from it."""
     from pinn_mpc.artifacts import MODEL_DIRECTORY, save_model
-    from pinn_mpc.arx import ARX_DIRECTORY, ARXModel, save_arx
     from pinn_mpc.io import DirectoryLayout
     from pinn_mpc.model_choice import choose_model
+    from pinn_mpc.models.arx import ARX_DIRECTORY, ARXModel, save_arx
     from pinn_mpc.training import TrainConfig
 
     either = DirectoryLayout(
@@ -142,9 +142,9 @@ def _train_auto(a: argparse.Namespace) -> str:
 
 
 def _train_arx(a: argparse.Namespace) -> str:
-    """``train --arch arx`` (the least-squares ARX baseline, :mod:`pinn_mpc.arx`) or its
+    """``train --arch arx`` (the least-squares ARX baseline, :mod:`pinn_mpc.models.arx`) or its
     physics-informed variant into ``--out``."""
-    from pinn_mpc.arx import ARX_DIRECTORY, fit_linear, save_arx
+    from pinn_mpc.models.arx import ARX_DIRECTORY, fit_linear, save_arx
 
     given = [f"--{n}" for n in ("depth", "epochs", "lam", "recipe") if getattr(a, n, None) is not None]
     if given:
@@ -170,7 +170,7 @@ def _train_arx(a: argparse.Namespace) -> str:
 
 def _evaluate_arx(a: argparse.Namespace) -> str:
     """``evaluate`` of an ARX model directory: T_r MAE one step and ``--horizons`` ahead."""
-    from pinn_mpc.arx import load_arx
+    from pinn_mpc.models.arx import load_arx
 
     model = load_arx(a.model)
     df = read_timeseries(a.data, columns=a.columns)
@@ -195,8 +195,8 @@ def _evaluate_arx(a: argparse.Namespace) -> str:
 def evaluate(a: argparse.Namespace) -> str:
     """Load ``--model`` and ``--data``, write the metrics JSON ``--json``."""
     from pinn_mpc.artifacts import MODEL_DIRECTORY, load_model
-    from pinn_mpc.arx import ARX_DIRECTORY, is_arx_directory
     from pinn_mpc.evaluation import evaluate_model
+    from pinn_mpc.models.arx import ARX_DIRECTORY, is_arx_directory
 
     check_writable(a.json)
     if is_arx_directory(a.model):

@@ -6,8 +6,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pinn_mpc.arx import ARXModel, fit_arx
 from pinn_mpc.errors import InputError, InternalError
+from pinn_mpc.models.arx import ARXModel, fit_arx
 from pinn_mpc.physics import RCParams, discretise
 
 
@@ -168,7 +168,7 @@ def test_physics_informed_arx_recovers_an_occupancy_scaled_heat_loss_exactly():
     """On a room whose loss coefficient follows the occupancy (and a Saturday schedule of its
     own) the physics-informed ARX recovers the plant: its power coefficient and the loss of
     every block, and predicts 48 steps ahead exactly; the plain ARX cannot."""
-    from pinn_mpc.arx import BLOCK_H, fit_physics_informed_arx
+    from pinn_mpc.models.arx import BLOCK_H, fit_physics_informed_arx
 
     train, test = _occupied_data(28, seed=0), _occupied_data(14, seed=1)
     model = fit_physics_informed_arx(train, lags=1)
@@ -198,7 +198,7 @@ def test_physics_informed_arx_keeps_the_saturday_schedule_of_two_noisy_weeks(see
     schedule without Saturdays on these seeds (24-step MAE 0.24-0.27 K on the next two
     weeks); the schedule's information criterion on all the data keeps Saturdays, and the
     next two weeks are predicted at the noise's scale."""
-    from pinn_mpc.arx import fit_physics_informed_arx, schedule_aic
+    from pinn_mpc.models.arx import fit_physics_informed_arx, schedule_aic
 
     train = _occupied_data(14, seed=seed)
     train["T_r"] += np.random.default_rng(seed + 100).normal(0.0, 0.05, len(train))
@@ -220,7 +220,7 @@ def test_offset_response_is_the_product_of_the_rooms_own_decay():
     """On the first-order room the lagged T_r weight plus a block's loss weight is 1 - loss, so
     a history 1 K warmer is left at the product of (1 - loss) over the horizon; the largest
     over the week's starts is a weekend's, at the unoccupied loss 0.05."""
-    from pinn_mpc.arx import fit_physics_informed_arx
+    from pinn_mpc.models.arx import fit_physics_informed_arx
 
     model = fit_physics_informed_arx(_occupied_data(28, seed=0), lags=1)
     assert model.offset_response(24) == pytest.approx(0.95**24, rel=1e-4)
@@ -231,7 +231,7 @@ def test_physics_informed_arx_on_a_week_takes_a_schedule_the_rows_can_fit():
     """A week (336 rows) cannot fit hourly blocks of three day types with 8 lags (more than
     half as many coefficients as rows), but 2-hour blocks: the fit takes those; a day of data
     fits none and is refused in one line."""
-    from pinn_mpc.arx import fit_physics_informed_arx
+    from pinn_mpc.models.arx import fit_physics_informed_arx
 
     model = fit_physics_informed_arx(_occupied_data(7, seed=0))
     assert model.block_h == 2.0
@@ -245,7 +245,7 @@ def test_physics_informed_arx_refuses_a_schedule_whose_room_runs_away(seed, days
     that day with a room that amplifies its own deviations (a history 1 K warmer is 1.5 K
     warmer 12 h later); the fit takes the best schedule whose room settles, which predicts the
     next two weeks better."""
-    from pinn_mpc.arx import fit_arx, fit_physics_informed_arx, schedule_aic
+    from pinn_mpc.models.arx import fit_arx, fit_physics_informed_arx, schedule_aic
 
     train = _occupied_data(days, seed=seed)
     train["T_r"] += np.random.default_rng(seed).normal(0.0, 0.1, len(train))
@@ -271,7 +271,7 @@ def test_physics_informed_arx_counts_holidays_as_sundays_and_takes_hourly_blocks
     training and the test days: the fit takes hourly blocks and the ``holiday`` column, and
     predicts exactly, the holiday too; the saved model keeps its blocks. Without the column
     the holiday looks like a workday and the prediction of that day is off."""
-    from pinn_mpc.arx import fit_physics_informed_arx, load_arx, save_arx
+    from pinn_mpc.models.arx import fit_physics_informed_arx, load_arx, save_arx
 
     train = _occupied_data(28, seed=0, start_h=7, holidays=("2022-01-17",))
     test = _occupied_data(14, seed=1, start_h=7, holidays=("2022-02-21",), start="2022-02-14")
@@ -295,8 +295,8 @@ def test_polish_linearises_the_physics_informed_arx_exactly_by_probing_every_ste
 
     from controllers.lp_polish import jacobians, probes
     from controllers.sampling import CEM
-    from pinn_mpc.arx import fit_physics_informed_arx
     from pinn_mpc.features import time_of_day_h
+    from pinn_mpc.models.arx import fit_physics_informed_arx
     from scenarios.inputs.scenario_file import get_scenario
 
     data = _occupied_data(28, seed=0)
@@ -326,8 +326,8 @@ def test_polish_linearises_the_physics_informed_arx_exactly_by_probing_every_ste
 def test_physics_informed_arx_round_trips_plans_as_it_predicts_and_refuses_cooling_heat(tmp_path):
     import torch
 
-    from pinn_mpc.arx import fit_physics_informed_arx, load_arx, save_arx
     from pinn_mpc.features import time_of_day_h
+    from pinn_mpc.models.arx import fit_physics_informed_arx, load_arx, save_arx
 
     model = fit_physics_informed_arx(_occupied_data(21, seed=0), lags=2)
     save_arx(model, tmp_path)
@@ -378,7 +378,7 @@ def test_physics_informed_arx_recovers_wind_driven_infiltration(tmp_path):
     weighs wind x (T_r - T_a) where the data has the wind, recovers its weight (scaled by 0.1
     per m/s) and predicts 48 steps ahead exactly; its horizon stays affine in the plan (the
     wind's weight from the forecast) and the file keeps the term."""
-    from pinn_mpc.arx import fit_physics_informed_arx, load_arx, save_arx
+    from pinn_mpc.models.arx import fit_physics_informed_arx, load_arx, save_arx
 
     train, test = _windy_data(28, seed=0), _windy_data(14, seed=1)
     model = fit_physics_informed_arx(train, lags=1)

@@ -12,9 +12,9 @@ from controllers.arx_mpc import ARXQPMPC
 from controllers.base import ControlSpec, Forecast, Observation, fallback_power
 from controllers.objective import HorizonObjective
 from controllers.rc_mpc.references import oracle_mpc
-from pinn_mpc.arx import ARXModel, fit_arx, fit_physics_informed_arx
 from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.features import time_of_day_h
+from pinn_mpc.models.arx import ARXModel, fit_arx, fit_physics_informed_arx
 from pinn_mpc.physics import PAPER_HOUSEHOLD, RCParams, discretise
 from pinn_mpc.simulator import SimConfig
 from scenarios.inputs.series import ExogenousSeries

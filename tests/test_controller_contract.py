@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from controllers.base import Controller
-from pinn_mpc.rc_batch_model import RCBatchModel
+from pinn_mpc.models.rc import RCBatchModel
 from scenarios.inputs.scenario_file import get_scenario
 from scenarios.inputs.series import ExogenousSeries
 from scenarios.running.engine import ClosedLoop

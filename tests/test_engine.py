@@ -13,8 +13,8 @@ from controllers.rc_mpc.problem import DEFAULT_REGULARISATION
 from controllers.rc_mpc.references import oracle_mpc
 from controllers.thermostat import Thermostat
 from pinn_mpc.errors import InputError, InternalError
+from pinn_mpc.models.rc import RCBatchModel
 from pinn_mpc.physics import PAPER_HOUSEHOLD, discretise
-from pinn_mpc.rc_batch_model import RCBatchModel
 from pinn_mpc.simulator import SimConfig
 from scenarios.inputs.series import ExogenousSeries
 from scenarios.running.engine import ClosedLoop

@@ -10,7 +10,7 @@ import torch
 from controllers.planners import CEMPlanner
 from pinn_mpc import TrainConfig, train_model
 from pinn_mpc.errors import InputError, InternalError
-from pinn_mpc.fleet_rollout import FEW_PLANS, FleetHybrid
+from pinn_mpc.models.fleet import FEW_PLANS, FleetHybrid
 from pinn_mpc.simulator import draw_fleet
 from scenarios.fleets.aggregator import cap_in_force, learned_fleet_planner, run_coordinated_fleet
 from scenarios.inputs.scenario_file import get_scenario
@@ -56,10 +56,11 @@ def test_batched_rollout_equals_each_models_rollout(fleet_models):
     for i, model in enumerate(models):
         own = model.rollout(observations[i].history, u[i], exog)
         assert batched.t_r_c[i].shape == own.t_r_c.shape == (3, 9, h)
-        torch.testing.assert_close(batched.t_r_c[i], own.t_r_c, atol=1e-3, rtol=0)
-        torch.testing.assert_close(batched.u_phys_w[i], own.u_phys_w, atol=0.5, rtol=0)
-        torch.testing.assert_close(batched.t_m_c[i], own.t_m_c, atol=1e-3, rtol=0)
-        torch.testing.assert_close(first.t_r_c[i], own.t_r_c[:1], atol=1e-3, rtol=0)
+        # One recursion (roll_states) for both: only the preparation's round-off differs.
+        torch.testing.assert_close(batched.t_r_c[i], own.t_r_c, atol=1e-4, rtol=0)
+        torch.testing.assert_close(batched.u_phys_w[i], own.u_phys_w, atol=0.05, rtol=0)
+        torch.testing.assert_close(batched.t_m_c[i], own.t_m_c, atol=1e-4, rtol=0)
+        torch.testing.assert_close(first.t_r_c[i], own.t_r_c[:1], atol=1e-4, rtol=0)
     # A rollout of a few plans (FEW_PLANS: the first layer row by row) is the same rollout.
     for n in (1, FEW_PLANS):
         few = FleetHybrid(models).rollout([o.history for o in observations], u[:, :n], exog)

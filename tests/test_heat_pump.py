@@ -10,7 +10,7 @@ from controllers.rc_mpc.problem import RCProblem
 from pinn_mpc import physics
 from pinn_mpc.actuator import Actuator
 from pinn_mpc.errors import InputError
-from pinn_mpc.rc_batch_model import RCBatchModel
+from pinn_mpc.models.rc import RCBatchModel
 from pinn_mpc.simulator import SimConfig, Simulator, backup_power, draw_fleet
 from scenarios.inputs.scenario_file import get_scenario
 from scenarios.running.closed_loop import run_closed_loop

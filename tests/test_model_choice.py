@@ -9,9 +9,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pinn_mpc.arx import ARXModel, fit_physics_informed_arx
 from pinn_mpc.data import write_timeseries
 from pinn_mpc.model_choice import AUTO_RATIO, ROUGH_MAE_C, choose_model
+from pinn_mpc.models.arx import ARXModel, fit_physics_informed_arx
 from pinn_mpc.models.learned import LearnedModel
 from pinn_mpc.training import TrainConfig
 from tests.model_data import household_data

@@ -160,6 +160,31 @@ def test_rollout_feeds_predictions_back_like_a_step_by_step_loop(small_model: Le
     torch.testing.assert_close(roll.t_r_c[:, 0], roll.t_r_c[:, 1])
 
 
+def test_every_planner_model_declares_the_rollout_protocol(small_model: LearnedModel) -> None:
+    """The learned ensemble, the 2R2C and the ARX subclass BatchDynamics (the type checker holds
+    them to it) and say whether their horizon is affine in the plan; the one that is offers
+    its prediction matrices, and they give its rollout."""
+    from pinn_mpc.models.arx import fit_arx
+    from pinn_mpc.models.rc import RCBatchModel
+    from pinn_mpc.models.rollout import BatchDynamics
+
+    df = household_data(4, 5)
+    arx = fit_arx(df)
+    rc = RCBatchModel(physics.PAPER_HOUSEHOLD, dt_s=1800.0, u_max_w=5000.0)
+    for model, affine in ((small_model, False), (rc, False), (arx, True)):
+        assert BatchDynamics in type(model).__mro__  # declared, not only shaped like it
+        assert model.affine_in_plan is affine
+        assert model.dt_s == 1800.0 and model.n_members >= 1
+    i, h = 20, 12
+    hist = {c: df[c].to_numpy()[: i + 1] for c in arx.columns if c != "u_phys"}
+    hist["u_phys"] = df["u_phys"].to_numpy()[:i]
+    exog = {c: df[c].to_numpy()[i : i + h] for c in arx.columns[2:]}
+    exog |= {"time_of_day_h": time_of_day_h(df["time"])[i : i + h], "day_of_week": np.zeros(h)}
+    u = torch.rand(3, h, generator=torch.Generator().manual_seed(0), dtype=torch.float64) * 5000.0
+    free, gain = arx.prediction_matrices(hist, exog, h)
+    torch.testing.assert_close(arx.rollout(hist, u, exog).t_r_c[0], torch.as_tensor(free) + u @ torch.as_tensor(gain).T)
+
+
 def test_rollout_rejects_short_history(small_model: LearnedModel) -> None:
     df = household_data(4, 5)
     hist, exog, _ = _history(df.iloc[:30], 3, small_model.depth)
@@ -201,8 +226,10 @@ def _history_and_forecast(df, i: int, h: int):
 
 def test_hybrid_without_corrections_is_the_exact_2r2c() -> None:
     """True parameters, no residual, backup far away: the window observer recovers T_m and the
-    rollout is the ZOH 2R2C (RCBatchModel started at the true T_m) up to that T_m error."""
-    from pinn_mpc.rc_batch_model import RCBatchModel
+    rollout is the ZOH 2R2C (RCBatchModel started at the true T_m) up to that T_m error; so is
+    the model's rollout as a fleet of one building."""
+    from pinn_mpc.models.fleet import FleetHybrid
+    from pinn_mpc.models.rc import RCBatchModel
 
     truth, df = _winter_data(8, 0)
     model = train_model(
@@ -232,6 +259,10 @@ def test_hybrid_without_corrections_is_the_exact_2r2c() -> None:
     assert t_m_error < 0.01
     torch.testing.assert_close(roll.u_phys_w, ref.u_phys_w.expand(2, -1, -1), atol=0.5, rtol=0)
     assert float((roll.t_r_c - ref.t_r_c).abs().max()) <= t_m_error + 1e-3
+    # The one-building fleet is the same 2R2C through the same recursion.
+    fleet = FleetHybrid([model]).rollout([history], u[None], exog)
+    for got, want in zip(fleet, roll, strict=True):
+        torch.testing.assert_close(got[0], want, atol=1e-4, rtol=1e-6)
 
 
 @pytest.mark.parametrize("heating", [True, False])

@@ -11,7 +11,7 @@ import pytest
 from matplotlib.axes import Axes
 from matplotlib.collections import PolyCollection
 
-from pinn_mpc.rc_batch_model import RCBatchModel
+from pinn_mpc.models.rc import RCBatchModel
 from scenarios.inputs.scenario_file import get_scenario
 from scenarios.reports.plots import (
     FAMILIES,

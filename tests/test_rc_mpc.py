@@ -17,7 +17,7 @@ from controllers.base import (
 from controllers.objective import HorizonObjective
 from controllers.rc_mpc.casadi import CasadiMPC
 from controllers.rc_mpc.osqp import QPMPC
-from controllers.rc_mpc.problem import RCMPC
+from controllers.rc_mpc.problem import RCMPC, RCProblem, StageData
 from controllers.rc_mpc.references import clairvoyant_mpc, oracle_mpc
 from pinn_mpc.physics import PAPER_HOUSEHOLD, steady_state
 from pinn_mpc.simulator import SimConfig
@@ -244,3 +244,138 @@ def test_clairvoyant_counts_its_run_from_the_first_decision() -> None:
     at_zero.act(second, Forecast(*(None if a is None else np.asarray(a)[1:] for a in fc)))
     assert at_zero.last_plan is not None
     assert at_zero.last_plan[-1] < 1.0  # the last step is after the run end: nothing planned
+
+
+def _cvxpy_problem(problem: RCProblem, stage: StageData):
+    """The QP of controllers/rc_mpc/problem.py stated in cvxpy, the states as variables: the
+    independent statement the hand-built OSQP data are checked against."""
+    import cvxpy as cp
+
+    h, dt_h = problem.horizon_steps, problem.spec.dt_h
+    ad, _ = problem.matrices
+    drift = stage.free_c.T.copy()
+    drift[:, 0] += ad @ stage.x0_c
+    heat = cp.Variable(h)
+    slack = cp.Variable(h)
+    x = cp.Variable((2, h))
+    previous = cp.hstack([np.zeros((2, 1)), x[:, :-1]]) if h > 1 else np.zeros((2, 1))
+    b_u = problem.b_u_c_per_kw.reshape(2, 1)
+    constraints = [
+        x == ad @ previous + b_u @ cp.reshape(heat, (1, h), order="C") + drift,
+        x[0, :] + slack >= stage.objective.t_min_c,
+        x[0, :] - slack <= stage.objective.t_max_c,
+        heat >= 0.0,
+        heat <= stage.heat_max_kw(problem.u_max_kw),
+        slack >= 0.0,
+    ]
+    objective = dt_h * (
+        stage.heat_price_eur_per_kwh @ heat
+        + problem.spec.comfort_weight_eur_per_kh * cp.sum(slack)
+        + problem.regularisation_eur_per_kw2h * cp.sum_squares(heat)
+    )
+    return cp.Problem(cp.Minimize(objective), constraints)
+
+
+@pytest.mark.parametrize(("h", "dt_s", "weight", "rho"), [(48, 1800.0, 1.0, 1e-4), (7, 900.0, 3.7, 2.3e-4), (1, 3600.0, 0.3, 1e-3)])
+def test_qp_data_are_cvxpys_canonical_form_value_for_value(h, dt_s, weight, rho) -> None:
+    """qp-mpc's OSQP data (the one-building case of the fleet's, controllers/rc_mpc/qp.py, in
+    the SPLIT layout) are exactly what cvxpy makes of the problem: same layout, signs and values, so OSQP takes the
+    same iterates either way."""
+    import cvxpy as cp
+    import scipy.sparse as sp
+
+    from controllers.rc_mpc.qp import SPLIT, qp_matrices, qp_vectors
+    from pinn_mpc.actuator import Actuator
+
+    spec = ControlSpec(
+        u_max_w=5000.0, horizon_steps=h, dt_s=dt_s, comfort_weight_eur_per_kh=weight, actuator=Actuator(kind="heat_pump")
+    )
+    problem = RCProblem(params=PARAMS, spec=spec, horizon_steps=h, regularisation_eur_per_kw2h=rho)
+    stage = problem.stage(np.array([19.3, 18.1]), _forecast(h, start=5))
+    assert np.ptp(stage.cop) > 0 or h == 1  # a COP that varies over the horizon
+    data, _, _ = _cvxpy_problem(problem, stage).get_problem_data(cp.OSQP)
+    ad, _ = problem.matrices
+    p_upper, a = qp_matrices(ad[None], problem.b_u_c_per_kw[None], h, 2.0 * spec.dt_h * rho, SPLIT)
+    drift = stage.free_c.copy()
+    drift[0] += ad @ stage.x0_c
+    q, lower, upper = (v[0] for v in qp_vectors(
+        drift[None], stage.heat_price_eur_per_kwh, stage.heat_max_kw(problem.u_max_kw), stage.objective, SPLIT
+    ))
+    want_a = sp.csc_matrix(sp.vstack([data["A"], data["F"]], format="csc"))
+    want_p = sp.csc_matrix(sp.triu(data["P"], format="csc"))
+    for got, want in ((a, want_a), (p_upper, want_p)):
+        assert got.shape == want.shape
+        np.testing.assert_array_equal(got.indptr, want.indptr)
+        np.testing.assert_array_equal(got.indices, want.indices)
+        np.testing.assert_array_equal(got.data, want.data)
+    n_eq = len(data["b"])
+    np.testing.assert_array_equal(q, data["q"])
+    np.testing.assert_array_equal(upper, np.concatenate([data["b"], data["G"]]))
+    np.testing.assert_array_equal(lower[:n_eq], data["b"])
+    assert np.all(np.isneginf(lower[n_eq:]))
+
+
+def test_both_layouts_state_one_problem_and_a_fleet_of_one_plans_as_qp_mpc() -> None:
+    """The SPLIT rows (qp-mpc's) and the BOX rows (the fleet's) are one QP: solved tightly
+    they give the same plan; a one-building FleetQPMPC and QPMPC on the same stage plan alike
+    to the solver's tolerance."""
+    import osqp
+
+    from controllers.fleet import FleetQPMPC
+    from controllers.rc_mpc.qp import BOX, SPLIT, qp_matrices, qp_vectors
+
+    forecast = _forecast(SPEC.horizon_steps)
+    single = QPMPC(PARAMS, SPEC)
+    stage = single.problem.stage(np.array([19.0, 18.0]), forecast)
+    ad, _ = single.problem.matrices
+    drift = stage.free_c.copy()
+    drift[0] += ad @ stage.x0_c
+    plans = {}
+    for layout in (SPLIT, BOX):
+        p_upper, a = qp_matrices(ad[None], single.problem.b_u_c_per_kw[None], SPEC.horizon_steps, 2e-4, layout)
+        q, lower, upper = (v[0] for v in qp_vectors(
+            drift[None], stage.heat_price_eur_per_kwh, stage.heat_max_kw(5.0), stage.objective, layout
+        ))
+        solver = osqp.OSQP()
+        solver.setup(P=p_upper, q=q, A=a, l=lower, u=upper, eps_abs=1e-8, eps_rel=1e-8, max_iter=10**6,
+                     polishing=True, verbose=False)
+        result = solver.solve(raise_error=False)
+        assert str(result.info.status) == "solved"
+        plans[layout.name] = result.x[: SPEC.horizon_steps]
+    np.testing.assert_allclose(plans["box"], plans["split"], atol=1e-5)
+    fleet = FleetQPMPC([PARAMS], SPEC)
+    fleet.observe([_first_obs(19.0, 18.0)], forecast)
+    assert fleet._stage is not None
+    stage = single.problem.stage(fleet._stage.x0_c[0], forecast)
+    own = single.problem.objective(stage, single._solve(stage).p_kw)
+    planned = single.problem.objective(stage, fleet.plan().power_w[0] / 1000.0)
+    assert planned == pytest.approx(own, rel=1e-3)
+
+
+@pytest.mark.parametrize("layout_name", ["split", "box"])
+def test_the_fleets_qp_is_the_buildings_qps_block_by_block(layout_name: str) -> None:
+    """B buildings' OSQP data are the one-building data of each, on the block diagonal."""
+    import scipy.sparse as sp
+
+    from controllers.rc_mpc.qp import BOX, SPLIT, qp_matrices, qp_vectors
+
+    layout = SPLIT if layout_name == "split" else BOX
+    from pinn_mpc.simulator import draw_fleet, fleet_matrices
+
+    h = 6
+    fleet = draw_fleet(PARAMS, 3, spread=0.3, rng=np.random.default_rng(2))
+    ad, bd = fleet_matrices(fleet, SPEC.dt_s)
+    b_u = bd[:, :, 0] * 1000.0
+    p_upper, a = qp_matrices(ad, b_u, h, 1e-4, layout)
+    ones = [qp_matrices(ad[i : i + 1], b_u[i : i + 1], h, 1e-4, layout) for i in range(3)]
+    for got, want in ((p_upper, sp.block_diag([o[0] for o in ones], format="csc")),
+                      (a, sp.block_diag([o[1] for o in ones], format="csc"))):
+        assert (got != want).nnz == 0
+    objective = HorizonObjective.from_forecast(_forecast(h), SPEC, h)
+    drift = np.random.default_rng(0).normal(size=(3, h, 2))
+    price = np.random.default_rng(1).uniform(0.1, 0.4, size=(3, h))
+    stacked = qp_vectors(drift, price, np.full(h, 5.0), objective, layout)
+    for i in range(3):
+        one = qp_vectors(drift[i : i + 1], price[i], np.full(h, 5.0), objective, layout)
+        for got, want in zip(stacked, one, strict=True):
+            np.testing.assert_array_equal(got[i], want[0])

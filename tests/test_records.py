@@ -131,7 +131,7 @@ def test_a_closed_loop_writes_run_kpis(tmp_path):
 
 
 def test_a_planner_over_a_learned_model_adds_its_trust_report():
-    from pinn_mpc.rc_batch_model import RCBatchModel
+    from pinn_mpc.models.rc import RCBatchModel
     from scenarios.running.closed_loop import run_closed_loop
     from scenarios.running.factory import build_controller
 
@@ -150,7 +150,7 @@ def test_a_planner_over_a_learned_model_adds_its_trust_report():
 
 
 def test_prediction_rows_and_rc_summaries():
-    from pinn_mpc.arx import fit_arx
+    from pinn_mpc.models.arx import fit_arx
     from pinn_mpc.physics import rc_summary
     from scenarios.experiments.prediction import prediction_errors
     from scenarios.running.datagen import generate

@@ -16,8 +16,8 @@ from controllers.objective import HorizonObjective, planning_band
 from controllers.sampling import CEM, RandomShooting
 from controllers.setpoint_space import SetpointSpace
 from pinn_mpc.errors import InputError
+from pinn_mpc.models.rc import RCBatchModel
 from pinn_mpc.physics import PAPER_HOUSEHOLD, discretise
-from pinn_mpc.rc_batch_model import RCBatchModel
 from pinn_mpc.simulator import SimConfig, Simulator
 from scenarios.inputs.series import ExogenousSeries
 from scenarios.running.engine import ClosedLoop

@@ -10,8 +10,8 @@ import pytest
 
 from controllers.arx_mpc import ARXQPMPC
 from controllers.base import ControlSpec, Forecast, Observation
-from pinn_mpc.arx import MEASURED_INPUTS, fit_arx, fit_physics_informed_arx
 from pinn_mpc.errors import InputError, InternalError
+from pinn_mpc.models.arx import MEASURED_INPUTS, fit_arx, fit_physics_informed_arx
 from pinn_mpc.simulator import SimConfig
 from pinn_mpc.solar import FACADE_COLUMNS, facade_irradiance, interval_means
 from scenarios.inputs.registry import EXOGENOUS_COLUMNS

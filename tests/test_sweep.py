@@ -315,8 +315,8 @@ def test_a_sweep_plans_over_the_architecture_it_is_given(tmp_path):
     """--arch: cem plans over the physics-informed ARX, fitted once per scenario x seed x
     training days and stored in the sweep's directory as an ARX model (numbers only); a rerun
     reuses it and another architecture is other settings."""
-    from pinn_mpc.arx import load_arx
     from pinn_mpc.choices import PHYSICS_ARX
+    from pinn_mpc.models.arx import load_arx
 
     out = tmp_path / "sweep"
     grid = ["--scenarios", "winter_household", "--controllers", "cem", "--seeds", "0",

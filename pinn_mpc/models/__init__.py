@@ -12,6 +12,10 @@
 - :mod:`~pinn_mpc.models.layers` (ensemble layers), :mod:`~pinn_mpc.models.physics_block`
   (learnable 2R2C, physics residuals), :mod:`~pinn_mpc.models.learned` (:class:`LearnedModel`,
   :class:`ModelRecord`).
+- The other planner models, each declaring :class:`BatchDynamics` as :class:`LearnedModel`
+  does: :mod:`~pinn_mpc.models.rc` (the 2R2C), :mod:`~pinn_mpc.models.arx` (the linear ARX
+  baseline); and :mod:`~pinn_mpc.models.fleet` (many buildings' hybrids in one batch,
+  declaring :class:`~pinn_mpc.models.fleet.FleetDynamics`).
 
 Every layer holds the weights of all M members and applies them in one batched product, so an
 ensemble trains and rolls out as one model. Names are imported on first use

@@ -46,11 +46,14 @@ __all__ = [
     "HIDDEN",
     "RESIDUAL_BOUND_FACTOR",
     "RESIDUAL_UNBOUNDED_K",
+    "FewPlanWeights",
     "Hybrid",
     "HybridConstants",
     "HybridInputs",
     "HybridNet",
     "backup_guess",
+    "roll_states",
+    "saturate_backup",
 ]
 
 #: Hidden layers of the residual net.
@@ -106,6 +109,82 @@ class HybridConstants(NamedTuple):
     t_off: torch.Tensor  # (M, 1, 1) backup threshold past which it switches off [C]
     t_full: torch.Tensor  # (M, 1, 1) backup threshold past which it forces full power [C]
     full_power_w: torch.Tensor  # (M, 1, 1)
+
+
+class FewPlanWeights(NamedTuple):
+    """The first layer's weights on each state row (3 of (M, out+2, 1)) and the last layer's
+    as a column (M, in, 1): with a few plans, adding the rows one by one is several times
+    faster than a batched product of that many columns (:func:`roll_states`)."""
+
+    state_rows: tuple[torch.Tensor, torch.Tensor, torch.Tensor]
+    last_column: torch.Tensor
+
+    @classmethod
+    def of(cls, c: HybridConstants) -> FewPlanWeights:
+        rows = tuple(c.w_state[:, :, i : i + 1].contiguous() for i in range(3))
+        return cls(cast(tuple[torch.Tensor, torch.Tensor, torch.Tensor], rows), c.w_last.transpose(1, 2).contiguous())
+
+
+def roll_states(
+    c: HybridConstants,
+    state0: torch.Tensor,
+    pre: torch.Tensor,
+    b_step: torch.Tensor,
+    u_w: torch.Tensor,
+    p_bounds_w: tuple[float, float] | tuple[torch.Tensor, torch.Tensor],
+    *,
+    few: FewPlanWeights | None = None,
+) -> torch.Tensor:
+    """The hybrid's recursion over H steps, the one both a model's rollout
+    (:meth:`HybridNet.rollout`) and a fleet's (:class:`pinn_mpc.models.fleet.FleetHybrid`, its
+    buildings' members stacked along M) run.
+
+    ``c`` the members' :class:`HybridConstants`; ``state0`` (M, 3, N|1) the state now
+    (delivered power of the step before [W], T_m, T_r [C]); ``pre`` (H, M, out+2, N|1) the
+    plan-free terms of each step (the residual net's first layer on the exogenous inputs and
+    its bias, then the exogenous drive of the 2R2C's rows (T_m, T_r)); ``b_step`` (H|1, M, 2,
+    N|1) each step's heat per watt on both rows [K/W]; ``u_w`` (H, M|1, 1, N) the demand [W];
+    ``p_bounds_w`` the delivered power's range [W] (numbers, or (M, 1, 1) each); ``few``: add
+    the first layer's state rows one by one (a few plans; same arithmetic, other round-off).
+    Returns the states (H+1, M, 3, N) at each step's start.
+
+    A step is ten small ops: one product for the residual net's first layer and the free 2R2C
+    response together, feature-major as in
+    :meth:`pinn_mpc.models.paper.PaperNet.rollout_steps`, tanh folded into a sigmoid; the
+    backup thermostat's saturation reads T_r's free response from the same product.
+    """
+    h_len, m, n = u_w.shape[0], state0.shape[0], u_w.shape[-1]
+    hidden = c.b_first.shape[1]
+    lo, hi = p_bounds_w
+    states = torch.empty(h_len + 1, m, 3, n)
+    states[0] = state0
+    b_t_r = b_step[:, :, 1:]  # (H|1, M, 1, N|1) [K/W] on T_r
+    varies = b_step.shape[0] > 1
+    for h in range(h_len):
+        now, nxt = states[h], states[h + 1]
+        if few is None:
+            y = torch.baddbmm(pre[h], c.w_state, now)  # (hidden, free 2R2C response)
+        else:
+            rows = few.state_rows
+            y = torch.addcmul(pre[h], rows[0], now[:, :1])
+            y.addcmul_(rows[1], now[:, 1:2]).addcmul_(rows[2], now[:, 2:])
+        x = y[:, :hidden].sigmoid_()
+        for w, b in c.middle:
+            x = torch.baddbmm(b, w, x).sigmoid_()
+        hb = h if varies else 0
+        t_free = y[:, hidden + 1 :]  # (M, 1, N): T_r,i+1 without power
+        p_w = saturate_backup(u_w[h], t_free, b_t_r[hb], c.t_off, c.t_full, c.full_power_w)
+        if isinstance(lo, torch.Tensor) and isinstance(hi, torch.Tensor):
+            torch.clamp(p_w, lo, hi, out=nxt[:, :1])
+        else:  # numbers: torch's faster scalar clamp
+            torch.clamp(p_w, float(lo), float(hi), out=nxt[:, :1])
+        torch.addcmul(y[:, hidden:], b_step[hb], nxt[:, :1], out=nxt[:, 1:])
+        if few is None:
+            res = torch.baddbmm(c.b_last, c.w_last, x)
+        else:
+            res = torch.sum(few.last_column * x, dim=1, keepdim=True).add_(c.b_last)
+        nxt[:, 2:] += res.clamp_(-c.residual_bound_k, c.residual_bound_k)
+    return states
 
 
 class HybridNet(nn.Module):
@@ -383,13 +462,10 @@ class HybridNet(nn.Module):
         propagate through the 2R2C. Returns raw ``(T_r,i+1.. [C], u_phys,i.. [W], T_m,i.. [C])``,
         each (M, N, H).
 
-        The arithmetic of stepping :meth:`_step` (up to float round-off), arranged so that a
-        step is ten small ops: what does not depend on the state (the exogenous drive of both
-        2R2C rows, the residual net's first layer on the exogenous features and time of day,
-        the demand's terms) is computed for all H steps first; per step the state goes through
-        one product for the first layer and the free 2R2C response together, feature-major
-        (M, features, N) as in :meth:`pinn_mpc.models.paper.PaperNet.rollout_steps`, tanh folded into a sigmoid;
-        the backup thermostat's saturation reads T_r's free response from the same product.
+        The arithmetic of stepping :meth:`_step` (up to float round-off): what does not depend
+        on the state (the exogenous drive of both 2R2C rows, the residual net's first layer on
+        the exogenous features and time of day, the demand's terms) is computed for all H steps
+        first, then :func:`roll_states` steps the state.
         """
         c = constants
         t_win, p_win, e_seq = windows
@@ -397,7 +473,6 @@ class HybridNet(nn.Module):
         m, k = self.n_members, f.depth
         n, h_len = u_s.shape
         t, pw = f.temperature, f.power
-        hidden = c.b_first.shape[1]
         with torch.no_grad():
             t_r = t_win * t.std + t.mean  # (N0, k+1)
             p_past = p_win * pw.std + pw.mean
@@ -406,10 +481,10 @@ class HybridNet(nn.Module):
             exog = self._exog_raw(e_raw)  # (N0, k+H, 3)
             d_win = self._inputs(p_past[..., 1:], exog[..., :k, :])
             window = torch.cat([t_r, d_win.flatten(-2)], dim=-1)  # (N0, k+1+4k)
-            states = torch.empty(h_len + 1, m, 3, n)  # (u_phys, T_m, T_r) at each step's start
-            states[0, :, 0] = p_past[:, k]
-            states[0, :, 1] = torch.matmul(window, c.observer)[..., 0]
-            states[0, :, 2] = t_r[:, k]
+            state0 = torch.empty(m, 3, n)  # (u_phys, T_m, T_r) now
+            state0[:, 0] = p_past[:, k]
+            state0[:, 1] = torch.matmul(window, c.observer)[..., 0]
+            state0[:, 2] = t_r[:, k]
             drive = torch.einsum("mrc,nhc->hmrn", c.drive_b[..., 1:], exog[:, k : k + h_len])
             n0 = max(e_seq.shape[0], tod.shape[0])
             e_now = e_seq[:, :, k : k + h_len].transpose(1, 2).expand(n0, -1, -1)
@@ -421,22 +496,7 @@ class HybridNet(nn.Module):
             g = self.gain(exog[:, k : k + h_len, 0])  # (N0, H) or None
             b_u = c.drive_b[..., :1]  # (M, 2, 1)
             b_step = b_u[None] if g is None else b_u[None] * g.T[:, None, None, :]  # (H|1, M, 2, N0)
-            b_t_r = b_step[:, :, 1:]  # (H|1, M, 1, N0) [K/W] on T_r
-            lo, hi = p_bounds_w
-            for h in range(h_len):
-                now, nxt = states[h], states[h + 1]
-                y = torch.baddbmm(pre[h], c.w_state, now)  # (hidden, free 2R2C response)
-                x = y[:, :hidden].sigmoid_()
-                for w, b in c.middle:
-                    x = torch.baddbmm(b, w, x).sigmoid_()
-                hb = 0 if g is None else h
-                t_free = y[:, hidden + 1 :]  # (M, 1, N): T_r,i+1 without power
-                p_w = saturate_backup(u_w[h], t_free, b_t_r[hb], c.t_off, c.t_full, c.full_power_w)
-                torch.clamp(p_w, lo, hi, out=nxt[:, :1])
-                torch.addcmul(y[:, hidden:], b_step[hb], nxt[:, :1], out=nxt[:, 1:])
-                res = torch.baddbmm(c.b_last, c.w_last, x)
-                nxt[:, 2:] += res.clamp_(-c.residual_bound_k, c.residual_bound_k)
-            series = states.permute(1, 2, 3, 0)  # (M, 3, N, H+1)
+            series = roll_states(c, state0, pre, b_step, u_w, p_bounds_w).permute(1, 2, 3, 0)
             return (
                 series[:, 2, :, 1:].contiguous(),
                 series[:, 0, :, 1:].contiguous(),

@@ -19,7 +19,7 @@ from pinn_mpc.features import FeatureConfig, make_windows
 from pinn_mpc.models.base import Architecture, NetParts, RolloutInputs
 from pinn_mpc.models.physics_block import Physics
 from pinn_mpc.models.registry import get_architecture
-from pinn_mpc.models.rollout import Rollout
+from pinn_mpc.models.rollout import BatchDynamics, Rollout
 
 __all__ = ["MAX_MEMBERS", "EnsembleModule", "LearnedModel", "ModelRecord", "Scaling"]
 
@@ -113,20 +113,20 @@ class Scaling(NamedTuple):
     p_hi: float
 
 
-class LearnedModel:
-    """A trained seed ensemble (eval mode), ready to predict and roll out.
+class LearnedModel(BatchDynamics):
+    """A trained seed ensemble (eval mode), ready to predict and roll out (a planner's
+    :class:`~pinn_mpc.models.rollout.BatchDynamics`, not affine in the plan).
 
     ``arch``, ``depth``, ``n_members``, ``exog_names`` describe it; ``record`` holds the
     training record that :mod:`pinn_mpc.artifacts` stores in ``model.json`` (``meta``: the
     same as a dict).
     """
 
+    affine_in_plan = False
+
     def __init__(self, *, features: FeatureConfig, module: EnsembleModule, record: ModelRecord):
         self.arch = record.arch
         self.architecture = module.architecture
-        self.depth = features.depth
-        self.n_members = module.n_members
-        self.exog_names = features.exog_names
         self.features = features
         self.module = module.eval()
         self.record = record
@@ -140,6 +140,19 @@ class LearnedModel:
             p_hi=(hi - p.mean) / p.std,
         )
         self._constants: tuple[torch.Tensor, Any] | None = None
+
+    @property
+    def depth(self) -> int:
+        """History intervals the model reads before now (its feature windows' depth)."""
+        return self.features.depth
+
+    @property
+    def n_members(self) -> int:
+        return self.module.n_members
+
+    @property
+    def exog_names(self) -> tuple[str, ...]:
+        return self.features.exog_names
 
     @property
     def meta(self) -> dict[str, Any]:

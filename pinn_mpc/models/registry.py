@@ -127,14 +127,14 @@ class BaselineSpec:
     summary: str
 
 
-#: The linear ARX baseline (:mod:`pinn_mpc.arx`).
+#: The linear ARX baseline (:mod:`pinn_mpc.models.arx`).
 ARX = BaselineSpec(
     name="arx",
     label="ARX",
     summary="the linear ARX baseline (least squares on 8 lags and a weekly schedule, no "
     "network; --depth, --seeds, --epochs, --lambda and --recipe do not apply)",
 )
-#: The physics-informed ARX (:func:`pinn_mpc.arx.fit_physics_informed_arx`): the ARX with a
+#: The physics-informed ARX (:func:`pinn_mpc.models.arx.fit_physics_informed_arx`): the ARX with a
 #: workday / Saturday / Sunday schedule whose blocks also weigh the indoor-outdoor difference
 #: (occupancy-driven ventilation), its heating effect required positive.
 PHYSICS_ARX = BaselineSpec(

@@ -1,10 +1,12 @@
 """The rollout interface every planner model has, and its result type.
 
-A learned ensemble (:class:`pinn_mpc.models.LearnedModel`) and the 2R2C
-(:class:`pinn_mpc.rc_batch_model.RCBatchModel`) both map (history, candidate plans, exogenous
-forecast) to one :class:`Rollout`: predicted end-of-interval T_r, delivered power and T_m,
-tensors (M members, N plans, H intervals). Planners and the factory take
-:class:`BatchDynamics`, nothing more.
+A learned ensemble (:class:`pinn_mpc.models.LearnedModel`), the 2R2C
+(:class:`pinn_mpc.models.rc.RCBatchModel`) and the ARX (:class:`pinn_mpc.models.arx.ARXModel`)
+all map (history, candidate plans, exogenous forecast) to one :class:`Rollout`: predicted
+end-of-interval T_r, delivered power and T_m, tensors (M members, N plans, H intervals).
+Planners and the factory take :class:`BatchDynamics`, nothing more; each of those classes
+declares it as its base, so the type checker holds it to the protocol, and what a planner may
+exploit beyond the rollout is a declared property of the protocol, never probed.
 """
 
 from __future__ import annotations
@@ -33,7 +35,9 @@ class BatchDynamics(Protocol):
     :class:`controllers.base.Observation`), ``u_w`` (N, H) demanded power [W], ``exog`` one
     array (H,) per name in ``exog_names`` (data-format names). The model needs ``depth + 1``
     past intervals of history. ``eta`` (heat per W of actuator power, < 0 cooling) and ``dt_s``
-    (the interval it steps) must match the scenario's.
+    (the interval it steps) must match the scenario's. ``affine_in_plan``: the horizon's T_r is
+    an affine map of the plan, time-varying (the ARX, whose ``prediction_matrices`` give it),
+    so a linearisation is exact only when every step is probed.
     """
 
     @property
@@ -50,6 +54,9 @@ class BatchDynamics(Protocol):
 
     @property
     def exog_names(self) -> tuple[str, ...]: ...
+
+    @property
+    def affine_in_plan(self) -> bool: ...
 
     def rollout(
         self, history: dict[str, np.ndarray], u_w: torch.Tensor, exog: dict[str, np.ndarray]

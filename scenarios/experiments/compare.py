@@ -13,7 +13,7 @@
    included), same perfect forecasts, same one-day thermostat warm-up, for: thermostat,
    random shooting and CEM over the hybrid (and CEM without its LP polish, to show what the
    polish adds), CEM over physnet, physreg and mlp (physreg and mlp unless
-   ``cem_all_models=False``), CEM over the linear ARX baseline (:mod:`pinn_mpc.arx`) and its physics-informed variant, casadi-mpc and qp-mpc on the identified RC, qp-mpc on the
+   ``cem_all_models=False``), CEM over the linear ARX baseline (:mod:`pinn_mpc.models.arx`) and its physics-informed variant, casadi-mpc and qp-mpc on the identified RC, qp-mpc on the
    hybrid- and physnet-exported RCs, qp-mpc on both ARX models (:mod:`controllers.arx_mpc`), oracle and clairvoyant (where the plant has a true RC
    and state; on EnergyPlus there is no oracle and every controller is measured against the
    thermostat, :attr:`scenarios.inputs.registry.Scenario.reference`).
@@ -25,7 +25,7 @@
    own ``eta`` back, since the RC MPCs multiply by the COP of each forecast step themselves.
 4. Prediction: every model's T_r error 1, 6, 24 and 48 steps ahead on held-out data of the
    test part (:mod:`scenarios.experiments.prediction`): the learned models, a linear ARX baseline fitted on
-   the same training data (:mod:`pinn_mpc.arx`), and the identified, exported and true RC as
+   the same training data (:mod:`pinn_mpc.models.arx`), and the identified, exported and true RC as
    the RC MPCs use them.
 5. Outputs (written by the command, :func:`pinn_mpc_cli.experiment_commands.compare`; :func:`run_comparison`
    returns them as a :class:`ComparisonResult`): a JSON table (one row per controller with every KPI), a markdown report with the
@@ -61,7 +61,7 @@ from scenarios.running.closed_loop import one_torch_thread, run_closed_loop
 from scenarios.running.factory import build_controller, weather_range_note
 
 if TYPE_CHECKING:
-    from pinn_mpc.arx import ARXModel
+    from pinn_mpc.models.arx import ARXModel
     from pinn_mpc.models.learned import LearnedModel
 
 __all__ = [
@@ -168,7 +168,7 @@ class ComparisonResult:
 
 def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonResult:
     """Steps 1-3 of the module docstring; progress bars when attached to a terminal."""
-    from pinn_mpc.arx import fit_arx, fit_physics_informed_arx
+    from pinn_mpc.models.arx import fit_arx, fit_physics_informed_arx
     from scenarios.running.datagen import generate
 
     wall: dict[str, float] = {}

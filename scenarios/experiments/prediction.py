@@ -10,7 +10,7 @@ and 1, 6 and 48 steps besides):
 - an RC parameter set: the state from a Kalman observer on the same parameters run over the
   measurements up to the start (as the RC MPCs estimate it, ``T_m`` hidden), then the exact
   2R2C on the delivered power (the heat pump's COP at each interval's T_a, as the RC MPC plans);
-- a linear ARX baseline (:mod:`pinn_mpc.arx`): its own recursion on the delivered power.
+- a linear ARX baseline (:mod:`pinn_mpc.models.arx`): its own recursion on the delivered power.
 
 On a mismatched plant this is where models differ before any control: the structural error of
 a 2R2C against the 3R3C, and what a network trained on the same data makes of it.
@@ -25,9 +25,9 @@ import pandas as pd
 
 from controllers.estimators import RC_MPC_PROCESS_STD_C
 from pinn_mpc.actuator import Actuator
-from pinn_mpc.arx import ARXModel
 from pinn_mpc.evaluation import recursive_t_r
 from pinn_mpc.models import LearnedModel
+from pinn_mpc.models.arx import ARXModel
 from pinn_mpc.observer import KalmanObserver
 from pinn_mpc.physics import RCParams, discretise
 from scenarios.records import PredictionRow
@@ -86,7 +86,7 @@ def prediction_errors(
     truth) of the ``horizon``-step prediction and ``T_r_mae_by_horizon_c`` (MAE by number of
     steps ahead, for each of ``horizons`` that the data holds), over the same starts for all
     models at each horizon (the learned models' first possible start on). ``linear`` are
-    :class:`~pinn_mpc.arx.ARXModel` baselines, predicting on the delivered power."""
+    :class:`~pinn_mpc.models.arx.ARXModel` baselines, predicting on the delivered power."""
     t_r = df["T_r"].to_numpy(dtype=float)
     names = [*learned, *(linear or {}), *rc]
     kinds = {**dict.fromkeys(learned, "learned"), **dict.fromkeys(linear or {}, "linear"),

@@ -64,7 +64,7 @@ from scenarios.running.factory import CONTROLLER_NAMES, MODEL_CONTROLLERS, RC_CO
 from scenarios.running.ray_engine import check_engine_options, ray_engine
 
 if TYPE_CHECKING:
-    from pinn_mpc.arx import ARXModel
+    from pinn_mpc.models.arx import ARXModel
     from pinn_mpc.models.learned import LearnedModel
     from pinn_mpc.models.rollout import BatchDynamics
 
@@ -74,7 +74,7 @@ SweepModel: TypeAlias = "LearnedModel | ARXModel | RCParams"
 #: The architecture the model-based controllers plan over by default: the one ``train`` makes by
 #: default (``SweepSettings.arch`` another, e.g. the physics-informed ARX).
 ARCH = DEFAULT_ARCH
-#: The linear baselines a sweep fits instead of training (:func:`pinn_mpc.arx.fit_linear`).
+#: The linear baselines a sweep fits instead of training (:func:`pinn_mpc.models.arx.fit_linear`).
 _LINEAR = (ARX.name, PHYSICS_ARX.name)
 RC_KIND = "rc"
 FIGURE = "objective_to_oracle.png"
@@ -353,7 +353,7 @@ def fit_model(key: ModelKey, settings: SweepSettings) -> SweepModel:
     if key.kind == RC_KIND:  # as compare identifies (on delivered heat under a heat pump)
         return identify_scenario_rc(scenario, data)
     if key.kind in _LINEAR:
-        from pinn_mpc.arx import fit_linear
+        from pinn_mpc.models.arx import fit_linear
 
         return fit_linear(key.kind, data, eta=scenario.sim.params.eta)
     from pinn_mpc.training import TrainConfig, train_model
@@ -472,7 +472,7 @@ def _load_model(out: Path, key: ModelKey) -> SweepModel | None:
         return None
     if key.kind == RC_KIND:
         return params_from_summary(_read_json(path))
-    from pinn_mpc.arx import is_arx_directory, load_arx
+    from pinn_mpc.models.arx import is_arx_directory, load_arx
 
     if is_arx_directory(path):
         return load_arx(path)
@@ -486,7 +486,7 @@ def _store_model(out: Path, key: ModelKey, model: SweepModel) -> None:
     if isinstance(model, RCParams):
         atomic_write_json(path, rc_summary(model, source=f"identify ({key.name})"))
         return
-    from pinn_mpc.arx import ARXModel, save_arx
+    from pinn_mpc.models.arx import ARXModel, save_arx
 
     if isinstance(model, ARXModel):
         save_arx(model, path)

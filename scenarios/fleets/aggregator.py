@@ -317,7 +317,7 @@ def learned_fleet_planner(
     otherwise), to the candidate tolerances with ``fast_candidates``."""
     from controllers.fleet_sampling import FleetCEM
     from controllers.planners import CEMPlanner
-    from pinn_mpc.fleet_rollout import FleetHybrid
+    from pinn_mpc.models.fleet import FleetHybrid
     from pinn_mpc.physics import params_from_summary
 
     def make(fleet: Sequence[RCParams], spec: ControlSpec) -> FleetPlanner:

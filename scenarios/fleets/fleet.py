@@ -125,7 +125,7 @@ def fleet_controller(
         building = dataclasses.replace(scenario, sim=dataclasses.replace(scenario.sim, params=params))
         model = None
         if name in MODEL_CONTROLLERS:
-            from pinn_mpc.rc_batch_model import RCBatchModel
+            from pinn_mpc.models.rc import RCBatchModel
 
             sim = building.sim
             model = RCBatchModel(

@@ -62,10 +62,9 @@ def _unknown(name: str) -> InputError:
 
 def _record(model: BatchDynamics | None) -> ModelRecord | None:
     """The training record of a model from ``train`` (None for others, e.g. the RC model)."""
-    from pinn_mpc.models.learned import ModelRecord
+    from pinn_mpc.models.learned import LearnedModel
 
-    record = getattr(model, "record", None)
-    return record if isinstance(record, ModelRecord) else None
+    return model.record if isinstance(model, LearnedModel) else None
 
 
 def _ranges(record: ModelRecord | None) -> dict[str, tuple[float, float]]:
@@ -222,7 +221,7 @@ def build_controller(
     model
         For ``cem`` and ``random-shooting``: a model with the rollout interface, such as a
         :class:`pinn_mpc.LearnedModel`. For ``qp-mpc``: an ARX model
-        (:class:`pinn_mpc.arx.ARXModel`, :class:`controllers.arx_mpc.ARXQPMPC`) in place
+        (:class:`pinn_mpc.models.arx.ARXModel`, :class:`controllers.arx_mpc.ARXQPMPC`) in place
         of ``rc_params``.
     rc_params
         For ``qp-mpc`` and ``casadi-mpc``: the RC parameters they plan on.
@@ -302,7 +301,7 @@ def _both() -> InputError:
 
 def _arx_mpc(model: BatchDynamics, scenario: Scenario, rc_params: RCParams | None) -> Controller:
     """``qp-mpc`` over a model: only a linear one (the ARX) makes its horizon a QP."""
-    from pinn_mpc.arx import ARXModel
+    from pinn_mpc.models.arx import ARXModel
 
     if rc_params is not None:
         raise _both()
@@ -341,7 +340,7 @@ def make_controller(
     model: BatchDynamics | None = None
     if model_dir is not None:
         from pinn_mpc.artifacts import load_model
-        from pinn_mpc.arx import is_arx_directory, load_arx
+        from pinn_mpc.models.arx import is_arx_directory, load_arx
 
         if name == "qp-mpc" and not is_arx_directory(model_dir):
             raise _not_linear()

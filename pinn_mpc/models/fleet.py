@@ -3,12 +3,16 @@
 Each building of a fleet has its own trained :mod:`pinn_mpc.models.hybrid` ensemble (its own
 weights, scaling and backup thermostat). :class:`FleetHybrid` stacks their rollout constants
 (:meth:`pinn_mpc.models.hybrid.HybridNet.rollout_constants`) along the member axis, so that B
-buildings x M members step through the horizon as the B*M members of one ensemble: a horizon
-step is the same ten small batched products as one building's rollout, over B times the
-columns. The arithmetic is that of :meth:`HybridNet.rollout` (float round-off apart; tests
-compare the two building by building): T_m observed once from each building's history window,
-both states propagated through its 2R2C, the learned backup saturating the demand, the residual
-net's bounded correction.
+buildings x M members step through the horizon as the B*M members of one ensemble, through
+the one recursion a single model's rollout runs (:func:`pinn_mpc.models.hybrid.roll_states`),
+over B times the columns. What differs is only the preparation, batched over buildings here
+and over start points in :meth:`HybridNet.rollout` (float round-off apart; tests compare the two
+building by building): T_m observed once from each building's history window, the exogenous
+terms of every step, then both states propagated through its 2R2C, the learned backup
+saturating the demand, the residual net's bounded correction.
+
+:class:`FleetDynamics` is what a fleet planner (:class:`controllers.fleet_sampling.FleetCEM`)
+needs of such a model; :class:`FleetHybrid` declares it.
 
 Histories are given raw (data-format units) per building, the plans (B, N, H) [W], the
 exogenous forecast (H,) shared by the fleet (one weather). All models must be hybrids of one
@@ -20,17 +24,17 @@ the compute of a horizon step is mostly the residual net's over all those column
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from typing import NamedTuple, cast
+from typing import NamedTuple, Protocol, cast
 
 import numpy as np
 import torch
 
 from pinn_mpc.errors import InputError, InternalError
-from pinn_mpc.models.hybrid import HybridConstants, HybridNet, saturate_backup
+from pinn_mpc.models.hybrid import FewPlanWeights, HybridConstants, HybridNet, roll_states
 from pinn_mpc.models.learned import LearnedModel
 from pinn_mpc.models.rollout import Rollout
 
-__all__ = ["FEW_PLANS", "FleetHybrid", "FleetStart"]
+__all__ = ["FEW_PLANS", "FleetDynamics", "FleetHybrid", "FleetStart"]
 
 #: Plans per building up to which a rollout's first layer adds the state's rows one by one
 #: instead of a batched product (the members' disagreement along one plan, the offset replay).
@@ -39,16 +43,48 @@ FEW_PLANS = 4
 
 class FleetStart(NamedTuple):
     """What a fleet rollout needs besides the plans, computed once per decision
-    (:meth:`FleetHybrid.prepare`): states at the start (H+1, B*M, 3, 1), the plan-free terms
-    of every step (H, B*M, hidden+2, 1) and the heat per watt on both rows (H|1, B*M, 2, 1)."""
+    (:meth:`FleetHybrid.prepare`): the state now (B*M, 3, 1), the plan-free terms of every
+    step (H, B*M, hidden+2, 1) and the heat per watt on both rows (H|1, B*M, 2, 1), as
+    :func:`pinn_mpc.models.hybrid.roll_states` takes them."""
 
     state0: torch.Tensor
     pre: torch.Tensor
     b_step: torch.Tensor
-    gain_varies: bool
 
 
-class FleetHybrid:
+class FleetDynamics(Protocol):
+    """B buildings' models rolled out together: :meth:`prepare` once per decision (the
+    plan-free part), then :meth:`roll` for any number of plans (B, N, H); :meth:`rollout` does
+    both. Tensors of the :class:`Rollout` are (B, M, N, H)."""
+
+    n_buildings: int
+    n_members: int
+    depth: int
+    eta: float
+    exog_names: tuple[str, ...]
+
+    def prepare(
+        self,
+        histories: Sequence[Mapping[str, np.ndarray]],
+        exog: Mapping[str, np.ndarray],
+        h: int,
+        *,
+        drop_last: int = 0,
+    ) -> FleetStart: ...
+
+    def roll(self, start: FleetStart, u_w: torch.Tensor) -> Rollout: ...
+
+    def rollout(
+        self,
+        histories: Sequence[Mapping[str, np.ndarray]],
+        u_w: torch.Tensor,
+        exog: Mapping[str, np.ndarray],
+        *,
+        drop_last: int = 0,
+    ) -> Rollout: ...
+
+
+class FleetHybrid(FleetDynamics):
     """B learned hybrids rolled out together (module docstring)."""
 
     def __init__(self, models: Sequence[LearnedModel], *, members: int | None = None) -> None:
@@ -88,11 +124,7 @@ class FleetHybrid:
             self.p_lo = ranges[:, 0].repeat_interleave(m)[:, None, None]  # (B*M, 1, 1)
             self.p_hi = ranges[:, 1].repeat_interleave(m)[:, None, None]
             self.n_buildings = b
-            # The first layer's weights on each state row, (B*M, out+2, 1) apiece: a rollout of
-            # a few plans adds them row by row (a batched product of that many columns is
-            # several times slower).
-            self._w_state_rows = [self.constants.w_state[:, :, i : i + 1].contiguous() for i in range(3)]
-            self._w_last_column = self.constants.w_last.transpose(1, 2).contiguous()  # (B*M, in, 1)
+            self._few = FewPlanWeights.of(self.constants)
         # Each building's scaling of its exogenous series (B, S, 1).
         self._exog_mean = np.array([[[mod.features.exog[n].mean] for n in self.exog_series] for mod in models])
         self._exog_std = np.array([[[mod.features.exog[n].std] for n in self.exog_series] for mod in models])
@@ -189,7 +221,7 @@ class FleetHybrid:
                 b_step = b_u[None]
             else:
                 b_step = b_u[None] * g[:, k : k + h_len].T.repeat_interleave(m, dim=1)[:, :, None, None]
-            return FleetStart(state0=state0, pre=pre, b_step=b_step, gain_varies=g is not None)
+            return FleetStart(state0=state0, pre=pre, b_step=b_step)
 
     def roll(self, start: FleetStart, u_w: torch.Tensor) -> Rollout:
         """Every building's N plans ``u_w`` (B, N, H) [W] from ``start``; tensors (B, M, N, H)."""
@@ -200,34 +232,12 @@ class FleetHybrid:
         if u_w.ndim != 3 or u_w.shape[0] != b or u_w.shape[2] != h_len:
             raise InternalError(f"FleetHybrid.roll: u_w must be (B={b}, N, H={h_len}), got {tuple(u_w.shape)}")
         n = u_w.shape[1]
-        hidden = c.b_first.shape[1]
         with torch.no_grad():
-            states = torch.empty(h_len + 1, b * m, 3, n)
-            states[0] = start.state0
-            pre, b_step = start.pre, start.b_step
             u_steps = u_w.permute(2, 0, 1).repeat_interleave(m, dim=1)[:, :, None]  # (H, B*M, 1, N)
-            b_t_r = b_step[:, :, 1:]
-            few = n <= FEW_PLANS
-            for h in range(h_len):
-                now, nxt = states[h], states[h + 1]
-                if few:
-                    y = torch.addcmul(pre[h], self._w_state_rows[0], now[:, :1])
-                    y.addcmul_(self._w_state_rows[1], now[:, 1:2]).addcmul_(self._w_state_rows[2], now[:, 2:])
-                else:
-                    y = torch.baddbmm(pre[h], c.w_state, now)
-                x = y[:, :hidden].sigmoid_()
-                for w, bias in c.middle:
-                    x = torch.baddbmm(bias, w, x).sigmoid_()
-                hb = h if start.gain_varies else 0
-                t_free = y[:, hidden + 1 :]
-                p_w = saturate_backup(u_steps[h], t_free, b_t_r[hb], c.t_off, c.t_full, c.full_power_w)
-                nxt[:, :1] = torch.minimum(torch.maximum(p_w, self.p_lo), self.p_hi)
-                torch.addcmul(y[:, hidden:], b_step[hb], nxt[:, :1], out=nxt[:, 1:])
-                if few:
-                    res = torch.sum(self._w_last_column * x, dim=1, keepdim=True).add_(c.b_last)
-                else:
-                    res = torch.baddbmm(c.b_last, c.w_last, x)
-                nxt[:, 2:] += torch.minimum(torch.maximum(res, -c.residual_bound_k), c.residual_bound_k)
+            states = roll_states(
+                c, start.state0, start.pre, start.b_step, u_steps, (self.p_lo, self.p_hi),
+                few=self._few if n <= FEW_PLANS else None,
+            )
             series = states.permute(1, 2, 3, 0).reshape(b, m, 3, n, h_len + 1)
             return Rollout(
                 t_r_c=series[:, :, 2, :, 1:].contiguous(),

@@ -1,4 +1,4 @@
-"""The 2R2C as a planner model: :class:`RCBatchModel` has the rollout interface
+"""The 2R2C as a planner model: :class:`RCBatchModel` declares the rollout interface
 (:class:`pinn_mpc.models.rollout.BatchDynamics`) of the learned ensembles."""
 
 from __future__ import annotations
@@ -8,13 +8,13 @@ import torch
 
 from pinn_mpc.actuator import Actuator
 from pinn_mpc.errors import InputError
-from pinn_mpc.models.rollout import Rollout
+from pinn_mpc.models.rollout import BatchDynamics, Rollout
 from pinn_mpc.physics import RCParams, discretise
 
 __all__ = ["RCBatchModel"]
 
 
-class RCBatchModel:
+class RCBatchModel(BatchDynamics):
     """The 2R2C physics as a one-member batch model (exact ZOH over each control interval).
 
     The backup thermostat is approximated per interval by clipping on the room temperature at
@@ -29,6 +29,7 @@ class RCBatchModel:
     n_members = 1
     depth = 0
     exog_names: tuple[str, ...] = ("T_a", "G", "I_g")
+    affine_in_plan = False  # the backup thermostat's clipping
 
     def __init__(
         self,
@@ -47,7 +48,7 @@ class RCBatchModel:
                 f"RCBatchModel backup limits need low < high, got {backup_low_c}, {backup_high_c}"
             )
         self.params = params
-        self.u_max_w, self.dt_s = u_max_w, dt_s
+        self.u_max_w, self._dt_s = u_max_w, dt_s
         self.backup_low_c, self.backup_high_c = backup_low_c, backup_high_c
         self.ad, self.bd = discretise(params, dt_s)
         self.actuator = Actuator() if actuator is None else actuator
@@ -55,6 +56,10 @@ class RCBatchModel:
     @property
     def eta(self) -> float:
         return self.params.eta
+
+    @property
+    def dt_s(self) -> float:
+        return self._dt_s
 
     def state_now(self, history: dict[str, np.ndarray]) -> tuple[float, float]:
         """Current ``(T_r, T_m)`` [C] from the history (see the class docstring).

@@ -48,7 +48,7 @@ import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 import pandas as pd
@@ -58,7 +58,7 @@ from pinn_mpc.data import WIND, day_of_week
 from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.io import DirectoryLayout
 from pinn_mpc.models.registry import ARX, PHYSICS_ARX
-from pinn_mpc.models.rollout import Rollout
+from pinn_mpc.models.rollout import BatchDynamics, Rollout
 from pinn_mpc.solar import FACADE_COLUMNS
 
 __all__ = [
@@ -155,8 +155,8 @@ def _schedule(df: pd.DataFrame, day_types: int = 2, block_h: float = BLOCK_H) ->
     return out
 
 
-@dataclass(frozen=True, kw_only=True)
-class ARXModel:
+@dataclass(frozen=True, kw_only=True, slots=True)
+class ARXModel(BatchDynamics):
     """A fitted ARX model (module docstring).
 
     ``columns`` the lagged inputs in order (``T_r`` first, then ``u_phys``, ``T_a``, weather,
@@ -166,8 +166,12 @@ class ARXModel:
     Saturdays, Sundays); ``interaction`` whether each schedule block also weighs
     ``T_r,k - T_a,k`` (the physics-informed variant, module docstring); ``block_h`` the length
     of the schedule's blocks [h]; ``wind`` whether the last coefficient weighs
-    ``wind_k (T_r,k - T_a,k)`` (wind-driven infiltration).
+    ``wind_k (T_r,k - T_a,k)`` (wind-driven infiltration). A planner's
+    :class:`~pinn_mpc.models.rollout.BatchDynamics`, affine in the plan
+    (:meth:`prediction_matrices`). Slotted: the fields shadow the protocol's properties.
     """
+
+    affine_in_plan: ClassVar[bool] = True
 
     columns: tuple[str, ...]
     lags: int
