@@ -5,7 +5,8 @@ and comparing the two. The runs go through the CLI as subprocesses
 (``python -m pinn_mpc_cli ...``), so they survive any move of modules inside the packages; the
 subprocesses inherit ``PYTHONPATH``, so the checkout under test is the one on it.
 
-Record (about a quarter of an hour on one core; the directory must be new or empty)::
+Record (the directory must be new or empty; ``--resume`` continues a run of DIR that was
+interrupted or had failures, keeping the commands that succeeded)::
 
     PYTHONPATH=$PWD nice -n 10 python benchmarks/record_outputs.py --out DIR
 
@@ -198,8 +199,9 @@ def architecture_steps() -> Iterator[Step]:
     ))
     for arch in ARCHITECTURES:
         model = f"architectures/{arch}"
+        network = () if arch in ("arx", "parx") else (*SMALL, "--seed", str(SEED))
         yield Step(f"architectures-train-{arch}", (
-            "train", "--data", data, "--arch", arch, *SMALL, "--seed", str(SEED), "--out", model,
+            "train", "--data", data, "--arch", arch, *network, "--out", model,
         ))
         yield Step(f"architectures-evaluate-{arch}", (
             "evaluate", "--model", model, "--data", test, "--horizons", "1,6,12,24",
@@ -228,10 +230,21 @@ def _outputs(step: Step) -> list[Path]:
     return [Path(v) for f, v in zip(step.args, step.args[1:], strict=False) if f in flags]
 
 
-def record(out: Path) -> int:
-    """Run every step in ``out`` and write ``manifest.json``; 1 if a command failed."""
-    if out.exists() and any(out.iterdir()):
-        print(f"record_outputs: {out} is not empty; give a new directory", file=sys.stderr)
+def record(out: Path, resume: bool = False) -> int:
+    """Run every step in ``out`` and write ``manifest.json``; 1 if a command failed.
+
+    With ``resume``, the steps that ``out/manifest.json`` lists as succeeded with the same
+    arguments are kept, and only the others run (after an interruption or a failure)."""
+    done: dict[str, dict[str, Any]] = {}
+    if resume and (out / "manifest.json").is_file():
+        done = {
+            entry["name"]: entry
+            for entry in json.loads((out / "manifest.json").read_text())["steps"]
+            if entry["returncode"] == 0
+        }
+    elif out.exists() and any(out.iterdir()):
+        print(f"record_outputs: {out} is not empty; give a new directory (or --resume)",
+              file=sys.stderr)
         return 2
     (out / "logs").mkdir(parents=True, exist_ok=True)
     env = dict(os.environ)
@@ -242,9 +255,13 @@ def record(out: Path) -> int:
     )
     manifest: list[dict[str, Any]] = []
     failed: list[str] = []
-    start = time.perf_counter()
     steps = all_steps()
     for i, step in enumerate(steps, 1):
+        kept = done.get(step.name)
+        if kept is not None and kept["args"] == list(step.args):
+            manifest.append(kept)
+            print(f"[{i}/{len(steps)}] {step.name}: kept from the earlier run", flush=True)
+            continue
         for path in _outputs(step):
             (out / path).parent.mkdir(parents=True, exist_ok=True)
         argv = [sys.executable, "-m", "pinn_mpc_cli", *step.args]
@@ -259,12 +276,20 @@ def record(out: Path) -> int:
         print(f"[{i}/{len(steps)}] {step.name}: {status} in {seconds:.1f} s", flush=True)
         if rc != 0:
             failed.append(step.name)
-    total = time.perf_counter() - start
-    (out / "manifest.json").write_text(json.dumps(
-        {"steps": manifest, "total_seconds": round(total, 1)}, indent=1) + "\n")
-    print(f"recorded {len(steps)} commands into {out} in {total / 60:.1f} min; "
+        _write_manifest(out, manifest)
+    total = _write_manifest(out, manifest)
+    print(f"recorded {len(steps)} commands into {out}, {total / 60:.1f} min of commands; "
           f"{len(failed)} failed{': ' + ', '.join(failed) if failed else ''}")
     return 1 if failed else 0
+
+
+def _write_manifest(out: Path, manifest: list[dict[str, Any]]) -> float:
+    """Write the steps so far (after each, so that ``--resume`` can continue); their seconds."""
+    total = round(sum(entry["seconds"] for entry in manifest), 1)
+    tmp = out / "manifest.json.tmp"
+    tmp.write_text(json.dumps({"steps": manifest, "total_seconds": total}, indent=1) + "\n")
+    tmp.replace(out / "manifest.json")
+    return total
 
 
 def _ignored(path: str, key: str) -> bool:
@@ -378,12 +403,14 @@ def main(argv: list[str] | None = None) -> int:
     mode.add_argument("--out", type=Path, help="record into this (new or empty) directory")
     mode.add_argument("--compare", nargs=2, type=Path, metavar=("DIR_A", "DIR_B"),
                       help="compare two recordings")
+    parser.add_argument("--resume", action="store_true",
+                        help="with --out: keep the steps an earlier run of DIR finished, run the rest")
     parser.add_argument("--rtol", type=float, default=0.0,
                         help="relative tolerance of numbers in --compare (default 0: exact)")
     a = parser.parse_args(argv)
     if a.compare:
         return compare(a.compare[0], a.compare[1], a.rtol)
-    return record(a.out)
+    return record(a.out, resume=a.resume)
 
 
 if __name__ == "__main__":
