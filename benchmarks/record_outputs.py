@@ -31,9 +31,9 @@ The runs, all with fixed seeds and the smallest sizes the CLI allows:
   physics-informed networks.
 
 Every command runs in the recording directory with relative paths, so no output holds the
-directory's name. ``manifest.json`` lists each command, its exit status and its wall time; the
-standard output and error of each are kept under ``logs/`` (read, not compared: they hold
-timings). The recording exits 1 if any command failed.
+directory's name. ``manifest.json`` lists each command, its exit status, its wall time and its
+CPU time; the standard output and error of each are kept under ``logs/`` (read, not compared:
+they hold timings). The recording exits 1 if any command failed.
 
 The comparison covers every ``.json`` and ``.csv`` file of either recording (``logs/`` aside).
 JSON values are compared exactly, CSV cells as text, except the fields listed in
@@ -51,6 +51,7 @@ import json
 import math
 import os
 import re
+import resource
 import subprocess
 import sys
 import time
@@ -265,22 +266,31 @@ def record(out: Path, resume: bool = False) -> int:
         for path in _outputs(step):
             (out / path).parent.mkdir(parents=True, exist_ok=True)
         argv = [sys.executable, "-m", "pinn_mpc_cli", *step.args]
-        t0 = time.perf_counter()
+        t0, cpu0 = time.perf_counter(), _children_cpu_s()
         with (out / "logs" / f"{step.name}.stdout").open("w") as so, \
                 (out / "logs" / f"{step.name}.stderr").open("w") as se:
             rc = subprocess.run(argv, cwd=out, env=env, stdout=so, stderr=se, check=False).returncode
         seconds = time.perf_counter() - t0
         manifest.append({"name": step.name, "args": list(step.args), "returncode": rc,
-                         "seconds": round(seconds, 2)})
+                         "seconds": round(seconds, 2),
+                         "cpu_seconds": round(_children_cpu_s() - cpu0, 2)})
         status = "ok" if rc == 0 else f"FAILED (exit {rc}, see logs/{step.name}.stderr)"
         print(f"[{i}/{len(steps)}] {step.name}: {status} in {seconds:.1f} s", flush=True)
         if rc != 0:
             failed.append(step.name)
         _write_manifest(out, manifest)
     total = _write_manifest(out, manifest)
-    print(f"recorded {len(steps)} commands into {out}, {total / 60:.1f} min of commands; "
+    cpu = sum(entry.get("cpu_seconds", 0.0) for entry in manifest)
+    print(f"recorded {len(steps)} commands into {out}: {total / 60:.1f} min of commands' wall "
+          f"time, {cpu / 60:.1f} min of their CPU time; "
           f"{len(failed)} failed{': ' + ', '.join(failed) if failed else ''}")
     return 1 if failed else 0
+
+
+def _children_cpu_s() -> float:
+    """CPU seconds (user and system) of the finished child processes (Ray's workers not counted)."""
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
 
 
 def _write_manifest(out: Path, manifest: list[dict[str, Any]]) -> float:
