@@ -254,6 +254,14 @@ def record(out: Path, resume: bool = False) -> int:
         OMP_NUM_THREADS="1", MKL_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1",
         PYTHONHASHSEED="0", MPLBACKEND="Agg",
     )
+    # The commands run in ``out``: a relative PYTHONPATH would silently pick another checkout.
+    paths = [p for p in env.get("PYTHONPATH", "").split(os.pathsep) if p]
+    env["PYTHONPATH"] = os.pathsep.join(str(Path(p).resolve()) for p in paths)
+    where = subprocess.run(
+        [sys.executable, "-c", "import pinn_mpc_cli; print(pinn_mpc_cli.__file__)"],
+        cwd=out, env=env, capture_output=True, text=True, check=False,
+    ).stdout.strip()
+    print(f"recording the CLI of {where or '(not importable)'}", flush=True)
     manifest: list[dict[str, Any]] = []
     failed: list[str] = []
     steps = all_steps()
