@@ -80,11 +80,14 @@ ARCHITECTURES = ("mlp", "physreg", "physnet", "hybrid", "arx", "parx", "auto")
 SMALL = ("--seeds", "2", "--epochs", "5")
 CAP = ("--cap-kw", "12", "--cap-window", "17:00-19:00")
 
-# Fields ignored by the comparison, matched against a JSON key or a CSV column name:
-# - decision times and the fleet's step times (`decision_ms_*`, `controllers_ms_*`, the
-#   trajectory's `decision_ms`), the time ratio, wall and training seconds: compute time;
-# - `package_version`: the version, which a release may change;
-# - `host`: the machine's name in a sweep's cells.
+# Fields ignored by the comparison, matched against a JSON key or a CSV column name. Two
+# recordings of the same code, run at the same time on a busy machine, differed in these fields
+# only (every other value of all files identical, the models' weight digests included):
+# - decision times and the fleet's step times (`decision_ms_*`, `controllers_ms_*`, `plant_ms_*`,
+#   `total_ms_*`, the trajectory's `decision_ms`), the time ratio, wall and training seconds
+#   (`wall_time_s`, `wall_seconds`, `train_seconds`, the manifest's `seconds`): compute time;
+# - `package_version`: the version, which a release may change (did not differ);
+# - `host`: the machine's name in a sweep's cells (did not differ).
 IGNORED_KEYS = (
     re.compile(r"(^|_)ms(_|$)"),
     re.compile(r"^time_ratio$"),
@@ -96,7 +99,7 @@ IGNORED_KEYS = (
 # Fields ignored by their place (dotted path from the top of the JSON):
 # - the sweep's Ray engine: its version, and the resources Ray reports (its `memory` is what
 #   the machine has free when Ray starts, so it differs from run to run on the same code);
-# - `cpu_count` in compare's settings: the machine, not the code.
+# - `cpu_count` in compare's settings: the machine, not the code (did not differ).
 IGNORED_PATHS = (
     re.compile(r"^engine\.(version|resources)(\.|$)"),
     re.compile(r"(^|\.)settings\.cpu_count$"),
