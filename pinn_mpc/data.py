@@ -23,6 +23,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
+import re
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
@@ -177,6 +178,9 @@ def _check_power(out: pd.DataFrame, source: str, u_max_w: float | None) -> None:
             )
 
 
+_DECIMAL_COMMA = re.compile(r"[-+]?\d+,\d+")
+
+
 def _check_steps(times: pd.Series, raw: pd.Series, source: str) -> float:
     """The uniform step [s] of a parsed time column, or InputError: a row that goes backwards or
     repeats a time, a step outside :data:`DT_RANGE_S`, a step that is not uniform."""
@@ -206,9 +210,18 @@ def _check_steps(times: pd.Series, raw: pd.Series, source: str) -> float:
     irregular = np.flatnonzero(np.abs(steps - dt_s) > 1e-6)
     if irregular.size:
         row = int(irregular[0]) + 1
+        gap = steps[row - 1]
+        if gap > dt_s and abs(gap / dt_s - round(gap / dt_s)) < 1e-6:
+            raise InputError(
+                f"{source}: column 'time' skips {round(gap / dt_s) - 1:d} interval(s) of "
+                f"{dt_s:g} s before row {row + 1} ({raw.iloc[row - 1]!s} then {raw.iloc[row]!s}); "
+                "fill the gap with rows (e.g. pandas: df.set_index('time').resample("
+                f"'{dt_s:g}s').interpolate().reset_index()) or keep the rows on one side of it"
+            )
         raise InputError(
             f"{source}: time step is not uniform at row {row + 1} "
-            f"({steps[row - 1]:g} s against {dt_s:g} s); resample to a uniform step first"
+            f"({gap:g} s against {dt_s:g} s); put the rows on a uniform grid (e.g. pandas: "
+            f"df.set_index('time').resample('{dt_s:g}s').mean().interpolate().reset_index())"
         )
     return dt_s
 
@@ -252,9 +265,17 @@ def validate_timeseries(
         bad = ~np.isfinite(values.to_numpy(dtype=float))
         if bad.any():
             row = int(np.flatnonzero(bad)[0])
+            text = str(df[col].iloc[row]).strip()
+            if _DECIMAL_COMMA.fullmatch(text):
+                raise InputError(
+                    f"{source}: column {col!r} row {row + 1} has {text!r}, a decimal comma; write "
+                    "decimal points, or separate the columns with ';' (such a file is read with "
+                    "decimal commas)"
+                )
             raise InputError(
-                f"{source}: column {col!r} row {row + 1} has {str(df[col].iloc[row])!r}, not a finite "
-                "number; fill or drop such rows first"
+                f"{source}: column {col!r} row {row + 1} has {text!r}, not a finite number; fill "
+                "such rows (e.g. pandas: df.interpolate()); a dropped row leaves a gap in time, "
+                "which is refused as well"
             )
         out[col] = values.astype(float)
     if "u" not in out.columns:
@@ -283,7 +304,11 @@ def _read_csv(path: str | os.PathLike[str]) -> pd.DataFrame:
     if not Path(path).is_file():
         raise InputError(f"{source}: no such file; check --data")
     try:
-        return pd.read_csv(path)
+        raw = pd.read_csv(path)
+        if len(raw.columns) == 1 and ";" in str(raw.columns[0]):
+            # A spreadsheet's export in a decimal-comma locale: ';' between columns.
+            raw = pd.read_csv(path, sep=";", decimal=",")
+        return raw
     except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise InputError(f"{source}: not a readable CSV ({first})") from exc

@@ -57,7 +57,7 @@ def test_column_mapping_and_single_power_column(tmp_path):
         ),
         (lambda d: d.drop(columns="T_a"), "missing column.*T_a"),
         (lambda d: d.assign(T_a=d["T_a"] + 273.15), "kelvin"),
-        (lambda d: d.drop(index=2), "not uniform at row 3"),
+        (lambda d: d.drop(index=2), r"'time' skips 1 interval\(s\) of 1800 s before row 3"),
         # Power is the actuator's input: never negative, never beyond a building's 10 MW.
         (
             lambda d: d.assign(u_phys=d["u_phys"].where(d.index != 2, -500.0)),
@@ -133,3 +133,36 @@ def test_unwritable_target_leaves_nothing(tmp_path):
     with pytest.raises(InputError, match="does not exist"):
         write_timeseries(frame(), tmp_path / "no" / "d.csv")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_semicolon_csv_with_decimal_commas_is_read(tmp_path):
+    """A spreadsheet's export in a decimal-comma locale reads as the same data."""
+    path = tmp_path / "eu.csv"
+    frame().to_csv(path, index=False, sep=";", decimal=",")
+    read = read_timeseries(path)
+    np.testing.assert_allclose(read["T_r"], frame()["T_r"])
+    assert read.attrs["dt_s"] == 1800.0
+
+
+def test_a_decimal_comma_in_a_comma_csv_is_named(tmp_path):
+    data = frame().astype({"T_r": str})
+    data.loc[2, "T_r"] = "20,5"
+    with pytest.raises(InputError, match=r"'T_r' row 3 has '20,5', a decimal comma; write decimal points"):
+        validate_timeseries(data)
+
+
+def test_the_fixes_for_gaps_and_missing_values_lead_out_not_round():
+    """Dropping a row with a missing value is refused as a gap; the gap's message names a fix
+    that, applied as written, gives data that validates."""
+    data = frame().assign(T_r=frame()["T_r"].where(frame().index != 3))
+    with pytest.raises(InputError, match=r"fill such rows \(e\.g\. pandas: df\.interpolate\(\)\)"):
+        validate_timeseries(data)
+    gappy = data.dropna().reset_index(drop=True)
+    with pytest.raises(InputError, match="skips 1 interval") as caught:
+        validate_timeseries(gappy)
+    assert "df.set_index('time').resample('1800s').interpolate().reset_index()" in str(caught.value)
+    df = gappy  # the command of the message, as a user would paste it
+    fixed = df.set_index('time').resample('1800s').interpolate().reset_index()
+    assert len(validate_timeseries(fixed)) == len(frame())
+    filled = validate_timeseries(data.interpolate())
+    assert np.isfinite(filled["T_r"]).all()

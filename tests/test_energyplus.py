@@ -699,3 +699,25 @@ def test_a_weather_file_with_a_missing_wind_speed_is_refused_naming_the_hour(tmp
     path.write_text("\n".join(lines) + "\n")
     with pytest.raises(InputError, match=r"hour 13 has 999 \(an EPW's 999 is a missing value\)"):
         load_site_wind(str(path))
+
+
+def test_gymnasium_env_left_open_leaves_no_energyplus_directory(private_tmp):
+    """A script that steps the env on an EnergyPlus building and exits without close() leaves
+    no run directory behind: the env ends its run when the interpreter exits."""
+    script = (
+        "import numpy as np\n"
+        "from scenarios.gym_env import BuildingEnv\n"
+        "from scenarios.registry import get_scenario\n"
+        f"s = get_scenario({SCENARIO!r})\n"
+        "env = BuildingEnv(s.sim, s.exogenous(days=1, seed=0, part='test'),\n"
+        "                  comfort_weight_eur_per_kh=5.0, episode_steps=4)\n"
+        "env.reset(seed=0)\n"
+        "env.step(np.array([1000.0], dtype=np.float32))\n"
+        "import glob, os, tempfile\n"
+        "print(len(glob.glob(os.path.join(tempfile.gettempdir(), 'pinn-mpc-eplus-*'))))\n"
+    )
+    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                            timeout=300)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.split() == ["1"]  # the run's directory existed while it ran
+    assert not list(private_tmp.glob("pinn-mpc-eplus-*"))

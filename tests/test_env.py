@@ -80,3 +80,39 @@ def test_actions_are_clipped_and_bad_input_rejected():
     with pytest.raises(InputError, match="episode_steps=100"):
         BuildingEnv(scenario.sim, scenario.exogenous(days=1, seed=0, part="train"), comfort_weight_eur_per_kh=1.0,
                     episode_steps=100)
+
+
+@pytest.mark.parametrize(
+    ("action", "match"),
+    [
+        (np.array([1000.0, 0.0, 0.0], dtype=np.float32), "has 3 elements"),
+        (np.array([], dtype=np.float32), "has 0 elements"),
+        (np.array([np.nan], dtype=np.float32), "not finite"),
+        ("warm", "not a number"),
+    ],
+)
+def test_a_malformed_action_is_refused_naming_the_action_space(action, match):
+    _, env = make_env(episode_steps=4)
+    env.reset(seed=0)
+    with pytest.raises(InputError, match=match):
+        env.step(action)
+
+
+@pytest.mark.parametrize("value", [float("nan"), 500.0, -100.0, float("inf")])
+def test_an_implausible_start_temperature_is_refused(value):
+    _, env = make_env(episode_steps=4)
+    with pytest.raises(InputError, match=r"t_r_c=.* must be a finite temperature in \[-60, 90\] C"):
+        env.reset(seed=0, options={"t_r_c": value})
+    scenario = get_scenario("winter_household")
+    with pytest.raises(InputError, match=r"initial_t_m_c=.* must be a finite temperature"):
+        BuildingEnv(scenario.sim, scenario.exogenous(days=1, seed=0, part="train"),
+                    comfort_weight_eur_per_kh=1.0, initial_t_m_c=value)
+
+
+@pytest.mark.parametrize("start", [2.5, 3.0, "4", True])
+def test_a_start_row_must_be_a_whole_number(start):
+    _, env = make_env(episode_steps=4)
+    with pytest.raises(InputError, match="must be a whole row number"):
+        env.reset(seed=0, options={"start": start})
+    observation, _ = env.reset(seed=0, options={"start": np.int64(3)})
+    assert env._loop.start == 3 and np.all(np.isfinite(observation))

@@ -21,12 +21,16 @@ it); an episode covers ``episode_steps`` consecutive rows. When the frame is lon
 episode, ``reset`` draws the first row from the environment's own generator, which
 ``reset(seed=...)`` reseeds; the generator also seeds the sensor noise. On an EnergyPlus
 building (``config.plant``) each reset starts a fresh EnergyPlus run, at a midnight row;
-``info`` then has no hidden ``T_m`` (NaN). Call :meth:`close` to end the run's thread.
+``info`` then has no hidden ``T_m`` (NaN). Call :meth:`close` to end the run's thread; an env
+that is dropped or outlives the interpreter without it is closed then, so no EnergyPlus run's
+directory is left behind.
 """
 
 from __future__ import annotations
 
 import math
+import numbers
+import weakref
 from typing import Any
 
 import gymnasium as gym
@@ -70,6 +74,8 @@ class BuildingEnv(gym.Env[np.ndarray, np.ndarray]):
             raise InputError(
                 f"BuildingEnv: comfort_weight_eur_per_kh must be >= 0, got {comfort_weight_eur_per_kh!r}"
             )
+        _check_temperature("initial_t_r_c", initial_t_r_c, "BuildingEnv")
+        _check_temperature("initial_t_m_c", initial_t_m_c, "BuildingEnv")
         steps = len(exogenous) if episode_steps is None else episode_steps
         if not 1 <= steps <= len(exogenous):
             raise InputError(
@@ -122,6 +128,9 @@ class BuildingEnv(gym.Env[np.ndarray, np.ndarray]):
             )
         except InputError as exc:
             raise InputError(f"BuildingEnv: {exc}") from exc
+        # Ends a plant's work (an EnergyPlus run's thread and directory) when the env is
+        # garbage-collected or the interpreter exits without close().
+        self._finalizer = weakref.finalize(self, self._loop.close)
 
     def _observation(self) -> np.ndarray:
         # After the last interval the next row may not exist: reuse the last row's inputs.
@@ -144,6 +153,11 @@ class BuildingEnv(gym.Env[np.ndarray, np.ndarray]):
         starts = self._starts[self._starts <= last_start]
         if "start" in opts:
             start = opts["start"]
+            if isinstance(start, bool) or not isinstance(start, numbers.Integral):
+                raise InputError(
+                    f"BuildingEnv.reset: option start={start!r} must be a whole row number "
+                    f"in [0, {last_start}]"
+                )
         elif starts.size:
             start = int(starts[self.np_random.integers(starts.size)])
         else:
@@ -154,13 +168,15 @@ class BuildingEnv(gym.Env[np.ndarray, np.ndarray]):
         if not 0 <= start <= last_start:
             raise InputError(f"BuildingEnv.reset: start={start} must lie in [0, {last_start}]")
         t_r, t_m = opts.get("t_r_c", self.initial_state_c[0]), opts.get("t_m_c", self.initial_state_c[1])
+        _check_temperature("option t_r_c", t_r, "BuildingEnv.reset")
+        _check_temperature("option t_m_c", t_m, "BuildingEnv.reset")
         self._loop.reset(t_r, t_m, start=int(start), seed=int(self.np_random.integers(2**63)))
         return self._observation(), {"T_m": float(t_m), "T_r": float(t_r)}
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         if self._loop.k >= self.episode_steps:
             raise InputError("BuildingEnv.step: the episode is over; call reset() first")
-        u = float(np.clip(np.asarray(action, dtype=float).reshape(-1)[0], 0.0, self.config.u_max_w))
+        u = float(np.clip(self._action_w(action), 0.0, self.config.u_max_w))
         _, _, _, price, t_min, t_max = (float(v) for v in self._exo[self._loop.start + self._loop.k])
         result = self._loop.step(u)
         t_r_next = float(result.t_r_c[0])
@@ -187,7 +203,38 @@ class BuildingEnv(gym.Env[np.ndarray, np.ndarray]):
         info["T_a"], info["G"], info["I_g"] = self._loop.last_means()
         return self._observation(), reward, False, truncated, info
 
+    def _action_w(self, action: np.ndarray) -> float:
+        """The demanded power [W] of ``action``, which must hold exactly one finite number."""
+        try:
+            values = np.asarray(action, dtype=float).reshape(-1)
+        except (TypeError, ValueError) as exc:
+            raise InputError(
+                f"BuildingEnv.step: action {action!r} is not a number; give an array of shape "
+                f"(1,) with the demanded power in [0, {self.config.u_max_w:g}] W"
+            ) from exc
+        if values.size != 1:
+            raise InputError(
+                f"BuildingEnv.step: action has {values.size} elements, the action space's shape "
+                f"is (1,): one demanded power in [0, {self.config.u_max_w:g}] W"
+            )
+        if not math.isfinite(values[0]):
+            raise InputError(
+                f"BuildingEnv.step: action {values[0]!r} is not finite; give a demanded power in "
+                f"[0, {self.config.u_max_w:g}] W"
+            )
+        return float(values[0])
+
     def close(self) -> None:
         """End the plant's work (an EnergyPlus run's thread and files); the RC simulator has none."""
-        self._loop.close()
+        self._finalizer()
         super().close()
+
+
+def _check_temperature(name: str, value: object, where: str) -> None:
+    """Refuse a start temperature that is not a finite number in the plausible range."""
+    lo, hi = TEMPERATURE_RANGE_C
+    ok = isinstance(value, numbers.Real) and not isinstance(value, bool)
+    if not (ok and math.isfinite(float(value)) and lo <= float(value) <= hi):  # type: ignore[arg-type]
+        raise InputError(
+            f"{where}: {name}={value!r} must be a finite temperature in [{lo:g}, {hi:g}] C"
+        )
