@@ -134,3 +134,17 @@ def test_train_writes_the_fallback_rc_into_the_arx_file(tmp_path) -> None:
         assert stored["identified_rc"]["source"] == "identify (training data)"
         assert stored["training_data"]["n_rows"] == 14 * 48
         assert np.isfinite(params_from_summary(stored["identified_rc"]).c_m_j_per_k)
+
+
+def test_trains_caution_promises_the_fallback_only_where_the_model_has_one(winter_parx) -> None:
+    from pinn_mpc.model_choice import ModelChoice
+
+    _, parx = winter_parx
+    rough = {"held_out_mae_c": {PHYSICS_ARX.name: 0.8}, "horizon_steps": 24, "why": ""}
+    guarded = ModelChoice(chosen=PHYSICS_ARX.name, model=parx, **rough).caution
+    bare = ModelChoice(
+        chosen=PHYSICS_ARX.name, model=dataclasses.replace(parx, identified_rc=None), **rough
+    ).caution
+    assert guarded is not None and "hand more decisions to the MPC on the RC" in guarded
+    assert bare is not None and "no RC MPC to fall back on" in bare
+    assert ModelChoice(chosen=PHYSICS_ARX.name, model=parx, **{**rough, "held_out_mae_c": {PHYSICS_ARX.name: 0.2}}).caution is None
