@@ -76,8 +76,9 @@ class FleetPlan(NamedTuple):
 
 class FleetDecision(NamedTuple):
     """What :meth:`FleetPlanner.commit` applies: ``u_w`` (B,) demanded power [W], ``fallback``
-    (B,) bool (the building's own fallback acted: no plan), ``model_fallback`` (B,) bool (a
-    planner over learned models handed the building to its RC MPC; None: no such fallback)."""
+    (B,) bool (the building's fallback acted: no plan, or its RC MPC decided for a distrusted
+    model), ``model_fallback`` (B,) bool (a planner over learned models handed the building to
+    its RC MPC; None: no such fallback)."""
 
     u_w: np.ndarray
     fallback: np.ndarray

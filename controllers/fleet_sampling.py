@@ -16,7 +16,8 @@ power error, ensemble disagreement along the chosen plan, rolled out over all me
 fallbacks: the band-keeping rule when the history is short or the model's output not finite
 (counted as fallbacks), and the shadow RC MPC on the RC identified from its training data while
 the model is not trusted (a :class:`controllers.fleet.FleetQPMPC` whose Kalman observers follow
-every step and which solves only for the distrusted buildings; counted per building).
+every step and which solves only for the distrusted buildings; counted per building, and as
+fallbacks too: a decision the model did not make).
 
 Not batched, so not done here: the single controller's multi-step replay of the model against
 the RC (the monitor sees the one-step innovation and power error instead), the LP polish and
@@ -412,7 +413,7 @@ class FleetCEM:
         self._step = None
         self._steps += 1
         self._rc_plans = np.concatenate([self._rc_plans[:, 1:], self._rc_plans[:, -1:]], axis=1)
-        return FleetDecision(u_w=np.clip(u, 0.0, self.spec.u_max_w), fallback=~plan.ok, model_fallback=distrusted)
+        return FleetDecision(u_w=np.clip(u, 0.0, self.spec.u_max_w), fallback=~plan.ok | distrusted, model_fallback=distrusted)
 
     @property
     def model_fallback_steps(self) -> np.ndarray:

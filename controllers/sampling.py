@@ -36,11 +36,13 @@ Four defaults matter in closed loop (their measured effect, and what was tried i
 The plan is warm-started from the previous plan shifted by one step (its last action
 repeated); the first plan starts from half power.
 
-Fallback (never an exception out of ``act``): when the history is shorter than the model needs
-(``depth + 1`` past intervals), when the model returns a non-finite value, or when anything
-else fails, the controller acts through :class:`controllers.base.Fallback` (the band-keeping
-rule on the measured room temperature), sets ``last_stats.fallback=True`` with the reason in
-``status``, clears ``last_plan`` and restarts the next warm start from scratch.
+Fallback (never an exception out of ``act``): with a :class:`Guard`'s RC, the MPC on that RC
+decides whenever the model does not (distrusted by :mod:`controllers.trust`, a non-finite
+prediction or any other failure, too short a history: fewer than ``depth + 1`` past
+intervals); without one, the controller acts through :class:`controllers.base.Fallback` (the
+band-keeping rule on the measured room temperature). Either way ``last_stats.fallback`` is True
+with the reason in ``status`` (so the KPIs' ``fallbacks`` count every decision the model did not
+make), and a failure clears ``last_plan`` and restarts the next warm start from scratch.
 
 Speed: a rollout is a few small tensor ops per horizon step for the whole batch, so its time
 is mostly fixed per horizon step and an iteration costs about as much as many more candidates
@@ -238,23 +240,21 @@ class _SamplingController(PlanningController):
                     self._estimates[obs.k] = np.array(self.shadow.state_estimate_c, dtype=float)
                     self._estimates.pop(obs.k - self.monitor.settings.replay_steps - 1, None)
             if len(obs.history["u_phys"]) < self.model.depth + 1:
+                if shadow_u is not None:  # the model cannot predict yet: not a verdict on it
+                    self.monitor.stand_in("short history")
+                    return self._rc_decides(shadow_u, start, "short history", 0)
                 return self._fallback(obs, forecast, start, "short history")
             plan, cost, iterations, spread = self._solve(obs, forecast)
         except _NonFiniteModelOutput:
-            return self._fallback(obs, forecast, start, "non-finite model output")
+            return self._model_failed(obs, forecast, start, shadow_u, "non-finite model output", "")
         except Exception as exc:  # a failed solve must not stop a closed-loop run
-            return self._fallback(obs, forecast, start, f"error {type(exc).__name__}: {exc}")
+            detail = f": {type(exc).__name__}: {exc}"
+            return self._model_failed(obs, forecast, start, shadow_u, "model error", detail)
         self.fallback.planned(plan)
         self.last_cost_eur = cost
         reason = self.monitor.reason(spread)
         if shadow_u is not None and not self.monitor.decide(reason):
-            self._stats = SolveStats(
-                time_s=time.perf_counter() - start,
-                status=f"rc-mpc fallback: {reason or 'recovering'}",
-                iterations=iterations,
-                fallback=False,
-            )
-            return float(np.clip(shadow_u, 0.0, self.spec.u_max_w))
+            return self._rc_decides(shadow_u, start, reason or "recovering", iterations)
         self._stats = SolveStats(
             time_s=time.perf_counter() - start, status="ok", iterations=iterations, fallback=False
         )
@@ -297,6 +297,36 @@ class _SamplingController(PlanningController):
                 excess = max(excess, float(v.max()) - hi, lo - float(v.min()))
         if excess > 0:
             self.monitor.state.out_of_range_steps += 1
+
+    def _rc_decides(self, shadow_u: float, start: float, reason: str, iterations: int) -> float:
+        """The fallback RC MPC's action ``shadow_u`` [W] for this decision (the monitor has
+        counted it), with stats that say the controller's fallback acted."""
+        self._stats = SolveStats(
+            time_s=time.perf_counter() - start,
+            status=f"rc-mpc fallback: {reason}",
+            iterations=iterations,
+            fallback=True,
+        )
+        return float(np.clip(shadow_u, 0.0, self.spec.u_max_w))
+
+    def _model_failed(
+        self,
+        obs: Observation,
+        forecast: Forecast,
+        start: float,
+        shadow_u: float | None,
+        reason: str,
+        detail: str,
+    ) -> float:
+        """A model whose planning failed (``reason``, ``detail`` for the status): its fallback RC
+        MPC decides and the model is distrusted (a switch, counted), or without one the
+        band-keeping rule acts; the warm start restarts from scratch either way."""
+        if shadow_u is None:
+            return self._fallback(obs, forecast, start, f"{reason}{detail}")
+        self.fallback.plan_w = None
+        self.last_cost_eur = float("nan")
+        self.monitor.decide(reason)
+        return self._rc_decides(shadow_u, start, f"{reason}{detail}", 0)
 
     def _fallback(self, obs: Observation, forecast: Forecast, start: float, reason: str) -> float:
         self.last_cost_eur = float("nan")

@@ -19,10 +19,12 @@ decision, all in closed loop:
 - how far the forecast's inputs leave the ranges of the training data (counted, not acted on:
   physics carries a model some way out of its data).
 
-When an error or the disagreement passes its limit, the decision is handed to the
-fallback: the MPC on the RC identified from the same training data (``train`` stores it with
-the model), which runs as a shadow every step so that its observer is current when it takes
-over. The model takes over again after ``recover_steps`` decisions within the limits, twice as
+When an error or the disagreement passes its limit, or the model's planning fails (a
+non-finite prediction, an error), the decision is handed to the fallback: the MPC on the RC
+identified from the same training data (``train`` stores it with every model it writes,
+networks and ARX alike), which runs as a shadow every step so that its observer is current
+when it takes over. It also decides, without a verdict on the model, while the history is too
+short for the model. The model takes over again after ``recover_steps`` decisions within the limits, twice as
 many after each further switch (a model found wrong again is given less benefit of the doubt). The
 planner also plans against the comfort band narrowed by the filtered error of its room
 temperature (never less than its ``comfort_margin_k``), so a model that errs more keeps more
@@ -154,6 +156,14 @@ class TrustMonitor:
         if spread_k is not None and not spread_k <= lim.spread_k:  # NaN counts as too large
             return "ensemble disagreement"
         return None
+
+    def stand_in(self, reason: str) -> None:
+        """Count a decision the fallback made for a model that could not decide (``reason``,
+        e.g. too short a history for it), without a verdict on the model: no switch, and its
+        trust is unchanged."""
+        s = self.state
+        s.reasons[reason] = s.reasons.get(reason, 0) + 1
+        s.fallback_steps += 1
 
     def decide(self, reason: str | None) -> bool:
         """Record this decision's verdict; True when the model drives it."""

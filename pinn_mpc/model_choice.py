@@ -25,14 +25,16 @@ the room), keep the hybrid without a comparison.
 
 Where even the chosen model errs more than :data:`ROUGH_MAE_C` on the held-out quarter,
 :attr:`ModelChoice.caution` says so (``train`` prints it): neither candidate predicts this data
-well, a planner over it makes rough plans and leans on its RC fallback, and more days of data
-are the usual remedy.
+well, a planner over it (cem, random-shooting; ARX and network alike) makes rough plans and
+leans on the MPC on the RC identified from the same data, and more days of data are the usual
+remedy.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -43,13 +45,22 @@ from pinn_mpc.models.arx import (
     SELECTION_HORIZON_S,
     SELECTION_SHARE,
     ARXModel,
+    fit_linear,
     fit_physics_informed_arx,
 )
 from pinn_mpc.models.learned import LearnedModel
 from pinn_mpc.models.registry import AUTO, DEFAULT_ARCH, PHYSICS_ARX
 from pinn_mpc.training import TrainConfig, train_model
 
-__all__ = ["AUTO", "AUTO_RATIO", "HISTORY_ROWS", "ROUGH_MAE_C", "ModelChoice", "choose_model"]
+__all__ = [
+    "AUTO",
+    "AUTO_RATIO",
+    "HISTORY_ROWS",
+    "ROUGH_MAE_C",
+    "ModelChoice",
+    "choose_model",
+    "fallback_rc",
+]
 
 #: The physics-informed ARX replaces the hybrid when its held-out error is at most this
 #: share of the hybrid's.
@@ -82,12 +93,29 @@ class ModelChoice:
         error = self.held_out_mae_c.get(self.chosen, math.nan)
         if not error > ROUGH_MAE_C:
             return None
+        if fallback_rc(self.model) is None:
+            lean = (
+                "no RC could be identified from the data, so cem and random-shooting over it "
+                "have no RC MPC to fall back on"
+            )
+        else:
+            lean = (
+                "cem and random-shooting over it will hand more decisions to the MPC on the RC "
+                "identified from the same data"
+            )
         return (
             f"the chosen {self.chosen} predicts the held-out quarter {self.horizon_steps} steps "
-            f"ahead at {error:.2f} C (more than {ROUGH_MAE_C} C): its plans will be rough and a "
-            "controller over it will hand more decisions to its RC fallback; more days of "
-            "training data usually help"
+            f"ahead at {error:.2f} C (more than {ROUGH_MAE_C} C): its plans will be rough and {lean}; "
+            "more days of training data usually help"
         )
+
+
+def fallback_rc(model: LearnedModel | ARXModel) -> dict[str, Any] | None:
+    """The RC JSON object a planner over ``model`` falls back on (identified from its training
+    data by ``train``), or None where there is none."""
+    if isinstance(model, ARXModel):
+        return model.identified_rc
+    return model.record.identified_rc
 
 
 def _held_out(df: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame, np.ndarray, int] | None:
@@ -140,7 +168,7 @@ def choose_model(df: pd.DataFrame, config: TrainConfig, *, progress: bool = Fals
     hybrid_rough = errors[DEFAULT_ARCH] > ROUGH_MAE_C and errors[PHYSICS_ARX.name] < errors[DEFAULT_ARCH]
     if errors[PHYSICS_ARX.name] <= AUTO_RATIO * errors[DEFAULT_ARCH] or hybrid_rough:
         return ModelChoice(
-            chosen=PHYSICS_ARX.name, model=fit_physics_informed_arx(df, eta=config.eta),
+            chosen=PHYSICS_ARX.name, model=fit_linear(PHYSICS_ARX.name, df, eta=config.eta),
             held_out_mae_c=errors, horizon_steps=horizon, why=said,
         )
     model = train_model(df, arch=DEFAULT_ARCH, config=config, progress=progress)

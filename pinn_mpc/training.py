@@ -211,7 +211,7 @@ def data_warnings(df: pd.DataFrame) -> list[str]:
     if days < MIN_TRAIN_DAYS:
         out.append(
             f"training data cover {days:.1f} days (< {MIN_TRAIN_DAYS:g}): the model sees few "
-            "weather situations; control over it falls back to the RC MPC where it errs"
+            "weather situations; more days of data usually help"
         )
     t_a = df["T_a"].to_numpy(dtype=float)
     span = float(t_a.max() - t_a.min())

@@ -88,6 +88,7 @@ def _train_one(a: argparse.Namespace) -> str:
     model = train_model(df, arch=a.arch, config=config)
     for message in model.record.data_warnings:
         warn(f"{a.data}: {message}")
+    _warn_without_fallback(a.data, model.record.identified_rc)
     save_model(model, a.out, force=a.force)
     loss = model.record.final_loss
     return (
@@ -97,15 +98,25 @@ def _train_one(a: argparse.Namespace) -> str:
     )
 
 
+def _warn_without_fallback(data: str, identified_rc: object) -> None:
+    """Say so when no RC could be identified from the training data: cem and random-shooting
+    over the model then have no RC MPC to hand their decisions to."""
+    if identified_rc is None:
+        warn(
+            f"{data}: no RC could be identified from the data (`pinn-mpc identify` says why), so "
+            "cem and random-shooting over this model have no RC MPC to fall back on"
+        )
+
+
 def _train_auto(a: argparse.Namespace) -> str:
     """``train --arch auto`` (the default): the hybrid or the physics-informed ARX, whichever
     predicts the data's last quarter better (:mod:`pinn_mpc.model_choice`), into ``--out``.
     ``--out`` may hold a model of either kind; the one not chosen is removed from it."""
     from pinn_mpc.artifacts import MODEL_DIRECTORY, save_model
     from pinn_mpc.io import DirectoryLayout
-    from pinn_mpc.model_choice import choose_model
+    from pinn_mpc.model_choice import choose_model, fallback_rc
     from pinn_mpc.models.arx import ARX_DIRECTORY, ARXModel, save_arx
-    from pinn_mpc.training import TrainConfig
+    from pinn_mpc.training import TrainConfig, data_warnings
 
     either = DirectoryLayout(
         kind="model directory", files=(*MODEL_DIRECTORY.files, *ARX_DIRECTORY.files), markers=()
@@ -123,14 +134,16 @@ def _train_auto(a: argparse.Namespace) -> str:
         warn(f"{a.data}: {choice.caution}")
     # The other kind's files would make the directory ambiguous to load: they go.
     stale = ARX_DIRECTORY if choice.chosen != PHYSICS_ARX.name else MODEL_DIRECTORY
+    for message in data_warnings(df):
+        warn(f"{a.data}: {message}")
+    if choice.caution is None:  # the caution says it where it is given
+        _warn_without_fallback(a.data, fallback_rc(choice.model))
     if isinstance(choice.model, ARXModel):
         unused = [f"--{n}" for n in ("depth", "epochs", "lam", "recipe") if getattr(a, n, None) is not None]
         if unused:
             warn(f"{', '.join(unused).replace('--lam', '--lambda')} did not apply: the chosen model has no network")
         written = [str(save_arx(choice.model, a.out))]
     else:
-        for message in choice.model.record.data_warnings:
-            warn(f"{a.data}: {message}")
         written = [str(p) for p in MODEL_DIRECTORY.paths(a.out)]
         save_model(choice.model, a.out, force=True)  # --out was checked above
     for path in stale.paths(a.out):
@@ -145,6 +158,7 @@ def _train_arx(a: argparse.Namespace) -> str:
     """``train --arch arx`` (the least-squares ARX baseline, :mod:`pinn_mpc.models.arx`) or its
     physics-informed variant into ``--out``."""
     from pinn_mpc.models.arx import ARX_DIRECTORY, fit_linear, save_arx
+    from pinn_mpc.training import data_warnings
 
     given = [f"--{n}" for n in ("depth", "epochs", "lam", "recipe") if getattr(a, n, None) is not None]
     if given:
@@ -160,6 +174,9 @@ def _train_arx(a: argparse.Namespace) -> str:
         raise InputError(f"{a.data}: a fleet's data (a building column); train --arch {a.arch} takes one building's")
     start = time.perf_counter()
     model = fit_linear(a.arch, df, eta=_eta(a.eta))
+    for message in data_warnings(df):
+        warn(f"{a.data}: {message}")
+    _warn_without_fallback(a.data, model.identified_rc)
     written = save_arx(model, a.out)
     return (
         f"fitted {a.arch} ({model.lags} lags of {', '.join(model.columns)}, a weekly schedule) on "

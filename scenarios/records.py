@@ -68,6 +68,8 @@ class Kpis(TypedDict):
     """Intervals in which the backup thermostat changed the demand."""
     fallbacks: int
     """Intervals in which the controller's documented fallback acted."""
+    own_decisions_share: float
+    """Share of the intervals the controller decided itself, without its fallback [-]."""
 
 
 class RunKpis(Kpis):

@@ -84,6 +84,7 @@ def test_decision_times_ratio_and_counts():
     assert k["decision_ms_p95"] == pytest.approx(40.0 + 0.8 * 960.0, rel=1e-12)
     assert k["time_ratio"] == pytest.approx(1.1 / (5 * DT_S), rel=1e-12)
     assert (k["backup_overrides"], k["fallbacks"]) == (3, 1)
+    assert k["own_decisions_share"] == pytest.approx(0.8, rel=1e-12)
 
 
 def test_shape_mismatch_is_an_internal_error():

@@ -3,6 +3,7 @@ fallback a trained model carries, the COP curve, and the model-vs-scenario check
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import json
 import math
@@ -155,7 +156,8 @@ def test_models_are_checked_against_the_scenario(winter_model) -> None:
     record = dataclasses.replace(
         model.record, training_data={**model.record.training_data, "columns": ["cop"]}
     )
-    heat_pump_model = type("M", (), {"record": record})()
+    heat_pump_model = copy.copy(model)
+    heat_pump_model.record = record
     with pytest.raises(InputError, match="heat-pump data"):
         check_model_fits(heat_pump_model, scenario)
 

@@ -59,6 +59,7 @@ from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.io import DirectoryLayout
 from pinn_mpc.models.registry import ARX, PHYSICS_ARX
 from pinn_mpc.models.rollout import BatchDynamics, Rollout
+from pinn_mpc.physics import params_from_summary
 from pinn_mpc.solar import FACADE_COLUMNS
 
 __all__ = [
@@ -182,6 +183,8 @@ class ARXModel(BatchDynamics):
     interaction: bool = False
     block_h: float = BLOCK_H
     wind: bool = False
+    identified_rc: dict[str, Any] | None = None
+    training_data: dict[str, Any] = dataclasses.field(default_factory=dict)
 
     @property
     def n_schedule(self) -> int:
@@ -372,6 +375,8 @@ class ARXModel(BatchDynamics):
             "interaction": self.interaction,
             "wind": self.wind,
             "train_mae_c": self.train_mae_c,
+            **({"identified_rc": self.identified_rc} if self.identified_rc is not None else {}),
+            **({"training_data": self.training_data} if self.training_data else {}),
         }
 
 
@@ -561,12 +566,30 @@ def _cross_validated_error(
 
 def fit_linear(name: str, df: pd.DataFrame, *, eta: float = 1.0) -> ARXModel:
     """The linear baseline ``name`` (the registry's ARX or physics-informed ARX) fitted on
-    ``df``; ``eta`` the actuator's sign, as :func:`fit_physics_informed_arx` takes it."""
+    ``df``; ``eta`` the actuator's sign, as :func:`fit_physics_informed_arx` takes it. The
+    model carries what a planner over it falls back on, as a trained network does: the RC
+    identified from ``df`` (:func:`pinn_mpc.identify.identify_rc` with ``eta``; None where the
+    identification fails) and ``df``'s summary (its input ranges)."""
+    from pinn_mpc.identify import identify_rc
+    from pinn_mpc.physics import rc_summary
+    from pinn_mpc.training import data_summary
+
     if name == ARX.name:
-        return fit_arx(df)
-    if name == PHYSICS_ARX.name:
-        return fit_physics_informed_arx(df, eta=eta)
-    raise InputError(f"{name!r} is not a linear baseline; choose {ARX.name} or {PHYSICS_ARX.name}")
+        model = fit_arx(df)
+    elif name == PHYSICS_ARX.name:
+        model = fit_physics_informed_arx(df, eta=eta)
+    else:
+        raise InputError(f"{name!r} is not a linear baseline; choose {ARX.name} or {PHYSICS_ARX.name}")
+    try:
+        identified = identify_rc(df, eta=eta)
+    except InputError:
+        rc = None
+    else:
+        rc = {
+            **rc_summary(identified.params, source="identify (training data)"),
+            "fit": identified.fit_statistics(),
+        }
+    return dataclasses.replace(model, identified_rc=rc, training_data=data_summary(df))
 
 
 def is_arx_directory(path: str | os.PathLike[str]) -> bool:
@@ -598,6 +621,8 @@ def load_arx(path: str | os.PathLike[str]) -> ARXModel:
         day_types = int(data.get("day_types", 2))
         interaction = data.get("interaction", False)
         wind = data.get("wind", False)
+        identified_rc = data.get("identified_rc")
+        training_data = data.get("training_data", {})
     except (OSError, ValueError, KeyError, TypeError) as exc:
         raise InputError(f"{file}: not a readable ARX model ({exc}); write it with `pinn-mpc train --arch arx`") from None
     if not _valid_block(block_h):
@@ -619,10 +644,20 @@ def load_arx(path: str | os.PathLike[str]) -> ARXModel:
             f"{file}: not a valid ARX model (kind, columns, lags, {expected} finite coefficients, "
             "interval); write it with `pinn-mpc train --arch arx`"
         )
+    if not isinstance(training_data, dict):
+        raise InputError(f"{file}: not a valid ARX model (training_data is not an object)")
+    if identified_rc is not None:
+        if not isinstance(identified_rc, dict):
+            raise InputError(f"{file}: not a valid ARX model (identified_rc is not an object)")
+        try:
+            params_from_summary(identified_rc)
+        except InputError as exc:
+            raise InputError(f"{file}: identified_rc: {exc}") from None
     return ARXModel(
         columns=columns, lags=lags, coef=coef, dt_s=dt_s,
         train_mae_c=float(data.get("train_mae_c", float("nan"))),
         day_types=day_types, interaction=bool(interaction), block_h=block_h, wind=bool(wind),
+        identified_rc=identified_rc, training_data=training_data,
     )
 
 

@@ -37,6 +37,7 @@ _RATIO_PREFIX = "objective_to_"
 KPI_COLUMNS = (
     ("objective", "objective EUR", "{:.3f}"),
     ("objective_to_oracle", "/ oracle", "{:.3f}"),
+    ("own_decisions_share", "own decisions", "{:.0%}"),
     ("cost_eur", "cost EUR", "{:.3f}"),
     ("energy_kwh", "energy kWh", "{:.2f}"),
     ("discomfort_kh", "discomfort K h", "{:.3f}"),

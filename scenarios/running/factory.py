@@ -67,9 +67,22 @@ def _record(model: BatchDynamics | None) -> ModelRecord | None:
     return model.record if isinstance(model, LearnedModel) else None
 
 
-def _ranges(record: ModelRecord | None) -> dict[str, tuple[float, float]]:
-    """The training data's ranges of the watched inputs (none without a record)."""
-    summary = record.training_data if record is not None else {}
+def _trained_on(model: BatchDynamics | None) -> tuple[dict[str, Any] | None, dict[str, Any]]:
+    """The RC JSON object identified from a model's training data and that data's summary:
+    a network's from its training record, an ARX's from :func:`pinn_mpc.arx.fit_linear`
+    (``train --arch arx``, ``parx`` or ``auto``); (None, {}) for other models."""
+    from pinn_mpc.models.arx import ARXModel
+
+    record = _record(model)
+    if record is not None:
+        return record.identified_rc, record.training_data
+    if isinstance(model, ARXModel):
+        return model.identified_rc, model.training_data
+    return None, {}
+
+
+def _ranges(summary: Mapping[str, Any]) -> dict[str, tuple[float, float]]:
+    """The training data's ranges of the watched inputs (none without a summary)."""
     return {
         name: (float(summary[f"{name}_range"][0]), float(summary[f"{name}_range"][1]))
         for name in _WATCHED
@@ -79,16 +92,14 @@ def _ranges(record: ModelRecord | None) -> dict[str, tuple[float, float]]:
 
 def model_guard(model: BatchDynamics) -> Guard:
     """The fallback of a planner over ``model`` (:class:`controllers.sampling.Guard`): the RC
-    identified from its training data, which ``train`` stores in ``model.json``, and the
-    training data's input ranges. Models without them (older, or not from ``train``) get no
-    RC fallback."""
+    identified from its training data, which ``train`` stores with every model it writes (a
+    network's ``model.json``, an ARX's ``arx.json``), and the training data's input ranges.
+    Models without them (older, or not from ``train``) get no RC fallback."""
     from controllers.sampling import Guard
 
-    record = _record(model)
-    rc = None
-    if record is not None and isinstance(record.identified_rc, dict):
-        rc = params_from_summary(record.identified_rc)
-    return Guard(rc=rc, training_ranges=_ranges(record))
+    identified, summary = _trained_on(model)
+    rc = params_from_summary(identified) if isinstance(identified, dict) else None
+    return Guard(rc=rc, training_ranges=_ranges(summary))
 
 
 def check_model_fits(model: BatchDynamics, scenario: Scenario) -> list[str]:
@@ -97,15 +108,19 @@ def check_model_fits(model: BatchDynamics, scenario: Scenario) -> list[str]:
     whose data never came near the scenario's full power or whose identified time constants
     differ from the scenario's building (where it has true parameters) by more than a factor
     of 3."""
+    rc, summary = _trained_on(model)
     record = _record(model)
-    if record is None:
+    if record is not None:
+        power_max_w: float | None = float(record.u_phys_range_w[1])
+    elif "u_phys_range" in summary:
+        power_max_w = float(summary["u_phys_range"][1])
+    else:
         return []
-    rc = record.identified_rc
-    columns = record.training_data.get("columns", [])
+    columns = summary.get("columns", [])
     return _check_fits(
         "the model", "trained on", "train", scenario,
         heat_pump_data="cop" in columns if columns else None,
-        power_max_w=float(record.u_phys_range_w[1]),
+        power_max_w=power_max_w,
         identified=params_from_summary(rc) if isinstance(rc, dict) else None,
     )
 
@@ -186,7 +201,7 @@ def weather_range_note(model: BatchDynamics | None, trajectory: pd.DataFrame) ->
     """How far a run's weather left the model's training data (None when it stayed inside)."""
     parts = []
     units = {"T_a": "K", "G": "W/m2"}
-    for name, (lo, hi) in _ranges(_record(model)).items():
+    for name, (lo, hi) in _ranges(_trained_on(model)[1]).items():
         if name not in trajectory.columns:
             continue
         v = trajectory[name].to_numpy(dtype=float)

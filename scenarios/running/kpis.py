@@ -13,7 +13,10 @@
 - ``decision_ms_median/mean/p95``: wall-clock time of the controller's decisions.
 - ``time_ratio``: total decision time / simulated time (BOPTEST's computational time ratio).
 - ``backup_overrides``: intervals in which the backup thermostat changed the demand.
-- ``fallbacks``: intervals in which the controller's documented fallback acted.
+- ``fallbacks``: intervals in which the controller's documented fallback acted (for a planner
+  over a model with an RC fallback, every decision that MPC made for it, :mod:`controllers.trust`).
+- ``own_decisions_share``: the share of the intervals the controller decided itself, without
+  its fallback (1 - fallbacks / intervals).
 """
 
 from __future__ import annotations
@@ -39,6 +42,7 @@ KPI_KEYS = (
     "time_ratio",
     "backup_overrides",
     "fallbacks",
+    "own_decisions_share",
 )
 
 
@@ -113,4 +117,5 @@ def compute_kpis(
         "time_ratio": float(np.sum(decision_s) / (n * dt_s)),
         "backup_overrides": int(np.count_nonzero(overridden)),
         "fallbacks": int(np.count_nonzero(fallback)),
+        "own_decisions_share": 1.0 - float(np.count_nonzero(fallback)) / n,
     }
