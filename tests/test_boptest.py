@@ -348,7 +348,7 @@ def test_a_day_at_a_constant_power_through_the_loop_matches_boptest(settings: Bo
 
 @pytest.mark.slow
 def test_baseline_kpis_of_a_short_run(settings: BoptestSettings) -> None:
-    run = BoptestRun(time_period="typical_heat_day", days=1.0, price_scenario="highly_dynamic", dt_s=3600.0)
+    run = BoptestRun(time_period="peak_heat_day", days=1.0, price_scenario="highly_dynamic", dt_s=3600.0)
     with BoptestPlant(settings, run) as plant:
         frame = plant.exogenous_frame()
         steps = [plant.step_baseline(k) for k in range(run.n_intervals)]

@@ -459,7 +459,7 @@ class BoptestPlant:
         interval in the data format's names: ``time`` (interval start, dated in the points'
         year), ``T_a`` [C], ``G`` [W/m2], ``I_g`` [W] (the gains points summed), ``price``
         [EUR/kWh] (the run's price scenario), ``T_min``/``T_max`` [C]; interval means of
-        samples at most 5 minutes apart (the price: its value at each interval's start)."""
+        samples at most 5 minutes apart (as BOPTEST's KPIs weigh them)."""
         return self._frame.copy()
 
     def _forecast_frame(self) -> pd.DataFrame:
@@ -483,14 +483,12 @@ class BoptestPlant:
             fc["time"][: n * per : per], unit="s"
         )
         gains = np.sum([means(fc[name]) for name in p.forecast_gains], axis=0)
-        # The price holds over each interval from its start (a tariff steps at interval starts).
-        price = fc[p.prices[run.price_scenario]][: n * per : per]
         return pd.DataFrame({
             "time": times,
             "T_a": means(fc[p.forecast_outdoor_temperature]) - KELVIN,
             "G": means(fc[p.forecast_irradiance]),
             "I_g": gains,
-            "price": price,
+            "price": means(fc[p.prices[run.price_scenario]]),
             "T_min": means(fc[p.comfort_lower]) - KELVIN,
             "T_max": means(fc[p.comfort_upper]) - KELVIN,
         })
