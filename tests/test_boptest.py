@@ -369,3 +369,35 @@ def test_baseline_kpis_of_a_short_run(settings: BoptestSettings) -> None:
     tdis = float(np.sum(low + high) * run.dt_s / sub.shape[1] / 3600.0)
     assert tdis == pytest.approx(kpis["tdis_tot"], rel=0.02, abs=0.01)
     assert kpis["time_rat"] is not None and math.isfinite(kpis["time_rat"])
+
+
+def test_builtin_scenario_by_name() -> None:
+    from scenarios.plants.boptest import BUILTIN_BOPTEST, builtin_boptest
+
+    assert builtin_boptest("boptest_hydronic_heat_pump").points.testcase == TESTCASE
+    with pytest.raises(InputError, match="no built-in BOPTEST scenario 'bestest'"):
+        builtin_boptest("bestest")
+    assert all(path.is_file() for path in BUILTIN_BOPTEST.values())
+
+
+@pytest.mark.slow
+def test_training_data_from_the_emulator_stays_off_the_test_periods(settings: BoptestSettings) -> None:
+    from scenarios.plants.boptest import record_data
+
+    with pytest.raises(InputError, match="overlap BOPTEST's test period peak_heat_day"):
+        record_data(settings, BoptestRun(time_period=None, first_day=20.0, days=1.0), lambda k, t, row: 0.0)
+    with pytest.raises(InputError, match="never on a test period"):
+        record_data(settings, BoptestRun(days=1.0), lambda k, t, row: 0.0)
+    rng = np.random.default_rng(0)
+    levels = rng.uniform(0.0, settings.points.scaling.max_power_w, size=24)
+    run = BoptestRun(time_period=None, first_day=40.0, days=0.5, warmup_days=1.0, dt_s=1800.0)
+    data = record_data(settings, run, lambda k, t, row: float(levels[k]))
+    assert len(data) == 24 and str(data["time"].iloc[0]) == "2018-02-10 00:00:00"
+    assert list(data.columns[:4]) == ["time", "T_r", "u", "u_phys"]
+    off = data["u"] < 0.5 * settings.points.scaling.min_power_w
+    # below half the lowest power: off (the 30-s samples of BOPTEST's trajectory, which its
+    # energy KPI integrates too, carry the last interval's power into the first 15 s)
+    assert np.all(data.loc[off, "u_phys"] < 0.02 * settings.points.scaling.min_power_w)
+    on = data["u"] >= settings.points.scaling.min_power_w
+    assert np.all(np.abs(data.loc[on, "u_phys"] / data.loc[on, "u"] - 1.0) < 0.06)
+    assert np.all((data["T_r"] > 10.0) & (data["T_r"] < 30.0))

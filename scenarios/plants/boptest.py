@@ -33,8 +33,9 @@ as a context manager; an error or Ctrl-C included).
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
 from types import TracebackType
 from typing import Any
 
@@ -52,8 +53,11 @@ __all__ = [
     "BoptestRun",
     "BoptestSettings",
     "SignalScaling",
+    "BUILTIN_BOPTEST",
     "boptest_settings_from_dict",
+    "builtin_boptest",
     "read_boptest_file",
+    "record_data",
 ]
 
 KELVIN = 273.15
@@ -605,3 +609,53 @@ def read_boptest_file(path: str) -> BoptestSettings:
     except tomllib.TOMLDecodeError as exc:
         raise InputError(f"{path}: not valid TOML ({exc})") from None
     return boptest_settings_from_dict(_table(data, "boptest", path), where=f"{path}: boptest")
+
+
+#: The built-in BOPTEST scenarios: name -> the scenario file beside this module.
+BUILTIN_BOPTEST = {
+    "boptest_hydronic_heat_pump": Path(__file__).with_name("boptest_hydronic_heat_pump.toml"),
+}
+
+
+def builtin_boptest(name: str) -> BoptestSettings:
+    """The settings of a built-in BOPTEST scenario by name (:data:`BUILTIN_BOPTEST`)."""
+    if name not in BUILTIN_BOPTEST:
+        raise InputError(
+            f"no built-in BOPTEST scenario {name!r}; built-in: {', '.join(BUILTIN_BOPTEST)}"
+        )
+    return read_boptest_file(str(BUILTIN_BOPTEST[name]))
+
+
+#: The demand of a data policy: (interval k, measured room temperature [C], the interval's
+#: row of the run's inputs) -> electrical power [W].
+Demand = Callable[[int, float, pd.Series], float]
+
+
+def record_data(settings: BoptestSettings, run: BoptestRun, demand: Demand) -> pd.DataFrame:
+    """Training data from the emulator: ``run`` (a period of its own, ``first_day``, disjoint
+    from every test period and its warm-up, else refused) under ``demand``, in the data
+    format: one row per interval, ``time`` (start), ``T_r`` [C] at the start, ``u`` [W] asked,
+    ``u_phys`` [W] mean electrical, ``T_a`` [C] and ``G`` [W/m2] as the emulator had them,
+    ``I_g`` [W], ``price`` [EUR/kWh], ``T_min``/``T_max`` [C]; ``heat_w`` [W], the heat
+    delivered to the room, beside them. The test is stopped on the server whatever happens."""
+    if run.first_day is None:
+        raise InputError(
+            "training data runs on days of its own (BoptestRun.first_day), never on a test period"
+        )
+    with BoptestPlant(settings, run) as plant:
+        frame = plant.exogenous_frame()
+        n = run.n_intervals
+        t_r, u, u_phys, t_a, g = (np.empty(n) for _ in range(5))
+        for k in range(n):
+            t_r[k] = float(plant.measure()[0])
+            u[k] = float(demand(k, t_r[k], frame.iloc[k]))
+            step = plant.step(u[k], k)
+            u_phys[k], t_a[k], g[k] = step.result.u_phys_w[0], step.t_a_c[0], step.g_w_per_m2[0]
+        heat = plant.history()["heat_w"].to_numpy()
+    data = pd.DataFrame({
+        "time": frame["time"], "T_r": t_r, "u": u, "u_phys": u_phys, "T_a": t_a, "G": g,
+        "I_g": frame["I_g"], "price": frame["price"], "T_min": frame["T_min"],
+        "T_max": frame["T_max"], "heat_w": heat,
+    })
+    data.attrs["dt_s"] = float(run.dt_s)
+    return data
