@@ -124,7 +124,14 @@ class Constant:
 
     def __init__(self, u_w: float) -> None:
         self.u_w = u_w
-        self.last_stats = SolveStats(time_s=0.0, status="constant", iterations=0, fallback=False)
+
+    @property
+    def last_plan(self) -> np.ndarray | None:
+        return None
+
+    @property
+    def last_stats(self) -> SolveStats:
+        return SolveStats(time_s=0.0, status="constant", iterations=0, fallback=False)
 
     def reset(self, seed: int | None = None) -> None:
         """Nothing to reset."""
