@@ -356,9 +356,10 @@ def test_a_day_at_a_constant_power_through_the_loop_matches_boptest(settings: Bo
 @pytest.mark.slow
 def test_baseline_kpis_of_a_short_run(settings: BoptestSettings) -> None:
     run = BoptestRun(time_period="peak_heat_day", days=1.0, price_scenario="highly_dynamic", dt_s=3600.0)
-    with BoptestPlant(settings, run) as plant:
+    with BoptestPlant(settings, run, baseline=True) as plant:
         frame = plant.exogenous_frame()
-        steps = [plant.step_baseline(k) for k in range(run.n_intervals)]
+        # half the intervals as the loop steps a baseline plant (the demand ignored), half directly
+        steps = [plant.step(0.0, k) if k % 2 else plant.step_baseline(k) for k in range(run.n_intervals)]
         kpis = plant.kpis()
         history = plant.history()
     # no input overwritten: the test case's own controller modulated the heat pump
@@ -408,3 +409,39 @@ def test_training_data_from_the_emulator_stays_off_the_test_periods(settings: Bo
     on = data["u"] >= settings.points.scaling.min_power_w
     assert np.all(np.abs(data.loc[on, "u_phys"] / data.loc[on, "u"] - 1.0) < 0.06)
     assert np.all((data["T_r"] > 10.0) & (data["T_r"] < 30.0))
+
+
+class Interrupted(Constant):
+    """A controller whose third decision is interrupted, as Ctrl-C would."""
+
+    def __init__(self) -> None:
+        super().__init__(2000.0)
+        self.calls = 0
+
+    def act(self, obs: Observation, forecast: Forecast) -> float:
+        self.calls += 1
+        if self.calls == 3:
+            raise KeyboardInterrupt
+        return self.u_w
+
+
+def test_ctrl_c_in_the_loop_stops_the_test_on_the_server(settings: BoptestSettings) -> None:
+    # a period of its own with no warm-up: the cheapest start
+    run = BoptestRun(time_period=None, first_day=45.0, days=0.25, warmup_days=0.0, dt_s=1800.0)
+    u_max = settings.points.scaling.max_power_w
+    plant = BoptestPlant(settings, run)
+    frame = plant.exogenous_frame()
+    t_r0 = float(plant.measure()[0])
+    controller = Interrupted()
+    with pytest.raises(KeyboardInterrupt):
+        with ClosedLoop(
+            SimConfig(u_max_w=u_max, dt_s=run.dt_s), ExogenousSeries.from_frame(frame),
+            spec=ControlSpec(u_max_w=u_max, dt_s=run.dt_s), initial_t_r_c=t_r0,
+            initial_t_m_c=t_r0, plant=plant,
+        ) as loop:
+            for _ in range(run.n_intervals):
+                loop.advance(controller)
+    assert controller.calls == 3 and loop.k == 2
+    assert plant.test.stopped
+    status = BoptestClient(settings.url).call("GET", f"status/{plant.test.testid}")
+    assert status == "Stopped"

@@ -293,14 +293,16 @@ class BoptestPlant:
     (:class:`BoptestRun`); on any failure the test is stopped. :meth:`reset` at row 0 starts
     the run afresh (unless nothing has been stepped since it started); the state it is given
     is ignored (BOPTEST's warm-up sets the state). :meth:`step` holds the demand over row
-    ``row``'s interval.
+    ``row``'s interval. With ``baseline`` the demand is ignored and no input is overwritten:
+    the test case's own controller acts (BOPTEST's baseline, the reference of its tables).
     """
 
     has_true_state = False
     n_buildings = 1
 
-    def __init__(self, settings: BoptestSettings, run: BoptestRun) -> None:
+    def __init__(self, settings: BoptestSettings, run: BoptestRun, *, baseline: bool = False) -> None:
         self.settings, self.run, self.points = settings, run, settings.points
+        self.baseline = baseline
         if run.first_day is not None:
             self.points.check_disjoint(run.first_day, run.days)
         elif run.time_period is not None:
@@ -407,6 +409,8 @@ class BoptestPlant:
         u = np.asarray(u_w, dtype=float).reshape(-1)
         if u.size != 1 or not math.isfinite(float(u[0])):
             raise InputError(f"BoptestPlant.step: one finite power, got {u_w!r}")
+        if self.baseline:
+            return self._advance({}, float(u[0]), math.nan)
         signal = self.points.scaling.to_signal(float(u[0]))
         return self._advance({self.points.actuator: signal, self.points.activate: 1.0}, float(u[0]), signal)
 
