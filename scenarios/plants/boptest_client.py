@@ -292,11 +292,15 @@ class BoptestTest:
         return {k: None if v is None else float(v) for k, v in payload.items()}
 
     def stop(self) -> None:
-        """Stop the test on the server (``PUT /stop``); once only, later calls do nothing."""
+        """Stop the test on the server (``PUT /stop``); once only, later calls do nothing. A
+        test the server has already ended needs no stopping."""
         if self.stopped:
             return
         self.stopped = True
-        self.client.call("PUT", f"stop/{self.testid}", timeout_s=STOP_TIMEOUT_S, testid=self.testid)
+        try:
+            self.client.call("PUT", f"stop/{self.testid}", timeout_s=STOP_TIMEOUT_S, testid=self.testid)
+        except BoptestTestEnded:
+            pass
 
     def __enter__(self) -> BoptestTest:
         return self
