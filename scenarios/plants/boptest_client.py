@@ -1,0 +1,318 @@
+"""A client of BOPTEST's web API (IBPSA Project 1): one test on a server, call by call.
+
+BOPTEST serves a building emulator through HTTP routes keyed by a test id: a client selects a
+test case (``POST /testcases/{case}/select`` -> ``{"testid"}``), sets the scenario
+(``PUT /scenario/{id}``: a test period and a price scenario, with BOPTEST's warm-up) or
+initialises a period of its own (``PUT /initialize/{id}``), sets the control step
+(``PUT /step/{id}``), advances one step with its inputs (``POST /advance/{id}`` -> the
+measurements at the step's end), asks for forecasts (``PUT /forecast/{id}``), the stored
+trajectories (``PUT /results/{id}``) and the KPIs (``GET /kpi/{id}``), and stops the test
+(``PUT /stop/{id}``). Every reply is JSON ``{"status", "message", "payload"}`` with that HTTP
+status; this client returns the payload and turns everything else into one clear error:
+
+- no server at the URL -> :class:`BoptestUnreachable` (an :class:`~pinn_mpc.errors.InputError`)
+  naming the URL and how to start the local server or set ``BOPTEST_URL``;
+- an error reply (400, 500, ...) -> :class:`BoptestError` carrying BOPTEST's own message;
+- a test the server no longer knows (BOPTEST ends a test after a time without calls) ->
+  :class:`BoptestTestEnded`;
+- no answer within the call's timeout -> :class:`BoptestError` (nothing waits for ever).
+
+:class:`BoptestTest` is a context manager: leaving the ``with`` block in any way (an error,
+Ctrl-C) stops the test on the server.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Mapping, Sequence
+from types import TracebackType
+from typing import Any
+
+import numpy as np
+import requests
+
+from pinn_mpc.errors import InputError
+
+__all__ = [
+    "BOPTEST_URL_ENV",
+    "DEFAULT_URL",
+    "BoptestClient",
+    "BoptestError",
+    "BoptestTest",
+    "BoptestTestEnded",
+    "BoptestUnreachable",
+    "server_url",
+]
+
+#: Environment variable with the server's address; the default is the local server's.
+BOPTEST_URL_ENV = "BOPTEST_URL"
+DEFAULT_URL = "http://127.0.0.1:8000"
+#: How to start the server that ships beside the package's checkout.
+LOCAL_SERVER_HINT = "python3 ../shared/boptest/serve.py --port 8000"
+
+#: Seconds to wait for a connection, and for an ordinary call's answer.
+CONNECT_TIMEOUT_S = 5.0
+CALL_TIMEOUT_S = 120.0
+#: Selecting a test loads the emulator; setting a scenario or initialising simulates the
+#: warm-up (days of simulated time): these calls get longer.
+SELECT_TIMEOUT_S = 300.0
+WARMUP_TIMEOUT_S = 900.0
+#: Stopping in an exit path must not hold up the exit for long.
+STOP_TIMEOUT_S = 30.0
+
+
+class BoptestError(InputError):
+    """A BOPTEST server refused or failed a call; the message carries BOPTEST's own words."""
+
+
+class BoptestUnreachable(BoptestError):
+    """No BOPTEST server answers at the URL."""
+
+
+class BoptestTestEnded(BoptestError):
+    """The test is no longer on the server (stopped, or ended after its idle timeout)."""
+
+
+def server_url(url: str | None = None) -> str:
+    """The server's address: ``url`` when given, else ``$BOPTEST_URL``, else the local default
+    ``http://127.0.0.1:8000``; without a trailing slash."""
+    chosen = url or os.environ.get(BOPTEST_URL_ENV) or DEFAULT_URL
+    if not chosen.startswith(("http://", "https://")):
+        raise InputError(
+            f"BOPTEST server address {chosen!r} is not an http:// or https:// URL "
+            f"(set {BOPTEST_URL_ENV}, e.g. {DEFAULT_URL})"
+        )
+    return chosen.rstrip("/")
+
+
+def _reply_text(body: Any, text: str) -> str:
+    """BOPTEST's message of an error reply: ``message`` (and a string ``payload`` beside it),
+    the ``errors`` list of a rejected request, or the reply's text."""
+    if isinstance(body, dict):
+        if isinstance(body.get("errors"), list):
+            return "; ".join(str(e.get("msg", e)) if isinstance(e, dict) else str(e) for e in body["errors"])
+        parts = [str(body.get("message") or "")]
+        payload = body.get("payload")
+        if isinstance(payload, str) and payload and payload not in parts[0]:
+            parts.append(payload.strip().splitlines()[-1])
+        return ": ".join(p for p in parts if p) or text.strip()
+    return text.strip() or "(empty reply)"
+
+
+class BoptestClient:
+    """The server at ``url`` (see :func:`server_url`), every call with a timeout [s]."""
+
+    def __init__(self, url: str | None = None, *, timeout_s: float = CALL_TIMEOUT_S) -> None:
+        if not (math.isfinite(timeout_s) and timeout_s > 0):
+            raise InputError(f"BoptestClient: timeout_s must be > 0 seconds, got {timeout_s!r}")
+        self.url = server_url(url)
+        self.timeout_s = float(timeout_s)
+        self.session = requests.Session()
+
+    def close(self) -> None:
+        """Close the HTTP session."""
+        self.session.close()
+
+    def call(
+        self, method: str, route: str, body: Mapping[str, Any] | None = None, *,
+        timeout_s: float | None = None, testid: str | None = None,
+    ) -> Any:
+        """One call: ``method`` on ``/route`` with a JSON body; BOPTEST's payload (or, for a
+        reply that is not BOPTEST's envelope, the decoded reply). Raises the module's errors."""
+        read_s = self.timeout_s if timeout_s is None else timeout_s
+        address = f"{self.url}/{route}"
+        try:
+            response = self.session.request(
+                method, address, json=None if body is None else dict(body),
+                timeout=(CONNECT_TIMEOUT_S, read_s),
+            )
+        except requests.ConnectionError as exc:
+            if isinstance(exc, requests.ConnectTimeout) or "Connection refused" in str(exc) or \
+                    "Failed to establish" in str(exc) or "Name or service" in str(exc):
+                raise BoptestUnreachable(
+                    f"no BOPTEST server answers at {self.url}: start the local one with "
+                    f"`{LOCAL_SERVER_HINT}` or set {BOPTEST_URL_ENV} to your server's address"
+                ) from None
+            raise BoptestError(f"BOPTEST at {self.url}: {method} /{route} failed: {exc}") from None
+        except requests.Timeout:
+            raise BoptestError(
+                f"BOPTEST at {self.url}: {method} /{route} gave no answer within {read_s:g} s"
+            ) from None
+        except requests.RequestException as exc:
+            raise BoptestError(f"BOPTEST at {self.url}: {method} /{route} failed: {exc}") from None
+        try:
+            decoded: Any = response.json()
+        except ValueError:
+            decoded = None
+        if response.status_code != 200:
+            message = _reply_text(decoded, response.text)
+            if testid is not None and self._test_gone(response.status_code, message, testid):
+                raise BoptestTestEnded(
+                    f"BOPTEST test {testid} is no longer on the server at {self.url} (BOPTEST "
+                    "ends a test after a time without calls, its idle timeout, or it was "
+                    f"stopped): {message}; select a new test"
+                )
+            raise BoptestError(
+                f"BOPTEST at {self.url} refused {method} /{route} "
+                f"(status {response.status_code}): {message}"
+            )
+        if isinstance(decoded, dict) and {"status", "message", "payload"} <= decoded.keys():
+            return decoded["payload"]
+        return decoded if decoded is not None else response.text
+
+    @staticmethod
+    def _test_gone(status: int, message: str, testid: str) -> bool:
+        return ("Invalid testid" in message and testid in message) or (
+            status >= 500 and "ended" in message and testid in message
+        )
+
+    def version(self) -> str:
+        """BOPTEST's version (``GET /version``)."""
+        payload = self.call("GET", "version")
+        return str(payload["version"] if isinstance(payload, dict) else payload)
+
+    def testcases(self) -> list[str]:
+        """The test cases the server has (``GET /testcases``)."""
+        payload = self.call("GET", "testcases")
+        return [str(t["testcaseid"] if isinstance(t, dict) else t) for t in payload]
+
+    def select(self, testcase: str) -> BoptestTest:
+        """Start a test of ``testcase`` (``POST /testcases/{testcase}/select``)."""
+        payload = self.call("POST", f"testcases/{testcase}/select", timeout_s=SELECT_TIMEOUT_S)
+        if not (isinstance(payload, dict) and isinstance(payload.get("testid"), str)):
+            raise BoptestError(f"BOPTEST at {self.url}: select {testcase} gave no test id: {payload!r}")
+        return BoptestTest(self, payload["testid"], testcase)
+
+
+def _floats(series: Mapping[str, Any]) -> dict[str, np.ndarray]:
+    return {name: np.asarray(values, dtype=float) for name, values in series.items()}
+
+
+class BoptestTest:
+    """One test on a BOPTEST server: the routes keyed by its test id. Use it as a context
+    manager (or call :meth:`stop`): the test stops on the server however the block is left."""
+
+    def __init__(self, client: BoptestClient, testid: str, testcase: str) -> None:
+        self.client, self.testid, self.testcase = client, testid, testcase
+        self.stopped = False
+
+    def _call(self, method: str, action: str, body: Mapping[str, Any] | None = None,
+              timeout_s: float | None = None) -> Any:
+        if self.stopped:
+            raise BoptestTestEnded(f"BOPTEST test {self.testid} was stopped; select a new test")
+        return self.client.call(
+            method, f"{action}/{self.testid}", body, timeout_s=timeout_s, testid=self.testid
+        )
+
+    # --- what the test case is ---------------------------------------------------------------
+    def name(self) -> str:
+        """The test case's name (``GET /name``)."""
+        return str(self._call("GET", "name")["name"])
+
+    def inputs(self) -> dict[str, dict[str, Any]]:
+        """The inputs a controller may overwrite, with unit, description, minimum, maximum."""
+        return dict(self._call("GET", "inputs"))
+
+    def measurements(self) -> dict[str, dict[str, Any]]:
+        """The measured points, with unit and description."""
+        return dict(self._call("GET", "measurements"))
+
+    def forecast_points(self) -> dict[str, dict[str, Any]]:
+        """The points ``forecast`` can give, with unit and description."""
+        return dict(self._call("GET", "forecast_points"))
+
+    # --- the test's clock --------------------------------------------------------------------
+    def step_s(self) -> float:
+        """The control step [s] (``GET /step``)."""
+        return float(self._call("GET", "step"))
+
+    def set_step(self, step_s: float) -> None:
+        """Set the control step [s] (``PUT /step``)."""
+        self._call("PUT", "step", {"step": float(step_s)})
+
+    def initialize(self, start_time_s: float, warmup_period_s: float) -> dict[str, float]:
+        """Start at ``start_time_s`` [s of the year] after a warm-up of ``warmup_period_s``;
+        the measurements then (``PUT /initialize``). No KPI period end: for data, not tests."""
+        payload = self._call(
+            "PUT", "initialize",
+            {"start_time": float(start_time_s), "warmup_period": float(warmup_period_s)},
+            timeout_s=WARMUP_TIMEOUT_S,
+        )
+        return {k: float(v) for k, v in payload.items()}
+
+    def set_scenario(
+        self, *, time_period: str | None = None, electricity_price: str | None = None
+    ) -> dict[str, Any]:
+        """BOPTEST's scenario (``PUT /scenario``): a test period (initialises the test at its
+        start after BOPTEST's warm-up) and/or a price scenario. BOPTEST's payload: the
+        measurements at the period's start under ``time_period``."""
+        body = {k: v for k, v in (("time_period", time_period), ("electricity_price", electricity_price)) if v}
+        timeout = WARMUP_TIMEOUT_S if time_period else None
+        return dict(self._call("PUT", "scenario", body, timeout_s=timeout))
+
+    def scenario(self) -> dict[str, Any]:
+        """The scenario set (``GET /scenario``)."""
+        return dict(self._call("GET", "scenario"))
+
+    # --- running -----------------------------------------------------------------------------
+    def advance(self, inputs: Mapping[str, float] | None = None) -> dict[str, float]:
+        """One control step with ``inputs`` overwritten (``POST /advance``; none: the test
+        case's own controller acts); the measurements and inputs at the step's end (empty once
+        the test period is over)."""
+        payload = self._call("POST", "advance", dict(inputs or {}))
+        return {k: float(v) for k, v in (payload or {}).items()}
+
+    def forecast(
+        self, point_names: Sequence[str], *, horizon_s: float, interval_s: float
+    ) -> dict[str, np.ndarray]:
+        """Forecasts of ``point_names`` from now over ``horizon_s`` every ``interval_s``
+        (``PUT /forecast``), arrays with ``time`` [s of the year]."""
+        payload = self._call(
+            "PUT", "forecast",
+            {"point_names": list(point_names), "horizon": float(horizon_s), "interval": float(interval_s)},
+        )
+        return _floats(payload)
+
+    def results(
+        self, point_names: Sequence[str], *, start_time_s: float, final_time_s: float
+    ) -> dict[str, np.ndarray]:
+        """The stored trajectories of ``point_names`` between the two times (``PUT
+        /results``), arrays with ``time`` [s of the year]."""
+        payload = self._call(
+            "PUT", "results",
+            {"point_names": list(point_names), "start_time": float(start_time_s),
+             "final_time": float(final_time_s)},
+        )
+        return _floats(payload)
+
+    def kpi(self) -> dict[str, float | None]:
+        """BOPTEST's KPIs of the test so far (``GET /kpi``), None where not applicable."""
+        payload = self._call("GET", "kpi")
+        return {k: None if v is None else float(v) for k, v in payload.items()}
+
+    def stop(self) -> None:
+        """Stop the test on the server (``PUT /stop``); once only, later calls do nothing. A
+        test the server has already ended needs no stopping."""
+        if self.stopped:
+            return
+        self.stopped = True
+        try:
+            self.client.call("PUT", f"stop/{self.testid}", timeout_s=STOP_TIMEOUT_S, testid=self.testid)
+        except BoptestTestEnded:
+            pass
+
+    def __enter__(self) -> BoptestTest:
+        return self
+
+    def __exit__(
+        self, exc_type: type[BaseException] | None, exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        if exc_type is None:
+            self.stop()
+            return
+        try:  # leaving on an error or Ctrl-C: stop the test, but report the first error
+            self.stop()
+        except BoptestError:
+            pass

@@ -1,0 +1,449 @@
+"""The BOPTEST plant and its web-API client against a real BOPTEST server.
+
+The session's server is ``shared/boptest/serve.py`` beside the checkout (or above it), started
+on a free local port, or the server at ``$BOPTEST_URL``; tests that need one skip, saying why,
+only where neither exists. A select costs seconds and a test period's warm-up more: the tests
+share selected tests where they can.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from controllers.base import ControlSpec, Forecast, Observation, SolveStats
+from pinn_mpc.errors import InputError
+from pinn_mpc.simulator import SimConfig
+from scenarios.inputs.series import ExogenousSeries
+from scenarios.plants.boptest import (
+    BoptestPlant,
+    BoptestRun,
+    BoptestSettings,
+    SignalScaling,
+    boptest_settings_from_dict,
+    read_boptest_file,
+)
+from scenarios.plants.boptest_client import (
+    BoptestClient,
+    BoptestError,
+    BoptestTest,
+    BoptestTestEnded,
+    BoptestUnreachable,
+)
+from scenarios.running.engine import ClosedLoop
+from scenarios.running.kpis import compute_kpis
+
+ROOT = Path(__file__).resolve().parents[1]
+SCENARIO = ROOT / "scenarios" / "plants" / "boptest_hydronic_heat_pump.toml"
+TESTCASE = "bestest_hydronic_heat_pump"
+#: The session server's idle timeout [s] (a test with no call this long ends).
+IDLE_TIMEOUT_S = 25.0
+
+
+def _serve_script() -> Path | None:
+    for parent in ROOT.parents:
+        script = parent / "shared" / "boptest" / "serve.py"
+        if script.is_file():
+            return script
+    return None
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+class Server:
+    """The session's BOPTEST: ``url``, and whether this session started it (its idle timeout
+    is then :data:`IDLE_TIMEOUT_S`)."""
+
+    def __init__(self, url: str, started: bool) -> None:
+        self.url, self.started = url, started
+
+
+@pytest.fixture(scope="session")
+def server() -> Iterator[Server]:
+    url = os.environ.get("BOPTEST_URL")
+    if url:
+        yield Server(url, started=False)
+        return
+    script = _serve_script()
+    if script is None:
+        pytest.skip("no BOPTEST server: neither shared/boptest/serve.py beside the checkout nor $BOPTEST_URL")
+    port = _free_port()
+    proc = subprocess.Popen(
+        [sys.executable, str(script), "--port", str(port), "--max-tests", "3",
+         "--timeout", str(IDLE_TIMEOUT_S)],
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+    )
+    lines: list[str] = []
+    ready = threading.Event()
+
+    def read() -> None:  # the first start builds the server's environment (about a minute)
+        assert proc.stdout is not None
+        for line in proc.stdout:
+            lines.append(line)
+            if line.startswith("serving BOPTEST"):
+                ready.set()
+
+    threading.Thread(target=read, daemon=True).start()
+    try:
+        if not ready.wait(600) or proc.poll() is not None:
+            raise RuntimeError(f"the BOPTEST server did not start: {''.join(lines)[-2000:]}")
+        yield Server(f"http://127.0.0.1:{port}", started=True)
+    finally:
+        proc.send_signal(signal.SIGTERM)
+        try:
+            proc.wait(60)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+
+
+@pytest.fixture(scope="session")
+def settings(server: Server) -> BoptestSettings:
+    points = read_boptest_file(str(SCENARIO)).points
+    return BoptestSettings(points=points, url=server.url)
+
+
+class Constant:
+    """A controller that asks for the same electrical power every interval."""
+
+    name = "constant"
+
+    def __init__(self, u_w: float) -> None:
+        self.u_w = u_w
+
+    @property
+    def last_plan(self) -> np.ndarray | None:
+        return None
+
+    @property
+    def last_stats(self) -> SolveStats:
+        return SolveStats(time_s=0.0, status="constant", iterations=0, fallback=False)
+
+    def reset(self, seed: int | None = None) -> None:
+        """Nothing to reset."""
+
+    def act(self, obs: Observation, forecast: Forecast) -> float:
+        return self.u_w
+
+
+# --- without a server --------------------------------------------------------------------------
+
+
+def test_no_server_is_one_line_naming_the_url_and_the_fix() -> None:
+    url = f"http://127.0.0.1:{_free_port()}"
+    with pytest.raises(BoptestUnreachable) as caught:
+        BoptestClient(url, timeout_s=5).version()
+    message = str(caught.value)
+    assert "\n" not in message and url in message
+    assert "serve.py --port 8000" in message and "BOPTEST_URL" in message
+    assert isinstance(caught.value, InputError)  # the CLI's one line and exit 2
+    points = read_boptest_file(str(SCENARIO)).points
+    with pytest.raises(BoptestUnreachable, match="no BOPTEST server answers at http://127.0.0.1"):
+        BoptestPlant(BoptestSettings(points=points, url=url), BoptestRun(days=1))
+
+
+def test_server_url_comes_from_the_environment(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.delenv("BOPTEST_URL", raising=False)
+    assert BoptestClient().url == "http://127.0.0.1:8000"
+    monkeypatch.setenv("BOPTEST_URL", "http://example.invalid:5000/")
+    assert BoptestClient().url == "http://example.invalid:5000"
+    assert BoptestClient("http://10.0.0.1:80").url == "http://10.0.0.1:80"
+    with pytest.raises(InputError, match="not an http"):
+        BoptestClient("localhost:8000")
+
+
+def test_signal_scaling_follows_the_curve_and_switches_off_below_half_the_lowest_power() -> None:
+    scaling = SignalScaling(signal=(0.1, 1.0), power_w=(1000.0, 3000.0))
+    assert scaling.to_signal(2000.0) == pytest.approx(0.55)
+    assert scaling.to_signal(9000.0) == 1.0  # clipped to the last knot
+    assert scaling.to_signal(600.0) == 0.1 and scaling.to_signal(400.0) == 0.0
+    for u in (1000.0, 1700.0, 3000.0):
+        assert scaling.to_power_w(scaling.to_signal(u)) == pytest.approx(u)
+    assert scaling.max_power_w == 3000.0 and scaling.to_power_w(0.0) == 0.0
+    with pytest.raises(InputError, match="increase strictly"):
+        SignalScaling(signal=(0.5, 0.2), power_w=(1.0, 2.0))
+    with pytest.raises(InputError, match="same number"):
+        SignalScaling(signal=(0.1, 1.0), power_w=(1.0,))
+
+
+def test_scenario_file_is_checked_key_by_key(tmp_path: Path) -> None:
+    import tomllib
+
+    data = tomllib.loads(SCENARIO.read_text())["boptest"]
+    settings = boptest_settings_from_dict(data)
+    assert settings.points.consumed_power == ("reaPHeaPum_y", "reaPFan_y", "reaPPumEmi_y")
+    assert settings.points.scaling.max_power_w == 3715.0
+    bad = {**data, "points": {**data["points"], "room_temp": "x"}}
+    with pytest.raises(InputError, match=r"boptest.points: unknown key\(s\) \['room_temp'\]"):
+        boptest_settings_from_dict(bad)
+    no_price = {**data, "prices": {"constant": "PriceElectricPowerConstant"}}
+    with pytest.raises(InputError, match="a forecast point for each price scenario"):
+        boptest_settings_from_dict(no_price)
+    broken = tmp_path / "broken.toml"
+    broken.write_text("[boptest\n")
+    with pytest.raises(InputError, match="not valid TOML"):
+        read_boptest_file(str(broken))
+
+
+def test_runs_are_checked_and_data_days_stay_off_the_test_periods() -> None:
+    points = read_boptest_file(str(SCENARIO)).points
+    with pytest.raises(InputError, match="price scenario 'spot'"):
+        BoptestRun(price_scenario="spot")
+    with pytest.raises(InputError, match="not both"):
+        BoptestRun(time_period="peak_heat_day", first_day=40)
+    with pytest.raises(InputError, match="at most 14"):
+        BoptestRun(days=15)
+    assert points.period_days("peak_heat_day") == (16.0, 30.0)
+    assert points.period_days("typical_heat_day") == (108.0, 122.0)
+    points.check_disjoint(30.0, 71.0)  # days 30-101: between the periods and their warm-ups
+    points.check_disjoint(0.0, 9.0)
+    with pytest.raises(InputError, match="overlap BOPTEST's test period peak_heat_day"):
+        points.check_disjoint(25.0, 10.0)
+    with pytest.raises(InputError, match="typical_heat_day with its warm-up \\(days 101-122\\)"):
+        points.check_disjoint(95.0, 7.0)
+    with pytest.raises(InputError, match="test period 'cold_day' is not one of"):
+        points.period_days("cold_day")
+
+
+# --- the client against the server's routes ----------------------------------------------------
+
+
+def test_client_routes_on_the_server(settings: BoptestSettings) -> None:
+    points = settings.points
+    client = BoptestClient(settings.url)
+    assert client.version()
+    assert TESTCASE in client.testcases()
+    with client.select(TESTCASE) as test:
+        assert test.name() == TESTCASE
+        inputs, measurements = test.inputs(), test.measurements()
+        assert {points.actuator, points.activate} <= inputs.keys()
+        assert inputs[points.actuator]["Minimum"] == 0 and inputs[points.actuator]["Maximum"] == 1
+        assert {points.room_temperature, *points.consumed_power} <= measurements.keys()
+        assert measurements[points.room_temperature]["Unit"] == "K"
+        assert {points.comfort_lower, *points.prices.values()} <= test.forecast_points().keys()
+        # the scenario: BOPTEST starts the test period 7 days before its day, after a warm-up
+        start = test.set_scenario(time_period="peak_heat_day", electricity_price="dynamic")
+        assert start["time_period"]["time"] == (23 - 7) * 86400.0
+        assert start["electricity_price"] == "dynamic"
+        assert test.scenario()["time_period"] == "peak_heat_day"
+        test.set_step(900.0)
+        assert test.step_s() == 900.0
+        fc = test.forecast(["TDryBul", "LowerSetp[1]"], horizon_s=3600.0, interval_s=900.0)
+        assert list(fc["time"]) == [16 * 86400.0 + i * 900.0 for i in range(5)]
+        assert np.all((fc["TDryBul"] > 243.15) & (fc["TDryBul"] < 303.15))
+        state = test.advance({points.actuator: 0.5, points.activate: 1})
+        assert state["time"] == 16 * 86400.0 + 900.0
+        assert state[points.actuator] == 0.5  # the input as applied
+        res = test.results([points.room_temperature], start_time_s=16 * 86400.0, final_time_s=state["time"])
+        assert res[points.room_temperature][-1] == pytest.approx(state[points.room_temperature])
+        kpi = test.kpi()
+        assert {"tdis_tot", "ener_tot", "cost_tot", "emis_tot", "time_rat"} <= kpi.keys()
+        assert kpi["ener_tot"] is not None and kpi["ener_tot"] > 0
+        # an error reply carries BOPTEST's message
+        with pytest.raises(BoptestError, match=r"status 400\): Unexpected input variable: oveNope_u"):
+            test.advance({"oveNope_u": 1.0})
+        with pytest.raises(BoptestError, match=r"Invalid point name\(s\) \['Nope'\]"):
+            test.forecast(["Nope"], horizon_s=3600.0, interval_s=900.0)
+        testid = test.testid
+    # leaving the block stopped the test on the server
+    assert test.stopped
+    with pytest.raises(BoptestTestEnded, match="was stopped"):
+        test.kpi()
+    with pytest.raises(BoptestTestEnded, match=f"test {testid} is no longer on the server"):
+        client.call("GET", f"kpi/{testid}", testid=testid)
+
+
+@pytest.mark.slow
+def test_a_test_the_server_ended_is_reported_as_such(server: Server) -> None:
+    if not server.started:
+        pytest.skip("the server at $BOPTEST_URL has its own idle timeout (BOPTEST's is 15 min)")
+    client = BoptestClient(server.url)
+    test = client.select(TESTCASE)
+    time.sleep(IDLE_TIMEOUT_S + 3.0)
+    with pytest.raises(BoptestTestEnded, match="idle timeout"):
+        test.step_s()
+    test.stop()  # nothing left to stop: no error
+    assert client.call("GET", f"status/{test.testid}") == "Stopped"
+
+
+def test_plant_refuses_points_the_test_case_lacks_and_stops_its_test(
+    settings: BoptestSettings, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import dataclasses
+
+    selected: list[BoptestTest] = []
+    select = BoptestClient.select
+
+    def recording_select(self: BoptestClient, testcase: str) -> BoptestTest:
+        selected.append(select(self, testcase))
+        return selected[-1]
+
+    monkeypatch.setattr(BoptestClient, "select", recording_select)
+    points = dataclasses.replace(settings.points, room_temperature="reaTRoom_y")
+    with pytest.raises(InputError, match="has no measurement reaTRoom_y"):
+        BoptestPlant(dataclasses.replace(settings, points=points), BoptestRun(days=1))
+    assert len(selected) == 1 and selected[0].stopped
+    status = BoptestClient(settings.url).call("GET", f"status/{selected[0].testid}")
+    assert status == "Stopped"
+
+
+# --- the plant in the closed loop --------------------------------------------------------------
+
+
+@pytest.mark.slow
+def test_a_day_at_a_constant_power_through_the_loop_matches_boptest(settings: BoptestSettings) -> None:
+    run = BoptestRun(time_period="peak_heat_day", days=1.0, price_scenario="dynamic", dt_s=1800.0)
+    u_w = 2500.0
+    with BoptestPlant(settings, run) as plant:
+        frame = plant.exogenous_frame()
+        assert len(frame) == 48 and str(frame["time"].iloc[0]) == "2018-01-17 00:00:00"
+        assert frame["T_min"].min() == pytest.approx(15.0) and frame["T_min"].max() == pytest.approx(21.0)
+        u_max = settings.points.scaling.max_power_w
+        config = SimConfig(u_max_w=u_max, dt_s=run.dt_s)
+        spec = ControlSpec(u_max_w=u_max, dt_s=run.dt_s)
+        t_r0 = float(plant.measure()[0])
+        with ClosedLoop(
+            config, ExogenousSeries.from_frame(frame), spec=spec, initial_t_r_c=t_r0,
+            initial_t_m_c=t_r0, plant=plant,
+        ) as loop:
+            for _ in range(run.n_intervals):
+                loop.advance(Constant(u_w))
+            record = loop.record()
+            kpis = plant.kpis()
+            history = plant.history()
+            # the plant's room temperature is the server's own measurement
+            end = plant.test.results(
+                [settings.points.room_temperature], start_time_s=16 * 86400.0, final_time_s=17 * 86400.0
+            )
+            assert loop.measure() == pytest.approx(end[settings.points.room_temperature][-1] - 273.15, abs=1e-9)
+            assert record.t_r_c[0] == pytest.approx(t_r0)
+        assert plant.test.stopped  # closing the loop stopped the test
+    # physically plausible: a mild January night-and-day in a heated house
+    assert np.all((record.t_r_sub_c > 15.0) & (record.t_r_sub_c < 30.0))
+    assert np.all(np.abs(np.diff(record.t_r_sub_c.ravel())) < 0.2)  # per 30 s
+    assert np.all((record.t_a_c > -15.0) & (record.t_a_c < 15.0))
+    # the curve maps watts to the signal: the heat pump draws the power asked within 3 %
+    assert np.all(np.abs(record.u_phys_w / u_w - 1.0) < 0.03)
+    cop = history["heat_w"] / history["u_phys"]
+    assert np.all((cop > 1.5) & (cop < 5.0))  # heat delivered per electrical watt
+    # the package's KPIs of the loop are BOPTEST's (per m2 of floor)
+    area = settings.points.floor_area_m2
+    ours = compute_kpis(
+        u_phys_w=record.u_phys_w, price_eur_per_kwh=frame["price"].to_numpy(),
+        t_r_sub_c=record.t_r_sub_c, t_min_c=frame["T_min"].to_numpy(), t_max_c=frame["T_max"].to_numpy(),
+        decision_s=record.decision_s, overridden=record.overridden, fallback=record.fallback,
+        dt_s=run.dt_s, comfort_weight_eur_per_kh=1.0,
+    )
+    assert kpis["ener_tot"] is not None and kpis["cost_tot"] is not None and kpis["tdis_tot"] is not None
+    assert ours["energy_kwh"] / area == pytest.approx(kpis["ener_tot"], rel=1e-4)
+    assert ours["cost_eur"] / area == pytest.approx(kpis["cost_tot"], rel=1e-3)
+    assert ours["discomfort_kh"] == pytest.approx(kpis["tdis_tot"], rel=0.02, abs=0.01)
+
+
+@pytest.mark.slow
+def test_baseline_kpis_of_a_short_run(settings: BoptestSettings) -> None:
+    run = BoptestRun(time_period="peak_heat_day", days=1.0, price_scenario="highly_dynamic", dt_s=3600.0)
+    with BoptestPlant(settings, run, baseline=True) as plant:
+        frame = plant.exogenous_frame()
+        # half the intervals as the loop steps a baseline plant (the demand ignored), half directly
+        steps = [plant.step(0.0, k) if k % 2 else plant.step_baseline(k) for k in range(run.n_intervals)]
+        kpis = plant.kpis()
+        history = plant.history()
+    # no input overwritten: the test case's own controller modulated the heat pump
+    assert history["signal_mean"].max() > 0.05 and history["signal_mean"].std() > 0.01
+    assert not any(bool(s.result.overridden[0]) for s in steps)
+    u_phys = np.array([s.result.u_phys_w[0] for s in steps])
+    sub = np.vstack([s.result.t_r_sub_c for s in steps])
+    area = settings.points.floor_area_m2
+    energy = float(np.sum(u_phys) * run.dt_s / 3.6e6)
+    assert energy / area == pytest.approx(kpis["ener_tot"], rel=1e-4)
+    price = frame["price"].to_numpy()
+    assert float(np.sum(price * u_phys) * run.dt_s / 3.6e6) / area == pytest.approx(kpis["cost_tot"], rel=1e-3)
+    low = np.maximum(frame["T_min"].to_numpy()[:, None] - sub, 0.0)
+    high = np.maximum(sub - frame["T_max"].to_numpy()[:, None], 0.0)
+    tdis = float(np.sum(low + high) * run.dt_s / sub.shape[1] / 3600.0)
+    assert tdis == pytest.approx(kpis["tdis_tot"], rel=0.02, abs=0.01)
+    assert kpis["time_rat"] is not None and math.isfinite(kpis["time_rat"])
+
+
+def test_builtin_scenario_by_name() -> None:
+    from scenarios.plants.boptest import BUILTIN_BOPTEST, builtin_boptest
+
+    assert builtin_boptest("boptest_hydronic_heat_pump").points.testcase == TESTCASE
+    with pytest.raises(InputError, match="no built-in BOPTEST scenario 'bestest'"):
+        builtin_boptest("bestest")
+    assert all(path.is_file() for path in BUILTIN_BOPTEST.values())
+
+
+@pytest.mark.slow
+def test_training_data_from_the_emulator_stays_off_the_test_periods(settings: BoptestSettings) -> None:
+    from scenarios.plants.boptest import record_data
+
+    with pytest.raises(InputError, match="overlap BOPTEST's test period peak_heat_day"):
+        record_data(settings, BoptestRun(time_period=None, first_day=20.0, days=1.0), lambda k, t, row: 0.0)
+    with pytest.raises(InputError, match="never on a test period"):
+        record_data(settings, BoptestRun(days=1.0), lambda k, t, row: 0.0)
+    rng = np.random.default_rng(0)
+    levels = rng.uniform(0.0, settings.points.scaling.max_power_w, size=24)
+    run = BoptestRun(time_period=None, first_day=40.0, days=0.5, warmup_days=1.0, dt_s=1800.0)
+    data = record_data(settings, run, lambda k, t, row: float(levels[k]))
+    assert len(data) == 24 and str(data["time"].iloc[0]) == "2018-02-10 00:00:00"
+    assert list(data.columns[:4]) == ["time", "T_r", "u", "u_phys"]
+    off = data["u"] < 0.5 * settings.points.scaling.min_power_w
+    # below half the lowest power: off (the 30-s samples of BOPTEST's trajectory, which its
+    # energy KPI integrates too, carry the last interval's power into the first 15 s)
+    assert np.all(data.loc[off, "u_phys"] < 0.02 * settings.points.scaling.min_power_w)
+    on = data["u"] >= settings.points.scaling.min_power_w
+    assert np.all(np.abs(data.loc[on, "u_phys"] / data.loc[on, "u"] - 1.0) < 0.06)
+    assert np.all((data["T_r"] > 10.0) & (data["T_r"] < 30.0))
+
+
+class Interrupted(Constant):
+    """A controller whose third decision is interrupted, as Ctrl-C would."""
+
+    def __init__(self) -> None:
+        super().__init__(2000.0)
+        self.calls = 0
+
+    def act(self, obs: Observation, forecast: Forecast) -> float:
+        self.calls += 1
+        if self.calls == 3:
+            raise KeyboardInterrupt
+        return self.u_w
+
+
+def test_ctrl_c_in_the_loop_stops_the_test_on_the_server(settings: BoptestSettings) -> None:
+    # a period of its own with no warm-up: the cheapest start
+    run = BoptestRun(time_period=None, first_day=45.0, days=0.25, warmup_days=0.0, dt_s=1800.0)
+    u_max = settings.points.scaling.max_power_w
+    plant = BoptestPlant(settings, run)
+    frame = plant.exogenous_frame()
+    t_r0 = float(plant.measure()[0])
+    controller = Interrupted()
+    with pytest.raises(KeyboardInterrupt):
+        with ClosedLoop(
+            SimConfig(u_max_w=u_max, dt_s=run.dt_s), ExogenousSeries.from_frame(frame),
+            spec=ControlSpec(u_max_w=u_max, dt_s=run.dt_s), initial_t_r_c=t_r0,
+            initial_t_m_c=t_r0, plant=plant,
+        ) as loop:
+            for _ in range(run.n_intervals):
+                loop.advance(controller)
+    assert controller.calls == 3 and loop.k == 2
+    assert plant.test.stopped
+    status = BoptestClient(settings.url).call("GET", f"status/{plant.test.testid}")
+    assert status == "Stopped"
