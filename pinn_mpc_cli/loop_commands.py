@@ -34,8 +34,8 @@ __all__ = ["closed_loop", "simulate"]
 def simulate(a: argparse.Namespace) -> str:
     """Generate data and write it atomically to ``--out`` (never onto a file the scenario
     reads); a run that would not fit in memory is refused before it starts."""
-    from scenarios.running.budget import check_simulate_memory
     from scenarios.running.boptest_loop import is_boptest_scenario
+    from scenarios.running.budget import check_simulate_memory
 
     if is_boptest_scenario(a.scenario):
         return _boptest_simulate(a)
@@ -368,7 +368,12 @@ def _boptest_closed_loop(a: argparse.Namespace, outputs: dict[str, str | None]) 
     """``closed-loop`` on a BOPTEST scenario: one test period on the server; the KPI JSON
     carries BOPTEST's KPIs under ``boptest``."""
     from scenarios.plants.boptest import BoptestRun
-    from scenarios.running.boptest_loop import BASELINE, boptest_scenario, run_boptest_closed_loop
+    from scenarios.running.boptest_loop import (
+        BASELINE,
+        boptest_controller,
+        boptest_scenario,
+        run_boptest_closed_loop,
+    )
 
     for option, given in (("--buildings", a.buildings != 1), ("--spread", a.spread is not None),
                           ("--batched", a.batched), ("--cap-kw", a.cap_kw is not None),
@@ -386,16 +391,12 @@ def _boptest_closed_loop(a: argparse.Namespace, outputs: dict[str, str | None]) 
         time_period=a.test_period or "peak_heat_day", days=float(a.days),
         price_scenario=a.price_scenario or "dynamic", dt_s=1800.0,
     )
-    controller = None
-    if a.controller == BASELINE:
-        if a.model is not None or a.rc is not None:
-            raise InputError(f"{BASELINE} is the test case's own controller: it takes no --model or --rc")
-    else:
+    if a.controller != BASELINE:
         _check_controller_inputs(a)
-        controller = make_controller(
-            a.controller, chosen.scenario(run.dt_s), model_dir=a.model, rc_path=a.rc,
-            n_steps=run.n_intervals,
-        )
+    controller = boptest_controller(
+        a.controller, chosen, dt_s=run.dt_s, model_dir=a.model, rc_path=a.rc,
+        n_steps=run.n_intervals,
+    )
     threads = one_torch_thread() if a.controller in MODEL_CONTROLLERS else contextlib.nullcontext()
     with threads:
         result = run_boptest_closed_loop(chosen, a.controller, controller, run=run, progress=True)
@@ -406,7 +407,7 @@ def _boptest_closed_loop(a: argparse.Namespace, outputs: dict[str, str | None]) 
 
         plot_trajectory(result.trajectory, a.plot, title=f"{a.controller} on {chosen.name}")
     atomic_write_json(a.json, result.kpis)
-    b = result.kpis["boptest"]  # type: ignore[typeddict-item]
+    b = result.kpis.get("boptest", {})
     lines = [
         format_kpis({**result.kpis, "scenario": chosen.name}),
         f"BOPTEST ({run.time_period}, {run.price_scenario} price): " + ", ".join(

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -29,8 +30,10 @@ import pandas as pd
 
 from controllers.base import Controller
 from controllers.thermostat import Thermostat
-from pinn_mpc.errors import InputError
+from pinn_mpc.errors import InputError, PinnMpcWarning
+from pinn_mpc.records import TrustReport
 from scenarios.choices import POLICIES
+from scenarios.inputs.exogenous import day_span
 from scenarios.inputs.registry import Scenario, builtin_scenario, check_seed
 from scenarios.inputs.series import ExogenousSeries
 from scenarios.plants.boptest import (
@@ -57,6 +60,7 @@ __all__ = [
     "BASELINE",
     "DATA_FIRST_DAY",
     "BoptestScenario",
+    "boptest_controller",
     "boptest_data",
     "boptest_scenario",
     "is_boptest_scenario",
@@ -131,6 +135,33 @@ def boptest_scenario(name_or_path: str, *, url: str | None = None) -> BoptestSce
     return BoptestScenario(name=name, settings=settings, path=path)
 
 
+def boptest_controller(
+    name: str,
+    chosen: BoptestScenario,
+    *,
+    dt_s: float,
+    model_dir: str | os.PathLike[str] | None,
+    rc_path: str | os.PathLike[str] | None,
+    n_steps: int,
+) -> Controller | None:
+    """The controller ``name`` on ``chosen`` (:func:`scenarios.running.factory.make_controller`
+    on :meth:`BoptestScenario.scenario`); None for :data:`BASELINE`. The notes comparing a
+    model's or RC's time constants with the scenario's building do not apply (the test case
+    has no RC parameters) and are left out; the refusals (another actuator, a larger one)
+    stand."""
+    if name == BASELINE:
+        if model_dir is not None or rc_path is not None:
+            raise InputError(f"{BASELINE} is the test case's own controller: it takes no --model or --rc")
+        return None
+    from scenarios.running.factory import make_controller
+
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message=".*is it the same building", category=PinnMpcWarning)
+        return make_controller(
+            name, chosen.scenario(dt_s), model_dir=model_dir, rc_path=rc_path, n_steps=n_steps
+        )
+
+
 def run_boptest_closed_loop(
     chosen: BoptestScenario,
     controller_name: str,
@@ -172,24 +203,23 @@ def run_boptest_closed_loop(
     trajectory = run_trajectory(scenario, inputs, rec).drop(columns="T_m")
     if baseline:  # the test case's own controller decided; the demand column is not its
         trajectory["u"] = np.nan
-    first, last = frame["time"].iloc[0], frame["time"].iloc[n - 1]
     kpis: RunKpis = {
         **counted_kpis(scenario, inputs, rec),
         "controller": controller_name,
         "scenario": chosen.name,
-        "days": run.days,
+        "days": int(round(run.days)),
         "seed": 0,
         "weather_part": "test",
-        "counted_days": (str(first.date()), str(last.date())),
-        "weather_days": (str(first.date()), str(frame["time"].iloc[-1].date())),
+        "counted_days": day_span(trajectory["time"]),
+        "weather_days": day_span(frame["time"]),  # forecast lead included
+        "boptest": boptest,
+        "boptest_testcase": chosen.settings.points.testcase,
+        "test_period": run.time_period,
+        "price_scenario": run.price_scenario,
     }
-    kpis.update({  # type: ignore[typeddict-unknown-key]
-        "boptest": boptest, "boptest_testcase": chosen.settings.points.testcase,
-        "test_period": run.time_period, "price_scenario": run.price_scenario,
-    })
-    report = getattr(controller, "trust_report", None)
-    if isinstance(report, dict):
-        kpis.update(report)  # type: ignore[typeddict-item]
+    report: TrustReport | None = getattr(controller, "trust_report", None)
+    if isinstance(report, dict):  # a planner over a learned model: how often it fell back
+        kpis.update(report)
     return ClosedLoopResult(trajectory=trajectory, kpis=kpis, errors=tuple(errors))
 
 
