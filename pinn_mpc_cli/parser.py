@@ -420,6 +420,7 @@ def add_compare(sub: Commands) -> None:
         help="markdown report to write; its figure goes next to it with the suffix .png",
     )
     p.add_argument("--quick", action="store_true", help="small ensembles and short runs (minutes)")
+    _boptest_options(p)
     p.add_argument(
         "--policy",
         choices=RANDOM_POLICIES,

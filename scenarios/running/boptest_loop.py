@@ -59,12 +59,16 @@ from scenarios.running.engine import ClosedLoop
 __all__ = [
     "BASELINE",
     "DATA_FIRST_DAY",
+    "COMPARED_KPIS",
+    "BoptestComparison",
     "BoptestScenario",
     "boptest_controller",
     "boptest_data",
     "boptest_scenario",
+    "boptest_report",
     "is_boptest_scenario",
     "run_boptest_closed_loop",
+    "run_boptest_comparison",
 ]
 
 #: The controller name of BOPTEST's baseline: the test case's own controller.
@@ -279,3 +283,117 @@ def boptest_data(
         return spec.u_max_w if on[0] else 0.0
 
     return record_data(chosen.settings, run, demand)
+
+
+#: BOPTEST's KPIs a comparison shows: (key in ``/kpi``, column heading).
+COMPARED_KPIS = (
+    ("tdis_tot", "tdis K h/zone"),
+    ("ener_tot", "energy kWh/m2"),
+    ("cost_tot", "cost EUR/m2"),
+    ("emis_tot", "emissions kg/m2"),
+    ("time_rat", "time ratio"),
+)
+
+
+@dataclass(frozen=True, kw_only=True)
+class BoptestComparison:
+    """A comparison on one BOPTEST test: ``rows`` (one KPI dict of
+    :func:`run_boptest_closed_loop` per controller, with ``wall_s_per_day``, the wall time
+    per simulated day through the API), the ``rc`` identified from the training data
+    (:func:`pinn_mpc.physics.rc_summary`), the ``model`` the default ``train`` chose, the
+    training data's ``data_days`` and the ``wall_time_s`` of each stage."""
+
+    rows: list[RunKpis]
+    rc: dict[str, float]
+    model: str
+    data_days: list[str]
+    wall_time_s: dict[str, float]
+
+
+def run_boptest_comparison(
+    chosen: BoptestScenario,
+    *,
+    train_days: int,
+    days: int,
+    seed: int,
+    run: BoptestRun,
+    policy: str = "closed-loop",
+    progress: bool = False,
+) -> BoptestComparison:
+    """Training data from the emulator (:func:`boptest_data`, ``train_days`` days), the RC
+    identified from it, the default model ``train`` would choose on it
+    (:func:`pinn_mpc.model_choice.choose_model`), then ``boptest-baseline``, the thermostat,
+    ``qp-mpc`` on the identified RC and ``cem`` over the model on the test ``run``."""
+    import time
+
+    from controllers.sampling import CEM
+    from pinn_mpc.identify import identify_rc
+    from pinn_mpc.model_choice import choose_model
+    from pinn_mpc.physics import rc_summary
+    from pinn_mpc.training import TrainConfig
+    from scenarios.running.closed_loop import one_torch_thread
+    from scenarios.running.factory import build_controller, model_guard
+
+    wall: dict[str, float] = {}
+    start = time.perf_counter()
+    data = boptest_data(chosen, days=train_days, seed=seed, policy=policy, dt_s=run.dt_s)
+    wall["training data"] = time.perf_counter() - start
+    start = time.perf_counter()
+    rc = identify_rc(data, eta=1.0).params
+    wall["identify RC"] = time.perf_counter() - start
+    start = time.perf_counter()
+    with one_torch_thread():
+        choice = choose_model(data, TrainConfig(first_seed=seed), progress=progress)
+    wall["train"] = time.perf_counter() - start
+    scenario = chosen.scenario(run.dt_s)
+    spec = scenario.control_spec()
+    plan: list[tuple[str, Controller | None]] = [
+        (BASELINE, None),
+        ("thermostat", Thermostat(spec)),
+        ("qp-mpc", build_controller("qp-mpc", scenario, rc_params=rc, n_steps=run.n_intervals)),
+        ("cem", CEM(choice.model, spec, guard=model_guard(choice.model))),
+    ]
+    test_run = dataclasses.replace(run, days=float(days))
+    rows: list[RunKpis] = []
+    for name, controller in plan:
+        start = time.perf_counter()
+        with one_torch_thread():
+            result = run_boptest_closed_loop(chosen, name, controller, run=test_run, progress=progress)
+        wall[name] = time.perf_counter() - start
+        kpis = result.kpis
+        kpis["wall_s_per_day"] = wall[name] / days  # type: ignore[typeddict-unknown-key]
+        rows.append(kpis)
+    return BoptestComparison(
+        rows=rows, rc=dict(rc_summary(rc, source="identify (training data)")),  # type: ignore[arg-type]
+        model=choice.chosen, data_days=day_span(data["time"]), wall_time_s=wall,
+    )
+
+
+def boptest_report(comparison: BoptestComparison, *, scenario: str, run: BoptestRun, days: int) -> str:
+    """The markdown report of :func:`run_boptest_comparison`: BOPTEST's KPIs per controller,
+    the share of its own decisions, the wall time per simulated day and the decision times."""
+    heads = [h for _, h in COMPARED_KPIS]
+    lines = [
+        f"# {scenario} on BOPTEST: {run.time_period}, {run.price_scenario} price",
+        "",
+        f"{days} day(s) of the test period at {run.dt_s:g} s; training data "
+        f"{comparison.data_days[0]}..{comparison.data_days[1]}; cem over the default model "
+        f"({comparison.model}); qp-mpc on the RC identified from the same data. BOPTEST's own "
+        "KPIs (per m2 of floor, per zone).",
+        "",
+        "| controller | " + " | ".join(heads) + " | own decisions | wall s / day | decision ms (median / p95) |",
+        "|---" * (len(heads) + 4) + "|",
+    ]
+    for row in comparison.rows:
+        b = row.get("boptest", {})
+        values = [f"{b[k]:.4g}" if isinstance(b.get(k), float | int) else "-" for k, _ in COMPARED_KPIS]
+        extra = dict(row)
+        lines.append(
+            f"| {row['controller']} | " + " | ".join(values)
+            + f" | {100 * row['own_decisions_share']:.0f} % | {extra.get('wall_s_per_day', float('nan')):.1f}"
+            + f" | {row['decision_ms_median']:.1f} / {row['decision_ms_p95']:.1f} |"
+        )
+    lines += ["", "Wall time per stage: " + ", ".join(
+        f"{stage} {sec:.0f} s" for stage, sec in comparison.wall_time_s.items()
+    ), ""]
+    return "\n".join(lines)
