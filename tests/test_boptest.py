@@ -524,3 +524,18 @@ def test_cli_closed_loops_on_boptest_with_its_kpis(
         results[name] = b
     # the MPC on the identified RC keeps the band better than the thermostat's switching
     assert results["qp-mpc"]["tdis_tot"] < results["thermostat"]["tdis_tot"]
+
+
+def test_cli_compare_options_on_and_off_boptest(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    from pinn_mpc_cli.cli import main
+
+    out = ["--json", str(tmp_path / "t.json"), "--report", str(tmp_path / "r.md")]
+    assert main(["compare", "--scenario", "boptest_hydronic_heat_pump", "--days", "15", *out]) == 2
+    assert "14 days" in capsys.readouterr().err
+    assert main(["compare", "--scenario", "boptest_hydronic_heat_pump", "--quick", *out]) == 2
+    assert "--quick does not apply" in capsys.readouterr().err
+    assert main(["compare", "--scenario", "paper_household", "--price-scenario", "dynamic", *out]) == 2
+    assert "BOPTEST scenarios" in capsys.readouterr().err
+    assert not list(tmp_path.iterdir())
