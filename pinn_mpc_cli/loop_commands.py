@@ -411,10 +411,15 @@ def _boptest_closed_loop(a: argparse.Namespace, outputs: dict[str, str | None]) 
     lines = [
         format_kpis({**result.kpis, "scenario": chosen.name}),
         f"BOPTEST ({run.time_period}, {run.price_scenario} price): " + ", ".join(
-            f"{key} {b.get(key)!s:.8}" for key in ("tdis_tot", "ener_tot", "cost_tot", "emis_tot", "time_rat")
+            f"{key} {_number_text(b.get(key))}" for key in ("tdis_tot", "ener_tot", "cost_tot", "emis_tot", "time_rat")
         ),
     ]
     if result.errors:
         lines.append(f"{len(result.errors)} controller error(s), first: {result.errors[0]}")
     written = [str(p) for p in (a.json, a.csv, a.plot) if p is not None]
     return "\n".join([*lines, f"wrote {', '.join(written)}"])
+
+
+def _number_text(value: object) -> str:
+    """A KPI as the summary shows it: four significant digits, or ``-`` where BOPTEST gave none."""
+    return f"{value:.4g}" if isinstance(value, int | float) else "-"
