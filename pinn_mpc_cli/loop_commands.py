@@ -399,7 +399,9 @@ def _boptest_closed_loop(a: argparse.Namespace, outputs: dict[str, str | None]) 
     )
     threads = one_torch_thread() if a.controller in MODEL_CONTROLLERS else contextlib.nullcontext()
     with threads:
-        result = run_boptest_closed_loop(chosen, a.controller, controller, run=run, progress=True)
+        result = run_boptest_closed_loop(
+            chosen, a.controller, controller, run=run, seed=a.seed, progress=True
+        )
     if a.csv is not None:
         write_timeseries(result.trajectory, a.csv)
     if a.plot is not None:

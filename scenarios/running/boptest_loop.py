@@ -183,9 +183,11 @@ def run_boptest_closed_loop(
     controller: Controller | None,
     *,
     run: BoptestRun,
+    seed: int = 0,
     progress: bool = False,
 ) -> ClosedLoopResult:
-    """Run ``controller`` (None for :data:`BASELINE`) over ``run`` on the BOPTEST server.
+    """Run ``controller`` (None for :data:`BASELINE`; reset with ``seed``, which fixes a
+    sampling planner's draws) over ``run`` on the BOPTEST server.
 
     The test is stopped on the server however the run ends (an error reply or Ctrl-C
     included); nothing is returned from a run that did not finish. The KPIs are the
@@ -198,7 +200,8 @@ def run_boptest_closed_loop(
     scenario = chosen.scenario(run.dt_s)
     spec = scenario.control_spec()
     acting = Thermostat(spec) if controller is None else controller
-    acting.reset(0)
+    check_seed(seed)
+    acting.reset(seed)
     n = run.n_intervals
     with BoptestPlant(chosen.settings, run, baseline=baseline, lead_intervals=scenario.horizon_steps) as plant:
         frame = plant.exogenous_frame()
@@ -223,7 +226,7 @@ def run_boptest_closed_loop(
         "controller": controller_name,
         "scenario": chosen.name,
         "days": int(round(run.days)),
-        "seed": 0,
+        "seed": seed,
         "weather_part": "test",
         "counted_days": day_span(trajectory["time"]),
         "weather_days": day_span(frame["time"]),  # forecast lead included
@@ -358,7 +361,9 @@ def run_boptest_comparison(
     for name, controller in plan:
         start = time.perf_counter()
         with one_torch_thread():
-            result = run_boptest_closed_loop(chosen, name, controller, run=test_run, progress=progress)
+            result = run_boptest_closed_loop(
+                chosen, name, controller, run=test_run, seed=seed, progress=progress
+            )
         wall[name] = time.perf_counter() - start
         kpis = result.kpis
         kpis["wall_s_per_day"] = wall[name] / days  # type: ignore[typeddict-unknown-key]
