@@ -79,7 +79,16 @@ def compare(a: argparse.Namespace) -> str:
     """Run the comparison, write the JSON table, the report and its figure (parents created)."""
     from scenarios.experiments.compare import CompareSettings, run_comparison
     from scenarios.experiments.prediction import PREDICTION_HORIZON
+    from scenarios.running.boptest_loop import is_boptest_scenario
 
+    if is_boptest_scenario(a.scenario):
+        return _boptest_compare(a)
+    for option in ("test_period", "price_scenario"):
+        if getattr(a, option) is not None:
+            raise InputError(
+                f"--{option.replace('_', '-')} applies to BOPTEST scenarios (e.g. "
+                f"boptest_hydronic_heat_pump); {a.scenario} is not one"
+            )
     check_writable(a.json, a.report, create_parents=True)
     report = Path(a.report)
     figure = report.with_suffix(".png")
@@ -250,3 +259,43 @@ def sweep(a: argparse.Namespace) -> str:
         f"({s['wall_time_s']:.0f} s)"
     )
     return "\n".join(lines)
+
+
+def _boptest_compare(a: argparse.Namespace) -> str:
+    """``compare`` on a BOPTEST scenario: training data from the emulator, the identified RC
+    and the default model, then boptest-baseline, the thermostat, qp-mpc and cem on one test
+    period; the JSON table and the report show BOPTEST's KPIs."""
+    from scenarios.plants.boptest import TEST_PERIOD_DAYS, BoptestRun
+    from scenarios.running.boptest_loop import (
+        boptest_report,
+        boptest_scenario,
+        run_boptest_comparison,
+    )
+
+    if a.quick:
+        raise InputError("--quick does not apply to a BOPTEST scenario: choose --train-days and --days")
+    if a.days > TEST_PERIOD_DAYS:
+        raise InputError(f"--days {a.days}: a BOPTEST test period has {TEST_PERIOD_DAYS:g} days")
+    check_writable(a.json, a.report, create_parents=True)
+    chosen = boptest_scenario(a.scenario)
+    check_distinct(inputs={"--scenario": str(chosen.path)}, outputs={"--json": a.json, "--report": a.report})
+    run = BoptestRun(
+        time_period=a.test_period or "peak_heat_day", days=float(a.days),
+        price_scenario=a.price_scenario or "dynamic",
+    )
+    result = run_boptest_comparison(
+        chosen, train_days=a.train_days, days=a.days, seed=a.seed, run=run,
+        policy=a.policy or "closed-loop", progress=True,
+    )
+    text = boptest_report(result, scenario=chosen.name, run=run, days=a.days)
+    for path in (Path(a.json), Path(a.report)):
+        path.parent.mkdir(parents=True, exist_ok=True)
+    atomic_write_json(a.json, {
+        "scenario": chosen.name, "test_period": run.time_period,
+        "price_scenario": run.price_scenario, "train_days": a.train_days, "days": a.days,
+        "seed": a.seed, "model": result.model, "rc": result.rc, "data_days": result.data_days,
+        "wall_time_s": result.wall_time_s, "rows": result.rows,
+    })
+    atomic_write_text(Path(a.report), text)
+    table = [ln for ln in text.splitlines() if ln.startswith("|")]
+    return "\n".join([*table, f"wrote {a.json}, {a.report}"])

@@ -34,8 +34,13 @@ __all__ = ["closed_loop", "simulate"]
 def simulate(a: argparse.Namespace) -> str:
     """Generate data and write it atomically to ``--out`` (never onto a file the scenario
     reads); a run that would not fit in memory is refused before it starts."""
+    from scenarios.running.boptest_loop import is_boptest_scenario
     from scenarios.running.budget import check_simulate_memory
 
+    if is_boptest_scenario(a.scenario):
+        return _boptest_simulate(a)
+    if a.first_day is not None:
+        raise InputError(f"--first-day places data on a BOPTEST scenario; {a.scenario} is not one")
     sidecar = None
     if a.spread is not None:
         if a.buildings < 2:
@@ -89,8 +94,18 @@ def closed_loop(a: argparse.Namespace) -> str:
     """Run, write the KPI JSON (and CSV, plot); the summary names every file written.
     Outputs are checked before the run: writable, and none of them the same file as an input
     (``--model``'s files, ``--rc``) or as another output."""
+    from scenarios.running.boptest_loop import is_boptest_scenario
+
     outputs = {"--json": a.json, "--csv": a.csv, "--plot": a.plot}
     check_writable(*outputs.values())
+    if is_boptest_scenario(a.scenario):
+        return _boptest_closed_loop(a, outputs)
+    for option in ("test_period", "price_scenario"):
+        if getattr(a, option) is not None:
+            raise InputError(
+                f"--{option.replace('_', '-')} applies to BOPTEST scenarios (e.g. "
+                f"boptest_hydronic_heat_pump); {a.scenario} is not one"
+            )
     inputs: dict[str, PathsArg] = {"--rc": a.rc, **scenario_inputs(a.scenario)}
     if a.model is not None:
         from pinn_mpc.artifacts import MODEL_DIRECTORY  # torch: only when a model is given
@@ -324,3 +339,89 @@ def _check_fleet_models_fit(root: str, models: list[Any], scenario: Scenario) ->
         others = f" (and notes on {len(noted) - 1} more of the {len(models)} buildings)" if len(noted) > 1 else ""
         for note in notes:
             warn(f"--model {root}, building {b}: {note}{others}")
+
+
+def _boptest_simulate(a: argparse.Namespace) -> str:
+    """``simulate`` on a BOPTEST scenario: the emulator's days off its test periods."""
+    from scenarios.running.boptest_loop import DATA_FIRST_DAY, boptest_data, boptest_scenario
+
+    for option, value in (("--buildings", a.buildings != 1), ("--spread", a.spread is not None),
+                          ("--weather-part", a.weather_part != "train")):
+        if value:
+            raise InputError(f"{option} does not apply to a BOPTEST scenario (one emulated building, its own weather)")
+    chosen = boptest_scenario(a.scenario)
+    check_writable(a.out)
+    check_distinct(inputs={"--scenario": str(chosen.path)}, outputs={"--out": a.out})
+    first_day = DATA_FIRST_DAY if a.first_day is None else a.first_day
+    policy = a.policy or "closed-loop"
+    frame = boptest_data(chosen, days=a.days, seed=a.seed, policy=policy, first_day=first_day)
+    write_timeseries(frame, a.out)
+    first, last = day_span(frame["time"])
+    return (
+        f"wrote {a.out}: BOPTEST scenario {chosen.name} ({chosen.settings.points.testcase}), "
+        f"{a.days} day(s) {first}..{last}, {policy} policy, {len(frame)} rows at "
+        f"{frame.attrs['dt_s']:g} s, T_r {frame['T_r'].min():.1f}..{frame['T_r'].max():.1f} C"
+    )
+
+
+def _boptest_closed_loop(a: argparse.Namespace, outputs: dict[str, str | None]) -> str:
+    """``closed-loop`` on a BOPTEST scenario: one test period on the server; the KPI JSON
+    carries BOPTEST's KPIs under ``boptest``."""
+    from scenarios.plants.boptest import BoptestRun
+    from scenarios.running.boptest_loop import (
+        BASELINE,
+        boptest_controller,
+        boptest_scenario,
+        run_boptest_closed_loop,
+    )
+
+    for option, given in (("--buildings", a.buildings != 1), ("--spread", a.spread is not None),
+                          ("--batched", a.batched), ("--cap-kw", a.cap_kw is not None),
+                          ("--weather-part", a.weather_part != "test")):
+        if given:
+            raise InputError(f"{option} does not apply to a BOPTEST scenario (one emulated test case)")
+    chosen = boptest_scenario(a.scenario)
+    inputs: dict[str, PathsArg] = {"--rc": a.rc, "--scenario": str(chosen.path)}
+    if a.model is not None:
+        from pinn_mpc.artifacts import MODEL_DIRECTORY
+
+        inputs["--model"] = MODEL_DIRECTORY.paths(a.model)
+    check_distinct(inputs=inputs, outputs=outputs)
+    run = BoptestRun(
+        time_period=a.test_period or "peak_heat_day", days=float(a.days),
+        price_scenario=a.price_scenario or "dynamic", dt_s=1800.0,
+    )
+    if a.controller != BASELINE:
+        _check_controller_inputs(a)
+    controller = boptest_controller(
+        a.controller, chosen, dt_s=run.dt_s, model_dir=a.model, rc_path=a.rc,
+        n_steps=run.n_intervals,
+    )
+    threads = one_torch_thread() if a.controller in MODEL_CONTROLLERS else contextlib.nullcontext()
+    with threads:
+        result = run_boptest_closed_loop(
+            chosen, a.controller, controller, run=run, seed=a.seed, progress=True
+        )
+    if a.csv is not None:
+        write_timeseries(result.trajectory, a.csv)
+    if a.plot is not None:
+        from scenarios.reports.plots import plot_trajectory
+
+        plot_trajectory(result.trajectory, a.plot, title=f"{a.controller} on {chosen.name}")
+    atomic_write_json(a.json, result.kpis)
+    b = result.kpis.get("boptest", {})
+    lines = [
+        format_kpis({**result.kpis, "scenario": chosen.name}),
+        f"BOPTEST ({run.time_period}, {run.price_scenario} price): " + ", ".join(
+            f"{key} {_number_text(b.get(key))}" for key in ("tdis_tot", "ener_tot", "cost_tot", "emis_tot", "time_rat")
+        ),
+    ]
+    if result.errors:
+        lines.append(f"{len(result.errors)} controller error(s), first: {result.errors[0]}")
+    written = [str(p) for p in (a.json, a.csv, a.plot) if p is not None]
+    return "\n".join([*lines, f"wrote {', '.join(written)}"])
+
+
+def _number_text(value: object) -> str:
+    """A KPI as the summary shows it: four significant digits, or ``-`` where BOPTEST gave none."""
+    return f"{value:.4g}" if isinstance(value, int | float) else "-"

@@ -178,6 +178,21 @@ def _eta_option(p: argparse.ArgumentParser) -> None:
     )
 
 
+def _boptest_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--test-period",
+        choices=("peak_heat_day", "typical_heat_day"),
+        default=None,
+        help="BOPTEST scenarios: BOPTEST's test period (time_period; default peak_heat_day)",
+    )
+    p.add_argument(
+        "--price-scenario",
+        choices=("constant", "dynamic", "highly_dynamic"),
+        default=None,
+        help="BOPTEST scenarios: BOPTEST's electricity price scenario (default dynamic)",
+    )
+
+
 def add_simulate(sub: Commands) -> None:
     """``simulate``: data from a scenario."""
     p = _add(sub, "simulate", "loop_commands:simulate", "simulate a scenario and write time-series data (CSV)")
@@ -203,6 +218,13 @@ def add_simulate(sub: Commands) -> None:
         "default: every building the scenario's",
     )
     _add_weather_part(p, "train")
+    p.add_argument(
+        "--first-day",
+        type=_finite_non_negative_float,
+        default=None,
+        help="BOPTEST scenarios: the first day of the year of the data (0 = 1 January), off "
+        "every test period and its warm-up (default 30)",
+    )
     p.add_argument("--out", required=True, help="CSV file to write")
 
 
@@ -306,8 +328,11 @@ def add_closed_loop(sub: Commands) -> None:
     p = _add(sub, "closed-loop", "loop_commands:closed_loop", "run one controller against the simulator")
     _scenario(p, required=True)
     p.add_argument(
-        "--controller", required=True, help="controller, one of: " + ", ".join(CONTROLLER_NAMES)
+        "--controller", required=True,
+        help="controller, one of: " + ", ".join(CONTROLLER_NAMES) + "; on a BOPTEST scenario "
+        "also boptest-baseline (the test case's own controller)",
     )
+    _boptest_options(p)
     _model(
         p, "model directory for random-shooting and cem; for qp-mpc an ARX model directory "
         "(train --arch arx or parx)", default=None,
@@ -395,6 +420,7 @@ def add_compare(sub: Commands) -> None:
         help="markdown report to write; its figure goes next to it with the suffix .png",
     )
     p.add_argument("--quick", action="store_true", help="small ensembles and short runs (minutes)")
+    _boptest_options(p)
     p.add_argument(
         "--policy",
         choices=RANDOM_POLICIES,

@@ -102,6 +102,14 @@ class RunKpis(Kpis):
     rc_replay_error_k: NotRequired[float | None]
     scenario_file: NotRequired[str]
     """``closed-loop --scenario FILE``: the scenario file's absolute path."""
+    # a run on a BOPTEST scenario (scenarios.running.boptest_loop)
+    boptest: NotRequired[dict[str, float | None]]
+    """BOPTEST's own KPIs of the run (``GET /kpi``: ``tdis_tot``, ``ener_tot``, ...)."""
+    boptest_testcase: NotRequired[str]
+    test_period: NotRequired[str]
+    """BOPTEST's ``time_period``."""
+    price_scenario: NotRequired[str]
+    """BOPTEST's ``electricity_price``."""
 
 
 class CompareRow(RunKpis):

@@ -301,9 +301,15 @@ class BoptestPlant:
     has_true_state = False
     n_buildings = 1
 
-    def __init__(self, settings: BoptestSettings, run: BoptestRun, *, baseline: bool = False) -> None:
+    def __init__(
+        self, settings: BoptestSettings, run: BoptestRun, *, baseline: bool = False,
+        lead_intervals: int = 0,
+    ) -> None:
         self.settings, self.run, self.points = settings, run, settings.points
         self.baseline = baseline
+        if lead_intervals < 0:
+            raise InputError(f"BoptestPlant: lead_intervals must be >= 0, got {lead_intervals}")
+        self.lead_intervals = int(lead_intervals)
         if run.first_day is not None:
             self.points.check_disjoint(run.first_day, run.days)
         elif run.time_period is not None:
@@ -465,7 +471,8 @@ class BoptestPlant:
     # --- forecasts, KPIs, the record ---------------------------------------------------------
     def exogenous_frame(self) -> pd.DataFrame:
         """The run's inputs from BOPTEST's ``/forecast`` at the run's start, one row per
-        interval in the data format's names: ``time`` (interval start, dated in the points'
+        interval (and ``lead_intervals`` more after the run, a controller's forecast at its
+        last step) in the data format's names: ``time`` (interval start, dated in the points'
         year), ``T_a`` [C], ``G`` [W/m2], ``I_g`` [W] (the gains points summed), ``price``
         [EUR/kWh] (the run's price scenario), ``T_min``/``T_max`` [C]; interval means of
         samples at most 5 minutes apart (as BOPTEST's KPIs weigh them)."""
@@ -474,7 +481,7 @@ class BoptestPlant:
     def _forecast_frame(self) -> pd.DataFrame:
         p, run = self.points, self.run
         per = max(1, int(math.ceil(run.dt_s / FORECAST_SAMPLE_S)))
-        n = run.n_intervals
+        n = run.n_intervals + self.lead_intervals
         names = [p.forecast_outdoor_temperature, p.forecast_irradiance, *p.forecast_gains,
                  p.comfort_lower, p.comfort_upper, p.prices[run.price_scenario]]
         fc = self.test.forecast(names, horizon_s=n * run.dt_s, interval_s=run.dt_s / per)

@@ -1,0 +1,404 @@
+"""The package's controllers and data policies on a BOPTEST test case.
+
+A BOPTEST scenario is a scenario file with a ``[boptest]`` table (the built-in
+``boptest_hydronic_heat_pump``; :mod:`scenarios.plants.boptest`). Its controllers get the
+control spec of :func:`boptest_scenario`: the actuator's limit is the electrical power at the
+test case's highest signal (``points.scaling.max_power_w``), the interval is the run's.
+
+:func:`run_boptest_closed_loop` selects the plant first (BOPTEST's test period, price scenario
+and warm-up), then runs the one loop engine on the plant's ``/forecast`` inputs, with no
+warm-up of the package's own (BOPTEST's warm-up sets the state): every interval is counted.
+The KPIs are the package's, plus ``boptest``, BOPTEST's own KPI dict from ``/kpi``, read
+before the test stops. ``boptest-baseline`` runs the test case's own controller (no input
+overwritten): the reference BOPTEST tables are read against.
+
+:func:`boptest_data` records training data under the package's data policies on days of the
+year disjoint from every test period and its warm-up (refused where they would overlap).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from controllers.base import Controller
+from controllers.thermostat import Thermostat
+from pinn_mpc.artifacts import read_rc_json
+from pinn_mpc.errors import InputError
+from pinn_mpc.records import TrustReport
+from scenarios.choices import MODEL_CONTROLLERS, POLICIES, RC_CONTROLLERS
+from scenarios.inputs.exogenous import day_span
+from scenarios.inputs.registry import Scenario, builtin_scenario, check_seed
+from scenarios.inputs.series import ExogenousSeries
+from scenarios.plants.boptest import (
+    BUILTIN_BOPTEST,
+    BoptestPlant,
+    BoptestRun,
+    BoptestSettings,
+    builtin_boptest,
+    read_boptest_file,
+    record_data,
+)
+from scenarios.records import RunKpis
+from scenarios.running.closed_loop import (
+    ClosedLoopResult,
+    RunInputs,
+    counted_kpis,
+    progress_steps,
+    run_trajectory,
+)
+from scenarios.running.datagen import SetpointPolicy
+from scenarios.running.engine import ClosedLoop
+
+__all__ = [
+    "BASELINE",
+    "DATA_FIRST_DAY",
+    "COMPARED_KPIS",
+    "BoptestComparison",
+    "BoptestScenario",
+    "boptest_controller",
+    "boptest_data",
+    "boptest_scenario",
+    "boptest_report",
+    "is_boptest_scenario",
+    "run_boptest_closed_loop",
+    "run_boptest_comparison",
+]
+
+#: The controller name of BOPTEST's baseline: the test case's own controller.
+BASELINE = "boptest-baseline"
+#: The first day of the year [d] of training data by default: the end of the earliest test
+#: period of the built-in case (peak_heat_day: days 16-30), in its heating season.
+DATA_FIRST_DAY = 30.0
+#: The setpoints of the ``closed-loop`` data policy on BOPTEST [C]: the occupied comfort band
+#: (21-24 C) widened by 3 K below and 1 K above, where controllers keep the room.
+DATA_SETPOINTS_C = (18.0, 25.0)
+#: The built-in scenario whose objective (comfort weight, horizon) BOPTEST scenarios share.
+_OBJECTIVE_OF = "paper_household"
+_POLICY_STREAM = 11
+
+
+@dataclass(frozen=True, kw_only=True)
+class BoptestScenario:
+    """A BOPTEST scenario: its ``name`` (the built-in's or the file's), the ``settings`` of its
+    ``[boptest]`` table and the ``path`` of its file."""
+
+    name: str
+    settings: BoptestSettings
+    path: Path
+
+    def scenario(self, dt_s: float) -> Scenario:
+        """The package's scenario its controllers are built on at interval ``dt_s`` [s]: the
+        actuator's limit is the test case's electrical power at its highest signal; the
+        objective (comfort weight, a one-day horizon) is the built-in scenarios'."""
+        base = builtin_scenario(_OBJECTIVE_OF)
+        sim = dataclasses.replace(
+            base.sim, u_max_w=self.settings.points.scaling.max_power_w, dt_s=float(dt_s),
+            substep_s=30.0,
+        )
+        return dataclasses.replace(
+            base, name=self.name,
+            description=f"BOPTEST test case {self.settings.points.testcase}",
+            sim=sim, horizon_steps=int(round(86400.0 / dt_s)),
+        )
+
+
+def _has_boptest_table(path: str) -> bool:
+    import tomllib
+
+    try:
+        with open(path, "rb") as handle:
+            return isinstance(tomllib.load(handle).get("boptest"), Mapping)
+    except (OSError, tomllib.TOMLDecodeError):
+        return False
+
+
+def is_boptest_scenario(name_or_path: str) -> bool:
+    """True when ``--scenario`` names a built-in BOPTEST scenario or a TOML file with a
+    ``[boptest]`` table."""
+    if name_or_path in BUILTIN_BOPTEST:
+        return True
+    return name_or_path.lower().endswith(".toml") and os.path.isfile(name_or_path) and _has_boptest_table(name_or_path)
+
+
+def boptest_scenario(name_or_path: str, *, url: str | None = None) -> BoptestScenario:
+    """The BOPTEST scenario ``--scenario`` names; ``url`` (if given) replaces the server of
+    the file (else the file's, else ``$BOPTEST_URL``, else the local default)."""
+    if name_or_path in BUILTIN_BOPTEST:
+        settings, path, name = builtin_boptest(name_or_path), BUILTIN_BOPTEST[name_or_path], name_or_path
+    else:
+        settings, path, name = read_boptest_file(name_or_path), Path(name_or_path), Path(name_or_path).stem
+    if url is not None:
+        settings = dataclasses.replace(settings, url=url)
+    return BoptestScenario(name=name, settings=settings, path=path)
+
+
+def boptest_controller(
+    name: str,
+    chosen: BoptestScenario,
+    *,
+    dt_s: float,
+    model_dir: str | os.PathLike[str] | None,
+    rc_path: str | os.PathLike[str] | None,
+    n_steps: int,
+) -> Controller | None:
+    """The controller ``name`` on ``chosen`` at interval ``dt_s`` [s] (as
+    :func:`scenarios.running.factory.make_controller` builds it on
+    :meth:`BoptestScenario.scenario`); None for :data:`BASELINE`.
+
+    A learned model's or an RC's fit is not checked against the scenario's building: the test
+    case has no RC parameters to compare time constants with, and its heat pump draws more
+    than the curve's highest power at full signal on cold days, so the emulator's own data
+    exceed the controllers' limit."""
+    if name == BASELINE:
+        if model_dir is not None or rc_path is not None:
+            raise InputError(f"{BASELINE} is the test case's own controller: it takes no --model or --rc")
+        return None
+    from scenarios.running.factory import build_controller, make_controller, model_guard
+
+    scenario = chosen.scenario(dt_s)
+    if name in MODEL_CONTROLLERS and model_dir is not None:
+        from controllers.sampling import CEM, RandomShooting
+        from pinn_mpc.artifacts import load_model
+        from pinn_mpc.models.arx import is_arx_directory, load_arx
+
+        model = load_arx(model_dir) if is_arx_directory(model_dir) else load_model(model_dir)
+        planner = RandomShooting if name == "random-shooting" else CEM
+        return planner(model, scenario.control_spec(), guard=model_guard(model))
+    if name in RC_CONTROLLERS and rc_path is not None and model_dir is None:
+        rc_params, _ = read_rc_json(rc_path)
+        return build_controller(name, scenario, rc_params=rc_params, n_steps=n_steps)
+    return make_controller(name, scenario, model_dir=model_dir, rc_path=rc_path, n_steps=n_steps)
+
+
+def run_boptest_closed_loop(
+    chosen: BoptestScenario,
+    controller_name: str,
+    controller: Controller | None,
+    *,
+    run: BoptestRun,
+    seed: int = 0,
+    progress: bool = False,
+) -> ClosedLoopResult:
+    """Run ``controller`` (None for :data:`BASELINE`; reset with ``seed``, which fixes a
+    sampling planner's draws) over ``run`` on the BOPTEST server.
+
+    The test is stopped on the server however the run ends (an error reply or Ctrl-C
+    included); nothing is returned from a run that did not finish. The KPIs are the
+    package's over every interval, with ``boptest`` (BOPTEST's ``/kpi``), ``test_period``,
+    ``price_scenario`` and ``boptest_testcase``.
+    """
+    if run.time_period is None:
+        raise InputError("a closed loop on BOPTEST runs a test period (--test-period)")
+    baseline = controller is None
+    scenario = chosen.scenario(run.dt_s)
+    spec = scenario.control_spec()
+    acting = Thermostat(spec) if controller is None else controller
+    check_seed(seed)
+    acting.reset(seed)
+    n = run.n_intervals
+    with BoptestPlant(chosen.settings, run, baseline=baseline, lead_intervals=scenario.horizon_steps) as plant:
+        frame = plant.exogenous_frame()
+        t_r0 = float(plant.measure()[0])
+        with ClosedLoop(
+            scenario.sim, ExogenousSeries.from_frame(frame), spec=spec, initial_t_r_c=t_r0,
+            initial_t_m_c=t_r0, seed=0, plant=plant,
+        ) as loop:
+            errors: list[str] = []
+            for k in progress_steps(n, controller_name, progress):
+                decision = loop.advance(acting)
+                if decision.error is not None:
+                    errors.append(f"step {k}: {decision.error}")
+            rec = loop.record()
+            boptest = plant.kpis()
+    inputs = RunInputs(exo=frame, series=ExogenousSeries.from_frame(frame), warmup=0, total=n)
+    trajectory = run_trajectory(scenario, inputs, rec).drop(columns="T_m")
+    if baseline:  # the test case's own controller decided; the demand column is not its
+        trajectory["u"] = np.nan
+    kpis: RunKpis = {
+        **counted_kpis(scenario, inputs, rec),
+        "controller": controller_name,
+        "scenario": chosen.name,
+        "days": int(round(run.days)),
+        "seed": seed,
+        "weather_part": "test",
+        "counted_days": day_span(trajectory["time"]),
+        "weather_days": day_span(frame["time"]),  # forecast lead included
+        "boptest": boptest,
+        "boptest_testcase": chosen.settings.points.testcase,
+        "test_period": run.time_period,
+        "price_scenario": run.price_scenario,
+    }
+    report: TrustReport | None = getattr(controller, "trust_report", None)
+    if isinstance(report, dict):  # a planner over a learned model: how often it fell back
+        kpis.update(report)
+    return ClosedLoopResult(trajectory=trajectory, kpis=kpis, errors=tuple(errors))
+
+
+def boptest_data(
+    chosen: BoptestScenario,
+    *,
+    days: int,
+    seed: int,
+    policy: str = "closed-loop",
+    first_day: float = DATA_FIRST_DAY,
+    dt_s: float = 1800.0,
+    price_scenario: str = "dynamic",
+) -> pd.DataFrame:
+    """Training data from the emulator: ``days`` days from day ``first_day`` of the year
+    (after BOPTEST's 7-day warm-up), refused where they overlap a test period or its warm-up,
+    under a data policy of :mod:`scenarios.running.datagen` (``random``, ``random-level``,
+    ``thermostat``, ``closed-loop``: random setpoints in :data:`DATA_SETPOINTS_C` tracked),
+    seeded by ``seed``. The data format's columns (:func:`scenarios.plants.boptest.record_data`)."""
+    if policy not in POLICIES:
+        raise InputError(f"unknown policy {policy!r}; choose one of: {', '.join(POLICIES)}")
+    check_seed(seed)
+    run = BoptestRun(time_period=None, first_day=first_day, days=float(days),
+                     price_scenario=price_scenario, dt_s=dt_s)
+    chosen.settings.points.check_disjoint(first_day, float(days))
+    spec = chosen.scenario(dt_s).control_spec()
+    n = run.n_intervals
+    draws = np.random.default_rng([seed, _POLICY_STREAM]).random((n, 3))
+    low, high = DATA_SETPOINTS_C
+    tracking = SetpointPolicy(
+        u_max_w=spec.u_max_w, low_c=low, high_c=high,
+        hold_steps=(max(1, round(3600.0 / dt_s)), max(1, round(8 * 3600.0 / dt_s))),
+    )
+    setpoints = tracking.setpoints(draws)
+    thermostat = Thermostat(spec)
+    on = np.zeros(1, dtype=bool)
+
+    def demand(k: int, t_r_c: float, row: pd.Series) -> float:
+        nonlocal on
+        if policy == "random":
+            return spec.u_max_w if draws[k, 0] < 0.5 else 0.0
+        if policy == "random-level":
+            return float(draws[k, 0] * spec.u_max_w)
+        if policy == "closed-loop":
+            return float(tracking.demand(np.array([t_r_c]), setpoints[k], draws[k])[0])
+        on = thermostat.switch(np.array([t_r_c]), on, float(row["T_min"]), float(row["T_max"]))
+        return spec.u_max_w if on[0] else 0.0
+
+    return record_data(chosen.settings, run, demand)
+
+
+#: BOPTEST's KPIs a comparison shows: (key in ``/kpi``, column heading).
+COMPARED_KPIS = (
+    ("tdis_tot", "tdis K h/zone"),
+    ("ener_tot", "energy kWh/m2"),
+    ("cost_tot", "cost EUR/m2"),
+    ("emis_tot", "emissions kg/m2"),
+    ("time_rat", "time ratio"),
+)
+
+
+@dataclass(frozen=True, kw_only=True)
+class BoptestComparison:
+    """A comparison on one BOPTEST test: ``rows`` (one KPI dict of
+    :func:`run_boptest_closed_loop` per controller, with ``wall_s_per_day``, the wall time
+    per simulated day through the API), the ``rc`` identified from the training data
+    (:func:`pinn_mpc.physics.rc_summary`), the ``model`` the default ``train`` chose, the
+    training data's ``data_days`` and the ``wall_time_s`` of each stage."""
+
+    rows: list[RunKpis]
+    rc: dict[str, float]
+    model: str
+    data_days: list[str]
+    wall_time_s: dict[str, float]
+
+
+def run_boptest_comparison(
+    chosen: BoptestScenario,
+    *,
+    train_days: int,
+    days: int,
+    seed: int,
+    run: BoptestRun,
+    policy: str = "closed-loop",
+    progress: bool = False,
+) -> BoptestComparison:
+    """Training data from the emulator (:func:`boptest_data`, ``train_days`` days), the RC
+    identified from it, the default model ``train`` would choose on it
+    (:func:`pinn_mpc.model_choice.choose_model`), then ``boptest-baseline``, the thermostat,
+    ``qp-mpc`` on the identified RC and ``cem`` over the model on the test ``run``."""
+    import time
+
+    from controllers.sampling import CEM
+    from pinn_mpc.identify import identify_rc
+    from pinn_mpc.model_choice import choose_model
+    from pinn_mpc.physics import rc_summary
+    from pinn_mpc.training import TrainConfig
+    from scenarios.running.closed_loop import one_torch_thread
+    from scenarios.running.factory import build_controller, model_guard
+
+    wall: dict[str, float] = {}
+    start = time.perf_counter()
+    data = boptest_data(chosen, days=train_days, seed=seed, policy=policy, dt_s=run.dt_s)
+    wall["training data"] = time.perf_counter() - start
+    start = time.perf_counter()
+    rc = identify_rc(data, eta=1.0).params
+    wall["identify RC"] = time.perf_counter() - start
+    start = time.perf_counter()
+    with one_torch_thread():
+        choice = choose_model(data, TrainConfig(first_seed=seed), progress=progress)
+    wall["train"] = time.perf_counter() - start
+    scenario = chosen.scenario(run.dt_s)
+    spec = scenario.control_spec()
+    plan: list[tuple[str, Controller | None]] = [
+        (BASELINE, None),
+        ("thermostat", Thermostat(spec)),
+        ("qp-mpc", build_controller("qp-mpc", scenario, rc_params=rc, n_steps=run.n_intervals)),
+        ("cem", CEM(choice.model, spec, guard=model_guard(choice.model))),
+    ]
+    test_run = dataclasses.replace(run, days=float(days))
+    rows: list[RunKpis] = []
+    for name, controller in plan:
+        start = time.perf_counter()
+        with one_torch_thread():
+            result = run_boptest_closed_loop(
+                chosen, name, controller, run=test_run, seed=seed, progress=progress
+            )
+        wall[name] = time.perf_counter() - start
+        kpis = result.kpis
+        kpis["wall_s_per_day"] = wall[name] / days  # type: ignore[typeddict-unknown-key]
+        rows.append(kpis)
+    return BoptestComparison(
+        rows=rows, rc=dict(rc_summary(rc, source="identify (training data)")),  # type: ignore[arg-type]
+        model=choice.chosen, data_days=day_span(data["time"]), wall_time_s=wall,
+    )
+
+
+def boptest_report(comparison: BoptestComparison, *, scenario: str, run: BoptestRun, days: int) -> str:
+    """The markdown report of :func:`run_boptest_comparison`: BOPTEST's KPIs per controller,
+    the share of its own decisions, the wall time per simulated day and the decision times."""
+    heads = [h for _, h in COMPARED_KPIS]
+    lines = [
+        f"# {scenario} on BOPTEST: {run.time_period}, {run.price_scenario} price",
+        "",
+        f"{days} day(s) of the test period at {run.dt_s:g} s; training data "
+        f"{comparison.data_days[0]}..{comparison.data_days[1]}; cem over the default model "
+        f"({comparison.model}); qp-mpc on the RC identified from the same data. BOPTEST's own "
+        "KPIs (per m2 of floor, per zone).",
+        "",
+        "| controller | " + " | ".join(heads) + " | own decisions | wall s / day | decision ms (median / p95) |",
+        "|---" * (len(heads) + 4) + "|",
+    ]
+    for row in comparison.rows:
+        b = row.get("boptest", {})
+        values = [f"{b[k]:.4g}" if isinstance(b.get(k), float | int) else "-" for k, _ in COMPARED_KPIS]
+        extra = dict(row)
+        lines.append(
+            f"| {row['controller']} | " + " | ".join(values)
+            + f" | {100 * row['own_decisions_share']:.0f} % | {extra.get('wall_s_per_day', float('nan')):.1f}"
+            + f" | {row['decision_ms_median']:.1f} / {row['decision_ms_p95']:.1f} |"
+        )
+    lines += ["", "Wall time per stage: " + ", ".join(
+        f"{stage} {sec:.0f} s" for stage, sec in comparison.wall_time_s.items()
+    ), ""]
+    return "\n".join(lines)
