@@ -230,15 +230,15 @@ def _fleet_closed_loop(a: argparse.Namespace, scenario: Scenario, inputs: dict[s
         from scenarios.fleets.training import load_fleet_models
 
         models, fleet = load_fleet_models(a.model)
+        _check_fleet_hybrids(a.model, models)
         if fleet is None:
             raise InputError(
-                f"--model {a.model}: the buildings' parameters are unknown (the data was "
-                "simulated without --spread); the closed loop needs the buildings the models "
-                "were trained on"
+                f"--model {a.model}: the buildings' parameters are unknown (the training data "
+                "had no parameters file beside it, as `simulate --buildings N` writes one); the "
+                "closed loop needs the buildings the models were trained on"
             )
         if len(models) != a.buildings:
             raise InputError(f"--model {a.model} holds {len(models)} buildings, --buildings is {a.buildings}")
-        _check_fleet_hybrids(a.model, models)
         if a.spread is not None:
             raise InputError("--spread does not apply with --model: the buildings are the models' own")
         _check_fleet_models_fit(a.model, models, scenario)
