@@ -358,10 +358,13 @@ def output_lock(path: PathArg, *, option: str = "--out", create_parents: bool = 
 
     The lock is a file beside ``path`` holding the holder's pid, locked with ``flock`` (atomic;
     the system releases it when the holder exits however it exits, so a lock file left by a
-    dead process is taken over); it is removed when the block ends. Where ``path``'s folder
+    dead process is taken over); it is removed when the block ends. Where ``path`` is empty or its folder
     does not exist it is made with ``create_parents`` (and removed again if still empty at the
     end); otherwise nothing is locked, as the command refuses such an output itself.
     """
+    if not str(path).strip():  # no output named: the command refuses it
+        yield
+        return
     lock = _lock_path(Path(path))
     made: list[Path] = []
     if not lock.parent.is_dir():

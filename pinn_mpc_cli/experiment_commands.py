@@ -80,8 +80,6 @@ def _settings_table(
 def compare(a: argparse.Namespace) -> str:
     """Run the comparison, write the JSON table, the report and its figure (parents created)
     together or not at all; the report is held by this run until it ends."""
-    if not str(a.report).strip():
-        raise InputError("--report is empty; give a file name ending in .md")
     check_writable(a.json, a.report, create_parents=True)
     with output_lock(a.report, option="--report", create_parents=True), written_together():
         return _compare(a)
@@ -168,8 +166,6 @@ def reproduce(a: argparse.Namespace) -> str:
 
     config = ReproduceConfig.quick(a.seeds) if a.quick else ReproduceConfig(seeds=a.seeds or 20)
     started = time.perf_counter()
-    if not str(a.out).strip():
-        raise InputError("--out is empty; give a directory name")
     with output_lock(a.out):
         results = run_reproduction(a.out, config, force=a.force)
         for name in config.also_scenarios:
@@ -236,8 +232,6 @@ def sweep(a: argparse.Namespace) -> str:
         f"the reference x {len(grid.seeds)} seed(s) x {len(grid.train_days)} training length(s)",
     )
     settings = SweepSettings.for_run(days=days, quick=quick, arch=given("arch", DEFAULT_ARCH))
-    if not str(out).strip():
-        raise InputError("--out is empty; give a directory name")
     with output_lock(out):
         outcome = run_sweep(
             grid,

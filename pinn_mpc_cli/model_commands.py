@@ -40,8 +40,6 @@ def train(a: argparse.Namespace) -> str:
         for option, value in (("--address", a.address), ("--workers", a.workers)):
             if value is not None:
                 raise InputError(f"{option} runs --per-building training on Ray; add --per-building")
-    if not str(a.out).strip():
-        raise InputError("--out is empty; give a directory name")
     with output_lock(a.out):
         return _train_one(a) if not a.per_building else _train_per_building(a)
 

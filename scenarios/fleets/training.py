@@ -150,7 +150,8 @@ def train_per_building(
         raise InputError(f"unknown architecture {arch!r}; choose one of {AUTO}, {', '.join(MODEL_CHOICES)}")
     previous = _read_fleet(root)
     done = [b for b in frames if _stored(building_model_dir(root, b))]
-    if previous is not None and done:  # without a model kept there is nothing to agree with
+    # A run that left no model file (it failed on every building) has nothing to agree with.
+    if previous is not None and any(p.is_file() for p in fleet_model_files(root)[1:]):
         _check_resumable(root, previous, arch=arch, config=settings, digests=digests)
     todo = [b for b in frames if b not in done]
     start = time.perf_counter()
@@ -177,7 +178,7 @@ def train_per_building(
         try:
             _train_on_ray(frames, todo, root, arch, config, address, workers, seconds, chosen)
         except BaseException:
-            if not any(_stored(building_model_dir(root, b)) for b in frames):
+            if not any(p.is_file() for p in fleet_model_files(root)[1:]):
                 _remove_empty_run(root, created)  # nothing to resume: nothing to block a rerun
             raise
     summary.update(
