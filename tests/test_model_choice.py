@@ -158,3 +158,12 @@ def test_every_command_taking_a_model_takes_the_one_train_chose(tmp_path, capsys
     assert json.loads((tmp_path / "rc.json").read_text())["R_ra_K_per_W"] > 0
     assert main(["closed-loop", "--scenario", "winter_household", "--controller", "cem", "--model",
                  str(tmp_path / "m"), "--days", "1", "--json", str(tmp_path / "k.json")]) == 0
+
+
+def test_train_model_sends_auto_and_the_arx_models_to_fit_model():
+    from pinn_mpc import fit_model, train_model
+
+    assert fit_model.__module__ == "pinn_mpc.model_choice"
+    for arch in ("auto", "arx", "parx"):
+        with pytest.raises(InputError, match=rf"{arch!r} is fitted by pinn_mpc.fit_model\(df, arch={arch!r}"):
+            train_model(household_data(3, seed=0), arch=arch, config=SMALL)
