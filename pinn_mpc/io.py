@@ -342,12 +342,13 @@ LOCK_SUFFIX = ".lock"
 
 
 def _lock_path(target: Path) -> Path:
-    """Beside the directory (it may not exist yet), or inside it where its parent is not
-    writable."""
-    absolute = Path(os.path.abspath(target))
-    if os.access(absolute.parent, os.W_OK) or not absolute.is_dir():
+    """Beside the output (it may not exist yet); where its folder is not writable, in the
+    system's temporary folder under a name made from the output's full path."""
+    absolute = Path(os.path.realpath(target))
+    if os.access(absolute.parent, os.W_OK) or not absolute.parent.is_dir():
         return absolute.parent / f".{absolute.name}{LOCK_SUFFIX}"
-    return absolute / f".pinn-mpc{LOCK_SUFFIX}"
+    digest = hashlib.sha256(str(absolute).encode("utf-8")).hexdigest()[:16]
+    return Path(tempfile.gettempdir()) / f"pinn-mpc-{digest}{LOCK_SUFFIX}"
 
 
 @contextlib.contextmanager
