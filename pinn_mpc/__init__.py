@@ -4,7 +4,8 @@ The modelling layer. Public names (imported on first use, see :mod:`pinn_mpc.laz
 data (:func:`read_timeseries`, :func:`write_timeseries`, :func:`validate_timeseries`), the 2R2C
 physics (:class:`RCParams`, :data:`PAPER_HOUSEHOLD`, :func:`discretise`, :func:`rc_summary`,
 :func:`params_from_summary`) and simulator (:class:`SimConfig`, :class:`Simulator`), learned
-models (:class:`TrainConfig`, :func:`train_model`, :class:`LearnedModel`, :func:`save_model`,
+models (:class:`TrainConfig`, :func:`train_model`, :func:`fit_model` (every ``train --arch``,
+``auto`` included), :class:`LearnedModel`, :func:`save_model`,
 :func:`load_model`, :func:`evaluate_model`, :data:`ARCHS`, :data:`RECIPES`), and R/C values
 (:func:`identify_rc`, :class:`IdentifyResult`, :func:`export_rc`). Bad input raises
 :class:`InputError`; an internal inconsistency (a bug) raises :class:`InternalError`; input
@@ -34,6 +35,7 @@ if TYPE_CHECKING:
     from pinn_mpc.export import export_rc as export_rc
     from pinn_mpc.identify import IdentifyResult as IdentifyResult
     from pinn_mpc.identify import identify_rc as identify_rc
+    from pinn_mpc.model_choice import fit_model as fit_model
     from pinn_mpc.models import LearnedModel as LearnedModel
     from pinn_mpc.physics import PAPER_HOUSEHOLD as PAPER_HOUSEHOLD
     from pinn_mpc.physics import RCParams as RCParams
@@ -56,6 +58,7 @@ _EXPORTS = {
     "pinn_mpc.evaluation": ("evaluate_model",),
     "pinn_mpc.export": ("export_rc",),
     "pinn_mpc.identify": ("IdentifyResult", "identify_rc"),
+    "pinn_mpc.model_choice": ("fit_model",),
     "pinn_mpc.models": ("LearnedModel",),
     "pinn_mpc.records": ("EvaluationMetrics", "RcSummary", "TrustReport"),
     "pinn_mpc.physics": (

@@ -10,6 +10,9 @@ outputs that cannot be written or that would overwrite an input or another outpu
 from __future__ import annotations
 
 import contextlib
+import contextvars
+import errno
+import fcntl
 import hashlib
 import json
 import os
@@ -36,7 +39,9 @@ __all__ = [
     "check_output_directory",
     "check_writable",
     "file_sha256",
+    "output_lock",
     "setting_changes",
+    "written_together",
 ]
 
 PathArg = str | os.PathLike[str]
@@ -58,18 +63,56 @@ def atomic_write(path: str | os.PathLike[str], writer: Callable[[Path], object])
         raise InputError(f"cannot write {target}: it is a directory; give a file name")
     if target.exists() and not target.is_file():  # a device or pipe must not be replaced
         raise InputError(f"cannot write {target}: it is not a regular file")
+    batch = _BATCH.get()
     with _interrupt_deferred():
         fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
         os.close(fd)
         tmp = Path(tmp_name)
         try:
-            writer(tmp)
+            try:
+                writer(tmp)
+            except OSError as exc:  # the user's file named, not the temporary one
+                raise OSError(exc.errno, exc.strerror or str(exc), str(target)) from None
             os.chmod(tmp, 0o644)
-            os.replace(tmp, target)
+            if batch is None:
+                os.replace(tmp, target)
+            else:
+                batch.append((tmp, target))
         except BaseException:
             tmp.unlink(missing_ok=True)
             raise
     return target
+
+
+#: The files of a :func:`written_together` block, each (temporary, target), to be renamed at
+#: its end (None outside such a block).
+_BATCH: contextvars.ContextVar[list[tuple[Path, Path]] | None] = contextvars.ContextVar(
+    "pinn_mpc_io_batch", default=None
+)
+
+
+@contextlib.contextmanager
+def written_together() -> Iterator[None]:
+    """Write every file :func:`atomic_write` writes inside the block (in this thread) together
+    or not at all: each goes to its temporary sibling as usual, and only when the block ends
+    without an error are they all renamed into place, one after another; on an error (a full
+    disk on the last file) every temporary file is removed and no target changes."""
+    if _BATCH.get() is not None:  # nested: the outer block renames
+        yield
+        return
+    pending: list[tuple[Path, Path]] = []
+    token = _BATCH.set(pending)
+    try:
+        yield
+    except BaseException:
+        for tmp, _ in pending:
+            tmp.unlink(missing_ok=True)
+        raise
+    finally:
+        _BATCH.reset(token)
+    with _interrupt_deferred():
+        for tmp, target in pending:
+            os.replace(tmp, target)
 
 
 @contextlib.contextmanager
@@ -292,3 +335,87 @@ def setting_changes(before: Mapping[str, Any], now: Mapping[str, Any]) -> str:
     """``"key before -> now"`` for each key of ``now`` whose value ``before`` differs, comma
     separated (empty when none does): what a refused rerun of a stored run names."""
     return ", ".join(f"{k} {before.get(k)!r} -> {v!r}" for k, v in now.items() if before.get(k) != v)
+
+
+#: The lock file of an output directory ``DIR``: ``.DIR.lock`` beside it.
+LOCK_SUFFIX = ".lock"
+
+
+def _lock_path(target: Path) -> Path:
+    """Beside the output (it may not exist yet); where its folder is not writable, in the
+    system's temporary folder under a name made from the output's full path."""
+    absolute = Path(os.path.realpath(target))
+    if os.access(absolute.parent, os.W_OK) or not absolute.parent.is_dir():
+        return absolute.parent / f".{absolute.name}{LOCK_SUFFIX}"
+    digest = hashlib.sha256(str(absolute).encode("utf-8")).hexdigest()[:16]
+    return Path(tempfile.gettempdir()) / f"pinn-mpc-{digest}{LOCK_SUFFIX}"
+
+
+@contextlib.contextmanager
+def output_lock(path: PathArg, *, option: str = "--out", create_parents: bool = False) -> Iterator[None]:
+    """Hold the output ``path`` (a directory or a file) for this run: a second run writing
+    there while this one does is refused in one line (:class:`InputError`, naming the
+    holder's pid).
+
+    The lock is a file beside ``path`` holding the holder's pid, locked with ``flock`` (atomic;
+    the system releases it when the holder exits however it exits, so a lock file left by a
+    dead process is taken over); it is removed when the block ends. Where ``path`` is empty or its folder
+    does not exist it is made with ``create_parents`` (and removed again if still empty at the
+    end); otherwise nothing is locked, as the command refuses such an output itself.
+    """
+    if not str(path).strip():  # no output named: the command refuses it
+        yield
+        return
+    lock = _lock_path(Path(path))
+    made: list[Path] = []
+    if not lock.parent.is_dir():
+        if not create_parents:
+            yield
+            return
+        missing = lock.parent
+        while not missing.exists():
+            made.append(missing)
+            missing = missing.parent
+        lock.parent.mkdir(parents=True)
+    try:
+        with _locked(lock, path, option):
+            yield
+    finally:
+        for folder in made:  # deepest first
+            with contextlib.suppress(OSError):
+                folder.rmdir()
+
+
+@contextlib.contextmanager
+def _locked(lock: Path, path: PathArg, option: str) -> Iterator[None]:
+    """Hold ``lock`` (see :func:`output_lock`)."""
+    while True:
+        try:
+            fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
+        except OSError as exc:
+            raise InputError(f"cannot lock {option} {path}: {exc.strerror or exc} ({lock})") from None
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError as exc:
+            holder = os.pread(fd, 32, 0).decode("ascii", "replace").strip() or "unknown"
+            os.close(fd)
+            if exc.errno not in (errno.EAGAIN, errno.EACCES, errno.EWOULDBLOCK):
+                raise
+            raise InputError(
+                f"{option} {path} is being written by another run (pid {holder}; its lock is "
+                f"{lock}): wait for it to end, or give another {option}"
+            ) from None
+        try:  # the file locked may have been removed by the holder that just ended: retry
+            same = os.fstat(fd).st_ino == os.stat(lock).st_ino
+        except FileNotFoundError:
+            same = False
+        if same:
+            break
+        os.close(fd)
+    try:
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, f"{os.getpid()}\n".encode("ascii"), 0)
+        yield
+    finally:
+        Path(lock).unlink(missing_ok=True)
+        os.close(fd)

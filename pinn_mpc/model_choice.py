@@ -33,7 +33,9 @@ remedy.
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -42,14 +44,18 @@ import pandas as pd
 from pinn_mpc.errors import InputError
 from pinn_mpc.evaluation import recursive_t_r
 from pinn_mpc.models.arx import (
+    ARX_DIRECTORY,
     SELECTION_HORIZON_S,
     SELECTION_SHARE,
     ARXModel,
     fit_linear,
     fit_physics_informed_arx,
+    is_arx_directory,
+    load_arx,
+    save_arx,
 )
 from pinn_mpc.models.learned import LearnedModel
-from pinn_mpc.models.registry import AUTO, DEFAULT_ARCH, PHYSICS_ARX
+from pinn_mpc.models.registry import AUTO, BASELINES, DEFAULT_ARCH, MODEL_CHOICES, PHYSICS_ARX
 from pinn_mpc.training import TrainConfig, train_model
 
 __all__ = [
@@ -60,6 +66,9 @@ __all__ = [
     "ModelChoice",
     "choose_model",
     "fallback_rc",
+    "fit_model",
+    "load_fitted",
+    "save_fitted",
 ]
 
 #: The physics-informed ARX replaces the hybrid when its held-out error is at most this
@@ -175,3 +184,45 @@ def choose_model(df: pd.DataFrame, config: TrainConfig, *, progress: bool = Fals
     return ModelChoice(
         chosen=DEFAULT_ARCH, model=model, held_out_mae_c=errors, horizon_steps=horizon, why=said
     )
+
+
+def fit_model(
+    df: pd.DataFrame, *, arch: str = AUTO, config: TrainConfig | None = None, progress: bool = False
+) -> ModelChoice:
+    """Any model ``train --arch`` takes, fitted on ``df``: ``auto`` (:func:`choose_model`, the
+    default), a network architecture (:func:`pinn_mpc.training.train_model` with ``config``)
+    or a least-squares ARX (``arx``, ``parx``; ``config.eta`` the actuator's sign)."""
+    config = TrainConfig() if config is None else config
+    if arch == AUTO:
+        return choose_model(df, config, progress=progress)
+    if arch not in MODEL_CHOICES:
+        raise InputError(f"unknown architecture {arch!r}; choose one of {AUTO}, {', '.join(MODEL_CHOICES)}")
+    model: LearnedModel | ARXModel
+    if arch in BASELINES:
+        model = fit_linear(arch, df, eta=config.eta)
+    else:
+        model = train_model(df, arch=arch, config=config, progress=progress)
+    return ModelChoice(chosen=arch, model=model, held_out_mae_c={}, horizon_steps=0, why="as asked")
+
+
+def save_fitted(model: LearnedModel | ARXModel, path: str | os.PathLike[str]) -> list[Path]:
+    """Write ``model`` into the model directory ``path`` (its files replaced, the other kind's
+    removed, so that the directory holds one model); the files written."""
+    from pinn_mpc.artifacts import MODEL_DIRECTORY, save_model
+
+    if isinstance(model, ARXModel):
+        written, stale = [save_arx(model, path)], MODEL_DIRECTORY
+    else:
+        save_model(model, path, force=True)
+        written, stale = MODEL_DIRECTORY.paths(path), ARX_DIRECTORY
+    for old in stale.paths(path):
+        old.unlink(missing_ok=True)
+    return written
+
+
+def load_fitted(path: str | os.PathLike[str]) -> LearnedModel | ARXModel:
+    """The model in the directory ``path`` that ``train`` wrote, of either kind (an ARX's
+    ``arx.json``, a network's ``model.json``)."""
+    from pinn_mpc.artifacts import load_model
+
+    return load_arx(path) if is_arx_directory(path) else load_model(path)

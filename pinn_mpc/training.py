@@ -46,7 +46,14 @@ from pinn_mpc.features import (
 )
 from pinn_mpc.models.base import HOLD_TOLERANCE_W, Batch, TrainingSet
 from pinn_mpc.models.learned import MAX_MEMBERS, EnsembleModule, LearnedModel, ModelRecord
-from pinn_mpc.models.registry import ArchSpec, get_architecture, get_spec
+from pinn_mpc.models.registry import (
+    ALL_ARCHS,
+    AUTO,
+    BASELINES,
+    ArchSpec,
+    get_architecture,
+    get_spec,
+)
 
 if TYPE_CHECKING:
     from pinn_mpc.identify import IdentifyResult
@@ -291,6 +298,11 @@ def train_model(
     LearnedModel
         ``config.n_seeds`` members trained together, with the RC identified from the same data.
     """
+    if arch == AUTO or arch in BASELINES:
+        raise InputError(
+            f"train_model trains the networks ({', '.join(ALL_ARCHS)}); {arch!r} is fitted by "
+            f"pinn_mpc.fit_model(df, arch={arch!r}, config=config), which takes every --arch of train"
+        )
     architecture = get_architecture(arch)
     config = config.for_arch(get_spec(arch))
     assert config.depth is not None and config.recipe is not None

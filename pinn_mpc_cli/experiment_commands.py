@@ -22,6 +22,8 @@ from pinn_mpc.io import (
     atomic_write_text,
     check_distinct,
     check_writable,
+    output_lock,
+    written_together,
 )
 from pinn_mpc_cli.scenario_args import scenario_inputs
 from scenarios.inputs.registry import Scenario
@@ -76,7 +78,14 @@ def _settings_table(
 
 
 def compare(a: argparse.Namespace) -> str:
-    """Run the comparison, write the JSON table, the report and its figure (parents created)."""
+    """Run the comparison, write the JSON table, the report and its figure (parents created)
+    together or not at all; the report is held by this run until it ends."""
+    check_writable(a.json, a.report, create_parents=True)
+    with output_lock(a.report, option="--report", create_parents=True), written_together():
+        return _compare(a)
+
+
+def _compare(a: argparse.Namespace) -> str:
     from scenarios.experiments.compare import CompareSettings, run_comparison
     from scenarios.experiments.prediction import PREDICTION_HORIZON
     from scenarios.running.boptest_loop import is_boptest_scenario
@@ -166,13 +175,14 @@ def reproduce(a: argparse.Namespace) -> str:
 
     config = ReproduceConfig.quick(a.seeds) if a.quick else ReproduceConfig(seeds=a.seeds or 20)
     started = time.perf_counter()
-    results = run_reproduction(a.out, config, force=a.force)
-    for name in config.also_scenarios:
-        run_reproduction(
-            Path(a.out) / name,
-            dataclasses.replace(config, scenario=name, also_scenarios=()),
-            force=a.force,
-        )
+    with output_lock(a.out):
+        results = run_reproduction(a.out, config, force=a.force)
+        for name in config.also_scenarios:
+            run_reproduction(
+                Path(a.out) / name,
+                dataclasses.replace(config, scenario=name, also_scenarios=()),
+                force=a.force,
+            )
     elapsed = time.perf_counter() - started
     return (
         f"one-step MAE on {config.test_days} test days after {config.validation_days} training "
@@ -231,15 +241,16 @@ def sweep(a: argparse.Namespace) -> str:
         f"the reference x {len(grid.seeds)} seed(s) x {len(grid.train_days)} training length(s)",
     )
     settings = SweepSettings.for_run(days=days, quick=quick, arch=given("arch", DEFAULT_ARCH))
-    outcome = run_sweep(
-        grid,
-        settings,
-        out,
-        baseline=baseline or grid.controllers[0],
-        address=address,
-        workers=workers,
-        force=force,
-    )
+    with output_lock(out):
+        outcome = run_sweep(
+            grid,
+            settings,
+            out,
+            baseline=baseline or grid.controllers[0],
+            address=address,
+            workers=workers,
+            force=force,
+        )
     s = outcome.summary
     total = s["cells_run"] + s["cells_reused"]
     reuse = (

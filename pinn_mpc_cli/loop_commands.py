@@ -17,7 +17,13 @@ import numpy as np
 
 from pinn_mpc.data import fleet_params_path, write_fleet_params, write_timeseries
 from pinn_mpc.errors import InputError, warn
-from pinn_mpc.io import PathsArg, atomic_write_json, check_distinct, check_writable
+from pinn_mpc.io import (
+    PathsArg,
+    atomic_write_json,
+    check_distinct,
+    check_writable,
+    written_together,
+)
 from pinn_mpc_cli.scenario_args import scenario_inputs, scenario_label, with_scenario_file
 from scenarios.choices import MODEL_CONTROLLERS
 from scenarios.inputs.exogenous import day_span
@@ -41,17 +47,17 @@ def simulate(a: argparse.Namespace) -> str:
         return _boptest_simulate(a)
     if a.first_day is not None:
         raise InputError(f"--first-day places data on a BOPTEST scenario; {a.scenario} is not one")
+    if a.spread is not None and a.buildings < 2:
+        raise InputError("--spread draws a fleet: add --buildings N with N > 1")
     sidecar = None
-    if a.spread is not None:
-        if a.buildings < 2:
-            raise InputError("--spread draws a fleet: add --buildings N with N > 1")
+    if a.buildings > 1:  # the fleet closed loop over per-building models reads it
         sidecar = fleet_params_path(a.out)
     elif fleet_params_path(a.out).is_file():
         stale = fleet_params_path(a.out)
         raise InputError(
             f"--out {a.out}: {stale} next to it holds the buildings of an earlier `simulate "
-            f"--spread` run and would no longer describe {a.out} (train --per-building reads "
-            f"it); add --spread, choose another --out, or remove {stale}"
+            f"--buildings N` run and would no longer describe {a.out} (train --per-building reads "
+            f"it); add --buildings N, choose another --out, or remove {stale}"
         )
     check_writable(a.out, sidecar)
     check_distinct(inputs=scenario_inputs(a.scenario), outputs={"--out": a.out, "fleet file": sidecar})
@@ -75,8 +81,11 @@ def simulate(a: argparse.Namespace) -> str:
         fleet=fleet,
     )
     write_timeseries(frame, a.out)
-    if sidecar is not None and fleet is not None:
-        write_fleet_params(a.out, fleet, spread=a.spread)
+    if sidecar is not None:  # without --spread every building is the scenario's
+        write_fleet_params(
+            a.out, fleet or [chosen.sim.params] * a.buildings,
+            spread=0.0 if a.spread is None else a.spread,
+        )
     per_building = len(frame) // a.buildings
     overridden = float(np.mean(~np.isclose(frame["u"], frame["u_phys"])))
     first, last = day_span(frame["time"])
@@ -91,9 +100,15 @@ def simulate(a: argparse.Namespace) -> str:
 
 
 def closed_loop(a: argparse.Namespace) -> str:
-    """Run, write the KPI JSON (and CSV, plot); the summary names every file written.
+    """Run, write the KPI JSON (and CSV, plot) together or not at all
+    (:func:`pinn_mpc.io.written_together`); the summary names every file written.
     Outputs are checked before the run: writable, and none of them the same file as an input
     (``--model``'s files, ``--rc``) or as another output."""
+    with written_together():
+        return _closed_loop(a)
+
+
+def _closed_loop(a: argparse.Namespace) -> str:
     from scenarios.running.boptest_loop import is_boptest_scenario
 
     outputs = {"--json": a.json, "--csv": a.csv, "--plot": a.plot}
@@ -230,11 +245,12 @@ def _fleet_closed_loop(a: argparse.Namespace, scenario: Scenario, inputs: dict[s
         from scenarios.fleets.training import load_fleet_models
 
         models, fleet = load_fleet_models(a.model)
+        _check_fleet_hybrids(a.model, models)
         if fleet is None:
             raise InputError(
-                f"--model {a.model}: the buildings' parameters are unknown (the data was "
-                "simulated without --spread); the closed loop needs the buildings the models "
-                "were trained on"
+                f"--model {a.model}: the buildings' parameters are unknown (the training data "
+                "had no parameters file beside it, as `simulate --buildings N` writes one); the "
+                "closed loop needs the buildings the models were trained on"
             )
         if len(models) != a.buildings:
             raise InputError(f"--model {a.model} holds {len(models)} buildings, --buildings is {a.buildings}")
@@ -318,6 +334,24 @@ def _check_fleet_options(a: argparse.Namespace, inputs: dict[str, PathsArg], *, 
     check_writable(figure)
     check_distinct(inputs=inputs, outputs={"--json": a.json, "figure": figure})
     return figure
+
+
+def _check_fleet_hybrids(root: str, models: list[Any]) -> None:
+    """The batched fleet plans over hybrids only: refuse, naming the first building, a
+    per-building directory where ``train`` chose (or was told) another model."""
+    from pinn_mpc.choices import DEFAULT_ARCH
+    from pinn_mpc.models.arx import ARXModel
+
+    for b, model in enumerate(models):
+        kind = "an ARX" if isinstance(model, ARXModel) else f"a {model.arch}"
+        if isinstance(model, ARXModel) or model.arch != DEFAULT_ARCH:
+            others = sum(isinstance(m, ARXModel) or m.arch != DEFAULT_ARCH for m in models) - 1
+            also = f" (and {others} more of the {len(models)} buildings)" if others else ""
+            raise InputError(
+                f"--model {root}: building {b}'s model is {kind}{also}; the batched fleet cem plans "
+                f"over {DEFAULT_ARCH} models: train them with `train --per-building --arch "
+                f"{DEFAULT_ARCH}` into another --out"
+            )
 
 
 def _check_fleet_models_fit(root: str, models: list[Any], scenario: Scenario) -> None:

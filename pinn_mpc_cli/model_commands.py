@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import argparse
 import time
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -22,6 +24,7 @@ from pinn_mpc.io import (
     check_distinct,
     check_output_directory,
     check_writable,
+    output_lock,
 )
 from pinn_mpc.physics import rc_summary
 from pinn_mpc.records import EvaluationMetrics, HorizonErrors
@@ -31,12 +34,18 @@ __all__ = ["evaluate", "export_rc_json", "identify", "train"]
 
 def train(a: argparse.Namespace) -> str:
     """``train``: one ensemble, or with ``--per-building`` one model per building of a fleet
-    data set on Ray (:func:`scenarios.fleets.training.train_per_building`)."""
+    data set on Ray (:func:`scenarios.fleets.training.train_per_building`); ``--out`` is held
+    by this run until it ends (:func:`pinn_mpc.io.output_lock`)."""
     if not a.per_building:
         for option, value in (("--address", a.address), ("--workers", a.workers)):
             if value is not None:
                 raise InputError(f"{option} runs --per-building training on Ray; add --per-building")
-        return _train_one(a)
+    with output_lock(a.out):
+        return _train_one(a) if not a.per_building else _train_per_building(a)
+
+
+def _train_per_building(a: argparse.Namespace) -> str:
+    """``train --per-building``: each building's model (``--arch``, any ``train`` takes)."""
     from pinn_mpc.data import read_fleet_params, read_fleet_timeseries
     from pinn_mpc.training import TrainConfig
     from scenarios.fleets.training import train_per_building
@@ -52,8 +61,11 @@ def train(a: argparse.Namespace) -> str:
     )
     times = list(summary["train_seconds"].values())
     median = f", {float(np.median(times)):.1f} s per building (median)" if times else ""
+    kinds = sorted(set(summary["chosen"].values()))
+    counts = ", ".join(f"{list(summary['chosen'].values()).count(k)} {k}" for k in kinds)
+    chose = f" ({counts})" if a.arch == AUTO and counts else ""
     return (
-        f"{len(summary['buildings'])} buildings: trained {len(summary['trained'])}, kept "
+        f"{len(summary['buildings'])} buildings: trained {len(summary['trained'])}{chose}, kept "
         f"{len(summary['kept'])} already there, in {summary['wall_seconds']:.0f} s{median}; "
         f"wrote {a.out}"
     )
@@ -216,6 +228,7 @@ def evaluate(a: argparse.Namespace) -> str:
     from pinn_mpc.models.arx import ARX_DIRECTORY, is_arx_directory
 
     check_writable(a.json)
+    _refuse_fleet_directory(a.model, "evaluate", "--data BUILDING.csv --json metrics.json")
     if is_arx_directory(a.model):
         check_distinct(
             inputs={"--model": ARX_DIRECTORY.paths(a.model), "--data": a.data},
@@ -246,24 +259,66 @@ def evaluate(a: argparse.Namespace) -> str:
     )
 
 
+def _refuse_fleet_directory(model: str, command: str, rest: str) -> None:
+    """A per-building directory (``train --per-building``) holds one model per building: say
+    which to give instead."""
+    from scenarios.fleets.training import FLEET_FILE, building_model_dir
+
+    if (Path(model) / FLEET_FILE).is_file():
+        raise InputError(
+            f"--model {model} holds one model per building (train --per-building), not one "
+            f"model: {command} each building's, e.g. `pinn-mpc {command} --model "
+            f"{building_model_dir(model, 0)} {rest}`"
+        )
+
+
 def export_rc_json(a: argparse.Namespace) -> str:
-    """``export-rc``: load ``--model``, write its RC JSON ``--out``."""
+    """``export-rc``: load ``--model``, write its RC JSON ``--out``: a physics-informed
+    network's learned R/C values, or the RC an ARX model carries (identified from its training
+    data by ``train``)."""
     from pinn_mpc.artifacts import MODEL_DIRECTORY, load_model
     from pinn_mpc.export import export_rc
+    from pinn_mpc.models.arx import ARX_DIRECTORY, is_arx_directory
 
     check_writable(a.out)
-    check_distinct(inputs={"--model": MODEL_DIRECTORY.paths(a.model)}, outputs={"--out": a.out})
-    learned = load_model(a.model)
-    data = export_rc(
-        learned, source=f"export-rc of {learned.arch} x{learned.n_members} from {a.model}"
-    )
-    data["power_range_w"] = [float(v) for v in learned.record.u_phys_range_w]
-    data["heat_pump_data"] = "cop" in learned.record.training_data.get("columns", [])
+    _refuse_fleet_directory(a.model, "export-rc", "--out rc.json")
+    if is_arx_directory(a.model):
+        check_distinct(inputs={"--model": ARX_DIRECTORY.paths(a.model)}, outputs={"--out": a.out})
+        data = _arx_rc(a.model)
+    else:
+        check_distinct(inputs={"--model": MODEL_DIRECTORY.paths(a.model)}, outputs={"--out": a.out})
+        learned = load_model(a.model)
+        data = dict(export_rc(
+            learned, source=f"export-rc of {learned.arch} x{learned.n_members} from {a.model}"
+        ))
+        data["power_range_w"] = [float(v) for v in learned.record.u_phys_range_w]
+        data["heat_pump_data"] = "cop" in learned.record.training_data.get("columns", [])
     atomic_write_json(a.out, data)
     return (
         f"R_ra={data['R_ra_K_per_W']:.4g} K/W R_rm={data['R_rm_K_per_W']:.4g} K/W "
         f"C_r={data['C_r_J_per_K']:.4g} J/K C_m={data['C_m_J_per_K']:.4g} J/K -> {a.out}"
     )
+
+
+def _arx_rc(model_dir: str) -> dict[str, Any]:
+    """The RC JSON of the ARX model in ``model_dir``: the 2R2C ``train`` identified from the
+    same data (an ARX has no R or C of its own); refused where there is none."""
+    from pinn_mpc.models.arx import load_arx
+
+    model = load_arx(model_dir)
+    if model.identified_rc is None:
+        raise InputError(
+            f"--model {model_dir} is an ARX model, which has no R or C of its own, and no RC "
+            "could be identified from its training data; run `pinn-mpc identify --data DATA.csv "
+            "--out rc.json` on that data to see why"
+        )
+    data = dict(model.identified_rc)
+    data["source"] = f"export-rc of an ARX model from {model_dir}: the RC identified from its training data"
+    power = model.training_data.get("u_phys_range")
+    if power is not None:
+        data["power_range_w"] = [float(v) for v in power]
+    data["heat_pump_data"] = "cop" in model.training_data.get("columns", [])
+    return data
 
 
 def identify(a: argparse.Namespace) -> str:

@@ -498,14 +498,22 @@ def _fleet_csv(folder: Path, name: str = "fleet.csv", *, n: int = 2, days: int =
     return path
 
 
-def test_simulate_without_spread_never_leaves_a_stale_fleet_file(tmp_path, capsys, monkeypatch):
+def test_simulate_never_leaves_a_stale_fleet_file(tmp_path, capsys, monkeypatch):
+    """One building over a fleet's data is refused (its parameters file would describe other
+    data); a fleet without --spread writes its own (every building the scenario's)."""
     monkeypatch.chdir(tmp_path)
     _fleet_csv(tmp_path, sidecar={})
     before = checksums(tmp_path)
-    refused(["simulate", "--scenario", "winter_household", "--days", "1", "--buildings", "2",
+    refused(["simulate", "--scenario", "winter_household", "--days", "1",
              "--out", "fleet.csv"], capsys, "fleet.fleet.json next to it holds the buildings of an "
-            "earlier `simulate --spread` run", "add --spread")
+            "earlier `simulate --buildings N` run", "add --buildings N")
     assert checksums(tmp_path) == before
+    assert main(["simulate", "--scenario", "winter_household", "--days", "1", "--buildings", "3",
+                 "--out", "fleet.csv"]) == 0
+    stored = json.loads((tmp_path / "fleet.fleet.json").read_text())
+    nominal = dataclasses.asdict(get_scenario("winter_household").sim.params)
+    assert stored["spread"] == 0.0 and stored["params"] == [nominal] * 3
+    assert stored["data_sha256"] == file_sha256(tmp_path / "fleet.csv")
 
 
 @pytest.mark.parametrize(

@@ -138,3 +138,45 @@ def test_export_rc_of_mlp_is_refused(tmp_path: Path, capsys: pytest.CaptureFixtu
     assert _export(tmp_path / "mlp", tmp_path / "rc.json") == 2
     assert "no physics block" in _error_line(capsys)
     assert not (tmp_path / "rc.json").exists()
+
+
+def test_export_rc_of_an_arx_model_is_the_rc_identified_from_its_data(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A model directory ``train`` writes for the physics-informed ARX (arx.json) works with
+    export-rc: the RC identified from its training data, the household's true one here."""
+    from pinn_mpc.physics import params_from_summary
+    from scenarios.inputs.registry import builtin_scenario
+
+    write_timeseries(household_data(6, 0), tmp_path / "train.csv")
+    assert _train(tmp_path / "train.csv", tmp_path / "m", "parx") == 0
+    assert _export(tmp_path / "m", tmp_path / "rc.json") == 0, capsys.readouterr().err
+    rc = json.loads((tmp_path / "rc.json").read_text())
+    assert "ARX" in rc["source"] and rc["power_range_w"][1] > 0
+    got, true = params_from_summary(rc), builtin_scenario("winter_household").sim.params
+    assert got.r_ra_k_per_w == pytest.approx(true.r_ra_k_per_w, rel=0.05)
+    assert got.c_r_j_per_k == pytest.approx(true.c_r_j_per_k, rel=0.05)
+    # Without an identified RC, the refusal says why and what to use.
+    record = json.loads((tmp_path / "m" / "arx.json").read_text())
+    del record["identified_rc"]
+    (tmp_path / "m" / "arx.json").write_text(json.dumps(record))
+    capsys.readouterr()
+    assert _export(tmp_path / "m", tmp_path / "rc2.json") == 2
+    err = _error_line(capsys)
+    assert "has no R or C of its own" in err and "pinn-mpc identify" in err
+    assert not (tmp_path / "rc2.json").exists()
+
+
+@pytest.mark.parametrize("command", ["evaluate", "export-rc"])
+def test_a_per_building_directory_is_named_as_one(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], command: str
+) -> None:
+    (tmp_path / "fleet" / "buildings" / "b00000").mkdir(parents=True)
+    (tmp_path / "fleet" / "fleet.json").write_text('{"buildings": [0]}')
+    write_timeseries(household_data(2, 0), tmp_path / "d.csv")
+    out = ["--out", str(tmp_path / "o.json")] if command == "export-rc" else [
+        "--data", str(tmp_path / "d.csv"), "--json", str(tmp_path / "o.json")]
+    assert main([command, "--model", str(tmp_path / "fleet"), *out]) == 2
+    err = _error_line(capsys)
+    assert "holds one model per building" in err and f"{command} --model " in err
+    assert "buildings/b00000" in err and not (tmp_path / "o.json").exists()

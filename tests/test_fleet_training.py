@@ -12,6 +12,7 @@ import torch
 
 from pinn_mpc.data import read_fleet_timeseries, write_timeseries
 from pinn_mpc.errors import InputError
+from pinn_mpc.io import atomic_write_json
 from pinn_mpc.physics import params_from_summary
 from pinn_mpc.simulator import draw_fleet
 from pinn_mpc.training import TrainConfig, train_model
@@ -123,3 +124,53 @@ def test_cli_learned_fleet_scores_rc_candidates_by_default_only_under_a_cap(tmp_
         path = tmp_path / f"{name}.json"
         assert main([*base, *extra, "--json", str(path)]) == 0
         assert json.loads(path.read_text())["fleet"]["rc_candidates"] is expected, name
+
+
+@pytest.mark.slow
+def test_documented_fleet_commands_run_as_written(tmp_path, capsys, monkeypatch):
+    """docs/sweeps-and-fleets.md's three commands at the smallest sizes, with the default
+    architecture (auto) and without --spread (every building the scenario's): the parameters
+    file is written, each building's model chosen and the fleet closed loop runs over them."""
+    monkeypatch.chdir(tmp_path)
+    assert main(["simulate", "--scenario", "winter_household", "--buildings", "2", "--days", "6",
+                 "--seed", "0", "--out", "fleet.csv"]) == 0
+    params = json.loads((tmp_path / "fleet.fleet.json").read_text())
+    assert params["spread"] == 0.0 and len(params["params"]) == 2
+    assert main(["train", "--data", "fleet.csv", "--per-building", "--seeds", "2", "--workers", "1",
+                 "--out", "fleet_models"]) == 0
+    assert "trained 2 (2 hybrid)" in capsys.readouterr().out
+    stored = json.loads((tmp_path / "fleet_models" / "fleet.json").read_text())
+    assert stored["arch"] == "auto" and stored["chosen"] == {"0": "hybrid", "1": "hybrid"}
+    assert main(["closed-loop", "--scenario", "winter_household", "--controller", "cem", "--model",
+                 "fleet_models", "--buildings", "2", "--batched", "--cap-kw", "8", "--days", "1",
+                 "--json", "fleet.json"]) == 0
+    assert json.loads((tmp_path / "fleet.json").read_text())["fleet"]["n_buildings"] == 2
+
+
+@pytest.mark.slow
+def test_per_building_arx_models_and_a_failed_run_that_leaves_nothing_behind(tmp_path, capsys, monkeypatch):
+    """--arch parx per building writes each building's arx.json (the batched fleet, which
+    plans over hybrids, says so in one line); a run whose every building fails leaves no
+    fleet.json, and an earlier such run's fleet.json without models blocks no rerun."""
+    monkeypatch.chdir(tmp_path)
+    data, _ = _fleet_data(days=6)
+    write_timeseries(data, tmp_path / "fleet.csv")
+    base = ["train", "--data", "fleet.csv", "--per-building", "--workers", "1"]
+    # A cooling actuator on heated data: the physics-informed ARX cannot fit it.
+    assert main([*base, "--arch", "parx", "--eta", "-3", "--out", "m"]) == 2
+    assert "training building" in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["fleet.csv"]
+    (tmp_path / "m" / "buildings").mkdir(parents=True)  # as such a run left it before
+    atomic_write_json(tmp_path / "m" / "fleet.json", {"arch": "auto", "config": {}, "buildings": [0, 1],
+                                                      "data_sha256": {"0": "x", "1": "y"}})
+    assert main([*base, "--arch", "parx", "--out", "m"]) == 0
+    for b in (0, 1):
+        assert sorted(p.name for p in building_model_dir(tmp_path / "m", b).iterdir()) == ["arx.json"]
+    models, _ = load_fleet_models(tmp_path / "m")
+    assert [type(m).__name__ for m in models] == ["ARXModel", "ARXModel"]
+    capsys.readouterr()
+    assert main(["closed-loop", "--scenario", "winter_household", "--controller", "cem", "--model", "m",
+                 "--buildings", "2", "--days", "1", "--json", "k.json"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "building 0's model is an ARX (and 1 more of the 2 buildings)" in err
+    assert "--arch hybrid" in err and len(err.splitlines()) == 1

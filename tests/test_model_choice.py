@@ -10,6 +10,7 @@ import pandas as pd
 import pytest
 
 from pinn_mpc.data import write_timeseries
+from pinn_mpc.errors import InputError
 from pinn_mpc.model_choice import AUTO_RATIO, ROUGH_MAE_C, choose_model
 from pinn_mpc.models.arx import ARXModel, fit_physics_informed_arx
 from pinn_mpc.models.learned import LearnedModel
@@ -120,3 +121,49 @@ def test_train_cautions_when_even_the_chosen_model_cannot_predict_the_held_out_d
     error = float(warnings[0].split(" at ")[1].split(" C")[0])
     assert error > ROUGH_MAE_C
     assert "chose" in captured.out
+
+
+def test_every_model_choice_trains_through_one_function_and_loads_back(tmp_path):
+    """``fit_model`` takes every ``--arch`` of ``train`` (auto included); what it fits is
+    saved and loaded back as the same kind, one model per directory."""
+    from pinn_mpc.model_choice import fit_model, load_fitted, save_fitted
+    from pinn_mpc.models.registry import MODEL_CHOICES
+
+    data = household_data(8, seed=0)
+    tiny = TrainConfig(n_seeds=1, epochs=1)
+    out = tmp_path / "m"
+    for arch in ("auto", *MODEL_CHOICES):
+        choice = fit_model(data, arch=arch, config=tiny)
+        assert choice.chosen in ({"hybrid", "parx"} if arch == "auto" else {arch})
+        save_fitted(choice.model, out)
+        loaded = load_fitted(out)
+        assert type(loaded) is type(choice.model)
+        assert len(list(out.iterdir())) == (1 if isinstance(loaded, ARXModel) else 2)
+    with pytest.raises(InputError, match="unknown architecture 'nope'; choose one of auto, "):
+        fit_model(data, arch="nope")
+
+
+def test_every_command_taking_a_model_takes_the_one_train_chose(tmp_path, capsys):
+    """The default ``train`` chose the physics-informed ARX: evaluate, export-rc and a
+    closed loop over it all run on the directory it wrote."""
+    from pinn_mpc_cli.cli import main
+
+    data = tmp_path / "occupied.csv"
+    write_timeseries(_occupied_data(28, seed=0), data)
+    assert main(["train", "--data", str(data), "--out", str(tmp_path / "m")]) == 0
+    assert "chose parx" in capsys.readouterr().out
+    assert main(["evaluate", "--model", str(tmp_path / "m"), "--data", str(data),
+                 "--json", str(tmp_path / "e.json")]) == 0
+    assert main(["export-rc", "--model", str(tmp_path / "m"), "--out", str(tmp_path / "rc.json")]) == 0
+    assert json.loads((tmp_path / "rc.json").read_text())["R_ra_K_per_W"] > 0
+    assert main(["closed-loop", "--scenario", "winter_household", "--controller", "cem", "--model",
+                 str(tmp_path / "m"), "--days", "1", "--json", str(tmp_path / "k.json")]) == 0
+
+
+def test_train_model_sends_auto_and_the_arx_models_to_fit_model():
+    from pinn_mpc import fit_model, train_model
+
+    assert fit_model.__module__ == "pinn_mpc.model_choice"
+    for arch in ("auto", "arx", "parx"):
+        with pytest.raises(InputError, match=rf"{arch!r} is fitted by pinn_mpc.fit_model\(df, arch={arch!r}"):
+            train_model(household_data(3, seed=0), arch=arch, config=SMALL)

@@ -297,3 +297,24 @@ def test_an_identified_rc_file_scenario_runs_compare_quick(identified_scenario, 
     table = json.loads((out / "table.json").read_text())
     assert table["scenario"] == "my_house"
     assert {"oracle", "qp-mpc / identified RC"} <= {row["controller"] for row in table["rows"]}
+
+
+def test_an_exported_energyplus_scenario_names_its_weather_once(tmp_path):
+    """The export writes the plant's weather in one place (simulation.plant.weather): another
+    city there is the scenario's weather; an older export with [weather].file_name still reads."""
+    path = tmp_path / "office.toml"
+    assert main(["scenario", "export", "eplus_small_office", "--out", str(path)]) == 0
+    text = path.read_text()
+    assert 'weather = "usa_il_chicago"' in text and "\nfile_name =" not in text
+    other = tmp_path / "denver.toml"
+    other.write_text(text.replace('weather = "usa_il_chicago"', 'weather = "usa_co_denver"')
+                     .replace('name = "eplus_small_office"', 'name = "office_denver"'))
+    scenario = load_scenario_file(other)
+    assert scenario.weather.file_name == scenario.sim.plant.weather == "usa_co_denver"
+    assert (scenario.weather.window_start, scenario.weather.test_days) == ("01-01", 28)
+    older = tomllib.loads(text)
+    older["weather"]["file_name"] = "usa_il_chicago"
+    import tomlkit
+
+    (tmp_path / "older.toml").write_text(tomlkit.dumps(older))
+    assert load_scenario_file(tmp_path / "older.toml") == get_scenario("eplus_small_office")

@@ -2,7 +2,7 @@
 
 ``train --data fleet.csv --per-building --out DIR`` (:func:`train_per_building`) takes a data
 set with a ``building`` column (``simulate --buildings N``) and trains each building's model
-(the default architecture unless told) as a Ray task, locally or on a cluster (``--address``,
+(any architecture ``train`` takes, ``auto`` by default: each building's own choice) as a Ray task, locally or on a cluster (``--address``,
 :func:`scenarios.running.ray_engine.ray_engine`). ``DIR`` holds ``fleet.json`` (what was trained, the
 buildings' parameters when the data came with them) and one model directory per building,
 ``buildings/b00000`` ...; a rerun keeps every building whose model directory loads and trains
@@ -18,10 +18,12 @@ building's own identification) and trained for a few epochs on its own data.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import hashlib
 import json
 import os
+import shutil
 import time
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -31,7 +33,7 @@ import pandas as pd
 
 from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.io import atomic_write_json, setting_changes
-from pinn_mpc.models.registry import DEFAULT_ARCH
+from pinn_mpc.models.registry import AUTO, DEFAULT_ARCH, MODEL_CHOICES
 from pinn_mpc.physics import RCParams
 from pinn_mpc.training import TrainConfig
 
@@ -72,39 +74,42 @@ def building_model_dir(root: str | os.PathLike[str], building: int) -> Path:
 
 def fleet_model_files(root: str | os.PathLike[str]) -> list[Path]:
     """The files a per-building model directory holds (``fleet.json`` and each building's
-    model files): the inputs no output may replace."""
+    model files, of either kind): the inputs no output may replace."""
     from pinn_mpc.artifacts import MODEL_DIRECTORY
+    from pinn_mpc.models.arx import ARX_DIRECTORY
 
     files = [Path(root) / FLEET_FILE]
     for building in sorted((Path(root) / "buildings").glob("b*")):
-        files.extend(MODEL_DIRECTORY.paths(building))
+        files.extend([*MODEL_DIRECTORY.paths(building), *ARX_DIRECTORY.paths(building)])
     return files
 
 
-def _train_one(frame: pd.DataFrame, arch: str, config: TrainConfig, path: str) -> float:
-    """A Ray task: train one building's model and save it; returns the training seconds."""
+def _train_one(frame: pd.DataFrame, arch: str, config: TrainConfig, path: str) -> tuple[float, str]:
+    """A Ray task: fit one building's model (any architecture ``train`` takes, ``auto``
+    choosing) and save it; returns the seconds and the architecture fitted."""
     import torch
     from threadpoolctl import threadpool_limits
 
-    from pinn_mpc.artifacts import save_model
-    from pinn_mpc.training import train_model
+    from pinn_mpc.model_choice import fit_model, save_fitted
 
     torch.set_num_threads(1)  # the task holds one CPU: one thread for torch and for BLAS
     start = time.perf_counter()
     with threadpool_limits(limits=1, user_api="blas"):
-        model = train_model(frame, arch=arch, config=config, progress=False)
-    save_model(model, path, force=True)
-    return time.perf_counter() - start
+        choice = fit_model(frame, arch=arch, config=config, progress=False)
+    save_fitted(choice.model, path)
+    return time.perf_counter() - start, choice.chosen
 
 
 def _stored(path: Path) -> bool:
-    """A finished building: its model directory loads."""
-    if not (path / "model.json").is_file():
-        return False
-    from pinn_mpc.artifacts import load_model
+    """A finished building: its model directory (of either kind) loads."""
+    from pinn_mpc.artifacts import META
+    from pinn_mpc.model_choice import load_fitted
+    from pinn_mpc.models.arx import is_arx_directory
 
+    if not ((path / META).is_file() or is_arx_directory(path)):
+        return False
     try:
-        load_model(path)
+        load_fitted(path)
     except (InputError, OSError, ValueError):
         return False
     return True
@@ -125,9 +130,7 @@ def train_per_building(
     (:func:`building_frames`, :func:`pinn_mpc.data.read_fleet_timeseries`); ``params``: the
     buildings' parameters, stored in ``fleet.json`` for the fleet closed loop. Returns the
     summary ``fleet.json`` holds."""
-    import ray
-
-    from scenarios.running.ray_engine import check_engine_options, ray_engine
+    from scenarios.running.ray_engine import check_engine_options
 
     if params is not None and len(params) != len(frames):
         raise InternalError(f"{len(params)} building parameters for {len(frames)} buildings in the data")
@@ -143,10 +146,13 @@ def train_per_building(
     digests = {str(b): frame_digest(frame) for b, frame in frames.items()}
     # as fleet.json will hold them (tuples as lists), to compare with a stored run's
     settings = json.loads(json.dumps({k: v for k, v in dataclasses.asdict(config).items() if k != "prior"}))
+    if arch != AUTO and arch not in MODEL_CHOICES:
+        raise InputError(f"unknown architecture {arch!r}; choose one of {AUTO}, {', '.join(MODEL_CHOICES)}")
     previous = _read_fleet(root)
-    if previous is not None:
-        _check_resumable(root, previous, arch=arch, config=settings, digests=digests)
     done = [b for b in frames if _stored(building_model_dir(root, b))]
+    # A run that left no model file (it failed on every building) has nothing to agree with.
+    if previous is not None and any(p.is_file() for p in fleet_model_files(root)[1:]):
+        _check_resumable(root, previous, arch=arch, config=settings, digests=digests)
     todo = [b for b in frames if b not in done]
     start = time.perf_counter()
     seconds: dict[int, float] = {}
@@ -163,37 +169,76 @@ def train_per_building(
     }
     if previous is not None and previous.get("params") and params is None:
         summary["params"] = previous["params"]
+    earlier = (previous or {}).get("chosen") or {}
+    chosen = {b: str(earlier[str(b)]) for b in done if str(b) in earlier}
     if todo:
+        created = not root.exists()
         root.mkdir(parents=True, exist_ok=True)
         atomic_write_json(root / FLEET_FILE, summary)  # an interrupted run resumes from it
-        with ray_engine(address, workers):
-            (root / "buildings").mkdir(parents=True, exist_ok=True)
-            task = ray.remote(num_cpus=1)(_train_one)
-            refs = {
-                task.remote(frames[b], arch, config, str(building_model_dir(root, b))): b for b in todo
-            }
-            pending = list(refs)
-            while pending:
-                ready, pending = ray.wait(pending, num_returns=1)
-                try:
-                    seconds[refs[ready[0]]] = float(ray.get(ready[0]))
-                except ray.exceptions.RayError as exc:
-                    cause = getattr(exc, "cause", None) or exc
-                    first = (str(cause).strip().splitlines() or [""])[0]
-                    # The task's own exception is a bug unless it is about input, files or
-                    # memory; Ray's (a worker lost) are the machine's, reported as before.
-                    expected = (InputError, OSError, MemoryError, ray.exceptions.RayError)
-                    bug = isinstance(cause, Exception) and not isinstance(cause, expected)
-                    raise (InternalError if bug else InputError)(
-                        f"training building {refs[ready[0]]} failed: {type(cause).__name__}: {first}"
-                    ) from None
+        try:
+            _train_on_ray(frames, todo, root, arch, config, address, workers, seconds, chosen)
+        except BaseException:
+            if not any(p.is_file() for p in fleet_model_files(root)[1:]):
+                _remove_empty_run(root, created)  # nothing to resume: nothing to block a rerun
+            raise
     summary.update(
+        chosen={str(b): c for b, c in sorted(chosen.items())},
         trained=sorted(seconds),
         train_seconds={str(b): round(s, 2) for b, s in sorted(seconds.items())},
         wall_seconds=round(time.perf_counter() - start, 2),
     )
     atomic_write_json(root / FLEET_FILE, summary)
     return summary
+
+
+def _train_on_ray(
+    frames: Mapping[int, pd.DataFrame], todo: list[int], root: Path, arch: str, config: TrainConfig,
+    address: str | None, workers: int | None, seconds: dict[int, float], chosen: dict[int, str],
+) -> None:
+    """Fit the buildings ``todo`` as Ray tasks into ``root``, filling ``seconds`` and
+    ``chosen`` (the architecture each building got) as they finish."""
+    import ray
+
+    from scenarios.running.ray_engine import ray_engine
+
+    with ray_engine(address, workers):
+        (root / "buildings").mkdir(parents=True, exist_ok=True)
+        task = ray.remote(num_cpus=1)(_train_one)
+        refs = {
+            task.remote(frames[b], arch, config, str(building_model_dir(root, b))): b for b in todo
+        }
+        pending = list(refs)
+        while pending:
+            ready, pending = ray.wait(pending, num_returns=1)
+            try:
+                took, name = ray.get(ready[0])
+            except ray.exceptions.RayError as exc:
+                cause = getattr(exc, "cause", None) or exc
+                first = (str(cause).strip().splitlines() or [""])[0]
+                # The task's own exception is a bug unless it is about input, files or
+                # memory; Ray's (a worker lost) are the machine's, reported as before.
+                expected = (InputError, OSError, MemoryError, ray.exceptions.RayError)
+                bug = isinstance(cause, Exception) and not isinstance(cause, expected)
+                raise (InternalError if bug else InputError)(
+                    f"training building {refs[ready[0]]} failed: {type(cause).__name__}: {first}"
+                ) from None
+            seconds[refs[ready[0]]], chosen[refs[ready[0]]] = float(took), str(name)
+
+
+def _remove_empty_run(root: Path, created: bool) -> None:
+    """Remove what a run that kept no model wrote: ``fleet.json``, an empty ``buildings/``
+    (with any half-written building directory) and ``root`` itself when this run made it."""
+    (root / FLEET_FILE).unlink(missing_ok=True)
+    buildings = root / "buildings"
+    if buildings.is_dir():
+        for part in buildings.iterdir():
+            if part.is_dir() and not any(p for p in part.iterdir() if not p.name.startswith(".")):
+                shutil.rmtree(part, ignore_errors=True)
+        with contextlib.suppress(OSError):
+            buildings.rmdir()
+    if created:
+        with contextlib.suppress(OSError):
+            root.rmdir()
 
 
 def frame_digest(frame: pd.DataFrame) -> str:
@@ -242,9 +287,11 @@ def _read_fleet(root: Path) -> dict[str, Any] | None:
 
 
 def load_fleet_models(root: str | os.PathLike[str]) -> tuple[list[Any], list[RCParams] | None]:
-    """The per-building models of ``root`` in building order, and the buildings' parameters
-    when ``fleet.json`` has them."""
-    from pinn_mpc.artifacts import load_model
+    """The per-building models of ``root`` in building order (of either kind: a network's
+    model directory or an ARX's), and the buildings' parameters when ``fleet.json`` has them."""
+    from pinn_mpc.artifacts import META
+    from pinn_mpc.model_choice import load_fitted
+    from pinn_mpc.models.arx import is_arx_directory
 
     fleet = _read_fleet(Path(root))
     if fleet is None:
@@ -252,12 +299,12 @@ def load_fleet_models(root: str | os.PathLike[str]) -> tuple[list[Any], list[RCP
     models = []
     for b in fleet["buildings"]:
         path = building_model_dir(root, int(b))
-        if not (path / "model.json").is_file():
+        if not ((path / META).is_file() or is_arx_directory(path)):
             raise InputError(
                 f"--model {root}: building {b} has no model (an interrupted run?); rerun "
                 "`train --per-building` with the same --out to finish it"
             )
-        models.append(load_model(path))
+        models.append(load_fitted(path))
     params = None
     if fleet.get("params"):
         params = [RCParams(**p) for p in fleet["params"]]

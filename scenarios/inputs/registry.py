@@ -130,8 +130,8 @@ class Scenario:
         if not same:
             raise InputError(
                 f"Scenario {self.name!r}: the EnergyPlus plant runs on weather {plant.weather!r}, "
-                "so [weather] must be a TMY3Weather of the same file (leave [weather] out to get "
-                "it with a January / February split)"
+                "so [weather] must be a TMY3Weather of the same file (leave weather.file_name "
+                "out to use the plant's, or [weather] out to get it with a January / February split)"
             )
         if self.gains.active:
             raise InputError(

@@ -201,6 +201,11 @@ def _set_path(data: dict[str, Any], dotted: str, value: Any) -> None:
 def scenario_to_toml(scenario: Scenario) -> str:
     """The complete, commented TOML text of ``scenario`` (read back by :func:`load_scenario_file`)."""
     moved = _relocate(_plain(scenario, Scenario), SECTIONS)
+    weather = moved.get("weather")
+    if scenario.sim.plant.is_energyplus and isinstance(weather, dict):
+        # One place for the weather: the plant's (simulation.plant.weather); [weather] keeps
+        # only its window, and gets the file from the plant when read.
+        weather.pop("file_name", None)
     first = [k for k in moved if not isinstance(moved[k], dict)] + ["building", "simulation", "sensor"]
     data = {k: moved[k] for k in first} | moved
     doc = tomlkit.document()
@@ -325,7 +330,8 @@ def _build(cls: type, table: dict[str, Any], where: str, base: Path) -> Any:
 def _energyplus_defaults(data: dict[str, Any], base: Path) -> None:
     """A file whose ``[simulation.plant]`` has ``kind = "energyplus"`` may leave out what the
     EnergyPlus building gives: ``[building]`` (nominal values, :data:`EPLUS_NOMINAL`),
-    ``[weather]`` (the plant's EPW, January / February), ``simulation.u_max_w`` (the plant's
+    ``[weather]`` (the plant's EPW, January / February; a ``[weather]`` without ``file_name``
+    is the plant's EPW in its window, as ``scenario export`` writes it), ``simulation.u_max_w`` (the plant's
     ``heater_w``; with neither given, ``heater_w = "auto"``: sized by
     :func:`scenarios.plants.energyplus.sizing.size_heater` when the scenario is read) and ``data_policy``
     (``closed-loop``, as the built-in EnergyPlus scenarios). A ``[building]`` table may give
@@ -354,6 +360,11 @@ def _energyplus_defaults(data: dict[str, Any], base: Path) -> None:
                 raise InputError(f"simulation.plant.{key}: {exc}") from None
     if "weather" not in data and isinstance(weather, str):
         data["weather"] = {"type": "TMY3Weather", **_plain(eplus_weather(weather), Any)}
+    table = data.get("weather")
+    if isinstance(table, dict) and isinstance(weather, str) and "file_name" not in table:
+        table.setdefault(TYPE_KEY, "TMY3Weather")  # the plant's file, in the window given
+        if table[TYPE_KEY] == "TMY3Weather":
+            table["file_name"] = weather
     heater = plant.get("heater_w")
     assert isinstance(simulation, dict)
     if heater is None and "u_max_w" not in simulation:
