@@ -100,7 +100,7 @@ def test_bad_plant_settings_name_the_key(change: dict, key: str):
 @pytest.mark.parametrize("name", ["qp-mpc", "oracle"])
 def test_mismatch_scenario_runs_closed_loop(name: str):
     scenario = get_scenario("mismatch_household")
-    assert scenario.sim.plant.kind == "3r3c"
+    assert scenario.plant.kind == "3r3c"
     kwargs = {"rc_params": scenario.sim.params} if name == "qp-mpc" else {}
     controller = build_controller(name, scenario, n_steps=48, **kwargs)
     result = run_closed_loop(scenario, controller, days=1, seed=2, warmup_steps=4)

@@ -51,7 +51,7 @@ def test_closed_loop_on_the_exported_file_gives_the_same_kpis(tmp_path, capsys, 
     assert main(["scenario", "export", name, "--out", str(path)]) == 0
     kpis = {}
     # No oracle on an EnergyPlus building (no true RC model or state): the thermostat there.
-    controller = "thermostat" if get_scenario(name).sim.plant.is_energyplus else "oracle"
+    controller = "thermostat" if get_scenario(name).plant.is_energyplus else "oracle"
     for label, scenario in (("name", name), ("file", str(path))):
         out = tmp_path / f"{label}.json"
         argv = ["closed-loop", "--scenario", scenario, "--controller", controller, "--days", "1",

@@ -133,14 +133,15 @@ def build_loop(
         forecast_seed=[seed, _FORECAST_ERROR_STREAM],
         expected_gains_w=scenario.gains.expected(pd.DatetimeIndex(run.exo["time"])),
         fleet=fleet,
-        measured_gains=scenario.sim.plant.gains == "measured",
+        plant_settings=scenario.plant,
+        measured_gains=scenario.plant.gains == "measured",
     )
 
 
 def check_plant_supports(scenario: Scenario, controller: Controller) -> None:
     """Refuse, before anything runs, a controller with perfect knowledge (``oracle``,
     ``clairvoyant``) on a plant without a true state to know (EnergyPlus)."""
-    if scenario.sim.plant.is_energyplus and isinstance(getattr(controller, "estimator", None), TrueState):
+    if scenario.plant.is_energyplus and isinstance(getattr(controller, "estimator", None), TrueState):
         raise InputError(
             f"controller {controller.name!r} knows the plant's true RC model and state, which an "
             f"EnergyPlus building ({scenario.name!r}) does not have: the oracle and the "
@@ -175,7 +176,7 @@ def run_trajectory(scenario: Scenario, run: RunInputs, rec: LoopRecord) -> pd.Da
             "decision_ms": rec.decision_s[counted] * 1000.0,
         }
     )
-    if scenario.sim.plant.is_energyplus:  # no true mass temperature
+    if scenario.plant.is_energyplus:  # no true mass temperature
         trajectory = trajectory.drop(columns="T_m")
     trajectory.attrs["dt_s"] = float(scenario.sim.dt_s)
     return trajectory

@@ -15,7 +15,7 @@ interval's demanded and delivered power and exogenous inputs (``Observation.last
 format's names, which the forecast shares.
 
 The plant is a :class:`~scenarios.plants.base.LoopPlant` of the scenario's kind
-(:func:`scenarios.plants.kinds.make_plant`): :class:`~scenarios.plants.rc.RCPlant` (the
+(``plant_settings``, :func:`scenarios.plants.kinds.make_plant`): :class:`~scenarios.plants.rc.RCPlant` (the
 minute-level 2R2C or 3R3C simulator with the backup thermostat, driven by the exogenous series)
 for every RC scenario, or :class:`~scenarios.plants.energyplus.plant.EnergyPlusPlant` for an
 EnergyPlus building, which has its own
@@ -55,6 +55,7 @@ from scenarios.inputs.series import ExogenousSeries, ForecastErrors, lead_error_
 from scenarios.plants.base import LoopPlant
 from scenarios.plants.kinds import make_plant
 from scenarios.plants.rc import RCPlant
+from scenarios.plants.settings import PlantSettings
 
 __all__ = [
     "ClosedLoop",
@@ -145,7 +146,9 @@ class ClosedLoop:
     (``forecast_errors``, see :class:`ForecastErrors`), which depend only on it and the row.
     ``expected_gains_w`` (N,) is what a controller sees of the gains when they are not known
     (required then). ``measured_gains``: the past gains a controller observes are the plant's
-    interval means (an EnergyPlus building's measured gains) instead of the series' rows. :meth:`reset` starts an episode at row ``start`` of the series; ``k``
+    interval means (an EnergyPlus building's measured gains) instead of the series' rows. ``plant_settings`` is the plant's kind and settings
+    (:attr:`scenarios.inputs.registry.Scenario.plant`; None: the RC simulator of ``config.plant``);
+    ``plant`` a plant already made. :meth:`reset` starts an episode at row ``start`` of the series; ``k``
     counts its intervals. ``fleet`` gives B buildings their own parameters (the backup rule,
     actuator and ``u_max_w`` of ``config`` apply to all; see :class:`Simulator`); they share
     the series, the forecasts and the initial state. Methods that concern one building take
@@ -166,6 +169,7 @@ class ClosedLoop:
         expected_gains_w: np.ndarray | None = None,
         fleet: Sequence[RCParams] | None = None,
         plant: LoopPlant | None = None,
+        plant_settings: PlantSettings | None = None,
         measured_gains: bool = False,
     ) -> None:
         inputs = exogenous.forecast(0)._replace(day_of_week=None)  # NaN without dates
@@ -184,8 +188,15 @@ class ClosedLoop:
         self._seen_gains_w = seen_gains_w
         self.measured_gains = measured_gains
         self.initial_state_c = (float(initial_t_r_c), float(initial_t_m_c))
+        if plant_settings is None:  # the RC simulator of config.plant
+            plant_settings = PlantSettings.of_rc(config.plant)
+        elif plant_settings.rc != config.plant:
+            raise InternalError(
+                f"ClosedLoop: config.plant {config.plant} is not the simulator's structure of "
+                f"plant_settings (kind {plant_settings.kind!r}); give Scenario.sim with Scenario.plant"
+            )
         self.plant = plant if plant is not None else make_plant(
-            config, t_a_c=exogenous.T_a, g_w_per_m2=exogenous.G, i_g_w=exogenous.I_g,
+            config, plant_settings, t_a_c=exogenous.T_a, g_w_per_m2=exogenous.G, i_g_w=exogenous.I_g,
             times=exogenous.times, seed=seed, fleet=fleet,
         )
         self.n_buildings = self.plant.n_buildings
