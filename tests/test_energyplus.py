@@ -332,7 +332,8 @@ def test_gymnasium_env_on_energyplus_starts_at_midnight_and_closes_its_thread():
 
     scenario = get_scenario(SCENARIO)
     exo = scenario.exogenous(days=2, seed=0, part="test")
-    env = BuildingEnv(scenario.sim, exo, comfort_weight_eur_per_kh=5.0, episode_steps=48)
+    env = BuildingEnv(scenario.sim, exo, comfort_weight_eur_per_kh=5.0, episode_steps=48,
+                      plant_settings=scenario.plant)
     before = threading.active_count()
     try:
         assert env.observation_names == (*OBSERVATION_NAMES, "G_south", "G_east", "G_west", "G_north", "wind")
@@ -710,7 +711,7 @@ def test_gymnasium_env_left_open_leaves_no_energyplus_directory(private_tmp):
         "from scenarios.registry import get_scenario\n"
         f"s = get_scenario({SCENARIO!r})\n"
         "env = BuildingEnv(s.sim, s.exogenous(days=1, seed=0, part='test'),\n"
-        "                  comfort_weight_eur_per_kh=5.0, episode_steps=4)\n"
+        "                  comfort_weight_eur_per_kh=5.0, episode_steps=4, plant_settings=s.plant)\n"
         "env.reset(seed=0)\n"
         "env.step(np.array([1000.0], dtype=np.float32))\n"
         "import glob, os, tempfile\n"
