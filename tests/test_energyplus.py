@@ -707,8 +707,8 @@ def test_gymnasium_env_left_open_leaves_no_energyplus_directory(private_tmp):
     no run directory behind: the env ends its run when the interpreter exits."""
     script = (
         "import numpy as np\n"
-        "from scenarios.gym_env import BuildingEnv\n"
-        "from scenarios.registry import get_scenario\n"
+        "from scenarios.running.gym_env import BuildingEnv\n"
+        "from scenarios.inputs.scenario_file import get_scenario\n"
         f"s = get_scenario({SCENARIO!r})\n"
         "env = BuildingEnv(s.sim, s.exogenous(days=1, seed=0, part='test'),\n"
         "                  comfort_weight_eur_per_kh=5.0, episode_steps=4, plant_settings=s.plant)\n"
