@@ -45,7 +45,6 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from controllers.base import Controller, ControlSpec, Forecast, Observation, fallback_power
-from controllers.estimators import TrueState
 from pinn_mpc.data import SITE_COLUMNS
 from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.physics import RCParams
@@ -458,5 +457,5 @@ _NO_TRUE_STATE = (
 
 def _perfect_knowledge(controller: Controller) -> bool:
     """A controller with the true-state estimator knows everything: perfect forecasts too."""
-    return isinstance(getattr(controller, "estimator", None), TrueState)
+    return controller.knows_true_state
 
