@@ -15,11 +15,11 @@ interval's demanded and delivered power and exogenous inputs (``Observation.last
 format's names, which the forecast shares.
 
 The plant is a :class:`~scenarios.plants.base.LoopPlant` of the scenario's kind
-(``plant_settings``, :func:`scenarios.plants.kinds.make_plant`): :class:`~scenarios.plants.rc.RCPlant` (the
-minute-level 2R2C or 3R3C simulator with the backup thermostat, driven by the exogenous series)
-for every RC scenario, or :class:`~scenarios.plants.energyplus.plant.EnergyPlusPlant` for an
-EnergyPlus building, which has its own
-weather and internal gains: the past a controller observes holds the interval means the plant
+(``plant_settings``, :func:`scenarios.plants.kinds.make_plant`):
+:class:`~scenarios.plants.rc.RCPlant` (the minute-level 2R2C or 3R3C simulator with the
+backup thermostat, driven by the exogenous series) for every RC scenario, or
+:class:`~scenarios.plants.energyplus.plant.EnergyPlusPlant` for an EnergyPlus building, which
+has its own weather and internal gains: the past a controller observes holds the interval means the plant
 reports, the series only the inputs still to come. An EnergyPlus plant holds a thread and a
 temporary directory: close the loop (:meth:`ClosedLoop.close`, or use it as a context manager).
 
@@ -145,10 +145,10 @@ class ClosedLoop:
     (``forecast_errors``, see :class:`ForecastErrors`), which depend only on it and the row.
     ``expected_gains_w`` (N,) is what a controller sees of the gains when they are not known
     (required then). ``measured_gains``: the past gains a controller observes are the plant's
-    interval means (an EnergyPlus building's measured gains) instead of the series' rows. ``plant_settings`` is the plant's kind and settings
-    (:attr:`scenarios.inputs.registry.Scenario.plant`; None: the RC simulator of ``config.plant``);
-    ``plant`` a plant already made. :meth:`reset` starts an episode at row ``start`` of the series; ``k``
-    counts its intervals. ``fleet`` gives B buildings their own parameters (the backup rule,
+    interval means (an EnergyPlus building's measured gains) instead of the series' rows.
+    ``plant_settings`` is the plant's kind and settings (a scenario's ``plant``; None: the RC
+    simulator of ``config.plant``), ``plant`` a plant already made. :meth:`reset` starts an
+    episode at row ``start`` of the series; ``k`` counts its intervals. ``fleet`` gives B buildings their own parameters (the backup rule,
     actuator and ``u_max_w`` of ``config`` apply to all; see :class:`Simulator`); they share
     the series, the forecasts and the initial state. Methods that concern one building take
     its index ``building`` (default 0, the only one without a fleet).
@@ -190,9 +190,9 @@ class ClosedLoop:
         if plant_settings is None:  # the RC simulator of config.plant
             plant_settings = PlantSettings.of_rc(config.plant)
         elif plant_settings.rc != config.plant:
-            raise InternalError(
+            raise InputError(
                 f"ClosedLoop: config.plant {config.plant} is not the simulator's structure of "
-                f"plant_settings (kind {plant_settings.kind!r}); give Scenario.sim with Scenario.plant"
+                f"plant_settings (kind {plant_settings.kind!r}); give a scenario's sim with its plant"
             )
         self.plant = plant if plant is not None else make_plant(
             config, plant_settings, t_a_c=exogenous.T_a, g_w_per_m2=exogenous.G, i_g_w=exogenous.I_g,

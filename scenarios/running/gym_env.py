@@ -19,8 +19,10 @@ gains schedule where the scenario says ``gains = "measured"``) does not show.
 The exogenous inputs come as a frame (as :meth:`scenarios.inputs.registry.Scenario.exogenous` makes
 it); an episode covers ``episode_steps`` consecutive rows. When the frame is longer than an
 episode, ``reset`` draws the first row from the environment's own generator, which
-``reset(seed=...)`` reseeds; the generator also seeds the sensor noise. On an EnergyPlus
-building (``plant_settings``) each reset starts a fresh EnergyPlus run, at a midnight row;
+``reset(seed=...)`` reseeds; the generator also seeds the sensor noise. The plant is the RC
+simulator of ``config.plant`` unless ``plant_settings`` (a scenario's ``plant``, given with its
+``sim``) names another kind. On an EnergyPlus building each reset starts a fresh EnergyPlus
+run, at a midnight row;
 ``info`` then has no hidden ``T_m`` (NaN). Call :meth:`close` to end the run's thread; an env
 that is dropped or outlives the interpreter without it is closed then, so no EnergyPlus run's
 directory is left behind.
