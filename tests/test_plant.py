@@ -150,3 +150,21 @@ def test_plant_settings_check_the_fields_of_their_kind(settings: dict, match: st
         fields = {k: v for k, v in settings.items() if k != "kind"}
         with pytest.raises(InputError, match=match.replace("PlantSettings", "EnergyPlusSettings")):
             EnergyPlusSettings(**{"building": "", "weather": "", **fields})
+
+
+def test_a_plant_is_given_once_with_its_scenario(tmp_path):
+    """A scenario file's plant is [simulation.plant] only (a top-level [plant] is an unknown
+    key), and a loop refuses a simulator structure its plant settings do not have."""
+    from scenarios.inputs.scenario_file import scenario_to_toml
+    from scenarios.inputs.series import ExogenousSeries
+    from scenarios.running.engine import ClosedLoop
+
+    mismatch = get_scenario("mismatch_household")
+    path = tmp_path / "m.toml"
+    path.write_text(scenario_to_toml(mismatch) + '\n[plant]\nkind = "3r3c"\n')
+    with pytest.raises(InputError, match=r"plant: unknown key; \[top level\] takes name, description, "):
+        get_scenario(str(path))
+    series = ExogenousSeries.from_frame(mismatch.exogenous(days=1, seed=0, part="train"))
+    with pytest.raises(InputError, match="is not the simulator's structure of plant_settings"):
+        ClosedLoop(mismatch.sim, series, spec=mismatch.control_spec(), initial_t_r_c=20.0,
+                   initial_t_m_c=20.0, plant_settings=PlantSettings())
