@@ -5,7 +5,7 @@ settings, in one table.
 (``2r2c``, ``3r3c``: :class:`pinn_mpc.plant.Plant`, whose envelope fields the table carries) or
 ``energyplus`` (:class:`scenarios.plants.energyplus.settings.EnergyPlusSettings`, whose fields
 the table carries too). The table's keys are the union of the kinds' fields; those of another
-kind keep their defaults (a file :command:`scenario export` wrote lists them all).
+kind keep their defaults (a file ``pinn-mpc scenario export`` wrote lists them all).
 """
 
 from __future__ import annotations
