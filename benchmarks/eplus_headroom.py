@@ -88,7 +88,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seeds", default="0-2")
     a = parser.parse_args(argv)
     scenario = get_scenario(a.scenario)
-    if getattr(scenario.sim.plant, "kind", None) != "energyplus":
+    if scenario.plant.kind != "energyplus":
         raise SystemExit(f"{a.scenario}: not an EnergyPlus scenario")
     ratios: dict[str, list[float]] = {}
     for seed in _seeds(a.seeds):

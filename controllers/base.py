@@ -11,13 +11,17 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
-from typing import NamedTuple, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, NamedTuple, Protocol, runtime_checkable
 
 import numpy as np
 
 from pinn_mpc.actuator import Actuator
 from pinn_mpc.data import SITE_COLUMNS
 from pinn_mpc.errors import InputError, InternalError
+
+if TYPE_CHECKING:
+    from pinn_mpc.models.rollout import BatchDynamics
+    from pinn_mpc.records import TrustReport
 
 __all__ = [
     "EXOGENOUS_NAMES",
@@ -217,7 +221,13 @@ def first_values(values: np.ndarray, n: int) -> np.ndarray:
 
 @runtime_checkable
 class Controller(Protocol):
-    """``reset`` then ``act`` once per control interval; ``act`` returns demanded power [W]."""
+    """``reset`` then ``act`` once per control interval; ``act`` returns demanded power [W].
+
+    What the loop asks of it besides: ``knows_true_state`` (its decisions start from the
+    plant's true state, as the oracle's and the clairvoyant's do: it needs a plant with one,
+    and gets perfect forecasts), ``model`` (the learned or ARX model it plans over, None for
+    none) and ``trust_report`` (how often it did not trust that model, None for a controller
+    without one)."""
 
     name: str
 
@@ -230,6 +240,15 @@ class Controller(Protocol):
 
     @property
     def last_stats(self) -> SolveStats: ...
+
+    @property
+    def knows_true_state(self) -> bool: ...
+
+    @property
+    def model(self) -> BatchDynamics | None: ...
+
+    @property
+    def trust_report(self) -> TrustReport | None: ...
 
 
 def fallback_power(obs: Observation, forecast: Forecast, spec: ControlSpec) -> float:
@@ -281,11 +300,20 @@ class Fallback:
 
 class PlanningController:
     """What a planning controller shares: its plan is the one its :class:`Fallback` keeps, its
-    stats those of the last decision. Subclasses set ``fallback`` and ``_stats``."""
+    stats those of the last decision. Subclasses set ``fallback``, ``_stats`` and ``model``."""
 
     name = "planning"
     fallback: Fallback
     _stats: SolveStats
+    @property
+    def knows_true_state(self) -> bool:
+        """Whether its decisions start from the plant's true state (:class:`Controller`)."""
+        return False
+
+    @property
+    def trust_report(self) -> TrustReport | None:
+        """How often it did not trust its model (:class:`Controller`); None: it has none."""
+        return None
 
     @property
     def last_plan(self) -> np.ndarray | None:

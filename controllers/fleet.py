@@ -107,6 +107,12 @@ class FleetPlanner(Protocol):
     @property
     def n_fallbacks(self) -> np.ndarray: ...
 
+    @property
+    def rc_candidates(self) -> bool | None:
+        """Whether a planner over learned models also scores the shadow RC MPC's plan among
+        its samples (None: it plans over no learned model)."""
+        ...
+
 
 class _Stage(NamedTuple):
     """One step's data: the buildings' observations, the forecast, states and objective."""
@@ -135,6 +141,8 @@ class FleetQPMPC:
     """
 
     name = "qp-mpc"
+    #: It plans on RC parameters, over no learned model (:class:`FleetPlanner`).
+    rc_candidates = None
 
     def __init__(
         self,

@@ -27,6 +27,10 @@ class Thermostat:
     state (on or off) between calls, cleared by ``reset``."""
 
     name = "thermostat"
+    #: A rule on the measured room temperature: no model, no state estimate, nothing to trust.
+    knows_true_state = False
+    model = None
+    trust_report = None
 
     def __init__(
         self, spec: ControlSpec, *, offset_fraction: float = 0.25, hysteresis_k: float = 0.5

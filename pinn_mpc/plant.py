@@ -16,96 +16,37 @@ envelope adds a third time constant ``C_e (R_re || R_ea)`` (2.6 h in ``mismatch_
 no 2-state model represents: the room answers the outdoor temperature late and smoothed. The
 controllers and models never see ``T_e``.
 
-``energyplus`` is not an RC network: an EnergyPlus building model (``building``, a bundled DOE
-reference building or an IDF/epJSON path) run on ``weather`` (a bundled EPW name or a path) by
-:mod:`scenarios.plants.energyplus`; ``heater_w`` is its heater's power (0: the simulation's
-``u_max_w``; ``"auto"``: sized to hold the comfort band through the weather file's coldest
-days, :func:`scenarios.plants.energyplus.sizing.size_heater`), ``allow_code`` lets a model that declares
-Python plugins or external co-simulation run them. ``zones`` says whether the conditioned zones
-are ``merged`` into one thermal zone or kept ``separate`` (one ideal heater per zone, the power
-split by floor area, T_r the floor-area-weighted mean); ``radiant_fraction`` is the heater's
-radiant share (0: all convective); ``gains`` says whether the building's internal gains are
-``unknown`` to the controllers (as in a real building) or ``measured``. A negative
-``eta`` in the scenario's building makes the ideal equipment a chiller (heat extracted = -eta x
-the power). Its R/C parameters are unknown; the scenario's are nominal.
+A plant that is not an RC network (EnergyPlus, BOPTEST) runs outside this package's simulator;
+its kind and settings live with it in ``scenarios.plants``.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import ClassVar, Literal
 
 import numpy as np
 
-from pinn_mpc.errors import InputError
+from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.physics import N_INPUTS, RCParams, check_plausible, continuous_matrices
 
-__all__ = ["GAINS_KNOWLEDGE", "PLANT_KINDS", "ZONE_LAYOUTS", "Plant", "plant_matrices"]
+__all__ = ["RC_KINDS", "Plant", "plant_matrices"]
 
-PLANT_KINDS = ("2r2c", "3r3c", "energyplus")
-#: ``zones`` of an EnergyPlus plant: one merged thermal zone, or the conditioned zones kept.
-ZONE_LAYOUTS = ("merged", "separate")
-#: ``gains`` of an EnergyPlus plant: unknown to the controllers, or measured.
-GAINS_KNOWLEDGE = ("unknown", "measured")
-#: Fields holding a file path, resolved relative to the scenario file that names them.
-_PATH_FIELDS = ("building", "weather")
+#: The structures the simulator integrates.
+RC_KINDS = ("2r2c", "3r3c")
 
 
 @dataclass(frozen=True, kw_only=True)
 class Plant:
-    """The plant's structure (module docstring); the default is the models' 2R2C."""
+    """The simulated plant's structure (module docstring); the default is the models' 2R2C."""
 
     kind: str = "2r2c"
     envelope_capacity_j_per_k: float = 1.0e7
     envelope_resistance_fraction: float = 0.5
-    building: str = ""
-    weather: str = ""
-    heater_w: float | str = 0.0
-    allow_code: bool = False
-    zones: Literal["merged", "separate"] = "merged"
-    radiant_fraction: float = 0.0
-    gains: Literal["unknown", "measured"] = "unknown"
-    PATH_FIELDS: ClassVar[tuple[str, ...]] = _PATH_FIELDS
 
     def __post_init__(self) -> None:
-        if self.kind not in PLANT_KINDS:
-            raise InputError(f"Plant.kind {self.kind!r} is unknown; choose one of {', '.join(PLANT_KINDS)}")
-        if self.kind == "energyplus":
-            if not (self.building and self.weather):
-                raise InputError(
-                    "plant: kind = \"energyplus\" needs building (a bundled reference building "
-                    "such as small_office, or an IDF/epJSON path) and weather (a bundled EPW name "
-                    "such as usa_il_chicago, or an .epw path)"
-                )
-            h = self.heater_w
-            if h != "auto" and (
-                isinstance(h, bool) or not (isinstance(h, int | float) and math.isfinite(h) and h >= 0)
-            ):
-                raise InputError(
-                    f"Plant.heater_w = {h!r} must be a power >= 0 W (0: simulation.u_max_w) or "
-                    "\"auto\" (sized for the weather file's coldest days)"
-                )
-            for key, allowed in (("zones", ZONE_LAYOUTS), ("gains", GAINS_KNOWLEDGE)):
-                if getattr(self, key) not in allowed:
-                    raise InputError(
-                        f"Plant.{key} = {getattr(self, key)!r} is not one of "
-                        f"{', '.join(map(repr, allowed))}"
-                    )
-            f = self.radiant_fraction
-            if isinstance(f, bool) or not (isinstance(f, int | float) and 0.0 <= f <= 1.0):
-                raise InputError(
-                    f"Plant.radiant_fraction = {f!r} must lie in [0, 1] (the heater's radiant "
-                    "share; 0: all convective)"
-                )
-        elif (
-            self.building or self.weather or self.heater_w or self.allow_code
-            or self.zones != "merged" or self.radiant_fraction or self.gains != "unknown"
-        ):
-            raise InputError(
-                "plant: building, weather, heater_w, allow_code, zones, radiant_fraction and "
-                f"gains belong to kind = \"energyplus\", not {self.kind!r}"
-            )
+        if self.kind not in RC_KINDS:
+            raise InputError(f"Plant.kind {self.kind!r} is unknown; choose one of {', '.join(RC_KINDS)}")
         check_plausible("c_r_j_per_k", self.envelope_capacity_j_per_k, name="Plant.envelope_capacity_j_per_k")
         f = self.envelope_resistance_fraction
         if isinstance(f, bool) or not (isinstance(f, int | float) and math.isfinite(f) and 0 < f < 1):
@@ -118,18 +59,14 @@ class Plant:
     def n_states(self) -> int:
         return 3 if self.kind == "3r3c" else 2
 
-    @property
-    def is_energyplus(self) -> bool:
-        return self.kind == "energyplus"
-
 
 def plant_matrices(params: RCParams, plant: Plant) -> tuple[np.ndarray, np.ndarray]:
     """Continuous ``A`` (n, n) [1/s] and ``B`` (n, 4) of the plant, n = ``plant.n_states``."""
-    if plant.is_energyplus:
-        raise InputError("an EnergyPlus plant has no RC matrices: it runs in EnergyPlus")
     a2, b2 = continuous_matrices(params)
     if plant.kind == "2r2c":
         return a2, b2
+    if plant.kind != "3r3c":
+        raise InternalError(f"plant_matrices: no matrices for kind {plant.kind!r}")
     r_ea = plant.envelope_resistance_fraction * params.r_ra_k_per_w
     r_re = params.r_ra_k_per_w - r_ea
     c_r, c_e = params.c_r_j_per_k, plant.envelope_capacity_j_per_k

@@ -193,11 +193,6 @@ class Simulator:
                     f"config.params {kind}, and one backup rule applies to all buildings"
                 )
         n_buildings = 1 if n_buildings is None else n_buildings
-        if config.plant.is_energyplus:
-            raise InputError(
-                "Simulator: the scenario's plant is an EnergyPlus building; it runs in "
-                "EnergyPlus (scenarios.plants.energyplus.plant.EnergyPlusPlant), not in the RC simulator"
-            )
         if n_buildings < 1:
             raise InputError(f"n_buildings must be >= 1, got {n_buildings}")
         self.config = config

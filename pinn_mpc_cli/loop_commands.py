@@ -166,7 +166,7 @@ def _closed_loop(a: argparse.Namespace) -> str:
     if a.model is not None:
         from scenarios.running.factory import weather_range_note
 
-        note = weather_range_note(getattr(controller, "model", None), result.trajectory)
+        note = weather_range_note(controller.model, result.trajectory)
         if note is not None:
             warn(note)
     if "model_fallback_switches" in kpis:

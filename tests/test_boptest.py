@@ -122,6 +122,9 @@ class Constant:
     """A controller that asks for the same electrical power every interval."""
 
     name = "constant"
+    knows_true_state = False
+    model = None
+    trust_report = None
 
     def __init__(self, u_w: float) -> None:
         self.u_w = u_w

@@ -29,6 +29,9 @@ class ConstantPower:
     """Demands the same power every interval; records what it was shown."""
 
     name = "constant"
+    knows_true_state = False
+    model = None
+    trust_report = None
 
     def __init__(self, power_w: float):
         self.power_w = power_w

@@ -232,7 +232,7 @@ def test_the_buildings_holidays_reach_data_and_the_forecasts_day_of_the_week():
 
     scenario = get_scenario(SCENARIO)
     times = pd.date_range("2022-01-01", "2022-02-28 23:30", freq="30min")
-    marked = holidays(scenario.sim.plant, times.to_numpy())
+    marked = holidays(scenario.plant.energyplus, times.to_numpy())
     days = sorted({t.date() for t in times[marked > 0]})
     assert days == [dt.date(2022, 1, 1), dt.date(2022, 1, 17), dt.date(2022, 2, 21)]
     exo = scenario.exogenous(days=1, seed=0, part="train")
@@ -248,7 +248,7 @@ def test_scenario_file_energyplus_defaults_and_checks(tmp_path):
     path = tmp_path / "office.toml"
     path.write_text(FILE.format(building="small_office", extra=""))
     scenario = get_scenario(str(path))
-    assert scenario.sim.u_max_w == 20000.0 and scenario.sim.plant.is_energyplus
+    assert scenario.sim.u_max_w == 20000.0 and scenario.plant.is_energyplus
     assert scenario.weather.file_name == "usa_il_chicago"
     path.write_text(FILE.format(building="small_office", extra="") + "[gains]\nbase_w = 100.0\n")
     with pytest.raises(InputError, match="own internal gains"):
@@ -332,7 +332,8 @@ def test_gymnasium_env_on_energyplus_starts_at_midnight_and_closes_its_thread():
 
     scenario = get_scenario(SCENARIO)
     exo = scenario.exogenous(days=2, seed=0, part="test")
-    env = BuildingEnv(scenario.sim, exo, comfort_weight_eur_per_kh=5.0, episode_steps=48)
+    env = BuildingEnv(scenario.sim, exo, comfort_weight_eur_per_kh=5.0, episode_steps=48,
+                      plant_settings=scenario.plant)
     before = threading.active_count()
     try:
         assert env.observation_names == (*OBSERVATION_NAMES, "G_south", "G_east", "G_west", "G_north", "wind")
@@ -472,7 +473,7 @@ def _thermostat_on_days(scenario, power_w, start_day, days):
     t_min, t_max = scenario.comfort.sample(times)
     thermostat = Thermostat(dataclasses.replace(scenario.control_spec(), u_max_w=power_w))
     on, held = np.zeros(1, dtype=bool), []
-    with EnergyPlusRun(prepare_plant(scenario.sim.plant), weather=scenario.sim.plant.weather,
+    with EnergyPlusRun(prepare_plant(scenario.plant.energyplus), weather=scenario.plant.weather,
                        u_max_w=power_w, warmup_setpoint_c=20.0) as run:
         t_r = run.start(start_day, days, year=2001)
         for k in range(days * 48):
@@ -492,7 +493,7 @@ def test_auto_heater_holds_the_band_on_the_coldest_days(tmp_path, caplog):
     text = FILE.format(building="small_office", extra="").replace("heater_w = 20000.0\n", "")
     (tmp_path / "auto.toml").write_text(text.replace("day_max_c = 23.0", "day_max_c = 23.0\nday_end_h = 19.0"))
     scenario = get_scenario(str(tmp_path / "auto.toml"))
-    assert scenario.sim.plant.heater_w == "auto"
+    assert scenario.plant.heater_w == "auto"
     line = [x for x in caplog.messages if "heater sized" in x]
     assert len(line) == 1 and f"{scenario.sim.u_max_w / 1000:g} kW" in line[0] and "06 Jan-08 Jan" in line[0]
     assert 15000 <= scenario.sim.u_max_w <= 30000 and scenario.sim.u_max_w % 1000 == 0
@@ -509,7 +510,7 @@ def test_energyplus_plant_keys_in_scenario_files(tmp_path):
     exported = (tmp_path / "e.toml").read_text()
     for line in ('zones = "merged"', "radiant_fraction = 0.0", 'gains = "unknown"', "heater_w = 20000.0"):
         assert line in exported
-    assert get_scenario(str(tmp_path / "e.toml")).sim.plant == get_scenario(str(tmp_path / "office.toml")).sim.plant
+    assert get_scenario(str(tmp_path / "e.toml")).plant == get_scenario(str(tmp_path / "office.toml")).plant
     for extra, named in (
         ('zones = "rooms"', "simulation.plant.zones: 'rooms' is not one of 'merged', 'separate'"),
         ('gains = "known"', "simulation.plant.gains: 'known' is not one of 'unknown', 'measured'"),
@@ -530,7 +531,7 @@ def test_energyplus_plant_keys_in_scenario_files(tmp_path):
     with pytest.raises(InputError, match="gains_known = false hides them"):
         get_scenario(str(tmp_path / "bad.toml"))
     (tmp_path / "sep.toml").write_text(FILE.format(building="small_office", extra='zones = "separate"\nradiant_fraction = 0.5'))
-    plant = get_scenario(str(tmp_path / "sep.toml")).sim.plant
+    plant = get_scenario(str(tmp_path / "sep.toml")).plant
     assert (plant.zones, plant.radiant_fraction, plant.gains) == ("separate", 0.5, "unknown")
 
 
@@ -570,7 +571,7 @@ def test_measured_gains_reach_the_controllers(tmp_path):
     header = (tmp_path / "d.csv").read_text().splitlines()[0]
     assert "I_g" in header.split(",")
     unknown = get_scenario(SCENARIO)
-    assert unknown.sim.plant.gains == "unknown"
+    assert unknown.plant.gains == "unknown"
     assert not unknown.exogenous(days=1, seed=0, part="test")["I_g"].any()
 
 
@@ -710,7 +711,7 @@ def test_gymnasium_env_left_open_leaves_no_energyplus_directory(private_tmp):
         "from scenarios.inputs.scenario_file import get_scenario\n"
         f"s = get_scenario({SCENARIO!r})\n"
         "env = BuildingEnv(s.sim, s.exogenous(days=1, seed=0, part='test'),\n"
-        "                  comfort_weight_eur_per_kh=5.0, episode_steps=4)\n"
+        "                  comfort_weight_eur_per_kh=5.0, episode_steps=4, plant_settings=s.plant)\n"
         "env.reset(seed=0)\n"
         "env.step(np.array([1000.0], dtype=np.float32))\n"
         "import glob, os, tempfile\n"

@@ -295,6 +295,7 @@ class _ThresholdFleet:
     above it (what makes a fixed dual step overshoot)."""
 
     name = "threshold"
+    rc_candidates = None
 
     def __init__(self, tau: np.ndarray, demand_w: float, h: int = 6) -> None:
         self.tau, self.demand_w, self.h = tau, demand_w, h

@@ -6,10 +6,12 @@ import numpy as np
 import pytest
 
 from pinn_mpc import physics
-from pinn_mpc.errors import InputError
+from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.plant import Plant, plant_matrices
 from pinn_mpc.simulator import SimConfig, Simulator
 from scenarios.inputs.scenario_file import get_scenario
+from scenarios.plants.energyplus.settings import EnergyPlusSettings
+from scenarios.plants.settings import PlantSettings
 from scenarios.running.closed_loop import run_closed_loop
 from scenarios.running.factory import build_controller
 
@@ -100,10 +102,69 @@ def test_bad_plant_settings_name_the_key(change: dict, key: str):
 @pytest.mark.parametrize("name", ["qp-mpc", "oracle"])
 def test_mismatch_scenario_runs_closed_loop(name: str):
     scenario = get_scenario("mismatch_household")
-    assert scenario.sim.plant.kind == "3r3c"
+    assert scenario.plant.kind == "3r3c"
     kwargs = {"rc_params": scenario.sim.params} if name == "qp-mpc" else {}
     controller = build_controller(name, scenario, n_steps=48, **kwargs)
     result = run_closed_loop(scenario, controller, days=1, seed=2, warmup_steps=4)
     assert result.kpis["fallbacks"] == 0 and not result.errors
     assert result.trajectory["u"].between(0.0, scenario.sim.u_max_w).all()
     assert result.kpis["discomfort_kh"] < 5.0
+
+
+def test_the_modelling_package_knows_only_the_rc_structures():
+    """pinn_mpc's Plant is what its simulator integrates: an EnergyPlus kind is the plants
+    layer's (PlantSettings), and a scenario's SimConfig.plant follows its PlantSettings."""
+    with pytest.raises(InputError, match="Plant.kind 'energyplus' is unknown; choose one of 2r2c, 3r3c"):
+        Plant(kind="energyplus")
+    assert PlantSettings().rc == Plant()
+    assert PlantSettings.of_rc(ENVELOPE).rc == ENVELOPE
+    office = get_scenario("eplus_small_office")
+    assert office.plant.is_energyplus and not office.plant.runs_in_simulator
+    assert office.sim.plant == Plant()  # the nominal 2R2C; the plant runs in EnergyPlus
+    assert office.plant.energyplus == EnergyPlusSettings(
+        building="small_office", weather="usa_il_chicago", heater_w=25000.0
+    )
+    assert PlantSettings.of_energyplus(office.plant.energyplus) == office.plant
+    mismatch = get_scenario("mismatch_household")
+    assert mismatch.sim.plant == ENVELOPE
+    assert dataclasses.replace(mismatch, plant=PlantSettings()).sim.plant == Plant()
+    with pytest.raises(InternalError, match="PlantSettings.energyplus of a '3r3c' plant"):
+        _ = mismatch.plant.energyplus
+
+
+@pytest.mark.parametrize(
+    ("settings", "match"),
+    [
+        ({"kind": "2r2c", "weather": "usa_il_chicago"}, "belong to kind = \"energyplus\", not '2r2c'"),
+        ({"kind": "energyplus", "building": "small_office"}, "needs building .* and weather"),
+        ({"kind": "energyplus", "building": "b", "weather": "w", "heater_w": -1.0},
+         r"PlantSettings.heater_w = -1.0 must be a power >= 0 W"),
+        ({"kind": "energyplus", "building": "b", "weather": "w", "envelope_resistance_fraction": 1.0},
+         "PlantSettings.envelope_resistance_fraction = 1.0 must lie strictly between 0 and 1"),
+    ],
+)
+def test_plant_settings_check_the_fields_of_their_kind(settings: dict, match: str):
+    with pytest.raises(InputError, match=match):
+        PlantSettings(**settings)
+    if settings["kind"] == "energyplus" and "envelope_resistance_fraction" not in settings:
+        fields = {k: v for k, v in settings.items() if k != "kind"}
+        with pytest.raises(InputError, match=match.replace("PlantSettings", "EnergyPlusSettings")):
+            EnergyPlusSettings(**{"building": "", "weather": "", **fields})
+
+
+def test_a_plant_is_given_once_with_its_scenario(tmp_path):
+    """A scenario file's plant is [simulation.plant] only (a top-level [plant] is an unknown
+    key), and a loop refuses a simulator structure its plant settings do not have."""
+    from scenarios.inputs.scenario_file import scenario_to_toml
+    from scenarios.inputs.series import ExogenousSeries
+    from scenarios.running.engine import ClosedLoop
+
+    mismatch = get_scenario("mismatch_household")
+    path = tmp_path / "m.toml"
+    path.write_text(scenario_to_toml(mismatch) + '\n[plant]\nkind = "3r3c"\n')
+    with pytest.raises(InputError, match=r"plant: unknown key; \[top level\] takes name, description, "):
+        get_scenario(str(path))
+    series = ExogenousSeries.from_frame(mismatch.exogenous(days=1, seed=0, part="train"))
+    with pytest.raises(InputError, match="is not the simulator's structure of plant_settings"):
+        ClosedLoop(mismatch.sim, series, spec=mismatch.control_spec(), initial_t_r_c=20.0,
+                   initial_t_m_c=20.0, plant_settings=PlantSettings())

@@ -31,7 +31,7 @@ import numpy as np
 
 from controllers.base import ControlSpec
 from controllers.rc_mpc.problem import RCMPC, SolveResult, StageData
-from pinn_mpc.errors import InputError
+from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.physics import RCParams
 
 __all__ = ["PLUGIN_OPTIONS", "CasadiMPC"]
@@ -67,6 +67,7 @@ class CasadiMPC(RCMPC):
                 f"{[p for p in PLUGIN_OPTIONS if ca.has_conic(p)]}"
             )
         self.plugin = plugin
+        self._qp: dict[str, Any] | None = None  # built by _build(), after the first reset()
         super().__init__(params, spec, **options)
 
     def _build(self) -> None:
@@ -109,6 +110,8 @@ class CasadiMPC(RCMPC):
 
     def _new_solver(self) -> None:
         """A fresh solver: qpOASES keeps a hot-start memory inside the CasADi function."""
+        if self._qp is None:
+            raise InternalError("CasadiMPC: a solver asked for before its problem was built")
         with _quiet_c_stdout():
             self._solver = ca.qpsol("casadi_mpc", self.plugin, self._qp, self._options)
         self._first_call = True
@@ -116,7 +119,7 @@ class CasadiMPC(RCMPC):
     def reset(self, seed: int | None = None) -> None:
         super().reset(seed)
         self._warm = None
-        if hasattr(self, "_qp"):  # reset() runs once before _build()
+        if self._qp is not None:  # reset() runs once before _build()
             self._new_solver()
 
     def _solve(self, stage: StageData) -> SolveResult:

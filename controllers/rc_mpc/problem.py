@@ -51,7 +51,7 @@ from controllers.base import (
     check_heating,
     first_values,
 )
-from controllers.estimators import KalmanEstimator, StateEstimator
+from controllers.estimators import KalmanEstimator, StateEstimator, TrueState
 from controllers.objective import HorizonObjective
 from pinn_mpc.errors import InputError
 from pinn_mpc.physics import RCParams, discretise
@@ -201,7 +201,15 @@ class RCMPC(PlanningController):
         self.reset()
         self._build()
 
+    #: It plans on RC parameters, over no learned or ARX model (:class:`controllers.base.Controller`).
+    model = None
+
     # -- protocol -------------------------------------------------------------------------
+    @property
+    def knows_true_state(self) -> bool:
+        """Whether its estimator is the plant's true state (the oracle, the clairvoyant)."""
+        return isinstance(self.estimator, TrueState)
+
     def reset(self, seed: int | None = None) -> None:
         """Forget the estimator state, the previous plan and the counters (no randomness used)."""
         self.estimator.reset()

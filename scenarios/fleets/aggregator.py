@@ -279,9 +279,8 @@ def run_coordinated_fleet(
             "interpolate": dual.interpolate,
         },
     }
-    candidates = getattr(fleet_planner, "rc_candidates", None)
-    if candidates is not None:  # a batched cem over learned models
-        info["rc_candidates"] = bool(candidates)
+    if fleet_planner.rc_candidates is not None:  # a batched cem over learned models
+        info["rc_candidates"] = bool(fleet_planner.rc_candidates)
     return fleet_result(
         scenario, run, loop, times_s, params=fleet, errors=(),
         cap=cap_info,

@@ -86,6 +86,12 @@ class PartitionedPlanner:
         return self._n
 
     @property
+    def rc_candidates(self) -> bool | None:
+        """None: the planners run in the partitions' actors, whose settings a run's record
+        does not report."""
+        return None
+
+    @property
     def horizon_steps(self) -> int:
         return self._h
 

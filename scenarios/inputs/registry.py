@@ -28,7 +28,6 @@ from pinn_mpc.actuator import Actuator
 from pinn_mpc.data import WIND
 from pinn_mpc.errors import InputError
 from pinn_mpc.physics import PAPER_HOUSEHOLD, RCParams
-from pinn_mpc.plant import Plant
 from pinn_mpc.simulator import SimConfig
 from pinn_mpc.solar import FACADE_COLUMNS
 from scenarios.inputs.exogenous import (
@@ -43,7 +42,9 @@ from scenarios.inputs.exogenous import (
 )
 from scenarios.inputs.measured import CSVWeather, PriceCSV
 from scenarios.inputs.series import ForecastErrors
+from scenarios.plants.energyplus.settings import EnergyPlusSettings
 from scenarios.plants.kinds import holiday_calendar, scheduled_gains
+from scenarios.plants.settings import PlantSettings
 
 __all__ = [
     "COLD_ROOM",
@@ -78,12 +79,15 @@ _TEST_PART_STREAM = 1
 @dataclass(frozen=True, kw_only=True)
 class Scenario:
     """A named experiment setting. ``sim`` holds the building, actuator limit, control interval,
-    substep, backup-thermostat limits and sensor noise; the rest describes the exogenous inputs
-    and (``forecast``) what the controllers' forecasts get wrong."""
+    substep, backup-thermostat limits and sensor noise; ``plant`` the plant's kind and settings
+    (``sim.plant`` is set from it: the structure the RC simulator integrates); the rest
+    describes the exogenous inputs and (``forecast``) what the controllers' forecasts get
+    wrong."""
 
     name: str
     description: str
     sim: SimConfig
+    plant: PlantSettings = field(default_factory=PlantSettings)
     comfort_weight_eur_per_kh: float
     horizon_steps: int = 48
     initial_t_r_c: float
@@ -100,6 +104,8 @@ class Scenario:
     data_policy: Literal["random", "random-level", "closed-loop"] = "random-level"
 
     def __post_init__(self) -> None:
+        if self.sim.plant != self.plant.rc:  # the simulator's structure follows the plant's kind
+            object.__setattr__(self, "sim", dataclasses.replace(self.sim, plant=self.plant.rc))
         steps_per_day(self.sim.dt_s)
         if not (math.isfinite(self.comfort_weight_eur_per_kh) and self.comfort_weight_eur_per_kh >= 0):
             raise InputError(
@@ -116,13 +122,13 @@ class Scenario:
                     f"Scenario.{key} = {value:g} C is outside the plausible {lo:g} .. {hi:g} C of "
                     "a building's starting temperature; give it in Celsius"
                 )
-        if self.sim.plant.is_energyplus:
+        if self.plant.is_energyplus:
             self._check_energyplus()
 
     def _check_energyplus(self) -> None:
         """An EnergyPlus building brings its own weather file and internal gains: the
         scenario's weather must be that file (the controllers' forecasts), its gains none."""
-        plant, weather = self.sim.plant, self.weather
+        plant, weather = self.plant.energyplus, self.weather
         same = isinstance(weather, TMY3Weather) and (
             weather.file_name == plant.weather
             or str(tmy3_path(weather.file_name)) == str(tmy3_path(plant.weather))
@@ -162,7 +168,7 @@ class Scenario:
         """The controller every other is measured against: the oracle on a plant with true
         parameters and state, the thermostat on one without (EnergyPlus), where no oracle
         exists."""
-        return "thermostat" if self.sim.plant.is_energyplus else "oracle"
+        return "thermostat" if self.plant.is_energyplus else "oracle"
 
     @property
     def uses_solar(self) -> bool:
@@ -210,7 +216,7 @@ class Scenario:
             raise InputError(f"scenario {self.name!r}: {exc}") from None
         price = self.price.sample(times, dt_s=dt_s, rng=rng(_PRICE_STREAM))
         i_g = self.gains.sample(times, rng=rng(_GAINS_STREAM))
-        plant = self.sim.plant
+        plant = self.plant
         scheduled = scheduled_gains(  # a plant whose gains are measured: its own schedules'
             plant, times.to_numpy(), setpoint_c=self.band_setpoint_c, dt_s=dt_s,
             heat_per_w=self.sim.params.eta,
@@ -300,7 +306,7 @@ def with_sized_heater(scenario: Scenario, *, given_u_max_w: float | None = None)
     from scenarios.plants.energyplus.sizing import size_heater
 
     sim = scenario.sim
-    sizing = size_heater(sim.plant, scenario.band_setpoint_c, heat_per_w=sim.params.eta, dt_s=sim.dt_s)
+    sizing = size_heater(scenario.plant.energyplus, scenario.band_setpoint_c, heat_per_w=sim.params.eta, dt_s=sim.dt_s)
     if given_u_max_w is not None and abs(given_u_max_w - sizing.power_w) > 1e-6 * sizing.power_w:
         raise InputError(
             f"simulation.u_max_w = {given_u_max_w:g} W, but plant.heater_w = \"auto\" sizes "
@@ -420,8 +426,11 @@ _SCENARIOS: dict[str, Scenario] = {
 
 
 
-def _winter_variant(name: str, description: str, **sim_changes: Any) -> Scenario:
-    """winter_household with other simulation settings (its weather, price, comfort, gains)."""
+def _winter_variant(
+    name: str, description: str, *, plant: PlantSettings | None = None, **sim_changes: Any
+) -> Scenario:
+    """winter_household with other simulation settings or another plant (its weather, price,
+    comfort, gains)."""
     base = _SCENARIOS["winter_household"]
     return _with_split(
         dataclasses.replace(
@@ -429,6 +438,7 @@ def _winter_variant(name: str, description: str, **sim_changes: Any) -> Scenario
             name=name,
             description=description,
             sim=dataclasses.replace(base.sim, **sim_changes),
+            plant=base.plant if plant is None else plant,
         )
     )
 
@@ -459,7 +469,7 @@ _SCENARIOS.update(
             "same steady state). Models, RC MPCs and the oracle are 2R2C; the oracle plans on the "
             "plant's R/C without the envelope (the 2R2C it reduces to as C_e -> 0) with the true "
             "T_r and T_m, so it is no longer a lower bound, nor is the clairvoyant.",
-            plant=Plant(
+            plant=PlantSettings(
                 kind="3r3c", envelope_capacity_j_per_k=1.0e7, envelope_resistance_fraction=0.5
             ),
         ),
@@ -489,7 +499,9 @@ def _energyplus_scenario(
                 u_max_w=heater_w,
                 backup_low_c=14.0,
                 backup_high_c=28.0,
-                plant=Plant(kind="energyplus", building=building, weather=weather, heater_w=heater_w),
+            ),
+            plant=PlantSettings.of_energyplus(
+                EnergyPlusSettings(building=building, weather=weather, heater_w=heater_w)
             ),
             comfort_weight_eur_per_kh=5.0,
             initial_t_r_c=initial_t_r_c,

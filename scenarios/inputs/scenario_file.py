@@ -8,6 +8,8 @@ Layout (:data:`SECTIONS` maps a dataclass field to its place in the file)::
     data_policy
     [building]    Scenario.sim.params (RCParams), or rc = "rc.json" (identify / export-rc JSON)
     [simulation]  the other SimConfig fields (actuator limit, control interval, backup, ...)
+    [simulation.plant]  Scenario.plant (PlantSettings: the plant's kind and settings;
+                  SimConfig.plant follows from it and is not written)
     [sensor]      noise_std_c: SimConfig.noise_std_c, the room-temperature sensor noise
     [weather]     type = "TMY3Weather" | "SyntheticWeather" | "CSVWeather", then its fields
     [price]       type = "PriceProfile" | "PriceCSV", then its fields
@@ -70,7 +72,11 @@ SECTIONS = {
     "sim": "simulation",
     "sim.params": "building",
     "sim.noise_std_c": "sensor.noise_std_c",
+    "plant": "simulation.plant",
 }
+#: Dotted field paths set from other fields, not written (``Scenario.__post_init__`` sets
+#: ``sim.plant``, the simulator's structure, from ``plant``).
+DERIVED = ("sim.plant",)
 #: The discriminator key of a table whose field is a union of dataclasses.
 TYPE_KEY = "type"
 
@@ -200,9 +206,12 @@ def _set_path(data: dict[str, Any], dotted: str, value: Any) -> None:
 
 def scenario_to_toml(scenario: Scenario) -> str:
     """The complete, commented TOML text of ``scenario`` (read back by :func:`load_scenario_file`)."""
-    moved = _relocate(_plain(scenario, Scenario), SECTIONS)
+    plain = _plain(scenario, Scenario)
+    for derived in DERIVED:
+        _pop_path(plain, derived)
+    moved = _relocate(plain, SECTIONS)
     weather = moved.get("weather")
-    if scenario.sim.plant.is_energyplus and isinstance(weather, dict):
+    if scenario.plant.is_energyplus and isinstance(weather, dict):
         # One place for the weather: the plant's (simulation.plant.weather); [weather] keeps
         # only its window, and gets the file from the plant when read.
         weather.pop("file_name", None)
@@ -428,6 +437,9 @@ def scenario_from_dict(data: dict[str, Any], *, base: Path, default_name: str) -
             written = SECTIONS[parent] + inner[len(parent) :]
             if _pop_path(_deep_copy(data), written) is not _MISSING:
                 raise InputError(f"{written}: unknown key; it is written as {place}")
+    if "plant" in data:  # Scenario.plant is written as [simulation.plant] only
+        here = [f.name for f in dataclasses.fields(Scenario) if f.name not in SECTIONS]
+        raise InputError(f"plant: unknown key; [top level] takes {', '.join(here)}")
     data.setdefault("name", default_name)
     data.setdefault("description", f"Scenario file {default_name}.")
     internal = _relocate(data, {v: k for k, v in SECTIONS.items()})
@@ -440,7 +452,7 @@ def scenario_from_dict(data: dict[str, Any], *, base: Path, default_name: str) -
                 raise InputError(f"{section}.{next(iter(left))}: unknown key")
             del internal[section]
     scenario = typing.cast(Scenario, _build(Scenario, internal, "", base))
-    if scenario.sim.plant.is_energyplus and scenario.sim.plant.heater_w == "auto":
+    if scenario.plant.is_energyplus and scenario.plant.heater_w == "auto":
 
         given = data.get("simulation", {}).get("u_max_w")
         scenario = with_sized_heater(scenario, given_u_max_w=given)
@@ -545,7 +557,7 @@ def scenario_inputs(name_or_path: str) -> dict[str, Path]:
             path = tmy3_path(value) if name == "file_name" else Path(value)
             if path.is_file():
                 files[f"{section}.{name}"] = path
-    plant = scenario.sim.plant
+    plant = scenario.plant
     for name in plant.PATH_FIELDS if plant.is_energyplus else ():
         path = Path(getattr(plant, name))  # a bundled name is no file here
         if path.is_file():

@@ -30,12 +30,10 @@ import pandas as pd
 from tqdm import tqdm
 
 from controllers.base import Controller
-from controllers.estimators import TrueState
 from controllers.thermostat import Thermostat
 from pinn_mpc.data import COLUMNS, SITE_COLUMNS, write_timeseries
 from pinn_mpc.errors import InputError
 from pinn_mpc.physics import RCParams
-from pinn_mpc.records import TrustReport
 from scenarios.inputs.exogenous import day_span
 from scenarios.inputs.registry import EXOGENOUS_COLUMNS, Scenario, check_seed
 from scenarios.inputs.series import ExogenousSeries
@@ -133,14 +131,15 @@ def build_loop(
         forecast_seed=[seed, _FORECAST_ERROR_STREAM],
         expected_gains_w=scenario.gains.expected(pd.DatetimeIndex(run.exo["time"])),
         fleet=fleet,
-        measured_gains=scenario.sim.plant.gains == "measured",
+        plant_settings=scenario.plant,
+        measured_gains=scenario.plant.gains == "measured",
     )
 
 
 def check_plant_supports(scenario: Scenario, controller: Controller) -> None:
     """Refuse, before anything runs, a controller with perfect knowledge (``oracle``,
     ``clairvoyant``) on a plant without a true state to know (EnergyPlus)."""
-    if scenario.sim.plant.is_energyplus and isinstance(getattr(controller, "estimator", None), TrueState):
+    if scenario.plant.is_energyplus and controller.knows_true_state:
         raise InputError(
             f"controller {controller.name!r} knows the plant's true RC model and state, which an "
             f"EnergyPlus building ({scenario.name!r}) does not have: the oracle and the "
@@ -175,7 +174,7 @@ def run_trajectory(scenario: Scenario, run: RunInputs, rec: LoopRecord) -> pd.Da
             "decision_ms": rec.decision_s[counted] * 1000.0,
         }
     )
-    if scenario.sim.plant.is_energyplus:  # no true mass temperature
+    if scenario.plant.is_energyplus:  # no true mass temperature
         trajectory = trajectory.drop(columns="T_m")
     trajectory.attrs["dt_s"] = float(scenario.sim.dt_s)
     return trajectory
@@ -265,8 +264,8 @@ def run_closed_loop(
         "counted_days": day_span(trajectory["time"]),
         "weather_days": day_span(run.exo["time"]),  # warm-up and forecast lead included
     }
-    report: TrustReport | None = getattr(controller, "trust_report", None)
-    if isinstance(report, dict):  # a planner over a learned model: how often it fell back
+    report = controller.trust_report
+    if report is not None:  # a planner over a learned model: how often it fell back
         kpis.update(report)
     return ClosedLoopResult(trajectory=trajectory, kpis=kpis, errors=tuple(errors))
 

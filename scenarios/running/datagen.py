@@ -156,7 +156,7 @@ def generate(
     check_seed(seed)
     exo = scenario.exogenous(days=days, seed=seed, part=weather_part)
     cols = {c: exo[c].to_numpy(dtype=float) for c in ("T_a", "G", "I_g", "price", "T_min", "T_max")}
-    if scenario.sim.plant.is_energyplus:
+    if scenario.plant.is_energyplus:
         if fleet is not None:
             raise InputError("a fleet with its own parameters runs on the RC simulator, not EnergyPlus")
         return _generate_energyplus(scenario, exo, cols, seed=seed, policy=policy,
@@ -282,7 +282,7 @@ def _generate_energyplus(
     thermostat = Thermostat(spec)
     on = np.zeros(1, dtype=bool)
     t_r, u, u_phys, t_a, g, i_g = (np.empty(n) for _ in range(6))
-    plant = EnergyPlusPlant(scenario.sim, exo["time"].to_numpy(), seed=sensor_seed)
+    plant = EnergyPlusPlant(scenario.sim, scenario.plant.energyplus, exo["time"].to_numpy(), seed=sensor_seed)
     try:
         plant.reset(scenario.initial_t_r_c, scenario.initial_t_m_c, start=0, seed=None)
         for k in range(n):
@@ -315,7 +315,7 @@ def _generate_energyplus(
             "G": g,
         }
     )
-    if scenario.sim.plant.gains == "measured":  # the gains as they happened, measured
+    if scenario.plant.gains == "measured":  # the gains as they happened, measured
         frame["I_g"] = i_g
     for name in SITE_COLUMNS:  # the facades' irradiance and wind of the plant's weather file
         if name in exo:

@@ -15,11 +15,11 @@ interval's demanded and delivered power and exogenous inputs (``Observation.last
 format's names, which the forecast shares.
 
 The plant is a :class:`~scenarios.plants.base.LoopPlant` of the scenario's kind
-(:func:`scenarios.plants.kinds.make_plant`): :class:`~scenarios.plants.rc.RCPlant` (the
-minute-level 2R2C or 3R3C simulator with the backup thermostat, driven by the exogenous series)
-for every RC scenario, or :class:`~scenarios.plants.energyplus.plant.EnergyPlusPlant` for an
-EnergyPlus building, which has its own
-weather and internal gains: the past a controller observes holds the interval means the plant
+(``plant_settings``, :func:`scenarios.plants.kinds.make_plant`):
+:class:`~scenarios.plants.rc.RCPlant` (the minute-level 2R2C or 3R3C simulator with the
+backup thermostat, driven by the exogenous series) for every RC scenario, or
+:class:`~scenarios.plants.energyplus.plant.EnergyPlusPlant` for an EnergyPlus building, which
+has its own weather and internal gains: the past a controller observes holds the interval means the plant
 reports, the series only the inputs still to come. An EnergyPlus plant holds a thread and a
 temporary directory: close the loop (:meth:`ClosedLoop.close`, or use it as a context manager).
 
@@ -45,7 +45,6 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from controllers.base import Controller, ControlSpec, Forecast, Observation, fallback_power
-from controllers.estimators import TrueState
 from pinn_mpc.data import SITE_COLUMNS
 from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.physics import RCParams
@@ -55,6 +54,7 @@ from scenarios.inputs.series import ExogenousSeries, ForecastErrors, lead_error_
 from scenarios.plants.base import LoopPlant
 from scenarios.plants.kinds import make_plant
 from scenarios.plants.rc import RCPlant
+from scenarios.plants.settings import PlantSettings
 
 __all__ = [
     "ClosedLoop",
@@ -145,8 +145,10 @@ class ClosedLoop:
     (``forecast_errors``, see :class:`ForecastErrors`), which depend only on it and the row.
     ``expected_gains_w`` (N,) is what a controller sees of the gains when they are not known
     (required then). ``measured_gains``: the past gains a controller observes are the plant's
-    interval means (an EnergyPlus building's measured gains) instead of the series' rows. :meth:`reset` starts an episode at row ``start`` of the series; ``k``
-    counts its intervals. ``fleet`` gives B buildings their own parameters (the backup rule,
+    interval means (an EnergyPlus building's measured gains) instead of the series' rows.
+    ``plant_settings`` is the plant's kind and settings (a scenario's ``plant``; None: the RC
+    simulator of ``config.plant``), ``plant`` a plant already made. :meth:`reset` starts an
+    episode at row ``start`` of the series; ``k`` counts its intervals. ``fleet`` gives B buildings their own parameters (the backup rule,
     actuator and ``u_max_w`` of ``config`` apply to all; see :class:`Simulator`); they share
     the series, the forecasts and the initial state. Methods that concern one building take
     its index ``building`` (default 0, the only one without a fleet).
@@ -166,6 +168,7 @@ class ClosedLoop:
         expected_gains_w: np.ndarray | None = None,
         fleet: Sequence[RCParams] | None = None,
         plant: LoopPlant | None = None,
+        plant_settings: PlantSettings | None = None,
         measured_gains: bool = False,
     ) -> None:
         inputs = exogenous.forecast(0)._replace(day_of_week=None)  # NaN without dates
@@ -184,8 +187,15 @@ class ClosedLoop:
         self._seen_gains_w = seen_gains_w
         self.measured_gains = measured_gains
         self.initial_state_c = (float(initial_t_r_c), float(initial_t_m_c))
+        if plant_settings is None:  # the RC simulator of config.plant
+            plant_settings = PlantSettings.of_rc(config.plant)
+        elif plant_settings.rc != config.plant:
+            raise InputError(
+                f"ClosedLoop: config.plant {config.plant} is not the simulator's structure of "
+                f"plant_settings (kind {plant_settings.kind!r}); give a scenario's sim with its plant"
+            )
         self.plant = plant if plant is not None else make_plant(
-            config, t_a_c=exogenous.T_a, g_w_per_m2=exogenous.G, i_g_w=exogenous.I_g,
+            config, plant_settings, t_a_c=exogenous.T_a, g_w_per_m2=exogenous.G, i_g_w=exogenous.I_g,
             times=exogenous.times, seed=seed, fleet=fleet,
         )
         self.n_buildings = self.plant.n_buildings
@@ -447,5 +457,5 @@ _NO_TRUE_STATE = (
 
 def _perfect_knowledge(controller: Controller) -> bool:
     """A controller with the true-state estimator knows everything: perfect forecasts too."""
-    return isinstance(getattr(controller, "estimator", None), TrueState)
+    return controller.knows_true_state
 

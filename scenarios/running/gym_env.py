@@ -19,8 +19,10 @@ gains schedule where the scenario says ``gains = "measured"``) does not show.
 The exogenous inputs come as a frame (as :meth:`scenarios.inputs.registry.Scenario.exogenous` makes
 it); an episode covers ``episode_steps`` consecutive rows. When the frame is longer than an
 episode, ``reset`` draws the first row from the environment's own generator, which
-``reset(seed=...)`` reseeds; the generator also seeds the sensor noise. On an EnergyPlus
-building (``config.plant``) each reset starts a fresh EnergyPlus run, at a midnight row;
+``reset(seed=...)`` reseeds; the generator also seeds the sensor noise. The plant is the RC
+simulator of ``config.plant`` unless ``plant_settings`` (a scenario's ``plant``, given with its
+``sim``) names another kind. On an EnergyPlus building each reset starts a fresh EnergyPlus
+run, at a midnight row;
 ``info`` then has no hidden ``T_m`` (NaN). Call :meth:`close` to end the run's thread; an env
 that is dropped or outlives the interpreter without it is closed then, so no EnergyPlus run's
 directory is left behind.
@@ -43,6 +45,7 @@ from pinn_mpc.data import SITE_COLUMNS, TEMPERATURE_RANGE_C, WIND, WIND_RANGE_M_
 from pinn_mpc.errors import InputError
 from pinn_mpc.simulator import SimConfig
 from scenarios.inputs.series import EXOGENOUS_FIELDS, ExogenousSeries
+from scenarios.plants.settings import PlantSettings
 from scenarios.running.engine import ClosedLoop
 
 __all__ = ["OBSERVATION_NAMES", "BuildingEnv"]
@@ -65,6 +68,7 @@ class BuildingEnv(gym.Env[np.ndarray, np.ndarray]):
         episode_steps: int | None = None,
         initial_t_r_c: float = 17.0,
         initial_t_m_c: float = 17.0,
+        plant_settings: PlantSettings | None = None,
     ):
         try:
             series = ExogenousSeries.from_frame(exogenous)
@@ -90,7 +94,7 @@ class BuildingEnv(gym.Env[np.ndarray, np.ndarray]):
         # An EnergyPlus run starts at midnight: its episodes do too.
         self._starts = (
             np.flatnonzero(np.asarray(series.time_of_day_h) == 0.0)
-            if config.plant.is_energyplus
+            if plant_settings is not None and plant_settings.is_energyplus
             else np.arange(len(exogenous))
         )
         angle = 2.0 * math.pi * series.time_of_day_h / 24.0
@@ -125,6 +129,7 @@ class BuildingEnv(gym.Env[np.ndarray, np.ndarray]):
                 spec=spec,
                 initial_t_r_c=self.initial_state_c[0],
                 initial_t_m_c=self.initial_state_c[1],
+                plant_settings=plant_settings,
             )
         except InputError as exc:
             raise InputError(f"BuildingEnv: {exc}") from exc

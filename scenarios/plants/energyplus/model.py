@@ -21,8 +21,8 @@ from pathlib import Path
 from typing import Any
 
 from pinn_mpc.errors import InputError
-from pinn_mpc.plant import Plant
 from scenarios.plants.energyplus.files import first_severe, require_energyplus, resolve_building
+from scenarios.plants.energyplus.settings import EnergyPlusSettings
 
 __all__ = [
     "CODE_OBJECT_PREFIXES",
@@ -462,8 +462,8 @@ def prepare_model(
     )
 
 
-def prepare_plant(plant: Plant) -> PreparedModel:
-    """:func:`prepare_model` of a scenario's EnergyPlus :class:`~pinn_mpc.plant.Plant`."""
+def prepare_plant(plant: EnergyPlusSettings) -> PreparedModel:
+    """:func:`prepare_model` of an EnergyPlus plant's :class:`~scenarios.plants.energyplus.settings.EnergyPlusSettings`."""
     return prepare_model(
         plant.building, allow_code=plant.allow_code, zones=plant.zones,
         radiant_fraction=plant.radiant_fraction,
@@ -476,7 +476,7 @@ def prepare_plant(plant: Plant) -> PreparedModel:
 PlantKey = tuple[str, bool, str, float]
 
 
-def plant_key(plant: Plant) -> PlantKey:
+def plant_key(plant: EnergyPlusSettings) -> PlantKey:
     """The :data:`PlantKey` of an EnergyPlus plant."""
     return (plant.building, bool(plant.allow_code), plant.zones, float(plant.radiant_fraction))
 

@@ -11,6 +11,7 @@ from pinn_mpc.simulator import SimConfig, StepResult
 from scenarios.plants.base import PlantStep
 from scenarios.plants.energyplus.model import prepare_plant
 from scenarios.plants.energyplus.run import EnergyPlusRun
+from scenarios.plants.energyplus.settings import EnergyPlusSettings
 
 __all__ = ["EnergyPlusPlant"]
 
@@ -18,8 +19,10 @@ __all__ = ["EnergyPlusPlant"]
 class EnergyPlusPlant:
     """An EnergyPlus building as the closed loop's plant (:class:`scenarios.plants.base.LoopPlant`).
 
-    ``config.plant`` names the building and the weather (kind ``energyplus``, see
-    :class:`pinn_mpc.plant.Plant`); ``times`` (N,) are the interval starts of the loop's series,
+    ``settings`` name the building and the weather
+    (:class:`~scenarios.plants.energyplus.settings.EnergyPlusSettings`); ``config`` gives the
+    heater's power, the control interval, the backup thermostat, the sensor noise and ``eta``
+    (heater or chiller); ``times`` (N,) are the interval starts of the loop's series,
     whose day of the year places each run in the weather file. :meth:`reset` starts a fresh
     EnergyPlus run at the start row's midnight through the series' last day, warmed up at the
     given room temperature; the backup thermostat of ``config`` acts per EnergyPlus timestep;
@@ -30,8 +33,10 @@ class EnergyPlusPlant:
     has_true_state = False
     n_buildings = 1
 
-    def __init__(self, config: SimConfig, times: np.ndarray, *, seed: int | None = 0) -> None:
-        plant = config.plant
+    def __init__(
+        self, config: SimConfig, settings: EnergyPlusSettings, times: np.ndarray, *, seed: int | None = 0
+    ) -> None:
+        plant = settings
         eta = config.params.eta
         if not config.actuator.is_ideal or not (eta == 1.0 or eta < 0):
             raise InputError(
@@ -47,7 +52,7 @@ class EnergyPlusPlant:
                 f"plant.heater_w = {plant.heater_w:g} W differs from simulation.u_max_w = "
                 f"{config.u_max_w:g} W; give the heater's power once"
             )
-        self.config = config
+        self.config, self.settings = config, settings
         self.times = np.asarray(times, dtype="datetime64[s]")
         self.prepared = prepare_plant(plant)
         self.run = EnergyPlusRun(

@@ -11,10 +11,10 @@ from typing import Any
 import numpy as np
 
 from pinn_mpc.errors import InputError
-from pinn_mpc.plant import Plant
 from scenarios.plants.energyplus.files import WEEKDAYS
 from scenarios.plants.energyplus.model import PlantKey, plant_key, prepared_from_key
 from scenarios.plants.energyplus.run import held_run
+from scenarios.plants.energyplus.settings import EnergyPlusSettings
 
 __all__ = ["holiday_dates", "holidays", "schedule_gains", "special_day_date"]
 
@@ -68,7 +68,7 @@ def _holiday_dates_cached(prepared_key: PlantKey, year: int) -> frozenset[dt.dat
     return holiday_dates(prepared_from_key(prepared_key).model, year)
 
 
-def holidays(plant: Plant, times: np.ndarray) -> np.ndarray:
+def holidays(plant: EnergyPlusSettings, times: np.ndarray) -> np.ndarray:
     """(N,) 1.0 where the interval starting at ``times`` falls on one of the building's
     holidays (:func:`holiday_dates`: the days it runs its Sunday-or-holiday schedules), else 0.0.
     A building's holiday calendar is known in advance, like its gains schedules."""
@@ -93,7 +93,7 @@ def _schedule_gains_cached(
 
 
 def schedule_gains(
-    plant: Plant, times: np.ndarray, *, setpoint_c: float, dt_s: float, heat_per_w: float = 1.0
+    plant: EnergyPlusSettings, times: np.ndarray, *, setpoint_c: float, dt_s: float, heat_per_w: float = 1.0
 ) -> np.ndarray:
     """(N,) the internal gains [W] (the heater's excluded) the building's own schedules
     deliver in the intervals starting at ``times``, as interval means.

@@ -12,10 +12,10 @@ from pathlib import Path
 import numpy as np
 
 from pinn_mpc.errors import InputError
-from pinn_mpc.plant import Plant
 from scenarios.plants.energyplus.files import resolve_weather
 from scenarios.plants.energyplus.model import PlantKey, plant_key, prepared_from_key
 from scenarios.plants.energyplus.run import held_run, unlimited_power_w
+from scenarios.plants.energyplus.settings import EnergyPlusSettings
 
 __all__ = ["HeaterSizing", "extreme_window", "size_heater"]
 
@@ -91,7 +91,7 @@ def _size_heater_cached(
 
 
 def size_heater(
-    plant: Plant,
+    plant: EnergyPlusSettings,
     setpoint_c: float,
     *,
     heat_per_w: float = 1.0,
@@ -99,7 +99,7 @@ def size_heater(
     days: int = 3,
     dt_s: float = 1800.0,
 ) -> HeaterSizing:
-    """The heater an EnergyPlus :class:`~pinn_mpc.plant.Plant` needs to hold ``setpoint_c``
+    """The heater an EnergyPlus :class:`~scenarios.plants.energyplus.settings.EnergyPlusSettings` needs to hold ``setpoint_c``
     (the comfort band's lower bound) through the weather file's coldest ``days`` days.
 
     The building (as the plant prepares it: zones, radiant fraction) runs on the coldest
