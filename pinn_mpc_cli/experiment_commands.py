@@ -202,7 +202,7 @@ def sweep(a: argparse.Namespace) -> str:
     missing = [f"--{n}" for n, v in (("scenarios", scenarios), ("controllers", controllers), ("seeds", seeds)) if v is None]
     if missing:
         raise InputError(f"sweep needs {', '.join(missing)} (or a --spec file that gives them)")
-    train_days, days = given("train_days", "30"), given("days", 3)
+    train_days, days = given("train_days", "30"), given("days")
     out, quick, address, workers = a.out, a.quick, a.address, a.workers
     baseline, force = given("baseline"), a.force
     grid = SweepGrid(

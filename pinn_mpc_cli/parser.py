@@ -386,7 +386,7 @@ def add_compare(sub: Commands) -> None:
         default=60,
         help=f"days of training data, 1..{MAX_DAYS}",
     )
-    _days_option(p, "test days of each closed-loop run", default=5)
+    _days_option(p, "test days of each closed-loop run (default 5; with --quick 2)", default=None)
     p.add_argument("--seed", type=_seed, default=0, help="seed of the training data and models")
     p.add_argument("--json", default="compare/table.json", help="KPI table JSON file to write")
     p.add_argument(
@@ -394,7 +394,9 @@ def add_compare(sub: Commands) -> None:
         default="compare/report.md",
         help="markdown report to write; its figure goes next to it with the suffix .png",
     )
-    p.add_argument("--quick", action="store_true", help="small ensembles and short runs (minutes)")
+    p.add_argument(
+        "--quick", action="store_true", help="small ensembles, short training, 2 test days unless --days is given (minutes)"
+    )
     p.add_argument(
         "--policy",
         choices=RANDOM_POLICIES,
@@ -430,9 +432,9 @@ def add_sweep(sub: Commands) -> None:
     p.add_argument("--controllers", default=None, help="comma-separated, e.g. oracle,qp-mpc,cem")
     p.add_argument("--seeds", default=None, help="e.g. 0-7 or 0,3,5")
     p.add_argument("--train-days", default=None, help="training days, e.g. 30 or 14,30,60 (default 30)")
-    p.add_argument("--days", type=_positive_int, default=None, help="test days per cell (default 3)")
+    p.add_argument("--days", type=_positive_int, default=None, help="test days per cell (default 3; with --quick 2)")
     p.add_argument("--out", required=True, help="directory of cells, models, summary, report")
-    p.add_argument("--quick", action="store_true", help="2-member ensembles, at most 2 test days")
+    p.add_argument("--quick", action="store_true", help="2-member ensembles, 30 epochs, 2 test days unless --days is given")
     p.add_argument("--address", default=None, help="Ray cluster (HOST:PORT, ray://HOST:PORT, auto)")
     p.add_argument("--workers", type=_positive_int, default=None, help="local CPUs (default all)")
     p.add_argument("--baseline", default=None, help="controller of the paired differences")
