@@ -163,3 +163,11 @@ def test_compare_quick_end_to_end(tmp_path, capsys):
     assert (out / "report.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     printed = capsys.readouterr().out
     assert all(label in printed for label in labels)
+
+
+def test_too_little_data_names_each_option_with_the_command_that_takes_it():
+    """compare takes neither --depth nor --horizons: the messages say whose options they are."""
+    from pinn_mpc.features import fit_feature_config
+
+    with pytest.raises(InputError, match=r"more --train-days\), or a smaller depth \(train --depth\)$"):
+        fit_feature_config(pd.DataFrame({"T_r": [20.0] * 5}), depth=8)
