@@ -39,8 +39,6 @@ import osqp
 import scipy.sparse as sp
 
 from controllers.base import (
-    raise_if_interrupted,
-    solver_interrupts_held,
     ControlSpec,
     Fallback,
     Forecast,
@@ -49,6 +47,8 @@ from controllers.base import (
     SolveStats,
     check_heating,
     first_values,
+    raise_if_interrupted,
+    solver_interrupts_held,
 )
 from controllers.estimators import OffsetFilter
 from controllers.objective import HorizonObjective

@@ -32,14 +32,14 @@ import numpy as np
 import osqp
 
 from controllers.base import (
-    raise_if_interrupted,
-    solver_interrupts_held,
     ControlSpec,
     Fallback,
     Forecast,
     Observation,
     check_heating,
     first_values,
+    raise_if_interrupted,
+    solver_interrupts_held,
 )
 from controllers.estimators import FleetKalmanEstimator
 from controllers.objective import HorizonObjective
