@@ -47,6 +47,8 @@ from controllers.base import (
     SolveStats,
     check_heating,
     first_values,
+    raise_if_interrupted,
+    solver_interrupts_held,
 )
 from controllers.estimators import OffsetFilter
 from controllers.objective import HorizonObjective
@@ -170,8 +172,10 @@ class ARXQPMPC(PlanningController):
             if self._gain_kw is None or not np.array_equal(gain_kw, self._gain_kw):
                 self._osqp.update(Ax=values)
         self._gain_kw = gain_kw
-        result = self._osqp.solve(raise_error=False)
+        with solver_interrupts_held():
+            result = self._osqp.solve(raise_error=False)
         status = str(result.info.status)
+        raise_if_interrupted(status)
         if status == "solved":  # receding horizon: start the next solve shifted by one step
             self._osqp.warm_start(
                 x=shift_steps(np.asarray(result.x), (1, 1), h), y=shift_steps(np.asarray(result.y), (1,) * 4, h)

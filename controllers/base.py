@@ -8,8 +8,12 @@ The objective every controller optimises is in :mod:`controllers.objective`.
 
 from __future__ import annotations
 
+import contextlib
 import math
+import signal
+import threading
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, NamedTuple, Protocol, runtime_checkable
 
@@ -35,6 +39,8 @@ __all__ = [
     "SolveStats",
     "fallback_power",
     "first_values",
+    "raise_if_interrupted",
+    "solver_interrupts_held",
 ]
 
 #: Exogenous inputs a model may take, in the data format's names (fields of Forecast and
@@ -265,6 +271,46 @@ def fallback_power(obs: Observation, forecast: Forecast, spec: ControlSpec) -> f
     if spec.heating:
         return spec.u_max_w if obs.t_r_c < t_min + quarter else 0.0
     return spec.u_max_w if obs.t_r_c > t_max - quarter else 0.0
+
+
+#: The statuses of a solver that caught a Ctrl-C itself (OSQP; IPOPT through CasADi), lower case.
+INTERRUPTED_STATUSES = frozenset({"interrupted", "user_requested_stop", "user requested stop"})
+
+
+@contextlib.contextmanager
+def solver_interrupts_held() -> Iterator[None]:
+    """Within: Ctrl-C (SIGINT) is held back from this thread and the threads it starts, and
+    raised as :class:`KeyboardInterrupt` when the block ends.
+
+    Solvers written in C (OSQP, IPOPT) install their own SIGINT handler while they solve: a
+    Ctrl-C then stops the solve with a status such as ``interrupted`` (which a controller
+    would take for a failure and count as a fallback) or is lost (it arrived after the
+    solver's last check), and Python never sees it. Held back, the signal waits until the
+    solver has restored Python's handler, which then raises. Solves take milliseconds, so the
+    interrupt is not noticeably late. Solvers running in several threads at once can leave
+    their own handler installed (each restores the handler it found, which may be another's),
+    so in the main thread Python's handler is installed again before the signal is let
+    through.
+    """
+    if not hasattr(signal, "pthread_sigmask"):  # no POSIX signal masks (Windows)
+        yield
+        return
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        handler = signal.getsignal(signal.SIGINT)
+        if handler is not None and threading.current_thread() is threading.main_thread():
+            signal.signal(signal.SIGINT, handler)
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+
+
+def raise_if_interrupted(status: str) -> None:
+    """Raise :class:`KeyboardInterrupt` when a solver's ``status`` says it caught a Ctrl-C
+    (one that reached it although :func:`solver_interrupts_held` holds them back, e.g. sent
+    to another thread): an interruption ends the run, it is never a solver failure."""
+    if status.strip().lower() in INTERRUPTED_STATUSES:
+        raise KeyboardInterrupt(f"the solver was interrupted (status {status!r})")
 
 
 class Fallback:

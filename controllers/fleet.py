@@ -38,6 +38,8 @@ from controllers.base import (
     Observation,
     check_heating,
     first_values,
+    raise_if_interrupted,
+    solver_interrupts_held,
 )
 from controllers.estimators import FleetKalmanEstimator
 from controllers.objective import HorizonObjective
@@ -283,13 +285,17 @@ class FleetQPMPC:
             return str(result.info.status), int(result.info.iter)
 
         # OSQP releases the GIL while it solves: the blocks are dealt out to threads.
+        # The threads are started with Ctrl-C held back, so they hold it back too.
         threads = min(self.threads, len(todo))
-        if threads > 1:
-            with ThreadPoolExecutor(threads) as pool:
-                parts = list(pool.map(lambda js: [solve(j) for j in js], [todo[i::threads] for i in range(threads)]))
-            results = [parts[i % threads][i // threads] for i in range(len(todo))]
-        else:
-            results = [solve(j) for j in todo]
+        with solver_interrupts_held():
+            if threads > 1:
+                with ThreadPoolExecutor(threads) as pool:
+                    parts = list(pool.map(lambda js: [solve(j) for j in js], [todo[i::threads] for i in range(threads)]))
+                results = [parts[i % threads][i // threads] for i in range(len(todo))]
+            else:
+                results = [solve(j) for j in todo]
+        for status, _ in results:
+            raise_if_interrupted(status)
         x = np.full((self.n_buildings, 4 * h), np.nan)
         solved = np.zeros(self.n_buildings, dtype=bool)
         statuses: set[str] = set() if only is None or only.all() else {"solved"}

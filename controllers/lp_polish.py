@@ -38,6 +38,7 @@ import scipy.optimize
 import scipy.sparse as sp
 import torch
 
+from controllers.base import solver_interrupts_held
 from controllers.objective import HorizonObjective
 from pinn_mpc.errors import InputError
 
@@ -173,9 +174,10 @@ def solve_lp(
     lo = np.maximum(problem.lower - u0, -trust_w) / kw
     hi = np.minimum(problem.upper - u0, trust_w) / kw
     bounds = np.concatenate([np.stack([lo, hi], 1), np.tile([0.0, np.inf], (m * h, 1))])
-    res = scipy.optimize.linprog(
-        np.concatenate([c_du, c_s]), A_ub=a_ub, b_ub=b_ub, bounds=bounds, method="highs"
-    )
+    with solver_interrupts_held():
+        res = scipy.optimize.linprog(
+            np.concatenate([c_du, c_s]), A_ub=a_ub, b_ub=b_ub, bounds=bounds, method="highs"
+        )
     if res.status != 0 or res.x is None:
         return None
     return np.clip(u0 + res.x[:h] * kw, problem.lower, problem.upper)

@@ -42,7 +42,8 @@ def recursive_t_r(
     if len(starts) == 0:
         raise InputError(
             f"evaluation data has {n} rows; depth {k} and horizon {horizon} need at least "
-            f"{k + 2 + horizon} rows; give more data or smaller --horizons"
+            f"{k + 2 + horizon} rows; give more data (compare: more --days), or smaller horizons "
+            "(evaluate --horizons)"
         )
     t_r = (df["T_r"].to_numpy(dtype=float) - f.temperature.mean) / f.temperature.std
     u_phys = (df["u_phys"].to_numpy(dtype=float) - f.power.mean) / f.power.std

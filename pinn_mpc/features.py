@@ -252,7 +252,7 @@ def _check_rows(df: pd.DataFrame, depth: int, min_samples: int, what: str) -> No
         raise InputError(
             f"{what}: data has {len(df)} rows, but depth {depth} needs at least {need} rows "
             f"({min_samples} sample(s) of depth+3 consecutive rows); "
-            "give more data or a smaller --depth"
+            "give more data (compare: more --train-days), or a smaller depth (train --depth)"
         )
 
 

@@ -22,6 +22,7 @@ The library's warnings (:class:`~pinn_mpc.errors.PinnMpcWarning`) are printed as
 
 from __future__ import annotations
 
+import atexit
 import contextlib
 import importlib
 import logging
@@ -30,15 +31,17 @@ import sys
 import traceback
 import warnings
 from collections.abc import Iterator, Sequence
-from typing import TextIO
+from typing import NoReturn, TextIO
 
 from pinn_mpc.errors import InputError, PinnMpcWarning
 from pinn_mpc_cli.parser import MAX_DAYS, build_parser
 
-__all__ = ["BUG_EXIT", "MAX_DAYS", "build_parser", "bug_line", "main"]
+__all__ = ["BUG_EXIT", "INTERRUPT_EXIT", "MAX_DAYS", "build_parser", "bug_line", "main"]
 
 #: Exit status of a bug (bad input is 2, an interruption 130).
 BUG_EXIT = 1
+#: Exit status of a run ended by Ctrl-C (128 + SIGINT, as a shell reports it).
+INTERRUPT_EXIT = 130
 #: The packages whose notes (``logging``) the command line shows.
 _LOGGERS = ("pinn_mpc", "controllers", "scenarios")
 
@@ -104,6 +107,17 @@ def _report_bug(command: str, exc: BaseException, debug: bool) -> int:
     return BUG_EXIT
 
 
+def _end_process(status: int) -> NoReturn:
+    """End the process at once with ``status``: the exit handlers run (temporary directories,
+    Ray) and the streams are flushed, but the interpreter's teardown of its modules, which
+    takes seconds once torch is loaded, is skipped, so that Ctrl-C ends a command promptly."""
+    atexit._run_exitfuncs()
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(Exception):
+            stream.flush()
+    os._exit(status)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run ``pinn-mpc`` with ``argv`` (default: the process's); the exit status."""
     parser = build_parser()
@@ -132,7 +146,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     except KeyboardInterrupt:
         print(f"pinn-mpc {args.command}: interrupted", file=sys.stderr)
-        return 130
+        if argv is None:  # the process's own command: end it now (a caller's argv: return)
+            _end_process(INTERRUPT_EXIT)
+        return INTERRUPT_EXIT
     except Exception as exc:  # an internal error, or any other: a bug, reported as one
         return _report_bug(args.command, exc, args.debug)
     if summary:

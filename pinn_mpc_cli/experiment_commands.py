@@ -221,7 +221,7 @@ def sweep(a: argparse.Namespace) -> str:
     missing = [f"--{n}" for n, v in (("scenarios", scenarios), ("controllers", controllers), ("seeds", seeds)) if v is None]
     if missing:
         raise InputError(f"sweep needs {', '.join(missing)} (or a --spec file that gives them)")
-    train_days, days = given("train_days", "30"), given("days", 3)
+    train_days, days = given("train_days", "30"), given("days")
     out, quick, address, workers = a.out, a.quick, a.address, a.workers
     baseline, force = given("baseline"), a.force
     grid = SweepGrid(
@@ -285,6 +285,8 @@ def _boptest_compare(a: argparse.Namespace) -> str:
 
     if a.quick:
         raise InputError("--quick does not apply to a BOPTEST scenario: choose --train-days and --days")
+    if a.days is None:  # BOPTEST's KPIs are published for the whole test period
+        a.days = int(TEST_PERIOD_DAYS)
     if a.days > TEST_PERIOD_DAYS:
         raise InputError(f"--days {a.days}: a BOPTEST test period has {TEST_PERIOD_DAYS:g} days")
     check_writable(a.json, a.report, create_parents=True)

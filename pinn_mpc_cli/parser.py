@@ -64,9 +64,12 @@ def _finite_non_negative_float(text: str) -> float:
 
 
 def _positive_float(text: str) -> float:
-    value = _finite_non_negative_float(text)
-    if value <= 0:
-        raise argparse.ArgumentTypeError(f"must be a number > 0, got {text}")
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text}")
     return value
 
 
@@ -411,7 +414,7 @@ def add_compare(sub: Commands) -> None:
         default=60,
         help=f"days of training data, 1..{MAX_DAYS}",
     )
-    _days_option(p, "test days of each closed-loop run", default=5)
+    _days_option(p, "test days of each closed-loop run (default 5; with --quick 2; on BOPTEST its whole 14-day test period)", default=None)
     p.add_argument("--seed", type=_seed, default=0, help="seed of the training data and models")
     p.add_argument("--json", default="compare/table.json", help="KPI table JSON file to write")
     p.add_argument(
@@ -419,7 +422,9 @@ def add_compare(sub: Commands) -> None:
         default="compare/report.md",
         help="markdown report to write; its figure goes next to it with the suffix .png",
     )
-    p.add_argument("--quick", action="store_true", help="small ensembles and short runs (minutes)")
+    p.add_argument(
+        "--quick", action="store_true", help="small ensembles, short training, 2 test days unless --days is given (minutes)"
+    )
     _boptest_options(p)
     p.add_argument(
         "--policy",
@@ -456,9 +461,9 @@ def add_sweep(sub: Commands) -> None:
     p.add_argument("--controllers", default=None, help="comma-separated, e.g. oracle,qp-mpc,cem")
     p.add_argument("--seeds", default=None, help="e.g. 0-7 or 0,3,5")
     p.add_argument("--train-days", default=None, help="training days, e.g. 30 or 14,30,60 (default 30)")
-    p.add_argument("--days", type=_positive_int, default=None, help="test days per cell (default 3)")
+    p.add_argument("--days", type=_positive_int, default=None, help="test days per cell (default 3; with --quick 2)")
     p.add_argument("--out", required=True, help="directory of cells, models, summary, report")
-    p.add_argument("--quick", action="store_true", help="2-member ensembles, at most 2 test days")
+    p.add_argument("--quick", action="store_true", help="2-member ensembles, 30 epochs, 2 test days unless --days is given")
     p.add_argument("--address", default=None, help="Ray cluster (HOST:PORT, ray://HOST:PORT, auto)")
     p.add_argument("--workers", type=_positive_int, default=None, help="local CPUs (default all)")
     p.add_argument("--baseline", default=None, help="controller of the paired differences")

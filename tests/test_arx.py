@@ -407,3 +407,55 @@ def test_physics_informed_arx_recovers_wind_driven_infiltration(tmp_path):
         model.prediction_matrices(history, {n: v for n, v in exog.items() if n != "wind"}, h)
     loaded = load_arx(save_arx(model, tmp_path / "m").parent)
     assert loaded.wind and np.array_equal(loaded.coef, model.coef)
+
+
+@pytest.mark.parametrize(
+    ("edit", "message"),
+    [
+        # a coefficient of the power edited to 1e6: it once evaluated at 2e7 C one step ahead
+        (lambda coef, lags, n_col: coef.__setitem__(1, 1e6), r"a coefficient of 1e\+06"),
+        # the latest room temperature's weight 1.5: a room that runs away, never settles
+        (lambda coef, lags, n_col: coef.__setitem__(0, 1.5), "never settles"),
+    ],
+)
+def test_a_tampered_arx_is_refused_on_load_in_one_line(tmp_path, capsys, edit, message):
+    import json
+
+    from pinn_mpc.data import write_timeseries
+    from pinn_mpc.models.arx import load_arx, save_arx
+    from pinn_mpc_cli.cli import main
+
+    model = fit_arx(_rc_data(14, seed=0))
+    assert 0.0 < model.settling_radius() < 1.0
+    save_arx(model, tmp_path / "arx")
+    stored = json.loads((tmp_path / "arx" / "arx.json").read_text())
+    edit(stored["coef"], model.lags, len(model.columns))
+    (tmp_path / "arx" / "arx.json").write_text(json.dumps(stored))
+    with pytest.raises(InputError, match=message):
+        load_arx(tmp_path / "arx")
+    test = tmp_path / "t.csv"
+    write_timeseries(_rc_data(3, seed=1), test)
+    assert main(["evaluate", "--model", str(tmp_path / "arx"), "--data", str(test),
+                 "--json", str(tmp_path / "m.json")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "not a plausible ARX model" in err
+    assert not (tmp_path / "m.json").exists()
+
+
+def test_an_arx_refuses_data_at_another_interval(tmp_path, capsys):
+    """As a hybrid is: an ARX trained at 30 minutes steps 30 minutes, not 15."""
+    from pinn_mpc.data import write_timeseries
+    from pinn_mpc.models.arx import save_arx
+    from pinn_mpc_cli.cli import main
+
+    save_arx(fit_arx(_rc_data(14, seed=0)), tmp_path / "arx")
+    quarter = _rc_data(3, seed=1)
+    quarter["time"] = pd.date_range("2022-01-03", periods=len(quarter), freq="15min")
+    quarter.attrs["dt_s"] = 900.0
+    test = tmp_path / "q.csv"
+    write_timeseries(quarter, test)
+    assert main(["evaluate", "--model", str(tmp_path / "arx"), "--data", str(test),
+                 "--json", str(tmp_path / "m.json")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "trained at 1800 s (30 min) intervals but the data has 900 s (15 min)" in err, err
+    assert len(err.splitlines()) == 1 and not (tmp_path / "m.json").exists()

@@ -7,8 +7,9 @@ import pytest
 
 from pinn_mpc.errors import InputError
 from pinn_mpc.physics import PAPER_HOUSEHOLD, rc_summary
-from pinn_mpc_cli.cli import main
+from pinn_mpc_cli.cli import build_parser, main
 from scenarios.experiments.compare import CompareSettings
+from scenarios.experiments.sweep import SweepSettings
 from scenarios.inputs.scenario_file import get_scenario
 from scenarios.records import CompareTable
 from scenarios.reports.report import kpi_table_text, objective_ratios, render_report
@@ -59,8 +60,8 @@ def test_report_lists_kpis_rc_parameters_and_figure():
 
 
 def test_quick_settings_are_small():
-    quick = CompareSettings.for_run(train_days=60, days=5, seed=0, quick=True)
-    full = CompareSettings.for_run(train_days=60, days=5, seed=0, quick=False)
+    quick = CompareSettings.for_run(train_days=60, days=None, seed=0, quick=True)
+    full = CompareSettings.for_run(train_days=60, days=None, seed=0, quick=False)
     assert quick.test_days == 2 and full.test_days == 5
     assert quick.n_seeds < full.n_seeds and quick.cem_samples == full.cem_samples
     assert quick.test_seed != quick.seed
@@ -69,6 +70,16 @@ def test_quick_settings_are_small():
     assert full.training_epochs == 120 and quick.training_epochs == 60
     assert CompareSettings(train_days=10, test_days=1, seed=0).training_epochs == 240
     assert CompareSettings(train_days=365, test_days=1, seed=0).training_epochs == 60
+
+
+def test_quick_honours_the_days_asked_for():
+    """--quick shortens the default test, never the days given (it once capped them at 2)."""
+    assert CompareSettings.for_run(train_days=60, days=5, seed=0, quick=True).test_days == 5
+    assert CompareSettings.for_run(train_days=60, days=1, seed=0, quick=True).test_days == 1
+    assert build_parser().parse_args(["compare", "--scenario", "x", "--quick"]).days is None
+    assert SweepSettings.for_run(days=5, quick=True).test_days == 5
+    assert SweepSettings.for_run(days=None, quick=True).test_days == 2
+    assert SweepSettings.for_run(days=None, quick=False).test_days == 3
 
 
 def test_compare_rejects_an_unknown_training_policy():
@@ -152,3 +163,11 @@ def test_compare_quick_end_to_end(tmp_path, capsys):
     assert (out / "report.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     printed = capsys.readouterr().out
     assert all(label in printed for label in labels)
+
+
+def test_too_little_data_names_each_option_with_the_command_that_takes_it():
+    """compare takes neither --depth nor --horizons: the messages say whose options they are."""
+    from pinn_mpc.features import fit_feature_config
+
+    with pytest.raises(InputError, match=r"more --train-days\), or a smaller depth \(train --depth\)$"):
+        fit_feature_config(pd.DataFrame({"T_r": [20.0] * 5}), depth=8)

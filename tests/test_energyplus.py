@@ -722,3 +722,35 @@ def test_gymnasium_env_left_open_leaves_no_energyplus_directory(private_tmp):
     assert result.returncode == 0, result.stderr
     assert result.stdout.split() == ["1"]  # the run's directory existed while it ran
     assert not list(private_tmp.glob("pinn-mpc-eplus-*"))
+
+
+def _bundled() -> list[str]:
+    from scenarios.plants.energyplus.files import bundled_buildings
+
+    return sorted(bundled_buildings())
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("building", _bundled())
+def test_every_bundled_building_runs_with_its_zones_merged(tmp_path, building):
+    """The default (zones merged) on every bundled building: hospital and outpatient once
+    crashed in the merge, warehouse and the schools inside EnergyPlus."""
+    (tmp_path / "b.toml").write_text(FILE.format(building=building, extra=""))
+    result = run_cli("closed-loop", "--scenario", "b.toml", "--controller", "thermostat",
+                     "--days", "1", "--json", "k.json", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr[-2000:]
+    kpis = json.loads((tmp_path / "k.json").read_text())
+    assert np.isfinite(kpis["objective"]) and kpis["energy_kwh"] >= 0
+
+
+def test_a_control_interval_energyplus_cannot_step_names_the_key_and_the_values(tmp_path):
+    (tmp_path / "q.toml").write_text(
+        FILE.format(building="small_office", extra="").replace("[simulation]\n", "[simulation]\ndt_s = 900.0\n")
+    )
+    result = run_cli("closed-loop", "--scenario", "q.toml", "--controller", "thermostat",
+                     "--days", "1", "--json", "k.json", cwd=tmp_path)
+    assert result.returncode == 2
+    err = result.stderr.strip()
+    assert len(err.splitlines()) == 1, err
+    assert "[simulation] dt_s = 900 s" in err and "set dt_s to one of 600, 1200, 1800" in err
+    assert not (tmp_path / "k.json").exists()

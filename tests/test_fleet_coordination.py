@@ -255,7 +255,9 @@ def test_cli_capped_fleet_writes_aggregate_cap_district_and_figure(tmp_path, cap
         (["--buildings", "3", "--cap-kw", "5", "--cap-window", "5pm-7pm"], "is not HH:MM-HH:MM"),
         (["--buildings", "3", "--cap-window", "17:00-19:00"], "--cap-window needs --cap-kw"),
         (["--cap-kw", "5"], "--cap-kw coordinates a fleet: add --buildings N"),
-        (["--buildings", "3", "--cap-kw", "0"], "must be a number > 0"),
+        (["--buildings", "3", "--cap-kw", "0"], "must be a finite number > 0, got 0"),
+        # the same rule whatever the number (it once said ">= 0" of a negative one)
+        (["--buildings", "3", "--cap-kw", "-5"], "must be a finite number > 0, got -5"),
         (["--buildings", "3", "--rc-candidates"], "--rc-candidates applies to the batched cem"),
     ],
 )

@@ -29,7 +29,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from controllers.base import ControlSpec
+from controllers.base import ControlSpec, raise_if_interrupted, solver_interrupts_held
 from controllers.rc_mpc.problem import RCMPC, SolveResult, StageData
 from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.physics import RCParams
@@ -136,13 +136,15 @@ class CasadiMPC(RCMPC):
         }
         if self._warm is not None:
             args.update(self._warm)
-        if self._first_call:
-            with _quiet_c_stdout():
+        with solver_interrupts_held():
+            if self._first_call:
+                with _quiet_c_stdout():
+                    sol = self._solver(**args)
+                self._first_call = False
+            else:
                 sol = self._solver(**args)
-            self._first_call = False
-        else:
-            sol = self._solver(**args)
         stats = self._solver.stats()
+        raise_if_interrupted(str(stats.get("return_status", "")))
         w = np.asarray(sol["x"]).reshape(-1)
         optimal = bool(stats.get("success", False))
         if optimal:

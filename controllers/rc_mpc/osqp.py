@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 import osqp
 
+from controllers.base import raise_if_interrupted, solver_interrupts_held
 from controllers.rc_mpc.problem import RCMPC, SolveResult, StageData
 from controllers.rc_mpc.qp import (
     SPLIT,
@@ -80,8 +81,10 @@ class QPMPC(RCMPC):
             self._osqp.setup(P=self._p_upper, q=q, A=self._a, l=lower, u=upper, **self.solver_options)
         else:
             self._osqp.update(q=q, l=lower, u=upper)
-        result = self._osqp.solve(raise_error=False)
+        with solver_interrupts_held():
+            result = self._osqp.solve(raise_error=False)
         info = result.info
+        raise_if_interrupted(str(info.status))
         if str(info.status) == "solved":
             # Receding horizon: start the next solve from this solution shifted by one step.
             self._osqp.warm_start(

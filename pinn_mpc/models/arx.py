@@ -56,6 +56,7 @@ import torch
 
 from pinn_mpc.data import WIND, day_of_week
 from pinn_mpc.errors import InputError, InternalError
+from pinn_mpc.features import check_interval
 from pinn_mpc.io import DirectoryLayout
 from pinn_mpc.models.registry import ARX, PHYSICS_ARX
 from pinn_mpc.models.rollout import BatchDynamics, Rollout
@@ -95,6 +96,9 @@ DEFAULT_LAGS = 8
 BLOCK_H = 2.0
 #: The block lengths [h] the physics-informed ARX chooses from (each divides the day).
 BLOCK_CHOICES_H = (1.0, 2.0)
+#: The largest coefficient magnitude a saved ARX model may hold (scaled units, :data:`_SCALE`):
+#: fits give well under 10; a larger one is an edited or damaged file.
+MAX_ABS_COEF = 1e3
 #: Ridge weight relative to each regressor's own sum of squares (keeps collinear lags well posed).
 _RIDGE = 1e-9
 #: Scales that bring the inputs to order one: W -> kW, W/m2 -> 100 W/m2, W -> kW.
@@ -191,6 +195,19 @@ class ARXModel(BatchDynamics):
         """Coefficients of the schedule (and as many of its interaction, if any)."""
         return self.day_types * _blocks(self.block_h)
 
+    def settling_radius(self) -> float:
+        """The largest magnitude of the room temperature's poles over the schedule's blocks
+        (the lags of ``T_r``, plus each block's interaction weight on the latest): below 1 the
+        model's room temperature settles after a change, at or above 1 it never does."""
+        n_col = len(self.columns)
+        a = self.coef[0 : self.lags * n_col : n_col]
+        radius = 0.0
+        for q in np.unique(self._interaction_coef()):
+            poly = np.concatenate([[1.0], -a])
+            poly[1] -= q
+            radius = max(radius, float(np.max(np.abs(np.roots(poly)), initial=0.0)))
+        return radius
+
     def _interaction_coef(self) -> np.ndarray:
         start = self.lags * len(self.columns) + self.n_schedule
         return self.coef[start : start + self.n_schedule] if self.interaction else np.zeros(self.n_schedule)
@@ -245,7 +262,10 @@ class ARXModel(BatchDynamics):
     def predict_t_r(self, df: pd.DataFrame, horizon: int, starts: np.ndarray) -> np.ndarray:
         """``T_r`` [C] at ``starts + horizon`` (N,): the model's own recursion from the
         measured ``T_r`` up to each start, on the data's delivered power and weather.
-        Every start must have ``lags - 1`` rows before it."""
+        Every start must have ``lags - 1`` rows before it; data at another interval than the
+        model's (``df.attrs["dt_s"]``) is refused (InputError)."""
+        if "dt_s" in df.attrs:
+            check_interval(self.dt_s, float(df.attrs["dt_s"]), what="the data has")
         starts = np.asarray(starts, dtype=int)
         if starts.size and (starts.min() < self.lags - 1 or starts.max() + horizon > len(df) - 1):
             raise InternalError(
@@ -646,6 +666,13 @@ def load_arx(path: str | os.PathLike[str]) -> ARXModel:
         )
     if not isinstance(training_data, dict):
         raise InputError(f"{file}: not a valid ARX model (training_data is not an object)")
+    largest = float(np.max(np.abs(coef)))
+    if largest > MAX_ABS_COEF:
+        raise InputError(
+            f"{file}: not a plausible ARX model (a coefficient of {largest:g}, where a fit gives at "
+            f"most {MAX_ABS_COEF:g} in its scaled units): it was edited or damaged; train it again "
+            "with `pinn-mpc train --arch arx`"
+        )
     if identified_rc is not None:
         if not isinstance(identified_rc, dict):
             raise InputError(f"{file}: not a valid ARX model (identified_rc is not an object)")
@@ -653,12 +680,20 @@ def load_arx(path: str | os.PathLike[str]) -> ARXModel:
             params_from_summary(identified_rc)
         except InputError as exc:
             raise InputError(f"{file}: identified_rc: {exc}") from None
-    return ARXModel(
+    model = ARXModel(
         columns=columns, lags=lags, coef=coef, dt_s=dt_s,
         train_mae_c=float(data.get("train_mae_c", float("nan"))),
         day_types=day_types, interaction=bool(interaction), block_h=block_h, wind=bool(wind),
         identified_rc=identified_rc, training_data=training_data,
     )
+    radius = model.settling_radius()
+    if not radius < 1.0:
+        raise InputError(
+            f"{file}: not a plausible ARX model (its room temperature never settles: a pole of "
+            f"magnitude {radius:.3g}, where a building's are below 1): it was edited or damaged; "
+            "train it again with `pinn-mpc train --arch arx`"
+        )
+    return model
 
 
 def _valid_block(block_h: float) -> bool:

@@ -79,6 +79,9 @@ ARCHS = COMPARED_ARCHS
 _RS = RandomShootingPlanner(lower=0.0, upper=1.0)  # the planners' defaults
 _CEM = CEMPlanner(lower=0.0, upper=1.0)
 REFERENCE = "oracle"
+#: Test days of a comparison, and of one run with ``--quick``, when none are asked for.
+TEST_DAYS = 5
+QUICK_TEST_DAYS = 2
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -115,16 +118,17 @@ class CompareSettings:
 
     @classmethod
     def for_run(
-        cls, *, train_days: int, days: int, seed: int, quick: bool, policy: str = "random-level"
+        cls, *, train_days: int, days: int | None, seed: int, quick: bool, policy: str = "random-level"
     ) -> CompareSettings:
-        """The defaults, or with ``quick`` small ensembles, short training and at most 2 test
-        days; the planners run with their defaults either way."""
+        """The defaults, or with ``quick`` small ensembles and short training; ``days`` test
+        days (None: :data:`TEST_DAYS`, with ``quick`` :data:`QUICK_TEST_DAYS`). The planners
+        run with their defaults either way."""
         if not quick:
-            return cls(train_days=train_days, test_days=days, seed=seed, policy=policy)
+            return cls(train_days=train_days, test_days=TEST_DAYS if days is None else days, seed=seed, policy=policy)
         return cls(
             policy=policy,
             train_days=train_days,
-            test_days=min(days, 2),
+            test_days=QUICK_TEST_DAYS if days is None else days,
             seed=seed,
             n_seeds=3,
             epochs=60,

@@ -77,6 +77,9 @@ ARCH = DEFAULT_ARCH
 #: The linear baselines a sweep fits instead of training (:func:`pinn_mpc.models.arx.fit_linear`).
 _LINEAR = (ARX.name, PHYSICS_ARX.name)
 RC_KIND = "rc"
+#: Test days per cell, and with ``--quick``, when none are asked for.
+TEST_DAYS = 3
+QUICK_TEST_DAYS = 2
 FIGURE = "objective_to_oracle.png"
 #: Tasks an engine worker runs before it is replaced when the grid has an EnergyPlus scenario.
 ENERGYPLUS_CALLS_PER_WORKER = 20
@@ -113,11 +116,13 @@ class SweepSettings:
             raise InputError(f"sweep: policy {self.policy!r} is unknown; choose one of {', '.join(_POLICIES)}")
 
     @classmethod
-    def for_run(cls, *, days: int, quick: bool, arch: str = ARCH) -> SweepSettings:
-        """Defaults, or with ``quick`` 2-member ensembles, 30 epochs and at most 2 test days."""
+    def for_run(cls, *, days: int | None, quick: bool, arch: str = ARCH) -> SweepSettings:
+        """Defaults, or with ``quick`` 2-member ensembles and 30 epochs; ``days`` test days
+        per cell (None: :data:`TEST_DAYS`, with ``quick`` :data:`QUICK_TEST_DAYS`)."""
         if not quick:
-            return cls(test_days=days, arch=arch)
-        return cls(test_days=min(days, 2), n_members=2, epochs=30, quick=True, arch=arch)
+            return cls(test_days=TEST_DAYS if days is None else days, arch=arch)
+        test_days = QUICK_TEST_DAYS if days is None else days
+        return cls(test_days=test_days, n_members=2, epochs=30, quick=True, arch=arch)
 
 
 @dataclass(frozen=True, kw_only=True, order=True)

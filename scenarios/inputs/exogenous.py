@@ -93,8 +93,8 @@ def _days_touched(n: int, dt_s: float) -> int:
 def _too_long(part: str, need_days: int, room: str) -> InputError:
     return InputError(
         f"a run of {need_days} days (warm-up and forecast lead rows, if any, included) does not "
-        f"fit in the {part} weather, {room}; use fewer days, or --weather-part whole to draw from "
-        "the whole window, training and test days mixed"
+        f"fit in the {part} weather, {room}; use fewer days, or (simulate, closed-loop) "
+        "--weather-part whole to draw from the whole window, training and test days mixed"
     )
 
 

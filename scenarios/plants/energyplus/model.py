@@ -52,7 +52,7 @@ _KEEP_EXACT = {
     "ZoneList", "BuildingSurface:Detailed", "FenestrationSurface:Detailed", "InternalMass",
     "People", "Lights", "ElectricEquipment", "GasEquipment", "HotWaterEquipment",
     "SteamEquipment", "OtherEquipment", "ZoneMixing", "ZoneCrossMixing", "Material",
-    "Material:NoMass", "Material:AirGap",
+    "Material:NoMass", "Material:AirGap", "WindowProperty:FrameAndDivider",
 }
 _KEEP_PREFIX = (
     "Schedule:", "WindowMaterial:", "Construction", "Shading:", "ZoneInfiltration:",
@@ -209,14 +209,21 @@ def _absolute_loads(model: dict[str, Any], zones: list[str], geo: dict[str, dict
             else:
                 level = "lighting_level" if kind == "Lights" else "design_level"
                 method = obj.get("design_level_calculation_method", "")
-                if method == "Watts/Area":
-                    obj[level] = obj.pop("watts_per_floor_area") * g["floor_m2"]
-                elif method == "Power/Area":
-                    obj[level] = obj.pop("power_per_floor_area") * g["floor_m2"]
+                # The per-area value's key is the kind's (Lights and ElectricEquipment:
+                # watts_per_floor_area; gas, hot water, steam: power_per_floor_area),
+                # whichever name the method has.
+                per_area = [k for k in ("watts_per_floor_area", "power_per_floor_area") if k in obj]
+                if method in ("Watts/Area", "Power/Area") and per_area:
+                    obj[level] = obj.pop(per_area[0]) * g["floor_m2"]
+                elif method in ("Watts/Area", "Power/Area"):
+                    raise InputError(
+                        f'{kind} "{name}" is given per floor area ({method}) without a value; give '
+                        'it one, or set [simulation.plant] zones = "separate"'
+                    )
                 elif method in ("Watts/Person", "Power/Person"):
                     raise InputError(
                         f'{kind} "{name}" is given per person; zones with such loads cannot be '
-                        "merged yet"
+                        'merged yet: set [simulation.plant] zones = "separate"'
                     )
                 obj["design_level_calculation_method"] = "LightingLevel" if kind == "Lights" else "EquipmentLevel"
 
@@ -294,17 +301,23 @@ def _merge_zones(model: dict[str, Any], zones: list[str], geo: dict[str, dict[st
     partitions = []
     for sname, s in surfaces.items():
         other = s.get("outside_boundary_condition_object")
-        if (
-            s["zone_name"] in zones
-            and s["outside_boundary_condition"] == "Surface"
-            and other in surfaces
-            and surfaces[other]["zone_name"] in zones
-        ):
+        if s["zone_name"] not in zones:
+            continue
+        boundary = s["outside_boundary_condition"]
+        if boundary == "Surface" and other in surfaces and surfaces[other]["zone_name"] in zones:
             if other not in removed:
                 partitions.append((sname, s))
             removed |= {sname, other}
+        elif boundary == "Zone" and other in zones:  # one surface, its other face made by EnergyPlus
+            partitions.append((sname, s))
+            removed.add(sname)
     for sname in removed:
         del surfaces[sname]
+    # Windows and doors in a partition (a skylight between a room and its plenum) go with it.
+    for objects in model.values():
+        for oname, obj in list(objects.items()):
+            if isinstance(obj, dict) and obj.get("building_surface_name") in removed:
+                del objects[oname]
     masses = model.setdefault("InternalMass", {})
     for sname, s in partitions:
         cname = s["construction_name"]
@@ -325,6 +338,28 @@ def _merge_zones(model: dict[str, Any], zones: list[str], geo: dict[str, dict[st
             masses[f"{sname} partition"] = {
                 "construction_name": cname, "surface_area": area, "zone_or_zonelist_name": MERGED_ZONE,
             }
+    floor_heights = {
+        round(min(z for _, _, z in _vertices(s)), 1)
+        for s in surfaces.values()
+        if s["zone_name"] in zones and str(s.get("surface_type", "")).lower() == "floor"
+    }
+    if len(floor_heights) > 1:
+        # Storeys merged make a zone EnergyPlus's interior solar distribution refuses (not
+        # convex): the sun that enters falls on the floor instead.
+        for building in model.get("Building", {}).values():
+            if str(building.get("solar_distribution", "")).startswith("FullInterior"):
+                building["solar_distribution"] = "FullExterior"
+    for kind in ("ZoneMixing", "ZoneCrossMixing", "ZoneRefrigerationDoorMixing"):
+        mixing = model.get(kind, {})
+        for mname, obj in list(mixing.items()):
+            ends = [obj.get(k) for k in ("zone_or_space_name", "zone_1_name", "source_zone_or_space_name", "zone_2_name")]
+            ends = [e for e in ends if e is not None]
+            if ends and all(e in zones for e in ends):  # air moved within the merged zone
+                del mixing[mname]
+            else:
+                for k in ("source_zone_or_space_name", "zone_2_name"):
+                    if obj.get(k) in zones:
+                        obj[k] = MERGED_ZONE
     for objects in model.values():
         for obj in objects.values():
             f = _zone_field(obj) if isinstance(obj, dict) else None
@@ -333,8 +368,11 @@ def _merge_zones(model: dict[str, Any], zones: list[str], geo: dict[str, dict[st
     first = model["Zone"][zones[0]]
     for z in zones:
         del model["Zone"][z]
+    # The volume is the zones' sum: EnergyPlus cannot compute it of a merged zone whose
+    # surfaces do not enclose it (partitions gone, plenums and unheated zones left out).
     model["Zone"][MERGED_ZONE] = {
         **first, "floor_area": "Autocalculate", "part_of_total_floor_area": "Yes",
+        "volume": sum(geo[z]["volume_m3"] for z in zones),
         "x_origin": 0.0, "y_origin": 0.0, "z_origin": 0.0, "direction_of_relative_north": 0.0,
     }
     return len(partitions)

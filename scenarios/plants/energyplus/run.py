@@ -111,9 +111,11 @@ class EnergyPlusRun:
         self.u_max_w, self.dt_s = float(u_max_w), int(dt_s)
         step_s = 3600 // prepared.timesteps_per_hour
         if self.dt_s % step_s or SECONDS_PER_DAY % self.dt_s:
+            valid = [s for s in range(step_s, 4 * 3600 + 1, step_s) if SECONDS_PER_DAY % s == 0]
             raise InputError(
-                f"EnergyPlus: the control interval {dt_s:g} s must be a whole number of its "
-                f"{step_s} s timesteps and divide the day"
+                f"EnergyPlus: the control interval [simulation] dt_s = {dt_s:g} s must be a whole "
+                f"number of its {step_s} s timesteps and divide the day; set dt_s to one of "
+                f"{', '.join(str(s) for s in valid)} (s)"
             )
         self.backup_c = backup_c
         self.warmup_setpoint_c = warmup_setpoint_c
