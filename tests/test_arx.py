@@ -427,6 +427,7 @@ def test_a_tampered_arx_is_refused_on_load_in_one_line(tmp_path, capsys, edit, m
 
     model = fit_arx(_rc_data(14, seed=0))
     assert 0.0 < model.settling_radius() < 1.0
+    assert model.offset_response(7 * 48) < 1.0
     save_arx(model, tmp_path / "arx")
     stored = json.loads((tmp_path / "arx" / "arx.json").read_text())
     edit(stored["coef"], model.lags, len(model.columns))

@@ -36,7 +36,10 @@ def test_ctrl_c_during_solves_interrupts_and_is_no_fallback(mpc) -> None:
     history = {"T_r": np.array([19.0]), "u": np.zeros(0), "u_phys": np.zeros(0), "T_a": np.array([3.0])}
     obs = Observation.from_history(0, history, 18.0)
     controller.act(obs, forecast)  # the first solve builds the solver
-    timer = threading.Timer(0.3, os.kill, (os.getpid(), signal.SIGINT))
+    # to the main thread, as a terminal's Ctrl-C reaches a single-threaded process (under a
+    # test runner another thread, with its own mask, could take a process-wide signal)
+    main_thread = threading.main_thread().ident or 0
+    timer = threading.Timer(0.3, signal.pthread_kill, (main_thread, signal.SIGINT))
     timer.start()
     start = time.monotonic()
     with pytest.raises(KeyboardInterrupt):
@@ -51,7 +54,9 @@ def test_held_interrupt_is_raised_when_the_block_ends() -> None:
     reached = []
     with pytest.raises(KeyboardInterrupt):
         with solver_interrupts_held():
-            os.kill(os.getpid(), signal.SIGINT)
+            # to this thread, which holds it back (a process-wide kill may be taken by another
+            # thread, e.g. a test runner's, whose mask is its own)
+            signal.pthread_kill(threading.main_thread().ident or 0, signal.SIGINT)
             time.sleep(0.05)
             reached.append("end of block")  # held back: the block runs to its end
     assert reached == ["end of block"]

@@ -143,16 +143,16 @@ class CasadiMPC(RCMPC):
                 self._first_call = False
             else:
                 sol = self._solver(**args)
-        stats = self._solver.stats()
+            # Every call into CasADi (the stats, its matrices' conversions) may hold its own
+            # SIGINT handler while it runs: all of them within.
+            stats = self._solver.stats()
+            w = np.asarray(sol["x"]).reshape(-1)
+            lam_x = np.asarray(sol["lam_x"]).reshape(-1)
+            lam_g = np.asarray(sol["lam_g"]).reshape(-1)
         raise_if_interrupted(str(stats.get("return_status", "")))
-        w = np.asarray(sol["x"]).reshape(-1)
         optimal = bool(stats.get("success", False))
         if optimal:
-            self._warm = {
-                "x0": _shift(w, h),
-                "lam_x0": _shift(np.asarray(sol["lam_x"]).reshape(-1), h),
-                "lam_g0": _shift(np.asarray(sol["lam_g"]).reshape(-1), h),
-            }
+            self._warm = {"x0": _shift(w, h), "lam_x0": _shift(lam_x, h), "lam_g0": _shift(lam_g, h)}
         return SolveResult(
             p_kw=stage.electrical_kw(w[:h]),
             status=str(stats.get("return_status", "unknown")),

@@ -686,14 +686,23 @@ def load_arx(path: str | os.PathLike[str]) -> ARXModel:
         day_types=day_types, interaction=bool(interaction), block_h=block_h, wind=bool(wind),
         identified_rc=identified_rc, training_data=training_data,
     )
-    radius = model.settling_radius()
-    if not radius < 1.0:
+    # The room's own dynamics over a week of the schedule, as the fit judges them: a fitted
+    # room settles (a block may amplify for an hour, the week does not); a tampered one runs away.
+    week = max(1, round(7 * 86400.0 / model.dt_s))
+    if not model.offset_response(week) <= RUNAWAY_OFFSET_K:
         raise InputError(
-            f"{file}: not a plausible ARX model (its room temperature never settles: a pole of "
-            f"magnitude {radius:.3g}, where a building's are below 1): it was edited or damaged; "
-            "train it again with `pinn-mpc train --arch arx`"
+            f"{file}: not a plausible ARX model (its room temperature never settles: a history "
+            f"1 K warmer is {model.offset_response(week):.3g} K warmer a week later, where a "
+            "building's settles): it was edited or damaged; train it again with "
+            "`pinn-mpc train --arch arx`"
         )
     return model
+
+
+#: The largest deviation a week after a 1 K warmer history that a loaded ARX may keep: a
+#: fitted room settles towards the outdoor temperature (well under 1 K); one whose dynamics
+#: amplify their own deviations grows without bound.
+RUNAWAY_OFFSET_K = 1.0
 
 
 def _valid_block(block_h: float) -> bool:
