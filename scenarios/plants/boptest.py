@@ -45,7 +45,7 @@ import pandas as pd
 from pinn_mpc.errors import InputError
 from pinn_mpc.simulator import StepResult
 from scenarios.plants.base import PlantStep
-from scenarios.plants.boptest_client import BoptestClient, BoptestError, BoptestTest
+from scenarios.plants.boptest_client import BoptestClient, BoptestError, BoptestTest, end_on_exit
 
 __all__ = [
     "PRICE_SCENARIOS",
@@ -380,13 +380,7 @@ class BoptestPlant:
         self, exc_type: type[BaseException] | None, exc: BaseException | None,
         tb: TracebackType | None,
     ) -> None:
-        if exc_type is None:
-            self.close()
-            return
-        try:  # leaving on an error or Ctrl-C: stop the test, report the first error
-            self.close()
-        except BoptestError:
-            pass
+        end_on_exit(self.close, failed=exc_type is not None)
 
     # --- the LoopPlant interface -------------------------------------------------------------
     def reset(self, t_r_c: float, t_m_c: float, *, start: int, seed: int | None) -> None:

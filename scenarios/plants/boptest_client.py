@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from types import TracebackType
 from typing import Any
 
@@ -42,6 +42,7 @@ __all__ = [
     "BoptestTest",
     "BoptestTestEnded",
     "BoptestUnreachable",
+    "end_on_exit",
     "server_url",
 ]
 
@@ -309,10 +310,17 @@ class BoptestTest:
         self, exc_type: type[BaseException] | None, exc: BaseException | None,
         tb: TracebackType | None,
     ) -> None:
-        if exc_type is None:
-            self.stop()
-            return
-        try:  # leaving on an error or Ctrl-C: stop the test, but report the first error
-            self.stop()
-        except BoptestError:
-            pass
+        end_on_exit(self.stop, failed=exc_type is not None)
+
+
+def end_on_exit(end: Callable[[], None], *, failed: bool) -> None:
+    """Run ``end`` (stop a test, close a plant) as a ``with`` block is left: its error is raised
+    after a clean block, but when the block is left on an error or Ctrl-C, a BOPTEST error of
+    ``end`` is dropped so that the first error is the one reported."""
+    if not failed:
+        end()
+        return
+    try:
+        end()
+    except BoptestError:
+        pass
