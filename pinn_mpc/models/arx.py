@@ -689,10 +689,11 @@ def load_arx(path: str | os.PathLike[str]) -> ARXModel:
     # The room's own dynamics over a week of the schedule, as the fit judges them: a fitted
     # room settles (a block may amplify for an hour, the week does not); a tampered one runs away.
     week = max(1, round(7 * 86400.0 / model.dt_s))
-    if not model.offset_response(week) <= RUNAWAY_OFFSET_K:
+    offset_k = model.offset_response(week)
+    if not offset_k <= RUNAWAY_OFFSET_K:
         raise InputError(
             f"{file}: not a plausible ARX model (its room temperature never settles: a history "
-            f"1 K warmer is {model.offset_response(week):.3g} K warmer a week later, where a "
+            f"1 K warmer is {offset_k:.3g} K warmer a week later, where a "
             "building's settles): it was edited or damaged; train it again with "
             "`pinn-mpc train --arch arx`"
         )
