@@ -537,8 +537,6 @@ def test_cli_compare_options_on_and_off_boptest(
     out = ["--json", str(tmp_path / "t.json"), "--report", str(tmp_path / "r.md")]
     assert main(["compare", "--scenario", "boptest_hydronic_heat_pump", "--days", "15", *out]) == 2
     assert "14 days" in capsys.readouterr().err
-    assert main(["compare", "--scenario", "boptest_hydronic_heat_pump", "--quick", *out]) == 2
-    assert "--quick does not apply" in capsys.readouterr().err
     assert main(["compare", "--scenario", "paper_household", "--price-scenario", "dynamic", *out]) == 2
     assert "BOPTEST scenarios" in capsys.readouterr().err
     assert not list(tmp_path.iterdir())

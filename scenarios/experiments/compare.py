@@ -63,6 +63,7 @@ from scenarios.running.factory import build_controller, weather_range_note
 if TYPE_CHECKING:
     from pinn_mpc.models.arx import ARXModel
     from pinn_mpc.models.learned import LearnedModel
+    from pinn_mpc.training import TrainConfig
 
 __all__ = [
     "ARCHS",
@@ -147,6 +148,23 @@ class CompareSettings:
         if self.epochs is not None:
             return self.epochs
         return min(240, max(60, round(7200 / self.train_days)))
+
+    def train_config(self, *, eta: float, u_max_w: float | None) -> TrainConfig:
+        """How the comparison trains every ensemble: ``n_seeds`` members from seed ``seed``,
+        ``depth``, ``recipe`` and :attr:`training_epochs`; ``eta`` the actuator's heat per
+        watt, ``u_max_w`` its limit [W] (None where the data may exceed the controllers'
+        limit, as a BOPTEST emulator's does)."""
+        from pinn_mpc.training import TrainConfig
+
+        return TrainConfig(
+            depth=self.depth,
+            n_seeds=self.n_seeds,
+            first_seed=self.seed,
+            epochs=self.training_epochs,
+            recipe=self.recipe,
+            eta=eta,
+            u_max_w=u_max_w,
+        )
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -252,17 +270,9 @@ def _train_ensembles(
 ) -> dict[str, LearnedModel]:
     """The compared architectures' ensembles trained on ``data`` (each one's wall time added
     to ``wall``)."""
-    from pinn_mpc.training import TrainConfig, train_model
+    from pinn_mpc.training import train_model
 
-    config = TrainConfig(
-        depth=settings.depth,
-        n_seeds=settings.n_seeds,
-        first_seed=settings.seed,
-        epochs=settings.training_epochs,
-        recipe=settings.recipe,
-        eta=scenario.sim.params.eta,
-        u_max_w=scenario.sim.u_max_w,
-    )
+    config = settings.train_config(eta=scenario.sim.params.eta, u_max_w=scenario.sim.u_max_w)
     models = {}
     # physreg and mlp only serve the CEM rows; without them only hybrid and physnet train.
     for arch in ARCHS if settings.cem_all_models else ARCHS[:2]:

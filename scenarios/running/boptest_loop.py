@@ -23,6 +23,7 @@ import os
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING, TypeAlias, cast
 
 import numpy as np
 import pandas as pd
@@ -30,7 +31,9 @@ import pandas as pd
 from controllers.base import Controller
 from controllers.thermostat import Thermostat
 from pinn_mpc.artifacts import read_rc_json
+from pinn_mpc.choices import ARX, AUTO, COMPARED_ARCHS, MODEL_CHOICES, PHYSICS_ARX
 from pinn_mpc.errors import InputError
+from pinn_mpc.physics import RCParams
 from pinn_mpc.records import TrustReport
 from scenarios.choices import MODEL_CONTROLLERS, POLICIES, RC_CONTROLLERS
 from scenarios.inputs.exogenous import day_span
@@ -38,6 +41,7 @@ from scenarios.inputs.registry import Scenario, builtin_scenario, check_seed
 from scenarios.inputs.series import ExogenousSeries
 from scenarios.plants.boptest import (
     BUILTIN_BOPTEST,
+    SECONDS_PER_DAY,
     BoptestPlant,
     BoptestRun,
     BoptestSettings,
@@ -56,14 +60,27 @@ from scenarios.running.closed_loop import (
 from scenarios.running.datagen import SetpointPolicy
 from scenarios.running.engine import ClosedLoop
 
+if TYPE_CHECKING:
+    from pinn_mpc.models.arx import ARXModel
+    from pinn_mpc.models.learned import LearnedModel
+    from pinn_mpc.training import TrainConfig
+
+#: What :func:`boptest_fit` returns: a learned ensemble, an ARX or an identified RC.
+BoptestModel: TypeAlias = "LearnedModel | ARXModel | RCParams"
+
 __all__ = [
     "BASELINE",
+    "CEM_FAMILIES",
     "DATA_FIRST_DAY",
     "COMPARED_KPIS",
+    "RC_FIT",
     "BoptestComparison",
+    "BoptestModel",
     "BoptestScenario",
     "boptest_controller",
     "boptest_data",
+    "boptest_fit",
+    "boptest_planner",
     "boptest_scenario",
     "boptest_report",
     "is_boptest_scenario",
@@ -298,13 +315,65 @@ COMPARED_KPIS = (
 )
 
 
+#: The model families ``cem`` plans over in a BOPTEST comparison, as in ``compare``: the
+#: compared network architectures, then the linear ARX and the physics-informed ARX.
+CEM_FAMILIES = (*COMPARED_ARCHS, ARX.name, PHYSICS_ARX.name)
+#: What a BOPTEST sweep or comparison fits for qp-mpc: the RC identified from the data.
+RC_FIT = "rc"
+
+
+def boptest_fit(kind: str, data: pd.DataFrame, config: TrainConfig) -> tuple[BoptestModel, str]:
+    """Fit ``kind`` on the emulator's ``data``: :data:`RC_FIT` (the grey-box RC, the actuator's
+    gain 1: BOPTEST's power is the heat pump's electrical power, its COP learned into the
+    gain), ``auto`` (``train``'s default, :func:`pinn_mpc.model_choice.choose_model` with
+    ``config``) or a model ``train --arch`` takes by name (``config`` for the networks).
+    Returns the model and the name of what was fitted (for ``auto``, the family it chose)."""
+    from pinn_mpc.identify import identify_rc
+    from pinn_mpc.model_choice import fit_model
+
+    if kind == RC_FIT:
+        return identify_rc(data, eta=1.0).params, RC_FIT
+    if kind not in (AUTO, *MODEL_CHOICES):
+        raise InputError(f"unknown model {kind!r}; choose {RC_FIT}, {AUTO} or one of {', '.join(MODEL_CHOICES)}")
+    choice = fit_model(data, arch=kind, config=config)
+    return choice.model, choice.chosen
+
+
+def boptest_planner(
+    name: str, chosen: BoptestScenario, model: BoptestModel | None, *, dt_s: float, n_steps: int
+) -> Controller | None:
+    """The controller ``name`` (:data:`BASELINE`, ``thermostat``, ``qp-mpc`` on an RC,
+    ``cem`` over a learned model or an ARX, with its RC fallback) on ``chosen`` at interval
+    ``dt_s`` [s] for ``n_steps`` intervals, from a fitted ``model`` (:func:`boptest_fit`);
+    None for :data:`BASELINE`."""
+    from controllers.sampling import CEM
+    from pinn_mpc.physics import RCParams
+    from scenarios.running.factory import build_controller, model_guard
+
+    scenario = chosen.scenario(dt_s)
+    spec = scenario.control_spec()
+    if name == BASELINE:
+        return None
+    if name == "thermostat":
+        return Thermostat(spec)
+    if name == "qp-mpc" and isinstance(model, RCParams):
+        return build_controller("qp-mpc", scenario, rc_params=model, n_steps=n_steps)
+    if name == "cem" and model is not None and not isinstance(model, RCParams):
+        return CEM(model, spec, guard=model_guard(model))
+    raise InputError(
+        f"controller {name!r} on BOPTEST takes {BASELINE}, thermostat, qp-mpc (on an identified "
+        "RC) or cem (over a learned model or an ARX)"
+    )
+
+
 @dataclass(frozen=True, kw_only=True)
 class BoptestComparison:
     """A comparison on one BOPTEST test: ``rows`` (one KPI dict of
     :func:`run_boptest_closed_loop` per controller, with ``wall_s_per_day``, the wall time
-    per simulated day through the API), the ``rc`` identified from the training data
-    (:func:`pinn_mpc.physics.rc_summary`), the ``model`` the default ``train`` chose, the
-    training data's ``data_days`` and the ``wall_time_s`` of each stage."""
+    per simulated day through the API, and ``model``, what cem planned over), the ``rc``
+    identified from the training data (:func:`pinn_mpc.physics.rc_summary`), the ``model``
+    the default ``train`` chose, the training data's ``data_days`` and the ``wall_time_s`` of
+    each stage."""
 
     rows: list[RunKpis]
     rc: dict[str, float]
@@ -320,57 +389,60 @@ def run_boptest_comparison(
     days: int,
     seed: int,
     run: BoptestRun,
+    config: TrainConfig,
     policy: str = "closed-loop",
+    families: tuple[str, ...] = CEM_FAMILIES,
     progress: bool = False,
 ) -> BoptestComparison:
     """Training data from the emulator (:func:`boptest_data`, ``train_days`` days), the RC
     identified from it, the default model ``train`` would choose on it
-    (:func:`pinn_mpc.model_choice.choose_model`), then ``boptest-baseline``, the thermostat,
-    ``qp-mpc`` on the identified RC and ``cem`` over the model on the test ``run``."""
+    (:func:`pinn_mpc.model_choice.choose_model`) and each model family of ``families``, all
+    trained once with ``config``; then ``boptest-baseline``, the thermostat, ``qp-mpc`` on the
+    identified RC, ``cem`` over the default model (row ``cem / default (<family>)``) and
+    ``cem`` over each other family (``cem / <family>``; the default's own family is not run
+    twice: its model is the same) on the test ``run``."""
     import time
 
-    from controllers.sampling import CEM
-    from pinn_mpc.identify import identify_rc
-    from pinn_mpc.model_choice import choose_model
     from pinn_mpc.physics import rc_summary
-    from pinn_mpc.training import TrainConfig
     from scenarios.running.closed_loop import one_torch_thread
-    from scenarios.running.factory import build_controller, model_guard
 
     wall: dict[str, float] = {}
     start = time.perf_counter()
     data = boptest_data(chosen, days=train_days, seed=seed, policy=policy, dt_s=run.dt_s)
     wall["training data"] = time.perf_counter() - start
-    start = time.perf_counter()
-    rc = identify_rc(data, eta=1.0).params
-    wall["identify RC"] = time.perf_counter() - start
-    start = time.perf_counter()
+    fitted: dict[str, tuple[BoptestModel, str]] = {}
     with one_torch_thread():
-        choice = choose_model(data, TrainConfig(first_seed=seed), progress=progress)
-    wall["train"] = time.perf_counter() - start
-    scenario = chosen.scenario(run.dt_s)
-    spec = scenario.control_spec()
-    plan: list[tuple[str, Controller | None]] = [
-        (BASELINE, None),
-        ("thermostat", Thermostat(spec)),
-        ("qp-mpc", build_controller("qp-mpc", scenario, rc_params=rc, n_steps=run.n_intervals)),
-        ("cem", CEM(choice.model, spec, guard=model_guard(choice.model))),
+        for kind in (RC_FIT, AUTO, *families):
+            start = time.perf_counter()
+            fitted[kind] = boptest_fit(kind, data, config)
+            wall["identify RC" if kind == RC_FIT else f"train {kind}"] = time.perf_counter() - start
+    default = fitted[AUTO][1]
+    n_steps = int(round(days * SECONDS_PER_DAY / run.dt_s))
+    plan: list[tuple[str, str, str, BoptestModel | None]] = [
+        (BASELINE, BASELINE, "-", None),
+        ("thermostat", "thermostat", "-", None),
+        ("qp-mpc", "qp-mpc", "identified RC", fitted[RC_FIT][0]),
+        ("cem", f"cem / default ({default})", default, fitted[AUTO][0]),
+        *(("cem", f"cem / {kind}", kind, fitted[kind][0]) for kind in families if kind != default),
     ]
     test_run = dataclasses.replace(run, days=float(days))
     rows: list[RunKpis] = []
-    for name, controller in plan:
+    for name, label, model_name, model in plan:
         start = time.perf_counter()
+        controller = boptest_planner(name, chosen, model, dt_s=run.dt_s, n_steps=n_steps)
         with one_torch_thread():
             result = run_boptest_closed_loop(
-                chosen, name, controller, run=test_run, seed=seed, progress=progress
+                chosen, label, controller, run=test_run, seed=seed, progress=progress
             )
-        wall[name] = time.perf_counter() - start
+        wall[label] = time.perf_counter() - start
         kpis = result.kpis
-        kpis["wall_s_per_day"] = wall[name] / days  # type: ignore[typeddict-unknown-key]
+        kpis["wall_s_per_day"] = wall[label] / days  # type: ignore[typeddict-unknown-key]
+        kpis["model"] = model_name  # type: ignore[typeddict-unknown-key]
         rows.append(kpis)
+    rc = cast(RCParams, fitted[RC_FIT][0])  # what boptest_fit identifies for RC_FIT
     return BoptestComparison(
         rows=rows, rc=dict(rc_summary(rc, source="identify (training data)")),  # type: ignore[arg-type]
-        model=choice.chosen, data_days=day_span(data["time"]), wall_time_s=wall,
+        model=default, data_days=day_span(data["time"]), wall_time_s=wall,
     )
 
 
@@ -383,7 +455,8 @@ def boptest_report(comparison: BoptestComparison, *, scenario: str, run: Boptest
         "",
         f"{days} day(s) of the test period at {run.dt_s:g} s; training data "
         f"{comparison.data_days[0]}..{comparison.data_days[1]}; cem over the default model "
-        f"({comparison.model}); qp-mpc on the RC identified from the same data. BOPTEST's own "
+        f"({comparison.model}, which `train` chooses) and over each other model family, each "
+        "trained once on the same data; qp-mpc on the RC identified from them. BOPTEST's own "
         "KPIs (per m2 of floor, per zone).",
         "",
         "| controller | " + " | ".join(heads) + " | own decisions | wall s / day | decision ms (median / p95) |",
