@@ -208,7 +208,7 @@ def sweep(a: argparse.Namespace) -> str:
         run_sweep,
     )
     from scenarios.inputs.registry import is_scenario_file
-    from scenarios.reports.sweep_report import ratio
+    from scenarios.reports.sweep_report import place_label, ratio
     from scenarios.running.budget import check_grid_size
 
     spec = read_sweep_spec(a.spec) if a.spec is not None else {}
@@ -233,12 +233,19 @@ def sweep(a: argparse.Namespace) -> str:
         controllers=parse_names(controllers, "controllers"),
         seeds=parse_ints(seeds, "seeds"),
         train_days=parse_ints(train_days, "training days"),
+        **{
+            key: parse_names(value, key.replace("_", " "))
+            for key in ("archs", "test_periods", "price_scenarios")
+            if (value := given(key)) is not None
+        },
     )
+    places = len(grid.periods) * len(grid.prices)
     check_grid_size(
         len(grid.cells()),
         large=a.large,
-        what=f"{len(grid.scenarios)} scenario(s) x {len(grid.controllers)} controller(s) and "
-        f"the reference x {len(grid.seeds)} seed(s) x {len(grid.train_days)} training length(s)",
+        what=f"{len(grid.scenarios)} scenario(s) x {len(grid.labels)} controller(s) and "
+        f"the reference x {len(grid.seeds)} seed(s) x {len(grid.train_days)} training length(s)"
+        + (f" x {places} test period(s) and price(s)" if grid.is_boptest else ""),
     )
     settings = SweepSettings.for_run(days=days, quick=quick, arch=given("arch", DEFAULT_ARCH))
     with output_lock(out):
@@ -246,7 +253,7 @@ def sweep(a: argparse.Namespace) -> str:
             grid,
             settings,
             out,
-            baseline=baseline or grid.controllers[0],
+            baseline=baseline or grid.labels[0],
             address=address,
             workers=workers,
             force=force,
@@ -259,7 +266,7 @@ def sweep(a: argparse.Namespace) -> str:
         else f"{s['cells_run']} of {total} cells run now, {s['cells_reused']} reused"
     )
     lines = [
-        f"{r['scenario']:<18} {r['controller']:<16} "
+        f"{place_label(r):<18} {r['controller']:<16} "
         f"{'' if r.get('train_days') is None else str(r['train_days']) + ' d':<5} n={r['n']:<3} "
         f"objective/{r['reference']} {ratio(r, 'mean'):.3f} (worst {max(ratio(r, 'by_seed').values()):.3f})"
         for r in s["rows"]

@@ -455,7 +455,8 @@ def add_sweep(sub: Commands) -> None:
     p.add_argument(
         "--spec", default=None,
         help="a sweep definition (TOML: scenarios, controllers, seeds, train_days, days, "
-        "baseline, arch), e.g. sweeps/robustness.toml; options given here override it",
+        "baseline, arch, archs, test_periods, price_scenarios), e.g. sweeps/robustness.toml; "
+        "options given here override it",
     )
     p.add_argument("--scenarios", default=None, help="comma-separated scenario names")
     p.add_argument("--controllers", default=None, help="comma-separated, e.g. oracle,qp-mpc,cem")
@@ -470,6 +471,20 @@ def add_sweep(sub: Commands) -> None:
     p.add_argument(
         "--arch", default=None, choices=MODEL_CHOICES,
         help=f"the model cem and random-shooting plan over (default {DEFAULT_ARCH}, the network train --arch auto chooses)",
+    )
+    p.add_argument(
+        "--archs", default=None,
+        help="cem (and random-shooting) over each of these models, controllers cem/<arch>, "
+        "e.g. auto,hybrid,parx (auto: train's default choice)",
+    )
+    p.add_argument(
+        "--test-periods", default=None,
+        help="BOPTEST scenarios: BOPTEST's test periods, e.g. peak_heat_day,typical_heat_day "
+        "(default peak_heat_day)",
+    )
+    p.add_argument(
+        "--price-scenarios", default=None,
+        help="BOPTEST scenarios: BOPTEST's price scenarios, e.g. dynamic,highly_dynamic (default dynamic)",
     )
     p.add_argument(
         "--large", action="store_true", help="confirm a grid of more than 1000 cells"

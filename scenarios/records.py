@@ -175,6 +175,10 @@ class CellKey(TypedDict):
     """Seed of the training data; the test days are drawn with ``seed + 1``."""
     train_days: int | None
     """Days of training data; None for a controller without a model."""
+    test_period: NotRequired[str]
+    """BOPTEST's test period (BOPTEST scenarios only)."""
+    price_scenario: NotRequired[str]
+    """BOPTEST's price scenario (BOPTEST scenarios only)."""
 
 
 class SweepSettingsRecord(TypedDict):
@@ -224,9 +228,14 @@ class CellRecord(CellResult):
 class SweepRow(TypedDict):
     """A row of ``summary.json`` (:func:`scenarios.reports.sweep_report.summarise`): one scenario x
     controller (x training days). The ratio keys are named after the scenario's reference:
-    ``objective_to_oracle_*``, or ``objective_to_thermostat_*`` on a plant without an oracle."""
+    ``objective_to_oracle_*``, ``objective_to_thermostat_*`` on a plant without an oracle, or
+    ``objective_to_boptest-baseline_*`` on BOPTEST."""
 
     scenario: str
+    test_period: NotRequired[str]
+    """BOPTEST's test period (BOPTEST sweeps only)."""
+    price_scenario: NotRequired[str]
+    """BOPTEST's price scenario (BOPTEST sweeps only)."""
     controller: str
     train_days: int | None
     n: int
@@ -268,6 +277,12 @@ class GridRecord(TypedDict):
     controllers: list[str]
     seeds: list[int]
     train_days: list[int]
+    archs: NotRequired[list[str]]
+    """The models cem planned over (controller labels ``cem/<arch>``), when given."""
+    test_periods: NotRequired[list[str]]
+    """BOPTEST's test periods (BOPTEST sweeps only)."""
+    price_scenarios: NotRequired[list[str]]
+    """BOPTEST's price scenarios (BOPTEST sweeps only)."""
 
 
 class SweepSummary(TypedDict):

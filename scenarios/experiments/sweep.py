@@ -45,28 +45,37 @@ from typing import TYPE_CHECKING, Any, TypeAlias, TypedDict, cast
 from tqdm import tqdm
 
 from pinn_mpc import __version__
-from pinn_mpc.choices import ARX, DEFAULT_ARCH, MODEL_CHOICES, PHYSICS_ARX
-from pinn_mpc.errors import InputError
+from pinn_mpc.choices import ARX, AUTO, DEFAULT_ARCH, MODEL_CHOICES, PHYSICS_ARX
+from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.io import atomic_write_json, atomic_write_text, setting_changes
 from pinn_mpc.physics import RCParams, params_from_summary, rc_summary
 from scenarios.choices import TRUTH_CONTROLLERS
 from scenarios.inputs.registry import is_scenario_file
 from scenarios.inputs.scenario_file import get_scenario
+from scenarios.plants.boptest import BUILTIN_BOPTEST, TEST_PERIOD_DAYS
+from scenarios.plants.boptest_client import BOPTEST_URL_ENV
 from scenarios.records import (
     CellKey,
     CellRecord,
     CellResult,
+    GridRecord,
     SweepSettingsRecord,
     SweepSummary,
 )
 from scenarios.reports.sweep_report import REFERENCE, plot_sweep, render_sweep_report, summarise
+from scenarios.running.boptest_loop import BASELINE as BOPTEST_BASELINE
+from scenarios.running.boptest_loop import RC_FIT as BOPTEST_RC
+from scenarios.running.boptest_loop import is_boptest_scenario
 from scenarios.running.factory import CONTROLLER_NAMES, MODEL_CONTROLLERS, RC_CONTROLLERS
 from scenarios.running.ray_engine import check_engine_options, ray_engine
 
 if TYPE_CHECKING:
+    import pandas as pd
+
     from pinn_mpc.models.arx import ARXModel
     from pinn_mpc.models.learned import LearnedModel
     from pinn_mpc.models.rollout import BatchDynamics
+    from scenarios.running.boptest_loop import BoptestScenario
 
 #: What a sweep trains for a cell (:func:`fit_model`): a learned ensemble or an identified RC.
 SweepModel: TypeAlias = "LearnedModel | ARXModel | RCParams"
@@ -83,8 +92,10 @@ QUICK_TEST_DAYS = 2
 FIGURE = "objective_to_oracle.png"
 #: Tasks an engine worker runs before it is replaced when the grid has an EnergyPlus scenario.
 ENERGYPLUS_CALLS_PER_WORKER = 20
+#: The controllers a BOPTEST sweep runs besides BOPTEST's baseline (its reference).
+BOPTEST_CONTROLLERS = ("thermostat", "qp-mpc", "cem")
 
-__all__ = ["Cell", "ModelKey", "SweepGrid", "SweepOutcome", "SweepSettings", "fit_model", "model_kind", "parse_ints", "parse_names", "run_cell", "run_sweep", "scenario_digest"]
+__all__ = ["BOPTEST_CONTROLLERS", "Cell", "ModelKey", "SweepGrid", "SweepOutcome", "SweepSettings", "boptest_training_data", "fit_model", "model_kind", "parse_ints", "parse_names", "run_cell", "run_sweep", "scenario_digest"]
 #: Training-data policies of a sweep: each scenario's own, or one for all.
 _POLICIES = ("scenario", "random", "random-level", "closed-loop")
 
@@ -128,14 +139,19 @@ class SweepSettings:
 @dataclass(frozen=True, kw_only=True, order=True)
 class Cell:
     scenario: str
-    controller: str
+    controller: str  # a controller's name, or ``cem/<arch>``: cem over that model
     seed: int
     train_days: int | None  # None for controllers that need no model
+    #: BOPTEST's test period and price scenario (None on the package's own plants).
+    test_period: str | None = None
+    price_scenario: str | None = None
 
     @property
     def name(self) -> str:
         days = "" if self.train_days is None else f"--train{self.train_days}"
-        return f"{_label(self.scenario)}--{self.controller}--seed{self.seed}{days}"
+        test = "" if self.test_period is None else f"--{self.test_period}--{self.price_scenario}"
+        controller = self.controller.replace("/", "-")
+        return f"{_label(self.scenario)}{test}--{controller}--seed{self.seed}{days}"
 
     @property
     def model(self) -> ModelKey | None:
@@ -162,14 +178,17 @@ def _label(scenario: str) -> str:
     first 12 hex digits of :func:`scenario_digest`, so that two files of the same stem never
     share a cell and an edited file makes new cells (built-ins change only with the package
     version, which ``sweep.json`` pins)."""
-    if not is_scenario_file(scenario):
+    if not is_scenario_file(scenario) or scenario in BUILTIN_BOPTEST:
         return scenario
     return f"{Path(scenario).stem}-{scenario_digest(scenario)[:12]}"
 
 
 def scenario_digest(scenario: str) -> str:
     """The sha256 of a scenario's content: the complete TOML of the resolved scenario (every
-    default filled in) and the bytes of each weather, price or RC file it reads."""
+    default filled in) and the bytes of each weather, price or RC file it reads; of a BOPTEST
+    scenario file, its bytes (the test case is the server's)."""
+    if is_boptest_scenario(scenario):
+        return hashlib.sha256(Path(scenario).read_bytes()).hexdigest()
     stat = os.stat(scenario)
     return _digest(scenario, stat.st_mtime_ns, stat.st_size)
 
@@ -188,31 +207,124 @@ def _digest(scenario: str, mtime_ns: int, size: int) -> str:
 
 
 def _model_key(cell: Cell, settings: SweepSettings) -> ModelKey | None:
-    """The model ``cell`` needs under ``settings``: its learned model of the settings'
-    architecture, its identified RC, or None."""
+    """The model ``cell`` needs under ``settings``: its learned model (the architecture its
+    label names, ``cem/<arch>``, else the settings'), its identified RC, or None."""
     key = cell.model
-    if key is not None and key.kind == ARCH:
+    if key is not None and key.kind == ARCH and "/" not in cell.controller:
         return dataclasses.replace(key, kind=settings.arch)
     return key
 
 
 def model_kind(controller: str) -> str | None:
-    """What a controller needs trained: the learned architecture, an identified RC, or nothing."""
-    if controller in MODEL_CONTROLLERS:
-        return ARCH
-    if controller in RC_CONTROLLERS:
+    """What a controller needs trained: the learned architecture (``cem/<arch>``: that one; a
+    bare planner: :data:`ARCH`), an identified RC, or nothing."""
+    name, _, arch = controller.partition("/")
+    if name in MODEL_CONTROLLERS:
+        return arch or ARCH
+    if name in RC_CONTROLLERS:
         return RC_KIND
     return None
 
 
+def _model_family(model: SweepModel) -> str:
+    """What a fitted model is: a network's architecture, ``arx`` or ``parx``, or the RC."""
+    from pinn_mpc.models.arx import ARXModel
+
+    if isinstance(model, RCParams):
+        return RC_KIND
+    if isinstance(model, ARXModel):
+        return PHYSICS_ARX.name if model.interaction else ARX.name
+    return model.arch
+
+
 @dataclass(frozen=True, kw_only=True)
 class SweepGrid:
+    """The axes of a sweep. ``archs``: the models each planner over a learned model
+    (``cem``, ``random-shooting``) runs over, one controller label ``cem/<arch>`` each (``auto``:
+    ``train``'s default choice); empty: the settings' one, label ``cem``. ``test_periods`` and
+    ``price_scenarios``: BOPTEST's (BOPTEST scenarios only; by default peak_heat_day and
+    dynamic)."""
+
     scenarios: tuple[str, ...]
     controllers: tuple[str, ...]
     seeds: tuple[int, ...]
     train_days: tuple[int, ...]
+    archs: tuple[str, ...] = ()
+    test_periods: tuple[str, ...] = ()
+    price_scenarios: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
+        for name in ("scenarios", "controllers", "seeds", "train_days"):
+            if not getattr(self, name):
+                raise InputError(f"sweep: no {name.replace('_', ' ')} given")
+        unknown_archs = [a for a in self.archs if a not in (AUTO, *MODEL_CHOICES)]
+        for controller in self.controllers:
+            name, slash, arch = controller.partition("/")
+            if slash and name in MODEL_CONTROLLERS:
+                unknown_archs += [arch] if arch not in (AUTO, *MODEL_CHOICES) else []
+            elif slash:
+                raise InputError(
+                    f"sweep: controller {controller!r}: only {', '.join(MODEL_CONTROLLERS)} plan "
+                    "over a model (cem/<arch>)"
+                )
+        if unknown_archs:
+            raise InputError(
+                f"sweep: unknown architecture(s) {', '.join(unknown_archs)}; choose from "
+                f"{AUTO}, {', '.join(MODEL_CHOICES)}"
+            )
+        if self.is_boptest:
+            self._check_boptest()
+        else:
+            self._check_own()
+        if min(self.train_days) < 2:
+            raise InputError(f"sweep: training days must be >= 2, got {min(self.train_days)}")
+
+    @functools.cached_property
+    def is_boptest(self) -> bool:
+        """Whether the grid's scenarios are BOPTEST's (a grid holds BOPTEST scenarios or the
+        package's own, not both)."""
+        boptest = [s for s in self.scenarios if is_boptest_scenario(s)]
+        if boptest and len(boptest) != len(self.scenarios):
+            own = [s for s in self.scenarios if s not in boptest]
+            raise InputError(
+                f"sweep: {', '.join(boptest)} run(s) on BOPTEST and {', '.join(own)} on the "
+                "package's own plants; sweep them separately (their controllers and references differ)"
+            )
+        return bool(boptest)
+
+    def _check_boptest(self) -> None:
+        from scenarios.plants.boptest import PRICE_SCENARIOS
+        from scenarios.running.boptest_loop import boptest_scenario
+
+        allowed = (BOPTEST_BASELINE, *BOPTEST_CONTROLLERS)
+        wrong = [c for c in self.controllers if c.partition("/")[0] not in allowed]
+        if wrong:
+            raise InputError(
+                f"sweep: controller(s) {', '.join(wrong)} do not run on BOPTEST; choose from "
+                f"{', '.join(allowed)} (cem also as cem/<arch>)"
+            )
+        for scenario in self.scenarios:
+            periods = boptest_scenario(scenario).settings.points.test_periods
+            bad = [p for p in self.boptest_periods if p not in periods]
+            if bad:
+                raise InputError(
+                    f"sweep: test period(s) {', '.join(bad)} are not {scenario}'s; choose from "
+                    f"{', '.join(periods)}"
+                )
+        bad = [p for p in self.boptest_prices if p not in PRICE_SCENARIOS]
+        if bad:
+            raise InputError(
+                f"sweep: price scenario(s) {', '.join(bad)} are not BOPTEST's; choose from "
+                f"{', '.join(PRICE_SCENARIOS)}"
+            )
+
+    def _check_own(self) -> None:
+        for key, given in (("test_periods", self.test_periods), ("price_scenarios", self.price_scenarios)):
+            if given:
+                raise InputError(
+                    f"sweep: {key} applies to BOPTEST scenarios (e.g. boptest_hydronic_heat_pump); "
+                    f"{', '.join(self.scenarios)} {'is' if len(self.scenarios) == 1 else 'are'} not"
+                )
         for scenario in self.scenarios:
             # an unknown name raises InputError listing the valid ones
             truth = [c for c in self.controllers if c in TRUTH_CONTROLLERS]
@@ -222,40 +334,70 @@ class SweepGrid:
                     f"so {', '.join(truth)} cannot run on it; leave them out (its cells are "
                     "measured against the thermostat)"
                 )
-        unknown = [c for c in self.controllers if c not in CONTROLLER_NAMES]
+        unknown = [c for c in self.controllers if c.partition("/")[0] not in CONTROLLER_NAMES]
         if unknown:
             raise InputError(
                 f"sweep: unknown controller(s) {', '.join(unknown)}; "
                 f"choose from {', '.join(CONTROLLER_NAMES)}"
             )
-        for name in ("scenarios", "controllers", "seeds", "train_days"):
-            if not getattr(self, name):
-                raise InputError(f"sweep: no {name.replace('_', ' ')} given")
-        if min(self.train_days) < 2:
-            raise InputError(f"sweep: training days must be >= 2, got {min(self.train_days)}")
+
+    @property
+    def boptest_periods(self) -> tuple[str, ...]:
+        """BOPTEST's test periods of a BOPTEST grid (peak_heat_day unless given)."""
+        return self.test_periods or ("peak_heat_day",)
+
+    @property
+    def boptest_prices(self) -> tuple[str, ...]:
+        """BOPTEST's price scenarios of a BOPTEST grid (dynamic unless given)."""
+        return self.price_scenarios or ("dynamic",)
+
+    @property
+    def periods(self) -> tuple[str | None, ...]:
+        """The test periods of the cells: BOPTEST's, (None,) on the package's own plants."""
+        return self.boptest_periods if self.is_boptest else (None,)
+
+    @property
+    def prices(self) -> tuple[str | None, ...]:
+        """The price scenarios of the cells: BOPTEST's, (None,) on the package's own plants."""
+        return self.boptest_prices if self.is_boptest else (None,)
+
+    @property
+    def labels(self) -> tuple[str, ...]:
+        """The controllers of the cells: each planner over a learned model once per arch
+        (``cem/<arch>``) when ``archs`` are given, every other controller as given."""
+        out: list[str] = []
+        for c in self.controllers:
+            many = self.archs and "/" not in c and c in MODEL_CONTROLLERS
+            out += [f"{c}/{a}" for a in self.archs] if many else [c]
+        return tuple(dict.fromkeys(out))
 
     @functools.cached_property
     def references(self) -> dict[str, str]:
-        """Each scenario's reference controller (the oracle, or the thermostat on a plant
-        without an oracle, EnergyPlus): the denominator of its cells (read once: a scenario
-        file is parsed on every look-up)."""
+        """Each scenario's reference controller (the oracle, the thermostat on a plant
+        without an oracle, EnergyPlus, BOPTEST's baseline on BOPTEST): the denominator of its
+        cells (read once: a scenario file is parsed on every look-up)."""
+        if self.is_boptest:
+            return dict.fromkeys(self.scenarios, BOPTEST_BASELINE)
         return {s: get_scenario(s).reference for s in self.scenarios}
 
     @property
     def has_energyplus(self) -> bool:
-        return any(ref != REFERENCE for ref in self.references.values())
+        return not self.is_boptest and any(ref != REFERENCE for ref in self.references.values())
 
     def cells(self) -> list[Cell]:
         """Every cell of the grid, plus the reference of each scenario and seed (the
-        denominator)."""
+        denominator), on BOPTEST for each test period and price scenario."""
         out = []
         for scenario in self.scenarios:
-            for controller in dict.fromkeys([*self.controllers, self.references[scenario]]):
+            for controller in dict.fromkeys([*self.labels, self.references[scenario]]):
                 days: Sequence[int | None] = (
                     self.train_days if model_kind(controller) else (None,)
                 )
                 out += [
-                    Cell(scenario=scenario, controller=controller, seed=s, train_days=d)
+                    Cell(scenario=scenario, controller=controller, seed=s, train_days=d,
+                         test_period=period, price_scenario=price)
+                    for period in self.periods
+                    for price in self.prices
                     for s in self.seeds
                     for d in days
                 ]
@@ -271,13 +413,15 @@ def parse_names(text: str, what: str) -> tuple[str, ...]:
 
 
 #: Keys of a sweep definition file (``pinn-mpc sweep --spec FILE.toml``).
-SPEC_KEYS = ("description", "scenarios", "controllers", "seeds", "train_days", "days", "baseline", "arch")
+SPEC_KEYS = ("description", "scenarios", "controllers", "seeds", "train_days", "days", "baseline", "arch",
+             "archs", "test_periods", "price_scenarios")
 
 
 def read_sweep_spec(path: str | os.PathLike[str]) -> dict[str, Any]:
     """A sweep definition (TOML): lists or comma-separated strings for ``scenarios``,
-    ``controllers``, ``seeds`` and ``train_days`` (ranges as ``"0-7"``), an integer ``days``,
-    a controller name ``baseline``, an architecture ``arch``; scenario files named relative to the
+    ``controllers``, ``seeds`` and ``train_days`` (ranges as ``"0-7"``), ``archs`` (cem over
+    each), and BOPTEST's ``test_periods`` and ``price_scenarios``; an integer ``days``, a
+    controller name ``baseline``, an architecture ``arch``; scenario files named relative to the
     definition file.
     Returns the values as the command line gives them."""
     import tomllib
@@ -293,7 +437,7 @@ def read_sweep_spec(path: str | os.PathLike[str]) -> dict[str, Any]:
     if unknown:
         raise InputError(f"{source}: unknown key(s) {', '.join(unknown)}; known: {', '.join(SPEC_KEYS)}")
     out: dict[str, Any] = {}
-    for key in ("scenarios", "controllers", "seeds", "train_days"):
+    for key in ("scenarios", "controllers", "seeds", "train_days", "archs", "test_periods", "price_scenarios"):
         if key not in data:
             continue
         value = data[key]
@@ -346,12 +490,25 @@ def parse_ints(text: str, what: str) -> tuple[int, ...]:
 # ---- the adapter: the one place that calls the package's closed loop and model fitting ----
 
 
-def fit_model(key: ModelKey, settings: SweepSettings) -> SweepModel:
-    """Train the learned ensemble (:data:`ARCH`) or identify the RC of ``key`` on the scenario's simulated data
-    (``train_days`` days under the settings' policy, by default the scenario's, seed ``key.seed``)."""
+def fit_model(key: ModelKey, settings: SweepSettings, data: pd.DataFrame | None = None) -> SweepModel:
+    """Train the learned ensemble (:data:`ARCH`, or the model ``key.kind`` names; ``auto``:
+    ``train``'s default choice) or identify the RC of ``key`` on the scenario's simulated data
+    (``train_days`` days under the settings' policy, by default the scenario's, seed ``key.seed``).
+    A BOPTEST scenario's ``data`` is the emulator's (:func:`boptest_training_data`), its
+    ensembles trained as ``compare`` trains them (:func:`boptest_fit`)."""
     from scenarios.experiments.compare import CompareSettings, identify_scenario_rc
     from scenarios.running.datagen import generate
 
+    if is_boptest_scenario(key.scenario):
+        from scenarios.running.boptest_loop import boptest_fit
+
+        if data is None:
+            raise InternalError(f"fit_model: {key.name} is a BOPTEST model and needs the emulator's data")
+        config = CompareSettings(
+            train_days=key.train_days, test_days=1, seed=key.seed, n_seeds=settings.n_members,
+            depth=settings.depth, epochs=settings.epochs,
+        ).train_config(eta=1.0, u_max_w=None)
+        return boptest_fit(BOPTEST_RC if key.kind == RC_KIND else key.kind, data, config)[0]
     scenario = get_scenario(key.scenario)
     policy = scenario.data_policy if settings.policy == "scenario" else settings.policy
     data = generate(scenario, days=key.train_days, seed=key.seed, policy=policy)
@@ -361,7 +518,8 @@ def fit_model(key: ModelKey, settings: SweepSettings) -> SweepModel:
         from pinn_mpc.models.arx import fit_linear
 
         return fit_linear(key.kind, data, eta=scenario.sim.params.eta)
-    from pinn_mpc.training import TrainConfig, train_model
+    from pinn_mpc.model_choice import fit_model as fit_named
+    from pinn_mpc.training import TrainConfig
 
     epochs = CompareSettings(
         train_days=key.train_days, test_days=1, seed=key.seed, epochs=settings.epochs
@@ -374,21 +532,46 @@ def fit_model(key: ModelKey, settings: SweepSettings) -> SweepModel:
         eta=scenario.sim.params.eta,
         u_max_w=scenario.sim.u_max_w,
     )
-    return train_model(data, arch=key.kind, config=config, progress=False)
+    return fit_named(data, arch=key.kind, config=config).model
+
+
+def boptest_training_data(key: ModelKey, boptest_url: str | None = None) -> pd.DataFrame:
+    """The emulator's training data of a BOPTEST model ``key``: ``key.train_days`` days under
+    ``simulate``'s defaults (:func:`scenarios.running.boptest_loop.boptest_data`), seed
+    ``key.seed``; ``boptest_url`` the server when the scenario file names none."""
+    from scenarios.running.boptest_loop import boptest_data
+
+    return boptest_data(_boptest_chosen(key.scenario, boptest_url), days=key.train_days, seed=key.seed)
+
+
+def _boptest_chosen(scenario: str, boptest_url: str | None) -> BoptestScenario:
+    from scenarios.running.boptest_loop import boptest_scenario
+
+    chosen = boptest_scenario(scenario)
+    if chosen.settings.url is None and boptest_url is not None:
+        chosen = boptest_scenario(scenario, url=boptest_url)
+    return chosen
 
 
 def run_cell(
-    cell: Cell, settings: SweepSettings, model: BatchDynamics | RCParams | None
+    cell: Cell,
+    settings: SweepSettings,
+    model: BatchDynamics | RCParams | None,
+    boptest_url: str | None = None,
 ) -> CellResult:
     """One closed loop on the test days (seed + 1): ``{"kpis", "errors", "host", "wall_time_s"}``.
 
     ``model`` is what :func:`fit_model` returned for ``cell.model`` (None when it has none):
-    the learned model a planner plans over, or the RC an RC MPC works on.
+    the learned model a planner plans over, or the RC an RC MPC works on. On BOPTEST the
+    cell is one test on the server (``boptest_url`` when the scenario file names none): the
+    first ``test_days`` of its test period, its KPIs with BOPTEST's under ``boptest``.
     """
     from scenarios.running.closed_loop import one_torch_thread, run_closed_loop
     from scenarios.running.factory import build_controller
 
     start = time.perf_counter()
+    if cell.test_period is not None:
+        return _run_boptest_cell(cell, settings, model, boptest_url, start)
     scenario = get_scenario(cell.scenario)
     kind = model_kind(cell.controller)
     controller = build_controller(
@@ -407,6 +590,41 @@ def run_cell(
         "errors": list(result.errors),
         "host": socket.gethostname(),
         "wall_time_s": time.perf_counter() - start,
+    }
+
+
+def _run_boptest_cell(
+    cell: Cell,
+    settings: SweepSettings,
+    model: BatchDynamics | RCParams | None,
+    boptest_url: str | None,
+    start: float,
+) -> CellResult:
+    from scenarios.plants.boptest import BoptestRun
+    from scenarios.running.boptest_loop import boptest_planner, run_boptest_closed_loop
+    from scenarios.running.closed_loop import one_torch_thread
+
+    chosen = _boptest_chosen(cell.scenario, boptest_url)
+    run = BoptestRun(
+        time_period=cell.test_period, days=float(settings.test_days),
+        price_scenario=cell.price_scenario or "dynamic",
+    )
+    fitted = cast("SweepModel | None", model)
+    controller = boptest_planner(
+        cell.controller.partition("/")[0], chosen, fitted, dt_s=run.dt_s, n_steps=run.n_intervals
+    )
+    with one_torch_thread():
+        result = run_boptest_closed_loop(chosen, cell.controller, controller, run=run, seed=cell.seed)
+    wall = time.perf_counter() - start
+    kpis = result.kpis
+    kpis["wall_s_per_day"] = wall / settings.test_days  # type: ignore[typeddict-unknown-key]
+    if fitted is not None:
+        kpis["model"] = _model_family(fitted)  # type: ignore[typeddict-unknown-key]
+    return {
+        "kpis": kpis,
+        "errors": list(result.errors),
+        "host": socket.gethostname(),
+        "wall_time_s": wall,
     }
 
 
@@ -451,9 +669,17 @@ class _CellRecordKey(TypedDict):
 
 
 def _cell_record_key(cell: Cell) -> _CellRecordKey:
-    """What identifies a cell in its record: its fields and its scenario's content digest."""
-    digest = scenario_digest(cell.scenario) if is_scenario_file(cell.scenario) else None
-    return {"cell": cast(CellKey, dataclasses.asdict(cell)), "scenario_sha256": digest}
+    """What identifies a cell in its record: its fields (BOPTEST's test period and price only
+    on BOPTEST) and its scenario's content digest."""
+    digest = (
+        scenario_digest(cell.scenario)
+        if is_scenario_file(cell.scenario) and cell.scenario not in BUILTIN_BOPTEST
+        else None
+    )
+    fields = dataclasses.asdict(cell)
+    if cell.test_period is None:
+        del fields["test_period"], fields["price_scenario"]
+    return {"cell": cast(CellKey, fields), "scenario_sha256": digest}
 
 
 def _read_cell(path: Path, cell: Cell) -> CellRecord | None:
@@ -579,16 +805,25 @@ def _run_on_ray(
     task = ray.remote(num_cpus=1, max_calls=max_calls)(_one_blas_thread)
     pending: dict[Any, tuple[str, Any]] = {}
     model_refs: dict[ModelKey, Any] = {}
+    # BOPTEST: the emulator's data, recorded once per scenario x seed x training days
+    data_refs: dict[ModelKey, Any] = {}
+    url = os.environ.get(BOPTEST_URL_ENV)
     for key in keys:
         stored = _load_model(root, key)
         if stored is not None:
             model_refs[key] = ray.put(stored)
-        else:
-            model_refs[key] = task.remote(fit_model, key, settings)
-            pending[model_refs[key]] = ("model", key)
+            continue
+        data = None
+        if grid.is_boptest:
+            source = dataclasses.replace(key, kind="data")
+            if source not in data_refs:
+                data_refs[source] = task.remote(boptest_training_data, source, url)
+            data = data_refs[source]
+        model_refs[key] = task.remote(fit_model, key, settings, data)
+        pending[model_refs[key]] = ("model", key)
     for cell in missing:
         needed = _model_key(cell, settings)
-        ref = task.remote(run_cell, cell, settings, model_refs.get(needed) if needed else None)
+        ref = task.remote(run_cell, cell, settings, model_refs.get(needed) if needed else None, url)
         pending[ref] = ("cell", cell)
 
     terminal = sys.stderr.isatty()
@@ -626,6 +861,21 @@ def _run_on_ray(
     return trained
 
 
+def _grid_record(grid: SweepGrid) -> GridRecord:
+    record: GridRecord = {
+        "scenarios": list(grid.scenarios),
+        "controllers": list(grid.controllers),
+        "seeds": list(grid.seeds),
+        "train_days": list(grid.train_days),
+    }
+    if grid.archs:
+        record["archs"] = list(grid.archs)
+    if grid.is_boptest:
+        record["test_periods"] = list(grid.boptest_periods)
+        record["price_scenarios"] = list(grid.boptest_prices)
+    return record
+
+
 def run_sweep(
     grid: SweepGrid,
     settings: SweepSettings,
@@ -642,9 +892,13 @@ def run_sweep(
     other directory needs ``force`` (then the sweep's files are added and nothing else in it is
     touched, but a ``summary.json`` or ``report.md`` of the user's would be replaced)."""
 
-    if baseline not in (*grid.controllers, *grid.references.values()):
+    if baseline not in (*grid.labels, *grid.references.values()):
         raise InputError(
-            f"sweep: baseline {baseline!r} is not among the controllers ({', '.join(grid.controllers)})"
+            f"sweep: baseline {baseline!r} is not among the controllers ({', '.join(grid.labels)})"
+        )
+    if grid.is_boptest and settings.test_days > TEST_PERIOD_DAYS:
+        raise InputError(
+            f"sweep: days {settings.test_days}: a BOPTEST test period has {TEST_PERIOD_DAYS:g} days"
         )
     check_engine_options(address, workers)
     start = time.perf_counter()
@@ -669,7 +923,7 @@ def run_sweep(
     rows = summarise(
         done,
         baseline=baseline,
-        order=[*grid.controllers, *dict.fromkeys(grid.references.values())],
+        order=[*grid.labels, *dict.fromkeys(grid.references.values())],
         references=grid.references,
     )
     summary: SweepSummary = {
@@ -680,12 +934,7 @@ def run_sweep(
         "cells_reused": reused,
         "models_trained": trained,
         "models_reused": len(keys) - trained,
-        "grid": {
-            "scenarios": list(grid.scenarios),
-            "controllers": list(grid.controllers),
-            "seeds": list(grid.seeds),
-            "train_days": list(grid.train_days),
-        },
+        "grid": _grid_record(grid),
         "settings": _settings_record(settings),
         "wall_time_s": time.perf_counter() - start,
     }

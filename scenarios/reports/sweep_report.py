@@ -27,6 +27,7 @@ REFERENCE = "oracle"
 __all__ = [
     "REFERENCE",
     "mean_ci95",
+    "place_label",
     "plot_sweep",
     "ratio",
     "render_sweep_report",
@@ -65,36 +66,40 @@ def summarise(
     references: Mapping[str, str] | None = None,
 ) -> list[SweepRow]:
     """Rows of ``summary.json`` from cell records (``cell``: scenario, controller, seed,
-    train_days; ``kpis``: with ``objective``), one per scenario x controller (x training size
-    when several), controllers in ``order`` (others after, by name). Objectives are divided by
+    train_days, on BOPTEST test_period and price_scenario; ``kpis``: with ``objective``), one per
+    scenario (x test period x price) x controller (x training size when several), controllers in ``order`` (others after, by name). Objectives are divided by
     the scenario's reference controller's (``references`` by scenario, the oracle by default;
     the thermostat where the plant has no oracle), in keys ``objective_to_<reference>_*``. A
     seed whose reference objective is missing or not positive is left out."""
     rank = {name: i for i, name in enumerate(order)}
     reference_of = dict(references or {})
-    oracle: dict[tuple[str, int], float] = {}
+    oracle: dict[tuple[Place, int], float] = {}
     for c in cells:
         key = c["cell"]
         ref_name = reference_of.get(key["scenario"], REFERENCE)
         if key["controller"] == ref_name and c["kpis"]["objective"] > 0:
-            oracle[(key["scenario"], key["seed"])] = float(c["kpis"]["objective"])
-    ratios: dict[tuple[str, str, int | None], dict[int, float]] = {}
+            oracle[(_place(key), key["seed"])] = float(c["kpis"]["objective"])
+    ratios: dict[tuple[Place, str, int | None], dict[int, float]] = {}
     for c in cells:
         key = c["cell"]
-        ref = oracle.get((key["scenario"], key["seed"]))
+        ref = oracle.get((_place(key), key["seed"]))
         if ref is None:
             continue
-        group = (key["scenario"], key["controller"], key["train_days"])
+        group = (_place(key), key["controller"], key["train_days"])
         ratios.setdefault(group, {})[key["seed"]] = float(c["kpis"]["objective"]) / ref
     rows = []
-    for (scenario, controller, train_days), by_seed in sorted(
+    for (place, controller, train_days), by_seed in sorted(
         ratios.items(),
-        key=lambda item: (item[0][0], rank.get(item[0][1], len(rank)), item[0][1], item[0][2] or 0),
+        key=lambda item: (
+            tuple(p or "" for p in item[0][0]), rank.get(item[0][1], len(rank)), item[0][1], item[0][2] or 0
+        ),
     ):
+        scenario, period, price = place
         mean, ci = mean_ci95(list(by_seed.values()))
         ref_name = reference_of.get(scenario, REFERENCE)
         row: dict[str, Any] = {
             "scenario": scenario,
+            **({"test_period": period, "price_scenario": price} if period is not None else {}),
             "controller": controller,
             "train_days": train_days,
             "n": len(by_seed),
@@ -104,7 +109,7 @@ def summarise(
             f"objective_to_{ref_name}_by_seed": {str(s): r for s, r in sorted(by_seed.items())},
             "baseline": baseline,
         }
-        base = _baseline_ratios(ratios, scenario, baseline)
+        base = _baseline_ratios(ratios, place, baseline)
         paired = [r - base[s] for s, r in by_seed.items() if s in base]
         if paired:
             diff_mean, diff_ci = mean_ci95(paired)
@@ -120,13 +125,28 @@ def summarise(
 
 
 def _baseline_ratios(
-    ratios: Mapping[tuple[str, str, int | None], dict[int, float]], scenario: str, baseline: str
+    ratios: Mapping[tuple[Place, str, int | None], dict[int, float]], place: Place, baseline: str
 ) -> dict[int, float]:
     """The baseline's ratios by seed (its first training size if it has several)."""
     groups = sorted(
-        (k for k in ratios if k[0] == scenario and k[1] == baseline), key=lambda k: k[2] or 0
+        (k for k in ratios if k[0] == place and k[1] == baseline), key=lambda k: k[2] or 0
     )
     return ratios[groups[0]] if groups else {}
+
+
+#: Where a cell runs: its scenario, and on BOPTEST its test period and price scenario.
+Place = tuple[str, "str | None", "str | None"]
+
+
+def _place(key: Mapping[str, Any]) -> Place:
+    return (key["scenario"], key.get("test_period"), key.get("price_scenario"))
+
+
+def place_label(row: Mapping[str, Any]) -> str:
+    """A summary row's scenario, with BOPTEST's test period and price scenario when it has them."""
+    if row.get("test_period") is None:
+        return str(row["scenario"])
+    return f"{row['scenario']} {row['test_period']} {row['price_scenario']}"
 
 
 def row_label(row: SweepRow) -> str:
@@ -161,7 +181,7 @@ def render_sweep_report(summary: SweepSummary, *, figure_name: str) -> str:
                f"minus `{baseline}` [95 % CI]"]
     body = [
         [
-            f"`{r['scenario']}`",
+            f"`{place_label(r)}`",
             f"`{row_label(r)}`",
             str(r["n"]),
             str(r.get("reference", REFERENCE)),
@@ -196,13 +216,13 @@ def plot_sweep(rows: Sequence[SweepRow], path: str | os.PathLike[str]) -> Path:
     the seeds as points on top (few seeds make a box alone misleading)."""
     import matplotlib.pyplot as plt
 
-    scenarios = list(dict.fromkeys(r["scenario"] for r in rows))
+    scenarios = list(dict.fromkeys(place_label(r) for r in rows))
     fig, axes = plt.subplots(
         1, len(scenarios), figsize=(1.0 + 2.2 * max(3, len(rows) / max(len(scenarios), 1)), 4.2),
         squeeze=False,
     )
     for ax, scenario in zip(axes[0], scenarios, strict=True):
-        mine = [r for r in rows if r["scenario"] == scenario]
+        mine = [r for r in rows if place_label(r) == scenario]
         values = [list(ratio(r, "by_seed").values()) for r in mine]
         positions = np.arange(1, len(mine) + 1)
         ax.boxplot(values, positions=positions, widths=0.5, showfliers=False)
