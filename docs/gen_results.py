@@ -7,6 +7,12 @@ controller x training days: mean, 95 % t-interval and worst seed over seeds) and
     python docs/gen_results.py --spec sweeps/robustness.toml   # ~8 min on two cores
     python docs/gen_results.py --spec sweeps/smoke.toml        # ~2 min
 
+A BOPTEST sweep (``sweeps/boptest.toml``: its cells carry a test period) runs against the
+BOPTEST server at ``$BOPTEST_URL``; its page gives BOPTEST's KPIs of every cell and BOPTEST's
+published baseline figures beside the summary. It takes hours: run it once with ``--out DIR``
+(or ``pinn-mpc sweep --spec sweeps/boptest.toml --out DIR``) and write the page with
+``--from-dir DIR``.
+
 ``--out DIR`` keeps the sweep's directory (its cells are reused by a rerun with the same DIR,
 as with ``pinn-mpc sweep``); by default the sweep runs in a temporary directory, so a page
 always reflects the code it was generated on. ``--from-dir DIR`` writes the page from a sweep
@@ -29,7 +35,7 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
-from scenarios.reports.sweep_report import ratio
+from scenarios.reports.sweep_report import place_label, ratio
 
 ROOT = Path(__file__).resolve().parents[1]
 #: What the results depend on: an uncommitted change here is stated on the page.
@@ -100,7 +106,7 @@ def summary_table(summary: dict[str, Any]) -> list[str]:
         diff = r.get("paired_difference_mean")
         diff_text = "" if diff is None or r["controller"] == baseline else f"{diff:+.3f}"
         lines.append(
-            f"| {r['scenario']} | {r['controller']} | {days} | {r['n']} | {reference} "
+            f"| {place_label(r)} | {r['controller']} | {days} | {r['n']} | {reference} "
             f"| {_ratio(ratio(r, 'mean'))} | {_ci(ratio(r, 'ci95'))} "
             f"| {by_seed[worst_seed]:.3f} (seed {worst_seed}) | {diff_text} |"
         )
@@ -150,8 +156,110 @@ def cell_table(directory: Path, order: list[str], references: dict[str, str]) ->
     return lines
 
 
+#: BOPTEST's published KPIs of its baseline controller on bestest_hydronic_heat_pump (its
+#: baselines/csv/df_kpi_bestest_hydronic_heat_pump.csv, whole 14-day test periods): tdis K h/zone,
+#: energy kWh/m2, cost EUR/m2, by (test period, price scenario).
+PUBLISHED_BASELINE = {
+    ("peak_heat_day", "dynamic"): (8.381, 3.478, 0.8828),
+    ("peak_heat_day", "highly_dynamic"): (8.381, 3.478, 0.9088),
+    ("typical_heat_day", "dynamic"): (9.442, 1.774, 0.4423),
+    ("typical_heat_day", "highly_dynamic"): (9.442, 1.774, 0.4127),
+}
+#: BOPTEST's KPIs a BOPTEST page shows: (key in its /kpi, heading).
+BOPTEST_KPIS = (
+    ("tdis_tot", "tdis K h/zone"),
+    ("ener_tot", "energy kWh/m2"),
+    ("cost_tot", "cost EUR/m2"),
+    ("emis_tot", "emissions kg/m2"),
+    ("time_rat", "time ratio"),
+)
+
+
+def _cells(directory: Path) -> list[dict[str, Any]]:
+    return [json.loads(p.read_text(encoding="utf-8")) for p in sorted((directory / "cells").glob("*.json"))]
+
+
+def is_boptest_sweep(directory: Path) -> bool:
+    """Whether the sweep's cells ran on BOPTEST (they carry a test period)."""
+    return any(r["cell"].get("test_period") is not None for r in _cells(directory))
+
+
+def _kpi(value: Any) -> str:
+    return f"{value:.4g}" if isinstance(value, int | float) and not isinstance(value, bool) else "-"
+
+
+def boptest_cell_table(directory: Path, order: list[str]) -> list[str]:
+    """Every BOPTEST cell: BOPTEST's KPIs, the share of its own decisions, the wall time per
+    simulated day and the decision times; per test period and price, controllers in ``order``."""
+    rank = {name: i for i, name in enumerate(order)}
+    records = sorted(
+        _cells(directory),
+        key=lambda r: (
+            r["cell"]["scenario"], r["cell"]["test_period"], r["cell"]["price_scenario"],
+            rank.get(r["cell"]["controller"], len(rank)), r["cell"]["controller"],
+            r["cell"]["train_days"] or 0, r["cell"]["seed"],
+        ),
+    )
+    heads = [h for _, h in BOPTEST_KPIS]
+    lines = [
+        "| test period | price | controller | train days | seed | model | " + " | ".join(heads)
+        + " | own decisions | wall s / day | decision ms (median / p95) |",
+        "|---" * (len(heads) + 9) + "|",
+    ]
+    for r in records:
+        c, k = r["cell"], r["kpis"]
+        b = k.get("boptest") or {}
+        wall = k.get("wall_s_per_day", r["wall_time_s"] / max(k["days"], 1))
+        lines.append(
+            f"| {c['test_period']} | {c['price_scenario']} | {c['controller']} "
+            f"| {'' if c['train_days'] is None else c['train_days']} | {c['seed']} | {k.get('model', '')} | "
+            + " | ".join(_kpi(b.get(key)) for key, _ in BOPTEST_KPIS)
+            + f" | {100 * k['own_decisions_share']:.0f} % | {wall:.1f} "
+            f"| {k['decision_ms_median']:.1f} / {k['decision_ms_p95']:.1f} |"
+        )
+    return lines
+
+
+def published_baseline_table() -> list[str]:
+    """BOPTEST's published baseline KPIs of bestest_hydronic_heat_pump (14-day test periods)."""
+    lines = [
+        "| test period | price | tdis K h/zone | energy kWh/m2 | cost EUR/m2 |",
+        "|---|---|---|---|---|",
+    ]
+    for (period, price), (tdis, energy, cost) in PUBLISHED_BASELINE.items():
+        lines.append(f"| {period} | {price} | {tdis} | {energy} | {cost} |")
+    return lines
+
+
+def _boptest_sections(spec_text: str, directory: Path) -> list[str]:
+    order = ["boptest-baseline", *tomllib.loads(spec_text).get("controllers", [])]
+    return [
+        "## BOPTEST's KPIs of every cell",
+        "",
+        "Each cell is one test on the BOPTEST server: the first `days` of the test period after "
+        "BOPTEST's warm-up, at 30-min control steps. BOPTEST's own KPIs (`/kpi`: thermal "
+        "discomfort per zone, energy, cost and emissions per m2 of floor, the time ratio of "
+        "decision time to simulated time); the share of decisions the controller made itself "
+        "(not its RC MPC fallback); the cell's wall time per simulated day through the web API "
+        "(select, warm-up and decisions included); each decision's time. `model` is what cem "
+        "planned over (for `cem/auto`, the family `train` chose) or `rc` for qp-mpc.",
+        "",
+        *boptest_cell_table(directory, order),
+        "",
+        "## BOPTEST's published baseline",
+        "",
+        "For reference: BOPTEST's published KPIs of the test case's own controller on the whole "
+        "14-day test periods (its `baselines/csv/df_kpi_bestest_hydronic_heat_pump.csv`); the "
+        "`boptest-baseline` cells above reproduce them when `days` is 14.",
+        "",
+        *published_baseline_table(),
+        "",
+    ]
+
+
 def page(spec: Path, directory: Path, command: str, wall_s: float | None, at: str) -> str:
-    """The markdown of the results page."""
+    """The markdown of the results page (of a BOPTEST sweep: BOPTEST's KPIs of every cell and
+    its published baseline instead of the objective ratio of every cell)."""
     summary = json.loads((directory / "summary.json").read_text(encoding="utf-8"))
     spec_text = spec.read_text(encoding="utf-8").rstrip()
     now = datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d %H:%M UTC")
@@ -190,11 +298,16 @@ def page(spec: Path, directory: Path, command: str, wall_s: float | None, at: st
         "",
         "Each cell's objective (cost + comfort weight x discomfort) divided by the reference's on "
         "the same test days (the oracle's; the thermostat's on an EnergyPlus building, which has "
-        "no oracle); mean and 95 % Student t interval over seeds, the worst seed, and the "
+        "no oracle; on BOPTEST its baseline's, per test period and price); mean and 95 % Student t interval over seeds, the worst seed, and the "
         "mean paired difference to the baseline (negative: better than it).",
         "",
         *summary_table(summary),
         "",
+    ]
+    if is_boptest_sweep(directory):
+        lines += _boptest_sections(spec_text, directory)
+        return "\n".join(lines)
+    lines += [
         "## Every cell",
         "",
         "Objective / the reference's of each controller on each run; the fallback column counts the "
@@ -216,6 +329,7 @@ def main() -> int:
     parser.add_argument("--out", type=Path, help="keep the sweep's directory here (reused by a rerun)")
     parser.add_argument("--from-dir", type=Path, help="write the page from a sweep that has run")
     parser.add_argument("--page", type=Path, help="the page to write (default docs/results/<spec>.md)")
+    parser.add_argument("--workers", type=int, help="the sweep's local workers (default all CPUs)")
     args = parser.parse_args()
     spec = args.spec.resolve()
     if not spec.is_file():
@@ -229,7 +343,8 @@ def main() -> int:
             directory = args.out or Path(tmp) / spec.stem
             at, start = commit(), time.perf_counter()
             subprocess.run(
-                [sys.executable, "-m", "pinn_mpc", "sweep", "--spec", str(spec), "--out", str(directory)],
+                [sys.executable, "-m", "pinn_mpc", "sweep", "--spec", str(spec), "--out", str(directory),
+                 *(["--workers", str(args.workers)] if args.workers else [])],
                 cwd=ROOT, check=True,
             )
             text = page(spec, directory, command, time.perf_counter() - start, at)
