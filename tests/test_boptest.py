@@ -540,3 +540,49 @@ def test_cli_compare_options_on_and_off_boptest(
     assert main(["compare", "--scenario", "paper_household", "--price-scenario", "dynamic", *out]) == 2
     assert "BOPTEST scenarios" in capsys.readouterr().err
     assert not list(tmp_path.iterdir())
+
+
+@pytest.mark.slow
+def test_a_sweep_runs_boptest_tests_as_cells_and_reuses_them(
+    server: Server, monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    """Two cells (BOPTEST's baseline and qp-mpc on the RC identified from two days of the
+    emulator's data), one day of peak_heat_day each, run at once on the server: each cell's
+    record carries BOPTEST's KPIs; a rerun reuses both; the results page shows them."""
+    import importlib.util
+    import json
+
+    from scenarios.experiments.sweep import SweepGrid, SweepSettings, run_sweep
+
+    monkeypatch.setenv("BOPTEST_URL", server.url)
+    grid = SweepGrid(scenarios=("boptest_hydronic_heat_pump",), controllers=("qp-mpc",),
+                     seeds=(0,), train_days=(2,))
+    settings = SweepSettings(test_days=1)
+    out = tmp_path / "sweep"
+    first = run_sweep(grid, settings, out, baseline="boptest-baseline", workers=2)
+    assert first.summary["cells_run"] == 2 and first.summary["models_trained"] == 1
+    cells = {p.name: json.loads(p.read_text()) for p in (out / "cells").glob("*.json")}
+    assert set(cells) == {
+        "boptest_hydronic_heat_pump--peak_heat_day--dynamic--boptest-baseline--seed0.json",
+        "boptest_hydronic_heat_pump--peak_heat_day--dynamic--qp-mpc--seed0--train2.json",
+    }
+    area = read_boptest_file(str(SCENARIO)).points.floor_area_m2
+    for record in cells.values():
+        kpis = record["kpis"]
+        assert record["cell"]["test_period"] == "peak_heat_day"
+        assert kpis["counted_days"] == ["2018-01-17", "2018-01-17"]
+        assert kpis["energy_kwh"] / area == pytest.approx(kpis["boptest"]["ener_tot"], rel=1e-3)
+        assert kpis["wall_s_per_day"] == pytest.approx(record["wall_time_s"])
+    assert cells["boptest_hydronic_heat_pump--peak_heat_day--dynamic--qp-mpc--seed0--train2.json"]["kpis"]["model"] == "rc"
+    row = next(r for r in first.summary["rows"] if r["controller"] == "qp-mpc")
+    assert row["test_period"] == "peak_heat_day" and row["reference"] == "boptest-baseline"
+    again = run_sweep(grid, settings, out, baseline="boptest-baseline", workers=1)
+    assert again.summary["cells_run"] == 0 and again.summary["cells_reused"] == 2
+    spec = importlib.util.spec_from_file_location("gen_results", ROOT / "docs" / "gen_results.py")
+    assert spec is not None and spec.loader is not None
+    gen = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(gen)
+    text = gen.page(ROOT / "sweeps" / "boptest.toml", out, "python docs/gen_results.py", None, "abc")
+    tdis = cells["boptest_hydronic_heat_pump--peak_heat_day--dynamic--qp-mpc--seed0--train2.json"]["kpis"]["boptest"]["tdis_tot"]
+    assert f"| peak_heat_day | dynamic | qp-mpc | 2 | 0 | rc | {tdis:.4g} |" in text
+    assert "| peak_heat_day | highly_dynamic | 8.381 | 3.478 | 0.9088 |" in text

@@ -100,6 +100,8 @@ def test_grid_parsing_and_errors():
         (["--controllers", "oracle", "--seeds", "0", "--address", "no address"], "is not a Ray address"),
         (["--controllers", "oracle", "--seeds", "0", "--address", "127.0.0.1:1"], "no Ray head node answers"),
         (["--controllers", "oracle", "--seeds", "0", "--address", "auto", "--workers", "2"], "leave --workers out"),
+        (["--controllers", "oracle", "--seeds", "0", "--test-periods", "peak_heat_day"],
+         "test_periods applies to BOPTEST scenarios"),
     ],
 )
 def test_bad_input_exits_2_with_one_line_and_writes_nothing(tmp_path, args, message):
@@ -237,7 +239,8 @@ def test_sweep_definition_files_are_read_and_checked(tmp_path):
         SweepGrid(scenarios=parse_names(read["scenarios"], "scenarios"),
                   controllers=parse_names(read["controllers"], "controllers"),
                   seeds=parse_ints(read["seeds"], "seeds"),
-                  train_days=parse_ints(read.get("train_days", "30"), "training days"))
+                  train_days=parse_ints(read.get("train_days", "30"), "training days"),
+                  **{k: parse_names(read[k], k) for k in ("archs", "test_periods", "price_scenarios") if k in read})
     own = tmp_path / "mine.toml"
     own.write_text('scenarios = ["my.toml", "winter_household"]\nseeds = [0, 3]\n')
     assert read_sweep_spec(own)["scenarios"] == f"{tmp_path / 'my.toml'},winter_household"
@@ -348,3 +351,49 @@ def test_a_sweep_definition_names_a_known_architecture(tmp_path):
         read_sweep_spec(bad)
     with pytest.raises(InputError, match="arch 'transformer' is unknown"):
         SweepSettings(arch="transformer")
+
+
+def test_boptest_grid_cells_labels_and_refusals():
+    """sweeps/boptest.toml's grid: every test period x price x controller (cem once per arch)
+    x training length, the baseline once per period and price; BOPTEST's keys and controllers
+    are checked with one clear error each."""
+    from scenarios.experiments.sweep import read_sweep_spec
+
+    spec = read_sweep_spec(ROOT / "sweeps" / "boptest.toml")
+    grid = SweepGrid(
+        scenarios=parse_names(spec["scenarios"], "scenarios"),
+        controllers=parse_names(spec["controllers"], "controllers"),
+        seeds=parse_ints(spec["seeds"], "seeds"), train_days=parse_ints(spec["train_days"], "t"),
+        **{k: parse_names(spec[k], k) for k in ("archs", "test_periods", "price_scenarios")},
+    )
+    assert grid.is_boptest and grid.references == {"boptest_hydronic_heat_pump": "boptest-baseline"}
+    assert grid.labels == ("boptest-baseline", "thermostat", "qp-mpc", "cem/auto", "cem/hybrid",
+                           "cem/physnet", "cem/physreg", "cem/mlp", "cem/arx", "cem/parx")
+    cells = grid.cells()
+    # 4 places x (baseline + thermostat + (qp-mpc + 7 cem) x 2 training lengths)
+    assert len(cells) == 4 * (2 + 8 * 2) == len({c.name for c in cells})
+    # models are shared by test periods and prices: one per kind x training length
+    assert len({c.model for c in cells if c.model is not None}) == 8 * 2
+    cem = next(c for c in cells if c.controller == "cem/parx" and c.train_days == 28
+               and c.test_period == "typical_heat_day" and c.price_scenario == "highly_dynamic")
+    assert cem.name == "boptest_hydronic_heat_pump--typical_heat_day--highly_dynamic--cem-parx--seed0--train28"
+    assert cem.model is not None and cem.model.kind == "parx"
+    base = dict(scenarios=("boptest_hydronic_heat_pump",), seeds=(0,), train_days=(14,))
+    for kwargs, message in (
+        (dict(controllers=("oracle",)), r"controller\(s\) oracle do not run on BOPTEST"),
+        (dict(controllers=("cem",), test_periods=("summer",)), r"test period\(s\) summer are not"),
+        (dict(controllers=("cem",), price_scenarios=("cheap",)), r"price scenario\(s\) cheap are not BOPTEST's"),
+        (dict(controllers=("cem",), archs=("lstm",)), r"unknown architecture\(s\) lstm"),
+        (dict(controllers=("cem",), scenarios=("boptest_hydronic_heat_pump", "cold_storage")), "sweep them separately"),
+    ):
+        with pytest.raises(InputError, match=message):
+            SweepGrid(**{**base, **kwargs})
+    with pytest.raises(InputError, match="price_scenarios applies to BOPTEST scenarios"):
+        SweepGrid(scenarios=("cold_storage",), controllers=("cem",), seeds=(0,), train_days=(7,),
+                  price_scenarios=("dynamic",))
+    # archs on the package's own scenarios: cem/<arch> labels, one model each
+    own = SweepGrid(scenarios=("cold_storage",), controllers=("cem", "thermostat"), seeds=(0,),
+                    train_days=(7,), archs=("hybrid", "parx"))
+    assert own.labels == ("cem/hybrid", "cem/parx", "thermostat")
+    assert {c.model.kind for c in own.cells() if c.model is not None} == {"hybrid", "parx"}
+    assert all(c.test_period is None for c in own.cells())
