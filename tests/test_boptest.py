@@ -586,3 +586,25 @@ def test_a_sweep_runs_boptest_tests_as_cells_and_reuses_them(
     tdis = cells["boptest_hydronic_heat_pump--peak_heat_day--dynamic--qp-mpc--seed0--train2.json"]["kpis"]["boptest"]["tdis_tot"]
     assert f"| peak_heat_day | dynamic | qp-mpc | 2 | 0 | rc | {tdis:.4g} |" in text
     assert "| peak_heat_day | highly_dynamic | 8.381 | 3.478 | 0.9088 |" in text
+
+
+def test_scenario_command_shows_lists_and_exports_the_boptest_scenario(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    from pinn_mpc_cli.cli import main
+    from scenarios.inputs.scenario_file import get_scenario
+
+    assert main(["scenario", "show", "boptest_hydronic_heat_pump"]) == 0
+    assert capsys.readouterr().out.strip() == SCENARIO.read_text().strip()
+    assert main(["scenario", "list"]) == 0
+    listed = capsys.readouterr().out
+    assert "\nboptest_hydronic_heat_pump: BOPTEST's test case bestest_hydronic_heat_pump" in listed
+    out = tmp_path / "mine.toml"
+    assert main(["scenario", "export", "boptest_hydronic_heat_pump", "--out", str(out)]) == 0
+    assert read_boptest_file(str(out)) == read_boptest_file(str(SCENARIO))
+    capsys.readouterr()
+    assert main(["scenario", "show", str(out)]) == 0
+    assert "[boptest.test_periods]" in capsys.readouterr().out
+    # where one of the package's own scenarios is needed, the name is refused saying why
+    with pytest.raises(InputError, match="is a BOPTEST scenario: it runs on a BOPTEST server"):
+        get_scenario("boptest_hydronic_heat_pump")

@@ -570,7 +570,11 @@ def scenario_inputs(name_or_path: str) -> dict[str, Path]:
 def scenario_list() -> str:
     """One line per built-in scenario: its name and description (which ends with its weather
     split)."""
-    return "\n".join(f"{name}: {get_scenario(name).description}" for name in scenario_names())
+    from scenarios.plants.boptest import BUILTIN_BOPTEST, boptest_description, builtin_boptest
+
+    own = [f"{name}: {get_scenario(name).description}" for name in scenario_names()]
+    boptest = [f"{name}: {boptest_description(builtin_boptest(name))}" for name in BUILTIN_BOPTEST]
+    return "\n".join(own + boptest)
 
 
 def scenario_command(
@@ -584,6 +588,11 @@ def scenario_command(
         return scenario_list()
     if name is None:
         raise InternalError(f"scenario {action} needs a scenario name or file")
+    from scenarios.plants.boptest import boptest_file
+
+    boptest = boptest_file(name)
+    if boptest is not None:  # a BOPTEST scenario is its file: the test case is the server's
+        return _boptest_command(action, name, boptest, out=out, force=force)
     if action == "show":
         text = scenario_to_toml(get_scenario(name)).rstrip("\n")
         if not is_scenario_file(name):
@@ -615,6 +624,30 @@ def scenario_command(
     return f"wrote {out}"
 
 
+def _boptest_command(action: str, name: str, source: Path, *, out: str | None, force: bool) -> str:
+    """``scenario show`` (the file, checked) or ``export`` (a copy) of a BOPTEST scenario."""
+    from pinn_mpc.io import atomic_write_text, check_distinct, check_writable
+    from scenarios.plants.boptest import read_boptest_file
+
+    read_boptest_file(str(source))  # a bad file is one clear error, as for any scenario
+    text = source.read_text(encoding="utf-8")
+    if action == "show":
+        return text.rstrip("\n")
+    if action != "export" or out is None:
+        raise InternalError(f"unknown scenario action {action!r}; use list, show or export")
+    if not out.lower().endswith(".toml"):
+        raise InputError(f"--out {out}: scenario files end in .toml; write --out {out}.toml")
+    check_writable(out)
+    check_distinct(inputs={"NAME": source}, outputs={"--out": out})
+    if Path(out).exists() and not force:
+        raise InputError(
+            f"--out {out} already exists (perhaps edited); choose another name, or add --force "
+            "to replace it"
+        )
+    atomic_write_text(out, text)
+    return f"wrote {out} ({name}: a BOPTEST scenario, its [boptest] table)"
+
+
 def get_scenario(name_or_path: str) -> Scenario:
     """A built-in scenario by name, or a scenario file: the one resolver behind every
     ``--scenario``.
@@ -637,6 +670,14 @@ def get_scenario(name_or_path: str) -> Scenario:
     """
     if name_or_path in scenario_names():
         return builtin_scenario(name_or_path)
+    from scenarios.plants.boptest import boptest_file
+
+    if boptest_file(name_or_path) is not None:
+        raise InputError(
+            f"{name_or_path} is a BOPTEST scenario: it runs on a BOPTEST server, through "
+            "simulate, closed-loop, compare and sweep (see `pinn-mpc scenario show "
+            f"{name_or_path}`); this asks for one of the package's own scenarios"
+        )
     if is_scenario_file(name_or_path):
         return load_scenario_file(name_or_path)
     if os.path.isfile(name_or_path):

@@ -56,6 +56,8 @@ __all__ = [
     "SignalScaling",
     "BUILTIN_BOPTEST",
     "boptest_settings_from_dict",
+    "boptest_description",
+    "boptest_file",
     "builtin_boptest",
     "read_boptest_file",
     "record_data",
@@ -621,6 +623,35 @@ def read_boptest_file(path: str) -> BoptestSettings:
 BUILTIN_BOPTEST = {
     "boptest_hydronic_heat_pump": Path(__file__).with_name("boptest_hydronic_heat_pump.toml"),
 }
+
+
+def boptest_file(name_or_path: str) -> Path | None:
+    """The scenario file of a BOPTEST scenario: a built-in's (:data:`BUILTIN_BOPTEST`) or a
+    TOML file with a ``[boptest]`` table; None for anything else."""
+    import os
+    import tomllib
+
+    if name_or_path in BUILTIN_BOPTEST:
+        return BUILTIN_BOPTEST[name_or_path]
+    if not (name_or_path.lower().endswith(".toml") and os.path.isfile(name_or_path)):
+        return None
+    try:
+        with open(name_or_path, "rb") as handle:
+            table = tomllib.load(handle).get("boptest")
+    except (OSError, tomllib.TOMLDecodeError):
+        return None
+    return Path(name_or_path) if isinstance(table, Mapping) else None
+
+
+def boptest_description(settings: BoptestSettings) -> str:
+    """One line on a BOPTEST scenario: its test case, test periods and price scenarios."""
+    p = settings.points
+    return (
+        f"BOPTEST's test case {p.testcase} ({p.floor_area_m2:g} m2), run on a BOPTEST server "
+        f"through its web API (BOPTEST's KPIs); test periods {', '.join(p.test_periods)} "
+        f"({TEST_PERIOD_DAYS:g} days after a {WARMUP_DAYS:g}-day warm-up), price scenarios "
+        f"{', '.join(PRICE_SCENARIOS)}; the actuator's electrical limit {p.scaling.max_power_w:g} W."
+    )
 
 
 def builtin_boptest(name: str) -> BoptestSettings:

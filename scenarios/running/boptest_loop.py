@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import dataclasses
 import os
-from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, TypeAlias, cast
@@ -45,6 +44,7 @@ from scenarios.plants.boptest import (
     BoptestPlant,
     BoptestRun,
     BoptestSettings,
+    boptest_file,
     builtin_boptest,
     read_boptest_file,
     record_data,
@@ -126,22 +126,10 @@ class BoptestScenario:
         )
 
 
-def _has_boptest_table(path: str) -> bool:
-    import tomllib
-
-    try:
-        with open(path, "rb") as handle:
-            return isinstance(tomllib.load(handle).get("boptest"), Mapping)
-    except (OSError, tomllib.TOMLDecodeError):
-        return False
-
-
 def is_boptest_scenario(name_or_path: str) -> bool:
     """True when ``--scenario`` names a built-in BOPTEST scenario or a TOML file with a
     ``[boptest]`` table."""
-    if name_or_path in BUILTIN_BOPTEST:
-        return True
-    return name_or_path.lower().endswith(".toml") and os.path.isfile(name_or_path) and _has_boptest_table(name_or_path)
+    return boptest_file(name_or_path) is not None
 
 
 def boptest_scenario(name_or_path: str, *, url: str | None = None) -> BoptestScenario:
