@@ -66,7 +66,10 @@ def test_closed_loop_on_the_exported_file_gives_the_same_kpis(tmp_path, capsys, 
 def test_scenario_list_and_show(capsys):
     assert main(["scenario", "list"]) == 0
     lines = capsys.readouterr().out.strip().splitlines()
-    assert [line.split(":")[0] for line in lines] == scenario_names()
+    from scenarios.plants.boptest import BUILTIN_BOPTEST
+
+    # the package's own scenarios, then BOPTEST's (which run on a BOPTEST server)
+    assert [line.split(":")[0] for line in lines] == [*scenario_names(), *BUILTIN_BOPTEST]
     assert all("Weather split" in line for line in lines)
     assert main(["scenario", "show", "cold_storage"]) == 0
     shown = tomllib.loads(capsys.readouterr().out)
