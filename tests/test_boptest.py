@@ -608,3 +608,18 @@ def test_scenario_command_shows_lists_and_exports_the_boptest_scenario(
     # where one of the package's own scenarios is needed, the name is refused saying why
     with pytest.raises(InputError, match="is a BOPTEST scenario: it runs on a BOPTEST server"):
         get_scenario("boptest_hydronic_heat_pump")
+
+
+def test_cli_sweep_on_boptest_without_a_server_exits_2_before_any_work(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    from pinn_mpc_cli.cli import main
+
+    url = f"http://127.0.0.1:{_free_port()}"
+    monkeypatch.setenv("BOPTEST_URL", url)
+    out = tmp_path / "sweep"
+    code = main(["sweep", "--scenarios", "boptest_hydronic_heat_pump", "--controllers", "thermostat",
+                 "--seeds", "0", "--days", "1", "--test-periods", "typical_heat_day", "--out", str(out)])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and "\n" not in err and url in err
+    assert not out.exists()

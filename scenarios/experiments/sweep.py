@@ -901,6 +901,11 @@ def run_sweep(
             f"sweep: days {settings.test_days}: a BOPTEST test period has {TEST_PERIOD_DAYS:g} days"
         )
     check_engine_options(address, workers)
+    if grid.is_boptest:  # no server: one line now, not a failed cell after Ray has started
+        from scenarios.plants.boptest_client import BoptestClient
+
+        for scenario in grid.scenarios:
+            BoptestClient(_boptest_chosen(scenario, None).settings.url).version()
     start = time.perf_counter()
     root = Path(out)
     _check_out(root, force=force)
