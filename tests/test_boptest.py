@@ -623,3 +623,26 @@ def test_cli_sweep_on_boptest_without_a_server_exits_2_before_any_work(
     err = capsys.readouterr().err.strip()
     assert code == 2 and "\n" not in err and url in err
     assert not out.exists()
+
+
+def test_boptest_planners_from_fitted_models_and_their_refusals() -> None:
+    from controllers.thermostat import Thermostat
+    from pinn_mpc.physics import PAPER_HOUSEHOLD
+    from pinn_mpc.training import TrainConfig
+    from scenarios.running.boptest_loop import (
+        BASELINE,
+        boptest_fit,
+        boptest_planner,
+        boptest_scenario,
+    )
+
+    chosen = boptest_scenario("boptest_hydronic_heat_pump")
+    assert boptest_planner(BASELINE, chosen, None, dt_s=1800.0, n_steps=48) is None
+    assert isinstance(boptest_planner("thermostat", chosen, None, dt_s=1800.0, n_steps=48), Thermostat)
+    qp = boptest_planner("qp-mpc", chosen, PAPER_HOUSEHOLD, dt_s=1800.0, n_steps=48)
+    assert qp is not None and qp.name == "qp-mpc"
+    for name, model in (("oracle", None), ("cem", None), ("cem", PAPER_HOUSEHOLD), ("qp-mpc", None)):
+        with pytest.raises(InputError, match="on BOPTEST takes boptest-baseline, thermostat, qp-mpc"):
+            boptest_planner(name, chosen, model, dt_s=1800.0, n_steps=48)
+    with pytest.raises(InputError, match="unknown model 'lstm'"):
+        boptest_fit("lstm", None, TrainConfig())  # type: ignore[arg-type]
