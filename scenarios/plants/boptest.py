@@ -71,6 +71,10 @@ PRICE_SCENARIOS = ("constant", "dynamic", "highly_dynamic")
 #: 7-day warm-up.
 TEST_PERIOD_DAYS = 14.0
 WARMUP_DAYS = 7.0
+#: The price of discomfort [EUR per K h per zone] BOPTEST-gym's reward puts beside the cost
+#: in EUR (cost_tot x floor area + 100 x tdis_tot): a 1 K shortfall for an hour costs as much
+#: as 100 EUR of electricity, so controllers keep the band unless keeping it is dear.
+DEFAULT_COMFORT_WEIGHT = 100.0
 #: BOPTEST stores its trajectories every 30 s: the substeps of an interval.
 RESULT_SAMPLE_S = 30.0
 #: Forecast samples per interval are at most this far apart [s] (interval means).
@@ -270,6 +274,16 @@ class BoptestSettings:
     points: BoptestPoints
     url: str | None = None
     timeout_s: float = 120.0
+    #: The controllers' price of discomfort [EUR per K h of the room outside its band]: the
+    #: objective they minimise is cost [EUR] + this x BOPTEST's thermal discomfort.
+    comfort_weight_eur_per_kh: float = DEFAULT_COMFORT_WEIGHT
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.comfort_weight_eur_per_kh) and self.comfort_weight_eur_per_kh >= 0):
+            raise InputError(
+                "boptest.comfort_weight_eur_per_kh must be a number >= 0 (EUR per K h), "
+                f"got {self.comfort_weight_eur_per_kh!r}"
+            )
 
 
 @dataclass
@@ -548,8 +562,8 @@ def boptest_settings_from_dict(data: Mapping[str, Any], *, where: str = "boptest
     """A scenario file's ``[boptest]`` table (its sub-tables ``points``, ``actuator``,
     ``forecast``, ``prices``, ``test_periods``) as :class:`BoptestSettings`, checked key by key:
     an unknown or missing key is one clear error naming it."""
-    top = {"testcase", "url", "timeout_s", "floor_area_m2", "year", "points", "actuator",
-           "forecast", "prices", "test_periods"}
+    top = {"testcase", "url", "timeout_s", "comfort_weight_eur_per_kh", "floor_area_m2", "year",
+           "points", "actuator", "forecast", "prices", "test_periods"}
     _unknown(data, top, where)
     points = _table(data, "points", where)
     _unknown(points, set(_POINT_KEYS), f"{where}.points")
@@ -602,6 +616,10 @@ def boptest_settings_from_dict(data: Mapping[str, Any], *, where: str = "boptest
         ),
         url=url,
         timeout_s=_number(data.get("timeout_s", 120.0), f"{where}.timeout_s"),
+        comfort_weight_eur_per_kh=_number(
+            data.get("comfort_weight_eur_per_kh", DEFAULT_COMFORT_WEIGHT),
+            f"{where}.comfort_weight_eur_per_kh",
+        ),
     )
 
 

@@ -112,8 +112,8 @@ class BoptestScenario:
 
     def scenario(self, dt_s: float) -> Scenario:
         """The package's scenario its controllers are built on at interval ``dt_s`` [s]: the
-        actuator's limit is the test case's electrical power at its highest signal; the
-        objective (comfort weight, a one-day horizon) is the built-in scenarios'."""
+        actuator's limit is the test case's electrical power at its highest signal; the comfort
+        weight is the ``[boptest]`` table's; the horizon is one day."""
         base = builtin_scenario(_OBJECTIVE_OF)
         sim = dataclasses.replace(
             base.sim, u_max_w=self.settings.points.scaling.max_power_w, dt_s=float(dt_s),
@@ -123,6 +123,7 @@ class BoptestScenario:
             base, name=self.name,
             description=f"BOPTEST test case {self.settings.points.testcase}",
             sim=sim, horizon_steps=int(round(86400.0 / dt_s)),
+            comfort_weight_eur_per_kh=self.settings.comfort_weight_eur_per_kh,
         )
 
 
