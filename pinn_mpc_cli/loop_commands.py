@@ -45,8 +45,11 @@ def simulate(a: argparse.Namespace) -> str:
 
     if is_boptest_scenario(a.scenario):
         return _boptest_simulate(a)
-    if a.first_day is not None:
-        raise InputError(f"--first-day places data on a BOPTEST scenario; {a.scenario} is not one")
+    for option in ("first_day", "test_period"):
+        if getattr(a, option) is not None:
+            raise InputError(
+                f"--{option.replace('_', '-')} places data on a BOPTEST scenario; {a.scenario} is not one"
+            )
     if a.spread is not None and a.buildings < 2:
         raise InputError("--spread draws a fleet: add --buildings N with N > 1")
     sidecar = None
@@ -386,7 +389,12 @@ def _boptest_simulate(a: argparse.Namespace) -> str:
     chosen = boptest_scenario(a.scenario)
     check_writable(a.out)
     check_distinct(inputs={"--scenario": str(chosen.path)}, outputs={"--out": a.out})
-    first_day = DATA_FIRST_DAY if a.first_day is None else a.first_day
+    if a.test_period is not None and a.first_day is not None:
+        raise InputError("give --test-period (the days nearest it) or --first-day, not both")
+    if a.test_period is not None:
+        first_day = chosen.settings.points.data_first_day(a.test_period, float(a.days))
+    else:
+        first_day = DATA_FIRST_DAY if a.first_day is None else a.first_day
     policy = a.policy or "closed-loop"
     frame = boptest_data(chosen, days=a.days, seed=a.seed, policy=policy, first_day=first_day)
     write_timeseries(frame, a.out)

@@ -228,6 +228,13 @@ def add_simulate(sub: Commands) -> None:
         help="BOPTEST scenarios: the first day of the year of the data (0 = 1 January), off "
         "every test period and its warm-up (default 30)",
     )
+    p.add_argument(
+        "--test-period",
+        choices=("peak_heat_day", "typical_heat_day"),
+        default=None,
+        help="BOPTEST scenarios: the data's days nearest this test period, off it (right before "
+        "its warm-up, else right after it), as compare takes them",
+    )
     p.add_argument("--out", required=True, help="CSV file to write")
 
 

@@ -223,6 +223,23 @@ def test_runs_are_checked_and_data_days_stay_off_the_test_periods() -> None:
         points.period_days("cold_day")
 
 
+def test_training_days_nearest_a_test_period() -> None:
+    """Right before the period's warm-up where the data and their own 7-day warm-up fit after
+    1 January and off every period; else right after the period's end."""
+    points = read_boptest_file(str(SCENARIO)).points
+    # typical_heat_day: warm-up days 101-108, test days 108-122
+    assert points.data_first_day("typical_heat_day", 14) == 87.0
+    assert points.data_first_day("typical_heat_day", 28) == 73.0
+    # 80 days before day 101 would start before the data's own warm-up: after the period
+    assert points.data_first_day("typical_heat_day", 80) == 122.0
+    # peak_heat_day: warm-up from day 9, so nothing fits before it
+    assert points.data_first_day("peak_heat_day", 14) == 30.0
+    assert points.data_first_day("peak_heat_day", 28) == 30.0
+    # 72 days after peak_heat_day would reach typical_heat_day's warm-up
+    with pytest.raises(InputError, match="no 72 days of training data fit beside test period peak_heat_day"):
+        points.data_first_day("peak_heat_day", 72)
+
+
 # --- the client against the server's routes ----------------------------------------------------
 
 

@@ -213,6 +213,26 @@ class BoptestPoints:
         first = float(self.test_periods[time_period]) - WARMUP_DAYS
         return first, first + TEST_PERIOD_DAYS
 
+    def data_first_day(self, time_period: str, days: float) -> float:
+        """The first day of the year [d] of ``days`` days of training data for ``time_period``:
+        the days nearest it off every test period and warm-up, those right before its warm-up
+        (the building's recent past, as a controller in service is trained) where they fit
+        after the data's own warm-up from 1 January, else those right after its end."""
+        first, end = self.period_days(time_period)
+        candidates = (first - WARMUP_DAYS - days, end)
+        for start in candidates:
+            if start < WARMUP_DAYS or start + days > 365.0:
+                continue
+            try:
+                self.check_disjoint(start, days)
+            except InputError:
+                continue
+            return float(start)
+        raise InputError(
+            f"no {days:g} days of training data fit beside test period {time_period} off every "
+            "test period; give fewer days or the data's first day (--first-day)"
+        )
+
     def check_disjoint(self, first_day: float, days: float) -> None:
         """Refuse a data period [first_day, first_day + days) that overlaps a test period or
         its warm-up (the days controllers are judged on must not be trained on)."""

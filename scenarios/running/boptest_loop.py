@@ -383,7 +383,8 @@ def run_boptest_comparison(
     families: tuple[str, ...] = CEM_FAMILIES,
     progress: bool = False,
 ) -> BoptestComparison:
-    """Training data from the emulator (:func:`boptest_data`, ``train_days`` days), the RC
+    """Training data from the emulator (:func:`boptest_data`, ``train_days`` days nearest the
+    test period, :meth:`~scenarios.plants.boptest.BoptestPoints.data_first_day`), the RC
     identified from it, the default model ``train`` would choose on it
     (:func:`pinn_mpc.model_choice.choose_model`) and each model family of ``families``, all
     trained once with ``config``; then ``boptest-baseline``, the thermostat, ``qp-mpc`` on the
@@ -397,7 +398,12 @@ def run_boptest_comparison(
 
     wall: dict[str, float] = {}
     start = time.perf_counter()
-    data = boptest_data(chosen, days=train_days, seed=seed, policy=policy, dt_s=run.dt_s)
+    if run.time_period is None:
+        raise InputError("a comparison on BOPTEST runs a test period (--test-period)")
+    first_day = chosen.settings.points.data_first_day(run.time_period, float(train_days))
+    data = boptest_data(
+        chosen, days=train_days, seed=seed, policy=policy, dt_s=run.dt_s, first_day=first_day
+    )
     wall["training data"] = time.perf_counter() - start
     fitted: dict[str, tuple[BoptestModel, str]] = {}
     with one_torch_thread():
