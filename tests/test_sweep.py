@@ -359,25 +359,33 @@ def test_boptest_grid_cells_labels_and_refusals():
     are checked with one clear error each."""
     from scenarios.experiments.sweep import read_sweep_spec
 
-    spec = read_sweep_spec(ROOT / "sweeps" / "boptest.toml")
-    grid = SweepGrid(
-        scenarios=parse_names(spec["scenarios"], "scenarios"),
-        controllers=parse_names(spec["controllers"], "controllers"),
-        seeds=parse_ints(spec["seeds"], "seeds"), train_days=parse_ints(spec["train_days"], "t"),
-        **{k: parse_names(spec[k], k) for k in ("archs", "test_periods", "price_scenarios")},
-    )
+    def grid_of(name: str) -> SweepGrid:
+        spec = read_sweep_spec(ROOT / "sweeps" / name)
+        return SweepGrid(
+            scenarios=parse_names(spec["scenarios"], "scenarios"),
+            controllers=parse_names(spec["controllers"], "controllers"),
+            seeds=parse_ints(spec["seeds"], "seeds"), train_days=parse_ints(spec["train_days"], "t"),
+            **{k: parse_names(spec[k], k) for k in ("archs", "test_periods", "price_scenarios")},
+        )
+
+    grid = grid_of("boptest.toml")
     assert grid.is_boptest and grid.references == {"boptest_hydronic_heat_pump": "boptest-baseline"}
-    assert grid.labels == ("boptest-baseline", "thermostat", "qp-mpc", "cem/auto", "cem/hybrid",
-                           "cem/physnet", "cem/physreg", "cem/mlp", "cem/arx", "cem/parx")
+    assert grid.labels == ("boptest-baseline", "thermostat", "qp-mpc", "cem/auto")
     cells = grid.cells()
-    # 4 places x (baseline + thermostat + (qp-mpc + 7 cem) x 2 training lengths)
-    assert len(cells) == 4 * (2 + 8 * 2) == len({c.name for c in cells})
-    # models are shared by test periods and prices: one per kind x training length
-    assert len({c.model for c in cells if c.model is not None}) == 8 * 2
+    # 4 places x (baseline + thermostat + (qp-mpc + cem) x 2 training lengths)
+    assert len(cells) == 4 * (2 + 2 * 2) == len({c.name for c in cells})
+    # models are shared by the prices of a test period: one per kind x training length x period
+    assert len({c.model for c in cells if c.model is not None}) == 2 * 2 * 2
+    families = grid_of("boptest_families.toml")
+    assert families.labels == ("boptest-baseline", "cem/hybrid", "cem/physnet", "cem/physreg",
+                               "cem/mlp", "cem/arx", "cem/parx")
+    cells = families.cells()
+    assert len(cells) == 4 * (1 + 6 * 2) == len({c.name for c in cells})
     cem = next(c for c in cells if c.controller == "cem/parx" and c.train_days == 28
                and c.test_period == "typical_heat_day" and c.price_scenario == "highly_dynamic")
     assert cem.name == "boptest_hydronic_heat_pump--typical_heat_day--highly_dynamic--cem-parx--seed0--train28"
     assert cem.model is not None and cem.model.kind == "parx"
+    assert cem.model.name == "boptest_hydronic_heat_pump--parx--seed0--train28--near-typical_heat_day"
     base = dict(scenarios=("boptest_hydronic_heat_pump",), seeds=(0,), train_days=(14,))
     for kwargs, message in (
         (dict(controllers=("oracle",)), r"controller\(s\) oracle do not run on BOPTEST"),

@@ -158,7 +158,10 @@ class Cell:
         kind = model_kind(self.controller)
         if kind is None or self.train_days is None:
             return None
-        return ModelKey(scenario=self.scenario, kind=kind, seed=self.seed, train_days=self.train_days)
+        return ModelKey(
+            scenario=self.scenario, kind=kind, seed=self.seed, train_days=self.train_days,
+            test_period=self.test_period,
+        )
 
 
 @dataclass(frozen=True, kw_only=True, order=True)
@@ -167,10 +170,13 @@ class ModelKey:
     kind: str  # ARCH or RC_KIND
     seed: int
     train_days: int
+    #: BOPTEST: the test period whose nearest days the training data are recorded on.
+    test_period: str | None = None
 
     @property
     def name(self) -> str:
-        return f"{_label(self.scenario)}--{self.kind}--seed{self.seed}--train{self.train_days}"
+        near = "" if self.test_period is None else f"--near-{self.test_period}"
+        return f"{_label(self.scenario)}--{self.kind}--seed{self.seed}--train{self.train_days}{near}"
 
 
 def _label(scenario: str) -> str:
@@ -536,12 +542,18 @@ def fit_model(key: ModelKey, settings: SweepSettings, data: pd.DataFrame | None 
 
 
 def boptest_training_data(key: ModelKey, boptest_url: str | None = None) -> pd.DataFrame:
-    """The emulator's training data of a BOPTEST model ``key``: ``key.train_days`` days under
-    ``simulate``'s defaults (:func:`scenarios.running.boptest_loop.boptest_data`), seed
-    ``key.seed``; ``boptest_url`` the server when the scenario file names none."""
-    from scenarios.running.boptest_loop import boptest_data
+    """The emulator's training data of a BOPTEST model ``key``: ``key.train_days`` days on the
+    days nearest its test period, as ``compare`` and ``simulate --test-period`` take them
+    (:func:`scenarios.running.boptest_loop.boptest_data`), seed ``key.seed``; ``boptest_url``
+    the server when the scenario file names none."""
+    from scenarios.running.boptest_loop import DATA_FIRST_DAY, boptest_data
 
-    return boptest_data(_boptest_chosen(key.scenario, boptest_url), days=key.train_days, seed=key.seed)
+    chosen = _boptest_chosen(key.scenario, boptest_url)
+    first_day = (
+        DATA_FIRST_DAY if key.test_period is None
+        else chosen.settings.points.data_first_day(key.test_period, float(key.train_days))
+    )
+    return boptest_data(chosen, days=key.train_days, seed=key.seed, first_day=first_day)
 
 
 def _boptest_chosen(scenario: str, boptest_url: str | None) -> BoptestScenario:
@@ -805,7 +817,7 @@ def _run_on_ray(
     task = ray.remote(num_cpus=1, max_calls=max_calls)(_one_blas_thread)
     pending: dict[Any, tuple[str, Any]] = {}
     model_refs: dict[ModelKey, Any] = {}
-    # BOPTEST: the emulator's data, recorded once per scenario x seed x training days
+    # BOPTEST: the emulator's data, recorded once per scenario x seed x training days x period
     data_refs: dict[ModelKey, Any] = {}
     url = os.environ.get(BOPTEST_URL_ENV)
     for key in keys:
