@@ -27,8 +27,9 @@ when it takes over. It also decides, without a verdict on the model, while the h
 short for the model. The model takes over again after ``recover_steps`` decisions within the limits, twice as
 many after each further switch (a model found wrong again is given less benefit of the doubt). The
 planner also plans against the comfort band narrowed by the filtered error of its room
-temperature (never less than its ``comfort_margin_k``), so a model that errs more keeps more
-distance from the band's edges.
+temperature (one step ahead, or with ``margin_from_replay`` also over the replayed hours; never
+less than its ``comfort_margin_k``), so a model that errs more keeps more distance from the
+band's edges.
 """
 
 from __future__ import annotations
@@ -52,7 +53,10 @@ class TrustSettings:
     along the plan [K]; ``filter_gain``: weight of a new error in the filters; ``recover_steps``:
     decisions within the limits before the model drives again (doubled after each further
     switch, at most ``max_recover_steps``); ``margin_factor``: the band is
-    narrowed by this times the filtered |innovation| (at most ``max_margin_k``).
+    narrowed by this times the filtered |innovation| (at most ``max_margin_k``), or with
+    ``margin_from_replay`` by the larger of that and the filtered replay error: the error a
+    plan carries hours ahead, for plants whose measured temperature is noise-free (a noisy
+    sensor's error is in the replay error too, and a margin for it only costs energy).
     """
 
     replay_steps: int = 8
@@ -66,6 +70,7 @@ class TrustSettings:
     max_recover_steps: int = 48
     margin_factor: float = 1.0
     max_margin_k: float = 0.5
+    margin_from_replay: bool = False
 
     def __post_init__(self) -> None:
         for name in (
@@ -140,7 +145,10 @@ class TrustMonitor:
 
     def margin_k(self, base_k: float) -> float:
         """The comfort margin to plan with: ``base_k``, or more where the model errs more."""
-        extra = self.settings.margin_factor * self.state.error_k
+        error = self.state.error_k
+        if self.settings.margin_from_replay and math.isfinite(self.state.replay_k):
+            error = max(error, self.state.replay_k)
+        extra = self.settings.margin_factor * error
         return max(base_k, min(extra, self.settings.max_margin_k))
 
     def reason(self, spread_k: float | None = None) -> str | None:

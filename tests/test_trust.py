@@ -56,6 +56,17 @@ def test_monitor_narrows_the_band_by_its_filtered_error_within_limits() -> None:
     assert m.margin_k(0.01) == 0.2
 
 
+def test_monitor_narrows_the_band_by_its_replay_error_where_asked_and_larger() -> None:
+    """A model right one step ahead but 0.15 K off over the replayed hours plans 0.15 K inside
+    with ``margin_from_replay``, 0.02 K without."""
+    for from_replay, expected in ((True, 0.15), (False, 0.02)):
+        m = TrustMonitor(TrustSettings(filter_gain=1.0, margin_from_replay=from_replay), u_range_w=1.0)
+        m.observe(0.02, float("nan"), replay_k=0.15)
+        assert m.margin_k(0.01) == pytest.approx(expected)
+        m.observe(0.3, float("nan"), replay_k=0.15)
+        assert m.margin_k(0.01) == pytest.approx(0.3)
+
+
 @pytest.mark.parametrize(
     "bad", [{"error_floor_k": 0.0}, {"filter_gain": 1.5}, {"recover_steps": 0}, {"replay_steps": 0}]
 )

@@ -61,8 +61,10 @@ from scenarios.running.datagen import SetpointPolicy
 from scenarios.running.engine import ClosedLoop
 
 if TYPE_CHECKING:
+    from controllers.sampling import Guard
     from pinn_mpc.models.arx import ARXModel
     from pinn_mpc.models.learned import LearnedModel
+    from pinn_mpc.models.rollout import BatchDynamics
     from pinn_mpc.training import TrainConfig
 
 #: What :func:`boptest_fit` returns: a learned ensemble, an ARX or an identified RC.
@@ -78,6 +80,7 @@ __all__ = [
     "BoptestModel",
     "BoptestScenario",
     "boptest_controller",
+    "boptest_guard",
     "boptest_data",
     "boptest_fit",
     "boptest_planner",
@@ -145,6 +148,18 @@ def boptest_scenario(name_or_path: str, *, url: str | None = None) -> BoptestSce
     return BoptestScenario(name=name, settings=settings, path=path)
 
 
+def boptest_guard(model: BatchDynamics) -> Guard:
+    """The fallback of a planner over ``model`` on BOPTEST: the RC and ranges of
+    :func:`scenarios.running.factory.model_guard`, and a comfort margin from the model's replay error as well as its one-step
+    error (:attr:`controllers.trust.TrustSettings.margin_from_replay`): BOPTEST measures the
+    zone temperature without noise, so the replayed hours' error is the model's own, and a
+    plan that rides the band's edge hours ahead misses it by that much."""
+    from controllers.trust import TrustSettings
+    from scenarios.running.factory import model_guard
+
+    return model_guard(model)._replace(settings=TrustSettings(margin_from_replay=True))
+
+
 def boptest_controller(
     name: str,
     chosen: BoptestScenario,
@@ -166,7 +181,7 @@ def boptest_controller(
         if model_dir is not None or rc_path is not None:
             raise InputError(f"{BASELINE} is the test case's own controller: it takes no --model or --rc")
         return None
-    from scenarios.running.factory import build_controller, make_controller, model_guard
+    from scenarios.running.factory import build_controller, make_controller
 
     scenario = chosen.scenario(dt_s)
     if name in MODEL_CONTROLLERS and model_dir is not None:
@@ -176,7 +191,7 @@ def boptest_controller(
 
         model = load_arx(model_dir) if is_arx_directory(model_dir) else load_model(model_dir)
         planner = RandomShooting if name == "random-shooting" else CEM
-        return planner(model, scenario.control_spec(), guard=model_guard(model))
+        return planner(model, scenario.control_spec(), guard=boptest_guard(model))
     if name in RC_CONTROLLERS and rc_path is not None and model_dir is None:
         rc_params, _ = read_rc_json(rc_path)
         return build_controller(name, scenario, rc_params=rc_params, n_steps=n_steps)
@@ -337,7 +352,7 @@ def boptest_planner(
     None for :data:`BASELINE`."""
     from controllers.sampling import CEM
     from pinn_mpc.physics import RCParams
-    from scenarios.running.factory import build_controller, model_guard
+    from scenarios.running.factory import build_controller
 
     scenario = chosen.scenario(dt_s)
     spec = scenario.control_spec()
@@ -348,7 +363,7 @@ def boptest_planner(
     if name == "qp-mpc" and isinstance(model, RCParams):
         return build_controller("qp-mpc", scenario, rc_params=model, n_steps=n_steps)
     if name == "cem" and model is not None and not isinstance(model, RCParams):
-        return CEM(model, spec, guard=model_guard(model))
+        return CEM(model, spec, guard=boptest_guard(model))
     raise InputError(
         f"controller {name!r} on BOPTEST takes {BASELINE}, thermostat, qp-mpc (on an identified "
         "RC) or cem (over a learned model or an ARX)"
