@@ -380,11 +380,12 @@ def test_boptest_grid_cells_labels_and_refusals():
     assert families.labels == ("boptest-baseline", "cem/hybrid", "cem/physnet", "cem/physreg",
                                "cem/mlp", "cem/arx", "cem/parx")
     cells = families.cells()
-    assert len(cells) == 2 * (1 + 6) == len({c.name for c in cells})
-    cem = next(c for c in cells if c.controller == "cem/parx" and c.test_period == "typical_heat_day")
-    assert cem.name == "boptest_hydronic_heat_pump--typical_heat_day--dynamic--cem-parx--seed0--train14"
+    assert len(cells) == 4 * (1 + 6 * 2) == len({c.name for c in cells})
+    cem = next(c for c in cells if c.controller == "cem/parx" and c.train_days == 28
+               and c.test_period == "typical_heat_day" and c.price_scenario == "highly_dynamic")
+    assert cem.name == "boptest_hydronic_heat_pump--typical_heat_day--highly_dynamic--cem-parx--seed0--train28"
     assert cem.model is not None and cem.model.kind == "parx"
-    assert cem.model.name == "boptest_hydronic_heat_pump--parx--seed0--train14--near-typical_heat_day"
+    assert cem.model.name == "boptest_hydronic_heat_pump--parx--seed0--train28--near-typical_heat_day"
     base = dict(scenarios=("boptest_hydronic_heat_pump",), seeds=(0,), train_days=(14,))
     for kwargs, message in (
         (dict(controllers=("oracle",)), r"controller\(s\) oracle do not run on BOPTEST"),
