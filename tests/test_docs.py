@@ -215,6 +215,124 @@ def test_walkthrough_runs_as_written(tmp_path: Path) -> None:
     assert (workdir / "compare" / "report.md").exists()
 
 
+#: The pages whose commands run as written (test_pages_run_as_written); "your building" has its
+#: own test (test_walkthrough_runs_as_written).
+RUN_AS_WRITTEN = ("README.md", "docs/getting-started.md", "docs/realistic-conditions.md",
+                  "docs/sweeps-and-fleets.md", "docs/boptest.md")
+REALISTIC = "docs/realistic-conditions.md"
+#: The sizes a run as written shrinks: {(page, command, option): value}, "*" for any page or
+#: command, the most specific entry first. No other word of a command changes.
+SIZES: dict[tuple[str, str, str], str] = {
+    ("*", "*", "--days"): "1",  # test days of closed-loop and compare
+    ("*", "simulate", "--days"): "2",  # data to train on (one day is fewer rows than a model's depth)
+    (REALISTIC, "simulate", "--days"): "7",  # EnergyPlus: identify needs a week there, the ARX 4 days
+    ("*", "compare", "--train-days"): "2",
+    (REALISTIC, "compare", "--train-days"): "7",
+    ("*", "*", "--buildings"): "3",
+    ("*", "sweep", "--seeds"): "0",
+}
+#: Size options added to a command that does not give them (a sweep's sizes come from --spec).
+ADDED_SIZES: dict[str, list[tuple[str, ...]]] = {
+    "sweep": [("--quick",), ("--days", "1"), ("--seeds", "0"), ("--train-days", "2")],
+}
+#: Commands not run, by how their line starts, each with the reason.
+NOT_RUN = {
+    "pip ": "installs the package (the tests run the checkout)",
+    "python -m pip ": "installs the package (the tests run the checkout)",
+    "python -m venv ": "creates the virtual environment of an installation",
+    ". .venv/bin/activate": "activates the virtual environment of an installation",
+    "mkdocs serve": "serves the site until stopped (test_mkdocs_build_strict builds it)",
+    "mkdocs build --strict": "test_mkdocs_build_strict runs it",
+    "python -m pytest": "the test suite itself",
+    "python3 ../shared/boptest/serve.py": "the session's server (the boptest_server fixture) is run instead",
+    "python examples/": "tests/test_examples.py runs the examples",
+}
+#: Commands a page shares with another page that runs them: {(page, command): the other page}.
+RUN_ON_ANOTHER_PAGE = {
+    ("README.md", "pinn-mpc compare --scenario winter_household --quick"): "docs/getting-started.md",
+}
+#: The options that name a command's outputs.
+OUTPUTS = ("--out", "--json", "--report", "--csv", "--plot")
+
+
+def _not_run(page: str, command: list[str]) -> str | None:
+    """Why ``command`` of ``page`` is not run by test_pages_run_as_written (None: it is)."""
+    line = shlex.join(command)
+    if (page, line) in RUN_ON_ANOTHER_PAGE:
+        return f"run on {RUN_ON_ANOTHER_PAGE[page, line]}"
+    return next((why for start, why in NOT_RUN.items() if line.startswith(start)), None)
+
+
+def _shrunk(page: str, command: list[str]) -> list[str]:
+    """``command`` (``pinn-mpc NAME ...``) of ``page`` with the sizes of :data:`SIZES` and
+    :data:`ADDED_SIZES`."""
+    name, out = command[1], list(command)
+    for i in range(2, len(out) - 1):
+        for key in ((page, name, out[i]), ("*", name, out[i]), ("*", "*", out[i])):
+            if key in SIZES:
+                out[i + 1] = SIZES[key]
+                break
+    return out + [w for option in ADDED_SIZES.get(name, []) if option[0] not in out for w in option]
+
+
+def _page_commands(page: str) -> list[list[str]]:
+    """The commands of ``page``'s shell blocks (``bash`` and unlabelled), in the page's order."""
+    text = (ROOT / page).read_text(encoding="utf-8")
+    return [c for tag, code in FENCE.findall(text) if tag in ("bash", "") for c in _commands(code)]
+
+
+def test_every_command_of_the_pages_run_as_written_is_run_or_says_why() -> None:
+    """Each command of those pages is a `pinn-mpc` command, a script of benchmarks/, or listed
+    with the reason it is not run; a size left unshrunk would make the test slow, not wrong."""
+    for page in RUN_AS_WRITTEN:
+        for command in _page_commands(page):
+            if _not_run(page, command) is None:
+                assert command[0] == "pinn-mpc" or (
+                    command[0] == "python" and command[1].startswith("benchmarks/")
+                ), f"{page}: `{shlex.join(command)}` is neither run nor listed in NOT_RUN"
+    assert _shrunk(REALISTIC, ["pinn-mpc", "simulate", "--days", "30", "--out", "t.csv"])[3] == "7"
+    assert _shrunk("README.md", ["pinn-mpc", "sweep", "--seeds", "0-7", "--out", "s"]) == [
+        "pinn-mpc", "sweep", "--seeds", "0", "--out", "s", "--quick", "--days", "1", "--train-days", "2"]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("page", RUN_AS_WRITTEN[1:])  # the README's only command runs on getting-started
+def test_pages_run_as_written(page: str, tmp_path: Path, request: pytest.FixtureRequest) -> None:
+    """Every command of the page's shell blocks, in order, from an empty directory (with the
+    checkout's ``sweeps/`` and ``benchmarks/``, which the pages name, linked in), exactly as
+    written but for the sizes, each shrunk to the smallest the command and the page's later
+    commands accept, through these tables alone (and nothing else):
+
+    - ``SIZES`` {(page, command, option): value}: ``--days`` 1 (closed-loop, compare);
+      ``simulate --days`` 2, on realistic-conditions 7 (EnergyPlus: identify needs a week, the
+      ARX 4 days); ``compare --train-days`` 2, on realistic-conditions 7; ``--buildings`` 3;
+      ``sweep --seeds`` 0;
+    - ``ADDED_SIZES``: ``sweep`` gets ``--quick --days 1 --seeds 0 --train-days 2`` where the
+      line does not give them (over its ``--spec``'s sizes);
+    - ``NOT_RUN`` and ``RUN_ON_ANOTHER_PAGE``: the commands not run, each with its reason.
+
+    Each command must exit 0 and leave the outputs it names (``--out``, ``--json``,
+    ``--report``, ``--csv``, ``--plot``). The BOPTEST page runs against the session's server."""
+    env = {**_env(), "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}"}
+    if page == "docs/boptest.md":
+        env["BOPTEST_URL"] = request.getfixturevalue("boptest_server").url
+    for linked in ("sweeps", "benchmarks"):
+        (tmp_path / linked).symlink_to(ROOT / linked)
+    ran = 0
+    for command in _page_commands(page):
+        if _not_run(page, command) is not None:
+            continue
+        run = _shrunk(page, command) if command[0] == "pinn-mpc" else command
+        argv = [sys.executable, "-m", "pinn_mpc", *run[1:]] if run[0] == "pinn-mpc" else [sys.executable, *run[1:]]
+        result = subprocess.run(argv, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=900)
+        assert result.returncode == 0, f"{page}: `{shlex.join(run)}`: {result.stderr[-3000:]}"
+        for option, value in zip(run, run[1:], strict=False):
+            if option in OUTPUTS:
+                assert (tmp_path / value).exists(), f"{page}: `{shlex.join(run)}` wrote no {value}"
+        ran += 1
+    assert ran > 0
+
+
 def _gen_results():
     spec = importlib.util.spec_from_file_location("gen_results", DOCS / "gen_results.py")
     assert spec and spec.loader
