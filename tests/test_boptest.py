@@ -423,44 +423,8 @@ def test_cli_simulate_refuses_days_on_a_test_period(
     assert code == 2 and "BOPTEST scenarios" in capsys.readouterr().err
 
 
-@pytest.mark.slow
-def test_cli_closed_loops_on_boptest_with_its_kpis(
-    server: Server, monkeypatch: pytest.MonkeyPatch, tmp_path: Path
-) -> None:
-    """simulate -> identify -> closed-loop (qp-mpc on the identified RC, the thermostat), one
-    day of peak_heat_day each: the KPI JSON carries BOPTEST's KPI dict, which agrees with the
-    package's own KPIs of the same run."""
-    import json
-
-    from pinn_mpc.data import read_timeseries
-    from pinn_mpc_cli.cli import main
-
-    monkeypatch.setenv("BOPTEST_URL", server.url)
-    data, rc = tmp_path / "d.csv", tmp_path / "rc.json"
-    assert main(["simulate", "--scenario", "boptest_hydronic_heat_pump", "--days", "2",
-                 "--seed", "1", "--out", str(data)]) == 0
-    frame = read_timeseries(data)
-    assert len(frame) == 96 and str(frame["time"].iloc[0]).startswith("2018-01-31")
-    assert frame["u_phys"].max() > 1500.0 and frame["T_r"].between(15.0, 28.0).all()
-    assert main(["identify", "--data", str(data), "--out", str(rc)]) == 0
-    area = read_boptest_file(str(SCENARIO)).points.floor_area_m2
-    results = {}
-    for name, extra in (("qp-mpc", ["--rc", str(rc)]), ("thermostat", [])):
-        out = tmp_path / f"{name}.json"
-        assert main(["closed-loop", "--scenario", "boptest_hydronic_heat_pump", "--controller",
-                     name, *extra, "--days", "1", "--test-period", "peak_heat_day",
-                     "--price-scenario", "dynamic", "--json", str(out)]) == 0
-        kpis = json.loads(out.read_text())
-        b = kpis["boptest"]
-        assert {"tdis_tot", "idis_tot", "ener_tot", "cost_tot", "emis_tot", "pele_tot", "time_rat"} <= set(b)
-        assert kpis["test_period"] == "peak_heat_day" and kpis["price_scenario"] == "dynamic"
-        assert kpis["counted_days"] == ["2018-01-17", "2018-01-17"]
-        assert kpis["energy_kwh"] / area == pytest.approx(b["ener_tot"], rel=1e-3)
-        assert kpis["cost_eur"] / area == pytest.approx(b["cost_tot"], rel=2e-3)
-        assert kpis["discomfort_kh"] == pytest.approx(b["tdis_tot"], rel=0.05, abs=0.05)
-        results[name] = b
-    # the MPC on the identified RC keeps the band better than the thermostat's switching
-    assert results["qp-mpc"]["tdis_tot"] < results["thermostat"]["tdis_tot"]
+# The CLI's simulate -> identify -> train -> closed loops and compare on BOPTEST, with BOPTEST's
+# KPIs in the JSON agreeing with the package's: tests/test_docs.py runs docs/boptest.md as written.
 
 
 def test_cli_compare_options_on_and_off_boptest(

@@ -312,7 +312,8 @@ def test_pages_run_as_written(page: str, tmp_path: Path, request: pytest.Fixture
     - ``NOT_RUN`` and ``RUN_ON_ANOTHER_PAGE``: the commands not run, each with its reason.
 
     Each command must exit 0 and leave the outputs it names (``--out``, ``--json``,
-    ``--report``, ``--csv``, ``--plot``). The BOPTEST page runs against the session's server."""
+    ``--report``, ``--csv``, ``--plot``). The BOPTEST page runs against the session's server,
+    and its outputs are checked further (:func:`_boptest_page_outputs`)."""
     env = {**_env(), "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}"}
     if page == "docs/boptest.md":
         env["BOPTEST_URL"] = request.getfixturevalue("boptest_server").url
@@ -331,6 +332,35 @@ def test_pages_run_as_written(page: str, tmp_path: Path, request: pytest.Fixture
                 assert (tmp_path / value).exists(), f"{page}: `{shlex.join(run)}` wrote no {value}"
         ran += 1
     assert ran > 0
+    if page == "docs/boptest.md":
+        _boptest_page_outputs(tmp_path)
+
+
+def _boptest_page_outputs(workdir: Path) -> None:
+    """The BOPTEST page's data are the emulator's, off the test periods, and its closed loops'
+    KPI JSON carries BOPTEST's KPI dict, which agrees with the package's KPIs of the run."""
+    from pinn_mpc.data import read_timeseries
+    from scenarios.plants.boptest import read_boptest_file
+
+    frame = read_timeseries(workdir / "boptest14.csv")
+    assert len(frame) == 96 and str(frame["time"].iloc[0]).startswith("2018-01-31")
+    assert frame["u_phys"].max() > 1500.0 and frame["T_r"].between(15.0, 28.0).all()
+    scenario = ROOT / "scenarios" / "plants" / "boptest_hydronic_heat_pump.toml"
+    area = read_boptest_file(str(scenario)).points.floor_area_m2
+    results = {}
+    for name in ("baseline", "thermostat", "qp", "cem"):
+        kpis = json.loads((workdir / f"{name}.json").read_text())
+        b = kpis["boptest"]
+        assert {"tdis_tot", "idis_tot", "ener_tot", "cost_tot", "emis_tot", "pele_tot", "time_rat"} <= set(b)
+        assert kpis["test_period"] == "peak_heat_day" and kpis["price_scenario"] == "dynamic"
+        assert kpis["counted_days"] == ["2018-01-17", "2018-01-17"]
+        assert kpis["energy_kwh"] / area == pytest.approx(b["ener_tot"], rel=1e-3)
+        assert kpis["cost_eur"] / area == pytest.approx(b["cost_tot"], rel=2e-3)
+        assert kpis["discomfort_kh"] == pytest.approx(b["tdis_tot"], rel=0.05, abs=0.05)
+        results[name] = b
+    # the MPC on the identified RC keeps the band better than the thermostat's switching
+    assert results["qp"]["tdis_tot"] < results["thermostat"]["tdis_tot"]
+    assert (workdir / "boptest" / "report.md").is_file()
 
 
 def _gen_results():
