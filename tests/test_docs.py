@@ -1,7 +1,8 @@
 """The documentation: the site builds with ``mkdocs build --strict``, its API reference names
 every public name, its code blocks run (Python) or parse (the `pinn-mpc` commands against the
-CLI's parser, TOML with tomllib), the walkthrough "your building from your data" runs as
-written, and the results generator writes what it says."""
+CLI's parser, TOML with tomllib), the walkthrough "your building from your data" and the
+commands of getting-started, realistic-conditions, sweeps-and-fleets and BOPTEST (the README's
+included) run as written, sizes shrunk, and the results generator writes what it says."""
 
 from __future__ import annotations
 
@@ -225,7 +226,7 @@ REALISTIC = "docs/realistic-conditions.md"
 SIZES: dict[tuple[str, str, str], str] = {
     ("*", "*", "--days"): "1",  # test days of closed-loop and compare
     ("*", "simulate", "--days"): "2",  # data to train on (one day is fewer rows than a model's depth)
-    (REALISTIC, "simulate", "--days"): "7",  # EnergyPlus: identify needs a week there, the ARX 4 days
+    (REALISTIC, "simulate", "--days"): "7",  # the office: identify refuses 3 to 5 days of it, the ARX 2
     ("*", "compare", "--train-days"): "2",
     (REALISTIC, "compare", "--train-days"): "7",
     ("*", "*", "--buildings"): "3",
@@ -282,8 +283,8 @@ def _page_commands(page: str) -> list[list[str]]:
 
 
 def test_every_command_of_the_pages_run_as_written_is_run_or_says_why() -> None:
-    """Each command of those pages is a `pinn-mpc` command, a script of benchmarks/, or listed
-    with the reason it is not run; a size left unshrunk would make the test slow, not wrong."""
+    """Each command of those pages is a `pinn-mpc` command or a script of benchmarks/ (run), or
+    listed with the reason it is not run; the size tables shrink what they name."""
     for page in RUN_AS_WRITTEN:
         for command in _page_commands(page):
             if _not_run(page, command) is None:
@@ -304,9 +305,9 @@ def test_pages_run_as_written(page: str, tmp_path: Path, request: pytest.Fixture
     commands accept, through these tables alone (and nothing else):
 
     - ``SIZES`` {(page, command, option): value}: ``--days`` 1 (closed-loop, compare);
-      ``simulate --days`` 2, on realistic-conditions 7 (EnergyPlus: identify needs a week, the
-      ARX 4 days); ``compare --train-days`` 2, on realistic-conditions 7; ``--buildings`` 3;
-      ``sweep --seeds`` 0;
+      ``simulate --days`` 2, on realistic-conditions 7 (EnergyPlus's office: identify refuses
+      3 to 5 days of it, the ARX 2); ``compare --train-days`` 2, on realistic-conditions 7;
+      ``--buildings`` 3; ``sweep --seeds`` 0;
     - ``ADDED_SIZES``: ``sweep`` gets ``--quick --days 1 --seeds 0 --train-days 2`` where the
       line does not give them (over its ``--spec``'s sizes);
     - ``NOT_RUN`` and ``RUN_ON_ANOTHER_PAGE``: the commands not run, each with its reason.
