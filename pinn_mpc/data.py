@@ -31,7 +31,7 @@ import numpy as np
 import pandas as pd
 
 from pinn_mpc.errors import InputError
-from pinn_mpc.io import atomic_write, atomic_write_json, file_sha256
+from pinn_mpc.io import atomic_write, atomic_write_json, file_sha256, staged
 from pinn_mpc.physics import DT_RANGE_S, MAX_POWER_W, RCParams
 from pinn_mpc.solar import FACADE_COLUMNS
 
@@ -383,11 +383,12 @@ def fleet_params_path(data: str | os.PathLike[str]) -> Path:
 
 
 def write_fleet_params(data: str | os.PathLike[str], params: Sequence[RCParams], *, spread: float) -> Path:
-    """Write the buildings' parameters of the fleet data set ``data`` (already written: the
-    file records its hash) next to it, atomically; the path written."""
+    """Write the buildings' parameters of the fleet data set ``data`` (already written, or
+    staged in the same :func:`~pinn_mpc.io.written_together` block: the file records its
+    hash) next to it, atomically; the path written."""
     path = fleet_params_path(data)
     atomic_write_json(path, {"spread": spread, "params": [dataclasses.asdict(p) for p in params],
-                             "data_sha256": file_sha256(data)})
+                             "data_sha256": file_sha256(staged(data))})
     return path
 
 

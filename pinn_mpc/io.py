@@ -41,6 +41,7 @@ __all__ = [
     "file_sha256",
     "output_lock",
     "setting_changes",
+    "staged",
     "written_together",
 ]
 
@@ -113,6 +114,17 @@ def written_together() -> Iterator[None]:
     with _interrupt_deferred():
         for tmp, target in pending:
             os.replace(tmp, target)
+
+
+def staged(path: PathArg) -> Path:
+    """The file that holds ``path``'s new content: inside a :func:`written_together` block
+    that has written ``path``, the temporary file renamed onto it when the block ends;
+    otherwise ``path`` itself (for what reads a file just written, e.g. its checksum)."""
+    target = os.path.abspath(path)
+    for tmp, pending in reversed(_BATCH.get() or []):
+        if os.path.abspath(pending) == target:
+            return tmp
+    return Path(path)
 
 
 @contextlib.contextmanager

@@ -39,7 +39,9 @@ __all__ = ["closed_loop", "simulate"]
 
 def simulate(a: argparse.Namespace) -> str:
     """Generate data and write it atomically to ``--out`` (never onto a file the scenario
-    reads); a run that would not fit in memory is refused before it starts."""
+    reads), a fleet's with its parameters file, together or not at all
+    (:func:`pinn_mpc.io.written_together`); a run that would not fit in memory is refused
+    before it starts."""
     from scenarios.running.boptest_loop import is_boptest_scenario
     from scenarios.running.budget import check_simulate_memory
 
@@ -83,12 +85,13 @@ def simulate(a: argparse.Namespace) -> str:
         weather_part=a.weather_part,
         fleet=fleet,
     )
-    write_timeseries(frame, a.out)
-    if sidecar is not None:  # without --spread every building is the scenario's
-        write_fleet_params(
-            a.out, fleet or [chosen.sim.params] * a.buildings,
-            spread=0.0 if a.spread is None else a.spread,
-        )
+    with written_together():  # the data and its fleet file, or neither
+        write_timeseries(frame, a.out)
+        if sidecar is not None:  # without --spread every building is the scenario's
+            write_fleet_params(
+                a.out, fleet or [chosen.sim.params] * a.buildings,
+                spread=0.0 if a.spread is None else a.spread,
+            )
     per_building = len(frame) // a.buildings
     overridden = float(np.mean(~np.isclose(frame["u"], frame["u_phys"])))
     first, last = day_span(frame["time"])

@@ -1,5 +1,8 @@
 """Test-session set-up: one BLAS and one torch thread per process; Ctrl-C deliverable.
 
+The session's BOPTEST server (``boptest_server``, :mod:`tests.boptest_server`) is a fixture
+of every test module.
+
 The suite runs with ``-n 2`` on 2 cores; a second BLAS/torch thread per worker oversubscribes the
 machine and makes small linear algebra many times slower. A test run started in the background
 of a non-interactive shell inherits SIGINT ignored (as its subprocesses would), which the tests
@@ -11,6 +14,8 @@ import threading
 
 import torch
 from threadpoolctl import threadpool_limits
+
+from tests.boptest_server import boptest_server  # noqa: F401  (the fixture, for every module)
 
 threadpool_limits(limits=1)
 torch.set_num_threads(1)

@@ -1,22 +1,13 @@
 """The BOPTEST plant and its web-API client against a real BOPTEST server.
 
-The session's server is ``shared/boptest/serve.py`` beside the checkout (or above it), started
-on a free local port, or the server at ``$BOPTEST_URL``; tests that need one skip, saying why,
-only where neither exists. A select costs seconds and a test period's warm-up more: the tests
-share selected tests where they can.
+The session's server is :func:`tests.boptest_server.boptest_server`. A select costs seconds and
+a test period's warm-up more: the tests share selected tests where they can.
 """
 
 from __future__ import annotations
 
 import math
-import os
-import signal
-import socket
-import subprocess
-import sys
-import threading
 import time
-from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -43,73 +34,16 @@ from scenarios.plants.boptest_client import (
 )
 from scenarios.running.engine import ClosedLoop
 from scenarios.running.kpis import compute_kpis
+from tests.boptest_server import IDLE_TIMEOUT_S, Server, free_port
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIO = ROOT / "scenarios" / "plants" / "boptest_hydronic_heat_pump.toml"
 TESTCASE = "bestest_hydronic_heat_pump"
-#: The session server's idle timeout [s] (a test with no call this long ends).
-IDLE_TIMEOUT_S = 25.0
-
-
-def _serve_script() -> Path | None:
-    for parent in ROOT.parents:
-        script = parent / "shared" / "boptest" / "serve.py"
-        if script.is_file():
-            return script
-    return None
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
-class Server:
-    """The session's BOPTEST: ``url``, and whether this session started it (its idle timeout
-    is then :data:`IDLE_TIMEOUT_S`)."""
-
-    def __init__(self, url: str, started: bool) -> None:
-        self.url, self.started = url, started
 
 
 @pytest.fixture(scope="session")
-def server() -> Iterator[Server]:
-    url = os.environ.get("BOPTEST_URL")
-    if url:
-        yield Server(url, started=False)
-        return
-    script = _serve_script()
-    if script is None:
-        pytest.skip("no BOPTEST server: neither shared/boptest/serve.py beside the checkout nor $BOPTEST_URL")
-    port = _free_port()
-    proc = subprocess.Popen(
-        [sys.executable, str(script), "--port", str(port), "--max-tests", "3",
-         "--timeout", str(IDLE_TIMEOUT_S)],
-        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-    )
-    lines: list[str] = []
-    ready = threading.Event()
-
-    def read() -> None:  # the first start builds the server's environment (about a minute)
-        assert proc.stdout is not None
-        for line in proc.stdout:
-            lines.append(line)
-            if line.startswith("serving BOPTEST"):
-                ready.set()
-
-    threading.Thread(target=read, daemon=True).start()
-    try:
-        if not ready.wait(600) or proc.poll() is not None:
-            raise RuntimeError(f"the BOPTEST server did not start: {''.join(lines)[-2000:]}")
-        yield Server(f"http://127.0.0.1:{port}", started=True)
-    finally:
-        proc.send_signal(signal.SIGTERM)
-        try:
-            proc.wait(60)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
+def server(boptest_server: Server) -> Server:
+    return boptest_server
 
 
 @pytest.fixture(scope="session")
@@ -148,7 +82,7 @@ class Constant:
 
 
 def test_no_server_is_one_line_naming_the_url_and_the_fix() -> None:
-    url = f"http://127.0.0.1:{_free_port()}"
+    url = f"http://127.0.0.1:{free_port()}"
     with pytest.raises(BoptestUnreachable) as caught:
         BoptestClient(url, timeout_s=5).version()
     message = str(caught.value)
@@ -477,7 +411,7 @@ def test_cli_without_a_server_exits_2_with_one_line_naming_the_url(
 ) -> None:
     from pinn_mpc_cli.cli import main
 
-    url = f"http://127.0.0.1:{_free_port()}"
+    url = f"http://127.0.0.1:{free_port()}"
     monkeypatch.setenv("BOPTEST_URL", url)
     out = tmp_path / "k.json"
     code = main(["closed-loop", "--scenario", "boptest_hydronic_heat_pump", "--controller",
@@ -506,44 +440,8 @@ def test_cli_simulate_refuses_days_on_a_test_period(
     assert code == 2 and "BOPTEST scenarios" in capsys.readouterr().err
 
 
-@pytest.mark.slow
-def test_cli_closed_loops_on_boptest_with_its_kpis(
-    server: Server, monkeypatch: pytest.MonkeyPatch, tmp_path: Path
-) -> None:
-    """simulate -> identify -> closed-loop (qp-mpc on the identified RC, the thermostat), one
-    day of peak_heat_day each: the KPI JSON carries BOPTEST's KPI dict, which agrees with the
-    package's own KPIs of the same run."""
-    import json
-
-    from pinn_mpc.data import read_timeseries
-    from pinn_mpc_cli.cli import main
-
-    monkeypatch.setenv("BOPTEST_URL", server.url)
-    data, rc = tmp_path / "d.csv", tmp_path / "rc.json"
-    assert main(["simulate", "--scenario", "boptest_hydronic_heat_pump", "--days", "2",
-                 "--seed", "1", "--out", str(data)]) == 0
-    frame = read_timeseries(data)
-    assert len(frame) == 96 and str(frame["time"].iloc[0]).startswith("2018-01-31")
-    assert frame["u_phys"].max() > 1500.0 and frame["T_r"].between(15.0, 28.0).all()
-    assert main(["identify", "--data", str(data), "--out", str(rc)]) == 0
-    area = read_boptest_file(str(SCENARIO)).points.floor_area_m2
-    results = {}
-    for name, extra in (("qp-mpc", ["--rc", str(rc)]), ("thermostat", [])):
-        out = tmp_path / f"{name}.json"
-        assert main(["closed-loop", "--scenario", "boptest_hydronic_heat_pump", "--controller",
-                     name, *extra, "--days", "1", "--test-period", "peak_heat_day",
-                     "--price-scenario", "dynamic", "--json", str(out)]) == 0
-        kpis = json.loads(out.read_text())
-        b = kpis["boptest"]
-        assert {"tdis_tot", "idis_tot", "ener_tot", "cost_tot", "emis_tot", "pele_tot", "time_rat"} <= set(b)
-        assert kpis["test_period"] == "peak_heat_day" and kpis["price_scenario"] == "dynamic"
-        assert kpis["counted_days"] == ["2018-01-17", "2018-01-17"]
-        assert kpis["energy_kwh"] / area == pytest.approx(b["ener_tot"], rel=1e-3)
-        assert kpis["cost_eur"] / area == pytest.approx(b["cost_tot"], rel=2e-3)
-        assert kpis["discomfort_kh"] == pytest.approx(b["tdis_tot"], rel=0.05, abs=0.05)
-        results[name] = b
-    # the MPC on the identified RC keeps the band better than the thermostat's switching
-    assert results["qp-mpc"]["tdis_tot"] < results["thermostat"]["tdis_tot"]
+# The CLI's simulate -> identify -> train -> closed loops and compare on BOPTEST, with BOPTEST's
+# KPIs in the JSON agreeing with the package's: tests/test_docs.py runs docs/boptest.md as written.
 
 
 def test_cli_compare_options_on_and_off_boptest(

@@ -1,7 +1,8 @@
 """The documentation: the site builds with ``mkdocs build --strict``, its API reference names
 every public name, its code blocks run (Python) or parse (the `pinn-mpc` commands against the
-CLI's parser, TOML with tomllib), the walkthrough "your building from your data" runs as
-written, and the results generator writes what it says."""
+CLI's parser, TOML with tomllib), the walkthrough "your building from your data" and the
+commands of getting-started, realistic-conditions, sweeps-and-fleets and BOPTEST (the README's
+included) run as written, sizes shrunk, and the results generator writes what it says."""
 
 from __future__ import annotations
 
@@ -213,6 +214,154 @@ def test_walkthrough_runs_as_written(tmp_path: Path) -> None:
     assert kpis["cem"]["objective"] < 1.02 * kpis["oracle"]["objective"]
     assert kpis["thermostat"]["objective"] > 1.3 * kpis["oracle"]["objective"]
     assert (workdir / "compare" / "report.md").exists()
+
+
+#: The pages whose commands run as written (test_pages_run_as_written); "your building" has its
+#: own test (test_walkthrough_runs_as_written).
+RUN_AS_WRITTEN = ("README.md", "docs/getting-started.md", "docs/realistic-conditions.md",
+                  "docs/sweeps-and-fleets.md", "docs/boptest.md")
+REALISTIC = "docs/realistic-conditions.md"
+#: The sizes a run as written shrinks: {(page, command, option): value}, "*" for any page or
+#: command, the most specific entry first. No other word of a command changes.
+SIZES: dict[tuple[str, str, str], str] = {
+    ("*", "*", "--days"): "1",  # test days of closed-loop and compare
+    ("*", "simulate", "--days"): "2",  # data to train on (one day is fewer rows than a model's depth)
+    (REALISTIC, "simulate", "--days"): "7",  # the office: identify refuses 3 to 5 days of it, the ARX 2
+    ("*", "compare", "--train-days"): "2",
+    (REALISTIC, "compare", "--train-days"): "7",
+    ("*", "*", "--buildings"): "3",
+    ("*", "sweep", "--seeds"): "0",
+}
+#: Size options added to a command that does not give them (a sweep's sizes come from --spec).
+ADDED_SIZES: dict[str, list[tuple[str, ...]]] = {
+    "sweep": [("--quick",), ("--days", "1"), ("--seeds", "0"), ("--train-days", "2")],
+}
+#: Commands not run, by how their line starts, each with the reason.
+NOT_RUN = {
+    "pip ": "installs the package (the tests run the checkout)",
+    "python -m pip ": "installs the package (the tests run the checkout)",
+    "python -m venv ": "creates the virtual environment of an installation",
+    ". .venv/bin/activate": "activates the virtual environment of an installation",
+    "mkdocs serve": "serves the site until stopped (test_mkdocs_build_strict builds it)",
+    "mkdocs build --strict": "test_mkdocs_build_strict runs it",
+    "python -m pytest": "the test suite itself",
+    "python3 ../shared/boptest/serve.py": "the session's server (the boptest_server fixture) is run instead",
+    "python examples/": "tests/test_examples.py runs the examples",
+}
+#: Commands a page shares with another page that runs them: {(page, command): the other page}.
+RUN_ON_ANOTHER_PAGE = {
+    ("README.md", "pinn-mpc compare --scenario winter_household --quick"): "docs/getting-started.md",
+}
+#: The options that name a command's outputs.
+OUTPUTS = ("--out", "--json", "--report", "--csv", "--plot")
+
+
+def _not_run(page: str, command: list[str]) -> str | None:
+    """Why ``command`` of ``page`` is not run by test_pages_run_as_written (None: it is)."""
+    line = shlex.join(command)
+    if (page, line) in RUN_ON_ANOTHER_PAGE:
+        return f"run on {RUN_ON_ANOTHER_PAGE[page, line]}"
+    return next((why for start, why in NOT_RUN.items() if line.startswith(start)), None)
+
+
+def _shrunk(page: str, command: list[str]) -> list[str]:
+    """``command`` (``pinn-mpc NAME ...``) of ``page`` with the sizes of :data:`SIZES` and
+    :data:`ADDED_SIZES`."""
+    name, out = command[1], list(command)
+    for i in range(2, len(out) - 1):
+        for key in ((page, name, out[i]), ("*", name, out[i]), ("*", "*", out[i])):
+            if key in SIZES:
+                out[i + 1] = SIZES[key]
+                break
+    return out + [w for option in ADDED_SIZES.get(name, []) if option[0] not in out for w in option]
+
+
+def _page_commands(page: str) -> list[list[str]]:
+    """The commands of ``page``'s shell blocks (``bash`` and unlabelled), in the page's order."""
+    text = (ROOT / page).read_text(encoding="utf-8")
+    return [c for tag, code in FENCE.findall(text) if tag in ("bash", "") for c in _commands(code)]
+
+
+def test_every_command_of_the_pages_run_as_written_is_run_or_says_why() -> None:
+    """Each command of those pages is a `pinn-mpc` command or a script of benchmarks/ (run), or
+    listed with the reason it is not run; the size tables shrink what they name."""
+    for page in RUN_AS_WRITTEN:
+        for command in _page_commands(page):
+            if _not_run(page, command) is None:
+                assert command[0] == "pinn-mpc" or (
+                    command[0] == "python" and command[1].startswith("benchmarks/")
+                ), f"{page}: `{shlex.join(command)}` is neither run nor listed in NOT_RUN"
+    assert _shrunk(REALISTIC, ["pinn-mpc", "simulate", "--days", "30", "--out", "t.csv"])[3] == "7"
+    assert _shrunk("README.md", ["pinn-mpc", "sweep", "--seeds", "0-7", "--out", "s"]) == [
+        "pinn-mpc", "sweep", "--seeds", "0", "--out", "s", "--quick", "--days", "1", "--train-days", "2"]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("page", RUN_AS_WRITTEN[1:])  # the README's only command runs on getting-started
+def test_pages_run_as_written(page: str, tmp_path: Path, request: pytest.FixtureRequest) -> None:
+    """Every command of the page's shell blocks, in order, from an empty directory (with the
+    checkout's ``sweeps/`` and ``benchmarks/``, which the pages name, linked in), exactly as
+    written but for the sizes, each shrunk to the smallest the command and the page's later
+    commands accept, through these tables alone (and nothing else):
+
+    - ``SIZES`` {(page, command, option): value}: ``--days`` 1 (closed-loop, compare);
+      ``simulate --days`` 2, on realistic-conditions 7 (EnergyPlus's office: identify refuses
+      3 to 5 days of it, the ARX 2); ``compare --train-days`` 2, on realistic-conditions 7;
+      ``--buildings`` 3; ``sweep --seeds`` 0;
+    - ``ADDED_SIZES``: ``sweep`` gets ``--quick --days 1 --seeds 0 --train-days 2`` where the
+      line does not give them (over its ``--spec``'s sizes);
+    - ``NOT_RUN`` and ``RUN_ON_ANOTHER_PAGE``: the commands not run, each with its reason.
+
+    Each command must exit 0 and leave the outputs it names (``--out``, ``--json``,
+    ``--report``, ``--csv``, ``--plot``). The BOPTEST page runs against the session's server,
+    and its outputs are checked further (:func:`_boptest_page_outputs`)."""
+    env = {**_env(), "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}"}
+    if page == "docs/boptest.md":
+        env["BOPTEST_URL"] = request.getfixturevalue("boptest_server").url
+    for linked in ("sweeps", "benchmarks"):
+        (tmp_path / linked).symlink_to(ROOT / linked)
+    ran = 0
+    for command in _page_commands(page):
+        if _not_run(page, command) is not None:
+            continue
+        run = _shrunk(page, command) if command[0] == "pinn-mpc" else command
+        argv = [sys.executable, "-m", "pinn_mpc", *run[1:]] if run[0] == "pinn-mpc" else [sys.executable, *run[1:]]
+        result = subprocess.run(argv, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=900)
+        assert result.returncode == 0, f"{page}: `{shlex.join(run)}`: {result.stderr[-3000:]}"
+        for option, value in zip(run, run[1:], strict=False):
+            if option in OUTPUTS:
+                assert (tmp_path / value).exists(), f"{page}: `{shlex.join(run)}` wrote no {value}"
+        ran += 1
+    assert ran > 0
+    if page == "docs/boptest.md":
+        _boptest_page_outputs(tmp_path)
+
+
+def _boptest_page_outputs(workdir: Path) -> None:
+    """The BOPTEST page's data are the emulator's, off the test periods, and its closed loops'
+    KPI JSON carries BOPTEST's KPI dict, which agrees with the package's KPIs of the run."""
+    from pinn_mpc.data import read_timeseries
+    from scenarios.plants.boptest import read_boptest_file
+
+    frame = read_timeseries(workdir / "boptest14.csv")
+    assert len(frame) == 96 and str(frame["time"].iloc[0]).startswith("2018-01-31")
+    assert frame["u_phys"].max() > 1500.0 and frame["T_r"].between(15.0, 28.0).all()
+    scenario = ROOT / "scenarios" / "plants" / "boptest_hydronic_heat_pump.toml"
+    area = read_boptest_file(str(scenario)).points.floor_area_m2
+    results = {}
+    for name in ("baseline", "thermostat", "qp", "cem"):
+        kpis = json.loads((workdir / f"{name}.json").read_text())
+        b = kpis["boptest"]
+        assert {"tdis_tot", "idis_tot", "ener_tot", "cost_tot", "emis_tot", "pele_tot", "time_rat"} <= set(b)
+        assert kpis["test_period"] == "peak_heat_day" and kpis["price_scenario"] == "dynamic"
+        assert kpis["counted_days"] == ["2018-01-17", "2018-01-17"]
+        assert kpis["energy_kwh"] / area == pytest.approx(b["ener_tot"], rel=1e-3)
+        assert kpis["cost_eur"] / area == pytest.approx(b["cost_tot"], rel=2e-3)
+        assert kpis["discomfort_kh"] == pytest.approx(b["tdis_tot"], rel=0.05, abs=0.05)
+        results[name] = b
+    # the MPC on the identified RC keeps the band better than the thermostat's switching
+    assert results["qp"]["tdis_tot"] < results["thermostat"]["tdis_tot"]
+    assert (workdir / "boptest" / "report.md").is_file()
 
 
 def _gen_results():

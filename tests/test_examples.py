@@ -33,7 +33,8 @@ def _run(script: str, tmp_path: Path, *args: str) -> tuple[Path, str]:
 
 
 def test_closed_loop_simulation(tmp_path: Path) -> None:
-    out, stdout = _run("closed_loop_simulation.py", tmp_path, "--controller", "qp-mpc")
+    """As docs/getting-started.md runs it (with --quick)."""
+    out, stdout = _run("closed_loop_simulation.py", tmp_path, "--scenario", "cold_storage", "--controller", "qp-mpc")
     assert sorted(p.name for p in out.iterdir()) == ["kpis.json", "trajectory.csv", "trajectory.png"]
     kpis = json.loads((out / "kpis.json").read_text())
     assert set(KPI_KEYS) <= set(kpis) and kpis["controller"] == "qp-mpc" and kpis["days"] == 1

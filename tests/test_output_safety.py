@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from pinn_mpc.data import write_timeseries
+from pinn_mpc.data import read_fleet_params, write_timeseries
 from pinn_mpc.io import atomic_write_text, written_together
 from pinn_mpc_cli.cli import main
 from tests.model_data import household_data
@@ -105,6 +105,32 @@ def test_a_full_disk_on_the_last_file_leaves_every_file_as_it_was(tmp_path, caps
     monkeypatch.undo()
     assert main(_loop(tmp_path)) == 0
     assert json.loads((tmp_path / "k.json").read_text())["days"] == 1
+
+
+def test_a_fleet_file_that_cannot_be_written_leaves_the_fleet_data_as_it_was(tmp_path, capsys, monkeypatch):
+    """simulate --buildings N writes the CSV and its parameters file: when the second cannot be
+    written, the first must not be replaced either (before, the new CSV stood beside the old
+    parameters file, whose checksum then refused it)."""
+    data, sidecar = tmp_path / "fleet.csv", tmp_path / "fleet.fleet.json"
+    data.write_text("old data")
+    sidecar.write_text("old parameters")
+    args = ["simulate", "--scenario", "winter_household", "--buildings", "2", "--spread", "0.2",
+            "--days", "1", "--seed", "0", "--out", str(data)]
+    write_text = pathlib.Path.write_text
+
+    def full(self: Path, *a: object, **kw: object) -> int:
+        if self.name.startswith(".fleet.fleet.json."):
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        return write_text(self, *a, **kw)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(pathlib.Path, "write_text", full)
+    assert main(args) == 2
+    assert capsys.readouterr().err.strip().endswith(f"No space left on device ({sidecar})")
+    assert data.read_text() == "old data" and sidecar.read_text() == "old parameters"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["fleet.csv", "fleet.fleet.json"]
+    monkeypatch.undo()
+    assert main(args) == 0
+    assert len(read_fleet_params(data, 2) or []) == 2  # the checksum is the CSV's written
 
 
 def test_a_real_full_file_system(tmp_path, capsys):
