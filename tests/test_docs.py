@@ -229,12 +229,19 @@ SIZES: dict[tuple[str, str, str], str] = {
     (REALISTIC, "simulate", "--days"): "7",  # the office: identify refuses 3 to 5 days of it, the ARX 2
     ("*", "compare", "--train-days"): "2",
     (REALISTIC, "compare", "--train-days"): "7",
+    ("docs/boptest.md", "compare", "--train-days"): "4",  # its ARX families need 4 days' lags
     ("*", "*", "--buildings"): "3",
     ("*", "sweep", "--seeds"): "0",
 }
-#: Size options added to a command that does not give them (a sweep's sizes come from --spec).
-ADDED_SIZES: dict[str, list[tuple[str, ...]]] = {
-    "sweep": [("--quick",), ("--days", "1"), ("--seeds", "0"), ("--train-days", "2")],
+#: Size options added to a command that does not give them (a sweep's sizes come from --spec):
+#: {(page, command): options}, "*" for any page, the most specific entry first.
+_SWEEP_SIZES = [("--quick",), ("--days", "1"), ("--seeds", "0"), ("--train-days", "2")]
+ADDED_SIZES: dict[tuple[str, str], list[tuple[str, ...]]] = {
+    # a BOPTEST sweep: one test period and one price (its grid's other axes)
+    ("docs/boptest.md", "sweep"): [
+        *_SWEEP_SIZES, ("--test-periods", "peak_heat_day"), ("--price-scenarios", "dynamic"),
+    ],
+    ("*", "sweep"): _SWEEP_SIZES,
 }
 #: Commands not run, by how their line starts, each with the reason.
 NOT_RUN = {
@@ -247,6 +254,8 @@ NOT_RUN = {
     "python -m pytest": "the test suite itself",
     "python3 ../shared/boptest/serve.py": "the session's server (the boptest_server fixture) is run instead",
     "python examples/": "tests/test_examples.py runs the examples",
+    "python docs/gen_results.py": "writes the committed results page (the results-page tests "
+    "write pages of a small and of a BOPTEST sweep)",
 }
 #: Commands a page shares with another page that runs them: {(page, command): the other page}.
 RUN_ON_ANOTHER_PAGE = {
@@ -273,7 +282,8 @@ def _shrunk(page: str, command: list[str]) -> list[str]:
             if key in SIZES:
                 out[i + 1] = SIZES[key]
                 break
-    return out + [w for option in ADDED_SIZES.get(name, []) if option[0] not in out for w in option]
+    added = ADDED_SIZES.get((page, name), ADDED_SIZES.get(("*", name), []))
+    return out + [w for option in added if option[0] not in out for w in option]
 
 
 def _page_commands(page: str) -> list[list[str]]:
@@ -306,10 +316,12 @@ def test_pages_run_as_written(page: str, tmp_path: Path, request: pytest.Fixture
 
     - ``SIZES`` {(page, command, option): value}: ``--days`` 1 (closed-loop, compare);
       ``simulate --days`` 2, on realistic-conditions 7 (EnergyPlus's office: identify refuses
-      3 to 5 days of it, the ARX 2); ``compare --train-days`` 2, on realistic-conditions 7;
+      3 to 5 days of it, the ARX 2); ``compare --train-days`` 2, on realistic-conditions 7, on
+      BOPTEST 4 (its compare fits the ARX families, whose lags 2 days do not fill);
       ``--buildings`` 3; ``sweep --seeds`` 0;
     - ``ADDED_SIZES``: ``sweep`` gets ``--quick --days 1 --seeds 0 --train-days 2`` where the
-      line does not give them (over its ``--spec``'s sizes);
+      line does not give them (over its ``--spec``'s sizes), on the BOPTEST page also one test
+      period and one price (``--test-periods peak_heat_day --price-scenarios dynamic``);
     - ``NOT_RUN`` and ``RUN_ON_ANOTHER_PAGE``: the commands not run, each with its reason.
 
     Each command must exit 0 and leave the outputs it names (``--out``, ``--json``,
