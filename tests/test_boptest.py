@@ -530,7 +530,7 @@ def test_cli_sweep_on_boptest_without_a_server_exits_2_before_any_work(
 ) -> None:
     from pinn_mpc_cli.cli import main
 
-    url = f"http://127.0.0.1:{_free_port()}"
+    url = f"http://127.0.0.1:{free_port()}"
     monkeypatch.setenv("BOPTEST_URL", url)
     out = tmp_path / "sweep"
     code = main(["sweep", "--scenarios", "boptest_hydronic_heat_pump", "--controllers", "thermostat",
