@@ -7,15 +7,11 @@ The suite runs with ``-n 2`` on 2 cores; a second BLAS/torch thread per worker o
 machine and makes small linear algebra many times slower. A test run started in the background
 of a non-interactive shell inherits SIGINT ignored (as its subprocesses would), which the tests
 of what Ctrl-C does cannot test: Python's own handler is put back.
-
-The slow tests (end to end, minutes each) are collected first, so that under ``-n 2`` they start
-while the short ones fill the other worker, instead of one of them running alone at the end.
 """
 
 import signal
 import threading
 
-import pytest
 import torch
 from threadpoolctl import threadpool_limits
 
@@ -26,8 +22,3 @@ torch.set_num_threads(1)
 
 if threading.current_thread() is threading.main_thread() and signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
     signal.signal(signal.SIGINT, signal.default_int_handler)
-
-
-def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    """Run the slow-marked tests first (a stable sort: otherwise in collection order)."""
-    items.sort(key=lambda item: item.get_closest_marker("slow") is None)
