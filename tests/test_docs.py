@@ -242,6 +242,8 @@ ADDED_SIZES: dict[tuple[str, str], list[tuple[str, ...]]] = {
         *_SWEEP_SIZES, ("--test-periods", "peak_heat_day"), ("--price-scenarios", "dynamic"),
     ],
     ("*", "sweep"): _SWEEP_SIZES,
+    # BOPTEST's compare trains every family: compare's small ensembles and short training
+    ("docs/boptest.md", "compare"): [("--quick",)],
 }
 #: Commands not run, by how their line starts, each with the reason.
 NOT_RUN = {
@@ -321,7 +323,8 @@ def test_pages_run_as_written(page: str, tmp_path: Path, request: pytest.Fixture
       ``--buildings`` 3; ``sweep --seeds`` 0;
     - ``ADDED_SIZES``: ``sweep`` gets ``--quick --days 1 --seeds 0 --train-days 2`` where the
       line does not give them (over its ``--spec``'s sizes), on the BOPTEST page also one test
-      period and one price (``--test-periods peak_heat_day --price-scenarios dynamic``);
+      period and one price (``--test-periods peak_heat_day --price-scenarios dynamic``), and
+      the BOPTEST ``compare`` gets ``--quick`` (small ensembles, short training of every family);
     - ``NOT_RUN`` and ``RUN_ON_ANOTHER_PAGE``: the commands not run, each with its reason.
 
     Each command must exit 0 and leave the outputs it names (``--out``, ``--json``,
