@@ -25,7 +25,7 @@ from pinn_mpc.io import (
     output_lock,
     written_together,
 )
-from pinn_mpc_cli.scenario_args import scenario_inputs
+from pinn_mpc_cli.scenario_args import refuse_boptest_options, scenario_inputs
 from scenarios.inputs.registry import Scenario
 from scenarios.inputs.scenario_file import get_scenario
 from scenarios.records import CompareTable
@@ -92,12 +92,7 @@ def _compare(a: argparse.Namespace) -> str:
 
     if is_boptest_scenario(a.scenario):
         return _boptest_compare(a)
-    for option in ("test_period", "price_scenario"):
-        if getattr(a, option) is not None:
-            raise InputError(
-                f"--{option.replace('_', '-')} applies to BOPTEST scenarios (e.g. "
-                f"boptest_hydronic_heat_pump); {a.scenario} is not one"
-            )
+    refuse_boptest_options({o: getattr(a, o) for o in ("test_period", "price_scenario")}, a.scenario)
     check_writable(a.json, a.report, create_parents=True)
     report = Path(a.report)
     figure = report.with_suffix(".png")

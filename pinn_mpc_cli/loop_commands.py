@@ -24,7 +24,12 @@ from pinn_mpc.io import (
     check_writable,
     written_together,
 )
-from pinn_mpc_cli.scenario_args import scenario_inputs, scenario_label, with_scenario_file
+from pinn_mpc_cli.scenario_args import (
+    refuse_boptest_options,
+    scenario_inputs,
+    scenario_label,
+    with_scenario_file,
+)
 from scenarios.choices import MODEL_CONTROLLERS
 from scenarios.inputs.exogenous import day_span
 from scenarios.inputs.registry import Scenario
@@ -47,11 +52,10 @@ def simulate(a: argparse.Namespace) -> str:
 
     if is_boptest_scenario(a.scenario):
         return _boptest_simulate(a)
-    for option in ("first_day", "test_period"):
-        if getattr(a, option) is not None:
-            raise InputError(
-                f"--{option.replace('_', '-')} places data on a BOPTEST scenario; {a.scenario} is not one"
-            )
+    refuse_boptest_options(
+        {o: getattr(a, o) for o in ("first_day", "test_period")}, a.scenario,
+        does="places data on a BOPTEST scenario",
+    )
     if a.spread is not None and a.buildings < 2:
         raise InputError("--spread draws a fleet: add --buildings N with N > 1")
     sidecar = None
@@ -121,12 +125,7 @@ def _closed_loop(a: argparse.Namespace) -> str:
     check_writable(*outputs.values())
     if is_boptest_scenario(a.scenario):
         return _boptest_closed_loop(a, outputs)
-    for option in ("test_period", "price_scenario"):
-        if getattr(a, option) is not None:
-            raise InputError(
-                f"--{option.replace('_', '-')} applies to BOPTEST scenarios (e.g. "
-                f"boptest_hydronic_heat_pump); {a.scenario} is not one"
-            )
+    refuse_boptest_options({o: getattr(a, o) for o in ("test_period", "price_scenario")}, a.scenario)
     inputs: dict[str, PathsArg] = {"--rc": a.rc, **scenario_inputs(a.scenario)}
     if a.model is not None:
         from pinn_mpc.artifacts import MODEL_DIRECTORY  # torch: only when a model is given

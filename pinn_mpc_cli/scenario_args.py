@@ -6,6 +6,7 @@ from __future__ import annotations
 import os
 from typing import TypeVar
 
+from pinn_mpc.errors import InputError
 from pinn_mpc.io import PathsArg
 from scenarios.inputs.registry import Scenario, is_scenario_file
 from scenarios.records import FleetInfo, RunKpis
@@ -39,3 +40,14 @@ def with_scenario_file(kpis: _Labelled, name: str) -> _Labelled:
     if not is_scenario_file(name):
         return kpis
     return {**kpis, "scenario_file": os.path.abspath(name)}
+
+
+def refuse_boptest_options(
+    given: dict[str, object], scenario: str, *, does: str = "applies to BOPTEST scenarios (e.g. boptest_hydronic_heat_pump)"
+) -> None:
+    """One line for the first BOPTEST-only option in ``given`` ({argparse dest: value}) that is
+    set on ``scenario``, which is not a BOPTEST scenario: ``--OPTION`` ``does``; ``scenario`` is
+    not one."""
+    for option, value in given.items():
+        if value is not None:
+            raise InputError(f"--{option.replace('_', '-')} {does}; {scenario} is not one")
