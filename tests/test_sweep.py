@@ -405,3 +405,23 @@ def test_boptest_grid_cells_labels_and_refusals():
     assert own.labels == ("cem/hybrid", "cem/parx", "thermostat")
     assert {c.model.kind for c in own.cells() if c.model is not None} == {"hybrid", "parx"}
     assert all(c.test_period is None for c in own.cells())
+
+
+def test_an_arch_cell_runs_on_the_packages_own_plants():
+    """A ``cem/<arch>`` cell (``archs`` in a sweep) on a non-BOPTEST scenario runs cem over
+    the model of that architecture, labelled with the cell's name and the model it planned
+    over (it failed as "unknown controller 'cem/parx'" before)."""
+    from scenarios.experiments.sweep import Cell, SweepSettings, fit_model, run_cell
+
+    grid = SweepGrid(scenarios=("winter_household",), controllers=("cem",), seeds=(0,),
+                     train_days=(7,), archs=("parx",))
+    [cell] = [c for c in grid.cells() if c.controller.startswith("cem")]  # and the oracle
+    assert cell == Cell(scenario="winter_household", controller="cem/parx", seed=0, train_days=7)
+    settings = SweepSettings(test_days=1)
+    assert cell.model is not None
+    model = fit_model(cell.model, settings)
+    result = run_cell(cell, settings, model)
+    assert result["errors"] == []
+    kpis = result["kpis"]
+    assert kpis["controller"] == "cem/parx" and kpis["model"] == "parx"  # type: ignore[typeddict-item]
+    assert kpis["objective"] > 0 and kpis["own_decisions_share"] > 0.9

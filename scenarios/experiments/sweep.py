@@ -587,18 +587,22 @@ def run_cell(
     scenario = get_scenario(cell.scenario)
     kind = model_kind(cell.controller)
     controller = build_controller(
-        cell.controller,
+        cell.controller.partition("/")[0],  # cem/<arch>: cem, over the model of that arch
         scenario,
-        model=model if kind == ARCH and not isinstance(model, RCParams) else None,
+        model=model if kind not in (None, RC_KIND) and not isinstance(model, RCParams) else None,
         rc_params=model if kind == RC_KIND and isinstance(model, RCParams) else None,
         n_steps=settings.test_days * scenario.steps_per_day,
     )
     with one_torch_thread():
         result = run_closed_loop(
-            scenario, controller, days=settings.test_days, seed=cell.seed + 1
+            scenario, controller, days=settings.test_days, seed=cell.seed + 1,
+            label=cell.controller,
         )
+    kpis = result.kpis
+    if kind not in (None, RC_KIND) and model is not None and not isinstance(model, RCParams):
+        kpis["model"] = _model_family(cast("SweepModel", model))  # type: ignore[typeddict-unknown-key]
     return {
-        "kpis": result.kpis,
+        "kpis": kpis,
         "errors": list(result.errors),
         "host": socket.gethostname(),
         "wall_time_s": time.perf_counter() - start,
