@@ -263,13 +263,19 @@ def page(spec: Path, directory: Path, command: str, wall_s: float | None, at: st
     summary = json.loads((directory / "summary.json").read_text(encoding="utf-8"))
     spec_text = spec.read_text(encoding="utf-8").rstrip()
     now = datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d %H:%M UTC")
-    wall = (
-        f"{wall_s / 60:.1f} min ({summary['cells_run']} cells run, {summary['cells_reused']} "
-        f"reused; {summary['models_trained']} models trained)"
-        if wall_s is not None
-        else "not timed (written from an existing sweep directory)"
+    counts = (
+        f"{summary['cells_run']} cells run, {summary['cells_reused']} reused; "
+        f"{summary['models_trained']} models trained"
     )
-    settings = summary.get("settings", {})
+    if wall_s is not None:
+        wall = f"{wall_s / 60:.1f} min ({counts})"
+    elif summary.get("wall_time_s") is not None:  # the sweep's own last run, from its summary
+        wall = f"{summary['wall_time_s'] / 60:.1f} min, the sweep's last run ({counts})"
+    else:
+        wall = "not timed (written from an existing sweep directory)"
+    settings = dict(summary.get("settings", {}))
+    if summary.get("grid", {}).get("archs"):  # the grid's archs, not the settings' arch, ran
+        settings.pop("arch", None)
     engine = summary.get("engine") or summary.get("ray") or {}
     lines = [
         f"# {spec.stem.replace('_', ' ').capitalize()} sweep",
