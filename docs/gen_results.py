@@ -148,7 +148,8 @@ def cell_table(directory: Path, order: list[str], references: dict[str, str]) ->
             row.append("" if kpis is None or not ref else f"{kpis['objective'] / ref:.3f}")
             if kpis is not None and kpis.get("model_fallback_steps") is not None:
                 decisions = kpis["days"] * _steps_per_day(scenario)
-                fallbacks.append(f"{name} {kpis['model_fallback_steps']} of {decisions}")
+                model = f" ({kpis['model']})" if name.endswith("/auto") and kpis.get("model") else ""
+                fallbacks.append(f"{name}{model} {kpis['model_fallback_steps']} of {decisions}")
         lines.append(
             f"| {scenario} | {'' if days is None else days} | {seed} | " + " | ".join(row)
             + f" | {'' if ref is None else f'{ref:.2f}'} | {', '.join(fallbacks)} |"
@@ -312,12 +313,13 @@ def page(spec: Path, directory: Path, command: str, wall_s: float | None, at: st
     ]
     if is_boptest_sweep(directory):
         lines += _boptest_sections(spec_text, directory)
-        return "\n".join(lines)
+        return _relative("\n".join(lines))
     lines += [
         "## Every cell",
         "",
         "Objective / the reference's of each controller on each run; the fallback column counts the "
-        "decisions a planner over a learned model handed to the RC MPC, of the test days' decisions.",
+        "decisions a planner over a learned model handed to the RC MPC, of the test days' decisions "
+        "(for `cem/auto`, with the model `train`'s default chose in brackets).",
         "",
         *cell_table(
             directory,
@@ -326,7 +328,13 @@ def page(spec: Path, directory: Path, command: str, wall_s: float | None, at: st
         ),
         "",
     ]
-    return "\n".join(lines)
+    return _relative("\n".join(lines))
+
+
+def _relative(text: str) -> str:
+    """``text`` with the repository's own paths (a scenario file a sweep names) relative to it,
+    as the committed specification names them."""
+    return text.replace(f"{ROOT}{os.sep}", "")
 
 
 def main() -> int:
@@ -342,7 +350,8 @@ def main() -> int:
         parser.error(f"no sweep definition at {args.spec}")
     target = args.page or ROOT / "docs" / "results" / f"{spec.stem}.md"
     command = "python docs/gen_results.py --spec " + shlex.quote(str(spec.relative_to(ROOT)))
-    if args.from_dir is not None:
+    if args.from_dir is not None:  # the page says so: its sweep ran before, maybe elsewhere
+        command += f" --from-dir {shlex.quote(args.from_dir.name)}"
         text = page(spec, args.from_dir, command, None, commit())
     else:
         with tempfile.TemporaryDirectory(prefix="gen_results_") as tmp:
