@@ -241,6 +241,9 @@ ADDED_SIZES: dict[tuple[str, str], list[tuple[str, ...]]] = {
     ("docs/boptest.md", "sweep"): [
         *_SWEEP_SIZES, ("--test-periods", "peak_heat_day"), ("--price-scenarios", "dynamic"),
     ],
+    # the EnergyPlus sweep: cem over the default model only (the grid's other archs are
+    # cem over named models, which test_sweep's arch-cell test runs)
+    ("docs/realistic-conditions.md", "sweep"): [*_SWEEP_SIZES, ("--archs", "auto")],
     ("*", "sweep"): _SWEEP_SIZES,
     # BOPTEST's compare trains every family: compare's small ensembles and short training
     ("docs/boptest.md", "compare"): [("--quick",)],
@@ -323,7 +326,8 @@ def test_pages_run_as_written(page: str, tmp_path: Path, request: pytest.Fixture
       ``--buildings`` 3; ``sweep --seeds`` 0;
     - ``ADDED_SIZES``: ``sweep`` gets ``--quick --days 1 --seeds 0 --train-days 2`` where the
       line does not give them (over its ``--spec``'s sizes), on the BOPTEST page also one test
-      period and one price (``--test-periods peak_heat_day --price-scenarios dynamic``), and
+      period and one price (``--test-periods peak_heat_day --price-scenarios dynamic``), on
+      realistic-conditions (the EnergyPlus sweep) the default model only (``--archs auto``), and
       the BOPTEST ``compare`` gets ``--quick`` (small ensembles, short training of every family);
     - ``NOT_RUN`` and ``RUN_ON_ANOTHER_PAGE``: the commands not run, each with its reason.
 
