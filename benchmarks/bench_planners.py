@@ -88,17 +88,17 @@ def _time_decisions(
     return np.array(times), np.array(cpu_times), fallbacks
 
 
-def _learned(arch: str, df: pd.DataFrame, members: int, epochs: int) -> BatchDynamics:
+def _learned(arch: str, data: pd.DataFrame, members: int, epochs: int) -> BatchDynamics:
     from pinn_mpc.training import TrainConfig, train_model
 
     config = TrainConfig(depth=_COMPARE.depth, n_seeds=members, epochs=epochs)
-    return train_model(df.drop(columns=["T_m", "day_of_week"]), arch=arch, config=config, progress=False)
+    return train_model(data, arch=arch, config=config, progress=False)
 
 
-def _linear(name: str, df: pd.DataFrame) -> BatchDynamics:
+def _linear(name: str, data: pd.DataFrame) -> BatchDynamics:
     from pinn_mpc.models.arx import fit_linear
 
-    return fit_linear(name, df.drop(columns=["T_m", "day_of_week"]))
+    return fit_linear(name, data)
 
 
 def main() -> None:
@@ -119,6 +119,7 @@ def main() -> None:
     scenario = get_scenario("winter_household")
     spec = scenario.control_spec()
     df = generate(scenario, days=8, seed=0, policy=_COMPARE.policy)
+    data = df.drop(columns=["T_m"])  # what a model learns from: the measured columns
     df["day_of_week"] = pd.to_datetime(df["time"]).dt.day_of_week.astype(float)
     models: dict[str, Callable[[], BatchDynamics]] = {
         "rc": lambda: RCBatchModel(
@@ -128,10 +129,10 @@ def main() -> None:
             backup_low_c=scenario.sim.backup_low_c,
             backup_high_c=scenario.sim.backup_high_c,
         ),
-        "hybrid": lambda: _learned("hybrid", df, args.members, args.epochs),
-        "physnet": lambda: _learned("physnet", df, args.members, args.epochs),
-        "parx": lambda: _linear("parx", df),
-        "arx": lambda: _linear("arx", df),
+        "hybrid": lambda: _learned("hybrid", data, args.members, args.epochs),
+        "physnet": lambda: _learned("physnet", data, args.members, args.epochs),
+        "parx": lambda: _linear("parx", data),
+        "arx": lambda: _linear("arx", data),
     }
     names = list(models) if args.model == "all" else [args.model]
     print(f"horizon {spec.horizon_steps} steps, torch threads {torch.get_num_threads()}")

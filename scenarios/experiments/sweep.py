@@ -586,10 +586,11 @@ def run_cell(
         return _run_boptest_cell(cell, settings, model, boptest_url, start)
     scenario = get_scenario(cell.scenario)
     kind = model_kind(cell.controller)
+    learned = model if kind not in (None, RC_KIND) and not isinstance(model, RCParams) else None
     controller = build_controller(
         cell.controller.partition("/")[0],  # cem/<arch>: cem, over the model of that arch
         scenario,
-        model=model if kind not in (None, RC_KIND) and not isinstance(model, RCParams) else None,
+        model=learned,
         rc_params=model if kind == RC_KIND and isinstance(model, RCParams) else None,
         n_steps=settings.test_days * scenario.steps_per_day,
     )
@@ -599,8 +600,8 @@ def run_cell(
             label=cell.controller,
         )
     kpis = result.kpis
-    if kind not in (None, RC_KIND) and model is not None and not isinstance(model, RCParams):
-        kpis["model"] = _model_family(cast("SweepModel", model))  # type: ignore[typeddict-unknown-key]
+    if learned is not None:
+        kpis["model"] = _model_family(cast("SweepModel", learned))  # type: ignore[typeddict-unknown-key]
     return {
         "kpis": kpis,
         "errors": list(result.errors),
