@@ -29,6 +29,8 @@ __all__ = [
     "HorizonObjective",
     "band_violation_k",
     "energy_cost_eur",
+    "narrowed",
+    "narrowed_band",
     "planning_band",
 ]
 
@@ -44,6 +46,21 @@ def band_violation_k(t_r_c: Any, t_min_c: Any, t_max_c: Any) -> Any:
 def energy_cost_eur(u_phys_w: Any, price_eur_per_kwh: Any, dt_h: float) -> Any:
     """Elementwise cost of ``u_phys_w`` [W] electrical power for ``dt_h`` hours [EUR] (numpy or torch)."""
     return u_phys_w * (dt_h / 1000.0) * price_eur_per_kwh
+
+
+def narrowed_band(t_min_c: np.ndarray, t_max_c: np.ndarray, margin_k: float) -> tuple[np.ndarray, np.ndarray]:
+    """The band ``(t_min_c, t_max_c)`` [C] narrowed by ``margin_k`` [K] on each side, to its
+    middle where it is narrower than twice the margin."""
+    middle = 0.5 * (t_min_c + t_max_c)
+    return np.minimum(t_min_c + margin_k, middle), np.maximum(t_max_c - margin_k, middle)
+
+
+def narrowed(forecast: Forecast, margin_k: float) -> Forecast:
+    """``forecast`` with its comfort band narrowed by ``margin_k`` [K] (:func:`narrowed_band`)."""
+    t_min, t_max = narrowed_band(
+        np.asarray(forecast.T_min, dtype=float), np.asarray(forecast.T_max, dtype=float), margin_k
+    )
+    return forecast._replace(T_min=t_min, T_max=t_max)
 
 
 def planning_band(forecast: Forecast, h: int) -> tuple[np.ndarray, np.ndarray]:
@@ -112,12 +129,8 @@ class HorizonObjective:
         model is off by a few millikelvin."""
         if margin_k == 0:
             return self
-        middle = 0.5 * (self.t_min_c + self.t_max_c)
-        return dataclasses.replace(
-            self,
-            t_min_c=np.minimum(self.t_min_c + margin_k, middle),
-            t_max_c=np.maximum(self.t_max_c - margin_k, middle),
-        )
+        t_min, t_max = narrowed_band(self.t_min_c, self.t_max_c, margin_k)
+        return dataclasses.replace(self, t_min_c=t_min, t_max_c=t_max)
 
     def stage_costs(self, u_phys_w: np.ndarray, t_r_c: np.ndarray) -> np.ndarray:
         """Cost of each interval (..., H) [EUR] of delivered electrical power and end-of-interval T_r (..., H)."""

@@ -234,6 +234,7 @@ class _SamplingController(PlanningController):
         shadow_u = None
         try:
             if self.shadow is not None:  # every step, so that its observer stays current
+                self.shadow.comfort_margin_k = self.monitor.fallback_margin_k()
                 shadow_u = self.shadow.act(obs, forecast)
                 self._shadow_steps += 1
                 if self._shadow_steps > SHADOW_SETTLE_STEPS:  # its observer has settled

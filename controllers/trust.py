@@ -29,7 +29,10 @@ many after each further switch (a model found wrong again is given less benefit 
 planner also plans against the comfort band narrowed by the filtered error of its room
 temperature (one step ahead, or with ``margin_from_replay`` also over the replayed hours; never
 less than its ``comfort_margin_k``), so a model that errs more keeps more distance from the
-band's edges.
+band's edges. With ``margin_from_replay`` the fallback RC MPC is held to the same rule: it
+plans against the band narrowed by the RC's own filtered replay error
+(:meth:`TrustMonitor.fallback_margin_k`), for an RC that errs as much as the model it replaces
+otherwise rides the band's edge and the plant sits just outside it.
 """
 
 from __future__ import annotations
@@ -56,7 +59,9 @@ class TrustSettings:
     narrowed by this times the filtered |innovation| (at most ``max_margin_k``), or with
     ``margin_from_replay`` by the larger of that and the filtered replay error: the error a
     plan carries hours ahead, for plants whose measured temperature is noise-free (a noisy
-    sensor's error is in the replay error too, and a margin for it only costs energy).
+    sensor's error is in the replay error too, and a margin for it only costs energy); with
+    it the fallback RC MPC's band is narrowed by ``margin_factor`` times the RC's filtered
+    replay error (at most ``max_margin_k``) too.
     """
 
     replay_steps: int = 8
@@ -150,6 +155,15 @@ class TrustMonitor:
             error = max(error, self.state.replay_k)
         extra = self.settings.margin_factor * error
         return max(base_k, min(extra, self.settings.max_margin_k))
+
+    def fallback_margin_k(self) -> float:
+        """The margin [K] the fallback RC MPC plans with: with ``margin_from_replay``,
+        ``margin_factor`` times the RC's filtered replay error, at most ``max_margin_k``; 0
+        without it or before the RC has been replayed."""
+        lim, error = self.settings, self.state.replay_rc_k
+        if not (lim.margin_from_replay and math.isfinite(error)):
+            return 0.0
+        return min(lim.margin_factor * error, lim.max_margin_k)
 
     def reason(self, spread_k: float | None = None) -> str | None:
         """Why the model is not to be trusted now (None when it is)."""

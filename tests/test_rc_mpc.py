@@ -168,6 +168,24 @@ def test_steady_state_action_holds_the_lower_band(cls: type[RCMPC]) -> None:
     assert action == pytest.approx(u_ss, rel=0.01)
 
 
+@pytest.mark.parametrize("cls", MPCS)
+@pytest.mark.parametrize(("t_max", "held"), [(24.0, 20.3), (20.4, 20.2)])
+def test_a_comfort_margin_holds_the_band_that_far_inside(cls: type[RCMPC], t_max: float, held: float) -> None:
+    """With ``comfort_margin_k`` 0.3 K the MPC holds the room at T_min + 0.3 K (the analytic
+    steady-state power there), or at the band's middle where the band is narrower than 0.6 K;
+    the margin is the owner's to change between decisions."""
+    t_min, t_a, margin = 20.0, 5.0, 0.3
+    u_ss = (held - t_a) / (PARAMS.r_ra_k_per_w * PARAMS.eta)
+    x = steady_state(PARAMS, u_w=u_ss, t_a_c=t_a)
+    fc = _forecast(48, price=0.25, T_min=t_min, T_max=t_max, T_a=t_a)
+    mpc = cls(PARAMS, SPEC)
+    mpc.comfort_margin_k = margin
+    assert mpc.act(_first_obs(float(x[0]), float(x[1]), t_a), fc) == pytest.approx(u_ss, rel=0.01)
+    mpc.reset()
+    mpc.comfort_margin_k = 0.0  # without it, the room is let down to T_min first
+    assert mpc.act(_first_obs(float(x[0]), float(x[1]), t_a), fc) < 0.9 * u_ss
+
+
 def test_regulariser_moves_the_objective_by_less_than_a_thousandth() -> None:
     fc = _forecast(48)
     obs = _first_obs(18.5, 18.0)

@@ -67,6 +67,18 @@ def test_monitor_narrows_the_band_by_its_replay_error_where_asked_and_larger() -
         assert m.margin_k(0.01) == pytest.approx(0.3)
 
 
+def test_the_fallback_plans_inside_the_band_by_the_rcs_replay_error_where_asked() -> None:
+    """With ``margin_from_replay`` the fallback RC MPC's margin is the RC's filtered replay
+    error (0 before the RC is replayed, at most ``max_margin_k``); without it, 0."""
+    for from_replay in (True, False):
+        m = TrustMonitor(TrustSettings(filter_gain=1.0, margin_from_replay=from_replay), u_range_w=1.0)
+        assert m.fallback_margin_k() == 0.0
+        m.observe(0.02, float("nan"), replay_k=0.4, replay_rc_k=-0.15)
+        assert m.fallback_margin_k() == pytest.approx(0.15 if from_replay else 0.0)
+        m.observe(0.02, float("nan"), replay_k=0.4, replay_rc_k=0.9)
+        assert m.fallback_margin_k() == pytest.approx(0.5 if from_replay else 0.0)
+
+
 @pytest.mark.parametrize(
     "bad", [{"error_floor_k": 0.0}, {"filter_gain": 1.5}, {"recover_steps": 0}, {"replay_steps": 0}]
 )
@@ -150,6 +162,22 @@ def test_a_model_that_mispredicts_is_replaced_by_the_rc_mpc_and_counted(winter_m
     assert kpis["cem, no fallback"]["model_fallback_steps"] == 0
     assert kpis["cem"]["objective"] <= 1.05 * kpis["qp-mpc"]["objective"]
     assert kpis["cem"]["objective"] < kpis["cem, no fallback"]["objective"]
+
+
+def test_a_guarded_planner_sets_its_fallbacks_margin_only_where_asked(winter_model) -> None:
+    """cem's shadow RC MPC plans with the monitor's fallback margin: positive after a day with
+    ``margin_from_replay`` (the RC errs a little on the winter household), 0 without."""
+    scenario, model = winter_model
+    margins = {}
+    for from_replay in (True, False):
+        guard = model_guard(model)._replace(settings=TrustSettings(margin_from_replay=from_replay))
+        controller = build_controller(
+            "cem", scenario, model=model, n_steps=scenario.steps_per_day, planner_options={"guard": guard}
+        )
+        run_closed_loop(scenario, controller, days=1, seed=5)
+        margins[from_replay] = controller.shadow.comfort_margin_k
+        assert margins[from_replay] == pytest.approx(controller.monitor.fallback_margin_k(), abs=0.05)
+    assert margins[True] > 0.0 and margins[False] == 0.0
 
 
 def test_a_good_model_keeps_control(winter_model) -> None:

@@ -52,7 +52,7 @@ from controllers.base import (
     first_values,
 )
 from controllers.estimators import KalmanEstimator, StateEstimator, TrueState
-from controllers.objective import HorizonObjective
+from controllers.objective import HorizonObjective, narrowed
 from pinn_mpc.errors import InputError
 from pinn_mpc.physics import RCParams, discretise
 
@@ -160,6 +160,10 @@ class RCMPC(PlanningController):
     ``estimator`` defaults to a :class:`~controllers.estimators.KalmanEstimator` on ``params``;
     ``run_steps`` makes the horizon shrink to the end of a run of that many intervals, counted
     from the first ``act`` after ``reset`` (the clairvoyant); ``name`` overrides the class name.
+    ``comfort_margin_k`` [K] (0 unless set; an owner may change it between decisions) narrows
+    the forecast's comfort band on each side before each solve, to its middle where the band
+    is narrower than twice the margin: a guarded planner sets it on its fallback RC MPC from
+    the RC's realised error (:class:`controllers.sampling.CEM`).
 
     Fallback (on an exception in the estimate or solve, a non-optimal status or a non-finite
     plan): :class:`controllers.base.Fallback` with the previous plan. ``last_stats.fallback`` is
@@ -198,6 +202,7 @@ class RCMPC(PlanningController):
             KalmanEstimator.for_spec(params, spec) if estimator is None else estimator
         )
         self.fallback = Fallback(spec, reuse_plan=True)
+        self.comfort_margin_k = 0.0
         self.reset()
         self._build()
 
@@ -224,6 +229,8 @@ class RCMPC(PlanningController):
         try:
             self.state_estimate_c = np.full(2, np.nan)
             self.state_estimate_c = self.estimator.update(obs)
+            if self.comfort_margin_k > 0:
+                forecast = narrowed(forecast, self.comfort_margin_k)
             stage = self.problem.stage(self.state_estimate_c, forecast, n_active=self._n_active(obs))
             result = self._solve(stage)
             status, iterations = result.status, result.iterations
