@@ -268,6 +268,18 @@ RUN_ON_ANOTHER_PAGE = {
 }
 #: The options that name a command's outputs.
 OUTPUTS = ("--out", "--json", "--report", "--csv", "--plot")
+#: Pages whose commands run as several tests, so that the suite's workers share them: {page:
+#: {part: its sections (the page's "## " headings)}}. A part runs its sections' commands in the
+#: page's order from an empty directory of its own: no part reads what another writes, and the
+#: parts together hold every command of the page that runs, each once.
+PARTS: dict[str, dict[str, tuple[str, ...]]] = {
+    "docs/boptest.md": {
+        # one part: _boptest_page_outputs compares the MPC on the identified RC with the thermostat
+        "closed-loops": ("Closed loops", "Training data from the emulator"),
+        "compare": ("A comparison",),
+        "sweep": ("Sweeps",),
+    },
+}
 
 
 def _not_run(page: str, command: list[str]) -> str | None:
@@ -291,10 +303,30 @@ def _shrunk(page: str, command: list[str]) -> list[str]:
     return out + [w for option in added if option[0] not in out for w in option]
 
 
-def _page_commands(page: str) -> list[list[str]]:
-    """The commands of ``page``'s shell blocks (``bash`` and unlabelled), in the page's order."""
+def _sections(text: str) -> dict[str, str]:
+    """A page's text by its "## " headings ("" for what comes before the first)."""
+    pieces = re.split(r"^## (.*)\n", text, flags=re.M)
+    return {"": pieces[0], **dict(zip(pieces[1::2], pieces[2::2], strict=True))}
+
+
+def _page_commands(page: str, part: str | None = None) -> list[list[str]]:
+    """The commands of ``page``'s shell blocks (``bash`` and unlabelled), in the page's order;
+    of the sections of its ``part`` (:data:`PARTS`) only, if one is given."""
     text = (ROOT / page).read_text(encoding="utf-8")
+    if part is not None:
+        sections = _sections(text)
+        text = "".join(sections[heading] for heading in PARTS[page][part])
     return [c for tag, code in FENCE.findall(text) if tag in ("bash", "") for c in _commands(code)]
+
+
+def _runs_as_written() -> list[tuple[str, str | None]]:
+    """(page, part) of each test_pages_run_as_written: a page of :data:`PARTS` in its parts, any
+    other whole (part None). The README's only command runs on getting-started."""
+    return [
+        (page, part)
+        for page in RUN_AS_WRITTEN[1:]
+        for part in (PARTS[page] if page in PARTS else [None])
+    ]
 
 
 def test_every_command_of_the_pages_run_as_written_is_run_or_says_why() -> None:
@@ -306,15 +338,29 @@ def test_every_command_of_the_pages_run_as_written_is_run_or_says_why() -> None:
                 assert command[0] == "pinn-mpc" or (
                     command[0] == "python" and command[1].startswith("benchmarks/")
                 ), f"{page}: `{shlex.join(command)}` is neither run nor listed in NOT_RUN"
+    for page, parts in PARTS.items():
+        sections = _sections((ROOT / page).read_text(encoding="utf-8"))
+        assert all(h in sections for part in parts.values() for h in part), (page, parts)
+        run = [c for c in _page_commands(page) if _not_run(page, c) is None]
+        in_parts = [c for part in parts for c in _page_commands(page, part) if _not_run(page, c) is None]
+        assert in_parts == run, f"{page}: its parts do not hold each command that runs once"
     assert _shrunk(REALISTIC, ["pinn-mpc", "simulate", "--days", "30", "--out", "t.csv"])[3] == "7"
     assert _shrunk("README.md", ["pinn-mpc", "sweep", "--seeds", "0-7", "--out", "s"]) == [
         "pinn-mpc", "sweep", "--seeds", "0", "--out", "s", "--quick", "--days", "1", "--train-days", "2"]
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("page", RUN_AS_WRITTEN[1:])  # the README's only command runs on getting-started
-def test_pages_run_as_written(page: str, tmp_path: Path, request: pytest.FixtureRequest) -> None:
-    """Every command of the page's shell blocks, in order, from an empty directory (with the
+@pytest.mark.parametrize(
+    ("page", "part"),
+    [pytest.param(page, part, id=page if part is None else f"{page}#{part}")
+     for page, part in _runs_as_written()],
+)
+def test_pages_run_as_written(
+    page: str, part: str | None, tmp_path: Path, request: pytest.FixtureRequest
+) -> None:
+    """Every command of the page's shell blocks (of its part's sections, for a page of
+    ``PARTS``: BOPTEST's closed loops with its training data, its comparison, its sweep, each
+    a test of its own), in order, from an empty directory (with the
     checkout's ``sweeps/`` and ``benchmarks/``, which the pages name, linked in), exactly as
     written but for the sizes, each shrunk to the smallest the command and the page's later
     commands accept, through these tables alone (and nothing else):
@@ -340,7 +386,7 @@ def test_pages_run_as_written(page: str, tmp_path: Path, request: pytest.Fixture
     for linked in ("sweeps", "benchmarks"):
         (tmp_path / linked).symlink_to(ROOT / linked)
     ran = 0
-    for command in _page_commands(page):
+    for command in _page_commands(page, part):
         if _not_run(page, command) is not None:
             continue
         run = _shrunk(page, command) if command[0] == "pinn-mpc" else command
@@ -353,12 +399,36 @@ def test_pages_run_as_written(page: str, tmp_path: Path, request: pytest.Fixture
         ran += 1
     assert ran > 0
     if page == "docs/boptest.md":
-        _boptest_page_outputs(tmp_path)
+        _boptest_page_outputs(tmp_path, part)
 
 
-def _boptest_page_outputs(workdir: Path) -> None:
-    """The BOPTEST page's data are the emulator's, off the test periods, and its closed loops'
-    KPI JSON carries BOPTEST's KPI dict, which agrees with the package's KPIs of the run."""
+def _boptest_page_outputs(workdir: Path, part: str | None) -> None:
+    """The outputs of the BOPTEST page's ``part`` (:data:`PARTS`). Closed loops and training
+    data: the data are the emulator's, off the test periods, and the closed loops' KPI JSON
+    carries BOPTEST's KPI dict, which agrees with the package's KPIs of the run. The comparison:
+    a row with BOPTEST's KPIs for each controller the page names, on data off the test period.
+    The sweep: its four cells, each with BOPTEST's KPIs."""
+    if part == "compare":
+        assert (workdir / "boptest" / "report.md").is_file()
+        table = json.loads((workdir / "boptest" / "table.json").read_text())
+        assert table["data_days"] == ["2018-01-31", "2018-02-03"]
+        families = ("hybrid", "physnet", "physreg", "mlp", "arx", "parx")
+        controllers = [row["controller"] for row in table["rows"]]
+        assert controllers[:3] == ["boptest-baseline", "thermostat", "qp-mpc"], controllers
+        default = re.fullmatch(r"cem / default \((\w+)\)", controllers[3])
+        assert default and default.group(1) in families, controllers
+        assert controllers[4:] == [f"cem / {f}" for f in families if f != default.group(1)]
+        for row in table["rows"]:
+            assert row["test_period"] == "peak_heat_day" and {"tdis_tot", "ener_tot"} <= set(row["boptest"])
+        return
+    if part == "sweep":
+        summary = json.loads((workdir / "boptest_sweep" / "summary.json").read_text())
+        assert summary["cells_run"] == 4, summary["cells_run"]
+        cells = [json.loads(p.read_text()) for p in (workdir / "boptest_sweep" / "cells").glob("*.json")]
+        assert sorted(c["cell"]["controller"] for c in cells) == sorted(
+            ["boptest-baseline", "thermostat", "qp-mpc", "cem/auto"])
+        assert all({"tdis_tot", "ener_tot"} <= set(c["kpis"]["boptest"]) for c in cells)
+        return
     from pinn_mpc.data import read_timeseries
     from scenarios.plants.boptest import read_boptest_file
 
@@ -380,7 +450,6 @@ def _boptest_page_outputs(workdir: Path) -> None:
         results[name] = b
     # the MPC on the identified RC keeps the band better than the thermostat's switching
     assert results["qp"]["tdis_tot"] < results["thermostat"]["tdis_tot"]
-    assert (workdir / "boptest" / "report.md").is_file()
 
 
 def _gen_results():
