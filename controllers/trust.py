@@ -153,17 +153,20 @@ class TrustMonitor:
         error = self.state.error_k
         if self.settings.margin_from_replay and math.isfinite(self.state.replay_k):
             error = max(error, self.state.replay_k)
-        extra = self.settings.margin_factor * error
-        return max(base_k, min(extra, self.settings.max_margin_k))
+        return max(base_k, self._margin_for(error))
 
     def fallback_margin_k(self) -> float:
-        """The margin [K] the fallback RC MPC plans with: with ``margin_from_replay``,
-        ``margin_factor`` times the RC's filtered replay error, at most ``max_margin_k``; 0
-        without it or before the RC has been replayed."""
-        lim, error = self.settings, self.state.replay_rc_k
-        if not (lim.margin_from_replay and math.isfinite(error)):
+        """The margin [K] the fallback RC MPC plans with: with ``margin_from_replay``, the
+        model's rule applied to the RC's filtered replay error; 0 without it or before the RC
+        has been replayed."""
+        error = self.state.replay_rc_k
+        if not (self.settings.margin_from_replay and math.isfinite(error)):
             return 0.0
-        return min(lim.margin_factor * error, lim.max_margin_k)
+        return self._margin_for(error)
+
+    def _margin_for(self, error_k: float) -> float:
+        """``margin_factor`` times a filtered error [K], at most ``max_margin_k``."""
+        return min(self.settings.margin_factor * error_k, self.settings.max_margin_k)
 
     def reason(self, spread_k: float | None = None) -> str | None:
         """Why the model is not to be trusted now (None when it is)."""
