@@ -75,11 +75,11 @@ from controllers.lp_polish import PiggybackPolish, PlanProblem, PolishSettings, 
 from controllers.objective import HorizonObjective
 from controllers.planners import CEMPlanner, Planner, PlanResult, RandomShootingPlanner
 from controllers.setpoint_space import SetpointSpace
-from controllers.trust import TrustMonitor, TrustSettings
+from controllers.trust import RCReplay, TrustMonitor, TrustSettings
 from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.features import check_interval
 from pinn_mpc.models.rollout import BatchDynamics
-from pinn_mpc.physics import RCParams, discretise, step
+from pinn_mpc.physics import RCParams
 from pinn_mpc.records import TrustReport
 
 __all__ = ["CEM", "ENSEMBLE_MODES", "Guard", "RandomShooting"]
@@ -119,9 +119,6 @@ class Guard(NamedTuple):
     settings: TrustSettings = TrustSettings()
     training_ranges: dict[str, tuple[float, float]] = {}
 
-
-#: Decisions of the shadow RC MPC before its Kalman estimates start replays.
-SHADOW_SETTLE_STEPS = 3
 
 #: No RC fallback: the model always drives (its errors are still monitored and counted).
 NO_GUARD = Guard()
@@ -180,14 +177,13 @@ class _SamplingController(PlanningController):
         self.monitor = TrustMonitor(guard.settings, spec.u_max_w)
         self.training_ranges = dict(guard.training_ranges)
         self.shadow = None
-        self._estimates: dict[int, np.ndarray] = {}  # the shadow's (T_r, T_m) by step
-        self._shadow_steps = 0
+        self.replay: RCReplay | None = None  # the shadow's estimates, replayed
         if guard.rc is not None:
             from controllers.rc_mpc.osqp import QPMPC
 
             check_heating(guard.rc.eta, spec, what="the model's fallback RC")
             self.shadow = QPMPC(guard.rc, spec)
-            self._rc_matrices = discretise(guard.rc, spec.dt_s)
+            self.replay = RCReplay(guard.rc, spec, guard.settings.replay_steps)
         self.setpoint_stride: int | None = None  # probe stride when planning in setpoint space
         self.last_cost_eur = float("nan")  # planned objective of the last plan [EUR]
         self.reset()
@@ -206,10 +202,9 @@ class _SamplingController(PlanningController):
         self.fallback.reset()
         self.estimator.reset()
         self.monitor.reset()
-        self._estimates = {}
-        self._shadow_steps = 0
-        if self.shadow is not None:
+        if self.shadow is not None and self.replay is not None:
             self.shadow.reset(seed)
+            self.replay.reset()
         self._stats = SolveStats(time_s=0.0, status="reset", iterations=0, fallback=False)
 
     @property
@@ -236,10 +231,8 @@ class _SamplingController(PlanningController):
             if self.shadow is not None:  # every step, so that its observer stays current
                 self.shadow.comfort_margin_k = self.monitor.fallback_margin_k()
                 shadow_u = self.shadow.act(obs, forecast)
-                self._shadow_steps += 1
-                if self._shadow_steps > SHADOW_SETTLE_STEPS:  # its observer has settled
-                    self._estimates[obs.k] = np.array(self.shadow.state_estimate_c, dtype=float)
-                    self._estimates.pop(obs.k - self.monitor.settings.replay_steps - 1, None)
+                if self.replay is not None:
+                    self.replay.record(obs.k, self.shadow.state_estimate_c)
             if len(obs.history["u_phys"]) < self.model.depth + 1:
                 if shadow_u is not None:  # the model cannot predict yet: not a verdict on it
                     self.monitor.stand_in("short history")
@@ -269,25 +262,17 @@ class _SamplingController(PlanningController):
         # longest the history allows, for the model alone.
         hist = obs.history
         longest = min(self.monitor.settings.replay_steps, len(hist["u_phys"]) - self.model.depth - 1)
-        r = next((j for j in range(longest, 1, -1) if obs.k - j in self._estimates), longest)
+        r = longest if self.replay is None else self.replay.longest(obs.k, longest)
         if r < 2:
             return math.nan, math.nan
-        start = self._estimates.get(obs.k - r)
         u_phys = np.asarray(hist["u_phys"], dtype=float)[-r:]
         past = {name: np.asarray(values)[:-r] for name, values in hist.items()}
         exog = {name: np.asarray(hist[name], dtype=float)[-r - 1 : -1] for name in self.model.exog_names}
         with torch.no_grad():
             roll = self.model.rollout(past, torch.tensor(u_phys[None], dtype=torch.float32), exog)
         learned = float(roll.t_r_c[:, 0, -1].mean())
-        if start is None or not np.all(np.isfinite(start)):
-            return obs.t_r_c - learned, math.nan
-        zeros = np.zeros(len(hist["T_r"]))
-        t_a, g, i_g = (np.asarray(hist.get(n, zeros), dtype=float)[-r - 1 : -1] for n in ("T_a", "G", "I_g"))
-        d = np.stack([u_phys * self.spec.actuator.gain(t_a), t_a, g, i_g], axis=1)  # (r, 4)
-        x = start[None]
-        for j in range(r):
-            x = step(x, d[j : j + 1], *self._rc_matrices)
-        return obs.t_r_c - learned, obs.t_r_c - float(x[0, 0])
+        rc = math.nan if self.replay is None else self.replay.error_k(obs.k, obs.t_r_c, hist, r)
+        return obs.t_r_c - learned, rc
 
     def _out_of_range(self, exog: dict[str, np.ndarray]) -> None:
         """Count a forecast that leaves the training data's input ranges."""

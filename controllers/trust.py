@@ -38,11 +38,22 @@ otherwise rides the band's edge and the plant sits just outside it.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+import numpy as np
 
 from pinn_mpc.errors import InputError
+from pinn_mpc.physics import RCParams, discretise, step
 
-__all__ = ["TrustMonitor", "TrustSettings", "TrustState"]
+if TYPE_CHECKING:
+    from controllers.base import ControlSpec
+
+__all__ = ["RCReplay", "TrustMonitor", "TrustSettings", "TrustState"]
+
+#: Decisions of an RC MPC before its Kalman estimates start replays (its observer settles).
+SETTLE_STEPS = 3
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -207,3 +218,51 @@ class TrustMonitor:
         if not s.trusted:
             s.fallback_steps += 1
         return s.trusted
+
+
+class RCReplay:
+    """An RC replaying the recent past from where its observer stood: the multi-step error of
+    the RC an MPC plans on (the guard's fallback, or ``qp-mpc`` itself where it plans with
+    a margin from it). :meth:`record` keeps the observer's ``(T_r, T_m)`` estimate of each
+    step (after :data:`SETTLE_STEPS`); :meth:`error_k` replays the RC from the estimate of
+    ``r`` steps ago under the power that was delivered and the measured weather."""
+
+    def __init__(self, rc: RCParams, spec: ControlSpec, replay_steps: int) -> None:
+        self.spec, self.replay_steps = spec, replay_steps
+        self.matrices = discretise(rc, spec.dt_s)
+        self.reset()
+
+    def reset(self) -> None:
+        self._estimates: dict[int, np.ndarray] = {}
+        self._steps = 0
+
+    def record(self, k: int, estimate_c: Sequence[float] | np.ndarray) -> None:
+        """The observer's estimate [C] at step ``k``, once it has settled."""
+        self._steps += 1
+        if self._steps > SETTLE_STEPS:
+            self._estimates[k] = np.array(estimate_c, dtype=float)
+            self._estimates.pop(k - self.replay_steps - 1, None)
+
+    def longest(self, k: int, longest: int) -> int:
+        """The longest replay (2 .. ``longest`` intervals) from a recorded estimate at step
+        ``k``, else ``longest``."""
+        return next((j for j in range(longest, 1, -1) if k - j in self._estimates), longest)
+
+    def error_k(
+        self, k: int, t_r_c: float, hist: Mapping[str, Sequence[float] | np.ndarray], r: int
+    ) -> float:
+        """Measured ``t_r_c`` minus the RC's T_r replayed over the last ``r`` intervals of
+        ``hist`` from its estimate at step ``k - r`` [K]; NaN without a finite one."""
+        start = self._estimates.get(k - r)
+        if r < 1 or start is None or not np.all(np.isfinite(start)):
+            return math.nan
+        zeros = np.zeros(len(hist["T_r"]))
+        u_phys = np.asarray(hist["u_phys"], dtype=float)[-r:]
+        t_a, g, i_g = (
+            np.asarray(hist.get(n, zeros), dtype=float)[-r - 1 : -1] for n in ("T_a", "G", "I_g")
+        )
+        d = np.stack([u_phys * self.spec.actuator.gain(t_a), t_a, g, i_g], axis=1)  # (r, 4)
+        x = start[None]
+        for j in range(r):
+            x = step(x, d[j : j + 1], *self.matrices)
+        return t_r_c - float(x[0, 0])

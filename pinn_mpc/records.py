@@ -16,6 +16,7 @@ __all__ = [
     "OneStepErrors",
     "PersistenceErrors",
     "RcSummary",
+    "ReplayMarginReport",
     "TimeConstants",
     "TrustReport",
 ]
@@ -126,3 +127,15 @@ class TrustReport(TypedDict):
     before there was one."""
     rc_replay_error_k: float | None
     """The same of the fallback RC [K]; None before there was one (or without a fallback)."""
+
+
+class ReplayMarginReport(TypedDict):
+    """How far inside the band an RC MPC planning with its replay error plans at the end of a
+    run (:attr:`controllers.rc_mpc.problem.RCMPC.replay_report`, ``qp-mpc`` on BOPTEST); a
+    closed loop adds it to the run's KPIs."""
+
+    rc_replay_error_k: float | None
+    """Filtered absolute error of its RC replaying the recent past [K], rounded; None before
+    there was one."""
+    comfort_margin_k: float
+    """The margin it plans with [K]: that error, at most 0.5 K."""

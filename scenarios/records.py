@@ -100,6 +100,9 @@ class RunKpis(Kpis):
     model_error_k: NotRequired[float]
     model_replay_error_k: NotRequired[float | None]
     rc_replay_error_k: NotRequired[float | None]
+    comfort_margin_k: NotRequired[float]
+    """An RC MPC planning inside the band by its replay error (ReplayMarginReport): the
+    margin at the end [K]."""
     scenario_file: NotRequired[str]
     """``closed-loop --scenario FILE``: the scenario file's absolute path."""
     # a run on a BOPTEST scenario (scenarios.running.boptest_loop)

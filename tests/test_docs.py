@@ -450,6 +450,9 @@ def _boptest_page_outputs(workdir: Path, part: str | None) -> None:
         results[name] = b
     # the MPC on the identified RC keeps the band better than the thermostat's switching
     assert results["qp"]["tdis_tot"] < results["thermostat"]["tdis_tot"]
+    # it plans inside the band by its RC's replay error, as cem's fallback does
+    qp = json.loads((workdir / "qp.json").read_text())
+    assert qp["rc_replay_error_k"] is not None and 0.0 < qp["comfort_margin_k"] <= 0.5, qp
 
 
 def _gen_results():

@@ -19,6 +19,8 @@ from controllers.rc_mpc.casadi import CasadiMPC
 from controllers.rc_mpc.osqp import QPMPC
 from controllers.rc_mpc.problem import RCMPC, RCProblem, StageData
 from controllers.rc_mpc.references import clairvoyant_mpc, oracle_mpc
+from controllers.trust import TrustSettings
+from pinn_mpc.errors import InputError
 from pinn_mpc.physics import PAPER_HOUSEHOLD, steady_state
 from pinn_mpc.simulator import SimConfig
 from scenarios.inputs.series import ExogenousSeries
@@ -184,6 +186,46 @@ def test_a_comfort_margin_holds_the_band_that_far_inside(cls: type[RCMPC], t_max
     mpc.reset()
     mpc.comfort_margin_k = 0.0  # without it, the room is let down to T_min first
     assert mpc.act(_first_obs(float(x[0]), float(x[1]), t_a), fc) < 0.9 * u_ss
+
+
+def _below_band(mpc: RCMPC, n: int = 96) -> tuple[float, np.ndarray]:
+    """Run ``mpc`` on the exact plant of PARAMS under a mild day (T_a 10 C) from inside the
+    band; (K h below T_min, actions [W])."""
+    config = SimConfig(params=PARAMS, backup_low_c=-50.0, backup_high_c=80.0)
+    fc = _forecast(n + SPEC.horizon_steps, T_a=10.0)
+    loop = ClosedLoop(config, ExogenousSeries(**fc._asdict()), spec=SPEC, initial_t_r_c=20.5, initial_t_m_c=20.0)
+    mpc.reset(seed=0)
+    t_r = np.array([float(loop.advance(mpc).plant.t_r_c[0]) for _ in range(n)])
+    below = np.maximum(fc.T_min[1 : n + 1] - t_r, 0.0).sum() * SPEC.dt_s / 3600.0
+    return float(below), loop.record().u_w
+
+
+@pytest.mark.parametrize(
+    "wrong", [{"r_ra_k_per_w": PARAMS.r_ra_k_per_w * 1.5}, {"eta": PARAMS.eta * 1.3}], ids=["R_ra x1.5", "eta x1.3"]
+)
+def test_planning_with_its_replay_margin_keeps_a_misidentified_rc_in_the_band(wrong: dict[str, float]) -> None:
+    """An RC that believes the house warmer than it is (better insulated, a stronger heater)
+    rides T_min and the room falls below it; planning inside the band by the RC's own filtered
+    replay error (what BOPTEST's MPC does) keeps it in, with the margin that error, at most
+    0.5 K. On the exact RC the replay error and the margin are 0 and nothing changes."""
+    rc = dataclasses.replace(PARAMS, **wrong)
+    below, _ = _below_band(QPMPC(rc, SPEC))
+    guarded = QPMPC(rc, SPEC)
+    guarded.plan_with_replay_margin(TrustSettings(margin_from_replay=True))
+    below_guarded, _ = _below_band(guarded)
+    report = guarded.replay_report
+    assert below > 0.3 and below_guarded < 0.01, (below, below_guarded)
+    assert report is not None and report["rc_replay_error_k"] is not None
+    assert 0.05 < report["comfort_margin_k"] == pytest.approx(min(report["rc_replay_error_k"], 0.5), abs=1e-4)
+
+    exact = QPMPC(PARAMS, SPEC)
+    exact.plan_with_replay_margin(TrustSettings(margin_from_replay=True))
+    _, actions = _below_band(exact)
+    _, plain = _below_band(QPMPC(PARAMS, SPEC))
+    assert exact.replay_report == {"rc_replay_error_k": 0.0, "comfort_margin_k": 0.0}
+    np.testing.assert_allclose(actions, plain, atol=0.01 * SPEC.u_max_w)
+    with pytest.raises(InputError, match="margin_from_replay"):
+        exact.plan_with_replay_margin(TrustSettings())
 
 
 def test_regulariser_moves_the_objective_by_less_than_a_thousandth() -> None:

@@ -53,8 +53,10 @@ from controllers.base import (
 )
 from controllers.estimators import KalmanEstimator, StateEstimator, TrueState
 from controllers.objective import HorizonObjective, narrowed
+from controllers.trust import RCReplay, TrustMonitor, TrustSettings
 from pinn_mpc.errors import InputError
 from pinn_mpc.physics import RCParams, discretise
+from pinn_mpc.records import ReplayMarginReport
 
 __all__ = ["DEFAULT_REGULARISATION", "RCMPC", "RCProblem", "SolveResult", "StageData"]
 
@@ -163,7 +165,8 @@ class RCMPC(PlanningController):
     ``comfort_margin_k`` [K] (0 unless set; an owner may change it between decisions) narrows
     the forecast's comfort band on each side before each solve, to its middle where the band
     is narrower than twice the margin: a guarded planner sets it on its fallback RC MPC from
-    the RC's realised error (:class:`controllers.sampling.CEM`).
+    the RC's realised error (:class:`controllers.sampling.CEM`); after
+    :meth:`plan_with_replay_margin` the MPC sets it itself by the same rule.
 
     Fallback (on an exception in the estimate or solve, a non-optimal status or a non-finite
     plan): :class:`controllers.base.Fallback` with the previous plan. ``last_stats.fallback`` is
@@ -203,8 +206,36 @@ class RCMPC(PlanningController):
         )
         self.fallback = Fallback(spec, reuse_plan=True)
         self.comfort_margin_k = 0.0
+        self._replay: tuple[RCReplay, TrustMonitor] | None = None
         self.reset()
         self._build()
+
+    def plan_with_replay_margin(self, settings: TrustSettings) -> None:
+        """From the next decision on, plan against the band narrowed by this RC's own filtered
+        replay error (:class:`controllers.trust.RCReplay`), by the rule a guarded planner's
+        fallback follows (:meth:`controllers.trust.TrustMonitor.fallback_margin_k` with
+        ``settings``, which must have ``margin_from_replay``): on a plant measured without
+        noise (BOPTEST) an MPC that rides the band's edge misses it by the error its RC makes
+        over the hours it plans. 0 until the first replay."""
+        if not settings.margin_from_replay:
+            raise InputError("plan_with_replay_margin needs TrustSettings(margin_from_replay=True)")
+        self._replay = (
+            RCReplay(self.params, self.spec, settings.replay_steps),
+            TrustMonitor(settings, self.spec.u_max_w),
+        )
+        self.comfort_margin_k = 0.0
+
+    @property
+    def replay_report(self) -> ReplayMarginReport | None:
+        """After :meth:`plan_with_replay_margin`: the RC's filtered replay error [K] (None
+        before the first replay) and the margin it plans with now [K]; else None."""
+        if self._replay is None:
+            return None
+        error = self._replay[1].state.replay_rc_k
+        return {
+            "rc_replay_error_k": round(error, 4) if math.isfinite(error) else None,
+            "comfort_margin_k": round(self.comfort_margin_k, 4),
+        }
 
     #: It plans on RC parameters, over no learned or ARX model (:class:`controllers.base.Controller`).
     model = None
@@ -222,6 +253,10 @@ class RCMPC(PlanningController):
         self._k_start: int | None = None
         self._stats = SolveStats(time_s=0.0, status="not run", iterations=0, fallback=False)
         self.state_estimate_c = np.full(2, np.nan)
+        if self._replay is not None:
+            self._replay[0].reset()
+            self._replay[1].reset()
+            self.comfort_margin_k = 0.0
 
     def act(self, obs: Observation, forecast: Forecast) -> float:
         start = time.perf_counter()
@@ -229,6 +264,8 @@ class RCMPC(PlanningController):
         try:
             self.state_estimate_c = np.full(2, np.nan)
             self.state_estimate_c = self.estimator.update(obs)
+            if self._replay is not None:
+                self._replayed(obs)
             if self.comfort_margin_k > 0:
                 forecast = narrowed(forecast, self.comfort_margin_k)
             stage = self.problem.stage(self.state_estimate_c, forecast, n_active=self._n_active(obs))
@@ -243,6 +280,18 @@ class RCMPC(PlanningController):
             return self._failed(obs, forecast, start, f"{status}: {type(exc).__name__}: {exc}", iterations)
         plan_w = np.clip(p, 0.0, self.problem.u_max_kw) * 1000.0
         return self._succeeded(plan_w, start, status, iterations)
+
+    def _replayed(self, obs: Observation) -> None:
+        """Replay the RC over the last intervals from its earlier estimate, filter its error,
+        record this step's estimate and set the margin from the filtered error."""
+        assert self._replay is not None
+        replay, monitor = self._replay
+        hist = obs.history
+        r = replay.longest(obs.k, min(replay.replay_steps, len(hist["u_phys"]) - 1))
+        if r >= 2:
+            monitor.observe(math.nan, math.nan, replay_rc_k=replay.error_k(obs.k, obs.t_r_c, hist, r))
+        replay.record(obs.k, self.state_estimate_c)
+        self.comfort_margin_k = monitor.fallback_margin_k()
 
     # -- hooks ----------------------------------------------------------------------------
     def _build(self) -> None:

@@ -29,11 +29,12 @@ import pandas as pd
 
 from controllers.base import Controller
 from controllers.thermostat import Thermostat
+from controllers.trust import TrustSettings
 from pinn_mpc.artifacts import read_rc_json
 from pinn_mpc.choices import ARX, AUTO, COMPARED_ARCHS, MODEL_CHOICES, PHYSICS_ARX
 from pinn_mpc.errors import InputError
 from pinn_mpc.physics import RCParams
-from pinn_mpc.records import TrustReport
+from pinn_mpc.records import ReplayMarginReport, TrustReport
 from scenarios.choices import MODEL_CONTROLLERS, POLICIES, RC_CONTROLLERS
 from scenarios.inputs.exogenous import day_span
 from scenarios.inputs.registry import Scenario, builtin_scenario, check_seed
@@ -148,16 +149,41 @@ def boptest_scenario(name_or_path: str, *, url: str | None = None) -> BoptestSce
     return BoptestScenario(name=name, settings=settings, path=path)
 
 
+#: The trust settings of every MPC on BOPTEST: it plans inside the band by its replay error
+#: (:attr:`controllers.trust.TrustSettings.margin_from_replay`).
+BOPTEST_TRUST = TrustSettings(margin_from_replay=True)
+
+
 def boptest_guard(model: BatchDynamics) -> Guard:
     """The fallback of a planner over ``model`` on BOPTEST: the RC and ranges of
     :func:`scenarios.running.factory.model_guard`, and a comfort margin from the model's replay error as well as its one-step
     error (:attr:`controllers.trust.TrustSettings.margin_from_replay`): BOPTEST measures the
     zone temperature without noise, so the replayed hours' error is the model's own, and a
     plan that rides the band's edge hours ahead misses it by that much."""
-    from controllers.trust import TrustSettings
     from scenarios.running.factory import model_guard
 
-    return model_guard(model)._replace(settings=TrustSettings(margin_from_replay=True))
+    return model_guard(model)._replace(settings=BOPTEST_TRUST)
+
+
+def boptest_rc_mpc(name: str, scenario: Scenario, rc_params: RCParams, *, n_steps: int) -> Controller:
+    """The MPC ``name`` (``qp-mpc``, ``casadi-mpc``) on ``rc_params`` for ``scenario``, planning
+    inside the band by its RC's own filtered replay error, as a guarded planner's fallback
+    does here (:data:`BOPTEST_TRUST`,
+    :meth:`controllers.rc_mpc.problem.RCMPC.plan_with_replay_margin`): BOPTEST measures the
+    zone without noise, and an MPC that rides the band's edge misses it by its RC's error."""
+    from scenarios.running.factory import build_controller
+
+    return _with_replay_margin(build_controller(name, scenario, rc_params=rc_params, n_steps=n_steps))
+
+
+def _with_replay_margin(controller: Controller) -> Controller:
+    """``controller``, set to plan inside the band by its RC's replay error if it is an MPC
+    on an RC estimating its state (:func:`boptest_rc_mpc`)."""
+    from controllers.rc_mpc.problem import RCMPC
+
+    if isinstance(controller, RCMPC) and not controller.knows_true_state:
+        controller.plan_with_replay_margin(BOPTEST_TRUST)
+    return controller
 
 
 def boptest_controller(
@@ -173,6 +199,8 @@ def boptest_controller(
     :func:`scenarios.running.factory.make_controller` builds it on
     :meth:`BoptestScenario.scenario`); None for :data:`BASELINE`.
 
+    An MPC on an RC plans inside the band by its RC's replay error (:func:`boptest_rc_mpc`).
+
     A learned model's or an RC's fit is not checked against the scenario's building: the test
     case has no RC parameters to compare time constants with, and its heat pump draws more
     than the curve's highest power at full signal on cold days, so the emulator's own data
@@ -181,7 +209,7 @@ def boptest_controller(
         if model_dir is not None or rc_path is not None:
             raise InputError(f"{BASELINE} is the test case's own controller: it takes no --model or --rc")
         return None
-    from scenarios.running.factory import build_controller, make_controller
+    from scenarios.running.factory import make_controller
 
     scenario = chosen.scenario(dt_s)
     if name in MODEL_CONTROLLERS and model_dir is not None:
@@ -194,8 +222,10 @@ def boptest_controller(
         return planner(model, scenario.control_spec(), guard=boptest_guard(model))
     if name in RC_CONTROLLERS and rc_path is not None and model_dir is None:
         rc_params, _ = read_rc_json(rc_path)
-        return build_controller(name, scenario, rc_params=rc_params, n_steps=n_steps)
-    return make_controller(name, scenario, model_dir=model_dir, rc_path=rc_path, n_steps=n_steps)
+        return boptest_rc_mpc(name, scenario, rc_params, n_steps=n_steps)
+    return _with_replay_margin(
+        make_controller(name, scenario, model_dir=model_dir, rc_path=rc_path, n_steps=n_steps)
+    )
 
 
 def run_boptest_closed_loop(
@@ -259,6 +289,9 @@ def run_boptest_closed_loop(
     report: TrustReport | None = getattr(controller, "trust_report", None)
     if isinstance(report, dict):  # a planner over a learned model: how often it fell back
         kpis.update(report)
+    replay: ReplayMarginReport | None = getattr(controller, "replay_report", None)
+    if isinstance(replay, dict):  # an RC MPC planning inside the band by its replay error
+        kpis.update(replay)
     return ClosedLoopResult(trajectory=trajectory, kpis=kpis, errors=tuple(errors))
 
 
@@ -351,8 +384,6 @@ def boptest_planner(
     ``dt_s`` [s] for ``n_steps`` intervals, from a fitted ``model`` (:func:`boptest_fit`);
     None for :data:`BASELINE`."""
     from controllers.sampling import CEM
-    from pinn_mpc.physics import RCParams
-    from scenarios.running.factory import build_controller
 
     scenario = chosen.scenario(dt_s)
     spec = scenario.control_spec()
@@ -361,7 +392,7 @@ def boptest_planner(
     if name == "thermostat":
         return Thermostat(spec)
     if name == "qp-mpc" and isinstance(model, RCParams):
-        return build_controller("qp-mpc", scenario, rc_params=model, n_steps=n_steps)
+        return boptest_rc_mpc("qp-mpc", scenario, model, n_steps=n_steps)
     if name == "cem" and model is not None and not isinstance(model, RCParams):
         return CEM(model, spec, guard=boptest_guard(model))
     raise InputError(
