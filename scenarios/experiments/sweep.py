@@ -782,7 +782,7 @@ def _check_out(root: Path, *, force: bool) -> None:
             )
 
 
-def _progress_line(done: float, total: int, reused: int, trained: int, elapsed_s: float) -> str:
+def _progress_line(done: int, total: int, reused: int, trained: int, elapsed_s: float) -> str:
     """The sweep's progress in a log: cells done of ``total``, models trained, time left."""
     from scenarios.running.closed_loop import duration_text
 
@@ -845,13 +845,14 @@ def _run_on_ray(
 
     terminal = sys.stderr.isatty()
     began = last = time.monotonic()
+    done = reused  # counted here: off a terminal the bar is disabled and does not count
     with tqdm(total=total, initial=reused, desc="sweep", unit="cell", disable=None) as bar:
         while pending:
             now = time.monotonic()
             if not terminal and now - last >= PROGRESS_EVERY_S:  # a log: a line a minute
                 last = now
                 print(
-                    _progress_line(bar.n, total, reused, trained, now - began),
+                    _progress_line(done, total, reused, trained, now - began),
                     file=sys.stderr,
                     flush=True,
                 )
@@ -874,6 +875,7 @@ def _run_on_ray(
             }
             atomic_write_json(root / "cells" / f"{what.name}.json", record)
             records[what] = record
+            done += 1
             bar.update()
     return trained
 
