@@ -18,7 +18,7 @@ from typing import Any, Union
 
 import pytest
 
-from pinn_mpc.records import EvaluationMetrics, RcSummary, TrustReport
+from pinn_mpc.records import EvaluationMetrics, RcSummary, ReplayMarginReport, TrustReport
 from pinn_mpc_cli.cli import main
 from scenarios.inputs.scenario_file import get_scenario
 from scenarios.records import (
@@ -145,12 +145,25 @@ def test_a_planner_over_a_learned_model_adds_its_trust_report():
     result = run_closed_loop(scenario, controller, days=1, seed=0, warmup_steps=4)
     assert_record(result.kpis, RunKpis)
     assert set(TrustReport.__annotations__) <= set(result.kpis)
-    # the trust keys a run may have are exactly the trust report's (the rest: a scenario
-    # file's name and a BOPTEST run's own)
+    # the trust keys a run may have are exactly the trust report's and an RC MPC's replay
+    # margin's (the rest: a scenario file's name and a BOPTEST run's own)
     boptest = {"boptest", "boptest_testcase", "test_period", "price_scenario"}
     assert set(RunKpis.__optional_keys__) - {"scenario_file"} - boptest == set(
         TrustReport.__annotations__
-    )
+    ) | set(ReplayMarginReport.__annotations__)
+
+
+def test_an_rc_mpc_planning_with_its_replay_margin_reports_it():
+    from controllers.rc_mpc.osqp import QPMPC
+    from controllers.trust import TrustSettings
+    from scenarios.running.closed_loop import run_closed_loop
+
+    scenario = get_scenario("winter_household")
+    mpc = QPMPC(scenario.sim.params, scenario.control_spec())
+    assert mpc.replay_report is None
+    mpc.plan_with_replay_margin(TrustSettings(margin_from_replay=True))
+    run_closed_loop(scenario, mpc, days=1, seed=0, warmup_steps=4)
+    assert_record(mpc.replay_report, ReplayMarginReport)
 
 
 def test_prediction_rows_and_rc_summaries():
