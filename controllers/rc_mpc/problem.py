@@ -265,7 +265,7 @@ class RCMPC(PlanningController):
             self.state_estimate_c = np.full(2, np.nan)
             self.state_estimate_c = self.estimator.update(obs)
             if self._replay is not None:
-                self._replayed(obs)
+                self._replayed(obs, *self._replay)
             if self.comfort_margin_k > 0:
                 forecast = narrowed(forecast, self.comfort_margin_k)
             stage = self.problem.stage(self.state_estimate_c, forecast, n_active=self._n_active(obs))
@@ -281,11 +281,9 @@ class RCMPC(PlanningController):
         plan_w = np.clip(p, 0.0, self.problem.u_max_kw) * 1000.0
         return self._succeeded(plan_w, start, status, iterations)
 
-    def _replayed(self, obs: Observation) -> None:
+    def _replayed(self, obs: Observation, replay: RCReplay, monitor: TrustMonitor) -> None:
         """Replay the RC over the last intervals from its earlier estimate, filter its error,
         record this step's estimate and set the margin from the filtered error."""
-        assert self._replay is not None
-        replay, monitor = self._replay
         hist = obs.history
         r = replay.longest(obs.k, min(replay.replay_steps, len(hist["u_phys"]) - 1))
         if r >= 2:
