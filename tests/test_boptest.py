@@ -8,9 +8,11 @@ from __future__ import annotations
 
 import math
 import time
+from contextlib import closing
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from controllers.base import ControlSpec, Forecast, Observation, SolveStats
@@ -32,6 +34,7 @@ from scenarios.plants.boptest_client import (
     BoptestTestEnded,
     BoptestUnreachable,
 )
+from scenarios.running.closed_loop import ClosedLoopResult
 from scenarios.running.engine import ClosedLoop
 from scenarios.running.kpis import compute_kpis
 from tests.boptest_server import IDLE_TIMEOUT_S, Server, free_port
@@ -401,6 +404,96 @@ def test_ctrl_c_in_the_loop_stops_the_test_on_the_server(settings: BoptestSettin
     assert plant.test.stopped
     status = BoptestClient(settings.url).call("GET", f"status/{plant.test.testid}")
     assert status == "Stopped"
+
+
+# --- one test for several runs ----------------------------------------------------------------
+
+#: What a run measures in wall time, not of the building: left out where two runs are compared.
+WALL_CLOCK_KPIS = {"decision_ms_median", "decision_ms_mean", "decision_ms_p95", "time_ratio"}
+
+
+def _assert_same_run(result: ClosedLoopResult, reference: ClosedLoopResult) -> None:
+    """``result`` is ``reference``'s run: its KPIs (BOPTEST's and the package's) and trajectory
+    to 1e-9 relative, but for the wall-clock figures (:data:`WALL_CLOCK_KPIS`, BOPTEST's
+    ``time_rat``, the decision times)."""
+    got, want = dict(result.kpis), dict(reference.kpis)
+    assert got.keys() == want.keys()
+    for key in want.keys() - WALL_CLOCK_KPIS - {"boptest"}:
+        if isinstance(want[key], float):
+            assert got[key] == pytest.approx(want[key], rel=1e-9), key
+        else:
+            assert got[key] == want[key], key
+    ours, theirs = result.kpis["boptest"], reference.kpis["boptest"]
+    assert ours.keys() == theirs.keys() and ours["time_rat"] is not None
+    for key in theirs.keys() - {"time_rat"}:
+        if theirs[key] is None:
+            assert ours[key] is None, key
+        else:
+            assert ours[key] == pytest.approx(theirs[key], rel=1e-9), key
+    pd.testing.assert_frame_equal(
+        result.trajectory.drop(columns="decision_ms"), reference.trajectory.drop(columns="decision_ms"),
+        check_exact=False, rtol=1e-9,
+    )
+    assert result.errors == reference.errors
+
+
+@pytest.mark.slow
+def test_a_loop_on_a_borrowed_test_is_the_loop_on_a_fresh_test(server: Server) -> None:
+    """BOPTEST re-initialises a test and its KPIs as a run re-starts it (``PUT /scenario``):
+    the thermostat's day run twice on one test, after the baseline's day on it, has the KPIs
+    (BOPTEST's and the package's) and trajectory of the same day on a fresh test; KPIs
+    carried over from an earlier run would add to them. The plants leave the test running."""
+    from controllers.thermostat import Thermostat
+    from scenarios.running.boptest_loop import BASELINE, boptest_scenario, run_boptest_closed_loop
+
+    chosen = boptest_scenario("boptest_hydronic_heat_pump", url=server.url)
+    run = BoptestRun(time_period="peak_heat_day", days=1.0, dt_s=3600.0)
+    spec = chosen.scenario(run.dt_s).control_spec()
+
+    def thermostat(test: BoptestTest | None) -> ClosedLoopResult:
+        return run_boptest_closed_loop(chosen, "thermostat", Thermostat(spec), run=run, test=test)
+
+    fresh = thermostat(None)
+    with closing(BoptestClient(server.url)) as client, client.select(TESTCASE) as test:
+        before = run_boptest_closed_loop(chosen, BASELINE, None, run=run, test=test)
+        reused = [thermostat(test), thermostat(test)]
+        assert not test.stopped and client.call("GET", f"status/{test.testid}") == "Running"
+    assert test.stopped
+    assert BoptestClient(server.url).call("GET", f"status/{test.testid}") == "Stopped"
+    # the baseline's run left energy behind to carry over, and differs from the thermostat's
+    b, t = before.kpis["boptest"], fresh.kpis["boptest"]
+    assert b["ener_tot"] is not None and t["ener_tot"] is not None and b["ener_tot"] > 0
+    assert b["ener_tot"] != pytest.approx(t["ener_tot"], rel=1e-3)
+    for result in reused:
+        _assert_same_run(result, fresh)
+
+
+def test_a_plant_refuses_a_borrowed_test_of_another_test_case() -> None:
+    points = read_boptest_file(str(SCENARIO)).points
+    test = BoptestTest(BoptestClient(f"http://127.0.0.1:{free_port()}"), "no-id", "bestest_air")
+    with pytest.raises(InputError, match="test case bestest_air, the scenario's is bestest_hydronic_heat_pump"):
+        BoptestPlant(BoptestSettings(points=points), BoptestRun(days=1), test=test)
+    assert not test.stopped
+
+
+def test_a_plant_on_a_borrowed_test_leaves_stopping_it_to_its_owner(settings: BoptestSettings) -> None:
+    import dataclasses
+
+    run = BoptestRun(time_period=None, first_day=45.0, days=0.25, warmup_days=0.0, dt_s=1800.0)
+    wrong = dataclasses.replace(settings.points, room_temperature="reaTRoom_y")
+    with closing(BoptestClient(settings.url)) as client, client.select(TESTCASE) as test:
+        with pytest.raises(InputError, match="has no measurement reaTRoom_y"):
+            BoptestPlant(dataclasses.replace(settings, points=wrong), run, test=test)
+        assert not test.stopped
+        with BoptestPlant(settings, run, test=test) as plant:
+            first = plant.step(2000.0, 0).result.t_r_c[0]
+        assert plant.test is test and not test.stopped
+        assert client.call("GET", f"status/{test.testid}") == "Running"
+        with BoptestPlant(settings, run, test=test) as again:  # re-started: the same interval
+            assert again.start_time_s == plant.start_time_s
+            assert again.step(2000.0, 0).result.t_r_c[0] == pytest.approx(first, rel=1e-12)
+    assert test.stopped
+    assert BoptestClient(settings.url).call("GET", f"status/{test.testid}") == "Stopped"
 
 
 # --- the command line on BOPTEST ---------------------------------------------------------------

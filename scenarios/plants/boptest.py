@@ -27,7 +27,8 @@ demand below that runs it at its lowest signal or switches it off, whichever is 
 The controllers' forecasts of weather, gains, comfort band and price are BOPTEST's
 ``/forecast`` (:meth:`BoptestPlant.exogenous_frame`), interval means of its samples.
 The test stops on the server however the plant is left (:meth:`BoptestPlant.close`, or use it
-as a context manager; an error or Ctrl-C included).
+as a context manager; an error or Ctrl-C included). A plant given a test (``test=``) borrows it:
+it re-starts that test for its run instead of selecting one, and leaves stopping it to its owner.
 """
 
 from __future__ import annotations
@@ -327,11 +328,15 @@ class BoptestPlant:
 
     Construction selects a test on the server, checks the points against the test case's
     (one clear error naming a missing point), sets the control step and starts the run
-    (:class:`BoptestRun`); on any failure the test is stopped. :meth:`reset` at row 0 starts
-    the run afresh (unless nothing has been stepped since it started); the state it is given
-    is ignored (BOPTEST's warm-up sets the state). :meth:`step` holds the demand over row
-    ``row``'s interval. With ``baseline`` the demand is ignored and no input is overwritten:
-    the test case's own controller acts (BOPTEST's baseline, the reference of its tables).
+    (:class:`BoptestRun`); on any failure the test is stopped. Given a ``test`` (of the same
+    test case), the plant borrows it: no select, the run started on it as :meth:`reset`
+    re-starts one (BOPTEST re-initialises the test and its KPIs), and neither a failure nor
+    :meth:`close` stops it: its owner does (a :class:`BoptestTest` in a ``with`` block).
+    :meth:`reset` at row 0 starts the run afresh (unless nothing has been stepped since it
+    started); the state it is given is ignored (BOPTEST's warm-up sets the state).
+    :meth:`step` holds the demand over row ``row``'s interval. With ``baseline`` the demand is
+    ignored and no input is overwritten: the test case's own controller acts (BOPTEST's
+    baseline, the reference of its tables).
     """
 
     has_true_state = False
@@ -339,7 +344,7 @@ class BoptestPlant:
 
     def __init__(
         self, settings: BoptestSettings, run: BoptestRun, *, baseline: bool = False,
-        lead_intervals: int = 0,
+        lead_intervals: int = 0, test: BoptestTest | None = None,
     ) -> None:
         self.settings, self.run, self.points = settings, run, settings.points
         self.baseline = baseline
@@ -351,8 +356,18 @@ class BoptestPlant:
         elif run.time_period is not None:
             self.points.period_days(run.time_period)
         self.n_substeps = max(1, int(round(run.dt_s / RESULT_SAMPLE_S)))
-        self.client = BoptestClient(settings.url, timeout_s=settings.timeout_s)
-        self.test: BoptestTest = self.client.select(self.points.testcase)
+        self.borrowed = test is not None
+        if test is None:
+            self.client = BoptestClient(settings.url, timeout_s=settings.timeout_s)
+            test = self.client.select(self.points.testcase)
+        elif test.testcase != self.points.testcase:
+            raise InputError(
+                f"BoptestPlant: the test given is of test case {test.testcase}, the scenario's "
+                f"is {self.points.testcase}"
+            )
+        else:
+            self.client = test.client
+        self.test: BoptestTest = test
         try:
             self._check_points()
             self.test.set_step(run.dt_s)
@@ -403,7 +418,10 @@ class BoptestPlant:
         self._frame = self._forecast_frame()
 
     def close(self) -> None:
-        """Stop the test on the server and close the session (once; later calls do nothing)."""
+        """Stop the test on the server and close the session (once; later calls do nothing).
+        A borrowed test is left running, its session open: its owner ends them."""
+        if self.borrowed:
+            return
         try:
             self.test.stop()
         finally:

@@ -10,7 +10,8 @@ and warm-up), then runs the one loop engine on the plant's ``/forecast`` inputs,
 warm-up of the package's own (BOPTEST's warm-up sets the state): every interval is counted.
 The KPIs are the package's, plus ``boptest``, BOPTEST's own KPI dict from ``/kpi``, read
 before the test stops. ``boptest-baseline`` runs the test case's own controller (no input
-overwritten): the reference BOPTEST tables are read against.
+overwritten): the reference BOPTEST tables are read against. Given a test
+(``test=``), the loop re-starts that test at the period's start instead of selecting one.
 
 :func:`boptest_data` records training data under the package's data policies on days of the
 year disjoint from every test period and its warm-up (refused where they would overlap).
@@ -50,6 +51,7 @@ from scenarios.plants.boptest import (
     read_boptest_file,
     record_data,
 )
+from scenarios.plants.boptest_client import BoptestTest
 from scenarios.records import RunKpis
 from scenarios.running.closed_loop import (
     ClosedLoopResult,
@@ -236,12 +238,15 @@ def run_boptest_closed_loop(
     run: BoptestRun,
     seed: int = 0,
     progress: bool = False,
+    test: BoptestTest | None = None,
 ) -> ClosedLoopResult:
     """Run ``controller`` (None for :data:`BASELINE`; reset with ``seed``, which fixes a
     sampling planner's draws) over ``run`` on the BOPTEST server.
 
-    The test is stopped on the server however the run ends (an error reply or Ctrl-C
-    included); nothing is returned from a run that did not finish. The KPIs are the
+    The run selects a test of its own, stopped on the server however the run ends (an error
+    reply or Ctrl-C included), or, given ``test``, borrows that one (:class:`BoptestPlant`):
+    re-started at the period's start (BOPTEST re-initialises it and its KPIs), left for its
+    owner to stop. Nothing is returned from a run that did not finish. The KPIs are the
     package's over every interval, with ``boptest`` (BOPTEST's ``/kpi``), ``test_period``,
     ``price_scenario`` and ``boptest_testcase``.
     """
@@ -254,7 +259,9 @@ def run_boptest_closed_loop(
     check_seed(seed)
     acting.reset(seed)
     n = run.n_intervals
-    with BoptestPlant(chosen.settings, run, baseline=baseline, lead_intervals=scenario.horizon_steps) as plant:
+    with BoptestPlant(
+        chosen.settings, run, baseline=baseline, lead_intervals=scenario.horizon_steps, test=test
+    ) as plant:
         frame = plant.exogenous_frame()
         t_r0 = float(plant.measure()[0])
         with ClosedLoop(
