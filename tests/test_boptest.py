@@ -496,6 +496,62 @@ def test_a_plant_on_a_borrowed_test_leaves_stopping_it_to_its_owner(settings: Bo
     assert BoptestClient(settings.url).call("GET", f"status/{test.testid}") == "Stopped"
 
 
+@pytest.mark.slow
+def test_a_comparison_runs_its_rows_on_one_test_and_stops_it_however_it_ends(
+    server: Server, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The rows (stand-ins here, each calling the test it is given) share one test, stopped
+    on the server after the last row, after Ctrl-C in a row, and after the server ended it
+    (the row's error, :class:`BoptestTestEnded`, is the one reported)."""
+    from pinn_mpc.physics import PAPER_HOUSEHOLD
+    from pinn_mpc.training import TrainConfig
+    from scenarios.running import boptest_loop
+
+    chosen = boptest_loop.boptest_scenario("boptest_hydronic_heat_pump", url=server.url)
+    data = pd.DataFrame({"time": pd.date_range("2018-01-31", periods=96, freq="30min")})
+    monkeypatch.setattr(boptest_loop, "boptest_data", lambda *args, **kwargs: data)
+    monkeypatch.setattr(boptest_loop, "boptest_fit", lambda kind, data, config: (PAPER_HOUSEHOLD, kind))
+    monkeypatch.setattr(boptest_loop, "boptest_planner", lambda *args, **kwargs: None)
+    given: list[BoptestTest] = []
+    failure: list[str] = []
+
+    def row(chosen: object, label: str, controller: object, *, test: BoptestTest, **kwargs: object) -> ClosedLoopResult:
+        given.append(test)
+        if len(given) == 2 and failure == ["ctrl-c"]:
+            raise KeyboardInterrupt
+        if len(given) == 2 and failure == ["ended"]:  # as the server's idle timeout ends it
+            test.client.call("PUT", f"stop/{test.testid}")
+        test.step_s()
+        return ClosedLoopResult(trajectory=pd.DataFrame(), kpis={"controller": label}, errors=())  # type: ignore[typeddict-item]
+
+    monkeypatch.setattr(boptest_loop, "run_boptest_closed_loop", row)
+
+    def compare() -> boptest_loop.BoptestComparison:
+        return boptest_loop.run_boptest_comparison(
+            chosen, train_days=2, days=1, seed=0, run=BoptestRun(days=1), config=TrainConfig(),
+            families=(),
+        )
+
+    status = BoptestClient(server.url)
+    result = compare()
+    assert [r["controller"] for r in result.rows] == [
+        "boptest-baseline", "thermostat", "qp-mpc", "cem / default (auto)"
+    ]
+    assert len(given) == 4 and all(t is given[0] for t in given) and given[0].stopped
+    assert status.call("GET", f"status/{given[0].testid}") == "Stopped"
+    assert "select test" in result.wall_time_s
+    ended: tuple[tuple[str, type[BaseException], str | None], ...] = (
+        ("ctrl-c", KeyboardInterrupt, None), ("ended", BoptestTestEnded, "idle timeout"),
+    )
+    for kind, error, match in ended:
+        given.clear()
+        failure[:] = [kind]
+        with pytest.raises(error, match=match):
+            compare()
+        assert len(given) == 2 and given[0] is given[1] and given[0].stopped
+        assert status.call("GET", f"status/{given[0].testid}") == "Stopped"
+
+
 # --- the command line on BOPTEST ---------------------------------------------------------------
 
 

@@ -28,7 +28,8 @@ The controllers' forecasts of weather, gains, comfort band and price are BOPTEST
 ``/forecast`` (:meth:`BoptestPlant.exogenous_frame`), interval means of its samples.
 The test stops on the server however the plant is left (:meth:`BoptestPlant.close`, or use it
 as a context manager; an error or Ctrl-C included). A plant given a test (``test=``) borrows it:
-it re-starts that test for its run instead of selecting one, and leaves stopping it to its owner.
+it re-starts that test for its run instead of selecting one, and leaves stopping it to its owner
+(``run_boptest_comparison`` runs all its rows on one test so).
 """
 
 from __future__ import annotations

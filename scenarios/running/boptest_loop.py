@@ -11,7 +11,8 @@ warm-up of the package's own (BOPTEST's warm-up sets the state): every interval 
 The KPIs are the package's, plus ``boptest``, BOPTEST's own KPI dict from ``/kpi``, read
 before the test stops. ``boptest-baseline`` runs the test case's own controller (no input
 overwritten): the reference BOPTEST tables are read against. Given a test
-(``test=``), the loop re-starts that test at the period's start instead of selecting one.
+(``test=``), the loop re-starts that test at the period's start instead of selecting one:
+:func:`run_boptest_comparison` selects one test and runs every row on it.
 
 :func:`boptest_data` records training data under the package's data policies on days of the
 year disjoint from every test period and its warm-up (refused where they would overlap).
@@ -21,6 +22,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+from contextlib import closing
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, TypeAlias, cast
@@ -51,7 +53,7 @@ from scenarios.plants.boptest import (
     read_boptest_file,
     record_data,
 )
-from scenarios.plants.boptest_client import BoptestTest
+from scenarios.plants.boptest_client import BoptestClient, BoptestTest
 from scenarios.records import RunKpis
 from scenarios.running.closed_loop import (
     ClosedLoopResult,
@@ -412,10 +414,10 @@ def boptest_planner(
 class BoptestComparison:
     """A comparison on one BOPTEST test: ``rows`` (one KPI dict of
     :func:`run_boptest_closed_loop` per controller, with ``wall_s_per_day``, the wall time
-    per simulated day through the API, and ``model``, what cem planned over), the ``rc``
-    identified from the training data (:func:`pinn_mpc.physics.rc_summary`), the ``model``
-    the default ``train`` chose, the training data's ``data_days`` and the ``wall_time_s`` of
-    each stage."""
+    per simulated day through the API, the warm-up included, and ``model``, what cem planned
+    over), the ``rc`` identified from the training data (:func:`pinn_mpc.physics.rc_summary`),
+    the ``model`` the default ``train`` chose, the training data's ``data_days`` and the
+    ``wall_time_s`` of each stage (``select test``: selecting the test the rows share)."""
 
     rows: list[RunKpis]
     rc: dict[str, float]
@@ -443,7 +445,13 @@ def run_boptest_comparison(
     trained once with ``config``; then ``boptest-baseline``, the thermostat, ``qp-mpc`` on the
     identified RC, ``cem`` over the default model (row ``cem / default (<family>)``) and
     ``cem`` over each other family (``cem / <family>``; the default's own family is not run
-    twice: its model is the same) on the test ``run``."""
+    twice: its model is the same) on the test ``run``.
+
+    The rows run one after another on one test, selected once after the training (the
+    training data records on a test of its own: the server ends a test left idle, as it is
+    while the models train) and re-started at the period's start for each row (BOPTEST
+    re-initialises the test and its KPIs); the test is stopped however the rows end, an
+    error or Ctrl-C included."""
     import time
 
     from pinn_mpc.physics import rc_summary
@@ -475,18 +483,24 @@ def run_boptest_comparison(
     ]
     test_run = dataclasses.replace(run, days=float(days))
     rows: list[RunKpis] = []
-    for name, label, model_name, model in plan:
-        start = time.perf_counter()
-        controller = boptest_planner(name, chosen, model, dt_s=run.dt_s, n_steps=n_steps)
-        with one_torch_thread():
-            result = run_boptest_closed_loop(
-                chosen, label, controller, run=test_run, seed=seed, progress=progress
-            )
-        wall[label] = time.perf_counter() - start
-        kpis = result.kpis
-        kpis["wall_s_per_day"] = wall[label] / days  # type: ignore[typeddict-unknown-key]
-        kpis["model"] = model_name  # type: ignore[typeddict-unknown-key]
-        rows.append(kpis)
+    settings = chosen.settings
+    start = time.perf_counter()
+    with closing(BoptestClient(settings.url, timeout_s=settings.timeout_s)) as client, \
+            client.select(settings.points.testcase) as test:
+        wall["select test"] = time.perf_counter() - start
+        for name, label, model_name, model in plan:
+            start = time.perf_counter()
+            controller = boptest_planner(name, chosen, model, dt_s=run.dt_s, n_steps=n_steps)
+            with one_torch_thread():
+                result = run_boptest_closed_loop(
+                    chosen, label, controller, run=test_run, seed=seed, progress=progress,
+                    test=test,
+                )
+            wall[label] = time.perf_counter() - start
+            kpis = result.kpis
+            kpis["wall_s_per_day"] = wall[label] / days  # type: ignore[typeddict-unknown-key]
+            kpis["model"] = model_name  # type: ignore[typeddict-unknown-key]
+            rows.append(kpis)
     rc = cast(RCParams, fitted[RC_FIT][0])  # what boptest_fit identifies for RC_FIT
     return BoptestComparison(
         rows=rows, rc=dict(rc_summary(rc, source="identify (training data)")),  # type: ignore[arg-type]
