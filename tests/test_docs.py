@@ -261,6 +261,8 @@ NOT_RUN = {
     "python examples/": "tests/test_examples.py runs the examples",
     "python docs/gen_results.py": "writes the committed results page (the results-page tests "
     "write pages of a small and of a BOPTEST sweep)",
+    "python benchmarks/boptest_least_discomfort.py": "a measurement of 11 minutes whose figures "
+    "the page quotes (tests/test_least_discomfort.py checks its model and programme)",
 }
 #: Commands a page shares with another page that runs them: {(page, command): the other page}.
 RUN_ON_ANOTHER_PAGE = {
