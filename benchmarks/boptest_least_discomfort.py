@@ -7,7 +7,8 @@ BOPTEST's discomfort alone (energy only breaks ties), so its discomfort is what 
 gives when comfort is all that counts and the model errs by about 0.2 C a day ahead.
 
 1. Four identification runs through BOPTEST's API over the six weeks that end with the test
-   period: two of random heat-pump modulation, two of a noisy thermostat at random set-points.
+   period (from day 7 at the earliest, after BOPTEST's 7-day warm-up): two of random heat-pump
+   modulation, two of a noisy thermostat at random set-points.
 2. A linear ARX of the zone temperature (lags of the room, the modulation u and u * T_out, the
    outdoor temperature, irradiance and internal gains), fitted one step ahead, then refined on
    its 24-h rollouts. u enters linearly, so control over it is a linear programme.
@@ -20,7 +21,7 @@ gives when comfort is all that counts and the model errs by about 0.2 C a day ah
    that follow, so from that state no policy has less discomfort above the band after it.
 
 Needs a BOPTEST server (``BOPTEST_URL`` or ``--url``; the local one: ``python3
-../shared/boptest/serve.py --port 8000``). About 20 min on two cores::
+../shared/boptest/serve.py --port 8000``). About 11-20 min on two cores::
 
     python benchmarks/boptest_least_discomfort.py [--period typical_heat_day] [--price dynamic]
 """
@@ -45,7 +46,8 @@ PER_DAY = int(86400 / DT_S)
 PERIOD_DAYS = 14
 #: the test periods' first day of the year (BOPTEST's days.json: 14 days centred on 23 and 115)
 FIRST_DAY = {"peak_heat_day": 16, "typical_heat_day": 108}
-ID_DAYS = 42  # identification runs: six weeks ending with the test period
+ID_DAYS = 42  # identification runs: six weeks ending with the test period (from day 7 at the earliest)
+WARMUP_DAYS = 7
 NA, NB = 4, 12  # ARX lags of the room temperature and of each input (2 h and 6 h)
 FORECAST = ["TDryBul", "HGloHor", "InternalGainsCon[1]", "InternalGainsRad[1]", "LowerSetp[1]",
             "UpperSetp[1]"]
@@ -78,11 +80,11 @@ def exogenous(fc: dict[str, np.ndarray], n: int) -> dict[str, np.ndarray]:
     }
 
 
-def identification_run(url: str, seed: int, first_day: float, policy: str) -> Run:
-    """ID_DAYS days from first_day (after a 7-day warm-up) under random modulation (policy
+def identification_run(url: str, seed: int, first_day: float, days: int, policy: str) -> Run:
+    """``days`` days from first_day (after a 7-day warm-up) under random modulation (policy
     ``random``) or a noisy proportional thermostat at random set-points 19.5-24.5 C (``band``)."""
     rng = np.random.default_rng(seed)
-    n = ID_DAYS * PER_DAY
+    n = days * PER_DAY
     levels, setpoints = np.empty(n), np.empty(n)
     k = 0
     while k < n:  # held 1-8 h; off a third of the time
@@ -98,8 +100,8 @@ def identification_run(url: str, seed: int, first_day: float, policy: str) -> Ru
     try:
         with client.select(TESTCASE) as test:
             test.set_step(DT_S)
-            y = test.initialize(first_day * 86400, 7 * 86400)
-            fc = test.forecast(FORECAST, horizon_s=(ID_DAYS + 1) * 86400, interval_s=DT_S)
+            y = test.initialize(first_day * 86400, WARMUP_DAYS * 86400)
+            fc = test.forecast(FORECAST, horizon_s=(days + 1) * 86400, interval_s=DT_S)
             T = [y["reaTZon_y"] - 273.15]
             u = np.zeros(n + 1)
             for k in range(n):
@@ -304,8 +306,10 @@ def main() -> None:
     start = time.perf_counter()
     plan = [(1, "random"), (2, "random"), (3, "band"), (4, "band")]
     with ThreadPoolExecutor(2) as pool:
-        runs = list(pool.map(lambda p: identification_run(url, p[0], first + PERIOD_DAYS - ID_DAYS, p[1]), plan))
-    print(f"identification: {len(runs)} runs of {ID_DAYS} days ({time.perf_counter() - start:.0f} s)", flush=True)
+        id_first = max(WARMUP_DAYS, first + PERIOD_DAYS - ID_DAYS)
+        id_days = first + PERIOD_DAYS - id_first
+        runs = list(pool.map(lambda p: identification_run(url, p[0], id_first, id_days, p[1]), plan))
+    print(f"identification: {len(runs)} runs of {id_days} days from day {id_first} ({time.perf_counter() - start:.0f} s)", flush=True)
     theta = fit(runs)
     first_pass = least_discomfort_run(url, theta, args.period, args.price, 0.2)
     print(f"ARX on the identification runs: 24-h MAE {day_ahead_mae(theta, first_pass.run):.3f} C on its own "
@@ -328,7 +332,7 @@ def main() -> None:
         date = dt.date(2018, 1, 1) + dt.timedelta(days=first + d)
         cells = [per_day(o.run)[d] for o in outcomes]
         print(f"{date} {date:%a}: " + "   ".join(f"{a:.2f} / {b:.2f}" for a, b in cells))
-    best = min(outcomes, key=lambda o: float(o.kpi["tdis_tot"] or np.inf))
+    best = min(outcomes, key=lambda o: np.inf if o.kpi["tdis_tot"] is None else float(o.kpi["tdis_tot"]))
     cut = (PERIOD_DAYS - 1) * PER_DAY - 4 * PER_DAY // 24
     kept = per_day(best.run)
     above, below = off_after(url, best.run, args.period, args.price, cut)
