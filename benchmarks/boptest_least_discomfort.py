@@ -31,14 +31,16 @@ from __future__ import annotations
 import argparse
 import datetime as dt
 import time
+from collections.abc import Iterator
 from concurrent.futures import ThreadPoolExecutor
+from contextlib import closing, contextmanager
 from dataclasses import dataclass
 
 import cvxpy as cp
 import numpy as np
 from scipy.optimize import least_squares
 
-from scenarios.plants.boptest_client import BoptestClient, server_url
+from scenarios.plants.boptest_client import BoptestClient, BoptestTest, server_url
 
 TESTCASE = "bestest_hydronic_heat_pump"
 DT_S = 1800.0
@@ -71,6 +73,14 @@ class Run:
         return np.stack([self.u, self.u * self.To, self.To, self.irr / 100, self.gains / 100], 1)
 
 
+@contextmanager
+def one_test(url: str) -> Iterator[BoptestTest]:
+    """A test of TESTCASE on the server at ``url``: stopped, and its session closed, however
+    the block is left."""
+    with closing(BoptestClient(url, timeout_s=600)) as client, client.select(TESTCASE) as test:
+        yield test
+
+
 def exogenous(fc: dict[str, np.ndarray], n: int) -> dict[str, np.ndarray]:
     """The forecast's first n samples as the run's exogenous columns [C, W/m2, W]."""
     return {
@@ -96,24 +106,20 @@ def identification_run(url: str, seed: int, first_day: float, days: int, policy:
         hold = int(rng.integers(4, 25))
         setpoints[k:k + hold] = rng.uniform(19.5, 24.5)
         k += hold
-    client = BoptestClient(url, timeout_s=600)
-    try:
-        with client.select(TESTCASE) as test:
-            test.set_step(DT_S)
-            y = test.initialize(first_day * 86400, WARMUP_DAYS * 86400)
-            fc = test.forecast(FORECAST, horizon_s=(days + 1) * 86400, interval_s=DT_S)
-            T = [y["reaTZon_y"] - 273.15]
-            u = np.zeros(n + 1)
-            for k in range(n):
-                if policy == "band":
-                    demand = 0.6 * (setpoints[k] - T[-1]) + 0.15 * rng.standard_normal() + 0.2
-                    u[k] = 0.0 if demand < 0.05 else min(demand, 1.0)
-                else:
-                    u[k] = levels[k]
-                m = test.advance({"oveHeaPumY_u": float(u[k]), "oveHeaPumY_activate": 1})
-                T.append(m["reaTZon_y"] - 273.15)
-    finally:
-        client.close()
+    with one_test(url) as test:
+        test.set_step(DT_S)
+        y = test.initialize(first_day * 86400, WARMUP_DAYS * 86400)
+        fc = test.forecast(FORECAST, horizon_s=(days + 1) * 86400, interval_s=DT_S)
+        T = [y["reaTZon_y"] - 273.15]
+        u = np.zeros(n + 1)
+        for k in range(n):
+            if policy == "band":
+                demand = 0.6 * (setpoints[k] - T[-1]) + 0.15 * rng.standard_normal() + 0.2
+                u[k] = 0.0 if demand < 0.05 else min(demand, 1.0)
+            else:
+                u[k] = levels[k]
+            m = test.advance({"oveHeaPumY_u": float(u[k]), "oveHeaPumY_activate": 1})
+            T.append(m["reaTZon_y"] - 273.15)
     return Run(T=np.array(T), u=u, **exogenous(fc, n + 1))
 
 
@@ -217,48 +223,44 @@ def least_discomfort_run(url: str, theta: np.ndarray, period: str, price: str, m
     n = PERIOD_DAYS * PER_DAY
     history = max(NA, NB) + 1
     problem, par, u_var = discomfort_lp(horizon)
-    client = BoptestClient(url, timeout_s=600)
-    try:
-        with client.select(TESTCASE) as test:
-            t0 = float(test.set_scenario(time_period=period, electricity_price=price)["time_period"]["time"])
-            test.set_step(DT_S)
-            fc = exogenous(test.forecast(FORECAST, horizon_s=(PERIOD_DAYS + horizon / PER_DAY + 1) * 86400,
-                                         interval_s=DT_S), n + horizon + 1)
-            past = test.results(["reaTZon_y", "reaHeaPumY_y", "weaSta_reaWeaTDryBul_y", "weaSta_reaWeaHGloHor_y"],
-                                start_time_s=t0 - history * DT_S, final_time_s=t0)
-            edges = t0 - np.arange(history, -1, -1) * DT_S
-            T = list(np.interp(edges, past["time"], past["reaTZon_y"]) - 273.15)
-            idx = np.clip(np.searchsorted(edges, past["time"], side="right") - 1, 0, history - 1)
+    with one_test(url) as test:
+        t0 = float(test.set_scenario(time_period=period, electricity_price=price)["time_period"]["time"])
+        test.set_step(DT_S)
+        fc = exogenous(test.forecast(FORECAST, horizon_s=(PERIOD_DAYS + horizon / PER_DAY + 1) * 86400,
+                                     interval_s=DT_S), n + horizon + 1)
+        past = test.results(["reaTZon_y", "reaHeaPumY_y", "weaSta_reaWeaTDryBul_y", "weaSta_reaWeaHGloHor_y"],
+                            start_time_s=t0 - history * DT_S, final_time_s=t0)
+        edges = t0 - np.arange(history, -1, -1) * DT_S
+        T = list(np.interp(edges, past["time"], past["reaTZon_y"]) - 273.15)
+        idx = np.clip(np.searchsorted(edges, past["time"], side="right") - 1, 0, history - 1)
 
-            def mean_past(name: str) -> np.ndarray:
-                return np.bincount(idx, past[name], history) / np.maximum(np.bincount(idx, None, history), 1)
+        def mean_past(name: str) -> np.ndarray:
+            return np.bincount(idx, past[name], history) / np.maximum(np.bincount(idx, None, history), 1)
 
-            u_all = np.concatenate([mean_past("reaHeaPumY_y"), np.zeros(n + horizon + 1)])
-            X = np.stack([
-                u_all, np.zeros_like(u_all),
-                np.concatenate([mean_past("weaSta_reaWeaTDryBul_y") - 273.15, fc["To"]]),
-                np.concatenate([mean_past("weaSta_reaWeaHGloHor_y"), fc["irr"]]) / 100,
-                np.concatenate([fc["gains"][PER_DAY - history:PER_DAY], fc["gains"]]) / 100,  # daily schedule
-            ], 1)
-            X[:, 1] = X[:, 0] * X[:, 2]
-            c, M = prediction(theta, np.array(T), X, history, n)
-            u_open = cp.Variable(n)
-            t_open = c + M @ u_open
-            violation = cp.sum(cp.pos(t_open - fc["hi"][1:n + 1])) + cp.sum(cp.pos(fc["lo"][1:n + 1] - t_open))
-            cp.Problem(cp.Minimize(violation + 1e-3 * cp.sum(u_open)), [u_open >= 0, u_open <= 1]).solve(solver=cp.HIGHS)
-            optimum = float(violation.value) * DT_S / 3600
-            for k in range(n):
-                now = history + k
-                par["c"].value, par["M"].value = prediction(theta, np.array(T), X, now, horizon)
-                par["lo"].value = fc["lo"][k + 1:k + 1 + horizon] + margin_k
-                par["hi"].value = fc["hi"][k + 1:k + 1 + horizon] - margin_k
-                problem.solve(solver=cp.HIGHS)
-                u = 0.5 if u_var.value is None else float(np.clip(u_var.value[0], 0.0, 1.0))
-                X[now, 0], X[now, 1] = u, u * X[now, 2]
-                T.append(test.advance({"oveHeaPumY_u": u, "oveHeaPumY_activate": 1})["reaTZon_y"] - 273.15)
-            kpi = test.kpi()
-    finally:
-        client.close()
+        u_all = np.concatenate([mean_past("reaHeaPumY_y"), np.zeros(n + horizon + 1)])
+        X = np.stack([
+            u_all, np.zeros_like(u_all),
+            np.concatenate([mean_past("weaSta_reaWeaTDryBul_y") - 273.15, fc["To"]]),
+            np.concatenate([mean_past("weaSta_reaWeaHGloHor_y"), fc["irr"]]) / 100,
+            np.concatenate([fc["gains"][PER_DAY - history:PER_DAY], fc["gains"]]) / 100,  # daily schedule
+        ], 1)
+        X[:, 1] = X[:, 0] * X[:, 2]
+        c, M = prediction(theta, np.array(T), X, history, n)
+        u_open = cp.Variable(n)
+        t_open = c + M @ u_open
+        violation = cp.sum(cp.pos(t_open - fc["hi"][1:n + 1])) + cp.sum(cp.pos(fc["lo"][1:n + 1] - t_open))
+        cp.Problem(cp.Minimize(violation + 1e-3 * cp.sum(u_open)), [u_open >= 0, u_open <= 1]).solve(solver=cp.HIGHS)
+        optimum = float(violation.value) * DT_S / 3600
+        for k in range(n):
+            now = history + k
+            par["c"].value, par["M"].value = prediction(theta, np.array(T), X, now, horizon)
+            par["lo"].value = fc["lo"][k + 1:k + 1 + horizon] + margin_k
+            par["hi"].value = fc["hi"][k + 1:k + 1 + horizon] - margin_k
+            problem.solve(solver=cp.HIGHS)
+            u = 0.5 if u_var.value is None else float(np.clip(u_var.value[0], 0.0, 1.0))
+            X[now, 0], X[now, 1] = u, u * X[now, 2]
+            T.append(test.advance({"oveHeaPumY_u": u, "oveHeaPumY_activate": 1})["reaTZon_y"] - 273.15)
+        kpi = test.kpi()
     run = Run(T=np.array(T[history:]), u=X[history:history + n + 1, 0], **{k: v[:n + 1] for k, v in fc.items()})
     return Outcome(kpi=kpi, run=run, model_optimum_k_h=optimum)
 
@@ -268,16 +270,12 @@ def off_after(url: str, run: Run, period: str, price: str, cut: int) -> tuple[fl
     off: the K h above and below the band after ``cut`` (30-min samples)."""
     n = PERIOD_DAYS * PER_DAY
     T = []
-    client = BoptestClient(url, timeout_s=600)
-    try:
-        with client.select(TESTCASE) as test:
-            T.append(test.set_scenario(time_period=period, electricity_price=price)["time_period"]["reaTZon_y"] - 273.15)
-            test.set_step(DT_S)
-            for k in range(n):
-                u = float(run.u[k]) if k < cut else 0.0
-                T.append(test.advance({"oveHeaPumY_u": u, "oveHeaPumY_activate": 1})["reaTZon_y"] - 273.15)
-    finally:
-        client.close()
+    with one_test(url) as test:
+        T.append(test.set_scenario(time_period=period, electricity_price=price)["time_period"]["reaTZon_y"] - 273.15)
+        test.set_step(DT_S)
+        for k in range(n):
+            u = float(run.u[k]) if k < cut else 0.0
+            T.append(test.advance({"oveHeaPumY_u": u, "oveHeaPumY_activate": 1})["reaTZon_y"] - 273.15)
     after = np.array(T)[cut + 1:]
     above = np.maximum(after - run.hi[cut + 1:], 0).sum() * DT_S / 3600
     below = np.maximum(run.lo[cut + 1:] - after, 0).sum() * DT_S / 3600
@@ -323,18 +321,19 @@ def main() -> None:
     print(f"\n{args.period}, {args.price} price; least-discomfort LP, 72-h horizon, exact forecasts")
     print("| back-off K | BOPTEST tdis K h/zone | above K h | below K h | cost EUR/m2 | energy kWh/m2 |")
     print("|---|---|---|---|---|---|")
-    for m, o in zip(margins, outcomes, strict=True):
-        days = per_day(o.run)
+    daily = [per_day(o.run) for o in outcomes]
+    for m, o, days in zip(margins, outcomes, daily, strict=True):
         print(f"| {m:g} | {o.kpi['tdis_tot']:.2f} | {sum(a for a, _ in days):.2f} | {sum(b for _, b in days):.2f} | "
               f"{o.kpi['cost_tot']:.3f} | {o.kpi['ener_tot']:.3f} |")
     print("\nper day, above / below K h (30-min samples):")
     for d in range(PERIOD_DAYS):
         date = dt.date(2018, 1, 1) + dt.timedelta(days=first + d)
-        cells = [per_day(o.run)[d] for o in outcomes]
+        cells = [days[d] for days in daily]
         print(f"{date} {date:%a}: " + "   ".join(f"{a:.2f} / {b:.2f}" for a, b in cells))
-    best = min(outcomes, key=lambda o: np.inf if o.kpi["tdis_tot"] is None else float(o.kpi["tdis_tot"]))
+    best_i = min(range(len(outcomes)), key=lambda i: np.inf if outcomes[i].kpi["tdis_tot"] is None else float(outcomes[i].kpi["tdis_tot"]))
+    best = outcomes[best_i]
     cut = (PERIOD_DAYS - 1) * PER_DAY - 4 * PER_DAY // 24
-    kept = per_day(best.run)
+    kept = daily[best_i]
     above, below = off_after(url, best.run, args.period, args.price, cut)
     print(f"\nthe run of tdis {best.kpi['tdis_tot']:.2f} replayed to 20:00 before the last day, then the heat pump off: "
           f"{above:.2f} K h above and {below:.2f} below the band after it (that run: "
