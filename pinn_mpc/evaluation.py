@@ -21,7 +21,7 @@ from pinn_mpc.features import check_interval, time_of_day_h
 from pinn_mpc.models import LearnedModel
 from pinn_mpc.records import EvaluationMetrics
 
-__all__ = ["evaluate_model", "recursive_t_r"]
+__all__ = ["evaluate_model", "recursive_paths", "recursive_t_r"]
 
 
 def _mae(a: np.ndarray, b: np.ndarray) -> float:
@@ -35,6 +35,19 @@ def recursive_t_r(
 
     Returns ``(pred (M, N) [C], starts (N,) row indices i)``; raises InputError when the frame
     is too short for one start.
+    """
+    paths, starts = recursive_paths(model, df, horizon)
+    return paths[..., horizon - 1], starts
+
+
+def recursive_paths(
+    model: LearnedModel, df: pd.DataFrame, horizon: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """Recursive predictions of T_r,i+1 .. T_r,i+h for every possible start i, each member's
+    rollout over the measured demand and exogenous inputs.
+
+    Returns ``(paths (M, N, h) [C], starts (N,) row indices i)``; raises InputError when the
+    frame is too short for one start.
     """
     k, f = model.depth, model.features
     n = len(df)
@@ -62,7 +75,7 @@ def recursive_t_r(
         torch.from_numpy(u[starts[:, None] + ahead].astype(np.float32)),
         torch.from_numpy(tod[starts[:, None] + ahead]),
     )
-    return roll.t_r_c[..., horizon - 1].numpy().astype(float), starts
+    return roll.t_r_c.numpy().astype(float), starts
 
 
 def evaluate_model(

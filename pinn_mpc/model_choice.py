@@ -1,27 +1,30 @@
 """``train --arch auto`` (``train``'s default): the hybrid or the physics-informed ARX, whichever
-predicts the building.
+predicts the building over the horizon a planner uses it for.
 
 The hybrid (:data:`pinn_mpc.models.registry.DEFAULT_ARCH`: a 2R2C physics block and a learned
 residual) is the package's model for the buildings a 2R2C describes. A building whose dynamics
 and unmeasured internal gains a 2R2C does not hold (EnergyPlus's reference buildings: a time
-scale between air and mass, office schedules) is predicted several times better 12 hours ahead
+scale between air and mass, office schedules) is predicted several times better a day ahead
 by the physics-informed ARX (:func:`pinn_mpc.models.arx.fit_physics_informed_arx`), and a learned
 model that cannot predict its building cannot plan for it.
 
-So :func:`choose_model` fits both on the first three quarters of the data and lets each predict
-the last quarter 12 hours ahead (:data:`pinn_mpc.models.arx.SELECTION_SHARE`,
-:data:`pinn_mpc.models.arx.SELECTION_HORIZON_S`; every start in that quarter, the same starts for
-both, the history before them measured). The physics-informed ARX is taken when its error is
-at most :data:`AUTO_RATIO` times the hybrid's, and then fitted on all the data; otherwise the
-hybrid is trained on all of it. The ratio keeps the hybrid, the model whose 2R2C the package
-exports, wherever the two predict alike (on the 2R2C scenarios the hybrid errs as little or
-less). The last quarter is the same season as the rest: it understates how much better the
-ARX extrapolates to the next month on a building a 2R2C does not hold, hence a ratio of 3/4,
-not 1/2. Where the hybrid errs more than :data:`ROUGH_MAE_C` on the held-out quarter, its
-2R2C does not hold the data and there is nothing to keep it for: the ARX is taken if it errs
-less at all.
-Data too short to hold a quarter out, and data the ARX cannot fit (a power that does not warm
-the room), keep the hybrid without a comparison.
+So :func:`choose_model` fits both on the first three quarters of the data
+(:data:`pinn_mpc.models.arx.SELECTION_SHARE`) and lets each predict the last quarter over the
+planner's horizon (:data:`PLANNER_HORIZON_S`, the 48 half-hours cem, random-shooting and the RC
+MPC plan over by default): from every start in that quarter (the same starts for both, the
+history before them measured) each rolls forward on the measured power and weather, and its
+error is the mean |error| over every step of that horizon, the error a plan carries. A quarter
+too short for the whole horizon from at least :data:`pinn_mpc.models.arx.SELECTION_HORIZON_S`
+of starts shortens the horizon, to no less than that; shorter still keeps the hybrid without
+a comparison. The physics-informed ARX is taken when its error is at most :data:`AUTO_RATIO`
+times the hybrid's, and then fitted on all the data; otherwise the hybrid is trained on all of
+it. The ratio keeps the hybrid, the model whose 2R2C the package exports, wherever the two
+predict alike (on the 2R2C scenarios the hybrid errs as little or less). The last quarter is
+the same season as the rest: it understates how much better the ARX extrapolates to the next
+month on a building a 2R2C does not hold, hence a ratio of 3/4, not 1/2. Where the hybrid errs
+more than :data:`ROUGH_MAE_C` on the held-out quarter, its 2R2C does not hold the data and there
+is nothing to keep it for: the ARX is taken if it errs less at all.
+Data the ARX cannot fit (a power that does not warm the room) keep the hybrid.
 
 Where even the chosen model errs more than :data:`ROUGH_MAE_C` on the held-out quarter,
 :attr:`ModelChoice.caution` says so (``train`` prints it): neither candidate predicts this data
@@ -42,7 +45,7 @@ import numpy as np
 import pandas as pd
 
 from pinn_mpc.errors import InputError
-from pinn_mpc.evaluation import recursive_t_r
+from pinn_mpc.evaluation import recursive_paths
 from pinn_mpc.models.arx import (
     ARX_DIRECTORY,
     SELECTION_HORIZON_S,
@@ -62,6 +65,7 @@ __all__ = [
     "AUTO",
     "AUTO_RATIO",
     "HISTORY_ROWS",
+    "PLANNER_HORIZON_S",
     "ROUGH_MAE_C",
     "ModelChoice",
     "choose_model",
@@ -77,6 +81,9 @@ AUTO_RATIO = 0.75
 #: Measured rows before the held-out quarter that both models may read as history (more than
 #: any default depth or lag count).
 HISTORY_ROWS = 64
+#: The horizon [s] the candidates are judged over: the planners' default (48 half-hours,
+#: :class:`controllers.base.ControlSpec`).
+PLANNER_HORIZON_S = 24 * 3600.0
 #: A chosen model whose held-out error [K] exceeds this draws a caution
 #: (:attr:`ModelChoice.caution`).
 ROUGH_MAE_C = 0.5
@@ -86,14 +93,15 @@ ROUGH_MAE_C = 0.5
 class ModelChoice:
     """What :func:`choose_model` chose: ``chosen`` (an architecture or baseline name), the
     ``model`` fitted on all the data, each candidate's ``held_out_mae_c`` [K] on the last
-    quarter ``horizon_steps`` ahead (empty when there was no comparison) and ``why`` (one
-    sentence)."""
+    quarter (the mean over steps 1 .. ``horizon_steps``; empty when there was no comparison),
+    ``horizon_h`` (those steps in hours) and ``why`` (one sentence)."""
 
     chosen: str
     model: LearnedModel | ARXModel
     held_out_mae_c: dict[str, float]
     horizon_steps: int
     why: str
+    horizon_h: float = 0.0
 
     @property
     def caution(self) -> str | None:
@@ -113,8 +121,8 @@ class ModelChoice:
                 "identified from the same data"
             )
         return (
-            f"the chosen {self.chosen} predicts the held-out quarter {self.horizon_steps} steps "
-            f"ahead at {error:.2f} C (more than {ROUGH_MAE_C} C): its plans will be rough and {lean}; "
+            f"the chosen {self.chosen} errs {error:.2f} C on average over the next {self.horizon_h:g} h "
+            f"on the held-out quarter (more than {ROUGH_MAE_C} C): its plans will be rough and {lean}; "
             "more days of training data usually help"
         )
 
@@ -130,19 +138,23 @@ def fallback_rc(model: LearnedModel | ARXModel) -> dict[str, Any] | None:
 def _held_out(df: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame, np.ndarray, int] | None:
     """The first three quarters, the last quarter with :data:`HISTORY_ROWS` before it, the
     starts (rows of the second frame in the last quarter, a full horizon before its end) and
-    the horizon; None when the data is too short for a start."""
+    the horizon (:data:`PLANNER_HORIZON_S`, shortened to leave
+    :data:`~pinn_mpc.models.arx.SELECTION_HORIZON_S` of starts); None when the data is too
+    short for a horizon of that length from that many starts."""
     dt_s = float(df.attrs.get("dt_s", 1800.0))
-    horizon = max(1, round(SELECTION_HORIZON_S / dt_s))
+    least = max(1, round(SELECTION_HORIZON_S / dt_s))
     cut = len(df) - int(len(df) * SELECTION_SHARE)
     if cut <= 2 * HISTORY_ROWS:
+        return None
+    quarter = len(df) - cut
+    horizon = min(max(1, round(PLANNER_HORIZON_S / dt_s)), quarter - least)
+    if horizon < least:
         return None
     fitted = df.iloc[:cut].reset_index(drop=True)
     held_out = df.iloc[cut - HISTORY_ROWS :].reset_index(drop=True)
     fitted.attrs = dict(df.attrs)
     held_out.attrs = dict(df.attrs)
     starts = np.arange(HISTORY_ROWS, len(held_out) - horizon)
-    if starts.size < horizon:
-        return None
     return fitted, held_out, starts, horizon
 
 
@@ -157,32 +169,34 @@ def choose_model(df: pd.DataFrame, config: TrainConfig, *, progress: bool = Fals
             why="too little data to hold a quarter out for the comparison",
         )
     fitted, held_out, starts, horizon = split
-    truth = held_out["T_r"].to_numpy(dtype=float)[starts + horizon]
+    t_r = held_out["T_r"].to_numpy(dtype=float)
+    truth = t_r[starts[:, None] + np.arange(1, horizon + 1)]  # (N, horizon)
     hybrid = train_model(fitted, arch=DEFAULT_ARCH, config=config, progress=progress)
-    pred, hybrid_starts = recursive_t_r(hybrid, held_out, horizon)
+    paths, hybrid_starts = recursive_paths(hybrid, held_out, horizon)
     rows = np.searchsorted(hybrid_starts, starts)
-    errors = {DEFAULT_ARCH: float(np.mean(np.abs(pred.mean(axis=0)[rows] - truth)))}
+    errors = {DEFAULT_ARCH: float(np.mean(np.abs(paths.mean(axis=0)[rows] - truth)))}
     try:
         parx = fit_physics_informed_arx(fitted, eta=config.eta)
         errors[PHYSICS_ARX.name] = float(
-            np.mean(np.abs(parx.predict_t_r(held_out, horizon, starts) - truth))
+            np.mean(np.abs(parx.predict_path(held_out, horizon, starts) - truth))
         )
     except InputError:
         errors[PHYSICS_ARX.name] = math.inf
     hours = horizon * float(df.attrs.get("dt_s", 1800.0)) / 3600.0
     said = (
-        f"{hours:g}-h MAE on the last quarter: {PHYSICS_ARX.name} {errors[PHYSICS_ARX.name]:.3f} C, "
-        f"{DEFAULT_ARCH} {errors[DEFAULT_ARCH]:.3f} C"
+        f"mean error over {hours:g} h ahead on the last quarter: {PHYSICS_ARX.name} "
+        f"{errors[PHYSICS_ARX.name]:.3f} C, {DEFAULT_ARCH} {errors[DEFAULT_ARCH]:.3f} C"
     )
     hybrid_rough = errors[DEFAULT_ARCH] > ROUGH_MAE_C and errors[PHYSICS_ARX.name] < errors[DEFAULT_ARCH]
     if errors[PHYSICS_ARX.name] <= AUTO_RATIO * errors[DEFAULT_ARCH] or hybrid_rough:
         return ModelChoice(
             chosen=PHYSICS_ARX.name, model=fit_linear(PHYSICS_ARX.name, df, eta=config.eta),
-            held_out_mae_c=errors, horizon_steps=horizon, why=said,
+            held_out_mae_c=errors, horizon_steps=horizon, horizon_h=hours, why=said,
         )
     model = train_model(df, arch=DEFAULT_ARCH, config=config, progress=progress)
     return ModelChoice(
-        chosen=DEFAULT_ARCH, model=model, held_out_mae_c=errors, horizon_steps=horizon, why=said
+        chosen=DEFAULT_ARCH, model=model, held_out_mae_c=errors, horizon_steps=horizon,
+        horizon_h=hours, why=said,
     )
 
 

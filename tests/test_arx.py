@@ -48,9 +48,11 @@ def test_arx_predicts_a_linear_plant(measured_gains, tolerance_c):
     model = fit_arx(_rc_data(21, seed=0, measured_gains=measured_gains), lags=4)
     test = _rc_data(7, seed=1, measured_gains=measured_gains)
     starts = np.arange(model.lags - 1, len(test) - 48)
+    path = model.predict_path(test, 48, starts)
     for horizon in (1, 24, 48):
         pred = model.predict_t_r(test, horizon, starts)
         assert np.mean(np.abs(pred - test["T_r"].to_numpy()[starts + horizon])) < tolerance_c
+        assert np.array_equal(path[:, horizon - 1], pred)
     assert set(model.to_dict()) >= {"kind", "columns", "lags", "coef", "dt_s"}
 
 
@@ -61,6 +63,8 @@ def test_arx_refuses_short_data_and_out_of_range_starts():
     test = _rc_data(2, seed=1)
     with pytest.raises(InternalError, match="starts must lie"):
         model.predict_t_r(test, 24, np.array([len(test) - 10]))
+    with pytest.raises(InternalError, match="at least 1 step"):
+        model.predict_t_r(test, 0, np.array([10]))
     with pytest.raises(InputError, match="lacks column"):
         model.predict_t_r(test.drop(columns="G"), 1, np.array([10]))
 

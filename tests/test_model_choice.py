@@ -24,7 +24,7 @@ SMALL = TrainConfig(n_seeds=2)
 def test_auto_keeps_the_hybrid_on_the_2r2c_it_was_made_for():
     choice = choose_model(household_data(14, seed=0), SMALL)
     assert choice.chosen == "hybrid" and isinstance(choice.model, LearnedModel)
-    assert choice.horizon_steps == 24
+    assert choice.horizon_steps == 48 and choice.horizon_h == 24.0
     assert choice.held_out_mae_c["hybrid"] < 0.3
     assert choice.held_out_mae_c["parx"] > AUTO_RATIO * choice.held_out_mae_c["hybrid"]
     assert choice.caution is None
@@ -39,6 +39,40 @@ def test_auto_takes_the_physics_informed_arx_where_the_hybrid_cannot_predict():
     assert choice.held_out_mae_c["parx"] <= AUTO_RATIO * choice.held_out_mae_c["hybrid"]
     assert np.allclose(choice.model.coef, fit_physics_informed_arx(data).coef)
     assert "parx" in choice.why and "hybrid" in choice.why
+
+
+@pytest.mark.parametrize(("days", "horizon"), [(14, 48), (5, 36), (4, 24)])
+def test_the_candidates_are_judged_over_the_planners_day_or_what_the_quarter_holds(days, horizon):
+    """The held-out quarter is judged over the planner's 48 half-hours from 12 h of starts at
+    least: a quarter of 5 days of half-hours (60 rows) holds a 36-step horizon from 24 starts, of
+    4 days (48 rows) the least, 24 steps; every start has its whole horizon inside the data."""
+    from pinn_mpc.model_choice import HISTORY_ROWS, _held_out
+
+    df = household_data(days, seed=0)
+    split = _held_out(df)
+    assert split is not None
+    fitted, held_out, starts, steps = split
+    quarter = len(held_out) - HISTORY_ROWS
+    assert len(fitted) + quarter == len(df) and steps == horizon
+    assert starts[0] == HISTORY_ROWS and starts[-1] + steps == len(held_out) - 1
+    assert len(starts) == quarter - steps >= 24
+
+
+def test_the_held_out_error_is_the_mean_over_every_step_of_the_horizon():
+    """choose_model's figure for the physics-informed ARX is the mean |error| of its own
+    recursion over steps 1 .. horizon from every held-out start, recomputed here step by step
+    with the one-horizon prediction."""
+    from pinn_mpc.model_choice import _held_out
+
+    data = _occupied_data(28, seed=0)
+    data["T_r"] = data["T_r"] + 0.05 * np.random.default_rng(1).standard_normal(len(data))
+    choice = choose_model(data, SMALL)
+    fitted, held_out, starts, steps = _held_out(data)
+    parx = fit_physics_informed_arx(fitted)
+    t_r = held_out["T_r"].to_numpy()
+    per_step = [np.abs(parx.predict_t_r(held_out, h, starts) - t_r[starts + h]).mean() for h in range(1, steps + 1)]
+    assert choice.held_out_mae_c["parx"] == pytest.approx(np.mean(per_step), rel=1e-9)
+    assert per_step[0] < per_step[-1]
 
 
 def test_auto_without_a_quarter_to_hold_out_trains_the_hybrid():
@@ -118,7 +152,7 @@ def test_train_cautions_when_even_the_chosen_model_cannot_predict_the_held_out_d
     captured = capsys.readouterr()
     warnings = [line for line in captured.err.splitlines() if "held-out quarter" in line]
     assert len(warnings) == 1 and "warning" in warnings[0] and str(data) in warnings[0]
-    error = float(warnings[0].split(" at ")[1].split(" C")[0])
+    error = float(warnings[0].split(" errs ")[1].split(" C")[0])
     assert error > ROUGH_MAE_C
     assert "chose" in captured.out
 

@@ -264,6 +264,13 @@ class ARXModel(BatchDynamics):
         measured ``T_r`` up to each start, on the data's delivered power and weather.
         Every start must have ``lags - 1`` rows before it; data at another interval than the
         model's (``df.attrs["dt_s"]``) is refused (InputError)."""
+        if horizon < 1:
+            raise InternalError(f"ARX model: a prediction needs a horizon of at least 1 step, got {horizon}")
+        return self.predict_path(df, horizon, starts)[:, -1]
+
+    def predict_path(self, df: pd.DataFrame, horizon: int, starts: np.ndarray) -> np.ndarray:
+        """``T_r`` [C] at ``starts + 1`` .. ``starts + horizon`` (N, horizon): the recursion of
+        :meth:`predict_t_r`, every step of it."""
         if "dt_s" in df.attrs:
             check_interval(self.dt_s, float(df.attrs["dt_s"]), what="the data has")
         starts = np.asarray(starts, dtype=int)
@@ -279,6 +286,7 @@ class ARXModel(BatchDynamics):
         q_coef = self._interaction_coef()
         # Own predictions replace measured T_r once the recursion passes the start.
         t_hist = np.stack([values[starts - j, 0] for j in range(self.lags)], axis=1)  # (N, lags)
+        path = np.empty((starts.size, horizon))
         for step in range(horizon):
             k = starts + step
             reg = self._regressors(values, k)
@@ -288,7 +296,8 @@ class ARXModel(BatchDynamics):
                 + (sched[k] @ q_coef + wind[k]) * (t_hist[:, 0] - values[k, 2])
             )
             t_hist = np.concatenate([t_next[:, None], t_hist[:, :-1]], axis=1)
-        return t_hist[:, 0] / _SCALE["T_r"]
+            path[:, step] = t_next
+        return path / _SCALE["T_r"]
 
     # -- the planners' rollout interface (pinn_mpc.models.rollout.BatchDynamics) --------
     @property

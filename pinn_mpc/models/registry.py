@@ -182,7 +182,7 @@ def arch_help() -> str:
         + [f"{b.name}: {b.summary}" for b in BASELINES.values()]
         + [
             f"{AUTO} (the default): {DEFAULT_ARCH} or {PHYSICS_ARX.name}, whichever predicts the "
-            f"data's last quarter 12 h ahead better ({PHYSICS_ARX.name} when its error is at most "
+            f"data's last quarter better over a planner's 24 h ({PHYSICS_ARX.name} when its error is at most "
             "three quarters of the hybrid's), fitted on all of it"
         ]
     )
