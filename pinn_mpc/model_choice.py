@@ -94,14 +94,18 @@ class ModelChoice:
     """What :func:`choose_model` chose: ``chosen`` (an architecture or baseline name), the
     ``model`` fitted on all the data, each candidate's ``held_out_mae_c`` [K] on the last
     quarter (the mean over steps 1 .. ``horizon_steps``; empty when there was no comparison),
-    ``horizon_h`` (those steps in hours) and ``why`` (one sentence)."""
+    and ``why`` (one sentence); :attr:`horizon_h` is those steps in hours."""
 
     chosen: str
     model: LearnedModel | ARXModel
     held_out_mae_c: dict[str, float]
     horizon_steps: int
     why: str
-    horizon_h: float = 0.0
+
+    @property
+    def horizon_h(self) -> float:
+        """The held-out horizon in hours (0 without a comparison)."""
+        return self.horizon_steps * self.model.dt_s / 3600.0
 
     @property
     def caution(self) -> str | None:
@@ -191,12 +195,11 @@ def choose_model(df: pd.DataFrame, config: TrainConfig, *, progress: bool = Fals
     if errors[PHYSICS_ARX.name] <= AUTO_RATIO * errors[DEFAULT_ARCH] or hybrid_rough:
         return ModelChoice(
             chosen=PHYSICS_ARX.name, model=fit_linear(PHYSICS_ARX.name, df, eta=config.eta),
-            held_out_mae_c=errors, horizon_steps=horizon, horizon_h=hours, why=said,
+            held_out_mae_c=errors, horizon_steps=horizon, why=said,
         )
     model = train_model(df, arch=DEFAULT_ARCH, config=config, progress=progress)
     return ModelChoice(
-        chosen=DEFAULT_ARCH, model=model, held_out_mae_c=errors, horizon_steps=horizon,
-        horizon_h=hours, why=said,
+        chosen=DEFAULT_ARCH, model=model, held_out_mae_c=errors, horizon_steps=horizon, why=said
     )
 
 
