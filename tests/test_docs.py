@@ -257,7 +257,10 @@ NOT_RUN = {
     "mkdocs serve": "serves the site until stopped (test_mkdocs_build_strict builds it)",
     "mkdocs build --strict": "test_mkdocs_build_strict runs it",
     "python -m pytest": "the test suite itself",
-    "python3 ../shared/boptest/serve.py": "the session's server (the boptest_server fixture) is run instead",
+    "BOPTEST_HOME=": "starts a local BOPTEST server (the tests take the boptest_server fixture's)",
+    "export BOPTEST_URL=": "names a user's BOPTEST server (each command here gets the "
+    "boptest_server fixture's in BOPTEST_URL)",
+    "BOPTEST_URL=": "the test suite itself, given a BOPTEST server",
     "python examples/": "tests/test_examples.py runs the examples",
     "python docs/gen_results.py": "writes the committed results page (the results-page tests "
     "write pages of a small and of a BOPTEST sweep)",
