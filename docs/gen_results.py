@@ -232,6 +232,22 @@ def published_baseline_table() -> list[str]:
     return lines
 
 
+def boptest_provenance(spec: Path, directory: Path) -> list[str]:
+    """What a BOPTEST page was measured on (BOPTEST's version as its server reported it, the
+    test cases) and the commands that measure it again, given a BOPTEST server."""
+    kpis = [r["kpis"] for r in _cells(directory)]
+    versions = sorted({str(k["boptest_version"]) for k in kpis if k.get("boptest_version")})
+    cases = sorted({str(k["boptest_testcase"]) for k in kpis if k.get("boptest_testcase")})
+    name = directory.name
+    return [
+        f"- BOPTEST: version {', '.join(versions) or 'not recorded by the cells'} (the server's "
+        f"`GET /version`), test case {', '.join(f'`{c}`' for c in cases) or 'not recorded'}",
+        f"- measured again (needs a BOPTEST server, docs/boptest.md): `pinn-mpc sweep --spec "
+        f"{spec.relative_to(ROOT)} --out {name} --workers 2`, then `python docs/gen_results.py "
+        f"--spec {spec.relative_to(ROOT)} --from-dir {name}`",
+    ]
+
+
 def _boptest_sections(spec_text: str, directory: Path) -> list[str]:
     order = ["boptest-baseline", *tomllib.loads(spec_text).get("controllers", [])]
     return [
@@ -293,6 +309,8 @@ def page(spec: Path, directory: Path, command: str, wall_s: float | None, at: st
     ]
     if engine:
         lines.append(f"- engine: `{json.dumps(engine, sort_keys=True)}`")
+    if is_boptest_sweep(directory):
+        lines += boptest_provenance(spec, directory)
     lines += [
         "",
         f"The specification, `{spec.relative_to(ROOT)}`:",

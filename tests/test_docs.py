@@ -498,6 +498,30 @@ def test_results_page_states_command_commit_machine_and_cells(tmp_path: Path) ->
     assert "| winter_household | oracle |" not in text
 
 
+def test_a_boptest_results_page_says_what_it_was_measured_on(tmp_path: Path) -> None:
+    """A BOPTEST sweep's page names BOPTEST's version and the test case its cells record, and
+    the commands that measure it again (the cells here are written by the test: only the
+    generator is checked, no figure of BOPTEST's)."""
+    gen = _gen_results()
+    sweep = tmp_path / "sweep"
+    (sweep / "cells").mkdir(parents=True)
+    for i, controller in enumerate(("boptest-baseline", "qp-mpc")):
+        cell = {"cell": {"scenario": "boptest_hydronic_heat_pump", "controller": controller,
+                         "seed": 0, "train_days": None if i == 0 else 14,
+                         "test_period": "peak_heat_day", "price_scenario": "dynamic"},
+                "kpis": {"objective": 1.0 + i, "days": 14, "boptest": {"tdis_tot": 1.0},
+                         "boptest_testcase": "bestest_hydronic_heat_pump",
+                         "boptest_version": "1.0.0-dev", "own_decisions_share": 1.0,
+                         "decision_ms_median": 1.0, "decision_ms_p95": 2.0},
+                "wall_time_s": 10.0}
+        (sweep / "cells" / f"{i}.json").write_text(json.dumps(cell))
+    (sweep / "summary.json").write_text(json.dumps({"rows": [], "cells_run": 2, "cells_reused": 0, "models_trained": 1}))
+    text = gen.page(ROOT / "sweeps" / "boptest.toml", sweep, "python docs/gen_results.py", None, "abc123")
+    assert "- BOPTEST: version 1.0.0-dev (the server's `GET /version`), test case `bestest_hydronic_heat_pump`" in text
+    assert ("`pinn-mpc sweep --spec sweeps/boptest.toml --out sweep --workers 2`, then "
+            "`python docs/gen_results.py --spec sweeps/boptest.toml --from-dir sweep`") in text
+
+
 def test_readme_two_commands_are_the_main_job_and_ci() -> None:
     """The README's two commands: install and run the main job; install and run what CI runs."""
     first, second = blocks(README, "")[:2]
