@@ -2,9 +2,8 @@
 
 BOPTEST (IBPSA Project 1) is the building-control benchmark: Modelica emulators served over
 HTTP with fixed test periods, price scenarios, forecasts and KPIs computed by BOPTEST itself.
-:class:`BoptestPlant` selects a test on a server (the local ``../shared/boptest/serve.py`` or a
-user's BOPTEST in Docker; the address from the scenario, else ``$BOPTEST_URL``, else
-``http://127.0.0.1:8000``), starts it at a test period with BOPTEST's warm-up and price scenario
+:class:`BoptestPlant` selects a test on a BOPTEST server (BOPTEST's own service; the address
+from the scenario, else ``$BOPTEST_URL``, else ``http://127.0.0.1:8000``), starts it at a test period with BOPTEST's warm-up and price scenario
 (:class:`BoptestRun`), and steps it one control interval at a time as
 :class:`scenarios.plants.base.LoopPlant` asks: the package's demand in watts becomes the test case's
 signal, ``POST /advance`` runs the interval, ``PUT /results`` gives the interval's means.
@@ -358,18 +357,14 @@ class BoptestPlant:
             self.points.period_days(run.time_period)
         self.n_substeps = max(1, int(round(run.dt_s / RESULT_SAMPLE_S)))
         self.borrowed = test is not None
-        if test is None:
-            self.client = BoptestClient(settings.url, timeout_s=settings.timeout_s)
-            test = self.client.select(self.points.testcase)
-        elif test.testcase != self.points.testcase:
+        if test is not None and test.testcase != self.points.testcase:
             raise InputError(
                 f"BoptestPlant: the test given is of test case {test.testcase}, the scenario's "
                 f"is {self.points.testcase}"
             )
-        else:
-            self.client = test.client
-        self.test: BoptestTest = test
-        try:
+        self.client = test.client if test is not None else BoptestClient(settings.url, timeout_s=settings.timeout_s)
+        try:  # from the select on: a test the plant selected is stopped however this is left
+            self.test: BoptestTest = test if test is not None else self.client.select(self.points.testcase)
             self._check_points()
             self.test.set_step(run.dt_s)
             self._start()
@@ -424,7 +419,8 @@ class BoptestPlant:
         if self.borrowed:
             return
         try:
-            self.test.stop()
+            if hasattr(self, "test"):  # else the select failed: the client stops what it began
+                self.test.stop()
         finally:
             self.client.close()
 
