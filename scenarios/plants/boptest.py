@@ -66,6 +66,8 @@ __all__ = [
 
 KELVIN = 273.15
 SECONDS_PER_DAY = 86400.0
+#: The days of BOPTEST's year (its test cases' time runs from 0 s, 1 January, over 365 days).
+DAYS_PER_YEAR = 365.0
 #: BOPTEST's price scenarios (``electricity_price``).
 PRICE_SCENARIOS = ("constant", "dynamic", "highly_dynamic")
 #: BOPTEST's test periods: 14 days centred on the test case's day (days.json), after a
@@ -92,6 +94,20 @@ def _name(value: Any, where: str) -> str:
     if not isinstance(value, str) or not value:
         raise InputError(f"{where} must be a point name (a non-empty string), got {value!r}")
     return value
+
+
+def _period_day(value: Any, where: str) -> float:
+    """The day a test period is centred on (days.json), checked: a whole day of the year with
+    the period and its warm-up inside the year."""
+    day = _number(value, where)
+    low, high = TEST_PERIOD_DAYS / 2 + WARMUP_DAYS, DAYS_PER_YEAR - TEST_PERIOD_DAYS / 2
+    if day != int(day) or not low <= day <= high:
+        raise InputError(
+            f"{where} = {value!r}: a test period is the {TEST_PERIOD_DAYS:g} days centred on this "
+            f"day of the year (0 = 1 January) after a {WARMUP_DAYS:g}-day warm-up, so it must be a "
+            f"whole day from {low:g} to {high:g} (BOPTEST's days.json of the test case)"
+        )
+    return day
 
 
 def _names(value: Any, where: str) -> tuple[str, ...]:
@@ -199,7 +215,7 @@ class BoptestPoints:
         if not self.test_periods:
             raise InputError("boptest.test_periods is empty: give BOPTEST's days.json, e.g. peak_heat_day = 23")
         for period, day in self.test_periods.items():
-            _number(day, f"boptest.test_periods.{period}")
+            _period_day(day, f"boptest.test_periods.{period}")
         _number(self.floor_area_m2, "boptest.floor_area_m2")
         if self.floor_area_m2 <= 0:
             raise InputError(f"boptest.floor_area_m2 must be > 0 m2, got {self.floor_area_m2!r}")
@@ -272,11 +288,18 @@ class BoptestRun:
         dt = _number(self.dt_s, "BoptestRun.dt_s")
         if not (RESULT_SAMPLE_S <= dt <= SECONDS_PER_DAY and SECONDS_PER_DAY % dt == 0):
             raise InputError(f"BoptestRun.dt_s = {dt:g} s must divide a day and be >= 30 s")
-        days = _number(self.days, "BoptestRun.days")
-        if days <= 0 or (self.time_period is not None and days > TEST_PERIOD_DAYS):
+        days = _number(self.days, "the run's days")
+        if days <= 0:
+            raise InputError(f"a BOPTEST run of {days:g} days: give a number of days > 0")
+        if self.time_period is not None and days > TEST_PERIOD_DAYS:
             raise InputError(
-                f"BoptestRun.days = {days:g} must be > 0 (and at most {TEST_PERIOD_DAYS:g}, a "
-                "test period's length)"
+                f"a BOPTEST test period has {TEST_PERIOD_DAYS:g} days, {days:g} were asked for "
+                f"{self.time_period}; give at most {TEST_PERIOD_DAYS:g} (its whole period)"
+            )
+        if self.first_day is not None and _number(self.first_day, "the run's first day") + days > DAYS_PER_YEAR:
+            raise InputError(
+                f"days {self.first_day:g}-{self.first_day + days:g} of the year run past its "
+                f"end (day {DAYS_PER_YEAR:g}); give an earlier first day or fewer days"
             )
         if _number(self.warmup_days, "BoptestRun.warmup_days") < 0:
             raise InputError(f"BoptestRun.warmup_days must be >= 0, got {self.warmup_days!r}")
@@ -645,7 +668,7 @@ def boptest_settings_from_dict(data: Mapping[str, Any], *, where: str = "boptest
             comfort_lower=_name(forecast["comfort_lower"], f"{where}.forecast.comfort_lower"),
             comfort_upper=_name(forecast["comfort_upper"], f"{where}.forecast.comfort_upper"),
             prices={k: _name(v, f"{where}.prices.{k}") for k, v in prices.items()},
-            test_periods={k: _number(v, f"{where}.test_periods.{k}") for k, v in periods.items()},
+            test_periods={k: _period_day(v, f"{where}.test_periods.{k}") for k, v in periods.items()},
             floor_area_m2=_number(data["floor_area_m2"], f"{where}.floor_area_m2"),
             year=year,
         ),
