@@ -403,7 +403,9 @@ def _boptest_simulate(a: argparse.Namespace) -> str:
     else:
         first_day = DATA_FIRST_DAY if a.first_day is None else a.first_day
     policy = a.policy or "closed-loop"
-    frame = boptest_data(chosen, days=a.days, seed=a.seed, policy=policy, first_day=first_day)
+    frame = boptest_data(
+        chosen, days=a.days, seed=a.seed, policy=policy, first_day=first_day, progress=True
+    )
     write_timeseries(frame, a.out)
     first, last = day_span(frame["time"])
     return (

@@ -257,3 +257,33 @@ def test_a_plant_interrupted_while_selecting_stops_the_test(standin: StandIn) ->
     with pytest.raises(KeyboardInterrupt):
         BoptestPlant(BoptestSettings(points=points, url=standin.url), BoptestRun(days=1))
     assert standin.routes("PUT") == [f"/stop/{standin.selected[0]}"]
+
+
+# --- what long BOPTEST commands say ----------------------------------------------------------------
+
+
+@pytest.mark.parametrize(("command", "first_line"), [
+    (["simulate", "--days", "4", "--out", "d.csv"],
+     "training data on BOPTEST: 4 day(s) from day 30 of the year, closed-loop policy"),
+    (["closed-loop", "--controller", "thermostat", "--json", "k.json"],
+     "thermostat on BOPTEST: peak_heat_day, 14 day(s), dynamic price"),
+    (["compare", "--train-days", "4", "--days", "1", "--quick", "--json", "t.json", "--report", "r.md"],
+     "training data on BOPTEST: 4 day(s) from day 30 of the year, closed-loop policy"),
+], ids=["simulate", "closed-loop", "compare"])
+def test_a_boptest_command_says_what_it_starts_before_the_server_works(
+    standin: StandIn, command: list[str], first_line: str, monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str], tmp_path: Path,
+) -> None:
+    """The stand-in has none of the test case's points, so each command ends with one error
+    after its test is selected; before that, its first stage has said what it does (a line a
+    minute follows while a stage runs: tests/test_careless_input.py)."""
+    from pinn_mpc_cli.cli import main
+
+    standin.testcases.append(read_boptest_file(str(SCENARIO)).points.testcase)
+    monkeypatch.setenv("BOPTEST_URL", standin.url)
+    monkeypatch.chdir(tmp_path)
+    assert main([*command, "--scenario", "boptest_hydronic_heat_pump"]) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert lines[0] == first_line
+    assert "has no input" in lines[-1] or "refused GET /inputs" in lines[-1]
+    assert len(standin.selected) == 1 and standin.routes("PUT")[-1] == f"/stop/{standin.selected[0]}"

@@ -34,7 +34,7 @@ it re-starts that test for its run instead of selecting one, and leaves stopping
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import TracebackType
@@ -744,13 +744,18 @@ def builtin_boptest(name: str) -> BoptestSettings:
 Demand = Callable[[int, float, pd.Series], float]
 
 
-def record_data(settings: BoptestSettings, run: BoptestRun, demand: Demand) -> pd.DataFrame:
+def record_data(
+    settings: BoptestSettings, run: BoptestRun, demand: Demand, *,
+    intervals: Callable[[int], Iterable[int]] = range,
+) -> pd.DataFrame:
     """Training data from the emulator: ``run`` (a period of its own, ``first_day``, disjoint
     from every test period and its warm-up, else refused) under ``demand``, in the data
     format: one row per interval, ``time`` (start), ``T_r`` [C] at the start, ``u`` [W] asked,
     ``u_phys`` [W] mean electrical, ``T_a`` [C] and ``G`` [W/m2] as the emulator had them,
     ``I_g`` [W], ``price`` [EUR/kWh], ``T_min``/``T_max`` [C]; ``heat_w`` [W], the heat
-    delivered to the room, beside them. The test is stopped on the server whatever happens."""
+    delivered to the room, beside them. ``intervals(n)`` gives the n intervals' indices in
+    order (``range``, or a progress reporter's). The test is stopped on the server whatever
+    happens."""
     if run.first_day is None:
         raise InputError(
             "training data runs on days of its own (BoptestRun.first_day), never on a test period"
@@ -759,7 +764,7 @@ def record_data(settings: BoptestSettings, run: BoptestRun, demand: Demand) -> p
         frame = plant.exogenous_frame()
         n = run.n_intervals
         t_r, u, u_phys, t_a, g = (np.empty(n) for _ in range(5))
-        for k in range(n):
+        for k in intervals(n):
             t_r[k] = float(plant.measure()[0])
             u[k] = float(demand(k, t_r[k], frame.iloc[k]))
             step = plant.step(u[k], k)
