@@ -936,13 +936,8 @@ def run_sweep(
         )
     check_engine_options(address, workers)
     if grid.is_boptest:  # no server: one line now, not a failed cell after Ray has started
-        from contextlib import closing
-
-        from scenarios.plants.boptest_client import BoptestClient
-
         for scenario in grid.scenarios:
-            with closing(BoptestClient(_boptest_chosen(scenario, None).settings.url)) as client:
-                client.probe()
+            _boptest_chosen(scenario, None).check_server()
     start = time.perf_counter()
     root = Path(out)
     _check_out(root, force=force)

@@ -266,7 +266,9 @@ class BoptestClient:
         try:
             payload, queued = self.call("POST", f"{route}-async", timeout_s=SELECT_ID_TIMEOUT_S), True
         except BoptestError as exc:
-            if exc.status not in (404, 405):  # 404/405: no such route (nor, then, test case)
+            # no such route (404 on BOPTEST's service; a server of the API may say it another
+            # way); a refusal of the test case itself comes again from the plain select
+            if exc.status is None or not 400 <= exc.status < 500:
                 raise
             payload, queued = self.call("POST", route, timeout_s=SELECT_TIMEOUT_S), False
         if not (isinstance(payload, dict) and isinstance(payload.get("testid"), str)):

@@ -134,6 +134,12 @@ class BoptestScenario:
             comfort_weight_eur_per_kh=self.settings.comfort_weight_eur_per_kh,
         )
 
+    def check_server(self) -> None:
+        """Ask the scenario's server its version (:meth:`BoptestClient.probe`): a server that
+        is not there or does not answer is one clear error before any work starts."""
+        with closing(BoptestClient(self.settings.url, timeout_s=self.settings.timeout_s)) as client:
+            client.probe()
+
 
 def is_boptest_scenario(name_or_path: str) -> bool:
     """True when ``--scenario`` names a built-in BOPTEST scenario or a TOML file with a
@@ -264,8 +270,9 @@ def run_boptest_closed_loop(
     re-started at the period's start (BOPTEST re-initialises it and its KPIs), left for its
     owner to stop. Nothing is returned from a run that did not finish. The KPIs are the
     package's over every interval, with ``boptest`` (BOPTEST's ``/kpi``), ``test_period``,
-    ``price_scenario`` and ``boptest_testcase``. With ``progress``, a line as the run starts
-    and one a minute on stderr (:func:`scenarios.running.closed_loop.progress_stage`).
+    ``price_scenario`` and ``boptest_testcase``. A run of its own asks the server first
+    (:meth:`BoptestScenario.check_server`). With ``progress``, a line as the run starts and
+    one a minute on stderr (:func:`scenarios.running.closed_loop.progress_stage`).
     """
     if run.time_period is None:
         raise InputError("a closed loop on BOPTEST runs a test period (--test-period)")
@@ -276,6 +283,8 @@ def run_boptest_closed_loop(
     check_seed(seed)
     acting.reset(seed)
     n = run.n_intervals
+    if test is None:  # no server: one line, before the run says it starts
+        chosen.check_server()
     label = (
         f"{controller_name} on BOPTEST: {run.time_period}, {run.days:g} day(s), "
         f"{run.price_scenario} price"
@@ -342,7 +351,8 @@ def boptest_data(
     under a data policy of :mod:`scenarios.running.datagen` (``random``, ``random-level``,
     ``thermostat``, ``closed-loop``: random setpoints in :data:`DATA_SETPOINTS_C` tracked),
     seeded by ``seed``. The data format's columns (:func:`scenarios.plants.boptest.record_data`).
-    With ``progress``, a line as the recording starts and one a minute on stderr."""
+    The server is asked first (:meth:`BoptestScenario.check_server`). With ``progress``, a
+    line as the recording starts and one a minute on stderr."""
     if policy not in POLICIES:
         raise InputError(f"unknown policy {policy!r}; choose one of: {', '.join(POLICIES)}")
     check_seed(seed)
@@ -372,6 +382,7 @@ def boptest_data(
         on = thermostat.switch(np.array([t_r_c]), on, float(row["T_min"]), float(row["T_max"]))
         return spec.u_max_w if on[0] else 0.0
 
+    chosen.check_server()  # no server: one line, before the recording says it starts
     label = (
         f"training data on BOPTEST: {days} day(s) from day {first_day:g} of the year, "
         f"{policy} policy"
