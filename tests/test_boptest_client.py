@@ -227,6 +227,26 @@ def test_ctrl_c_while_the_select_is_in_flight_stops_the_test_it_created(
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
 
 
+def test_a_second_ctrl_c_interrupts_a_select_that_does_not_answer_at_once(standin: StandIn) -> None:
+    """The first Ctrl-C waits for the select's answer; one who asks again is not held (the
+    test the server may have made is left to its idle timeout)."""
+    standin.hang("select-async")
+    main_thread = threading.main_thread().ident or 0
+
+    def twice(route: str) -> None:
+        if route == "select-async":
+            for _ in range(2):
+                signal.pthread_kill(main_thread, signal.SIGINT)
+                time.sleep(0.2)
+
+    standin.on_request = twice
+    start = time.monotonic()
+    with pytest.raises(KeyboardInterrupt):
+        BoptestClient(standin.url).select(TESTCASE)
+    assert time.monotonic() - start < SLACK_S  # not the select's 30 s
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
 def test_ctrl_c_while_the_test_is_queued_stops_it(standin: StandIn) -> None:
     standin.queued_polls = 5
     standin.on_request = _signal_on("status")
