@@ -20,8 +20,9 @@ gives when comfort is all that counts and the model errs by about 0.2 C a day ah
    before the period's last day, then the heat pump off. Heating only raises the temperatures
    that follow, so from that state no policy has less discomfort above the band after it.
 
-Needs a BOPTEST server (``BOPTEST_URL`` or ``--url``; the local one: ``python3
-../shared/boptest/serve.py --port 8000``). About 11-20 min on two cores::
+Needs a BOPTEST server (``BOPTEST_URL`` or ``--url``): BOPTEST's own service (``docker compose
+up web worker provision`` in a clone of https://github.com/ibpsa/project1-boptest), or see
+docs/boptest.md to run it without Docker. About 11-20 min on two cores::
 
     python benchmarks/boptest_least_discomfort.py [--period typical_heat_day] [--price dynamic]
 """

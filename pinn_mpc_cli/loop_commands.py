@@ -126,6 +126,11 @@ def _closed_loop(a: argparse.Namespace) -> str:
     if is_boptest_scenario(a.scenario):
         return _boptest_closed_loop(a, outputs)
     refuse_boptest_options({o: getattr(a, o) for o in ("test_period", "price_scenario")}, a.scenario)
+    if a.days is None:  # only a BOPTEST scenario's test period has a length of its own
+        raise InputError(
+            f"closed-loop needs --days N (the counted days after a one-day warm-up) on "
+            f"scenario {a.scenario}"
+        )
     inputs: dict[str, PathsArg] = {"--rc": a.rc, **scenario_inputs(a.scenario)}
     if a.model is not None:
         from pinn_mpc.artifacts import MODEL_DIRECTORY  # torch: only when a model is given
@@ -398,7 +403,9 @@ def _boptest_simulate(a: argparse.Namespace) -> str:
     else:
         first_day = DATA_FIRST_DAY if a.first_day is None else a.first_day
     policy = a.policy or "closed-loop"
-    frame = boptest_data(chosen, days=a.days, seed=a.seed, policy=policy, first_day=first_day)
+    frame = boptest_data(
+        chosen, days=a.days, seed=a.seed, policy=policy, first_day=first_day, progress=True
+    )
     write_timeseries(frame, a.out)
     first, last = day_span(frame["time"])
     return (
@@ -411,7 +418,7 @@ def _boptest_simulate(a: argparse.Namespace) -> str:
 def _boptest_closed_loop(a: argparse.Namespace, outputs: dict[str, str | None]) -> str:
     """``closed-loop`` on a BOPTEST scenario: one test period on the server; the KPI JSON
     carries BOPTEST's KPIs under ``boptest``."""
-    from scenarios.plants.boptest import BoptestRun
+    from scenarios.plants.boptest import TEST_PERIOD_DAYS, BoptestRun
     from scenarios.running.boptest_loop import (
         BASELINE,
         boptest_controller,
@@ -431,8 +438,14 @@ def _boptest_closed_loop(a: argparse.Namespace, outputs: dict[str, str | None]) 
 
         inputs["--model"] = MODEL_DIRECTORY.paths(a.model)
     check_distinct(inputs=inputs, outputs=outputs)
+    if a.days is not None and a.days > TEST_PERIOD_DAYS:
+        raise InputError(
+            f"--days {a.days}: a BOPTEST test period has {TEST_PERIOD_DAYS:g} days; give at most "
+            f"{TEST_PERIOD_DAYS:g}, or leave --days out for the whole period"
+        )
     run = BoptestRun(
-        time_period=a.test_period or "peak_heat_day", days=float(a.days),
+        time_period=a.test_period or "peak_heat_day",
+        days=TEST_PERIOD_DAYS if a.days is None else float(a.days),
         price_scenario=a.price_scenario or "dynamic", dt_s=1800.0,
     )
     if a.controller != BASELINE:

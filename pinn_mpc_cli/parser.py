@@ -350,7 +350,11 @@ def add_closed_loop(sub: Commands) -> None:
     p.add_argument(
         "--rc", default=None, help="RC JSON for casadi-mpc and qp-mpc (from identify, export-rc)"
     )
-    _days_option(p, "counted days after a one-day thermostat warm-up", required=True)
+    _days_option(
+        p, "counted days after a one-day thermostat warm-up (required; on a BOPTEST scenario the "
+        "days of its test period, after BOPTEST's warm-up, default the whole period: 14)",
+        default=None,
+    )
     p.add_argument("--seed", type=_seed, default=0, help="seed of the weather, price and noise")
     p.add_argument("--json", required=True, help="KPI JSON file to write")
     p.add_argument("--csv", default=None, help="trajectory CSV file to write")

@@ -7,7 +7,6 @@ a test period's warm-up more: the tests share selected tests where they can.
 from __future__ import annotations
 
 import math
-import time
 from contextlib import closing
 from pathlib import Path
 
@@ -31,13 +30,11 @@ from scenarios.plants.boptest_client import (
     BoptestClient,
     BoptestError,
     BoptestTest,
-    BoptestTestEnded,
-    BoptestUnreachable,
 )
 from scenarios.running.closed_loop import ClosedLoopResult
 from scenarios.running.engine import ClosedLoop
 from scenarios.running.kpis import compute_kpis
-from tests.boptest_server import IDLE_TIMEOUT_S, Server, free_port
+from tests.boptest_server import Server, free_port
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIO = ROOT / "scenarios" / "plants" / "boptest_hydronic_heat_pump.toml"
@@ -84,19 +81,6 @@ class Constant:
 # --- without a server --------------------------------------------------------------------------
 
 
-def test_no_server_is_one_line_naming_the_url_and_the_fix() -> None:
-    url = f"http://127.0.0.1:{free_port()}"
-    with pytest.raises(BoptestUnreachable) as caught:
-        BoptestClient(url, timeout_s=5).version()
-    message = str(caught.value)
-    assert "\n" not in message and url in message
-    assert "serve.py --port 8000" in message and "BOPTEST_URL" in message
-    assert isinstance(caught.value, InputError)  # the CLI's one line and exit 2
-    points = read_boptest_file(str(SCENARIO)).points
-    with pytest.raises(BoptestUnreachable, match="no BOPTEST server answers at http://127.0.0.1"):
-        BoptestPlant(BoptestSettings(points=points, url=url), BoptestRun(days=1))
-
-
 def test_server_url_comes_from_the_environment(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.delenv("BOPTEST_URL", raising=False)
     assert BoptestClient().url == "http://127.0.0.1:8000"
@@ -140,14 +124,40 @@ def test_scenario_file_is_checked_key_by_key(tmp_path: Path) -> None:
         read_boptest_file(str(broken))
 
 
+@pytest.mark.parametrize("day", ["400", "10", "359", "23.5", "-1"])
+def test_test_periods_are_checked_where_the_scenario_file_is_read(
+    day: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A period centred on ``day`` and its warm-up must lie in the year (14 <= day <= 358,
+    whole days): one line naming the key and the value, when the file is read (before a day
+    of data could be placed by it)."""
+    from pinn_mpc_cli.cli import main
+
+    mine = tmp_path / "mine.toml"
+    mine.write_text(SCENARIO.read_text().replace("peak_heat_day = 23", f"peak_heat_day = {day}"))
+    key = f"boptest.test_periods.peak_heat_day = {day}"
+    with pytest.raises(InputError, match=f"{mine}: {key}: .*a whole day from 14 to 358"):
+        read_boptest_file(str(mine))
+    out = tmp_path / "d.csv"
+    code = main(["simulate", "--scenario", str(mine), "--days", "3", "--first-day", "16", "--out", str(out)])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and "\n" not in err and key in err
+    assert not out.exists()
+    for edge in ("14", "358"):  # the first and last day whose period and warm-up fit
+        mine.write_text(SCENARIO.read_text().replace("peak_heat_day = 23", f"peak_heat_day = {edge}"))
+        assert read_boptest_file(str(mine)).points.period_days("peak_heat_day")[0] == float(edge) - 7
+
+
 def test_runs_are_checked_and_data_days_stay_off_the_test_periods() -> None:
     points = read_boptest_file(str(SCENARIO)).points
     with pytest.raises(InputError, match="price scenario 'spot'"):
         BoptestRun(price_scenario="spot")
     with pytest.raises(InputError, match="not both"):
         BoptestRun(time_period="peak_heat_day", first_day=40)
-    with pytest.raises(InputError, match="at most 14"):
+    with pytest.raises(InputError, match="a BOPTEST test period has 14 days, 15 were asked for peak_heat_day; give at most 14"):
         BoptestRun(days=15)
+    with pytest.raises(InputError, match="days 360-370 of the year run past its end"):
+        BoptestRun(time_period=None, first_day=360.0, days=10.0)
     assert points.period_days("peak_heat_day") == (16.0, 30.0)
     assert points.period_days("typical_heat_day") == (108.0, 122.0)
     points.check_disjoint(30.0, 71.0)  # days 30-101: between the periods and their warm-ups
@@ -180,7 +190,7 @@ def test_training_days_nearest_a_test_period() -> None:
 # --- the client against the server's routes ----------------------------------------------------
 
 
-def test_client_routes_on_the_server(settings: BoptestSettings) -> None:
+def test_the_test_case_through_the_client_on_the_server(settings: BoptestSettings) -> None:
     points = settings.points
     client = BoptestClient(settings.url)
     assert client.version()
@@ -216,26 +226,8 @@ def test_client_routes_on_the_server(settings: BoptestSettings) -> None:
             test.advance({"oveNope_u": 1.0})
         with pytest.raises(BoptestError, match=r"Invalid point name\(s\) \['Nope'\]"):
             test.forecast(["Nope"], horizon_s=3600.0, interval_s=900.0)
-        testid = test.testid
-    # leaving the block stopped the test on the server
-    assert test.stopped
-    with pytest.raises(BoptestTestEnded, match="was stopped"):
-        test.kpi()
-    with pytest.raises(BoptestTestEnded, match=f"test {testid} is no longer on the server"):
-        client.call("GET", f"kpi/{testid}", testid=testid)
-
-
-@pytest.mark.slow
-def test_a_test_the_server_ended_is_reported_as_such(server: Server) -> None:
-    if not server.started:
-        pytest.skip("the server at $BOPTEST_URL has its own idle timeout (BOPTEST's is 15 min)")
-    client = BoptestClient(server.url)
-    test = client.select(TESTCASE)
-    time.sleep(IDLE_TIMEOUT_S + 3.0)
-    with pytest.raises(BoptestTestEnded, match="idle timeout"):
-        test.step_s()
-    test.stop()  # nothing left to stop: no error
-    assert client.call("GET", f"status/{test.testid}") == "Stopped"
+    # the client's own part (routes, payloads, errors, a stopped or ended test):
+    # tests/test_boptest_client.py against a stand-in
 
 
 def test_plant_refuses_points_the_test_case_lacks_and_stops_its_test(
@@ -510,8 +502,88 @@ def test_cli_without_a_server_exits_2_with_one_line_naming_the_url(
                  "thermostat", "--days", "1", "--json", str(out)])
     err = capsys.readouterr().err.strip()
     assert code == 2 and "\n" not in err
-    assert url in err and "serve.py --port 8000" in err
+    assert url in err and "docker compose up" in err and "BOPTEST_URL" in err
     assert not out.exists()
+
+
+def test_cli_closed_loop_days_on_boptest_default_to_the_test_period(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    """Without --days a BOPTEST closed loop goes on to the server (its test period's 14
+    days); --days 15 is one line in the user's terms; the package's own scenarios still
+    need --days."""
+    from pinn_mpc_cli.cli import main
+    from pinn_mpc_cli.parser import build_parser
+
+    url = f"http://127.0.0.1:{free_port()}"
+    monkeypatch.setenv("BOPTEST_URL", url)
+    out = ["--json", str(tmp_path / "k.json")]
+    boptest = ["closed-loop", "--scenario", "boptest_hydronic_heat_pump", "--controller", "thermostat"]
+    assert main([*boptest, *out]) == 2
+    assert f"no BOPTEST server answers at {url}" in capsys.readouterr().err
+    assert main([*boptest, "--days", "15", *out]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.endswith("error: --days 15: a BOPTEST test period has 14 days; give at most 14, or leave --days out for the whole period")
+    assert "BoptestRun" not in err
+    assert main(["closed-loop", "--scenario", "paper_household", "--controller", "thermostat", *out]) == 2
+    assert "closed-loop needs --days N" in capsys.readouterr().err
+    assert not list(tmp_path.iterdir())
+    help_text = " ".join(build_parser()._subparsers._group_actions[0].choices["closed-loop"].format_help().split())  # type: ignore[union-attr]
+    assert "on a BOPTEST scenario the days of its test period, after BOPTEST's warm-up, default the whole period: 14" in help_text
+
+
+def test_models_and_rc_files_get_the_plants_checks_on_boptest(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    """identify / train on winter_household data (its 10 kW heater): refused on BOPTEST's
+    3715 W heat pump as on heat_pump_household's 4000 W, before any server call; an RC of
+    data within the emulator's margin (:data:`BOPTEST_FIT_CHECKS`) is taken."""
+    import json
+
+    from pinn_mpc.data import write_timeseries
+    from pinn_mpc_cli.cli import main
+    from scenarios.inputs.scenario_file import get_scenario
+    from scenarios.running.boptest_loop import (
+        BOPTEST_FIT_CHECKS,
+        boptest_controller,
+        boptest_scenario,
+    )
+    from scenarios.running.datagen import generate
+
+    monkeypatch.setenv("BOPTEST_URL", f"http://127.0.0.1:{free_port()}")  # no server: a call fails
+    data = generate(get_scenario("winter_household"), days=3, seed=0, policy="random-level", weather_part="train")
+    top = float(data["u_phys"].max())
+    assert top > 1.5 * 3715.0  # another building's heater
+    write_timeseries(data, tmp_path / "wh.csv")
+    rc = tmp_path / "rc_base.json"
+    assert main(["identify", "--data", str(tmp_path / "wh.csv"), "--out", str(rc)]) == 0
+    assert main(["train", "--data", str(tmp_path / "wh.csv"), "--arch", "arx", "--out", str(tmp_path / "arx")]) == 0
+    capsys.readouterr()
+    out = ["--days", "1", "--json", str(tmp_path / "k.json")]
+    runs = {
+        "rc": (["--controller", "qp-mpc", "--rc", str(rc)], f"the RC of rc_base.json was identified on powers up to {top:.0f} W"),
+        "cem": (["--controller", "cem", "--model", str(tmp_path / "arx")], f"the model was trained on powers up to {top:.0f} W"),
+        "qp-mpc over the ARX": (["--controller", "qp-mpc", "--model", str(tmp_path / "arx")], f"the model was trained on powers up to {top:.0f} W"),
+    }
+    for what, (args, refusal) in runs.items():
+        for scenario, limit in (("heat_pump_household", 4000), ("boptest_hydronic_heat_pump", 3715)):
+            assert main(["closed-loop", "--scenario", scenario, *args, *out]) == 2, (what, scenario)
+            err = capsys.readouterr().err.strip()
+            assert "\n" not in err and refusal in err and f"at most {limit} W" in err, (what, err)
+    assert not (tmp_path / "k.json").exists()
+    # an RC of data up to the margin is the emulator's own: taken, no server asked
+    chosen = boptest_scenario("boptest_hydronic_heat_pump")
+    record = json.loads(rc.read_text())
+    slack = BOPTEST_FIT_CHECKS.power_slack
+    for power_w, taken in ((0.99 * slack * 3715.0, True), (1.01 * slack * 3715.0, False)):
+        record["power_range_w"] = [0.0, power_w]
+        rc.write_text(json.dumps(record))
+        if taken:
+            controller = boptest_controller("qp-mpc", chosen, dt_s=1800.0, model_dir=None, rc_path=rc, n_steps=48)
+            assert controller is not None and controller.name == "qp-mpc"
+        else:
+            with pytest.raises(InputError, match="identified on powers up to"):
+                boptest_controller("qp-mpc", chosen, dt_s=1800.0, model_dir=None, rc_path=rc, n_steps=48)
 
 
 def test_cli_simulate_refuses_days_on_a_test_period(

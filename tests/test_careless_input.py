@@ -46,7 +46,7 @@ from scenarios.plants.energyplus.files import (
 )
 from scenarios.plants.energyplus.model import prepare_model
 from scenarios.running import budget
-from scenarios.running.closed_loop import progress_steps
+from scenarios.running.closed_loop import progress_stage, progress_steps
 from scenarios.running.datagen import generate
 
 HOURS = pd.date_range("2023-01-01", periods=24 * 30, freq="h")
@@ -350,6 +350,67 @@ def test_long_runs_print_progress_lines_off_a_terminal():
     assert len(lines) == 3
     assert lines[0] == "cem: 25 of 100 steps (25 %), 4 min elapsed, about 12 min left"
     assert list(progress_steps(3, "x", False, stream=stream)) == [0, 1, 2]
+
+
+def test_a_stage_counts_its_steps_and_the_time_left():
+    """:class:`Stage`: what a long stage is at, exactly, on a (fake) clock of 10 s a tick."""
+    ticks = iter(range(0, 10_000, 10))
+    with progress_stage("training data", False, clock=lambda: next(ticks)) as stage:
+        assert stage.line() == "training data: 10 s elapsed"
+        stage.detail = "selecting a test"
+        assert stage.line() == "training data: selecting a test, 20 s elapsed"
+        done = []
+        for k in stage.steps(4, "interval"):
+            done.append((k, stage.detail))
+    assert done == [
+        (0, "0 of 4 intervals"),
+        (1, "1 of 4 intervals (25 %), about 30 s left"),
+        (2, "2 of 4 intervals (50 %), about 20 s left"),
+        (3, "3 of 4 intervals (75 %), about 10 s left"),
+    ]
+
+
+def test_a_long_stage_says_what_it_does_as_it_starts_and_while_it_runs():
+    """The start line, then a line every ``every_s`` seconds from a thread of its own, also
+    while the stage waits in one call (here a sleep); nothing without ``progress``."""
+    import time
+
+    stream = io.StringIO()
+    with progress_stage("training data on BOPTEST", True, stream=stream, every_s=0.02) as stage:
+        stage.detail = "selecting a test"
+        time.sleep(0.3)  # one call that takes long: a server's warm-up
+        for _ in stage.steps(3, "interval"):
+            time.sleep(0.1)
+    lines = stream.getvalue().splitlines()
+    assert lines[0] == "training data on BOPTEST"
+    beats = lines[1:]
+    assert any(re.fullmatch(r"training data on BOPTEST: selecting a test, \d+ s elapsed", b) for b in beats)
+    assert any(re.fullmatch(r"training data on BOPTEST: [12] of 3 intervals \(\d+ %\), about \d+ s left, \d+ s elapsed", b) for b in beats)
+    assert all(b.startswith("training data on BOPTEST: ") for b in beats)
+    n = len(lines)
+    time.sleep(0.1)
+    assert len(stream.getvalue().splitlines()) == n  # the stage ended: its lines too
+    quiet = io.StringIO()
+    with progress_stage("x", False, stream=quiet, every_s=0.01):
+        time.sleep(0.05)
+    assert quiet.getvalue() == ""
+
+
+def test_a_sweep_says_what_it_starts_and_what_is_still_running():
+    from scenarios.experiments.sweep import _progress_line, _start_line
+
+    assert _start_line(8, 2, 3, 2) == (
+        "sweep: 8 cell(s) to run (2 reused), 3 model(s) to train, on 2 recording(s) of BOPTEST "
+        "training data first"
+    )
+    assert _start_line(8, 0, 0, 0) == "sweep: 8 cell(s) to run (0 reused), 0 model(s) to train"
+    assert _progress_line(4, 10, 2, 1, 600.0, waiting={"model": 0, "cell": 6}) == (
+        "sweep: 4 of 10 cells (2 reused), 1 model(s) trained, 10 min elapsed, about 30 min "
+        "left; running or queued: 6 cell(s)"
+    )
+    assert _progress_line(0, 10, 0, 0, 120.0, waiting={"model": 2, "cell": 10}).endswith(
+        "no cell finished yet; running or queued: 2 model(s), 10 cell(s)"
+    )
 
 
 # ---------------------------------------------------------------- messages

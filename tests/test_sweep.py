@@ -267,8 +267,8 @@ def test_sweep_without_a_grid_or_spec_exits_2(tmp_path):
 
 
 def test_a_sweep_logs_its_progress_when_stderr_is_not_a_terminal(tmp_path, monkeypatch, capsys):
-    """Off a terminal (a log file, CI) the sweep prints a progress line every PROGRESS_EVERY_S
-    with the cells done and the models trained."""
+    """Off a terminal (a log file, CI) the sweep says what it starts, each model trained, and
+    a progress line every PROGRESS_EVERY_S with the cells done and the models trained."""
     import scenarios.running.closed_loop
     from pinn_mpc_cli.cli import main
 
@@ -277,9 +277,13 @@ def test_a_sweep_logs_its_progress_when_stderr_is_not_a_terminal(tmp_path, monke
     args = ["--scenarios", "winter_household", "--controllers", "oracle,qp-mpc", "--seeds", "0-1"]
     assert main(["sweep", *args, "--days", "1", "--quick", "--out", str(out)]) == 0
     lines = [line for line in capsys.readouterr().err.splitlines() if line.startswith("sweep: ")]
-    assert lines and "of 4 cells" in lines[0] and "elapsed" in lines[0]
+    assert re.fullmatch(r"sweep: 4 cell\(s\) to run \(0 reused\), (\d) model\(s\) to train", lines[0])
+    models = int(lines[0].split(", ")[1][0])
+    assert sum(bool(re.fullmatch(rf"sweep: model .* trained \(\d of {models}\)", line)) for line in lines) == models
+    lines = [line for line in lines if " of 4 cells " in line]
+    assert lines and "elapsed" in lines[0]
     # the count moves as cells finish (the disabled bar off a terminal counted none)
-    assert any(re.match(r"sweep: [1-3] of 4 cells .* left$", line) for line in lines), lines
+    assert any(re.match(r"sweep: [1-3] of 4 cells .* left; running or queued: .*cell\(s\)$", line) for line in lines), lines
 
 
 def test_sweep_trains_on_each_scenarios_own_data_policy(tmp_path):

@@ -37,7 +37,7 @@ import re
 import socket
 import sys
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeAlias, TypedDict, cast
@@ -782,8 +782,17 @@ def _check_out(root: Path, *, force: bool) -> None:
             )
 
 
-def _progress_line(done: int, total: int, reused: int, trained: int, elapsed_s: float) -> str:
-    """The sweep's progress in a log: cells done of ``total``, models trained, time left."""
+def _start_line(cells: int, reused: int, models: int, recordings: int) -> str:
+    """What the sweep starts: its cells, its models and (BOPTEST) their training data."""
+    data = f", on {recordings} recording(s) of BOPTEST training data first" if recordings else ""
+    return f"sweep: {cells} cell(s) to run ({reused} reused), {models} model(s) to train{data}"
+
+
+def _progress_line(
+    done: int, total: int, reused: int, trained: int, elapsed_s: float, *, waiting: Mapping[str, int]
+) -> str:
+    """The sweep's progress: cells done of ``total``, models trained, time left, and the
+    tasks still running or queued (``waiting``: their kind -> how many)."""
     from scenarios.running.closed_loop import duration_text
 
     run_now = done - reused
@@ -792,9 +801,11 @@ def _progress_line(done: int, total: int, reused: int, trained: int, elapsed_s: 
         if run_now
         else "no cell finished yet"
     )
+    busy = ", ".join(f"{n} {kind}(s)" for kind, n in waiting.items() if n)
     return (
         f"sweep: {done} of {total} cells ({reused} reused), {trained} model(s) "
         f"trained, {duration_text(elapsed_s)} elapsed, {left}"
+        + (f"; running or queued: {busy}" if busy else "")
     )
 
 
@@ -843,19 +854,22 @@ def _run_on_ray(
         ref = task.remote(run_cell, cell, settings, model_refs.get(needed) if needed else None, url)
         pending[ref] = ("cell", cell)
 
-    terminal = sys.stderr.isatty()
+    to_train = sum(kind == "model" for kind, _ in pending.values())
+
+    def say(line: str) -> None:  # through tqdm: a terminal's bar stays intact
+        tqdm.write(line, file=sys.stderr)
+        sys.stderr.flush()
+
+    say(_start_line(len(missing), reused, to_train, len(data_refs)))
     began = last = time.monotonic()
     done = reused  # counted here: off a terminal the bar is disabled and does not count
     with tqdm(total=total, initial=reused, desc="sweep", unit="cell", disable=None) as bar:
         while pending:
             now = time.monotonic()
-            if not terminal and now - last >= PROGRESS_EVERY_S:  # a log: a line a minute
+            if now - last >= PROGRESS_EVERY_S:  # a line a minute, a cell finished or not
                 last = now
-                print(
-                    _progress_line(done, total, reused, trained, now - began),
-                    file=sys.stderr,
-                    flush=True,
-                )
+                waiting = {kind: sum(k == kind for k, _ in pending.values()) for kind in ("model", "cell")}
+                say(_progress_line(done, total, reused, trained, now - began, waiting=waiting))
             ready, _ = ray.wait(list(pending), num_returns=1, timeout=PROGRESS_EVERY_S)
             if not ready:  # nothing finished within a minute: report progress, wait again
                 continue
@@ -867,6 +881,7 @@ def _run_on_ray(
             if kind == "model":
                 _store_model(root, what, value)
                 trained += 1
+                say(f"sweep: model {what.name} trained ({trained} of {to_train})")
                 continue
             record: CellRecord = {
                 **_cell_record_key(what),
@@ -921,10 +936,8 @@ def run_sweep(
         )
     check_engine_options(address, workers)
     if grid.is_boptest:  # no server: one line now, not a failed cell after Ray has started
-        from scenarios.plants.boptest_client import BoptestClient
-
         for scenario in grid.scenarios:
-            BoptestClient(_boptest_chosen(scenario, None).settings.url).version()
+            _boptest_chosen(scenario, None).check_server()
     start = time.perf_counter()
     root = Path(out)
     _check_out(root, force=force)

@@ -2,9 +2,8 @@
 
 BOPTEST (IBPSA Project 1) is the building-control benchmark: Modelica emulators served over
 HTTP with fixed test periods, price scenarios, forecasts and KPIs computed by BOPTEST itself.
-:class:`BoptestPlant` selects a test on a server (the local ``../shared/boptest/serve.py`` or a
-user's BOPTEST in Docker; the address from the scenario, else ``$BOPTEST_URL``, else
-``http://127.0.0.1:8000``), starts it at a test period with BOPTEST's warm-up and price scenario
+:class:`BoptestPlant` selects a test on a BOPTEST server (BOPTEST's own service; the address
+from the scenario, else ``$BOPTEST_URL``, else ``http://127.0.0.1:8000``), starts it at a test period with BOPTEST's warm-up and price scenario
 (:class:`BoptestRun`), and steps it one control interval at a time as
 :class:`scenarios.plants.base.LoopPlant` asks: the package's demand in watts becomes the test case's
 signal, ``POST /advance`` runs the interval, ``PUT /results`` gives the interval's means.
@@ -35,7 +34,7 @@ it re-starts that test for its run instead of selecting one, and leaves stopping
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import TracebackType
@@ -67,6 +66,8 @@ __all__ = [
 
 KELVIN = 273.15
 SECONDS_PER_DAY = 86400.0
+#: The days of BOPTEST's year (its test cases' time runs from 0 s, 1 January, over 365 days).
+DAYS_PER_YEAR = 365.0
 #: BOPTEST's price scenarios (``electricity_price``).
 PRICE_SCENARIOS = ("constant", "dynamic", "highly_dynamic")
 #: BOPTEST's test periods: 14 days centred on the test case's day (days.json), after a
@@ -93,6 +94,20 @@ def _name(value: Any, where: str) -> str:
     if not isinstance(value, str) or not value:
         raise InputError(f"{where} must be a point name (a non-empty string), got {value!r}")
     return value
+
+
+def _period_day(value: Any, where: str) -> float:
+    """The day a test period is centred on (days.json), checked: a whole day of the year with
+    the period and its warm-up inside the year."""
+    day = _number(value, where)
+    low, high = TEST_PERIOD_DAYS / 2 + WARMUP_DAYS, DAYS_PER_YEAR - TEST_PERIOD_DAYS / 2
+    if day != int(day) or not low <= day <= high:
+        raise InputError(
+            f"{where} = {value!r}: a test period is the {TEST_PERIOD_DAYS:g} days centred on this "
+            f"day of the year (0 = 1 January) after a {WARMUP_DAYS:g}-day warm-up, so it must be a "
+            f"whole day from {low:g} to {high:g} (BOPTEST's days.json of the test case)"
+        )
+    return day
 
 
 def _names(value: Any, where: str) -> tuple[str, ...]:
@@ -200,7 +215,7 @@ class BoptestPoints:
         if not self.test_periods:
             raise InputError("boptest.test_periods is empty: give BOPTEST's days.json, e.g. peak_heat_day = 23")
         for period, day in self.test_periods.items():
-            _number(day, f"boptest.test_periods.{period}")
+            _period_day(day, f"boptest.test_periods.{period}")
         _number(self.floor_area_m2, "boptest.floor_area_m2")
         if self.floor_area_m2 <= 0:
             raise InputError(f"boptest.floor_area_m2 must be > 0 m2, got {self.floor_area_m2!r}")
@@ -273,11 +288,18 @@ class BoptestRun:
         dt = _number(self.dt_s, "BoptestRun.dt_s")
         if not (RESULT_SAMPLE_S <= dt <= SECONDS_PER_DAY and SECONDS_PER_DAY % dt == 0):
             raise InputError(f"BoptestRun.dt_s = {dt:g} s must divide a day and be >= 30 s")
-        days = _number(self.days, "BoptestRun.days")
-        if days <= 0 or (self.time_period is not None and days > TEST_PERIOD_DAYS):
+        days = _number(self.days, "the run's days")
+        if days <= 0:
+            raise InputError(f"a BOPTEST run of {days:g} days: give a number of days > 0")
+        if self.time_period is not None and days > TEST_PERIOD_DAYS:
             raise InputError(
-                f"BoptestRun.days = {days:g} must be > 0 (and at most {TEST_PERIOD_DAYS:g}, a "
-                "test period's length)"
+                f"a BOPTEST test period has {TEST_PERIOD_DAYS:g} days, {days:g} were asked for "
+                f"{self.time_period}; give at most {TEST_PERIOD_DAYS:g} (its whole period)"
+            )
+        if self.first_day is not None and _number(self.first_day, "the run's first day") + days > DAYS_PER_YEAR:
+            raise InputError(
+                f"days {self.first_day:g}-{self.first_day + days:g} of the year run past its "
+                f"end (day {DAYS_PER_YEAR:g}); give an earlier first day or fewer days"
             )
         if _number(self.warmup_days, "BoptestRun.warmup_days") < 0:
             raise InputError(f"BoptestRun.warmup_days must be >= 0, got {self.warmup_days!r}")
@@ -358,18 +380,14 @@ class BoptestPlant:
             self.points.period_days(run.time_period)
         self.n_substeps = max(1, int(round(run.dt_s / RESULT_SAMPLE_S)))
         self.borrowed = test is not None
-        if test is None:
-            self.client = BoptestClient(settings.url, timeout_s=settings.timeout_s)
-            test = self.client.select(self.points.testcase)
-        elif test.testcase != self.points.testcase:
+        if test is not None and test.testcase != self.points.testcase:
             raise InputError(
                 f"BoptestPlant: the test given is of test case {test.testcase}, the scenario's "
                 f"is {self.points.testcase}"
             )
-        else:
-            self.client = test.client
-        self.test: BoptestTest = test
-        try:
+        self.client = test.client if test is not None else BoptestClient(settings.url, timeout_s=settings.timeout_s)
+        try:  # from the select on: a test the plant selected is stopped however this is left
+            self.test: BoptestTest = test if test is not None else self.client.select(self.points.testcase)
             self._check_points()
             self.test.set_step(run.dt_s)
             self._start()
@@ -424,7 +442,8 @@ class BoptestPlant:
         if self.borrowed:
             return
         try:
-            self.test.stop()
+            if hasattr(self, "test"):  # else the select failed: the client stops what it began
+                self.test.stop()
         finally:
             self.client.close()
 
@@ -649,7 +668,7 @@ def boptest_settings_from_dict(data: Mapping[str, Any], *, where: str = "boptest
             comfort_lower=_name(forecast["comfort_lower"], f"{where}.forecast.comfort_lower"),
             comfort_upper=_name(forecast["comfort_upper"], f"{where}.forecast.comfort_upper"),
             prices={k: _name(v, f"{where}.prices.{k}") for k, v in prices.items()},
-            test_periods={k: _number(v, f"{where}.test_periods.{k}") for k, v in periods.items()},
+            test_periods={k: _period_day(v, f"{where}.test_periods.{k}") for k, v in periods.items()},
             floor_area_m2=_number(data["floor_area_m2"], f"{where}.floor_area_m2"),
             year=year,
         ),
@@ -725,13 +744,18 @@ def builtin_boptest(name: str) -> BoptestSettings:
 Demand = Callable[[int, float, pd.Series], float]
 
 
-def record_data(settings: BoptestSettings, run: BoptestRun, demand: Demand) -> pd.DataFrame:
+def record_data(
+    settings: BoptestSettings, run: BoptestRun, demand: Demand, *,
+    intervals: Callable[[int], Iterable[int]] = range,
+) -> pd.DataFrame:
     """Training data from the emulator: ``run`` (a period of its own, ``first_day``, disjoint
     from every test period and its warm-up, else refused) under ``demand``, in the data
     format: one row per interval, ``time`` (start), ``T_r`` [C] at the start, ``u`` [W] asked,
     ``u_phys`` [W] mean electrical, ``T_a`` [C] and ``G`` [W/m2] as the emulator had them,
     ``I_g`` [W], ``price`` [EUR/kWh], ``T_min``/``T_max`` [C]; ``heat_w`` [W], the heat
-    delivered to the room, beside them. The test is stopped on the server whatever happens."""
+    delivered to the room, beside them. ``intervals(n)`` gives the n intervals' indices in
+    order (``range``, or a progress reporter's). The test is stopped on the server whatever
+    happens."""
     if run.first_day is None:
         raise InputError(
             "training data runs on days of its own (BoptestRun.first_day), never on a test period"
@@ -740,7 +764,7 @@ def record_data(settings: BoptestSettings, run: BoptestRun, demand: Demand) -> p
         frame = plant.exogenous_frame()
         n = run.n_intervals
         t_r, u, u_phys, t_a, g = (np.empty(n) for _ in range(5))
-        for k in range(n):
+        for k in intervals(n):
             t_r[k] = float(plant.measure()[0])
             u[k] = float(demand(k, t_r[k], frame.iloc[k]))
             step = plant.step(u[k], k)

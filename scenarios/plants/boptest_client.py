@@ -10,23 +10,37 @@ trajectories (``PUT /results/{id}``) and the KPIs (``GET /kpi/{id}``), and stops
 (``PUT /stop/{id}``). Every reply is JSON ``{"status", "message", "payload"}`` with that HTTP
 status; this client returns the payload and turns everything else into one clear error:
 
-- no server at the URL -> :class:`BoptestUnreachable` (an :class:`~pinn_mpc.errors.InputError`)
-  naming the URL and how to start the local server or set ``BOPTEST_URL``;
+- no server at the URL, or one that does not answer ``GET /version`` within
+  :data:`PROBE_TIMEOUT_S` (asked before the first select) -> :class:`BoptestUnreachable` (an
+  :class:`~pinn_mpc.errors.InputError`) naming the URL and how to get a server
+  (:data:`SERVER_HINT`);
 - an error reply (400, 500, ...) -> :class:`BoptestError` carrying BOPTEST's own message;
 - a test the server no longer knows (BOPTEST ends a test after a time without calls) ->
   :class:`BoptestTestEnded`;
-- no answer within the call's timeout -> :class:`BoptestError` (nothing waits for ever).
+- no answer within the call's timeout -> :class:`BoptestTimeout` (nothing waits for ever).
 
+Every test a client selects is stopped however the code around it is left. Selecting asks
+BOPTEST for the test id at once (``POST /testcases/{case}/select-async``: the test is queued)
+and then waits for it to run (``GET /status/{id}``) knowing its id; a server without that
+route gets the plain select, which answers once the test runs. While the select request is
+in flight, Ctrl-C (SIGINT) and a SIGTERM that Python handles (Ray's workers turn it into
+SystemExit) are held back (in the main thread, where Python runs its signal handlers): the
+id arrives, the test is stopped, then the interrupt goes on (a second Ctrl-C goes on at once).
 :class:`BoptestTest` is a context manager: leaving the ``with`` block in any way (an error,
-Ctrl-C) stops the test on the server.
+Ctrl-C) stops the test on the server; :meth:`BoptestClient.close` stops any test of the client
+not stopped yet (one whose ``with`` block was never entered).
 """
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
-from collections.abc import Callable, Mapping, Sequence
-from types import TracebackType
+import signal
+import threading
+import time
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from types import FrameType, TracebackType
 from typing import Any
 
 import numpy as np
@@ -41,34 +55,58 @@ __all__ = [
     "BoptestError",
     "BoptestTest",
     "BoptestTestEnded",
+    "BoptestTimeout",
     "BoptestUnreachable",
+    "SERVER_HINT",
     "end_on_exit",
     "server_url",
 ]
 
-#: Environment variable with the server's address; the default is the local server's.
+#: Environment variable with the server's address; the default is where BOPTEST's own service
+#: listens.
 BOPTEST_URL_ENV = "BOPTEST_URL"
 DEFAULT_URL = "http://127.0.0.1:8000"
-#: How to start the server that ships beside the package's checkout.
-LOCAL_SERVER_HINT = "python3 ../shared/boptest/serve.py --port 8000"
+#: How a user gets a BOPTEST server: BOPTEST's own service, or the page on running it without
+#: Docker.
+SERVER_HINT = (
+    "start BOPTEST's service (`docker compose up web worker provision` in a clone of "
+    f"https://github.com/ibpsa/project1-boptest; it listens on {DEFAULT_URL}) and set "
+    f"{BOPTEST_URL_ENV} to its address; to run it without Docker see docs/boptest.md"
+)
 
 #: Seconds to wait for a connection, and for an ordinary call's answer.
 CONNECT_TIMEOUT_S = 5.0
 CALL_TIMEOUT_S = 120.0
-#: Selecting a test loads the emulator; setting a scenario or initialising simulates the
-#: warm-up (days of simulated time): these calls get longer.
+#: Seconds the server has to answer ``GET /version`` before the first select: a server that
+#: accepts connections and never answers is reported now, not after a select's timeout.
+PROBE_TIMEOUT_S = 5.0
+#: Selecting a test loads the emulator: a select gets this long to see it run (queued, then
+#: running), and the request that asks for the test id (select-async) this long to answer.
 SELECT_TIMEOUT_S = 300.0
+SELECT_ID_TIMEOUT_S = 30.0
+#: Seconds between two questions of a queued test's status (BOPTEST's own select waits so).
+SELECT_POLL_S = 1.0
+#: Setting a scenario or initialising simulates the warm-up (days of simulated time).
 WARMUP_TIMEOUT_S = 900.0
 #: Stopping in an exit path must not hold up the exit for long.
 STOP_TIMEOUT_S = 30.0
 
 
 class BoptestError(InputError):
-    """A BOPTEST server refused or failed a call; the message carries BOPTEST's own words."""
+    """A BOPTEST server refused or failed a call; the message carries BOPTEST's own words and
+    ``status`` the reply's HTTP status (None without a reply)."""
+
+    def __init__(self, message: str, *, status: int | None = None) -> None:
+        super().__init__(message)
+        self.status = status
 
 
 class BoptestUnreachable(BoptestError):
     """No BOPTEST server answers at the URL."""
+
+
+class BoptestTimeout(BoptestError):
+    """A call got no answer within its timeout."""
 
 
 class BoptestTestEnded(BoptestError):
@@ -110,10 +148,20 @@ class BoptestClient:
         self.url = server_url(url)
         self.timeout_s = float(timeout_s)
         self.session = requests.Session()
+        self.probed = False
+        #: The tests this client selected and has not stopped, by test id.
+        self.tests: dict[str, BoptestTest] = {}
 
     def close(self) -> None:
-        """Close the HTTP session."""
-        self.session.close()
+        """Stop every test of this client not stopped yet, then close the HTTP session. The
+        stops are the last resort of an exit path (a test whose ``with`` block was never
+        entered): a stop the server refuses is left to its idle timeout, not raised."""
+        try:
+            for test in list(self.tests.values()):
+                with contextlib.suppress(BoptestError):
+                    test.stop()
+        finally:
+            self.session.close()
 
     def call(
         self, method: str, route: str, body: Mapping[str, Any] | None = None, *,
@@ -132,12 +180,11 @@ class BoptestClient:
             if isinstance(exc, requests.ConnectTimeout) or "Connection refused" in str(exc) or \
                     "Failed to establish" in str(exc) or "Name or service" in str(exc):
                 raise BoptestUnreachable(
-                    f"no BOPTEST server answers at {self.url}: start the local one with "
-                    f"`{LOCAL_SERVER_HINT}` or set {BOPTEST_URL_ENV} to your server's address"
+                    f"no BOPTEST server answers at {self.url}: {SERVER_HINT}"
                 ) from None
             raise BoptestError(f"BOPTEST at {self.url}: {method} /{route} failed: {exc}") from None
         except requests.Timeout:
-            raise BoptestError(
+            raise BoptestTimeout(
                 f"BOPTEST at {self.url}: {method} /{route} gave no answer within {read_s:g} s"
             ) from None
         except requests.RequestException as exc:
@@ -152,11 +199,11 @@ class BoptestClient:
                 raise BoptestTestEnded(
                     f"BOPTEST test {testid} is no longer on the server at {self.url} (BOPTEST "
                     "ends a test after a time without calls, its idle timeout, or it was "
-                    f"stopped): {message}; select a new test"
+                    f"stopped): {message}; select a new test", status=response.status_code,
                 )
             raise BoptestError(
                 f"BOPTEST at {self.url} refused {method} /{route} "
-                f"(status {response.status_code}): {message}"
+                f"(status {response.status_code}): {message}", status=response.status_code,
             )
         if isinstance(decoded, dict) and {"status", "message", "payload"} <= decoded.keys():
             return decoded["payload"]
@@ -168,10 +215,23 @@ class BoptestClient:
             status >= 500 and "ended" in message and testid in message
         )
 
-    def version(self) -> str:
+    def version(self, *, timeout_s: float | None = None) -> str:
         """BOPTEST's version (``GET /version``)."""
-        payload = self.call("GET", "version")
+        payload = self.call("GET", "version", timeout_s=timeout_s)
         return str(payload["version"] if isinstance(payload, dict) else payload)
+
+    def probe(self) -> None:
+        """Ask the server its version within :data:`PROBE_TIMEOUT_S`: a server that is not
+        there, or accepts connections and never answers, is one clear error now."""
+        try:
+            self.version(timeout_s=PROBE_TIMEOUT_S)
+        except BoptestTimeout:
+            raise BoptestUnreachable(
+                f"the BOPTEST server at {self.url} did not answer within {PROBE_TIMEOUT_S:g} s "
+                f"(GET /version): check that it runs and answers (`curl {self.url}/version`); "
+                f"else {SERVER_HINT}"
+            ) from None
+        self.probed = True
 
     def testcases(self) -> list[str]:
         """The test cases the server has (``GET /testcases``)."""
@@ -179,11 +239,95 @@ class BoptestClient:
         return [str(t["testcaseid"] if isinstance(t, dict) else t) for t in payload]
 
     def select(self, testcase: str) -> BoptestTest:
-        """Start a test of ``testcase`` (``POST /testcases/{testcase}/select``)."""
-        payload = self.call("POST", f"testcases/{testcase}/select", timeout_s=SELECT_TIMEOUT_S)
+        """Start a test of ``testcase`` and wait until it runs: the test id at once
+        (``POST /testcases/{testcase}/select-async``), then ``GET /status/{id}`` every
+        :data:`SELECT_POLL_S` until it runs, at most :data:`SELECT_TIMEOUT_S`; a server
+        without select-async gets the plain ``select``. The server is probed first
+        (:meth:`probe`, once per client). Interrupted or failing after the id arrived, the
+        test is stopped before the error goes on (see the module docstring)."""
+        if not self.probed:
+            self.probe()
+        test: BoptestTest | None = None
+        try:
+            with _exits_held():
+                testid, queued = self._select_id(testcase)
+                test = BoptestTest(self, testid, testcase)
+            if queued:
+                self._wait_running(test)
+        except BaseException:
+            if test is not None:
+                end_on_exit(test.stop, failed=True)
+            raise
+        return test
+
+    def _select_id(self, testcase: str) -> tuple[str, bool]:
+        """The new test's id, and whether it may still be queued (select-async's answer)."""
+        route = f"testcases/{testcase}/select"
+        try:
+            payload, queued = self.call("POST", f"{route}-async", timeout_s=SELECT_ID_TIMEOUT_S), True
+        except BoptestError as exc:
+            # no such route (404 on BOPTEST's service; a server of the API may say it another
+            # way); a refusal of the test case itself comes again from the plain select
+            if exc.status is None or not 400 <= exc.status < 500:
+                raise
+            payload, queued = self.call("POST", route, timeout_s=SELECT_TIMEOUT_S), False
         if not (isinstance(payload, dict) and isinstance(payload.get("testid"), str)):
             raise BoptestError(f"BOPTEST at {self.url}: select {testcase} gave no test id: {payload!r}")
-        return BoptestTest(self, payload["testid"], testcase)
+        return payload["testid"], queued
+
+    def _wait_running(self, test: BoptestTest) -> None:
+        """Wait until BOPTEST reports ``test`` running (it is queued until a worker has
+        loaded the test case)."""
+        waited_from = time.monotonic()
+        while True:
+            status = str(self.call("GET", f"status/{test.testid}", testid=test.testid)).strip()
+            if status == "Running":
+                return
+            if status != "Queued":
+                raise BoptestError(
+                    f"BOPTEST at {self.url}: test {test.testid} of {test.testcase} is "
+                    f"{status!r}, neither queued nor running"
+                )
+            if time.monotonic() - waited_from >= SELECT_TIMEOUT_S:
+                raise BoptestError(
+                    f"BOPTEST at {self.url}: test {test.testid} of {test.testcase} was still "
+                    f"queued after {SELECT_TIMEOUT_S:g} s (BOPTEST runs as many tests at once as "
+                    "it has workers: `docker compose up --scale worker=N`); it was stopped"
+                )
+            time.sleep(SELECT_POLL_S)
+
+
+@contextlib.contextmanager
+def _exits_held() -> Iterator[None]:
+    """Within (in the main thread, where Python runs signal handlers): SIGINT, and SIGTERM
+    where a Python handler takes it, are held back and handed to their handler as the block
+    ends (Ctrl-C's KeyboardInterrupt, a Ray worker's SystemExit); a second one of a kind goes
+    on at once. Elsewhere the block runs as it is: no handler can interrupt it there."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    caught: list[int] = []
+    previous: dict[int, Callable[[int, FrameType | None], Any]] = {}
+
+    def hold(signum: int, frame: FrameType | None) -> None:
+        if signum in caught:  # asked twice: go on now, leaving the test to the server
+            caught.remove(signum)
+            previous[signum](signum, frame)
+            return
+        caught.append(signum)
+
+    for held in (signal.SIGINT, signal.SIGTERM):
+        handler = signal.getsignal(held)
+        if callable(handler):
+            previous[held] = handler
+            signal.signal(held, hold)
+    try:
+        yield
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+        for signum in dict.fromkeys(caught):
+            previous[signum](signum, None)
 
 
 def _floats(series: Mapping[str, Any]) -> dict[str, np.ndarray]:
@@ -197,6 +341,7 @@ class BoptestTest:
     def __init__(self, client: BoptestClient, testid: str, testcase: str) -> None:
         self.client, self.testid, self.testcase = client, testid, testcase
         self.stopped = False
+        client.tests[testid] = self  # stopped by the client's close if nothing else does
 
     def _call(self, method: str, action: str, body: Mapping[str, Any] | None = None,
               timeout_s: float | None = None) -> Any:
@@ -298,6 +443,7 @@ class BoptestTest:
         if self.stopped:
             return
         self.stopped = True
+        self.client.tests.pop(self.testid, None)
         try:
             self.client.call("PUT", f"stop/{self.testid}", timeout_s=STOP_TIMEOUT_S, testid=self.testid)
         except BoptestTestEnded:

@@ -33,12 +33,11 @@ import pandas as pd
 from controllers.base import Controller
 from controllers.thermostat import Thermostat
 from controllers.trust import TrustSettings
-from pinn_mpc.artifacts import read_rc_json
 from pinn_mpc.choices import ARX, AUTO, COMPARED_ARCHS, MODEL_CHOICES, PHYSICS_ARX
 from pinn_mpc.errors import InputError
 from pinn_mpc.physics import RCParams
 from pinn_mpc.records import ReplayMarginReport, TrustReport
-from scenarios.choices import MODEL_CONTROLLERS, POLICIES, RC_CONTROLLERS
+from scenarios.choices import MODEL_CONTROLLERS, POLICIES
 from scenarios.inputs.exogenous import day_span
 from scenarios.inputs.registry import Scenario, builtin_scenario, check_seed
 from scenarios.inputs.series import ExogenousSeries
@@ -59,11 +58,12 @@ from scenarios.running.closed_loop import (
     ClosedLoopResult,
     RunInputs,
     counted_kpis,
-    progress_steps,
+    progress_stage,
     run_trajectory,
 )
 from scenarios.running.datagen import SetpointPolicy
 from scenarios.running.engine import ClosedLoop
+from scenarios.running.factory import FitChecks
 
 if TYPE_CHECKING:
     from controllers.sampling import Guard
@@ -134,6 +134,12 @@ class BoptestScenario:
             comfort_weight_eur_per_kh=self.settings.comfort_weight_eur_per_kh,
         )
 
+    def check_server(self) -> None:
+        """Ask the scenario's server its version (:meth:`BoptestClient.probe`): a server that
+        is not there or does not answer is one clear error before any work starts."""
+        with closing(BoptestClient(self.settings.url, timeout_s=self.settings.timeout_s)) as client:
+            client.probe()
+
 
 def is_boptest_scenario(name_or_path: str) -> bool:
     """True when ``--scenario`` names a built-in BOPTEST scenario or a TOML file with a
@@ -151,6 +157,14 @@ def boptest_scenario(name_or_path: str, *, url: str | None = None) -> BoptestSce
     if url is not None:
         settings = dataclasses.replace(settings, url=url)
     return BoptestScenario(name=name, settings=settings, path=path)
+
+
+#: How a model or RC file is checked on a BOPTEST scenario: its data may reach 1.5 x the
+#: actuator's limit (the curve's top, measured at 1-2 C outdoors), since the emulator's heat
+#: pump draws more at full signal on colder days and its own data exceed the limit (a margin
+#: chosen, not measured: data half as large again are another building's); no time constants
+#: to compare (the test case has no RC parameters).
+BOPTEST_FIT_CHECKS = FitChecks(power_slack=1.5, true_building=False)
 
 
 #: The trust settings of every MPC on BOPTEST: it plans inside the band by its replay error
@@ -205,31 +219,37 @@ def boptest_controller(
 
     An MPC on an RC plans inside the band by its RC's replay error (:func:`boptest_rc_mpc`).
 
-    A learned model's or an RC's fit is not checked against the scenario's building: the test
-    case has no RC parameters to compare time constants with, and its heat pump draws more
-    than the curve's highest power at full signal on cold days, so the emulator's own data
-    exceed the controllers' limit."""
+    A learned model (``model_dir``) or an RC (``rc_path``) gets the checks of the package's
+    own plants (:func:`scenarios.running.factory.check_model_fits`, ``check_rc_fits``; the
+    interval and the heating sign at the controller's construction) before any call to the
+    server, with :data:`BOPTEST_FIT_CHECKS`: refused when made on another actuator's data or
+    on powers above 1.5 x the actuator's limit, a warning when they stayed under half of it;
+    the time constants are not compared (the test case has no RC parameters)."""
     if name == BASELINE:
         if model_dir is not None or rc_path is not None:
             raise InputError(f"{BASELINE} is the test case's own controller: it takes no --model or --rc")
         return None
-    from scenarios.running.factory import make_controller
+    from scenarios.running.factory import build_controller, make_controller
 
     scenario = chosen.scenario(dt_s)
     if name in MODEL_CONTROLLERS and model_dir is not None:
-        from controllers.sampling import CEM, RandomShooting
         from pinn_mpc.artifacts import load_model
         from pinn_mpc.models.arx import is_arx_directory, load_arx
 
         model = load_arx(model_dir) if is_arx_directory(model_dir) else load_model(model_dir)
-        planner = RandomShooting if name == "random-shooting" else CEM
-        return planner(model, scenario.control_spec(), guard=boptest_guard(model))
-    if name in RC_CONTROLLERS and rc_path is not None and model_dir is None:
-        rc_params, _ = read_rc_json(rc_path)
-        return boptest_rc_mpc(name, scenario, rc_params, n_steps=n_steps)
-    return _with_replay_margin(
-        make_controller(name, scenario, model_dir=model_dir, rc_path=rc_path, n_steps=n_steps)
-    )
+        return build_controller(
+            name, scenario, model=model, n_steps=n_steps,
+            planner_options={"guard": boptest_guard(model)}, checks=BOPTEST_FIT_CHECKS,
+        )
+    return _with_replay_margin(make_controller(
+        name, scenario, model_dir=model_dir, rc_path=rc_path, n_steps=n_steps,
+        checks=BOPTEST_FIT_CHECKS,
+    ))
+
+
+#: What a BOPTEST run does before its first interval (its progress lines say so).
+_STARTING = "selecting a test, starting its period after BOPTEST's warm-up"
+_RESTARTING = "re-starting the test at its period's start after BOPTEST's warm-up"
 
 
 def run_boptest_closed_loop(
@@ -250,7 +270,9 @@ def run_boptest_closed_loop(
     re-started at the period's start (BOPTEST re-initialises it and its KPIs), left for its
     owner to stop. Nothing is returned from a run that did not finish. The KPIs are the
     package's over every interval, with ``boptest`` (BOPTEST's ``/kpi``), ``test_period``,
-    ``price_scenario`` and ``boptest_testcase``.
+    ``price_scenario`` and ``boptest_testcase``. A run of its own asks the server first
+    (:meth:`BoptestScenario.check_server`). With ``progress``, a line as the run starts and
+    one a minute on stderr (:func:`scenarios.running.closed_loop.progress_stage`).
     """
     if run.time_period is None:
         raise InputError("a closed loop on BOPTEST runs a test period (--test-period)")
@@ -261,22 +283,31 @@ def run_boptest_closed_loop(
     check_seed(seed)
     acting.reset(seed)
     n = run.n_intervals
-    with BoptestPlant(
-        chosen.settings, run, baseline=baseline, lead_intervals=scenario.horizon_steps, test=test
-    ) as plant:
-        frame = plant.exogenous_frame()
-        t_r0 = float(plant.measure()[0])
-        with ClosedLoop(
-            scenario.sim, ExogenousSeries.from_frame(frame), spec=spec, initial_t_r_c=t_r0,
-            initial_t_m_c=t_r0, seed=0, plant=plant,
-        ) as loop:
-            errors: list[str] = []
-            for k in progress_steps(n, controller_name, progress):
-                decision = loop.advance(acting)
-                if decision.error is not None:
-                    errors.append(f"step {k}: {decision.error}")
-            rec = loop.record()
-            boptest = plant.kpis()
+    if test is None:  # no server: one line, before the run says it starts
+        chosen.check_server()
+    label = (
+        f"{controller_name} on BOPTEST: {run.time_period}, {run.days:g} day(s), "
+        f"{run.price_scenario} price"
+    )
+    with progress_stage(label, progress) as stage:
+        stage.detail = _STARTING if test is None else _RESTARTING
+        with BoptestPlant(
+            chosen.settings, run, baseline=baseline, lead_intervals=scenario.horizon_steps,
+            test=test,
+        ) as plant:
+            frame = plant.exogenous_frame()
+            t_r0 = float(plant.measure()[0])
+            with ClosedLoop(
+                scenario.sim, ExogenousSeries.from_frame(frame), spec=spec, initial_t_r_c=t_r0,
+                initial_t_m_c=t_r0, seed=0, plant=plant,
+            ) as loop:
+                errors: list[str] = []
+                for k in stage.steps(n, "interval"):
+                    decision = loop.advance(acting)
+                    if decision.error is not None:
+                        errors.append(f"step {k}: {decision.error}")
+                rec = loop.record()
+                boptest = plant.kpis()
     inputs = RunInputs(exo=frame, series=ExogenousSeries.from_frame(frame), warmup=0, total=n)
     trajectory = run_trajectory(scenario, inputs, rec).drop(columns="T_m")
     if baseline:  # the test case's own controller decided; the demand column is not its
@@ -313,12 +344,15 @@ def boptest_data(
     first_day: float = DATA_FIRST_DAY,
     dt_s: float = 1800.0,
     price_scenario: str = "dynamic",
+    progress: bool = False,
 ) -> pd.DataFrame:
     """Training data from the emulator: ``days`` days from day ``first_day`` of the year
     (after BOPTEST's 7-day warm-up), refused where they overlap a test period or its warm-up,
     under a data policy of :mod:`scenarios.running.datagen` (``random``, ``random-level``,
     ``thermostat``, ``closed-loop``: random setpoints in :data:`DATA_SETPOINTS_C` tracked),
-    seeded by ``seed``. The data format's columns (:func:`scenarios.plants.boptest.record_data`)."""
+    seeded by ``seed``. The data format's columns (:func:`scenarios.plants.boptest.record_data`).
+    The server is asked first (:meth:`BoptestScenario.check_server`). With ``progress``, a
+    line as the recording starts and one a minute on stderr."""
     if policy not in POLICIES:
         raise InputError(f"unknown policy {policy!r}; choose one of: {', '.join(POLICIES)}")
     check_seed(seed)
@@ -348,7 +382,14 @@ def boptest_data(
         on = thermostat.switch(np.array([t_r_c]), on, float(row["T_min"]), float(row["T_max"]))
         return spec.u_max_w if on[0] else 0.0
 
-    return record_data(chosen.settings, run, demand)
+    chosen.check_server()  # no server: one line, before the recording says it starts
+    label = (
+        f"training data on BOPTEST: {days} day(s) from day {first_day:g} of the year, "
+        f"{policy} policy"
+    )
+    with progress_stage(label, progress) as stage:
+        stage.detail = f"selecting a test, simulating its {run.warmup_days:g}-day warm-up"
+        return record_data(chosen.settings, run, demand, intervals=lambda n: stage.steps(n, "interval"))
 
 
 #: BOPTEST's KPIs a comparison shows: (key in ``/kpi``, column heading).
@@ -368,12 +409,15 @@ CEM_FAMILIES = (*COMPARED_ARCHS, ARX.name, PHYSICS_ARX.name)
 RC_FIT = "rc"
 
 
-def boptest_fit(kind: str, data: pd.DataFrame, config: TrainConfig) -> tuple[BoptestModel, str]:
+def boptest_fit(
+    kind: str, data: pd.DataFrame, config: TrainConfig, *, progress: bool = False
+) -> tuple[BoptestModel, str]:
     """Fit ``kind`` on the emulator's ``data``: :data:`RC_FIT` (the grey-box RC, the actuator's
     gain 1: BOPTEST's power is the heat pump's electrical power, its COP learned into the
     gain), ``auto`` (``train``'s default, :func:`pinn_mpc.model_choice.choose_model` with
     ``config``) or a model ``train --arch`` takes by name (``config`` for the networks).
-    Returns the model and the name of what was fitted (for ``auto``, the family it chose)."""
+    Returns the model and the name of what was fitted (for ``auto``, the family it chose);
+    ``progress``: the training's bars on a terminal."""
     from pinn_mpc.identify import identify_rc
     from pinn_mpc.model_choice import fit_model
 
@@ -381,7 +425,7 @@ def boptest_fit(kind: str, data: pd.DataFrame, config: TrainConfig) -> tuple[Bop
         return identify_rc(data, eta=1.0).params, RC_FIT
     if kind not in (AUTO, *MODEL_CHOICES):
         raise InputError(f"unknown model {kind!r}; choose {RC_FIT}, {AUTO} or one of {', '.join(MODEL_CHOICES)}")
-    choice = fit_model(data, arch=kind, config=config)
+    choice = fit_model(data, arch=kind, config=config, progress=progress)
     return choice.model, choice.chosen
 
 
@@ -451,7 +495,9 @@ def run_boptest_comparison(
     training data records on a test of its own: the server ends a test left idle, as it is
     while the models train) and re-started at the period's start for each row (BOPTEST
     re-initialises the test and its KPIs); the test is stopped however the rows end, an
-    error or Ctrl-C included."""
+    error or Ctrl-C included. With ``progress``, each stage (the recording, each fit, the
+    select, each row) says on stderr as it starts what it does, and a line a minute while it
+    runs."""
     import time
 
     from pinn_mpc.physics import rc_summary
@@ -463,15 +509,18 @@ def run_boptest_comparison(
         raise InputError("a comparison on BOPTEST runs a test period (--test-period)")
     first_day = chosen.settings.points.data_first_day(run.time_period, float(train_days))
     data = boptest_data(
-        chosen, days=train_days, seed=seed, policy=policy, dt_s=run.dt_s, first_day=first_day
+        chosen, days=train_days, seed=seed, policy=policy, dt_s=run.dt_s, first_day=first_day,
+        progress=progress,
     )
     wall["training data"] = time.perf_counter() - start
     fitted: dict[str, tuple[BoptestModel, str]] = {}
     with one_torch_thread():
         for kind in (RC_FIT, AUTO, *families):
             start = time.perf_counter()
-            fitted[kind] = boptest_fit(kind, data, config)
-            wall["identify RC" if kind == RC_FIT else f"train {kind}"] = time.perf_counter() - start
+            stage = "identify RC" if kind == RC_FIT else f"train {kind}"
+            with progress_stage(f"compare on BOPTEST: {stage} on {train_days} day(s) of data", progress):
+                fitted[kind] = boptest_fit(kind, data, config, progress=progress)
+            wall[stage] = time.perf_counter() - start
     default = fitted[AUTO][1]
     n_steps = int(round(days * SECONDS_PER_DAY / run.dt_s))
     plan: list[tuple[str, str, str, BoptestModel | None]] = [
@@ -485,22 +534,24 @@ def run_boptest_comparison(
     rows: list[RunKpis] = []
     settings = chosen.settings
     start = time.perf_counter()
-    with closing(BoptestClient(settings.url, timeout_s=settings.timeout_s)) as client, \
-            client.select(settings.points.testcase) as test:
+    with closing(BoptestClient(settings.url, timeout_s=settings.timeout_s)) as client:
+        with progress_stage("compare on BOPTEST: selecting the test the rows share", progress):
+            test = client.select(settings.points.testcase)
         wall["select test"] = time.perf_counter() - start
-        for name, label, model_name, model in plan:
-            start = time.perf_counter()
-            controller = boptest_planner(name, chosen, model, dt_s=run.dt_s, n_steps=n_steps)
-            with one_torch_thread():
-                result = run_boptest_closed_loop(
-                    chosen, label, controller, run=test_run, seed=seed, progress=progress,
-                    test=test,
-                )
-            wall[label] = time.perf_counter() - start
-            kpis = result.kpis
-            kpis["wall_s_per_day"] = wall[label] / days  # type: ignore[typeddict-unknown-key]
-            kpis["model"] = model_name  # type: ignore[typeddict-unknown-key]
-            rows.append(kpis)
+        with test:  # stopped however the rows end (before the block, by the client's close)
+            for name, label, model_name, model in plan:
+                start = time.perf_counter()
+                controller = boptest_planner(name, chosen, model, dt_s=run.dt_s, n_steps=n_steps)
+                with one_torch_thread():
+                    result = run_boptest_closed_loop(
+                        chosen, label, controller, run=test_run, seed=seed, progress=progress,
+                        test=test,
+                    )
+                wall[label] = time.perf_counter() - start
+                kpis = result.kpis
+                kpis["wall_s_per_day"] = wall[label] / days  # type: ignore[typeddict-unknown-key]
+                kpis["model"] = model_name  # type: ignore[typeddict-unknown-key]
+                rows.append(kpis)
     rc = cast(RCParams, fitted[RC_FIT][0])  # what boptest_fit identifies for RC_FIT
     return BoptestComparison(
         rows=rows, rc=dict(rc_summary(rc, source="identify (training data)")),  # type: ignore[arg-type]

@@ -20,6 +20,7 @@ from __future__ import annotations
 import contextlib
 import math
 import sys
+import threading
 import time
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass
@@ -45,11 +46,13 @@ __all__ = [
     "EXTRA_COLUMNS",
     "ClosedLoopResult",
     "RunInputs",
+    "Stage",
     "build_loop",
     "check_plant_supports",
     "counted_kpis",
     "one_torch_thread",
     "prepare_run",
+    "progress_stage",
     "progress_steps",
     "run_closed_loop",
     "run_trajectory",
@@ -320,6 +323,79 @@ def _progress_lines(
                 file=out,
                 flush=True,
             )
+
+
+class Stage:
+    """A long stage of work (:func:`progress_stage`): ``label`` says what it is, ``detail``
+    what it is at now (set by the work, read by the stage's lines)."""
+
+    def __init__(self, label: str, out: TextIO | None, clock: Callable[[], float]) -> None:
+        self.label, self.detail = label, ""
+        self._out, self._clock = out, clock
+        self._started = clock()
+
+    def line(self) -> str:
+        """The stage's progress line now: its label, detail and the time since it started."""
+        elapsed = f"{duration_text(self._clock() - self._started)} elapsed"
+        return f"{self.label}: {self.detail}, {elapsed}" if self.detail else f"{self.label}: {elapsed}"
+
+    def steps(self, total: int, unit: str) -> Iterator[int]:
+        """``range(total)``, the steps done and an estimate of the time left kept in
+        ``detail``; on a terminal a bar besides (as :func:`progress_steps`)."""
+        steps: Iterable[int] = range(total)
+        if self._out is not None and self._out.isatty():
+            steps = tqdm(steps, desc=self.label, unit=unit, delay=1.0, leave=False, file=self._out)
+        start = self._clock()
+        for k in steps:
+            if k:
+                left = (self._clock() - start) / k * (total - k)
+                self.detail = (
+                    f"{k:,} of {total:,} {unit}s ({100 * k / total:.0f} %), about "
+                    f"{duration_text(left)} left"
+                )
+            else:
+                self.detail = f"0 of {total:,} {unit}s"
+            yield k
+
+
+@contextlib.contextmanager
+def progress_stage(
+    label: str,
+    progress: bool,
+    *,
+    stream: TextIO | None = None,
+    clock: Callable[[], float] = time.monotonic,
+    every_s: float = PROGRESS_EVERY_S,
+) -> Iterator[Stage]:
+    """A long stage's progress on ``stream`` (default stderr) when ``progress``: ``label`` as
+    it starts, then :meth:`Stage.line` every ``every_s`` seconds until it ends, from a thread
+    of its own, so that a stage held up in one call (a server's warm-up, a network's
+    training) is heard from too. Lines go through tqdm, which keeps a terminal's bars intact.
+    Nothing is written without ``progress``."""
+    if not progress:
+        yield Stage(label, None, clock)
+        return
+    out = sys.stderr if stream is None else stream
+    stage = Stage(label, out, clock)
+
+    def write(line: str) -> None:
+        tqdm.write(line, file=out)
+        out.flush()
+
+    write(label)
+    ended = threading.Event()
+
+    def beat() -> None:
+        while not ended.wait(every_s):
+            write(stage.line())
+
+    beating = threading.Thread(target=beat, name=f"progress: {label}", daemon=True)
+    beating.start()
+    try:
+        yield stage
+    finally:
+        ended.set()
+        beating.join()
 
 
 @contextlib.contextmanager

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -42,6 +43,7 @@ __all__ = [
     "CONTROLLER_NAMES",
     "MODEL_CONTROLLERS",
     "RC_CONTROLLERS",
+    "FitChecks",
     "TRUTH_CONTROLLERS",
     "build_controller",
     "check_model_fits",
@@ -53,6 +55,21 @@ __all__ = [
 
 #: Ranges of the training data's inputs a planner watches (see controllers.trust).
 _WATCHED = ("T_a", "G")
+
+
+@dataclass(frozen=True, kw_only=True)
+class FitChecks:
+    """How a model or RC file is checked against a scenario (:func:`check_model_fits`): refused
+    when made on powers above ``power_slack`` x the scenario's actuator limit (default: its
+    own measurements, a little noise); time constants compared with the scenario's building
+    where ``true_building`` (None: where the scenario has true parameters)."""
+
+    power_slack: float = 1.05
+    true_building: bool | None = None
+
+    def __post_init__(self) -> None:
+        if not self.power_slack >= 1.0:
+            raise ValueError(f"FitChecks.power_slack must be >= 1, got {self.power_slack!r}")
 
 
 
@@ -102,12 +119,14 @@ def model_guard(model: BatchDynamics) -> Guard:
     return Guard(rc=rc, training_ranges=_ranges(summary))
 
 
-def check_model_fits(model: BatchDynamics, scenario: Scenario) -> list[str]:
+def check_model_fits(
+    model: BatchDynamics, scenario: Scenario, checks: FitChecks = FitChecks()
+) -> list[str]:
     """Refuse a model made for another actuator (a heat pump's data has a ``cop`` column) or
-    for a larger one (training power above the scenario's limit); return warnings for a model
-    whose data never came near the scenario's full power or whose identified time constants
-    differ from the scenario's building (where it has true parameters) by more than a factor
-    of 3."""
+    for a larger one (training power above the scenario's limit, :class:`FitChecks`); return
+    warnings for a model whose data never came near the scenario's full power or whose
+    identified time constants differ from the scenario's building (where it has true
+    parameters) by more than a factor of 3."""
     rc, summary = _trained_on(model)
     record = _record(model)
     if record is not None:
@@ -122,20 +141,25 @@ def check_model_fits(model: BatchDynamics, scenario: Scenario) -> list[str]:
         heat_pump_data="cop" in columns if columns else None,
         power_max_w=power_max_w,
         identified=params_from_summary(rc) if isinstance(rc, dict) else None,
+        checks=checks,
     )
 
 
-def check_rc_fits(path: str | os.PathLike[str], scenario: Scenario) -> list[str]:
+def check_rc_fits(
+    path: str | os.PathLike[str], scenario: Scenario, checks: FitChecks = FitChecks()
+) -> list[str]:
     """:func:`check_model_fits` for an RC JSON (``identify``, ``export-rc``): refused when its
     data were another actuator's or went above the scenario's power; warnings when they stayed
     under half of it or its time constants differ from the scenario's building by more than a
     factor of 3. An RC JSON without the data's power range (written by hand, or before it was
     recorded) is checked for its time constants only."""
     params, data = read_rc_json(path)
-    return _rc_fit_notes(Path(path).name, params, data, scenario)
+    return _rc_fit_notes(Path(path).name, params, data, scenario, checks)
 
 
-def _rc_fit_notes(name: str, params: RCParams, data: Mapping[str, Any], scenario: Scenario) -> list[str]:
+def _rc_fit_notes(
+    name: str, params: RCParams, data: Mapping[str, Any], scenario: Scenario, checks: FitChecks
+) -> list[str]:
     """:func:`check_rc_fits` of the RC JSON ``name``, already read as ``params`` and ``data``."""
     power = data.get("power_range_w")
     hp = data.get("heat_pump_data")
@@ -144,6 +168,7 @@ def _rc_fit_notes(name: str, params: RCParams, data: Mapping[str, Any], scenario
         heat_pump_data=hp if isinstance(hp, bool) else None,
         power_max_w=float(power[1]) if isinstance(power, list) and len(power) == 2 else None,
         identified=params,
+        checks=checks,
     )
 
 
@@ -156,14 +181,16 @@ def _check_fits(
     heat_pump_data: bool | None,
     power_max_w: float | None,
     identified: RCParams | None,
+    checks: FitChecks,
 ) -> list[str]:
     """The checks of :func:`check_model_fits` for ``what`` (``made`` on data; ``command`` makes
     another): refusals raised, warnings returned."""
     heat_pump = not scenario.sim.actuator.is_ideal
     if heat_pump_data and not heat_pump:
         raise InputError(
-            f"{what} was {made} heat-pump data (a cop column), but scenario "
-            f"{scenario.name!r} has an ideal heater or chiller; {command} on data of this scenario"
+            f"{what} was {made} heat-pump data (a cop column), but the controllers of scenario "
+            f"{scenario.name!r} plan without a COP (its actuator an ideal heater or chiller, or "
+            f"an emulator's measured power); {command} on data of this scenario"
         )
     notes = []
     if heat_pump and heat_pump_data is False:
@@ -172,7 +199,7 @@ def _check_fits(
             "column: it sees electrical power only (add the COP per row as a cop column)"
         )
     u_max = scenario.sim.u_max_w
-    if power_max_w is not None and power_max_w > 1.05 * u_max:
+    if power_max_w is not None and power_max_w > checks.power_slack * u_max:
         raise InputError(
             f"{what} was {made} powers up to {power_max_w:.0f} W, but scenario {scenario.name!r}'s "
             f"actuator gives at most {u_max:.0f} W: it was made for another building; "
@@ -184,7 +211,8 @@ def _check_fits(
             "it extrapolates at high power (was it made for this building?)"
         )
     # A plant without true parameters (EnergyPlus) has only nominal ones: nothing to compare.
-    if identified is not None and scenario.reference == "oracle":
+    true_building = scenario.reference == "oracle" if checks.true_building is None else checks.true_building
+    if identified is not None and true_building:
         mine = time_constants_h(identified)
         theirs = time_constants_h(scenario.sim.params)
         ratio = max(max(a / b, b / a) for a, b in zip(mine, theirs, strict=True))
@@ -223,6 +251,7 @@ def build_controller(
     rc_params: RCParams | None = None,
     n_steps: int,
     planner_options: Mapping[str, Any] | None = None,
+    checks: FitChecks = FitChecks(),
 ) -> Controller:
     """A controller by its command-line name, from objects already in memory.
 
@@ -244,6 +273,9 @@ def build_controller(
         The number of counted intervals of the run (used by ``clairvoyant``).
     planner_options
         Keyword arguments of ``random-shooting`` / ``cem`` (e.g. samples).
+    checks
+        How a learned or ARX ``model`` is checked against the scenario
+        (:func:`check_model_fits`: refusals raised, warnings through ``warnings``).
 
     Returns
     -------
@@ -272,11 +304,14 @@ def build_controller(
         options.setdefault("guard", model_guard(model))
         planner = RandomShooting if name == "random-shooting" else CEM
         controller = planner(model, spec, **options)  # checks heating vs cooling and interval
-        for note in check_model_fits(model, scenario):
+        for note in check_model_fits(model, scenario, checks):
             warn(note)
         return controller
     if name == "qp-mpc" and model is not None:
-        return _arx_mpc(model, scenario, rc_params)
+        arx_mpc = _arx_mpc(model, scenario, rc_params)  # checks heating vs cooling and interval
+        for note in check_model_fits(model, scenario, checks):
+            warn(note)
+        return arx_mpc
     if name in RC_CONTROLLERS:
         if rc_params is None:
             also = " or --model ARX_DIR (`pinn-mpc train --arch arx`)" if name == "qp-mpc" else ""
@@ -334,8 +369,10 @@ def make_controller(
     model_dir: str | os.PathLike[str] | None = None,
     rc_path: str | os.PathLike[str] | None = None,
     n_steps: int,
+    checks: FitChecks = FitChecks(),
 ) -> Controller:
-    """The controller ``name`` (see :data:`CONTROLLER_NAMES`), reading ``--model`` / ``--rc``.
+    """The controller ``name`` (see :data:`CONTROLLER_NAMES`), reading ``--model`` / ``--rc``,
+    each checked against the scenario (:class:`FitChecks`).
 
     A model or RC file given to a controller that does not use it is an error, not ignored.
     """
@@ -363,6 +400,6 @@ def make_controller(
     rc_params = None
     if rc_path is not None:  # read once: the parameters and what the file says of its data
         rc_params, data = read_rc_json(rc_path)
-        for note in _rc_fit_notes(Path(rc_path).name, rc_params, data, scenario):
+        for note in _rc_fit_notes(Path(rc_path).name, rc_params, data, scenario, checks):
             warn(note)
-    return build_controller(name, scenario, model=model, rc_params=rc_params, n_steps=n_steps)
+    return build_controller(name, scenario, model=model, rc_params=rc_params, n_steps=n_steps, checks=checks)
