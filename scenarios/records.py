@@ -109,6 +109,8 @@ class RunKpis(Kpis):
     boptest: NotRequired[dict[str, float | None]]
     """BOPTEST's own KPIs of the run (``GET /kpi``: ``tdis_tot``, ``ener_tot``, ...)."""
     boptest_testcase: NotRequired[str]
+    boptest_version: NotRequired[str | None]
+    """BOPTEST's version as the server reported it (``GET /version``)."""
     test_period: NotRequired[str]
     """BOPTEST's ``time_period``."""
     price_scenario: NotRequired[str]

@@ -86,6 +86,7 @@ def test_routes_and_the_payloads_returned(standin: StandIn) -> None:
             np.testing.assert_array_equal(fc["time"], [1800.0, 3600.0, 5400.0])
             assert test.kpi() == {"tdis_tot": 0.0, "ener_tot": 0.0, "pele_tot": None}
     assert test.stopped and client.tests == {}
+    assert client.server_version == "standin"  # the probe's answer, which a run's KPIs record
     assert [(c.method, c.path) for c in standin.calls] == [
         ("GET", "/version"), ("GET", "/testcases"),
         ("GET", "/version"),  # the probe before the first select

@@ -147,7 +147,7 @@ def test_a_planner_over_a_learned_model_adds_its_trust_report():
     assert set(TrustReport.__annotations__) <= set(result.kpis)
     # the trust keys a run may have are exactly the trust report's and an RC MPC's replay
     # margin's (the rest: a scenario file's name and a BOPTEST run's own)
-    boptest = {"boptest", "boptest_testcase", "test_period", "price_scenario"}
+    boptest = {"boptest", "boptest_testcase", "boptest_version", "test_period", "price_scenario"}
     assert set(RunKpis.__optional_keys__) - {"scenario_file"} - boptest == set(
         TrustReport.__annotations__
     ) | set(ReplayMarginReport.__annotations__)

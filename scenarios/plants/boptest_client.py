@@ -149,6 +149,8 @@ class BoptestClient:
         self.timeout_s = float(timeout_s)
         self.session = requests.Session()
         self.probed = False
+        #: BOPTEST's version as the server reported it (``GET /version``; None before a probe).
+        self.server_version: str | None = None
         #: The tests this client selected and has not stopped, by test id.
         self.tests: dict[str, BoptestTest] = {}
 
@@ -224,7 +226,7 @@ class BoptestClient:
         """Ask the server its version within :data:`PROBE_TIMEOUT_S`: a server that is not
         there, or accepts connections and never answers, is one clear error now."""
         try:
-            self.version(timeout_s=PROBE_TIMEOUT_S)
+            self.server_version = self.version(timeout_s=PROBE_TIMEOUT_S)
         except BoptestTimeout:
             raise BoptestUnreachable(
                 f"the BOPTEST server at {self.url} did not answer within {PROBE_TIMEOUT_S:g} s "

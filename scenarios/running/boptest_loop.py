@@ -308,6 +308,7 @@ def run_boptest_closed_loop(
                         errors.append(f"step {k}: {decision.error}")
                 rec = loop.record()
                 boptest = plant.kpis()
+                version = plant.client.server_version
     inputs = RunInputs(exo=frame, series=ExogenousSeries.from_frame(frame), warmup=0, total=n)
     trajectory = run_trajectory(scenario, inputs, rec).drop(columns="T_m")
     if baseline:  # the test case's own controller decided; the demand column is not its
@@ -323,6 +324,7 @@ def run_boptest_closed_loop(
         "weather_days": day_span(frame["time"]),  # forecast lead included
         "boptest": boptest,
         "boptest_testcase": chosen.settings.points.testcase,
+        "boptest_version": version,
         "test_period": run.time_period,
         "price_scenario": run.price_scenario,
     }
