@@ -670,3 +670,51 @@ def test_an_rc_of_a_smaller_actuator_is_warned_about(identified_rcs, capsys, tmp
     del old["power_range_w"], old["heat_pump_data"]  # an rc.json written before they were recorded
     (tmp_path / "old.json").write_text(json.dumps(old))
     assert check_rc_fits(tmp_path / "old.json", get_scenario("paper_household")) == []
+
+
+@pytest.fixture(scope="module")
+def careless(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """simulate's output converted with pandas as a careless user would (issue 46): every
+    temperature column to Fahrenheit or kelvin, the power columns to kW."""
+    folder = tmp_path_factory.mktemp("careless")
+    assert main(["simulate", "--scenario", "winter_household", "--days", "7", "--seed", "0",
+                 "--out", str(folder / "c.csv")]) == 0
+    data = pd.read_csv(folder / "c.csv")
+    temps = ["T_r", "T_m", "T_a", "T_min", "T_max"]
+    data.assign(**{c: data[c] * 1.8 + 32 for c in temps}).to_csv(folder / "f.csv", index=False)
+    data.assign(**{c: data[c] + 273.15 for c in temps}).to_csv(folder / "k.csv", index=False)
+    data.assign(u=data["u"] / 1000, u_phys=data["u_phys"] / 1000).to_csv(folder / "kw.csv", index=False)
+    return folder
+
+
+@pytest.mark.parametrize(("data", "unit", "fix"), [
+    ("f.csv", "it looks like Fahrenheit", "C = (F - 32) / 1.8"),
+    ("k.csv", "a temperature in kelvin", "C = K - 273.15"),
+])
+@pytest.mark.parametrize("command", [
+    ["identify", "--out", "rc.json"],
+    ["train", "--arch", "arx", "--out", "m"],
+    ["evaluate", "--model", "m", "--json", "e.json"],
+])
+def test_temperatures_in_another_unit_are_refused_by_every_command(careless, capsys, monkeypatch, tmp_path,
+                                                                   data, unit, fix, command):
+    monkeypatch.chdir(tmp_path)
+    assert main(["train", "--arch", "arx", "--data", str(careless / "c.csv"), "--out", "m"]) == 0
+    before = checksums(tmp_path)
+    refused([*command, "--data", str(careless / data)], capsys, "column 'T_r' has a median of", unit, fix)
+    assert checksums(tmp_path) == before
+
+
+def test_power_in_kw_is_warned_about_and_its_models_refused_on_the_scenario(careless, capsys, monkeypatch, tmp_path):
+    """identify and train on kW warn naming kW; qp-mpc over that RC and cem over that model
+    heated 0.00 kWh a day with the model 'trusted in 48 of 48': refused, naming kW."""
+    monkeypatch.chdir(tmp_path)
+    for command in (["identify", "--out", "rc.json"], ["train", "--arch", "arx", "--out", "m"]):
+        assert main([*command, "--data", str(careless / "kw.csv")]) == 0
+        assert "or power in kW? Models and controllers take watts" in capsys.readouterr().err
+    loop = ["closed-loop", "--scenario", "winter_household", "--days", "1", "--json", "k.json"]
+    for given, made in ((["--controller", "qp-mpc", "--rc", "rc.json"], "identify"),
+                        (["--controller", "cem", "--model", "m"], "train")):
+        refused([*loop, *given], capsys, "a thousand times more: the data's power was in kW",
+                f"convert its power columns to W (x 1000) and {made} again")
+    assert not (tmp_path / "k.json").exists()
