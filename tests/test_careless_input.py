@@ -378,6 +378,20 @@ def test_an_eta_of_the_wrong_sign_is_named_as_such():
         identify_rc(data, eta=-2.5)
 
 
+@pytest.mark.parametrize("arch", ["auto", "parx", "arx", "hybrid", "mlp", "physnet"])
+def test_every_model_on_cooling_data_without_eta_names_the_eta(tmp_path, capsys, arch):
+    """train --arch parx on cold_storage data without --eta said to vary the power, while
+    auto said --eta -2.5, and arx and the networks trained on the wrong sign with a warning
+    that no RC could be identified (issue 46): every architecture names the eta."""
+    data = tmp_path / "cold.csv"
+    assert main(["simulate", "--scenario", "cold_storage", "--days", "7", "--seed", "0", "--out", str(data)]) == 0
+    capsys.readouterr()
+    refused(["train", "--arch", arch, "--data", str(data), "--out", str(tmp_path / "m")], capsys,
+            "eta = 1 says the actuator heats, but in the data more power cools the room",
+            "for a cooling machine give --eta -COP, e.g. --eta -2.5")
+    assert not (tmp_path / "m").exists()
+
+
 # ---------------------------------------------------------------- EnergyPlus scenario files
 
 needs_energyplus = pytest.mark.skipif(not energyplus_available(), reason="EnergyPlus is not installed")
