@@ -352,7 +352,10 @@ def add_closed_loop(sub: Commands) -> None:
     )
     _days_option(p, "counted days after a one-day thermostat warm-up", required=True)
     p.add_argument("--seed", type=_seed, default=0, help="seed of the weather, price and noise")
-    p.add_argument("--json", required=True, help="KPI JSON file to write")
+    p.add_argument(
+        "--json", default=None,
+        help="KPI JSON file to write (default: the KPIs are only printed)",
+    )
     p.add_argument("--csv", default=None, help="trajectory CSV file to write")
     p.add_argument("--plot", default=None, help="trajectory figure (PNG) to write")
     _add_weather_part(p, "test")
