@@ -86,10 +86,11 @@ def _horizons(text: str) -> list[int]:
 
 
 def _scenario_names() -> str:
-    """Scenario names from the registry (imported only to print help: scenarios are data)."""
-    from scenarios.inputs.registry import scenario_names
+    """Every built-in scenario name, BOPTEST's too (imported only to print help: scenarios
+    are data)."""
+    from scenarios.inputs.scenario_file import builtin_names
 
-    return ", ".join(scenario_names())
+    return ", ".join(builtin_names())
 
 
 class _HelpFormatter(argparse.HelpFormatter):

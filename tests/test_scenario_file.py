@@ -142,6 +142,30 @@ def test_a_bad_file_is_one_line_naming_the_key_exit_2_nothing_written(tmp_path, 
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.toml"]
 
 
+def test_every_list_of_scenarios_is_the_one_list(capsys):
+    """scenario list, the unknown-scenario message and every --help that lists scenarios name
+    the same built-ins (issue 46: BOPTEST's was left out of all but the first)."""
+    from pinn_mpc_cli.parser import build_parser
+    from scenarios.inputs.scenario_file import builtin_names
+    from scenarios.plants.boptest import BUILTIN_BOPTEST
+
+    names = builtin_names()
+    assert names == [*scenario_names(), *BUILTIN_BOPTEST] and "boptest_hydronic_heat_pump" in names
+    assert main(["scenario", "list"]) == 0
+    assert [line.split(":")[0] for line in capsys.readouterr().out.strip().splitlines()] == names
+    with pytest.raises(InputError) as refused:
+        get_scenario("nope")
+    assert re.search(r"choose one of: (.*), or give", str(refused.value)).group(1).split(", ") == names
+    parser = build_parser()
+    for argv in (["simulate"], ["closed-loop"], ["compare"], ["scenario", "show"], ["scenario", "export"]):
+        with pytest.raises(SystemExit):
+            parser.parse_args([*argv, "--help"])
+        text = " ".join(capsys.readouterr().out.split())
+        listed = re.search(r"one of: (.*?); or a", text).group(1).split(", ")
+        assert listed == names, argv
+    # the README's list: tests/test_public_api.py::test_readme_names_the_scenarios_and_controllers
+
+
 def test_unknown_name_and_export_refusals(tmp_path, capsys):
     with pytest.raises(InputError, match="unknown scenario 'nope'.*scenario file"):
         get_scenario("nope")
