@@ -420,6 +420,22 @@ def office(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
     return tmp_path
 
 
+@needs_energyplus
+@pytest.mark.slow
+def test_identify_on_the_energyplus_office_warns_that_a_2r2c_does_not_fit(tmp_path, capsys):
+    """identify on the EnergyPlus office wrote an RC whose rmse is 1.3-1.7 C without a word
+    (issue 46); it warns now, saying what to check and what fits."""
+    data, rc = tmp_path / "office.csv", tmp_path / "rc.json"
+    assert main(["simulate", "--scenario", "eplus_small_office", "--days", "14", "--seed", "0",
+                 "--out", str(data)]) == 0
+    capsys.readouterr()
+    assert main(["identify", "--data", str(data), "--out", str(rc)]) == 0
+    rmse = json.loads(rc.read_text())["fit"]["rmse_c"]
+    err = capsys.readouterr().err
+    assert rmse > 1.0 and f"reproduces the data with an rmse of {rmse:.2f} C, above 1 C" in err
+    assert "then qp-mpc or cem with --model" in err
+
+
 EPLUS_DATA_LOSS = [
     pytest.param(["simulate", "--scenario", "ep.toml", "--days", "1", "--out", "office.idf"],
                  ["--out office.idf", "simulation.plant.building"], id="simulate-out-is-its-idf"),
