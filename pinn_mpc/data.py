@@ -49,6 +49,7 @@ __all__ = [
     "TYPICAL_MAX_C",
     "WIND",
     "WIND_RANGE_M_S",
+    "check_celsius",
     "day_of_week",
     "fleet_params_path",
     "parse_column_map",
@@ -194,14 +195,12 @@ def _check_power(out: pd.DataFrame, source: str, u_max_w: float | None) -> None:
             )
 
 
-def _check_temperature_units(out: pd.DataFrame, source: str) -> None:
-    """InputError for temperature columns whose typical level (median) is in kelvin
-    (:data:`KELVIN_MEDIAN_RANGE`) or Fahrenheit (above :data:`TYPICAL_MAX_C`). The room's and
-    the outdoor columns are judged together: a room at 70 beside outdoor air at 40 is a file in
-    Fahrenheit, and so is a cold room at 35 beside a summer at 80, so the fix names them all."""
-    present = [c for c in TEMPERATURES if c in out.columns]
-    medians = {c: float(out[c].median()) for c in present}
-    convert = ", ".join(present)
+def check_celsius(medians: Mapping[str, float], source: str) -> None:
+    """InputError for temperature columns (name -> typical level, the median) in kelvin
+    (:data:`KELVIN_MEDIAN_RANGE`) or Fahrenheit (above :data:`TYPICAL_MAX_C`). The columns are
+    judged together: a room at 70 beside outdoor air at 40 is a file in Fahrenheit, and so is a
+    cold room at 35 beside a summer at 80, so the fix names them all."""
+    convert = ", ".join(medians)
     lo_k, hi_k = KELVIN_MEDIAN_RANGE
     for col, median in medians.items():
         if lo_k <= median <= hi_k:
@@ -298,7 +297,7 @@ def validate_timeseries(
     """Check and normalise a DataFrame in the format; returns a new frame with ``attrs['dt_s']``.
 
     Besides format and finiteness: temperatures in Celsius (a median in kelvin or Fahrenheit is
-    refused, :data:`TYPICAL_MAX_C`) and within :data:`TEMPERATURE_RANGE_C`, power columns
+    refused, :func:`check_celsius`) and within :data:`TEMPERATURE_RANGE_C`, power columns
     within 0 .. :data:`~pinn_mpc.physics.MAX_POWER_W` (and ``u_max_w``, the actuator's limit,
     when known; a warning where they look like kW, :data:`KW_SUSPECT_W`), time strictly
     increasing at a uniform step within :data:`~pinn_mpc.physics.DT_RANGE_S`.
@@ -343,7 +342,7 @@ def validate_timeseries(
         out[col] = values.astype(float)
     if "u" not in out.columns:
         out["u"] = out["u_phys"]
-    _check_temperature_units(out, source)
+    check_celsius({c: float(out[c].median()) for c in TEMPERATURES if c in out.columns}, source)
     for col in TEMPERATURES:
         _check_range(out, col, TEMPERATURE_RANGE_C, source, " C", "; is it in kelvin or Fahrenheit?")
     _check_power(out, source, u_max_w)

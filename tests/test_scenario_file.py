@@ -272,6 +272,11 @@ def test_a_csv_file_scenario_runs_closed_loop(tmp_path):
         ("time,T_a\n2023-01-01,1\n2023-01-01,2\n", "time must increase; row 2 does not"),
         ("time,T_a\n2023-01-01,1\n2023-01-02,abc\n", "column T_a, row 2: 'abc' is not a number"),
         ("time,temp\n2023-01-01,1\n2023-01-02,2\n", r"lacks column\(s\) \['T_a'\]"),
+        # A summer in Fahrenheit or a winter in kelvin: the unit, not the range (issue 46).
+        ("time,T_a\n2023-07-01,75\n2023-07-02,80\n", r"column 'T_a' has a median of 77\.5, .*"
+         r"Fahrenheit .*C = \(F - 32\) / 1\.8"),
+        ("time,T_a\n2023-01-01,270\n2023-01-02,275\n", r"column 'T_a' has a median of 272\.5, a "
+         r"temperature in kelvin \(-0\.6 C\); .*C = K - 273\.15"),
     ],
 )
 def test_a_bad_weather_csv_names_the_key_column_and_row(tmp_path, content, message):
