@@ -30,21 +30,26 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from pinn_mpc.errors import InputError
+from pinn_mpc.errors import InputError, warn
 from pinn_mpc.io import atomic_write, atomic_write_json, file_sha256, staged
 from pinn_mpc.physics import DT_RANGE_S, MAX_POWER_W, RCParams
 from pinn_mpc.solar import FACADE_COLUMNS
 
 __all__ = [
     "COLUMNS",
+    "KELVIN_MEDIAN_RANGE",
+    "KW_SUSPECT_W",
     "NUMERIC",
     "OPTIONAL",
     "POWER",
     "REQUIRED",
     "SITE_COLUMNS",
+    "TEMPERATURES",
     "TEMPERATURE_RANGE_C",
+    "TYPICAL_MAX_C",
     "WIND",
     "WIND_RANGE_M_S",
+    "check_celsius",
     "day_of_week",
     "fleet_params_path",
     "parse_column_map",
@@ -76,6 +81,18 @@ NUMERIC = tuple(c for c in COLUMNS if c != "time")
 TEMPERATURE_RANGE_C = (-60.0, 90.0)
 #: Power columns: the actuator's input [W], >= 0 for heating and cooling alike (eta has the sign).
 POWER = ("u", "u_phys")
+#: The temperature columns [C]: the room's (``T_r``, ``T_m``, the comfort band) and the outdoor air.
+TEMPERATURES = ("T_r", "T_m", "T_a", "T_min", "T_max")
+#: The highest typical level (median) [C] of a temperature column: no room in use sits at 45 C,
+#: nor does any climate's outdoor air over weeks (the hottest month on record averages under
+#: 40 C), while a room at 68-75 F or a summer at 75-95 F does: a median above it is Fahrenheit.
+TYPICAL_MAX_C = 45.0
+#: Medians that are a temperature in kelvin (-93 .. 127 C), far above any in Celsius or Fahrenheit.
+KELVIN_MEDIAN_RANGE = (180.0, 400.0)
+#: A power column peaking below this [W] while the room moves by degrees is likely in kW (a
+#: 5 kW heater reads 5); a test cell's or a small cold-storage cell's heater may be as small,
+#: so it is a warning, not a refusal.
+KW_SUSPECT_W = 50.0
 
 
 def day_of_week(times: np.ndarray, holiday: np.ndarray | None = None) -> np.ndarray:
@@ -178,6 +195,50 @@ def _check_power(out: pd.DataFrame, source: str, u_max_w: float | None) -> None:
             )
 
 
+def check_celsius(medians: Mapping[str, float], source: str) -> None:
+    """InputError for temperature columns (name -> typical level, the median) in kelvin
+    (:data:`KELVIN_MEDIAN_RANGE`) or Fahrenheit (above :data:`TYPICAL_MAX_C`). The columns are
+    judged together: a room at 70 beside outdoor air at 40 is a file in Fahrenheit, and so is a
+    cold room at 35 beside a summer at 80, so the fix names them all."""
+    convert = ", ".join(medians)
+    lo_k, hi_k = KELVIN_MEDIAN_RANGE
+    for col, median in medians.items():
+        if lo_k <= median <= hi_k:
+            raise InputError(
+                f"{source}: column {col!r} has a median of {median:.1f}, a temperature in kelvin "
+                f"({median - 273.15:.1f} C); convert the temperature columns ({convert}) to "
+                "Celsius: C = K - 273.15"
+            )
+    for col, median in medians.items():
+        if TYPICAL_MAX_C < median < lo_k:
+            raise InputError(
+                f"{source}: column {col!r} has a median of {median:.1f}, above the "
+                f"{TYPICAL_MAX_C:g} C no room in use or outdoor climate sits at: it looks like "
+                f"Fahrenheit ({median:.1f} F is {(median - 32) / 1.8:.1f} C); convert the "
+                f"temperature columns ({convert}) to Celsius: C = (F - 32) / 1.8"
+            )
+
+
+#: The mark of a frame :func:`validate_timeseries` returned: its power's unit was judged.
+_UNITS_WARNED = "power_unit_checked"
+
+
+def _warn_power_units(out: pd.DataFrame, source: str) -> None:
+    """Warn where the power peaks above 0 but below :data:`KW_SUSPECT_W` while the room's
+    temperature moves by degrees (5-95 % spread of ``T_r`` at least 1 K): kW for W?"""
+    col = "u_phys" if "u_phys" in out.columns else "u"
+    if col not in out.columns or "T_r" not in out.columns:
+        return
+    peak = float(out[col].max())
+    lo, hi = np.percentile(out["T_r"].to_numpy(dtype=float), [5.0, 95.0])
+    if 0 < peak < KW_SUSPECT_W and hi - lo >= 1.0:
+        warn(
+            f"{source}: column {col!r} peaks at {peak:.3g} W while T_r moves over "
+            f"{hi - lo:.1f} K: a heater under {KW_SUSPECT_W:g} W, or power in kW? Models and "
+            "controllers take watts: if it is in kW, convert it to W (x 1000)"
+        )
+
+
 _DECIMAL_COMMA = re.compile(r"[-+]?\d+,\d+")
 
 
@@ -235,10 +296,11 @@ def validate_timeseries(
 ) -> pd.DataFrame:
     """Check and normalise a DataFrame in the format; returns a new frame with ``attrs['dt_s']``.
 
-    Besides format and finiteness: temperatures within :data:`TEMPERATURE_RANGE_C`, power
-    columns within 0 .. :data:`~pinn_mpc.physics.MAX_POWER_W` (and ``u_max_w``, the actuator's
-    limit, when known), time strictly increasing at a uniform step within
-    :data:`~pinn_mpc.physics.DT_RANGE_S`.
+    Besides format and finiteness: temperatures in Celsius (a median in kelvin or Fahrenheit is
+    refused, :func:`check_celsius`) and within :data:`TEMPERATURE_RANGE_C`, power columns
+    within 0 .. :data:`~pinn_mpc.physics.MAX_POWER_W` (and ``u_max_w``, the actuator's limit,
+    when known; a warning where they look like kW, :data:`KW_SUSPECT_W`), time strictly
+    increasing at a uniform step within :data:`~pinn_mpc.physics.DT_RANGE_S`.
     """
     missing = [c for c in require if c not in df.columns]
     if "u" in missing and "u_phys" in df.columns:
@@ -280,9 +342,12 @@ def validate_timeseries(
         out[col] = values.astype(float)
     if "u" not in out.columns:
         out["u"] = out["u_phys"]
-    for col in ("T_r", "T_m", "T_a", "T_min", "T_max"):
+    check_celsius({c: float(out[c].median()) for c in TEMPERATURES if c in out.columns}, source)
+    for col in TEMPERATURES:
         _check_range(out, col, TEMPERATURE_RANGE_C, source, " C", "; is it in kelvin or Fahrenheit?")
     _check_power(out, source, u_max_w)
+    if not df.attrs.get(_UNITS_WARNED):  # a frame this returned (or a part of it) warned once
+        _warn_power_units(out, source)
     _check_range(out, "cop", COP_RANGE, source, "", " (heat delivered per electrical watt)")
     _check_range(out, WIND, WIND_RANGE_M_S, source, " m/s", "; is it in km/h or knots?")
     if "holiday" in out.columns and not out["holiday"].isin((0.0, 1.0)).all():
@@ -295,6 +360,7 @@ def validate_timeseries(
     ordered = [c for c in COLUMNS if c in out.columns]
     out = out[ordered]
     out.attrs["dt_s"] = dt_s
+    out.attrs[_UNITS_WARNED] = True
     return out
 
 

@@ -44,6 +44,7 @@ from pinn_mpc.features import (
     fit_feature_config,
     make_windows,
 )
+from pinn_mpc.identify import check_power_sign
 from pinn_mpc.models.base import HOLD_TOLERANCE_W, Batch, TrainingSet
 from pinn_mpc.models.learned import MAX_MEMBERS, EnsembleModule, LearnedModel, ModelRecord
 from pinn_mpc.models.registry import (
@@ -307,6 +308,7 @@ def train_model(
     config = config.for_arch(get_spec(arch))
     assert config.depth is not None and config.recipe is not None
     df = validate_timeseries(df, source="training data", u_max_w=config.u_max_w)
+    check_power_sign(df, config.eta, what=arch)  # the physics prior and planners take its sign
     hp = config.resolved()
     features = fit_feature_config(df, depth=config.depth)
     identified = _identify(df, config.eta)

@@ -171,7 +171,8 @@ def _closed_loop(a: argparse.Namespace) -> str:
 
         plot_trajectory(result.trajectory, a.plot, title=f"{a.controller} on {a.scenario}")
     kpis = with_scenario_file(result.kpis, a.scenario)
-    atomic_write_json(a.json, kpis)
+    if a.json is not None:
+        atomic_write_json(a.json, kpis)
     lines = [format_kpis({**kpis, "scenario": scenario_label(a.scenario, scenario)})]
     if a.model is not None:
         from scenarios.running.factory import weather_range_note
@@ -188,8 +189,14 @@ def _closed_loop(a: argparse.Namespace) -> str:
         )
     if result.errors:
         lines.append(f"{len(result.errors)} controller error(s), first: {result.errors[0]}")
-    written = [str(p) for p in (a.json, a.csv, a.plot) if p is not None]
-    return "\n".join([*lines, f"wrote {', '.join(written)}"])
+    return "\n".join([*lines, *_wrote(a.json, a.csv, a.plot)])
+
+
+def _wrote(*paths: str | None) -> list[str]:
+    """The summary's last line naming the files written (none without any: the KPIs are
+    printed only, as ``closed-loop`` without ``--json`` does)."""
+    written = [str(p) for p in paths if p is not None]
+    return [f"wrote {', '.join(written)}"] if written else []
 
 
 def _check_controller_inputs(a: argparse.Namespace) -> None:
@@ -289,7 +296,8 @@ def _fleet_closed_loop(a: argparse.Namespace, scenario: Scenario, inputs: dict[s
                 scenario, a.controller, n_buildings=a.buildings, days=a.days, seed=a.seed,
                 spread=spread, weather_part=a.weather_part, progress=True,
             )
-    atomic_write_json(a.json, fleet_json(result, a.scenario))
+    if a.json is not None:
+        atomic_write_json(a.json, fleet_json(result, a.scenario))
     lines = [format_fleet(result)]
     if result.cap is not None:
         c = result.cap
@@ -312,12 +320,13 @@ def _fleet_closed_loop(a: argparse.Namespace, scenario: Scenario, inputs: dict[s
             figure,
         )
         lines.append(f"wrote {figure}")
-    return "\n".join([*lines, f"wrote {a.json}"])
+    return "\n".join([*lines, *_wrote(a.json)])
 
 
 def _check_fleet_options(a: argparse.Namespace, inputs: dict[str, PathsArg], *, batched: bool) -> str | None:
     """Refuse the options a fleet does not take, and a batched fleet's wrong controller or cap
-    window; the fleet figure's path (written next to ``--json``) when the fleet is batched."""
+    window; the fleet figure's path (written next to ``--json``) when the fleet is batched
+    and ``--json`` is given."""
     for option, value in (("--rc", a.rc), ("--csv", a.csv), ("--plot", a.plot)):
         if value is not None:
             raise InputError(
@@ -340,6 +349,8 @@ def _check_fleet_options(a: argparse.Namespace, inputs: dict[str, PathsArg], *, 
         )
     if a.cap_window is not None:
         parse_cap_window(a.cap_window)
+    if a.json is None:
+        return None
     figure = str(Path(a.json).with_suffix(".fleet.png"))
     check_writable(figure)
     check_distinct(inputs=inputs, outputs={"--json": a.json, "figure": figure})
@@ -465,7 +476,8 @@ def _boptest_closed_loop(a: argparse.Namespace, outputs: dict[str, str | None]) 
         from scenarios.reports.plots import plot_trajectory
 
         plot_trajectory(result.trajectory, a.plot, title=f"{a.controller} on {chosen.name}")
-    atomic_write_json(a.json, result.kpis)
+    if a.json is not None:
+        atomic_write_json(a.json, result.kpis)
     b = result.kpis.get("boptest", {})
     lines = [
         format_kpis({**result.kpis, "scenario": chosen.name}),
@@ -475,8 +487,7 @@ def _boptest_closed_loop(a: argparse.Namespace, outputs: dict[str, str | None]) 
     ]
     if result.errors:
         lines.append(f"{len(result.errors)} controller error(s), first: {result.errors[0]}")
-    written = [str(p) for p in (a.json, a.csv, a.plot) if p is not None]
-    return "\n".join([*lines, f"wrote {', '.join(written)}"])
+    return "\n".join([*lines, *_wrote(a.json, a.csv, a.plot)])
 
 
 def _number_text(value: object) -> str:

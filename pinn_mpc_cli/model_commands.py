@@ -336,8 +336,9 @@ def identify(a: argparse.Namespace) -> str:
     power = df["u_phys"].to_numpy(dtype=float)
     summary["power_range_w"] = [float(power.min()), float(power.max())]
     summary["heat_pump_data"] = "cop" in df.columns
-    for note in result.notes:
-        warn(note)
+    for note in (*result.notes, result.poor_fit_note()):
+        if note is not None:
+            warn(note)
     atomic_write_json(a.out, summary)
     p = result.params
     return (

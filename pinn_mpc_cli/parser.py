@@ -86,10 +86,11 @@ def _horizons(text: str) -> list[int]:
 
 
 def _scenario_names() -> str:
-    """Scenario names from the registry (imported only to print help: scenarios are data)."""
-    from scenarios.inputs.registry import scenario_names
+    """Every built-in scenario name, BOPTEST's too (imported only to print help: scenarios
+    are data)."""
+    from scenarios.inputs.scenario_file import builtin_names
 
-    return ", ".join(scenario_names())
+    return ", ".join(builtin_names())
 
 
 class _HelpFormatter(argparse.HelpFormatter):
@@ -356,7 +357,10 @@ def add_closed_loop(sub: Commands) -> None:
         default=None,
     )
     p.add_argument("--seed", type=_seed, default=0, help="seed of the weather, price and noise")
-    p.add_argument("--json", required=True, help="KPI JSON file to write")
+    p.add_argument(
+        "--json", default=None,
+        help="KPI JSON file to write (default: the KPIs are only printed)",
+    )
     p.add_argument("--csv", default=None, help="trajectory CSV file to write")
     p.add_argument("--plot", default=None, help="trajectory figure (PNG) to write")
     _add_weather_part(p, "test")

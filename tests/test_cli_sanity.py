@@ -40,15 +40,22 @@ def _retime(df: pd.DataFrame, dt_s: float) -> pd.DataFrame:
 
 @pytest.fixture(scope="module")
 def files(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
-    """Data, a heating model, a cooling model and a 15-min model (all trained by the CLI), and
-    the true RC of the paper's household."""
+    """Data, a heating model, a cooling model (on cold-storage data) and a 15-min model (all
+    trained by the CLI), and the true RC of the paper's household."""
+    from scenarios.inputs.scenario_file import get_scenario
+    from scenarios.running.datagen import generate
+
     root = tmp_path_factory.mktemp("sanity")
     data = household_data(4, 0)
     write_timeseries(data, root / "d.csv")
     write_timeseries(_retime(data, 900.0), root / "d15.csv")
+    # A cooling machine's model needs a cooling machine's data: train refuses an eta whose
+    # sign the data contradict.
+    write_timeseries(generate(get_scenario("cold_storage"), days=4, seed=0, policy="random"),
+                     root / "cold.csv")
     for name, csv, extra in (
         ("heating", "d.csv", ()),
-        ("cooling", "d.csv", ("--eta", "-2.5")),
+        ("cooling", "cold.csv", ("--eta", "-2.5")),
         ("quarter", "d15.csv", ()),
     ):
         args = ["train", "--data", str(root / csv), "--arch", "physnet", *SMALL, *extra]

@@ -13,6 +13,7 @@ from pinn_mpc.data import read_timeseries
 from pinn_mpc_cli.cli import main
 from scenarios.inputs.scenario_file import get_scenario
 from scenarios.inputs.series import ForecastErrors
+from scenarios.reports.report import format_kpis
 from scenarios.running.closed_loop import EXTRA_COLUMNS, run_closed_loop
 from scenarios.running.factory import (
     CONTROLLER_NAMES,
@@ -225,6 +226,22 @@ def test_cli_writes_json_csv_png(tmp_path, capsys):
     assert kpis["energy_kwh"] == pytest.approx(traj["u_phys"].sum() * dt_h / 1000, rel=1e-5)
     assert paths["png"].read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["run.csv", "run.json", "run.png"]
+
+
+def test_cli_without_json_prints_the_kpis_and_writes_nothing(tmp_path, capsys, monkeypatch):
+    """closed-loop's --json is optional (issue 46): the KPIs are printed, as format_kpis gives
+    them, the same as a run that writes the JSON; nothing is written."""
+    monkeypatch.chdir(tmp_path)
+    assert _cli(tmp_path, "--controller", "thermostat") == 0
+    printed = capsys.readouterr().out.strip()
+    assert list(tmp_path.iterdir()) == []
+    assert _cli(tmp_path, "--controller", "thermostat", "--json", "k.json") == 0
+    kpis = json.loads((tmp_path / "k.json").read_text())
+    assert printed == format_kpis(kpis)
+    assert capsys.readouterr().out.strip() == f"{printed}\nwrote k.json"
+    assert _cli(tmp_path, "--controller", "qp-mpc", "--buildings", "2") == 0
+    assert capsys.readouterr().out.startswith("qp-mpc x 2 buildings on paper_household, 1 d: energy")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["k.json"]
 
 
 @pytest.mark.parametrize(

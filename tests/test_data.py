@@ -166,3 +166,68 @@ def test_the_fixes_for_gaps_and_missing_values_lead_out_not_round():
     assert len(validate_timeseries(fixed)) == len(frame())
     filled = validate_timeseries(data.interpolate())
     assert np.isfinite(filled["T_r"]).all()
+
+
+def _weeks(t_r, t_a, power_w, n=96):
+    """n half-hours of a room around ``t_r`` (moving over 4 K) beside outdoor air around ``t_a``."""
+    swing = 2.0 * np.sin(np.linspace(0, 4 * np.pi, n))
+    return pd.DataFrame({
+        "time": pd.date_range("2024-01-01", periods=n, freq="30min"),
+        "T_r": t_r + swing, "T_a": t_a + swing, "u_phys": power_w * (1 + np.sign(swing)) / 2,
+    })
+
+
+def _f(c):
+    return c * 1.8 + 32
+
+
+@pytest.mark.parametrize(
+    "df, match",
+    [
+        # A heated room at 21 C beside a winter at 5 C, both in F (70 and 41): the room names it.
+        (_weeks(_f(21.0), _f(5.0), 5000.0),
+         r"column 'T_r' has a median of 69\.8, above the 45 C .*Fahrenheit \(69\.8 F is 21\.0 C\); "
+         r"convert the temperature columns \(T_r, T_a\) to Celsius: C = \(F - 32\) / 1\.8"),
+        # A cold room at 2 C (35.6 F, plausible as C) beside a summer at 24 C (75 F): the air names it.
+        (_weeks(_f(2.0), _f(24.0), 2500.0), r"column 'T_a' has a median of 75\.2, .*Fahrenheit"),
+        (_weeks(21.0 + 273.15, 5.0 + 273.15, 5000.0),
+         r"column 'T_r' has a median of 294\.1, a temperature in kelvin \(21\.0 C\); .*C = K - 273\.15"),
+        # Only the outdoor column in kelvin.
+        (_weeks(21.0, 5.0 + 273.15, 5000.0), r"column 'T_a' has a median of 278\.1, a temperature in kelvin"),
+    ],
+)
+def test_temperatures_in_fahrenheit_or_kelvin_are_refused_naming_the_unit(df, match):
+    with pytest.raises(InputError, match=match):
+        validate_timeseries(df)
+
+
+@pytest.mark.parametrize(
+    "df",
+    [
+        _weeks(21.0, 5.0, 5000.0),
+        _weeks(2.0, 24.0, 2500.0),  # a cold store in summer
+        _weeks(28.0, 38.0, 3000.0),  # a hot room in the hottest climates
+        _weeks(-20.0, 10.0, 800.0),  # a freezer room
+        _weeks(35.0, 40.0, 0.0),  # no heating, temperatures as they come
+        _weeks(21.0, 5.0, 30.0).assign(T_r=lambda d: 21 + 0.2 * np.sign(d["T_a"] - 5)),  # a 30 W heater, a steady room
+    ],
+)
+def test_celsius_and_watts_pass_without_a_word(df):
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        validate_timeseries(df)
+
+
+def test_power_that_looks_like_kw_is_warned_about_once():
+    from pinn_mpc.errors import PinnMpcWarning
+
+    with pytest.warns(PinnMpcWarning, match=r"'u_phys' peaks at 5 W while T_r moves over 3\.9 K: a heater "
+                      r"under 50 W, or power in kW\? .*convert it to W \(x 1000\)"):
+        checked = validate_timeseries(_weeks(21.0, 5.0, 5.0), source="kw.csv")
+    import warnings
+
+    with warnings.catch_warnings():  # training or evaluating the frame read does not repeat it
+        warnings.simplefilter("error")
+        validate_timeseries(checked.iloc[10:], source="training data")

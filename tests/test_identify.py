@@ -12,7 +12,7 @@ import pytest
 
 from pinn_mpc.data import validate_timeseries
 from pinn_mpc.errors import InputError
-from pinn_mpc.identify import identify_rc, simulate_rc
+from pinn_mpc.identify import POOR_FIT_RMSE_C, identify_rc, simulate_rc
 from pinn_mpc.physics import PAPER_HOUSEHOLD, RCParams, discretise, params_from_summary
 from pinn_mpc.simulator import SimConfig, Simulator
 from pinn_mpc_cli.cli import main
@@ -180,3 +180,22 @@ def test_a_mass_slower_than_the_data_is_kept_at_its_largest_capacity_with_a_note
     assert len(result.notes) == 1 and "largest plausible capacity" in result.notes[0]
     assert _rel(result.params.r_ra_k_per_w, slow.r_ra_k_per_w) < 0.10
     assert result.rmse_c < 0.05
+
+
+def test_a_fit_a_2r2c_cannot_give_is_noted_with_what_to_do(solar_frame: pd.DataFrame) -> None:
+    """The office's 1.7 C went by without a word (issue 46). A room whose temperature steps
+    by 4 K every 2.5 days with nothing in the data to explain it (another sensor than the
+    room's, a heater not in u_phys) is no 2R2C: noted, with what to check and what fits; the
+    simulated building's own fit is not."""
+    good = identify_rc(solar_frame)
+    assert good.rmse_c < 0.1 and good.poor_fit_note() is None
+    days = np.arange(len(solar_frame)) / 48.0
+    stepped = solar_frame.assign(T_r=solar_frame["T_r"] + 2.0 * np.sign(np.sin(2 * np.pi * days / 5.0) + 1e-9))
+    stepped.attrs["dt_s"] = 1800.0
+    poor = identify_rc(stepped)
+    note = poor.poor_fit_note()
+    assert poor.rmse_c > POOR_FIT_RMSE_C and note is not None
+    assert f"rmse of {poor.rmse_c:.2f} C, above 1 C" in note
+    for advice in ("room temperature and the heating power delivered (--columns)", "more days",
+                   "`pinn-mpc train`", "physics-informed ARX"):
+        assert advice in note

@@ -142,6 +142,30 @@ def test_a_bad_file_is_one_line_naming_the_key_exit_2_nothing_written(tmp_path, 
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.toml"]
 
 
+def test_every_list_of_scenarios_is_the_one_list(capsys):
+    """scenario list, the unknown-scenario message and every --help that lists scenarios name
+    the same built-ins (issue 46: BOPTEST's was left out of all but the first)."""
+    from pinn_mpc_cli.parser import build_parser
+    from scenarios.inputs.scenario_file import builtin_names
+    from scenarios.plants.boptest import BUILTIN_BOPTEST
+
+    names = builtin_names()
+    assert names == [*scenario_names(), *BUILTIN_BOPTEST] and "boptest_hydronic_heat_pump" in names
+    assert main(["scenario", "list"]) == 0
+    assert [line.split(":")[0] for line in capsys.readouterr().out.strip().splitlines()] == names
+    with pytest.raises(InputError) as refused:
+        get_scenario("nope")
+    assert re.search(r"choose one of: (.*), or give", str(refused.value)).group(1).split(", ") == names
+    parser = build_parser()
+    for argv in (["simulate"], ["closed-loop"], ["compare"], ["scenario", "show"], ["scenario", "export"]):
+        with pytest.raises(SystemExit):
+            parser.parse_args([*argv, "--help"])
+        text = " ".join(capsys.readouterr().out.split())
+        listed = re.search(r"one of: (.*?); or a", text).group(1).split(", ")
+        assert listed == names, argv
+    # the README's list: tests/test_public_api.py::test_readme_names_the_scenarios_and_controllers
+
+
 def test_unknown_name_and_export_refusals(tmp_path, capsys):
     with pytest.raises(InputError, match="unknown scenario 'nope'.*scenario file"):
         get_scenario("nope")
@@ -248,6 +272,11 @@ def test_a_csv_file_scenario_runs_closed_loop(tmp_path):
         ("time,T_a\n2023-01-01,1\n2023-01-01,2\n", "time must increase; row 2 does not"),
         ("time,T_a\n2023-01-01,1\n2023-01-02,abc\n", "column T_a, row 2: 'abc' is not a number"),
         ("time,temp\n2023-01-01,1\n2023-01-02,2\n", r"lacks column\(s\) \['T_a'\]"),
+        # A summer in Fahrenheit or a winter in kelvin: the unit, not the range (issue 46).
+        ("time,T_a\n2023-07-01,75\n2023-07-02,80\n", r"column 'T_a' has a median of 77\.5, .*"
+         r"Fahrenheit .*C = \(F - 32\) / 1\.8"),
+        ("time,T_a\n2023-01-01,270\n2023-01-02,275\n", r"column 'T_a' has a median of 272\.5, a "
+         r"temperature in kelvin \(-0\.6 C\); .*C = K - 273\.15"),
     ],
 )
 def test_a_bad_weather_csv_names_the_key_column_and_row(tmp_path, content, message):

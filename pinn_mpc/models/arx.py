@@ -471,7 +471,8 @@ def fit_physics_informed_arx(
     and Sunday) schedules, each block also weighing the indoor-outdoor difference; InputError
     when the fit's power acts against the sign of ``eta`` (> 0 a heater: more power must warm
     the room; < 0 a cooling machine: it must cool), as then the data do not identify the
-    actuator.
+    actuator; where the data clearly say the other sign, first, naming the ``eta`` that fits
+    (:func:`pinn_mpc.identify.check_power_sign`, as identify and the networks say it).
 
     Where the data has the facades' irradiance (:data:`pinn_mpc.solar.FACADE_COLUMNS`), the
     fit chooses whether to take it instead of ``G`` by blocked cross-validation over every
@@ -504,6 +505,9 @@ def fit_physics_informed_arx(
     has the wind speed, every choice takes the wind's term: one coefficient whose use a month
     of the same season's wind hardly shows, but a building's infiltration follows the wind
     (the DOE reference buildings' does)."""
+    from pinn_mpc.identify import check_power_sign
+
+    check_power_sign(df, eta, what=PHYSICS_ARX.name)
     facades = ("I_g", *FACADE_COLUMNS) if all(c in df for c in FACADE_COLUMNS) else None
     wind = WIND in df
     choices = [
@@ -599,10 +603,11 @@ def fit_linear(name: str, df: pd.DataFrame, *, eta: float = 1.0) -> ARXModel:
     model carries what a planner over it falls back on, as a trained network does: the RC
     identified from ``df`` (:func:`pinn_mpc.identify.identify_rc` with ``eta``; None where the
     identification fails) and ``df``'s summary (its input ranges)."""
-    from pinn_mpc.identify import identify_rc
+    from pinn_mpc.identify import check_power_sign, identify_rc
     from pinn_mpc.physics import rc_summary
     from pinn_mpc.training import data_summary
 
+    check_power_sign(df, eta, what=name)  # planners take the actuator's sign from eta
     if name == ARX.name:
         model = fit_arx(df)
     elif name == PHYSICS_ARX.name:

@@ -28,7 +28,7 @@ from typing import ClassVar
 import numpy as np
 import pandas as pd
 
-from pinn_mpc.data import parse_times
+from pinn_mpc.data import check_celsius, parse_times
 from pinn_mpc.errors import InputError, warn_once
 from scenarios.inputs.exogenous import (
     SECONDS_PER_DAY,
@@ -68,7 +68,9 @@ def read_series_csv(
     the frame with ``time`` as datetime64 and the ``required`` and present ``optional`` columns
     as float; an InputError names the file, column and row of the first problem, including a
     gap between rows longer than ``max_gap_h`` hours (``section``: where the file's scenario
-    sets ``max_gap_h``). A ``G`` that never reaches a few W/m2 is warned about (kW/m2?).
+    sets ``max_gap_h``), and a ``T_a`` whose median is in kelvin or Fahrenheit
+    (:func:`pinn_mpc.data.check_celsius`). A ``G`` that never reaches a few W/m2 is warned about
+    (kW/m2?).
     """
     try:
         frame = pd.read_csv(path)
@@ -89,6 +91,9 @@ def read_series_csv(
         row = int(np.argmax(steps <= 0)) + 2
         raise InputError(f"{path}: time must increase; row {row} does not")
     out = pd.DataFrame({"time": times})
+    if "T_a" in frame.columns:  # the unit before the range, which names no unit
+        t_a = pd.to_numeric(frame["T_a"], errors="coerce")
+        check_celsius({"T_a": float(t_a.median())}, path)
     for column in (*required, *(c for c in optional if c in frame.columns)):
         values = pd.to_numeric(frame[column], errors="coerce").to_numpy(dtype=float)
         lo, hi = _RANGES[column]

@@ -56,6 +56,7 @@ from scenarios.inputs.registry import (
 
 __all__ = [
     "SECTIONS",
+    "builtin_names",
     "defaulted_keys",
     "get_scenario",
     "load_scenario_file",
@@ -567,14 +568,26 @@ def scenario_inputs(name_or_path: str) -> dict[str, Path]:
 
 # ---------------------------------------------------------------- pinn-mpc scenario
 
+def builtin_names() -> list[str]:
+    """Every built-in name ``--scenario`` takes: the package's own scenarios
+    (:func:`scenarios.scenario_names`, sorted), then the BOPTEST built-ins
+    (:data:`scenarios.plants.boptest.BUILTIN_BOPTEST`). The one list that ``scenario list``,
+    the unknown-scenario message and the command line's help show."""
+    from scenarios.plants.boptest import BUILTIN_BOPTEST
+
+    return [*scenario_names(), *BUILTIN_BOPTEST]
+
+
 def scenario_list() -> str:
-    """One line per built-in scenario: its name and description (which ends with its weather
-    split)."""
+    """One line per built-in scenario (:func:`builtin_names`): its name and description
+    (which ends with its weather split, or names the BOPTEST test case)."""
     from scenarios.plants.boptest import BUILTIN_BOPTEST, boptest_description, builtin_boptest
 
-    own = [f"{name}: {get_scenario(name).description}" for name in scenario_names()]
-    boptest = [f"{name}: {boptest_description(builtin_boptest(name))}" for name in BUILTIN_BOPTEST]
-    return "\n".join(own + boptest)
+    return "\n".join(
+        f"{name}: {boptest_description(builtin_boptest(name))}" if name in BUILTIN_BOPTEST
+        else f"{name}: {get_scenario(name).description}"
+        for name in builtin_names()
+    )
 
 
 def scenario_command(
@@ -686,6 +699,6 @@ def get_scenario(name_or_path: str) -> Scenario:
             f"is taken for a built-in); rename it {name_or_path}.toml"
         )
     raise InputError(
-        f"unknown scenario {name_or_path!r}; choose one of: {', '.join(scenario_names())}, or give "
+        f"unknown scenario {name_or_path!r}; choose one of: {', '.join(builtin_names())}, or give "
         "a scenario file (.toml; write one with `pinn-mpc scenario export NAME --out FILE.toml`)"
     )

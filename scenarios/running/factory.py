@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING, Any
 
 from controllers.base import Controller
 from pinn_mpc.artifacts import read_rc_json
+from pinn_mpc.data import KW_SUSPECT_W
 from pinn_mpc.errors import InputError, warn
 from pinn_mpc.models.rollout import BatchDynamics
 from pinn_mpc.physics import RCParams, params_from_summary, time_constants_h
@@ -70,7 +71,6 @@ class FitChecks:
     def __post_init__(self) -> None:
         if not self.power_slack >= 1.0:
             raise ValueError(f"FitChecks.power_slack must be >= 1, got {self.power_slack!r}")
-
 
 
 def _unknown(name: str) -> InputError:
@@ -122,11 +122,11 @@ def model_guard(model: BatchDynamics) -> Guard:
 def check_model_fits(
     model: BatchDynamics, scenario: Scenario, checks: FitChecks = FitChecks()
 ) -> list[str]:
-    """Refuse a model made for another actuator (a heat pump's data has a ``cop`` column) or
-    for a larger one (training power above the scenario's limit, :class:`FitChecks`); return
-    warnings for a model whose data never came near the scenario's full power or whose
-    identified time constants differ from the scenario's building (where it has true
-    parameters) by more than a factor of 3."""
+    """Refuse a model made for another actuator (a heat pump's data has a ``cop`` column), for
+    a larger one (training power above the scenario's limit, :class:`FitChecks`) or on power in
+    kW (peaking a thousandth of the scenario's limit); return warnings for a model whose data
+    never came near the scenario's full power or whose identified time constants differ from
+    the scenario's building (where it has true parameters) by more than a factor of 3."""
     rc, summary = _trained_on(model)
     record = _record(model)
     if record is not None:
@@ -149,7 +149,7 @@ def check_rc_fits(
     path: str | os.PathLike[str], scenario: Scenario, checks: FitChecks = FitChecks()
 ) -> list[str]:
     """:func:`check_model_fits` for an RC JSON (``identify``, ``export-rc``): refused when its
-    data were another actuator's or went above the scenario's power; warnings when they stayed
+    data were another actuator's, went above the scenario's power or were in kW; warnings when they stayed
     under half of it or its time constants differ from the scenario's building by more than a
     factor of 3. An RC JSON without the data's power range (written by hand, or before it was
     recorded) is checked for its time constants only."""
@@ -199,6 +199,14 @@ def _check_fits(
             "column: it sees electrical power only (add the COP per row as a cop column)"
         )
     u_max = scenario.sim.u_max_w
+    if power_max_w is not None and 0 < power_max_w < KW_SUSPECT_W and (
+        0.5 * u_max <= 1000 * power_max_w <= 1.05 * u_max
+    ):
+        raise InputError(
+            f"{what} was {made} powers up to {power_max_w:.3g} W, but the actuator of scenario "
+            f"{scenario.name!r} gives up to {u_max:.0f} W, a thousand times more: the data's "
+            f"power was in kW; convert its power columns to W (x 1000) and {command} again"
+        )
     if power_max_w is not None and power_max_w > checks.power_slack * u_max:
         raise InputError(
             f"{what} was {made} powers up to {power_max_w:.0f} W, but scenario {scenario.name!r}'s "
