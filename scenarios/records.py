@@ -265,6 +265,11 @@ class SweepRow(TypedDict):
     objective_to_thermostat_mean: NotRequired[float]
     objective_to_thermostat_ci95: NotRequired[list[float | None]]
     objective_to_thermostat_by_seed: NotRequired[dict[str, float]]
+    discomfort_avoidable_kh_mean: float | None
+    """Mean over the same seeds of ``discomfort_avoidable_kh`` [K h]; None where a cell's is
+    not computed (BOPTEST; a cell reused from before the split)."""
+    discomfort_unavoidable_kh_mean: float | None
+    """Mean over the same seeds of ``discomfort_unavoidable_kh`` [K h]; None likewise."""
     baseline: str
     """The controller of the paired differences."""
     paired_difference_n: int
