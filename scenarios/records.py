@@ -52,6 +52,17 @@ class Kpis(TypedDict):
     """Price x delivered electrical energy [EUR]."""
     discomfort_kh: float
     """Time integral of the comfort-band violation [K h]."""
+    discomfort_too_cold_kh: float
+    """Its part below the band [K h]."""
+    discomfort_too_warm_kh: float
+    """Its part above the band [K h]; the two parts sum to ``discomfort_kh``."""
+    discomfort_unavoidable_kh: float | None
+    """The part no actuation could have avoided [K h]: the too-warm discomfort of the same
+    days with the heater off (a cooling machine's: too cold with it off), from the same
+    warm-up; None: not computed (BOPTEST)."""
+    discomfort_avoidable_kh: float | None
+    """``discomfort_kh`` - ``discomfort_unavoidable_kh`` [K h]: what the controller is judged on;
+    None: not computed."""
     peak_kw: float
     """Largest interval-mean delivered electrical power [kW]."""
     objective: float
@@ -256,6 +267,11 @@ class SweepRow(TypedDict):
     objective_to_thermostat_mean: NotRequired[float]
     objective_to_thermostat_ci95: NotRequired[list[float | None]]
     objective_to_thermostat_by_seed: NotRequired[dict[str, float]]
+    discomfort_avoidable_kh_mean: float | None
+    """Mean over the same seeds of ``discomfort_avoidable_kh`` [K h]; None where a cell's is
+    not computed (BOPTEST; a cell reused from before the split)."""
+    discomfort_unavoidable_kh_mean: float | None
+    """Mean over the same seeds of ``discomfort_unavoidable_kh`` [K h]; None likewise."""
     baseline: str
     """The controller of the paired differences."""
     paired_difference_n: int
@@ -329,6 +345,14 @@ class FleetTotals(TypedDict):
     """Summed [EUR]."""
     discomfort_kh: float
     """Summed [K h]."""
+    discomfort_too_cold_kh: float
+    """Summed [K h]."""
+    discomfort_too_warm_kh: float
+    """Summed [K h]."""
+    discomfort_unavoidable_kh: float | None
+    """Summed [K h]; None if a building's is not computed."""
+    discomfort_avoidable_kh: float | None
+    """Summed [K h]; None if a building's is not computed."""
     objective: float
     """Summed [EUR]."""
     peak_kw: float

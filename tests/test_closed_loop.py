@@ -6,19 +6,31 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from controllers.base import Controller, Forecast, Observation, SolveStats, fallback_power
 from controllers.thermostat import Thermostat
 from pinn_mpc.data import read_timeseries
+from pinn_mpc.errors import InternalError
 from pinn_mpc_cli.cli import main
+from scenarios.inputs.exogenous import ComfortSchedule, SyntheticWeather
 from scenarios.inputs.scenario_file import get_scenario
 from scenarios.inputs.series import ForecastErrors
 from scenarios.reports.report import format_kpis
-from scenarios.running.closed_loop import EXTRA_COLUMNS, run_closed_loop
+from scenarios.running.closed_loop import (
+    EXTRA_COLUMNS,
+    build_loop,
+    counted_kpis,
+    free_records,
+    prepare_run,
+    run_closed_loop,
+)
 from scenarios.running.factory import (
     CONTROLLER_NAMES,
     MODEL_CONTROLLERS,
     RC_CONTROLLERS,
+    build_controller,
     make_controller,
 )
 from scenarios.running.kpis import KPI_KEYS
@@ -323,3 +335,157 @@ def test_qp_mpc_on_true_rc_in_closed_loop_beats_the_thermostat(tmp_path, files, 
     kpis = json.loads(json_path.read_text())
     thermostat = run_closed_loop(scenario, Thermostat(scenario.control_spec()), days=1, seed=1)
     assert kpis["objective"] < thermostat.kpis["objective"]
+
+
+# ---- the discomfort no controller could avoid (free_records, the KPIs' split) ----
+
+
+def _hot_day(t0_c: float) -> object:
+    """paper_household with a constant 30 C outside, no sun, no gains, a 18-22 C band, the
+    room and the mass at ``t0_c`` at the start and a backup thermostat out of the way."""
+    base = get_scenario("paper_household")
+    return dataclasses.replace(
+        base,
+        sim=dataclasses.replace(base.sim, backup_low_c=5.0, backup_high_c=45.0),
+        weather=SyntheticWeather(
+            mean_c=30.0, daily_amplitude_c=0.0, slow_amplitude_c=0.0, noise_std_c=0.0,
+            peak_irradiance_w_per_m2=0.0,
+        ),
+        comfort=ComfortSchedule(day_min_c=18.0, day_max_c=22.0, night_min_c=18.0, night_max_c=22.0),
+        initial_t_r_c=t0_c,
+        initial_t_m_c=t0_c,
+    )
+
+
+def _too_warm_kh_closed_form(params, *, t0_c, t_a_c, heat_w, t_max_c, dt_sub_s, n_sub):
+    """The 2R2C from T_r = T_m = t0_c under constant outdoor temperature and heating, no sun or
+    gains, in closed form: it relaxes to T_r = T_m = t_a_c + eta heat_w R_ra along two
+    exponentials (the eigenvalues of the 2x2 system); the too-warm K h as the KPI takes it,
+    the temperature at the end of each of n_sub substeps held over it (the room above t_max_c
+    throughout)."""
+    c_r, c_m = params.c_r_j_per_k, params.c_m_j_per_k
+    r_ra, r_rm = params.r_ra_k_per_w, params.r_rm_k_per_w
+    a = np.array([[-1 / (c_r * r_ra) - 1 / (c_r * r_rm), 1 / (c_r * r_rm)],
+                  [1 / (c_m * r_rm), -1 / (c_m * r_rm)]])
+    trace, det = a[0, 0] + a[1, 1], a[0, 0] * a[1, 1] - a[0, 1] * a[1, 0]
+    lam = trace / 2 + np.array([1.0, -1.0]) * math.sqrt(trace**2 / 4 - det)
+    v = np.array([[a[0, 1], a[0, 1]], lam - a[0, 0]])  # eigenvectors as columns
+    t_ss = t_a_c + params.eta * heat_w * r_ra
+    alpha = np.linalg.solve(v, np.full(2, t0_c - t_ss))
+    q = np.exp(lam * dt_sub_s)  # per-substep decay of each mode
+    # sum over j = 1..n of T_r(j h) - t_max = (t_ss - t_max) n + sum_i a01 alpha_i q_i (1 - q_i^n) / (1 - q_i)
+    modes = a[0, 1] * alpha * q * (1 - q**n_sub) / (1 - q)
+    return ((t_ss - t_max_c) * n_sub + modes.sum()) * dt_sub_s / 3600.0
+
+
+@pytest.mark.parametrize("heat_w", [0.0, 1500.0])
+def test_unavoidable_discomfort_of_a_hot_day_is_the_closed_form_relaxation(heat_w):
+    """A day at 30 C outside, the room starting at 23 C above its 22 C top: free-running it
+    relaxes towards 30 C, and its too-warm K h is the closed form's; a heater held at 1.5 kW
+    adds the closed form's extra K h, which is all avoidable."""
+    scenario = _hot_day(23.0)
+    result = run_closed_loop(scenario, ConstantPower(heat_w), days=1, seed=0, warmup_steps=0)
+    k, sim = result.kpis, scenario.sim
+    n_sub, dt_sub_s = 48 * sim.n_substeps, sim.dt_s / sim.n_substeps
+    form = dict(t0_c=23.0, t_a_c=30.0, t_max_c=22.0, dt_sub_s=dt_sub_s, n_sub=n_sub)
+    free_kh = _too_warm_kh_closed_form(sim.params, heat_w=0.0, **form)
+    own_kh = _too_warm_kh_closed_form(sim.params, heat_w=heat_w, **form)
+    assert free_kh > 48.0  # more than a kelvin above the top all day
+    assert k["discomfort_unavoidable_kh"] == pytest.approx(free_kh, rel=1e-9)
+    assert k["discomfort_too_warm_kh"] == k["discomfort_kh"] == pytest.approx(own_kh, rel=1e-9)
+    assert k["discomfort_avoidable_kh"] == pytest.approx(own_kh - free_kh, rel=1e-7, abs=1e-9)
+    assert k["discomfort_too_cold_kh"] == 0.0
+
+
+@pytest.fixture(scope="module")
+def free_days():
+    """Two test days (seed 0: 11-12 March for the households, up to 29 C outside) of each
+    scenario free-running after the thermostat's warm-up."""
+    out = {}
+    for name in ("winter_household", "heat_pump_household", "mismatch_household", "cold_storage"):
+        scenario = get_scenario(name)
+        run = prepare_run(scenario, days=2, seed=0, warmup_steps=None, weather_part="test")
+        free = free_records(scenario, run, seed=0)[0]
+        out[name] = scenario, run, free, counted_kpis(scenario, run, free)
+    return out
+
+
+def _one_backup_substep_k(scenario) -> float:
+    """The most one substep at full power can change the room [K]: what the backup thermostat's
+    floor, applied substep by substep, can put between two runs near it."""
+    sim = scenario.sim
+    gain = sim.actuator.cop_max if sim.actuator.kind == "heat_pump" else 1.0
+    return sim.u_max_w * abs(sim.params.eta) * gain / sim.params.c_r_j_per_k * sim.dt_s / sim.n_substeps
+
+
+@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(
+    name=st.sampled_from(["winter_household", "heat_pump_household", "mismatch_household", "cold_storage"]),
+    levels=st.lists(st.floats(0.0, 1.0), min_size=96, max_size=96),
+)
+def test_no_plan_beats_the_free_run_on_the_side_its_actuator_cannot_help(free_days, name, levels):
+    """Any plan of the actuator (random levels of its power after the same warm-up) leaves the
+    room at least as warm as the free run (a cooling machine: as cold), but for one substep of
+    the backup floor, and its too-warm (too-cold) K h at least the free run's."""
+    scenario, run, free, free_kpis = free_days[name]
+    spec = scenario.control_spec()
+    thermostat = Thermostat(spec)
+    thermostat.reset(0)
+    with build_loop(scenario, run, seed=0) as loop:
+        for k in range(run.total):
+            if k < run.warmup:
+                loop.advance(thermostat)
+            else:
+                loop.step(levels[k - run.warmup] * spec.u_max_w)
+        rec = loop.record()
+    sign = 1.0 if spec.heating else -1.0
+    gap = sign * (rec.t_r_sub_c[run.counted] - free.t_r_sub_c[run.counted])
+    assert gap.min() >= -_one_backup_substep_k(scenario)
+    kpis = counted_kpis(scenario, run, rec, free)
+    side = "discomfort_too_warm_kh" if spec.heating else "discomfort_too_cold_kh"
+    assert kpis[side] >= free_kpis[side]
+    assert kpis["discomfort_unavoidable_kh"] == free_kpis[side]
+    assert kpis["discomfort_avoidable_kh"] >= 0.0
+
+
+def test_free_days_have_unavoidable_discomfort(free_days):
+    """The monotonicity test above means something: the heated scenarios' test days hold
+    discomfort no heating could avoid (the warm spell of 11-12 March)."""
+    for name in ("winter_household", "heat_pump_household", "mismatch_household"):
+        assert free_days[name][3]["discomfort_too_warm_kh"] > 5.0, name
+
+
+def _noisy(name: str):
+    scenario = get_scenario(name)
+    return dataclasses.replace(
+        scenario,
+        sim=dataclasses.replace(scenario.sim, noise_std_c=0.3),
+        forecast=ForecastErrors(t_a_error_std_c=2.0, g_error_rel_std=0.3),
+    )
+
+
+def test_sensor_noise_and_forecast_errors_leave_the_bound_the_same_for_every_controller():
+    """With sensor noise and forecast errors the warm-up (the thermostat reading the same noisy
+    sensor) and the free run are the same for every controller of a seed, so they share the
+    unavoidable part; misled controllers only add avoidable discomfort."""
+    scenario = _noisy("winter_household")
+    runs = [
+        run_closed_loop(scenario, build_controller(name, scenario, rc_params=scenario.sim.params,
+                                                   n_steps=96), days=2, seed=0)
+        for name in ("thermostat", "qp-mpc", "oracle")
+    ]
+    run = prepare_run(scenario, days=2, seed=0, warmup_steps=None, weather_part="test")
+    free = counted_kpis(scenario, run, free_records(scenario, run, seed=0)[0])
+    for r in runs:
+        assert r.kpis["discomfort_unavoidable_kh"] == free["discomfort_too_warm_kh"] > 5.0
+        assert r.kpis["discomfort_too_warm_kh"] >= free["discomfort_too_warm_kh"]
+
+
+def test_a_free_run_from_another_warm_up_is_refused():
+    scenario = _noisy("winter_household")
+    run = prepare_run(scenario, days=1, seed=0, warmup_steps=None, weather_part="test")
+    ours, other = free_records(scenario, run, seed=0)[0], free_records(scenario, run, seed=1)[0]
+    itself = counted_kpis(scenario, run, ours, ours)
+    assert itself["discomfort_avoidable_kh"] == pytest.approx(itself["discomfort_too_cold_kh"], rel=1e-12)
+    with pytest.raises(InternalError, match="warm-up differs"):
+        counted_kpis(scenario, run, ours, other)

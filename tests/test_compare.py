@@ -12,7 +12,7 @@ from scenarios.experiments.compare import CompareSettings
 from scenarios.experiments.sweep import SweepSettings
 from scenarios.inputs.scenario_file import get_scenario
 from scenarios.records import CompareTable
-from scenarios.reports.report import kpi_table_text, objective_ratios, render_report
+from scenarios.reports.report import format_kpis, kpi_table_text, objective_ratios, render_report
 from scenarios.running.kpis import KPI_KEYS
 from tests.test_records import assert_record
 
@@ -36,6 +36,35 @@ def test_kpi_table_text_has_a_line_per_controller():
     assert lines[0].startswith("controller") and "objective EUR" in lines[0]
     assert lines[1].split()[:3] == ["thermostat", "3.000", "1.500"]
     assert lines[2].split()[:3] == ["oracle", "2.000", "n/a"]
+
+
+def test_kpi_tables_and_line_show_the_discomfort_as_avoidable_and_unavoidable():
+    """Every KPI table names its discomfort columns; a run whose unavoidable part was not
+    computed (BOPTEST) says so rather than 0."""
+    split = {"discomfort_kh": 9.92, "discomfort_avoidable_kh": 1.51, "discomfort_unavoidable_kh": 8.41}
+    rows = [
+        _row("oracle", 2.0, **split),
+        _row("boptest", 3.0, discomfort_kh=4.0, discomfort_avoidable_kh=None,
+             discomfort_unavoidable_kh=None),
+    ]
+    lines = kpi_table_text(rows).splitlines()
+    headers = [h.strip() for h in lines[0].split("  ") if h.strip()]
+    at = headers.index("avoidable discomfort K h")
+    assert headers[at + 1 : at + 3] == ["unavoidable discomfort K h", "total discomfort K h"]
+    assert "discomfort K h" not in headers  # no column without saying which
+    assert "1.510" in lines[1] and "8.410" in lines[1] and "9.920" in lines[1]
+    assert lines[2].count("not computed") == 2
+    text = render_report(
+        scenario="winter_household", description="", rows=rows, rc={}, settings={},
+        figure_name="f.png", dates="",
+    )
+    assert "| avoidable discomfort K h | unavoidable discomfort K h | total discomfort K h |" in text
+    assert "| 1.510 | 8.410 | 9.920 |" in text and "| not computed | not computed | 4.000 |" in text
+    assert "no controller of this actuator could have avoided" in text
+    line = {**rows[0], "scenario": "winter_household", "days": 2}
+    assert "discomfort 9.92 K h (avoidable 1.51, unavoidable 8.41)" in format_kpis(line)
+    line = {**rows[1], "scenario": "boptest", "days": 2}
+    assert "discomfort 4.00 K h (unavoidable not computed)" in format_kpis(line)
 
 
 def test_report_lists_kpis_rc_parameters_and_figure():

@@ -479,7 +479,10 @@ def test_results_page_states_command_commit_machine_and_cells(tmp_path: Path) ->
             cells.append({
                 "cell": {"scenario": "winter_household", "controller": controller, "seed": seed,
                          "train_days": None if controller == "oracle" else 14},
-                "kpis": {"objective": objective, "days": 1, "model_fallback_steps": 3 if controller == "cem" else None},
+                "kpis": {"objective": objective, "days": 1, "model_fallback_steps": 3 if controller == "cem" else None,
+                         # qp-mpc's cells from before the split have no parts
+                         **({} if controller == "qp-mpc" else {"discomfort_avoidable_kh": 0.5 + seed,
+                                                               "discomfort_unavoidable_kh": 2.0})},
             })
     sweep = tmp_path / "sweep"
     (sweep / "cells").mkdir(parents=True)
@@ -494,6 +497,8 @@ def test_results_page_states_command_commit_machine_and_cells(tmp_path: Path) ->
     assert "- commit: `abc123`" in text and "- machine: " in text and "1.5 min" in text
     assert spec.read_text().strip() in text
     assert "| winter_household | cem | 14 | 2 | oracle | 1.015 |" in text  # mean of 1.010 and 1.020
+    assert "| avoidable discomfort K h (mean) | unavoidable discomfort K h (mean) |" in text
+    assert "| 1.000 | 2.000 |" in text and "| not computed | not computed |" in text
     assert "| winter_household | 14 | 1 | 1.020 | 1.010 | 20.00 | cem 3 of 48 |" in text
     assert "| winter_household | oracle |" not in text
 

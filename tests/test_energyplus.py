@@ -181,6 +181,35 @@ def test_thermostat_closed_loop_and_no_oracle(tmp_path):
     assert result.returncode == 2 and "oracle and the clairvoyant do not apply" in result.stderr
 
 
+def test_unavoidable_discomfort_is_a_second_simulation_of_the_same_days():
+    """On EnergyPlus too the free run (a second simulation after the same warm-up) bounds the
+    too-warm discomfort of any heating: a random plan's room is no cooler, minute by minute,
+    and the thermostat's run reports the free run's too-warm part as unavoidable (seed 1:
+    11 February, a mild office day with 4 K h too warm unheated)."""
+    from scenarios.running.closed_loop import build_loop, counted_kpis, free_records, prepare_run
+
+    scenario = get_scenario(SCENARIO)
+    spec = scenario.control_spec()
+    run = prepare_run(scenario, days=1, seed=1, warmup_steps=None, weather_part="test")
+    free = free_records(scenario, run, seed=1)[0]
+    free_kpis = counted_kpis(scenario, run, free)
+    assert free_kpis["discomfort_too_warm_kh"] > 2.0
+    thermostat = Thermostat(spec)
+    thermostat.reset(1)
+    plan = np.random.default_rng(0).uniform(0.0, spec.u_max_w, run.total)
+    with build_loop(scenario, run, seed=1) as loop:
+        for k in range(run.total):
+            loop.advance(thermostat) if k < run.warmup else loop.step(plan[k])
+        rec = loop.record()
+    assert (rec.t_r_sub_c[run.counted] >= free.t_r_sub_c[run.counted]).all()
+    assert counted_kpis(scenario, run, rec)["discomfort_too_warm_kh"] >= free_kpis["discomfort_too_warm_kh"]
+    kpis = run_closed_loop(scenario, Thermostat(spec), days=1, seed=1).kpis
+    assert kpis["discomfort_unavoidable_kh"] == free_kpis["discomfort_too_warm_kh"]
+    assert kpis["discomfort_avoidable_kh"] == pytest.approx(
+        kpis["discomfort_kh"] - kpis["discomfort_unavoidable_kh"], rel=1e-12
+    )
+
+
 def _assert_the_series_reaches_past_and_forecast(scenario, name: str, k: int = 30) -> None:
     """At step ``k`` of a test run, a controller's past of ``name`` is the run's series up to
     now and its forecast the series from now on."""

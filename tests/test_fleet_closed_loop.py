@@ -13,7 +13,13 @@ from pinn_mpc_cli.cli import main
 from scenarios.fleets.fleet import FLEET_TOTAL_KEYS, run_fleet_closed_loop
 from scenarios.inputs.scenario_file import get_scenario
 from scenarios.inputs.series import ForecastErrors
-from scenarios.running.closed_loop import build_loop, prepare_run, run_closed_loop
+from scenarios.running.closed_loop import (
+    build_loop,
+    counted_kpis,
+    free_records,
+    prepare_run,
+    run_closed_loop,
+)
 from scenarios.running.factory import build_controller
 from scenarios.running.kpis import KPI_KEYS
 
@@ -72,8 +78,13 @@ def test_each_building_runs_as_it_would_alone_and_totals_add_up():
     dt_h = scenario.sim.dt_s / 3600.0
     # The loop's aggregate power against the per-building KPIs, computed apart.
     assert totals["energy_kwh"] == pytest.approx(fleet.aggregate_u_phys_w.sum() / 1000 * dt_h, rel=1e-12)
-    for key in ("cost_eur", "discomfort_kh", "objective"):
+    for key in ("cost_eur", "discomfort_kh", "discomfort_too_cold_kh", "discomfort_too_warm_kh",
+                "discomfort_unavoidable_kh", "discomfort_avoidable_kh", "objective"):
         assert totals[key] == pytest.approx(sum(k[key] for k in kpis), rel=1e-12)
+    # each building's unavoidable part is its own free run's, as when it runs alone (above)
+    assert totals["discomfort_avoidable_kh"] + totals["discomfort_unavoidable_kh"] == pytest.approx(
+        totals["discomfort_kh"], rel=1e-12
+    )
     # The aggregate's peak lies between the largest building peak and the sum of the peaks.
     peaks = [k["peak_kw"] for k in kpis]
     assert max(peaks) <= totals["peak_kw"] + 1e-12 <= sum(peaks) + 2e-12
@@ -84,6 +95,21 @@ def test_each_building_runs_as_it_would_alone_and_totals_add_up():
     # total = controllers + plant step by step, so its order statistics are at least theirs.
     assert t["total_ms_median"] >= t["controllers_ms_median"]
     assert t["total_ms_p95"] >= t["plant_ms_p95"]
+
+
+def test_each_buildings_unavoidable_discomfort_is_its_own_free_run_alone():
+    """11-12 March (seed 0) hold a warm spell: every building of a fleet, batched, gets the
+    too-warm discomfort of its own free run, as if it ran alone."""
+    scenario = get_scenario("winter_household")
+    fleet = run_fleet_closed_loop(scenario, "thermostat", n_buildings=2, days=2, seed=0, spread=0.3)
+    for b, params in enumerate(fleet.params):
+        alone = with_params(scenario, params)
+        run = prepare_run(alone, days=2, seed=0, warmup_steps=None, weather_part="test")
+        free = counted_kpis(alone, run, free_records(alone, run, seed=0)[0])
+        assert fleet.kpis[b]["discomfort_unavoidable_kh"] == pytest.approx(
+            free["discomfort_too_warm_kh"], rel=1e-9
+        )
+        assert free["discomfort_too_warm_kh"] > 1.0
 
 
 def test_a_building_whose_solver_fails_falls_back_and_is_counted():

@@ -13,7 +13,7 @@ import pytest
 
 from pinn_mpc.errors import InputError
 from scenarios.experiments.sweep import ARCH, SweepGrid, parse_ints, parse_names
-from scenarios.reports.sweep_report import mean_ci95, summarise
+from scenarios.reports.sweep_report import mean_ci95, render_sweep_report, summarise
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -70,6 +70,31 @@ def test_summarise_divides_by_the_oracle_of_the_same_seed_and_pairs_with_the_bas
         [-0.675 - 12.706205 * 0.275, -0.675 + 12.706205 * 0.275], abs=1e-6
     )
     assert rows[2]["objective_to_oracle_ci95"] == [1.0, 1.0]
+
+
+def test_summary_gives_the_mean_avoidable_and_unavoidable_discomfort_over_the_same_seeds():
+    def cell(controller, seed, objective, avoidable, unavoidable):
+        record = _record("s", controller, seed, objective)
+        record["kpis"] |= {"discomfort_avoidable_kh": avoidable, "discomfort_unavoidable_kh": unavoidable}
+        return record
+
+    cells = [
+        cell("oracle", 0, 10.0, 0.5, 8.0), cell("oracle", 1, 20.0, 1.5, 2.0),
+        cell("thermostat", 0, 15.0, 3.0, 8.0), cell("thermostat", 1, 40.0, 5.0, 2.0),
+        cell("thermostat", 2, 40.0, 99.0, 99.0),  # no oracle on seed 2: left out, as its ratio
+        _record("s", "qp-mpc", 0, 11.0), _record("s", "qp-mpc", 1, 12.0),  # from before the split
+    ]
+    rows = {r["controller"]: r for r in summarise(cells, baseline="thermostat")}
+    assert rows["thermostat"]["discomfort_avoidable_kh_mean"] == pytest.approx(4.0)
+    assert rows["thermostat"]["discomfort_unavoidable_kh_mean"] == pytest.approx(5.0)
+    assert rows["oracle"]["discomfort_unavoidable_kh_mean"] == pytest.approx(5.0)
+    assert rows["qp-mpc"]["discomfort_avoidable_kh_mean"] is None
+    summary = {"rows": list(rows.values()), "baseline": "thermostat", "cells_run": 7, "cells_reused": 0,
+               "models_trained": 0, "models_reused": 0, "wall_time_s": 1.0, "settings": {},
+               "engine": {"name": "ray", "version": "x", "resources": {}}}
+    report = render_sweep_report(summary, figure_name="f.png")
+    assert "| avoidable discomfort K h (mean) | unavoidable discomfort K h (mean) |" in report
+    assert "| 4.000 | 5.000 |" in report and "| not computed | not computed |" in report
 
 
 def test_grid_parsing_and_errors():

@@ -282,7 +282,7 @@ def run_coordinated_fleet(
     if fleet_planner.rc_candidates is not None:  # a batched cem over learned models
         info["rc_candidates"] = bool(fleet_planner.rc_candidates)
     return fleet_result(
-        scenario, run, loop, times_s, params=fleet, errors=(),
+        scenario, run, loop, times_s, seed=seed, params=fleet, errors=(),
         cap=cap_info,
         prices=prices,
         extra_kpis={"model_fallback_steps": model_fallbacks},

@@ -39,6 +39,7 @@ from scenarios.running.closed_loop import (
     RunInputs,
     build_loop,
     counted_kpis,
+    free_records,
     prepare_run,
     progress_steps,
 )
@@ -63,6 +64,10 @@ FLEET_TOTAL_KEYS = (
     "energy_kwh",
     "cost_eur",
     "discomfort_kh",
+    "discomfort_too_cold_kh",
+    "discomfort_too_warm_kh",
+    "discomfort_unavoidable_kh",
+    "discomfort_avoidable_kh",
     "objective",
     "peak_kw",
     "backup_overrides",
@@ -80,8 +85,8 @@ class FleetResult:
 
     - ``kpis``: one KPI dict per building (:func:`scenarios.running.kpis.compute_kpis`, plus
       ``building``, its index).
-    - ``totals``: the fleet's :data:`FLEET_TOTAL_KEYS`: energy, cost, discomfort, objective,
-      overrides and fallbacks summed over the buildings; ``peak_kw`` is the peak of the
+    - ``totals``: the fleet's :data:`FLEET_TOTAL_KEYS`: energy, cost, discomfort (and its
+      parts), objective, overrides and fallbacks summed over the buildings; ``peak_kw`` is the peak of the
       AGGREGATE power (the interval-mean delivered power summed over the buildings), not the
       sum of the buildings' peaks.
     - ``aggregate_u_phys_w`` (K,): that aggregate power per counted interval [W].
@@ -203,7 +208,7 @@ def run_fleet_closed_loop(
         if k >= run.warmup:
             times_s[k - run.warmup] = step.controllers_s, step.plant_s
     return fleet_result(
-        scenario, run, loop, times_s, params=fleet, errors=tuple(errors),
+        scenario, run, loop, times_s, seed=seed, params=fleet, errors=tuple(errors),
         info=fleet_info(
             scenario,
             controller if isinstance(controller, str) else controllers[0].name,
@@ -234,6 +239,7 @@ def fleet_result(
     loop: ClosedLoop,
     times_s: np.ndarray,
     *,
+    seed: int,
     params: Sequence[RCParams],
     errors: tuple[str, ...],
     info: FleetInfo,
@@ -243,12 +249,15 @@ def fleet_result(
 ) -> FleetResult:
     """The :class:`FleetResult` of a fleet run on ``loop`` (every building's counted KPIs, the
     aggregate and its district KPIs) with step times ``times_s`` (K, 2) [s]; ``extra_kpis``
-    adds one value (B,) per building to its KPIs."""
+    adds one value (B,) per building to its KPIs. The fleet runs once more, free-running
+    after the same warm-up with ``seed`` (:func:`scenarios.running.closed_loop.free_records`),
+    for each building's unavoidable discomfort."""
     n = loop.n_buildings
     extra = extra_kpis or {}
+    free = free_records(scenario, run, seed=seed, fleet=params)
     kpis = cast("tuple[BuildingKpis, ...]", tuple(
         {
-            **counted_kpis(scenario, run, loop.record(b)),
+            **counted_kpis(scenario, run, loop.record(b), free[b]),
             "building": b,
             **{name: int(values[b]) for name, values in extra.items()},
         }
@@ -278,7 +287,10 @@ FLEET_STREAM = 7
 def fleet_totals(kpis: tuple[BuildingKpis, ...], aggregate_w: np.ndarray) -> FleetTotals:
     """:data:`FLEET_TOTAL_KEYS` of a fleet's per-building KPIs and aggregate power (K,) [W]."""
     rows: Sequence[Mapping[str, Any]] = kpis  # summed by the keys' names
-    summed = {key: sum(k[key] for k in rows) for key in FLEET_TOTAL_KEYS[:4]}
+    summed = {
+        key: None if any(k[key] is None for k in rows) else sum(k[key] for k in rows)
+        for key in FLEET_TOTAL_KEYS[: FLEET_TOTAL_KEYS.index("peak_kw")]
+    }
     counts = {key: int(sum(k[key] for k in kpis)) for key in ("backup_overrides", "fallbacks")}
     return cast(FleetTotals, {
         **summed,

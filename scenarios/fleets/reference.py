@@ -37,7 +37,7 @@ from pinn_mpc.simulator import fleet_matrices
 from scenarios.fleets.aggregator import cap_account, cap_series, parse_cap_window
 from scenarios.inputs.registry import Scenario
 from scenarios.records import CapAccount, Kpis
-from scenarios.running.closed_loop import build_loop, counted_kpis, prepare_run
+from scenarios.running.closed_loop import build_loop, counted_kpis, free_records, prepare_run
 
 __all__ = ["FleetReference", "ReferencePlan", "fleet_reference", "solve_fleet_reference"]
 
@@ -231,7 +231,8 @@ def fleet_reference(
     b = len(fleet)
     for j in range(k_counted):
         loop.step(plan.power_w[:, j], decision_s=np.zeros(b), fallback=np.zeros(b, dtype=bool))
-    kpis = tuple(counted_kpis(scenario, run, loop.record(i)) for i in range(b))
+    free = free_records(scenario, run, seed=seed, fleet=fleet)
+    kpis = tuple(counted_kpis(scenario, run, loop.record(i), free[i]) for i in range(b))
     aggregate = loop.aggregate_u_phys_w()[run.counted]
     account = None
     if cap_kw is not None:

@@ -269,7 +269,7 @@ def fleet_figure(
     _legend(ax)
     values = np.asarray(discomfort_kh, dtype=float)
     hist.hist(values, bins=min(30, max(5, len(values) // 5)), color="tab:blue", alpha=0.8)
-    hist.set_xlabel("discomfort per building [K h]")
+    hist.set_xlabel("total discomfort per building [K h]")
     hist.set_ylabel("buildings")
     hist.set_title(f"mean {values.mean():.2f} K h, worst {values.max():.2f} K h", fontsize=9)
     hist.grid(alpha=0.3)

@@ -17,8 +17,10 @@ if TYPE_CHECKING:
     from scenarios.fleets.fleet import FleetResult
 
 __all__ = [
+    "DISCOMFORT_TEXT",
     "KPI_COLUMNS",
     "RC_ROWS",
+    "discomfort_text",
     "format_fleet",
     "format_kpis",
     "kpi_columns",
@@ -40,7 +42,9 @@ KPI_COLUMNS = (
     ("own_decisions_share", "own decisions", "{:.0%}"),
     ("cost_eur", "cost EUR", "{:.3f}"),
     ("energy_kwh", "energy kWh", "{:.2f}"),
-    ("discomfort_kh", "discomfort K h", "{:.3f}"),
+    ("discomfort_avoidable_kh", "avoidable discomfort K h", "{:.3f}"),
+    ("discomfort_unavoidable_kh", "unavoidable discomfort K h", "{:.3f}"),
+    ("discomfort_kh", "total discomfort K h", "{:.3f}"),
     ("peak_kw", "peak kW", "{:.2f}"),
     ("decision_ms_median", "decision ms (median)", "{:.3g}"),
     ("decision_ms_p95", "decision ms (p95)", "{:.3g}"),
@@ -69,10 +73,30 @@ RC_ROWS = (
 )
 
 
-def _cell(value: Any, fmt: str) -> str:
+#: What a KPI table shows for a key whose value is None, where "n/a" would mislead.
+_MISSING = {
+    "discomfort_avoidable_kh": "not computed",
+    "discomfort_unavoidable_kh": "not computed",
+}
+
+#: What the discomfort columns of a report mean.
+DISCOMFORT_TEXT = (
+    "Discomfort is split in two: the unavoidable part is the too-warm discomfort the same days "
+    "gave with the heater off from the same warm-up (for a cooling machine, too cold with it "
+    "off), which no controller of this actuator could have avoided; the avoidable part, the "
+    "rest, is what a controller is judged on. The total, their sum, is what the objective "
+    "counts."
+)
+
+
+def _cell(value: Any, fmt: str, missing: str = "n/a") -> str:
     if value is None or (isinstance(value, float) and not math.isfinite(value)):
-        return "n/a"
+        return missing
     return fmt.format(value)
+
+
+def _kpi_cells(row: Mapping[str, Any], columns: Sequence[tuple[str, str, str]]) -> list[str]:
+    return [_cell(row.get(k), f, _MISSING.get(k, "n/a")) for k, _, f in columns]
 
 
 def objective_ratios(rows: Sequence[RunKpis], *, reference: str) -> list[float | None]:
@@ -122,7 +146,7 @@ def kpi_table_text(rows: Sequence[RunKpis]) -> str:
     """Fixed-width KPI table for a terminal, one line per controller."""
     columns = kpi_columns(rows)
     headers = ["controller", *(h for _, h, _ in columns)]
-    body = [[str(r["controller"]), *(_cell(r.get(k), f) for k, _, f in columns)] for r in rows]
+    body = [[str(r["controller"]), *_kpi_cells(r, columns)] for r in rows]
     return text_table(headers, body)
 
 
@@ -190,6 +214,7 @@ def render_report(
         "KPIs follow BOPTEST: discomfort is the time integral of the comfort-band violation "
         "(1-min resolution), cost is price x delivered energy, the objective is cost + comfort "
         "weight x discomfort, the time ratio is decision time / simulated time. "
+        + DISCOMFORT_TEXT + " "
         + _REFERENCE_TEXT.get(reference, f"`/ {reference}` divides each objective by the "
                               f"{reference}'s."),
         "",
@@ -198,7 +223,7 @@ def render_report(
     ]
     columns = kpi_columns(rows)
     headers = ["controller", *(h for _, h, _ in columns)]
-    body = [[f"`{r['controller']}`", *(_cell(r.get(k), f) for k, _, f in columns)] for r in rows]
+    body = [[f"`{r['controller']}`", *_kpi_cells(r, columns)] for r in rows]
     lines += markdown_table(headers, body)
     if prediction:
         lines += [
@@ -237,12 +262,24 @@ def render_report(
     return "\n".join(lines) + "\n"
 
 
+def discomfort_text(kpis: Mapping[str, Any]) -> str:
+    """``discomfort 9.92 K h (avoidable 1.51, unavoidable 8.41)`` of a KPI record or fleet
+    totals (``unavoidable not computed`` where it was not)."""
+    unavoidable = kpis.get("discomfort_unavoidable_kh")
+    split = (
+        "unavoidable not computed"
+        if unavoidable is None
+        else f"avoidable {kpis['discomfort_avoidable_kh']:.2f}, unavoidable {unavoidable:.2f}"
+    )
+    return f"discomfort {kpis['discomfort_kh']:.2f} K h ({split})"
+
+
 def format_kpis(kpis: RunKpis) -> str:
     """One line: the main KPIs of a run."""
     return (
         f"{kpis['controller']} on {kpis['scenario']}, {kpis['days']} d: "
         f"energy {kpis['energy_kwh']:.2f} kWh, cost {kpis['cost_eur']:.2f} EUR, "
-        f"discomfort {kpis['discomfort_kh']:.2f} K h, peak {kpis['peak_kw']:.2f} kW, "
+        f"{discomfort_text(kpis)}, peak {kpis['peak_kw']:.2f} kW, "
         f"objective {kpis['objective']:.2f} EUR, decision {kpis['decision_ms_median']:.1f} ms "
         f"(median), overrides {kpis['backup_overrides']}, fallbacks {kpis['fallbacks']}"
     )
@@ -258,7 +295,7 @@ def format_fleet(result: FleetResult) -> str:
     return (
         f"{info['controller']} x {info['n_buildings']} buildings on {info['scenario']}, "
         f"{info['days']} d: energy {totals['energy_kwh']:.2f} kWh, cost {totals['cost_eur']:.2f} "
-        f"EUR, discomfort {totals['discomfort_kh']:.2f} K h, aggregate peak "
+        f"EUR, {discomfort_text(totals)}, aggregate peak "
         f"{totals['peak_kw']:.2f} kW, objective {totals['objective']:.2f} EUR, overrides "
         f"{totals['backup_overrides']}, fallbacks {totals['fallbacks']} in "
         f"{totals['buildings_with_fallbacks']} building(s)\n"

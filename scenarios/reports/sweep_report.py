@@ -1,4 +1,5 @@
-"""What a sweep answers: objective / oracle per scenario and controller, with 95 % intervals.
+"""What a sweep answers: objective / oracle per scenario and controller, with 95 % intervals,
+and the mean avoidable and unavoidable discomfort (:mod:`scenarios.running.kpis`).
 
 Each cell's objective is divided by the oracle's on the same scenario and seed (same test
 weather, prices and band), which removes most of the variation between seeds; the rows give
@@ -80,6 +81,7 @@ def summarise(
         if key["controller"] == ref_name and c["kpis"]["objective"] > 0:
             oracle[(_place(key), key["seed"])] = float(c["kpis"]["objective"])
     ratios: dict[tuple[Place, str, int | None], dict[int, float]] = {}
+    parts: dict[tuple[Place, str, int | None], dict[int, tuple[float | None, float | None]]] = {}
     for c in cells:
         key = c["cell"]
         ref = oracle.get((_place(key), key["seed"]))
@@ -87,13 +89,18 @@ def summarise(
             continue
         group = (_place(key), key["controller"], key["train_days"])
         ratios.setdefault(group, {})[key["seed"]] = float(c["kpis"]["objective"]) / ref
+        # A cell from before the split (reused) has neither part: not computed.
+        parts.setdefault(group, {})[key["seed"]] = (
+            c["kpis"].get("discomfort_avoidable_kh"), c["kpis"].get("discomfort_unavoidable_kh")
+        )
     rows = []
-    for (place, controller, train_days), by_seed in sorted(
+    for group, by_seed in sorted(
         ratios.items(),
         key=lambda item: (
             tuple(p or "" for p in item[0][0]), rank.get(item[0][1], len(rank)), item[0][1], item[0][2] or 0
         ),
     ):
+        place, controller, train_days = group
         scenario, period, price = place
         mean, ci = mean_ci95(list(by_seed.values()))
         ref_name = reference_of.get(scenario, REFERENCE)
@@ -107,6 +114,8 @@ def summarise(
             f"objective_to_{ref_name}_mean": mean,
             f"objective_to_{ref_name}_ci95": ci,
             f"objective_to_{ref_name}_by_seed": {str(s): r for s, r in sorted(by_seed.items())},
+            "discomfort_avoidable_kh_mean": _mean_or_none([a for a, _ in parts[group].values()]),
+            "discomfort_unavoidable_kh_mean": _mean_or_none([u for _, u in parts[group].values()]),
             "baseline": baseline,
         }
         base = _baseline_ratios(ratios, place, baseline)
@@ -122,6 +131,12 @@ def summarise(
             row.update(paired_difference_n=0, paired_difference_mean=None, paired_difference_ci95=[None, None])
         rows.append(cast(SweepRow, row))  # its ratio keys named after the reference
     return rows
+
+
+def _mean_or_none(values: Sequence[float | None]) -> float | None:
+    """The mean of ``values``, None if any is None (not computed in some cell)."""
+    known = [v for v in values if v is not None]
+    return float(np.mean(known)) if known and len(known) == len(values) else None
 
 
 def _baseline_ratios(
@@ -163,6 +178,10 @@ def _interval(mean: float | None, ci: Sequence[float | None]) -> str:
     return f"{mean:.3f} [{ci[0]:.3f}, {ci[1]:.3f}]"
 
 
+def _discomfort(value: float | None) -> str:
+    return "not computed" if value is None else f"{value:.3f}"
+
+
 def render_sweep_report(summary: SweepSummary, *, figure_name: str) -> str:
     """The markdown report of ``summary.json``."""
     engine = summary["engine"]
@@ -174,11 +193,15 @@ def render_sweep_report(summary: SweepSummary, *, figure_name: str) -> str:
         "on that seed's data). Its objective is divided by the reference's on the same scenario "
         "and seed: the oracle's, or the thermostat's on a plant without an oracle (EnergyPlus). "
         "Mean over seeds with a 95 % Student t interval (scipy.stats); the paired "
-        f"difference is, seed by seed, the controller's ratio minus that of `{baseline}`.",
+        f"difference is, seed by seed, the controller's ratio minus that of `{baseline}`. "
+        "Discomfort, the mean over the same seeds: the unavoidable part is what the test days "
+        "gave with the heater off (no controller could avoid it), the avoidable part the rest, "
+        "which the controller is judged on; not computed on BOPTEST.",
         "",
     ]
     headers = ["scenario", "controller", "n", "reference", "objective / reference [95 % CI]",
-               f"minus `{baseline}` [95 % CI]"]
+               f"minus `{baseline}` [95 % CI]", "avoidable discomfort K h (mean)",
+               "unavoidable discomfort K h (mean)"]
     body = [
         [
             f"`{place_label(r)}`",
@@ -187,6 +210,8 @@ def render_sweep_report(summary: SweepSummary, *, figure_name: str) -> str:
             str(r.get("reference", REFERENCE)),
             _interval(ratio(r, "mean"), ratio(r, "ci95")),
             _interval(r["paired_difference_mean"], r["paired_difference_ci95"]),
+            _discomfort(r["discomfort_avoidable_kh_mean"]),
+            _discomfort(r["discomfort_unavoidable_kh_mean"]),
         ]
         for r in summary["rows"]
     ]

@@ -396,7 +396,7 @@ def boptest_data(
 
 #: BOPTEST's KPIs a comparison shows: (key in ``/kpi``, column heading).
 COMPARED_KPIS = (
-    ("tdis_tot", "tdis K h/zone"),
+    ("tdis_tot", "tdis K h/zone (total)"),
     ("ener_tot", "energy kWh/m2"),
     ("cost_tot", "cost EUR/m2"),
     ("emis_tot", "emissions kg/m2"),

@@ -3,6 +3,10 @@
 Every control interval k runs :meth:`scenarios.running.engine.ClosedLoop.advance` (observe, forecast,
 decide, step, in the do-mpc order).
 
+The KPIs split the discomfort into the part no controller could have avoided and the rest
+(:mod:`scenarios.running.kpis`), from a second run of the same days with the actuator off
+(:func:`free_records`).
+
 Warm-up: learned models need a history of at least ``depth + 1`` steps and observers need
 time to settle, so every run starts with ``warmup_steps`` intervals (default one day) driven by
 the thermostat. They are not counted in the KPIs nor written to the trajectory; the counted
@@ -27,13 +31,14 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TextIO
 
+import numpy as np
 import pandas as pd
 from tqdm import tqdm
 
 from controllers.base import Controller
 from controllers.thermostat import Thermostat
 from pinn_mpc.data import COLUMNS, SITE_COLUMNS, write_timeseries
-from pinn_mpc.errors import InputError
+from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.physics import RCParams
 from scenarios.inputs.exogenous import day_span
 from scenarios.inputs.registry import EXOGENOUS_COLUMNS, Scenario, check_seed
@@ -50,6 +55,7 @@ __all__ = [
     "build_loop",
     "check_plant_supports",
     "counted_kpis",
+    "free_records",
     "one_torch_thread",
     "prepare_run",
     "progress_stage",
@@ -183,9 +189,49 @@ def run_trajectory(scenario: Scenario, run: RunInputs, rec: LoopRecord) -> pd.Da
     return trajectory
 
 
-def counted_kpis(scenario: Scenario, run: RunInputs, rec: LoopRecord) -> Kpis:
-    """The KPIs (:func:`scenarios.running.kpis.compute_kpis`) of one building's counted intervals."""
+def free_records(
+    scenario: Scenario, run: RunInputs, *, seed: int, fleet: Sequence[RCParams] | None = None
+) -> tuple[LoopRecord, ...]:
+    """Each building's record of ``run`` with its actuator asked for nothing after the warm-up.
+
+    The engine of every run (:func:`build_loop`: the same plant, weather, gains, sensor noise
+    and forecast errors of ``seed``) runs the warm-up under the thermostat exactly as
+    :func:`run_closed_loop` (a ``fleet``: as the fleet runs) does, so the counted days start
+    from the same state, then steps every interval at 0 W: the building free-running, its
+    backup thermostat still acting. Its too-warm discomfort (a cooling machine: too cold) is
+    the part no controller could avoid (:func:`scenarios.running.kpis.compute_kpis`)."""
+    spec = scenario.control_spec()
+    n = 1 if fleet is None else len(fleet)
+    thermostats = [Thermostat(spec) for _ in range(n)]
+    for thermostat in thermostats:
+        thermostat.reset(seed)
+    with build_loop(scenario, run, seed=seed, fleet=fleet) as loop:
+        for k in range(run.total):
+            if k >= run.warmup:
+                loop.step(0.0 if fleet is None else np.zeros(n))
+            elif fleet is None:
+                loop.advance(thermostats[0])
+            else:
+                loop.advance_fleet(thermostats)
+        return tuple(loop.record(b) for b in range(n))
+
+
+def counted_kpis(
+    scenario: Scenario, run: RunInputs, rec: LoopRecord, free: LoopRecord | None = None
+) -> Kpis:
+    """The KPIs (:func:`scenarios.running.kpis.compute_kpis`) of one building's counted
+    intervals; ``free`` is the building's record of the same run free-running
+    (:func:`free_records`), whose warm-up must be ``rec``'s, None: the unavoidable
+    discomfort is not computed."""
     counted, series = run.counted, run.series
+    if free is not None and not np.array_equal(
+        free.t_r_sub_c[: run.warmup], rec.t_r_sub_c[: run.warmup]
+    ):
+        raise InternalError(
+            "counted_kpis: the free-running run's warm-up differs from the run's, so its "
+            "discomfort bounds nothing; both must be one engine's warm-up under the thermostat "
+            "with the same seed"
+        )
     return compute_kpis(
         u_phys_w=rec.u_phys_w[counted],
         price_eur_per_kwh=series.price[counted],
@@ -197,6 +243,8 @@ def counted_kpis(scenario: Scenario, run: RunInputs, rec: LoopRecord) -> Kpis:
         fallback=rec.fallback[counted],
         dt_s=scenario.sim.dt_s,
         comfort_weight_eur_per_kh=scenario.comfort_weight_eur_per_kh,
+        free_t_r_sub_c=None if free is None else free.t_r_sub_c[counted],
+        heating=scenario.sim.params.heating,
     )
 
 
@@ -214,6 +262,10 @@ def run_closed_loop(
     """Run ``controller`` on ``scenario`` for ``days`` counted days after the warm-up.
 
     A thermostat drives the warm-up (not counted); then ``controller`` decides every interval.
+    The same days run once more with the actuator off after the same warm-up
+    (:func:`free_records`) for the discomfort no controller could have avoided
+    (``discomfort_unavoidable_kh``): a few milliseconds on the RC plants, a second simulation
+    on EnergyPlus (about half a second per day of the small office).
 
     Parameters
     ----------
@@ -256,9 +308,11 @@ def run_closed_loop(
             if decision.error is not None:
                 errors.append(f"step {k}: {decision.error}")
         rec = loop.record()
+    # The same days free-running: the discomfort no controller could have avoided.
+    free = free_records(scenario, run, seed=seed)[0]
     trajectory = run_trajectory(scenario, run, rec)
     kpis: RunKpis = {
-        **counted_kpis(scenario, run, rec),
+        **counted_kpis(scenario, run, rec, free),
         "controller": label or controller.name,
         "scenario": scenario.name,
         "days": days,

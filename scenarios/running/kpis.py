@@ -6,6 +6,21 @@
 - ``discomfort_kh``: integral over time of the comfort-band violation [K h]. The room
   temperature is the simulator's at the end of every substep (1 min by default), held over that
   substep and compared with the band of its control interval.
+- ``discomfort_too_cold_kh``, ``discomfort_too_warm_kh``: its parts below and above the band;
+  they sum to ``discomfort_kh`` (exactly where one of them is 0, else to floating-point
+  rounding).
+- ``discomfort_unavoidable_kh``: the part no actuation could have avoided: the too-warm
+  discomfort of the same days with the heater asked for nothing (a cooling machine: the
+  too-cold discomfort with it off), measured on the same plant from the same warm-up under the
+  same weather, gains and seed (:func:`scenarios.running.closed_loop.free_records`). A heater
+  only adds heat and the backup thermostat adds heat only below its floor, so the room is no
+  cooler under any heating than without it, and no heating controller's too-warm discomfort
+  can be smaller; the sensor noise and the forecast errors change what a controller does,
+  not this bound. Taken at most the run's own too-warm part (the backup thermostat's floor,
+  applied minute by minute, can leave a run a few hundredths of a kelvin below the free run
+  for a minute). None where it was not computed (a BOPTEST run).
+- ``discomfort_avoidable_kh``: ``discomfort_kh - discomfort_unavoidable_kh``, never below 0:
+  what a controller is to be judged on (None where the unavoidable part was not computed).
 - ``peak_kw``: the largest interval-mean delivered electrical power.
 - ``objective``: ``cost_eur + comfort_weight x discomfort_kh``, the objective every controller
   optimises (:mod:`controllers.objective`, whose primitives compute both terms here), measured on
@@ -34,6 +49,10 @@ KPI_KEYS = (
     "energy_kwh",
     "cost_eur",
     "discomfort_kh",
+    "discomfort_too_cold_kh",
+    "discomfort_too_warm_kh",
+    "discomfort_unavoidable_kh",
+    "discomfort_avoidable_kh",
     "peak_kw",
     "objective",
     "decision_ms_median",
@@ -58,6 +77,8 @@ def compute_kpis(
     fallback: np.ndarray,
     dt_s: float,
     comfort_weight_eur_per_kh: float,
+    free_t_r_sub_c: np.ndarray | None = None,
+    heating: bool = True,
 ) -> Kpis:
     """KPIs of N control intervals of one building.
 
@@ -74,6 +95,13 @@ def compute_kpis(
         The control interval [s].
     comfort_weight_eur_per_kh
         The price of a kelvin-hour outside the band, in the objective.
+    free_t_r_sub_c
+        (N, S): the true room temperature of the same intervals with the actuator asked for
+        nothing [C] (:func:`scenarios.running.closed_loop.free_records`), whose too-warm
+        (``heating``) or too-cold (a cooling machine) discomfort is the unavoidable part; None:
+        not computed (``discomfort_unavoidable_kh`` and ``discomfort_avoidable_kh`` None).
+    heating
+        Whether the actuator heats (True) or cools.
 
     Returns
     -------
@@ -99,16 +127,37 @@ def compute_kpis(
             raise InternalError(f"compute_kpis: {name} must be ({n},), got shape {np.shape(arr)}")
     dt_h = dt_s / 3600.0
     energy_kwh_k = u / 1000.0 * dt_h
-    violation = band_violation_k(
-        sub, np.asarray(t_min_c, dtype=float)[:, None], np.asarray(t_max_c, dtype=float)[:, None]
-    )
+    t_min = np.asarray(t_min_c, dtype=float)[:, None]
+    t_max = np.asarray(t_max_c, dtype=float)[:, None]
+    violation = band_violation_k(sub, t_min, t_max)
     discomfort_kh = float(np.sum(violation) * dt_h / sub.shape[1])
+    too_cold_kh, too_warm_kh = _band_sides_kh(sub, t_min, t_max, dt_h)
+    unavoidable_kh = avoidable_kh = None
+    if free_t_r_sub_c is not None:
+        free = np.asarray(free_t_r_sub_c, dtype=float)
+        if free.shape != sub.shape:
+            raise InternalError(
+                f"compute_kpis: free_t_r_sub_c must be {sub.shape} as t_r_sub_c, got {free.shape}"
+            )
+        free_cold_kh, free_warm_kh = _band_sides_kh(free, t_min, t_max, dt_h)
+        # The run's own side is at least the free run's wherever the plant is monotone in the
+        # actuation; the backup thermostat's floor, applied minute by minute, can leave it
+        # short by a few hundredths of a kelvin for a minute, which the min absorbs.
+        if heating:
+            unavoidable_kh = min(free_warm_kh, too_warm_kh)
+        else:
+            unavoidable_kh = min(free_cold_kh, too_cold_kh)
+        avoidable_kh = discomfort_kh - unavoidable_kh
     cost_eur = float(np.sum(energy_cost_eur(u, np.asarray(price_eur_per_kwh, dtype=float), dt_h)))
     decision_ms = np.asarray(decision_s, dtype=float) * 1000.0
     return {
         "energy_kwh": float(np.sum(energy_kwh_k)),
         "cost_eur": cost_eur,
         "discomfort_kh": discomfort_kh,
+        "discomfort_too_cold_kh": too_cold_kh,
+        "discomfort_too_warm_kh": too_warm_kh,
+        "discomfort_unavoidable_kh": unavoidable_kh,
+        "discomfort_avoidable_kh": avoidable_kh,
         "peak_kw": float(np.max(u) / 1000.0),
         "objective": cost_eur + comfort_weight_eur_per_kh * discomfort_kh,
         "decision_ms_median": float(np.median(decision_ms)),
@@ -119,3 +168,14 @@ def compute_kpis(
         "fallbacks": int(np.count_nonzero(fallback)),
         "own_decisions_share": 1.0 - float(np.count_nonzero(fallback)) / n,
     }
+
+
+def _band_sides_kh(
+    sub: np.ndarray, t_min: np.ndarray, t_max: np.ndarray, dt_h: float
+) -> tuple[float, float]:
+    """(too cold, too warm) [K h] of substep temperatures ``sub`` (N, S) against the band
+    (N, 1), integrated as ``discomfort_kh`` is, so that one side alone equals it exactly."""
+    cold = np.maximum(t_min - sub, 0.0)
+    warm = np.maximum(sub - t_max, 0.0)
+    n_sub = sub.shape[1]
+    return float(np.sum(cold) * dt_h / n_sub), float(np.sum(warm) * dt_h / n_sub)
