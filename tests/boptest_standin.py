@@ -199,11 +199,14 @@ def _handler(standin: StandIn) -> type[BaseHTTPRequestHandler]:
                 return
             status, content = answer
             data = json.dumps(content).encode()
-            self.send_response(status)
-            self.send_header("Content-Type", "application/json")
-            self.send_header("Content-Length", str(len(data)))
-            self.end_headers()
-            self.wfile.write(data)
+            try:
+                self.send_response(status)
+                self.send_header("Content-Type", "application/json")
+                self.send_header("Content-Length", str(len(data)))
+                self.end_headers()
+                self.wfile.write(data)
+            except (BrokenPipeError, ConnectionResetError):  # the client gave up (its timeout)
+                self.close_connection = True
 
         do_GET = do_PUT = do_POST = _serve
 

@@ -257,7 +257,7 @@ NOT_RUN = {
     "mkdocs serve": "serves the site until stopped (test_mkdocs_build_strict builds it)",
     "mkdocs build --strict": "test_mkdocs_build_strict runs it",
     "python -m pytest": "the test suite itself",
-    "BOPTEST_HOME=": "starts a local BOPTEST server (the tests take the boptest_server fixture's)",
+    "'BOPTEST_HOME=": "starts a local BOPTEST server (the tests take the boptest_server fixture's)",
     "export BOPTEST_URL=": "names a user's BOPTEST server (each command here gets the "
     "boptest_server fixture's in BOPTEST_URL)",
     "BOPTEST_URL=": "the test suite itself, given a BOPTEST server",

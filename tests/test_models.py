@@ -204,12 +204,14 @@ def test_one_step_predictions_have_member_axis(small_model: LearnedModel) -> Non
     assert (coef is None) == (small_model.arch == "mlp")
 
 
-def _winter_data(days: int, seed: int):
+def _winter_data(days: int, seed: int, *, heating: bool = True):
+    """The true 2R2C and ``days`` of random-level data of winter_household (of cold_storage,
+    a cooling machine's, with ``heating`` False)."""
     from pinn_mpc.data import validate_timeseries
     from scenarios.inputs.scenario_file import get_scenario
     from scenarios.running.datagen import generate
 
-    scenario = get_scenario("winter_household")
+    scenario = get_scenario("winter_household" if heating else "cold_storage")
     frame = generate(scenario, days=days, seed=seed, policy="random-level")
     return scenario.sim.params, validate_timeseries(frame)
 
@@ -271,8 +273,7 @@ def test_hybrid_backup_thermostat_saturates_at_the_power_that_ends_at_its_thresh
 ) -> None:
     """Analytic cases: T_end(p) = t_free + b p; the backup delivers the demand clipped to the
     powers that end the interval at its "off" and "full" thresholds, and [0, full power]."""
-    truth, df = _winter_data(4, 0)
-    prior = dataclasses.replace(truth, eta=1.0 if heating else -2.5)
+    prior, df = _winter_data(4, 0, heating=heating)
     model = train_model(
         df, arch="hybrid", config=TrainConfig(n_seeds=1, epochs=1, depth=4, prior=prior, eta=prior.eta), progress=False
     )
@@ -403,8 +404,7 @@ def test_hybrid_rollout_equals_stepping_the_one_step_model(heating: bool) -> Non
     the same predictions up to float32 round-off, for one start and N plans (N0 = 1) and N
     starts (N0 = N), with a residual and a backup thermostat that both act; and again after
     the weights change in place (the rollout's cached constants must follow)."""
-    truth, df = _winter_data(3, 2)
-    prior = dataclasses.replace(truth, eta=truth.eta if heating else -2.5)
+    prior, df = _winter_data(3, 2, heating=heating)
     config = TrainConfig(n_seeds=3, epochs=1, depth=6, prior=prior, eta=prior.eta)
     model = train_model(df, arch="hybrid", config=config, progress=False)
     net = model.module.net
