@@ -261,7 +261,7 @@ def test_the_buildings_holidays_reach_data_and_the_forecasts_day_of_the_week():
 
     scenario = get_scenario(SCENARIO)
     times = pd.date_range("2022-01-01", "2022-02-28 23:30", freq="30min")
-    marked = holidays(scenario.plant.energyplus, times.to_numpy())
+    marked = holidays(scenario.plant.settings, times.to_numpy())
     days = sorted({t.date() for t in times[marked > 0]})
     assert days == [dt.date(2022, 1, 1), dt.date(2022, 1, 17), dt.date(2022, 2, 21)]
     exo = scenario.exogenous(days=1, seed=0, part="train")
@@ -277,7 +277,7 @@ def test_scenario_file_energyplus_defaults_and_checks(tmp_path):
     path = tmp_path / "office.toml"
     path.write_text(FILE.format(building="small_office", extra=""))
     scenario = get_scenario(str(path))
-    assert scenario.sim.u_max_w == 20000.0 and scenario.plant.is_energyplus
+    assert scenario.sim.u_max_w == 20000.0 and scenario.plant.kind == "energyplus"
     assert scenario.weather.file_name == "usa_il_chicago"
     path.write_text(FILE.format(building="small_office", extra="") + "[gains]\nbase_w = 100.0\n")
     with pytest.raises(InputError, match="own internal gains"):
@@ -502,7 +502,7 @@ def _thermostat_on_days(scenario, power_w, start_day, days):
     t_min, t_max = scenario.comfort.sample(times)
     thermostat = Thermostat(dataclasses.replace(scenario.control_spec(), u_max_w=power_w))
     on, held = np.zeros(1, dtype=bool), []
-    with EnergyPlusRun(prepare_plant(scenario.plant.energyplus), weather=scenario.plant.weather,
+    with EnergyPlusRun(prepare_plant(scenario.plant.settings), weather=scenario.plant.settings.weather,
                        u_max_w=power_w, warmup_setpoint_c=20.0) as run:
         t_r = run.start(start_day, days, year=2001)
         for k in range(days * 48):
@@ -522,7 +522,7 @@ def test_auto_heater_holds_the_band_on_the_coldest_days(tmp_path, caplog):
     text = FILE.format(building="small_office", extra="").replace("heater_w = 20000.0\n", "")
     (tmp_path / "auto.toml").write_text(text.replace("day_max_c = 23.0", "day_max_c = 23.0\nday_end_h = 19.0"))
     scenario = get_scenario(str(tmp_path / "auto.toml"))
-    assert scenario.plant.heater_w == "auto"
+    assert scenario.plant.settings.heater_w == "auto"
     line = [x for x in caplog.messages if "heater sized" in x]
     assert len(line) == 1 and f"{scenario.sim.u_max_w / 1000:g} kW" in line[0] and "06 Jan-08 Jan" in line[0]
     assert 15000 <= scenario.sim.u_max_w <= 30000 and scenario.sim.u_max_w % 1000 == 0
@@ -560,7 +560,7 @@ def test_energyplus_plant_keys_in_scenario_files(tmp_path):
     with pytest.raises(InputError, match="gains_known = false hides them"):
         get_scenario(str(tmp_path / "bad.toml"))
     (tmp_path / "sep.toml").write_text(FILE.format(building="small_office", extra='zones = "separate"\nradiant_fraction = 0.5'))
-    plant = get_scenario(str(tmp_path / "sep.toml")).plant
+    plant = get_scenario(str(tmp_path / "sep.toml")).plant.settings
     assert (plant.zones, plant.radiant_fraction, plant.gains) == ("separate", 0.5, "unknown")
 
 
@@ -600,7 +600,7 @@ def test_measured_gains_reach_the_controllers(tmp_path):
     header = (tmp_path / "d.csv").read_text().splitlines()[0]
     assert "I_g" in header.split(",")
     unknown = get_scenario(SCENARIO)
-    assert unknown.plant.gains == "unknown"
+    assert unknown.plant.settings.gains == "unknown"
     assert not unknown.exogenous(days=1, seed=0, part="test")["I_g"].any()
 
 

@@ -63,7 +63,7 @@ def test_kalman_estimator_on_the_engine_finds_the_hidden_t_m():
     estimator.reset()
     controller = Thermostat(SPEC)
     for _ in range(60):
-        t_m_true = float(loop.sim.state[0, 1])
+        t_m_true = float(loop.true_state()[0, 1])
         estimate = estimator.update(loop.observation())
         loop.advance(controller)
     assert abs(estimate[1] - t_m_true) < 0.05

@@ -1,16 +1,18 @@
 """The 3R3C plant with an envelope node against the 2R2C it extends and its analytic steady state."""
 
 import dataclasses
+import json
 
 import numpy as np
 import pytest
 
 from pinn_mpc import physics
-from pinn_mpc.errors import InputError, InternalError
+from pinn_mpc.errors import InputError
 from pinn_mpc.plant import Plant, plant_matrices
 from pinn_mpc.simulator import SimConfig, Simulator
 from scenarios.inputs.scenario_file import get_scenario
 from scenarios.plants.energyplus.settings import EnergyPlusSettings
+from scenarios.plants.rc import RCSettings
 from scenarios.plants.settings import PlantSettings
 from scenarios.running.closed_loop import run_closed_loop
 from scenarios.running.factory import build_controller
@@ -113,43 +115,67 @@ def test_mismatch_scenario_runs_closed_loop(name: str):
 
 def test_the_modelling_package_knows_only_the_rc_structures():
     """pinn_mpc's Plant is what its simulator integrates: an EnergyPlus kind is the plants
-    layer's (PlantSettings), and a scenario's SimConfig.plant follows its PlantSettings."""
+    layer's (PlantSettings with the kind's settings), and a scenario's SimConfig.plant follows
+    its PlantSettings."""
     with pytest.raises(InputError, match="Plant.kind 'energyplus' is unknown; choose one of 2r2c, 3r3c"):
         Plant(kind="energyplus")
     assert PlantSettings().rc == Plant()
-    assert PlantSettings.of_rc(ENVELOPE).rc == ENVELOPE
+    envelope = RCSettings(
+        envelope_capacity_j_per_k=ENVELOPE.envelope_capacity_j_per_k,
+        envelope_resistance_fraction=ENVELOPE.envelope_resistance_fraction,
+    )
+    assert PlantSettings(kind="3r3c", settings=envelope).rc == ENVELOPE
     office = get_scenario("eplus_small_office")
-    assert office.plant.is_energyplus and not office.plant.runs_in_simulator
+    assert not office.plant.true_state and not office.plant.fleets
+    assert office.plant.reference == "thermostat" and office.reference == "thermostat"
     assert office.sim.plant == Plant()  # the nominal 2R2C; the plant runs in EnergyPlus
-    assert office.plant.energyplus == EnergyPlusSettings(
+    assert office.plant.settings == EnergyPlusSettings(
         building="small_office", weather="usa_il_chicago", heater_w=25000.0
     )
-    assert PlantSettings.of_energyplus(office.plant.energyplus) == office.plant
+    assert office.plant.settings.weather_file == "usa_il_chicago"
     mismatch = get_scenario("mismatch_household")
-    assert mismatch.sim.plant == ENVELOPE
+    assert mismatch.sim.plant == ENVELOPE and mismatch.plant.true_state
     assert dataclasses.replace(mismatch, plant=PlantSettings()).sim.plant == Plant()
-    with pytest.raises(InternalError, match="PlantSettings.energyplus of a '3r3c' plant"):
-        _ = mismatch.plant.energyplus
+    with pytest.raises(InputError, match="kind 'energyplus' takes EnergyPlusSettings, got RCSettings"):
+        PlantSettings(kind="energyplus")
+    with pytest.raises(InputError, match="plant kind 'mars' is unknown; choose one of 2r2c, 3r3c, energyplus"):
+        PlantSettings(kind="mars")
 
 
 @pytest.mark.parametrize(
-    ("settings", "match"),
+    ("table", "match"),
     [
-        ({"kind": "2r2c", "weather": "usa_il_chicago"}, "belong to kind = \"energyplus\", not '2r2c'"),
-        ({"kind": "energyplus", "building": "small_office"}, "needs building .* and weather"),
-        ({"kind": "energyplus", "building": "b", "weather": "w", "heater_w": -1.0},
-         r"PlantSettings.heater_w = -1.0 must be a power >= 0 W"),
-        ({"kind": "energyplus", "building": "b", "weather": "w", "envelope_resistance_fraction": 1.0},
-         "PlantSettings.envelope_resistance_fraction = 1.0 must lie strictly between 0 and 1"),
+        ({"kind": "2r2c", "weather": "usa_il_chicago"}, "weather belongs to another kind of plant, not '2r2c'"),
+        ({"kind": "energyplus", "building": "small_office"}, "simulation.plant.weather: missing"),
+        ({"kind": "energyplus", "building": "small_office", "weather": "usa_il_chicago", "heater_w": -1.0},
+         r"simulation.plant.heater_w = -1.0 must be a power >= 0 W"),
+        ({"kind": "energyplus", "building": "small_office", "weather": "usa_il_chicago",
+          "envelope_resistance_fraction": 1.0},
+         "envelope_resistance_fraction belongs to another kind of plant, not 'energyplus'"),
+        ({"kind": "3r3c", "envelope_resistance_fraction": 1.0},
+         "simulation.plant.envelope_resistance_fraction = 1.0 must lie strictly between 0 and 1"),
+        ({"kind": "2r2c", "speed": 1.0}, r"simulation.plant.speed: unknown key; \[simulation.plant\] of kind"),
     ],
 )
-def test_plant_settings_check_the_fields_of_their_kind(settings: dict, match: str):
+def test_a_plant_table_takes_the_fields_of_its_kind(table: dict, match: str, tmp_path):
+    """A scenario file's [simulation.plant] holds its kind's fields; another kind's field at its
+    default is what older exports wrote (every kind's fields), read as before."""
+    from scenarios.inputs.scenario_file import scenario_to_toml
+
+    text = scenario_to_toml(get_scenario("winter_household"))
+    block = '[simulation.plant]\nkind = "2r2c"\nenvelope_capacity_j_per_k = 10000000.0\nenvelope_resistance_fraction = 0.5\n'
+    assert block in text
+
+    def with_plant(lines: str):
+        path = tmp_path / "s.toml"
+        path.write_text(text.replace(block, "[simulation.plant]\n" + lines))
+        return path
+
+    written = "".join(f"{k} = {json.dumps(v)}\n" for k, v in table.items())
     with pytest.raises(InputError, match=match):
-        PlantSettings(**settings)
-    if settings["kind"] == "energyplus" and "envelope_resistance_fraction" not in settings:
-        fields = {k: v for k, v in settings.items() if k != "kind"}
-        with pytest.raises(InputError, match=match.replace("PlantSettings", "EnergyPlusSettings")):
-            EnergyPlusSettings(**{"building": "", "weather": "", **fields})
+        get_scenario(str(with_plant(written)))
+    older = with_plant(block.split("\n", 1)[1] + 'building = ""\nweather = ""\nheater_w = 0.0\nzones = "merged"\n')
+    assert get_scenario(str(older)).plant == get_scenario("winter_household").plant
 
 
 def test_a_plant_is_given_once_with_its_scenario(tmp_path):

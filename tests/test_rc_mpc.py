@@ -77,7 +77,7 @@ def _closed_loop(controller: Controller, n_steps: int, *, hidden_start_t_m_c: fl
     controller.reset(seed=0)
     t_r_next, t_m_last = [], np.nan
     for _ in range(n_steps):
-        t_m_last = float(loop.sim.state[0, 1])
+        t_m_last = float(loop.true_state()[0, 1])
         t_r_next.append(float(loop.advance(controller).plant.t_r_c[0]))
     actions = loop.record().u_w
     error = np.nan

@@ -51,7 +51,7 @@ def test_closed_loop_on_the_exported_file_gives_the_same_kpis(tmp_path, capsys, 
     assert main(["scenario", "export", name, "--out", str(path)]) == 0
     kpis = {}
     # No oracle on an EnergyPlus building (no true RC model or state): the thermostat there.
-    controller = "thermostat" if get_scenario(name).plant.is_energyplus else "oracle"
+    controller = get_scenario(name).reference
     for label, scenario in (("name", name), ("file", str(path))):
         out = tmp_path / f"{label}.json"
         argv = ["closed-loop", "--scenario", scenario, "--controller", controller, "--days", "1",
@@ -342,7 +342,7 @@ def test_an_exported_energyplus_scenario_names_its_weather_once(tmp_path):
     other.write_text(text.replace('weather = "usa_il_chicago"', 'weather = "usa_co_denver"')
                      .replace('name = "eplus_small_office"', 'name = "office_denver"'))
     scenario = load_scenario_file(other)
-    assert scenario.weather.file_name == scenario.plant.weather == "usa_co_denver"
+    assert scenario.weather.file_name == scenario.plant.settings.weather_file == "usa_co_denver"
     assert (scenario.weather.window_start, scenario.weather.test_days) == ("01-01", 28)
     older = tomllib.loads(text)
     older["weather"]["file_name"] = "usa_il_chicago"

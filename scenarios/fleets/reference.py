@@ -214,7 +214,7 @@ def fleet_reference(
     exog = np.column_stack([np.asarray(series.T_a, float)[rows], np.asarray(series.G, float)[rows],
                             np.asarray(series.I_g, float)[rows]])
     ad, bd = fleet_matrices(fleet, spec.dt_s)
-    x0 = np.asarray(loop.sim.state, dtype=float)[:, :2].copy()
+    x0 = loop.true_state()
     plan = solve_fleet_reference(
         ad, bd, x0, exog,
         price_eur_per_kwh=np.asarray(series.price, float)[rows],

@@ -42,8 +42,13 @@ from scenarios.inputs.exogenous import (
 )
 from scenarios.inputs.measured import CSVWeather, PriceCSV
 from scenarios.inputs.series import ForecastErrors
-from scenarios.plants.energyplus.settings import EnergyPlusSettings
-from scenarios.plants.kinds import holiday_calendar, scheduled_gains
+from scenarios.plants.energyplus.settings import (
+    DATA_POLICY,
+    NOMINAL_BUILDING,
+    WEATHER_WINDOW,
+    EnergyPlusSettings,
+)
+from scenarios.plants.rc import RCSettings
 from scenarios.plants.settings import PlantSettings
 
 __all__ = [
@@ -66,7 +71,7 @@ __all__ = [
 INITIAL_TEMPERATURE_RANGE_C = (-50.0, 80.0)
 #: The training-data policy of EnergyPlus scenarios (:attr:`Scenario.data_policy`): random
 #: setpoints tracked, which keep the room inside the 14/28 C backup thermostat's band.
-ENERGYPLUS_DATA_POLICY: Literal["closed-loop"] = "closed-loop"
+ENERGYPLUS_DATA_POLICY = DATA_POLICY
 #: Columns of :meth:`Scenario.exogenous`, in order.
 EXOGENOUS_COLUMNS = ("time", "T_a", "G", "I_g", "price", "T_min", "T_max")
 # Independent random streams per input, so changing one input's settings leaves the others.
@@ -122,20 +127,21 @@ class Scenario:
                     f"Scenario.{key} = {value:g} C is outside the plausible {lo:g} .. {hi:g} C of "
                     "a building's starting temperature; give it in Celsius"
                 )
-        if self.plant.is_energyplus:
-            self._check_energyplus()
+        if self.plant.settings.weather_file is not None:
+            self._check_own_weather(self.plant.settings.weather_file)
 
-    def _check_energyplus(self) -> None:
-        """An EnergyPlus building brings its own weather file and internal gains: the
-        scenario's weather must be that file (the controllers' forecasts), its gains none."""
-        plant, weather = self.plant.energyplus, self.weather
+    def _check_own_weather(self, plant_weather: str) -> None:
+        """A plant with a weather file of its own (an EnergyPlus building) brings its own
+        internal gains too: the scenario's weather must be that file (the controllers'
+        forecasts), its gains none."""
+        weather = self.weather
         same = isinstance(weather, TMY3Weather) and (
-            weather.file_name == plant.weather
-            or str(tmy3_path(weather.file_name)) == str(tmy3_path(plant.weather))
+            weather.file_name == plant_weather
+            or str(tmy3_path(weather.file_name)) == str(tmy3_path(plant_weather))
         )
         if not same:
             raise InputError(
-                f"Scenario {self.name!r}: the EnergyPlus plant runs on weather {plant.weather!r}, "
+                f"Scenario {self.name!r}: the EnergyPlus plant runs on weather {plant_weather!r}, "
                 "so [weather] must be a TMY3Weather of the same file (leave weather.file_name "
                 "out to use the plant's, or [weather] out to get it with a January / February split)"
             )
@@ -144,7 +150,7 @@ class Scenario:
                 f"Scenario {self.name!r}: an EnergyPlus building has its own internal gains; "
                 "leave [gains] out"
             )
-        if plant.gains == "measured" and not self.forecast.gains_known:
+        if self.plant.settings.measured_gains and not self.forecast.gains_known:
             raise InputError(
                 f"Scenario {self.name!r}: simulation.plant.gains = \"measured\" makes the "
                 "building's gains known, but forecast.gains_known = false hides them; give one"
@@ -168,7 +174,7 @@ class Scenario:
         """The controller every other is measured against: the oracle on a plant with true
         parameters and state, the thermostat on one without (EnergyPlus), where no oracle
         exists."""
-        return "thermostat" if self.plant.is_energyplus else "oracle"
+        return "oracle" if self.plant.true_state else "thermostat"
 
     @property
     def uses_solar(self) -> bool:
@@ -217,9 +223,8 @@ class Scenario:
         price = self.price.sample(times, dt_s=dt_s, rng=rng(_PRICE_STREAM))
         i_g = self.gains.sample(times, rng=rng(_GAINS_STREAM))
         plant = self.plant
-        scheduled = scheduled_gains(  # a plant whose gains are measured: its own schedules'
-            plant, times.to_numpy(), setpoint_c=self.band_setpoint_c, dt_s=dt_s,
-            heat_per_w=self.sim.params.eta,
+        scheduled = plant.settings.scheduled_gains(  # a plant whose gains are measured: its own schedules'
+            times.to_numpy(), setpoint_c=self.band_setpoint_c, dt_s=dt_s, heat_per_w=self.sim.params.eta,
         )
         if scheduled is not None:
             i_g = scheduled
@@ -235,13 +240,13 @@ class Scenario:
                 "T_max": t_max,
             }
         )
-        if plant.is_energyplus:  # the plant's EPW (checked): its facades' irradiance and wind too
+        if plant.settings.weather_file is not None:  # the plant's EPW (checked): its facades' irradiance and wind too
             epw = cast(TMY3Weather, self.weather)
             facades = epw.facades(times, dt_s=dt_s)
             for name in FACADE_COLUMNS:
                 frame[name] = facades[name]
             frame[WIND] = epw.wind(times, dt_s=dt_s)
-        holiday = holiday_calendar(plant, times.to_numpy())  # the plant kind's calendar, if any
+        holiday = plant.settings.holidays(times.to_numpy())  # the plant kind's calendar, if any
         if holiday is not None:
             frame["holiday"] = holiday
         frame.attrs["dt_s"] = float(dt_s)
@@ -277,20 +282,9 @@ COLD_ROOM = RCParams(
     gain_to_air_fraction=0.8,
 )
 
-#: What the controllers' side of a scenario assumes of an EnergyPlus building (eta = 1: an
-#: electric heater; a solar aperture, so data carry G): nominal values of the order identify
-#: finds for DOE's small office (so a model of it is recognised as this building's), not the
-#: plant's, which has no R/C parameters. Models and RC MPCs learn their own.
-EPLUS_NOMINAL = RCParams(
-    r_ra_k_per_w=1.0 / 800.0,
-    r_rm_k_per_w=1.0 / 5000.0,
-    c_r_j_per_k=3.0e6,
-    c_m_j_per_k=6.0e8,
-    eta=1.0,
-    solar_aperture_m2=10.0,
-    solar_to_air_fraction=0.3,
-    gain_to_air_fraction=0.5,
-)
+#: What the controllers' side of a scenario assumes of an EnergyPlus building (its kind's
+#: :data:`scenarios.plants.energyplus.settings.NOMINAL_BUILDING`).
+EPLUS_NOMINAL = NOMINAL_BUILDING
 
 
 _SIZING_REPORTED: set[str] = set()
@@ -303,10 +297,8 @@ def with_sized_heater(scenario: Scenario, *, given_u_max_w: float | None = None)
     highest lower bound (a chiller, ``eta < 0``: its lowest upper bound) through the weather
     file's coldest (hottest) three days. A note (``logging``, level INFO) says what was sized
     (once per process). A ``given_u_max_w`` must be that value (a file ``scenario export`` wrote)."""
-    from scenarios.plants.energyplus.sizing import size_heater
-
     sim = scenario.sim
-    sizing = size_heater(scenario.plant.energyplus, scenario.band_setpoint_c, heat_per_w=sim.params.eta, dt_s=sim.dt_s)
+    sizing = scenario.plant.settings.size_actuator(scenario.band_setpoint_c, heat_per_w=sim.params.eta, dt_s=sim.dt_s)
     if given_u_max_w is not None and abs(given_u_max_w - sizing.power_w) > 1e-6 * sizing.power_w:
         raise InputError(
             f"simulation.u_max_w = {given_u_max_w:g} W, but plant.heater_w = \"auto\" sizes "
@@ -322,10 +314,9 @@ def with_sized_heater(scenario: Scenario, *, given_u_max_w: float | None = None)
 
 def eplus_weather(file_name: str) -> TMY3Weather:
     """The weather of an EnergyPlus scenario: the plant's EPW, January and February, trained
-    on January (a longer training run reaches back into December), tested on February."""
-    return TMY3Weather(
-        file_name=file_name, window_start="01-01", window_days=59, test_start="02-01", test_days=28
-    )
+    on January (a longer training run reaches back into December), tested on February
+    (:data:`scenarios.plants.energyplus.settings.WEATHER_WINDOW`)."""
+    return TMY3Weather(file_name=file_name, **WEATHER_WINDOW)
 
 
 def _with_split(scenario: Scenario) -> Scenario:
@@ -470,7 +461,8 @@ _SCENARIOS.update(
             "plant's R/C without the envelope (the 2R2C it reduces to as C_e -> 0) with the true "
             "T_r and T_m, so it is no longer a lower bound, nor is the clairvoyant.",
             plant=PlantSettings(
-                kind="3r3c", envelope_capacity_j_per_k=1.0e7, envelope_resistance_fraction=0.5
+                kind="3r3c",
+                settings=RCSettings(envelope_capacity_j_per_k=1.0e7, envelope_resistance_fraction=0.5),
             ),
         ),
     )
@@ -500,8 +492,9 @@ def _energyplus_scenario(
                 backup_low_c=14.0,
                 backup_high_c=28.0,
             ),
-            plant=PlantSettings.of_energyplus(
-                EnergyPlusSettings(building=building, weather=weather, heater_w=heater_w)
+            plant=PlantSettings(
+                kind="energyplus",
+                settings=EnergyPlusSettings(building=building, weather=weather, heater_w=heater_w),
             ),
             comfort_weight_eur_per_kh=5.0,
             initial_t_r_c=initial_t_r_c,

@@ -44,15 +44,14 @@ import tomlkit
 from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.physics import PLAUSIBLE_RANGES
 from scenarios.inputs.registry import (
-    ENERGYPLUS_DATA_POLICY,
-    EPLUS_NOMINAL,
     Scenario,
     builtin_scenario,
-    eplus_weather,
     is_scenario_file,
     scenario_names,
     with_sized_heater,
 )
+from scenarios.plants.kinds import plant_kind
+from scenarios.plants.settings import PlantSettings
 
 __all__ = [
     "SECTIONS",
@@ -109,7 +108,11 @@ def _union_members(tp: Any) -> tuple[type, ...] | None:
 # ---------------------------------------------------------------- dataclass -> TOML
 
 def _plain(value: Any, tp: Any) -> Any:
-    """A field value as TOML data: numbers, strings, lists, tables (dict)."""
+    """A field value as TOML data: numbers, strings, lists, tables (dict); a plant as its
+    kind and that kind's fields."""
+    if isinstance(value, PlantSettings):
+        hints = typing.get_type_hints(value.plug.settings_type)
+        return {"kind": value.kind, **{k: _plain(v, hints[k]) for k, v in value.fields().items()}}
     if dataclasses.is_dataclass(value) and not isinstance(value, type):
         table = {}
         if _union_members(tp):
@@ -212,7 +215,7 @@ def scenario_to_toml(scenario: Scenario) -> str:
         _pop_path(plain, derived)
     moved = _relocate(plain, SECTIONS)
     weather = moved.get("weather")
-    if scenario.plant.is_energyplus and isinstance(weather, dict):
+    if scenario.plant.settings.weather_file is not None and isinstance(weather, dict):
         # One place for the weather: the plant's (simulation.plant.weather); [weather] keeps
         # only its window, and gets the file from the plant when read.
         weather.pop("file_name", None)
@@ -301,7 +304,27 @@ def _resolve(text: str, base: Path) -> str:
     return text
 
 
+def _build_plant(table: dict[str, Any], where: str, base: Path) -> PlantSettings:
+    """The plant of a ``[simulation.plant]`` table: its kind (default the 2R2C) and that kind's
+    settings (:meth:`PlantSettings.from_fields` says which keys are its own)."""
+    kind = table.get("kind", PlantSettings().kind)
+    if not isinstance(kind, str):
+        raise _error(_join(where, "kind"), f"expected a string, got {kind!r}")
+    try:
+        plant_kind(kind)
+        settings_type, own = PlantSettings.from_fields(kind, {k: v for k, v in table.items() if k != "kind"})
+    except InputError as exc:
+        message = str(exc).removeprefix("plant: ")
+        key = message.split(":")[0]
+        if "unknown key" in message:
+            raise _error(_join(where, key), message.split(": ", 1)[1]) from None
+        raise InputError(f"{_file_key(where)}: {message}") from None
+    return PlantSettings(kind=kind, settings=_build(settings_type, own, where, base))
+
+
 def _build(cls: type, table: dict[str, Any], where: str, base: Path) -> Any:
+    if cls is PlantSettings:
+        return _build_plant(table, where, base)
     hints = typing.get_type_hints(cls)
     known = {f.name: f for f in dataclasses.fields(cls) if f.init}
     here = [n for n in known if _file_key(_join(where, n)) == _join(_file_key(where), n)]
@@ -337,61 +360,23 @@ def _build(cls: type, table: dict[str, Any], where: str, base: Path) -> Any:
     return obj
 
 
-def _energyplus_defaults(data: dict[str, Any], base: Path) -> None:
-    """A file whose ``[simulation.plant]`` has ``kind = "energyplus"`` may leave out what the
-    EnergyPlus building gives: ``[building]`` (nominal values, :data:`EPLUS_NOMINAL`),
-    ``[weather]`` (the plant's EPW, January / February; a ``[weather]`` without ``file_name``
-    is the plant's EPW in its window, as ``scenario export`` writes it), ``simulation.u_max_w`` (the plant's
-    ``heater_w``; with neither given, ``heater_w = "auto"``: sized by
-    :func:`scenarios.plants.energyplus.sizing.size_heater` when the scenario is read) and ``data_policy``
-    (``closed-loop``, as the built-in EnergyPlus scenarios). A ``[building]`` table may give
-    only some values (``eta = -3.0`` makes the ideal equipment a chiller of COP 3); the
-    others are the nominal ones. The plant's weather is checked first, under its own key: the
-    ``[weather]`` made from it, or compared with it, would otherwise be blamed."""
+def _plant_defaults(data: dict[str, Any], base: Path) -> None:
+    """What a file may leave out because its plant gives it: the plant kind's
+    (:attr:`scenarios.plants.kinds.PlantKind.complete_file`, e.g. an EnergyPlus building's
+    nominal R/C values, its weather file and heater), filled into ``data`` before it is read."""
     simulation = data.get("simulation")
     plant = simulation.get("plant") if isinstance(simulation, dict) else None
-    if not (isinstance(plant, dict) and plant.get("kind") == "energyplus"):
+    if not isinstance(plant, dict):
         return
-    from pinn_mpc.simulator import MAX_ACTUATOR_W
-    from scenarios.plants.energyplus.files import resolve_building, resolve_weather
-
-    building = data.setdefault("building", EPLUS_NOMINAL.to_dict())
-    if isinstance(building, dict) and "rc" not in building:
-        for key, value in EPLUS_NOMINAL.to_dict().items():
-            building.setdefault(key, value)
-    data.setdefault("data_policy", ENERGYPLUS_DATA_POLICY)
-    weather = plant.get("weather")
-    for key, resolve in (("weather", resolve_weather), ("building", resolve_building)):
-        named = plant.get(key)
-        if isinstance(named, str) and named:
-            try:
-                resolve(_resolve(named, base))
-            except InputError as exc:
-                raise InputError(f"simulation.plant.{key}: {exc}") from None
-    if "weather" not in data and isinstance(weather, str):
-        data["weather"] = {"type": "TMY3Weather", **_plain(eplus_weather(weather), Any)}
-    table = data.get("weather")
-    if isinstance(table, dict) and isinstance(weather, str) and "file_name" not in table:
-        table.setdefault(TYPE_KEY, "TMY3Weather")  # the plant's file, in the window given
-        if table[TYPE_KEY] == "TMY3Weather":
-            table["file_name"] = weather
-    heater = plant.get("heater_w")
-    assert isinstance(simulation, dict)
-    if heater is None and "u_max_w" not in simulation:
-        plant["heater_w"] = "auto"
-    if isinstance(heater, int | float) and not isinstance(heater, bool) and heater > MAX_ACTUATOR_W:
-        raise InputError(
-            f"simulation.plant.heater_w = {heater:.3g} W is above the plausible "
-            f"{MAX_ACTUATOR_W:.0e} W of one building's heater; give it in W"
-        )
-    if isinstance(heater, int | float) and not isinstance(heater, bool) and heater > 0:
-        simulation.setdefault("u_max_w", float(heater))
+    kind = plant_kind(str(plant.get("kind", PlantSettings().kind)))
+    if kind.complete_file is not None:
+        kind.complete_file(data, lambda text: _resolve(text, base))
 
 
 def scenario_from_dict(data: dict[str, Any], *, base: Path, default_name: str) -> Scenario:
     """A Scenario from parsed TOML data (``base``: the folder relative paths start from)."""
     data = _deep_copy(data)
-    _energyplus_defaults(data, base)
+    _plant_defaults(data, base)
     building = data.get("building")
     if building is None:
         raise InputError(
@@ -453,8 +438,7 @@ def scenario_from_dict(data: dict[str, Any], *, base: Path, default_name: str) -
                 raise InputError(f"{section}.{next(iter(left))}: unknown key")
             del internal[section]
     scenario = typing.cast(Scenario, _build(Scenario, internal, "", base))
-    if scenario.plant.is_energyplus and scenario.plant.heater_w == "auto":
-
+    if scenario.plant.settings.sized_when_read:
         given = data.get("simulation", {}).get("u_max_w")
         scenario = with_sized_heater(scenario, given_u_max_w=given)
     return scenario
@@ -558,8 +542,8 @@ def scenario_inputs(name_or_path: str) -> dict[str, Path]:
             path = tmy3_path(value) if name == "file_name" else Path(value)
             if path.is_file():
                 files[f"{section}.{name}"] = path
-    plant = scenario.plant
-    for name in plant.PATH_FIELDS if plant.is_energyplus else ():
+    plant = scenario.plant.settings
+    for name in plant.PATH_FIELDS:
         path = Path(getattr(plant, name))  # a bundled name is no file here
         if path.is_file():
             files[f"simulation.plant.{name}"] = path

@@ -16,7 +16,7 @@ import numpy as np
 
 from pinn_mpc.simulator import StepResult
 
-__all__ = ["LoopPlant", "PlantStep"]
+__all__ = ["LoopPlant", "PlantStep", "TrueStatePlant"]
 
 
 class PlantStep(NamedTuple):
@@ -35,10 +35,10 @@ class LoopPlant(Protocol):
 
     ``reset`` starts an episode at row ``start`` of the loop's exogenous series from the state
     (T_r, T_m) (a plant that cannot set its state warms up towards T_r instead); ``measure``
-    is the sensor's room temperature now; ``hidden_t_m`` the true mass temperature (NaN when
-    the plant has none, ``has_true_state`` False: no controller with perfect knowledge runs
-    on it); ``step`` holds the demand over the interval of row ``row`` and returns the step
-    result with the interval's means of the exogenous inputs; ``close`` frees what it holds.
+    is the sensor's room temperature now; ``step`` holds the demand over the interval of row
+    ``row`` and returns the step result with the interval's means of the exogenous inputs;
+    ``close`` frees what it holds. ``has_true_state``: the plant is a :class:`TrueStatePlant`
+    (a controller with perfect knowledge can run on it).
     """
 
     n_buildings: int
@@ -49,8 +49,14 @@ class LoopPlant(Protocol):
 
     def measure(self) -> np.ndarray: ...
 
-    def hidden_t_m(self) -> np.ndarray: ...
-
     def step(self, u_w: float | np.ndarray, row: int) -> PlantStep: ...
 
     def close(self) -> None: ...
+
+
+class TrueStatePlant(LoopPlant, Protocol):
+    """A plant whose state is known exactly (the RC simulator): ``true_state`` is the true
+    room and thermal-mass temperatures (B, 2) now [C], which only a controller with perfect
+    knowledge (and a reference that plans on the truth) sees."""
+
+    def true_state(self) -> np.ndarray: ...

@@ -471,10 +471,6 @@ class BoptestPlant:
         """The room temperature now [C], (1,)."""
         return np.array([self._state[self.points.room_temperature] - KELVIN])
 
-    def hidden_t_m(self) -> np.ndarray:
-        """NaN: an emulator has no 2R2C mass temperature."""
-        return np.array([math.nan])
-
     def step(self, u_w: float | np.ndarray, row: int) -> PlantStep:
         """Hold the demand ``u_w`` [W] over row ``row``'s interval (the next of the run)."""
         if row != self._row:

@@ -1,61 +1,162 @@
-"""The plant kinds (:attr:`scenarios.plants.settings.PlantSettings.kind`): the plant each makes, and what a kind knows in
-advance that a scenario asks of it (a building's holiday calendar, the gains its schedules
-deliver). The RC kinds (``2r2c``, ``3r3c``) know neither; ``energyplus`` knows both."""
+"""The registry of plant kinds: the one place a plant's kind is looked up.
+
+A kind is a :class:`PlantKind`: its name (``[simulation.plant] kind`` of a scenario file), its
+settings type (the table's other keys, a :class:`KindSettings`), its factory (the
+:class:`~scenarios.plants.base.LoopPlant` for a run) and what it can do: whether it has a true
+state (an oracle and a clairvoyant can run on it), whether it runs fleets of buildings with
+their own parameters, whether its episodes start at midnight only. What a kind knows in
+advance of a run (a weather file of its own, its holiday calendar, the gains its schedules
+deliver, whether those gains are measured, whether its heater is sized when read, the
+simulator structure that describes it) its settings answer (:class:`KindSettings`).
+
+The built-in kinds register themselves where they are implemented: the RC simulator's
+structures ``2r2c`` and ``3r3c`` (:mod:`scenarios.plants.rc`), ``energyplus``
+(:mod:`scenarios.plants.energyplus.kind`). Code outside this layer asks a scenario's
+:class:`~scenarios.plants.settings.PlantSettings` what its kind can do, never which kind it
+is; a new kind is one module that calls :func:`register`.
+"""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any, ClassVar, Protocol
 
 import numpy as np
 
 from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.physics import RCParams
+from pinn_mpc.plant import Plant
 from pinn_mpc.simulator import SimConfig
 from scenarios.plants.base import LoopPlant
-from scenarios.plants.rc import RCPlant
-from scenarios.plants.settings import PlantSettings
 
-__all__ = ["holiday_calendar", "make_plant", "scheduled_gains"]
-
-
-def make_plant(
-    config: SimConfig, plant: PlantSettings, *, t_a_c: np.ndarray, g_w_per_m2: np.ndarray, i_g_w: np.ndarray,
-    times: np.ndarray | None, seed: int | None, fleet: Sequence[RCParams] | None = None,
-) -> LoopPlant:
-    """The plant of kind ``plant.kind``: the RC simulator of ``config`` driven by the rows ``t_a_c``,
-    ``g_w_per_m2``, ``i_g_w`` (N,), or an EnergyPlus building, which has its own weather and
-    gains and places its run by the interval starts ``times`` (N,)."""
-    if plant.runs_in_simulator:
-        return RCPlant(config, t_a_c=t_a_c, g_w_per_m2=g_w_per_m2, i_g_w=i_g_w, seed=seed, fleet=fleet)
-    if fleet is not None:
-        raise InputError("a fleet runs on the RC simulator; an EnergyPlus plant is one building")
-    if times is None:
-        raise InternalError("an EnergyPlus plant needs the series' dates (ExogenousSeries.times)")
-    from scenarios.plants.energyplus.plant import EnergyPlusPlant
-
-    return EnergyPlusPlant(config, plant.energyplus, times, seed=seed)
+__all__ = [
+    "ActuatorSizing",
+    "KindSettings",
+    "PlantKind",
+    "PlantRequest",
+    "kind_names",
+    "plant_kind",
+    "register",
+]
 
 
-def holiday_calendar(plant: PlantSettings, times: np.ndarray) -> np.ndarray | None:
-    """(N,) 1.0 where the interval starting at ``times`` falls on one of the building's
-    holidays, else 0.0 (:func:`scenarios.plants.energyplus.schedules.holidays`); None for a
-    kind without a calendar."""
-    if not plant.is_energyplus:
+class ActuatorSizing(Protocol):
+    """An actuator sized for a plant: its power [W] and one line saying how it was sized."""
+
+    @property
+    def power_w(self) -> float: ...
+
+    def line(self) -> str: ...
+
+
+@dataclass(frozen=True, kw_only=True)
+class KindSettings:
+    """A kind's own settings (the ``[simulation.plant]`` keys besides ``kind``), and what the
+    kind knows in advance of a run. The defaults are those of a plant that knows nothing in
+    advance (the RC simulator): a subclass answers for its kind."""
+
+    #: Fields holding a file path, resolved relative to the scenario file that names them.
+    PATH_FIELDS: ClassVar[tuple[str, ...]] = ()
+
+    @property
+    def weather_file(self) -> str | None:
+        """The weather file the plant runs on (a bundled name or a path), which the
+        scenario's weather must then be; None for a plant driven by the scenario's weather."""
         return None
-    from scenarios.plants.energyplus.schedules import holidays
 
-    return holidays(plant.energyplus, times)
+    @property
+    def measured_gains(self) -> bool:
+        """Whether the building's internal gains are measured: the past gains a controller
+        sees are the plant's interval means, and its schedules forecast them."""
+        return False
 
+    @property
+    def sized_when_read(self) -> bool:
+        """Whether the plant's actuator is sized when the scenario is read
+        (:func:`scenarios.inputs.registry.with_sized_heater`)."""
+        return False
 
-def scheduled_gains(
-    plant: PlantSettings, times: np.ndarray, *, setpoint_c: float, dt_s: float, heat_per_w: float
-) -> np.ndarray | None:
-    """(N,) the internal gains [W] the building's own schedules deliver in the intervals
-    starting at ``times``, for a plant whose gains are measured
-    (:func:`scenarios.plants.energyplus.schedules.schedule_gains`); None for a kind whose
-    gains are the scenario's."""
-    if not (plant.is_energyplus and plant.gains == "measured"):
+    def size_actuator(self, setpoint_c: float, *, heat_per_w: float, dt_s: float) -> ActuatorSizing:
+        """The actuator the plant needs to hold ``setpoint_c`` (:attr:`sized_when_read`)."""
+        raise InternalError(f"{type(self).__name__}: this plant's actuator is not sized when read")
+
+    def holidays(self, times: np.ndarray) -> np.ndarray | None:
+        """(N,) 1.0 where the interval starting at ``times`` falls on one of the building's
+        holidays, else 0.0; None for a plant without a calendar."""
         return None
-    from scenarios.plants.energyplus.schedules import schedule_gains
 
-    return schedule_gains(plant.energyplus, times, setpoint_c=setpoint_c, dt_s=dt_s, heat_per_w=heat_per_w)
+    def scheduled_gains(
+        self, times: np.ndarray, *, setpoint_c: float, dt_s: float, heat_per_w: float
+    ) -> np.ndarray | None:
+        """(N,) the internal gains [W] the building's own schedules deliver in the intervals
+        starting at ``times`` (a plant whose gains are measured); None otherwise."""
+        return None
+
+
+@dataclass(frozen=True, kw_only=True)
+class PlantRequest:
+    """What a kind's factory is given for one run: the simulation settings, the exogenous rows
+    the run is driven by (N,) each (a plant with weather of its own ignores them), the
+    interval starts ``times`` (N,) (None without dates), the sensor's ``seed``, and the
+    buildings: their own parameters (``fleet``), or ``n_buildings`` of the scenario's."""
+
+    config: SimConfig
+    t_a_c: np.ndarray
+    g_w_per_m2: np.ndarray
+    i_g_w: np.ndarray
+    times: np.ndarray | None
+    seed: int | None
+    fleet: Sequence[RCParams] | None = None
+    n_buildings: int = 1
+
+
+@dataclass(frozen=True, kw_only=True)
+class PlantKind:
+    """A plant kind (module docstring). ``structure`` gives the simulator structure of its
+    settings (:class:`pinn_mpc.plant.Plant`: the kind's own for an RC kind, the 2R2C whose
+    nominal R/C values describe a plant that runs elsewhere); ``make`` its plant for a run;
+    ``complete_file`` (None: nothing) fills in what a scenario file of this kind may leave out
+    because the plant gives it, on the file's parsed data (plain tables), with a function that
+    resolves a path written in the file."""
+
+    name: str
+    summary: str
+    settings_type: type[KindSettings]
+    make: Callable[[KindSettings, PlantRequest], LoopPlant]
+    structure: Callable[[KindSettings], Plant]
+    true_state: bool
+    fleets: bool
+    starts_at_midnight: bool = False
+    complete_file: Callable[[dict[str, Any], Callable[[str], str]], None] | None = None
+
+
+_KINDS: dict[str, PlantKind] = {}
+
+
+def register(kind: PlantKind) -> PlantKind:
+    """Add ``kind`` to the registry (once per name) and return it."""
+    if kind.name in _KINDS and _KINDS[kind.name] != kind:
+        raise InternalError(f"plant kind {kind.name!r} is registered twice")
+    _KINDS[kind.name] = kind
+    return kind
+
+
+def _builtins() -> None:
+    """Register the built-in kinds (their modules register on import; light: no engine)."""
+    import scenarios.plants.energyplus.kind  # noqa: F401
+    import scenarios.plants.rc  # noqa: F401
+
+
+def kind_names() -> tuple[str, ...]:
+    """Every registered kind's name, the built-ins first."""
+    _builtins()
+    return tuple(_KINDS)
+
+
+def plant_kind(name: str) -> PlantKind:
+    """The registered kind ``name``; InputError naming the kinds if there is none."""
+    _builtins()
+    if name not in _KINDS:
+        raise InputError(f"plant kind {name!r} is unknown; choose one of {', '.join(_KINDS)}")
+    return _KINDS[name]

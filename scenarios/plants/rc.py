@@ -1,17 +1,40 @@
 """The RC simulator as a plant: the minute-level 2R2C or 3R3C of :mod:`pinn_mpc.simulator`, with
-its backup thermostat, one building or a fleet stepped in one batch."""
+its backup thermostat, one building or a fleet stepped in one batch; the kinds ``2r2c`` and
+``3r3c`` of the registry (:mod:`scenarios.plants.kinds`), whose settings are the envelope's
+(:class:`RCSettings`; the 2R2C has none of its own)."""
 
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
+from pinn_mpc.errors import InputError
 from pinn_mpc.physics import RCParams
+from pinn_mpc.plant import RC_KINDS, Plant
 from pinn_mpc.simulator import SimConfig, Simulator
 from scenarios.plants.base import PlantStep
+from scenarios.plants.kinds import KindSettings, PlantKind, PlantRequest, register
+from scenarios.plants.settings import PlantSettings
 
-__all__ = ["RCPlant"]
+__all__ = ["RCPlant", "RCSettings", "rc_plant_settings"]
+
+
+@dataclass(frozen=True, kw_only=True)
+class RCSettings(KindSettings):
+    """The RC simulator's envelope node (:class:`pinn_mpc.plant.Plant`; the 3R3C's, unused by
+    the 2R2C): its capacity [J/K] and its share of R_ra towards the outdoor air."""
+
+    envelope_capacity_j_per_k: float = 1.0e7
+    envelope_resistance_fraction: float = 0.5
+
+    def __post_init__(self) -> None:
+        try:  # checked for every RC kind, as files always were
+            Plant(kind="3r3c", envelope_capacity_j_per_k=self.envelope_capacity_j_per_k,
+                  envelope_resistance_fraction=self.envelope_resistance_fraction)
+        except InputError as exc:
+            raise InputError(str(exc).replace("Plant.", f"{type(self).__name__}.")) from None
 
 
 class RCPlant:
@@ -24,9 +47,9 @@ class RCPlant:
 
     def __init__(
         self, config: SimConfig, *, t_a_c: np.ndarray, g_w_per_m2: np.ndarray, i_g_w: np.ndarray,
-        seed: int | None, fleet: Sequence[RCParams] | None,
+        seed: int | None, fleet: Sequence[RCParams] | None, n_buildings: int = 1,
     ) -> None:
-        self.sim = Simulator(config, seed=seed, fleet=fleet)
+        self.sim = Simulator(config, seed=seed, fleet=fleet, n_buildings=None if fleet else n_buildings)
         self.t_a_c, self.g_w_per_m2, self.i_g_w = t_a_c, g_w_per_m2, i_g_w
         self.n_buildings = self.sim.n_buildings
         self.n_substeps = config.n_substeps
@@ -37,8 +60,8 @@ class RCPlant:
     def measure(self) -> np.ndarray:
         return self.sim.measure()
 
-    def hidden_t_m(self) -> np.ndarray:
-        return self.sim.state[:, 1]
+    def true_state(self) -> np.ndarray:
+        return np.array(self.sim.state[:, :2], dtype=float)
 
     def step(self, u_w: float | np.ndarray, row: int) -> PlantStep:
         t_a, g, i_g = self.t_a_c[row], self.g_w_per_m2[row], self.i_g_w[row]
@@ -48,3 +71,41 @@ class RCPlant:
 
     def close(self) -> None:
         """Nothing to free."""
+
+
+def _structure(kind: str):  # the simulator's structure of an RC kind's settings
+    def structure(settings: KindSettings) -> Plant:
+        assert isinstance(settings, RCSettings)
+        return Plant(
+            kind=kind, envelope_capacity_j_per_k=settings.envelope_capacity_j_per_k,
+            envelope_resistance_fraction=settings.envelope_resistance_fraction,
+        )
+
+    return structure
+
+
+def _make(settings: KindSettings, request: PlantRequest) -> RCPlant:
+    return RCPlant(
+        request.config, t_a_c=request.t_a_c, g_w_per_m2=request.g_w_per_m2, i_g_w=request.i_g_w,
+        seed=request.seed, fleet=request.fleet, n_buildings=request.n_buildings,
+    )
+
+
+for _name in RC_KINDS:
+    register(PlantKind(
+        name=_name,
+        summary=f"the package's minute-level {_name.upper()} simulator with its backup thermostat",
+        settings_type=RCSettings, make=_make, structure=_structure(_name), true_state=True,
+        fleets=True,
+    ))
+
+
+def rc_plant_settings(structure: Plant) -> PlantSettings:
+    """The plant settings of the RC simulator's ``structure`` (its kind and envelope)."""
+    return PlantSettings(
+        kind=structure.kind,
+        settings=RCSettings(
+            envelope_capacity_j_per_k=structure.envelope_capacity_j_per_k,
+            envelope_resistance_fraction=structure.envelope_resistance_fraction,
+        ),
+    )

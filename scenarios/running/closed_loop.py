@@ -141,14 +141,14 @@ def build_loop(
         expected_gains_w=scenario.gains.expected(pd.DatetimeIndex(run.exo["time"])),
         fleet=fleet,
         plant_settings=scenario.plant,
-        measured_gains=scenario.plant.gains == "measured",
+        measured_gains=scenario.plant.settings.measured_gains,
     )
 
 
 def check_plant_supports(scenario: Scenario, controller: Controller) -> None:
     """Refuse, before anything runs, a controller with perfect knowledge (``oracle``,
     ``clairvoyant``) on a plant without a true state to know (EnergyPlus)."""
-    if scenario.plant.is_energyplus and controller.knows_true_state:
+    if not scenario.plant.true_state and controller.knows_true_state:
         raise InputError(
             f"controller {controller.name!r} knows the plant's true RC model and state, which an "
             f"EnergyPlus building ({scenario.name!r}) does not have: the oracle and the "
@@ -183,7 +183,7 @@ def run_trajectory(scenario: Scenario, run: RunInputs, rec: LoopRecord) -> pd.Da
             "decision_ms": rec.decision_s[counted] * 1000.0,
         }
     )
-    if scenario.plant.is_energyplus:  # no true mass temperature
+    if not scenario.plant.true_state:  # no true mass temperature
         trajectory = trajectory.drop(columns="T_m")
     trajectory.attrs["dt_s"] = float(scenario.sim.dt_s)
     return trajectory

@@ -44,15 +44,17 @@ from typing import Literal
 import numpy as np
 import pandas as pd
 
+from controllers.base import ControlSpec
 from controllers.thermostat import Thermostat
 from pinn_mpc.data import SITE_COLUMNS
 from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.physics import RCParams
-from pinn_mpc.simulator import Simulator
 from scenarios.choices import POLICIES
 from scenarios.inputs.registry import Scenario, check_seed
+from scenarios.inputs.series import ExogenousSeries
+from scenarios.running.engine import ClosedLoop, LoopRecord
 
-__all__ = ["SetpointPolicy", "generate"]
+__all__ = ["DataPolicy", "SetpointPolicy", "generate"]
 
 # Random streams apart from the exogenous ones (see scenarios.inputs.registry).
 _POLICY_STREAM, _SENSOR_STREAM = 11, 12
@@ -154,173 +156,95 @@ def generate(
     if n_buildings < 1:
         raise InputError(f"n_buildings must be >= 1, got {n_buildings}")
     check_seed(seed)
+    if fleet is not None and not scenario.plant.fleets:
+        raise InputError("a fleet with its own parameters runs on the RC simulator, not EnergyPlus")
+    if n_buildings > 1 and not scenario.plant.fleets:
+        raise InputError(
+            f"an EnergyPlus building is one building; --buildings {n_buildings} needs an RC scenario"
+        )
     exo = scenario.exogenous(days=days, seed=seed, part=weather_part)
-    cols = {c: exo[c].to_numpy(dtype=float) for c in ("T_a", "G", "I_g", "price", "T_min", "T_max")}
-    if scenario.plant.is_energyplus:
-        if fleet is not None:
-            raise InputError("a fleet with its own parameters runs on the RC simulator, not EnergyPlus")
-        return _generate_energyplus(scenario, exo, cols, seed=seed, policy=policy,
-                                    n_buildings=n_buildings, on_probability=on_probability)
-    return _generate_rc(
-        scenario, exo, cols, seed=seed, policy=policy, n_buildings=n_buildings,
-        on_probability=on_probability, fleet=fleet,
-    )
-
-
-def _generate_rc(
-    scenario: Scenario,
-    exo: pd.DataFrame,
-    cols: dict[str, np.ndarray],
-    *,
-    seed: int,
-    policy: str,
-    n_buildings: int,
-    on_probability: float,
-    fleet: Sequence[RCParams] | None,
-) -> pd.DataFrame:
-    """:func:`generate` on the RC simulator: ``n_buildings`` buildings (``fleet``'s own
-    parameters, or the scenario's) stepped in one batch under the policy."""
+    cols = {c: exo[c].to_numpy(dtype=float) for c in ("price", "T_min", "T_max")}
     spec = scenario.control_spec()
     n = len(exo)
-    sensor_seed = int(np.random.default_rng([seed, _SENSOR_STREAM]).integers(2**63))
-    sim = Simulator(scenario.sim, seed=sensor_seed, fleet=fleet, n_buildings=None if fleet else n_buildings)
-    sim.reset(scenario.initial_t_r_c, scenario.initial_t_m_c)
-    t_r = np.empty((n_buildings, n))
-    t_m = np.empty((n_buildings, n))
-    u = np.empty((n_buildings, n))
-    u_phys = np.empty((n_buildings, n))
     rng = np.random.default_rng([seed, _POLICY_STREAM])
-    if policy == "closed-loop":
-        tracking = SetpointPolicy.for_data(spec.u_max_w, cols["T_min"], cols["T_max"], scenario.sim.dt_s)
-        draws = rng.random((n, 3))
-        setpoints = tracking.setpoints(draws)
-    else:
-        draws = rng.random((n, n_buildings))
-    thermostat = Thermostat(spec)
-    on = np.zeros(n_buildings, dtype=bool)
-    for k in range(n):
-        t_r[:, k] = sim.measure()
-        t_m[:, k] = sim.state[:, 1]
-        if policy == "random":
-            u[:, k] = np.where(draws[k] < on_probability, spec.u_max_w, 0.0)
-        elif policy == "random-level":
-            u[:, k] = draws[k] * spec.u_max_w
-        elif policy == "closed-loop":
-            u[:, k] = tracking.demand(t_r[:, k], setpoints[k], draws[k])
-        else:  # the thermostat's rule, batched over the buildings (it sees only T_r and the band)
-            on = thermostat.switch(t_r[:, k], on, cols["T_min"][k], cols["T_max"][k])
-            u[:, k] = np.where(on, spec.u_max_w, 0.0)
-        result = sim.step(u[:, k], cols["T_a"][k], cols["G"][k], cols["I_g"][k])
-        u_phys[:, k] = result.u_phys_w
-
-    return _rc_frame(scenario, exo, cols, t_r=t_r, t_m=t_m, u=u, u_phys=u_phys)
+    act = DataPolicy(policy, spec, cols, n=n, n_buildings=n_buildings, on_probability=on_probability, rng=rng)
+    sensor_seed = int(np.random.default_rng([seed, _SENSOR_STREAM]).integers(2**63))
+    with ClosedLoop(
+        scenario.sim, ExogenousSeries.from_frame(exo), spec=spec,
+        initial_t_r_c=scenario.initial_t_r_c, initial_t_m_c=scenario.initial_t_m_c,
+        seed=sensor_seed, fleet=fleet, n_buildings=n_buildings, plant_settings=scenario.plant,
+    ) as loop:
+        for k in range(n):
+            loop.step(act(k, loop.measured()))
+        records = [loop.record(i) for i in range(n_buildings)]
+    return _frame(scenario, exo, cols, records)
 
 
-def _rc_frame(
-    scenario: Scenario,
-    exo: pd.DataFrame,
-    cols: dict[str, np.ndarray],
-    *,
-    t_r: np.ndarray,
-    t_m: np.ndarray,
-    u: np.ndarray,
-    u_phys: np.ndarray,
+class DataPolicy:
+    """A data policy (module docstring) for ``n_buildings`` buildings over ``n`` intervals:
+    called with the interval ``k`` and the buildings' measured room temperatures (B,), the
+    demand (B,) [W]. Its draws come from ``rng`` up front, in the order the policies have
+    always drawn them."""
+
+    def __init__(
+        self, policy: str, spec: ControlSpec, cols: dict[str, np.ndarray], *, n: int, n_buildings: int,
+        on_probability: float, rng: np.random.Generator,
+    ) -> None:
+        self.policy, self.spec, self.cols, self.on_probability = policy, spec, cols, on_probability
+        if policy == "closed-loop":
+            self.tracking = SetpointPolicy.for_data(spec.u_max_w, cols["T_min"], cols["T_max"], spec.dt_s)
+            self.draws = rng.random((n, 3))
+            self.setpoints = self.tracking.setpoints(self.draws)
+        else:
+            self.draws = rng.random((n, n_buildings))
+        self.thermostat = Thermostat(spec)
+        self.on = np.zeros(n_buildings, dtype=bool)
+
+    def __call__(self, k: int, t_r: np.ndarray) -> np.ndarray:
+        u_max = self.spec.u_max_w
+        if self.policy == "random":
+            return np.where(self.draws[k] < self.on_probability, u_max, 0.0)
+        if self.policy == "random-level":
+            return self.draws[k] * u_max
+        if self.policy == "closed-loop":
+            return self.tracking.demand(t_r, self.setpoints[k], self.draws[k])
+        # the thermostat's rule, batched over the buildings (it sees only T_r and the band)
+        self.on = self.thermostat.switch(t_r, self.on, self.cols["T_min"][k], self.cols["T_max"][k])
+        return np.where(self.on, u_max, 0.0)
+
+
+def _frame(
+    scenario: Scenario, exo: pd.DataFrame, cols: dict[str, np.ndarray], records: list[LoopRecord]
 ) -> pd.DataFrame:
-    """The data-format frame of :func:`_generate_rc`'s (buildings, intervals) arrays: the
-    buildings one after another, a ``building`` column when there is more than one."""
-    n_buildings, n = t_r.shape
-    columns = ["T_a", "price", "T_min", "T_max"]
+    """The data-format frame of the buildings' loop records, one after another, a ``building``
+    column when there is more than one: ``T_m`` where the plant has a true state, the
+    outdoor temperature, irradiance and (where they are the scenario's or measured) gains as
+    the plant had them, the weather file's facades and wind and the building's holidays where
+    the run has them, the COP per row under a heat pump."""
+    n_buildings, n = len(records), len(records[0].t_r_c)
+
+    def stacked(name: str) -> np.ndarray:
+        return np.concatenate([getattr(r, name) for r in records])
+
+    columns: dict[str, np.ndarray] = {
+        "time": np.tile(exo["time"].to_numpy()[:n], n_buildings),
+        "T_r": stacked("t_r_c"),
+    }
+    if scenario.plant.true_state:
+        columns["T_m"] = stacked("t_m_c")
+    columns |= {"u": stacked("u_w"), "u_phys": stacked("u_phys_w"), "T_a": stacked("t_a_c")}
+    columns |= {c: np.tile(cols[c][:n], n_buildings) for c in ("price", "T_min", "T_max")}
     if scenario.uses_solar:
-        columns.append("G")
-    if scenario.gains.active:
-        columns.append("I_g")
-    frame = pd.DataFrame(
-        {
-            "time": np.tile(exo["time"].to_numpy()[:n], n_buildings),
-            "T_r": t_r.ravel(),
-            "T_m": t_m.ravel(),
-            "u": u.ravel(),
-            "u_phys": u_phys.ravel(),
-            **{c: np.tile(cols[c][:n], n_buildings) for c in columns},
-        }
-    )
+        columns["G"] = stacked("g_w_per_m2")
+    if scenario.gains.active or scenario.plant.settings.measured_gains:  # as they happened
+        columns["I_g"] = stacked("i_g_w")
+    for name in (*SITE_COLUMNS, "holiday"):  # the weather file's facades and wind, the calendar
+        if name in exo:
+            columns[name] = np.tile(exo[name].to_numpy(dtype=float)[:n], n_buildings)
+    frame = pd.DataFrame(columns)
     if not scenario.sim.actuator.is_ideal:  # a heat pump: heat per electrical watt, per row
         frame["cop"] = scenario.sim.actuator.gain(frame["T_a"].to_numpy(dtype=float))
     if n_buildings > 1:
         frame.insert(0, "building", np.repeat(np.arange(n_buildings), n))
-    frame.attrs["dt_s"] = float(scenario.sim.dt_s)
-    return frame
-
-
-def _generate_energyplus(
-    scenario: Scenario,
-    exo: pd.DataFrame,
-    cols: dict[str, np.ndarray],
-    *,
-    seed: int,
-    policy: str,
-    n_buildings: int,
-    on_probability: float,
-) -> pd.DataFrame:
-    """:func:`generate` on an EnergyPlus plant: one building, the plant's own weather."""
-    from scenarios.plants.energyplus.plant import EnergyPlusPlant
-
-    if n_buildings != 1:
-        raise InputError(
-            f"an EnergyPlus building is one building; --buildings {n_buildings} needs an RC scenario"
-        )
-    spec = scenario.control_spec()
-    n = len(exo)
-    sensor_seed = int(np.random.default_rng([seed, _SENSOR_STREAM]).integers(2**63))
-    rng = np.random.default_rng([seed, _POLICY_STREAM])
-    tracking = SetpointPolicy.for_data(spec.u_max_w, cols["T_min"], cols["T_max"], scenario.sim.dt_s)
-    if policy == "closed-loop":
-        loop_draws = rng.random((n, 3))
-        setpoints = tracking.setpoints(loop_draws)
-    else:
-        draws = rng.random(n)
-    thermostat = Thermostat(spec)
-    on = np.zeros(1, dtype=bool)
-    t_r, u, u_phys, t_a, g, i_g = (np.empty(n) for _ in range(6))
-    plant = EnergyPlusPlant(scenario.sim, scenario.plant.energyplus, exo["time"].to_numpy(), seed=sensor_seed)
-    try:
-        plant.reset(scenario.initial_t_r_c, scenario.initial_t_m_c, start=0, seed=None)
-        for k in range(n):
-            measured = plant.measure()
-            t_r[k] = measured[0]
-            if policy == "random":
-                u[k] = spec.u_max_w if draws[k] < on_probability else 0.0
-            elif policy == "random-level":
-                u[k] = draws[k] * spec.u_max_w
-            elif policy == "closed-loop":
-                u[k] = float(tracking.demand(measured, setpoints[k], loop_draws[k])[0])
-            else:
-                on = thermostat.switch(measured, on, cols["T_min"][k], cols["T_max"][k])
-                u[k] = spec.u_max_w if on[0] else 0.0
-            step = plant.step(u[k], k)
-            u_phys[k], t_a[k], g[k] = step.result.u_phys_w[0], step.t_a_c[0], step.g_w_per_m2[0]
-            i_g[k] = step.i_g_w[0]
-    finally:
-        plant.close()
-    frame = pd.DataFrame(
-        {
-            "time": exo["time"].to_numpy()[:n],
-            "T_r": t_r,
-            "u": u,
-            "u_phys": u_phys,
-            "T_a": t_a,
-            "price": cols["price"],
-            "T_min": cols["T_min"],
-            "T_max": cols["T_max"],
-            "G": g,
-        }
-    )
-    if scenario.plant.gains == "measured":  # the gains as they happened, measured
-        frame["I_g"] = i_g
-    for name in SITE_COLUMNS:  # the facades' irradiance and wind of the plant's weather file
-        if name in exo:
-            frame[name] = exo[name].to_numpy(dtype=float)[:n]
-    if "holiday" in exo:  # the building's holiday calendar
-        frame["holiday"] = exo["holiday"].to_numpy(dtype=float)[:n]
     frame.attrs["dt_s"] = float(scenario.sim.dt_s)
     return frame

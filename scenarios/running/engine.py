@@ -40,7 +40,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Sequence
-from typing import Any, NamedTuple
+from typing import Any, NamedTuple, cast
 
 import numpy as np
 
@@ -48,13 +48,12 @@ from controllers.base import Controller, ControlSpec, Forecast, Observation, fal
 from pinn_mpc.data import SITE_COLUMNS
 from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.physics import RCParams
-from pinn_mpc.simulator import SimConfig, Simulator, StepResult
+from pinn_mpc.simulator import SimConfig, StepResult
 from pinn_mpc.solar import FACADE_COLUMNS
 from scenarios.inputs.series import ExogenousSeries, ForecastErrors, lead_error_paths
-from scenarios.plants.base import LoopPlant
-from scenarios.plants.kinds import make_plant
-from scenarios.plants.rc import RCPlant
-from scenarios.plants.settings import PlantSettings
+from scenarios.plants.base import LoopPlant, TrueStatePlant
+from scenarios.plants.rc import rc_plant_settings
+from scenarios.plants.settings import PlantSettings, make_plant
 
 __all__ = [
     "ClosedLoop",
@@ -150,7 +149,8 @@ class ClosedLoop:
     simulator of ``config.plant``), ``plant`` a plant already made. :meth:`reset` starts an
     episode at row ``start`` of the series; ``k`` counts its intervals. ``fleet`` gives B buildings their own parameters (the backup rule,
     actuator and ``u_max_w`` of ``config`` apply to all; see :class:`Simulator`); they share
-    the series, the forecasts and the initial state. Methods that concern one building take
+    the series, the forecasts and the initial state; without a fleet, ``n_buildings`` of
+    ``config``'s building do (data generation). Methods that concern one building take
     its index ``building`` (default 0, the only one without a fleet).
     """
 
@@ -170,6 +170,7 @@ class ClosedLoop:
         plant: LoopPlant | None = None,
         plant_settings: PlantSettings | None = None,
         measured_gains: bool = False,
+        n_buildings: int = 1,
     ) -> None:
         inputs = exogenous.forecast(0)._replace(day_of_week=None)  # NaN without dates
         if not np.all(np.isfinite(np.column_stack([a for a in inputs if a is not None]))):
@@ -188,7 +189,7 @@ class ClosedLoop:
         self.measured_gains = measured_gains
         self.initial_state_c = (float(initial_t_r_c), float(initial_t_m_c))
         if plant_settings is None:  # the RC simulator of config.plant
-            plant_settings = PlantSettings.of_rc(config.plant)
+            plant_settings = rc_plant_settings(config.plant)
         elif plant_settings.rc != config.plant:
             raise InputError(
                 f"ClosedLoop: config.plant {config.plant} is not the simulator's structure of "
@@ -196,7 +197,7 @@ class ClosedLoop:
             )
         self.plant = plant if plant is not None else make_plant(
             config, plant_settings, t_a_c=exogenous.T_a, g_w_per_m2=exogenous.G, i_g_w=exogenous.I_g,
-            times=exogenous.times, seed=seed, fleet=fleet,
+            times=exogenous.times, seed=seed, fleet=fleet, n_buildings=n_buildings,
         )
         self.n_buildings = self.plant.n_buildings
         try:
@@ -205,12 +206,12 @@ class ClosedLoop:
             self.plant.close()
             raise
 
-    @property
-    def sim(self) -> Simulator:
-        """The RC simulator of an :class:`RCPlant` (its true state for tests and diagnostics)."""
-        if not isinstance(self.plant, RCPlant):
-            raise InternalError("ClosedLoop.sim: this loop's plant is not the RC simulator")
-        return self.plant.sim
+    def true_state(self) -> np.ndarray:
+        """(B, 2) the plant's true room and mass temperatures now [C] (a plant with a true
+        state only: for references that plan on the truth, tests and diagnostics)."""
+        if not self.plant.has_true_state:
+            raise InternalError("ClosedLoop.true_state: this loop's plant has no true state")
+        return cast(TrueStatePlant, self.plant).true_state()
 
     def close(self) -> None:
         """Free the plant (an EnergyPlus run's thread and temporary directory)."""
@@ -267,9 +268,14 @@ class ClosedLoop:
         self._check_building(building)
         if self._measured_k != self.k:
             self._t_r[self.k] = self.plant.measure()
-            self._t_m[self.k] = self.plant.hidden_t_m()
+            self._t_m[self.k] = self.true_state()[:, 1] if self.plant.has_true_state else math.nan
             self._measured_k = self.k
         return float(self._t_r[self.k, building])
+
+    def measured(self) -> np.ndarray:
+        """(B,) every building's measured room temperature now [C] (:meth:`measure`)."""
+        self.measure()
+        return self._t_r[self.k].copy()
 
     def observation(self, *, perfect: bool = False, building: int = 0) -> Observation:
         """What ``building``'s controller sees now: copies of the past (data-format names),

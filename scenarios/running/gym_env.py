@@ -91,10 +91,10 @@ class BuildingEnv(gym.Env[np.ndarray, np.ndarray]):
         self.episode_steps = steps
         self.initial_state_c = (float(initial_t_r_c), float(initial_t_m_c))
         self._exo = np.column_stack([getattr(series, c) for c in EXOGENOUS])
-        # An EnergyPlus run starts at midnight: its episodes do too.
+        # A plant whose runs start at midnight (EnergyPlus): its episodes do too.
         self._starts = (
             np.flatnonzero(np.asarray(series.time_of_day_h) == 0.0)
-            if plant_settings is not None and plant_settings.is_energyplus
+            if plant_settings is not None and plant_settings.starts_at_midnight
             else np.arange(len(exogenous))
         )
         angle = 2.0 * math.pi * series.time_of_day_h / 24.0

@@ -26,8 +26,8 @@ class EnergyPlusPlant:
     whose day of the year places each run in the weather file. :meth:`reset` starts a fresh
     EnergyPlus run at the start row's midnight through the series' last day, warmed up at the
     given room temperature; the backup thermostat of ``config`` acts per EnergyPlus timestep;
-    the sensor noise of ``config`` is added to every measurement. It has no true mass
-    temperature (``hidden_t_m`` is NaN).
+    the sensor noise of ``config`` is added to every measurement. It has no true state
+    (no mass temperature for a controller with perfect knowledge).
     """
 
     has_true_state = False
@@ -91,9 +91,6 @@ class EnergyPlusPlant:
         if self.config.noise_std_c > 0:
             t_r += self._rng.normal(0.0, self.config.noise_std_c, size=1)
         return t_r
-
-    def hidden_t_m(self) -> np.ndarray:
-        return np.array([math.nan])
 
     def step(self, u_w: float | np.ndarray, row: int) -> PlantStep:
         """One interval at row ``row`` (the next of the run)."""
