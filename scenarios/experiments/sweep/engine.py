@@ -91,25 +91,15 @@ def _progress_line(
     )
 
 
-def _run_on_ray(
-    root: Path,
-    grid: SweepGrid,
-    settings: SweepSettings,
-    *,
-    keys: Sequence[ModelKey],
-    missing: Sequence[Cell],
-    records: dict[Cell, CellRecord | None],
-    total: int,
-    reused: int,
-) -> int:
-    """Train the models ``keys`` (those stored under ``root`` are reused) and run the
-    ``missing`` cells (of ``total``, ``reused`` of them read back) as Ray tasks, writing each model and cell the moment it arrives and
-    entering each cell's record in ``records``; the number of models trained."""
+def _submit(
+    root: Path, grid: SweepGrid, settings: SweepSettings, keys: Sequence[ModelKey], missing: Sequence[Cell]
+) -> tuple[dict[Any, tuple[str, Any]], int]:
+    """Submit the models ``keys`` not stored under ``root`` (those stored are put into Ray's
+    object store) and the ``missing`` cells as Ray tasks, each cell given its model's reference;
+    the pending tasks (reference -> ``("model", key)`` or ``("cell", cell)``) and the number of
+    BOPTEST recordings of training data among them."""
     import ray
 
-    from scenarios.running.closed_loop import PROGRESS_EVERY_S
-
-    trained = 0
     # EnergyPlus leaks ~0.55 MB per run inside the engine: its workers are recycled.
     max_calls = ENERGYPLUS_CALLS_PER_WORKER if grid.has_energyplus else 0  # 0: never
     task = ray.remote(num_cpus=1, max_calls=max_calls)(_one_blas_thread)
@@ -135,6 +125,29 @@ def _run_on_ray(
         needed = _model_key(cell, settings)
         ref = task.remote(run_cell, cell, settings, model_refs.get(needed) if needed else None, url)
         pending[ref] = ("cell", cell)
+    return pending, len(data_refs)
+
+
+def _run_on_ray(
+    root: Path,
+    grid: SweepGrid,
+    settings: SweepSettings,
+    *,
+    keys: Sequence[ModelKey],
+    missing: Sequence[Cell],
+    records: dict[Cell, CellRecord | None],
+    total: int,
+    reused: int,
+) -> int:
+    """Train the models ``keys`` (those stored under ``root`` are reused) and run the
+    ``missing`` cells (of ``total``, ``reused`` of them read back) as Ray tasks, writing each model and cell the moment it arrives and
+    entering each cell's record in ``records``; the number of models trained."""
+    import ray
+
+    from scenarios.running.closed_loop import PROGRESS_EVERY_S
+
+    trained = 0
+    pending, recordings = _submit(root, grid, settings, keys, missing)
 
     to_train = sum(kind == "model" for kind, _ in pending.values())
 
@@ -142,7 +155,7 @@ def _run_on_ray(
         tqdm.write(line, file=sys.stderr)
         sys.stderr.flush()
 
-    say(_start_line(len(missing), reused, to_train, len(data_refs)))
+    say(_start_line(len(missing), reused, to_train, recordings))
     began = last = time.monotonic()
     done = reused  # counted here: off a terminal the bar is disabled and does not count
     with tqdm(total=total, initial=reused, desc="sweep", unit="cell", disable=None) as bar:
