@@ -31,7 +31,9 @@ from pinn_mpc.physics import PAPER_HOUSEHOLD, rc_summary
 from pinn_mpc.simulator import draw_fleet
 from pinn_mpc.training import TrainConfig, train_model
 from pinn_mpc_cli.cli import main
-from scenarios.experiments.sweep import Cell, _label, _read_cell, scenario_digest
+from scenarios.experiments.sweep import Cell, scenario_digest
+from scenarios.experiments.sweep.grid import _label
+from scenarios.experiments.sweep.store import _read_cell
 from scenarios.fleets.training import building_model_dir, frame_digest, train_per_building
 from scenarios.inputs.scenario_file import (
     get_scenario,
@@ -397,7 +399,7 @@ def test_a_long_stage_says_what_it_does_as_it_starts_and_while_it_runs():
 
 
 def test_a_sweep_says_what_it_starts_and_what_is_still_running():
-    from scenarios.experiments.sweep import _progress_line, _start_line
+    from scenarios.experiments.sweep.engine import _progress_line, _start_line
 
     assert _start_line(8, 2, 3, 2) == (
         "sweep: 8 cell(s) to run (2 reused), 3 model(s) to train, on 2 recording(s) of BOPTEST "

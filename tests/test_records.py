@@ -247,14 +247,8 @@ def test_a_capped_batched_fleet_writes_its_records():
 
 
 def test_a_sweep_cell_its_record_and_the_summary_rows(tmp_path):
-    from scenarios.experiments.sweep import (
-        Cell,
-        SweepSettings,
-        _cell_record_key,
-        _read_cell,
-        _settings_record,
-        run_cell,
-    )
+    from scenarios.experiments.sweep import Cell, SweepSettings, run_cell
+    from scenarios.experiments.sweep.store import _cell_record_key, _read_cell, _settings_record
     from scenarios.reports.sweep_report import summarise
 
     settings = SweepSettings(test_days=1)

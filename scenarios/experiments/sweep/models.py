@@ -1,0 +1,86 @@
+"""What a sweep fits for its cells: the learned model a planner plans over (an ensemble or an
+ARX) or the RC an RC MPC works on, one Ray task per :class:`~scenarios.experiments.sweep.grid.ModelKey`."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, TypeAlias
+
+from pinn_mpc.choices import ARX, PHYSICS_ARX
+from pinn_mpc.errors import InternalError
+from pinn_mpc.physics import RCParams
+from scenarios.experiments.sweep.grid import RC_KIND, ModelKey, SweepSettings
+from scenarios.inputs.scenario_file import get_scenario
+from scenarios.running.boptest_loop import RC_FIT as BOPTEST_RC
+from scenarios.running.boptest_loop import is_boptest_scenario
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from pinn_mpc.models.arx import ARXModel
+    from pinn_mpc.models.learned import LearnedModel
+
+__all__ = ["SweepModel", "fit_model"]
+
+#: What a sweep trains for a cell (:func:`fit_model`): a learned ensemble or an identified RC.
+SweepModel: TypeAlias = "LearnedModel | ARXModel | RCParams"
+
+#: The linear baselines a sweep fits instead of training (:func:`pinn_mpc.models.arx.fit_linear`).
+_LINEAR = (ARX.name, PHYSICS_ARX.name)
+
+
+def _model_family(model: SweepModel) -> str:
+    """What a fitted model is: a network's architecture, ``arx`` or ``parx``, or the RC."""
+    from pinn_mpc.models.arx import ARXModel
+
+    if isinstance(model, RCParams):
+        return RC_KIND
+    if isinstance(model, ARXModel):
+        return PHYSICS_ARX.name if model.interaction else ARX.name
+    return model.arch
+
+
+def fit_model(key: ModelKey, settings: SweepSettings, data: pd.DataFrame | None = None) -> SweepModel:
+    """Train the learned ensemble (:data:`ARCH`, or the model ``key.kind`` names; ``auto``:
+    ``train``'s default choice) or identify the RC of ``key`` on the scenario's simulated data
+    (``train_days`` days under the settings' policy, by default the scenario's, seed ``key.seed``).
+    A BOPTEST scenario's ``data`` is the emulator's (:func:`boptest_training_data`), its
+    ensembles trained as ``compare`` trains them (:func:`boptest_fit`)."""
+    from scenarios.experiments.compare import CompareSettings, identify_scenario_rc
+    from scenarios.running.datagen import generate
+
+    if is_boptest_scenario(key.scenario):
+        from scenarios.running.boptest_loop import boptest_fit
+
+        if data is None:
+            raise InternalError(f"fit_model: {key.name} is a BOPTEST model and needs the emulator's data")
+        config = CompareSettings(
+            train_days=key.train_days, test_days=1, seed=key.seed, n_seeds=settings.n_members,
+            depth=settings.depth, epochs=settings.epochs,
+        ).train_config(eta=1.0, u_max_w=None)
+        return boptest_fit(BOPTEST_RC if key.kind == RC_KIND else key.kind, data, config)[0]
+    scenario = get_scenario(key.scenario)
+    policy = scenario.data_policy if settings.policy == "scenario" else settings.policy
+    data = generate(scenario, days=key.train_days, seed=key.seed, policy=policy)
+    if key.kind == RC_KIND:  # as compare identifies (on delivered heat under a heat pump)
+        return identify_scenario_rc(scenario, data)
+    if key.kind in _LINEAR:
+        from pinn_mpc.models.arx import fit_linear
+
+        return fit_linear(key.kind, data, eta=scenario.sim.params.eta)
+    from pinn_mpc.model_choice import fit_model as fit_named
+    from pinn_mpc.training import TrainConfig
+
+    epochs = CompareSettings(
+        train_days=key.train_days, test_days=1, seed=key.seed, epochs=settings.epochs
+    ).training_epochs
+    config = TrainConfig(
+        depth=settings.depth,
+        n_seeds=settings.n_members,
+        first_seed=key.seed,
+        epochs=epochs,
+        eta=scenario.sim.params.eta,
+        u_max_w=scenario.sim.u_max_w,
+    )
+    return fit_named(data, arch=key.kind, config=config).model
+
+
