@@ -4,9 +4,10 @@ The modelling layer. Public names (imported on first use, see :mod:`pinn_mpc.laz
 data (:func:`read_timeseries`, :func:`write_timeseries`, :func:`validate_timeseries`), the 2R2C
 physics (:class:`RCParams`, :data:`PAPER_HOUSEHOLD`, :func:`discretise`, :func:`rc_summary`,
 :func:`params_from_summary`) and simulator (:class:`SimConfig`, :class:`Simulator`), learned
-models (:class:`TrainConfig`, :func:`train_model`, :func:`fit_model` (every ``train --arch``,
-``auto`` included), :class:`LearnedModel`, :func:`save_model`,
-:func:`load_model`, :func:`evaluate_model`, :data:`ARCHS`, :data:`RECIPES`), and R/C values
+models (:class:`TrainConfig`, :func:`train_model`, :class:`LearnedModel`, :func:`evaluate_model`,
+:data:`ARCHS`, :data:`RECIPES`), every model ``train`` makes (:class:`FittedModel`, one of any
+family: :func:`fit` (every ``train --arch``, ``auto`` included), :func:`save`, :func:`load`
+(any model directory)), and R/C values
 (:func:`identify_rc`, :class:`IdentifyResult`, :func:`export_rc`). Bad input raises
 :class:`InputError`; an internal inconsistency (a bug) raises :class:`InternalError`; input
 that is accepted but deserves attention warns with :class:`PinnMpcWarning`. Controllers are in :mod:`controllers`, experiments in :mod:`scenarios`.
@@ -21,8 +22,6 @@ from pinn_mpc.lazy import lazy_exports
 __version__ = "0.1.0"
 
 if TYPE_CHECKING:
-    from pinn_mpc.artifacts import load_model as load_model
-    from pinn_mpc.artifacts import save_model as save_model
     from pinn_mpc.choices import ARCHS as ARCHS
     from pinn_mpc.choices import RECIPES as RECIPES
     from pinn_mpc.data import read_timeseries as read_timeseries
@@ -33,10 +32,13 @@ if TYPE_CHECKING:
     from pinn_mpc.errors import PinnMpcWarning as PinnMpcWarning
     from pinn_mpc.evaluation import evaluate_model as evaluate_model
     from pinn_mpc.export import export_rc as export_rc
+    from pinn_mpc.fitted import fit as fit
+    from pinn_mpc.fitted import load as load
+    from pinn_mpc.fitted import save as save
     from pinn_mpc.identify import IdentifyResult as IdentifyResult
     from pinn_mpc.identify import identify_rc as identify_rc
-    from pinn_mpc.model_choice import fit_model as fit_model
     from pinn_mpc.models import LearnedModel as LearnedModel
+    from pinn_mpc.models.rollout import FittedModel as FittedModel
     from pinn_mpc.physics import PAPER_HOUSEHOLD as PAPER_HOUSEHOLD
     from pinn_mpc.physics import RCParams as RCParams
     from pinn_mpc.physics import discretise as discretise
@@ -51,15 +53,15 @@ if TYPE_CHECKING:
     from pinn_mpc.training import train_model as train_model
 
 _EXPORTS = {
-    "pinn_mpc.artifacts": ("load_model", "save_model"),
     "pinn_mpc.choices": ("ARCHS", "RECIPES"),
     "pinn_mpc.data": ("read_timeseries", "validate_timeseries", "write_timeseries"),
     "pinn_mpc.errors": ("InputError", "InternalError", "PinnMpcWarning"),
     "pinn_mpc.evaluation": ("evaluate_model",),
     "pinn_mpc.export": ("export_rc",),
     "pinn_mpc.identify": ("IdentifyResult", "identify_rc"),
-    "pinn_mpc.model_choice": ("fit_model",),
+    "pinn_mpc.fitted": ("fit", "load", "save"),
     "pinn_mpc.models": ("LearnedModel",),
+    "pinn_mpc.models.rollout": ("FittedModel",),
     "pinn_mpc.records": ("EvaluationMetrics", "RcSummary", "TrustReport"),
     "pinn_mpc.physics": (
         "PAPER_HOUSEHOLD", "RCParams", "discretise", "params_from_summary", "rc_summary",

@@ -41,6 +41,7 @@ __all__ = [
     "META",
     "MODEL_DIRECTORY",
     "WEIGHTS",
+    "check_model_path",
     "load_model",
     "read_rc",
     "read_rc_json",
@@ -167,8 +168,8 @@ def _check_sizes(
             )
 
 
-def load_model(path: str | os.PathLike[str]) -> LearnedModel:
-    """Load and validate a model directory written by :func:`save_model`."""
+def check_model_path(path: str | os.PathLike[str]) -> Path:
+    """``path`` as a directory that exists; ModelFileError for a file or nothing there."""
     directory = Path(path)
     if directory.is_file():
         raise ModelFileError(
@@ -180,6 +181,12 @@ def load_model(path: str | os.PathLike[str]) -> LearnedModel:
             f"model directory {directory} does not exist; "
             f"train one with `pinn-mpc train --out {directory}`"
         )
+    return directory
+
+
+def load_model(path: str | os.PathLike[str]) -> LearnedModel:
+    """Load and validate a model directory written by :func:`save_model`."""
+    directory = check_model_path(path)
     meta = _read_meta(directory)
     if not (directory / WEIGHTS).is_file():
         raise ModelFileError(f"model directory {directory} has no {WEIGHTS}; retrain or restore it")

@@ -36,10 +36,8 @@ remedy.
 from __future__ import annotations
 
 import math
-import os
 from dataclasses import dataclass
-from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
@@ -47,19 +45,16 @@ import pandas as pd
 from pinn_mpc.errors import InputError
 from pinn_mpc.evaluation import recursive_paths
 from pinn_mpc.models.arx import (
-    ARX_DIRECTORY,
     SELECTION_HORIZON_S,
     SELECTION_SHARE,
-    ARXModel,
     fit_linear,
     fit_physics_informed_arx,
-    is_arx_directory,
-    load_arx,
-    save_arx,
 )
-from pinn_mpc.models.learned import LearnedModel
-from pinn_mpc.models.registry import AUTO, BASELINES, DEFAULT_ARCH, MODEL_CHOICES, PHYSICS_ARX
+from pinn_mpc.models.registry import AUTO, DEFAULT_ARCH, PHYSICS_ARX
 from pinn_mpc.training import TrainConfig, train_model
+
+if TYPE_CHECKING:
+    from pinn_mpc.models.rollout import FittedModel
 
 __all__ = [
     "AUTO",
@@ -69,10 +64,6 @@ __all__ = [
     "ROUGH_MAE_C",
     "ModelChoice",
     "choose_model",
-    "fallback_rc",
-    "fit_model",
-    "load_fitted",
-    "save_fitted",
 ]
 
 #: The physics-informed ARX replaces the hybrid when its held-out error is at most this
@@ -97,7 +88,7 @@ class ModelChoice:
     and ``why`` (one sentence); :attr:`horizon_h` is those steps in hours."""
 
     chosen: str
-    model: LearnedModel | ARXModel
+    model: FittedModel
     held_out_mae_c: dict[str, float]
     horizon_steps: int
     why: str
@@ -114,7 +105,7 @@ class ModelChoice:
         error = self.held_out_mae_c.get(self.chosen, math.nan)
         if not error > ROUGH_MAE_C:
             return None
-        if fallback_rc(self.model) is None:
+        if self.model.identified_rc is None:
             lean = (
                 "no RC could be identified from the data, so cem and random-shooting over it "
                 "have no RC MPC to fall back on"
@@ -129,14 +120,6 @@ class ModelChoice:
             f"on the held-out quarter (more than {ROUGH_MAE_C} C): its plans will be rough and {lean}; "
             "more days of training data usually help"
         )
-
-
-def fallback_rc(model: LearnedModel | ARXModel) -> dict[str, Any] | None:
-    """The RC JSON object a planner over ``model`` falls back on (identified from its training
-    data by ``train``), or None where there is none."""
-    if isinstance(model, ARXModel):
-        return model.identified_rc
-    return model.record.identified_rc
 
 
 def _held_out(df: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame, np.ndarray, int] | None:
@@ -201,45 +184,3 @@ def choose_model(df: pd.DataFrame, config: TrainConfig, *, progress: bool = Fals
     return ModelChoice(
         chosen=DEFAULT_ARCH, model=model, held_out_mae_c=errors, horizon_steps=horizon, why=said
     )
-
-
-def fit_model(
-    df: pd.DataFrame, *, arch: str = AUTO, config: TrainConfig | None = None, progress: bool = False
-) -> ModelChoice:
-    """Any model ``train --arch`` takes, fitted on ``df``: ``auto`` (:func:`choose_model`, the
-    default), a network architecture (:func:`pinn_mpc.training.train_model` with ``config``)
-    or a least-squares ARX (``arx``, ``parx``; ``config.eta`` the actuator's sign)."""
-    config = TrainConfig() if config is None else config
-    if arch == AUTO:
-        return choose_model(df, config, progress=progress)
-    if arch not in MODEL_CHOICES:
-        raise InputError(f"unknown architecture {arch!r}; choose one of {AUTO}, {', '.join(MODEL_CHOICES)}")
-    model: LearnedModel | ARXModel
-    if arch in BASELINES:
-        model = fit_linear(arch, df, eta=config.eta)
-    else:
-        model = train_model(df, arch=arch, config=config, progress=progress)
-    return ModelChoice(chosen=arch, model=model, held_out_mae_c={}, horizon_steps=0, why="as asked")
-
-
-def save_fitted(model: LearnedModel | ARXModel, path: str | os.PathLike[str]) -> list[Path]:
-    """Write ``model`` into the model directory ``path`` (its files replaced, the other kind's
-    removed, so that the directory holds one model); the files written."""
-    from pinn_mpc.artifacts import MODEL_DIRECTORY, save_model
-
-    if isinstance(model, ARXModel):
-        written, stale = [save_arx(model, path)], MODEL_DIRECTORY
-    else:
-        save_model(model, path, force=True)
-        written, stale = MODEL_DIRECTORY.paths(path), ARX_DIRECTORY
-    for old in stale.paths(path):
-        old.unlink(missing_ok=True)
-    return written
-
-
-def load_fitted(path: str | os.PathLike[str]) -> LearnedModel | ARXModel:
-    """The model in the directory ``path`` that ``train`` wrote, of either kind (an ARX's
-    ``arx.json``, a network's ``model.json``)."""
-    from pinn_mpc.artifacts import load_model
-
-    return load_arx(path) if is_arx_directory(path) else load_model(path)

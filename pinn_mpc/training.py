@@ -302,7 +302,7 @@ def train_model(
     if arch == AUTO or arch in BASELINES:
         raise InputError(
             f"train_model trains the networks ({', '.join(ALL_ARCHS)}); {arch!r} is fitted by "
-            f"pinn_mpc.fit_model(df, arch={arch!r}, config=config), which takes every --arch of train"
+            f"pinn_mpc.fit(df, arch={arch!r}, config=config), which takes every --arch of train"
         )
     architecture = get_architecture(arch)
     config = config.for_arch(get_spec(arch))

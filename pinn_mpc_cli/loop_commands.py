@@ -10,8 +10,9 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -38,6 +39,10 @@ from scenarios.reports.report import format_fleet, format_kpis
 from scenarios.running.closed_loop import one_torch_thread, run_closed_loop
 from scenarios.running.datagen import generate
 from scenarios.running.factory import make_controller
+
+if TYPE_CHECKING:
+    from pinn_mpc.models.learned import LearnedModel
+    from pinn_mpc.models.rollout import FittedModel
 
 __all__ = ["closed_loop", "simulate"]
 
@@ -133,11 +138,11 @@ def _closed_loop(a: argparse.Namespace) -> str:
         )
     inputs: dict[str, PathsArg] = {"--rc": a.rc, **scenario_inputs(a.scenario)}
     if a.model is not None:
-        from pinn_mpc.artifacts import MODEL_DIRECTORY  # torch: only when a model is given
+        from pinn_mpc.fitted import model_files  # torch: only when a model is given
         from scenarios.fleets.training import FLEET_FILE, fleet_model_files
 
         fleet_dir = (Path(a.model) / FLEET_FILE).is_file()  # per-building models
-        inputs["--model"] = fleet_model_files(a.model) if fleet_dir else MODEL_DIRECTORY.paths(a.model)
+        inputs["--model"] = fleet_model_files(a.model) if fleet_dir else model_files(a.model)
     check_distinct(inputs=inputs, outputs=outputs)
     scenario = get_scenario(a.scenario)
     if a.buildings > 1:
@@ -262,7 +267,7 @@ def _fleet_closed_loop(a: argparse.Namespace, scenario: Scenario, inputs: dict[s
         from scenarios.fleets.training import load_fleet_models
 
         models, fleet = load_fleet_models(a.model)
-        _check_fleet_hybrids(a.model, models)
+        hybrids = _check_fleet_hybrids(a.model, models)
         if fleet is None:
             raise InputError(
                 f"--model {a.model}: the buildings' parameters are unknown (the training data "
@@ -275,7 +280,7 @@ def _fleet_closed_loop(a: argparse.Namespace, scenario: Scenario, inputs: dict[s
             raise InputError("--spread does not apply with --model: the buildings are the models' own")
         _check_fleet_models_fit(a.model, models, scenario)
         candidates = a.rc_candidates == "on" or (a.rc_candidates == "auto" and a.cap_kw is not None)
-        planner = learned_fleet_planner(models, rc_candidates=candidates)
+        planner = learned_fleet_planner(hybrids, rc_candidates=candidates)
     elif a.rc_candidates != "auto":
         raise InputError("--rc-candidates applies to the batched cem over learned models: add --model DIR")
     # One building's planner rolls out small tensors (one thread is fastest); a fleet's batched
@@ -357,25 +362,29 @@ def _check_fleet_options(a: argparse.Namespace, inputs: dict[str, PathsArg], *, 
     return figure
 
 
-def _check_fleet_hybrids(root: str, models: list[Any]) -> None:
-    """The batched fleet plans over hybrids only: refuse, naming the first building, a
-    per-building directory where ``train`` chose (or was told) another model."""
+def _check_fleet_hybrids(root: str, models: list[FittedModel]) -> list[LearnedModel]:
+    """The batched fleet plans over hybrids only: ``models``, each a hybrid, or refused,
+    naming the first building, a per-building directory where ``train`` chose (or was told)
+    another model."""
     from pinn_mpc.choices import DEFAULT_ARCH
-    from pinn_mpc.models.arx import ARXModel
+    from pinn_mpc.models.learned import LearnedModel
+    from pinn_mpc.models.registry import BASELINES
 
-    for b, model in enumerate(models):
-        kind = "an ARX" if isinstance(model, ARXModel) else f"a {model.arch}"
-        if isinstance(model, ARXModel) or model.arch != DEFAULT_ARCH:
-            others = sum(isinstance(m, ARXModel) or m.arch != DEFAULT_ARCH for m in models) - 1
-            also = f" (and {others} more of the {len(models)} buildings)" if others else ""
-            raise InputError(
-                f"--model {root}: building {b}'s model is {kind}{also}; the batched fleet cem plans "
-                f"over {DEFAULT_ARCH} models: train them with `train --per-building --arch "
-                f"{DEFAULT_ARCH}` into another --out"
-            )
+    hybrids = [m for m in models if isinstance(m, LearnedModel) and m.family == DEFAULT_ARCH]
+    if len(hybrids) == len(models):
+        return hybrids
+    b, model = next((b, m) for b, m in enumerate(models) if m.family != DEFAULT_ARCH)
+    kind = "an ARX" if model.family in BASELINES else f"a {model.family}"
+    others = len(models) - len(hybrids) - 1
+    also = f" (and {others} more of the {len(models)} buildings)" if others else ""
+    raise InputError(
+        f"--model {root}: building {b}'s model is {kind}{also}; the batched fleet cem plans "
+        f"over {DEFAULT_ARCH} models: train them with `train --per-building --arch "
+        f"{DEFAULT_ARCH}` into another --out"
+    )
 
 
-def _check_fleet_models_fit(root: str, models: list[Any], scenario: Scenario) -> None:
+def _check_fleet_models_fit(root: str, models: Sequence[FittedModel], scenario: Scenario) -> None:
     """Each building's model checked against the scenario as one model is (actuator, power
     range, time constants: :func:`scenarios.running.factory.check_model_fits`): the first refusal
     names its building; the first building's warnings are shown with a count of the others."""
@@ -445,9 +454,9 @@ def _boptest_closed_loop(a: argparse.Namespace, outputs: dict[str, str | None]) 
     chosen = boptest_scenario(a.scenario)
     inputs: dict[str, PathsArg] = {"--rc": a.rc, "--scenario": str(chosen.path)}
     if a.model is not None:
-        from pinn_mpc.artifacts import MODEL_DIRECTORY
+        from pinn_mpc.fitted import model_files
 
-        inputs["--model"] = MODEL_DIRECTORY.paths(a.model)
+        inputs["--model"] = model_files(a.model)
     check_distinct(inputs=inputs, outputs=outputs)
     if a.days is not None and a.days > TEST_PERIOD_DAYS:
         raise InputError(

@@ -11,15 +11,14 @@ from __future__ import annotations
 import argparse
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from pinn_mpc.choices import ARX, AUTO, PHYSICS_ARX
+from pinn_mpc.choices import AUTO
 from pinn_mpc.data import read_timeseries
-from pinn_mpc.errors import InputError, warn
+from pinn_mpc.errors import InputError, InternalError, warn
 from pinn_mpc.io import (
-    PathsArg,
     atomic_write_json,
     check_distinct,
     check_output_directory,
@@ -28,6 +27,13 @@ from pinn_mpc.io import (
 )
 from pinn_mpc.physics import rc_summary
 from pinn_mpc.records import EvaluationMetrics, HorizonErrors
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from pinn_mpc.model_choice import ModelChoice
+    from pinn_mpc.models.arx import ARXModel
+    from pinn_mpc.models.learned import LearnedModel
 
 __all__ = ["evaluate", "export_rc_json", "identify", "train"]
 
@@ -77,37 +83,71 @@ def _eta(value: float | None) -> float:
 
 
 def _train_one(a: argparse.Namespace) -> str:
-    """Read ``--data``, train the ensemble, save the model directory ``--out``.
+    """Read ``--data``, fit the model ``--arch`` names (:func:`pinn_mpc.fitted.fit`: a network's
+    ensemble, a least-squares ARX, or with ``auto``, the default, the hybrid or the
+    physics-informed ARX, whichever predicts the data's last quarter better), save it into the
+    model directory ``--out``.
 
-    ``--out`` is checked before training: it must be new, empty or a model directory, or
-    ``--force`` given (then only the model's files in it are replaced).
+    ``--out`` is checked before fitting: it must be new, empty or a model directory of the kind
+    ``--arch`` writes (``auto``: either), or ``--force`` given (then only model files in it are
+    replaced). It ends holding one model: the other kind's files are removed.
     """
-    from pinn_mpc.artifacts import MODEL_DIRECTORY, save_model
-    from pinn_mpc.training import TrainConfig, train_model
+    from pinn_mpc.fitted import fit, output_layout, save
+    from pinn_mpc.models.registry import BASELINES
+    from pinn_mpc.training import TrainConfig, data_warnings
 
-    if a.arch in (ARX.name, PHYSICS_ARX.name):
-        return _train_arx(a)
-    if a.arch == AUTO:
-        return _train_auto(a)
-    check_output_directory(a.out, MODEL_DIRECTORY, force=a.force)
-    files = MODEL_DIRECTORY.paths(a.out)
-    check_distinct(inputs={"--data": a.data}, outputs={"--out": files})
+    network_options = [f"--{n}" for n in ("depth", "epochs", "lam", "recipe") if getattr(a, n, None) is not None]
+    unused = ", ".join(network_options).replace("--lam", "--lambda")
+    if a.arch in BASELINES and network_options:
+        raise InputError(
+            f"train --arch {a.arch}: {unused} do(es) not apply to the least-squares ARX model; "
+            "leave them out"
+        )
+    layout = output_layout(a.arch)
+    check_output_directory(a.out, layout, force=a.force)
+    check_distinct(inputs={"--data": a.data}, outputs={"--out": layout.paths(a.out)})
     df = read_timeseries(a.data, columns=a.columns)
+    if a.arch in BASELINES and "building" in df.columns:
+        raise InputError(f"{a.data}: a fleet's data (a building column); train --arch {a.arch} takes one building's")
     config = TrainConfig(
         depth=a.depth, n_seeds=a.seeds, first_seed=a.seed, epochs=a.epochs, lam=a.lam,
         recipe=a.recipe, eta=_eta(a.eta),
     )
-    model = train_model(df, arch=a.arch, config=config)
-    for message in model.record.data_warnings:
+    start = time.perf_counter()
+    choice = fit(df, arch=a.arch, config=config, progress=True)
+    seconds = time.perf_counter() - start
+    if choice.caution:
+        warn(f"{a.data}: {choice.caution}")
+    for message in data_warnings(df):
         warn(f"{a.data}: {message}")
-    _warn_without_fallback(a.data, model.record.identified_rc)
-    save_model(model, a.out, force=a.force)
-    loss = model.record.final_loss
-    return (
-        f"trained {a.arch} x{a.seeds} on {len(df)} rows in {model.record.train_seconds:.1f} s "
-        f"(final loss reg {loss['reg']:.3g}, phys {loss['phys']:.3g}); "
-        f"wrote {', '.join(map(str, files))}"
-    )
+    if choice.caution is None:  # the caution says it where it is given
+        _warn_without_fallback(a.data, choice.model.identified_rc)
+    if a.arch == AUTO and choice.chosen in BASELINES and network_options:
+        warn(f"{unused} did not apply: the chosen model has no network")
+    written = ", ".join(map(str, save(choice.model, a.out)))
+    return f"{_fitted_line(a.arch, choice, len(df), seconds)}; wrote {written}"
+
+
+def _fitted_line(arch: str, choice: ModelChoice, rows: int, seconds: float) -> str:
+    """What ``train`` fitted, on how many rows, in how long, and how well it fits them."""
+    from pinn_mpc.models.arx import ARXModel
+    from pinn_mpc.models.learned import LearnedModel
+
+    model = choice.model
+    if arch == AUTO:
+        return f"chose {choice.chosen} ({choice.why}) on {rows} rows in {seconds:.1f} s"
+    if isinstance(model, ARXModel):
+        return (
+            f"fitted {arch} ({model.lags} lags of {', '.join(model.columns)}, a weekly schedule) "
+            f"on {rows} rows in {seconds:.2f} s (one-step MAE {model.train_mae_c:.3f} C)"
+        )
+    if isinstance(model, LearnedModel):
+        loss = model.record.final_loss
+        return (
+            f"trained {arch} x{model.n_members} on {rows} rows in {model.record.train_seconds:.1f} s "
+            f"(final loss reg {loss['reg']:.3g}, phys {loss['phys']:.3g})"
+        )
+    raise InternalError(f"train fitted a {type(model).__name__}, which it cannot describe")
 
 
 def _warn_without_fallback(data: str, identified_rc: object) -> None:
@@ -120,89 +160,8 @@ def _warn_without_fallback(data: str, identified_rc: object) -> None:
         )
 
 
-def _train_auto(a: argparse.Namespace) -> str:
-    """``train --arch auto`` (the default): the hybrid or the physics-informed ARX, whichever
-    predicts the data's last quarter better (:mod:`pinn_mpc.model_choice`), into ``--out``.
-    ``--out`` may hold a model of either kind; the one not chosen is removed from it."""
-    from pinn_mpc.artifacts import MODEL_DIRECTORY, save_model
-    from pinn_mpc.io import DirectoryLayout
-    from pinn_mpc.model_choice import choose_model, fallback_rc
-    from pinn_mpc.models.arx import ARX_DIRECTORY, ARXModel, save_arx
-    from pinn_mpc.training import TrainConfig, data_warnings
-
-    either = DirectoryLayout(
-        kind="model directory", files=(*MODEL_DIRECTORY.files, *ARX_DIRECTORY.files), markers=()
-    )
-    check_output_directory(a.out, either, force=a.force)
-    check_distinct(inputs={"--data": a.data}, outputs={"--out": either.paths(a.out)})
-    df = read_timeseries(a.data, columns=a.columns)
-    config = TrainConfig(
-        depth=a.depth, n_seeds=a.seeds, first_seed=a.seed, epochs=a.epochs, lam=a.lam,
-        recipe=a.recipe, eta=_eta(a.eta),
-    )
-    start = time.perf_counter()
-    choice = choose_model(df, config, progress=True)
-    if choice.caution:
-        warn(f"{a.data}: {choice.caution}")
-    # The other kind's files would make the directory ambiguous to load: they go.
-    stale = ARX_DIRECTORY if choice.chosen != PHYSICS_ARX.name else MODEL_DIRECTORY
-    for message in data_warnings(df):
-        warn(f"{a.data}: {message}")
-    if choice.caution is None:  # the caution says it where it is given
-        _warn_without_fallback(a.data, fallback_rc(choice.model))
-    if isinstance(choice.model, ARXModel):
-        unused = [f"--{n}" for n in ("depth", "epochs", "lam", "recipe") if getattr(a, n, None) is not None]
-        if unused:
-            warn(f"{', '.join(unused).replace('--lam', '--lambda')} did not apply: the chosen model has no network")
-        written = [str(save_arx(choice.model, a.out))]
-    else:
-        written = [str(p) for p in MODEL_DIRECTORY.paths(a.out)]
-        save_model(choice.model, a.out, force=True)  # --out was checked above
-    for path in stale.paths(a.out):
-        path.unlink(missing_ok=True)
-    return (
-        f"chose {choice.chosen} ({choice.why}) on {len(df)} rows in "
-        f"{time.perf_counter() - start:.1f} s; wrote {', '.join(written)}"
-    )
-
-
-def _train_arx(a: argparse.Namespace) -> str:
-    """``train --arch arx`` (the least-squares ARX baseline, :mod:`pinn_mpc.models.arx`) or its
-    physics-informed variant into ``--out``."""
-    from pinn_mpc.models.arx import ARX_DIRECTORY, fit_linear, save_arx
-    from pinn_mpc.training import data_warnings
-
-    given = [f"--{n}" for n in ("depth", "epochs", "lam", "recipe") if getattr(a, n, None) is not None]
-    if given:
-        raise InputError(
-            f"train --arch {a.arch}: {', '.join(given).replace('--lam', '--lambda')} do(es) not apply to "
-            "the least-squares ARX model; leave them out"
-        )
-    check_output_directory(a.out, ARX_DIRECTORY, force=a.force)
-    files = ARX_DIRECTORY.paths(a.out)
-    check_distinct(inputs={"--data": a.data}, outputs={"--out": files})
-    df = read_timeseries(a.data, columns=a.columns)
-    if "building" in df.columns:
-        raise InputError(f"{a.data}: a fleet's data (a building column); train --arch {a.arch} takes one building's")
-    start = time.perf_counter()
-    model = fit_linear(a.arch, df, eta=_eta(a.eta))
-    for message in data_warnings(df):
-        warn(f"{a.data}: {message}")
-    _warn_without_fallback(a.data, model.identified_rc)
-    written = save_arx(model, a.out)
-    return (
-        f"fitted {a.arch} ({model.lags} lags of {', '.join(model.columns)}, a weekly schedule) on "
-        f"{len(df)} rows in {time.perf_counter() - start:.2f} s (one-step MAE "
-        f"{model.train_mae_c:.3f} C); wrote {written}"
-    )
-
-
-def _evaluate_arx(a: argparse.Namespace) -> str:
-    """``evaluate`` of an ARX model directory: T_r MAE one step and ``--horizons`` ahead."""
-    from pinn_mpc.models.arx import load_arx
-
-    model = load_arx(a.model)
-    df = read_timeseries(a.data, columns=a.columns)
+def _arx_metrics(model: ARXModel, df: pd.DataFrame, a: argparse.Namespace) -> EvaluationMetrics:
+    """An ARX model's errors on ``df``: T_r MAE one step and ``--horizons`` ahead."""
     t_r = df["T_r"].to_numpy(dtype=float)
     horizons: dict[str, HorizonErrors] = {}
     for h in sorted(set(a.horizons) | {1}):
@@ -212,33 +171,14 @@ def _evaluate_arx(a: argparse.Namespace) -> str:
             horizons[str(h)] = {"T_r_mae": float(np.mean(np.abs(pred - t_r[starts + h])))}
     if "1" not in horizons:
         raise InputError(f"{a.data}: too few rows for the ARX model's {model.lags} lags")
-    metrics: EvaluationMetrics = {"one_step": {"T_r_mae": horizons["1"]["T_r_mae"]}, "horizons": horizons}
-    atomic_write_json(a.json, metrics)
-    last = max(int(h) for h in horizons)
-    return (
-        f"one-step MAE: T_r {horizons['1']['T_r_mae']:.3f} C; {last}-step T_r MAE "
-        f"{horizons[str(last)]['T_r_mae']:.3f} C -> {a.json}"
-    )
+    return {"one_step": {"T_r_mae": horizons["1"]["T_r_mae"]}, "horizons": horizons}
 
 
-def evaluate(a: argparse.Namespace) -> str:
-    """Load ``--model`` and ``--data``, write the metrics JSON ``--json``."""
-    from pinn_mpc.artifacts import MODEL_DIRECTORY, load_model
+def _network_metrics(learned: LearnedModel, df: pd.DataFrame, a: argparse.Namespace) -> EvaluationMetrics:
+    """A network's errors on ``df`` (:func:`pinn_mpc.evaluation.evaluate_model`), after a
+    warning when the data and the training data disagree on a heat pump (a ``cop`` column)."""
     from pinn_mpc.evaluation import evaluate_model
-    from pinn_mpc.models.arx import ARX_DIRECTORY, is_arx_directory
 
-    check_writable(a.json)
-    _refuse_fleet_directory(a.model, "evaluate", "--data BUILDING.csv --json metrics.json")
-    if is_arx_directory(a.model):
-        check_distinct(
-            inputs={"--model": ARX_DIRECTORY.paths(a.model), "--data": a.data},
-            outputs={"--json": a.json},
-        )
-        return _evaluate_arx(a)
-    inputs: dict[str, PathsArg] = {"--model": MODEL_DIRECTORY.paths(a.model), "--data": a.data}
-    check_distinct(inputs=inputs, outputs={"--json": a.json})
-    learned = load_model(a.model)
-    df = read_timeseries(a.data, columns=a.columns)
     trained_on = learned.meta.get("training_data", {}).get("columns", [])
     if ("cop" in df.columns) != ("cop" in trained_on):
         has, lacks = ("the data", "the model's training data") if "cop" in df.columns else ("the model's training data", "the data")
@@ -246,14 +186,41 @@ def evaluate(a: argparse.Namespace) -> str:
             f"{has} has a cop column (a heat pump) and {lacks} has none: "
             "the model may be evaluated on another actuator than it was made for"
         )
-    metrics = evaluate_model(learned, df, a.horizons)
+    return evaluate_model(learned, df, a.horizons)
+
+
+def evaluate(a: argparse.Namespace) -> str:
+    """Load ``--model`` (any model directory, :func:`pinn_mpc.fitted.load`) and ``--data``,
+    write the metrics JSON ``--json``: a network's one-step errors of T_r, u_phys and T_m and
+    its ``--horizons``-step T_r errors against persistence; an ARX's T_r errors."""
+    from pinn_mpc.fitted import load, model_files
+    from pinn_mpc.models.arx import ARXModel
+    from pinn_mpc.models.learned import LearnedModel
+
+    check_writable(a.json)
+    _refuse_fleet_directory(a.model, "evaluate", "--data BUILDING.csv --json metrics.json")
+    check_distinct(inputs={"--model": model_files(a.model), "--data": a.data}, outputs={"--json": a.json})
+    model = load(a.model)
+    df = read_timeseries(a.data, columns=a.columns)
+    if isinstance(model, ARXModel):
+        metrics = _arx_metrics(model, df, a)
+    elif isinstance(model, LearnedModel):
+        metrics = _network_metrics(model, df, a)
+    else:
+        raise InternalError(f"evaluate cannot evaluate a {type(model).__name__}")
     atomic_write_json(a.json, metrics)
     one = metrics["one_step"]
     last = max(int(h) for h in metrics["horizons"])
+    last_mae = metrics["horizons"][str(last)]["T_r_mae"]
+    if "persistence" not in metrics:
+        return (
+            f"one-step MAE: T_r {one['T_r_mae']:.3f} C; {last}-step T_r MAE {last_mae:.3f} C "
+            f"-> {a.json}"
+        )
     t_m = f", T_m {one['T_m_mae']:.3f} C" if one["T_m_mae"] is not None else ""
     return (
         f"one-step MAE: T_r {one['T_r_mae']:.3f} C, u_phys {one['u_phys_mae']:.0f} W{t_m}; "
-        f"{last}-step T_r MAE {metrics['horizons'][str(last)]['T_r_mae']:.3f} C "
+        f"{last}-step T_r MAE {last_mae:.3f} C "
         f"(persistence {metrics['persistence']['horizons'][str(last)]['T_r_mae']:.3f} C) "
         f"-> {a.json}"
     )
@@ -273,26 +240,28 @@ def _refuse_fleet_directory(model: str, command: str, rest: str) -> None:
 
 
 def export_rc_json(a: argparse.Namespace) -> str:
-    """``export-rc``: load ``--model``, write its RC JSON ``--out``: a physics-informed
-    network's learned R/C values, or the RC an ARX model carries (identified from its training
-    data by ``train``)."""
-    from pinn_mpc.artifacts import MODEL_DIRECTORY, load_model
+    """``export-rc``: load ``--model`` (any model directory, :func:`pinn_mpc.fitted.load`),
+    write its RC JSON ``--out``: a physics-informed network's learned R/C values, or the RC an
+    ARX model carries (identified from its training data by ``train``)."""
     from pinn_mpc.export import export_rc
-    from pinn_mpc.models.arx import ARX_DIRECTORY, is_arx_directory
+    from pinn_mpc.fitted import load, model_files
+    from pinn_mpc.models.arx import ARXModel
+    from pinn_mpc.models.learned import LearnedModel
 
     check_writable(a.out)
     _refuse_fleet_directory(a.model, "export-rc", "--out rc.json")
-    if is_arx_directory(a.model):
-        check_distinct(inputs={"--model": ARX_DIRECTORY.paths(a.model)}, outputs={"--out": a.out})
-        data = _arx_rc(a.model)
-    else:
-        check_distinct(inputs={"--model": MODEL_DIRECTORY.paths(a.model)}, outputs={"--out": a.out})
-        learned = load_model(a.model)
+    check_distinct(inputs={"--model": model_files(a.model)}, outputs={"--out": a.out})
+    model = load(a.model)
+    if isinstance(model, ARXModel):
+        data = _arx_rc(model, a.model)
+    elif isinstance(model, LearnedModel):
         data = dict(export_rc(
-            learned, source=f"export-rc of {learned.arch} x{learned.n_members} from {a.model}"
+            model, source=f"export-rc of {model.arch} x{model.n_members} from {a.model}"
         ))
-        data["power_range_w"] = [float(v) for v in learned.record.u_phys_range_w]
-        data["heat_pump_data"] = "cop" in learned.record.training_data.get("columns", [])
+        data["power_range_w"] = [float(v) for v in model.record.u_phys_range_w]
+        data["heat_pump_data"] = "cop" in model.record.training_data.get("columns", [])
+    else:
+        raise InternalError(f"export-rc cannot export a {type(model).__name__}")
     atomic_write_json(a.out, data)
     return (
         f"R_ra={data['R_ra_K_per_W']:.4g} K/W R_rm={data['R_rm_K_per_W']:.4g} K/W "
@@ -300,12 +269,9 @@ def export_rc_json(a: argparse.Namespace) -> str:
     )
 
 
-def _arx_rc(model_dir: str) -> dict[str, Any]:
-    """The RC JSON of the ARX model in ``model_dir``: the 2R2C ``train`` identified from the
-    same data (an ARX has no R or C of its own); refused where there is none."""
-    from pinn_mpc.models.arx import load_arx
-
-    model = load_arx(model_dir)
+def _arx_rc(model: ARXModel, model_dir: str) -> dict[str, Any]:
+    """The RC JSON of the ARX ``model`` from ``model_dir``: the 2R2C ``train`` identified from
+    the same data (an ARX has no R or C of its own); refused where there is none."""
     if model.identified_rc is None:
         raise InputError(
             f"--model {model_dir} is an ARX model, which has no R or C of its own, and no RC "

@@ -30,6 +30,7 @@ __all__ = [
     "FleetInfo",
     "FleetJson",
     "FleetTotals",
+    "FleetTraining",
     "GridRecord",
     "Kpis",
     "PredictionRow",
@@ -451,3 +452,27 @@ class FleetJson(TypedDict):
     """Wall time per counted control step [ms]: ``{controllers, plant, total}_ms_{median,
     p95}``."""
     buildings: list[BuildingRecord]
+
+
+class FleetTraining(TypedDict):
+    """``fleet.json`` of ``train --per-building`` (:func:`scenarios.fleets.training.train_per_building`):
+    what was trained, on which data, with which settings."""
+
+    arch: str
+    """``train --arch`` (``auto``: each building's own choice, in ``chosen``)."""
+    config: dict[str, float | str | None]
+    """The :class:`pinn_mpc.training.TrainConfig` fields but the prior."""
+    buildings: list[int]
+    data_sha256: dict[str, str]
+    """Each building's data digest (:func:`scenarios.fleets.training.frame_digest`)."""
+    trained: list[int]
+    """Buildings this run trained."""
+    kept: list[int]
+    """Buildings whose model was already there and loads."""
+    train_seconds: dict[str, float]
+    """Each trained building's fitting time [s]."""
+    wall_seconds: float
+    params: list[dict[str, float]] | None
+    """The buildings' :class:`pinn_mpc.physics.RCParams` fields, when the data came with them."""
+    chosen: NotRequired[dict[str, str]]
+    """The family each building's model is (written once the run ends)."""

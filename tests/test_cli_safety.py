@@ -52,6 +52,7 @@ def template(tmp_path_factory: pytest.TempPathFactory) -> Path:
     argv = ["simulate", "--scenario", "paper_household", "--days", "3", "--out"]
     assert main([*argv, str(root / "d.csv")]) == 0
     assert main(["train", "--data", str(root / "d.csv"), *TINY, "--out", str(root / "m")]) == 0
+    assert main(["train", "--data", str(root / "d.csv"), "--arch", "arx", "--out", str(root / "arx")]) == 0
     shutil.copy(root / "d.csv", root / "test.csv")
     (root / "link.csv").symlink_to("test.csv")
     (root / "project" / "sub").mkdir(parents=True)
@@ -120,6 +121,13 @@ REFUSALS = [
          "same file as the input --rc"),
     case("closed-loop-json-is-the-models-weights",
          [*LOOP[:4], "cem", "--model", "m", "--days", "1", "--json", "m/weights.safetensors"],
+         "same file as the input --model"),
+    case("closed-loop-json-is-the-arx-models-file",
+         [*LOOP[:4], "qp-mpc", "--model", "arx", "--days", "1", "--json", "arx/arx.json"],
+         "same file as the input --model"),
+    case("closed-loop-on-boptest-json-is-the-arx-models-file",
+         ["closed-loop", "--scenario", "boptest_hydronic_heat_pump", "--controller", "cem", "--model",
+          "arx", "--test-period", "peak_heat_day", "--json", "arx/arx.json"],
          "same file as the input --model"),
     case("closed-loop-json-is-a-pipe", [*LOOP, "--json", "pipe"], "pipe: it is not a regular"),
     case("compare-report-is-its-own-figure", [*QUICK, "t.json", "--report", "out.png"],

@@ -26,7 +26,9 @@ from scenarios.fleets.training import (
     train_per_building,
 )
 from scenarios.inputs.scenario_file import get_scenario
+from scenarios.records import FleetTraining
 from scenarios.running.datagen import generate
+from tests.test_records import assert_record
 
 TINY = TrainConfig(n_seeds=2, epochs=2, u_max_w=10000.0)
 
@@ -88,7 +90,10 @@ def test_per_building_training_on_ray_is_resumable(tmp_path):
     shutil.rmtree(building_model_dir(out, 1))  # an interrupted run lost one building
     again = train_per_building(frames, out, arch="hybrid", config=TINY, workers=1)
     assert again["trained"] == [1] and again["kept"] == [0]
-    assert json.loads((out / "fleet.json").read_text())["params"] is not None  # kept
+    stored = json.loads((out / "fleet.json").read_text())
+    assert stored["params"] is not None  # kept
+    assert_record(stored, FleetTraining)
+    assert [m.family for m in load_fleet_models(out)[0]] == ["hybrid", "hybrid"]
 
 
 def test_cli_per_building_input_errors_are_one_line(tmp_path, capsys):

@@ -158,23 +158,24 @@ def test_train_cautions_when_even_the_chosen_model_cannot_predict_the_held_out_d
 
 
 def test_every_model_choice_trains_through_one_function_and_loads_back(tmp_path):
-    """``fit_model`` takes every ``--arch`` of ``train`` (auto included); what it fits is
-    saved and loaded back as the same kind, one model per directory."""
-    from pinn_mpc.model_choice import fit_model, load_fitted, save_fitted
+    """``fit`` takes every ``--arch`` of ``train`` (auto included); what it fits is saved and
+    loaded back as the same family, one model per directory."""
+    from pinn_mpc.fitted import fit, load, save
     from pinn_mpc.models.registry import MODEL_CHOICES
 
     data = household_data(8, seed=0)
     tiny = TrainConfig(n_seeds=1, epochs=1)
     out = tmp_path / "m"
     for arch in ("auto", *MODEL_CHOICES):
-        choice = fit_model(data, arch=arch, config=tiny)
+        choice = fit(data, arch=arch, config=tiny)
         assert choice.chosen in ({"hybrid", "parx"} if arch == "auto" else {arch})
-        save_fitted(choice.model, out)
-        loaded = load_fitted(out)
-        assert type(loaded) is type(choice.model)
+        assert choice.model.family == choice.chosen
+        save(choice.model, out)
+        loaded = load(out)
+        assert type(loaded) is type(choice.model) and loaded.family == choice.chosen
         assert len(list(out.iterdir())) == (1 if isinstance(loaded, ARXModel) else 2)
     with pytest.raises(InputError, match="unknown architecture 'nope'; choose one of auto, "):
-        fit_model(data, arch="nope")
+        fit(data, arch="nope")
 
 
 def test_every_command_taking_a_model_takes_the_one_train_chose(tmp_path, capsys):
@@ -194,10 +195,10 @@ def test_every_command_taking_a_model_takes_the_one_train_chose(tmp_path, capsys
                  str(tmp_path / "m"), "--days", "1", "--json", str(tmp_path / "k.json")]) == 0
 
 
-def test_train_model_sends_auto_and_the_arx_models_to_fit_model():
-    from pinn_mpc import fit_model, train_model
+def test_train_model_sends_auto_and_the_arx_models_to_fit():
+    from pinn_mpc import fit, train_model
 
-    assert fit_model.__module__ == "pinn_mpc.model_choice"
+    assert fit.__module__ == "pinn_mpc.fitted"
     for arch in ("auto", "arx", "parx"):
-        with pytest.raises(InputError, match=rf"{arch!r} is fitted by pinn_mpc.fit_model\(df, arch={arch!r}"):
+        with pytest.raises(InputError, match=rf"{arch!r} is fitted by pinn_mpc.fit\(df, arch={arch!r}"):
             train_model(household_data(3, seed=0), arch=arch, config=SMALL)

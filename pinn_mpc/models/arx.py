@@ -59,7 +59,7 @@ from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.features import check_interval
 from pinn_mpc.io import DirectoryLayout
 from pinn_mpc.models.registry import ARX, PHYSICS_ARX
-from pinn_mpc.models.rollout import BatchDynamics, Rollout
+from pinn_mpc.models.rollout import FittedModel, Rollout
 from pinn_mpc.physics import params_from_summary
 from pinn_mpc.solar import FACADE_COLUMNS
 
@@ -161,7 +161,7 @@ def _schedule(df: pd.DataFrame, day_types: int = 2, block_h: float = BLOCK_H) ->
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)
-class ARXModel(BatchDynamics):
+class ARXModel(FittedModel):
     """A fitted ARX model (module docstring).
 
     ``columns`` the lagged inputs in order (``T_r`` first, then ``u_phys``, ``T_a``, weather,
@@ -173,7 +173,9 @@ class ARXModel(BatchDynamics):
     of the schedule's blocks [h]; ``wind`` whether the last coefficient weighs
     ``wind_k (T_r,k - T_a,k)`` (wind-driven infiltration). A planner's
     :class:`~pinn_mpc.models.rollout.BatchDynamics`, affine in the plan
-    (:meth:`prediction_matrices`). Slotted: the fields shadow the protocol's properties.
+    (:meth:`prediction_matrices`), and a :class:`~pinn_mpc.models.rollout.FittedModel`
+    (:attr:`family`: ``parx`` with ``interaction``, else ``arx``). Slotted: the fields shadow
+    the protocol's properties.
     """
 
     affine_in_plan: ClassVar[bool] = True
@@ -189,6 +191,11 @@ class ARXModel(BatchDynamics):
     wind: bool = False
     identified_rc: dict[str, Any] | None = None
     training_data: dict[str, Any] = dataclasses.field(default_factory=dict)
+
+    @property
+    def family(self) -> str:
+        """``parx`` (the physics-informed variant, :attr:`interaction`) or ``arx``."""
+        return PHYSICS_ARX.name if self.interaction else ARX.name
 
     @property
     def n_schedule(self) -> int:

@@ -19,7 +19,7 @@ from pinn_mpc.features import FeatureConfig, make_windows
 from pinn_mpc.models.base import Architecture, NetParts, RolloutInputs
 from pinn_mpc.models.physics_block import Physics
 from pinn_mpc.models.registry import get_architecture
-from pinn_mpc.models.rollout import BatchDynamics, Rollout
+from pinn_mpc.models.rollout import FittedModel, Rollout
 
 __all__ = ["MAX_MEMBERS", "EnsembleModule", "LearnedModel", "ModelRecord", "Scaling"]
 
@@ -113,9 +113,10 @@ class Scaling(NamedTuple):
     p_hi: float
 
 
-class LearnedModel(BatchDynamics):
+class LearnedModel(FittedModel):
     """A trained seed ensemble (eval mode), ready to predict and roll out (a planner's
-    :class:`~pinn_mpc.models.rollout.BatchDynamics`, not affine in the plan).
+    :class:`~pinn_mpc.models.rollout.BatchDynamics`, not affine in the plan; a
+    :class:`~pinn_mpc.models.rollout.FittedModel` of its architecture's family).
 
     ``arch``, ``depth``, ``n_members``, ``exog_names`` describe it; ``record`` holds the
     training record that :mod:`pinn_mpc.artifacts` stores in ``model.json`` (``meta``: the
@@ -153,6 +154,21 @@ class LearnedModel(BatchDynamics):
     @property
     def exog_names(self) -> tuple[str, ...]:
         return self.features.exog_names
+
+    @property
+    def family(self) -> str:
+        """The architecture (:class:`~pinn_mpc.models.rollout.FittedModel`)."""
+        return self.arch
+
+    @property
+    def identified_rc(self) -> dict[str, Any] | None:
+        """The RC identified from the training data (the training record's)."""
+        return self.record.identified_rc
+
+    @property
+    def training_data(self) -> dict[str, Any]:
+        """The training data's summary (the training record's)."""
+        return self.record.training_data
 
     @property
     def meta(self) -> dict[str, Any]:

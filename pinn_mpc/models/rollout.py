@@ -7,16 +7,21 @@ end-of-interval T_r, delivered power and T_m, tensors (M members, N plans, H int
 Planners and the factory take :class:`BatchDynamics`, nothing more; each of those classes
 declares it as its base, so the type checker holds it to the protocol, and what a planner may
 exploit beyond the rollout is a declared property of the protocol, never probed.
+
+:class:`FittedModel` is what ``train`` makes, of every family (the learned ensembles and the
+ARX models, not the RC): a planner model that also says what it is and what it was fitted on,
+so that the callers of :func:`pinn_mpc.fitted.fit` and :func:`pinn_mpc.fitted.load` never ask
+which family they hold.
 """
 
 from __future__ import annotations
 
-from typing import NamedTuple, Protocol
+from typing import Any, NamedTuple, Protocol
 
 import numpy as np
 import torch
 
-__all__ = ["BatchDynamics", "Rollout"]
+__all__ = ["BatchDynamics", "FittedModel", "Rollout"]
 
 
 class Rollout(NamedTuple):
@@ -61,3 +66,25 @@ class BatchDynamics(Protocol):
     def rollout(
         self, history: dict[str, np.ndarray], u_w: torch.Tensor, exog: dict[str, np.ndarray]
     ) -> Rollout: ...
+
+
+class FittedModel(BatchDynamics, Protocol):
+    """A model ``train`` fits (:func:`pinn_mpc.fitted.fit`), of any family: a planner model
+    (:class:`BatchDynamics`) that says what it is and what it was fitted on.
+
+    ``family``: its name in the registry (:mod:`pinn_mpc.models.registry`: a network's
+    architecture, ``arx``, ``parx``). ``identified_rc``: the RC JSON object
+    (:func:`pinn_mpc.physics.rc_summary` with a ``fit`` block) identified from its training
+    data, which a planner over it falls back on; None where no RC could be identified.
+    ``training_data``: the summary of its training data
+    (:func:`pinn_mpc.training.data_summary`: columns, rows, each input's range).
+    """
+
+    @property
+    def family(self) -> str: ...
+
+    @property
+    def identified_rc(self) -> dict[str, Any] | None: ...
+
+    @property
+    def training_data(self) -> dict[str, Any]: ...

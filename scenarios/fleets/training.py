@@ -27,7 +27,7 @@ import shutil
 import time
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import pandas as pd
 
@@ -36,6 +36,11 @@ from pinn_mpc.io import atomic_write_json, setting_changes
 from pinn_mpc.models.registry import AUTO, DEFAULT_ARCH, MODEL_CHOICES
 from pinn_mpc.physics import RCParams
 from pinn_mpc.training import TrainConfig
+from scenarios.records import FleetTraining
+
+if TYPE_CHECKING:
+    from pinn_mpc.models.learned import LearnedModel
+    from pinn_mpc.models.rollout import FittedModel
 
 __all__ = [
     "FLEET_FILE",
@@ -75,12 +80,11 @@ def building_model_dir(root: str | os.PathLike[str], building: int) -> Path:
 def fleet_model_files(root: str | os.PathLike[str]) -> list[Path]:
     """The files a per-building model directory holds (``fleet.json`` and each building's
     model files, of either kind): the inputs no output may replace."""
-    from pinn_mpc.artifacts import MODEL_DIRECTORY
-    from pinn_mpc.models.arx import ARX_DIRECTORY
+    from pinn_mpc.fitted import model_files
 
     files = [Path(root) / FLEET_FILE]
     for building in sorted((Path(root) / "buildings").glob("b*")):
-        files.extend([*MODEL_DIRECTORY.paths(building), *ARX_DIRECTORY.paths(building)])
+        files.extend(model_files(building))
     return files
 
 
@@ -90,26 +94,24 @@ def _train_one(frame: pd.DataFrame, arch: str, config: TrainConfig, path: str) -
     import torch
     from threadpoolctl import threadpool_limits
 
-    from pinn_mpc.model_choice import fit_model, save_fitted
+    from pinn_mpc.fitted import fit, save
 
     torch.set_num_threads(1)  # the task holds one CPU: one thread for torch and for BLAS
     start = time.perf_counter()
     with threadpool_limits(limits=1, user_api="blas"):
-        choice = fit_model(frame, arch=arch, config=config, progress=False)
-    save_fitted(choice.model, path)
+        choice = fit(frame, arch=arch, config=config, progress=False)
+    save(choice.model, path)
     return time.perf_counter() - start, choice.chosen
 
 
 def _stored(path: Path) -> bool:
     """A finished building: its model directory (of either kind) loads."""
-    from pinn_mpc.artifacts import META
-    from pinn_mpc.model_choice import load_fitted
-    from pinn_mpc.models.arx import is_arx_directory
+    from pinn_mpc.fitted import holds_model, load
 
-    if not ((path / META).is_file() or is_arx_directory(path)):
+    if not holds_model(path):
         return False
     try:
-        load_fitted(path)
+        load(path)
     except (InputError, OSError, ValueError):
         return False
     return True
@@ -124,7 +126,7 @@ def train_per_building(
     params: Sequence[RCParams] | None = None,
     address: str | None = None,
     workers: int | None = None,
-) -> dict[str, Any]:
+) -> FleetTraining:
     """Train one ``arch`` model per building of ``data`` into ``out`` (module docstring) on
     Ray; buildings already there are kept. ``frames``: each building's data by its number
     (:func:`building_frames`, :func:`pinn_mpc.data.read_fleet_timeseries`); ``params``: the
@@ -156,7 +158,7 @@ def train_per_building(
     todo = [b for b in frames if b not in done]
     start = time.perf_counter()
     seconds: dict[int, float] = {}
-    summary: dict[str, Any] = {
+    summary: FleetTraining = {
         "arch": arch,
         "config": settings,
         "buildings": sorted(frames),
@@ -181,12 +183,10 @@ def train_per_building(
             if not any(p.is_file() for p in fleet_model_files(root)[1:]):
                 _remove_empty_run(root, created)  # nothing to resume: nothing to block a rerun
             raise
-    summary.update(
-        chosen={str(b): c for b, c in sorted(chosen.items())},
-        trained=sorted(seconds),
-        train_seconds={str(b): round(s, 2) for b, s in sorted(seconds.items())},
-        wall_seconds=round(time.perf_counter() - start, 2),
-    )
+    summary["chosen"] = {str(b): c for b, c in sorted(chosen.items())}
+    summary["trained"] = sorted(seconds)
+    summary["train_seconds"] = {str(b): round(s, 2) for b, s in sorted(seconds.items())}
+    summary["wall_seconds"] = round(time.perf_counter() - start, 2)
     atomic_write_json(root / FLEET_FILE, summary)
     return summary
 
@@ -286,12 +286,10 @@ def _read_fleet(root: Path) -> dict[str, Any] | None:
     return data
 
 
-def load_fleet_models(root: str | os.PathLike[str]) -> tuple[list[Any], list[RCParams] | None]:
-    """The per-building models of ``root`` in building order (of either kind: a network's
-    model directory or an ARX's), and the buildings' parameters when ``fleet.json`` has them."""
-    from pinn_mpc.artifacts import META
-    from pinn_mpc.model_choice import load_fitted
-    from pinn_mpc.models.arx import is_arx_directory
+def load_fleet_models(root: str | os.PathLike[str]) -> tuple[list[FittedModel], list[RCParams] | None]:
+    """The per-building models of ``root`` in building order (of any family,
+    :func:`pinn_mpc.fitted.load`), and the buildings' parameters when ``fleet.json`` has them."""
+    from pinn_mpc.fitted import holds_model, load
 
     fleet = _read_fleet(Path(root))
     if fleet is None:
@@ -299,12 +297,12 @@ def load_fleet_models(root: str | os.PathLike[str]) -> tuple[list[Any], list[RCP
     models = []
     for b in fleet["buildings"]:
         path = building_model_dir(root, int(b))
-        if not ((path / META).is_file() or is_arx_directory(path)):
+        if not holds_model(path):
             raise InputError(
                 f"--model {root}: building {b} has no model (an interrupted run?); rerun "
                 "`train --per-building` with the same --out to finish it"
             )
-        models.append(load_fitted(path))
+        models.append(load(path))
     params = None
     if fleet.get("params"):
         params = [RCParams(**p) for p in fleet["params"]]
@@ -317,7 +315,7 @@ def pretrain_and_fine_tune(
     config: TrainConfig,
     fine_tune_epochs: int,
     arch: str = DEFAULT_ARCH,
-) -> tuple[list[Any], dict[str, float]]:
+) -> tuple[list[LearnedModel], dict[str, float]]:
     """Pre-train one ``arch`` model on all ``frames`` (each building's data, concatenated
     building after building), then fine-tune one model per building for ``fine_tune_epochs``
     from its transferred weights (:data:`TRANSFERRED`). Returns the fine-tuned models and the

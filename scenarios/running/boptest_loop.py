@@ -67,13 +67,11 @@ from scenarios.running.factory import FitChecks
 
 if TYPE_CHECKING:
     from controllers.sampling import Guard
-    from pinn_mpc.models.arx import ARXModel
-    from pinn_mpc.models.learned import LearnedModel
-    from pinn_mpc.models.rollout import BatchDynamics
+    from pinn_mpc.models.rollout import BatchDynamics, FittedModel
     from pinn_mpc.training import TrainConfig
 
-#: What :func:`boptest_fit` returns: a learned ensemble, an ARX or an identified RC.
-BoptestModel: TypeAlias = "LearnedModel | ARXModel | RCParams"
+#: What :func:`boptest_fit` returns: a fitted model of any family or an identified RC.
+BoptestModel: TypeAlias = "FittedModel | RCParams"
 
 __all__ = [
     "BASELINE",
@@ -233,10 +231,9 @@ def boptest_controller(
 
     scenario = chosen.scenario(dt_s)
     if name in MODEL_CONTROLLERS and model_dir is not None:
-        from pinn_mpc.artifacts import load_model
-        from pinn_mpc.models.arx import is_arx_directory, load_arx
+        from pinn_mpc.fitted import load
 
-        model = load_arx(model_dir) if is_arx_directory(model_dir) else load_model(model_dir)
+        model = load(model_dir)
         return build_controller(
             name, scenario, model=model, n_steps=n_steps,
             planner_options={"guard": boptest_guard(model)}, checks=BOPTEST_FIT_CHECKS,
@@ -420,14 +417,14 @@ def boptest_fit(
     ``config``) or a model ``train --arch`` takes by name (``config`` for the networks).
     Returns the model and the name of what was fitted (for ``auto``, the family it chose);
     ``progress``: the training's bars on a terminal."""
+    from pinn_mpc.fitted import fit
     from pinn_mpc.identify import identify_rc
-    from pinn_mpc.model_choice import fit_model
 
     if kind == RC_FIT:
         return identify_rc(data, eta=1.0).params, RC_FIT
     if kind not in (AUTO, *MODEL_CHOICES):
         raise InputError(f"unknown model {kind!r}; choose {RC_FIT}, {AUTO} or one of {', '.join(MODEL_CHOICES)}")
-    choice = fit_model(data, arch=kind, config=config, progress=progress)
+    choice = fit(data, arch=kind, config=config, progress=progress)
     return choice.model, choice.chosen
 
 

@@ -399,12 +399,9 @@ def make_controller(
         raise _both()
     model: BatchDynamics | None = None
     if model_dir is not None:
-        from pinn_mpc.artifacts import load_model
-        from pinn_mpc.models.arx import is_arx_directory, load_arx
+        from pinn_mpc.fitted import load
 
-        if name == "qp-mpc" and not is_arx_directory(model_dir):
-            raise _not_linear()
-        model = load_arx(model_dir) if is_arx_directory(model_dir) else load_model(model_dir)
+        model = load(model_dir)  # qp-mpc checks that it is linear (build_controller)
     rc_params = None
     if rc_path is not None:  # read once: the parameters and what the file says of its data
         rc_params, data = read_rc_json(rc_path)

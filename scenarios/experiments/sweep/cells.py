@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import socket
 import time
-from typing import TYPE_CHECKING, cast
 
 from pinn_mpc.physics import RCParams
 from scenarios.experiments.sweep.boptest import _boptest_chosen
@@ -13,16 +12,13 @@ from scenarios.experiments.sweep.models import SweepModel, _model_family
 from scenarios.inputs.scenario_file import get_scenario
 from scenarios.records import CellResult
 
-if TYPE_CHECKING:
-    from pinn_mpc.models.rollout import BatchDynamics
-
 __all__ = ["run_cell"]
 
 
 def run_cell(
     cell: Cell,
     settings: SweepSettings,
-    model: BatchDynamics | RCParams | None,
+    model: SweepModel | None,
     boptest_url: str | None = None,
 ) -> CellResult:
     """One closed loop on the test days (seed + 1): ``{"kpis", "errors", "host", "wall_time_s"}``.
@@ -55,7 +51,7 @@ def run_cell(
         )
     kpis = result.kpis
     if learned is not None:
-        kpis["model"] = _model_family(cast("SweepModel", learned))  # type: ignore[typeddict-unknown-key]
+        kpis["model"] = _model_family(learned)  # type: ignore[typeddict-unknown-key]
     return {
         "kpis": kpis,
         "errors": list(result.errors),
@@ -67,7 +63,7 @@ def run_cell(
 def _run_boptest_cell(
     cell: Cell,
     settings: SweepSettings,
-    model: BatchDynamics | RCParams | None,
+    model: SweepModel | None,
     boptest_url: str | None,
     start: float,
 ) -> CellResult:
@@ -80,17 +76,16 @@ def _run_boptest_cell(
         time_period=cell.test_period, days=float(settings.test_days),
         price_scenario=cell.price_scenario or "dynamic",
     )
-    fitted = cast("SweepModel | None", model)
     controller = boptest_planner(
-        cell.controller.partition("/")[0], chosen, fitted, dt_s=run.dt_s, n_steps=run.n_intervals
+        cell.controller.partition("/")[0], chosen, model, dt_s=run.dt_s, n_steps=run.n_intervals
     )
     with one_torch_thread():
         result = run_boptest_closed_loop(chosen, cell.controller, controller, run=run, seed=cell.seed)
     wall = time.perf_counter() - start
     kpis = result.kpis
     kpis["wall_s_per_day"] = wall / settings.test_days  # type: ignore[typeddict-unknown-key]
-    if fitted is not None:
-        kpis["model"] = _model_family(fitted)  # type: ignore[typeddict-unknown-key]
+    if model is not None:
+        kpis["model"] = _model_family(model)  # type: ignore[typeddict-unknown-key]
     return {
         "kpis": kpis,
         "errors": list(result.errors),

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, TypeAlias
 
-from pinn_mpc.choices import ARX, PHYSICS_ARX
 from pinn_mpc.errors import InternalError
 from pinn_mpc.physics import RCParams
 from scenarios.experiments.sweep.grid import RC_KIND, ModelKey, SweepSettings
@@ -16,33 +15,25 @@ from scenarios.running.boptest_loop import is_boptest_scenario
 if TYPE_CHECKING:
     import pandas as pd
 
-    from pinn_mpc.models.arx import ARXModel
-    from pinn_mpc.models.learned import LearnedModel
+    from pinn_mpc.models.rollout import FittedModel
 
 __all__ = ["SweepModel", "fit_model"]
 
-#: What a sweep trains for a cell (:func:`fit_model`): a learned ensemble or an identified RC.
-SweepModel: TypeAlias = "LearnedModel | ARXModel | RCParams"
-
-#: The linear baselines a sweep fits instead of training (:func:`pinn_mpc.models.arx.fit_linear`).
-_LINEAR = (ARX.name, PHYSICS_ARX.name)
+#: What a sweep fits for a cell (:func:`fit_model`): a model of any family
+#: (:func:`pinn_mpc.fitted.fit`) or an identified RC.
+SweepModel: TypeAlias = "FittedModel | RCParams"
 
 
 def _model_family(model: SweepModel) -> str:
-    """What a fitted model is: a network's architecture, ``arx`` or ``parx``, or the RC."""
-    from pinn_mpc.models.arx import ARXModel
-
-    if isinstance(model, RCParams):
-        return RC_KIND
-    if isinstance(model, ARXModel):
-        return PHYSICS_ARX.name if model.interaction else ARX.name
-    return model.arch
+    """What a fitted model is: its family (a network's architecture, ``arx``, ``parx``), or
+    the RC."""
+    return RC_KIND if isinstance(model, RCParams) else model.family
 
 
 def fit_model(key: ModelKey, settings: SweepSettings, data: pd.DataFrame | None = None) -> SweepModel:
-    """Train the learned ensemble (:data:`ARCH`, or the model ``key.kind`` names; ``auto``:
-    ``train``'s default choice) or identify the RC of ``key`` on the scenario's simulated data
-    (``train_days`` days under the settings' policy, by default the scenario's, seed ``key.seed``).
+    """Fit the model ``key.kind`` names (:data:`ARCH` by default; any ``train --arch``,
+    :func:`pinn_mpc.fitted.fit`; ``auto``: ``train``'s default choice) or identify the RC of
+    ``key`` on the scenario's simulated data (``train_days`` days under the settings' policy, by default the scenario's, seed ``key.seed``).
     A BOPTEST scenario's ``data`` is the emulator's (:func:`boptest_training_data`), its
     ensembles trained as ``compare`` trains them (:func:`boptest_fit`)."""
     from scenarios.experiments.compare import CompareSettings, identify_scenario_rc
@@ -63,11 +54,7 @@ def fit_model(key: ModelKey, settings: SweepSettings, data: pd.DataFrame | None 
     data = generate(scenario, days=key.train_days, seed=key.seed, policy=policy)
     if key.kind == RC_KIND:  # as compare identifies (on delivered heat under a heat pump)
         return identify_scenario_rc(scenario, data)
-    if key.kind in _LINEAR:
-        from pinn_mpc.models.arx import fit_linear
-
-        return fit_linear(key.kind, data, eta=scenario.sim.params.eta)
-    from pinn_mpc.model_choice import fit_model as fit_named
+    from pinn_mpc.fitted import fit
     from pinn_mpc.training import TrainConfig
 
     epochs = CompareSettings(
@@ -81,6 +68,6 @@ def fit_model(key: ModelKey, settings: SweepSettings, data: pd.DataFrame | None 
         eta=scenario.sim.params.eta,
         u_max_w=scenario.sim.u_max_w,
     )
-    return fit_named(data, arch=key.kind, config=config).model
+    return fit(data, arch=key.kind, config=config).model
 
 

@@ -93,13 +93,9 @@ def _load_model(out: Path, key: ModelKey) -> SweepModel | None:
         return None
     if key.kind == RC_KIND:
         return params_from_summary(_read_json(path))
-    from pinn_mpc.models.arx import is_arx_directory, load_arx
+    from pinn_mpc.fitted import load
 
-    if is_arx_directory(path):
-        return load_arx(path)
-    from pinn_mpc.artifacts import load_model
-
-    return load_model(path)
+    return load(path)
 
 
 def _store_model(out: Path, key: ModelKey, model: SweepModel) -> None:
@@ -107,14 +103,9 @@ def _store_model(out: Path, key: ModelKey, model: SweepModel) -> None:
     if isinstance(model, RCParams):
         atomic_write_json(path, rc_summary(model, source=f"identify ({key.name})"))
         return
-    from pinn_mpc.models.arx import ARXModel, save_arx
+    from pinn_mpc.fitted import save
 
-    if isinstance(model, ARXModel):
-        save_arx(model, path)
-        return
-    from pinn_mpc.artifacts import save_model
-
-    save_model(model, path)
+    save(model, path)
 
 
 def _check_out(root: Path, *, force: bool) -> None:
