@@ -262,7 +262,6 @@ def _fleet_closed_loop(a: argparse.Namespace, scenario: Scenario, inputs: dict[s
         from scenarios.fleets.training import load_fleet_models
 
         models, fleet = load_fleet_models(a.model)
-        _check_fleet_hybrids(a.model, models)
         if fleet is None:
             raise InputError(
                 f"--model {a.model}: the buildings' parameters are unknown (the training data "
@@ -355,24 +354,6 @@ def _check_fleet_options(a: argparse.Namespace, inputs: dict[str, PathsArg], *, 
     check_writable(figure)
     check_distinct(inputs=inputs, outputs={"--json": a.json, "figure": figure})
     return figure
-
-
-def _check_fleet_hybrids(root: str, models: list[Any]) -> None:
-    """The batched fleet plans over hybrids only: refuse, naming the first building, a
-    per-building directory where ``train`` chose (or was told) another model."""
-    from pinn_mpc.choices import DEFAULT_ARCH
-    from pinn_mpc.models.arx import ARXModel
-
-    for b, model in enumerate(models):
-        kind = "an ARX" if isinstance(model, ARXModel) else f"a {model.arch}"
-        if isinstance(model, ARXModel) or model.arch != DEFAULT_ARCH:
-            others = sum(isinstance(m, ARXModel) or m.arch != DEFAULT_ARCH for m in models) - 1
-            also = f" (and {others} more of the {len(models)} buildings)" if others else ""
-            raise InputError(
-                f"--model {root}: building {b}'s model is {kind}{also}; the batched fleet cem plans "
-                f"over {DEFAULT_ARCH} models: train them with `train --per-building --arch "
-                f"{DEFAULT_ARCH}` into another --out"
-            )
 
 
 def _check_fleet_models_fit(root: str, models: list[Any], scenario: Scenario) -> None:
