@@ -37,6 +37,7 @@ import numpy as np
 import torch
 
 from controllers.base import ControlSpec, Fallback, Forecast, Observation, check_heating
+from controllers.estimators import FleetOffsetFilter
 from controllers.fleet import FleetDecision, FleetPlan, FleetQPMPC
 from controllers.objective import (
     HorizonObjective,
@@ -109,8 +110,6 @@ class FleetCEM:
         rc_refresh: int = 1,
     ) -> None:
         check_heating(dynamics.eta, spec, what="the fleet's models")
-        if not 0.0 <= offset_gain <= 1.0:
-            raise InputError(f"FleetCEM.offset_gain must lie in [0, 1], got {offset_gain}")
         if not (0 <= comfort_margin_k < 1):
             raise InputError(f"FleetCEM.comfort_margin_k must lie in [0, 1) K, got {comfort_margin_k}")
         if shadow is not None and shadow.n_buildings != dynamics.n_buildings:
@@ -123,7 +122,11 @@ class FleetCEM:
             raise InputError(f"FleetCEM.rc_refresh must be a whole number >= 1, got {rc_refresh!r}")
         self.fast_candidates, self.rc_refresh = fast_candidates, rc_refresh
         self._pool: list[PoolEntry] = []
-        self.offset_gain, self.comfort_margin_k = offset_gain, comfort_margin_k
+        try:
+            self.offsets = FleetOffsetFilter(dynamics, offset_gain)
+        except InputError as exc:
+            raise InputError(f"FleetCEM.{exc}") from exc
+        self.comfort_margin_k = comfort_margin_k
         self.replan_iters = replan_iters
         if rc_candidates and shadow is None:
             raise InternalError("FleetCEM.rc_candidates needs the shadow RC MPC")
@@ -161,7 +164,7 @@ class FleetCEM:
         for f, mon in zip(self.fallbacks, self.monitors, strict=True):
             f.reset()
             mon.reset()
-        self.offset_k = np.zeros(self.n_buildings)  # [K], float64 as the single controller's
+        self.offsets.reset()
         self._plans = torch.zeros(self.n_buildings, self.horizon_steps)  # the last plans (B, H)
         self._has_plan = torch.zeros(self.n_buildings, dtype=torch.bool)
         if self.shadow is not None:
@@ -181,15 +184,15 @@ class FleetCEM:
         if self.shadow is not None:
             self.shadow.observe(observations, forecast)
         histories = [o.history for o in observations]
-        depth = self.dynamics.depth
         n_past = min(len(hist["u_phys"]) for hist in histories)
-        if n_past >= depth + 2 and all(o.last is not None for o in observations):
-            self._update_offsets(observations)
+        offsets = self.offsets.update(observations)
+        for mon, inn, pe in zip(self.monitors, self.offsets.innovation_k, self.offsets.power_error_w, strict=True):
+            mon.observe(float(inn), float(pe))
         objective = HorizonObjective.from_forecast(forecast, self.spec, h)
         margins = np.array([m.margin_k(self.comfort_margin_k) for m in self.monitors])[:, None]
         t_min, t_max = narrowed_band(objective.t_min_c[None], objective.t_max_c[None], margins)
         start = spread_start = None
-        if n_past >= depth + 1:
+        if n_past >= self.dynamics.depth + 1:
             exog = forecast.exogenous(self.dynamics.exog_names, h)
             start = self.dynamics.prepare(histories, exog, h)
             if self.spread_dynamics is not None:
@@ -202,33 +205,10 @@ class FleetCEM:
             price=np.asarray(objective.price_eur_per_kwh, dtype=float),
             t_min=torch.as_tensor(t_min, dtype=torch.float32)[:, None],
             t_max=torch.as_tensor(t_max, dtype=torch.float32)[:, None],
-            offset=torch.as_tensor(self.offset_k, dtype=torch.float32)[:, None, None],
+            offset=torch.as_tensor(offsets, dtype=torch.float32)[:, None, None],
             x0=self._warm_starts(h),
         )
         self._best = None
-
-    def _update_offsets(self, observations: Sequence[Observation]) -> None:
-        """The offset filter (:class:`controllers.estimators.OffsetFilter`) of every building
-        at once: the interval that just ended replayed under the delivered and the demanded
-        power."""
-        last0 = observations[0].last
-        assert last0 is not None
-        exog = {n: np.array([getattr(last0, n)]) for n in self.dynamics.exog_names}
-        u = torch.tensor(
-            [[[o.last.u_phys], [o.last.u]] for o in observations if o.last is not None],
-            dtype=torch.float32,
-        )  # (B, 2, 1)
-        roll = self.dynamics.rollout([o.history for o in observations], u, exog, drop_last=1)
-        predicted = roll.t_r_c[:, :, 0, 0].mean(1).double().numpy()
-        delivered = roll.u_phys_w[:, :, 1, 0].mean(1).double().numpy()
-        measured = np.array([o.t_r_c for o in observations], dtype=float)
-        u_phys = np.array([o.last.u_phys for o in observations if o.last is not None], dtype=float)
-        error = measured - predicted
-        finite = np.isfinite(error)
-        innovation = np.where(finite, error - self.offset_k, math.nan)
-        self.offset_k = np.where(finite, self.offset_k + self.offset_gain * (error - self.offset_k), self.offset_k)
-        for mon, inn, pe in zip(self.monitors, innovation.tolist(), (u_phys - delivered).tolist(), strict=True):
-            mon.observe(inn, pe)
 
     def _warm_starts(self, h: int) -> torch.Tensor:
         """(B, H) each building's last plan shifted one interval (its last value repeated), or

@@ -275,16 +275,17 @@ def test_a_fleet_of_any_family_rolls_out_as_each_building_model(other_families, 
         assert torch.equal(roll.u_phys_w[i], own.u_phys_w[:1].to(roll.u_phys_w.dtype))
 
 
-@pytest.mark.parametrize("family", ["parx", "physnet"])
-def test_a_one_building_fleet_decides_as_the_single_cem(other_families, family):
+@pytest.mark.parametrize("family", ["hybrid", "parx", "physnet"])
+def test_a_one_building_fleet_decides_as_the_single_cem(fleet_models, other_families, family):
     """The batched cem of one building (no polish, no RC fallback: what the fleet does not
     batch) makes the single cem's decisions, step for step in closed loop: one planner
-    (:meth:`CEMPlanner.optimize_batch`), one rollout, one offset filter and objective."""
+    (:meth:`CEMPlanner.optimize_batch`), one rollout (a fleet of one building is its model),
+    one offset filter and objective."""
     from controllers.fleet_sampling import FleetCEM
     from controllers.sampling import CEM
 
     scenario, fleet, families = other_families
-    model = families[family][0]
+    model = fleet_models[2][0] if family == "hybrid" else families[family][0]
     spec = scenario.control_spec()
     single = CEM(model, spec, n_samples=24, n_iters=2, polish_iters=0)
     batched = FleetCEM(FleetModels([model]), spec, planner=single.planner)
@@ -295,7 +296,7 @@ def test_a_one_building_fleet_decides_as_the_single_cem(other_families, family):
     loop = build_loop(scenario, run, seed=0, fleet=fleet[:1])
     rng = np.random.default_rng(1)
     decisions = []
-    for k in range(20):
+    for k in range(30):
         obs, forecast = loop.observation(building=0), loop.forecast()
         u = single.act(obs, forecast)
         batched.observe([obs], forecast)

@@ -7,7 +7,9 @@ at once. :class:`FleetModels` is the fleet of any planner models, one
 a stack key (:attr:`BatchDynamics.stack_key`) roll out as one batch
 (:meth:`BatchDynamics.stacked`), every other building through its model's own
 :meth:`~BatchDynamics.rollout`. A kind that declares no stack key is thus a fleet's without
-doing anything; one that does is as fast as one batch.
+doing anything; one that does is as fast as one batch. A fleet of one building is its model,
+bit for bit: the one-building case the single controllers' offset filter runs
+(:class:`controllers.estimators.OffsetFilter`).
 
 :class:`StackedHybrids` is the hybrids' batch: their rollout constants
 (:meth:`pinn_mpc.models.hybrid.HybridNet.rollout_constants`) stacked along the member axis, so
@@ -111,8 +113,11 @@ class FleetModels:
                 parts.append((torch.tensor([i]), _Alone(model, self.n_members)))
             else:
                 groups.setdefault(key, []).append(i)
-        for index in groups.values():
-            stacked = models[index[0]].stacked([models[i] for i in index], self.n_members)
+        for index in groups.values():  # one building alone rolls out as its model does
+            stacked = (
+                models[index[0]].stacked([models[i] for i in index], self.n_members) if len(index) > 1
+                else _Alone(models[index[0]], self.n_members)
+            )
             parts.append((torch.tensor(index), stacked))
         self._parts = sorted(parts, key=lambda part: int(part[0][0]))
         self._whole = len(parts) == 1  # one batch of every building, in order
