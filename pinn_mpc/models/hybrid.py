@@ -224,15 +224,28 @@ def prepare_states(
     heat = p_past[..., 1:] if gain is None else p_past[..., 1:] * gain[..., :k]
     d_win = torch.cat([heat[..., None], exog[..., :k, :]], dim=-1)  # (B, N0, k, 4)
     window = torch.cat([t_r, d_win.flatten(-2)], dim=-1)  # (B, N0, k+1+4k)
+    drive_b = c.drive_b.view(b, m, 2, 4)
+    w_static = c.w_static.view(b, m, *c.w_static.shape[1:])
+    observer = c.observer.view(b, m, -1)
+    # The T_m observer, the exogenous drive and the first layer on the static inputs: a fleet's
+    # contracted building by building (its batch's fastest order), one model's from N0 starts
+    # (the order its rollout has always had); the two agree to float round-off.
+    if b > 1 and n0 == 1:
+        t_m0 = torch.einsum("bw,bmw->bm", window[:, 0], observer)[..., None]
+        drive = torch.einsum("bmrc,bhc->hbmr", drive_b[..., 1:], exog[:, 0, k : k + h_len])
+        first = torch.einsum("bmsj,bhs->hbmj", w_static, static[:, 0])
+        pre = torch.cat([first, drive], dim=-1).reshape(h_len, b, m, hidden + 2, 1)
+    else:
+        t_m0 = torch.matmul(window[:, None], observer[..., None])[..., 0]
+        drive = torch.einsum("bmrc,bnhc->hbmrn", drive_b[..., 1:], exog[:, :, k : k + h_len])
+        first = torch.einsum("bmsj,bnhs->hbmjn", w_static, static)
+        pre = torch.cat([first, drive], dim=3)
+    pre[:, :, :, :hidden] += c.b_first.view(b, m, hidden, 1)
     state0 = torch.empty(b, m, 3, n0)  # (u_phys, T_m, T_r) now
     state0[:, :, 0] = p_past[..., k][:, None]
-    state0[:, :, 1] = torch.matmul(window[:, None], c.observer.view(b, m, -1, 1))[..., 0]
+    state0[:, :, 1] = t_m0
     state0[:, :, 2] = t_r[..., k][:, None]
-    drive_b = c.drive_b.view(b, m, 2, 4)
-    drive = torch.einsum("bmrc,bnhc->hbmrn", drive_b[..., 1:], exog[:, :, k : k + h_len])
-    w_static = c.w_static.view(b, m, *c.w_static.shape[1:])
-    first = torch.einsum("bmsj,bnhs->hbmjn", w_static, static) + c.b_first.view(b, m, hidden, 1)
-    pre = torch.cat([first, drive], dim=3).reshape(h_len, bm, hidden + 2, n0)
+    pre = pre.reshape(h_len, bm, hidden + 2, n0)
     b_u = drive_b[..., :1]  # (B, M, 2, 1)
     if gain is None:
         b_step = b_u.reshape(1, bm, 2, 1)
