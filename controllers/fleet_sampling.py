@@ -233,7 +233,9 @@ class FleetCEM:
         price = torch.as_tensor(step.price + extra, dtype=dtype)
         if self.replan_iters == 0:
             self._pool.append((u_w, u_phys, comfort.sum(-1)))
-        return (energy_cost_eur(u_phys, price, spec.dt_h) + comfort).sum(-1)
+        cost = energy_cost_eur(u_phys, price, spec.dt_h)
+        cost += comfort
+        return cost.sum(-1)
 
     def _pool_costs(self, step: _Step, extra: np.ndarray, u_phys: torch.Tensor, comfort: torch.Tensor) -> torch.Tensor:
         """(B, N) objective of plans whose delivered power (B, N, H) [W] and comfort cost

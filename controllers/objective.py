@@ -166,9 +166,8 @@ def comfort_cost_torch(
 ) -> torch.Tensor:
     """The comfort term of each interval (..., H) [EUR] of end-of-interval T_r (..., H) in a
     band (tensors broadcasting against it: a fleet's bands are each building's)."""
-    import torch
-
-    return comfort_weight_eur_per_kh * dt_h * (torch.relu(t_min_c - t_r_c) + torch.relu(t_r_c - t_max_c))
+    violation = (t_min_c - t_r_c).relu_() + (t_r_c - t_max_c).relu_()
+    return violation.mul_(comfort_weight_eur_per_kh * dt_h)  # in place: a fleet's are large
 
 
 def cost_torch(
