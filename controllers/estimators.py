@@ -27,12 +27,14 @@ from pinn_mpc.observer import DEFAULT_INITIAL_T_M_STD_C, DEFAULT_MEASUREMENT_STD
 from pinn_mpc.physics import RCParams
 
 if TYPE_CHECKING:
+    from pinn_mpc.models.fleet import FleetModels
     from pinn_mpc.models.rollout import BatchDynamics
 
 __all__ = [
     "NOISY_SENSOR_PROCESS_STD_C",
     "RC_MPC_PROCESS_STD_C",
     "FleetKalmanEstimator",
+    "FleetOffsetFilter",
     "KalmanEstimator",
     "OffsetFilter",
     "StateEstimator",
@@ -194,8 +196,59 @@ class TrueState:
         return np.array([obs.t_r_c, obs.t_m_true_c], dtype=float)
 
 
+class FleetOffsetFilter:
+    """Output-disturbance estimates [K] of B buildings' models (offset-free MPC), filtered
+    together: :class:`OffsetFilter` of each building, in one batched replay of the interval
+    that just ended (:class:`pinn_mpc.models.fleet.FleetModels`), the same arithmetic
+    building by building (float64). ``offset_k``, ``innovation_k`` and ``power_error_w`` are
+    (B,) arrays."""
+
+    def __init__(self, dynamics: FleetModels, gain: float) -> None:
+        if not 0.0 <= gain <= 1.0:
+            raise InputError(f"offset_gain must lie in [0, 1], got {gain}")
+        self.dynamics, self.gain = dynamics, gain
+        self.reset()
+
+    def reset(self) -> None:
+        b = self.dynamics.n_buildings
+        self.offset_k = np.zeros(b)
+        self.innovation_k = np.full(b, np.nan)  # last measured minus predicted T_r, offset included
+        self.power_error_w = np.full(b, np.nan)  # last delivered minus predicted under the demand
+
+    def update(self, observations: Sequence[Observation]) -> np.ndarray:
+        """Fold the interval that just ended into every building's offset; returns the
+        offsets (B,) [K]. Also records ``innovation_k`` and ``power_error_w`` (NaN while a
+        history is too short for the models: then no offset changes)."""
+        b = self.dynamics.n_buildings
+        if len(observations) != b:
+            raise InternalError(f"OffsetFilter: {len(observations)} observations for {b} buildings")
+        self.innovation_k, self.power_error_w = np.full(b, np.nan), np.full(b, np.nan)
+        lasts = [o.last for o in observations]
+        depth = self.dynamics.depth
+        if any(last is None or len(o.history["u_phys"]) < depth + 2 for o, last in zip(observations, lasts, strict=True)):
+            return self.offset_k
+        import torch
+
+        last0 = lasts[0]
+        assert last0 is not None
+        exog = {name: np.array([getattr(last0, name)]) for name in self.dynamics.exog_names}
+        # Row 0 replays the delivered power (the room's error); row 1 the demand (the power's).
+        u_w = torch.tensor([[[v.u_phys], [v.u]] for v in lasts if v is not None], dtype=torch.float32)
+        with torch.no_grad():
+            roll = self.dynamics.rollout([o.history for o in observations], u_w, exog, drop_last=1)
+            predicted = roll.t_r_c[:, :, 0, 0].mean(1).double().numpy()
+            delivered = roll.u_phys_w[:, :, 1, 0].mean(1).double().numpy()
+        error = np.array([o.t_r_c for o in observations], dtype=float) - predicted
+        self.power_error_w = np.array([v.u_phys for v in lasts if v is not None], dtype=float) - delivered
+        finite = np.isfinite(error)
+        self.innovation_k = np.where(finite, error - self.offset_k, np.nan)
+        self.offset_k = np.where(finite, self.offset_k + self.gain * (error - self.offset_k), self.offset_k)
+        return self.offset_k
+
+
 class OffsetFilter:
-    """Output-disturbance estimate [K] for a batch model (offset-free MPC).
+    """Output-disturbance estimate [K] for a batch model (offset-free MPC): the one-building
+    case of :class:`FleetOffsetFilter`.
 
     Each update predicts the interval that just ended from the history one interval earlier and
     the power actually delivered; the error against the measured ``T_r`` is filtered with
@@ -206,36 +259,33 @@ class OffsetFilter:
     """
 
     def __init__(self, model: BatchDynamics, gain: float) -> None:
-        if not 0.0 <= gain <= 1.0:
-            raise InputError(f"offset_gain must lie in [0, 1], got {gain}")
-        self.model, self.gain = model, gain
-        self.reset()
+        from pinn_mpc.models.fleet import FleetModels
+
+        self.model = model
+        self._filter = FleetOffsetFilter(FleetModels([model]), gain)
+
+    @property
+    def gain(self) -> float:
+        return self._filter.gain
+
+    @property
+    def offset_k(self) -> float:
+        return float(self._filter.offset_k[0])
+
+    @property
+    def innovation_k(self) -> float:
+        """Last measured minus predicted T_r, offset included [K] (NaN: no prediction)."""
+        return float(self._filter.innovation_k[0])
+
+    @property
+    def power_error_w(self) -> float:
+        """Last delivered minus predicted power under the demand [W] (NaN: no prediction)."""
+        return float(self._filter.power_error_w[0])
 
     def reset(self) -> None:
-        self.offset_k = 0.0
-        self.innovation_k = float("nan")  # last measured minus predicted T_r, offset included
-        self.power_error_w = float("nan")  # last delivered minus predicted under the demand
+        self._filter.reset()
 
     def update(self, obs: Observation) -> float:
         """Fold the interval that just ended into the offset; returns the offset [K]. Also
         records ``innovation_k`` and ``power_error_w`` (NaN when the history is too short)."""
-        history, last = obs.history, obs.last
-        self.innovation_k = self.power_error_w = float("nan")
-        if last is None or len(history["u_phys"]) < self.model.depth + 2:
-            return self.offset_k
-        import torch
-
-        past = {name: np.asarray(values)[:-1] for name, values in history.items()}
-        exog = {name: np.array([getattr(last, name)]) for name in self.model.exog_names}
-        # Row 0 replays the delivered power (the room's error); row 1 the demand (the power's).
-        u_w = torch.tensor([[last.u_phys], [last.u]], dtype=torch.float32)
-        with torch.no_grad():
-            roll = self.model.rollout(past, u_w, exog)
-            predicted = float(roll.t_r_c[:, 0, 0].mean())
-            delivered = float(roll.u_phys_w[:, 1, 0].mean())
-        error = obs.t_r_c - predicted
-        self.power_error_w = last.u_phys - delivered
-        if np.isfinite(error):
-            self.innovation_k = error - self.offset_k
-            self.offset_k += self.gain * (error - self.offset_k)
-        return self.offset_k
+        return float(self._filter.update([obs])[0])

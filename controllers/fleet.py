@@ -13,10 +13,11 @@ step under different prices without disturbing any building's state:
   warm start of the next step.
 
 :class:`FleetQPMPC` is the ``qp-mpc`` of every building as ONE sparse QP whose blocks are the
-buildings: the OSQP data of :mod:`controllers.rc_mpc.qp` (``QPMPC``'s are their one-building
-case), built vectorised, in the ``BOX`` layout of its rows, on which OSQP converges in fewer
-iterations (``QPMPC`` keeps ``SPLIT``, the same problem), with the same OSQP settings and each
-building its own Kalman observer. A new extra price changes only the linear cost, so a
+buildings: the OSQP data of :mod:`controllers.rc_mpc.qp` built vectorised and solved by
+:class:`controllers.rc_mpc.osqp.QPBlocks` (``QPMPC``'s are their one-building case), in the
+``BOX`` layout of its rows, on which OSQP converges in fewer iterations (``QPMPC`` keeps
+``SPLIT``, the same problem), with the same OSQP settings and each building its own Kalman
+observer. A new extra price changes only the linear cost, so a
 coordination iteration is a warm-started OSQP solve. Per-building plans equal those of
 ``QPMPC`` within the solver's tolerance (tests/test_fleet_coordination.py, tests/test_rc_mpc.py).
 """
@@ -25,11 +26,9 @@ from __future__ import annotations
 
 import os
 from collections.abc import Sequence
-from concurrent.futures import ThreadPoolExecutor
 from typing import Any, NamedTuple, Protocol
 
 import numpy as np
-import osqp
 
 from controllers.base import (
     ControlSpec,
@@ -38,31 +37,17 @@ from controllers.base import (
     Observation,
     check_heating,
     first_values,
-    raise_if_interrupted,
-    solver_interrupts_held,
 )
 from controllers.estimators import FleetKalmanEstimator
 from controllers.objective import HorizonObjective
-from controllers.rc_mpc.osqp import OSQP_OPTIONS
+from controllers.rc_mpc.osqp import CANDIDATE_OPTIONS, OSQP_OPTIONS, QPBlocks
 from controllers.rc_mpc.problem import DEFAULT_REGULARISATION
-from controllers.rc_mpc.qp import (
-    BOX,
-    VARIABLES_PER_STEP,
-    qp_matrices,
-    qp_vectors,
-    shift_steps,
-)
+from controllers.rc_mpc.qp import BOX, qp_vectors
 from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.physics import RCParams
 from pinn_mpc.simulator import fleet_matrices
 
 __all__ = ["CANDIDATE_OPTIONS", "FleetDecision", "FleetPlan", "FleetPlanner", "FleetQPMPC"]
-
-#: OSQP settings of a candidate plan (:meth:`FleetQPMPC.plan` with ``fast``): a plan that a
-#: sampling planner scores among its samples needs no exact optimum, and at these tolerances a
-#: warm-started building solves in about 75 iterations instead of 150 (a few in 100 need
-#: thousands at the default ones).
-CANDIDATE_OPTIONS: dict[str, Any] = {"eps_abs": 1e-2, "eps_rel": 1e-2, "polishing": False, "max_iter": 200}
 
 
 class FleetPlan(NamedTuple):
@@ -173,17 +158,13 @@ class FleetQPMPC:
         self.solver_options = {**OSQP_OPTIONS, **(solver_options or {})}
         ad, bd = fleet_matrices(self.fleet, spec.dt_s)  # (B, 2, 2), (B, 2, 4)
         self._ad, self._bd = ad, bd
-        self._b_u = bd[:, :, 0] * 1000.0  # (B, 2) [K/kW]
-        if not (isinstance(block_size, int) and block_size >= 1):
-            raise InputError(f"FleetQPMPC.block_size must be a whole number >= 1, got {block_size!r}")
-        p_diag = 2.0 * spec.dt_h * self.rho
-        self._blocks = [
-            slice(i, min(i + block_size, len(fleet))) for i in range(0, len(fleet), block_size)
-        ]
-        self._matrices = [qp_matrices(ad[s], self._b_u[s], h, p_diag, BOX) for s in self._blocks]
-        self.threads = min(2, os.cpu_count() or 1) if threads is None else threads
-        if not (isinstance(self.threads, int) and self.threads >= 1):
-            raise InputError(f"FleetQPMPC.threads must be a whole number >= 1, got {threads!r}")
+        try:
+            self._solver = QPBlocks(
+                ad, bd[:, :, 0] * 1000.0, h, 2.0 * spec.dt_h * self.rho, BOX, self.solver_options,
+                block_size=block_size, threads=min(2, os.cpu_count() or 1) if threads is None else threads,
+            )
+        except InputError as exc:
+            raise InputError(f"FleetQPMPC.{exc}") from exc
         self.estimator = FleetKalmanEstimator(ad, bd, spec)
         self.fallbacks = [Fallback(spec, reuse_plan=True) for _ in self.fleet]
         self.reset()
@@ -206,10 +187,8 @@ class FleetQPMPC:
         self.estimator.reset()
         for f in self.fallbacks:
             f.reset()
-        self._solvers: list[osqp.OSQP | None] = [None] * len(self._blocks)
-        self._fast = [False] * len(self._blocks)
+        self._solver.reset()
         self._stage: _Stage | None = None
-        self._solutions: list[tuple[np.ndarray, np.ndarray] | None] = [None] * len(self._blocks)
 
     def observe(self, observations: Sequence[Observation], forecast: Forecast) -> None:
         """Every building's Kalman update on its observation; the step's QP data."""
@@ -263,56 +242,14 @@ class FleetQPMPC:
         extra = np.zeros(h) if extra_price_eur_per_kwh is None else np.asarray(extra_price_eur_per_kwh, float)
         if extra.shape != (h,) or not np.all(np.isfinite(extra)):
             raise InternalError(f"FleetQPMPC.plan: the extra price must be {h} finite values, got {extra!r}")
-        q, lower, upper = self._data(extra)
-        todo = [j for j, block in enumerate(self._blocks) if only is None or np.any(only[block])]
-
-        def solve(j: int) -> tuple[str, int]:
-            block = self._blocks[j]
-            data = {"q": q[block].reshape(-1), "l": lower[block].reshape(-1), "u": upper[block].reshape(-1)}
-            solver = self._solvers[j]
-            if solver is None:
-                solver = self._solvers[j] = osqp.OSQP()
-                p_upper, a = self._matrices[j]
-                solver.setup(P=p_upper, A=a, **data, **self.solver_options)
-            else:
-                solver.update(**data)
-            if fast != self._fast[j]:
-                settings = CANDIDATE_OPTIONS if fast else {k: self.solver_options[k] for k in CANDIDATE_OPTIONS}
-                solver.update_settings(**settings)
-                self._fast[j] = fast
-            result = solver.solve(raise_error=False)
-            self._solutions[j] = (np.asarray(result.x, dtype=float), np.asarray(result.y, dtype=float))
-            return str(result.info.status), int(result.info.iter)
-
-        # OSQP releases the GIL while it solves: the blocks are dealt out to threads.
-        # The threads are started with Ctrl-C held back, so they hold it back too.
-        threads = min(self.threads, len(todo))
-        with solver_interrupts_held():
-            if threads > 1:
-                with ThreadPoolExecutor(threads) as pool:
-                    parts = list(pool.map(lambda js: [solve(j) for j in js], [todo[i::threads] for i in range(threads)]))
-                results = [parts[i % threads][i // threads] for i in range(len(todo))]
-            else:
-                results = [solve(j) for j in todo]
-        for status, _ in results:
-            raise_if_interrupted(status)
-        x = np.full((self.n_buildings, 4 * h), np.nan)
-        solved = np.zeros(self.n_buildings, dtype=bool)
-        statuses: set[str] = set() if only is None or only.all() else {"solved"}
-        for j, (status, _) in zip(todo, results, strict=True):
-            statuses.add(status)
-            if status == "solved":
-                block = self._blocks[j]
-                solution = self._solutions[j]
-                assert solution is not None  # solve() stored it
-                x[block] = solution[0].reshape(-1, 4 * h)
-                solved[block] = True
-        iterations = max((it for _, it in results), default=0)
+        solution = self._solver.solve(*self._data(extra), only=only, fast=fast)
+        statuses = solution.statuses if only is None or only.all() else {"solved", *solution.statuses}
+        x = solution.x
         p_kw = x[:, :h] / self._stage.cop
-        ok = self._stage.ok & solved & np.all(np.isfinite(p_kw), axis=1)
+        ok = self._stage.ok & solution.solved & np.all(np.isfinite(p_kw), axis=1)
         power = np.clip(np.nan_to_num(p_kw), 0.0, self.spec.u_max_w / 1000.0) * 1000.0
         status = "solved" if statuses == {"solved"} else ", ".join(sorted(statuses))
-        return FleetPlan(power_w=power, ok=ok, status=status, iterations=iterations)
+        return FleetPlan(power_w=power, ok=ok, status=status, iterations=solution.iterations)
 
     def commit(self, plan: FleetPlan, *, active: np.ndarray | None = None) -> FleetDecision:
         """Apply ``plan``: first actions of the buildings that planned, fallbacks otherwise;
@@ -331,24 +268,7 @@ class FleetQPMPC:
                 u[i] = plan.power_w[i, 0]
             else:
                 u[i] = fallback.act(s.observations[i], s.forecast)
-        self._shift_warm_starts()
+        self._solver.shift()
         self._stage = None
         failed = ~plan.ok if active is None else active & ~plan.ok
         return FleetDecision(u_w=u, fallback=failed)
-
-    def _shift_warm_starts(self) -> None:
-        """Each block's last solution, shifted one step: the next step's warm start."""
-        h = self._h
-        for j, (block, solver, solution) in enumerate(zip(self._blocks, self._solvers, self._solutions, strict=True)):
-            if solver is None or solution is None or not np.all(np.isfinite(solution[0])):
-                continue
-            n = block.stop - block.start
-            x, y = solution
-            # Kept shifted: a block not solved for some steps starts from its solution shifted
-            # by as many steps.
-            shifted = (
-                shift_steps(x.reshape(n, -1), VARIABLES_PER_STEP, h).reshape(-1),
-                shift_steps(y.reshape(n, -1), BOX.rows_per_step, h).reshape(-1),
-            )
-            self._solutions[j] = shifted
-            solver.warm_start(x=shifted[0], y=shifted[1])

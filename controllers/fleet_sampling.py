@@ -1,23 +1,25 @@
-"""CEM over every building's learned model in one batched rollout (a fleet planner).
+"""CEM over every building's planner model in one batched rollout (a fleet planner).
 
 :class:`FleetCEM` is the ``cem`` controller of :mod:`controllers.sampling` for B buildings at
 once, behind :class:`controllers.fleet.FleetPlanner`: each CEM iteration rolls all buildings x
-samples x horizon out in ONE call of a fleet model (:class:`pinn_mpc.models.fleet.FleetHybrid`),
-scores them with the objective (price plus the coordination price, band violation; the
-members' mean prediction plus the building's offset, as ``ensemble="mean"``) and refits each
-building's sampling distribution (:func:`optimize_fleet`, the arithmetic of
-:class:`controllers.planners.CEMPlanner` building by building, with each building's own
-generator, so a building's plan is the one the single planner finds on the same seed).
+samples x horizon out in ONE call of a fleet model (:class:`pinn_mpc.models.fleet.FleetModels`
+over any model family: hybrids in one stacked batch, an ARX or PhysNet building through its own
+rollout), scores them with the objective (price plus the coordination price, band violation;
+the members' mean prediction plus the building's offset, as ``ensemble="mean"``) and refits
+each building's sampling distribution (:meth:`controllers.planners.CEMPlanner.optimize_batch`,
+whose one-building case the single controller runs, each building drawing from its own
+generator).
 
-Kept per building, as the single controller keeps them: the warm start (its last plan shifted),
-the offset filter (offset-free MPC, one batched replay of the interval that just ended), the
-comfort margin from its filtered error, its :class:`controllers.trust.TrustMonitor` (delivered
-power error, ensemble disagreement along the chosen plan, rolled out over all members) and its
-fallbacks: the band-keeping rule when the history is short or the model's output not finite
-(counted as fallbacks), and the shadow RC MPC on the RC identified from its training data while
-the model is not trusted (a :class:`controllers.fleet.FleetQPMPC` whose Kalman observers follow
-every step and which solves only for the distrusted buildings; counted per building, and as
-fallbacks too: a decision the model did not make).
+Kept per building, in the single controller's arithmetic (so a fleet of one building decides
+as the single controller does without polish and RC fallback): the warm start (its last plan
+shifted), the offset filter (offset-free MPC, one batched replay of the interval that just
+ended), the comfort margin from its filtered error, its :class:`controllers.trust.TrustMonitor`
+(delivered power error, ensemble disagreement along the chosen plan, rolled out over all
+members) and its fallbacks: the band-keeping rule when the history is short or the model's
+output not finite (counted as fallbacks), and the shadow RC MPC on the RC identified from its
+training data while the model is not trusted (a :class:`controllers.fleet.FleetQPMPC` whose
+Kalman observers follow every step and which solves only for the distrusted buildings; counted
+per building, and as fallbacks too: a decision the model did not make).
 
 Not batched, so not done here: the single controller's multi-step replay of the model against
 the RC (the monitor sees the one-step innovation and power error instead), the LP polish and
@@ -35,90 +37,24 @@ import numpy as np
 import torch
 
 from controllers.base import ControlSpec, Fallback, Forecast, Observation, check_heating
+from controllers.estimators import FleetOffsetFilter
 from controllers.fleet import FleetDecision, FleetPlan, FleetQPMPC
-from controllers.objective import HorizonObjective
+from controllers.objective import (
+    HorizonObjective,
+    comfort_cost_torch,
+    energy_cost_eur,
+    narrowed_band,
+)
 from controllers.planners import CEMPlanner
 from controllers.trust import TrustMonitor, TrustSettings
 from pinn_mpc.errors import InputError, InternalError
-from pinn_mpc.models.fleet import FleetDynamics, FleetStart
+from pinn_mpc.models.fleet import FleetModels, FleetStart
 
-__all__ = ["FleetCEM", "colored_noise_fleet", "optimize_fleet"]
-
-
-def optimize_fleet(
-    planner: CEMPlanner,
-    objective: object,
-    x0: torch.Tensor,
-    generators: Sequence[torch.Generator],
-    candidates: torch.Tensor | None = None,
-) -> tuple[torch.Tensor, torch.Tensor]:
-    """CEM (``planner``'s settings, continuous actions) for B buildings at once: ``objective``
-    maps plans (B, N, H) to costs (B, N); ``x0`` (B, H) the warm starts. Building b draws its
-    noise from ``generators[b]`` exactly as :meth:`CEMPlanner.optimize` would, so its result
-    is that of the single planner on the same generator. ``candidates`` (B, C, H) are scored
-    in the first iteration in place of C of the samples (e.g. another planner's plans: the best
-    of them is kept if nothing sampled beats it). Returns (plans (B, H), costs (B,))."""
-    if planner.binary:
-        raise InputError("the fleet CEM plans continuous power; on/off actions are not batched")
-    if not callable(objective):
-        raise InternalError("optimize_fleet: objective must be callable")
-    b, h = x0.shape
-    dtype = x0.dtype
-    n = planner.n_samples
-    span = planner.upper - planner.lower
-    best = x0.clamp(planner.lower, planner.upper)
-    mean = best.clone()
-    std = torch.full_like(mean, planner.init_std_frac * span)
-    best_cost = torch.full((b,), math.inf, dtype=torch.float64)
-    rows = torch.arange(b)
-    if candidates is not None and (candidates.shape[0] != b or candidates.shape[2] != h
-                                   or candidates.shape[1] > n - 2):
-        raise InternalError(f"optimize_fleet: candidates must be (B, at most N - 2, H), got {tuple(candidates.shape)}")
-    for it in range(planner.n_iters):
-        noise = colored_noise_fleet(n, h, planner.noise_beta, generators, dtype)
-        samples = (mean[:, None] + std[:, None] * noise).clamp(planner.lower, planner.upper)
-        samples[:, 0] = best
-        samples[:, 1] = mean
-        if candidates is not None and it == 0:
-            samples[:, 2 : 2 + candidates.shape[1]] = candidates.to(dtype).clamp(planner.lower, planner.upper)
-        costs = objective(samples).to(torch.float64)
-        costs = torch.where(torch.isfinite(costs), costs, torch.full_like(costs, math.inf))
-        order = torch.argsort(costs, dim=1)
-        top = costs[rows, order[:, 0]]
-        better = top <= best_cost
-        best_cost = torch.where(better, top, best_cost)
-        best = torch.where(better[:, None], samples[rows, order[:, 0]], best)
-        elites = samples[rows[:, None], order[:, : planner.n_elites]]  # (B, E, H)
-        mean = planner.alpha * mean + (1 - planner.alpha) * elites.mean(dim=1)
-        std = planner.alpha * std + (1 - planner.alpha) * elites.std(dim=1)
-    return best, best_cost
+__all__ = ["FleetCEM"]
 
 
-def colored_noise_fleet(
-    n: int, h: int, beta: float, generators: Sequence[torch.Generator], dtype: torch.dtype
-) -> torch.Tensor:
-    """:func:`controllers.planners.colored_noise` (n, h) of every building's generator,
-    (B, n, h): the white noise drawn building by building (the same numbers), coloured in one
-    batched FFT."""
-    white = torch.stack([torch.randn((n, h), generator=g, dtype=dtype) for g in generators])
-    if beta == 0 or h < 2:
-        return white
-    # The filter of colored_noise, computed once for the batch.
-    scale, kernel_norm = colored_noise_filter(h, beta, dtype)
-    return torch.fft.irfft(torch.fft.rfft(white, dim=-1) * scale, n=h, dim=-1) / kernel_norm
-
-
-def colored_noise_filter(h: int, beta: float, dtype: torch.dtype) -> tuple[torch.Tensor, torch.Tensor]:
-    """The spectral scale (h//2+1,) and kernel norm of :func:`colored_noise`."""
-    freqs = torch.fft.rfftfreq(h, dtype=dtype)
-    scale = torch.ones_like(freqs)
-    scale[1:] = freqs[1:] ** (-beta / 2)
-    scale[0] = scale[1]
-    return scale, torch.linalg.vector_norm(torch.fft.irfft(scale, n=h))
-
-
-#: Plans a step has scored (B, N, H) [W], their energy per interval (B, N, H) [kWh] and comfort
-#: cost (B, N) [EUR].
+#: Plans a step has scored (B, N, H) [W], their predicted delivered power (B, N, H) [W] and
+#: comfort cost (B, N) [EUR].
 PoolEntry = tuple[torch.Tensor, torch.Tensor, torch.Tensor]
 
 
@@ -128,16 +64,16 @@ class _Step(NamedTuple):
     start: FleetStart | None  # None: the history is too short for the models
     spread_start: FleetStart | None  # the same for the disagreement's members (None: not measured)
     price: np.ndarray  # (H,)
-    t_min: torch.Tensor  # (B, H) tightened band
+    t_min: torch.Tensor  # (B, 1, H) tightened band
     t_max: torch.Tensor
-    offset: torch.Tensor  # (B,)
+    offset: torch.Tensor  # (B, 1, 1) [K]
     x0: torch.Tensor  # (B, H) warm starts
 
 
 class FleetCEM:
-    """CEM over B buildings' learned models, planned in one batch (module docstring).
+    """CEM over B buildings' planner models, planned in one batch (module docstring).
 
-    ``dynamics`` plans (e.g. ``FleetHybrid(models, members=1)``: fewer members, a cheaper
+    ``dynamics`` plans (e.g. ``FleetModels(models, members=1)``: fewer members, a cheaper
     rollout); ``spread_dynamics`` (e.g. a few members) measures the members' disagreement along
     the chosen plans (None: not measured); ``shadow`` is the fallback RC MPC of every building
     (None: the models always drive). ``planner`` holds the CEM settings (bounds are the
@@ -159,7 +95,7 @@ class FleetCEM:
 
     def __init__(
         self,
-        dynamics: FleetDynamics,
+        dynamics: FleetModels,
         spec: ControlSpec,
         *,
         planner: CEMPlanner | None = None,
@@ -167,15 +103,13 @@ class FleetCEM:
         comfort_margin_k: float = 0.01,
         trust: TrustSettings | None = None,
         shadow: FleetQPMPC | None = None,
-        spread_dynamics: FleetDynamics | None = None,
+        spread_dynamics: FleetModels | None = None,
         replan_iters: int = 2,
         rc_candidates: bool = False,
         fast_candidates: bool = False,
         rc_refresh: int = 1,
     ) -> None:
         check_heating(dynamics.eta, spec, what="the fleet's models")
-        if not 0.0 <= offset_gain <= 1.0:
-            raise InputError(f"FleetCEM.offset_gain must lie in [0, 1], got {offset_gain}")
         if not (0 <= comfort_margin_k < 1):
             raise InputError(f"FleetCEM.comfort_margin_k must lie in [0, 1) K, got {comfort_margin_k}")
         if shadow is not None and shadow.n_buildings != dynamics.n_buildings:
@@ -188,7 +122,11 @@ class FleetCEM:
             raise InputError(f"FleetCEM.rc_refresh must be a whole number >= 1, got {rc_refresh!r}")
         self.fast_candidates, self.rc_refresh = fast_candidates, rc_refresh
         self._pool: list[PoolEntry] = []
-        self.offset_gain, self.comfort_margin_k = offset_gain, comfort_margin_k
+        try:
+            self.offsets = FleetOffsetFilter(dynamics, offset_gain)
+        except InputError as exc:
+            raise InputError(f"FleetCEM.{exc}") from exc
+        self.comfort_margin_k = comfort_margin_k
         self.replan_iters = replan_iters
         if rc_candidates and shadow is None:
             raise InternalError("FleetCEM.rc_candidates needs the shadow RC MPC")
@@ -226,7 +164,7 @@ class FleetCEM:
         for f, mon in zip(self.fallbacks, self.monitors, strict=True):
             f.reset()
             mon.reset()
-        self.offset_k = torch.zeros(self.n_buildings)
+        self.offsets.reset()
         self._plans = torch.zeros(self.n_buildings, self.horizon_steps)  # the last plans (B, H)
         self._has_plan = torch.zeros(self.n_buildings, dtype=torch.bool)
         if self.shadow is not None:
@@ -246,17 +184,15 @@ class FleetCEM:
         if self.shadow is not None:
             self.shadow.observe(observations, forecast)
         histories = [o.history for o in observations]
-        depth = self.dynamics.depth
         n_past = min(len(hist["u_phys"]) for hist in histories)
-        if n_past >= depth + 2 and all(o.last is not None for o in observations):
-            self._update_offsets(observations)
+        offsets = self.offsets.update(observations)
+        for mon, inn, pe in zip(self.monitors, self.offsets.innovation_k, self.offsets.power_error_w, strict=True):
+            mon.observe(float(inn), float(pe))
         objective = HorizonObjective.from_forecast(forecast, self.spec, h)
-        margins = torch.tensor([m.margin_k(self.comfort_margin_k) for m in self.monitors])[:, None]
-        t_min = torch.as_tensor(objective.t_min_c, dtype=torch.float32)
-        t_max = torch.as_tensor(objective.t_max_c, dtype=torch.float32)
-        middle = 0.5 * (t_min + t_max)
+        margins = np.array([m.margin_k(self.comfort_margin_k) for m in self.monitors])[:, None]
+        t_min, t_max = narrowed_band(objective.t_min_c[None], objective.t_max_c[None], margins)
         start = spread_start = None
-        if n_past >= depth + 1:
+        if n_past >= self.dynamics.depth + 1:
             exog = forecast.exogenous(self.dynamics.exog_names, h)
             start = self.dynamics.prepare(histories, exog, h)
             if self.spread_dynamics is not None:
@@ -267,38 +203,12 @@ class FleetCEM:
             start=start,
             spread_start=spread_start,
             price=np.asarray(objective.price_eur_per_kwh, dtype=float),
-            t_min=torch.minimum(t_min + margins, middle),
-            t_max=torch.maximum(t_max - margins, middle),
-            offset=self.offset_k.clone(),
+            t_min=torch.as_tensor(t_min, dtype=torch.float32)[:, None],
+            t_max=torch.as_tensor(t_max, dtype=torch.float32)[:, None],
+            offset=torch.as_tensor(offsets, dtype=torch.float32)[:, None, None],
             x0=self._warm_starts(h),
         )
         self._best = None
-
-    def _update_offsets(self, observations: Sequence[Observation]) -> None:
-        """The offset filter (:class:`controllers.estimators.OffsetFilter`) of every building
-        at once: the interval that just ended replayed under the delivered and the demanded
-        power."""
-        last0 = observations[0].last
-        assert last0 is not None
-        exog = {n: np.array([getattr(last0, n)]) for n in self.dynamics.exog_names}
-        u = torch.tensor(
-            [[[o.last.u_phys], [o.last.u]] for o in observations if o.last is not None],
-            dtype=torch.float32,
-        )  # (B, 2, 1)
-        roll = self.dynamics.rollout([o.history for o in observations], u, exog, drop_last=1)
-        predicted = roll.t_r_c[:, :, 0, 0].mean(1).double()
-        delivered = roll.u_phys_w[:, :, 1, 0].mean(1).double()
-        measured = torch.tensor([o.t_r_c for o in observations], dtype=torch.float64)
-        u_phys = torch.tensor([o.last.u_phys for o in observations if o.last is not None], dtype=torch.float64)
-        error = measured - predicted
-        power_error = u_phys - delivered
-        finite = torch.isfinite(error)
-        innovation = torch.where(finite, error - self.offset_k.double(), torch.full_like(error, math.nan))
-        self.offset_k = torch.where(
-            finite, self.offset_k + self.offset_gain * (error.float() - self.offset_k), self.offset_k
-        )
-        for mon, inn, pe in zip(self.monitors, innovation.tolist(), power_error.tolist(), strict=True):
-            mon.observe(inn, pe)
 
     def _warm_starts(self, h: int) -> torch.Tensor:
         """(B, H) each building's last plan shifted one interval (its last value repeated), or
@@ -310,24 +220,28 @@ class FleetCEM:
         return x0
 
     def _costs(self, step: _Step, extra: np.ndarray, u_w: torch.Tensor) -> torch.Tensor:
-        """(B, N) objective of plans (B, N, H) under the members' mean prediction + offset;
-        the plans, their energy per interval and comfort cost join the step's pool."""
+        """(B, N) objective of plans (B, N, H) under the members' mean prediction + offset,
+        as the single controller scores them; the plans, their delivered power and comfort
+        cost join the step's pool."""
         assert step.start is not None
+        dtype = torch.float32
         roll = self.dynamics.roll(step.start, u_w)
-        t_r = roll.t_r_c.mean(1) + step.offset[:, None, None]
-        kwh = roll.u_phys_w.mean(1) * (self.spec.dt_h / 1000.0)  # (B, N, H)
-        violation = (torch.relu(step.t_min[:, None] - t_r) + torch.relu(t_r - step.t_max[:, None])).sum(-1)
-        comfort = self.spec.comfort_weight_eur_per_kh * self.spec.dt_h * violation
+        t_r = roll.t_r_c.to(dtype).mean(1) + step.offset
+        u_phys = roll.u_phys_w.to(dtype).mean(1)  # (B, N, H)
+        spec = self.spec
+        comfort = comfort_cost_torch(t_r, step.t_min, step.t_max, spec.dt_h, spec.comfort_weight_eur_per_kh)
+        price = torch.as_tensor(step.price + extra, dtype=dtype)
         if self.replan_iters == 0:
-            self._pool.append((u_w, kwh, comfort))
-        return self._pool_costs(step, extra, kwh, comfort)
+            self._pool.append((u_w, u_phys, comfort.sum(-1)))
+        cost = energy_cost_eur(u_phys, price, spec.dt_h)
+        cost += comfort
+        return cost.sum(-1)
 
-    @staticmethod
-    def _pool_costs(step: _Step, extra: np.ndarray, kwh: torch.Tensor, comfort: torch.Tensor) -> torch.Tensor:
-        """(B, N) objective of plans whose energy (B, N, H) [kWh] and comfort cost (B, N) are
-        known, under the step's prices plus ``extra`` (H,)."""
+    def _pool_costs(self, step: _Step, extra: np.ndarray, u_phys: torch.Tensor, comfort: torch.Tensor) -> torch.Tensor:
+        """(B, N) objective of plans whose delivered power (B, N, H) [W] and comfort cost
+        (B, N) are known, under the step's prices plus ``extra`` (H,)."""
         price = torch.as_tensor(step.price + extra, dtype=torch.float32)
-        return (kwh * price).sum(-1) + comfort
+        return energy_cost_eur(u_phys, price, self.spec.dt_h).sum(-1) + comfort
 
     def plan(self, extra_price_eur_per_kwh: np.ndarray | None = None) -> FleetPlan:
         """Every building's CEM plan under the forecast plus the extra price (H,); a second
@@ -365,8 +279,8 @@ class FleetCEM:
                 candidates = torch.as_tensor(
                     np.where(self._rc_valid[:, None], self._rc_plans, x0.numpy()), dtype=x0.dtype
                 )[:, None]
-            plans, costs = optimize_fleet(
-                planner, lambda u: self._costs(step, extra, u), x0, self.generators, candidates
+            plans, costs = planner.optimize_batch(
+                lambda u: self._costs(step, extra, u), x0, self.generators, candidates
             )
         self._best = plans
         ok = torch.isfinite(costs).numpy()
@@ -376,8 +290,8 @@ class FleetCEM:
         """Every building's best plan of the step's pool under the prices plus ``extra``."""
         if len(self._pool) > 1:  # joined once: a step's further re-plans read it as it is
             self._pool = [cast(PoolEntry, tuple(torch.cat(parts, dim=1) for parts in zip(*self._pool, strict=True)))]
-        plans, kwh, comfort = self._pool[0]
-        costs = self._pool_costs(step, extra, kwh, comfort).double()
+        plans, u_phys, comfort = self._pool[0]
+        costs = self._pool_costs(step, extra, u_phys, comfort).double()
         costs = torch.where(torch.isfinite(costs), costs, torch.full_like(costs, math.inf))
         best = costs.argmin(dim=1)
         rows = torch.arange(plans.shape[0])

@@ -28,6 +28,8 @@ __all__ = [
     "OPEN_BAND_C",
     "HorizonObjective",
     "band_violation_k",
+    "comfort_cost_torch",
+    "cost_torch",
     "energy_cost_eur",
     "narrowed",
     "narrowed_band",
@@ -48,9 +50,12 @@ def energy_cost_eur(u_phys_w: Any, price_eur_per_kwh: Any, dt_h: float) -> Any:
     return u_phys_w * (dt_h / 1000.0) * price_eur_per_kwh
 
 
-def narrowed_band(t_min_c: np.ndarray, t_max_c: np.ndarray, margin_k: float) -> tuple[np.ndarray, np.ndarray]:
+def narrowed_band(
+    t_min_c: np.ndarray, t_max_c: np.ndarray, margin_k: float | np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """The band ``(t_min_c, t_max_c)`` [C] narrowed by ``margin_k`` [K] on each side, to its
-    middle where it is narrower than twice the margin."""
+    middle where it is narrower than twice the margin (arrays broadcasting: a fleet's margins
+    are each building's)."""
     middle = 0.5 * (t_min_c + t_max_c)
     return np.minimum(t_min_c + margin_k, middle), np.maximum(t_max_c - margin_k, middle)
 
@@ -150,11 +155,33 @@ class HorizonObjective:
         import torch
 
         dtype = t_r_c.dtype
-        price = torch.as_tensor(self.price_eur_per_kwh, dtype=dtype)
-        t_min = torch.as_tensor(self.t_min_c, dtype=dtype)
-        t_max = torch.as_tensor(self.t_max_c, dtype=dtype)
-        violation = torch.relu(t_min - t_r_c) + torch.relu(t_r_c - t_max)
-        step_cost = energy_cost_eur(u_phys_w, price, self.dt_h) + (
-            self.comfort_weight_eur_per_kh * self.dt_h * violation
+        price, t_min, t_max = (
+            torch.as_tensor(a, dtype=dtype) for a in (self.price_eur_per_kwh, self.t_min_c, self.t_max_c)
         )
-        return step_cost.sum(dim=-1)
+        return cost_torch(u_phys_w, t_r_c, price, t_min, t_max, self.dt_h, self.comfort_weight_eur_per_kh)
+
+
+def comfort_cost_torch(
+    t_r_c: torch.Tensor, t_min_c: torch.Tensor, t_max_c: torch.Tensor, dt_h: float, comfort_weight_eur_per_kh: float
+) -> torch.Tensor:
+    """The comfort term of each interval (..., H) [EUR] of end-of-interval T_r (..., H) in a
+    band (tensors broadcasting against it: a fleet's bands are each building's)."""
+    violation = (t_min_c - t_r_c).relu_() + (t_r_c - t_max_c).relu_()
+    return violation.mul_(comfort_weight_eur_per_kh * dt_h)  # in place: a fleet's are large
+
+
+def cost_torch(
+    u_phys_w: torch.Tensor,
+    t_r_c: torch.Tensor,
+    price_eur_per_kwh: torch.Tensor,
+    t_min_c: torch.Tensor,
+    t_max_c: torch.Tensor,
+    dt_h: float,
+    comfort_weight_eur_per_kh: float,
+) -> torch.Tensor:
+    """The objective (...,) [EUR] of predictions (..., H) under a price and band (tensors
+    broadcasting against them; :meth:`HorizonObjective.cost_torch` is one building's)."""
+    step_cost = energy_cost_eur(u_phys_w, price_eur_per_kwh, dt_h) + comfort_cost_torch(
+        t_r_c, t_min_c, t_max_c, dt_h, comfort_weight_eur_per_kh
+    )
+    return step_cost.sum(dim=-1)

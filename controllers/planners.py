@@ -17,26 +17,30 @@ Actions are either continuous in ``[lower, upper]`` or, with ``binary=True``, on
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import NamedTuple, Protocol
 
 import torch
 
-from pinn_mpc.errors import InputError
+from pinn_mpc.errors import InputError, InternalError
 
 __all__ = [
+    "BatchObjective",
     "CEMPlanner",
     "Objective",
     "PlanResult",
     "Planner",
     "RandomShootingPlanner",
     "colored_noise",
+    "colored_noise_batch",
     "move_blocks",
 ]
 
 #: Costs (N,) of a batch of action sequences (N, H).
 Objective = Callable[[torch.Tensor], torch.Tensor]
+#: Costs (B, N) of B buildings' batches of action sequences (B, N, H).
+BatchObjective = Callable[[torch.Tensor], torch.Tensor]
 
 
 class PlanResult(NamedTuple):
@@ -74,10 +78,15 @@ def _check_beta(name: str, beta: float) -> None:
 
 def _evaluate(objective: Objective, candidates: torch.Tensor) -> torch.Tensor:
     """Costs (N,) with non-finite values replaced by +inf so they rank last."""
-    costs = objective(candidates).reshape(-1).to(torch.float64)
-    if costs.shape[0] != candidates.shape[0]:
+    return _evaluate_batch(lambda u: objective(u[0])[None], candidates[None])[0]
+
+
+def _evaluate_batch(objective: BatchObjective, candidates: torch.Tensor) -> torch.Tensor:
+    """Costs (B, N) of candidates (B, N, H), non-finite values replaced by +inf."""
+    costs = objective(candidates).reshape(candidates.shape[0], -1).to(torch.float64)
+    if costs.shape[1] != candidates.shape[1]:
         raise ValueError(
-            f"objective returned {costs.shape[0]} costs for {candidates.shape[0]} candidates"
+            f"objective returned {costs.shape[1]} costs for {candidates.shape[1]} candidates"
         )
     return torch.where(torch.isfinite(costs), costs, torch.full_like(costs, math.inf))
 
@@ -89,9 +98,18 @@ def colored_noise(
 
     ``beta=0`` is white noise; larger values correlate neighbouring steps (iCEM, Pinneri et
     al. 2020), which explores slow changes of power (pre-heating, coasting) far better than
-    independent steps. Every entry has unit variance.
+    independent steps. Every entry has unit variance. The one-building case of
+    :func:`colored_noise_batch`.
     """
-    white = torch.randn((n, h), generator=generator, dtype=dtype)
+    return colored_noise_batch(n, h, beta, (generator,), dtype)[0]
+
+
+def colored_noise_batch(
+    n: int, h: int, beta: float, generators: Sequence[torch.Generator], dtype: torch.dtype
+) -> torch.Tensor:
+    """:func:`colored_noise` of each of B generators, (B, n, h): the white noise drawn
+    generator by generator (each building's own numbers), coloured in one batched FFT."""
+    white = torch.stack([torch.randn((n, h), generator=g, dtype=dtype) for g in generators])
     if beta == 0 or h < 2:
         return white
     freqs = torch.fft.rfftfreq(h, dtype=dtype)
@@ -100,7 +118,7 @@ def colored_noise(
     scale[0] = scale[1]
     # A circular convolution of white noise with kernel irfft(scale): variance sum(kernel^2).
     kernel_norm = torch.linalg.vector_norm(torch.fft.irfft(scale, n=h))
-    return torch.fft.irfft(torch.fft.rfft(white, dim=1) * scale, n=h, dim=1) / kernel_norm
+    return torch.fft.irfft(torch.fft.rfft(white, dim=-1) * scale, n=h, dim=-1) / kernel_norm
 
 
 def _snap(x: torch.Tensor, lower: float, upper: float) -> torch.Tensor:
@@ -238,9 +256,34 @@ class CEMPlanner:
     def optimize(
         self, objective: Objective, x0: torch.Tensor, generator: torch.Generator
     ) -> PlanResult:
-        """x0 (H,) [W] -> best sequence after ``n_iters`` objective calls of ``n_samples`` each."""
-        h, dtype = x0.shape[0], x0.dtype
-        span = self.upper - self.lower
+        """x0 (H,) [W] -> best sequence after ``n_iters`` objective calls of ``n_samples`` each:
+        the one-building case of :meth:`optimize_batch`."""
+        plans, costs = self.optimize_batch(lambda u: objective(u[0])[None], x0[None], (generator,))
+        return PlanResult(plans[0], float(costs[0]), self.n_iters, self.n_iters * self.n_samples)
+
+    def optimize_batch(
+        self,
+        objective: BatchObjective,
+        x0: torch.Tensor,
+        generators: Sequence[torch.Generator],
+        candidates: torch.Tensor | None = None,
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """CEM for B buildings at once: ``objective`` maps plans (B, N, H) to costs (B, N);
+        ``x0`` (B, H) the warm starts; building b draws its samples from ``generators[b]``
+        alone, so its plan does not depend on the others'. ``candidates`` (B, C, H) are
+        scored in the first iteration in place of C of the samples (e.g. another planner's
+        plans: the best of them is kept if nothing sampled beats it; continuous actions only).
+        Returns (plans (B, H), costs (B,) float64)."""
+        b, h = x0.shape
+        dtype, n, span = x0.dtype, self.n_samples, self.upper - self.lower
+        if len(generators) != b:
+            raise InternalError(f"CEMPlanner: {len(generators)} generators for {b} warm starts")
+        if candidates is not None and (
+            self.binary or candidates.shape[0] != b or candidates.shape[2] != h or candidates.shape[1] > n - 2
+        ):
+            raise InternalError(
+                f"CEMPlanner: candidates must be (B, at most N - 2, H) of continuous actions, got {tuple(candidates.shape)}"
+            )
         if self.binary:
             best = _snap(x0, self.lower, self.upper)
             on = ((x0 - self.lower) / span).clamp(0.0, 1.0)
@@ -250,27 +293,31 @@ class CEMPlanner:
             best = x0.clamp(self.lower, self.upper)
             mean = best.clone()
             std = torch.full_like(mean, self.init_std_frac * span)
-        best_cost = math.inf
-        for _ in range(self.n_iters):
+        best_cost = torch.full((b,), math.inf, dtype=torch.float64)
+        rows = torch.arange(b)
+        for it in range(self.n_iters):
             if self.binary:
-                r = torch.rand((self.n_samples, h), generator=generator, dtype=dtype)
-                samples = torch.where(r < mean, self.upper, self.lower).to(dtype)
-                samples[0] = best
+                r = torch.stack([torch.rand((n, h), generator=g, dtype=dtype) for g in generators])
+                samples = torch.where(r < mean[:, None], self.upper, self.lower).to(dtype)
+                samples[:, 0] = best
             else:
-                noise = colored_noise(self.n_samples, h, self.noise_beta, generator, dtype)
-                samples = (mean + std * noise).clamp(self.lower, self.upper)
-                samples[0] = best
-                samples[1] = mean
-            costs = _evaluate(objective, samples)
-            order = torch.argsort(costs)
-            if float(costs[order[0]]) <= best_cost:
-                best_cost = float(costs[order[0]])
-                best = samples[order[0]].clone()
-            elites = samples[order[: self.n_elites]]
+                noise = colored_noise_batch(n, h, self.noise_beta, generators, dtype)
+                samples = (mean[:, None] + std[:, None] * noise).clamp(self.lower, self.upper)
+                samples[:, 0] = best
+                samples[:, 1] = mean
+                if candidates is not None and it == 0:
+                    samples[:, 2 : 2 + candidates.shape[1]] = candidates.to(dtype).clamp(self.lower, self.upper)
+            costs = _evaluate_batch(objective, samples)
+            order = torch.argsort(costs, dim=1)
+            top = costs[rows, order[:, 0]]
+            better = top <= best_cost
+            best_cost = torch.where(better, top, best_cost)
+            best = torch.where(better[:, None], samples[rows, order[:, 0]], best)
+            elites = samples[rows[:, None], order[:, : self.n_elites]]  # (B, E, H)
             if self.binary:
                 freq = (elites - self.lower) / span
-                mean = self.alpha * mean + (1 - self.alpha) * freq.mean(dim=0)
+                mean = self.alpha * mean + (1 - self.alpha) * freq.mean(dim=1)
             else:
-                mean = self.alpha * mean + (1 - self.alpha) * elites.mean(dim=0)
-                std = self.alpha * std + (1 - self.alpha) * elites.std(dim=0)
-        return PlanResult(best, best_cost, self.n_iters, self.n_iters * self.n_samples)
+                mean = self.alpha * mean + (1 - self.alpha) * elites.mean(dim=1)
+                std = self.alpha * std + (1 - self.alpha) * elites.std(dim=1)
+        return best, best_cost

@@ -41,7 +41,6 @@ from scenarios.running.datagen import generate
 from scenarios.running.factory import make_controller
 
 if TYPE_CHECKING:
-    from pinn_mpc.models.learned import LearnedModel
     from pinn_mpc.models.rollout import FittedModel
 
 __all__ = ["closed_loop", "simulate"]
@@ -267,7 +266,6 @@ def _fleet_closed_loop(a: argparse.Namespace, scenario: Scenario, inputs: dict[s
         from scenarios.fleets.training import load_fleet_models
 
         models, fleet = load_fleet_models(a.model)
-        hybrids = _check_fleet_hybrids(a.model, models)
         if fleet is None:
             raise InputError(
                 f"--model {a.model}: the buildings' parameters are unknown (the training data "
@@ -280,7 +278,7 @@ def _fleet_closed_loop(a: argparse.Namespace, scenario: Scenario, inputs: dict[s
             raise InputError("--spread does not apply with --model: the buildings are the models' own")
         _check_fleet_models_fit(a.model, models, scenario)
         candidates = a.rc_candidates == "on" or (a.rc_candidates == "auto" and a.cap_kw is not None)
-        planner = learned_fleet_planner(hybrids, rc_candidates=candidates)
+        planner = learned_fleet_planner(models, rc_candidates=candidates)
     elif a.rc_candidates != "auto":
         raise InputError("--rc-candidates applies to the batched cem over learned models: add --model DIR")
     # One building's planner rolls out small tensors (one thread is fastest); a fleet's batched
@@ -360,28 +358,6 @@ def _check_fleet_options(a: argparse.Namespace, inputs: dict[str, PathsArg], *, 
     check_writable(figure)
     check_distinct(inputs=inputs, outputs={"--json": a.json, "figure": figure})
     return figure
-
-
-def _check_fleet_hybrids(root: str, models: list[FittedModel]) -> list[LearnedModel]:
-    """The batched fleet plans over hybrids only: ``models``, each a hybrid, or refused,
-    naming the first building, a per-building directory where ``train`` chose (or was told)
-    another model."""
-    from pinn_mpc.choices import DEFAULT_ARCH
-    from pinn_mpc.models.learned import LearnedModel
-    from pinn_mpc.models.registry import BASELINES
-
-    hybrids = [m for m in models if isinstance(m, LearnedModel) and m.family == DEFAULT_ARCH]
-    if len(hybrids) == len(models):
-        return hybrids
-    b, model = next((b, m) for b, m in enumerate(models) if m.family != DEFAULT_ARCH)
-    kind = "an ARX" if model.family in BASELINES else f"a {model.family}"
-    others = len(models) - len(hybrids) - 1
-    also = f" (and {others} more of the {len(models)} buildings)" if others else ""
-    raise InputError(
-        f"--model {root}: building {b}'s model is {kind}{also}; the batched fleet cem plans "
-        f"over {DEFAULT_ARCH} models: train them with `train --per-building --arch "
-        f"{DEFAULT_ARCH}` into another --out"
-    )
 
 
 def _check_fleet_models_fit(root: str, models: Sequence[FittedModel], scenario: Scenario) -> None:

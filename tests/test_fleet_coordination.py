@@ -107,9 +107,9 @@ def test_a_fast_candidate_plan_is_near_the_optimum_and_leaves_the_exact_settings
     forecast = loop.forecast()
     optimum = exact.plan()
     fast = planner.plan(fast=True)
-    assert planner._solvers[0].settings.eps_abs == CANDIDATE_OPTIONS["eps_abs"]
+    assert planner._solver._solvers[0].settings.eps_abs == CANDIDATE_OPTIONS["eps_abs"]
     again = planner.plan()  # the exact settings are back: the plan of a planner never run fast
-    settings = planner._solvers[0].settings
+    settings = planner._solver._solvers[0].settings
     assert (settings.eps_abs, settings.polishing, settings.max_iter) == (1e-3, True, 10000)
     fresh = FleetQPMPC(fleet, spec)
     _observe(fresh, loop)
@@ -129,13 +129,13 @@ def test_a_block_left_unsolved_for_steps_starts_from_its_solution_shifted_as_man
     h = planner.horizon_steps
     _observe(planner, loop)
     plan = planner.plan()
-    heat = planner._solutions[1][0][:h].copy()  # building 1's planned heat
+    heat = planner._solver._solutions[1][0][:h].copy()  # building 1's planned heat
     skip = np.array([True, False])
     for k in range(1, 4):
         decision = planner.commit(plan)
         loop.step(decision.u_w, decision_s=np.zeros(2), fallback=decision.fallback)
         _observe(planner, loop)
-        np.testing.assert_array_equal(planner._solutions[1][0][: h - k], heat[k:])
+        np.testing.assert_array_equal(planner._solver._solutions[1][0][: h - k], heat[k:])
         plan = planner.plan(only=skip)  # building 1 is not solved
         assert plan.ok.tolist() == [True, False]
 

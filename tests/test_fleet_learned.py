@@ -10,7 +10,7 @@ import torch
 from controllers.planners import CEMPlanner
 from pinn_mpc import TrainConfig, train_model
 from pinn_mpc.errors import InputError, InternalError
-from pinn_mpc.models.fleet import FEW_PLANS, FleetHybrid
+from pinn_mpc.models.fleet import FEW_PLANS, FleetModels
 from pinn_mpc.simulator import draw_fleet
 from scenarios.fleets.aggregator import cap_in_force, learned_fleet_planner, run_coordinated_fleet
 from scenarios.inputs.scenario_file import get_scenario
@@ -51,8 +51,8 @@ def test_batched_rollout_equals_each_models_rollout(fleet_models):
     h = 48
     exog = forecast.exogenous(models[0].exog_names, h)
     u = torch.rand((2, 9, h), generator=torch.Generator().manual_seed(0)) * scenario.sim.u_max_w
-    batched = FleetHybrid(models).rollout([o.history for o in observations], u, exog)
-    first = FleetHybrid(models, members=1).rollout([o.history for o in observations], u, exog)
+    batched = FleetModels(models).rollout([o.history for o in observations], u, exog)
+    first = FleetModels(models, members=1).rollout([o.history for o in observations], u, exog)
     for i, model in enumerate(models):
         own = model.rollout(observations[i].history, u[i], exog)
         assert batched.t_r_c[i].shape == own.t_r_c.shape == (3, 9, h)
@@ -63,7 +63,7 @@ def test_batched_rollout_equals_each_models_rollout(fleet_models):
         torch.testing.assert_close(first.t_r_c[i], own.t_r_c[:1], atol=1e-4, rtol=0)
     # A rollout of a few plans (FEW_PLANS: the first layer row by row) is the same rollout.
     for n in (1, FEW_PLANS):
-        few = FleetHybrid(models).rollout([o.history for o in observations], u[:, :n], exog)
+        few = FleetModels(models).rollout([o.history for o in observations], u[:, :n], exog)
         torch.testing.assert_close(few.t_r_c, batched.t_r_c[:, :, :n], atol=1e-4, rtol=0)
         torch.testing.assert_close(few.u_phys_w, batched.u_phys_w[:, :, :n], atol=0.05, rtol=0)
     # The two buildings' models differ: a mixed-up batch would not pass the comparison.
@@ -71,8 +71,6 @@ def test_batched_rollout_equals_each_models_rollout(fleet_models):
 
 
 def test_batched_cem_equals_the_cem_planner_building_by_building(fleet_models):
-    from controllers.fleet_sampling import optimize_fleet
-
     scenario, fleet, models = fleet_models
     observations, forecast = _observations(scenario, fleet)
     h = 24
@@ -86,19 +84,17 @@ def test_batched_cem_equals_the_cem_planner_building_by_building(fleet_models):
 
     x0 = torch.full((2, h), 3000.0)
     seeds = (5, 7)
-    plans, costs = optimize_fleet(
-        planner, lambda u: torch.stack([cost(i, u[i]) for i in range(2)]), x0,
+    plans, costs = planner.optimize_batch(
+        lambda u: torch.stack([cost(i, u[i]) for i in range(2)]), x0,
         [torch.Generator().manual_seed(s) for s in seeds],
     )
-    for i, s in enumerate(seeds):
+    for i, s in enumerate(seeds):  # one building's plan is the single planner's, bit for bit
         alone = planner.optimize(lambda u, i=i: cost(i, u), x0[i], torch.Generator().manual_seed(s))
-        torch.testing.assert_close(plans[i], alone.plan, atol=1e-3, rtol=0)
-        assert float(costs[i]) == pytest.approx(alone.cost, rel=1e-6)
+        assert torch.equal(plans[i], alone.plan)
+        assert float(costs[i]) == alone.cost
 
 
 def test_a_candidate_plan_is_scored_and_kept_unless_a_sample_beats_it():
-    from controllers.fleet_sampling import optimize_fleet
-
     planner = CEMPlanner(lower=0.0, upper=10.0, n_samples=8, n_iters=2)
     h = 6
     target = torch.tensor([[1.0, 9.0, 2.0, 8.0, 3.0, 7.0], [5.0, 5.0, 0.0, 0.0, 10.0, 10.0]])
@@ -108,40 +104,47 @@ def test_a_candidate_plan_is_scored_and_kept_unless_a_sample_beats_it():
 
     x0 = torch.full((2, h), 5.0)
     generators = lambda: [torch.Generator().manual_seed(s) for s in (1, 2)]  # noqa: E731
-    without, _ = optimize_fleet(planner, cost, x0, generators())
+    without, _ = planner.optimize_batch(cost, x0, generators())
     assert float(cost(without[:, None]).max()) > 1.0  # two iterations of 8 samples do not find it
-    plans, costs = optimize_fleet(planner, cost, x0, generators(), candidates=target[:, None])
+    plans, costs = planner.optimize_batch(cost, x0, generators(), candidates=target[:, None])
     torch.testing.assert_close(plans, target)
     assert float(costs.max()) == 0.0
     with pytest.raises(InternalError, match="candidates must be"):
-        optimize_fleet(planner, cost, x0, generators(), candidates=torch.zeros(2, 7, h))
+        planner.optimize_batch(cost, x0, generators(), candidates=torch.zeros(2, 7, h))
 
 
 def test_more_members_than_the_ensembles_have_are_refused(fleet_models):
     _, _, models = fleet_models
     with pytest.raises(InputError, match="members must lie in 1..3"):
-        FleetHybrid(models, members=4)
+        FleetModels(models, members=4)
 
 
-@pytest.mark.slow
-def test_batched_cem_over_learned_models_keeps_comfort_and_a_cap(fleet_models):
-    scenario, fleet, models = fleet_models
+def _keeps_comfort_and_a_cap(scenario, fleet, models, discomfort_kh: float, **options) -> None:
+    """The batched cem over ``models`` (one per building of ``fleet``; ``options`` of
+    ``learned_fleet_planner``) free and under a cap of 60 % of its free peak in an evening
+    window: comfort within ``discomfort_kh`` per building a day, no fallback, and the cap held."""
     free = run_coordinated_fleet(
-        scenario, learned_fleet_planner(models), n_buildings=2, days=1, seed=COLD_SEED, fleet=fleet
+        scenario, learned_fleet_planner(models, **options), n_buildings=len(fleet), days=1,
+        seed=COLD_SEED, fleet=fleet,
     )
     assert free.info["controller"] == "cem" and free.totals["fallbacks"] == 0
-    assert free.totals["discomfort_kh"] / 2 < 1.0
+    assert free.totals["discomfort_kh"] / len(fleet) < discomfort_kh
     assert all("model_fallback_steps" in k for k in free.kpis)
     window = "17:00-19:00"
     in_window = ~np.isnan(cap_in_force(free.times, {"kw": 1.0, "window": window}))
     cap_kw = 0.6 * free.aggregate_u_phys_w[in_window].max() / 1000.0
     capped = run_coordinated_fleet(
-        scenario, learned_fleet_planner(models), n_buildings=2, days=1, seed=COLD_SEED,
-        fleet=fleet, cap_kw=cap_kw, cap_window=window,
+        scenario, learned_fleet_planner(models, **options), n_buildings=len(fleet), days=1,
+        seed=COLD_SEED, fleet=fleet, cap_kw=cap_kw, cap_window=window,
     )
     assert capped.cap is not None and capped.cap["intervals"] == 4
     assert capped.cap["intervals_over"] == 0
     assert np.all(capped.aggregate_u_phys_w[in_window] <= cap_kw * 1000.0 + 1.0)
+
+
+@pytest.mark.slow
+def test_batched_cem_over_learned_models_keeps_comfort_and_a_cap(fleet_models):
+    _keeps_comfort_and_a_cap(*fleet_models, discomfort_kh=1.0)
 
 
 def test_a_batched_rollout_that_would_not_fit_is_refused_before_it_starts():
@@ -233,3 +236,86 @@ def test_rc_candidates_refreshed_in_turn_keep_each_buildings_last_plan_shifted(f
     assert planner._rc_valid.all()
     with pytest.raises(InputError, match="rc_refresh must be a whole number >= 1"):
         _observed_candidate_planner(fleet_models, rc_refresh=0)
+
+
+@pytest.fixture(scope="module")
+def other_families():
+    """Two buildings of a spread fleet, each with a physics-informed ARX and with a small
+    PhysNet from 5 days of its own data."""
+    from pinn_mpc.models.arx import fit_linear
+
+    scenario = get_scenario("winter_household")
+    fleet = draw_fleet(scenario.sim.params, 2, spread=0.2, rng=np.random.default_rng(0))
+    data = generate(scenario, days=5, seed=0, policy="random-level", n_buildings=2, fleet=fleet)
+    frames = [part.drop(columns=["building", "T_m"]).reset_index(drop=True) for _, part in data.groupby("building")]
+    config = TrainConfig(n_seeds=2, epochs=8, eta=scenario.sim.params.eta, u_max_w=scenario.sim.u_max_w)
+    return scenario, fleet, {
+        "parx": [fit_linear("parx", frame) for frame in frames],
+        "physnet": [train_model(frame, arch="physnet", config=config, progress=False) for frame in frames],
+    }
+
+
+@pytest.mark.parametrize("family", ["parx", "physnet"])
+def test_a_fleet_of_any_family_rolls_out_as_each_building_model(other_families, family):
+    """Buildings whose models do not stack roll out through their own models' rollouts, so
+    each building's rollout is its model's exactly; a mixed fleet keeps the building order."""
+    scenario, fleet, families = other_families
+    models = families[family]
+    observations, forecast = _observations(scenario, fleet)
+    h = 24
+    fleet_models = FleetModels([*models, families["physnet" if family == "parx" else "parx"][0]], members=1)
+    exog = forecast.exogenous(fleet_models.exog_names, h)
+    u = torch.rand((3, 5, h), generator=torch.Generator().manual_seed(0)) * scenario.sim.u_max_w
+    histories = [o.history for o in observations]
+    roll = fleet_models.rollout([*histories, histories[0]], u, exog)
+    assert roll.t_r_c.shape == (3, 1, 5, h)
+    for i, model in enumerate([*models, fleet_models.models[2]]):
+        own = model.rollout(histories[i % 2], u[i], {n: exog[n] for n in model.exog_names})
+        assert torch.equal(roll.t_r_c[i], own.t_r_c[:1].to(roll.t_r_c.dtype))
+        assert torch.equal(roll.u_phys_w[i], own.u_phys_w[:1].to(roll.u_phys_w.dtype))
+
+
+@pytest.mark.parametrize("family", ["hybrid", "parx", "physnet"])
+def test_a_one_building_fleet_decides_as_the_single_cem(fleet_models, other_families, family):
+    """The batched cem of one building (no polish, no RC fallback: what the fleet does not
+    batch) makes the single cem's decisions, step for step in closed loop: one planner
+    (:meth:`CEMPlanner.optimize_batch`), one rollout (a fleet of one building is its model),
+    one offset filter and objective."""
+    from controllers.fleet_sampling import FleetCEM
+    from controllers.sampling import CEM
+
+    scenario, fleet, families = other_families
+    model = fleet_models[2][0] if family == "hybrid" else families[family][0]
+    spec = scenario.control_spec()
+    single = CEM(model, spec, n_samples=24, n_iters=2, polish_iters=0)
+    batched = FleetCEM(FleetModels([model]), spec, planner=single.planner)
+    single.reset(3)
+    batched.reset(3)
+    batched.generators[0].manual_seed(3)
+    run = prepare_run(scenario, days=1, seed=COLD_SEED, warmup_steps=12, weather_part="test")
+    loop = build_loop(scenario, run, seed=0, fleet=fleet[:1])
+    rng = np.random.default_rng(1)
+    decisions = []
+    for k in range(30):
+        obs, forecast = loop.observation(building=0), loop.forecast()
+        u = single.act(obs, forecast)
+        batched.observe([obs], forecast)
+        decision = batched.commit(batched.plan())
+        decisions.append((u, float(decision.u_w[0]), single.last_stats.fallback, bool(decision.fallback[0])))
+        applied = rng.uniform(0, spec.u_max_w) if k < 12 else u  # a varied history first
+        loop.step(np.array([applied]), decision_s=np.zeros(1), fallback=np.zeros(1, dtype=bool))
+    assert sum(not fell for *_, fell, _ in decisions) >= 8  # the model planned most steps
+    for u_single, u_fleet, fell_single, fell_fleet in decisions:
+        assert (u_fleet, fell_fleet) == (u_single, fell_single)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("family", ["parx", "physnet"])
+def test_a_fleet_of_physics_informed_arx_or_physnet_buildings_keeps_a_cap(other_families, family):
+    """A fleet of the other families runs as a fleet of hybrids does, free and under a cap. The
+    models drive: a PhysNet of a few epochs on 5 days is rightly distrusted by its guard (its
+    two members disagree by more than the limit), whose RC MPC would decide every step, so
+    the PhysNet fleet plans without the RC fallback."""
+    scenario, fleet, families = other_families
+    options = {"rc_fallback": family != "physnet"}
+    _keeps_comfort_and_a_cap(scenario, fleet, families[family], discomfort_kh=1.0, **options)

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import torch
 
-from pinn_mpc.data import read_fleet_timeseries, write_timeseries
+from pinn_mpc.data import read_fleet_timeseries, write_fleet_params, write_timeseries
 from pinn_mpc.errors import InputError
 from pinn_mpc.io import atomic_write_json
 from pinn_mpc.physics import params_from_summary
@@ -154,17 +154,18 @@ def test_documented_fleet_commands_run_as_written(tmp_path, capsys, monkeypatch)
 
 @pytest.mark.slow
 def test_per_building_arx_models_and_a_failed_run_that_leaves_nothing_behind(tmp_path, capsys, monkeypatch):
-    """--arch parx per building writes each building's arx.json (the batched fleet, which
-    plans over hybrids, says so in one line); a run whose every building fails leaves no
-    fleet.json, and an earlier such run's fleet.json without models blocks no rerun."""
+    """--arch parx per building writes each building's arx.json, and the batched fleet cem
+    plans over them; a run whose every building fails leaves no fleet.json, and an earlier
+    such run's fleet.json without models blocks no rerun."""
     monkeypatch.chdir(tmp_path)
-    data, _ = _fleet_data(days=6)
+    data, fleet = _fleet_data(days=6)
     write_timeseries(data, tmp_path / "fleet.csv")
+    write_fleet_params(tmp_path / "fleet.csv", fleet, spread=0.2)  # for the closed loop below
     base = ["train", "--data", "fleet.csv", "--per-building", "--workers", "1"]
     # A cooling actuator on heated data: the physics-informed ARX cannot fit it.
     assert main([*base, "--arch", "parx", "--eta", "-3", "--out", "m"]) == 2
     assert "training building" in capsys.readouterr().err
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["fleet.csv"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["fleet.csv", "fleet.fleet.json"]
     (tmp_path / "m" / "buildings").mkdir(parents=True)  # as such a run left it before
     atomic_write_json(tmp_path / "m" / "fleet.json", {"arch": "auto", "config": {}, "buildings": [0, 1],
                                                       "data_sha256": {"0": "x", "1": "y"}})
@@ -175,7 +176,6 @@ def test_per_building_arx_models_and_a_failed_run_that_leaves_nothing_behind(tmp
     assert [type(m).__name__ for m in models] == ["ARXModel", "ARXModel"]
     capsys.readouterr()
     assert main(["closed-loop", "--scenario", "winter_household", "--controller", "cem", "--model", "m",
-                 "--buildings", "2", "--days", "1", "--json", "k.json"]) == 2
-    err = capsys.readouterr().err.strip()
-    assert "building 0's model is an ARX (and 1 more of the 2 buildings)" in err
-    assert "--arch hybrid" in err and len(err.splitlines()) == 1
+                 "--buildings", "2", "--days", "1", "--json", "k.json"]) == 0
+    fleet = json.loads((tmp_path / "k.json").read_text())
+    assert fleet["fleet"]["controller"] == "cem" and fleet["fleet"]["n_buildings"] == 2

@@ -230,7 +230,7 @@ def test_hybrid_without_corrections_is_the_exact_2r2c() -> None:
     """True parameters, no residual, backup far away: the window observer recovers T_m and the
     rollout is the ZOH 2R2C (RCBatchModel started at the true T_m) up to that T_m error; so is
     the model's rollout as a fleet of one building."""
-    from pinn_mpc.models.fleet import FleetHybrid
+    from pinn_mpc.models.fleet import FleetModels
     from pinn_mpc.models.rc import RCBatchModel
 
     truth, df = _winter_data(8, 0)
@@ -262,7 +262,7 @@ def test_hybrid_without_corrections_is_the_exact_2r2c() -> None:
     torch.testing.assert_close(roll.u_phys_w, ref.u_phys_w.expand(2, -1, -1), atol=0.5, rtol=0)
     assert float((roll.t_r_c - ref.t_r_c).abs().max()) <= t_m_error + 1e-3
     # The one-building fleet is the same 2R2C through the same recursion.
-    fleet = FleetHybrid([model]).rollout([history], u[None], exog)
+    fleet = FleetModels([model]).rollout([history], u[None], exog)
     for got, want in zip(fleet, roll, strict=True):
         torch.testing.assert_close(got[0], want, atol=1e-4, rtol=1e-6)
 

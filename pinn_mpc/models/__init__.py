@@ -14,8 +14,8 @@
   :class:`ModelRecord`).
 - The other planner models, each declaring :class:`BatchDynamics` as :class:`LearnedModel`
   does: :mod:`~pinn_mpc.models.rc` (the 2R2C), :mod:`~pinn_mpc.models.arx` (the linear ARX
-  baseline); and :mod:`~pinn_mpc.models.fleet` (many buildings' hybrids in one batch,
-  declaring :class:`~pinn_mpc.models.fleet.FleetDynamics`).
+  baseline); and :mod:`~pinn_mpc.models.fleet` (many buildings' models of any kind rolled out
+  together, :class:`~pinn_mpc.models.fleet.FleetModels`).
 
 Every layer holds the weights of all M members and applies them in one batched product, so an
 ensemble trains and rolls out as one model. Names are imported on first use

@@ -11,7 +11,7 @@ implementations.
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Hashable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, NamedTuple
 
@@ -21,10 +21,11 @@ from torch import nn
 
 from pinn_mpc import physics
 from pinn_mpc.actuator import CopCurve
+from pinn_mpc.errors import InternalError
 from pinn_mpc.features import FeatureConfig
 from pinn_mpc.models.physics_block import Physics
 from pinn_mpc.models.registry import ArchSpec
-from pinn_mpc.models.rollout import Rollout
+from pinn_mpc.models.rollout import Rollout, StackedDynamics
 
 if TYPE_CHECKING:
     from pinn_mpc.identify import IdentifyResult
@@ -183,3 +184,14 @@ class Architecture(ABC):
     def rollout_scaled(self, model: LearnedModel, inputs: RolloutInputs) -> Rollout:
         """Batched recursive rollout of ``model`` in scaled units (see
         :meth:`pinn_mpc.models.LearnedModel.rollout_scaled`)."""
+
+    def stack_key(self, model: LearnedModel) -> Hashable | None:
+        """What models of this architecture must share to roll out several buildings in one
+        batch (:attr:`pinn_mpc.models.rollout.BatchDynamics.stack_key`); None, the default:
+        each building's model rolls out alone."""
+        return None
+
+    def stacked(self, models: Sequence[LearnedModel], members: int) -> StackedDynamics:
+        """``models`` (of one :meth:`stack_key`) as one batch of buildings
+        (:meth:`pinn_mpc.models.rollout.BatchDynamics.stacked`)."""
+        raise InternalError(f"the {self.name} architecture has no stacked rollout")

@@ -10,7 +10,7 @@ predictor. After training, the residual's bound is set from what it added on the
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Hashable, Sequence
 from typing import TYPE_CHECKING, Any, NamedTuple, cast
 
 import numpy as np
@@ -34,7 +34,7 @@ from pinn_mpc.models.base import (
 )
 from pinn_mpc.models.layers import EnsembleLinear, mlp_layers, run_layers, sigmoid_form, transposed
 from pinn_mpc.models.physics_block import discretise_torch, interp_clamped
-from pinn_mpc.models.rollout import Rollout
+from pinn_mpc.models.rollout import Rollout, StackedDynamics
 
 if TYPE_CHECKING:
     from pinn_mpc.identify import IdentifyResult
@@ -51,7 +51,9 @@ __all__ = [
     "HybridConstants",
     "HybridInputs",
     "HybridNet",
+    "HybridStart",
     "backup_guess",
+    "prepare_states",
     "roll_states",
     "saturate_backup",
 ]
@@ -136,7 +138,7 @@ def roll_states(
     few: FewPlanWeights | None = None,
 ) -> torch.Tensor:
     """The hybrid's recursion over H steps, the one both a model's rollout
-    (:meth:`HybridNet.rollout`) and a fleet's (:class:`pinn_mpc.models.fleet.FleetHybrid`, its
+    (:meth:`HybridNet.rollout`) and a fleet's (:class:`pinn_mpc.models.fleet.StackedHybrids`, its
     buildings' members stacked along M) run.
 
     ``c`` the members' :class:`HybridConstants`; ``state0`` (M, 3, N|1) the state now
@@ -185,6 +187,72 @@ def roll_states(
             res = torch.sum(few.last_column * x, dim=1, keepdim=True).add_(c.b_last)
         nxt[:, 2:] += res.clamp_(-c.residual_bound_k, c.residual_bound_k)
     return states
+
+
+class HybridStart(NamedTuple):
+    """What :func:`roll_states` starts from besides the plans (:func:`prepare_states`), for
+    B buildings' members stacked (B*M): ``state0`` (B*M, 3, N0) the state now, ``pre`` (H,
+    B*M, out+2, N0) the plan-free terms of every step, ``b_step`` (H|1, B*M, 2, N0) the heat
+    per watt on both rows."""
+
+    state0: torch.Tensor
+    pre: torch.Tensor
+    b_step: torch.Tensor
+
+
+def prepare_states(
+    c: HybridConstants,
+    t_r: torch.Tensor,
+    p_past: torch.Tensor,
+    exog: torch.Tensor,
+    static: torch.Tensor,
+    gain: torch.Tensor | None,
+) -> HybridStart:
+    """The plan-free part of the hybrid's rollout, once per decision, for B buildings whose
+    members' constants ``c`` are stacked (B*M: building b's members b*M .. b*M+M-1), each from
+    N0 starts (one model's rollout: B = 1; a fleet's: N0 = 1). Raw inputs: ``t_r`` (B, N0, k+1)
+    T_r,i-k..T_r,i [C]; ``p_past`` (B, N0, k+1) u_phys,i-k-1..u_phys,i-1 [W]; ``exog`` (B, N0,
+    k+H, 3) (T_a, G, I_g) from i-k to i+H-1; ``static`` (B, N0, H, n_series+2) the scaled
+    exogenous series and encoded time of day of each step; ``gain`` (B, N0, k+H) heat per
+    electrical watt (None: 1). T_m is observed once from the window, the exogenous drive of
+    both 2R2C rows and the residual net's first layer on the static inputs computed for all H
+    steps: what :func:`roll_states` takes besides the plans."""
+    b, n0, k1 = t_r.shape
+    k, h_len = k1 - 1, static.shape[2]
+    bm, hidden = c.observer.shape[0], c.b_first.shape[1]
+    m = bm // b
+    heat = p_past[..., 1:] if gain is None else p_past[..., 1:] * gain[..., :k]
+    d_win = torch.cat([heat[..., None], exog[..., :k, :]], dim=-1)  # (B, N0, k, 4)
+    window = torch.cat([t_r, d_win.flatten(-2)], dim=-1)  # (B, N0, k+1+4k)
+    drive_b = c.drive_b.view(b, m, 2, 4)
+    w_static = c.w_static.view(b, m, *c.w_static.shape[1:])
+    observer = c.observer.view(b, m, -1)
+    # The T_m observer, the exogenous drive and the first layer on the static inputs: a fleet's
+    # contracted building by building (its batch's fastest order), one model's from N0 starts
+    # (the order its rollout has always had); the two agree to float round-off.
+    if b > 1 and n0 == 1:
+        t_m0 = torch.einsum("bw,bmw->bm", window[:, 0], observer)[..., None]
+        drive = torch.einsum("bmrc,bhc->hbmr", drive_b[..., 1:], exog[:, 0, k : k + h_len])
+        first = torch.einsum("bmsj,bhs->hbmj", w_static, static[:, 0])
+        pre = torch.cat([first, drive], dim=-1).reshape(h_len, b, m, hidden + 2, 1)
+    else:
+        t_m0 = torch.matmul(window[:, None], observer[..., None])[..., 0]
+        drive = torch.einsum("bmrc,bnhc->hbmrn", drive_b[..., 1:], exog[:, :, k : k + h_len])
+        first = torch.einsum("bmsj,bnhs->hbmjn", w_static, static)
+        pre = torch.cat([first, drive], dim=3)
+    pre[:, :, :, :hidden] += c.b_first.view(b, m, hidden, 1)
+    state0 = torch.empty(b, m, 3, n0)  # (u_phys, T_m, T_r) now
+    state0[:, :, 0] = p_past[..., k][:, None]
+    state0[:, :, 1] = t_m0
+    state0[:, :, 2] = t_r[..., k][:, None]
+    pre = pre.reshape(h_len, bm, hidden + 2, n0)
+    b_u = drive_b[..., :1]  # (B, M, 2, 1)
+    if gain is None:
+        b_step = b_u.reshape(1, bm, 2, 1)
+    else:  # the input column of Bd times each step's gain
+        g = gain[..., k : k + h_len].permute(2, 0, 1)[:, :, None, None, :]  # (H, B, 1, 1, N0)
+        b_step = (b_u[None] * g).reshape(h_len, bm, 2, n0)
+    return HybridStart(state0.reshape(bm, 3, n0), pre, b_step)
 
 
 class HybridNet(nn.Module):
@@ -470,8 +538,8 @@ class HybridNet(nn.Module):
         c = constants
         t_win, p_win, e_seq = windows
         f = self.features
-        m, k = self.n_members, f.depth
-        n, h_len = u_s.shape
+        k = f.depth
+        h_len = u_s.shape[1]
         t, pw = f.temperature, f.power
         with torch.no_grad():
             t_r = t_win * t.std + t.mean  # (N0, k+1)
@@ -479,24 +547,15 @@ class HybridNet(nn.Module):
             scales = [f.exog[name] for name in f.exog_series]
             e_raw = torch.stack([e_seq[:, j] * sc.std + sc.mean for j, sc in enumerate(scales)])
             exog = self._exog_raw(e_raw)  # (N0, k+H, 3)
-            d_win = self._inputs(p_past[..., 1:], exog[..., :k, :])
-            window = torch.cat([t_r, d_win.flatten(-2)], dim=-1)  # (N0, k+1+4k)
-            state0 = torch.empty(m, 3, n)  # (u_phys, T_m, T_r) now
-            state0[:, 0] = p_past[:, k]
-            state0[:, 1] = torch.matmul(window, c.observer)[..., 0]
-            state0[:, 2] = t_r[:, k]
-            drive = torch.einsum("mrc,nhc->hmrn", c.drive_b[..., 1:], exog[:, k : k + h_len])
             n0 = max(e_seq.shape[0], tod.shape[0])
             e_now = e_seq[:, :, k : k + h_len].transpose(1, 2).expand(n0, -1, -1)
             static = torch.cat([e_now, tod[:, :h_len].expand(n0, -1, -1)], dim=-1)
-            first = torch.einsum("msj,nhs->hmjn", c.w_static, static) + c.b_first  # (H, M, out, N0)
+            g = self.gain(exog[..., 0])  # (N0, k+H) heat per electrical watt, or None
+            start = prepare_states(
+                c, t_r[None], p_past[None], exog[None], static[None], None if g is None else g[None]
+            )
             u_w = (u_s * pw.std + pw.mean).T.contiguous()[:, None]  # (H, 1, N)
-            pre = torch.cat([first, drive], dim=2)  # (H, M, out+2, N0)
-            # Heat per electrical watt of each step: the input column of Bd times the COP.
-            g = self.gain(exog[:, k : k + h_len, 0])  # (N0, H) or None
-            b_u = c.drive_b[..., :1]  # (M, 2, 1)
-            b_step = b_u[None] if g is None else b_u[None] * g.T[:, None, None, :]  # (H|1, M, 2, N0)
-            series = roll_states(c, state0, pre, b_step, u_w, p_bounds_w).permute(1, 2, 3, 0)
+            series = roll_states(c, *start, u_w, p_bounds_w).permute(1, 2, 3, 0)
             return (
                 series[:, 2, :, 1:].contiguous(),
                 series[:, 0, :, 1:].contiguous(),
@@ -604,6 +663,16 @@ class Hybrid(Architecture):
     def rollout_constants(self, net: nn.Module) -> HybridConstants:
         assert isinstance(net, HybridNet)
         return net.rollout_constants()
+
+    def stack_key(self, model: LearnedModel) -> Hashable:
+        """Hybrids of one depth, exogenous inputs and interval stack (each building its own
+        weights, scaling, COP curve and backup thermostat)."""
+        return (self.name, model.depth, model.exog_names, model.dt_s)
+
+    def stacked(self, models: Sequence[LearnedModel], members: int) -> StackedDynamics:
+        from pinn_mpc.models.fleet import StackedHybrids
+
+        return StackedHybrids(models, members=members)
 
     def rollout_scaled(self, model: LearnedModel, inputs: RolloutInputs) -> Rollout:
         net = model.module.net

@@ -3,7 +3,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Hashable, Sequence
 from dataclasses import dataclass, field, fields
 from typing import Any, NamedTuple
 
@@ -19,7 +19,7 @@ from pinn_mpc.features import FeatureConfig, make_windows
 from pinn_mpc.models.base import Architecture, NetParts, RolloutInputs
 from pinn_mpc.models.physics_block import Physics
 from pinn_mpc.models.registry import get_architecture
-from pinn_mpc.models.rollout import FittedModel, Rollout
+from pinn_mpc.models.rollout import BatchDynamics, FittedModel, Rollout, StackedDynamics
 
 __all__ = ["MAX_MEMBERS", "EnsembleModule", "LearnedModel", "ModelRecord", "Scaling"]
 
@@ -272,6 +272,18 @@ class LearnedModel(FittedModel):
             (u_w - f.power.mean) / f.power.std,
             torch.from_numpy(f.encode_time(np.asarray(exog["time_of_day_h"])[:h_len]))[None],
         )
+
+    @property
+    def stack_key(self) -> Hashable | None:
+        """The architecture's :meth:`~pinn_mpc.models.base.Architecture.stack_key` of this model."""
+        return self.architecture.stack_key(self)
+
+    def stacked(self, models: Sequence[BatchDynamics], members: int) -> StackedDynamics:
+        """``models`` (learned models of this model's stack key) in one batch of buildings."""
+        learned = [m for m in models if isinstance(m, LearnedModel)]
+        if len(learned) != len(models):
+            raise InternalError("LearnedModel.stacked: every model of the batch must be a learned model")
+        return self.architecture.stacked(learned, members)
 
     def predict_one_step(self, df: pd.DataFrame) -> dict[str, Any]:
         """One-step predictions for every sample of a frame.

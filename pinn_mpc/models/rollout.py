@@ -12,16 +12,30 @@ exploit beyond the rollout is a declared property of the protocol, never probed.
 ARX models, not the RC): a planner model that also says what it is and what it was fitted on,
 so that the callers of :func:`pinn_mpc.fitted.fit` and :func:`pinn_mpc.fitted.load` never ask
 which family they hold.
+
+A fleet's buildings roll out through their own models' rollouts
+(:class:`pinn_mpc.models.fleet.FleetModels`); models of one kind that can roll out several
+buildings in one batch say so by a :attr:`BatchDynamics.stack_key` and build that batch
+(:meth:`BatchDynamics.stacked`, a :class:`StackedDynamics`). Every kind rolls out alone by
+default, so a new kind is a fleet's without doing anything.
 """
 
 from __future__ import annotations
 
+from collections.abc import Hashable, Mapping, Sequence
 from typing import Any, NamedTuple, Protocol
 
 import numpy as np
 import torch
 
-__all__ = ["BatchDynamics", "FittedModel", "Rollout"]
+from pinn_mpc.errors import InternalError
+
+__all__ = ["BatchDynamics", "Exogenous", "FittedModel", "Histories", "Rollout", "StackedDynamics"]
+
+#: Each building's history, in the data format's names (as :meth:`BatchDynamics.rollout` takes it).
+Histories = Sequence[Mapping[str, np.ndarray]]
+#: A forecast's exogenous series, one array (>= H,) per name.
+Exogenous = Mapping[str, np.ndarray]
 
 
 class Rollout(NamedTuple):
@@ -66,6 +80,30 @@ class BatchDynamics(Protocol):
     def rollout(
         self, history: dict[str, np.ndarray], u_w: torch.Tensor, exog: dict[str, np.ndarray]
     ) -> Rollout: ...
+
+    @property
+    def stack_key(self) -> Hashable | None:
+        """Models whose keys are equal (and not None) roll out in one batch when they are a
+        fleet's buildings (:meth:`stacked`); None, the default: this model rolls out alone."""
+        return None
+
+    def stacked(self, models: Sequence[BatchDynamics], members: int) -> StackedDynamics:
+        """``models`` (every one with this model's :attr:`stack_key`) as one batch of
+        buildings, each with its first ``members`` members."""
+        raise InternalError(f"{type(self).__name__} has no stack key: its buildings roll out alone")
+
+
+class StackedDynamics(Protocol):
+    """G buildings' models of one kind rolled out in one batch (:meth:`BatchDynamics.stacked`):
+    :meth:`prepare` once per decision (the plan-free part, from each building's history as
+    :meth:`BatchDynamics.rollout` takes it, ``drop_last`` intervals before its end, under the
+    one forecast ``exog``), then :meth:`roll` for any number of plans (G, N, H) [W]; the
+    :class:`Rollout`'s tensors are (G, M, N, H). A building's rollout is its model's, up to
+    float round-off."""
+
+    def prepare(self, histories: Histories, exog: Exogenous, h: int, *, drop_last: int = 0) -> object: ...
+
+    def roll(self, start: object, u_w: torch.Tensor) -> Rollout: ...
 
 
 class FittedModel(BatchDynamics, Protocol):

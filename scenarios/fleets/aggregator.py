@@ -40,7 +40,7 @@ from scenarios.running.closed_loop import RunInputs, build_loop, prepare_run, pr
 from scenarios.running.engine import ClosedLoop
 
 if TYPE_CHECKING:
-    from pinn_mpc.models.learned import LearnedModel
+    from pinn_mpc.models.rollout import BatchDynamics
 
 __all__ = [
     "BATCHED_CONTROLLERS",
@@ -291,7 +291,7 @@ def run_coordinated_fleet(
 
 
 def learned_fleet_planner(
-    models: Sequence[LearnedModel],
+    models: Sequence[BatchDynamics],
     *,
     plan_members: int = 1,
     n_samples: int = 32,
@@ -303,21 +303,23 @@ def learned_fleet_planner(
     rc_refresh: int = 3,
     spread_members: int | None = 5,
 ) -> FleetPlannerFactory:
-    """The factory of a batched ``cem`` over each building's learned hybrid (``models[b]``):
-    :class:`controllers.fleet_sampling.FleetCEM` planning with each ensemble's first
-    ``plan_members`` members (the disagreement measured over its first ``spread_members``;
-    None: all), ``n_samples`` x ``n_iters`` per plan (None: 1 with ``rc_candidates``, whose
-    plan starts the CEM near the optimum, 2 without); a further plan of a step under a new
-    coordination price rescores the step's samples (``replan_iters`` > 0: runs that many CEM
-    iterations instead). With ``rc_fallback`` a shadow :class:`FleetQPMPC` on the RCs
-    identified from the models' training data (every model must have one);
-    ``rc_candidates`` scores that RC MPC's plan among the samples of a step's first plan,
-    each building's solved every ``rc_refresh`` steps in turn (its last one shifted
-    otherwise), to the candidate tolerances with ``fast_candidates``."""
+    """The factory of a batched ``cem`` over each building's planner model (``models[b]``, any
+    family ``train`` fits: hybrids roll out in one stacked batch, the others each through its
+    own rollout): :class:`controllers.fleet_sampling.FleetCEM` planning with each ensemble's
+    first ``plan_members`` members (the disagreement measured over the first
+    ``spread_members``; None: all; not measured where a building's model has one member),
+    ``n_samples`` x ``n_iters`` per plan (None: 1 with ``rc_candidates``, whose plan starts the
+    CEM near the optimum, 2 without); a further plan of a step under a new coordination price
+    rescores the step's samples (``replan_iters`` > 0: runs that many CEM iterations instead).
+    With ``rc_fallback`` a shadow :class:`FleetQPMPC` on the RCs identified from the models'
+    training data (every model must have one); ``rc_candidates`` scores that RC MPC's plan
+    among the samples of a step's first plan, each building's solved every ``rc_refresh``
+    steps in turn (its last one shifted otherwise), to the candidate tolerances with
+    ``fast_candidates``."""
     from controllers.fleet_sampling import FleetCEM
     from controllers.planners import CEMPlanner
-    from pinn_mpc.models.fleet import FleetHybrid
-    from pinn_mpc.physics import params_from_summary
+    from pinn_mpc.models.fleet import FleetModels
+    from scenarios.running.factory import model_guard
 
     def make(fleet: Sequence[RCParams], spec: ControlSpec) -> FleetPlanner:
         from scenarios.running.budget import check_batched_fleet_memory
@@ -330,16 +332,17 @@ def learned_fleet_planner(
         )
         shadow = None
         if rc_fallback:
-            rcs = [m.record.identified_rc for m in models]
-            missing = [i for i, rc in enumerate(rcs) if not isinstance(rc, dict)]
+            rcs = [model_guard(m).rc for m in models]
+            missing = [i for i, rc in enumerate(rcs) if rc is None]
             if missing:
                 raise InputError(
                     f"building(s) {missing[:5]}: the model has no identified RC to fall back on; "
                     "retrain it with `train`, or plan without the RC fallback"
                 )
-            shadow = FleetQPMPC([params_from_summary(rc) for rc in rcs if isinstance(rc, dict)], spec)
+            shadow = FleetQPMPC([rc for rc in rcs if rc is not None], spec)
+        fewest = min(m.n_members for m in models)
         return FleetCEM(
-            FleetHybrid(models, members=plan_members),
+            FleetModels(models, members=plan_members),
             spec,
             planner=CEMPlanner(
                 lower=0.0, upper=spec.u_max_w, n_samples=n_samples,
@@ -347,8 +350,7 @@ def learned_fleet_planner(
             ),
             shadow=shadow,
             spread_dynamics=(
-                FleetHybrid(models, members=min(spread_members or models[0].n_members, models[0].n_members))
-                if models[0].n_members > 1 else None
+                FleetModels(models, members=min(spread_members or fewest, fewest)) if fewest > 1 else None
             ),
             replan_iters=replan_iters,
             rc_candidates=rc_candidates,

@@ -145,7 +145,7 @@ def check_fleet_memory(
 
 #: Bytes of one rollout column of a batched fleet model per horizon step: the states, the
 #: residual net's hidden layer and the plan-free terms, float32, with the CEM's samples and
-#: costs and torch's temporaries (rounded up from the peak of FleetHybrid.roll).
+#: costs and torch's temporaries (rounded up from the peak of StackedHybrids.roll).
 BYTES_PER_ROLLOUT_COLUMN_STEP = 4 * (3 + 2 * 34 + 8)
 
 
