@@ -58,7 +58,7 @@ from pinn_mpc.data import WIND, day_of_week
 from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.features import check_interval
 from pinn_mpc.io import DirectoryLayout
-from pinn_mpc.models.registry import ARX, PHYSICS_ARX
+from pinn_mpc.models.registry import ARX, BASELINES, PHYSICS_ARX
 from pinn_mpc.models.rollout import FittedModel, Rollout
 from pinn_mpc.physics import params_from_summary
 from pinn_mpc.solar import FACADE_COLUMNS
@@ -621,6 +621,16 @@ def fit_linear(name: str, df: pd.DataFrame, *, eta: float = 1.0) -> ARXModel:
         model = fit_physics_informed_arx(df, eta=eta)
     else:
         raise InputError(f"{name!r} is not a linear baseline; choose {ARX.name} or {PHYSICS_ARX.name}")
+    offset_k = week_offset_k(model)
+    if not offset_k <= RUNAWAY_OFFSET_K:
+        # what load_arx would refuse as damaged: say so now, of the data, not later of the file
+        label = BASELINES[name].label
+        raise InputError(
+            f"{label}: no fit on these data lets the room settle (a history 1 K warmer is "
+            f"{offset_k:.3g} K warmer a week later, where a building's settles), so its "
+            "predictions would run away; give more days of data, or train another family "
+            "(--arch hybrid)"
+        )
     try:
         identified = identify_rc(df, eta=eta)
     except InputError:
@@ -708,9 +718,9 @@ def load_arx(path: str | os.PathLike[str]) -> ARXModel:
         identified_rc=identified_rc, training_data=training_data,
     )
     # The room's own dynamics over a week of the schedule, as the fit judges them: a fitted
-    # room settles (a block may amplify for an hour, the week does not); a tampered one runs away.
-    week = max(1, round(7 * 86400.0 / model.dt_s))
-    offset_k = model.offset_response(week)
+    # room settles (a block may amplify for an hour, the week does not; fit_linear writes no
+    # other); a tampered one runs away.
+    offset_k = week_offset_k(model)
     if not offset_k <= RUNAWAY_OFFSET_K:
         raise InputError(
             f"{file}: not a plausible ARX model (its room temperature never settles: a history "
@@ -725,6 +735,13 @@ def load_arx(path: str | os.PathLike[str]) -> ARXModel:
 #: fitted room settles towards the outdoor temperature (well under 1 K); one whose dynamics
 #: amplify their own deviations grows without bound.
 RUNAWAY_OFFSET_K = 1.0
+
+
+def week_offset_k(model: ARXModel) -> float:
+    """How much warmer ``model``'s room is a week after a history 1 K warmer, at the worst
+    start of its schedule and no wind (:meth:`ARXModel.offset_response`): at most
+    :data:`RUNAWAY_OFFSET_K` for a room that settles, which is what :func:`load_arx` reads."""
+    return model.offset_response(max(1, round(7 * 86400.0 / model.dt_s)))
 
 
 def _valid_block(block_h: float) -> bool:
