@@ -308,7 +308,9 @@ def train_model(
     assert config.depth is not None and config.recipe is not None
     df = validate_timeseries(df, source="training data", u_max_w=config.u_max_w)
     hp = config.resolved()
-    features = fit_feature_config(df, depth=config.depth)
+    features = fit_feature_config(
+        df, depth=config.depth, calendar=architecture.calendar, optional=architecture.optional_exog
+    )
     identified = _identify(df, config.eta)
     cop_curve = CopCurve.fit(df["T_a"].to_numpy(float), df["cop"].to_numpy(float)) if "cop" in df else None
     prior = architecture.training_prior(config, df, identified)
@@ -320,7 +322,7 @@ def train_model(
     if init_weights is not None:
         _load_weights(module, init_weights)
     lam = architecture.physics_weight(hp["lam"])
-    chunk = CHUNK if lam > 0 else 1
+    chunk = architecture.chunk_length(lam, CHUNK)
     data = _training_set(df, features, chunk)
     loss_fn = architecture.loss_fn(module, data, config, lam)
 
