@@ -1,7 +1,8 @@
 """``pcnn``: the paper's PhysNet made physically consistent (Di Natale et al., 2022).
 
 As PhysNet, an encoder network estimates the hidden thermal-mass temperature T_m from the
-history (past T_r, delivered power and weather: given, not planned) and a learnable 2R2C ties
+history (T_r up to now, the delivered power and weather of past intervals: given, not planned
+or forecast) and a learnable 2R2C ties
 the two states together. Unlike PhysNet, no network sees the plan or the outdoor temperature:
 the states step through the 2R2C's exact zero-order hold,
 
@@ -67,8 +68,8 @@ class PcnnNet(ConsistentNet):
         super().__init__()
         self.features = features
         self.coefficients = block.coefficients  # the block itself is the module's
-        n_win = 2 + len(features.exog_series)
-        self.encoder = mlp_layers((n_win * (features.depth + 1), *ENCODER, 1), n_members, generators)
+        n_in = 2 * (features.depth + 1) + len(features.exog_series) * features.depth
+        self.encoder = mlp_layers((n_in, *ENCODER, 1), n_members, generators)
         self.unforced = UnforcedNet(features, n_members, generators, 2)
         names = features.exog_series
         self._exog_pos = [names.index(n) if n in names else None for n in ("T_a", "G", "I_g")]
@@ -84,7 +85,8 @@ class PcnnNet(ConsistentNet):
         ad, bd = discretise_torch(self.coefficients(), f.dt_s)
         ad, bd = ad.float(), bd.float()  # (M, 2, 2), (M, 2, 4)
         m = ad.shape[0]
-        series = [e_seq[..., j, : k + 1] for j in range(e_seq.shape[-2])]
+        # The weather up to the last interval only: now's is the forecast's first value.
+        series = [e_seq[..., j, :k] for j in range(e_seq.shape[-2])]
         window = torch.cat([t_win - t_win[..., -1:], p_win, *series], dim=-1)
         lead = window.shape[:-1]
         enc = run_layers(self.encoder, window.expand(m, *lead[1:], -1).reshape(m, -1, window.shape[-1]))
