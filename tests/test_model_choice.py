@@ -1,5 +1,6 @@
 """``train --arch auto``, train's default: the hybrid where it predicts the building, the
-physics-informed ARX where that errs at most three quarters as much."""
+physics-informed ARX where that errs at most three quarters as much, the best physically
+consistent family where it errs no more than that choice."""
 
 from __future__ import annotations
 
@@ -9,11 +10,13 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from pinn_mpc import model_choice
 from pinn_mpc.data import write_timeseries
 from pinn_mpc.errors import InputError
-from pinn_mpc.model_choice import AUTO_RATIO, ROUGH_MAE_C, choose_model
+from pinn_mpc.model_choice import AUTO_RATIO, CONSISTENT_RATIO, ROUGH_MAE_C, choose_model
 from pinn_mpc.models.arx import ARXModel, fit_physics_informed_arx
 from pinn_mpc.models.learned import LearnedModel
+from pinn_mpc.models.registry import CONSISTENT_ARCHS
 from pinn_mpc.training import TrainConfig
 from tests.model_data import household_data
 from tests.test_arx import _occupied_data
@@ -27,7 +30,23 @@ def test_auto_keeps_the_hybrid_on_the_2r2c_it_was_made_for():
     assert choice.horizon_steps == 48 and choice.horizon_h == 24.0
     assert choice.held_out_mae_c["hybrid"] < 0.3
     assert choice.held_out_mae_c["parx"] > AUTO_RATIO * choice.held_out_mae_c["hybrid"]
+    best = min(choice.held_out_mae_c[name] for name in CONSISTENT_ARCHS)
+    assert best > CONSISTENT_RATIO * choice.held_out_mae_c["hybrid"]
     assert choice.caution is None
+
+
+def test_auto_takes_the_best_consistent_family_where_it_errs_no_more_than_the_choice(monkeypatch):
+    """With the ratio unbounded the consistent family of least held-out error is taken (and
+    trained on all the data); with a ratio of 0, never."""
+    data = household_data(14, seed=0)
+    monkeypatch.setattr(model_choice, "CONSISTENT_RATIO", float("inf"))
+    choice = choose_model(data, SMALL)
+    errors = choice.held_out_mae_c
+    assert choice.chosen == min(CONSISTENT_ARCHS, key=errors.__getitem__)
+    assert isinstance(choice.model, LearnedModel) and choice.model.arch == choice.chosen
+    assert all(name in choice.why for name in CONSISTENT_ARCHS)
+    monkeypatch.setattr(model_choice, "CONSISTENT_RATIO", 0.0)
+    assert choose_model(data, SMALL).chosen not in CONSISTENT_ARCHS
 
 
 def test_auto_takes_the_physics_informed_arx_where_the_hybrid_cannot_predict():

@@ -212,6 +212,7 @@ def arch_help() -> str:
         + [
             f"{AUTO} (the default): {DEFAULT_ARCH} or {PHYSICS_ARX.name}, whichever predicts the "
             f"data's last quarter better over a planner's 24 h ({PHYSICS_ARX.name} when its error is at most "
-            "three quarters of the hybrid's), fitted on all of it"
+            f"three quarters of the hybrid's), or the better of {' and '.join(CONSISTENT_ARCHS)} where it "
+            "errs no more than that choice, fitted on all of it"
         ]
     )
