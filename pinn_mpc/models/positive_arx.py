@@ -55,6 +55,8 @@ MARGIN = 0.0
 TOLERANCE = 1e-8
 #: The most the recursion's own weights (on the lagged T_r) may sum to in any block.
 MAX_OWN_SUM = 1.0 - 1e-3
+#: Steps of the planner's day the second stage fits every predicted T_r of (48 half-hours).
+FIT_STEPS = 48
 #: Cutting-plane rounds of the constrained fit, and constraints added per round.
 ROUNDS = 40
 PER_ROUND = 400
@@ -180,8 +182,10 @@ def fit_positive_arx(df: pd.DataFrame, *, eta: float, lags: int = 8) -> Positive
     steps = max(1, round(CERTIFIED_STEPS_S / dt_s))
     q_phase = q[(np.arange(per_day) * dt_s / 3600.0 // block_h).astype(int)]
     kernels = impulse_kernels(a, q_phase, steps)
-    # The rest, with the T_r weights held: least squares under the response constraints.
-    target = y - x[:, :n_own] @ first[:n_own]
+    # The rest, with the T_r weights held: least squares under the response constraints, on
+    # every step of the planner's day from every start (given the T_r weights, each predicted
+    # T_r is affine in the rest).
+    free, target = _multi_step(free, t_r, t_a, k, a, q[block[k]], lags, min(FIT_STEPS, len(k) // 4))
     sign = 1.0 if eta > 0 else -1.0
     u_mat, _ = _responses(kernels[:, :steps], np.zeros(per_day), lags, steps)
     a_mat, a_off = _responses(kernels[:, :steps], -q_phase, lags, steps)
@@ -198,6 +202,39 @@ def fit_positive_arx(df: pd.DataFrame, *, eta: float, lags: int = 8) -> Positive
     if n_days == 2:
         s = np.concatenate([s, s[1:]], axis=0)
     return PositiveARX(a=a, q=q, b=b, c=c, inputs=inputs, d=d, s=s, block_h=block_h)
+
+
+def _multi_step(
+    free: np.ndarray,
+    t_r: np.ndarray,
+    t_a: np.ndarray,
+    k: np.ndarray,
+    a: np.ndarray,
+    q_k: np.ndarray,
+    lags: int,
+    horizon: int,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The regression of every step 1 .. ``horizon`` of the recursion from every start: rows
+    (starts x horizon, n_free) and targets, with the ``T_r`` weights ``a`` and ``q_k`` (per row
+    k) held. A predicted T_r is carried as (its affine coefficients on the free weights, its
+    constant), the history's measured values constant."""
+    n_free = free.shape[1]
+    n = len(k) - horizon + 1
+    # rep[s, j] = (coefficients, constant) of T_r at row k[s] - j
+    rep = np.zeros((n, lags, n_free + 1))
+    for j in range(lags):
+        rep[:, j, -1] = t_r[k[:n] - j]
+    rows, targets = [], []
+    for h in range(horizon):
+        idx = np.arange(n) + h  # sample index of the step predicted
+        fixed = -q_k[idx] * t_a[k[idx]]
+        new = np.einsum("j,sjc->sc", a, rep) + q_k[idx, None] * rep[:, 0]
+        new[:, :n_free] += free[idx]
+        new[:, -1] += fixed
+        rows.append(new[:, :n_free])
+        targets.append(t_r[k[idx] + 1] - new[:, -1])
+        rep = np.concatenate([new[:, None], rep[:, :-1]], axis=1)
+    return np.concatenate(rows), np.concatenate(targets)
 
 
 def _settling_fit(
@@ -253,22 +290,34 @@ def _cutting_planes(
 ) -> np.ndarray:
     """argmin ||free theta - target||^2 subject to ``rows_u theta[:lags] >= MARGIN`` and
     ``rows_a theta[lags:2 lags] + off_a >= MARGIN``: the most violated constraints added each
-    round (OSQP, polished) until none is; where that does not converge in :data:`ROUNDS`, the
+    round (each round's problem solved exactly as a least-distance problem) until none is;
+    where that does not converge in :data:`ROUNDS`, the
     coarser sufficient condition (every weight non-negative, ``sign_of_rows`` the power's sign,
     T_a's at lag 0 at least ``q_max``)."""
-    import osqp
-    from scipy import sparse
+    from scipy.optimize import nnls
 
     gram = free.T @ free
     gram = gram + 1e-9 * np.diag(np.diag(gram) + 1e-12)
     rhs = free.T @ target
     scale = 1.0 / np.sqrt(np.maximum(np.diag(gram), 1e-12))
-    p_mat = sparse.csc_matrix(np.triu(gram * scale[:, None] * scale[None, :]))
     full = np.zeros((rows_u.shape[0] + rows_a.shape[0], n_free))
     full[: rows_u.shape[0], :lags] = rows_u
     full[rows_u.shape[0] :, lags : 2 * lags] = rows_a
     offset = np.concatenate([np.zeros(rows_u.shape[0]), off_a])
-    theta = np.linalg.solve(gram, rhs)
+    # Rows of unit norm (a response's lags where the kernel has decayed are tiny, and the
+    # solver's infeasibility test misfires on them); rows of no weight constrain nothing.
+    norms = np.linalg.norm(full, axis=1)
+    keep = norms > 1e-12 * max(float(norms.max()), 1e-300)
+    full, offset = full[keep] / norms[keep, None], offset[keep] / norms[keep]
+    # In scaled weights phi = theta / scale the objective is 1/2 phi' P phi - r' phi with P of
+    # unit diagonal; with P = L L' and v = L' phi - L^-1 r it is 1/2 |v|^2 (a least-distance
+    # problem), solved exactly by non-negative least squares (Lawson and Hanson, ch. 23).
+    p_mat = gram * scale[:, None] * scale[None, :]
+    chol = np.linalg.cholesky(p_mat + 1e-10 * np.eye(n_free))
+    r = rhs * scale
+    w = np.linalg.solve(chol, r)  # L^-1 r
+    phi0 = np.linalg.solve(chol.T, w)  # the unconstrained minimiser
+    theta = phi0 * scale
     active: list[int] = []
     for _ in range(ROUNDS):
         slack = full @ theta + offset
@@ -277,17 +326,18 @@ def _cutting_planes(
             return theta
         new = violated[np.argsort(slack[violated])][:PER_ROUND]
         active = sorted(set(active) | set(int(i) for i in new))
-        a_rows = full[active] * scale[None, :]
-        solver = osqp.OSQP()
-        solver.setup(
-            P=p_mat, q=-rhs * scale, A=sparse.csc_matrix(a_rows),
-            l=MARGIN - offset[active], u=np.full(len(active), np.inf),
-            eps_abs=1e-10, eps_rel=1e-10, max_iter=200_000, polish=True, verbose=False,
-        )
-        result = solver.solve()
-        if not np.all(np.isfinite(result.x)):
-            break
-        theta = np.asarray(result.x, dtype=float) * scale
+        g = full[active] * scale[None, :]  # on phi
+        g_v = np.linalg.solve(chol, g.T).T  # phi = L'^-1 (v + w): g phi = g_v v + g_v w
+        h = MARGIN - offset[active] - g_v @ w
+        e_mat = np.concatenate([g_v.T, h[None, :]], axis=0)
+        e_vec = np.zeros(n_free + 1)
+        e_vec[-1] = 1.0
+        u, _ = nnls(e_mat, e_vec, maxiter=50 * len(active) + 1000)
+        resid = e_mat @ u - e_vec
+        if abs(resid[-1]) < 1e-12:
+            break  # no feasible point found (round-off): the coarser condition below
+        v = -resid[:-1] / resid[-1]
+        theta = np.linalg.solve(chol.T, v + w) * scale
     slack = full @ theta + offset
     if math.isfinite(float(slack.min())) and slack.min() >= -TOLERANCE:
         return theta
