@@ -322,8 +322,10 @@ def train_model(
     if init_weights is not None:
         _load_weights(module, init_weights)
     lam = architecture.physics_weight(hp["lam"])
-    chunk = architecture.chunk_length(lam, CHUNK)
-    data = _training_set(df, features, chunk)
+    data = _training_set(df, features, CHUNK)
+    # A rollout loss's chunk is at most the samples there are (a day of data, a day's rollout).
+    chunk = min(architecture.chunk_length(lam, CHUNK), data.x.shape[0])
+    data = replace(data, chunk=chunk)
     loss_fn = architecture.loss_fn(module, data, config, lam)
 
     n_samples = data.x.shape[0]

@@ -88,3 +88,12 @@ def test_saved_and_loaded_model_rolls_out_the_same(arch: str, tmp_path) -> None:
     a = model.rollout(history, plan, {n: exog[n] for n in model.exog_names}).t_r_c
     b = loaded.rollout(history, plan, {n: exog[n] for n in loaded.exog_names}).t_r_c
     assert torch.allclose(a, b)
+
+
+def test_a_rollout_loss_trains_on_less_data_than_its_rollout() -> None:
+    """One day of data holds fewer samples than a training rollout's 48 steps: the chunk is
+    the samples there are, and the model trains."""
+    from tests.model_data import household_data
+
+    model = train_model(household_data(1, seed=0), arch="pcnn", config=TrainConfig(n_seeds=1, epochs=2), progress=False)
+    assert np.isfinite(model.record.final_loss["reg"])
