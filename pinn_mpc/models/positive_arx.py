@@ -245,33 +245,25 @@ def _settling_fit(
     x: np.ndarray, y: np.ndarray, lower: np.ndarray, lags: int, blocks: int, norm: np.ndarray
 ) -> np.ndarray:
     """The first stage's least squares (columns scaled: a weight is ``norm`` times the scaled
-    one) with, beyond its bounds, every block's
-    own weights summing to at most :data:`MAX_OWN_SUM`: a positive recursion whose weights on
-    the lagged T_r sum to less than 1 settles (a store whose fit otherwise lets the room
-    amplify its own history). The solver's round-off is removed by scaling the own weights."""
-    import osqp
-    from scipy import sparse
-
+    one) with, beyond its bounds, every block's own weights summing to at most
+    :data:`MAX_OWN_SUM`: a positive recursion whose weights on the lagged T_r sum to less than 1
+    settles (a store whose fit otherwise lets the room amplify its own history). Solved exactly
+    as a least-distance problem (:func:`_least_distance`; an iterative solver at a tolerance
+    fine enough for these nearly collinear columns ran out of iterations on a heat pump's
+    data). The round-off is removed by scaling the own weights."""
     n = x.shape[1]
-    gram = x.T @ x
-    gram = gram + 1e-9 * np.diag(np.diag(gram) + 1e-12)
+    chol, w, scale = _normal_equations(x.T @ x, x.T @ y)
     rows = np.zeros((blocks, n))
     rows[:, : lags - 1] = 1.0
     rows[np.arange(blocks), lags - 1 + np.arange(blocks)] = 1.0
     rows = rows * norm[None, :]
     finite = np.isfinite(lower)
-    a_mat = np.concatenate([rows, np.eye(n)[finite]])
-    lo = np.concatenate([np.full(blocks, -np.inf), lower[finite]])
-    hi = np.concatenate([np.full(blocks, MAX_OWN_SUM), np.full(int(finite.sum()), np.inf)])
-    solver = osqp.OSQP()
-    solver.setup(
-        P=sparse.csc_matrix(np.triu(gram)), q=-(x.T @ y), A=sparse.csc_matrix(a_mat), l=lo, u=hi,
-        eps_abs=1e-10, eps_rel=1e-10, max_iter=200_000, polish=True, verbose=False,
-    )
-    result = solver.solve()
-    if result.info.status not in ("solved", "solved inaccurate") or not np.all(np.isfinite(result.x)):
-        raise InputError(f"positive ARX: the settling fit failed ({result.info.status})")
-    theta = np.asarray(result.x, dtype=float)
+    g = np.concatenate([-rows, np.eye(n)[finite]])  # g theta >= h
+    h = np.concatenate([np.full(blocks, -MAX_OWN_SUM), lower[finite]])
+    phi = _least_distance(chol, w, g * scale[None, :], h)
+    if phi is None or not np.all(np.isfinite(phi)):
+        raise InputError("positive ARX: the settling fit found no feasible point (round-off)")
+    theta = phi * scale
     n_own = lags - 1 + blocks
     theta[:n_own] = np.maximum(theta[:n_own], 0.0)
     own = theta[:n_own] * norm[:n_own]
@@ -279,6 +271,36 @@ def _settling_fit(
     if worst > MAX_OWN_SUM:
         theta[:n_own] *= MAX_OWN_SUM / worst
     return theta
+
+
+def _normal_equations(gram: np.ndarray, rhs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The least squares ``1/2 theta' gram theta - rhs' theta`` in scaled weights ``phi = theta /
+    scale`` (a Hessian of unit diagonal, ridged by round-off): its Cholesky factor L, ``L^-1``
+    times the scaled ``rhs``, and ``scale``."""
+    gram = gram + 1e-9 * np.diag(np.diag(gram) + 1e-12)
+    scale = 1.0 / np.sqrt(np.maximum(np.diag(gram), 1e-12))
+    p_mat = gram * scale[:, None] * scale[None, :]
+    chol = np.linalg.cholesky(p_mat + 1e-10 * np.eye(gram.shape[0]))
+    return chol, np.linalg.solve(chol, rhs * scale), scale
+
+
+def _least_distance(chol: np.ndarray, w: np.ndarray, g: np.ndarray, h: np.ndarray) -> np.ndarray | None:
+    """argmin ``1/2 phi' P phi - r' phi`` subject to ``g phi >= h``, with ``P = L L'`` (``chol``)
+    and ``w = L^-1 r``: with ``v = L' phi - w`` the objective is ``1/2 |v|^2`` (a least-distance
+    problem), solved exactly by non-negative least squares (Lawson and Hanson, ch. 23); None
+    where it finds no feasible point."""
+    from scipy.optimize import nnls
+
+    g_v = np.linalg.solve(chol, g.T).T  # g phi = g_v v + g_v w
+    e_mat = np.concatenate([g_v.T, (h - g_v @ w)[None, :]], axis=0)
+    e_vec = np.zeros(e_mat.shape[0])
+    e_vec[-1] = 1.0
+    u, _ = nnls(e_mat, e_vec, maxiter=50 * len(h) + 1000)
+    resid = e_mat @ u - e_vec
+    if abs(resid[-1]) < 1e-12:
+        return None
+    v = -resid[:-1] / resid[-1]
+    return np.linalg.solve(chol.T, v + w)
 
 
 def _cutting_planes(
@@ -298,12 +320,7 @@ def _cutting_planes(
     where that does not converge in :data:`ROUNDS`, the
     coarser sufficient condition (every weight non-negative, ``sign_of_rows`` the power's sign,
     T_a's at lag 0 at least ``q_max``)."""
-    from scipy.optimize import nnls
-
-    gram = free.T @ free
-    gram = gram + 1e-9 * np.diag(np.diag(gram) + 1e-12)
-    rhs = free.T @ target
-    scale = 1.0 / np.sqrt(np.maximum(np.diag(gram), 1e-12))
+    chol, w, scale = _normal_equations(free.T @ free, free.T @ target)
     full = np.zeros((rows_u.shape[0] + rows_a.shape[0], n_free))
     full[: rows_u.shape[0], :lags] = rows_u
     full[rows_u.shape[0] :, lags : 2 * lags] = rows_a
@@ -313,15 +330,7 @@ def _cutting_planes(
     norms = np.linalg.norm(full, axis=1)
     keep = norms > 1e-12 * max(float(norms.max()), 1e-300)
     full, offset = full[keep] / norms[keep, None], offset[keep] / norms[keep]
-    # In scaled weights phi = theta / scale the objective is 1/2 phi' P phi - r' phi with P of
-    # unit diagonal; with P = L L' and v = L' phi - L^-1 r it is 1/2 |v|^2 (a least-distance
-    # problem), solved exactly by non-negative least squares (Lawson and Hanson, ch. 23).
-    p_mat = gram * scale[:, None] * scale[None, :]
-    chol = np.linalg.cholesky(p_mat + 1e-10 * np.eye(n_free))
-    r = rhs * scale
-    w = np.linalg.solve(chol, r)  # L^-1 r
-    phi0 = np.linalg.solve(chol.T, w)  # the unconstrained minimiser
-    theta = phi0 * scale
+    theta = np.linalg.solve(chol.T, w) * scale  # the unconstrained minimiser
     active: list[int] = []
     for _ in range(ROUNDS):
         slack = full @ theta + offset
@@ -330,18 +339,10 @@ def _cutting_planes(
             return theta
         new = violated[np.argsort(slack[violated])][:PER_ROUND]
         active = sorted(set(active) | set(int(i) for i in new))
-        g = full[active] * scale[None, :]  # on phi
-        g_v = np.linalg.solve(chol, g.T).T  # phi = L'^-1 (v + w): g phi = g_v v + g_v w
-        h = MARGIN - offset[active] - g_v @ w
-        e_mat = np.concatenate([g_v.T, h[None, :]], axis=0)
-        e_vec = np.zeros(n_free + 1)
-        e_vec[-1] = 1.0
-        u, _ = nnls(e_mat, e_vec, maxiter=50 * len(active) + 1000)
-        resid = e_mat @ u - e_vec
-        if abs(resid[-1]) < 1e-12:
+        phi = _least_distance(chol, w, full[active] * scale[None, :], MARGIN - offset[active])
+        if phi is None:
             break  # no feasible point found (round-off): the coarser condition below
-        v = -resid[:-1] / resid[-1]
-        theta = np.linalg.solve(chol.T, v + w) * scale
+        theta = phi * scale
     slack = full @ theta + offset
     if math.isfinite(float(slack.min())) and slack.min() >= -TOLERANCE:
         return theta
