@@ -1,9 +1,10 @@
 """Decision time of random shooting and CEM at a 48-step horizon.
 
-    python benchmarks/bench_planners.py [--model hybrid|physnet|parx|arx|rc|all] [--members 10] [--decisions 20] [--guard]
+    python benchmarks/bench_planners.py [--model hybrid|physnet|pcnn|pcnn-parx|parx|arx|rc|all] [--members 10] [--decisions 20] [--guard]
 
 Data: the ``winter_household`` scenario under the random-level policy. ``hybrid`` (the model
-``train`` makes by default and ``compare`` recommends) and ``physnet`` train an ensemble shaped
+``train`` makes by default and ``compare`` recommends), ``physnet`` and the physically
+consistent ``pcnn`` and ``pcnn-parx`` train an ensemble shaped
 as ``pinn-mpc compare`` trains it (10 members, depth 16: the models whose decisions the
 comparison reports) for a few epochs (decision time does not depend on how well
 it is trained; the network sizes are the paper's); ``parx`` and ``arx`` are the least-squares
@@ -103,7 +104,7 @@ def _linear(name: str, data: pd.DataFrame) -> BatchDynamics:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--model", choices=["hybrid", "physnet", "parx", "arx", "rc", "all"], default="all")
+    parser.add_argument("--model", choices=["hybrid", "physnet", "pcnn", "pcnn-parx", "parx", "arx", "rc", "all"], default="all")
     parser.add_argument("--members", type=int, default=_COMPARE.n_seeds)
     parser.add_argument("--epochs", type=int, default=2)
     parser.add_argument("--decisions", type=int, default=20)
@@ -131,6 +132,8 @@ def main() -> None:
         ),
         "hybrid": lambda: _learned("hybrid", data, args.members, args.epochs),
         "physnet": lambda: _learned("physnet", data, args.members, args.epochs),
+        "pcnn": lambda: _learned("pcnn", data, args.members, args.epochs),
+        "pcnn-parx": lambda: _learned("pcnn-parx", data, args.members, args.epochs),
         "parx": lambda: _linear("parx", data),
         "arx": lambda: _linear("arx", data),
     }

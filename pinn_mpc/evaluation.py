@@ -17,7 +17,7 @@ import torch
 
 from pinn_mpc.data import validate_timeseries
 from pinn_mpc.errors import InputError
-from pinn_mpc.features import check_interval, time_of_day_h
+from pinn_mpc.features import check_interval
 from pinn_mpc.models import LearnedModel
 from pinn_mpc.records import EvaluationMetrics
 
@@ -62,7 +62,7 @@ def recursive_paths(
     u_phys = (df["u_phys"].to_numpy(dtype=float) - f.power.mean) / f.power.std
     u = (df["u"].to_numpy(dtype=float) - f.power.mean) / f.power.std
     exog = f.scale_exog({name: df[name].to_numpy(dtype=float) for name in f.exog_series})
-    tod = f.encode_time(time_of_day_h(df["time"]))
+    tod = f.clock_of(df)
     back = np.arange(-k, 1)
     ahead = np.arange(horizon)
     t_win = t_r[starts[:, None] + back]

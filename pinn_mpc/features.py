@@ -22,6 +22,11 @@ windows (see :class:`FeatureConfig` for the index sets)::
 each window k+1 long. All temperatures (T_r, T_m) share one scale, all powers (u, u_phys)
 another; T_a, G, the facades' irradiance (:mod:`pinn_mpc.solar`) and I_g are standardised
 each.
+
+Two inputs only the architectures that declare them get (:class:`FeatureConfig`'s
+``calendar`` and :data:`OPTIONAL_EXOG`): the calendar, four columns after the time of day
+(workday, Saturday, Sunday or holiday as a one-hot, then the hour of the day / 24, unscaled),
+for schedules of unmeasured gains; and the wind speed, a window like the other series.
 """
 
 from __future__ import annotations
@@ -33,13 +38,16 @@ from typing import Any, NamedTuple
 import numpy as np
 import pandas as pd
 
+from pinn_mpc.data import WIND, day_of_week
 from pinn_mpc.errors import InputError
 from pinn_mpc.physics import DT_RANGE_S
 from pinn_mpc.solar import FACADE_COLUMNS
 
 __all__ = [
+    "CALENDAR_COLUMNS",
     "EXOG_COLUMNS",
     "MAX_DEPTH",
+    "OPTIONAL_EXOG",
     "MIN_TRAIN_SAMPLES",
     "FeatureConfig",
     "Standard",
@@ -56,8 +64,13 @@ __all__ = [
 #: Exogenous inputs a model can use, in this order, with the data column each comes from.
 EXOG_COLUMNS = {
     "time_of_day_h": "time", "T_a": "T_a", "G": "G", **{c: c for c in FACADE_COLUMNS},
-    "I_g": "I_g",
+    "I_g": "I_g", WIND: WIND,
 }
+#: Exogenous inputs a model gets only where its architecture asks for them (and the data has
+#: them): the wind speed.
+OPTIONAL_EXOG = (WIND,)
+#: The calendar's columns (:attr:`FeatureConfig.calendar`): day type one-hot, hour / 24.
+CALENDAR_COLUMNS = 4
 #: Samples a training set must have at least.
 MIN_TRAIN_SAMPLES = 32
 #: Largest history depth (intervals): 3 weeks at 30 min, far beyond the paper's 8; it bounds
@@ -86,10 +99,23 @@ def check_interval(model_dt_s: float, dt_s: float, *, what: str) -> None:
         )
 
 
-def exog_names_for(df: pd.DataFrame) -> tuple[str, ...]:
+def exog_names_for(df: pd.DataFrame, optional: tuple[str, ...] = ()) -> tuple[str, ...]:
     """Exogenous inputs of a model trained on ``df``: time of day, T_a (+ G, the facades'
-    irradiance, I_g if present)."""
-    return ("time_of_day_h", "T_a") + tuple(c for c in list(EXOG_COLUMNS)[2:] if c in df.columns)
+    irradiance, I_g if present, and those of ``optional`` (:data:`OPTIONAL_EXOG`) present)."""
+    return ("time_of_day_h", "T_a") + tuple(
+        c for c in list(EXOG_COLUMNS)[2:]
+        if c in df.columns and (c not in OPTIONAL_EXOG or c in optional)
+    )
+
+
+def day_type(day_of_week_: np.ndarray) -> np.ndarray:
+    """(n, 3) one-hot of workday (Monday-Friday), Saturday, Sunday or holiday from the day of
+    the week (n,) (0 = Monday, 6 = Sunday or a holiday)."""
+    dow = np.asarray(day_of_week_, dtype=float)
+    if not np.all(np.isfinite(dow)):
+        raise InputError("the model reads the calendar (day_of_week), which these inputs lack")
+    index = np.clip(dow.astype(int) - 4, 0, 2)
+    return np.eye(3, dtype=np.float32)[index]
 
 
 def time_of_day_h(time: pd.Series) -> np.ndarray:
@@ -131,6 +157,7 @@ class FeatureConfig:
     power: Standard  # u_phys windows, u, u_phys output [W]
     delta_t_r: Standard  # T_r,i+1 - T_r,i, the regression target [K]
     exog: dict[str, Standard] = field(default_factory=dict)  # T_a, G, I_g
+    calendar: bool = False  # the calendar's columns after the time of day (module docstring)
 
     def __post_init__(self) -> None:
         if not 1 <= self.depth <= MAX_DEPTH:
@@ -160,7 +187,18 @@ class FeatureConfig:
 
     @property
     def n_features(self) -> int:
-        return (2 + len(self.exog_series)) * (self.depth + 1) + 1 + 2
+        return (2 + len(self.exog_series)) * (self.depth + 1) + 1 + 2 + self.n_calendar
+
+    @property
+    def n_calendar(self) -> int:
+        """Columns of the calendar (0 without it)."""
+        return CALENDAR_COLUMNS if self.calendar else 0
+
+    @property
+    def model_exog_names(self) -> tuple[str, ...]:
+        """What a forecast must give a model of these features: :attr:`exog_names`, and
+        ``day_of_week`` with the calendar."""
+        return self.exog_names + (("day_of_week",) if self.calendar else ())
 
     @property
     def u_index(self) -> int:
@@ -201,6 +239,28 @@ class FeatureConfig:
         phase = 2.0 * np.pi * np.asarray(time_of_day_h, dtype=float) / 24.0
         return np.stack([np.sin(phase), np.cos(phase)], axis=-1).astype(np.float32)
 
+    def encode_clock(
+        self, time_of_day_h: np.ndarray, day_of_week_: np.ndarray | None = None
+    ) -> np.ndarray:
+        """(n, 2 + :attr:`n_calendar`): :meth:`encode_time`, then with the calendar the day
+        type (:func:`day_type`) and the hour / 24; ``day_of_week_`` (n,) is needed then."""
+        tod = self.encode_time(time_of_day_h)
+        if not self.calendar:
+            return tod
+        if day_of_week_ is None:
+            raise InputError("the model reads the calendar (day_of_week), which these inputs lack")
+        hour = (np.asarray(time_of_day_h, dtype=np.float32) / 24.0)[:, None]
+        return np.concatenate([tod, day_type(day_of_week_), hour], axis=1).astype(np.float32)
+
+    def clock_of(self, df: pd.DataFrame) -> np.ndarray:
+        """:meth:`encode_clock` of every row of a frame (its ``time``, and ``holiday`` where
+        it has one)."""
+        dow = None
+        if self.calendar:
+            holiday = df["holiday"].to_numpy() if "holiday" in df else None
+            dow = day_of_week(pd.to_datetime(df["time"]).to_numpy(), holiday)
+        return self.encode_clock(time_of_day_h(df["time"]), dow)
+
     def to_dict(self) -> dict[str, Any]:
         return {
             "depth": self.depth,
@@ -210,6 +270,7 @@ class FeatureConfig:
             "power": self.power.to_dict(),
             "delta_t_r": self.delta_t_r.to_dict(),
             "exog": {k: v.to_dict() for k, v in self.exog.items()},
+            **({"calendar": True} if self.calendar else {}),
         }
 
     @classmethod
@@ -222,6 +283,7 @@ class FeatureConfig:
             power=Standard(**data["power"]),
             delta_t_r=Standard(**data["delta_t_r"]),
             exog={k: Standard(**v) for k, v in data["exog"].items()},
+            calendar=data.get("calendar", False) is True,
         )
 
 
@@ -256,12 +318,16 @@ def _check_rows(df: pd.DataFrame, depth: int, min_samples: int, what: str) -> No
         )
 
 
-def fit_feature_config(df: pd.DataFrame, *, depth: int) -> FeatureConfig:
-    """Fit the scaling on training data (validated frame with ``attrs['dt_s']``)."""
+def fit_feature_config(
+    df: pd.DataFrame, *, depth: int, calendar: bool = False, optional: tuple[str, ...] = ()
+) -> FeatureConfig:
+    """Fit the scaling on training data (validated frame with ``attrs['dt_s']``); with
+    ``calendar`` (where the data has dates) the calendar's columns, and the inputs of
+    ``optional`` (:data:`OPTIONAL_EXOG`) the data has."""
     if not 1 <= depth <= MAX_DEPTH:
         raise InputError(f"depth must be 1 .. {MAX_DEPTH} intervals, got {depth}")
     _check_rows(df, depth, MIN_TRAIN_SAMPLES, "training")
-    names = exog_names_for(df)
+    names = exog_names_for(df, optional)
     t_r = df["T_r"].to_numpy(dtype=float)
     dt_s = float(df.attrs.get("dt_s", 0.0)) or _infer_dt_s(df)
     return FeatureConfig(
@@ -272,6 +338,7 @@ def fit_feature_config(df: pd.DataFrame, *, depth: int) -> FeatureConfig:
         power=Standard.fit(df["u_phys"].to_numpy(dtype=float)),
         delta_t_r=Standard.fit(np.diff(t_r)),
         exog={n: Standard.fit(df[n].to_numpy(dtype=float)) for n in names[1:]},
+        calendar=calendar and pd.api.types.is_datetime64_any_dtype(df["time"]),
     )
 
 
@@ -303,7 +370,7 @@ def make_windows(df: pd.DataFrame, cfg: FeatureConfig, *, min_samples: int = 1) 
     e_s = cfg.scale_exog({name: df[name].to_numpy(dtype=float) for name in cfg.exog_series})
     parts = [t_r_s[rows[:, None] + offsets], p_s[rows[:, None] + offsets - 1]]
     parts += [series[rows[:, None] + offsets] for series in e_s]
-    parts += [u_s[rows, None], cfg.encode_time(time_of_day_h(df["time"]))[rows]]
+    parts += [u_s[rows, None], cfg.clock_of(df)[rows]]
     x = np.concatenate(parts, axis=1).astype(np.float32)
     raw = np.stack(
         [

@@ -310,7 +310,9 @@ def train_model(
     df = validate_timeseries(df, source="training data", u_max_w=config.u_max_w)
     check_power_sign(df, config.eta, what=arch)  # the physics prior and planners take its sign
     hp = config.resolved()
-    features = fit_feature_config(df, depth=config.depth)
+    features = fit_feature_config(
+        df, depth=config.depth, calendar=architecture.calendar, optional=architecture.optional_exog
+    )
     identified = _identify(df, config.eta)
     cop_curve = CopCurve.fit(df["T_a"].to_numpy(float), df["cop"].to_numpy(float)) if "cop" in df else None
     prior = architecture.training_prior(config, df, identified)
@@ -322,8 +324,10 @@ def train_model(
     if init_weights is not None:
         _load_weights(module, init_weights)
     lam = architecture.physics_weight(hp["lam"])
-    chunk = CHUNK if lam > 0 else 1
-    data = _training_set(df, features, chunk)
+    data = _training_set(df, features, CHUNK)
+    # A rollout loss's chunk is at most the samples there are (a day of data, a day's rollout).
+    chunk = min(architecture.chunk_length(lam, CHUNK), data.x.shape[0])
+    data = replace(data, chunk=chunk)
     loss_fn = architecture.loss_fn(module, data, config, lam)
 
     n_samples = data.x.shape[0]

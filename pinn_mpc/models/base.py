@@ -85,8 +85,9 @@ class NetParts(NamedTuple):
 class RolloutInputs(NamedTuple):
     """A rollout's inputs in scaled units, N plans (or starts) of H steps: ``t_win``, ``p_win``
     (N0, k+1) T_r,i-k..T_r,i and u_phys,i-k-1..u_phys,i-1; ``e_seq`` (N0, n_series, k+H)
-    exogenous series from i-k to i+H-1; ``u_s`` (N, H) demand; ``tod`` (N0, H, 2) encoded
-    time of day. N0 is 1 or N."""
+    exogenous series from i-k to i+H-1; ``u_s`` (N, H) demand; ``tod`` (N0, H, 2 + c) encoded
+    time of day, then the calendar's c columns where the features have it
+    (:meth:`pinn_mpc.features.FeatureConfig.encode_clock`). N0 is 1 or N."""
 
     t_win: torch.Tensor
     p_win: torch.Tensor
@@ -131,12 +132,17 @@ class Architecture(ABC):
     ``spec`` is its registry entry (name, depth, recipe, data policy); ``has_physics`` whether
     it owns a learnable 2R2C block (then the model has physical coefficients);
     ``physics_lr_factor`` the block's default learning-rate factor; ``format_versions`` the
-    model-directory formats its saved models can be read from.
+    model-directory formats its saved models can be read from; ``calendar`` and
+    ``optional_exog`` the inputs beyond the paper's its features hold.
     """
 
     has_physics = True
     physics_lr_factor = 10.0
     format_versions: tuple[int, ...] = (1, 2)
+    #: Whether its features carry the calendar, and the optional exogenous inputs it reads
+    #: where the data has them (:mod:`pinn_mpc.features`).
+    calendar = False
+    optional_exog: tuple[str, ...] = ()
 
     def __init__(self, spec: ArchSpec):
         self.spec = spec
@@ -160,6 +166,12 @@ class Architecture(ABC):
     def physics_weight(self, lam: float) -> float:
         """The weight of the physics residual in the loss, given the recipe's ``lam``."""
         return 0.0
+
+    def chunk_length(self, lam: float, linked: int) -> int:
+        """Consecutive samples per mini-batch chunk: ``linked`` where a physics residual links
+        neighbours (``lam`` > 0), else 1; an architecture trained on a multi-step rollout
+        loss returns the rollout's length."""
+        return linked if lam > 0 else 1
 
     @abstractmethod
     def loss_fn(

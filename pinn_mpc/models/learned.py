@@ -153,7 +153,7 @@ class LearnedModel(FittedModel):
 
     @property
     def exog_names(self) -> tuple[str, ...]:
-        return self.features.exog_names
+        return self.features.model_exog_names
 
     @property
     def family(self) -> str:
@@ -235,7 +235,8 @@ class LearnedModel(FittedModel):
         (>= depth+1,) past delivered power [W] (last = previous interval); each exogenous
         series of ``exog_names`` but time of day (``T_a`` ...) (>= depth+1,) up to now.
         ``u_w`` (N, H) demanded power [W]. ``exog``: one array (>= H,) per name in
-        ``exog_names`` for the next H intervals (``time_of_day_h`` at each interval start).
+        ``exog_names`` for the next H intervals (``time_of_day_h`` at each interval start;
+        ``day_of_week`` too where the features have the calendar).
         Returns tensors (M, N, H): one batched forward per horizon step.
         """
         k1 = self.depth + 1
@@ -270,7 +271,12 @@ class LearnedModel(FittedModel):
             torch.as_tensor(p_win, dtype=torch.float32)[None],
             torch.from_numpy(f.scale_exog(seq))[None],
             (u_w - f.power.mean) / f.power.std,
-            torch.from_numpy(f.encode_time(np.asarray(exog["time_of_day_h"])[:h_len]))[None],
+            torch.from_numpy(
+                f.encode_clock(
+                    np.asarray(exog["time_of_day_h"])[:h_len],
+                    np.asarray(exog["day_of_week"])[:h_len] if f.calendar else None,
+                )
+            )[None],
         )
 
     @property

@@ -30,6 +30,7 @@ __all__ = [
     "BASELINES",
     "PHYSICS_ARX",
     "COMPARED_ARCHS",
+    "CONSISTENT_ARCHS",
     "DEFAULT_ARCH",
     "MODEL_CHOICES",
     "TRAIN_CHOICES",
@@ -49,7 +50,8 @@ class ArchSpec:
     ``label`` its name in tables; ``paper`` whether it is one of the paper's networks.
     ``depth`` (history steps), ``recipe`` (:data:`pinn_mpc.choices.RECIPES`) and ``policy``
     (the ``simulate --policy`` of the data it was tuned on) are its defaults; ``summary``
-    says in a line what it is.
+    says in a line what it is; ``consistent`` whether every temperature it predicts is
+    non-decreasing in each heating power and outdoor temperature by construction.
     """
 
     name: str
@@ -60,6 +62,7 @@ class ArchSpec:
     recipe: str
     policy: str
     summary: str
+    consistent: bool = False
 
 
 ARCHITECTURES: dict[str, ArchSpec] = {
@@ -105,6 +108,30 @@ ARCHITECTURES: dict[str, ArchSpec] = {
             policy="random-level",
             summary="the identified 2R2C with learned corrections (recommended for control)",
         ),
+        ArchSpec(
+            name="pcnn",
+            implementation="pinn_mpc.models.pcnn:Pcnn",
+            label="PCNN",
+            paper=False,
+            depth=8,
+            recipe="long",
+            policy="random-level",
+            summary="the physically consistent PhysNet: T_m encoded from the history, power and "
+            "outdoor temperature through a positive 2R2C, a network for the unforced heat",
+            consistent=True,
+        ),
+        ArchSpec(
+            name="pcnn-parx",
+            implementation="pinn_mpc.models.pcnn_parx:PcnnParx",
+            label="PCNN-PARX",
+            paper=False,
+            depth=8,
+            recipe="long",
+            policy="random-level",
+            summary="the physics-informed ARX fitted as a positive system, with a network for "
+            "the unforced heat",
+            consistent=True,
+        ),
     )
 }
 #: The paper's learned-model architectures.
@@ -112,6 +139,8 @@ ARCHS = tuple(name for name, spec in ARCHITECTURES.items() if spec.paper)
 #: Every architecture.
 ALL_ARCHS = tuple(ARCHITECTURES)
 DEFAULT_ARCH = next(name for name, spec in ARCHITECTURES.items() if not spec.paper)
+#: The physically consistent architectures (Di Natale et al., 2022).
+CONSISTENT_ARCHS = tuple(name for name, spec in ARCHITECTURES.items() if spec.consistent)
 #: The architectures ``compare`` trains, in its order: the default, then the paper's
 #: networks from the most physical (PhysNet) to the plain MLP.
 COMPARED_ARCHS = (DEFAULT_ARCH, *reversed(ARCHS))

@@ -1,0 +1,143 @@
+"""Physical consistency (issue 44): the consistent architectures predict every T_r
+non-decreasing in each heating power (non-increasing in each cooling power) and in each
+outdoor temperature, for random histories, plans and forecasts; the check catches a network
+that does not (the paper's MLP)."""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+import pandas as pd
+import pytest
+import torch
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from pinn_mpc.artifacts import load_model, save_model
+from pinn_mpc.consistency import check_draw, draw
+from pinn_mpc.data import validate_timeseries
+from pinn_mpc.models.learned import LearnedModel
+from pinn_mpc.models.positive_arx import (
+    MAX_OWN_SUM,
+    TOLERANCE,
+    _least_distance,
+    _responses,
+    fit_positive_arx,
+    impulse_kernels,
+)
+from pinn_mpc.training import TrainConfig, train_model
+from scenarios.inputs.scenario_file import get_scenario
+from scenarios.running.datagen import generate
+
+HORIZON = 48
+
+
+@functools.lru_cache(maxsize=4)
+def _data(name: str) -> pd.DataFrame:
+    scenario = get_scenario(name)
+    return validate_timeseries(generate(scenario, days=14, seed=0, policy=scenario.data_policy), source=name)
+
+
+@functools.lru_cache(maxsize=8)
+def _model(name: str, arch: str) -> LearnedModel:
+    eta = get_scenario(name).sim.params.eta
+    return train_model(_data(name), arch=arch, config=TrainConfig(n_seeds=2, epochs=10, eta=eta), progress=False)
+
+
+def _passes(name: str, arch: str, seed: int) -> tuple[bool, bool]:
+    df = _data(name)
+    rng = np.random.default_rng(seed)
+    d = draw(rng, n_rows=len(df), first=64, horizon=HORIZON, u_max_w=float(df["u_phys"].max()))
+    return check_draw(_model(name, arch), df, d)
+
+
+@pytest.mark.parametrize("name", ["winter_household", "cold_storage"])
+@pytest.mark.parametrize("arch", ["pcnn", "pcnn-parx"])
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1))
+def test_consistent_families_pass_every_draw(name: str, arch: str, seed: int) -> None:
+    assert _passes(name, arch, seed) == (True, True)
+
+
+def test_the_check_catches_the_mlp() -> None:
+    results = [_passes("winter_household", "mlp", seed) for seed in range(60)]
+    assert not all(p and t for p, t in results)
+
+
+def test_positive_arx_responses_are_non_negative() -> None:
+    """Every certified impulse response of the fit (each power, each outdoor temperature, every
+    phase of the day) is non-negative, and the recursion's own kernel is."""
+    df = _data("winter_household")
+    fit = fit_positive_arx(df, eta=1.0)
+    per_day = 48
+    q_phase = fit.q[(np.arange(per_day) * 0.5 // fit.block_h).astype(int)]
+    kernels = impulse_kernels(fit.a, q_phase, 7 * per_day)
+    assert kernels.min() >= 0.0
+    u_mat, _ = _responses(kernels, np.zeros(per_day), fit.lags, 7 * per_day)
+    a_mat, a_off = _responses(kernels, -q_phase, fit.lags, 7 * per_day)
+    assert (u_mat @ fit.b).min() >= -TOLERANCE * 1e-3  # K/W: the bound is per kW
+    assert (a_mat @ fit.c + a_off).min() >= -TOLERANCE
+
+
+def _capped_simplex_projection(c: np.ndarray) -> np.ndarray:
+    """The point of {x >= 0, sum x <= 1} nearest to ``c``: max(c, 0) where that sums to at most
+    1, else the projection onto the simplex (sort, threshold)."""
+    clipped = np.maximum(c, 0.0)
+    if clipped.sum() <= 1.0:
+        return clipped
+    u = np.sort(c)[::-1]
+    cum = np.cumsum(u) - 1.0
+    rho = np.flatnonzero(u - cum / np.arange(1, c.size + 1) > 0)[-1]
+    return np.maximum(c - cum[rho] / (rho + 1), 0.0)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_least_distance_solves_a_constrained_least_squares_exactly(seed: int) -> None:
+    """min |x - c|^2 subject to x >= 0 and sum x <= 1 (the form of the positive ARX's fits: an
+    identity Hessian, w = c) is the projection onto the capped simplex."""
+    c = np.random.default_rng(seed).normal(0.3, 0.6, size=7)
+    n = c.size
+    g = np.concatenate([-np.ones((1, n)), np.eye(n)])
+    h = np.concatenate([[-1.0], np.zeros(n)])
+    x = _least_distance(np.eye(n), c, g, h)
+    assert x is not None
+    np.testing.assert_allclose(x, _capped_simplex_projection(c), atol=1e-10)
+
+
+def test_positive_arx_fits_a_heat_pump_house_whose_own_weights_must_be_capped() -> None:
+    """A heat pump house's fit needs the settling constraint (its own weights summed to 1 or
+    more); an iterative solver ran out of iterations there and the fit failed (5 of the 9
+    training sets of heat_pump_household at 14/30/60 days x seeds 0-2)."""
+    scenario = get_scenario("heat_pump_household")
+    df = generate(scenario, days=14, seed=2, policy=scenario.data_policy)
+    fit = fit_positive_arx(df, eta=scenario.sim.params.eta)
+    assert fit.a.min() >= 0.0 and fit.q.min() >= 0.0
+    assert fit.a.sum() + fit.q.max() <= MAX_OWN_SUM + 1e-12
+    assert fit.a.sum() + fit.q.max() > MAX_OWN_SUM - 1e-6  # the cap binds
+
+
+@pytest.mark.parametrize("arch", ["pcnn", "pcnn-parx"])
+def test_saved_and_loaded_model_rolls_out_the_same(arch: str, tmp_path) -> None:
+    model = _model("winter_household", arch)
+    save_model(model, tmp_path / "m")
+    loaded = load_model(tmp_path / "m")
+    df = _data("winter_household")
+    rng = np.random.default_rng(1)
+    d = draw(rng, n_rows=len(df), first=64, horizon=HORIZON, u_max_w=float(df["u_phys"].max()))
+    from pinn_mpc.consistency import history_at
+
+    history, exog = history_at(df, d.start, HORIZON)
+    plan = torch.as_tensor(d.plan_w[None], dtype=torch.float32)
+    a = model.rollout(history, plan, {n: exog[n] for n in model.exog_names}).t_r_c
+    b = loaded.rollout(history, plan, {n: exog[n] for n in loaded.exog_names}).t_r_c
+    assert torch.allclose(a, b)
+
+
+def test_a_rollout_loss_trains_on_less_data_than_its_rollout() -> None:
+    """One day of data holds fewer samples than a training rollout's 48 steps: the chunk is
+    the samples there are, and the model trains."""
+    from tests.model_data import household_data
+
+    model = train_model(household_data(1, seed=0), arch="pcnn", config=TrainConfig(n_seeds=1, epochs=2), progress=False)
+    assert np.isfinite(model.record.final_loss["reg"])
