@@ -473,7 +473,12 @@ def test_a_fit_whose_room_never_settles_is_refused_when_fitted_not_when_loaded(t
     and ``train --arch auto`` on the same data writes a model that loads."""
     from pinn_mpc.fitted import load, save
     from pinn_mpc.model_choice import choose_model
-    from pinn_mpc.models.arx import RUNAWAY_OFFSET_K, fit_linear, fit_physics_informed_arx, week_offset_k
+    from pinn_mpc.models.arx import (
+        RUNAWAY_OFFSET_K,
+        fit_linear,
+        fit_physics_informed_arx,
+        week_offset_k,
+    )
     from pinn_mpc.training import TrainConfig
     from scenarios.inputs.scenario_file import get_scenario
     from scenarios.running.datagen import generate
