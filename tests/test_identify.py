@@ -196,6 +196,6 @@ def test_a_fit_a_2r2c_cannot_give_is_noted_with_what_to_do(solar_frame: pd.DataF
     note = poor.poor_fit_note()
     assert poor.rmse_c > POOR_FIT_RMSE_C and note is not None
     assert f"rmse of {poor.rmse_c:.2f} C, above 1 C" in note
-    for advice in ("room temperature and the heating power delivered (--columns)", "more days",
+    for advice in ("room temperature and the heating power delivered", "more days",
                    "`pinn-mpc train`", "physics-informed ARX"):
         assert advice in note

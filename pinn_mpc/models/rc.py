@@ -7,7 +7,6 @@ import numpy as np
 import torch
 
 from pinn_mpc.actuator import Actuator
-from pinn_mpc.errors import InputError
 from pinn_mpc.models.rollout import BatchDynamics, Rollout
 from pinn_mpc.physics import RCParams, discretise
 
@@ -42,9 +41,9 @@ class RCBatchModel(BatchDynamics):
         actuator: Actuator | None = None,
     ):
         if not (np.isfinite(u_max_w) and u_max_w > 0):
-            raise InputError(f"RCBatchModel.u_max_w must be positive, got {u_max_w!r}")
+            raise ValueError(f"RCBatchModel.u_max_w must be positive, got {u_max_w!r}")
         if not backup_low_c < backup_high_c:
-            raise InputError(
+            raise ValueError(
                 f"RCBatchModel backup limits need low < high, got {backup_low_c}, {backup_high_c}"
             )
         self.params = params

@@ -100,7 +100,7 @@ class EnergyPlusRun:
     ) -> None:
         require_energyplus()
         if not (math.isfinite(heat_per_w) and heat_per_w != 0):
-            raise InputError(f"EnergyPlusRun: heat_per_w must be a nonzero number, got {heat_per_w!r}")
+            raise ValueError(f"EnergyPlusRun: heat_per_w must be a nonzero number, got {heat_per_w!r}")
         self.prepared = prepared
         self.heat_per_w = float(heat_per_w)
         self.hold_c = hold_c
