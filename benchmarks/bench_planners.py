@@ -125,7 +125,7 @@ def main() -> None:
         "rc": lambda: RCBatchModel(
             scenario.sim.params,
             dt_s=spec.dt_s,
-            u_max_w=spec.u_max_w,
+            actuator=spec.actuator,
             backup_low_c=scenario.sim.backup_low_c,
             backup_high_c=scenario.sim.backup_high_c,
         ),

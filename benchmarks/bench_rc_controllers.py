@@ -18,6 +18,7 @@ from controllers.base import ControlSpec
 from controllers.rc_mpc.casadi import CasadiMPC
 from controllers.rc_mpc.osqp import QPMPC
 from controllers.rc_mpc.problem import RCMPC
+from pinn_mpc.actuator import ActuatorSpec
 from pinn_mpc.physics import PAPER_HOUSEHOLD
 from pinn_mpc.simulator import SimConfig
 from scenarios.inputs.series import ExogenousSeries
@@ -51,7 +52,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=96)
     args = parser.parse_args()
-    spec = ControlSpec(u_max_w=5000.0, horizon_steps=48)
+    spec = ControlSpec(actuators=(ActuatorSpec(upper_w=5000.0),), horizon_steps=48)
     for controller in (QPMPC(PAPER_HOUSEHOLD, spec), CasadiMPC(PAPER_HOUSEHOLD, spec)):
         t_ms = decision_times_s(controller, args.steps) * 1e3
         median = float(np.median(t_ms))

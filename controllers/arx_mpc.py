@@ -9,12 +9,13 @@ prediction_matrices`, rebuilt at every decision), and the objective of every pla
 violation, heater bounds) is, as in :class:`controllers.rc_mpc.osqp.QPMPC`, the QP::
 
     minimise   dt_h (price @ p + comfort_weight sum(s) + rho |p|^2)
-    subject to T_min - s <= free + gain @ p <= T_max + s,   0 <= p <= u_max,   s >= 0
+    subject to T_min - s <= free + gain @ p <= T_max + s,   p_min <= p <= p_max,   s >= 0
 
-solved by OSQP directly (variables ``p`` [kW] and ``s`` [K], the constraint matrix dense lower
-triangular in ``gain``; its values are updated only when ``gain`` changes, which with the
-physics-informed ARX's schedule-dependent heat loss is at every schedule block edge). The
-regulariser ``rho`` only makes the optimum unique, as in the RC problem.
+with ``[p_min, p_max]`` the actuator's bounds (``spec.actuator``), solved by OSQP directly
+(variables ``p`` [kW] and ``s`` [K], the constraint matrix dense lower triangular in ``gain``;
+its values are updated only when ``gain`` changes, which with the physics-informed ARX's
+schedule-dependent heat loss is at every schedule block edge). The regulariser ``rho`` only
+makes the optimum unique, as in the RC problem.
 
 No state observer: the ARX's state is its measured history (the last ``lags`` room
 temperatures, powers and weather values), which every observation holds. Offset-free as the
@@ -131,7 +132,7 @@ class ARXQPMPC(PlanningController):
                 raise FloatingPointError("solver returned a non-finite plan")
         except Exception as exc:  # any failure acts through the fallback, never raises
             return self._failed(obs, forecast, start, f"{status}: {type(exc).__name__}: {exc}", iterations)
-        plan_w = np.clip(p, 0.0, self.spec.u_max_w / 1000.0) * 1000.0
+        plan_w = self.spec.actuator.clip_kw(p) * 1000.0
         self.last_prediction_c = free + offset + gain @ plan_w
         return self._succeeded(plan_w, start, status, iterations)
 
@@ -155,8 +156,9 @@ class ARXQPMPC(PlanningController):
         q = dt_h * np.concatenate(
             [objective.price_eur_per_kwh, np.full(h, self.spec.comfort_weight_eur_per_kh)]
         )
-        lower = np.concatenate([objective.t_min_c - free, -inf, np.zeros(2 * h)])
-        upper = np.concatenate([inf, objective.t_max_c - free, np.full(h, self.spec.u_max_w / 1000.0), inf])
+        actuator = self.spec.actuator
+        lower = np.concatenate([objective.t_min_c - free, -inf, np.full(h, actuator.lower_kw), np.zeros(h)])
+        upper = np.concatenate([inf, objective.t_max_c - free, np.full(h, actuator.upper_kw), inf])
         if not np.all(np.isfinite(np.concatenate([q, free, gain_kw.ravel(), objective.t_min_c, objective.t_max_c]))):
             raise FloatingPointError("non-finite QP data (forecast or model)")
         values = self._pattern.values(gain_kw)
@@ -188,7 +190,7 @@ class _Pattern:
 
         [[gain,  I],    T_r + s >= T_min
          [gain, -I],    T_r - s <= T_max
-         [I,     0],    0 <= p <= u_max
+         [I,     0],    p_min <= p <= p_max   (the actuator's bounds)
          [0,     I]]    s >= 0
 
     ``gain`` lower triangular, so its structure is fixed and only its values change."""

@@ -14,12 +14,12 @@ import signal
 import threading
 import time
 from collections.abc import Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, NamedTuple, Protocol, runtime_checkable
 
 import numpy as np
 
-from pinn_mpc.actuator import Actuator
+from pinn_mpc.actuator import ActuatorSpec
 from pinn_mpc.data import SITE_COLUMNS
 from pinn_mpc.errors import InputError, InternalError
 
@@ -167,22 +167,28 @@ class SolveStats(NamedTuple):
 class ControlSpec:
     """Actuator and objective settings shared by all controllers of a run.
 
-    ``u_max_w`` and every power a controller decides are electrical; ``actuator`` says how the
-    plant turns them into heat (a heat pump's COP curve, which an RC MPC plans with);
-    ``sensor_noise_std_c`` the room sensor's noise as its data sheet states it (the Kalman
-    observers take it as their measurement noise; 0 keeps their default)."""
+    ``actuators`` are the actuators the controllers set (:class:`pinn_mpc.actuator.ActuatorSpec`:
+    each one's bounds, whether it heats or cools, its zone and its efficiency, such as a heat
+    pump's COP curve, which an RC MPC plans with); today exactly one, on zone 0, and
+    :attr:`actuator` is it. Every power a controller decides is electrical and every bound of
+    it is the actuator's. ``sensor_noise_std_c`` is the room sensor's noise as its data sheet
+    states it (the Kalman observers take it as their measurement noise; 0 keeps their default)."""
 
-    u_max_w: float
+    actuators: tuple[ActuatorSpec, ...]
     dt_s: float = 1800.0
     horizon_steps: int = 48
     comfort_weight_eur_per_kh: float = 1.0
-    heating: bool = True
-    actuator: Actuator = field(default_factory=Actuator)
     sensor_noise_std_c: float = 0.0
 
     def __post_init__(self) -> None:
-        if not (math.isfinite(self.u_max_w) and self.u_max_w > 0):
-            raise ValueError(f"ControlSpec.u_max_w must be positive, got {self.u_max_w!r}")
+        if not (isinstance(self.actuators, tuple) and all(isinstance(a, ActuatorSpec) for a in self.actuators)):
+            raise TypeError(f"ControlSpec.actuators must be a tuple of ActuatorSpec, got {self.actuators!r}")
+        if len(self.actuators) != 1 or self.actuators[0].zone != 0:
+            raise ValueError(
+                "ControlSpec.actuators: the controllers set one actuator on zone 0 (one zone, "
+                f"heating or cooling), got {len(self.actuators)} on zones "
+                f"{[a.zone for a in self.actuators]}"
+            )
         if self.horizon_steps < 1:
             raise ValueError(f"ControlSpec.horizon_steps must be >= 1, got {self.horizon_steps}")
         if not (math.isfinite(self.sensor_noise_std_c) and self.sensor_noise_std_c >= 0):
@@ -195,6 +201,21 @@ class ControlSpec:
             )
 
     @property
+    def actuator(self) -> ActuatorSpec:
+        """The one actuator the controllers set (``actuators[0]``)."""
+        return self.actuators[0]
+
+    @property
+    def u_max_w(self) -> float:
+        """The one actuator's upper bound [W] (``actuator.upper_w``)."""
+        return self.actuator.upper_w
+
+    @property
+    def heating(self) -> bool:
+        """Whether the one actuator heats (``actuator.heats``); False: it cools."""
+        return self.actuator.heats
+
+    @property
     def dt_h(self) -> float:
         return self.dt_s / 3600.0
 
@@ -202,9 +223,9 @@ class ControlSpec:
 def check_heating(eta: float, spec: ControlSpec, *, what: str) -> None:
     """Every controller given a model or RC parameters checks, at construction, that they heat
     (eta > 0) when the scenario's actuator heats and cool (eta < 0) when it cools."""
-    if (eta > 0) == spec.heating:
+    if (eta > 0) == spec.actuator.heats:
         return
-    if spec.heating:
+    if spec.actuator.heats:
         raise InputError(
             f"{what}: eta={eta:g}, a cooling machine, but the scenario's actuator is a heater; "
             "use a model or RC file made for heating (eta > 0)"
@@ -261,17 +282,19 @@ class Controller(Protocol):
 def fallback_power(obs: Observation, forecast: Forecast, spec: ControlSpec) -> float:
     """The documented safe action when a solver fails or a model output is not finite.
 
-    A band-keeping rule on the measured room temperature: full power when the room is in the
-    lower (heating) or upper (cooling) quarter of the band or beyond it, otherwise off. Without
-    a band (an empty forecast) it is off: the backup thermostat still guards the room.
+    A band-keeping rule on the measured room temperature: the actuator's full power when the
+    room is in the lower (heating) or upper (cooling) quarter of the band or beyond it,
+    otherwise off (its lower bound). Without a band (an empty forecast) it is off: the backup
+    thermostat still guards the room.
     """
+    actuator = spec.actuator
     if len(forecast.T_min) == 0 or len(forecast.T_max) == 0:
-        return 0.0
+        return actuator.lower_w
     t_min, t_max = float(forecast.T_min[0]), float(forecast.T_max[0])
     quarter = 0.25 * (t_max - t_min)
-    if spec.heating:
-        return spec.u_max_w if obs.t_r_c < t_min + quarter else 0.0
-    return spec.u_max_w if obs.t_r_c > t_max - quarter else 0.0
+    if actuator.heats:
+        return actuator.on_off(obs.t_r_c < t_min + quarter)
+    return actuator.on_off(obs.t_r_c > t_max - quarter)
 
 
 #: The statuses of a solver that caught a Ctrl-C itself (OSQP; IPOPT through CasADi), lower case.

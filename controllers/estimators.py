@@ -90,7 +90,7 @@ class KalmanEstimator:
         cannot tell a drifting mass from noise and the plan would chase it."""
         process, measurement = observer_noise(spec)
         return cls(
-            params, spec.dt_s, actuator=spec.actuator, measurement_std_c=measurement,
+            params, spec.dt_s, actuator=spec.actuator.efficiency, measurement_std_c=measurement,
             process_std_c=process,
         )
 
@@ -128,7 +128,7 @@ class FleetKalmanEstimator:
         if ad.ndim != 3 or ad.shape[1:] != (2, 2) or bd.shape != (ad.shape[0], 2, 4):
             raise InternalError(f"FleetKalmanEstimator: ad (B, 2, 2) and bd (B, 2, 4), got {ad.shape}, {bd.shape}")
         process, measurement = observer_noise(spec)
-        self.ad, self.bd, self.actuator = ad, bd, spec.actuator
+        self.ad, self.bd, self.actuator = ad, bd, spec.actuator.efficiency
         self.q = np.diag(np.square(np.asarray(process, dtype=float)))
         self.r = float(measurement) ** 2
         self.initial_t_m_std_c = DEFAULT_INITIAL_T_M_STD_C

@@ -222,7 +222,10 @@ class FleetQPMPC:
         assert s is not None  # observe() comes first (an internal order, not user input)
         obj = s.objective
         heat_price = (obj.price_eur_per_kwh + extra) / s.cop
-        return qp_vectors(s.drift_c, heat_price, s.cop * self.spec.u_max_w / 1000.0, obj, BOX)
+        actuator = self.spec.actuator
+        # (COP x W) / 1000, the order of arithmetic the fleet's results were made in
+        heat_bounds = s.cop * actuator.lower_w / 1000.0, s.cop * actuator.upper_w / 1000.0
+        return qp_vectors(s.drift_c, heat_price, heat_bounds, obj, BOX)
 
     def plan(
         self,
@@ -247,7 +250,7 @@ class FleetQPMPC:
         x = solution.x
         p_kw = x[:, :h] / self._stage.cop
         ok = self._stage.ok & solution.solved & np.all(np.isfinite(p_kw), axis=1)
-        power = np.clip(np.nan_to_num(p_kw), 0.0, self.spec.u_max_w / 1000.0) * 1000.0
+        power = self.spec.actuator.clip_kw(np.nan_to_num(p_kw)) * 1000.0
         status = "solved" if statuses == {"solved"} else ", ".join(sorted(statuses))
         return FleetPlan(power_w=power, ok=ok, status=status, iterations=solution.iterations)
 

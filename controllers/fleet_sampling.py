@@ -115,7 +115,11 @@ class FleetCEM:
         if shadow is not None and shadow.n_buildings != dynamics.n_buildings:
             raise InternalError("FleetCEM: the shadow RC MPC must have one building per model")
         self.dynamics, self.spec = dynamics, spec
-        self.planner = planner if planner is not None else CEMPlanner(lower=0.0, upper=spec.u_max_w, n_samples=32)
+        actuator = spec.actuator
+        self.planner = (
+            planner if planner is not None
+            else CEMPlanner(lower=actuator.lower_w, upper=actuator.upper_w, n_samples=32)
+        )
         if replan_iters < 0:
             raise ValueError(f"FleetCEM.replan_iters must be >= 0, got {replan_iters}")
         if not (isinstance(rc_refresh, int) and rc_refresh >= 1):
@@ -135,7 +139,7 @@ class FleetCEM:
         b = dynamics.n_buildings
         self.fallbacks = [Fallback(spec, reuse_plan=False) for _ in range(b)]
         settings = TrustSettings() if trust is None else trust
-        self.monitors = [TrustMonitor(settings, spec.u_max_w) for _ in range(b)]
+        self.monitors = [TrustMonitor(settings, actuator.span_w) for _ in range(b)]
         self.reset()
 
     @property
@@ -213,7 +217,7 @@ class FleetCEM:
     def _warm_starts(self, h: int) -> torch.Tensor:
         """(B, H) each building's last plan shifted one interval (its last value repeated), or
         half power where it has none (before its first plan, after a fallback)."""
-        x0 = torch.full((self.n_buildings, h), 0.5 * self.spec.u_max_w)
+        x0 = torch.full((self.n_buildings, h), self.spec.actuator.at_fraction(0.5))
         if self._has_plan.any():
             shifted = torch.cat([self._plans[:, 1:], self._plans[:, -1:]], dim=1)
             x0[self._has_plan] = shifted[self._has_plan]
@@ -327,7 +331,7 @@ class FleetCEM:
         self._step = None
         self._steps += 1
         self._rc_plans = np.concatenate([self._rc_plans[:, 1:], self._rc_plans[:, -1:]], axis=1)
-        return FleetDecision(u_w=np.clip(u, 0.0, self.spec.u_max_w), fallback=~plan.ok | distrusted, model_fallback=distrusted)
+        return FleetDecision(u_w=self.spec.actuator.clip(u), fallback=~plan.ok | distrusted, model_fallback=distrusted)
 
     @property
     def model_fallback_steps(self) -> np.ndarray:

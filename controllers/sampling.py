@@ -174,7 +174,7 @@ class _SamplingController(PlanningController):
         except ValueError as exc:
             raise ValueError(f"{type(self).__name__}.{exc}") from exc
         self.fallback = Fallback(spec, reuse_plan=False)
-        self.monitor = TrustMonitor(guard.settings, spec.u_max_w)
+        self.monitor = TrustMonitor(guard.settings, spec.actuator.span_w)
         self.training_ranges = dict(guard.training_ranges)
         self.shadow = None
         self.replay: RCReplay | None = None  # the shadow's estimates, replayed
@@ -223,7 +223,7 @@ class _SamplingController(PlanningController):
         }
 
     def act(self, obs: Observation, forecast: Forecast) -> float:
-        """Demanded power for the coming interval [W], in ``[0, u_max_w]``: the model's plan,
+        """Demanded power for the coming interval [W], within the actuator's bounds: the model's plan,
         or the fallback RC MPC's action while the model is not to be trusted."""
         start = time.perf_counter()
         shadow_u = None
@@ -252,7 +252,7 @@ class _SamplingController(PlanningController):
         self._stats = SolveStats(
             time_s=time.perf_counter() - start, status="ok", iterations=iterations, fallback=False
         )
-        return float(np.clip(plan[0], 0.0, self.spec.u_max_w))
+        return float(self.spec.actuator.clip(plan[0]))
 
     def _replay_errors(self, obs: Observation) -> tuple[float, float]:
         """Measured minus replayed T_r now [K], of the model and of the fallback RC, over the
@@ -293,7 +293,7 @@ class _SamplingController(PlanningController):
             iterations=iterations,
             fallback=True,
         )
-        return float(np.clip(shadow_u, 0.0, self.spec.u_max_w))
+        return float(self.spec.actuator.clip(shadow_u))
 
     def _model_failed(
         self,
@@ -328,7 +328,7 @@ class _SamplingController(PlanningController):
     def _warm_start(self, h: int) -> torch.Tensor:
         plan = self.fallback.plan_w
         if plan is None:
-            x0 = np.full(h, 0.5 * self.spec.u_max_w)
+            x0 = np.full(h, self.spec.actuator.at_fraction(0.5))
         else:
             shifted = np.append(plan[1:], plan[-1])
             x0 = np.pad(shifted, (0, max(h - len(shifted), 0)), mode="edge")[:h]
@@ -352,7 +352,8 @@ class _SamplingController(PlanningController):
         exog = forecast.exogenous(self.model.exog_names, h)
         self._out_of_range(exog)
         rollout, score = self._scorer(obs.history, exog, objective, offset)
-        problem = PlanProblem(objective=objective, lower=0.0, upper=self.spec.u_max_w)
+        actuator = self.spec.actuator
+        problem = PlanProblem(objective=objective, lower=actuator.lower_w, upper=actuator.upper_w)
 
         x0 = self._warm_start(h)
         polisher = PiggybackPolish(rollout, score, problem, self.polish, x0)
@@ -384,10 +385,10 @@ class _SamplingController(PlanningController):
     ) -> tuple[torch.Tensor, float, PlanResult]:
         """Sample offset schedules from the band edge, tracked through the model linearised
         around ``x0`` (:mod:`controllers.setpoint_space`); the probes are candidates too."""
-        edge = objective.t_min_c if self.spec.heating else objective.t_max_c
+        actuator = self.spec.actuator
+        edge = objective.t_min_c if actuator.heats else objective.t_max_c
         space, batch, predictions = SetpointSpace.probe(
-            rollout, x0, torch.as_tensor(edge), heating=self.spec.heating,
-            upper_w=self.spec.u_max_w, stride=stride,
+            rollout, x0, torch.as_tensor(edge), actuator=actuator, stride=stride,
         )
         probe_costs = score(*predictions).double()
         result = self.planner.optimize(
@@ -487,7 +488,8 @@ class RandomShooting(_SamplingController):
             )
         else:
             planner = RandomShootingPlanner(
-                lower=0.0, upper=spec.u_max_w, n_samples=n_samples, local_frac=local_frac, binary=binary
+                lower=spec.actuator.lower_w, upper=spec.actuator.upper_w, n_samples=n_samples,
+                local_frac=local_frac, binary=binary,
             )
         options = _Options(
             risk_weight, ensemble, offset_gain, 0 if binary else polish_iters, comfort_margin_k
@@ -529,8 +531,8 @@ class CEM(_SamplingController):
         guard: Guard = NO_GUARD,
     ):
         planner = CEMPlanner(
-            lower=0.0,
-            upper=spec.u_max_w,
+            lower=spec.actuator.lower_w,
+            upper=spec.actuator.upper_w,
             n_samples=n_samples,
             n_iters=n_iters,
             elite_frac=elite_frac,

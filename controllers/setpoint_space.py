@@ -19,6 +19,7 @@ from __future__ import annotations
 import torch
 
 from controllers.lp_polish import RolloutFn, jacobians, probes
+from pinn_mpc.actuator import ActuatorSpec
 
 __all__ = ["SetpointSpace"]
 
@@ -26,8 +27,9 @@ __all__ = ["SetpointSpace"]
 class SetpointSpace:
     """The affine model around a warm start and the map offsets (N, H) [K] -> powers (N, H) [W].
 
-    ``edge_c`` (H,) is the band edge the offsets count from (lower edge heating, upper cooling);
-    offsets count into the band. Built by :meth:`probe`, which also returns what the probes cost.
+    ``edge_c`` (H,) is the band edge the offsets count from (lower edge when ``actuator``
+    heats, upper when it cools); offsets count into the band, and the powers stay within the
+    actuator's bounds. Built by :meth:`probe`, which also returns what the probes cost.
     """
 
     def __init__(
@@ -37,11 +39,10 @@ class SetpointSpace:
         u0: torch.Tensor,
         edge_c: torch.Tensor,
         *,
-        heating: bool,
-        upper_w: float,
+        actuator: ActuatorSpec,
     ):
         self.t0, self.jr, self.u0 = t0, jr, u0
-        self.edge_c, self.sign, self.upper_w = edge_c, 1.0 if heating else -1.0, upper_w
+        self.edge_c, self.sign, self.actuator = edge_c, actuator.sign, actuator
 
     @classmethod
     def probe(
@@ -50,14 +51,14 @@ class SetpointSpace:
         u0: torch.Tensor,
         edge_c: torch.Tensor,
         *,
-        heating: bool,
-        upper_w: float,
+        actuator: ActuatorSpec,
         stride: int,
         delta_frac: float = 0.02,
     ) -> tuple[SetpointSpace, torch.Tensor, tuple[torch.Tensor, torch.Tensor]]:
-        """Linearise the model around ``u0`` (H,) with one rollout of 1 + ceil(H/stride) plans;
-        the space, the probe batch and its predictions (so the caller can score them)."""
-        batch, step = probes(u0, delta_frac * upper_w, upper_w, stride)
+        """Linearise the model around ``u0`` (H,) with one rollout of 1 + ceil(H/stride) plans
+        (each probe ``delta_frac`` of the actuator's range); the space, the probe batch and
+        its predictions (so the caller can score them)."""
+        batch, step = probes(u0, delta_frac * actuator.span_w, actuator.upper_w, stride)
         t_r, u_phys = rollout(batch)
         t0, _p0, jr, _jp = jacobians(t_r, u_phys, step)
         dtype = u0.dtype
@@ -66,8 +67,7 @@ class SetpointSpace:
             torch.as_tensor(jr.mean(0), dtype=dtype),
             u0,
             edge_c.to(dtype),
-            heating=heating,
-            upper_w=upper_w,
+            actuator=actuator,
         )
         return space, batch, (t_r, u_phys)
 
@@ -77,7 +77,7 @@ class SetpointSpace:
 
     def powers(self, offsets_k: torch.Tensor) -> torch.Tensor:
         """Offsets (N, H) [K] -> the powers (N, H) [W] that track ``edge + offset`` on the
-        linearised model (forward substitution, each step clipped to [0, upper])."""
+        linearised model (forward substitution, each step clipped to the actuator's bounds)."""
         n, h = offsets_k.shape
         setpoint = self.edge_c + self.sign * offsets_k
         du = torch.zeros((n, h), dtype=offsets_k.dtype)
@@ -88,6 +88,8 @@ class SetpointSpace:
             if abs(gain) < 1e-12:  # the power has no effect (a backup override): keep the warm start
                 u[:, k] = self.u0[k]
                 continue
-            u[:, k] = (self.u0[k] + (setpoint[:, k] - predicted) / gain).clamp(0.0, self.upper_w)
+            u[:, k] = (self.u0[k] + (setpoint[:, k] - predicted) / gain).clamp(
+                self.actuator.lower_w, self.actuator.upper_w
+            )
             du[:, k] = u[:, k] - self.u0[k]
         return u

@@ -22,8 +22,8 @@ __all__ = ["Thermostat"]
 
 
 class Thermostat:
-    """On/off rule; ``act`` returns 0 or ``spec.u_max_w`` [W]. Deterministic; keeps one bit of
-    state (on or off) between calls, cleared by ``reset``."""
+    """On/off rule; ``act`` returns the actuator's off or full power (``spec.actuator.on_off``)
+    [W]. Deterministic; keeps one bit of state (on or off) between calls, cleared by ``reset``."""
 
     name = "thermostat"
     #: A rule on the measured room temperature: no model, no state estimate, nothing to trust.
@@ -54,7 +54,7 @@ class Thermostat:
         """(switch-on, switch-off) room temperatures [C] for this band."""
         half = 0.5 * self.hysteresis_k
         offset = self.offset_fraction * (t_max_c - t_min_c)
-        if self.spec.heating:
+        if self.spec.actuator.heats:
             return t_min_c + offset - half, t_min_c + offset + half
         return t_max_c - offset + half, t_max_c - offset - half
 
@@ -66,7 +66,7 @@ class Thermostat:
         Stateless, so data generation can run it over many buildings at once.
         """
         on_at, off_at = self.thresholds_c(t_min_c, t_max_c)
-        if self.spec.heating:
+        if self.spec.actuator.heats:
             return (t_r_c < on_at) | (was_on & (t_r_c <= off_at))
         return (t_r_c > on_at) | (was_on & (t_r_c >= off_at))
 
@@ -74,7 +74,7 @@ class Thermostat:
         start = time.perf_counter()
         band = float(forecast.T_min[0]), float(forecast.T_max[0])
         self._on = bool(self.switch(np.array([obs.t_r_c]), np.array([self._on]), *band)[0])
-        power = self.spec.u_max_w if self._on else 0.0
+        power = self.spec.actuator.on_off(self._on)
         self._plan = np.array([power])
         self._stats = SolveStats(
             time_s=time.perf_counter() - start, status="rule", iterations=0, fallback=False

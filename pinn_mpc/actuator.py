@@ -1,4 +1,18 @@
-"""The actuator between the demanded electrical power and the heat the building receives.
+"""The actuators a controller sets: their bounds, what they act on, and how their electrical power
+becomes heat.
+
+:class:`ActuatorSpec` declares one actuator: its electrical power's bounds ``[lower_w,
+upper_w]`` [W], whether it heats or cools, the zone it acts on, and its efficiency (an
+:class:`Actuator`, below). It is the one place a control input's bounds are written: a clip, a
+planner's box, a QP's bounds, the on and off of an on/off rule and the backup thermostat's
+forced power all ask it. Cooling is an actuator of its own, never a negative power: its
+electrical power lies in ``[lower_w, upper_w]`` with ``lower_w >= 0`` like a heater's, and its
+effect on the zone is negative (``heats=False``; the building's ``eta < 0``), so the price
+applies to the power as it is and a zone may have a heater and a cooler at once, each with its
+own bounds and efficiency (``docs/layout.md`` says why). Today's buildings have one zone and one
+actuator, a heater or a cooling machine (``SimConfig.actuators``, ``ControlSpec.actuators``).
+
+:class:`Actuator` is an actuator's efficiency: how its electrical power becomes heat.
 
 ``u`` and ``u_phys`` are ELECTRICAL power everywhere (data, models, KPIs, the objective's price
 term). The building receives ``eta * gain(T_a) * u_phys`` watts of heat, where ``gain`` is
@@ -17,8 +31,9 @@ term). The building receives ``eta * gain(T_a) * u_phys`` watts of heat, where `
   the defaults (35 C supply, 45 % of Carnot) it gives 3.96 at 0 C, 3.08 at -10 C and 5.55 at
   10 C outdoor air, typical of a floor-heated house.
 
-``min_modulation`` (fraction of ``u_max_w``) is the lowest power the machine runs at. A demand
-below it makes the machine cycle within the interval, as a real one does: on at the minimum for
+``min_modulation`` (a fraction of the upper bound, ``u_max_w``) is the lowest power the machine
+runs at. A demand below it makes the machine cycle within the interval, as a real one does: on
+at the minimum for
 the first ``round(n_sub u / p_min)`` substeps, then off, so the interval mean matches the demand
 to a substep's share (1/30 of p_min at 30-min intervals and 1-min substeps) while the room sees
 the on/off swing. 0 (the default) runs at any demand.
@@ -32,14 +47,14 @@ with the COP evaluated on the forecast (its plan variable is the delivered heat,
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
-from typing import Any
+from dataclasses import dataclass, field
+from typing import Any, overload
 
 import numpy as np
 
 from pinn_mpc.errors import InputError
 
-__all__ = ["ACTUATOR_KINDS", "Actuator", "CopCurve", "KELVIN"]
+__all__ = ["ACTUATOR_KINDS", "Actuator", "ActuatorSpec", "CopCurve", "KELVIN"]
 
 ACTUATOR_KINDS = ("ideal", "heat_pump")
 KELVIN = 273.15
@@ -98,6 +113,115 @@ class Actuator:
         with np.errstate(divide="ignore", invalid="ignore"):
             carnot = np.where(lift_k > 0, t_supply_k / np.where(lift_k > 0, lift_k, 1.0), np.inf)
         return np.clip(self.carnot_efficiency * carnot, self.cop_min, self.cop_max)
+
+
+@dataclass(frozen=True, kw_only=True)
+class ActuatorSpec:
+    """One actuator a controller sets (module docstring): electrical power in ``[lower_w,
+    upper_w]`` [W], heating (``heats``) or cooling the zone ``zone``, with the efficiency
+    ``efficiency`` (the ideal heater by default). Every bound of its power is asked of it:
+    :meth:`clip`, :meth:`clip_kw`, :meth:`on_off`, :meth:`at_fraction` and the bounds
+    themselves (a planner's box, a QP's rows)."""
+
+    upper_w: float
+    lower_w: float = 0.0
+    heats: bool = True
+    zone: int = 0
+    efficiency: Actuator = field(default_factory=Actuator)
+
+    def __post_init__(self) -> None:
+        lo, hi = self.lower_w, self.upper_w
+        if not all(isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) for v in (lo, hi)):
+            raise ValueError(f"ActuatorSpec bounds must be finite numbers [W], got lower_w={lo!r}, upper_w={hi!r}")
+        if not 0 <= lo < hi:
+            raise ValueError(
+                f"ActuatorSpec bounds need 0 <= lower_w < upper_w (electrical power; cooling is an "
+                f"actuator of its own with heats=False), got lower_w={lo!r}, upper_w={hi!r}"
+            )
+        if not isinstance(self.heats, bool):
+            raise TypeError(f"ActuatorSpec.heats must be True (heats) or False (cools), got {self.heats!r}")
+        if isinstance(self.zone, bool) or not isinstance(self.zone, int) or self.zone < 0:
+            raise ValueError(f"ActuatorSpec.zone must be a zone index >= 0, got {self.zone!r}")
+        if self.efficiency.kind == "heat_pump" and not self.heats:
+            raise ValueError(
+                "ActuatorSpec: a heat_pump efficiency heats, but heats=False; give a cooling "
+                "machine the ideal efficiency (its COP is the building's -eta)"
+            )
+
+    @property
+    def span_w(self) -> float:
+        """``upper_w - lower_w`` [W]: the range of its power."""
+        return self.upper_w - self.lower_w
+
+    @property
+    def lower_kw(self) -> float:
+        """``lower_w`` in kW (the QPs' unit)."""
+        return self.lower_w / 1000.0
+
+    @property
+    def upper_kw(self) -> float:
+        """``upper_w`` in kW (the QPs' unit)."""
+        return self.upper_w / 1000.0
+
+    @property
+    def sign(self) -> float:
+        """The sign of its effect on the zone's temperature: 1 heating, -1 cooling."""
+        return 1.0 if self.heats else -1.0
+
+    @property
+    def min_power_w(self) -> float:
+        """The lowest power it runs at [W] (``efficiency.min_modulation`` of ``upper_w``);
+        below it the machine cycles within an interval."""
+        return self.efficiency.min_modulation * self.upper_w
+
+    @property
+    def is_ideal(self) -> bool:
+        """Whether its heat is ``eta`` x its power at any power (:attr:`Actuator.is_ideal`)."""
+        return self.efficiency.is_ideal
+
+    def gain(self, t_a_c: Any) -> np.ndarray:
+        """Heat per electrical watt (before eta) at outdoor temperature ``t_a_c`` [C]
+        (:meth:`Actuator.gain`), same shape."""
+        return self.efficiency.gain(t_a_c)
+
+    @overload
+    def clip(self, u_w: float) -> float: ...
+
+    @overload
+    def clip(self, u_w: np.ndarray) -> np.ndarray: ...
+
+    def clip(self, u_w: float | np.ndarray) -> float | np.ndarray:
+        """``u_w`` [W] (a number or an array) within ``[lower_w, upper_w]``."""
+        return np.clip(u_w, self.lower_w, self.upper_w)
+
+    def clip_kw(self, p_kw: np.ndarray) -> np.ndarray:
+        """``p_kw`` [kW] within ``[lower_kw, upper_kw]``: a QP's plan clipped in the QP's unit,
+        before it is turned into watts (the order of arithmetic its results were made in)."""
+        return np.clip(p_kw, self.lower_kw, self.upper_kw)
+
+    @overload
+    def on_off(self, on: bool | np.bool_) -> float: ...
+
+    @overload
+    def on_off(self, on: np.ndarray) -> np.ndarray: ...
+
+    def on_off(self, on: bool | np.bool_ | np.ndarray) -> float | np.ndarray:
+        """The power of an on/off decision [W]: ``upper_w`` where ``on``, ``lower_w`` elsewhere
+        (a bool gives a number, an array of them an array)."""
+        if isinstance(on, np.ndarray):
+            return np.where(on, self.upper_w, self.lower_w)
+        return self.upper_w if on else self.lower_w
+
+    @overload
+    def at_fraction(self, fraction: float) -> float: ...
+
+    @overload
+    def at_fraction(self, fraction: np.ndarray) -> np.ndarray: ...
+
+    def at_fraction(self, fraction: float | np.ndarray) -> float | np.ndarray:
+        """The power [W] at ``fraction`` (a number or an array, clipped to [0, 1]) of the way
+        from ``lower_w`` to ``upper_w``."""
+        return self.lower_w + np.clip(fraction, 0.0, 1.0) * self.span_w
 
 
 @dataclass(frozen=True, kw_only=True)

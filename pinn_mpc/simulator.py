@@ -21,12 +21,13 @@ import dataclasses
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import NamedTuple
 
 import numpy as np
 import scipy.linalg
 
-from pinn_mpc.actuator import Actuator
+from pinn_mpc.actuator import Actuator, ActuatorSpec
 from pinn_mpc.errors import InputError, InternalError, setting
 from pinn_mpc.physics import N_INPUTS, PAPER_HOUSEHOLD, RCParams
 from pinn_mpc.plant import Plant, plant_matrices
@@ -42,8 +43,10 @@ MAX_ACTUATOR_W = 1.0e8
 class SimConfig:
     """Building, actuator and backup-thermostat settings of a simulation.
 
-    ``u_max_w`` is electrical; ``actuator`` and ``plant`` default to today's ideal heater on
-    the 2R2C (bit-identical trajectories)."""
+    ``u_max_w`` is electrical; ``actuator`` (the efficiency, the scenario file's
+    ``[simulation.actuator]``) and ``plant`` default to today's ideal heater on the 2R2C
+    (bit-identical trajectories). :attr:`actuators` declares the actuator they make, which
+    the simulator and the controllers ask for its bounds."""
 
     params: RCParams = field(default_factory=lambda: PAPER_HOUSEHOLD)
     u_max_w: float = 5000.0
@@ -88,6 +91,13 @@ class SimConfig:
     def n_substeps(self) -> int:
         return round(self.dt_s / self.substep_s)
 
+    @cached_property
+    def actuators(self) -> tuple[ActuatorSpec, ...]:
+        """The building's actuators (:class:`pinn_mpc.actuator.ActuatorSpec`), today one on its
+        one zone: electrical power in ``[0, u_max_w]``, heating where ``params.eta > 0`` and
+        cooling where it is negative, with the efficiency ``actuator``."""
+        return (ActuatorSpec(upper_w=self.u_max_w, heats=self.params.heating, efficiency=self.actuator),)
+
 
 class StepResult(NamedTuple):
     """Outcome of one control interval for B buildings (true states, not measurements)."""
@@ -104,10 +114,11 @@ def backup_power(t_r_c: np.ndarray, u_w: np.ndarray, config: SimConfig) -> np.nd
 
     The rule as numpy; :mod:`pinn_mpc.substeps` applies the same rule inside its loop.
     """
+    (actuator,) = config.actuators
     too_cold = t_r_c < config.backup_low_c
     too_warm = t_r_c > config.backup_high_c
-    force_on, force_off = (too_cold, too_warm) if config.params.heating else (too_warm, too_cold)
-    return np.where(force_on, config.u_max_w, np.where(force_off, 0.0, u_w))
+    force_on, force_off = (too_cold, too_warm) if actuator.heats else (too_warm, too_cold)
+    return np.where(force_on, actuator.upper_w, np.where(force_off, actuator.lower_w, u_w))
 
 
 #: RCParams fields that :func:`draw_fleet` scales per building; the others (eta, fractions)
@@ -167,7 +178,7 @@ class Simulator:
     the room temperature as a sensor sees it (with noise when ``noise_std_c > 0``).
     ``fleet`` gives each building its own parameters (e.g. from :func:`draw_fleet`); their
     actuators must heat (or cool) as ``config.params`` does, since the backup rule and
-    ``u_max_w`` of ``config`` apply to all. Without it all share ``config.params``.
+    the actuator of ``config`` (its bounds) apply to all. Without it all share ``config.params``.
     """
 
     def __init__(
@@ -257,7 +268,8 @@ class Simulator:
         if not np.all(np.isfinite(u)):
             raise InternalError("Simulator.step: demanded power u_w has non-finite values")
         cfg = self.config
-        u = np.clip(u, 0.0, cfg.u_max_w)
+        (actuator,) = cfg.actuators
+        u = actuator.clip(u)
         exog = np.stack(
             [
                 np.broadcast_to(np.asarray(v, dtype=float), shape)
@@ -265,7 +277,7 @@ class Simulator:
             ],
             axis=1,
         )
-        gain = cfg.actuator.gain(exog[:, 0])
+        gain = actuator.gain(exog[:, 0])
         delivered = np.empty(shape)
         overridden = np.empty(shape, dtype=bool)
         t_r_sub = np.empty((self.n_buildings, cfg.n_substeps))
@@ -278,11 +290,12 @@ class Simulator:
             self._ad,
             self._bd,
             gain,
-            float(cfg.actuator.min_modulation * cfg.u_max_w),
-            float(cfg.u_max_w),
+            float(actuator.min_power_w),
+            float(actuator.lower_w),
+            float(actuator.upper_w),
             float(cfg.backup_low_c),
             float(cfg.backup_high_c),
-            bool(cfg.params.heating),
+            bool(actuator.heats),
             delivered,
             overridden,
             t_r_sub,

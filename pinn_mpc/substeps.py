@@ -20,9 +20,10 @@ __all__ = ["integrate_interval"]
 
 
 @njit(cache=True, nogil=True)
-def _cycling_substeps(demand: float, min_power_w: float, n_sub: int) -> int:
-    """Substeps on at ``min_power_w`` for a demand below it, or -1 (run at the demand)."""
-    if 0.0 < demand < min_power_w:
+def _cycling_substeps(demand: float, lower_w: float, min_power_w: float, n_sub: int) -> int:
+    """Substeps on at ``min_power_w`` for a demand between off (``lower_w``) and it, or -1
+    (run at the demand)."""
+    if lower_w < demand < min_power_w:
         return int(np.rint(demand / min_power_w * n_sub))
     return -1
 
@@ -37,18 +38,20 @@ def _substep_power(
     backup_low_c: float,
     backup_high_c: float,
     heating: bool,
-    u_max_w: float,
+    lower_w: float,
+    upper_w: float,
 ) -> tuple[float, float]:
-    """(the machine's demand in substep j, the power after the backup rule)."""
+    """(the machine's demand in substep j, the power after the backup rule); ``lower_w`` and
+    ``upper_w`` the actuator's bounds (off and full power)."""
     # Below the minimum modulation the machine cycles (on, then off) within the interval.
     if n_on >= 0:
-        demand = min_power_w if j < n_on else 0.0
+        demand = min_power_w if j < n_on else lower_w
     # Paper Eq. backup (mirrored for a cooling machine), re-evaluated every substep.
     p = demand
     if t_r_c < backup_low_c:
-        p = u_max_w if heating else 0.0
+        p = upper_w if heating else lower_w
     elif t_r_c > backup_high_c:
-        p = 0.0 if heating else u_max_w
+        p = lower_w if heating else upper_w
     return demand, p
 
 
@@ -61,7 +64,8 @@ def integrate_interval(
     bd: np.ndarray,
     gain: np.ndarray,
     min_power_w: float,
-    u_max_w: float,
+    lower_w: float,
+    upper_w: float,
     backup_low_c: float,
     backup_high_c: float,
     heating: bool,
@@ -71,7 +75,7 @@ def integrate_interval(
 ) -> None:
     """Advance ``x`` (B, 2) in place over ``t_r_sub_c.shape[1]`` substeps.
 
-    ``u`` (B,) demand [W], already within [0, u_max_w]; ``exog`` (B, 3) ``(T_a, G, I_g)``;
+    ``u`` (B,) demand [W], already within the actuator's ``[lower_w, upper_w]``; ``exog`` (B, 3) ``(T_a, G, I_g)``;
     ``ad`` (P, 2, 2) and ``bd`` (P, 2, 4) the substep ZOH matrices, P = 1 (shared) or B (one
     per building); ``gain`` (B,) the actuator's heat per electrical watt this interval (1 for
     the ideal heater: ``b * 1.0`` is ``b`` exactly, so that path is unchanged); a demand in
@@ -90,11 +94,11 @@ def integrate_interval(
         d0 = bd[q, 0, 1] * exog[i, 0] + bd[q, 0, 2] * exog[i, 1] + bd[q, 0, 3] * exog[i, 2]
         d1 = bd[q, 1, 1] * exog[i, 0] + bd[q, 1, 2] * exog[i, 1] + bd[q, 1, 3] * exog[i, 2]
         x0, x1, demand = x[i, 0], x[i, 1], u[i]
-        n_on = _cycling_substeps(demand, min_power_w, n_sub)
+        n_on = _cycling_substeps(demand, lower_w, min_power_w, n_sub)
         total, changed = 0.0, False
         for j in range(n_sub):
             demand, p = _substep_power(
-                j, demand, n_on, min_power_w, x0, backup_low_c, backup_high_c, heating, u_max_w
+                j, demand, n_on, min_power_w, x0, backup_low_c, backup_high_c, heating, lower_w, upper_w
             )
             changed = changed or p != demand
             total += p
@@ -114,7 +118,8 @@ def integrate_interval_n(
     bd: np.ndarray,
     gain: np.ndarray,
     min_power_w: float,
-    u_max_w: float,
+    lower_w: float,
+    upper_w: float,
     backup_low_c: float,
     backup_high_c: float,
     heating: bool,
@@ -138,11 +143,11 @@ def integrate_interval_n(
             d[r] = bd[q, r, 1] * exog[i, 0] + bd[q, r, 2] * exog[i, 1] + bd[q, r, 3] * exog[i, 2]
             cur[r] = x[i, r]
         demand = u[i]
-        n_on = _cycling_substeps(demand, min_power_w, n_sub)
+        n_on = _cycling_substeps(demand, lower_w, min_power_w, n_sub)
         total, changed = 0.0, False
         for j in range(n_sub):
             demand, p = _substep_power(
-                j, demand, n_on, min_power_w, cur[0], backup_low_c, backup_high_c, heating, u_max_w
+                j, demand, n_on, min_power_w, cur[0], backup_low_c, backup_high_c, heating, lower_w, upper_w
             )
             changed = changed or p != demand
             total += p

@@ -12,6 +12,7 @@ from controllers.arx_mpc import ARXQPMPC
 from controllers.base import ControlSpec, Forecast, Observation, fallback_power
 from controllers.objective import HorizonObjective
 from controllers.rc_mpc.references import oracle_mpc
+from pinn_mpc.actuator import ActuatorSpec
 from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.features import time_of_day_h
 from pinn_mpc.models.arx import ARXModel, fit_arx, fit_physics_informed_arx
@@ -21,7 +22,7 @@ from scenarios.inputs.series import ExogenousSeries
 from scenarios.running.engine import ClosedLoop
 from tests.test_arx import _occupied_data, _rc_data
 
-SPEC = ControlSpec(u_max_w=5000.0)
+SPEC = ControlSpec(actuators=(ActuatorSpec(upper_w=5000.0),))
 #: Tight OSQP tolerances where two QPs must give the same optimum, not just a good plan.
 TIGHT = {"eps_abs": 1e-9, "eps_rel": 1e-9, "max_iter": 200000}
 _SCALE = {"u_phys": 1e-3, "T_a": 1.0, "G": 1e-2, "I_g": 1e-3}  # the ARX's input scales
@@ -262,7 +263,7 @@ def test_a_comfort_margin_keeps_the_plan_that_far_inside_the_band() -> None:
     history, x = _history_of(PAPER_HOUSEHOLD, np.array([21.0, 21.0]), np.full(12, 4500.0), fc)
     obs, ahead = Observation.from_history(12, history, float(x[1])), _later(fc, 12)
     model = arx_of_rc(PAPER_HOUSEHOLD, SPEC.dt_s)
-    spec = ControlSpec(u_max_w=SPEC.u_max_w, comfort_weight_eur_per_kh=50.0)  # comfort first
+    spec = ControlSpec(actuators=SPEC.actuators, comfort_weight_eur_per_kh=50.0)  # comfort first
     plain, margin = ARXQPMPC(model, spec), ARXQPMPC(model, spec, comfort_margin_k=0.3)
     plain.act(obs, ahead)
     margin.act(obs, ahead)

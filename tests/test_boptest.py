@@ -15,6 +15,7 @@ import pandas as pd
 import pytest
 
 from controllers.base import ControlSpec, Forecast, Observation, SolveStats
+from pinn_mpc.actuator import ActuatorSpec
 from pinn_mpc.errors import InputError
 from pinn_mpc.simulator import SimConfig
 from scenarios.inputs.series import ExogenousSeries
@@ -264,7 +265,7 @@ def test_a_day_at_a_constant_power_through_the_loop_matches_boptest(settings: Bo
         assert frame["T_min"].min() == pytest.approx(15.0) and frame["T_min"].max() == pytest.approx(21.0)
         u_max = settings.points.scaling.max_power_w
         config = SimConfig(u_max_w=u_max, dt_s=run.dt_s)
-        spec = ControlSpec(u_max_w=u_max, dt_s=run.dt_s)
+        spec = ControlSpec(actuators=config.actuators, dt_s=run.dt_s)
         t_r0 = float(plant.measure()[0])
         with ClosedLoop(
             config, ExogenousSeries.from_frame(frame), spec=spec, initial_t_r_c=t_r0,
@@ -387,7 +388,7 @@ def test_ctrl_c_in_the_loop_stops_the_test_on_the_server(settings: BoptestSettin
     with pytest.raises(KeyboardInterrupt):
         with ClosedLoop(
             SimConfig(u_max_w=u_max, dt_s=run.dt_s), ExogenousSeries.from_frame(frame),
-            spec=ControlSpec(u_max_w=u_max, dt_s=run.dt_s), initial_t_r_c=t_r0,
+            spec=ControlSpec(actuators=(ActuatorSpec(upper_w=u_max),), dt_s=run.dt_s), initial_t_r_c=t_r0,
             initial_t_m_c=t_r0, plant=plant,
         ) as loop:
             for _ in range(run.n_intervals):

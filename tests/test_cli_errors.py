@@ -154,9 +154,10 @@ def test_a_python_api_check_failed_from_inside_a_command_is_a_bug(monkeypatch, c
     """A ValueError of the library's API checks (a caller's misuse) is no refusal of the user's
     input when the command line is the caller: it is reported as a bug, exit 1."""
     from controllers.base import ControlSpec
+    from pinn_mpc.actuator import ActuatorSpec
 
     def misuses() -> str:
-        return str(ControlSpec(u_max_w=5000.0, horizon_steps=0))
+        return str(ControlSpec(actuators=(ActuatorSpec(upper_w=5000.0),), horizon_steps=0))
 
     _inject(monkeypatch, misuses)
     assert main(["scenario", "list"]) == BUG_EXIT

@@ -6,6 +6,7 @@ import pytest
 
 from controllers.base import ControlSpec, Forecast, Observation
 from controllers.thermostat import Thermostat
+from pinn_mpc.actuator import ActuatorSpec
 from pinn_mpc.data import validate_timeseries
 from pinn_mpc.simulator import Simulator
 from scenarios.inputs.scenario_file import get_scenario
@@ -75,10 +76,10 @@ def test_thermostat_switches_with_hysteresis_for_heating_and_cooling():
         forecast = Forecast(np.zeros(1), np.zeros(1), np.zeros(1), np.zeros(1), np.zeros(1), *band)
         return controller.act(Observation(k=0, t_r_c=t_r_c, history={}, t_m_true_c=0.0), forecast)
 
-    heater = Thermostat(ControlSpec(u_max_w=100.0), offset_fraction=0.25, hysteresis_k=0.5)
+    heater = Thermostat(ControlSpec(actuators=(ActuatorSpec(upper_w=100.0),)), offset_fraction=0.25, hysteresis_k=0.5)
     # Centre 21 C: on below 20.75, off above 21.25, memory in between.
     assert [act(heater, t) for t in (21.0, 20.7, 21.0, 21.3, 21.0)] == [0, 100, 100, 0, 0]
-    cooler = Thermostat(ControlSpec(u_max_w=100.0, heating=False))
+    cooler = Thermostat(ControlSpec(actuators=(ActuatorSpec(upper_w=100.0, heats=False),)))
     assert [act(cooler, t) for t in (23.0, 23.3, 23.0, 22.7, 23.0)] == [0, 100, 100, 0, 0]
     cooler.reset()
     assert act(cooler, 23.0) == 0 and cooler.last_stats.status == "rule"
@@ -126,7 +127,7 @@ def test_closed_loop_policy_tracks_random_setpoints_inside_the_backup_band():
     assert len(inside) > 0.3 * len(u)
     assert np.histogram(inside, bins=5, range=(0, 1))[0].min() > 0.03 * len(inside)
     pd.testing.assert_frame_equal(frame, generate(scenario, days=14, seed=4, policy="closed-loop"))
-    policy = SetpointPolicy.for_data(1000.0, np.array([20.0]), np.array([22.0]), 1800.0)
+    policy = SetpointPolicy.for_data(ActuatorSpec(upper_w=1000.0), np.array([20.0]), np.array([22.0]), 1800.0)
     setpoints = policy.setpoints(np.random.default_rng(0).random((500, 3)))
     assert setpoints.min() >= 19.0 and setpoints.max() <= 23.0
     holds = np.diff(np.flatnonzero(np.diff(setpoints) != 0))

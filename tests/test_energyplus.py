@@ -15,6 +15,7 @@ import pytest
 pytest.importorskip("pyenergyplus.api")
 
 from controllers.thermostat import Thermostat  # noqa: E402
+from pinn_mpc.actuator import ActuatorSpec  # noqa: E402
 from pinn_mpc.errors import InputError, InternalError  # noqa: E402
 from scenarios.inputs.scenario_file import get_scenario
 from scenarios.plants.energyplus.files import resolve_building
@@ -23,6 +24,8 @@ from scenarios.plants.energyplus.run import EnergyPlusRun
 from scenarios.running.closed_loop import run_closed_loop
 
 SCENARIO = "eplus_small_office"
+#: An ideal chiller of 8 kW electrical (cooling: heat_per_w < 0).
+CHILLER_8KW = ActuatorSpec(upper_w=8000.0, heats=False)
 FILE = """
 name = "office_file"
 comfort_weight_eur_per_kh = 5.0
@@ -85,7 +88,7 @@ def test_heat_delivered_is_the_power_asked():
     """Without a backup, the heater's reported heating rate is the power asked, every interval:
     the energy EnergyPlus puts into the zone is the energy asked."""
     asked = np.random.default_rng(0).uniform(0.0, 20000.0, 48)
-    with EnergyPlusRun(prepare_model("small_office"), weather="usa_il_chicago", u_max_w=20000.0) as run:
+    with EnergyPlusRun(prepare_model("small_office"), weather="usa_il_chicago", actuator=ActuatorSpec(upper_w=20000.0)) as run:
         run.start(32, 1)
         delivered = np.array([run.step(u).u_phys_w for u in asked])
     assert delivered == pytest.approx(asked, rel=1e-9, abs=1e-6)
@@ -97,7 +100,7 @@ def test_more_power_warms_the_room():
     prepared = prepare_model("small_office")
     ends = []
     for u in (0.0, 20000.0):
-        with EnergyPlusRun(prepared, weather="usa_il_chicago", u_max_w=20000.0) as run:
+        with EnergyPlusRun(prepared, weather="usa_il_chicago", actuator=ActuatorSpec(upper_w=20000.0)) as run:
             run.start(40, 1)
             ends.append([run.step(u).t_r_c for _ in range(48)][-1])
     assert ends[1] > ends[0] + 5.0
@@ -294,7 +297,7 @@ def test_a_run_crosses_the_year_on_the_typical_years_weather():
     then the run's end. More than a year, or a leap year on
     the way, is refused."""
     prepared = prepare_model("small_office")
-    with EnergyPlusRun(prepared, weather="usa_il_chicago", u_max_w=1000.0) as run:
+    with EnergyPlusRun(prepared, weather="usa_il_chicago", actuator=ActuatorSpec(upper_w=1000.0)) as run:
         run.start(364, 3, year=2021)
         crossing = np.array([run.step(0.0).t_a_c for _ in range(3 * 48)])
         with pytest.raises(InternalError, match="the run has ended"):
@@ -424,7 +427,7 @@ def test_separate_zones_split_by_floor_area_and_average_by_it():
     assert sum(prepared.weights) == pytest.approx(1.0)
     assert prepared.weights[0] == pytest.approx(149.66 / 511.16, rel=1e-3)  # the core zone
     asked = np.random.default_rng(1).uniform(0.0, 20000.0, 96)
-    with EnergyPlusRun(_with_sqlite_outputs(prepared), weather="usa_il_chicago", u_max_w=20000.0) as run:
+    with EnergyPlusRun(_with_sqlite_outputs(prepared), weather="usa_il_chicago", actuator=ActuatorSpec(upper_w=20000.0)) as run:
         run.start(33, 2)
         means = [run.step(u) for u in asked]
         series = _sqlite_series(run)
@@ -450,7 +453,7 @@ def test_radiant_fraction_is_the_heaters_and_changes_the_room_not_the_heat():
     for fraction in (0.0, 0.8):
         prepared = prepare_model("small_office", radiant_fraction=fraction)
         assert prepared.model["OtherEquipment"][prepared.heater]["fraction_radiant"] == fraction
-        with EnergyPlusRun(prepared, weather="usa_il_chicago", u_max_w=20000.0) as run:
+        with EnergyPlusRun(prepared, weather="usa_il_chicago", actuator=ActuatorSpec(upper_w=20000.0)) as run:
             run.start(40, 1)
             means = [run.step(15000.0) for _ in range(12)]
         delivered.append([m.u_phys_w for m in means])
@@ -469,7 +472,7 @@ def test_chiller_extracts_heat_with_its_cop():
     asked = np.random.default_rng(2).uniform(0.0, 8000.0, 24)
     runs = {}
     for name, power in (("off", np.zeros(24)), ("on", asked)):
-        with EnergyPlusRun(_with_sqlite_outputs(prepared), weather="usa_il_chicago", u_max_w=8000.0,
+        with EnergyPlusRun(_with_sqlite_outputs(prepared), weather="usa_il_chicago", actuator=CHILLER_8KW,
                            heat_per_w=-3.0, warmup_setpoint_c=24.0) as run:
             run.start(200, 1)
             means = [run.step(u) for u in power] + [run.step(0.0) for _ in range(24)]
@@ -481,7 +484,7 @@ def test_chiller_extracts_heat_with_its_cop():
     assert heat == pytest.approx(-3.0 * np.repeat(asked, 3), rel=1e-9, abs=1e-6)
     cooler = [b.t_r_c - a.t_r_c for a, b in zip(runs["off"][:24], runs["on"][:24], strict=True)]
     assert max(cooler) < -1.0
-    with EnergyPlusRun(prepared, weather="usa_il_chicago", u_max_w=8000.0, heat_per_w=-3.0,
+    with EnergyPlusRun(prepared, weather="usa_il_chicago", actuator=CHILLER_8KW, heat_per_w=-3.0,
                        backup_c=(10.0, 22.0), warmup_setpoint_c=26.0) as run:
         run.start(200, 1)
         first = run.step(0.0)
@@ -500,10 +503,11 @@ def _thermostat_on_days(scenario, power_w, start_day, days):
 
     times = pd.date_range("2001-01-01", periods=days * 48, freq="1800s") + pd.Timedelta(days=start_day - 1)
     t_min, t_max = scenario.comfort.sample(times)
-    thermostat = Thermostat(dataclasses.replace(scenario.control_spec(), u_max_w=power_w))
+    heater = dataclasses.replace(scenario.control_spec().actuator, upper_w=power_w)
+    thermostat = Thermostat(dataclasses.replace(scenario.control_spec(), actuators=(heater,)))
     on, held = np.zeros(1, dtype=bool), []
     with EnergyPlusRun(prepare_plant(scenario.plant.settings), weather=scenario.plant.settings.weather,
-                       u_max_w=power_w, warmup_setpoint_c=20.0) as run:
+                       actuator=heater, warmup_setpoint_c=20.0) as run:
         t_r = run.start(start_day, days, year=2001)
         for k in range(days * 48):
             on = thermostat.switch(np.array([t_r]), on, t_min[k], t_max[k])
@@ -637,7 +641,7 @@ def test_separate_zones_with_multipliers_deliver_the_power_asked():
         "M": {"key_name": "PINN-MPC Heater:InteriorEquipment:Electricity", "reporting_frequency": "Timestep"}
     }
     asked = np.random.default_rng(3).uniform(0.0, 30000.0, 48)
-    with EnergyPlusRun(dataclasses.replace(prepared, model=model), weather="usa_co_denver", u_max_w=30000.0) as run:
+    with EnergyPlusRun(dataclasses.replace(prepared, model=model), weather="usa_co_denver", actuator=ActuatorSpec(upper_w=30000.0)) as run:
         run.start(33, 1)
         delivered = np.array([run.step(u).u_phys_w for u in asked])
         run._thread.join(60)

@@ -12,6 +12,7 @@ from controllers.rc_mpc.osqp import QPMPC
 from controllers.rc_mpc.problem import DEFAULT_REGULARISATION
 from controllers.rc_mpc.references import oracle_mpc
 from controllers.thermostat import Thermostat
+from pinn_mpc.actuator import ActuatorSpec
 from pinn_mpc.errors import InternalError
 from pinn_mpc.models.rc import RCBatchModel
 from pinn_mpc.physics import PAPER_HOUSEHOLD, discretise
@@ -19,7 +20,7 @@ from pinn_mpc.simulator import SimConfig
 from scenarios.inputs.series import ExogenousSeries
 from scenarios.running.engine import ClosedLoop
 
-SPEC = ControlSpec(u_max_w=5000.0)
+SPEC = ControlSpec(actuators=(ActuatorSpec(upper_w=5000.0),))
 H = SPEC.horizon_steps
 
 
@@ -80,7 +81,7 @@ def test_true_state_refuses_a_missing_t_m():
 
 def test_offset_filter_of_an_exact_model_stays_zero_and_follows_a_bias():
     loop = _loop(n=12)
-    model = RCBatchModel(PAPER_HOUSEHOLD, dt_s=SPEC.dt_s, u_max_w=SPEC.u_max_w)
+    model = RCBatchModel(PAPER_HOUSEHOLD, dt_s=SPEC.dt_s, actuator=SPEC.actuator)
     exact, biased = OffsetFilter(model, 0.5), OffsetFilter(model, 0.5)
     thermostat = Thermostat(SPEC)
     for _ in range(12):

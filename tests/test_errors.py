@@ -15,6 +15,7 @@ from controllers.coordination import DualAscent
 from controllers.planners import CEMPlanner
 from controllers.thermostat import Thermostat
 from controllers.trust import TrustSettings
+from pinn_mpc.actuator import ActuatorSpec
 from pinn_mpc.errors import InputError, setting
 from pinn_mpc.observer import KalmanObserver
 from pinn_mpc.physics import PAPER_HOUSEHOLD, discretise
@@ -29,11 +30,12 @@ from scenarios.plants.boptest import BoptestRun
 from scenarios.running.closed_loop import run_closed_loop
 from scenarios.running.datagen import generate
 
-SPEC = ControlSpec(u_max_w=5000.0)
+HEATER = ActuatorSpec(upper_w=5000.0)
+SPEC = ControlSpec(actuators=(HEATER,))
 
 #: Checks no flag and no file reaches: (what is called, what the message says).
 API_CHECKS = {
-    "ControlSpec": (lambda: ControlSpec(u_max_w=5000.0, horizon_steps=0), r"ControlSpec\.horizon_steps must be >= 1, got 0"),
+    "ControlSpec": (lambda: ControlSpec(actuators=(HEATER,), horizon_steps=0), r"ControlSpec\.horizon_steps must be >= 1, got 0"),
     "CEMPlanner": (lambda: CEMPlanner(lower=0.0, upper=1.0, n_iters=0), r"CEMPlanner\.n_iters must be >= 1"),
     "Thermostat": (lambda: Thermostat(SPEC, offset_fraction=0.9), r"offset_fraction must lie in \[0, 0\.5\]"),
     "TrustSettings": (lambda: TrustSettings(filter_gain=0.0), r"TrustSettings\.filter_gain must lie in \(0, 1\]"),

@@ -34,7 +34,7 @@ def _problem(n_buildings: int, steps: int = 48):
     x0 = np.tile([19.5, 20.5], (n_buildings, 1))
     data = dict(
         price_eur_per_kwh=np.asarray(forecast.price[:steps], float), t_min_c=lower, t_max_c=upper,
-        u_max_w=spec.u_max_w, dt_h=spec.dt_h, comfort_weight_eur_per_kh=spec.comfort_weight_eur_per_kh,
+        actuator=spec.actuator, dt_h=spec.dt_h, comfort_weight_eur_per_kh=spec.comfort_weight_eur_per_kh,
     )
     return scenario, spec, fleet, loop, forecast, exog, x0, data
 

@@ -10,6 +10,7 @@ import pytest
 from controllers.base import ControlSpec
 from controllers.rc_mpc.references import oracle_mpc
 from controllers.thermostat import Thermostat
+from pinn_mpc.actuator import ActuatorSpec
 from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.physics import PAPER_HOUSEHOLD
 from pinn_mpc.simulator import SimConfig
@@ -18,7 +19,7 @@ from scenarios.inputs.series import ForecastErrors, lead_error_paths
 from scenarios.running.engine import ClosedLoop
 from tests.test_engine import _series  # the engine tests' day of exogenous inputs
 
-SPEC = ControlSpec(u_max_w=5000.0)
+SPEC = ControlSpec(actuators=(ActuatorSpec(upper_w=5000.0),))
 DT_S = 1800.0
 LEAD_24H = 48  # intervals of 30 min
 

@@ -8,7 +8,7 @@ import pytest
 
 from controllers.rc_mpc.problem import RCProblem
 from pinn_mpc import physics
-from pinn_mpc.actuator import Actuator
+from pinn_mpc.actuator import Actuator, ActuatorSpec
 from pinn_mpc.errors import InputError
 from pinn_mpc.models.rc import RCBatchModel
 from pinn_mpc.simulator import SimConfig, Simulator, backup_power, draw_fleet
@@ -156,7 +156,9 @@ def test_rc_problem_plans_on_the_cop_of_the_forecast():
     # one kW electrical for one step moves T_r by COP_0 times the heater's response
     moved = problem.rollout(stage, np.array([1.0, 0, 0, 0]))[0, 0] - problem.rollout(stage, np.zeros(4))[0, 0]
     assert moved == pytest.approx(stage.cop[0] * problem.b_u_c_per_kw[0])
-    np.testing.assert_allclose(stage.electrical_kw(stage.heat_max_kw(4.0)), 4.0)
+    least, most = stage.heat_bounds_kw(ActuatorSpec(upper_w=4000.0, efficiency=HP))
+    np.testing.assert_allclose(stage.electrical_kw(least), 0.0)
+    np.testing.assert_allclose(stage.electrical_kw(most), 4.0)
 
 
 @pytest.mark.parametrize("name", ["qp-mpc", "casadi-mpc", "cem", "oracle"])
@@ -166,9 +168,8 @@ def test_heat_pump_closed_loop_stays_in_bounds(name: str):
     kwargs: dict = {}
     if name == "cem":
         model = RCBatchModel(
-            scenario.sim.params, dt_s=spec.dt_s, u_max_w=spec.u_max_w,
+            scenario.sim.params, dt_s=spec.dt_s, actuator=spec.actuator,
             backup_low_c=scenario.sim.backup_low_c, backup_high_c=scenario.sim.backup_high_c,
-            actuator=scenario.sim.actuator,
         )
         kwargs = {"model": model, "planner_options": {"n_samples": 64}}
     if name in ("qp-mpc", "casadi-mpc"):

@@ -19,11 +19,12 @@ import pytest
 from controllers.base import ControlSpec, Observation, raise_if_interrupted, solver_interrupts_held
 from controllers.rc_mpc.casadi import CasadiMPC
 from controllers.rc_mpc.osqp import QPMPC
+from pinn_mpc.actuator import ActuatorSpec
 from pinn_mpc.physics import PAPER_HOUSEHOLD, rc_summary
 from tests.test_rc_mpc import _forecast
 
 ROOT = Path(__file__).resolve().parents[1]
-SPEC = ControlSpec(u_max_w=5000.0)
+SPEC = ControlSpec(actuators=(ActuatorSpec(upper_w=5000.0),))
 #: The time from the signal to the end of the process allowed on a loaded test machine (the
 #: aim is well under a second; measured about 0.1 s).
 EXIT_SLACK_S = 3.0

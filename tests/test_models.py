@@ -9,6 +9,7 @@ import pytest
 import torch
 
 from pinn_mpc import physics
+from pinn_mpc.actuator import ActuatorSpec
 from pinn_mpc.errors import InternalError
 from pinn_mpc.features import time_of_day_h
 from pinn_mpc.models import (
@@ -170,7 +171,7 @@ def test_every_planner_model_declares_the_rollout_protocol(small_model: LearnedM
 
     df = household_data(4, 5)
     arx = fit_arx(df)
-    rc = RCBatchModel(physics.PAPER_HOUSEHOLD, dt_s=1800.0, u_max_w=5000.0)
+    rc = RCBatchModel(physics.PAPER_HOUSEHOLD, dt_s=1800.0, actuator=ActuatorSpec(upper_w=5000.0))
     for model, affine in ((small_model, False), (rc, False), (arx, True)):
         assert BatchDynamics in type(model).__mro__  # declared, not only shaped like it
         assert model.affine_in_plan is affine
@@ -254,7 +255,7 @@ def test_hybrid_without_corrections_is_the_exact_2r2c() -> None:
     history, exog = _history_and_forecast(df, i, 24)
     u = 500.0 + torch.rand(4, 24, generator=torch.Generator().manual_seed(0)) * 3500.0
     roll = model.rollout(history, u, exog)
-    rc = RCBatchModel(truth, dt_s=1800.0, u_max_w=5000.0, backup_low_c=-99, backup_high_c=99)
+    rc = RCBatchModel(truth, dt_s=1800.0, actuator=ActuatorSpec(upper_w=5000.0, heats=truth.heating), backup_low_c=-99, backup_high_c=99)
     ref = rc.rollout({**history, "T_m": df["T_m"].to_numpy()[: i + 1]}, u, exog)
     assert roll.t_m_c is not None
     t_m_error = float((roll.t_m_c[:, :, 0] - df["T_m"].to_numpy()[i]).abs().max())

@@ -12,9 +12,10 @@ from controllers.objective import (
     energy_cost_eur,
     planning_band,
 )
+from pinn_mpc.actuator import ActuatorSpec
 from pinn_mpc.errors import InternalError
 
-SPEC = ControlSpec(u_max_w=5000.0, dt_s=1800.0, comfort_weight_eur_per_kh=2.0)
+SPEC = ControlSpec(actuators=(ActuatorSpec(upper_w=5000.0),), dt_s=1800.0, comfort_weight_eur_per_kh=2.0)
 
 
 def _forecast() -> Forecast:

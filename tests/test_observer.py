@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 import scipy.linalg
 
+from pinn_mpc.actuator import ActuatorSpec
 from pinn_mpc.observer import KalmanObserver
 from pinn_mpc.physics import PAPER_HOUSEHOLD, steady_state
 from pinn_mpc.simulator import SimConfig, Simulator
@@ -99,9 +100,10 @@ def test_rc_mpc_observer_takes_the_sensors_stated_noise_and_tracks_better_with_i
     from controllers.base import ControlSpec, Observation
     from controllers.estimators import KalmanEstimator
 
-    noisy = ControlSpec(u_max_w=5000.0, sensor_noise_std_c=0.1)
+    heater = (ActuatorSpec(upper_w=5000.0),)
+    noisy = ControlSpec(actuators=heater, sensor_noise_std_c=0.1)
     assert KalmanEstimator.for_spec(PARAMS, noisy).observer.r == pytest.approx(0.1**2)
-    clean = ControlSpec(u_max_w=5000.0)  # no stated noise: the observer's default
+    clean = ControlSpec(actuators=heater)  # no stated noise: the observer's default
     assert KalmanEstimator.for_spec(PARAMS, clean).observer.r == pytest.approx(0.05**2)
 
     data = _simulate(480, seed=3, noise_std_c=0.1)

@@ -30,7 +30,7 @@ def _runs(scenario_name: str) -> dict[str, pd.DataFrame]:
     scenario = get_scenario(scenario_name)
     sim = scenario.sim
     exact = RCBatchModel(
-        sim.params, dt_s=sim.dt_s, u_max_w=sim.u_max_w,
+        sim.params, dt_s=sim.dt_s, actuator=sim.actuators[0],
         backup_low_c=sim.backup_low_c, backup_high_c=sim.backup_high_c,
     )
     plan = {

@@ -20,12 +20,13 @@ from controllers.rc_mpc.osqp import QPMPC
 from controllers.rc_mpc.problem import RCMPC, RCProblem, StageData
 from controllers.rc_mpc.references import clairvoyant_mpc, oracle_mpc
 from controllers.trust import TrustSettings
+from pinn_mpc.actuator import ActuatorSpec
 from pinn_mpc.physics import PAPER_HOUSEHOLD, steady_state
 from pinn_mpc.simulator import SimConfig
 from scenarios.inputs.series import ExogenousSeries
 from scenarios.running.engine import ClosedLoop
 
-SPEC = ControlSpec(u_max_w=5000.0)
+SPEC = ControlSpec(actuators=(ActuatorSpec(upper_w=5000.0),))
 PARAMS = PAPER_HOUSEHOLD
 MPCS = (QPMPC, CasadiMPC)
 
@@ -323,8 +324,8 @@ def _cvxpy_problem(problem: RCProblem, stage: StageData):
         x == ad @ previous + b_u @ cp.reshape(heat, (1, h), order="C") + drift,
         x[0, :] + slack >= stage.objective.t_min_c,
         x[0, :] - slack <= stage.objective.t_max_c,
-        heat >= 0.0,
-        heat <= stage.heat_max_kw(problem.u_max_kw),
+        heat >= problem.spec.actuator.lower_kw * stage.cop,
+        heat <= problem.spec.actuator.upper_kw * stage.cop,
         slack >= 0.0,
     ]
     objective = dt_h * (
@@ -335,20 +336,23 @@ def _cvxpy_problem(problem: RCProblem, stage: StageData):
     return cp.Problem(cp.Minimize(objective), constraints)
 
 
-@pytest.mark.parametrize(("h", "dt_s", "weight", "rho"), [(48, 1800.0, 1.0, 1e-4), (7, 900.0, 3.7, 2.3e-4), (1, 3600.0, 0.3, 1e-3)])
-def test_qp_data_are_cvxpys_canonical_form_value_for_value(h, dt_s, weight, rho) -> None:
+@pytest.mark.parametrize(
+    ("h", "dt_s", "weight", "rho", "lower_w"),
+    [(48, 1800.0, 1.0, 1e-4, 0.0), (7, 900.0, 3.7, 2.3e-4, 800.0), (1, 3600.0, 0.3, 1e-3, 0.0)],
+)
+def test_qp_data_are_cvxpys_canonical_form_value_for_value(h, dt_s, weight, rho, lower_w) -> None:
     """qp-mpc's OSQP data (the one-building case of the fleet's, controllers/rc_mpc/qp.py, in
-    the SPLIT layout) are exactly what cvxpy makes of the problem: same layout, signs and values, so OSQP takes the
-    same iterates either way."""
+    the SPLIT layout) are exactly what cvxpy makes of the problem: same layout, signs and values
+    (the heat's bounds the actuator's, a floor above zero included), so OSQP takes the same
+    iterates either way."""
     import cvxpy as cp
     import scipy.sparse as sp
 
     from controllers.rc_mpc.qp import SPLIT, qp_matrices, qp_vectors
     from pinn_mpc.actuator import Actuator
 
-    spec = ControlSpec(
-        u_max_w=5000.0, horizon_steps=h, dt_s=dt_s, comfort_weight_eur_per_kh=weight, actuator=Actuator(kind="heat_pump")
-    )
+    heat_pump = ActuatorSpec(lower_w=lower_w, upper_w=5000.0, efficiency=Actuator(kind="heat_pump"))
+    spec = ControlSpec(actuators=(heat_pump,), horizon_steps=h, dt_s=dt_s, comfort_weight_eur_per_kh=weight)
     problem = RCProblem(params=PARAMS, spec=spec, horizon_steps=h, regularisation_eur_per_kw2h=rho)
     stage = problem.stage(np.array([19.3, 18.1]), _forecast(h, start=5))
     assert np.ptp(stage.cop) > 0 or h == 1  # a COP that varies over the horizon
@@ -358,7 +362,7 @@ def test_qp_data_are_cvxpys_canonical_form_value_for_value(h, dt_s, weight, rho)
     drift = stage.free_c.copy()
     drift[0] += ad @ stage.x0_c
     q, lower, upper = (v[0] for v in qp_vectors(
-        drift[None], stage.heat_price_eur_per_kwh, stage.heat_max_kw(problem.u_max_kw), stage.objective, SPLIT
+        drift[None], stage.heat_price_eur_per_kwh, stage.heat_bounds_kw(spec.actuator), stage.objective, SPLIT
     ))
     want_a = sp.csc_matrix(sp.vstack([data["A"], data["F"]], format="csc"))
     want_p = sp.csc_matrix(sp.triu(data["P"], format="csc"))
@@ -393,7 +397,7 @@ def test_both_layouts_state_one_problem_and_a_fleet_of_one_plans_as_qp_mpc() -> 
     for layout in (SPLIT, BOX):
         p_upper, a = qp_matrices(ad[None], single.problem.b_u_c_per_kw[None], SPEC.horizon_steps, 2e-4, layout)
         q, lower, upper = (v[0] for v in qp_vectors(
-            drift[None], stage.heat_price_eur_per_kwh, stage.heat_max_kw(5.0), stage.objective, layout
+            drift[None], stage.heat_price_eur_per_kwh, stage.heat_bounds_kw(SPEC.actuator), stage.objective, layout
         ))
         solver = osqp.OSQP()
         solver.setup(P=p_upper, q=q, A=a, l=lower, u=upper, eps_abs=1e-8, eps_rel=1e-8, max_iter=10**6,
@@ -433,8 +437,9 @@ def test_the_fleets_qp_is_the_buildings_qps_block_by_block(layout_name: str) -> 
     objective = HorizonObjective.from_forecast(_forecast(h), SPEC, h)
     drift = np.random.default_rng(0).normal(size=(3, h, 2))
     price = np.random.default_rng(1).uniform(0.1, 0.4, size=(3, h))
-    stacked = qp_vectors(drift, price, np.full(h, 5.0), objective, layout)
+    bounds = np.zeros(h), np.full(h, 5.0)
+    stacked = qp_vectors(drift, price, bounds, objective, layout)
     for i in range(3):
-        one = qp_vectors(drift[i : i + 1], price[i], np.full(h, 5.0), objective, layout)
+        one = qp_vectors(drift[i : i + 1], price[i], bounds, objective, layout)
         for got, want in zip(stacked, one, strict=True):
             np.testing.assert_array_equal(got[i], want[0])

@@ -137,8 +137,8 @@ def test_a_planner_over_a_learned_model_adds_its_trust_report():
 
     scenario = get_scenario("winter_household")
     sim = scenario.sim
-    model = RCBatchModel(sim.params, dt_s=sim.dt_s, u_max_w=sim.u_max_w, backup_low_c=sim.backup_low_c,
-                         backup_high_c=sim.backup_high_c, actuator=sim.actuator)
+    model = RCBatchModel(sim.params, dt_s=sim.dt_s, actuator=sim.actuators[0], backup_low_c=sim.backup_low_c,
+                         backup_high_c=sim.backup_high_c)
     controller = build_controller("cem", scenario, model=model, n_steps=48,
                                   planner_options={"n_samples": 16, "n_iters": 1})
     assert_record(controller.trust_report, TrustReport)

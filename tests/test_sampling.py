@@ -15,6 +15,7 @@ from controllers.base import (
 from controllers.objective import HorizonObjective, planning_band
 from controllers.sampling import CEM, RandomShooting
 from controllers.setpoint_space import SetpointSpace
+from pinn_mpc.actuator import ActuatorSpec
 from pinn_mpc.errors import InputError
 from pinn_mpc.models.rc import RCBatchModel
 from pinn_mpc.physics import PAPER_HOUSEHOLD, discretise
@@ -25,11 +26,12 @@ from scenarios.running.engine import ClosedLoop
 H = 48
 DT_S = 1800.0
 U_MAX_W = 5000.0
-SPEC = ControlSpec(u_max_w=U_MAX_W, dt_s=DT_S, horizon_steps=H, comfort_weight_eur_per_kh=1.0)
+HEATER = ActuatorSpec(upper_w=U_MAX_W)
+SPEC = ControlSpec(actuators=(HEATER,), dt_s=DT_S, horizon_steps=H, comfort_weight_eur_per_kh=1.0)
 AD, BD = discretise(PAPER_HOUSEHOLD, DT_S)
 # Backup limits far outside the band: the model is then exactly the linear 2R2C.
 LINEAR = RCBatchModel(
-    PAPER_HOUSEHOLD, dt_s=DT_S, u_max_w=U_MAX_W, backup_low_c=-100.0, backup_high_c=100.0
+    PAPER_HOUSEHOLD, dt_s=DT_S, actuator=HEATER, backup_low_c=-100.0, backup_high_c=100.0
 )
 
 
@@ -104,7 +106,7 @@ def test_rc_model_matches_the_minute_level_simulator_without_overrides():
     sim.reset(19.0, 18.5)
     plan = np.array([1500.0, 3000.0, 0.0, 2000.0])
     ta = np.array([4.0, 5.0, 6.0, 5.5])
-    roll = RCBatchModel(PAPER_HOUSEHOLD, dt_s=DT_S, u_max_w=U_MAX_W).rollout(
+    roll = RCBatchModel(PAPER_HOUSEHOLD, dt_s=DT_S, actuator=HEATER).rollout(
         _obs(19.0, 18.5).history,
         torch.tensor(plan[None], dtype=torch.float64),
         {"T_a": ta, "G": np.zeros(4), "I_g": np.zeros(4)},
@@ -118,7 +120,7 @@ def test_rc_model_matches_the_minute_level_simulator_without_overrides():
 
 
 def test_rc_model_clips_like_the_backup_thermostat():
-    roll = RCBatchModel(PAPER_HOUSEHOLD, dt_s=DT_S, u_max_w=U_MAX_W).rollout(
+    roll = RCBatchModel(PAPER_HOUSEHOLD, dt_s=DT_S, actuator=HEATER).rollout(
         _obs(16.5, 16.0).history,
         torch.tensor([[0.0, 0.0], [5000.0, 5000.0]]),
         {"T_a": np.zeros(2), "G": np.zeros(2), "I_g": np.zeros(2)},
@@ -137,7 +139,7 @@ def test_rc_model_reconstructs_hidden_t_m_from_the_last_interval():
         "G": np.array([100.0, 0.0]),
         "I_g": np.array([300.0, 0.0]),
     }
-    t_r, t_m = RCBatchModel(PAPER_HOUSEHOLD, dt_s=DT_S, u_max_w=U_MAX_W).state_now(history)
+    t_r, t_m = RCBatchModel(PAPER_HOUSEHOLD, dt_s=DT_S, actuator=HEATER).state_now(history)
     assert t_r == step.t_r_c[0]
     assert t_m == pytest.approx(step.t_m_c[0], abs=1e-6)
 
@@ -304,10 +306,11 @@ def test_short_history_and_errors_fall_back_without_raising():
 
 def test_cooling_model_plans_against_overheating():
     cooling = PAPER_HOUSEHOLD.__class__(**{**PAPER_HOUSEHOLD.to_dict(), "eta": -3.0})
+    cooler = ActuatorSpec(upper_w=2000.0, heats=False)
     model = RCBatchModel(
-        cooling, dt_s=DT_S, u_max_w=2000.0, backup_low_c=-100.0, backup_high_c=100.0
+        cooling, dt_s=DT_S, actuator=cooler, backup_low_c=-100.0, backup_high_c=100.0
     )
-    spec = ControlSpec(u_max_w=2000.0, horizon_steps=H, heating=False)
+    spec = ControlSpec(actuators=(cooler,), horizon_steps=H)
     hot = _forecast()._replace(T_a=np.full(H, 30.0))
     cem = CEM(model, spec)
     cem.reset(seed=0)
@@ -324,23 +327,23 @@ def test_unknown_model_input_and_bad_risk_weight_are_rejected():
     class RainModel(RCBatchModel):
         exog_names = ("T_a", "rain")
 
-    model = RainModel(PAPER_HOUSEHOLD, dt_s=DT_S, u_max_w=U_MAX_W)
+    model = RainModel(PAPER_HOUSEHOLD, dt_s=DT_S, actuator=HEATER)
     with pytest.raises(ValueError, match="exogenous input 'rain' has no forecast"):
         CEM(model, SPEC)
     with pytest.raises(ValueError, match="risk_weight must be >= 0"):
         RandomShooting(LINEAR, SPEC, risk_weight=-1.0)
     with pytest.raises(ValueError, match="backup limits need low < high"):
-        RCBatchModel(PAPER_HOUSEHOLD, dt_s=DT_S, u_max_w=U_MAX_W, backup_low_c=21.0)
+        RCBatchModel(PAPER_HOUSEHOLD, dt_s=DT_S, actuator=HEATER, backup_low_c=21.0)
 
 
 @pytest.mark.parametrize("planner", [CEM, RandomShooting])
 def test_model_must_heat_or_cool_as_the_scenario_and_step_its_interval(planner):
     cooling = PAPER_HOUSEHOLD.__class__(**{**PAPER_HOUSEHOLD.to_dict(), "eta": -2.5})
     with pytest.raises(InputError, match="eta=-2.5, a cooling machine, but the scenario's actuator is a heater"):
-        planner(RCBatchModel(cooling, dt_s=DT_S, u_max_w=U_MAX_W), SPEC)
+        planner(RCBatchModel(cooling, dt_s=DT_S, actuator=ActuatorSpec(upper_w=U_MAX_W, heats=False)), SPEC)
     with pytest.raises(InputError, match="eta=1, a heater, but the scenario's actuator is a cooling"):
-        planner(LINEAR, ControlSpec(u_max_w=U_MAX_W, horizon_steps=H, heating=False))
-    quarter = RCBatchModel(PAPER_HOUSEHOLD, dt_s=900.0, u_max_w=U_MAX_W)
+        planner(LINEAR, ControlSpec(actuators=(ActuatorSpec(upper_w=U_MAX_W, heats=False),), horizon_steps=H))
+    quarter = RCBatchModel(PAPER_HOUSEHOLD, dt_s=900.0, actuator=HEATER)
     with pytest.raises(InputError, match=r"trained at 900 s \(15 min\) intervals but the scenario's"):
         planner(quarter, SPEC)
 
@@ -485,7 +488,8 @@ def test_setpoint_space_tracks_offsets_exactly_on_a_linear_model(heating):
     params = PAPER_HOUSEHOLD if heating else PAPER_HOUSEHOLD.__class__(
         **{**PAPER_HOUSEHOLD.to_dict(), "eta": -3.0}
     )
-    model = RCBatchModel(params, dt_s=DT_S, u_max_w=u_max, backup_low_c=-100.0, backup_high_c=100.0)
+    actuator = ActuatorSpec(upper_w=u_max, heats=heating)
+    model = RCBatchModel(params, dt_s=DT_S, actuator=actuator, backup_low_c=-100.0, backup_high_c=100.0)
     fc = _forecast() if heating else _forecast()._replace(T_a=np.full(H, 30.0))
     obs = _obs(19.5, 19.0) if heating else _obs(21.5, 21.5, t_a_c=30.0)
     lower, upper = planning_band(fc, H)
@@ -493,7 +497,7 @@ def test_setpoint_space_tracks_offsets_exactly_on_a_linear_model(heating):
     x0 = torch.full((H,), 0.5 * u_max, dtype=torch.float64)
     rollout = _rollout_fn(model, obs, fc)
     space, batch, _ = SetpointSpace.probe(
-        rollout, x0, edge, heating=heating, upper_w=u_max, stride=4
+        rollout, x0, edge, actuator=actuator, stride=4
     )
     assert batch.shape == (1 + H // 4, H)
     # Offsets from 0 to 2 K, and the warm start's own offsets map back to the warm start.

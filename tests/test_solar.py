@@ -10,6 +10,7 @@ import pytest
 
 from controllers.arx_mpc import ARXQPMPC
 from controllers.base import ControlSpec, Forecast, Observation
+from pinn_mpc.actuator import ActuatorSpec
 from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.models.arx import MEASURED_INPUTS, fit_arx, fit_physics_informed_arx
 from pinn_mpc.simulator import SimConfig
@@ -136,7 +137,7 @@ def _facade_series(n: int, *, seed: int = 0) -> ExogenousSeries:
 
 
 def test_forecasts_and_observations_carry_the_facades_with_the_error_of_g():
-    spec = ControlSpec(u_max_w=5000.0)
+    spec = ControlSpec(actuators=(ActuatorSpec(upper_w=5000.0),))
     series = _facade_series(150)
     loop = ClosedLoop(
         SimConfig(), series, spec=spec, initial_t_r_c=20.0, initial_t_m_c=20.0,
@@ -215,7 +216,7 @@ def test_qp_mpc_over_an_arx_with_facades_plans_on_their_forecast():
     and its prediction changes with the facades' forecast."""
     train = _sunlit_room(21, seed=0, through_facades=True)
     model = fit_physics_informed_arx(train, lags=2)
-    spec = ControlSpec(u_max_w=3000.0, horizon_steps=12)
+    spec = ControlSpec(actuators=(ActuatorSpec(upper_w=3000.0),), horizon_steps=12)
     controller = ARXQPMPC(model, spec)
     loop = ClosedLoop(SimConfig(), _facade_series(60), spec=spec, initial_t_r_c=20.0, initial_t_m_c=20.0)
     for k in range(20):

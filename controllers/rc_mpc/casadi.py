@@ -104,8 +104,7 @@ class CasadiMPC(RCMPC):
         }
         self._qp, self._options = qp, options
         self._new_solver()
-        self._lbx = np.zeros(2 * h)
-        self._slack_max = np.full(h, np.inf)
+        self._slack_bounds = np.zeros(h), np.full(h, np.inf)
         self._warm: dict[str, np.ndarray] | None = None
 
     def _new_solver(self) -> None:
@@ -126,11 +125,13 @@ class CasadiMPC(RCMPC):
         h = self.problem.horizon_steps
         free = self.problem.rollout(stage, np.zeros(h))[:, 0]
         inf = np.full(h, np.inf)
+        heat_min, heat_max = stage.heat_bounds_kw(self.spec.actuator)
+        slack_min, slack_max = self._slack_bounds
         args: dict[str, Any] = {
             # The decision is the delivered heat (problem module docstring).
             "p": stage.heat_price_eur_per_kwh,
-            "lbx": self._lbx,
-            "ubx": np.concatenate([stage.heat_max_kw(self.problem.u_max_kw), self._slack_max]),
+            "lbx": np.concatenate([heat_min, slack_min]),
+            "ubx": np.concatenate([heat_max, slack_max]),
             "lbg": np.concatenate([stage.objective.t_min_c - free, -inf]),
             "ubg": np.concatenate([inf, stage.objective.t_max_c - free]),
         }

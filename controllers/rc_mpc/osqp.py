@@ -207,7 +207,7 @@ class QPMPC(RCMPC):
         drift = stage.free_c.copy()
         drift[0] += ad @ stage.x0_c
         q, lower, upper = qp_vectors(
-            drift[None], stage.heat_price_eur_per_kwh, stage.heat_max_kw(self.problem.u_max_kw), stage.objective, SPLIT
+            drift[None], stage.heat_price_eur_per_kwh, stage.heat_bounds_kw(self.spec.actuator), stage.objective, SPLIT
         )
         assert self._solver is not None  # _build() made it
         solution = self._solver.solve(q, lower, upper)

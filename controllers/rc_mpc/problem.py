@@ -1,7 +1,7 @@
 """The linear MPC problem on RC parameters, and the controller shell its solvers share.
 
-Over H control intervals j = 0..H-1, with decision power ``p_j`` [kW] in ``[0, u_max]`` and
-comfort slack ``s_j >= 0`` [K]::
+Over H control intervals j = 0..H-1, with decision power ``p_j`` [kW] within the actuator's
+bounds ``[p_min, p_max]`` (``spec.actuator``) and comfort slack ``s_j >= 0`` [K]::
 
     minimise   sum_j  price_j dt_h p_j  +  comfort_weight dt_h s_j  +  rho dt_h p_j^2
     subject to x[j+1] = Ad x[j] + Bd (1000 p_j, T_a,j, G_j, I_g,j)      (exact ZOH, physics.discretise)
@@ -11,9 +11,9 @@ comfort slack ``s_j >= 0`` [K]::
 ``COP(T_a,j) p_j``: the COP is evaluated on the forecast outdoor temperature, so the problem is
 still linear, ``B_u,j = COP(T_a,j) b`` (exact for the plant's COP curve; only the forecast's
 T_a error enters). The solvers plan the delivered heat ``q_j = COP_j p_j`` instead, so that
-their matrices stay fixed: the price of heat is ``price_j / COP_j``, its bound ``COP_j u_max``,
-and the regulariser acts on ``q`` (a tie-breaker either way). For the ideal heater ``COP_j = 1``
-and nothing changes.
+their matrices stay fixed: the price of heat is ``price_j / COP_j``, its bounds ``COP_j p_min``
+and ``COP_j p_max``, and the regulariser acts on ``q`` (a tie-breaker either way). For the ideal
+heater ``COP_j = 1`` and nothing changes.
 
 The first two terms are :class:`controllers.objective.HorizonObjective` with ``s`` as the band
 violation: its price and band arrays are the QP data. The third, ``rho =
@@ -54,6 +54,7 @@ from controllers.base import (
 from controllers.estimators import KalmanEstimator, StateEstimator, TrueState
 from controllers.objective import HorizonObjective, narrowed
 from controllers.trust import RCReplay, TrustMonitor, TrustSettings
+from pinn_mpc.actuator import ActuatorSpec
 from pinn_mpc.physics import RCParams, discretise
 from pinn_mpc.records import ReplayMarginReport
 
@@ -75,9 +76,9 @@ class StageData(NamedTuple):
         """(H,) price per kWh of delivered heat: the solvers' linear cost."""
         return self.objective.price_eur_per_kwh / self.cop
 
-    def heat_max_kw(self, u_max_kw: float) -> np.ndarray:
-        """(H,) the most heat the actuator delivers in each step [kW]."""
-        return u_max_kw * self.cop
+    def heat_bounds_kw(self, actuator: ActuatorSpec) -> tuple[np.ndarray, np.ndarray]:
+        """(H,) the least and the most heat ``actuator`` delivers in each step [kW]."""
+        return actuator.lower_kw * self.cop, actuator.upper_kw * self.cop
 
     def electrical_kw(self, heat_kw: np.ndarray) -> np.ndarray:
         """Electrical power [kW] of a heat plan (H,)."""
@@ -110,10 +111,6 @@ class RCProblem:
     def b_u_c_per_kw(self) -> np.ndarray:
         """(2,) state change per kW held over one interval [K/kW]."""
         return self.matrices[1][:, 0] * 1000.0
-
-    @property
-    def u_max_kw(self) -> float:
-        return self.spec.u_max_w / 1000.0
 
     def stage(self, x0_c: np.ndarray, forecast: Forecast, *, n_active: int | None = None) -> StageData:
         """Numeric data for a solve from state x0 (2,) and the forecast."""
@@ -220,7 +217,7 @@ class RCMPC(PlanningController):
             raise ValueError("plan_with_replay_margin needs TrustSettings(margin_from_replay=True)")
         self._replay = (
             RCReplay(self.params, self.spec, settings.replay_steps),
-            TrustMonitor(settings, self.spec.u_max_w),
+            TrustMonitor(settings, self.spec.actuator.span_w),
         )
         self.comfort_margin_k = 0.0
 
@@ -277,7 +274,7 @@ class RCMPC(PlanningController):
                 raise FloatingPointError("solver returned a non-finite plan")
         except Exception as exc:  # any solver failure acts through the fallback, never raises
             return self._failed(obs, forecast, start, f"{status}: {type(exc).__name__}: {exc}", iterations)
-        plan_w = np.clip(p, 0.0, self.problem.u_max_kw) * 1000.0
+        plan_w = self.spec.actuator.clip_kw(p) * 1000.0
         return self._succeeded(plan_w, start, status, iterations)
 
     def _replayed(self, obs: Observation, replay: RCReplay, monitor: TrustMonitor) -> None:

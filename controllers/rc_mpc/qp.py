@@ -13,11 +13,11 @@ then the inequalities in one of two layouts (:data:`SPLIT`, :data:`BOX`), the sa
 - ``SPLIT``, one row per inequality, as cvxpy canonicalises the problem written with the states
   as variables (the test suite states it in cvxpy and checks the data equal, value for value)::
 
-      -T_r,j - s_j <= -T_min,j,   T_r,j - s_j <= T_max,j,   -q_j <= 0,   q_j <= q_max,j,   -s_j <= 0
+      -T_r,j - s_j <= -T_min,j,   T_r,j - s_j <= T_max,j,   -q_j <= -q_min,j,   q_j <= q_max,j,   -s_j <= 0
 
 - ``BOX``, each variable's bounds in one two-sided row (OSQP's ``l <= A x <= u``)::
 
-      T_min,j <= T_r,j + s_j,   T_r,j - s_j <= T_max,j,   0 <= q_j <= q_max,j,   0 <= s_j
+      T_min,j <= T_r,j + s_j,   T_r,j - s_j <= T_max,j,   q_min,j <= q_j <= q_max,j,   0 <= s_j
 
 OSQP's iterates depend on the layout, and ``BOX`` converges in fewer of them on a fleet's
 warm-started problems (at tight tolerances ``SPLIT`` may not converge at all), so the fleet
@@ -53,7 +53,8 @@ class Layout(NamedTuple):
         return sum(self.rows_per_step)
 
 
-#: One row per inequality: lower band, upper band, heat >= 0, heat <= its bound, slack >= 0.
+#: One row per inequality: lower band, upper band, heat >= its lower bound, heat <= its upper
+#: bound, slack >= 0.
 SPLIT = Layout("split", (2, 1, 1, 1, 1, 1))
 #: One two-sided row per bound: lower band, upper band, heat's range, slack >= 0.
 BOX = Layout("box", (2, 1, 1, 1, 1))
@@ -114,15 +115,17 @@ def qp_matrices(
 def qp_vectors(
     drift_c: np.ndarray,
     heat_price_eur_per_kwh: np.ndarray,
-    heat_max_kw: np.ndarray,
+    heat_bounds_kw: tuple[np.ndarray, np.ndarray],
     objective: HorizonObjective,
     layout: Layout,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """OSQP's ``q`` (B, 4H), ``l`` and ``u`` (B, rows H) of B buildings: ``drift_c`` (B, H, 2)
     each step's state drift, x0's response in step 0 [C]; ``heat_price_eur_per_kwh`` (H,) or
-    (B, H) the price of delivered heat; ``heat_max_kw`` (H,) its bound; ``objective`` the band,
+    (B, H) the price of delivered heat; ``heat_bounds_kw`` its least and most, (H,) each (the
+    actuator's bounds times the COP: ``StageData.heat_bounds_kw``); ``objective`` the band,
     the comfort weight and the interval; ``layout`` the rows'."""
     b, h, _ = drift_c.shape
+    heat_min_kw, heat_max_kw = heat_bounds_kw
     dt_h = objective.dt_h
     q = np.zeros((b, 4 * h))
     q[:, :h] = dt_h * heat_price_eur_per_kwh
@@ -134,10 +137,12 @@ def qp_vectors(
     upper[:, 3 * h : 4 * h] = objective.t_max_c
     if layout == SPLIT:
         upper[:, 2 * h : 3 * h] = -objective.t_min_c
+        upper[:, 4 * h : 5 * h] -= heat_min_kw  # 0 - q_min: a zero bound stays +0.0
         upper[:, 5 * h : 6 * h] = heat_max_kw
     else:
         lower[:, 2 * h : 3 * h] = objective.t_min_c
-        lower[:, 4 * h :] = 0.0
+        lower[:, 4 * h : 5 * h] = heat_min_kw
+        lower[:, 5 * h :] = 0.0
         upper[:, 4 * h : 5 * h] = heat_max_kw
     return q, lower, upper
 

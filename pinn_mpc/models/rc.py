@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from pinn_mpc.actuator import Actuator
+from pinn_mpc.actuator import ActuatorSpec
 from pinn_mpc.models.rollout import BatchDynamics, Rollout
 from pinn_mpc.physics import RCParams, discretise
 
@@ -21,8 +21,9 @@ class RCBatchModel(BatchDynamics):
     for a heater; mirrored for cooling). The hidden ``T_m`` now is taken from ``history['T_m']``
     when present (simulated data), else reconstructed from the last interval by inverting the
     T_r row of the discrete model (exact for noise-free data without a backup override).
-    ``actuator`` (default the ideal heater) turns electrical power into heat with its COP at
-    each interval's T_a, as the simulator does; powers in and out stay electrical.
+    ``actuator`` is the building's (its bounds the backup's full and off power, its efficiency
+    the COP at each interval's T_a, as the simulator has them; it heats where ``params``
+    heats); powers in and out stay electrical.
     """
 
     n_members = 1
@@ -35,22 +36,23 @@ class RCBatchModel(BatchDynamics):
         params: RCParams,
         *,
         dt_s: float,
-        u_max_w: float,
+        actuator: ActuatorSpec,
         backup_low_c: float = 17.0,
         backup_high_c: float = 20.5,
-        actuator: Actuator | None = None,
     ):
-        if not (np.isfinite(u_max_w) and u_max_w > 0):
-            raise ValueError(f"RCBatchModel.u_max_w must be positive, got {u_max_w!r}")
+        if actuator.heats != params.heating:
+            raise ValueError(
+                f"RCBatchModel: the actuator {'heats' if actuator.heats else 'cools'} but params.eta "
+                f"= {params.eta:g}; give a heater with eta > 0, a cooling machine with eta < 0"
+            )
         if not backup_low_c < backup_high_c:
             raise ValueError(
                 f"RCBatchModel backup limits need low < high, got {backup_low_c}, {backup_high_c}"
             )
         self.params = params
-        self.u_max_w, self._dt_s = u_max_w, dt_s
+        self.actuator, self._dt_s = actuator, dt_s
         self.backup_low_c, self.backup_high_c = backup_low_c, backup_high_c
         self.ad, self.bd = discretise(params, dt_s)
-        self.actuator = Actuator() if actuator is None else actuator
 
     @property
     def eta(self) -> float:
@@ -95,12 +97,13 @@ class RCBatchModel(BatchDynamics):
         t_r = torch.full((n,), t_r0, dtype=u_w.dtype)
         t_m = torch.full((n,), t_m0, dtype=u_w.dtype)
         on, off = (self.backup_low_c, self.backup_high_c)
+        full_w, off_w = self.actuator.upper_w, self.actuator.lower_w
         out_r, out_m, out_u = [], [], []
         for j in range(h):
             force_on, force_off = (t_r < on, t_r > off)
-            if not self.params.heating:
+            if not self.actuator.heats:
                 force_on, force_off = force_off, force_on
-            p = torch.where(force_on, self.u_max_w, torch.where(force_off, 0.0, u_w[:, j]))
+            p = torch.where(force_on, full_w, torch.where(force_off, off_w, u_w[:, j]))
             heat = p * gain[j]
             t_r, t_m = (
                 a00 * t_r + a01 * t_m + b0 * heat + drift[j, 0],

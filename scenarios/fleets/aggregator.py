@@ -345,7 +345,7 @@ def learned_fleet_planner(
             FleetModels(models, members=plan_members),
             spec,
             planner=CEMPlanner(
-                lower=0.0, upper=spec.u_max_w, n_samples=n_samples,
+                lower=spec.actuator.lower_w, upper=spec.actuator.upper_w, n_samples=n_samples,
                 n_iters=n_iters if n_iters is not None else (1 if rc_candidates else 2),
             ),
             shadow=shadow,

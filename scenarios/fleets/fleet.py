@@ -133,9 +133,10 @@ def fleet_controller(
             from pinn_mpc.models.rc import RCBatchModel
 
             sim = building.sim
+            (actuator,) = sim.actuators
             model = RCBatchModel(
-                params, dt_s=sim.dt_s, u_max_w=sim.u_max_w, backup_low_c=sim.backup_low_c,
-                backup_high_c=sim.backup_high_c, actuator=sim.actuator,
+                params, dt_s=sim.dt_s, actuator=actuator, backup_low_c=sim.backup_low_c,
+                backup_high_c=sim.backup_high_c,
             )
         return build_controller(
             name,

@@ -31,6 +31,7 @@ import numpy as np
 
 from controllers.rc_mpc.problem import DEFAULT_REGULARISATION
 from controllers.thermostat import Thermostat
+from pinn_mpc.actuator import ActuatorSpec
 from pinn_mpc.errors import InternalError
 from pinn_mpc.physics import RCParams
 from pinn_mpc.simulator import fleet_matrices
@@ -68,7 +69,7 @@ def solve_fleet_reference(
     price_eur_per_kwh: np.ndarray,
     t_min_c: np.ndarray,
     t_max_c: np.ndarray,
-    u_max_w: float,
+    actuator: ActuatorSpec,
     dt_h: float,
     comfort_weight_eur_per_kh: float,
     cap_w: np.ndarray | None = None,
@@ -80,7 +81,8 @@ def solve_fleet_reference(
 
     ``ad`` (B, 2, 2), ``bd`` (B, 2, 4) the exact ZOH matrices (inputs: heat [W], T_a, G, I_g),
     ``x0_c`` (B, 2) the states at the start, ``exogenous`` (N, 3) T_a, G, I_g; price and band
-    (N,) (the band the state at the END of each interval must keep); ``cap_w`` (N,) the cap on
+    (N,) (the band the state at the END of each interval must keep); ``actuator`` every
+    building's (its bounds those of each building's power); ``cap_w`` (N,) the cap on
     the sum of the buildings' electrical power, ``inf`` where there is none (None: no cap; 0
     allowed); ``cop`` (N,) heat per electrical watt (default 1)."""
     import cvxpy as cp
@@ -94,10 +96,10 @@ def solve_fleet_reference(
         raise InternalError("solve_fleet_reference: the cap must be N values >= 0 (inf: none)")
     drift = np.einsum("jc,brc->brj", exogenous, bd[:, :, 1:])  # (B, 2, N) [C]
     gain = bd[:, :, 0][:, :, None] * 1000.0 * cop_j[None, None, :]  # (B, 2, N) [K per kW]
-    p = cp.Variable((b, n), nonneg=True)  # electrical power [kW]
+    p = cp.Variable((b, n))  # electrical power [kW]
     s = cp.Variable((b, n), nonneg=True)  # band violation [K]
     x = [cp.Variable((b, n)), cp.Variable((b, n))]  # T_r, T_m at the end of each interval
-    constraints = [p <= u_max_w / 1000.0]
+    constraints = [p >= actuator.lower_kw, p <= actuator.upper_kw]
     for r in range(2):
         first = np.einsum("bc,bc->b", ad[:, r, :], x0_c)[:, None]  # (B, 1)
         constraints.append(x[r][:, :1] == first + cp.multiply(gain[:, r, :1], p[:, :1]) + drift[:, r, :1])
@@ -131,7 +133,7 @@ def solve_fleet_reference(
     t_r, t_m = np.asarray(x[0].value), np.asarray(x[1].value)
     violation = np.maximum(t_min_c - t_r, 0.0) + np.maximum(t_r - t_max_c, 0.0)
     return ReferencePlan(
-        power_w=np.clip(np.asarray(p.value), 0.0, u_max_w / 1000.0) * 1000.0,
+        power_w=actuator.clip_kw(np.asarray(p.value)) * 1000.0,
         t_r_c=t_r,
         t_m_c=t_m,
         violation_k=violation,
@@ -219,7 +221,7 @@ def fleet_reference(
         ad, bd, x0, exog,
         price_eur_per_kwh=np.asarray(series.price, float)[rows],
         t_min_c=lower, t_max_c=upper,
-        u_max_w=spec.u_max_w, dt_h=spec.dt_h,
+        actuator=spec.actuator, dt_h=spec.dt_h,
         comfort_weight_eur_per_kh=(
             spec.comfort_weight_eur_per_kh if comfort_weight_eur_per_kh is None else comfort_weight_eur_per_kh
         ),

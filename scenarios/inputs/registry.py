@@ -253,14 +253,13 @@ class Scenario:
         return frame
 
     def control_spec(self) -> ControlSpec:
-        """The objective and actuator limits every controller of this scenario shares."""
+        """The objective and the actuators (``sim.actuators``) every controller of this scenario
+        shares."""
         return ControlSpec(
-            u_max_w=self.sim.u_max_w,
+            actuators=self.sim.actuators,
             dt_s=self.sim.dt_s,
             horizon_steps=self.horizon_steps,
             comfort_weight_eur_per_kh=self.comfort_weight_eur_per_kh,
-            heating=self.sim.params.heating,
-            actuator=self.sim.actuator,
             sensor_noise_std_c=self.sim.noise_std_c,
         )
 

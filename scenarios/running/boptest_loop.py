@@ -365,8 +365,9 @@ def boptest_data(
     n = run.n_intervals
     draws = np.random.default_rng([seed, _POLICY_STREAM]).random((n, 3))
     low, high = DATA_SETPOINTS_C
+    actuator = spec.actuator
     tracking = SetpointPolicy(
-        u_max_w=spec.u_max_w, low_c=low, high_c=high,
+        actuator=actuator, low_c=low, high_c=high,
         hold_steps=(max(1, round(3600.0 / dt_s)), max(1, round(8 * 3600.0 / dt_s))),
     )
     setpoints = tracking.setpoints(draws)
@@ -376,13 +377,13 @@ def boptest_data(
     def demand(k: int, t_r_c: float, row: pd.Series) -> float:
         nonlocal on
         if policy == "random":
-            return spec.u_max_w if draws[k, 0] < 0.5 else 0.0
+            return actuator.on_off(draws[k, 0] < 0.5)
         if policy == "random-level":
-            return float(draws[k, 0] * spec.u_max_w)
+            return float(actuator.at_fraction(draws[k, 0]))
         if policy == "closed-loop":
             return float(tracking.demand(np.array([t_r_c]), setpoints[k], draws[k])[0])
         on = thermostat.switch(np.array([t_r_c]), on, float(row["T_min"]), float(row["T_max"]))
-        return spec.u_max_w if on[0] else 0.0
+        return actuator.on_off(on[0])
 
     chosen.check_server()  # no server: one line, before the recording says it starts
     label = (

@@ -197,18 +197,19 @@ def free_records(
     The engine of every run (:func:`build_loop`: the same plant, weather, gains, sensor noise
     and forecast errors of ``seed``) runs the warm-up under the thermostat exactly as
     :func:`run_closed_loop` (a ``fleet``: as the fleet runs) does, so the counted days start
-    from the same state, then steps every interval at 0 W: the building free-running, its
-    backup thermostat still acting. Its too-warm discomfort (a cooling machine: too cold) is
+    from the same state, then steps every interval with the actuator off (its lower bound,
+    0 W): the building free-running, its backup thermostat still acting. Its too-warm discomfort (a cooling machine: too cold) is
     the part no controller could avoid (:func:`scenarios.running.kpis.compute_kpis`)."""
     spec = scenario.control_spec()
     n = 1 if fleet is None else len(fleet)
     thermostats = [Thermostat(spec) for _ in range(n)]
     for thermostat in thermostats:
         thermostat.reset(seed)
+    off = spec.actuator.on_off(False)
     with build_loop(scenario, run, seed=seed, fleet=fleet) as loop:
         for k in range(run.total):
             if k >= run.warmup:
-                loop.step(0.0 if fleet is None else np.zeros(n))
+                loop.step(off if fleet is None else np.full(n, off))
             elif fleet is None:
                 loop.advance(thermostats[0])
             else:

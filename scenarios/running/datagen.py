@@ -2,18 +2,20 @@
 
 Policies:
 
-- ``random`` (the paper's): in each interval, independently per building, demand ``u_max``
-  with probability ``on_probability``, else 0.
+- ``random`` (the paper's): in each interval, independently per building, demand the
+  actuator's full power (its upper bound, ``u_max``) with probability ``on_probability``, else
+  off (its lower bound, 0).
 - ``random-level``: in each interval, independently per building, a demand drawn uniformly
-  from ``[0, u_max]``. On/off data shows a network only the two extremes of the power; a
-  controller that modulates the power asks it about the levels in between, which this policy
-  covers (a multi-level excitation signal, as system identification recommends).
+  from the actuator's bounds, ``[0, u_max]``. On/off data shows a network only the two
+  extremes of the power; a controller that modulates the power asks it about the levels in
+  between, which this policy covers (a multi-level excitation signal, as system identification
+  recommends).
 - ``thermostat``: :class:`controllers.thermostat.Thermostat` on the scenario's comfort band
   (its rule :meth:`~controllers.thermostat.Thermostat.switch`, batched over buildings).
 - ``closed-loop``: random setpoint steps tracked by a proportional controller with a random
   dither (:class:`SetpointPolicy`): a setpoint drawn uniformly from the scenario's comfort
-  band widened by 1 K, held 1-8 h, and a power of ``u_max`` x (0.5 / K x (setpoint - T_r) +
-  a uniform dither of +-0.25), clipped to [0, u_max]. The room stays near where a controller
+  band widened by 1 K, held 1-8 h, and a power of the actuator's range x (0.5 / K x
+  (setpoint - T_r) + a uniform dither of +-0.25), within its bounds. The room stays near where a controller
   keeps it, inside the backup thermostat's band, while the power still takes every level;
   on a plant whose backup would otherwise act inside intervals (EnergyPlus, whose random
   levels overheat the room to the backup's 28 C) it is the scenario's default
@@ -46,6 +48,7 @@ import pandas as pd
 
 from controllers.base import ControlSpec
 from controllers.thermostat import Thermostat
+from pinn_mpc.actuator import ActuatorSpec
 from pinn_mpc.data import SITE_COLUMNS
 from pinn_mpc.errors import InputError, InternalError, setting
 from pinn_mpc.physics import RCParams
@@ -65,10 +68,11 @@ class SetpointPolicy:
     """The ``closed-loop`` data policy (module docstring): random setpoint steps tracked by a
     proportional controller with a dither. ``draws`` (N, 3) uniform [0, 1) numbers per interval
     (setpoint, hold, dither); the setpoint range ``[low_c, high_c]``, held ``hold_steps``
-    intervals (lowest, highest), ``gain_per_k`` of ``u_max_w`` per kelvin below the setpoint,
-    ``dither`` the half-width of the uniform dither as a fraction of ``u_max_w``."""
+    intervals (lowest, highest), ``gain_per_k`` of the actuator's range per kelvin below the
+    setpoint, ``dither`` the half-width of the uniform dither as a fraction of that range; the
+    power is the ``actuator``'s, within its bounds."""
 
-    u_max_w: float
+    actuator: ActuatorSpec
     low_c: float
     high_c: float
     hold_steps: tuple[int, int]
@@ -76,12 +80,14 @@ class SetpointPolicy:
     dither: float = 0.25
 
     @classmethod
-    def for_data(cls, u_max_w: float, t_min: np.ndarray, t_max: np.ndarray, dt_s: float) -> SetpointPolicy:
-        """The policy for a comfort band ``t_min``..``t_max`` (C) widened by 1 K, setpoints held
-        1-8 h at ``dt_s``."""
+    def for_data(
+        cls, actuator: ActuatorSpec, t_min: np.ndarray, t_max: np.ndarray, dt_s: float
+    ) -> SetpointPolicy:
+        """The policy of ``actuator`` for a comfort band ``t_min``..``t_max`` (C) widened by 1 K,
+        setpoints held 1-8 h at ``dt_s``."""
         steps_h = 3600.0 / dt_s
         return cls(
-            u_max_w=u_max_w,
+            actuator=actuator,
             low_c=float(np.min(t_min)) - 1.0,
             high_c=float(np.max(t_max)) + 1.0,
             hold_steps=(max(1, round(steps_h)), max(1, round(8 * steps_h))),
@@ -102,7 +108,7 @@ class SetpointPolicy:
     def demand(self, t_r: np.ndarray, setpoint: float, draw: np.ndarray) -> np.ndarray:
         """The power [W] for room temperatures ``t_r`` at ``setpoint``, dither from ``draw`` (3,)."""
         level = self.gain_per_k * (setpoint - t_r) + self.dither * (2.0 * draw[2] - 1.0)
-        return np.clip(level, 0.0, 1.0) * self.u_max_w
+        return self.actuator.at_fraction(level)
 
 
 def generate(
@@ -193,7 +199,7 @@ class DataPolicy:
     ) -> None:
         self.policy, self.spec, self.cols, self.on_probability = policy, spec, cols, on_probability
         if policy == "closed-loop":
-            self.tracking = SetpointPolicy.for_data(spec.u_max_w, cols["T_min"], cols["T_max"], spec.dt_s)
+            self.tracking = SetpointPolicy.for_data(spec.actuator, cols["T_min"], cols["T_max"], spec.dt_s)
             self.draws = rng.random((n, 3))
             self.setpoints = self.tracking.setpoints(self.draws)
         else:
@@ -202,16 +208,16 @@ class DataPolicy:
         self.on = np.zeros(n_buildings, dtype=bool)
 
     def __call__(self, k: int, t_r: np.ndarray) -> np.ndarray:
-        u_max = self.spec.u_max_w
+        actuator = self.spec.actuator
         if self.policy == "random":
-            return np.where(self.draws[k] < self.on_probability, u_max, 0.0)
+            return actuator.on_off(self.draws[k] < self.on_probability)
         if self.policy == "random-level":
-            return self.draws[k] * u_max
+            return actuator.at_fraction(self.draws[k])
         if self.policy == "closed-loop":
             return self.tracking.demand(t_r, self.setpoints[k], self.draws[k])
         # the thermostat's rule, batched over the buildings (it sees only T_r and the band)
         self.on = self.thermostat.switch(t_r, self.on, self.cols["T_min"][k], self.cols["T_max"][k])
-        return np.where(self.on, u_max, 0.0)
+        return actuator.on_off(self.on)
 
 
 def _frame(
@@ -243,8 +249,9 @@ def _frame(
         if name in exo:
             columns[name] = np.tile(exo[name].to_numpy(dtype=float)[:n], n_buildings)
     frame = pd.DataFrame(columns)
-    if not scenario.sim.actuator.is_ideal:  # a heat pump: heat per electrical watt, per row
-        frame["cop"] = scenario.sim.actuator.gain(frame["T_a"].to_numpy(dtype=float))
+    (actuator,) = scenario.sim.actuators
+    if not actuator.is_ideal:  # a heat pump: heat per electrical watt, per row
+        frame["cop"] = actuator.gain(frame["T_a"].to_numpy(dtype=float))
     if n_buildings > 1:
         frame.insert(0, "building", np.repeat(np.arange(n_buildings), n))
     frame.attrs["dt_s"] = float(scenario.sim.dt_s)

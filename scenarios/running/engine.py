@@ -132,7 +132,7 @@ def decide(
         own_fallback = bool(controller.last_stats.fallback)
     except Exception as exc:
         own_fallback, error = True, f"last_stats: {type(exc).__name__}: {exc}"
-    u = float(np.clip(float(action.reshape(-1)[0]), 0.0, spec.u_max_w))
+    u = float(spec.actuator.clip(float(action.reshape(-1)[0])))
     return u, elapsed, own_fallback, error
 
 
@@ -147,8 +147,8 @@ class ClosedLoop:
     interval means (an EnergyPlus building's measured gains) instead of the series' rows.
     ``plant_settings`` is the plant's kind and settings (a scenario's ``plant``; None: the RC
     simulator of ``config.plant``), ``plant`` a plant already made. :meth:`reset` starts an
-    episode at row ``start`` of the series; ``k`` counts its intervals. ``fleet`` gives B buildings their own parameters (the backup rule,
-    actuator and ``u_max_w`` of ``config`` apply to all; see :class:`Simulator`); they share
+    episode at row ``start`` of the series; ``k`` counts its intervals. ``fleet`` gives B buildings their own parameters (the backup rule
+    and the actuator of ``config`` apply to all; see :class:`Simulator`); they share
     the series, the forecasts and the initial state; without a fleet, ``n_buildings`` of
     ``config``'s building do (data generation). Methods that concern one building take
     its index ``building`` (default 0, the only one without a fleet).

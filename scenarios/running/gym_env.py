@@ -6,7 +6,8 @@ k: ``(T_r measured [C], T_a [C], G [W/m2], I_g [W], price [EUR/kWh], T_min [C], 
 sin(2 pi h/24), cos(2 pi h/24))`` with h the hour of day (:data:`OBSERVATION_NAMES`), then
 the site's inputs the frame has (:data:`pinn_mpc.data.SITE_COLUMNS`: an EnergyPlus building's
 facade irradiance [W/m2] and wind speed [m/s]); ``env.observation_names`` names them all.
-Action (float32, shape (1,)): the demanded power in [0, u_max_w] W (clipped). Reward: minus the objective of the interval, i.e.
+Action (float32, shape (1,)): the demanded power [W] within the building's actuator's bounds
+(``env.actuator``, the action space's; clipped). Reward: minus the objective of the interval, i.e.
 ``-(price x delivered energy [kWh] + comfort_weight x band violation of T_r at the end of the
 interval [K] x interval [h])``: :class:`controllers.objective.HorizonObjective` of one interval
 against that interval's band, the objective the controllers use. ``info`` carries the
@@ -111,15 +112,14 @@ class BuildingEnv(gym.Env[np.ndarray, np.ndarray]):
         high = np.array([t_hi, t_hi, 2000.0, 1e6, 10.0, t_hi, t_hi, 1.0, 1.0, *site_high], dtype=np.float32)
         self._obs_low, self._obs_high = low, high
         self.observation_space = gym.spaces.Box(low=low, high=high, dtype=np.float32)
+        (self.actuator,) = config.actuators
         self.action_space = gym.spaces.Box(
-            low=0.0, high=float(config.u_max_w), shape=(1,), dtype=np.float32
+            low=self.actuator.lower_w, high=self.actuator.upper_w, shape=(1,), dtype=np.float32
         )
         spec = ControlSpec(
-            u_max_w=config.u_max_w,
+            actuators=config.actuators,
             dt_s=config.dt_s,
             comfort_weight_eur_per_kh=self.comfort_weight_eur_per_kh,
-            heating=config.params.heating,
-            actuator=config.actuator,
         )
         try:
             self._loop = ClosedLoop(
@@ -180,7 +180,7 @@ class BuildingEnv(gym.Env[np.ndarray, np.ndarray]):
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         if self._loop.k >= self.episode_steps:
             raise ValueError("BuildingEnv.step: the episode is over; call reset() first")
-        u = float(np.clip(self._action_w(action), 0.0, self.config.u_max_w))
+        u = float(self.actuator.clip(self._action_w(action)))
         _, _, _, price, t_min, t_max = (float(v) for v in self._exo[self._loop.start + self._loop.k])
         result = self._loop.step(u)
         t_r_next = float(result.t_r_c[0])
@@ -209,22 +209,23 @@ class BuildingEnv(gym.Env[np.ndarray, np.ndarray]):
 
     def _action_w(self, action: np.ndarray) -> float:
         """The demanded power [W] of ``action``, which must hold exactly one finite number."""
+        bounds = f"[{self.actuator.lower_w:g}, {self.actuator.upper_w:g}] W"
         try:
             values = np.asarray(action, dtype=float).reshape(-1)
         except (TypeError, ValueError) as exc:
             raise ValueError(
                 f"BuildingEnv.step: action {action!r} is not a number; give an array of shape "
-                f"(1,) with the demanded power in [0, {self.config.u_max_w:g}] W"
+                f"(1,) with the demanded power in {bounds}"
             ) from exc
         if values.size != 1:
             raise ValueError(
                 f"BuildingEnv.step: action has {values.size} elements, the action space's shape "
-                f"is (1,): one demanded power in [0, {self.config.u_max_w:g}] W"
+                f"is (1,): one demanded power in {bounds}"
             )
         if not math.isfinite(values[0]):
             raise ValueError(
                 f"BuildingEnv.step: action {values[0]!r} is not finite; give a demanded power in "
-                f"[0, {self.config.u_max_w:g}] W"
+                f"{bounds}"
             )
         return float(values[0])
 

@@ -58,7 +58,7 @@ class EnergyPlusPlant:
         self.run = EnergyPlusRun(
             self.prepared,
             weather=plant.weather,
-            u_max_w=config.u_max_w,
+            actuator=config.actuators[0],
             dt_s=config.dt_s,
             backup_c=(config.backup_low_c, config.backup_high_c),
             heat_per_w=eta,

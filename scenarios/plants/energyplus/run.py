@@ -35,6 +35,7 @@ from typing import Any
 
 import numpy as np
 
+from pinn_mpc.actuator import ActuatorSpec
 from pinn_mpc.errors import InputError, InternalError
 from scenarios.plants.energyplus.files import (
     first_severe,
@@ -75,9 +76,10 @@ class EnergyPlusRun:
     ``days`` days (at most a year, into the next year too: the weather file's typical year
     repeats); EnergyPlus's warm-up days hold the room near ``warmup_setpoint_c`` and the
     call returns the room temperature then. :meth:`step` holds a heater power for one control
-    interval (``dt_s``) and returns its :class:`IntervalMeans`. A backup thermostat (full power
-    below ``backup_c[0]``, none above ``backup_c[1]``; mirrored for a chiller) acts per zone
-    timestep. ``heat_per_w`` is the heat per watt of power (1: the ideal electric heater;
+    interval (``dt_s``), within the bounds of ``actuator`` (the heater or chiller, heating
+    where ``heat_per_w > 0``), and returns its :class:`IntervalMeans`. A backup thermostat
+    (full power below ``backup_c[0]``, off above ``backup_c[1]``; mirrored for a chiller) acts
+    per zone timestep. ``heat_per_w`` is the heat per watt of power (1: the ideal electric heater;
     minus a COP: an ideal chiller, whose equipment extracts heat, a negative
     ``OtherEquipment`` power); the reported power is the heat delivered divided by it. With
     ``hold_c`` set, the power asked is ignored and an ideal thermostat (integral control per
@@ -90,7 +92,7 @@ class EnergyPlusRun:
         prepared: PreparedModel,
         *,
         weather: str,
-        u_max_w: float,
+        actuator: ActuatorSpec,
         dt_s: float = 1800.0,
         backup_c: tuple[float, float] | None = None,
         warmup_setpoint_c: float = 20.5,
@@ -101,6 +103,12 @@ class EnergyPlusRun:
         require_energyplus()
         if not (math.isfinite(heat_per_w) and heat_per_w != 0):
             raise ValueError(f"EnergyPlusRun: heat_per_w must be a nonzero number, got {heat_per_w!r}")
+        if actuator.heats != (heat_per_w > 0):
+            raise ValueError(
+                f"EnergyPlusRun: heat_per_w = {heat_per_w:g} but the actuator "
+                f"{'heats' if actuator.heats else 'cools'}; give a heater a positive heat per watt, "
+                "a chiller a negative one"
+            )
         self.prepared = prepared
         self.heat_per_w = float(heat_per_w)
         self.hold_c = hold_c
@@ -108,7 +116,7 @@ class EnergyPlusRun:
         self.hold_gain_w_per_k = HOLD_GAIN_W_PER_K_M2 * prepared.floor_m2 / abs(self.heat_per_w)
         self.epw = resolve_weather(weather)
         self.year = weather_year(self.epw)
-        self.u_max_w, self.dt_s = float(u_max_w), int(dt_s)
+        self.actuator, self.dt_s = actuator, int(dt_s)
         step_s = 3600 // prepared.timesteps_per_hour
         if self.dt_s % step_s or SECONDS_PER_DAY % self.dt_s:
             valid = [s for s in range(step_s, 4 * 3600 + 1, step_s) if SECONDS_PER_DAY % s == 0]
@@ -176,7 +184,7 @@ class EnergyPlusRun:
         self._state = state = api.state_manager.new_state()
         api.runtime.set_console_output_status(state, False)
         self._handles: dict[str, Any] | None = None
-        self._u = 0.0
+        self._u = self.actuator.lower_w
         self._last_t_r: float | None = None
         self._acc = self._new_acc()
         self._stopping = False
@@ -198,10 +206,10 @@ class EnergyPlusRun:
         return first
 
     def step(self, u_w: float) -> IntervalMeans:
-        """Hold heater power ``u_w`` [W] (clipped to 0 .. u_max_w) for one control interval."""
+        """Hold heater power ``u_w`` [W] (clipped to the actuator's bounds) for one control interval."""
         if self._done or self._thread is None:
             raise InternalError("EnergyPlusRun.step: no run in progress (start one, or the run has ended)")
-        self._act_q.put(min(max(float(u_w), 0.0), self.u_max_w), timeout=self.timeout_s)
+        self._act_q.put(float(self.actuator.clip(float(u_w))), timeout=self.timeout_s)
         result = self._receive_or_close()
         assert isinstance(result, IntervalMeans)
         return result
@@ -391,7 +399,7 @@ class EnergyPlusRun:
         if self._last_t_r is not None:
             error = setpoint_c - self._last_t_r if self.heat_per_w > 0 else self._last_t_r - setpoint_c
             u = self._u + gain_w_per_k * error
-            self._u = min(max(u, 0.0), self.u_max_w)
+            self._u = float(self.actuator.clip(u))
 
     def _on_begin(self, state: Any) -> None:
         """Begin of a zone timestep: set the heater; at an interval boundary hand over and
@@ -405,7 +413,7 @@ class EnergyPlusRun:
                     return
                 self._handles = self._get_handles(state)
             if ex.warmup_flag(state):  # integral control to the warm-up setpoint
-                gain = 0.1 * self.u_max_w if self.hold_c is None else self.hold_gain_w_per_k
+                gain = 0.1 * self.actuator.span_w if self.hold_c is None else self.hold_gain_w_per_k
                 self._integral_control(self.warmup_setpoint_c, gain)
                 self._set_heater(state, self._u)
                 return
@@ -436,9 +444,9 @@ class EnergyPlusRun:
                     else (self._last_t_r > high, self._last_t_r < low)
                 )
                 if force_on:
-                    u = self.u_max_w
+                    u = self.actuator.upper_w
                 elif force_off:
-                    u = 0.0
+                    u = self.actuator.lower_w
                 if u != self._u:
                     self._acc["overridden"] = True
             self._set_heater(state, u)
@@ -484,7 +492,8 @@ def held_run(
 ) -> list[IntervalMeans]:
     """Every interval of a run whose room an ideal thermostat holds at ``setpoint_c``."""
     with EnergyPlusRun(
-        prepared, weather=weather, u_max_w=unlimited_power_w(prepared, heat_per_w), dt_s=dt_s,
+        prepared, weather=weather, dt_s=dt_s,
+        actuator=ActuatorSpec(upper_w=unlimited_power_w(prepared, heat_per_w), heats=heat_per_w > 0),
         heat_per_w=heat_per_w, warmup_setpoint_c=setpoint_c, hold_c=setpoint_c,
     ) as run:
         run.start(start_day, days, year=year)
