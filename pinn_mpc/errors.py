@@ -12,7 +12,8 @@ plain :class:`ValueError` or :class:`TypeError`, as Python's own functions raise
 
 A message names a setting (a parameter, a config field, a key) by its name, marked with
 :func:`setting`: a Python caller reads the name, and the command line, which knows which flag
-sets what, names the flag instead (:meth:`InputError.text`).
+sets what, names the flag instead (:meth:`InputError.text`); a warning's message too
+(:meth:`PinnMpcWarning.text`).
 """
 
 import re
@@ -40,7 +41,7 @@ def setting(name: str, *, python: str | None = None) -> str:
     """The setting ``name`` (a parameter, a config field or a key) as a message names it:
     ``name`` to a Python caller (or ``python``, where the words a Python caller reads differ
     from the setting's name), and the flag that sets it where the command line reports the
-    message. Use it inside an :class:`InputError`'s message only."""
+    message. Use it inside an :class:`InputError`'s or a warning's (:func:`warn`) message only."""
     return f"\x1f{name}\x1f" if python is None else f"\x1f{name}\x1e{python}\x1f"
 
 
@@ -49,8 +50,9 @@ def _render(message: str, flags: Mapping[str, str]) -> str:
     return _MARKED.sub(lambda m: flags.get(m[1]) or (m[1] if m[2] is None else m[2]), message)
 
 
-class InputError(ValueError):
-    """Bad user input: a file, a column, an option value. The message says what, where, how to fix."""
+class _NamesSettings(Exception):
+    """A message that may name settings (:func:`setting`): ``str()`` as a Python caller reads
+    it, :meth:`text` as the command line reports it."""
 
     def __str__(self) -> str:
         return _render(super().__str__(), {})
@@ -67,6 +69,10 @@ class InputError(ValueError):
         return _render(super().__str__(), flags)
 
 
+class InputError(_NamesSettings, ValueError):
+    """Bad user input: a file, a column, an option value. The message says what, where, how to fix."""
+
+
 class ModelFileError(InputError):
     """A model directory that is missing, truncated, corrupted or inconsistent."""
 
@@ -76,12 +82,14 @@ class InternalError(RuntimeError):
     what was inconsistent and the values."""
 
 
-class PinnMpcWarning(UserWarning):
-    """Input that is accepted but deserves attention (the message says what and why)."""
+class PinnMpcWarning(_NamesSettings, UserWarning):
+    """Input that is accepted but deserves attention (the message says what and why; it may
+    name settings, as an :class:`InputError`'s does)."""
 
 
-def warn(message: str) -> None:
-    """Warn with ``message`` (:class:`PinnMpcWarning`), attributed to the line that calls this."""
+def warn(message: str | PinnMpcWarning) -> None:
+    """Warn with ``message`` (:class:`PinnMpcWarning`, or the text of one), attributed to the
+    line that calls this."""
     warnings.warn(message, PinnMpcWarning, stacklevel=2)
 
 

@@ -28,7 +28,7 @@ import pandas as pd
 import scipy.optimize
 import scipy.signal
 
-from pinn_mpc.errors import InputError, InternalError, setting
+from pinn_mpc.errors import InputError, InternalError, PinnMpcWarning, setting
 from pinn_mpc.physics import PLAUSIBLE_RANGES, RCParams, check_plausible, discretise
 
 __all__ = ["POOR_FIT_RMSE_C", "IdentifyResult", "check_power_sign", "identify_rc", "simulate_rc"]
@@ -73,18 +73,20 @@ class IdentifyResult:
         if not (math.isfinite(self.rmse_c) and self.rmse_c >= 0):
             raise InternalError(f"IdentifyResult.rmse_c must be finite and >= 0, got {self.rmse_c}")
 
-    def poor_fit_note(self) -> str | None:
+    def poor_fit_note(self) -> PinnMpcWarning | None:
         """What to do about a fit whose RMSE exceeds :data:`POOR_FIT_RMSE_C` (None below it):
-        the 2R2C does not describe the building, so an RC MPC on it plans on a poor model."""
+        the 2R2C does not describe the building, so an RC MPC on it plans on a poor model. A
+        warning to give :func:`~pinn_mpc.errors.warn` (``str()`` is its text), since it names a
+        setting (the command line names its flag)."""
         if self.rmse_c <= POOR_FIT_RMSE_C:
             return None
-        return (
+        return PinnMpcWarning(
             f"identify: the identified 2R2C reproduces the data with an rmse of "
             f"{self.rmse_c:.2f} C, above {POOR_FIT_RMSE_C:g} C (simulated buildings fit within "
             "0.3 C, EnergyPlus's apartment within 0.5 C): a 2R2C does not describe this "
             "building, and qp-mpc or casadi-mpc on it plan on a poor model. Check that the "
-            "columns are the room temperature and the heating power delivered; give more days; "
-            "or plan over a model that fits: `pinn-mpc train` (its default takes the "
+            f"columns are the room temperature and the heating power delivered ({setting('columns')}); "
+            "give more days; or plan over a model that fits: `pinn-mpc train` (its default takes the "
             "physics-informed ARX where that predicts better), then qp-mpc or cem over it"
         )
 

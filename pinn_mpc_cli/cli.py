@@ -35,7 +35,7 @@ import sys
 import traceback
 import warnings
 from argparse import Namespace
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from typing import NoReturn, TextIO
 
 from pinn_mpc.errors import InputError, PinnMpcWarning
@@ -70,9 +70,10 @@ def bug_line(command: str, exc: BaseException) -> str:
 
 
 @contextlib.contextmanager
-def _library_messages() -> Iterator[None]:
+def _library_messages(flags: Mapping[str, str]) -> Iterator[None]:
     """Within: each library warning printed every time it is raised (``warn_once`` keeps its
-    own once per process), and the library's notes printed; the settings restored on exit."""
+    own once per process), a setting it names named by its flag (``flags``), and the library's
+    notes printed; the settings restored on exit."""
     handler = logging.StreamHandler(sys.stderr)
     handler.setFormatter(logging.Formatter("pinn-mpc: %(message)s"))
     loggers = [logging.getLogger(name) for name in _LOGGERS]
@@ -90,7 +91,8 @@ def _library_messages() -> Iterator[None]:
         ) -> None:
             """The library's warnings as one line on stderr; any other as Python shows it."""
             if issubclass(category, PinnMpcWarning):
-                print(f"pinn-mpc: warning: {message}", file=sys.stderr)
+                text = message.text(flags) if isinstance(message, PinnMpcWarning) else message
+                print(f"pinn-mpc: warning: {text}", file=sys.stderr)
             else:
                 shown(message, category, filename, lineno, file, line)
 
@@ -163,12 +165,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     # multi-threaded BLAS only adds synchronisation on top of them. Torch keeps its own threads.
     from threadpoolctl import threadpool_limits
 
+    flags = command_flags(parser, args.command)
     try:
-        with _library_messages(), threadpool_limits(limits=1, user_api="blas"):
+        with _library_messages(flags), threadpool_limits(limits=1, user_api="blas"):
             module, function = args.handler.split(":")
             summary = getattr(importlib.import_module(module), function)(args)
     except InputError as exc:
-        text = exc.text(command_flags(parser, args.command))
+        text = exc.text(flags)
         print(f"pinn-mpc {args.command}: error: {text}", file=sys.stderr)
         return 2
     except OSError as exc:

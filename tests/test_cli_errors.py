@@ -15,7 +15,7 @@ import pandas as pd
 import pytest
 
 import scenarios.inputs.scenario_file
-from pinn_mpc.errors import InputError, InternalError, PinnMpcWarning, warn
+from pinn_mpc.errors import InputError, InternalError, PinnMpcWarning, setting, warn
 from pinn_mpc_cli.cli import BUG_EXIT, main
 from scenarios.inputs.measured import read_series_csv
 from scenarios.inputs.scenario_file import get_scenario
@@ -121,6 +121,20 @@ def test_the_cli_prints_library_warnings_as_one_line(monkeypatch, capsys):
     captured = capsys.readouterr()
     assert captured.err == "pinn-mpc: warning: something to look at\n"
     assert captured.out == "listed\n"
+
+
+def test_a_warning_names_a_setting_by_name_in_python_and_by_flag_on_the_command_line(monkeypatch, capsys):
+    """As an InputError's message: a Python caller reads the setting, the command line its flag."""
+    def warns_then_lists() -> str:
+        warn(f"replaced without {setting('force')}")
+        return "listed"
+
+    with pytest.warns(PinnMpcWarning) as caught:
+        warns_then_lists()
+    assert [str(w.message) for w in caught] == ["replaced without force"]
+    _inject(monkeypatch, warns_then_lists)
+    assert main(["scenario", "list"]) == 0
+    assert capsys.readouterr().err == "pinn-mpc: warning: replaced without --force\n"
 
 
 def test_the_cli_prints_library_notes_as_one_line(monkeypatch, capsys):
