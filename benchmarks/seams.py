@@ -12,7 +12,13 @@ Prints, for the checkout it runs in (or ``--root DIR``):
   ``controllers/fleet.py``, ``pinn_mpc/models/fleet.py``);
 - **the largest module** and the **functions over 80 lines** (their names);
 - **``Any`` at the seams**: public functions of the three packages whose return annotation
-  holds ``Any``.
+  holds ``Any``;
+- **``raise InputError`` in the library**: the raise sites of what the user can fix in
+  ``pinn_mpc``, ``controllers`` and ``scenarios`` (a Python caller's misuse raises
+  ``ValueError`` / ``TypeError``, a broken invariant ``InternalError``);
+- **library lines naming a flag**: code lines of the three packages that name a flag of the
+  command line (the ``--`` options of ``pinn_mpc_cli/parser.py``); a library message names the
+  setting (``pinn_mpc.errors.setting``) and the command line adds the flag.
 
 Plain text search and ``ast``; nothing of the package is imported or run::
 
@@ -24,6 +30,7 @@ from __future__ import annotations
 import argparse
 import ast
 import re
+from collections.abc import Iterable
 from pathlib import Path
 
 PACKAGES = ("pinn_mpc", "controllers", "scenarios", "pinn_mpc_cli")
@@ -43,6 +50,12 @@ KIND = re.compile(
 PLANT_LAYER = ("scenarios/plants/", "pinn_mpc/plant.py")
 FLEET_ONLY = ("controllers/fleet_sampling.py", "controllers/fleet.py", "pinn_mpc/models/fleet.py")
 LONG_FUNCTION = 80
+#: The library: the packages below the command line.
+LIBRARY = ("pinn_mpc", "controllers", "scenarios")
+#: A raise of what the user can fix.
+RAISE_INPUT = re.compile(r"\braise (InputError|ModelFileError)\b")
+#: A ``--name`` token (the flag itself, not a longer word it begins).
+FLAG = re.compile(r"(?<![\w-])--([a-z][a-z0-9-]*)(?![a-z0-9{-])")
 
 
 def sources(root: Path) -> list[Path]:
@@ -59,6 +72,30 @@ def code_lines(path: Path) -> list[tuple[int, str]]:
     return [
         (i, line) for i, line in enumerate(text.splitlines(), 1)
         if line.strip() and not line.strip().startswith("#") and i not in doc_lines
+    ]
+
+
+def cli_flags(root: Path) -> set[str]:
+    """The command line's flags: the ``"--name"`` literals of its parser."""
+    text = (root / "pinn_mpc_cli" / "parser.py").read_text(encoding="utf-8")
+    return set(re.findall(r"\"--([a-z][a-z0-9-]*)\"", text))
+
+
+def library_lines(root: Path) -> list[tuple[str, int, str]]:
+    """(module, line number, line) of every code line of the library."""
+    return [
+        (path.relative_to(root).as_posix(), i, line)
+        for pkg in LIBRARY for path in sorted((root / pkg).rglob("*.py"))
+        for i, line in code_lines(path)
+    ]
+
+
+def flag_lines(root: Path) -> list[str]:
+    """The library's code lines that name a flag of the command line (``module: line``)."""
+    flags = cli_flags(root)
+    return [
+        f"{rel}: {line.strip()}" for rel, _, line in library_lines(root)
+        if any(name in flags for name in FLAG.findall(line))
     ]
 
 
@@ -96,12 +133,21 @@ def main() -> None:
         (f"largest module: {largest}", sizes[largest], []),
         (f"functions over {LONG_FUNCTION} lines", len(long_functions), long_functions),
         ("public functions returning Any", len(any_returns), any_returns),
+        ("raise InputError in the library", *_listed(
+            f"{rel}:{i}" for rel, i, line in library_lines(root) if RAISE_INPUT.search(line)
+        )),
+        ("library lines naming a flag", *_listed(flag_lines(root))),
     ]
     for name, count, items in rows:
         print(f"{name}: {count}")
         if a.list:
             for item in items:
                 print(f"    {item}")
+
+
+def _listed(items: Iterable[str]) -> tuple[int, list[str]]:
+    listed = list(items)
+    return len(listed), listed
 
 
 if __name__ == "__main__":

@@ -88,9 +88,9 @@ class ARXQPMPC(PlanningController):
         check_interval(model.dt_s, spec.dt_s, what="the scenario's control interval is")
         self.horizon_steps = spec.horizon_steps if horizon_steps is None else horizon_steps
         if self.horizon_steps < 1:
-            raise InputError(f"ARXQPMPC.horizon_steps must be >= 1, got {self.horizon_steps}")
+            raise ValueError(f"ARXQPMPC.horizon_steps must be >= 1, got {self.horizon_steps}")
         if not (np.isfinite(regularisation_eur_per_kw2h) and regularisation_eur_per_kw2h > 0):
-            raise InputError(
+            raise ValueError(
                 "regularisation_eur_per_kw2h must be > 0 (uniqueness), "
                 f"got {regularisation_eur_per_kw2h!r}"
             )
@@ -99,7 +99,7 @@ class ARXQPMPC(PlanningController):
         self.model, self.spec = model, spec
         self.rho = regularisation_eur_per_kw2h
         if not (0 <= comfort_margin_k < 1):
-            raise InputError(f"ARXQPMPC.comfort_margin_k must lie in [0, 1) K, got {comfort_margin_k}")
+            raise ValueError(f"ARXQPMPC.comfort_margin_k must lie in [0, 1) K, got {comfort_margin_k}")
         self.comfort_margin_k = comfort_margin_k
         self.solver_options = {**OSQP_OPTIONS, **(solver_options or {})}
         self.estimator = OffsetFilter(model, offset_gain)

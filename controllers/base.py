@@ -190,13 +190,13 @@ class ControlSpec:
                 f"{[a.zone for a in self.actuators]}"
             )
         if self.horizon_steps < 1:
-            raise InputError(f"ControlSpec.horizon_steps must be >= 1, got {self.horizon_steps}")
+            raise ValueError(f"ControlSpec.horizon_steps must be >= 1, got {self.horizon_steps}")
         if not (math.isfinite(self.sensor_noise_std_c) and self.sensor_noise_std_c >= 0):
-            raise InputError(
+            raise ValueError(
                 f"ControlSpec.sensor_noise_std_c must be finite and >= 0, got {self.sensor_noise_std_c!r}"
             )
         if not (self.comfort_weight_eur_per_kh >= 0):
-            raise InputError(
+            raise ValueError(
                 f"ControlSpec.comfort_weight_eur_per_kh must be >= 0, got {self.comfort_weight_eur_per_kh}"
             )
 
@@ -232,7 +232,8 @@ def check_heating(eta: float, spec: ControlSpec, *, what: str) -> None:
         )
     raise InputError(
         f"{what}: eta={eta:g}, a heater, but the scenario's actuator is a cooling machine; "
-        "use cooling data with `train --eta -COP` or `identify --eta -COP` (e.g. -2.5)"
+        "use a model or RC file made for cooling (trained or identified on cooling data with "
+        "eta = -COP, e.g. -2.5)"
     )
 
 

@@ -41,7 +41,7 @@ from typing import NamedTuple
 import numpy as np
 
 from controllers.fleet import FleetDecision, FleetPlan, FleetPlanner
-from pinn_mpc.errors import InputError, InternalError
+from pinn_mpc.errors import InternalError
 
 __all__ = ["Coordination", "CoordinationStep", "DualAscent", "planned_aggregate_w"]
 
@@ -63,11 +63,11 @@ class DualAscent:
 
     def __post_init__(self) -> None:
         if not (isinstance(self.iterations, int) and 1 <= self.iterations <= 100):
-            raise InputError(f"DualAscent.iterations must be an integer in 1..100, got {self.iterations!r}")
+            raise ValueError(f"DualAscent.iterations must be an integer in 1..100, got {self.iterations!r}")
         for name in ("step_eur_per_kwh", "max_price_eur_per_kwh"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
-                raise InputError(f"DualAscent.{name} must be a positive number, got {value!r}")
+                raise ValueError(f"DualAscent.{name} must be a positive number, got {value!r}")
 
 
 class CoordinationStep(NamedTuple):

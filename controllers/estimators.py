@@ -22,7 +22,7 @@ import numpy as np
 
 from controllers.base import ControlSpec, Observation
 from pinn_mpc.actuator import Actuator
-from pinn_mpc.errors import InputError, InternalError
+from pinn_mpc.errors import InternalError
 from pinn_mpc.observer import DEFAULT_INITIAL_T_M_STD_C, DEFAULT_MEASUREMENT_STD_C, KalmanObserver
 from pinn_mpc.physics import RCParams
 
@@ -189,7 +189,7 @@ class TrueState:
 
     def update(self, obs: Observation) -> np.ndarray:
         if not math.isfinite(obs.t_m_true_c):
-            raise InputError(
+            raise ValueError(
                 f"the true-state estimator needs the true thermal-mass temperature, got "
                 f"obs.t_m_true_c={obs.t_m_true_c}; use it only against the simulator"
             )
@@ -205,7 +205,7 @@ class FleetOffsetFilter:
 
     def __init__(self, dynamics: FleetModels, gain: float) -> None:
         if not 0.0 <= gain <= 1.0:
-            raise InputError(f"offset_gain must lie in [0, 1], got {gain}")
+            raise ValueError(f"offset_gain must lie in [0, 1], got {gain}")
         self.dynamics, self.gain = dynamics, gain
         self.reset()
 

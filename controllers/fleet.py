@@ -43,7 +43,7 @@ from controllers.objective import HorizonObjective
 from controllers.rc_mpc.osqp import CANDIDATE_OPTIONS, OSQP_OPTIONS, QPBlocks
 from controllers.rc_mpc.problem import DEFAULT_REGULARISATION
 from controllers.rc_mpc.qp import BOX, qp_vectors
-from pinn_mpc.errors import InputError, InternalError
+from pinn_mpc.errors import InternalError
 from pinn_mpc.physics import RCParams
 from pinn_mpc.simulator import fleet_matrices
 
@@ -148,9 +148,9 @@ class FleetQPMPC:
             check_heating(params.eta, spec, what=f"building {i}'s RC parameters")
         h = spec.horizon_steps if horizon_steps is None else horizon_steps
         if h < 1:
-            raise InputError(f"FleetQPMPC.horizon_steps must be >= 1, got {h}")
+            raise ValueError(f"FleetQPMPC.horizon_steps must be >= 1, got {h}")
         if not (np.isfinite(regularisation_eur_per_kw2h) and regularisation_eur_per_kw2h > 0):
-            raise InputError(
+            raise ValueError(
                 f"regularisation_eur_per_kw2h must be > 0 (uniqueness), got {regularisation_eur_per_kw2h!r}"
             )
         self.fleet, self.spec, self._h = tuple(fleet), spec, h
@@ -163,8 +163,8 @@ class FleetQPMPC:
                 ad, bd[:, :, 0] * 1000.0, h, 2.0 * spec.dt_h * self.rho, BOX, self.solver_options,
                 block_size=block_size, threads=min(2, os.cpu_count() or 1) if threads is None else threads,
             )
-        except InputError as exc:
-            raise InputError(f"FleetQPMPC.{exc}") from exc
+        except ValueError as exc:
+            raise ValueError(f"FleetQPMPC.{exc}") from exc
         self.estimator = FleetKalmanEstimator(ad, bd, spec)
         self.fallbacks = [Fallback(spec, reuse_plan=True) for _ in self.fleet]
         self.reset()

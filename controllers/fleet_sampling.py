@@ -47,7 +47,7 @@ from controllers.objective import (
 )
 from controllers.planners import CEMPlanner
 from controllers.trust import TrustMonitor, TrustSettings
-from pinn_mpc.errors import InputError, InternalError
+from pinn_mpc.errors import InternalError
 from pinn_mpc.models.fleet import FleetModels, FleetStart
 
 __all__ = ["FleetCEM"]
@@ -111,7 +111,7 @@ class FleetCEM:
     ) -> None:
         check_heating(dynamics.eta, spec, what="the fleet's models")
         if not (0 <= comfort_margin_k < 1):
-            raise InputError(f"FleetCEM.comfort_margin_k must lie in [0, 1) K, got {comfort_margin_k}")
+            raise ValueError(f"FleetCEM.comfort_margin_k must lie in [0, 1) K, got {comfort_margin_k}")
         if shadow is not None and shadow.n_buildings != dynamics.n_buildings:
             raise InternalError("FleetCEM: the shadow RC MPC must have one building per model")
         self.dynamics, self.spec = dynamics, spec
@@ -121,15 +121,15 @@ class FleetCEM:
             else CEMPlanner(lower=actuator.lower_w, upper=actuator.upper_w, n_samples=32)
         )
         if replan_iters < 0:
-            raise InputError(f"FleetCEM.replan_iters must be >= 0, got {replan_iters}")
+            raise ValueError(f"FleetCEM.replan_iters must be >= 0, got {replan_iters}")
         if not (isinstance(rc_refresh, int) and rc_refresh >= 1):
-            raise InputError(f"FleetCEM.rc_refresh must be a whole number >= 1, got {rc_refresh!r}")
+            raise ValueError(f"FleetCEM.rc_refresh must be a whole number >= 1, got {rc_refresh!r}")
         self.fast_candidates, self.rc_refresh = fast_candidates, rc_refresh
         self._pool: list[PoolEntry] = []
         try:
             self.offsets = FleetOffsetFilter(dynamics, offset_gain)
-        except InputError as exc:
-            raise InputError(f"FleetCEM.{exc}") from exc
+        except ValueError as exc:
+            raise ValueError(f"FleetCEM.{exc}") from exc
         self.comfort_margin_k = comfort_margin_k
         self.replan_iters = replan_iters
         if rc_candidates and shadow is None:

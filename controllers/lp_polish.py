@@ -40,7 +40,6 @@ import torch
 
 from controllers.base import solver_interrupts_held
 from controllers.objective import HorizonObjective
-from pinn_mpc.errors import InputError
 
 __all__ = ["PiggybackPolish", "PlanProblem", "PolishSettings", "RolloutFn", "jacobians", "probes", "solve_lp"]
 
@@ -60,15 +59,15 @@ class PolishSettings:
 
     def __post_init__(self) -> None:
         if self.iters < 0:
-            raise InputError(f"polish iters must be >= 0, got {self.iters}")
+            raise ValueError(f"polish iters must be >= 0, got {self.iters}")
         if self.probe_stride < 1:
-            raise InputError(f"polish probe_stride must be >= 1, got {self.probe_stride}")
+            raise ValueError(f"polish probe_stride must be >= 1, got {self.probe_stride}")
         if not 0.0 < self.delta_frac <= 0.5:
-            raise InputError(f"polish delta_frac must lie in (0, 0.5], got {self.delta_frac}")
+            raise ValueError(f"polish delta_frac must lie in (0, 0.5], got {self.delta_frac}")
         if not self.trust_frac > 0:
-            raise InputError(f"polish trust_frac must be > 0, got {self.trust_frac}")
+            raise ValueError(f"polish trust_frac must be > 0, got {self.trust_frac}")
         if not all(0.0 < a <= 1.0 for a in self.line_search) or not self.line_search:
-            raise InputError(f"polish line_search steps must lie in (0, 1], got {self.line_search}")
+            raise ValueError(f"polish line_search steps must lie in (0, 1], got {self.line_search}")
 
 
 @dataclass(frozen=True, kw_only=True)

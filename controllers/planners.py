@@ -23,7 +23,7 @@ from typing import NamedTuple, Protocol
 
 import torch
 
-from pinn_mpc.errors import InputError, InternalError
+from pinn_mpc.errors import InternalError
 
 __all__ = [
     "BatchObjective",
@@ -66,14 +66,14 @@ class Planner(Protocol):
 
 def _check_common(name: str, lower: float, upper: float, n_samples: int) -> None:
     if not (math.isfinite(lower) and math.isfinite(upper) and lower < upper):
-        raise InputError(f"{name} bounds must be finite with lower < upper, got {lower}, {upper}")
+        raise ValueError(f"{name} bounds must be finite with lower < upper, got {lower}, {upper}")
     if n_samples < 2:
-        raise InputError(f"{name}.n_samples must be >= 2, got {n_samples}")
+        raise ValueError(f"{name}.n_samples must be >= 2, got {n_samples}")
 
 
 def _check_beta(name: str, beta: float) -> None:
     if not 0.0 <= beta <= 4.0:
-        raise InputError(f"{name}.noise_beta must be in [0, 4] (0 white, 2 pink), got {beta}")
+        raise ValueError(f"{name}.noise_beta must be in [0, 4] (0 white, 2 pink), got {beta}")
 
 
 def _evaluate(objective: Objective, candidates: torch.Tensor) -> torch.Tensor:
@@ -170,13 +170,13 @@ class RandomShootingPlanner:
     def __post_init__(self) -> None:
         _check_common("RandomShootingPlanner", self.lower, self.upper, self.n_samples)
         if not 0.0 <= self.local_frac <= 1.0:
-            raise InputError(
+            raise ValueError(
                 f"RandomShootingPlanner.local_frac must lie in [0, 1], got {self.local_frac}"
             )
         if not self.local_std_fracs or not all(
             0.0 < f and math.isfinite(f) for f in self.local_std_fracs
         ):
-            raise InputError(
+            raise ValueError(
                 "RandomShootingPlanner.local_std_fracs must be positive fractions of the range, "
                 f"got {self.local_std_fracs}"
             )
@@ -239,13 +239,13 @@ class CEMPlanner:
     def __post_init__(self) -> None:
         _check_common("CEMPlanner", self.lower, self.upper, self.n_samples)
         if self.n_iters < 1:
-            raise InputError(f"CEMPlanner.n_iters must be >= 1, got {self.n_iters}")
+            raise ValueError(f"CEMPlanner.n_iters must be >= 1, got {self.n_iters}")
         if not (0.0 < self.elite_frac <= 1.0):
-            raise InputError(f"CEMPlanner.elite_frac must lie in (0, 1], got {self.elite_frac}")
+            raise ValueError(f"CEMPlanner.elite_frac must lie in (0, 1], got {self.elite_frac}")
         if not (0.0 <= self.alpha < 1.0):
-            raise InputError(f"CEMPlanner.alpha must lie in [0, 1), got {self.alpha}")
+            raise ValueError(f"CEMPlanner.alpha must lie in [0, 1), got {self.alpha}")
         if not (self.init_std_frac > 0 and math.isfinite(self.init_std_frac)):
-            raise InputError(f"CEMPlanner.init_std_frac must be > 0, got {self.init_std_frac}")
+            raise ValueError(f"CEMPlanner.init_std_frac must be > 0, got {self.init_std_frac}")
         _check_beta("CEMPlanner", self.noise_beta)
 
     @property

@@ -76,7 +76,7 @@ from controllers.objective import HorizonObjective
 from controllers.planners import CEMPlanner, Planner, PlanResult, RandomShootingPlanner
 from controllers.setpoint_space import SetpointSpace
 from controllers.trust import RCReplay, TrustMonitor, TrustSettings
-from pinn_mpc.errors import InputError, InternalError
+from pinn_mpc.errors import InternalError
 from pinn_mpc.features import check_interval
 from pinn_mpc.models.rollout import BatchDynamics
 from pinn_mpc.physics import RCParams
@@ -142,37 +142,37 @@ class _SamplingController(PlanningController):
         check_interval(model.dt_s, spec.dt_s, what="the scenario's control interval is")
         for name in model.exog_names:
             if name not in EXOGENOUS_NAMES:
-                raise InputError(
+                raise ValueError(
                     f"{type(self).__name__}: model exogenous input {name!r} has no forecast; "
                     f"known inputs are {sorted(EXOGENOUS_NAMES)}"
                 )
         if not (risk_weight >= 0 and np.isfinite(risk_weight)):
-            raise InputError(f"{type(self).__name__}.risk_weight must be >= 0, got {risk_weight}")
+            raise ValueError(f"{type(self).__name__}.risk_weight must be >= 0, got {risk_weight}")
         self.model, self.spec, self.planner, self.risk_weight = model, spec, planner, risk_weight
         # A model whose horizon is affine in the plan (the ARX) but time-varying (its schedule)
         # is linearised exactly only when every step is probed.
         self.polish = PolishSettings(iters=options.polish_iters, probe_stride=1 if model.affine_in_plan else 4)
         if ensemble not in ENSEMBLE_MODES:
-            raise InputError(
+            raise ValueError(
                 f"{type(self).__name__}.ensemble must be one of {', '.join(ENSEMBLE_MODES)}, "
                 f"got {ensemble!r}"
             )
         self.ensemble = ensemble
         if not (0 <= options.comfort_margin_k < 1 and np.isfinite(options.comfort_margin_k)):
-            raise InputError(
+            raise ValueError(
                 f"{type(self).__name__}.comfort_margin_k must lie in [0, 1) K, "
                 f"got {options.comfort_margin_k}"
             )
         self.comfort_margin_k = options.comfort_margin_k
         if risk_weight > 0 and ensemble != "members":
-            raise InputError(
+            raise ValueError(
                 f"{type(self).__name__}.risk_weight needs ensemble='members' (the spread of the "
                 f"members' costs); got risk_weight={risk_weight} with ensemble={ensemble!r}"
             )
         try:
             self.estimator = OffsetFilter(model, options.offset_gain)
-        except InputError as exc:
-            raise InputError(f"{type(self).__name__}.{exc}") from exc
+        except ValueError as exc:
+            raise ValueError(f"{type(self).__name__}.{exc}") from exc
         self.fallback = Fallback(spec, reuse_plan=False)
         self.monitor = TrustMonitor(guard.settings, spec.actuator.span_w)
         self.training_ranges = dict(guard.training_ranges)
@@ -465,21 +465,21 @@ class RandomShooting(_SamplingController):
         guard: Guard = NO_GUARD,
     ):
         if space not in PLAN_SPACES:
-            raise InputError(
+            raise ValueError(
                 f"RandomShooting.space must be one of {', '.join(PLAN_SPACES)}, got {space!r}"
             )
         setpoints = space == "setpoint" and not binary
         if setpoints:
             if not (0 < setpoint_span_k < 10):
-                raise InputError(
+                raise ValueError(
                     f"RandomShooting.setpoint_span_k must lie in (0, 10) K, got {setpoint_span_k}"
                 )
             if probe_stride < 1:
-                raise InputError(f"RandomShooting.probe_stride must be >= 1, got {probe_stride}")
+                raise ValueError(f"RandomShooting.probe_stride must be >= 1, got {probe_stride}")
             # The probes that linearise the model come out of the same budget of rollouts.
             n_probes = 1 + -(-spec.horizon_steps // probe_stride)
             if n_samples - n_probes < 2:
-                raise InputError(
+                raise ValueError(
                     f"RandomShooting.n_samples={n_samples} leaves fewer than 2 samples after the "
                     f"{n_probes} probes of setpoint space; use more samples or a larger probe_stride"
                 )

@@ -17,7 +17,6 @@ import time
 import numpy as np
 
 from controllers.base import ControlSpec, Forecast, Observation, SolveStats
-from pinn_mpc.errors import InputError
 
 __all__ = ["Thermostat"]
 
@@ -36,9 +35,9 @@ class Thermostat:
         self, spec: ControlSpec, *, offset_fraction: float = 0.25, hysteresis_k: float = 0.5
     ):
         if not (0.0 <= offset_fraction <= 0.5):
-            raise InputError(f"Thermostat offset_fraction must lie in [0, 0.5], got {offset_fraction!r}")
+            raise ValueError(f"Thermostat offset_fraction must lie in [0, 0.5], got {offset_fraction!r}")
         if not (math.isfinite(hysteresis_k) and hysteresis_k >= 0):
-            raise InputError(f"Thermostat hysteresis_k must be >= 0, got {hysteresis_k!r}")
+            raise ValueError(f"Thermostat hysteresis_k must be >= 0, got {hysteresis_k!r}")
         self.spec = spec
         self.offset_fraction = offset_fraction
         self.hysteresis_k = hysteresis_k

@@ -44,7 +44,6 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from pinn_mpc.errors import InputError
 from pinn_mpc.physics import RCParams, discretise, step
 
 if TYPE_CHECKING:
@@ -95,15 +94,15 @@ class TrustSettings:
         ):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
-                raise InputError(f"TrustSettings.{name} must be a positive number, got {value!r}")
+                raise ValueError(f"TrustSettings.{name} must be a positive number, got {value!r}")
         if not 0 < self.filter_gain <= 1:
-            raise InputError(f"TrustSettings.filter_gain must lie in (0, 1], got {self.filter_gain}")
+            raise ValueError(f"TrustSettings.filter_gain must lie in (0, 1], got {self.filter_gain}")
         if not (math.isfinite(self.margin_factor) and self.margin_factor >= 0):
-            raise InputError(f"TrustSettings.margin_factor must be >= 0, got {self.margin_factor}")
+            raise ValueError(f"TrustSettings.margin_factor must be >= 0, got {self.margin_factor}")
         if self.replay_steps < 1:
-            raise InputError(f"TrustSettings.replay_steps must be >= 1, got {self.replay_steps}")
+            raise ValueError(f"TrustSettings.replay_steps must be >= 1, got {self.replay_steps}")
         if not 1 <= self.recover_steps <= self.max_recover_steps:
-            raise InputError(
+            raise ValueError(
                 f"TrustSettings.recover_steps must lie in 1 .. max_recover_steps "
                 f"({self.max_recover_steps}), got {self.recover_steps}"
             )
@@ -130,7 +129,7 @@ class TrustMonitor:
 
     def __init__(self, settings: TrustSettings, u_range_w: float) -> None:
         if not (math.isfinite(u_range_w) and u_range_w > 0):
-            raise InputError(f"TrustMonitor needs a positive power range, got {u_range_w!r}")
+            raise ValueError(f"TrustMonitor needs a positive power range, got {u_range_w!r}")
         self.settings, self.u_range_w = settings, u_range_w
         self.state = TrustState()
 

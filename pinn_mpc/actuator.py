@@ -236,13 +236,13 @@ class CopCurve:
     def __post_init__(self) -> None:
         t, c = np.asarray(self.t_a_c, dtype=float), np.asarray(self.cop, dtype=float)
         if t.ndim != 1 or t.shape != c.shape or len(t) < 2:
-            raise InputError(
+            raise ValueError(
                 f"COP curve needs two or more knots of equal length, got {len(t)} and {len(c)}"
             )
         if not (np.all(np.isfinite(t)) and np.all(np.diff(t) > 0)):
-            raise InputError(f"COP curve knots must be finite and increasing, got {list(t)}")
+            raise ValueError(f"COP curve knots must be finite and increasing, got {list(t)}")
         if not (np.all(np.isfinite(c)) and np.all((c >= 0.1) & (c <= 20.0))):
-            raise InputError(f"COP curve values must lie in 0.1 .. 20, got {list(c)}")
+            raise ValueError(f"COP curve values must lie in 0.1 .. 20, got {list(c)}")
 
     @classmethod
     def fit(cls, t_a_c: np.ndarray, cop: np.ndarray, *, n_knots: int = 12) -> CopCurve | None:

@@ -174,12 +174,12 @@ def check_model_path(path: str | os.PathLike[str]) -> Path:
     if directory.is_file():
         raise ModelFileError(
             f"{directory} is a file, not a model directory; give the directory that "
-            "`pinn-mpc train --out DIR` wrote (it holds model.json and weights.safetensors)"
+            "`pinn-mpc train` wrote (it holds model.json and weights.safetensors)"
         )
     if not directory.is_dir():
         raise ModelFileError(
             f"model directory {directory} does not exist; "
-            f"train one with `pinn-mpc train --out {directory}`"
+            "train one into it with `pinn-mpc train`"
         )
     return directory
 
@@ -277,4 +277,4 @@ def read_rc_json(path: str | os.PathLike[str]) -> tuple[physics.RCParams, dict[s
     try:
         return physics.params_from_summary(data), data
     except InputError as exc:
-        raise InputError(f"{source}: {exc}") from exc
+        raise InputError(f"{source}: {exc.marked}") from exc

@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from pinn_mpc.errors import InputError, warn
+from pinn_mpc.errors import InputError, setting, warn
 from pinn_mpc.io import atomic_write, atomic_write_json, file_sha256, staged
 from pinn_mpc.physics import DT_RANGE_S, MAX_POWER_W, RCParams
 from pinn_mpc.solar import FACADE_COLUMNS
@@ -117,11 +117,12 @@ def parse_column_map(text: str | None) -> dict[str, str]:
         ours, theirs = ours.strip(), theirs.strip()
         if not sep or not ours or not theirs:
             raise InputError(
-                f"--columns item {item!r} is not NAME=COLUMN; e.g. --columns T_r=T_int,u_phys=P_hea"
+                f"{setting('columns')} item {item!r} is not NAME=COLUMN; e.g. {setting('columns')} "
+                "T_r=T_int,u_phys=P_hea"
             )
         if ours not in COLUMNS:
             raise InputError(
-                f"--columns names unknown column {ours!r}; known: {', '.join(COLUMNS)}"
+                f"{setting('columns')} names unknown column {ours!r}; known: {', '.join(COLUMNS)}"
             )
         mapping[ours] = theirs
     return mapping
@@ -178,7 +179,7 @@ def _check_power(out: pd.DataFrame, source: str, u_max_w: float | None) -> None:
             row = int(negative[0])
             raise InputError(
                 f"{source}: column {col!r} row {row + 1} is {values[row]:g} W, negative; power is "
-                "the actuator's input, >= 0 for cooling too (mark cooling with --eta -COP); "
+                f"the actuator's input, >= 0 for cooling too (mark cooling with {setting('eta')} -COP); "
                 "clip meter noise below 0 to 0"
             )
         cap = MAX_POWER_W
@@ -308,14 +309,14 @@ def validate_timeseries(
     if missing:
         raise InputError(
             f"{source}: missing column(s) {', '.join(missing)}; have {', '.join(map(str, df.columns))}"
-            " (map yours with --columns, e.g. --columns T_r=T_int,u_phys=P_hea,T_a=T_ext)"
+            f" (map yours with {setting('columns')}, e.g. {setting('columns')} T_r=T_int,u_phys=P_hea,T_a=T_ext)"
         )
     if len(df) < 2:
         raise InputError(f"{source}: needs at least 2 rows, has {len(df)}")
     if "building" in df.columns and df["building"].nunique() > 1:
         raise InputError(
             f"{source}: holds {df['building'].nunique()} buildings (column 'building', as "
-            "simulate --buildings writes); keep the rows of one building, e.g. with pandas: "
+            "`pinn-mpc simulate` writes a fleet's); keep the rows of one building, e.g. with pandas: "
             "df[df.building == 0]"
         )
     raw_time = df["time"].reset_index(drop=True)
@@ -368,7 +369,7 @@ def _read_csv(path: str | os.PathLike[str]) -> pd.DataFrame:
     """The CSV at ``path`` as it is, or one line that says why not."""
     source = str(path)
     if not Path(path).is_file():
-        raise InputError(f"{source}: no such file; check --data")
+        raise InputError(f"{source}: no such file; check {setting('data', python='the path')}")
     try:
         raw = pd.read_csv(path)
         if len(raw.columns) == 1 and ";" in str(raw.columns[0]):
@@ -378,6 +379,8 @@ def _read_csv(path: str | os.PathLike[str]) -> pd.DataFrame:
     except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise InputError(f"{source}: not a readable CSV ({first})") from exc
+    except MemoryError:
+        raise InputError(f"{source}: too large to read into this machine's memory") from None
 
 
 def read_timeseries(
@@ -395,7 +398,7 @@ def read_timeseries(
     absent = [theirs for theirs in mapping.values() if theirs not in raw.columns]
     if absent:
         raise InputError(
-            f"{source}: --columns refers to {', '.join(absent)}, not in the file; "
+            f"{source}: {setting('columns')} refers to {', '.join(absent)}, not in the file; "
             f"have {', '.join(map(str, raw.columns))}"
         )
     renamed = raw.rename(columns={theirs: ours for ours, theirs in mapping.items()})
@@ -412,8 +415,8 @@ def read_fleet_timeseries(
     raw = _read_csv(path)
     if "building" not in raw.columns:
         raise InputError(
-            f"{source}: no 'building' column; a fleet data set has one (simulate --buildings N "
-            "writes it), or train one model without --per-building"
+            f"{source}: no 'building' column; a fleet data set has one (`pinn-mpc simulate` "
+            f"writes it for several buildings), or train one model without {setting('per_building')}"
         )
     ids = pd.to_numeric(raw["building"], errors="coerce")
     if ids.isna().any() or not np.all(ids == np.round(ids)) or (ids < 0).any():
@@ -473,7 +476,7 @@ def read_fleet_params(data: str | os.PathLike[str], n_buildings: int) -> list[RC
     if stored.get("data_sha256") not in (None, file_sha256(data)):
         raise InputError(
             f"{sidecar} describes the buildings of another {data} (the data changed since "
-            f"`simulate --spread` wrote both); simulate the fleet again, or remove {sidecar} "
+            f"`pinn-mpc simulate` wrote both); simulate the fleet again, or remove {sidecar} "
             "to train without the buildings' parameters"
         )
     if len(params) != n_buildings:

@@ -16,7 +16,7 @@ import pandas as pd
 import torch
 
 from pinn_mpc.data import validate_timeseries
-from pinn_mpc.errors import InputError
+from pinn_mpc.errors import InputError, setting
 from pinn_mpc.features import check_interval
 from pinn_mpc.models import LearnedModel
 from pinn_mpc.records import EvaluationMetrics
@@ -55,8 +55,8 @@ def recursive_paths(
     if len(starts) == 0:
         raise InputError(
             f"evaluation data has {n} rows; depth {k} and horizon {horizon} need at least "
-            f"{k + 2 + horizon} rows; give more data (compare: more --days), or smaller horizons "
-            "(evaluate --horizons)"
+            f"{k + 2 + horizon} rows; give more data ({setting('days', python='more days')}), or "
+            f"smaller horizons ({setting('horizons')})"
         )
     t_r = (df["T_r"].to_numpy(dtype=float) - f.temperature.mean) / f.temperature.std
     u_phys = (df["u_phys"].to_numpy(dtype=float) - f.power.mean) / f.power.std
@@ -85,7 +85,7 @@ def evaluate_model(
     ``horizons`` {"h": {T_r_mae, T_r_mae_std}}, ``persistence`` {"horizons": {"h": {T_r_mae}}}.
     MAEs in C (u_phys in W) of the ensemble mean; ``T_r_mae_std`` is the std over members."""
     if not horizons or min(horizons) < 1:
-        raise InputError(f"horizons must be whole numbers >= 1, got {list(horizons)}")
+        raise ValueError(f"horizons must be whole numbers >= 1, got {list(horizons)}")
     df = validate_timeseries(df, source="evaluation data")
     check_interval(model.dt_s, df.attrs["dt_s"], what="the evaluation data has")
     one = model.predict_one_step(df)

@@ -26,7 +26,7 @@ def export_rc(model: LearnedModel, *, source: str) -> RcSummary:
         )
     try:
         params = physics.from_coefficients(coef, eta=model.eta)
-    except InputError as exc:
+    except ValueError as exc:
         raise InputError(
             f"the model's learned 2R2C is not physical ({exc}); train it on longer, more varied "
             "data, and check the data's units"

@@ -39,7 +39,7 @@ import numpy as np
 import pandas as pd
 
 from pinn_mpc.data import WIND, day_of_week
-from pinn_mpc.errors import InputError
+from pinn_mpc.errors import InputError, setting
 from pinn_mpc.physics import DT_RANGE_S
 from pinn_mpc.solar import FACADE_COLUMNS
 
@@ -81,7 +81,7 @@ MAX_DEPTH = 1008
 def whole_number(value: Any, name: str) -> int:
     """``value`` as an int if it is a whole number (JSON may write 8 as 8.0), else InputError."""
     if isinstance(value, bool) or not isinstance(value, int | float) or not float(value).is_integer():
-        raise InputError(f"{name} must be a whole number, got {value!r}")
+        raise ValueError(f"{name} must be a whole number, got {value!r}")
     return int(value)
 
 
@@ -133,7 +133,7 @@ class Standard:
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.mean) and math.isfinite(self.std) and self.std > 0):
-            raise InputError(
+            raise ValueError(
                 f"scaling must be finite with std > 0, got mean={self.mean}, std={self.std}"
             )
 
@@ -161,24 +161,24 @@ class FeatureConfig:
 
     def __post_init__(self) -> None:
         if not 1 <= self.depth <= MAX_DEPTH:
-            raise InputError(f"depth must be 1 .. {MAX_DEPTH} intervals, got {self.depth}")
+            raise ValueError(f"depth must be 1 .. {MAX_DEPTH} intervals, got {self.depth}")
         lo, hi = DT_RANGE_S
         if not (math.isfinite(self.dt_s) and lo <= self.dt_s <= hi):
-            raise InputError(
+            raise ValueError(
                 f"dt_s must be a control interval of {lo:g} .. {hi:g} s, got {self.dt_s!r}"
             )
         if self.exog_names[:2] != ("time_of_day_h", "T_a"):
-            raise InputError(
+            raise ValueError(
                 f"exog_names must start with time_of_day_h, T_a, got {self.exog_names}"
             )
         unknown = set(self.exog_names) - set(EXOG_COLUMNS)
         if unknown:
-            raise InputError(
+            raise ValueError(
                 f"unknown exogenous input(s) {sorted(unknown)}; known {list(EXOG_COLUMNS)}"
             )
         missing = [n for n in self.exog_names[1:] if n not in self.exog]
         if missing:
-            raise InputError(f"feature config lacks scaling for {missing}")
+            raise ValueError(f"feature config lacks scaling for {missing}")
 
     @property
     def exog_series(self) -> tuple[str, ...]:
@@ -314,7 +314,8 @@ def _check_rows(df: pd.DataFrame, depth: int, min_samples: int, what: str) -> No
         raise InputError(
             f"{what}: data has {len(df)} rows, but depth {depth} needs at least {need} rows "
             f"({min_samples} sample(s) of depth+3 consecutive rows); "
-            "give more data (compare: more --train-days), or a smaller depth (train --depth)"
+            f"give more data ({setting('train_days', python='more training days')}), or a smaller "
+            f"{setting('depth')}"
         )
 
 
@@ -354,7 +355,7 @@ def make_windows(df: pd.DataFrame, cfg: FeatureConfig, *, min_samples: int = 1) 
     if missing:
         raise InputError(
             f"data lacks column(s) {missing} that the model was trained with "
-            f"(exogenous inputs {list(cfg.exog_names)}); add them or map them with --columns"
+            f"(exogenous inputs {list(cfg.exog_names)}); add them or map them with {setting('columns')}"
         )
     _check_rows(df, cfg.depth, min_samples, "features")
     k = cfg.depth

@@ -26,7 +26,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from pinn_mpc.artifacts import META, MODEL_DIRECTORY, check_model_path, load_model, save_model
-from pinn_mpc.errors import InputError, InternalError, ModelFileError
+from pinn_mpc.errors import InternalError, ModelFileError
 from pinn_mpc.io import DirectoryLayout
 from pinn_mpc.model_choice import ModelChoice, choose_model
 from pinn_mpc.models.arx import ARX_DIRECTORY, ARX_FILE, ARXModel, fit_linear, load_arx, save_arx
@@ -106,7 +106,7 @@ def fit(
     if arch == AUTO:
         return choose_model(df, config, progress=progress)
     if arch not in MODEL_CHOICES:
-        raise InputError(f"unknown architecture {arch!r}; choose one of {AUTO}, {', '.join(MODEL_CHOICES)}")
+        raise ValueError(f"unknown architecture {arch!r}; choose one of {AUTO}, {', '.join(MODEL_CHOICES)}")
     model: FittedModel
     if arch in BASELINES:
         model = fit_linear(arch, df, eta=config.eta)
@@ -180,5 +180,5 @@ def output_layout(arch: str) -> DirectoryLayout:
         return DirectoryLayout(kind="model directory", files=files, markers=())
     fmt = next((f for f in FORMATS if arch in f.families), None)
     if fmt is None:
-        raise InputError(f"unknown architecture {arch!r}; choose one of {AUTO}, {', '.join(MODEL_CHOICES)}")
+        raise ValueError(f"unknown architecture {arch!r}; choose one of {AUTO}, {', '.join(MODEL_CHOICES)}")
     return DirectoryLayout(kind=fmt.layout.kind, files=files, markers=fmt.layout.markers)

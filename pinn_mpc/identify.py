@@ -28,7 +28,7 @@ import pandas as pd
 import scipy.optimize
 import scipy.signal
 
-from pinn_mpc.errors import InputError, InternalError
+from pinn_mpc.errors import InputError, InternalError, PinnMpcWarning, setting
 from pinn_mpc.physics import PLAUSIBLE_RANGES, RCParams, check_plausible, discretise
 
 __all__ = ["POOR_FIT_RMSE_C", "IdentifyResult", "check_power_sign", "identify_rc", "simulate_rc"]
@@ -73,20 +73,21 @@ class IdentifyResult:
         if not (math.isfinite(self.rmse_c) and self.rmse_c >= 0):
             raise InternalError(f"IdentifyResult.rmse_c must be finite and >= 0, got {self.rmse_c}")
 
-    def poor_fit_note(self) -> str | None:
+    def poor_fit_note(self) -> PinnMpcWarning | None:
         """What to do about a fit whose RMSE exceeds :data:`POOR_FIT_RMSE_C` (None below it):
-        the 2R2C does not describe the building, so an RC MPC on it plans on a poor model."""
+        the 2R2C does not describe the building, so an RC MPC on it plans on a poor model. A
+        warning to give :func:`~pinn_mpc.errors.warn` (``str()`` is its text), since it names a
+        setting (the command line names its flag)."""
         if self.rmse_c <= POOR_FIT_RMSE_C:
             return None
-        return (
+        return PinnMpcWarning(
             f"identify: the identified 2R2C reproduces the data with an rmse of "
             f"{self.rmse_c:.2f} C, above {POOR_FIT_RMSE_C:g} C (simulated buildings fit within "
             "0.3 C, EnergyPlus's apartment within 0.5 C): a 2R2C does not describe this "
             "building, and qp-mpc or casadi-mpc on it plan on a poor model. Check that the "
-            "columns are the room temperature and the heating power delivered (--columns); "
-            "give more days; or plan over a model that fits: `pinn-mpc train` (its default "
-            "takes the physics-informed ARX where that predicts better), then qp-mpc or cem "
-            "with --model"
+            f"columns are the room temperature and the heating power delivered ({setting('columns')}); "
+            "give more days; or plan over a model that fits: `pinn-mpc train` (its default takes the "
+            "physics-informed ARX where that predicts better), then qp-mpc or cem over it"
         )
 
     def fit_statistics(self) -> dict[str, Any]:
@@ -268,9 +269,9 @@ def check_power_sign(df: pd.DataFrame, eta: float, *, what: str = "identify") ->
             f"{what}: eta = {eta:g} says the actuator {'cools' if eta < 0 else 'heats'}, but "
             f"in the data more power {'warms' if heats else 'cools'} the room (t = {t_stat:.0f}); "
             + (
-                "for a heater leave --eta out (1) or give the heat per W (> 0)"
+                f"for a heater leave {setting('eta')} out (1) or give the heat per W (> 0)"
                 if heats
-                else "for a cooling machine give --eta -COP, e.g. --eta -2.5"
+                else f"for a cooling machine give {setting('eta')} -COP, e.g. {setting('eta')} -2.5"
             )
         )
 
@@ -299,7 +300,7 @@ def identify_rc(df: pd.DataFrame, *, eta: float = 1.0) -> IdentifyResult:
     InputError
         Missing columns, several buildings, too few rows, unexcited or contradicting data.
     """
-    eta = check_plausible("eta", eta, name="identify: eta")
+    eta = check_plausible("eta", eta, name=f"identify: {setting('eta')}")
     missing = [c for c in ("T_r", "u_phys", "T_a") if c not in df.columns]
     if missing:
         raise InputError(f"identify: data lacks column(s) {missing}; see the data format")
@@ -310,7 +311,7 @@ def identify_rc(df: pd.DataFrame, *, eta: float = 1.0) -> IdentifyResult:
         )
     dt_s = float(df.attrs.get("dt_s", 0.0))
     if not dt_s > 0:
-        raise InputError("identify: the frame has no attrs['dt_s']; read it with read_timeseries")
+        raise ValueError("identify: the frame has no attrs['dt_s']; read it with read_timeseries")
     n_rows = len(df)
     if n_rows < 48:
         raise InputError(f"identify: needs at least 48 rows (a day at 30 min), got {n_rows}")

@@ -2,7 +2,7 @@
 
 Files are written to a temporary sibling, then renamed. A command that writes a directory
 writes only its own files there (:class:`DirectoryLayout`); an existing directory holding
-anything else is refused unless the user says ``--force``, and even then only the command's own
+anything else is refused unless the user says ``force``, and even then only the command's own
 files are replaced. Before any work, :func:`check_writable` and :func:`check_distinct` refuse
 outputs that cannot be written or that would overwrite an input or another output.
 """
@@ -25,7 +25,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from pinn_mpc.errors import InputError
+from pinn_mpc.errors import InputError, InternalError, setting
 
 __all__ = [
     "DirectoryLayout",
@@ -66,13 +66,16 @@ def atomic_write(path: str | os.PathLike[str], writer: Callable[[Path], object])
         raise InputError(f"cannot write {target}: it is not a regular file")
     batch = _BATCH.get()
     with _interrupt_deferred():
-        fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+        try:
+            fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+        except OSError as exc:  # the user's file named, not the temporary one
+            raise OSError(exc.errno, exc.strerror or str(exc), str(target)) from None
         os.close(fd)
         tmp = Path(tmp_name)
         try:
             try:
                 writer(tmp)
-            except OSError as exc:  # the user's file named, not the temporary one
+            except OSError as exc:
                 raise OSError(exc.errno, exc.strerror or str(exc), str(target)) from None
             os.chmod(tmp, 0o644)
             if batch is None:
@@ -303,7 +306,7 @@ def check_output_directory(path: PathArg, layout: DirectoryLayout, *, force: boo
     if foreign or not set(layout.markers) <= set(entries):
         raise InputError(
             f"{_shown(target)} already holds {_listing(foreign or entries)}, so it is not a "
-            f"{layout.kind}; give a new or empty directory, or add --force to replace only "
+            f"{layout.kind}; give a new or empty directory, or add {setting('force')} to replace only "
             f"{_listing(list(layout.files), 3)} there (the rest is kept)"
         )
 
@@ -326,21 +329,32 @@ def atomic_directory(
     where = target if exists else Path(os.path.abspath(target)).parent
     tmp = Path(tempfile.mkdtemp(prefix=".pinn-mpc-", suffix=".tmp", dir=where))
     try:
-        yield tmp
-        written = sorted(os.listdir(tmp))
-        stray = [n for n in written if n not in layout.files]
-        if stray:  # a bug in the writer, not user input: never put foreign files in place
-            raise RuntimeError(f"{layout.kind}: wrote {stray}, not among {layout.files}")
-        if exists:
-            for name in (n for n in layout.files if n in written):
-                os.replace(tmp / name, target / name)
-            tmp.rmdir()
-        else:
-            tmp.chmod(0o755)  # mkdtemp makes it private
-            os.rename(tmp, target)
+        try:
+            yield tmp
+            written = sorted(os.listdir(tmp))
+            stray = [n for n in written if n not in layout.files]
+            if stray:  # a bug in the writer, not user input: never put foreign files in place
+                raise InternalError(f"{layout.kind}: wrote {stray}, not among {layout.files}")
+            if exists:
+                for name in (n for n in layout.files if n in written):
+                    os.replace(tmp / name, target / name)
+                tmp.rmdir()
+            else:
+                tmp.chmod(0o755)  # mkdtemp makes it private
+                os.rename(tmp, target)
+        except OSError as exc:  # the user's directory named, not the temporary one
+            if isinstance(exc.filename, str | os.PathLike) and not _inside(exc.filename, tmp):
+                raise
+            raise OSError(exc.errno, exc.strerror or str(exc), str(target)) from None
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
+
+
+def _inside(filename: PathArg, folder: Path) -> bool:
+    """True when ``filename`` is ``folder`` or a path inside it."""
+    path, root = os.path.abspath(filename), os.path.abspath(folder)
+    return path == root or path.startswith(root + os.sep)
 
 
 def setting_changes(before: Mapping[str, Any], now: Mapping[str, Any]) -> str:
@@ -364,10 +378,10 @@ def _lock_path(target: Path) -> Path:
 
 
 @contextlib.contextmanager
-def output_lock(path: PathArg, *, option: str = "--out", create_parents: bool = False) -> Iterator[None]:
+def output_lock(path: PathArg, *, option: str = "out", create_parents: bool = False) -> Iterator[None]:
     """Hold the output ``path`` (a directory or a file) for this run: a second run writing
     there while this one does is refused in one line (:class:`InputError`, naming the
-    holder's pid).
+    holder's pid and the setting ``option`` that named ``path``).
 
     The lock is a file beside ``path`` holding the holder's pid, locked with ``flock`` (atomic;
     the system releases it when the holder exits however it exits, so a lock file left by a
@@ -405,7 +419,7 @@ def _locked(lock: Path, path: PathArg, option: str) -> Iterator[None]:
         try:
             fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
         except OSError as exc:
-            raise InputError(f"cannot lock {option} {path}: {exc.strerror or exc} ({lock})") from None
+            raise InputError(f"cannot lock {setting(option)} {path}: {exc.strerror or exc} ({lock})") from None
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError as exc:
@@ -414,8 +428,8 @@ def _locked(lock: Path, path: PathArg, option: str) -> Iterator[None]:
             if exc.errno not in (errno.EAGAIN, errno.EACCES, errno.EWOULDBLOCK):
                 raise
             raise InputError(
-                f"{option} {path} is being written by another run (pid {holder}; its lock is "
-                f"{lock}): wait for it to end, or give another {option}"
+                f"{setting(option)} {path} is being written by another run (pid {holder}; its lock "
+                f"is {lock}): wait for it to end, or give another {setting(option)}"
             ) from None
         try:  # the file locked may have been removed by the holder that just ended: retry
             same = os.fstat(fd).st_ino == os.stat(lock).st_ino

@@ -23,7 +23,6 @@ import math
 
 import numpy as np
 
-from pinn_mpc.errors import InputError
 from pinn_mpc.physics import RCParams, discretise
 
 __all__ = ["DEFAULT_INITIAL_T_M_STD_C", "DEFAULT_MEASUREMENT_STD_C", "KalmanObserver"]
@@ -55,16 +54,16 @@ class KalmanObserver:
         initial_t_m_std_c: float = DEFAULT_INITIAL_T_M_STD_C,
     ) -> None:
         if n_batch < 1:
-            raise InputError(f"KalmanObserver.n_batch must be >= 1, got {n_batch}")
+            raise ValueError(f"KalmanObserver.n_batch must be >= 1, got {n_batch}")
         stds = (*process_std_c, measurement_std_c, initial_t_m_std_c)
         if len(process_std_c) != 2 or not all(math.isfinite(s) and s >= 0 for s in stds):
-            raise InputError(
+            raise ValueError(
                 "KalmanObserver: process_std_c (2 values), measurement_std_c and "
                 f"initial_t_m_std_c must be finite and >= 0, got {process_std_c}, "
                 f"{measurement_std_c}, {initial_t_m_std_c}"
             )
         if measurement_std_c == 0:
-            raise InputError("KalmanObserver.measurement_std_c must be > 0 (R must be invertible)")
+            raise ValueError("KalmanObserver.measurement_std_c must be > 0 (R must be invertible)")
         self.params = params
         self.dt_s = dt_s
         self.n_batch = n_batch

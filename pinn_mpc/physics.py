@@ -224,11 +224,11 @@ def from_coefficients(c: Coefficients, *, eta: float = 1.0) -> RCParams:
     values = {k: float(v) for k, v in c.to_dict().items()}
     for name in ("a12", "a21", "c13"):
         if not (math.isfinite(values[name]) and values[name] > 0):
-            raise InputError(
+            raise ValueError(
                 f"coefficient {name} must be positive to map to R/C, got {values[name]}"
             )
     if not math.isfinite(values["b"]) or values["b"] == 0 or (values["b"] > 0) != (eta > 0):
-        raise InputError(f"coefficient b={values['b']} must be non-zero with the sign of eta={eta}")
+        raise ValueError(f"coefficient b={values['b']} must be non-zero with the sign of eta={eta}")
     c_r = eta / values["b"]
     r_ra = 1.0 / (c_r * values["c13"])
     r_rm = 1.0 / (c_r * values["a12"])
@@ -285,7 +285,7 @@ def discretise(p: RCParams | Coefficients, dt_s: float) -> tuple[np.ndarray, np.
     too close for the closed form fall back on the exponential of the augmented matrix.
     """
     if not (math.isfinite(dt_s) and dt_s > 0):
-        raise InputError(f"dt_s must be a positive number of seconds, got {dt_s!r}")
+        raise ValueError(f"dt_s must be a positive number of seconds, got {dt_s!r}")
     a, b = continuous_matrices(p)
     half_trace = 0.5 * (a[0, 0] + a[1, 1])
     det = a[0, 0] * a[1, 1] - a[0, 1] * a[1, 0]

@@ -28,7 +28,7 @@ import numpy as np
 import scipy.linalg
 
 from pinn_mpc.actuator import Actuator, ActuatorSpec
-from pinn_mpc.errors import InputError, InternalError
+from pinn_mpc.errors import InputError, InternalError, setting
 from pinn_mpc.physics import N_INPUTS, PAPER_HOUSEHOLD, RCParams
 from pinn_mpc.plant import Plant, plant_matrices
 
@@ -133,10 +133,10 @@ def draw_fleet(
     own log-normal factor ``exp(spread * N(0, 1))`` (``spread`` 0.2 is about +-20 %, 0 gives
     copies of ``base``). Every building is validated like any RCParams."""
     if isinstance(n_buildings, bool) or not isinstance(n_buildings, int) or n_buildings < 1:
-        raise InputError(f"draw_fleet: n_buildings must be a whole number >= 1, got {n_buildings!r}")
+        raise ValueError(f"draw_fleet: n_buildings must be a whole number >= 1, got {n_buildings!r}")
     if not (math.isfinite(spread) and 0.0 <= spread <= 1.0):
         raise InputError(
-            f"draw_fleet: spread must lie in [0, 1] (log-normal sigma; 0.2 is about +-20 %), "
+            f"{setting('spread')} must lie in [0, 1] (log-normal sigma; 0.2 is about +-20 %), "
             f"got {spread!r}"
         )
     factors = np.exp(spread * rng.standard_normal((n_buildings, len(FLEET_SCALED))))
@@ -159,7 +159,7 @@ def fleet_matrices(
     plant = Plant() if plant is None else plant
     n = plant.n_states
     if not (math.isfinite(dt_s) and dt_s > 0):
-        raise InputError(f"dt_s must be a positive number of seconds, got {dt_s!r}")
+        raise ValueError(f"dt_s must be a positive number of seconds, got {dt_s!r}")
     if len(params) == 0:
         raise InternalError("fleet_matrices: no buildings given")
     m = np.zeros((len(params), n + N_INPUTS, n + N_INPUTS))
@@ -191,7 +191,7 @@ class Simulator:
     ):
         if fleet is not None:
             if n_buildings is not None and n_buildings != len(fleet):
-                raise InputError(
+                raise ValueError(
                     f"Simulator: n_buildings={n_buildings} but the fleet has {len(fleet)} buildings; "
                     "give one of them"
                 )
@@ -205,7 +205,7 @@ class Simulator:
                 )
         n_buildings = 1 if n_buildings is None else n_buildings
         if n_buildings < 1:
-            raise InputError(f"n_buildings must be >= 1, got {n_buildings}")
+            raise ValueError(f"n_buildings must be >= 1, got {n_buildings}")
         self.config = config
         self.n_buildings = n_buildings
         # (P, n, n) / (P, n, 4): P = 1 when all buildings share config.params.

@@ -71,7 +71,7 @@ def facade_irradiance(
 
     ghi, dni, dhi = (np.asarray(a, dtype=float) for a in (ghi_w_per_m2, dni_w_per_m2, dhi_w_per_m2))
     if not (ghi.shape == dni.shape == dhi.shape and ghi.ndim == 1 and len(ghi) >= 1):
-        raise InputError(
+        raise ValueError(
             f"facade_irradiance: GHI, DNI and DHI must be hourly series of one length, got "
             f"{ghi.shape}, {dni.shape}, {dhi.shape}"
         )
@@ -83,7 +83,7 @@ def facade_irradiance(
             "not on Earth"
         )
     if not 0.0 <= albedo <= 1.0:
-        raise InputError(f"facade_irradiance: albedo must lie in [0, 1], got {albedo!r}")
+        raise ValueError(f"facade_irradiance: albedo must lie in [0, 1], got {albedo!r}")
     t_s = np.asarray(seconds, dtype=float).reshape(-1)
     if t_s.size == 0:
         return {name: np.zeros(0) for name in FACADE_COLUMNS}

@@ -107,38 +107,38 @@ class TrainConfig:
 
     def __post_init__(self) -> None:
         if self.depth is not None and not 1 <= self.depth <= MAX_DEPTH:
-            raise InputError(f"TrainConfig.depth must be 1 .. {MAX_DEPTH}, got {self.depth}")
+            raise ValueError(f"TrainConfig.depth must be 1 .. {MAX_DEPTH}, got {self.depth}")
         if not 1 <= self.n_seeds <= MAX_MEMBERS:
-            raise InputError(
+            raise ValueError(
                 f"TrainConfig.n_seeds must be 1 .. {MAX_MEMBERS} members, got {self.n_seeds}"
             )
         if self.recipe is not None and self.recipe not in RECIPES:
-            raise InputError(f"unknown recipe {self.recipe!r}; choose one of {', '.join(RECIPES)}")
+            raise ValueError(f"unknown recipe {self.recipe!r}; choose one of {', '.join(RECIPES)}")
         if self.residual not in RESIDUALS:
-            raise InputError(
+            raise ValueError(
                 f"unknown residual {self.residual!r}; choose one of {', '.join(RESIDUALS)}"
             )
         if self.epochs is not None and self.epochs < 1:
-            raise InputError(f"TrainConfig.epochs must be >= 1, got {self.epochs}")
+            raise ValueError(f"TrainConfig.epochs must be >= 1, got {self.epochs}")
         if self.lam is not None and not (math.isfinite(self.lam) and self.lam >= 0):
-            raise InputError(f"TrainConfig.lam must be a finite number >= 0, got {self.lam}")
-        physics.check_plausible("eta", self.eta, name="eta (--eta)")
+            raise ValueError(f"TrainConfig.lam must be a finite number >= 0, got {self.lam}")
+        physics.check_plausible("eta", self.eta, name="TrainConfig.eta")
         if self.u_max_w is not None and not (math.isfinite(self.u_max_w) and self.u_max_w > 0):
-            raise InputError(f"TrainConfig.u_max_w must be positive, got {self.u_max_w!r}")
+            raise ValueError(f"TrainConfig.u_max_w must be positive, got {self.u_max_w!r}")
         if self.batch_size is not None and self.batch_size < 1:
-            raise InputError(f"TrainConfig.batch_size must be >= 1, got {self.batch_size}")
+            raise ValueError(f"TrainConfig.batch_size must be >= 1, got {self.batch_size}")
         if self.lr is not None and not (math.isfinite(self.lr) and self.lr > 0):
-            raise InputError(f"TrainConfig.lr must be positive, got {self.lr}")
+            raise ValueError(f"TrainConfig.lr must be positive, got {self.lr}")
         if self.physics_lr_factor is not None and not (
             math.isfinite(self.physics_lr_factor) and self.physics_lr_factor > 0
         ):
-            raise InputError(
+            raise ValueError(
                 f"TrainConfig.physics_lr_factor must be positive, got {self.physics_lr_factor}"
             )
         for name in ("residual_weight", "anchor_weight"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0):
-                raise InputError(f"TrainConfig.{name} must be a finite number >= 0, got {value}")
+                raise ValueError(f"TrainConfig.{name} must be a finite number >= 0, got {value}")
 
     def for_arch(self, spec: ArchSpec) -> TrainConfig:
         """This config with the architecture's depth and recipe where it leaves them open."""
@@ -300,9 +300,9 @@ def train_model(
         ``config.n_seeds`` members trained together, with the RC identified from the same data.
     """
     if arch == AUTO or arch in BASELINES:
-        raise InputError(
+        raise ValueError(
             f"train_model trains the networks ({', '.join(ALL_ARCHS)}); {arch!r} is fitted by "
-            f"pinn_mpc.fit(df, arch={arch!r}, config=config), which takes every --arch of train"
+            f"pinn_mpc.fit(df, arch={arch!r}, config=config), which fits every model by name"
         )
     architecture = get_architecture(arch)
     config = config.for_arch(get_spec(arch))
@@ -420,7 +420,7 @@ def _load_weights(module: EnsembleModule, weights: Mapping[str, torch.Tensor]) -
     for name, value in weights.items():
         if name not in own or tuple(own[name].shape) != tuple(value.shape):
             shape = tuple(own[name].shape) if name in own else None
-            raise InputError(
+            raise ValueError(
                 f"init_weights: {name!r} {tuple(value.shape)} does not fit the model "
                 f"(its shape there: {shape}); pre-train with the same architecture, depth and seeds"
             )

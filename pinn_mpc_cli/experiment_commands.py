@@ -81,7 +81,7 @@ def compare(a: argparse.Namespace) -> str:
     """Run the comparison, write the JSON table, the report and its figure (parents created)
     together or not at all; the report is held by this run until it ends."""
     check_writable(a.json, a.report, create_parents=True)
-    with output_lock(a.report, option="--report", create_parents=True), written_together():
+    with output_lock(a.report, option="report", create_parents=True), written_together():
         return _compare(a)
 
 

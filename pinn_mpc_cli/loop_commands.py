@@ -371,7 +371,7 @@ def _check_fleet_models_fit(root: str, models: Sequence[FittedModel], scenario: 
         try:
             notes = check_model_fits(model, scenario)
         except InputError as exc:
-            raise InputError(f"--model {root}, building {b}: {exc}") from None
+            raise InputError(f"--model {root}, building {b}: {exc.marked}") from None
         if notes:
             noted.append((b, notes))
     if noted:

@@ -9,6 +9,7 @@ Libraries are imported inside the commands, so that ``identify`` does not wait f
 from __future__ import annotations
 
 import argparse
+import re
 import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -17,7 +18,7 @@ import numpy as np
 
 from pinn_mpc.choices import AUTO
 from pinn_mpc.data import read_timeseries
-from pinn_mpc.errors import InputError, InternalError, warn
+from pinn_mpc.errors import InputError, InternalError, setting, warn
 from pinn_mpc.io import (
     atomic_write_json,
     check_distinct,
@@ -34,6 +35,7 @@ if TYPE_CHECKING:
     from pinn_mpc.model_choice import ModelChoice
     from pinn_mpc.models.arx import ARXModel
     from pinn_mpc.models.learned import LearnedModel
+    from pinn_mpc.training import TrainConfig
 
 __all__ = ["evaluate", "export_rc_json", "identify", "train"]
 
@@ -53,15 +55,11 @@ def train(a: argparse.Namespace) -> str:
 def _train_per_building(a: argparse.Namespace) -> str:
     """``train --per-building``: each building's model (``--arch``, any ``train`` takes)."""
     from pinn_mpc.data import read_fleet_params, read_fleet_timeseries
-    from pinn_mpc.training import TrainConfig
     from scenarios.fleets.training import train_per_building
 
     frames = read_fleet_timeseries(a.data, columns=a.columns)
     params = read_fleet_params(a.data, len(frames))
-    config = TrainConfig(
-        depth=a.depth, n_seeds=a.seeds, first_seed=a.seed, epochs=a.epochs, lam=a.lam,
-        recipe=a.recipe, eta=_eta(a.eta),
-    )
+    config = _train_config(a)
     summary = train_per_building(
         frames, a.out, arch=a.arch, config=config, params=params, address=a.address, workers=a.workers
     )
@@ -75,6 +73,22 @@ def _train_per_building(a: argparse.Namespace) -> str:
         f"{len(summary['kept'])} already there, in {summary['wall_seconds']:.0f} s{median}; "
         f"wrote {a.out}"
     )
+
+
+def _train_config(a: argparse.Namespace) -> TrainConfig:
+    """The training settings of ``train``'s flags; a value :class:`TrainConfig` refuses (a
+    ``--depth`` or ``--seeds`` above its limit, an implausible ``--eta``) is the user's to fix,
+    named by its flag."""
+    from pinn_mpc.training import TrainConfig
+
+    try:
+        return TrainConfig(
+            depth=a.depth, n_seeds=a.seeds, first_seed=a.seed, epochs=a.epochs, lam=a.lam,
+            recipe=a.recipe, eta=_eta(a.eta),
+        )
+    except ValueError as exc:
+        text = exc.marked if isinstance(exc, InputError) else str(exc)
+        raise InputError(re.sub(r"\bTrainConfig\.(\w+)", lambda m: setting(m[1]), text)) from None
 
 
 def _eta(value: float | None) -> float:
@@ -94,7 +108,7 @@ def _train_one(a: argparse.Namespace) -> str:
     """
     from pinn_mpc.fitted import fit, output_layout, save
     from pinn_mpc.models.registry import BASELINES
-    from pinn_mpc.training import TrainConfig, data_warnings
+    from pinn_mpc.training import data_warnings
 
     network_options = [f"--{n}" for n in ("depth", "epochs", "lam", "recipe") if getattr(a, n, None) is not None]
     unused = ", ".join(network_options).replace("--lam", "--lambda")
@@ -109,10 +123,7 @@ def _train_one(a: argparse.Namespace) -> str:
     df = read_timeseries(a.data, columns=a.columns)
     if a.arch in BASELINES and "building" in df.columns:
         raise InputError(f"{a.data}: a fleet's data (a building column); train --arch {a.arch} takes one building's")
-    config = TrainConfig(
-        depth=a.depth, n_seeds=a.seeds, first_seed=a.seed, epochs=a.epochs, lam=a.lam,
-        recipe=a.recipe, eta=_eta(a.eta),
-    )
+    config = _train_config(a)
     start = time.perf_counter()
     choice = fit(df, arch=a.arch, config=config, progress=True)
     seconds = time.perf_counter() - start

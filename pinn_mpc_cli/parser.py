@@ -13,10 +13,10 @@ from typing import Any, NoReturn, TypeAlias
 
 from pinn_mpc import __version__
 from pinn_mpc.choices import AUTO, DEFAULT_ARCH, MODEL_CHOICES, RECIPES, TRAIN_CHOICES
-from pinn_mpc.models.registry import arch_help
+from pinn_mpc.models.registry import ARCHITECTURES, BASELINES, PHYSICS_ARX
 from scenarios.choices import CONTROLLER_NAMES, POLICIES, RANDOM_POLICIES, WEATHER_PARTS
 
-__all__ = ["COMMANDS", "MAX_DAYS", "Commands", "build_parser"]
+__all__ = ["COMMANDS", "MAX_DAYS", "SETTING_DESTS", "Commands", "build_parser", "command_flags"]
 
 #: The longest run any command accepts. Timestamps are labelled from 2021 and pandas' clock
 #: ends in 2262, so some limit is needed; ten years is more than any building study simulates.
@@ -83,6 +83,28 @@ def _horizons(text: str) -> list[int]:
     if not values or min(values) < 1:
         raise argparse.ArgumentTypeError(f"horizons must be whole numbers >= 1, got {text!r}")
     return values
+
+
+def arch_help() -> str:
+    """One line per architecture: what it is and its defaults, then the baselines (for
+    ``train --help``)."""
+    return "; ".join(
+        [
+            f"{s.name}: {s.summary} (depth {s.depth}, recipe {s.recipe}, data of "
+            f"`simulate --policy {s.policy}`{', the network auto chooses' if s.name == DEFAULT_ARCH else ''})"
+            for s in ARCHITECTURES.values()
+        ]
+        + [
+            f"{b.name}: {b.summary.removesuffix(')')}; --depth, --seeds, --epochs, --lambda and "
+            "--recipe do not apply)"
+            for b in BASELINES.values()
+        ]
+        + [
+            f"{AUTO} (the default): {DEFAULT_ARCH} or {PHYSICS_ARX.name}, whichever predicts the "
+            f"data's last quarter better over a planner's 24 h ({PHYSICS_ARX.name} when its error is at most "
+            "three quarters of the hybrid's), fitted on all of it"
+        ]
+    )
 
 
 def _scenario_names() -> str:
@@ -551,3 +573,44 @@ def build_parser() -> argparse.ArgumentParser:
     for add in COMMANDS:
         add(sub)
     return parser
+
+
+#: The library's settings that its messages name otherwise than the flag's dest: {setting: dest}.
+SETTING_DESTS = {
+    "n_buildings": "buildings",
+    "n_seeds": "seeds",
+    "model_dir": "model",
+    "rc_path": "rc",
+    "time_period": "test_period",
+}
+
+
+def command_flags(parser: argparse.ArgumentParser, command: str) -> dict[str, str]:
+    """{setting: flag} for the messages of ``command`` (a command of ``parser``): each option's
+    dest (and the library's other names of it, :data:`SETTING_DESTS`) mapped to its long flag;
+    a setting that is not ``command``'s own but another command's flag is named with that
+    command (``train --depth``). The command line names a setting that a library message marks
+    (:func:`pinn_mpc.errors.setting`) so."""
+    commands = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    flags: dict[str, str] = {}
+    for name in (command, *(c for c in commands.choices if c != command)):
+        own = _flags(commands.choices[name])
+        for dest, flag in own.items():
+            flags.setdefault(dest, flag if name == command else f"{name} {flag}")
+    for setting, dest in SETTING_DESTS.items():
+        if dest in flags:
+            flags[setting] = flags[dest]
+    return flags
+
+
+def _flags(parser: argparse.ArgumentParser) -> dict[str, str]:
+    """{dest: long flag} of ``parser``'s options, its actions' (``scenario export``) too."""
+    flags: dict[str, str] = {}
+    pending = [parser]
+    while pending:
+        for action in pending.pop()._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                pending.extend(action.choices.values())
+            elif action.option_strings and action.dest != "help":
+                flags.setdefault(action.dest, max(action.option_strings, key=len))
+    return flags

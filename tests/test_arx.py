@@ -436,14 +436,16 @@ def test_a_tampered_arx_is_refused_on_load_in_one_line(tmp_path, capsys, edit, m
     stored = json.loads((tmp_path / "arx" / "arx.json").read_text())
     edit(stored["coef"], model.lags, len(model.columns))
     (tmp_path / "arx" / "arx.json").write_text(json.dumps(stored))
-    with pytest.raises(InputError, match=message):
+    with pytest.raises(InputError, match=message) as caught:
         load_arx(tmp_path / "arx")
+    assert str(caught.value).endswith("it was edited or damaged; train it again (arch arx)")
     test = tmp_path / "t.csv"
     write_timeseries(_rc_data(3, seed=1), test)
     assert main(["evaluate", "--model", str(tmp_path / "arx"), "--data", str(test),
                  "--json", str(tmp_path / "m.json")]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "not a plausible ARX model" in err
+    assert err.endswith("train it again (train --arch arx)")  # evaluate names train's flag
     assert not (tmp_path / "m.json").exists()
 
 

@@ -273,5 +273,5 @@ def test_a_comfort_margin_keeps_the_plan_that_far_inside_the_band() -> None:
     assert np.min(held) == pytest.approx(0.3, abs=5e-3)  # OSQP tolerances
     assert margin.last_plan is not None and plain.last_plan is not None
     assert margin.last_plan.sum() > plain.last_plan.sum()
-    with pytest.raises(InputError, match="comfort_margin_k"):
+    with pytest.raises(ValueError, match="comfort_margin_k"):
         ARXQPMPC(model, SPEC, comfort_margin_k=-0.1)

@@ -151,11 +151,11 @@ def test_test_periods_are_checked_where_the_scenario_file_is_read(
 
 def test_runs_are_checked_and_data_days_stay_off_the_test_periods() -> None:
     points = read_boptest_file(str(SCENARIO)).points
-    with pytest.raises(InputError, match="price scenario 'spot'"):
+    with pytest.raises(ValueError, match="price scenario 'spot'"):
         BoptestRun(price_scenario="spot")
-    with pytest.raises(InputError, match="not both"):
+    with pytest.raises(ValueError, match="not both"):
         BoptestRun(time_period="peak_heat_day", first_day=40)
-    with pytest.raises(InputError, match="a BOPTEST test period has 14 days, 15 were asked for peak_heat_day; give at most 14"):
+    with pytest.raises(ValueError, match="a BOPTEST test period has 14 days, 15 were asked for peak_heat_day; give at most 14"):
         BoptestRun(days=15)
     with pytest.raises(InputError, match="days 360-370 of the year run past its end"):
         BoptestRun(time_period=None, first_day=360.0, days=10.0)
@@ -335,7 +335,7 @@ def test_builtin_scenario_by_name() -> None:
     from scenarios.plants.boptest import BUILTIN_BOPTEST, builtin_boptest
 
     assert builtin_boptest("boptest_hydronic_heat_pump").points.testcase == TESTCASE
-    with pytest.raises(InputError, match="no built-in BOPTEST scenario 'bestest'"):
+    with pytest.raises(ValueError, match="no built-in BOPTEST scenario 'bestest'"):
         builtin_boptest("bestest")
     assert all(path.is_file() for path in BUILTIN_BOPTEST.values())
 
@@ -463,7 +463,7 @@ def test_a_loop_on_a_borrowed_test_is_the_loop_on_a_fresh_test(server: Server) -
 def test_a_plant_refuses_a_borrowed_test_of_another_test_case() -> None:
     points = read_boptest_file(str(SCENARIO)).points
     test = BoptestTest(BoptestClient(f"http://127.0.0.1:{free_port()}"), "no-id", "bestest_air")
-    with pytest.raises(InputError, match="test case bestest_air, the scenario's is bestest_hydronic_heat_pump"):
+    with pytest.raises(ValueError, match="test case bestest_air, the scenario's is bestest_hydronic_heat_pump"):
         BoptestPlant(BoptestSettings(points=points), BoptestRun(days=1), test=test)
     assert not test.stopped
 
@@ -724,5 +724,5 @@ def test_boptest_planners_from_fitted_models_and_their_refusals() -> None:
     for name, model in (("oracle", None), ("cem", None), ("cem", PAPER_HOUSEHOLD), ("qp-mpc", None)):
         with pytest.raises(InputError, match="on BOPTEST takes boptest-baseline, thermostat, qp-mpc"):
             boptest_planner(name, chosen, model, dt_s=1800.0, n_steps=48)
-    with pytest.raises(InputError, match="unknown model 'lstm'"):
+    with pytest.raises(ValueError, match="unknown model 'lstm'"):
         boptest_fit("lstm", None, TrainConfig())  # type: ignore[arg-type]

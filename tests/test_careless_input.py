@@ -496,7 +496,7 @@ def test_identify_on_the_energyplus_office_warns_that_a_2r2c_does_not_fit(tmp_pa
     rmse = json.loads(rc.read_text())["fit"]["rmse_c"]
     err = capsys.readouterr().err
     assert rmse > 1.0 and f"reproduces the data with an rmse of {rmse:.2f} C, above 1 C" in err
-    assert "then qp-mpc or cem with --model" in err
+    assert "heating power delivered (--columns)" in err and "then qp-mpc or cem over it" in err
 
 
 EPLUS_DATA_LOSS = [

@@ -15,7 +15,7 @@ import pandas as pd
 import pytest
 
 import scenarios.inputs.scenario_file
-from pinn_mpc.errors import InputError, InternalError, PinnMpcWarning, warn
+from pinn_mpc.errors import InputError, InternalError, PinnMpcWarning, setting, warn
 from pinn_mpc_cli.cli import BUG_EXIT, main
 from scenarios.inputs.measured import read_series_csv
 from scenarios.inputs.scenario_file import get_scenario
@@ -123,6 +123,20 @@ def test_the_cli_prints_library_warnings_as_one_line(monkeypatch, capsys):
     assert captured.out == "listed\n"
 
 
+def test_a_warning_names_a_setting_by_name_in_python_and_by_flag_on_the_command_line(monkeypatch, capsys):
+    """As an InputError's message: a Python caller reads the setting, the command line its flag."""
+    def warns_then_lists() -> str:
+        warn(f"replaced without {setting('force')}")
+        return "listed"
+
+    with pytest.warns(PinnMpcWarning) as caught:
+        warns_then_lists()
+    assert [str(w.message) for w in caught] == ["replaced without force"]
+    _inject(monkeypatch, warns_then_lists)
+    assert main(["scenario", "list"]) == 0
+    assert capsys.readouterr().err == "pinn-mpc: warning: replaced without --force\n"
+
+
 def test_the_cli_prints_library_notes_as_one_line(monkeypatch, capsys):
     """A note (``logging`` at INFO, as the heater sizing's) reaches stderr as ``pinn-mpc: ...``;
     after the command the loggers are as they were."""
@@ -148,3 +162,103 @@ def test_python_m_pinn_mpc_runs_the_command_line():
             [sys.executable, "-m", module, "--version"], capture_output=True, text=True, env=env, check=True
         )
         assert done.stdout.startswith("pinn-mpc ")
+
+
+def test_a_python_api_check_failed_from_inside_a_command_is_a_bug(monkeypatch, capsys):
+    """A ValueError of the library's API checks (a caller's misuse) is no refusal of the user's
+    input when the command line is the caller: it is reported as a bug, exit 1."""
+    from controllers.base import ControlSpec
+    from pinn_mpc.actuator import ActuatorSpec
+
+    def misuses() -> str:
+        return str(ControlSpec(actuators=(ActuatorSpec(upper_w=5000.0),), horizon_steps=0))
+
+    _inject(monkeypatch, misuses)
+    assert main(["scenario", "list"]) == BUG_EXIT
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1
+    assert "internal error (a bug in pinn-mpc, not in your input): ValueError: ControlSpec.horizon_steps" in err
+
+
+def test_an_os_error_on_a_file_the_user_did_not_name_is_a_bug(monkeypatch, capsys, tmp_path):
+    """A file the package chose itself (here one it reads under a folder of its own) that the
+    system refuses is a bug, exit 1; before, every OSError was exit 2 as bad input."""
+    chosen = tmp_path / "package-cache" / "entries.json"
+
+    def reads_its_own_file() -> str:
+        return chosen.read_text()
+
+    _inject(monkeypatch, reads_its_own_file)
+    assert main(["scenario", "list"]) == BUG_EXIT
+    err = capsys.readouterr().err.strip()
+    assert "internal error" in err and f"FileNotFoundError: [Errno 2] No such file or directory: '{chosen}'" in err
+
+
+def test_an_os_error_on_a_file_the_user_named_is_theirs(capsys, tmp_path):
+    """A file the user named that the system refuses is the user's (exit 2, naming it): /proc
+    takes no new files, whoever asks (root passes the check of the folder, the system then
+    refuses the file)."""
+    out = Path("/proc/pinn_mpc_test.toml")
+    assert main(["scenario", "export", "paper_household", "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and str(out) in err and "bug" not in err
+    assert not out.exists()
+    assert main(["scenario", "export", "paper_household", "--out", str(tmp_path / "s.toml")]) == 0
+
+
+def test_memory_that_runs_out_unforeseen_is_a_bug_and_a_file_too_large_is_the_users(monkeypatch, capsys, tmp_path):
+    """Runs the package sizes are refused before they start (exit 2); memory that runs out
+    anyway was not foreseen: exit 1, saying so. A data file too large to read is the user's."""
+    def allocates() -> str:
+        raise MemoryError
+
+    _inject(monkeypatch, allocates)
+    assert main(["scenario", "list"]) == BUG_EXIT
+    err = capsys.readouterr().err.strip()
+    assert "internal error" in err and "MemoryError (out of memory where no check of the run's size foresaw it)" in err
+    data = tmp_path / "d.csv"
+    assert main(["simulate", "--scenario", "paper_household", "--days", "1", "--out", str(data)]) == 0
+    capsys.readouterr()
+
+    def too_large(*args: object, **kwargs: object) -> pd.DataFrame:
+        raise MemoryError
+
+    monkeypatch.setattr(pd, "read_csv", too_large)
+    assert main(["identify", "--data", str(data), "--out", str(tmp_path / "rc.json")]) == 2
+    assert capsys.readouterr().err.strip() == (
+        f"pinn-mpc identify: error: {data}: too large to read into this machine's memory"
+    )
+
+
+def test_a_training_setting_refused_names_its_flag(capsys, tmp_path):
+    """TrainConfig names its field to a Python caller; ``train`` names the flag."""
+    from pinn_mpc.training import TrainConfig
+
+    with pytest.raises(ValueError, match=r"^TrainConfig\.n_seeds must be 1 \.\. 1000 members, got 1001$"):
+        TrainConfig(n_seeds=1001)
+    data = tmp_path / "d.csv"
+    assert main(["simulate", "--scenario", "paper_household", "--days", "2", "--out", str(data)]) == 0
+    capsys.readouterr()
+    for flag, value, message in (
+        ("--depth", "5000", "--depth must be 1 .. 1008, got 5000"),
+        ("--seeds", "1001", "--seeds must be 1 .. 1000 members, got 1001"),
+        ("--eta", "50", "--eta = 50 W/W is outside the plausible range"),
+    ):
+        args = ["train", "--data", str(data), "--arch", "physnet", flag, value, "--out", str(tmp_path / "m")]
+        assert main(args) == 2
+        assert capsys.readouterr().err.startswith(f"pinn-mpc train: error: {message}")
+    assert not (tmp_path / "m").exists()
+
+
+def test_scenario_export_judges_the_out_name_before_reading_the_scenario(capsys, tmp_path):
+    """``scenario export`` refuses an ``--out`` that is no .toml name first, as it did before the
+    command moved to the command line: a scenario file that does not read is not asked."""
+    broken = tmp_path / "broken.toml"
+    broken.write_text("this is = = not toml\n")
+    out = tmp_path / "copy.txt"
+    assert main(["scenario", "export", str(broken), "--out", str(out)]) == 2
+    assert capsys.readouterr().err.strip() == (
+        f"pinn-mpc scenario: error: --out {out}: scenario files end in .toml (that is how "
+        f"--scenario tells a file from a built-in name); write --out {out}.toml"
+    )
+    assert not out.exists()

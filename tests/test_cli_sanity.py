@@ -188,7 +188,7 @@ def test_train_eta_zero_is_refused(
 ) -> None:
     args = ["train", "--data", str(files["data"]), "--arch", "physnet", *SMALL, "--eta", "0",
             "--out", str(tmp_path / "m")]
-    _refused(capsys, args, "eta (--eta) is 0")
+    _refused(capsys, args, "error: --eta is 0: the actuator would do nothing")
     assert list(tmp_path.iterdir()) == []
 
 

@@ -112,9 +112,9 @@ def test_quick_honours_the_days_asked_for():
 
 
 def test_compare_rejects_an_unknown_training_policy():
-    with pytest.raises(InputError, match="unknown policy 'thermostat'"):
+    with pytest.raises(ValueError, match="unknown policy 'thermostat'"):
         CompareSettings(train_days=1, test_days=1, seed=0, policy="thermostat")
-    with pytest.raises(InputError, match="train_days must be >= 1"):
+    with pytest.raises(ValueError, match="train_days must be >= 1"):
         CompareSettings(train_days=0, test_days=1, seed=0)
 
 
@@ -195,8 +195,17 @@ def test_compare_quick_end_to_end(tmp_path, capsys):
 
 
 def test_too_little_data_names_each_option_with_the_command_that_takes_it():
-    """compare takes neither --depth nor --horizons: the messages say whose options they are."""
+    """The library names the settings; compare takes neither --depth nor --horizons, so the
+    command line names the command whose options they are."""
     from pinn_mpc.features import fit_feature_config
+    from pinn_mpc_cli.parser import build_parser, command_flags
 
-    with pytest.raises(InputError, match=r"more --train-days\), or a smaller depth \(train --depth\)$"):
+    with pytest.raises(InputError, match=r"give more data \(more training days\), or a smaller depth$") as caught:
         fit_feature_config(pd.DataFrame({"T_r": [20.0] * 5}), depth=8)
+    parser = build_parser()
+    assert caught.value.text(command_flags(parser, "compare")).endswith(
+        "give more data (--train-days), or a smaller train --depth"
+    )
+    assert caught.value.text(command_flags(parser, "train")).endswith(
+        "give more data (compare --train-days), or a smaller --depth"
+    )

@@ -61,7 +61,7 @@ def test_column_mapping_and_single_power_column(tmp_path):
         # Power is the actuator's input: never negative, never beyond a building's 10 MW.
         (
             lambda d: d.assign(u_phys=d["u_phys"].where(d.index != 2, -500.0)),
-            r"'u_phys' row 3 is -500 W, negative; .*--eta -COP",
+            r"'u_phys' row 3 is -500 W, negative; .*mark cooling with eta -COP",
         ),
         (
             lambda d: d.assign(u=d["u"].where(d.index != 1, 1e12)),

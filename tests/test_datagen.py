@@ -8,7 +8,6 @@ from controllers.base import ControlSpec, Forecast, Observation
 from controllers.thermostat import Thermostat
 from pinn_mpc.actuator import ActuatorSpec
 from pinn_mpc.data import validate_timeseries
-from pinn_mpc.errors import InputError
 from pinn_mpc.simulator import Simulator
 from scenarios.inputs.scenario_file import get_scenario
 from scenarios.running.datagen import generate
@@ -89,9 +88,9 @@ def test_thermostat_switches_with_hysteresis_for_heating_and_cooling():
 
 def test_generate_rejects_bad_arguments():
     scenario = get_scenario("paper_household")
-    with pytest.raises(InputError, match="unknown policy 'bangbang'; choose one of: random"):
+    with pytest.raises(ValueError, match="unknown policy 'bangbang'; choose one of: random"):
         generate(scenario, days=1, seed=0, policy="bangbang")
-    with pytest.raises(InputError, match="on_probability"):
+    with pytest.raises(ValueError, match="on_probability"):
         generate(scenario, days=1, seed=0, on_probability=1.5)
 
 

@@ -460,7 +460,7 @@ def test_radiant_fraction_is_the_heaters_and_changes_the_room_not_the_heat():
         ends.append(means[-1].t_r_c)
     assert delivered[1] == pytest.approx(delivered[0], rel=1e-9)
     assert ends[1] < ends[0] - 0.3
-    with pytest.raises(InputError, match="radiant_fraction"):
+    with pytest.raises(ValueError, match="radiant_fraction"):
         prepare_model("small_office", radiant_fraction=1.5)
 
 

@@ -13,7 +13,7 @@ from controllers.rc_mpc.problem import DEFAULT_REGULARISATION
 from controllers.rc_mpc.references import oracle_mpc
 from controllers.thermostat import Thermostat
 from pinn_mpc.actuator import ActuatorSpec
-from pinn_mpc.errors import InputError, InternalError
+from pinn_mpc.errors import InternalError
 from pinn_mpc.models.rc import RCBatchModel
 from pinn_mpc.physics import PAPER_HOUSEHOLD, discretise
 from pinn_mpc.simulator import SimConfig
@@ -75,7 +75,7 @@ def test_kalman_estimator_on_the_engine_finds_the_hidden_t_m():
 
 def test_true_state_refuses_a_missing_t_m():
     obs = Observation.from_history(0, {"T_r": np.array([19.0])})
-    with pytest.raises(InputError, match="true thermal-mass temperature"):
+    with pytest.raises(ValueError, match="true thermal-mass temperature"):
         TrueState().update(obs)
 
 
@@ -137,7 +137,7 @@ def test_oracle_by_composition_is_the_true_state_qp(t_r_c, t_m_c):
 
 def test_engine_validates_its_inputs():
     bad = _series(10)
-    with pytest.raises(InputError, match="non-finite"):
+    with pytest.raises(ValueError, match="non-finite"):
         ClosedLoop(
             SimConfig(),
             ExogenousSeries(**{**bad.__dict__, "T_a": np.full(10, np.nan)}),

@@ -6,7 +6,6 @@ import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
 
-from pinn_mpc.errors import InputError
 from pinn_mpc.simulator import Simulator
 from scenarios.inputs.scenario_file import get_scenario
 from scenarios.running.gym_env import OBSERVATION_NAMES, BuildingEnv
@@ -54,7 +53,7 @@ def test_reward_is_minus_cost_plus_weighted_discomfort_and_matches_the_simulator
         expected = -(row["price"] * ref.u_phys_w[0] / 1000 * 0.5 + 5.0 * violation * 0.5)
         assert reward == pytest.approx(expected, rel=1e-9, abs=1e-12)
         assert not terminated and truncated == (k == 47)
-    with pytest.raises(InputError, match="episode is over"):
+    with pytest.raises(ValueError, match="episode is over"):
         env.step(np.array([0.0], dtype=np.float32))
 
 
@@ -72,12 +71,12 @@ def test_actions_are_clipped_and_bad_input_rejected():
     env.reset(seed=0, options={"start": 0, "t_r_c": 5.0, "t_m_c": 5.0})
     *_, info = env.step(np.array([1e9], dtype=np.float32))
     assert info["u_phys"] <= scenario.sim.u_max_w
-    with pytest.raises(InputError, match="unknown option"):
+    with pytest.raises(ValueError, match="unknown option"):
         env.reset(options={"temperature": 3})
-    with pytest.raises(InputError, match="lacks column"):
+    with pytest.raises(ValueError, match="lacks column"):
         BuildingEnv(scenario.sim, scenario.exogenous(days=1, seed=0, part="train").drop(columns="price"),
                     comfort_weight_eur_per_kh=1.0)
-    with pytest.raises(InputError, match="episode_steps=100"):
+    with pytest.raises(ValueError, match="episode_steps=100"):
         BuildingEnv(scenario.sim, scenario.exogenous(days=1, seed=0, part="train"), comfort_weight_eur_per_kh=1.0,
                     episode_steps=100)
 
@@ -94,17 +93,17 @@ def test_actions_are_clipped_and_bad_input_rejected():
 def test_a_malformed_action_is_refused_naming_the_action_space(action, match):
     _, env = make_env(episode_steps=4)
     env.reset(seed=0)
-    with pytest.raises(InputError, match=match):
+    with pytest.raises(ValueError, match=match):
         env.step(action)
 
 
 @pytest.mark.parametrize("value", [float("nan"), 500.0, -100.0, float("inf")])
 def test_an_implausible_start_temperature_is_refused(value):
     _, env = make_env(episode_steps=4)
-    with pytest.raises(InputError, match=r"t_r_c=.* must be a finite temperature in \[-60, 90\] C"):
+    with pytest.raises(ValueError, match=r"t_r_c=.* must be a finite temperature in \[-60, 90\] C"):
         env.reset(seed=0, options={"t_r_c": value})
     scenario = get_scenario("winter_household")
-    with pytest.raises(InputError, match=r"initial_t_m_c=.* must be a finite temperature"):
+    with pytest.raises(ValueError, match=r"initial_t_m_c=.* must be a finite temperature"):
         BuildingEnv(scenario.sim, scenario.exogenous(days=1, seed=0, part="train"),
                     comfort_weight_eur_per_kh=1.0, initial_t_m_c=value)
 
@@ -112,7 +111,7 @@ def test_an_implausible_start_temperature_is_refused(value):
 @pytest.mark.parametrize("start", [2.5, 3.0, "4", True])
 def test_a_start_row_must_be_a_whole_number(start):
     _, env = make_env(episode_steps=4)
-    with pytest.raises(InputError, match="must be a whole row number"):
+    with pytest.raises(ValueError, match="must be a whole row number"):
         env.reset(seed=0, options={"start": start})
     observation, _ = env.reset(seed=0, options={"start": np.int64(3)})
     assert env._loop.start == 3 and np.all(np.isfinite(observation))

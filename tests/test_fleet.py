@@ -100,10 +100,10 @@ def test_fleet_errors_name_the_problem():
     rng = np.random.default_rng(0)
     with pytest.raises(InputError, match="spread must lie in"):
         draw_fleet(physics.PAPER_HOUSEHOLD, 3, spread=-0.1, rng=rng)
-    with pytest.raises(InputError, match="n_buildings must be"):
+    with pytest.raises(ValueError, match="n_buildings must be"):
         draw_fleet(physics.PAPER_HOUSEHOLD, 0, spread=0.1, rng=rng)
     fleet = draw_fleet(physics.PAPER_HOUSEHOLD, 3, spread=0.1, rng=rng)
-    with pytest.raises(InputError, match="n_buildings=2 but the fleet has 3"):
+    with pytest.raises(ValueError, match="n_buildings=2 but the fleet has 3"):
         Simulator(SimConfig(), n_buildings=2, fleet=fleet)
     cooling = dataclasses.replace(physics.PAPER_HOUSEHOLD, eta=-2.5)
     with pytest.raises(InputError, match=r"building\(s\) \[1\] have an actuator of the other sign"):

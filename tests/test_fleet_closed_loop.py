@@ -129,12 +129,14 @@ def test_a_building_whose_solver_fails_falls_back_and_is_counted():
 
 def test_fleet_input_errors_are_one_clear_line():
     scenario = get_scenario("paper_household")
-    with pytest.raises(InputError, match="n_buildings must be"):
+    with pytest.raises(ValueError, match="n_buildings must be") as caught:  # a Python caller's
         run_fleet_closed_loop(scenario, "thermostat", n_buildings=0, days=1, seed=0)
+    assert not isinstance(caught.value, InputError)
     with pytest.raises(InputError, match="unknown controller 'pid'"):
         run_fleet_closed_loop(scenario, "pid", n_buildings=2, days=1, seed=0)
-    with pytest.raises(InputError, match="days must be >= 1"):
+    with pytest.raises(ValueError, match="days must be >= 1") as caught:  # a Python caller's
         run_fleet_closed_loop(scenario, "thermostat", n_buildings=2, days=0, seed=0)
+    assert not isinstance(caught.value, InputError)
     run = prepare_run(scenario, days=1, seed=0, warmup_steps=0, weather_part="test")
     loop = build_loop(scenario, run, seed=0, fleet=(scenario.sim.params,) * 2)
     with pytest.raises(InternalError, match="use advance_fleet"):

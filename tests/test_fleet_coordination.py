@@ -91,7 +91,7 @@ def test_threads_share_the_blocks_and_plan_exactly_as_one_thread():
         decision = one.commit(a)
         two.commit(b)
         loop.step(decision.u_w, decision_s=np.zeros(5), fallback=decision.fallback)
-    with pytest.raises(InputError, match="threads must be a whole number >= 1"):
+    with pytest.raises(ValueError, match="threads must be a whole number >= 1"):
         FleetQPMPC(fleet, spec, threads=0)
 
 
@@ -199,8 +199,9 @@ def test_cap_window_parsing():
     for bad, says in (("17-19", "is not HH:MM-HH:MM"), ("17:00-17:00", "is empty (it starts where it ends)"),
                       ("25:00-26:00", "times must lie in 00:00..24:00"),
                       ("17:75-18:00", "with minutes < 60")):
-        with pytest.raises(InputError, match=re.escape(f"--cap-window '{bad}'") + ".*" + re.escape(says)):
+        with pytest.raises(InputError, match=re.escape(f"cap_window '{bad}'") + ".*" + re.escape(says)) as caught:
             parse_cap_window(bad)
+        assert caught.value.text({"cap_window": "--cap-window"}).startswith(f"--cap-window '{bad}'")
     hours = cap_in_force(["2023-02-12T16:30:00", "2023-02-12T17:00:00", "2023-02-12T19:00:00"],
                          {"kw": 5.0, "window": "17:00-19:00"})
     assert np.isnan(hours[0]) and hours[1] == 5.0 and np.isnan(hours[2])

@@ -115,7 +115,7 @@ def test_a_candidate_plan_is_scored_and_kept_unless_a_sample_beats_it():
 
 def test_more_members_than_the_ensembles_have_are_refused(fleet_models):
     _, _, models = fleet_models
-    with pytest.raises(InputError, match="members must lie in 1..3"):
+    with pytest.raises(ValueError, match="members must lie in 1..3"):
         FleetModels(models, members=4)
 
 
@@ -234,7 +234,7 @@ def test_rc_candidates_refreshed_in_turn_keep_each_buildings_last_plan_shifted(f
     assert [m.tolist() for m in solves] == [[True, False], [False, True]]
     np.testing.assert_array_equal(planner._rc_plans[0, :-1], kept[1:])  # building 0's, shifted
     assert planner._rc_valid.all()
-    with pytest.raises(InputError, match="rc_refresh must be a whole number >= 1"):
+    with pytest.raises(ValueError, match="rc_refresh must be a whole number >= 1"):
         _observed_candidate_planner(fleet_models, rc_refresh=0)
 
 

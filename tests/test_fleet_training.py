@@ -63,7 +63,7 @@ def test_init_weights_start_the_training_and_must_fit():
     weights = {k: v for k, v in donor.module.state_dict().items() if k.startswith(TRANSFERRED)}
     assert weights and all("physics" not in k for k in weights)
     bad = {"net.residual_net.0.weight": torch.zeros(3, 3)}
-    with pytest.raises(InputError, match="does not fit the model"):
+    with pytest.raises(ValueError, match="does not fit the model"):
         train_model(frame, arch="hybrid", config=TINY, progress=False, init_weights=bad)
 
 

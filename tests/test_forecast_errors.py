@@ -153,5 +153,8 @@ def test_unknown_gains_are_the_schedules_expectation_in_forecast_and_past():
     ],
 )
 def test_forecast_errors_are_validated(kwargs, match):
-    with pytest.raises(InputError, match=match):
+    """A Python caller's misuse is a ValueError (a scenario file's [forecast] table is the
+    file's InputError, naming the key: the reader converts it)."""
+    with pytest.raises(ValueError, match=match) as caught:
         ForecastErrors(**kwargs)
+    assert not isinstance(caught.value, InputError)

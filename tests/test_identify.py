@@ -193,9 +193,12 @@ def test_a_fit_a_2r2c_cannot_give_is_noted_with_what_to_do(solar_frame: pd.DataF
     stepped = solar_frame.assign(T_r=solar_frame["T_r"] + 2.0 * np.sign(np.sin(2 * np.pi * days / 5.0) + 1e-9))
     stepped.attrs["dt_s"] = 1800.0
     poor = identify_rc(stepped)
-    note = poor.poor_fit_note()
-    assert poor.rmse_c > POOR_FIT_RMSE_C and note is not None
+    warning = poor.poor_fit_note()
+    assert poor.rmse_c > POOR_FIT_RMSE_C and warning is not None
+    note = str(warning)  # the setting by its name; the command line names its flag
+    assert "heating power delivered (columns)" in note
+    assert "heating power delivered (--columns)" in warning.text({"columns": "--columns"})
     assert f"rmse of {poor.rmse_c:.2f} C, above 1 C" in note
-    for advice in ("room temperature and the heating power delivered (--columns)", "more days",
+    for advice in ("room temperature and the heating power delivered", "more days",
                    "`pinn-mpc train`", "physics-informed ARX"):
         assert advice in note

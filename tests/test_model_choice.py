@@ -10,7 +10,6 @@ import pandas as pd
 import pytest
 
 from pinn_mpc.data import write_timeseries
-from pinn_mpc.errors import InputError
 from pinn_mpc.model_choice import AUTO_RATIO, ROUGH_MAE_C, choose_model
 from pinn_mpc.models.arx import ARXModel, fit_physics_informed_arx
 from pinn_mpc.models.learned import LearnedModel
@@ -174,7 +173,7 @@ def test_every_model_choice_trains_through_one_function_and_loads_back(tmp_path)
         loaded = load(out)
         assert type(loaded) is type(choice.model) and loaded.family == choice.chosen
         assert len(list(out.iterdir())) == (1 if isinstance(loaded, ARXModel) else 2)
-    with pytest.raises(InputError, match="unknown architecture 'nope'; choose one of auto, "):
+    with pytest.raises(ValueError, match="unknown architecture 'nope'; choose one of auto, "):
         fit(data, arch="nope")
 
 
@@ -200,5 +199,5 @@ def test_train_model_sends_auto_and_the_arx_models_to_fit():
 
     assert fit.__module__ == "pinn_mpc.fitted"
     for arch in ("auto", "arx", "parx"):
-        with pytest.raises(InputError, match=rf"{arch!r} is fitted by pinn_mpc.fit\(df, arch={arch!r}"):
+        with pytest.raises(ValueError, match=rf"{arch!r} is fitted by pinn_mpc.fit\(df, arch={arch!r}"):
             train_model(household_data(3, seed=0), arch=arch, config=SMALL)

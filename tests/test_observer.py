@@ -9,7 +9,6 @@ import pytest
 import scipy.linalg
 
 from pinn_mpc.actuator import ActuatorSpec
-from pinn_mpc.errors import InputError
 from pinn_mpc.observer import KalmanObserver
 from pinn_mpc.physics import PAPER_HOUSEHOLD, steady_state
 from pinn_mpc.simulator import SimConfig, Simulator
@@ -93,7 +92,7 @@ def test_batch_equals_one_by_one() -> None:
 
 
 def test_rejects_zero_measurement_noise() -> None:
-    with pytest.raises(InputError, match="measurement_std_c must be > 0"):
+    with pytest.raises(ValueError, match="measurement_std_c must be > 0"):
         KalmanObserver(PAPER_HOUSEHOLD, 1800.0, measurement_std_c=0.0)
 
 

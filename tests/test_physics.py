@@ -170,7 +170,7 @@ def test_invalid_params_name_the_field(field, value, match):
 
 def test_from_coefficients_rejects_wrong_sign():
     c = physics.to_coefficients(P)
-    with pytest.raises(InputError, match="sign of eta"):
+    with pytest.raises(ValueError, match="sign of eta"):
         physics.from_coefficients(c, eta=-2.5)
 
 

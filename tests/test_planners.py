@@ -6,7 +6,6 @@ import pytest
 import torch
 
 from controllers.planners import CEMPlanner, RandomShootingPlanner, colored_noise, move_blocks
-from pinn_mpc.errors import InputError
 
 H = 8
 
@@ -151,7 +150,7 @@ def test_colored_noise_is_unit_variance_and_correlated_in_time():
     ],
 )
 def test_invalid_settings_are_rejected_with_a_clear_message(kwargs, message):
-    with pytest.raises(InputError, match=message):
+    with pytest.raises(ValueError, match=message):
         CEMPlanner(**kwargs)
 
 
@@ -165,7 +164,7 @@ def test_invalid_settings_are_rejected_with_a_clear_message(kwargs, message):
     ],
 )
 def test_invalid_random_shooting_settings_are_rejected(kwargs, message):
-    with pytest.raises(InputError, match=message):
+    with pytest.raises(ValueError, match=message):
         RandomShootingPlanner(lower=0.0, upper=1.0, **kwargs)
 
 

@@ -136,7 +136,7 @@ def test_the_modelling_package_knows_only_the_rc_structures():
     mismatch = get_scenario("mismatch_household")
     assert mismatch.sim.plant == ENVELOPE and mismatch.plant.true_state
     assert dataclasses.replace(mismatch, plant=PlantSettings()).sim.plant == Plant()
-    with pytest.raises(InputError, match="kind 'energyplus' takes EnergyPlusSettings, got RCSettings"):
+    with pytest.raises(ValueError, match="kind 'energyplus' takes EnergyPlusSettings, got RCSettings"):
         PlantSettings(kind="energyplus")
     with pytest.raises(InputError, match="plant kind 'mars' is unknown; choose one of 2r2c, 3r3c, energyplus"):
         PlantSettings(kind="mars")
@@ -191,6 +191,6 @@ def test_a_plant_is_given_once_with_its_scenario(tmp_path):
     with pytest.raises(InputError, match=r"plant: unknown key; \[top level\] takes name, description, "):
         get_scenario(str(path))
     series = ExogenousSeries.from_frame(mismatch.exogenous(days=1, seed=0, part="train"))
-    with pytest.raises(InputError, match="is not the simulator's structure of plant_settings"):
+    with pytest.raises(ValueError, match="is not the simulator's structure of plant_settings"):
         ClosedLoop(mismatch.sim, series, spec=mismatch.control_spec(), initial_t_r_c=20.0,
                    initial_t_m_c=20.0, plant_settings=PlantSettings())

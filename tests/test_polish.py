@@ -5,7 +5,6 @@ import pytest
 import torch
 
 from controllers.lp_polish import PolishSettings, _constraint_matrix, jacobians, probes
-from pinn_mpc.errors import InputError
 
 H = 12
 
@@ -51,11 +50,11 @@ def test_sparse_probes_recover_a_time_invariant_map_exactly(stride):
 
 
 def test_polish_settings_are_checked():
-    with pytest.raises(InputError, match="probe_stride"):
+    with pytest.raises(ValueError, match="probe_stride"):
         PolishSettings(probe_stride=0)
-    with pytest.raises(InputError, match="delta_frac"):
+    with pytest.raises(ValueError, match="delta_frac"):
         PolishSettings(delta_frac=0.0)
-    with pytest.raises(InputError, match="line_search"):
+    with pytest.raises(ValueError, match="line_search"):
         PolishSettings(line_search=(1.5,))
 
 

@@ -21,7 +21,6 @@ from controllers.rc_mpc.problem import RCMPC, RCProblem, StageData
 from controllers.rc_mpc.references import clairvoyant_mpc, oracle_mpc
 from controllers.trust import TrustSettings
 from pinn_mpc.actuator import ActuatorSpec
-from pinn_mpc.errors import InputError
 from pinn_mpc.physics import PAPER_HOUSEHOLD, steady_state
 from pinn_mpc.simulator import SimConfig
 from scenarios.inputs.series import ExogenousSeries
@@ -225,7 +224,7 @@ def test_planning_with_its_replay_margin_keeps_a_misidentified_rc_in_the_band(wr
     _, plain = _below_band(QPMPC(PARAMS, SPEC))
     assert exact.replay_report == {"rc_replay_error_k": 0.0, "comfort_margin_k": 0.0}
     np.testing.assert_allclose(actions, plain, atol=0.01 * SPEC.u_max_w)
-    with pytest.raises(InputError, match="margin_from_replay"):
+    with pytest.raises(ValueError, match="margin_from_replay"):
         exact.plan_with_replay_margin(TrustSettings())
 
 

@@ -11,7 +11,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pinn_mpc.errors import InputError
 from pinn_mpc_cli.cli import main
 from scenarios.experiments.reproduce import (
     PAPER_VALIDATION,
@@ -223,11 +222,11 @@ def test_quick_and_default_configurations() -> None:
 
 
 def test_bad_configuration_is_refused() -> None:
-    with pytest.raises(InputError, match="too short"):
+    with pytest.raises(ValueError, match="too short"):
         ReproduceConfig(test_days=1, horizons=(1, 48))
-    with pytest.raises(InputError, match="seeds must be >= 1"):
+    with pytest.raises(ValueError, match="seeds must be >= 1"):
         ReproduceConfig(seeds=0)
-    with pytest.raises(InputError, match="nowhere"):
+    with pytest.raises(ValueError, match="nowhere"):
         ReproduceConfig(also_scenarios=("nowhere",))
 
 

@@ -328,11 +328,11 @@ def test_unknown_model_input_and_bad_risk_weight_are_rejected():
         exog_names = ("T_a", "rain")
 
     model = RainModel(PAPER_HOUSEHOLD, dt_s=DT_S, actuator=HEATER)
-    with pytest.raises(InputError, match="exogenous input 'rain' has no forecast"):
+    with pytest.raises(ValueError, match="exogenous input 'rain' has no forecast"):
         CEM(model, SPEC)
-    with pytest.raises(InputError, match="risk_weight must be >= 0"):
+    with pytest.raises(ValueError, match="risk_weight must be >= 0"):
         RandomShooting(LINEAR, SPEC, risk_weight=-1.0)
-    with pytest.raises(InputError, match="backup limits need low < high"):
+    with pytest.raises(ValueError, match="backup limits need low < high"):
         RCBatchModel(PAPER_HOUSEHOLD, dt_s=DT_S, actuator=HEATER, backup_low_c=21.0)
 
 
@@ -443,14 +443,14 @@ def test_default_cem_scores_the_ensemble_mean_with_a_measured_offset(physnet):
 
 
 def test_ensemble_and_offset_settings_are_checked(physnet):
-    with pytest.raises(InputError, match="ensemble"):
+    with pytest.raises(ValueError, match="ensemble"):
         CEM(physnet, SPEC, ensemble="median")
-    with pytest.raises(InputError, match="offset_gain"):
+    with pytest.raises(ValueError, match="offset_gain"):
         CEM(physnet, SPEC, offset_gain=1.5)
     for margin in (-0.01, float("nan")):
-        with pytest.raises(InputError, match="comfort_margin_k"):
+        with pytest.raises(ValueError, match="comfort_margin_k"):
             CEM(physnet, SPEC, comfort_margin_k=margin)
-    with pytest.raises(InputError, match="risk_weight"):
+    with pytest.raises(ValueError, match="risk_weight"):
         CEM(physnet, SPEC, risk_weight=0.5)  # the spread of one mean prediction is zero
 
 
@@ -530,9 +530,9 @@ def test_random_shooting_over_setpoints_comes_within_one_percent_of_the_optimum(
 
 
 def test_setpoint_space_options_are_checked():
-    with pytest.raises(InputError, match="space must be one of power, setpoint"):
+    with pytest.raises(ValueError, match="space must be one of power, setpoint"):
         RandomShooting(LINEAR, SPEC, space="heat")
-    with pytest.raises(InputError, match="setpoint_span_k must lie in"):
+    with pytest.raises(ValueError, match="setpoint_span_k must lie in"):
         RandomShooting(LINEAR, SPEC, space="setpoint", setpoint_span_k=0.0)
-    with pytest.raises(InputError, match="fewer than 2 samples after the 13 probes"):
+    with pytest.raises(ValueError, match="fewer than 2 samples after the 13 probes"):
         RandomShooting(LINEAR, SPEC, space="setpoint", n_samples=14)

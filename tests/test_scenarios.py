@@ -47,11 +47,11 @@ def test_exogenous_shape_determinism_and_lead_rows(name, part):
 
 def test_exogenous_rejects_bad_arguments():
     scenario = get_scenario("paper_household")
-    with pytest.raises(InputError, match="days must be >= 1"):
+    with pytest.raises(ValueError, match="days must be >= 1"):
         scenario.exogenous(days=0, seed=0, part="train")
-    with pytest.raises(InputError, match="seed must be a non-negative"):
+    with pytest.raises(ValueError, match="seed must be a non-negative"):
         scenario.exogenous(days=1, seed=-1, part="train")
-    with pytest.raises(InputError, match="unknown weather part 'all'; choose one of: train, test, whole"):
+    with pytest.raises(ValueError, match="unknown weather part 'all'; choose one of: train, test, whole"):
         scenario.exogenous(days=1, seed=0, part="all")
 
 
@@ -127,7 +127,7 @@ def test_price_profiles():
     assert dynamic.min() >= 0.01
     evening, night = dynamic[(hour >= 18) & (hour < 20)].mean(), dynamic[hour < 4].mean()
     assert evening > night + 0.08
-    with pytest.raises(InputError, match="PriceProfile.kind 'spot' is unknown"):
+    with pytest.raises(ValueError, match="PriceProfile.kind 'spot' is unknown"):
         PriceProfile(kind="spot")
 
 

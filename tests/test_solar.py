@@ -93,7 +93,7 @@ def test_bad_site_or_sky_is_refused():
         facade_irradiance(np.zeros(1), **_constant_sky(latitude_deg=100.0))
     with pytest.raises(InputError, match="missing values"):
         facade_irradiance(np.zeros(1), **_constant_sky(dni_w_per_m2=np.full(HOURS, np.nan)))
-    with pytest.raises(InputError, match="one length"):
+    with pytest.raises(ValueError, match="one length"):
         facade_irradiance(np.zeros(1), **_constant_sky(dni_w_per_m2=np.zeros(10)))
 
 

@@ -69,11 +69,11 @@ def test_training_reduces_the_error_and_moves_the_physics() -> None:
 
 
 def test_bad_configuration_and_short_data_are_input_errors() -> None:
-    with pytest.raises(InputError, match="unknown recipe 'fast'"):
+    with pytest.raises(ValueError, match="unknown recipe 'fast'"):
         TrainConfig(recipe="fast")
-    with pytest.raises(InputError, match="lam must be a finite number >= 0"):
+    with pytest.raises(ValueError, match="lam must be a finite number >= 0"):
         TrainConfig(lam=-1.0)
-    with pytest.raises(InputError, match="unknown architecture 'cnn'"):
+    with pytest.raises(ValueError, match="unknown architecture 'cnn'"):
         train_model(household_data(3, 0), arch="cnn", config=TrainConfig(), progress=False)
     with pytest.raises(InputError, match=r"has 40 rows, but depth 8 needs at least 42 rows"):
         train_model(

@@ -83,7 +83,7 @@ def test_the_fallback_plans_inside_the_band_by_the_rcs_replay_error_where_asked(
     "bad", [{"error_floor_k": 0.0}, {"filter_gain": 1.5}, {"recover_steps": 0}, {"replay_steps": 0}]
 )
 def test_trust_settings_are_checked(bad: dict) -> None:
-    with pytest.raises(InputError, match=next(iter(bad))):
+    with pytest.raises(ValueError, match=next(iter(bad))):
         TrustSettings(**bad)
 
 

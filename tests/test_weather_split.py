@@ -138,7 +138,8 @@ def test_runs_that_do_not_fit_their_part_are_refused():
     with pytest.raises(InputError, match=(
         r"scenario 'winter_household': a run of 60 days \(warm-up and forecast lead rows, if "
         r"any, included\) does not fit in the test weather, the 59 days Feb 1 - Mar 31; use "
-        r"fewer days, or \(simulate, closed-loop\) --weather-part whole"
+        r"fewer days, or draw from the whole window, training and test days mixed "
+        r"\(weather_part whole\)$"
     )):
         _test_frame(winter, days=fits + 1, seed=3)
     paper = get_scenario("paper_household")

@@ -31,7 +31,7 @@ import numpy as np
 
 from controllers.base import ControlSpec, raise_if_interrupted, solver_interrupts_held
 from controllers.rc_mpc.problem import RCMPC, SolveResult, StageData
-from pinn_mpc.errors import InputError, InternalError
+from pinn_mpc.errors import InternalError
 from pinn_mpc.physics import RCParams
 
 __all__ = ["PLUGIN_OPTIONS", "CasadiMPC"]
@@ -62,7 +62,7 @@ class CasadiMPC(RCMPC):
     ) -> None:
         """``options``: the keywords of :class:`controllers.rc_mpc.problem.RCMPC`."""
         if plugin not in PLUGIN_OPTIONS or not ca.has_conic(plugin):
-            raise InputError(
+            raise ValueError(
                 f"CasadiMPC: QP plugin {plugin!r} is not available; use one of "
                 f"{[p for p in PLUGIN_OPTIONS if ca.has_conic(p)]}"
             )

@@ -29,7 +29,6 @@ from controllers.rc_mpc.qp import (
     qp_vectors,
     shift_steps,
 )
-from pinn_mpc.errors import InputError
 
 __all__ = ["CANDIDATE_OPTIONS", "OSQP_OPTIONS", "QPMPC", "BlocksSolution", "QPBlocks"]
 
@@ -85,9 +84,9 @@ class QPBlocks:
     ) -> None:
         b = ad.shape[0]
         if not (isinstance(block_size, int) and block_size >= 1):
-            raise InputError(f"block_size must be a whole number >= 1, got {block_size!r}")
+            raise ValueError(f"block_size must be a whole number >= 1, got {block_size!r}")
         if not (isinstance(threads, int) and threads >= 1):
-            raise InputError(f"threads must be a whole number >= 1, got {threads!r}")
+            raise ValueError(f"threads must be a whole number >= 1, got {threads!r}")
         self.h, self.layout, self.solver_options, self.threads = h, layout, solver_options, threads
         self.n_buildings = b
         self.blocks = [slice(i, min(i + block_size, b)) for i in range(0, b, block_size)]

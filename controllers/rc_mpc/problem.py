@@ -55,7 +55,6 @@ from controllers.estimators import KalmanEstimator, StateEstimator, TrueState
 from controllers.objective import HorizonObjective, narrowed
 from controllers.trust import RCReplay, TrustMonitor, TrustSettings
 from pinn_mpc.actuator import ActuatorSpec
-from pinn_mpc.errors import InputError
 from pinn_mpc.physics import RCParams, discretise
 from pinn_mpc.records import ReplayMarginReport
 
@@ -97,10 +96,10 @@ class RCProblem:
 
     def __post_init__(self) -> None:
         if self.horizon_steps < 1:
-            raise InputError(f"RCProblem.horizon_steps must be >= 1, got {self.horizon_steps}")
+            raise ValueError(f"RCProblem.horizon_steps must be >= 1, got {self.horizon_steps}")
         rho = self.regularisation_eur_per_kw2h
         if not (math.isfinite(rho) and rho > 0):
-            raise InputError(f"regularisation_eur_per_kw2h must be > 0 (uniqueness), got {rho!r}")
+            raise ValueError(f"regularisation_eur_per_kw2h must be > 0 (uniqueness), got {rho!r}")
         check_heating(self.params.eta, self.spec, what="the RC parameters")
 
     @cached_property
@@ -185,7 +184,7 @@ class RCMPC(PlanningController):
         name: str | None = None,
     ) -> None:
         if run_steps is not None and run_steps < 1:
-            raise InputError(f"{type(self).__name__}.run_steps must be >= 1 (the run length), got {run_steps}")
+            raise ValueError(f"{type(self).__name__}.run_steps must be >= 1 (the run length), got {run_steps}")
         self.params = params
         self.spec = spec
         if name is not None:
@@ -215,7 +214,7 @@ class RCMPC(PlanningController):
         noise (BOPTEST) an MPC that rides the band's edge misses it by the error its RC makes
         over the hours it plans. 0 until the first replay."""
         if not settings.margin_from_replay:
-            raise InputError("plan_with_replay_margin needs TrustSettings(margin_from_replay=True)")
+            raise ValueError("plan_with_replay_margin needs TrustSettings(margin_from_replay=True)")
         self._replay = (
             RCReplay(self.params, self.spec, settings.replay_steps),
             TrustMonitor(settings, self.spec.actuator.span_w),

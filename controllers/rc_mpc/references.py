@@ -23,7 +23,6 @@ from typing import Any
 from controllers.base import ControlSpec
 from controllers.estimators import TrueState
 from controllers.rc_mpc.osqp import QPMPC
-from pinn_mpc.errors import InputError
 from pinn_mpc.physics import RCParams
 
 __all__ = ["clairvoyant_mpc", "oracle_mpc"]
@@ -37,7 +36,7 @@ def oracle_mpc(params: RCParams, spec: ControlSpec, **options: Any) -> QPMPC:
 def clairvoyant_mpc(params: RCParams, spec: ControlSpec, n_steps: int, **options: Any) -> QPMPC:
     """The whole run of ``n_steps`` intervals as one shrinking-horizon QP on the true state."""
     if n_steps < 1:
-        raise InputError(f"clairvoyant: n_steps must be >= 1 (the run length), got {n_steps}")
+        raise ValueError(f"clairvoyant: n_steps must be >= 1 (the run length), got {n_steps}")
     return QPMPC(
         params,
         spec,

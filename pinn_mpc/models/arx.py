@@ -55,7 +55,7 @@ import pandas as pd
 import torch
 
 from pinn_mpc.data import WIND, day_of_week
-from pinn_mpc.errors import InputError, InternalError
+from pinn_mpc.errors import InputError, InternalError, setting
 from pinn_mpc.features import check_interval
 from pinn_mpc.io import DirectoryLayout
 from pinn_mpc.models.registry import ARX, BASELINES, PHYSICS_ARX
@@ -99,6 +99,8 @@ BLOCK_CHOICES_H = (1.0, 2.0)
 #: The largest coefficient magnitude a saved ARX model may hold (scaled units, :data:`_SCALE`):
 #: fits give well under 10; a larger one is an edited or damaged file.
 MAX_ABS_COEF = 1e3
+#: The architecture setting, as a message that says how to make an ARX again names it.
+_ARCH = setting("arch")
 #: Ridge weight relative to each regressor's own sum of squares (keeps collinear lags well posed).
 _RIDGE = 1e-9
 #: Scales that bring the inputs to order one: W -> kW, W/m2 -> 100 W/m2, W -> kW.
@@ -436,14 +438,14 @@ def fit_arx(
     rows to the next (each at least ``lags - 1``, before the last; default all of them).
     ``wind``: also weigh ``wind_k (T_r,k - T_a,k)`` (the data must have ``wind``)."""
     if lags < 1:
-        raise InputError(f"ARX model: lags must be >= 1, got {lags}")
+        raise ValueError(f"ARX model: lags must be >= 1, got {lags}")
     if day_types not in (2, 3):
-        raise InputError(f"ARX model: day_types must be 2 or 3, got {day_types}")
+        raise ValueError(f"ARX model: day_types must be 2 or 3, got {day_types}")
     if not _valid_block(block_h):
-        raise InputError(f"ARX model: block_h must divide the day into whole hours' blocks, got {block_h}")
+        raise ValueError(f"ARX model: block_h must divide the day into whole hours' blocks, got {block_h}")
     unknown = set(inputs) - set(_INPUT_ORDER)
     if unknown:
-        raise InputError(f"ARX model: unknown input(s) {sorted(unknown)}; known {list(_INPUT_ORDER)}")
+        raise ValueError(f"ARX model: unknown input(s) {sorted(unknown)}; known {list(_INPUT_ORDER)}")
     columns = ("T_r", "u_phys", "T_a", *(c for c in _INPUT_ORDER if c in inputs and c in df))
     model = ARXModel(
         columns=columns, lags=lags, coef=np.zeros(0), dt_s=float(df.attrs.get("dt_s", 1800.0)),
@@ -556,7 +558,7 @@ def fit_physics_informed_arx(
         raise InputError(
             f"physics-informed ARX: the fit says more power {'cools' if eta > 0 else 'warms'} "
             "the room; the data do not identify the actuator (give data with the power varied, "
-            "e.g. simulate --policy random-level or closed-loop)"
+            "e.g. simulated with the random-level or closed-loop policy)"
         )
     return model
 
@@ -620,7 +622,7 @@ def fit_linear(name: str, df: pd.DataFrame, *, eta: float = 1.0) -> ARXModel:
     elif name == PHYSICS_ARX.name:
         model = fit_physics_informed_arx(df, eta=eta)
     else:
-        raise InputError(f"{name!r} is not a linear baseline; choose {ARX.name} or {PHYSICS_ARX.name}")
+        raise ValueError(f"{name!r} is not a linear baseline; choose {ARX.name} or {PHYSICS_ARX.name}")
     offset_k = week_offset_k(model)
     if not offset_k <= RUNAWAY_OFFSET_K:
         # what load_arx would refuse as damaged: say so now, of the data, not later of the file
@@ -629,7 +631,7 @@ def fit_linear(name: str, df: pd.DataFrame, *, eta: float = 1.0) -> ARXModel:
             f"{label}: no fit on these data lets the room settle (a history 1 K warmer is "
             f"{offset_k:.3g} K warmer a week later, where a building's settles), so its "
             "predictions would run away; give more days of data, or train another family "
-            "(--arch hybrid)"
+            f"({_ARCH} hybrid)"
         )
     try:
         identified = identify_rc(df, eta=eta)
@@ -675,7 +677,7 @@ def load_arx(path: str | os.PathLike[str]) -> ARXModel:
         identified_rc = data.get("identified_rc")
         training_data = data.get("training_data", {})
     except (OSError, ValueError, KeyError, TypeError) as exc:
-        raise InputError(f"{file}: not a readable ARX model ({exc}); write it with `pinn-mpc train --arch arx`") from None
+        raise InputError(f"{file}: not a readable ARX model ({exc}); train it again ({_ARCH} arx)") from None
     if not _valid_block(block_h):
         raise InputError(f"{file}: not a valid ARX model (block_h {block_h:g} does not divide the day)")
     expected = _n_coef(lags, len(columns), day_types, block_h, interaction is True, wind is True)
@@ -693,7 +695,7 @@ def load_arx(path: str | os.PathLike[str]) -> ARXModel:
     ):
         raise InputError(
             f"{file}: not a valid ARX model (kind, columns, lags, {expected} finite coefficients, "
-            "interval); write it with `pinn-mpc train --arch arx`"
+            f"interval); train it again ({_ARCH} arx)"
         )
     if not isinstance(training_data, dict):
         raise InputError(f"{file}: not a valid ARX model (training_data is not an object)")
@@ -702,7 +704,7 @@ def load_arx(path: str | os.PathLike[str]) -> ARXModel:
         raise InputError(
             f"{file}: not a plausible ARX model (a coefficient of {largest:g}, where a fit gives at "
             f"most {MAX_ABS_COEF:g} in its scaled units): it was edited or damaged; train it again "
-            "with `pinn-mpc train --arch arx`"
+            f"({_ARCH} arx)"
         )
     if identified_rc is not None:
         if not isinstance(identified_rc, dict):
@@ -710,7 +712,7 @@ def load_arx(path: str | os.PathLike[str]) -> ARXModel:
         try:
             params_from_summary(identified_rc)
         except InputError as exc:
-            raise InputError(f"{file}: identified_rc: {exc}") from None
+            raise InputError(f"{file}: identified_rc: {exc.marked}") from None
     model = ARXModel(
         columns=columns, lags=lags, coef=coef, dt_s=dt_s,
         train_mae_c=float(data.get("train_mae_c", float("nan"))),
@@ -725,8 +727,7 @@ def load_arx(path: str | os.PathLike[str]) -> ARXModel:
         raise InputError(
             f"{file}: not a plausible ARX model (its room temperature never settles: a history "
             f"1 K warmer is {offset_k:.3g} K warmer a week later, where a "
-            "building's settles): it was edited or damaged; train it again with "
-            "`pinn-mpc train --arch arx`"
+            f"building's settles): it was edited or damaged; train it again ({_ARCH} arx)"
         )
     return model
 

@@ -88,7 +88,7 @@ class FleetModels:
 
     def __init__(self, models: Sequence[BatchDynamics], *, members: int | None = None) -> None:
         if not models:
-            raise InputError("FleetModels needs at least one model")
+            raise ValueError("FleetModels needs at least one model")
         first = models[0]
         for i, model in enumerate(models):
             if (model.dt_s, model.eta > 0) != (first.dt_s, first.eta > 0):
@@ -99,7 +99,7 @@ class FleetModels:
                 )
         fewest = min(model.n_members for model in models)
         if members is not None and not 1 <= members <= fewest:
-            raise InputError(f"FleetModels.members must lie in 1..{fewest} (the models' members), got {members}")
+            raise ValueError(f"FleetModels.members must lie in 1..{fewest} (the models' members), got {members}")
         self.models = tuple(models)
         self.n_buildings, self.n_members = len(models), fewest if members is None else members
         self.depth = max(model.depth for model in models)

@@ -26,7 +26,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from pinn_mpc.errors import InputError
+from pinn_mpc.errors import InputError, setting
 from pinn_mpc.features import FeatureConfig
 from pinn_mpc.models.base import NetParts, TrainingSet
 from pinn_mpc.models.consistent import (
@@ -57,7 +57,7 @@ class PcnnParxNet(ConsistentNet):
     def __init__(self, *, features: FeatureConfig, n_members: int, generators: Sequence[torch.Generator]):
         super().__init__()
         if features.depth < LAGS:
-            raise InputError(f"pcnn-parx needs a history depth of at least {LAGS}, got {features.depth}")
+            raise InputError(f"pcnn-parx needs a history depth ({setting('depth')}) of at least {LAGS}, got {features.depth}")
         self.features = features
         self.unforced = UnforcedNet(features, n_members, generators, 1)
         m, n_series = n_members, len(features.exog_series)

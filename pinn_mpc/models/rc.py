@@ -7,7 +7,6 @@ import numpy as np
 import torch
 
 from pinn_mpc.actuator import ActuatorSpec
-from pinn_mpc.errors import InputError
 from pinn_mpc.models.rollout import BatchDynamics, Rollout
 from pinn_mpc.physics import RCParams, discretise
 
@@ -47,7 +46,7 @@ class RCBatchModel(BatchDynamics):
                 f"= {params.eta:g}; give a heater with eta > 0, a cooling machine with eta < 0"
             )
         if not backup_low_c < backup_high_c:
-            raise InputError(
+            raise ValueError(
                 f"RCBatchModel backup limits need low < high, got {backup_low_c}, {backup_high_c}"
             )
         self.params = params

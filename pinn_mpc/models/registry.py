@@ -16,8 +16,6 @@ from dataclasses import dataclass
 from functools import cache
 from typing import TYPE_CHECKING
 
-from pinn_mpc.errors import InputError
-
 if TYPE_CHECKING:
     from pinn_mpc.models.base import Architecture
 
@@ -36,7 +34,6 @@ __all__ = [
     "TRAIN_CHOICES",
     "ArchSpec",
     "BaselineSpec",
-    "arch_help",
     "get_architecture",
     "get_spec",
 ]
@@ -149,7 +146,7 @@ COMPARED_ARCHS = (DEFAULT_ARCH, *reversed(ARCHS))
 @dataclass(frozen=True, kw_only=True)
 class BaselineSpec:
     """A model without a network that ``train --arch`` also fits: ``label`` its name in
-    tables, ``summary`` what it is and which of train's options do not apply to it."""
+    tables, ``summary`` what it is (none of the networks' training settings apply to it)."""
 
     name: str
     label: str
@@ -161,7 +158,7 @@ ARX = BaselineSpec(
     name="arx",
     label="ARX",
     summary="the linear ARX baseline (least squares on 8 lags and a weekly schedule, no "
-    "network; --depth, --seeds, --epochs, --lambda and --recipe do not apply)",
+    "network)",
 )
 #: The physics-informed ARX (:func:`pinn_mpc.models.arx.fit_physics_informed_arx`): the ARX with a
 #: workday / Saturday / Sunday schedule whose blocks also weigh the indoor-outdoor difference
@@ -170,8 +167,7 @@ PHYSICS_ARX = BaselineSpec(
     name="parx",
     label="Physics-informed ARX",
     summary="the physics-informed linear ARX (the ARX with workday, Saturday and Sunday "
-    "schedules, each block also weighing T_r - T_a, heating required to warm; no network; "
-    "--depth, --seeds, --epochs, --lambda and --recipe do not apply)",
+    "schedules, each block also weighing T_r - T_a, heating required to warm; no network)",
 )
 #: Models ``train`` fits that are not architectures of networks.
 BASELINES: dict[str, BaselineSpec] = {ARX.name: ARX, PHYSICS_ARX.name: PHYSICS_ARX}
@@ -184,9 +180,9 @@ TRAIN_CHOICES = (AUTO, *MODEL_CHOICES)
 
 
 def get_spec(name: str) -> ArchSpec:
-    """The registry's entry for ``name``; InputError naming the choices if there is none."""
+    """The registry's entry for ``name``; ValueError naming the choices if there is none."""
     if name not in ARCHITECTURES:
-        raise InputError(f"unknown architecture {name!r}; choose one of {', '.join(ALL_ARCHS)}")
+        raise ValueError(f"unknown architecture {name!r}; choose one of {', '.join(ALL_ARCHS)}")
     return ARCHITECTURES[name]
 
 
@@ -197,21 +193,3 @@ def get_architecture(name: str) -> Architecture:
     module, cls = spec.implementation.split(":")
     architecture: Architecture = getattr(importlib.import_module(module), cls)(spec)
     return architecture
-
-
-def arch_help() -> str:
-    """One line per architecture: what it is and its defaults, then the baselines (for
-    ``train --help``)."""
-    return "; ".join(
-        [
-            f"{s.name}: {s.summary} (depth {s.depth}, recipe {s.recipe}, data of "
-            f"`simulate --policy {s.policy}`{', the network auto chooses' if s.name == DEFAULT_ARCH else ''})"
-            for s in ARCHITECTURES.values()
-        ]
-        + [f"{b.name}: {b.summary}" for b in BASELINES.values()]
-        + [
-            f"{AUTO} (the default): {DEFAULT_ARCH} or {PHYSICS_ARX.name}, whichever predicts the "
-            f"data's last quarter better over a planner's 24 h ({PHYSICS_ARX.name} when its error is at most "
-            "three quarters of the hybrid's), fitted on all of it"
-        ]
-    )

@@ -48,7 +48,7 @@ from tqdm import tqdm
 
 from controllers.planners import CEMPlanner, RandomShootingPlanner
 from pinn_mpc.choices import ARX, COMPARED_ARCHS, DEFAULT_ARCH, PHYSICS_ARX
-from pinn_mpc.errors import InputError, warn
+from pinn_mpc.errors import warn
 from pinn_mpc.physics import RCParams, params_from_summary, rc_summary
 from pinn_mpc.records import RcSummary
 from scenarios.choices import RANDOM_POLICIES
@@ -109,13 +109,13 @@ class CompareSettings:
     def __post_init__(self) -> None:
         check_seed(self.seed)
         if self.policy not in RANDOM_POLICIES:
-            raise InputError(
+            raise ValueError(
                 f"compare: unknown policy {self.policy!r}; choose one of {', '.join(RANDOM_POLICIES)}"
             )
         for name in ("train_days", "test_days", "n_seeds", "depth", "shooting_samples",
                      "cem_samples", "cem_iters"):
             if getattr(self, name) < 1:
-                raise InputError(f"compare: {name} must be >= 1, got {getattr(self, name)}")
+                raise ValueError(f"compare: {name} must be >= 1, got {getattr(self, name)}")
 
     @classmethod
     def for_run(

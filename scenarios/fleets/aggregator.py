@@ -30,7 +30,7 @@ from controllers.base import Controller, ControlSpec
 from controllers.coordination import Coordination, DualAscent
 from controllers.fleet import FleetPlanner, FleetQPMPC
 from controllers.thermostat import Thermostat
-from pinn_mpc.errors import InputError, InternalError
+from pinn_mpc.errors import InputError, InternalError, setting
 from pinn_mpc.physics import RCParams
 from pinn_mpc.simulator import draw_fleet
 from scenarios.fleets.fleet import FLEET_STREAM, FleetResult, fleet_info, fleet_result
@@ -71,15 +71,15 @@ def parse_cap_window(text: str) -> tuple[float, float]:
     may come before the start (a window over midnight)."""
     match = _WINDOW.match(text.strip())
     if match is None:
-        raise InputError(f"--cap-window {text!r} is not HH:MM-HH:MM (e.g. 17:00-19:00)")
+        raise InputError(f"{setting('cap_window')} {text!r} is not HH:MM-HH:MM (e.g. 17:00-19:00)")
     h0, m0, h1, m1 = (int(g) for g in match.groups())
     start, end = h0 + m0 / 60.0, h1 + m1 / 60.0
     if m0 >= 60 or m1 >= 60 or start >= 24 or end > 24:
-        raise InputError(f"--cap-window {text!r}: times must lie in 00:00..24:00 with minutes < 60")
+        raise InputError(f"{setting('cap_window')} {text!r}: times must lie in 00:00..24:00 with minutes < 60")
     if start == end:
         raise InputError(
-            f"--cap-window {text!r} is empty (it starts where it ends); leave --cap-window out "
-            "to cap all day"
+            f"{setting('cap_window')} {text!r} is empty (it starts where it ends); leave "
+            f"{setting('cap_window')} out to cap all day"
         )
     return start, end
 
@@ -100,7 +100,7 @@ def cap_series(
     ``first_row`` on (the counted intervals and the forecast lead) whose interval starts in
     ``window`` (every day; None: all day), ``inf`` elsewhere."""
     if not (math.isfinite(cap_kw) and cap_kw > 0):
-        raise InputError(f"--cap-kw must be a positive number of kW, got {cap_kw!r}")
+        raise ValueError(f"cap_kw must be a positive number of kW, got {cap_kw!r}")
     hours = np.asarray(time_of_day_h, dtype=float)
     capped = _in_window(hours, window)
     capped[:first_row] = False
@@ -143,9 +143,9 @@ def _planner_factory(planner: str | FleetPlannerFactory) -> FleetPlannerFactory:
     if not isinstance(planner, str):
         return planner
     if planner != "qp-mpc":
-        raise InputError(
+        raise ValueError(
             f"a batched fleet without models plans with qp-mpc, got {planner!r}; cem needs "
-            "each building's learned model (--model DIR)"
+            "each building's learned model (learned_fleet_planner)"
         )
     return _qp_factory
 
@@ -229,7 +229,7 @@ def run_coordinated_fleet(
     """
     check_seed(seed)
     if cap_kw is None and cap_window is not None:
-        raise InputError("--cap-window needs --cap-kw (the cap in that window)")
+        raise ValueError("cap_window needs cap_kw (the cap in that window)")
     window = parse_cap_window(cap_window) if cap_window is not None else None
     factory = _planner_factory(planner)
     if fleet is None:

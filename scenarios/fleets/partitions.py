@@ -24,7 +24,7 @@ import numpy as np
 
 from controllers.base import ControlSpec, Forecast, Observation
 from controllers.fleet import FleetDecision, FleetPlan, FleetPlanner
-from pinn_mpc.errors import InputError, InternalError
+from pinn_mpc.errors import InternalError
 from pinn_mpc.physics import RCParams
 
 __all__ = ["PartFactory", "PartitionedPlanner", "partitioned"]
@@ -70,7 +70,7 @@ class PartitionedPlanner:
         import ray
 
         if not 1 <= partitions <= len(fleet):
-            raise InputError(f"partitions must lie in 1..{len(fleet)} (the buildings), got {partitions}")
+            raise ValueError(f"partitions must lie in 1..{len(fleet)} (the buildings), got {partitions}")
         if not ray.is_initialized():
             raise InternalError("PartitionedPlanner runs on Ray: start it first (scenarios.running.ray_engine.ray_engine)")
         self._ray = ray

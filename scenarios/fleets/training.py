@@ -31,7 +31,7 @@ from typing import TYPE_CHECKING, Any
 
 import pandas as pd
 
-from pinn_mpc.errors import InputError, InternalError
+from pinn_mpc.errors import InputError, InternalError, setting
 from pinn_mpc.io import atomic_write_json, setting_changes
 from pinn_mpc.models.registry import AUTO, DEFAULT_ARCH, MODEL_CHOICES
 from pinn_mpc.physics import RCParams
@@ -61,9 +61,9 @@ TRANSFERRED = ("net.residual_net.", "net.backup_low_c", "net.backup_high_c")
 def building_frames(data: pd.DataFrame) -> dict[int, pd.DataFrame]:
     """Each building's rows of a fleet data set (a ``building`` column of whole numbers)."""
     if "building" not in data.columns:
-        raise InputError(
-            "the data has no 'building' column: --per-building takes a fleet data set "
-            "(simulate --buildings N writes one)"
+        raise ValueError(
+            "the data has no 'building' column: a fleet data set has one (`pinn-mpc simulate` "
+            "writes it for several buildings)"
         )
     frames = {}
     for _, part in data.groupby("building", sort=True):
@@ -139,17 +139,17 @@ def train_per_building(
     check_engine_options(address, workers)
     root = Path(out)
     if root.exists() and not root.is_dir():
-        raise InputError(f"--out {root} is a file; give a directory")
+        raise InputError(f"{setting('out')} {root} is a file; give a directory")
     if root.is_dir() and any(root.iterdir()) and not (root / FLEET_FILE).is_file():
         raise InputError(
-            f"--out {root} is not empty and holds no {FLEET_FILE}; give a new or empty directory "
+            f"{setting('out')} {root} is not empty and holds no {FLEET_FILE}; give a new or empty directory "
             "(or an earlier per-building run's, to resume it)"
         )
     digests = {str(b): frame_digest(frame) for b, frame in frames.items()}
     # as fleet.json will hold them (tuples as lists), to compare with a stored run's
     settings = json.loads(json.dumps({k: v for k, v in dataclasses.asdict(config).items() if k != "prior"}))
     if arch != AUTO and arch not in MODEL_CHOICES:
-        raise InputError(f"unknown architecture {arch!r}; choose one of {AUTO}, {', '.join(MODEL_CHOICES)}")
+        raise ValueError(f"unknown architecture {arch!r}; choose one of {AUTO}, {', '.join(MODEL_CHOICES)}")
     previous = _read_fleet(root)
     done = [b for b in frames if _stored(building_model_dir(root, b))]
     # A run that left no model file (it failed on every building) has nothing to agree with.
@@ -253,24 +253,24 @@ def _check_resumable(
 ) -> None:
     """Refuse to resume ``root`` on other data or settings: its models would be kept as this
     data's (each building's digest, the architecture and the training settings must match)."""
-    fix = "give a new --out directory, or the same --data and options to resume this one"
+    fix = f"give a new {setting('out')} directory, or the same {setting('data')} and options to resume this one"
     stored = previous.get("data_sha256")
     if not isinstance(stored, dict):
         raise InputError(
-            f"--out {root}: its {FLEET_FILE} records no data digests, so its models cannot be "
+            f"{setting('out')} {root}: its {FLEET_FILE} records no data digests, so its models cannot be "
             f"told to be this data's; {fix}"
         )
     other = [b for b, d in digests.items() if b in stored and stored[b] != d]
     if other:
         raise InputError(
-            f"--out {root} holds models trained on other data (building {other[0]}'s rows "
+            f"{setting('out')} {root} holds models trained on other data (building {other[0]}'s rows "
             f"differ{f', and {len(other) - 1} more' if len(other) > 1 else ''}); {fix}"
         )
     was = {"arch": previous.get("arch"), **(previous.get("config") or {})}
     now = {"arch": arch, **config}
     changed = setting_changes(was, now)
     if changed:
-        raise InputError(f"--out {root} holds models trained otherwise ({changed}); {fix}")
+        raise InputError(f"{setting('out')} {root} holds models trained otherwise ({changed}); {fix}")
 
 
 def _read_fleet(root: Path) -> dict[str, Any] | None:
@@ -286,6 +286,10 @@ def _read_fleet(root: Path) -> dict[str, Any] | None:
     return data
 
 
+#: A directory of per-building models, as a message names it.
+_MODELS = setting("model_dir", python="directory")
+
+
 def load_fleet_models(root: str | os.PathLike[str]) -> tuple[list[FittedModel], list[RCParams] | None]:
     """The per-building models of ``root`` in building order (of any family,
     :func:`pinn_mpc.fitted.load`), and the buildings' parameters when ``fleet.json`` has them."""
@@ -293,14 +297,17 @@ def load_fleet_models(root: str | os.PathLike[str]) -> tuple[list[FittedModel], 
 
     fleet = _read_fleet(Path(root))
     if fleet is None:
-        raise InputError(f"--model {root}: no {FLEET_FILE}; train with `train --per-building`")
+        raise InputError(
+            f"{_MODELS} {root}: no {FLEET_FILE}; train its buildings' models first (the "
+            "per-building training of `pinn-mpc train`)"
+        )
     models = []
     for b in fleet["buildings"]:
         path = building_model_dir(root, int(b))
         if not holds_model(path):
             raise InputError(
-                f"--model {root}: building {b} has no model (an interrupted run?); rerun "
-                "`train --per-building` with the same --out to finish it"
+                f"{_MODELS} {root}: building {b} has no model (an interrupted run?); rerun the "
+                "per-building training into it to finish it"
             )
         models.append(load(path))
     params = None
@@ -323,7 +330,7 @@ def pretrain_and_fine_tune(
     from pinn_mpc.training import train_model
 
     if fine_tune_epochs < 1:
-        raise InputError(f"fine_tune_epochs must be >= 1, got {fine_tune_epochs}")
+        raise ValueError(f"fine_tune_epochs must be >= 1, got {fine_tune_epochs}")
     start = time.perf_counter()
     pooled = _pool(frames)
     fleet_model = train_model(pooled, arch=arch, config=config, progress=False)

@@ -33,7 +33,7 @@ from typing import Any, ClassVar, Literal, cast
 import numpy as np
 import pandas as pd
 
-from pinn_mpc.errors import InputError
+from pinn_mpc.errors import InputError, setting
 from pinn_mpc.solar import FACADE_COLUMNS, interval_means
 from scenarios.choices import WEATHER_PARTS, WeatherPart
 
@@ -73,7 +73,7 @@ _SEASON_YEAR = BASE_YEAR + 1
 def weather_part(text: str) -> WeatherPart:
     """``text`` checked to name a weather part (see the module docstring)."""
     if text not in WEATHER_PARTS:
-        raise InputError(
+        raise ValueError(
             f"unknown weather part {text!r}; choose one of: {', '.join(WEATHER_PARTS)}"
         )
     return cast(WeatherPart, text)
@@ -93,8 +93,8 @@ def _days_touched(n: int, dt_s: float) -> int:
 def _too_long(part: str, need_days: int, room: str) -> InputError:
     return InputError(
         f"a run of {need_days} days (warm-up and forecast lead rows, if any, included) does not "
-        f"fit in the {part} weather, {room}; use fewer days, or (simulate, closed-loop) "
-        "--weather-part whole to draw from the whole window, training and test days mixed"
+        f"fit in the {part} weather, {room}; use fewer days, or draw from the whole window, "
+        f"training and test days mixed ({setting('weather_part')} whole)"
     )
 
 
@@ -148,7 +148,7 @@ def _bump(hour: np.ndarray, centre_h: float, width_h: float) -> np.ndarray:
 def _check_hours(owner: str, *hours: float) -> None:
     for h in hours:
         if not (0.0 <= h <= 24.0):
-            raise InputError(f"{owner}: hour {h!r} must lie in [0, 24]")
+            raise ValueError(f"{owner}: hour {h!r} must lie in [0, 24]")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -182,26 +182,26 @@ class SyntheticWeather:
     def __post_init__(self) -> None:
         for name in ("daily_amplitude_c", "slow_amplitude_c", "noise_std_c", "peak_irradiance_w_per_m2"):
             if not getattr(self, name) >= 0:
-                raise InputError(f"SyntheticWeather.{name} must be >= 0, got {getattr(self, name)!r}")
+                raise ValueError(f"SyntheticWeather.{name} must be >= 0, got {getattr(self, name)!r}")
         if not 0.0 <= self.min_clearness <= 1.0:
-            raise InputError(f"SyntheticWeather.min_clearness must lie in [0, 1], got {self.min_clearness}")
+            raise ValueError(f"SyntheticWeather.min_clearness must lie in [0, 1], got {self.min_clearness}")
         _check_hours("SyntheticWeather", self.sunrise_h, self.sunset_h, self.warmest_hour)
         if not self.sunrise_h < self.sunset_h:
-            raise InputError(
+            raise ValueError(
                 f"SyntheticWeather: sunrise_h={self.sunrise_h} must precede sunset_h={self.sunset_h}"
             )
         if min(self.slow_periods_days) <= 0:
-            raise InputError(f"SyntheticWeather.slow_periods_days must be > 0, got {self.slow_periods_days}")
+            raise ValueError(f"SyntheticWeather.slow_periods_days must be > 0, got {self.slow_periods_days}")
         starts = {}
         for name in ("start", "test_start"):
             try:
                 starts[name] = pd.Timestamp(getattr(self, name))
             except ValueError as exc:
-                raise InputError(
+                raise ValueError(
                     f"SyntheticWeather.{name} {getattr(self, name)!r} is not a date (YYYY-MM-DD)"
                 ) from exc
         if not starts["start"] + pd.Timedelta(days=1) <= starts["test_start"]:
-            raise InputError(
+            raise ValueError(
                 f"SyntheticWeather.test_start {self.test_start} must lie at least a day after "
                 f"start {self.start}"
             )
@@ -424,7 +424,7 @@ def _day_of_year(owner: str, month_day: str) -> int:
     try:
         return (pd.Timestamp(f"{BASE_YEAR}-{month_day}") - _FIRST_DAY).days
     except ValueError as exc:
-        raise InputError(f"{owner} {month_day!r} is not MM-DD") from exc
+        raise ValueError(f"{owner} {month_day!r} is not MM-DD") from exc
 
 
 def _month_day(day: int) -> str:
@@ -465,10 +465,10 @@ class TMY3Weather:
 
     def __post_init__(self) -> None:
         if not 1 <= self.window_days <= _DAYS_PER_TYPICAL_YEAR:
-            raise InputError(f"TMY3Weather.window_days must lie in [1, 365], got {self.window_days}")
+            raise ValueError(f"TMY3Weather.window_days must lie in [1, 365], got {self.window_days}")
         core = self.training_core_days  # also checks both dates
         if not (1 <= core and self.test_days >= 1 and core + self.test_days <= self.window_days):
-            raise InputError(
+            raise ValueError(
                 f"TMY3Weather: the test part ({self.test_days} days from {self.test_start}) must "
                 f"lie inside the window ({self.window_days} days from {self.window_start}) with "
                 "at least one training day before it"
@@ -593,13 +593,13 @@ class PriceProfile:
 
     def __post_init__(self) -> None:
         if self.kind not in ("constant", "day_night", "dynamic"):
-            raise InputError(
+            raise ValueError(
                 f"PriceProfile.kind {self.kind!r} is unknown; use constant, day_night or dynamic"
             )
         for name in ("level_eur_per_kwh", "night_eur_per_kwh", "peak_eur_per_kwh",
                      "noise_std_eur_per_kwh", "floor_eur_per_kwh"):
             if not getattr(self, name) >= 0:
-                raise InputError(f"PriceProfile.{name} must be >= 0, got {getattr(self, name)!r}")
+                raise ValueError(f"PriceProfile.{name} must be >= 0, got {getattr(self, name)!r}")
         _check_hours("PriceProfile", self.day_start_h, self.day_end_h)
 
     def sample(self, times: pd.DatetimeIndex, *, dt_s: float, rng: np.random.Generator) -> np.ndarray:
@@ -638,7 +638,7 @@ class ComfortSchedule:
         for band in ("day", "night"):
             low, high = getattr(self, f"{band}_min_c"), getattr(self, f"{band}_max_c")
             if not low < high:
-                raise InputError(
+                raise ValueError(
                     f"ComfortSchedule.{band}_min_c ({low}) must be below {band}_max_c ({high}): "
                     "the comfort band needs min < max"
                 )
@@ -668,15 +668,15 @@ class GainsSchedule:
     def __post_init__(self) -> None:
         for name in ("base_w", "scheduled_w", "event_w"):
             if not getattr(self, name) >= 0:
-                raise InputError(f"GainsSchedule.{name} must be >= 0, got {getattr(self, name)!r}")
+                raise ValueError(f"GainsSchedule.{name} must be >= 0, got {getattr(self, name)!r}")
         if not 0.0 <= self.event_probability <= 1.0:
-            raise InputError(
+            raise ValueError(
                 f"GainsSchedule.event_probability must lie in [0, 1], got {self.event_probability}"
             )
         for start, end in self.periods_h:
             _check_hours("GainsSchedule.periods_h", start)
             if not start < end <= start + 24.0:
-                raise InputError(f"GainsSchedule period ({start}, {end}) must have start < end")
+                raise ValueError(f"GainsSchedule period ({start}, {end}) must have start < end")
 
     @property
     def active(self) -> bool:

@@ -146,7 +146,7 @@ class CSVWeather:
 
     def __post_init__(self) -> None:
         if isinstance(self.test_days, bool) or not isinstance(self.test_days, int) or self.test_days < 1:
-            raise InputError(f"CSVWeather.test_days must be a whole number >= 1, got {self.test_days!r}")
+            raise ValueError(f"CSVWeather.test_days must be a whole number >= 1, got {self.test_days!r}")
         _check_max_gap("CSVWeather", self.max_gap_h)
 
     def frame(self) -> pd.DataFrame:
@@ -250,4 +250,4 @@ class PriceCSV:
 
 def _check_max_gap(owner: str, value: float) -> None:
     if isinstance(value, bool) or not (isinstance(value, int | float) and 0 < value <= 24 * 366):
-        raise InputError(f"{owner}.max_gap_h must be a number of hours in (0, 8784], got {value!r}")
+        raise ValueError(f"{owner}.max_gap_h must be a number of hours in (0, 8784], got {value!r}")

@@ -202,9 +202,9 @@ class Scenario:
         ``attrs['dt_s']`` is the control interval.
         """
         if days < 1:
-            raise InputError(f"scenario {self.name!r}: days must be >= 1, got {days}")
+            raise ValueError(f"scenario {self.name!r}: days must be >= 1, got {days}")
         if lead_steps < 0:
-            raise InputError(f"scenario {self.name!r}: lead_steps must be >= 0, got {lead_steps}")
+            raise ValueError(f"scenario {self.name!r}: lead_steps must be >= 0, got {lead_steps}")
         check_seed(seed)
         chosen = weather_part(part)
         extra = (_TEST_PART_STREAM,) if chosen == "test" else ()
@@ -219,7 +219,7 @@ class Scenario:
                 n=n, dt_s=dt_s, run_days=days, part=chosen, rng=rng(_WEATHER_STREAM)
             )
         except InputError as exc:
-            raise InputError(f"scenario {self.name!r}: {exc}") from None
+            raise InputError(f"scenario {self.name!r}: {exc.marked}") from None
         price = self.price.sample(times, dt_s=dt_s, rng=rng(_PRICE_STREAM))
         i_g = self.gains.sample(times, rng=rng(_GAINS_STREAM))
         plant = self.plant
@@ -267,7 +267,7 @@ class Scenario:
 def check_seed(seed: int) -> None:
     """Seeds feed ``np.random.default_rng``, which needs a non-negative integer."""
     if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
-        raise InputError(f"seed must be a non-negative whole number, got {seed!r}")
+        raise ValueError(f"seed must be a non-negative whole number, got {seed!r}")
 
 
 #: Cold room of about 50 m2: well insulated (UA 80 W/K), racks and air in C_r, about 14 t of
@@ -562,5 +562,5 @@ def builtin_scenario(name: str) -> Scenario:
     """The built-in scenario ``name`` (one of :func:`scenario_names`; a name or a file:
     :func:`scenarios.inputs.scenario_file.get_scenario`)."""
     if name not in _SCENARIOS:
-        raise InputError(f"unknown built-in scenario {name!r}; choose one of: {', '.join(scenario_names())}")
+        raise ValueError(f"unknown built-in scenario {name!r}; choose one of: {', '.join(scenario_names())}")
     return _SCENARIOS[name]

@@ -17,7 +17,8 @@ Layout (:data:`SECTIONS` maps a dataclass field to its place in the file)::
 
 Reading: every key is checked against the dataclass field it fills (unknown, missing, wrong
 type) and the dataclass validates the values (plausible R/C ranges, T_min < T_max, ...); an
-error is one InputError naming the file and the key as a dotted path (``building.r_ra_k_per_w``).
+error is one InputError naming the file and the key as a dotted path (``building.r_ra_k_per_w``),
+the ValueError a dataclass raises for a Python caller included.
 Relative paths (``building.rc``, and each class's ``PATH_FIELDS`` such as ``weather.path``) are
 relative to the TOML file; a bare weather file name not found there is one of pvlib's TMY3 files.
 
@@ -41,7 +42,7 @@ from typing import Any, Literal
 
 import tomlkit
 
-from pinn_mpc.errors import InputError, InternalError
+from pinn_mpc.errors import InputError
 from pinn_mpc.physics import PLAUSIBLE_RANGES
 from scenarios.inputs.registry import (
     Scenario,
@@ -60,7 +61,6 @@ __all__ = [
     "get_scenario",
     "load_scenario_file",
     "read_toml",
-    "scenario_command",
     "scenario_inputs",
     "scenario_from_dict",
     "scenario_list",
@@ -345,7 +345,7 @@ def _build(cls: type, table: dict[str, Any], where: str, base: Path) -> Any:
     section = _file_key(where)
     try:
         obj = cls(**kwargs)
-    except InputError as exc:  # the class names itself: say where in the file instead
+    except ValueError as exc:  # a value the class refuses; it names itself: say where in the file instead
         message = str(exc)
         for name in sorted(known, key=len, reverse=True):  # a name may prefix another
             message = message.replace(f"{cls.__name__}.{name}", _file_key(_join(where, name)))
@@ -356,7 +356,7 @@ def _build(cls: type, table: dict[str, Any], where: str, base: Path) -> Any:
         try:
             obj.check()
         except InputError as exc:
-            raise InputError(f"{key}: {exc}") from None
+            raise InputError(f"{key}: {exc.marked}") from None
     return obj
 
 
@@ -410,7 +410,7 @@ def scenario_from_dict(data: dict[str, Any], *, base: Path, default_name: str) -
         try:
             params = read_rc(base / building["rc"])
         except InputError as exc:
-            raise InputError(f"building.rc: {exc}") from None
+            raise InputError(f"building.rc: {exc.marked}") from None
         data["building"] = params.to_dict()
     for section, content in data.items():
         if section in {p.split(".")[0] for p in SECTIONS.values()} and not isinstance(content, dict):
@@ -467,7 +467,7 @@ def load_scenario_file(path: str | os.PathLike[str]) -> Scenario:
     try:
         scenario = scenario_from_dict(data, base=source.parent, default_name=source.stem)
     except InputError as exc:
-        raise InputError(f"{source}: {exc}") from None
+        raise InputError(f"{source}: {exc.marked}") from None
     _warn_implausible(scenario, source)
     return scenario
 
@@ -574,77 +574,6 @@ def scenario_list() -> str:
     )
 
 
-def scenario_command(
-    action: str, *, name: str | None, out: str | None, force: bool = False
-) -> str:
-    """``pinn-mpc scenario list | show NAME | export NAME --out FILE.toml [--force]``: an
-    existing ``--out`` is replaced only with ``force``, and never when the scenario reads it."""
-    from pinn_mpc.io import atomic_write_text, check_distinct, check_writable
-
-    if action == "list":
-        return scenario_list()
-    if name is None:
-        raise InternalError(f"scenario {action} needs a scenario name or file")
-    from scenarios.plants.boptest import boptest_file
-
-    boptest = boptest_file(name)
-    if boptest is not None:  # a BOPTEST scenario is its file: the test case is the server's
-        return _boptest_command(action, name, boptest, out=out, force=force)
-    if action == "show":
-        text = scenario_to_toml(get_scenario(name)).rstrip("\n")
-        if not is_scenario_file(name):
-            return text
-        defaults = defaulted_keys(name)
-        note = (
-            f"# Not in {name}, so at their defaults (as shown above): {', '.join(defaults)}"
-            if defaults
-            else f"# {name} gives every key."
-        )
-        return f"{text}\n\n{note}"
-    if action != "export" or out is None:
-        raise InternalError(f"unknown scenario action {action!r}; use list, show or export")
-    if not out.lower().endswith(".toml"):
-        raise InputError(
-            f"--out {out}: scenario files end in .toml (that is how --scenario tells a file from "
-            f"a built-in name); write --out {out}.toml"
-        )
-    check_writable(out)
-    inputs = {f"NAME {name}'s {k}" if k else "NAME": p for k, p in scenario_inputs(name).items()}
-    check_distinct(inputs=inputs, outputs={"--out": out})
-    if Path(out).exists() and not force:
-        raise InputError(
-            f"--out {out} already exists (perhaps edited); choose another name, or add --force "
-            "to replace it"
-        )
-    text = scenario_to_toml(get_scenario(name))
-    atomic_write_text(out, text)
-    return f"wrote {out}"
-
-
-def _boptest_command(action: str, name: str, source: Path, *, out: str | None, force: bool) -> str:
-    """``scenario show`` (the file, checked) or ``export`` (a copy) of a BOPTEST scenario."""
-    from pinn_mpc.io import atomic_write_text, check_distinct, check_writable
-    from scenarios.plants.boptest import read_boptest_file
-
-    read_boptest_file(str(source))  # a bad file is one clear error, as for any scenario
-    text = source.read_text(encoding="utf-8")
-    if action == "show":
-        return text.rstrip("\n")
-    if action != "export" or out is None:
-        raise InternalError(f"unknown scenario action {action!r}; use list, show or export")
-    if not out.lower().endswith(".toml"):
-        raise InputError(f"--out {out}: scenario files end in .toml; write --out {out}.toml")
-    check_writable(out)
-    check_distinct(inputs={"NAME": source}, outputs={"--out": out})
-    if Path(out).exists() and not force:
-        raise InputError(
-            f"--out {out} already exists (perhaps edited); choose another name, or add --force "
-            "to replace it"
-        )
-    atomic_write_text(out, text)
-    return f"wrote {out} ({name}: a BOPTEST scenario, its [boptest] table)"
-
-
 def get_scenario(name_or_path: str) -> Scenario:
     """A built-in scenario by name, or a scenario file: the one resolver behind every
     ``--scenario``.
@@ -684,5 +613,5 @@ def get_scenario(name_or_path: str) -> Scenario:
         )
     raise InputError(
         f"unknown scenario {name_or_path!r}; choose one of: {', '.join(builtin_names())}, or give "
-        "a scenario file (.toml; write one with `pinn-mpc scenario export NAME --out FILE.toml`)"
+        "a scenario file (.toml; `pinn-mpc scenario export` writes one)"
     )

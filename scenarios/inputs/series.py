@@ -13,7 +13,7 @@ import pandas as pd
 
 from controllers.base import Forecast
 from pinn_mpc.data import SITE_COLUMNS, day_of_week
-from pinn_mpc.errors import InputError, InternalError
+from pinn_mpc.errors import InternalError
 from pinn_mpc.solar import FACADE_COLUMNS
 from scenarios.inputs.exogenous import time_of_day_h
 
@@ -54,12 +54,12 @@ class ForecastErrors:
         for name in ("t_a_error_std_c", "g_error_rel_std", "wind_error_rel_std"):
             value = getattr(self, name)
             if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0):
-                raise InputError(f"ForecastErrors.{name} must be a number >= 0, got {value!r}")
+                raise ValueError(f"ForecastErrors.{name} must be a number >= 0, got {value!r}")
         h = self.error_correlation_h
         if not (isinstance(h, int | float) and math.isfinite(h) and h > 0):
-            raise InputError(f"ForecastErrors.error_correlation_h must be > 0 hours, got {h!r}")
+            raise ValueError(f"ForecastErrors.error_correlation_h must be > 0 hours, got {h!r}")
         if not isinstance(self.gains_known, bool):
-            raise InputError(f"ForecastErrors.gains_known must be true or false, got {self.gains_known!r}")
+            raise ValueError(f"ForecastErrors.gains_known must be true or false, got {self.gains_known!r}")
 
     @property
     def perfect(self) -> bool:
@@ -145,7 +145,7 @@ class ExogenousSeries:
         it), and the facades' irradiance, the wind and ``holiday`` when the frame has them."""
         missing = [c for c in ("time", *EXOGENOUS_FIELDS) if c not in frame.columns]
         if missing:
-            raise InputError(
+            raise ValueError(
                 f"exogenous frame lacks column(s) {missing}; have {list(frame.columns)}"
             )
         cols = {

@@ -43,7 +43,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from pinn_mpc.errors import InputError
+from pinn_mpc.errors import InputError, InternalError, setting
 from pinn_mpc.simulator import StepResult
 from scenarios.plants.base import PlantStep
 from scenarios.plants.boptest_client import BoptestClient, BoptestError, BoptestTest, end_on_exit
@@ -160,7 +160,7 @@ class SignalScaling:
     def to_signal(self, u_w: float) -> float:
         """The signal for a demand of ``u_w`` watts (see the class docstring)."""
         if not math.isfinite(u_w):
-            raise InputError(f"SignalScaling.to_signal: the demand must be finite, got {u_w!r}")
+            raise ValueError(f"SignalScaling.to_signal: the demand must be finite, got {u_w!r}")
         if u_w < self.min_power_w:
             return self.signal[0] if u_w >= 0.5 * self.min_power_w else 0.0
         return float(np.interp(u_w, self.power_w, self.signal))
@@ -247,7 +247,7 @@ class BoptestPoints:
             return float(start)
         raise InputError(
             f"no {days:g} days of training data fit beside test period {time_period} off every "
-            "test period; give fewer days or the data's first day (--first-day)"
+            f"test period; give fewer days or the data's first day ({setting('first_day')})"
         )
 
     def check_disjoint(self, first_day: float, days: float) -> None:
@@ -279,20 +279,20 @@ class BoptestRun:
 
     def __post_init__(self) -> None:
         if (self.time_period is None) == (self.first_day is None):
-            raise InputError("BoptestRun: give a test period (time_period) or first_day, not both")
+            raise ValueError("BoptestRun: give a test period (time_period) or first_day, not both")
         if self.price_scenario not in PRICE_SCENARIOS:
-            raise InputError(
+            raise ValueError(
                 f"price scenario {self.price_scenario!r} is not BOPTEST's; choose one of "
                 f"{', '.join(PRICE_SCENARIOS)}"
             )
         dt = _number(self.dt_s, "BoptestRun.dt_s")
         if not (RESULT_SAMPLE_S <= dt <= SECONDS_PER_DAY and SECONDS_PER_DAY % dt == 0):
-            raise InputError(f"BoptestRun.dt_s = {dt:g} s must divide a day and be >= 30 s")
+            raise ValueError(f"BoptestRun.dt_s = {dt:g} s must divide a day and be >= 30 s")
         days = _number(self.days, "the run's days")
         if days <= 0:
-            raise InputError(f"a BOPTEST run of {days:g} days: give a number of days > 0")
+            raise ValueError(f"a BOPTEST run of {days:g} days: give a number of days > 0")
         if self.time_period is not None and days > TEST_PERIOD_DAYS:
-            raise InputError(
+            raise ValueError(
                 f"a BOPTEST test period has {TEST_PERIOD_DAYS:g} days, {days:g} were asked for "
                 f"{self.time_period}; give at most {TEST_PERIOD_DAYS:g} (its whole period)"
             )
@@ -302,7 +302,7 @@ class BoptestRun:
                 f"end (day {DAYS_PER_YEAR:g}); give an earlier first day or fewer days"
             )
         if _number(self.warmup_days, "BoptestRun.warmup_days") < 0:
-            raise InputError(f"BoptestRun.warmup_days must be >= 0, got {self.warmup_days!r}")
+            raise ValueError(f"BoptestRun.warmup_days must be >= 0, got {self.warmup_days!r}")
 
     @property
     def n_intervals(self) -> int:
@@ -372,7 +372,7 @@ class BoptestPlant:
         self.settings, self.run, self.points = settings, run, settings.points
         self.baseline = baseline
         if lead_intervals < 0:
-            raise InputError(f"BoptestPlant: lead_intervals must be >= 0, got {lead_intervals}")
+            raise ValueError(f"BoptestPlant: lead_intervals must be >= 0, got {lead_intervals}")
         self.lead_intervals = int(lead_intervals)
         if run.first_day is not None:
             self.points.check_disjoint(run.first_day, run.days)
@@ -381,7 +381,7 @@ class BoptestPlant:
         self.n_substeps = max(1, int(round(run.dt_s / RESULT_SAMPLE_S)))
         self.borrowed = test is not None
         if test is not None and test.testcase != self.points.testcase:
-            raise InputError(
+            raise ValueError(
                 f"BoptestPlant: the test given is of test case {test.testcase}, the scenario's "
                 f"is {self.points.testcase}"
             )
@@ -461,7 +461,7 @@ class BoptestPlant:
         """Start the run at row ``start`` (0: BOPTEST's start; the state is BOPTEST's warm-up's,
         ``t_r_c``, ``t_m_c`` and ``seed`` do not apply)."""
         if start != 0:
-            raise InputError(
+            raise ValueError(
                 f"a BOPTEST run starts at its period's start (row 0), not row {start}"
             )
         if self._row != 0 or self._log:
@@ -474,12 +474,12 @@ class BoptestPlant:
     def step(self, u_w: float | np.ndarray, row: int) -> PlantStep:
         """Hold the demand ``u_w`` [W] over row ``row``'s interval (the next of the run)."""
         if row != self._row:
-            raise InputError(f"BoptestPlant.step: the run is at row {self._row}, not {row}")
+            raise InternalError(f"BoptestPlant.step: the run is at row {self._row}, not {row}")
         if row >= self.run.n_intervals:
-            raise InputError(f"BoptestPlant.step: the run has {self.run.n_intervals} intervals")
+            raise InternalError(f"BoptestPlant.step: the run has {self.run.n_intervals} intervals")
         u = np.asarray(u_w, dtype=float).reshape(-1)
         if u.size != 1 or not math.isfinite(float(u[0])):
-            raise InputError(f"BoptestPlant.step: one finite power, got {u_w!r}")
+            raise ValueError(f"BoptestPlant.step: one finite power, got {u_w!r}")
         if self.baseline:
             return self._advance({}, float(u[0]), math.nan)
         signal = self.points.scaling.to_signal(float(u[0]))
@@ -489,7 +489,7 @@ class BoptestPlant:
         """Advance row ``row``'s interval with no input overwritten: the test case's own
         controller acts (BOPTEST's baseline)."""
         if row != self._row:
-            raise InputError(f"BoptestPlant.step_baseline: the run is at row {self._row}, not {row}")
+            raise InternalError(f"BoptestPlant.step_baseline: the run is at row {self._row}, not {row}")
         return self._advance({}, math.nan, math.nan)
 
     def _advance(self, inputs: dict[str, float], u_w: float, signal: float) -> PlantStep:
@@ -497,7 +497,7 @@ class BoptestPlant:
         t0 = self._state["time"]
         payload = self.test.advance(inputs)
         if not payload:
-            raise InputError(
+            raise InternalError(
                 f"BOPTEST's test period ended at {t0 / SECONDS_PER_DAY:g} d of the year: the run "
                 "asks for more intervals than the period has"
             )
@@ -729,7 +729,7 @@ def boptest_description(settings: BoptestSettings) -> str:
 def builtin_boptest(name: str) -> BoptestSettings:
     """The settings of a built-in BOPTEST scenario by name (:data:`BUILTIN_BOPTEST`)."""
     if name not in BUILTIN_BOPTEST:
-        raise InputError(
+        raise ValueError(
             f"no built-in BOPTEST scenario {name!r}; built-in: {', '.join(BUILTIN_BOPTEST)}"
         )
     return read_boptest_file(str(BUILTIN_BOPTEST[name]))
@@ -753,7 +753,7 @@ def record_data(
     order (``range``, or a progress reporter's). The test is stopped on the server whatever
     happens."""
     if run.first_day is None:
-        raise InputError(
+        raise ValueError(
             "training data runs on days of its own (BoptestRun.first_day), never on a test period"
         )
     with BoptestPlant(settings, run) as plant:

@@ -144,7 +144,7 @@ class BoptestClient:
 
     def __init__(self, url: str | None = None, *, timeout_s: float = CALL_TIMEOUT_S) -> None:
         if not (math.isfinite(timeout_s) and timeout_s > 0):
-            raise InputError(f"BoptestClient: timeout_s must be > 0 seconds, got {timeout_s!r}")
+            raise ValueError(f"BoptestClient: timeout_s must be > 0 seconds, got {timeout_s!r}")
         self.url = server_url(url)
         self.timeout_s = float(timeout_s)
         self.session = requests.Session()

@@ -48,7 +48,7 @@ class PlantSettings:
     def __post_init__(self) -> None:
         expected = self.plug.settings_type
         if type(self.settings) is not expected:
-            raise InputError(
+            raise ValueError(
                 f"PlantSettings: kind {self.kind!r} takes {expected.__name__}, got "
                 f"{type(self.settings).__name__}"
             )

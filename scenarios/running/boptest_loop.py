@@ -34,7 +34,7 @@ from controllers.base import Controller
 from controllers.thermostat import Thermostat
 from controllers.trust import TrustSettings
 from pinn_mpc.choices import ARX, AUTO, COMPARED_ARCHS, MODEL_CHOICES, PHYSICS_ARX
-from pinn_mpc.errors import InputError
+from pinn_mpc.errors import InputError, setting
 from pinn_mpc.physics import RCParams
 from pinn_mpc.records import ReplayMarginReport, TrustReport
 from scenarios.choices import MODEL_CONTROLLERS, POLICIES
@@ -225,7 +225,10 @@ def boptest_controller(
     the time constants are not compared (the test case has no RC parameters)."""
     if name == BASELINE:
         if model_dir is not None or rc_path is not None:
-            raise InputError(f"{BASELINE} is the test case's own controller: it takes no --model or --rc")
+            raise InputError(
+                f"{BASELINE} is the test case's own controller: it takes no "
+                f"{setting('model_dir')} or {setting('rc_path')}"
+            )
         return None
     from scenarios.running.factory import build_controller, make_controller
 
@@ -272,7 +275,7 @@ def run_boptest_closed_loop(
     one a minute on stderr (:func:`scenarios.running.closed_loop.progress_stage`).
     """
     if run.time_period is None:
-        raise InputError("a closed loop on BOPTEST runs a test period (--test-period)")
+        raise ValueError("a closed loop on BOPTEST runs a test period (run.time_period)")
     baseline = controller is None
     scenario = chosen.scenario(run.dt_s)
     spec = scenario.control_spec()
@@ -353,7 +356,7 @@ def boptest_data(
     The server is asked first (:meth:`BoptestScenario.check_server`). With ``progress``, a
     line as the recording starts and one a minute on stderr."""
     if policy not in POLICIES:
-        raise InputError(f"unknown policy {policy!r}; choose one of: {', '.join(POLICIES)}")
+        raise ValueError(f"unknown policy {policy!r}; choose one of: {', '.join(POLICIES)}")
     check_seed(seed)
     run = BoptestRun(time_period=None, first_day=first_day, days=float(days),
                      price_scenario=price_scenario, dt_s=dt_s)
@@ -424,7 +427,7 @@ def boptest_fit(
     if kind == RC_FIT:
         return identify_rc(data, eta=1.0).params, RC_FIT
     if kind not in (AUTO, *MODEL_CHOICES):
-        raise InputError(f"unknown model {kind!r}; choose {RC_FIT}, {AUTO} or one of {', '.join(MODEL_CHOICES)}")
+        raise ValueError(f"unknown model {kind!r}; choose {RC_FIT}, {AUTO} or one of {', '.join(MODEL_CHOICES)}")
     choice = fit(data, arch=kind, config=config, progress=progress)
     return choice.model, choice.chosen
 
@@ -506,7 +509,7 @@ def run_boptest_comparison(
     wall: dict[str, float] = {}
     start = time.perf_counter()
     if run.time_period is None:
-        raise InputError("a comparison on BOPTEST runs a test period (--test-period)")
+        raise ValueError("a comparison on BOPTEST runs a test period (run.time_period)")
     first_day = chosen.settings.points.data_first_day(run.time_period, float(train_days))
     data = boptest_data(
         chosen, days=train_days, seed=seed, policy=policy, dt_s=run.dt_s, first_day=first_day,

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import os
 
-from pinn_mpc.errors import InputError
+from pinn_mpc.errors import InputError, setting
 from scenarios.choices import MODEL_CONTROLLERS, RC_CONTROLLERS, TRUTH_CONTROLLERS
 from scenarios.inputs.registry import Scenario
 
@@ -111,7 +111,8 @@ def check_simulate_memory(
         else "use fewer days"
     )
     _check(
-        f"simulate --buildings {buildings} --days {days} ({rows_per_building * buildings:,} "
+        f"simulate {setting('buildings')} {buildings} {setting('days')} {days} "
+        f"({rows_per_building * buildings:,} "
         f"rows of {BYTES_PER_SIMULATED_ROW} B)",
         need,
         way_out,
@@ -135,7 +136,7 @@ def check_fleet_memory(
     per_building += BYTES_PER_FLEET_STEP * (days + 1) * scenario.steps_per_day
     fit = int(MEMORY_SHARE * available / per_building)
     _check(
-        f"closed-loop --controller {controller} --buildings {buildings} (about "
+        f"closed-loop {setting('controller')} {controller} {setting('buildings')} {buildings} (about "
         f"{per_building / 1e6:.1f} MB per building)",
         per_building * buildings,
         f"use at most {fit} buildings, or split the fleet into several runs",
@@ -174,9 +175,10 @@ def check_fleet_size(controller: str, *, buildings: int, days: int, large: bool)
     if buildings > LARGE_FLEET_BUILDINGS and not large:
         seconds = SECONDS_PER_BUILDING_DAY.get(controller, 1.0) * buildings * (days + 1)
         raise InputError(
-            f"--buildings {buildings} builds and runs {buildings:,} {controller} controllers, "
+            f"{setting('buildings')} {buildings} builds and runs {buildings:,} {controller} controllers, "
             f"more than {LARGE_FLEET_BUILDINGS}: roughly {_duration(seconds)} of work for "
-            f"{days} day(s) and the warm-up day; add --large to confirm, or use fewer buildings"
+            f"{days} day(s) and the warm-up day; add {setting('large')} to confirm, or use fewer "
+            "buildings"
         )
 
 
@@ -192,5 +194,5 @@ def check_grid_size(cells: int, *, large: bool, what: str) -> None:
     if cells > LARGE_GRID_CELLS and not large:
         raise InputError(
             f"sweep: the grid has {cells:,} cells ({what}), more than {LARGE_GRID_CELLS}; add "
-            "--large to confirm, or give fewer seeds, scenarios or controllers"
+            f"{setting('large')} to confirm, or give fewer seeds, scenarios or controllers"
         )

@@ -105,19 +105,19 @@ def prepare_run(
 ) -> RunInputs:
     """The inputs of a run of ``days`` counted days after ``warmup_steps`` (default one day)."""
     if days < 1:
-        raise InputError(f"closed loop: days must be >= 1, got {days}")
+        raise ValueError(f"closed loop: days must be >= 1, got {days}")
     check_seed(seed)
     spd = scenario.steps_per_day
     warmup = spd if warmup_steps is None else warmup_steps
     if warmup < 0:
-        raise InputError(f"closed loop: warmup_steps must be >= 0, got {warmup}")
+        raise ValueError(f"closed loop: warmup_steps must be >= 0, got {warmup}")
     total = warmup + days * spd
     horizon = scenario.horizon_steps
     exo = scenario.exogenous(
         days=days + math.ceil(warmup / spd), seed=seed, part=weather_part, lead_steps=horizon
     )
     if len(exo) < total + horizon:
-        raise InputError(
+        raise InternalError(
             f"scenario {scenario.name!r} gave {len(exo)} exogenous rows, need {total + horizon}"
         )
     exo = exo.iloc[: total + horizon].reset_index(drop=True)

@@ -50,7 +50,7 @@ from controllers.base import ControlSpec
 from controllers.thermostat import Thermostat
 from pinn_mpc.actuator import ActuatorSpec
 from pinn_mpc.data import SITE_COLUMNS
-from pinn_mpc.errors import InputError, InternalError
+from pinn_mpc.errors import InputError, InternalError, setting
 from pinn_mpc.physics import RCParams
 from scenarios.choices import POLICIES
 from scenarios.inputs.registry import Scenario, check_seed
@@ -156,17 +156,18 @@ def generate(
     if fleet is not None and len(fleet) != n_buildings:
         raise InternalError(f"generate: {len(fleet)} fleet parameters for n_buildings={n_buildings}")
     if policy not in POLICIES:
-        raise InputError(f"unknown policy {policy!r}; choose one of: {', '.join(POLICIES)}")
+        raise ValueError(f"unknown policy {policy!r}; choose one of: {', '.join(POLICIES)}")
     if not 0.0 <= on_probability <= 1.0:
-        raise InputError(f"on_probability must lie in [0, 1], got {on_probability!r}")
+        raise ValueError(f"on_probability must lie in [0, 1], got {on_probability!r}")
     if n_buildings < 1:
-        raise InputError(f"n_buildings must be >= 1, got {n_buildings}")
+        raise ValueError(f"n_buildings must be >= 1, got {n_buildings}")
     check_seed(seed)
     if fleet is not None and not scenario.plant.fleets:
         raise InputError("a fleet with its own parameters runs on the RC simulator, not EnergyPlus")
     if n_buildings > 1 and not scenario.plant.fleets:
         raise InputError(
-            f"an EnergyPlus building is one building; --buildings {n_buildings} needs an RC scenario"
+            f"an EnergyPlus building is one building; {setting('n_buildings')} {n_buildings} needs an "
+            "RC scenario"
         )
     exo = scenario.exogenous(days=days, seed=seed, part=weather_part)
     cols = {c: exo[c].to_numpy(dtype=float) for c in ("price", "T_min", "T_max")}

@@ -46,7 +46,7 @@ import numpy as np
 
 from controllers.base import Controller, ControlSpec, Forecast, Observation, fallback_power
 from pinn_mpc.data import SITE_COLUMNS
-from pinn_mpc.errors import InputError, InternalError
+from pinn_mpc.errors import InternalError
 from pinn_mpc.physics import RCParams
 from pinn_mpc.simulator import SimConfig, StepResult
 from pinn_mpc.solar import FACADE_COLUMNS
@@ -174,7 +174,7 @@ class ClosedLoop:
     ) -> None:
         inputs = exogenous.forecast(0)._replace(day_of_week=None)  # NaN without dates
         if not np.all(np.isfinite(np.column_stack([a for a in inputs if a is not None]))):
-            raise InputError("exogenous series has non-finite values")
+            raise ValueError("exogenous series has non-finite values")
         seen_gains_w = exogenous.I_g
         if not forecast_errors.gains_known:
             if expected_gains_w is None or len(expected_gains_w) != len(exogenous):
@@ -191,7 +191,7 @@ class ClosedLoop:
         if plant_settings is None:  # the RC simulator of config.plant
             plant_settings = rc_plant_settings(config.plant)
         elif plant_settings.rc != config.plant:
-            raise InputError(
+            raise ValueError(
                 f"ClosedLoop: config.plant {config.plant} is not the simulator's structure of "
                 f"plant_settings (kind {plant_settings.kind!r}); give a scenario's sim with its plant"
             )
@@ -389,7 +389,7 @@ class ClosedLoop:
             )
         perfect = _perfect_knowledge(controller)
         if perfect and not self.plant.has_true_state:
-            raise InputError(_NO_TRUE_STATE)
+            raise ValueError(_NO_TRUE_STATE)
         obs = self.observation(perfect=perfect)
         forecast = self.forecast(perfect=perfect)
         u, time_s, fallback, error = decide(controller, obs, forecast, self.spec)

@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING, Any
 from controllers.base import Controller
 from pinn_mpc.artifacts import read_rc_json
 from pinn_mpc.data import KW_SUSPECT_W
-from pinn_mpc.errors import InputError, warn
+from pinn_mpc.errors import InputError, setting, warn
 from pinn_mpc.models.rollout import BatchDynamics
 from pinn_mpc.physics import RCParams, params_from_summary, time_constants_h
 from scenarios.choices import (
@@ -303,9 +303,9 @@ def build_controller(
         return Thermostat(spec)
     if name in MODEL_CONTROLLERS:
         if model is None:
-            raise InputError(
-                f"controller {name!r} plans over a trained model: add --model MODEL_DIR "
-                "(make one with `pinn-mpc train --data data.csv --out MODEL_DIR`)"
+            raise ValueError(
+                f"controller {name!r} plans over a trained model: give model (one of "
+                "pinn_mpc.fit, or the directory of `pinn-mpc train` to make_controller's model_dir)"
             )
         from controllers.sampling import CEM, RandomShooting
 
@@ -322,10 +322,10 @@ def build_controller(
         return arx_mpc
     if name in RC_CONTROLLERS:
         if rc_params is None:
-            also = " or --model ARX_DIR (`pinn-mpc train --arch arx`)" if name == "qp-mpc" else ""
+            also = f" or {setting('model_dir')} ARX_DIR (an ARX of `pinn-mpc train`)" if name == "qp-mpc" else ""
             raise InputError(
-                f"controller {name!r} needs RC parameters: add --rc rc.json{also} "
-                "(write one with `pinn-mpc identify --data data.csv --out rc.json`)"
+                f"controller {name!r} needs RC parameters: add {setting('rc_path')} rc.json{also} "
+                "(`pinn-mpc identify` writes one from data)"
             )
         if name == "casadi-mpc":
             from controllers.rc_mpc.casadi import CasadiMPC
@@ -347,14 +347,15 @@ def build_controller(
 
 def _not_linear() -> InputError:
     return InputError(
-        "qp-mpc plans on a linear model: an ARX model directory (`pinn-mpc train --arch "
-        "arx` or parx) or RC parameters (--rc); this --model is a learned network: plan "
-        "over it with cem or random-shooting, or write its RC with `pinn-mpc export-rc`"
+        "qp-mpc plans on a linear model: an ARX model directory (of `pinn-mpc train`, "
+        f"{setting('arch')} arx or parx) or RC parameters ({setting('rc_path')}); this {setting('model_dir')} is a learned "
+        "network: plan over it with cem or random-shooting, or write its RC with "
+        "`pinn-mpc export-rc`"
     )
 
 
 def _both() -> InputError:
-    return InputError("qp-mpc plans on either RC parameters (--rc) or an ARX model (--model), not both")
+    return InputError(f"qp-mpc plans on either RC parameters ({setting('rc_path')}) or an ARX model ({setting('model_dir')}), not both")
 
 
 def _arx_mpc(model: BatchDynamics, scenario: Scenario, rc_params: RCParams | None) -> Controller:
@@ -388,12 +389,12 @@ def make_controller(
         raise _unknown(name)
     if model_dir is not None and name not in (*MODEL_CONTROLLERS, "qp-mpc"):
         raise InputError(
-            f"--model is not used by controller {name!r}; "
+            f"{setting('model_dir')} is not used by controller {name!r}; "
             f"only {', '.join(MODEL_CONTROLLERS)} and qp-mpc (an ARX model) take it"
         )
     if rc_path is not None and name not in RC_CONTROLLERS:
         raise InputError(
-            f"--rc is not used by controller {name!r}; only {', '.join(RC_CONTROLLERS)} take it"
+            f"{setting('rc_path')} is not used by controller {name!r}; only {', '.join(RC_CONTROLLERS)} take it"
         )
     if model_dir is not None and rc_path is not None:
         raise _both()

@@ -43,7 +43,6 @@ import pandas as pd
 from controllers.base import ControlSpec
 from controllers.objective import HorizonObjective, band_violation_k, energy_cost_eur
 from pinn_mpc.data import SITE_COLUMNS, TEMPERATURE_RANGE_C, WIND, WIND_RANGE_M_S
-from pinn_mpc.errors import InputError
 from pinn_mpc.simulator import SimConfig
 from scenarios.inputs.series import EXOGENOUS_FIELDS, ExogenousSeries
 from scenarios.plants.settings import PlantSettings
@@ -73,17 +72,17 @@ class BuildingEnv(gym.Env[np.ndarray, np.ndarray]):
     ):
         try:
             series = ExogenousSeries.from_frame(exogenous)
-        except InputError as exc:
-            raise InputError(f"BuildingEnv: {exc}") from exc
+        except ValueError as exc:
+            raise ValueError(f"BuildingEnv: {exc}") from exc
         if not (math.isfinite(comfort_weight_eur_per_kh) and comfort_weight_eur_per_kh >= 0):
-            raise InputError(
+            raise ValueError(
                 f"BuildingEnv: comfort_weight_eur_per_kh must be >= 0, got {comfort_weight_eur_per_kh!r}"
             )
         _check_temperature("initial_t_r_c", initial_t_r_c, "BuildingEnv")
         _check_temperature("initial_t_m_c", initial_t_m_c, "BuildingEnv")
         steps = len(exogenous) if episode_steps is None else episode_steps
         if not 1 <= steps <= len(exogenous):
-            raise InputError(
+            raise ValueError(
                 f"BuildingEnv: episode_steps={episode_steps} must lie in [1, {len(exogenous)}] "
                 "(the exogenous frame's rows)"
             )
@@ -131,8 +130,8 @@ class BuildingEnv(gym.Env[np.ndarray, np.ndarray]):
                 initial_t_m_c=self.initial_state_c[1],
                 plant_settings=plant_settings,
             )
-        except InputError as exc:
-            raise InputError(f"BuildingEnv: {exc}") from exc
+        except ValueError as exc:
+            raise ValueError(f"BuildingEnv: {exc}") from exc
         # Ends a plant's work (an EnergyPlus run's thread and directory) when the env is
         # garbage-collected or the interpreter exits without close().
         self._finalizer = weakref.finalize(self, self._loop.close)
@@ -153,25 +152,25 @@ class BuildingEnv(gym.Env[np.ndarray, np.ndarray]):
         opts = dict(options or {})
         unknown = set(opts) - {"t_r_c", "t_m_c", "start"}
         if unknown:
-            raise InputError(f"BuildingEnv.reset: unknown option(s) {sorted(unknown)}")
+            raise ValueError(f"BuildingEnv.reset: unknown option(s) {sorted(unknown)}")
         last_start = len(self._exo) - self.episode_steps
         starts = self._starts[self._starts <= last_start]
         if "start" in opts:
             start = opts["start"]
             if isinstance(start, bool) or not isinstance(start, numbers.Integral):
-                raise InputError(
+                raise ValueError(
                     f"BuildingEnv.reset: option start={start!r} must be a whole row number "
                     f"in [0, {last_start}]"
                 )
         elif starts.size:
             start = int(starts[self.np_random.integers(starts.size)])
         else:
-            raise InputError(
+            raise ValueError(
                 f"BuildingEnv.reset: no midnight in the first {last_start + 1} rows for an "
                 "EnergyPlus run to start at; give a longer exogenous frame"
             )
         if not 0 <= start <= last_start:
-            raise InputError(f"BuildingEnv.reset: start={start} must lie in [0, {last_start}]")
+            raise ValueError(f"BuildingEnv.reset: start={start} must lie in [0, {last_start}]")
         t_r, t_m = opts.get("t_r_c", self.initial_state_c[0]), opts.get("t_m_c", self.initial_state_c[1])
         _check_temperature("option t_r_c", t_r, "BuildingEnv.reset")
         _check_temperature("option t_m_c", t_m, "BuildingEnv.reset")
@@ -180,7 +179,7 @@ class BuildingEnv(gym.Env[np.ndarray, np.ndarray]):
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         if self._loop.k >= self.episode_steps:
-            raise InputError("BuildingEnv.step: the episode is over; call reset() first")
+            raise ValueError("BuildingEnv.step: the episode is over; call reset() first")
         u = float(self.actuator.clip(self._action_w(action)))
         _, _, _, price, t_min, t_max = (float(v) for v in self._exo[self._loop.start + self._loop.k])
         result = self._loop.step(u)
@@ -214,17 +213,17 @@ class BuildingEnv(gym.Env[np.ndarray, np.ndarray]):
         try:
             values = np.asarray(action, dtype=float).reshape(-1)
         except (TypeError, ValueError) as exc:
-            raise InputError(
+            raise ValueError(
                 f"BuildingEnv.step: action {action!r} is not a number; give an array of shape "
                 f"(1,) with the demanded power in {bounds}"
             ) from exc
         if values.size != 1:
-            raise InputError(
+            raise ValueError(
                 f"BuildingEnv.step: action has {values.size} elements, the action space's shape "
                 f"is (1,): one demanded power in {bounds}"
             )
         if not math.isfinite(values[0]):
-            raise InputError(
+            raise ValueError(
                 f"BuildingEnv.step: action {values[0]!r} is not finite; give a demanded power in "
                 f"{bounds}"
             )
@@ -241,6 +240,6 @@ def _check_temperature(name: str, value: object, where: str) -> None:
     lo, hi = TEMPERATURE_RANGE_C
     ok = isinstance(value, numbers.Real) and not isinstance(value, bool)
     if not (ok and math.isfinite(float(value)) and lo <= float(value) <= hi):  # type: ignore[arg-type]
-        raise InputError(
+        raise ValueError(
             f"{where}: {name}={value!r} must be a finite temperature in [{lo:g}, {hi:g}] C"
         )

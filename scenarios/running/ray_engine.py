@@ -13,7 +13,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import Any
 
-from pinn_mpc.errors import InputError
+from pinn_mpc.errors import InputError, setting
 from scenarios.records import EngineRecord
 
 __all__ = ["check_engine_options", "ray_engine"]
@@ -27,17 +27,17 @@ def check_engine_options(address: str | None, workers: int | None) -> None:
     waits minutes for a head node that is not there) and ``--workers`` with ``--address``."""
     if address is not None and workers is not None:
         raise InputError(
-            "sweep: --workers sizes the local Ray instance; with --address the cluster's CPUs "
-            "decide, so leave --workers out"
+            f"sweep: {setting('workers')} sizes the local Ray instance; with {setting('address')} the cluster's CPUs "
+            f"decide, so leave {setting('workers')} out"
         )
     if workers is not None and workers < 1:
-        raise InputError(f"sweep: --workers must be >= 1, got {workers}")
+        raise ValueError(f"workers must be >= 1, got {workers}")
     if address is None or address == "auto":
         return
     match = _ADDRESS.match(address)
     if match is None:
         raise InputError(
-            f"sweep: --address {address!r} is not a Ray address; give HOST:PORT of the head "
+            f"sweep: {setting('address')} {address!r} is not a Ray address; give HOST:PORT of the head "
             "node (e.g. 10.0.0.5:6379), ray://HOST:10001, or auto"
         )
     host, port = match.group("host").strip("[]"), int(match.group("port"))
@@ -47,7 +47,7 @@ def check_engine_options(address: str | None, workers: int | None) -> None:
     except OSError as exc:
         raise InputError(
             f"sweep: no Ray head node answers at {address} ({exc.strerror or exc}); start one "
-            "with `ray start --head` (it prints the address) or leave --address out"
+            f"with `ray start --head` (it prints the address) or leave {setting('address')} out"
         ) from None
 
 
@@ -73,7 +73,7 @@ def ray_engine(address: str | None, workers: int | None) -> Iterator[EngineRecor
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise InputError(
             f"sweep: cannot {where} with Ray ({first}); check the address "
-            "(`ray status` on the head node prints it) or leave --address out"
+            f"(`ray status` on the head node prints it) or leave {setting('address')} out"
         ) from exc
     try:
         resources = {k: v for k, v in ray.cluster_resources().items() if k in ("CPU", "GPU", "memory")}

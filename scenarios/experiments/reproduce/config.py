@@ -5,7 +5,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from pinn_mpc.choices import RECIPES
-from pinn_mpc.errors import InputError
 
 __all__ = ["ReproduceConfig"]
 
@@ -44,26 +43,26 @@ class ReproduceConfig:
         for name in (self.scenario, *self.also_scenarios):
             get_scenario(name)  # an unknown name fails here, before any work
         if self.seeds < 1:
-            raise InputError(f"reproduce: seeds must be >= 1, got {self.seeds}")
+            raise ValueError(f"reproduce: seeds must be >= 1, got {self.seeds}")
         if self.epochs is not None and self.epochs < 1:
-            raise InputError(f"reproduce: epochs must be >= 1, got {self.epochs}")
+            raise ValueError(f"reproduce: epochs must be >= 1, got {self.epochs}")
         if self.recipe not in RECIPES:
-            raise InputError(
+            raise ValueError(
                 f"reproduce: unknown recipe {self.recipe!r}; choose one of {', '.join(RECIPES)}"
             )
         sizes = {self.validation_days, *self.train_days, *self.horizon_days}
         if not self.train_days or min(sizes) < 1:
-            raise InputError(
+            raise ValueError(
                 f"reproduce: training sizes must be whole days >= 1, got {sorted(sizes)}"
             )
         if not self.horizons or min(self.horizons + self.size_horizons) < 1:
-            raise InputError(
+            raise ValueError(
                 f"reproduce: horizons must be >= 1 step, got {self.horizons} and "
                 f"{self.size_horizons}"
             )
         longest = max(self.horizons + self.size_horizons)
         if self.test_days * 48 < self.depth + 2 + longest:
-            raise InputError(
+            raise ValueError(
                 f"reproduce: {self.test_days} test days are too short for depth {self.depth} "
                 f"and a {longest}-step horizon; give more test days"
             )

@@ -55,13 +55,13 @@ class SweepSettings:
     def __post_init__(self) -> None:
         for name in ("test_days", "n_members", "depth"):
             if getattr(self, name) < 1:
-                raise InputError(f"sweep: {name} must be >= 1, got {getattr(self, name)}")
+                raise ValueError(f"sweep: {name} must be >= 1, got {getattr(self, name)}")
         if self.epochs is not None and self.epochs < 1:
-            raise InputError(f"sweep: epochs must be >= 1, got {self.epochs}")
+            raise ValueError(f"sweep: epochs must be >= 1, got {self.epochs}")
         if self.arch not in MODEL_CHOICES:
-            raise InputError(f"sweep: arch {self.arch!r} is unknown; choose one of {', '.join(MODEL_CHOICES)}")
+            raise ValueError(f"sweep: arch {self.arch!r} is unknown; choose one of {', '.join(MODEL_CHOICES)}")
         if self.policy not in _POLICIES:
-            raise InputError(f"sweep: policy {self.policy!r} is unknown; choose one of {', '.join(_POLICIES)}")
+            raise ValueError(f"sweep: policy {self.policy!r} is unknown; choose one of {', '.join(_POLICIES)}")
 
     @classmethod
     def for_run(cls, *, days: int | None, quick: bool, arch: str = ARCH) -> SweepSettings:

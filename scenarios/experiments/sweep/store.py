@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Any, TypedDict, cast
 
 from pinn_mpc import __version__
-from pinn_mpc.errors import InputError
+from pinn_mpc.errors import InputError, setting
 from pinn_mpc.io import atomic_write_json, setting_changes
 from pinn_mpc.physics import RCParams, params_from_summary, rc_summary
 from scenarios.experiments.sweep.grid import RC_KIND, Cell, ModelKey, SweepSettings, scenario_digest
@@ -49,7 +49,7 @@ def _check_settings(out: Path, settings: SweepSettings) -> None:
         diff = setting_changes(before, record)
         raise InputError(
             f"sweep: {out} holds a sweep with other settings ({diff}); "
-            "use another --out, or the same settings to extend it"
+            f"use another {setting('out')}, or the same settings to extend it"
         )
 
 
@@ -112,14 +112,14 @@ def _check_out(root: Path, *, force: bool) -> None:
     """Refuse an ``--out`` that is a file, or a directory of something else than a sweep
     (unless ``force``)."""
     if root.exists() and not root.is_dir():
-        raise InputError(f"sweep: --out {root} is a file; give a directory")
+        raise InputError(f"sweep: {setting('out')} {root} is a file; give a directory")
     if root.is_dir() and not force and not (root / "sweep.json").is_file():
         foreign = sorted(p.name + ("/" if p.is_dir() else "") for p in root.iterdir())
         if foreign:
             shown = ", ".join(foreign[:5]) + (", ..." if len(foreign) > 5 else "")
             raise InputError(
-                f"sweep: --out {root} already holds {shown} and is not a sweep directory (no "
-                "sweep.json); give a new or empty directory, or add --force to write the sweep's "
+                f"sweep: {setting('out')} {root} already holds {shown} and is not a sweep directory (no "
+                f"sweep.json); give a new or empty directory, or add {setting('force')} to write the sweep's "
                 "files there (nothing else in it is touched)"
             )
 

@@ -62,7 +62,7 @@ def _complete_file(data: dict[str, Any], resolve: Callable[[str], str]) -> None:
             try:
                 resolve_file(resolve(named))
             except InputError as exc:
-                raise InputError(f"simulation.plant.{key}: {exc}") from None
+                raise InputError(f"simulation.plant.{key}: {exc.marked}") from None
     if "weather" not in data and isinstance(weather, str):
         data["weather"] = {"type": "TMY3Weather", "file_name": weather, **WEATHER_WINDOW}
     table = data.get("weather")

@@ -443,9 +443,9 @@ def prepare_model(
     heater (0 W until a run sets it; ``radiant_fraction`` of its heat radiant) in each.
     A model with code objects (:data:`CODE_OBJECT_PREFIXES`) is refused unless ``allow_code``."""
     if zones not in ("merged", "separate"):
-        raise InputError(f"plant.zones = {zones!r} is not one of 'merged', 'separate'")
+        raise ValueError(f"plant.zones = {zones!r} is not one of 'merged', 'separate'")
     if isinstance(radiant_fraction, bool) or not 0.0 <= radiant_fraction <= 1.0:
-        raise InputError(f"plant.radiant_fraction = {radiant_fraction!r} must lie in [0, 1]")
+        raise ValueError(f"plant.radiant_fraction = {radiant_fraction!r} must lie in [0, 1]")
     require_energyplus()
     path = resolve_building(building)
     src = _read_model(path)

@@ -75,7 +75,7 @@ class EnergyPlusPlant:
             self._rng = np.random.default_rng(seed)
         first = self.times[start]
         if first != first.astype("datetime64[D]"):
-            raise InputError(f"an EnergyPlus run starts at midnight, not at {first}")
+            raise ValueError(f"an EnergyPlus run starts at midnight, not at {first}")
         days = self.times[start:].astype("datetime64[D]")
         start_day = int((days[0] - days[0].astype("datetime64[Y]")).astype(int)) + 1
         n_days = int((days[-1] - days[0]).astype(int)) + 1

@@ -102,7 +102,7 @@ class EnergyPlusRun:
     ) -> None:
         require_energyplus()
         if not (math.isfinite(heat_per_w) and heat_per_w != 0):
-            raise InputError(f"EnergyPlusRun: heat_per_w must be a nonzero number, got {heat_per_w!r}")
+            raise ValueError(f"EnergyPlusRun: heat_per_w must be a nonzero number, got {heat_per_w!r}")
         if actuator.heats != (heat_per_w > 0):
             raise ValueError(
                 f"EnergyPlusRun: heat_per_w = {heat_per_w:g} but the actuator "

@@ -111,6 +111,6 @@ def size_heater(
     Computed once per process for the same inputs; nothing is written to disk.
     """
     if not (math.isfinite(margin) and margin >= 1.0):
-        raise InputError(f"size_heater: margin must be >= 1, got {margin!r}")
+        raise ValueError(f"size_heater: margin must be >= 1, got {margin!r}")
     return _size_heater_cached(plant_key(plant), plant.weather, float(setpoint_c), float(heat_per_w), margin, days, dt_s)
 
