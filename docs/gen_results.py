@@ -32,6 +32,7 @@ import sys
 import tempfile
 import time
 import tomllib
+from collections import Counter
 from pathlib import Path
 from typing import Any
 
@@ -57,6 +58,19 @@ def commit() -> str:
     head = _git("rev-parse", "--short=12", "HEAD")
     dirty = _git("status", "--porcelain", "--untracked-files=no", "--", *CODE)
     return head + (" + uncommitted changes to the code" if dirty and dirty != "unknown" else "")
+
+
+def cells_code(directory: Path) -> str:
+    """The commits at which a sweep's cells ran (each cell's record keeps its own, since a
+    rerun reuses the cells of earlier runs), most cells first, with their counts."""
+    counts: Counter[str] = Counter()
+    for path in (directory / "cells").glob("*.json"):
+        record = json.loads(path.read_text(encoding="utf-8"))
+        if "code" not in record:
+            counts["not recorded (a sweep from before cells kept it)"] += 1
+        else:
+            counts[f"`{record['code']}`" if record["code"] else "not a git checkout"] += 1
+    return ", ".join(f"{what} ({n} cell{'s' if n != 1 else ''})" for what, n in counts.most_common())
 
 
 def machine() -> str:
@@ -311,7 +325,8 @@ def page(spec: Path, directory: Path, command: str, wall_s: float | None, at: st
         "",
         f"**Generated** by `{command}` on {now}.",
         "",
-        f"- commit: `{at}`",
+        f"- commit: `{at}` (where this page was written)",
+        f"- the cells ran at: {cells_code(directory)}",
         f"- machine: {machine()}",
         f"- wall time: {wall}",
         f"- settings: `{json.dumps(settings, sort_keys=True)}`" if settings else "- settings: defaults",

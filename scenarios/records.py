@@ -240,6 +240,10 @@ class CellRecord(CellResult):
     """sha256 of a scenario file's content (:func:`scenarios.experiments.sweep.scenario_digest`); None
     for a built-in scenario."""
     settings: SweepSettingsRecord
+    code: NotRequired[str | None]
+    """The commit of the package's checkout that ran the cell
+    (:func:`scenarios.experiments.sweep.store.code_revision`); None outside a git checkout;
+    absent from the records of sweeps before it was kept."""
 
 
 class SweepRow(TypedDict):

@@ -486,15 +486,19 @@ def test_results_page_states_command_commit_machine_and_cells(tmp_path: Path) ->
             })
     sweep = tmp_path / "sweep"
     (sweep / "cells").mkdir(parents=True)
-    for i, cell in enumerate(cells):
-        (sweep / "cells" / f"{i}.json").write_text(json.dumps(cell))
+    for i, cell in enumerate(cells):  # cells of two runs at two commits, one from before it was kept
+        code = {} if i == 0 else {"code": "def456" if i < 3 else "abc123 + uncommitted changes"}
+        (sweep / "cells" / f"{i}.json").write_text(json.dumps({**cell, **code}))
     summary = {"rows": summarise(cells, baseline="qp-mpc", order=["cem", "qp-mpc"]),
                "cells_run": 6, "cells_reused": 0, "models_trained": 4, "settings": {"quick": False}}
     (sweep / "summary.json").write_text(json.dumps(summary))
     spec = ROOT / "sweeps" / "smoke.toml"
     text = gen.page(spec, sweep, "python docs/gen_results.py --spec sweeps/smoke.toml", 90.0, "abc123")
     assert "**Generated** by `python docs/gen_results.py --spec sweeps/smoke.toml` on " in text
-    assert "- commit: `abc123`" in text and "- machine: " in text and "1.5 min" in text
+    assert "- commit: `abc123` (where this page was written)" in text
+    assert ("- the cells ran at: `abc123 + uncommitted changes` (3 cells), `def456` (2 cells), "
+            "not recorded (a sweep from before cells kept it) (1 cell)") in text
+    assert "- machine: " in text and "1.5 min" in text
     assert spec.read_text().strip() in text
     assert "| winter_household | cem | 14 | 2 | oracle | 1.015 |" in text  # mean of 1.010 and 1.020
     assert "| avoidable discomfort K h (mean) | unavoidable discomfort K h (mean) |" in text

@@ -367,6 +367,13 @@ def test_a_sweep_plans_over_the_architecture_it_is_given(tmp_path):
     assert load_arx(stored).interaction  # the physics-informed variant
     cem = json.loads((out / "cells" / "winter_household--cem--seed0--train7.json").read_text())
     assert cem["kpis"]["controller"] == "cem" and cem["kpis"]["objective"] > 0
+    # the commit that ran it: this checkout's (git's own answer), or None outside a checkout
+    root = Path(__file__).resolve().parents[1]
+    head = subprocess.run(["git", "rev-parse", "--short=12", "HEAD"], cwd=root, capture_output=True, text=True)
+    if (root / ".git").exists() and head.returncode == 0:
+        assert cem["code"].split(" + ")[0] == head.stdout.strip()
+    else:
+        assert cem["code"] is None
     again = sweep_cli(*grid, "--arch", PHYSICS_ARX.name)
     assert again.returncode == 0 and "all 2 cells reused" in again.stdout
     other = sweep_cli(*grid)

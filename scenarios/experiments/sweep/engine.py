@@ -28,6 +28,7 @@ from scenarios.experiments.sweep.store import (
     _read_cell,
     _settings_record,
     _store_model,
+    code_revision,
 )
 from scenarios.plants.boptest import TEST_PERIOD_DAYS
 from scenarios.plants.boptest_client import BOPTEST_URL_ENV
@@ -147,6 +148,7 @@ def _run_on_ray(
     from scenarios.running.closed_loop import PROGRESS_EVERY_S
 
     trained = 0
+    code = code_revision()  # the checkout whose tasks run now, in every cell's record
     pending, recordings = _submit(root, grid, settings, keys, missing)
 
     to_train = sum(kind == "model" for kind, _ in pending.values())
@@ -181,6 +183,7 @@ def _run_on_ray(
             record: CellRecord = {
                 **_cell_record_key(what),
                 "settings": _settings_record(settings),
+                "code": code,
                 **cast(CellResult, value),
             }
             atomic_write_json(root / "cells" / f"{what.name}.json", record)

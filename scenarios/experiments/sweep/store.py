@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import subprocess
 from pathlib import Path
 from typing import Any, TypedDict, cast
 
@@ -24,6 +25,33 @@ __all__: list[str] = []  # the sweep's storage is private to it
 def _settings_record(settings: SweepSettings) -> SweepSettingsRecord:
     record = {**dataclasses.asdict(settings), "package_version": __version__}
     return cast(SweepSettingsRecord, record)  # SweepSettings' fields, then two
+
+
+#: The package's checkout, whose commit a cell's record names (:func:`code_revision`).
+_CHECKOUT = Path(__file__).resolve().parents[3]
+#: What a cell's results depend on: an uncommitted change here is stated with the commit.
+_CODE = ("pinn_mpc", "pinn_mpc_cli", "controllers", "scenarios")
+
+
+def code_revision() -> str | None:
+    """The commit of the package's git checkout that runs this sweep (12 hex digits), with
+    ``+ uncommitted changes`` when its code differs from it; None where the package is not a
+    git checkout (installed from a wheel) or git does not answer within 10 s."""
+    def git(*args: str) -> str | None:
+        try:
+            return subprocess.run(
+                ["git", *args], cwd=_CHECKOUT, capture_output=True, text=True, check=True, timeout=10
+            ).stdout.strip()
+        except (OSError, subprocess.SubprocessError):
+            return None
+
+    if not (_CHECKOUT / ".git").exists():
+        return None
+    head = git("rev-parse", "--short=12", "HEAD")
+    if head is None:
+        return None
+    dirty = git("status", "--porcelain", "--untracked-files=no", "--", *_CODE)
+    return head + (" + uncommitted changes" if dirty else "")
 
 
 def _read_json(path: Path) -> Any:
