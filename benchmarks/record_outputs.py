@@ -99,10 +99,13 @@ IGNORED_KEYS = (
 # Fields ignored by their place (dotted path from the top of the JSON):
 # - the sweep's Ray engine: its version, and the resources Ray reports (its `memory` is what
 #   the machine has free when Ray starts, so it differs from run to run on the same code);
-# - `cpu_count` in compare's settings: the machine, not the code (did not differ).
+# - `cpu_count` in compare's settings: the machine, not the code (did not differ);
+# - a sweep cell's `code`: the commit that ran it, which two recordings compared differ in by
+#   design.
 IGNORED_PATHS = (
     re.compile(r"^engine\.(version|resources)(\.|$)"),
     re.compile(r"(^|\.)settings\.cpu_count$"),
+    re.compile(r"^code$"),
 )
 
 
