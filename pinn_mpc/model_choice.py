@@ -45,12 +45,11 @@ import pandas as pd
 from pinn_mpc.errors import InputError
 from pinn_mpc.evaluation import recursive_paths
 from pinn_mpc.models.arx import (
-    RUNAWAY_OFFSET_K,
     SELECTION_HORIZON_S,
     SELECTION_SHARE,
+    check_settles,
     fit_linear,
     fit_physics_informed_arx,
-    week_offset_k,
 )
 from pinn_mpc.models.registry import AUTO, DEFAULT_ARCH, PHYSICS_ARX
 from pinn_mpc.training import TrainConfig, train_model
@@ -164,16 +163,15 @@ def choose_model(df: pd.DataFrame, config: TrainConfig, *, progress: bool = Fals
     paths, hybrid_starts = recursive_paths(hybrid, held_out, horizon)
     rows = np.searchsorted(hybrid_starts, starts)
     errors = {DEFAULT_ARCH: float(np.mean(np.abs(paths.mean(axis=0)[rows] - truth)))}
-    errors[PHYSICS_ARX.name] = math.inf  # unless it fits, and settles as fit_linear requires
     try:
         parx = fit_physics_informed_arx(fitted, eta=config.eta)
+        check_settles(parx, PHYSICS_ARX.name)  # as fit_linear requires
     except InputError:
-        pass
+        errors[PHYSICS_ARX.name] = math.inf
     else:
-        if week_offset_k(parx) <= RUNAWAY_OFFSET_K:
-            errors[PHYSICS_ARX.name] = float(
-                np.mean(np.abs(parx.predict_path(held_out, horizon, starts) - truth))
-            )
+        errors[PHYSICS_ARX.name] = float(
+            np.mean(np.abs(parx.predict_path(held_out, horizon, starts) - truth))
+        )
     hours = horizon * float(df.attrs.get("dt_s", 1800.0)) / 3600.0
     said = (
         f"mean error over {hours:g} h ahead on the last quarter: {PHYSICS_ARX.name} "

@@ -623,16 +623,7 @@ def fit_linear(name: str, df: pd.DataFrame, *, eta: float = 1.0) -> ARXModel:
         model = fit_physics_informed_arx(df, eta=eta)
     else:
         raise ValueError(f"{name!r} is not a linear baseline; choose {ARX.name} or {PHYSICS_ARX.name}")
-    offset_k = week_offset_k(model)
-    if not offset_k <= RUNAWAY_OFFSET_K:
-        # what load_arx would refuse as damaged: say so now, of the data, not later of the file
-        label = BASELINES[name].label
-        raise InputError(
-            f"{label}: no fit on these data lets the room settle (a history 1 K warmer is "
-            f"{offset_k:.3g} K warmer a week later, where a building's settles), so its "
-            "predictions would run away; give more days of data, or train another family "
-            f"({_ARCH} hybrid)"
-        )
+    check_settles(model, name)
     try:
         identified = identify_rc(df, eta=eta)
     except InputError:
@@ -736,6 +727,20 @@ def load_arx(path: str | os.PathLike[str]) -> ARXModel:
 #: fitted room settles towards the outdoor temperature (well under 1 K); one whose dynamics
 #: amplify their own deviations grows without bound.
 RUNAWAY_OFFSET_K = 1.0
+
+
+def check_settles(model: ARXModel, name: str) -> None:
+    """InputError where ``model`` (the fit of baseline ``name`` on some data) lets its room
+    run away within a week: what :func:`load_arx` would refuse as damaged, said now of the
+    data rather than later of the file."""
+    offset_k = week_offset_k(model)
+    if not offset_k <= RUNAWAY_OFFSET_K:
+        raise InputError(
+            f"{BASELINES[name].label}: no fit on these data lets the room settle (a history 1 K "
+            f"warmer is {offset_k:.3g} K warmer a week later, where a building's settles), so "
+            "its predictions would run away; give more days of data, or train another family "
+            f"({_ARCH} hybrid)"
+        )
 
 
 def week_offset_k(model: ARXModel) -> float:
