@@ -44,20 +44,12 @@ CODE = ("pinn_mpc", "pinn_mpc_cli", "controllers", "scenarios", "sweeps", "pypro
         "constraints.txt")
 
 
-def _git(*args: str) -> str:
-    try:
-        return subprocess.run(
-            ["git", *args], cwd=ROOT, capture_output=True, text=True, check=True
-        ).stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
-
-
 def commit() -> str:
-    """The checked-out commit, with ``+ uncommitted changes`` when the tree differs from it."""
-    head = _git("rev-parse", "--short=12", "HEAD")
-    dirty = _git("status", "--porcelain", "--untracked-files=no", "--", *CODE)
-    return head + (" + uncommitted changes to the code" if dirty and dirty != "unknown" else "")
+    """The checked-out commit, with ``+ uncommitted changes`` when :data:`CODE` differs from
+    it (:func:`scenarios.experiments.sweep.store.code_revision`, as a sweep's cells name theirs)."""
+    from scenarios.experiments.sweep.store import code_revision
+
+    return code_revision(CODE) or "unknown"
 
 
 def cells_code(directory: Path) -> str:

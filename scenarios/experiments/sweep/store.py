@@ -33,10 +33,11 @@ _CHECKOUT = Path(__file__).resolve().parents[3]
 _CODE = ("pinn_mpc", "pinn_mpc_cli", "controllers", "scenarios")
 
 
-def code_revision() -> str | None:
+def code_revision(paths: tuple[str, ...] = _CODE) -> str | None:
     """The commit of the package's git checkout that runs this sweep (12 hex digits), with
-    ``+ uncommitted changes`` when its code differs from it; None where the package is not a
-    git checkout (installed from a wheel) or git does not answer within 10 s."""
+    ``+ uncommitted changes`` when what it holds under ``paths`` (by default the code) differs
+    from it; None where the package is not a git checkout (installed from a wheel) or git does
+    not answer within 10 s."""
     def git(*args: str) -> str | None:
         try:
             return subprocess.run(
@@ -50,7 +51,7 @@ def code_revision() -> str | None:
     head = git("rev-parse", "--short=12", "HEAD")
     if head is None:
         return None
-    dirty = git("status", "--porcelain", "--untracked-files=no", "--", *_CODE)
+    dirty = git("status", "--porcelain", "--untracked-files=no", "--", *paths)
     return head + (" + uncommitted changes" if dirty else "")
 
 
