@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import socket
 import time
+from typing import TYPE_CHECKING
 
 from pinn_mpc.physics import RCParams
 from scenarios.experiments.sweep.boptest import _boptest_chosen
@@ -11,6 +12,9 @@ from scenarios.experiments.sweep.grid import RC_KIND, Cell, SweepSettings, model
 from scenarios.experiments.sweep.models import SweepModel, _model_family
 from scenarios.inputs.scenario_file import get_scenario
 from scenarios.records import CellResult
+
+if TYPE_CHECKING:
+    from scenarios.running.closed_loop import ClosedLoopResult
 
 __all__ = ["run_cell"]
 
@@ -49,15 +53,7 @@ def run_cell(
             scenario, controller, days=settings.test_days, seed=cell.seed + 1,
             label=cell.controller,
         )
-    kpis = result.kpis
-    if learned is not None:
-        kpis["model"] = _model_family(learned)  # type: ignore[typeddict-unknown-key]
-    return {
-        "kpis": kpis,
-        "errors": list(result.errors),
-        "host": socket.gethostname(),
-        "wall_time_s": time.perf_counter() - start,
-    }
+    return _cell_result(result, learned, time.perf_counter() - start)
 
 
 def _run_boptest_cell(
@@ -82,15 +78,21 @@ def _run_boptest_cell(
     with one_torch_thread():
         result = run_boptest_closed_loop(chosen, cell.controller, controller, run=run, seed=cell.seed)
     wall = time.perf_counter() - start
+    result.kpis["wall_s_per_day"] = wall / settings.test_days  # type: ignore[typeddict-unknown-key]
+    return _cell_result(result, model, wall)
+
+
+def _cell_result(result: ClosedLoopResult, model: SweepModel | None, wall_s: float) -> CellResult:
+    """A cell's record of the run ``result``: its KPIs (with the family of ``model``, the
+    learned model or RC it ran on, where it has one), errors, host and ``wall_s``."""
     kpis = result.kpis
-    kpis["wall_s_per_day"] = wall / settings.test_days  # type: ignore[typeddict-unknown-key]
     if model is not None:
         kpis["model"] = _model_family(model)  # type: ignore[typeddict-unknown-key]
     return {
         "kpis": kpis,
         "errors": list(result.errors),
         "host": socket.gethostname(),
-        "wall_time_s": wall,
+        "wall_time_s": wall_s,
     }
 
 
