@@ -118,12 +118,15 @@ def test_positive_arx_fits_a_heat_pump_house_whose_own_weights_must_be_capped() 
     assert fit.a.sum() + fit.q.max() > MAX_OWN_SUM - 1e-6  # the cap binds
 
 
+@pytest.mark.parametrize("name", ["winter_household", "heat_pump_household"])
 @pytest.mark.parametrize("arch", ["pcnn", "pcnn-parx"])
-def test_saved_and_loaded_model_rolls_out_the_same(arch: str, tmp_path) -> None:
-    model = _model("winter_household", arch)
+def test_saved_and_loaded_model_rolls_out_the_same(arch: str, name: str, tmp_path) -> None:
+    """A saved model loads with its COP curve (a heat pump's) and rolls out as it did."""
+    model = _model(name, arch)
     save_model(model, tmp_path / "m")
     loaded = load_model(tmp_path / "m")
-    df = _data("winter_household")
+    assert loaded.record.cop_curve == model.record.cop_curve
+    df = _data(name)
     rng = np.random.default_rng(1)
     d = draw(rng, n_rows=len(df), first=64, horizon=HORIZON, u_max_w=float(df["u_phys"].max()))
     from pinn_mpc.consistency import history_at
