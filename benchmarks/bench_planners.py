@@ -1,8 +1,10 @@
 """Decision time of random shooting and CEM at a 48-step horizon.
 
-    python benchmarks/bench_planners.py [--model hybrid|physnet|pcnn|pcnn-parx|parx|arx|rc|all] [--members 10] [--decisions 20] [--guard]
+    python benchmarks/bench_planners.py [--model hybrid|physnet|pcnn|pcnn-parx|parx|arx|rc|all] [--members 10] [--decisions 20] [--guard] [--scenario winter_household]
 
-Data: the ``winter_household`` scenario under the random-level policy. ``hybrid`` (the model
+Data: the ``winter_household`` scenario (``--scenario``: another, e.g. ``heat_pump_household``,
+whose data's ``cop`` column the hybrid and the consistent families apply) under the random-level
+policy. ``hybrid`` (the model
 ``train`` makes by default and ``compare`` recommends), ``physnet`` and the physically
 consistent ``pcnn`` and ``pcnn-parx`` train an ensemble shaped
 as ``pinn-mpc compare`` trains it (10 members, depth 16: the models whose decisions the
@@ -89,10 +91,10 @@ def _time_decisions(
     return np.array(times), np.array(cpu_times), fallbacks
 
 
-def _learned(arch: str, data: pd.DataFrame, members: int, epochs: int) -> BatchDynamics:
+def _learned(arch: str, data: pd.DataFrame, members: int, epochs: int, eta: float) -> BatchDynamics:
     from pinn_mpc.training import TrainConfig, train_model
 
-    config = TrainConfig(depth=_COMPARE.depth, n_seeds=members, epochs=epochs)
+    config = TrainConfig(depth=_COMPARE.depth, n_seeds=members, epochs=epochs, eta=eta)
     return train_model(data, arch=arch, config=config, progress=False)
 
 
@@ -114,10 +116,12 @@ def main() -> None:
         "--guard", action="store_true",
         help="learned models also with their RC fallback (the shadow QP MPC and the replays)",
     )
+    parser.add_argument("--scenario", default="winter_household", help="the scenario whose data the models learn")
     args = parser.parse_args()
     torch.set_num_threads(1)
 
-    scenario = get_scenario("winter_household")
+    scenario = get_scenario(args.scenario)
+    eta = scenario.sim.params.eta
     spec = scenario.control_spec()
     df = generate(scenario, days=8, seed=0, policy=_COMPARE.policy)
     data = df.drop(columns=["T_m"])  # what a model learns from: the measured columns
@@ -130,10 +134,10 @@ def main() -> None:
             backup_low_c=scenario.sim.backup_low_c,
             backup_high_c=scenario.sim.backup_high_c,
         ),
-        "hybrid": lambda: _learned("hybrid", data, args.members, args.epochs),
-        "physnet": lambda: _learned("physnet", data, args.members, args.epochs),
-        "pcnn": lambda: _learned("pcnn", data, args.members, args.epochs),
-        "pcnn-parx": lambda: _learned("pcnn-parx", data, args.members, args.epochs),
+        "hybrid": lambda: _learned("hybrid", data, args.members, args.epochs, eta),
+        "physnet": lambda: _learned("physnet", data, args.members, args.epochs, eta),
+        "pcnn": lambda: _learned("pcnn", data, args.members, args.epochs, eta),
+        "pcnn-parx": lambda: _learned("pcnn-parx", data, args.members, args.epochs, eta),
         "parx": lambda: _linear("parx", data),
         "arx": lambda: _linear("arx", data),
     }

@@ -265,6 +265,25 @@ class CopCurve:
         values = np.clip(values, float(c.min()), float(c.max()))
         return cls(t_a_c=tuple(map(float, knots)), cop=tuple(map(float, values)))
 
+    def monotone(self, *, increasing: bool) -> CopCurve:
+        """The nearest curve (least squares over the knots' values, the pool-adjacent-violators
+        algorithm) whose COP never falls (``increasing``: a heat pump's, better in milder
+        air) or never rises (a cooling machine's, worse in hotter air) with the outdoor
+        temperature. A curve that already is keeps its values exactly. Piecewise linear
+        between monotone knots and constant beyond them, it is then monotone everywhere."""
+        sign = 1.0 if increasing else -1.0
+        blocks: list[tuple[float, int]] = []  # (mean of sign x value, knots pooled)
+        for v in self.cop:
+            mean, count = sign * v, 1
+            while blocks and blocks[-1][0] > mean:
+                prev, n = blocks.pop()
+                mean, count = (prev * n + mean * count) / (n + count), n + count
+            blocks.append((mean, count))
+        if len(blocks) == len(self.cop):
+            return self
+        values = tuple(float(sign * m) for m, n in blocks for _ in range(n))
+        return CopCurve(t_a_c=self.t_a_c, cop=values)
+
     def __call__(self, t_a_c: Any) -> np.ndarray:
         """The COP at outdoor temperature(s) ``t_a_c`` [C], same shape."""
         return np.interp(np.asarray(t_a_c, dtype=float), self.t_a_c, self.cop)

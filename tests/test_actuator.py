@@ -9,7 +9,7 @@ import pytest
 import torch
 
 from controllers.base import ControlSpec, Forecast, Observation, fallback_power
-from pinn_mpc.actuator import Actuator, ActuatorSpec
+from pinn_mpc.actuator import Actuator, ActuatorSpec, CopCurve
 from pinn_mpc.models.rc import RCBatchModel
 from pinn_mpc.physics import PAPER_HOUSEHOLD, discretise
 from pinn_mpc.simulator import SimConfig, backup_power
@@ -145,3 +145,26 @@ def test_the_rc_model_forces_its_actuators_bounds_and_heats_as_its_parameters():
     assert float(roll.u_phys_w[0, 0, 0]) == 500.0  # too warm for the backup: off, at the floor
     with pytest.raises(ValueError, match="the actuator cools but params.eta = 1"):
         RCBatchModel(PAPER_HOUSEHOLD, dt_s=1800.0, actuator=ActuatorSpec(upper_w=1.0, heats=False))
+
+
+@pytest.mark.parametrize(
+    ("cop", "increasing", "expected"),
+    [
+        # Pool-adjacent violators: each violating run replaced by its mean.
+        ((3.0, 2.5, 4.0, 3.9), True, (2.75, 2.75, 3.95, 3.95)),
+        ((3.0, 2.5, 4.0, 3.9), False, (3.35, 3.35, 3.35, 3.35)),
+        ((5.0, 4.0, 3.0, 4.5), True, (4.0, 4.0, 4.0, 4.5)),
+        ((2.0, 3.0, 3.0, 6.0), True, (2.0, 3.0, 3.0, 6.0)),
+    ],
+)
+def test_a_cop_curve_made_monotone_is_the_least_squares_monotone_curve(cop, increasing, expected):
+    """The monotone curve nearest in least squares over the knots (the isotonic regression,
+    worked by hand), and a curve that already is monotone unchanged (the same object)."""
+    curve = CopCurve(t_a_c=(-10.0, 0.0, 10.0, 20.0), cop=cop)
+    out = curve.monotone(increasing=increasing)
+    np.testing.assert_allclose(out.cop, expected, rtol=0, atol=1e-12)
+    assert out.t_a_c == curve.t_a_c
+    grid = np.linspace(-30.0, 40.0, 701)
+    steps = np.diff(out(grid)) * (1.0 if increasing else -1.0)
+    assert steps.min() >= -1e-12
+    assert out.monotone(increasing=increasing) is out

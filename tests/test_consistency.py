@@ -14,6 +14,7 @@ import torch
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from pinn_mpc.actuator import CopCurve
 from pinn_mpc.artifacts import load_model, save_model
 from pinn_mpc.consistency import check_draw, draw
 from pinn_mpc.data import validate_timeseries
@@ -52,7 +53,7 @@ def _passes(name: str, arch: str, seed: int) -> tuple[bool, bool]:
     return check_draw(_model(name, arch), df, d)
 
 
-@pytest.mark.parametrize("name", ["winter_household", "cold_storage"])
+@pytest.mark.parametrize("name", ["winter_household", "cold_storage", "heat_pump_household"])
 @pytest.mark.parametrize("arch", ["pcnn", "pcnn-parx"])
 @settings(max_examples=40, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1))
@@ -117,12 +118,15 @@ def test_positive_arx_fits_a_heat_pump_house_whose_own_weights_must_be_capped() 
     assert fit.a.sum() + fit.q.max() > MAX_OWN_SUM - 1e-6  # the cap binds
 
 
+@pytest.mark.parametrize("name", ["winter_household", "heat_pump_household"])
 @pytest.mark.parametrize("arch", ["pcnn", "pcnn-parx"])
-def test_saved_and_loaded_model_rolls_out_the_same(arch: str, tmp_path) -> None:
-    model = _model("winter_household", arch)
+def test_saved_and_loaded_model_rolls_out_the_same(arch: str, name: str, tmp_path) -> None:
+    """A saved model loads with its COP curve (a heat pump's) and rolls out as it did."""
+    model = _model(name, arch)
     save_model(model, tmp_path / "m")
     loaded = load_model(tmp_path / "m")
-    df = _data("winter_household")
+    assert loaded.record.cop_curve == model.record.cop_curve
+    df = _data(name)
     rng = np.random.default_rng(1)
     d = draw(rng, n_rows=len(df), first=64, horizon=HORIZON, u_max_w=float(df["u_phys"].max()))
     from pinn_mpc.consistency import history_at
@@ -141,3 +145,119 @@ def test_a_rollout_loss_trains_on_less_data_than_its_rollout() -> None:
 
     model = train_model(household_data(1, seed=0), arch="pcnn", config=TrainConfig(n_seeds=1, epochs=2), progress=False)
     assert np.isfinite(model.record.final_loss["reg"])
+
+
+def _cop_data(name: str, cop: np.ndarray | None) -> pd.DataFrame:
+    """``name``'s training data with a ``cop`` column ``cop`` (none where None)."""
+    df = _data(name).copy()
+    df.attrs = _data(name).attrs
+    if cop is not None:
+        df["cop"] = cop
+    return df
+
+
+def _draw_rollouts(model: LearnedModel, df: pd.DataFrame, seed: int, shift_c: float) -> tuple[np.ndarray, np.ndarray, int, np.ndarray]:
+    """A random draw's base plan and the plan with one power raised, rolled out on the
+    forecast shifted by ``shift_c``: (T_r (M, 2, H), the forecast's T_a (H,), the step raised,
+    the plans (2, H) [W])."""
+    from pinn_mpc.consistency import history_at
+
+    rng = np.random.default_rng(seed)
+    d = draw(rng, n_rows=len(df), first=64, horizon=HORIZON, u_max_w=float(df["u_phys"].max()))
+    history, exog = history_at(df, d.start, HORIZON)
+    exog["T_a"] = exog["T_a"] + shift_c
+    raised = d.plan_w.copy()
+    raised[d.step] += d.delta_w
+    plans = np.stack([d.plan_w, raised])
+    with torch.no_grad():
+        t_r = model.rollout(history, torch.as_tensor(plans, dtype=torch.float32), {n: exog[n] for n in model.exog_names}).t_r_c
+    return t_r.double().numpy(), exog["T_a"], d.step, plans
+
+
+@pytest.mark.parametrize("arch", ["pcnn", "pcnn-parx"])
+def test_a_watt_warms_by_the_cop_at_its_outdoor_temperature(arch: str) -> None:
+    """A heat pump's model (the data's cop column): the extra heat of one raised power warms
+    every later T_r in proportion to the COP at that interval's outdoor temperature, as the
+    building receives it. The model is linear in the heat, so the ratio of the responses on a
+    forecast 6 K warmer and on the measured one is COP(T_a + 6) / COP(T_a), exactly."""
+    model = _model("heat_pump_household", arch)
+    curve = CopCurve.from_dict(model.record.cop_curve)
+    df = _data("heat_pump_household")
+    for seed in range(6):
+        base, t_a, step, plans = _draw_rollouts(model, df, seed, 0.0)
+        warm, _, _, _ = _draw_rollouts(model, df, seed, 6.0)
+        if plans[1, step] > float(df["u_phys"].max()) or step == HORIZON - 1:
+            continue  # the raise clipped to the training range, or nothing after it
+        response = base[:, 1, step:] - base[:, 0, step:]
+        response_warm = warm[:, 1, step:] - warm[:, 0, step:]
+        ratio = float(curve(t_a[step] + 6.0) / curve(t_a[step]))
+        big = np.abs(response) > 1e-3
+        assert big.any()
+        np.testing.assert_allclose(response_warm[big] / response[big], ratio, rtol=2e-3)
+
+
+def test_pcnn_rolls_out_the_exact_2r2c_on_the_heat_of_a_heat_pump() -> None:
+    """With its unforced network at zero, pcnn predicts the exact zero-order hold of its 2R2C
+    (pinn_mpc.physics.discretise, the package's one discretisation) driven by COP(T_a) x the
+    power, from its estimated T_m."""
+    from pinn_mpc.consistency import history_at
+    from pinn_mpc.physics import Coefficients, discretise
+
+    df = _data("heat_pump_household")
+    model = train_model(df, arch="pcnn", config=TrainConfig(n_seeds=1, epochs=2, eta=get_scenario("heat_pump_household").sim.params.eta), progress=False)
+    net = model.module.net
+    with torch.no_grad():
+        net.unforced.layers[-1].weight.zero_()
+        net.unforced.layers[-1].bias.zero_()
+    curve = CopCurve.from_dict(model.record.cop_curve)
+    with torch.no_grad():
+        coef = net.coefficients()
+    ad, bd = discretise(Coefficients(**{k: float(v[0]) for k, v in vars(coef).items()}), model.dt_s)
+    start = 200
+    history, exog = history_at(df, start, HORIZON)
+    plan = np.random.default_rng(0).uniform(0.0, float(df["u_phys"].max()), HORIZON)
+    with torch.no_grad():
+        out = model.rollout(history, torch.as_tensor(plan[None], dtype=torch.float32), {n: exog[n] for n in model.exog_names})
+    x = np.array([df["T_r"].iloc[start], float(out.t_m_c[0, 0, 0])])
+    heat = curve(exog["T_a"]) * plan
+    expected = []
+    for h in range(HORIZON):
+        x = ad @ x + bd @ np.array([heat[h], exog["T_a"][h], exog["G"][h], exog["I_g"][h]])
+        expected.append(x[0])
+    np.testing.assert_allclose(out.t_r_c[0, 0].double().numpy(), expected, atol=2e-3)
+
+
+@pytest.mark.parametrize("arch", ["pcnn", "pcnn-parx"])
+def test_a_cop_that_falls_in_milder_air_is_made_monotone_and_stays_consistent(arch: str) -> None:
+    """A data set whose cop column falls as the outdoor temperature rises (no heat pump does;
+    a data error) would make a warmer interval deliver less heat: the model's COP is the
+    nearest non-decreasing curve (here flat), and every draw still passes."""
+    df = _data("winter_household")
+    t_a = df["T_a"].to_numpy(dtype=float)
+    falling = _cop_data("winter_household", np.clip(4.0 - 0.3 * (t_a - t_a.mean()), 1.0, 8.0))
+    model = train_model(falling, arch=arch, config=TrainConfig(n_seeds=2, epochs=4, eta=1.0), progress=False)
+    cop = np.array(CopCurve.from_dict(model.record.cop_curve).cop)
+    assert np.all(np.diff(cop) >= 0) and cop.min() > 1.0
+    for seed in range(40):
+        d = draw(np.random.default_rng(seed), n_rows=len(df), first=64, horizon=HORIZON, u_max_w=float(df["u_phys"].max()))
+        assert check_draw(model, falling, d) == (True, True)
+
+
+@pytest.mark.parametrize("arch", ["pcnn", "pcnn-parx"])
+def test_without_a_cop_column_the_heat_is_the_power(arch: str) -> None:
+    """An ideal heater's data (no cop column): no COP curve, and the rollout is the one its
+    weights give with a COP of exactly 1 everywhere, bit for bit (the predictions on such data
+    are those of the families before the COP; compared against main at the commit that
+    added it)."""
+    model = _model("winter_household", arch)
+    assert model.record.cop_curve is None
+    net = model.module.net
+    assert net.cop_curve is None
+    df = _data("winter_household")
+    base, _, _, _ = _draw_rollouts(model, df, 3, 0.0)
+    try:
+        net.set_cop(CopCurve(t_a_c=(-60.0, 60.0), cop=(1.0, 1.0)), heating=True)
+        unit, _, _, _ = _draw_rollouts(model, df, 3, 0.0)
+    finally:
+        net.set_cop(None, heating=True)
+    assert np.array_equal(base, unit)

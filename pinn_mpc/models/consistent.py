@@ -10,6 +10,18 @@ and no outdoor temperature, so it adds the same to every plan and every outdoor-
 forecast, and every predicted ``T_r`` stays non-decreasing in each heating power (non-increasing
 in each cooling power) and in each outdoor temperature of the horizon.
 
+A heat pump's power acts through its coefficient of performance: where the training data has a
+``cop`` column (heat per electrical watt, as ``simulate`` writes for a heat pump), the heat the
+linear part receives is ``g(T_a) x`` the electrical power, ``g`` the data's COP curve
+(:class:`~pinn_mpc.actuator.CopCurve`, the one the hybrid uses) made monotone in the outdoor
+temperature (:func:`consistent_cop`): never falling for a heater (a heat pump's COP rises in
+milder air), never rising for a cooling machine. The consistency then still holds: ``g`` is
+positive, so the heat grows with the power; and ``g(T_a) p`` with ``p >= 0`` (the plan is
+clipped to the training data's delivered power, never negative) moves with ``T_a`` in the
+heat's own direction, so a warmer interval adds heat that the linear part, whose response to
+heat is non-negative, turns into a warmer room, on top of the outdoor temperature's own
+non-negative response. Without a ``cop`` column the heat is the power, exactly as before.
+
 Both train on rollouts: each mini-batch chunk of :data:`ROLLOUT_STEPS` consecutive samples is
 predicted from its first sample's history on the measured delivered power and weather, and the
 loss is the mean squared error of every step's ``T_r`` (in units of the temperature scale),
@@ -31,6 +43,7 @@ from pinn_mpc.data import WIND
 from pinn_mpc.features import FeatureConfig
 from pinn_mpc.models.base import Architecture, Batch, LossFn, LossTerms, RolloutInputs, TrainingSet
 from pinn_mpc.models.layers import EnsembleLinear, mlp_layers, run_layers
+from pinn_mpc.models.physics_block import interp_clamped
 from pinn_mpc.models.rollout import Rollout
 
 if TYPE_CHECKING:
@@ -45,6 +58,7 @@ __all__ = [
     "ConsistentNet",
     "UnforcedNet",
     "chunk_inputs",
+    "consistent_cop",
 ]
 
 #: Steps of a training rollout (a day at 30-min intervals).
@@ -125,12 +139,38 @@ class UnforcedNet(nn.Module):
         return out.reshape(m, *lead[1:], -1) * self.scale_k
 
 
+def consistent_cop(curve: CopCurve | None, *, heating: bool) -> CopCurve | None:
+    """The COP curve a consistent model uses: ``curve`` (the training data's, None without a
+    ``cop`` column) made non-decreasing in the outdoor temperature for a heater, non-increasing
+    for a cooling machine (:meth:`~pinn_mpc.actuator.CopCurve.monotone`; a curve that already
+    is stays as it is, so a saved model's loads unchanged)."""
+    return None if curve is None else curve.monotone(increasing=heating)
+
+
 class ConsistentNet(nn.Module):
     """A consistent architecture's network: ``roll(inputs)`` -> (T_r (M, N, H) [C], u_phys (M,
-    N, H) [W], T_m (M, N, H) [C] or None, the unforced network's output (M, N, H, n) [K])."""
+    N, H) [W], T_m (M, N, H) [C] or None, the unforced network's output (M, N, H, n) [K]).
+
+    ``cop_curve`` is the heat per electrical watt it applies (:func:`consistent_cop`; None: the
+    heat is the power)."""
 
     unforced: UnforcedNet
     features: FeatureConfig
+    cop_curve: CopCurve | None = None
+    _cop: tuple[torch.Tensor, torch.Tensor] | None = None
+
+    def set_cop(self, curve: CopCurve | None, *, heating: bool) -> None:
+        """Apply ``curve`` (the data's COP curve, None without one) made monotone
+        (:func:`consistent_cop`)."""
+        self.cop_curve = consistent_cop(curve, heating=heating)
+        self._cop = None if self.cop_curve is None else (
+            torch.tensor(self.cop_curve.t_a_c), torch.tensor(self.cop_curve.cop)
+        )
+
+    def heat(self, p_w: torch.Tensor, t_a_c: torch.Tensor) -> torch.Tensor:
+        """The heat per unit of eta [W] of electrical power ``p_w`` at outdoor temperature
+        ``t_a_c`` [C] (same shapes, or broadcasting): ``p_w`` itself without a COP curve."""
+        return p_w if self._cop is None else p_w * interp_clamped(t_a_c, *self._cop)
 
     @abstractmethod
     def roll(
@@ -190,7 +230,11 @@ class ConsistentArchitecture(Architecture):
         return loss
 
     def record_fields(self, config: TrainConfig, cop_curve: CopCurve | None) -> dict[str, Any]:
-        return {"residual_weight": config.residual_weight}
+        used = consistent_cop(cop_curve, heating=config.eta > 0)
+        return {
+            "residual_weight": config.residual_weight,
+            "cop_curve": None if used is None else used.to_dict(),
+        }
 
     def rollout_scaled(self, model: LearnedModel, inputs: RolloutInputs) -> Rollout:
         net = model.module.net

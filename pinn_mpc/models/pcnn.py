@@ -8,7 +8,9 @@ the states step through the 2R2C's exact zero-order hold,
 
     (T_r, T_m)_k+1 = Ad (T_r, T_m)_k + Bd (heat_k, T_a,k, G_k, I_g,k) + n_k
 
-with ``heat`` the demand (clipped to the training data's range) times ``eta``'s sign and ``n_k``
+with ``heat`` the demand (clipped to the training data's range), times the data's COP at the
+interval's outdoor temperature where the data has one (a heat pump; :mod:`pinn_mpc.models.consistent`
+says how the COP keeps the model consistent), times ``eta``'s sign, and ``n_k``
 the unforced network's heat input per step on both states (:mod:`pinn_mpc.models.consistent`:
 time of day, day type, irradiance, gains, wind).
 
@@ -18,8 +20,9 @@ positive, as the physics block keeps every R and C positive), so ``Ad = exp(A dt
 element-wise non-negative, and ``Bd = int_0^dt exp(A s) ds B`` is non-negative in the columns
 whose ``B`` column is (the outdoor temperature's ``(1/(C_r R_ra), 0)``, the gains'; the power's
 ``(eta/C_r, 0)`` for a heater, non-positive for a cooling machine). Each predicted state is
-then a sum of non-negative multiples of the powers (times eta's sign), the outdoor temperatures
-and terms of neither; the network's ``n_k`` and the encoder's start depend on no plan and no
+then a sum of non-negative multiples of the heats (times eta's sign; each heat non-decreasing
+in its power and, through a monotone COP, moving with its outdoor temperature in the heat's
+direction), the outdoor temperatures and terms of neither; the network's ``n_k`` and the encoder's start depend on no plan and no
 forecast outdoor temperature. The learned R and C are the model's (``export-rc``).
 """
 
@@ -33,6 +36,7 @@ import torch
 from torch import nn
 
 from pinn_mpc import physics
+from pinn_mpc.actuator import CopCurve
 from pinn_mpc.features import FeatureConfig
 from pinn_mpc.models.base import NetParts
 from pinn_mpc.models.consistent import (
@@ -64,9 +68,12 @@ class PcnnNet(ConsistentNet):
         n_members: int,
         generators: Sequence[torch.Generator],
         block: Physics,
+        cop_curve: CopCurve | None,
+        heating: bool,
     ):
         super().__init__()
         self.features = features
+        self.set_cop(cop_curve, heating=heating)
         self.coefficients = block.coefficients  # the block itself is the module's
         n_in = 2 * (features.depth + 1) + len(features.exog_series) * features.depth
         self.encoder = mlp_layers((n_in, *ENCODER, 1), n_members, generators)
@@ -100,7 +107,7 @@ class PcnnNet(ConsistentNet):
         ]
         unforced = self.unforced(e_seq, tod)  # (M, N0, H, 2) on (T_r, T_m)
         col = lambda i: bd[:, None, None, :, i]  # noqa: E731  (M, 1, 1, 2)
-        drive = col(0) * plan[..., None] + unforced
+        drive = col(0) * self.heat(plan, raw[0])[..., None] + unforced  # raw[0]: T_a
         for i, v in enumerate(raw, start=1):
             drive = drive + col(i) * (v[..., None] if v.ndim else v)
         n = drive.shape[1]
@@ -125,7 +132,7 @@ class Pcnn(ConsistentArchitecture):
         assert parts.physics_block is not None
         return PcnnNet(
             features=parts.features, n_members=parts.n_members, generators=parts.generators,
-            block=parts.physics_block,
+            block=parts.physics_block, cop_curve=parts.cop_curve, heating=parts.prior.heating,
         )
 
     def training_prior(

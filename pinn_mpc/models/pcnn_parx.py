@@ -7,11 +7,15 @@ the time of day), fitted by least squares with every impulse response to a power
 outdoor temperature constrained non-negative; a network (:class:`~pinn_mpc.models.consistent.
 UnforcedNet`) adds a heat input per interval from the time of day, the day type, the
 irradiance, the gains and the wind, trained on 48-step rollouts with the linear part held.
+With a heat pump (a ``cop`` column in the data) the linear part's power is the heat, the
+electrical power times the data's COP at each interval's outdoor temperature, in the fit and in
+every rollout (:mod:`pinn_mpc.models.consistent`).
 
 Why every predicted T_r is non-decreasing in every power and outdoor temperature of the
 horizon: the recursion is the linear part plus the network's term; the linear part's response
-to each power and outdoor temperature is non-negative (its module says how the fit makes it
-so), and the network's term depends on neither, nor on any temperature, so it is the same for
+to each heat and outdoor temperature is non-negative (its module says how the fit makes it
+so), each heat is non-decreasing in its power and, through a monotone COP, moves with its
+outdoor temperature in the heat's direction, and the network's term depends on neither, nor on any temperature, so it is the same for
 every plan and outdoor-temperature forecast. The delivered power it predicts is the demand,
 clipped to the training data's range (non-decreasing in the demand). Rollouts longer than the
 certified horizon (two weeks) are refused.
@@ -26,6 +30,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from pinn_mpc.actuator import CopCurve
 from pinn_mpc.errors import InputError, setting
 from pinn_mpc.features import FeatureConfig
 from pinn_mpc.models.base import NetParts, TrainingSet
@@ -54,11 +59,20 @@ LAGS = 8
 class PcnnParxNet(ConsistentNet):
     """The positive ARX (buffers, one copy per member) and the unforced network."""
 
-    def __init__(self, *, features: FeatureConfig, n_members: int, generators: Sequence[torch.Generator]):
+    def __init__(
+        self,
+        *,
+        features: FeatureConfig,
+        n_members: int,
+        generators: Sequence[torch.Generator],
+        cop_curve: CopCurve | None,
+        heating: bool,
+    ):
         super().__init__()
         if features.depth < LAGS:
             raise InputError(f"pcnn-parx needs a history depth ({setting('depth')}) of at least {LAGS}, got {features.depth}")
         self.features = features
+        self.set_cop(cop_curve, heating=heating)
         self.unforced = UnforcedNet(features, n_members, generators, 1)
         m, n_series = n_members, len(features.exog_series)
         self.a: torch.Tensor
@@ -73,8 +87,10 @@ class PcnnParxNet(ConsistentNet):
         self.register_buffer("s", torch.zeros(m, 3, 24))  # schedule by day type, hour [K]
 
     def set_linear(self, df: pd.DataFrame, eta: float) -> None:
-        """Fit the positive ARX on ``df`` and hold it in every member."""
-        fit = fit_positive_arx(df, eta=eta, lags=LAGS)
+        """Fit the positive ARX on ``df`` (on the heat, with the COP curve) and hold it in every
+        member."""
+        cop = None if self.cop_curve is None else self.cop_curve(df["T_a"].to_numpy(dtype=float))
+        fit = fit_positive_arx(df, eta=eta, lags=LAGS, cop=cop)
         hours = (np.arange(24) // fit.block_h).astype(int)
         w = np.zeros((len(self.features.exog_series), LAGS))
         names = self.features.exog_series
@@ -106,11 +122,13 @@ class PcnnParxNet(ConsistentNet):
         plan = (u_s * pw.std + pw.mean).clamp(lo, hi)  # (M|1, N, H)
         past = p_win[..., -(LAGS - 1) :] * pw.std + pw.mean
         useq = torch.cat([past.expand(*plan.shape[:-1], -1), plan], dim=-1)
-        u_lagged = useq.unfold(-1, LAGS, 1)  # (.., H, LAGS): u_{k-LAGS+1} .. u_k
-        b = self.b.flip(-1)[:, None, None, :]  # (M, 1, 1, LAGS) oldest first
-        drive = (u_lagged * b).sum(-1)  # (M, N, H)
         scales = [f.exog[name] for name in f.exog_series]
         e_raw = torch.stack([e_seq[..., j, :] * sc.std + sc.mean for j, sc in enumerate(scales)], dim=-2)
+        i_ta = f.exog_series.index("T_a")
+        heat = self.heat(useq, e_raw[..., i_ta, k - LAGS + 1 : k + h_len])  # the powers' T_a
+        u_lagged = heat.unfold(-1, LAGS, 1)  # (.., H, LAGS): heat_{k-LAGS+1} .. heat_k
+        b = self.b.flip(-1)[:, None, None, :]  # (M, 1, 1, LAGS) oldest first
+        drive = (u_lagged * b).sum(-1)  # (M, N, H)
         e_lagged = e_raw.unfold(-1, LAGS, 1)[..., k - LAGS + 1 : k - LAGS + 1 + h_len, :]  # (.., S, H, LAGS)
         w = self.w_exog.flip(-1)[:, None, :, None, :]  # (M, 1, S, 1, LAGS)
         drive = drive + (e_lagged * w).sum(-1).sum(-2)
@@ -119,7 +137,7 @@ class PcnnParxNet(ConsistentNet):
         q_k = torch.gather(self.q[:, None, None, :].expand(m, *hour.shape[1:], 24), -1, hour.expand(m, *hour.shape[1:])[..., None])[..., 0]
         s_k = self.s.reshape(m, 1, 1, 72).expand(m, *hour.shape[1:], 72)
         s_k = torch.gather(s_k, -1, (day * 24 + hour).expand(m, *hour.shape[1:])[..., None])[..., 0]
-        t_a = e_raw[..., f.exog_series.index("T_a"), k : k + h_len]
+        t_a = e_raw[..., i_ta, k : k + h_len]
         unforced = self.unforced(e_seq, tod)  # (M, N0, H, 1)
         drive = drive + s_k - q_k * t_a + unforced[..., 0]
         hist = t_r[..., -LAGS:].flip(-1).expand(m, *drive.shape[1:-1], LAGS)  # T_r,k .. T_r,k-7
@@ -139,7 +157,10 @@ class PcnnParx(ConsistentArchitecture):
     has_physics = False
 
     def build_net(self, parts: NetParts) -> nn.Module:
-        return PcnnParxNet(features=parts.features, n_members=parts.n_members, generators=parts.generators)
+        return PcnnParxNet(
+            features=parts.features, n_members=parts.n_members, generators=parts.generators,
+            cop_curve=parts.cop_curve, heating=parts.prior.heating,
+        )
 
     def training_prior(
         self, config: TrainConfig, df: pd.DataFrame, identified: IdentifyResult | None

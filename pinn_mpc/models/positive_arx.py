@@ -142,11 +142,17 @@ def _responses(
     return mat, off
 
 
-def fit_positive_arx(df: pd.DataFrame, *, eta: float, lags: int = 8) -> PositiveARX:
+def fit_positive_arx(
+    df: pd.DataFrame, *, eta: float, lags: int = 8, cop: np.ndarray | None = None
+) -> PositiveARX:
     """The positive ARX of ``df`` (module docstring); ``eta``'s sign is the actuator's (> 0
-    heating). InputError when the constrained fits fail."""
+    heating). With ``cop`` (N,) (a heat pump's heat per electrical watt at each row, positive)
+    its power is the heat, ``u_phys x cop`` (``b`` then in K per watt of heat). InputError
+    when the constrained fits fail."""
     from pinn_mpc.models.arx import fit_physics_informed_arx
 
+    if cop is not None:
+        df = df.assign(u_phys=df["u_phys"].to_numpy(dtype=float) * cop)
     dt_s = float(df.attrs.get("dt_s", 1800.0))
     per_day = round(86400.0 / dt_s)
     structure = fit_physics_informed_arx(df.drop(columns=[WIND], errors="ignore"), lags=lags, eta=eta)
