@@ -296,7 +296,7 @@ def run_boptest_closed_loop(
             test=test,
         ) as plant:
             frame = plant.exogenous_frame()
-            t_r0 = float(plant.measure()[0])
+            t_r0 = float(plant.measure()[0, 0])
             with ClosedLoop(
                 scenario.sim, ExogenousSeries.from_frame(frame), spec=spec, initial_t_r_c=t_r0,
                 initial_t_m_c=t_r0, seed=0, plant=plant,

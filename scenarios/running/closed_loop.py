@@ -40,6 +40,7 @@ from controllers.thermostat import Thermostat
 from pinn_mpc.data import COLUMNS, SITE_COLUMNS, write_timeseries
 from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.physics import RCParams
+from pinn_mpc.zones import zone_columns
 from scenarios.inputs.exogenous import day_span
 from scenarios.inputs.registry import EXOGENOUS_COLUMNS, Scenario, check_seed
 from scenarios.inputs.series import ExogenousSeries
@@ -159,7 +160,9 @@ def check_plant_supports(scenario: Scenario, controller: Controller) -> None:
 def run_trajectory(scenario: Scenario, run: RunInputs, rec: LoopRecord) -> pd.DataFrame:
     """The counted intervals of a run in the data format, with the plant's own inputs (the
     series' rows on the RC plant, EnergyPlus's otherwise), the backup thermostat's overrides,
-    the fallbacks and the decision times; no ``T_m`` where the plant has none."""
+    the fallbacks and the decision times; no ``T_m`` where the plant has none. Each zone's
+    ``T_r`` and ``T_m`` are its columns (:func:`pinn_mpc.zones.zone_column`: ``T_r`` for the
+    one-zone building)."""
     series, counted, exo = run.series, run.counted, run.exo
     # The inputs the plant had: the series' rows on the RC plant, EnergyPlus's own otherwise.
     # The facades' irradiance and the wind, where the run has them, are the weather file's.
@@ -173,8 +176,8 @@ def run_trajectory(scenario: Scenario, run: RunInputs, rec: LoopRecord) -> pd.Da
     trajectory = pd.DataFrame(
         {
             "time": exo["time"].iloc[counted].reset_index(drop=True),
-            "T_r": rec.t_r_c[counted],
-            "T_m": rec.t_m_c[counted],
+            **{c: rec.t_r_c[counted, z] for z, c in enumerate(zone_columns("T_r", rec.zones))},
+            **{c: rec.t_m_c[counted, z] for z, c in enumerate(zone_columns("T_m", rec.zones))},
             "u": rec.u_w[counted],
             "u_phys": rec.u_phys_w[counted],
             **{c: cols[c][counted] for c in exogenous},
@@ -184,7 +187,7 @@ def run_trajectory(scenario: Scenario, run: RunInputs, rec: LoopRecord) -> pd.Da
         }
     )
     if not scenario.plant.true_state:  # no true mass temperature
-        trajectory = trajectory.drop(columns="T_m")
+        trajectory = trajectory.drop(columns=list(zone_columns("T_m", rec.zones)))
     trajectory.attrs["dt_s"] = float(scenario.sim.dt_s)
     return trajectory
 
