@@ -29,7 +29,7 @@ import time
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TextIO
+from typing import TextIO, cast
 
 import numpy as np
 import pandas as pd
@@ -62,6 +62,7 @@ __all__ = [
     "progress_stage",
     "progress_steps",
     "run_closed_loop",
+    "run_kpis",
     "run_trajectory",
     "write_trajectory",
 ]
@@ -315,20 +316,50 @@ def run_closed_loop(
     # The same days free-running: the discomfort no controller could have avoided.
     free = free_records(scenario, run, seed=seed)[0]
     trajectory = run_trajectory(scenario, run, rec)
-    kpis: RunKpis = {
-        **counted_kpis(scenario, run, rec, free),
-        "controller": label or controller.name,
-        "scenario": scenario.name,
+    kpis = run_kpis(
+        counted_kpis(scenario, run, rec, free), controller, label=label or controller.name,
+        scenario=scenario.name, days=days, seed=seed, weather_part=weather_part,
+        trajectory=trajectory, weather_times=run.exo["time"],
+    )
+    return ClosedLoopResult(trajectory=trajectory, kpis=kpis, errors=tuple(errors))
+
+
+def run_kpis(
+    kpis: Kpis,
+    controller: Controller | None,
+    *,
+    label: str,
+    scenario: str,
+    days: int,
+    seed: int,
+    weather_part: str,
+    trajectory: pd.DataFrame,
+    weather_times: pd.Series,
+    **extra: object,
+) -> RunKpis:
+    """The one record of a closed-loop run (:class:`scenarios.records.RunKpis`), of every
+    plant: its counted ``kpis``, the run's labels, the [first, last] dates of the
+    ``trajectory``'s counted intervals and of the weather (``weather_times``: warm-up and
+    forecast lead included), ``extra`` keys of the plant's (BOPTEST's own KPIs, its period),
+    then what the controller reports of its run: a planner over a learned model how often it
+    fell back (``trust_report``), an RC MPC planning inside the band by its replay error how
+    far (``replay_report``)."""
+    record = {
+        **kpis,
+        "controller": label,
+        "scenario": scenario,
         "days": days,
         "seed": seed,
         "weather_part": weather_part,
         "counted_days": day_span(trajectory["time"]),
-        "weather_days": day_span(run.exo["time"]),  # warm-up and forecast lead included
+        "weather_days": day_span(weather_times),
+        **extra,
     }
-    report = controller.trust_report
-    if report is not None:  # a planner over a learned model: how often it fell back
-        kpis.update(report)
-    return ClosedLoopResult(trajectory=trajectory, kpis=kpis, errors=tuple(errors))
+    for name in ("trust_report", "replay_report"):
+        report = getattr(controller, name, None)
+        if isinstance(report, dict):
+            record.update(report)
+    return cast(RunKpis, record)
 
 
 #: Seconds between two progress lines when stderr is not a terminal (a log file, a pipe).
