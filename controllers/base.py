@@ -191,11 +191,11 @@ class ControlSpec:
 
     ``actuators`` are the actuators the controllers set (:class:`pinn_mpc.actuator.ActuatorSpec`:
     each one's bounds, whether it heats or cools, its zone and its efficiency, such as a heat
-    pump's COP curve, which an RC MPC plans with); today exactly one, on zone 0, and
-    :attr:`actuator` is it. ``zones`` are the building's zones (:mod:`pinn_mpc.zones`; an
-    actuator's ``zone`` is an index into them): the plant's (the closed loop checks it); every
-    scenario's is one today, and the planners plan one zone (``Observation.t_r_c``). Every power a controller decides is electrical and every bound of
-    it is the actuator's. ``sensor_noise_std_c`` is the room sensor's noise as its data sheet
+    pump's COP curve, which an RC MPC plans with); today exactly one, and :attr:`actuator` is
+    it. ``zones`` are the building's zones (:mod:`pinn_mpc.zones`; an actuator's ``zone`` is an
+    index into them): the plant's (the closed loop checks it); every scenario's is one today,
+    and the planners plan one zone (``Observation.t_r_c``). Every power a controller decides is
+    electrical and every bound of it is the actuator's. ``sensor_noise_std_c`` is the room sensor's noise as its data sheet
     states it (the Kalman observers take it as their measurement noise; 0 keeps their default)."""
 
     actuators: tuple[ActuatorSpec, ...]
