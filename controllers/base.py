@@ -59,8 +59,8 @@ class Forecast(NamedTuple):
     G: np.ndarray  # global horizontal irradiance [W/m2]
     I_g: np.ndarray  # internal gains [W]
     price: np.ndarray  # [EUR/kWh]
-    T_min: np.ndarray  # comfort band, lower [C]
-    T_max: np.ndarray  # comfort band, upper [C]
+    T_min: np.ndarray  # comfort band, lower [C]: (H,) for every zone, or (H, Z) each zone's
+    T_max: np.ndarray  # comfort band, upper [C], as T_min
     # day of the week of each interval's start, 0 = Monday (NaN where the dates are unknown)
     day_of_week: np.ndarray | None = None
     # irradiance on the site's vertical south, east, west and north facades [W/m2], where the

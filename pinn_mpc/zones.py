@@ -78,11 +78,10 @@ def parse_zone_column(column: str) -> tuple[str, str] | None:
 
 
 def zones_in(columns: Iterable[str]) -> tuple[ZoneSpec, ...]:
-    """The zones a frame's columns name (``T_r[<zone>]``, in their order), or :data:`ONE_ZONE`
-    where they name none."""
-    names: list[str] = []
-    for column in columns:
-        parsed = parse_zone_column(str(column))
-        if parsed is not None and parsed[0] == "T_r" and parsed[1] not in names:
-            names.append(parsed[1])
+    """The zones a frame's columns name, in their order: its rooms' (``T_r[<zone>]``), or in a
+    frame without rooms (a run's inputs) any zone series'; :data:`ONE_ZONE` where they name
+    none."""
+    parsed = [p for p in (parse_zone_column(str(c)) for c in columns) if p is not None]
+    rooms = [name for series, name in parsed if series == "T_r"]
+    names = list(dict.fromkeys(rooms or [name for _, name in parsed]))
     return tuple(ZoneSpec(name) for name in names) if names else ONE_ZONE

@@ -23,7 +23,8 @@ from pinn_mpc.zones import (
 )
 from scenarios import get_scenario
 from scenarios.plants.base import PlantStep
-from scenarios.running.closed_loop import prepare_run, run_trajectory
+from scenarios.inputs.series import ExogenousSeries
+from scenarios.running.closed_loop import counted_kpis, prepare_run, run_trajectory
 from scenarios.running.engine import ClosedLoop
 from scenarios.running.kpis import compute_kpis
 
@@ -166,7 +167,12 @@ def _alone(config: SimConfig, params, exo, demands) -> np.ndarray:
 
 def test_a_two_zone_plant_runs_through_the_loop_with_a_zone_axis():
     scenario = get_scenario("winter_household")
-    run = prepare_run(scenario, days=1, seed=0, warmup_steps=0, weather_part="test")
+    one_band = prepare_run(scenario, days=1, seed=0, warmup_steps=0, weather_part="test")
+    # Each zone its own comfort band: the north zone's 2 K lower.
+    t_min = one_band.exo["T_min"]
+    exo = one_band.exo.drop(columns="T_min").assign(**{"T_min[south]": t_min, "T_min[north]": t_min - 2.0})
+    run = dataclasses.replace(one_band, exo=exo, series=ExogenousSeries.from_frame(exo))
+    assert run.series.T_min.shape == (len(exo), 2) and run.series.T_max.shape == (len(exo),)
     config = dataclasses.replace(scenario.sim, backup_low_c=5.0)
     spec = dataclasses.replace(scenario.control_spec(), zones=ZONES)
     with pytest.raises(ValueError, match=r"zones \['room'\] are not the plant's \['south', 'north'\]"):
@@ -186,9 +192,29 @@ def test_a_two_zone_plant_runs_through_the_loop_with_a_zone_axis():
     north = dataclasses.replace(PAPER_HOUSEHOLD, solar_aperture_m2=0.0)
     np.testing.assert_allclose(rec.t_r_c[:, 0], _alone(config, PAPER_HOUSEHOLD, run.series, demands), atol=1e-12)
     np.testing.assert_allclose(rec.t_r_c[:, 1], _alone(config, north, run.series, 0 * demands), atol=1e-12)
+    assert loop.forecast().T_min.shape == (len(exo) - run.total, 2)
     trajectory = run_trajectory(scenario, run, rec)
     np.testing.assert_array_equal(trajectory["T_r[north]"], rec.t_r_c[run.counted, 1])
-    assert "T_r" not in trajectory and {"T_m[south]", "T_m[north]"} <= set(trajectory)
+    np.testing.assert_array_equal(trajectory["T_min[north]"], t_min[run.counted] - 2.0)
+    assert not {"T_r", "T_min"} & set(trajectory) and {"T_m[south]", "T_m[north]", "T_max"} <= set(trajectory)
+    # The building's discomfort is each zone's against its own band, summed.
+    kpis = counted_kpis(scenario, run, rec)
+    counted = rec.t_r_sub_c[run.counted]
+    alone = [
+        compute_kpis(
+            u_phys_w=rec.u_phys_w[run.counted], price_eur_per_kwh=run.series.price[run.counted],
+            t_r_sub_c=counted[:, :, z], t_min_c=run.series.T_min[run.counted, z],
+            t_max_c=run.series.T_max[run.counted], decision_s=rec.decision_s[run.counted],
+            overridden=rec.overridden[run.counted], fallback=rec.fallback[run.counted], dt_s=config.dt_s,
+            comfort_weight_eur_per_kh=scenario.comfort_weight_eur_per_kh,
+        )
+        for z in range(2)
+    ]
+    assert kpis["discomfort_kh"] == pytest.approx(sum(k["discomfort_kh"] for k in alone), rel=1e-12)
+    # Judged by the south zone's band, the colder north zone would count discomfort too.
+    assert alone[0]["discomfort_kh"] > 0 and alone[1]["discomfort_kh"] == 0
+    shared = counted_kpis(scenario, dataclasses.replace(run, series=one_band.series), rec)
+    assert shared["discomfort_kh"] > kpis["discomfort_kh"] + 1.0
 
 
 def test_an_observation_of_one_zone_reads_as_before():
