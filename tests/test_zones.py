@@ -22,8 +22,8 @@ from pinn_mpc.zones import (
     zones_in,
 )
 from scenarios import get_scenario
-from scenarios.plants.base import PlantStep
 from scenarios.inputs.series import ExogenousSeries
+from scenarios.plants.base import PlantStep
 from scenarios.running.closed_loop import counted_kpis, prepare_run, run_trajectory
 from scenarios.running.engine import ClosedLoop
 from scenarios.running.kpis import compute_kpis
