@@ -22,6 +22,7 @@ import numpy as np
 from pinn_mpc.actuator import ActuatorSpec
 from pinn_mpc.data import SITE_COLUMNS
 from pinn_mpc.errors import InputError, InternalError
+from pinn_mpc.zones import ONE_ZONE, ZoneSpec, zone_columns
 
 if TYPE_CHECKING:
     from pinn_mpc.models.rollout import BatchDynamics
@@ -58,8 +59,8 @@ class Forecast(NamedTuple):
     G: np.ndarray  # global horizontal irradiance [W/m2]
     I_g: np.ndarray  # internal gains [W]
     price: np.ndarray  # [EUR/kWh]
-    T_min: np.ndarray  # comfort band, lower [C]
-    T_max: np.ndarray  # comfort band, upper [C]
+    T_min: np.ndarray  # comfort band, lower [C]: (H,) for every zone, or (H, Z) each zone's
+    T_max: np.ndarray  # comfort band, upper [C], as T_min
     # day of the week of each interval's start, 0 = Monday (NaN where the dates are unknown)
     day_of_week: np.ndarray | None = None
     # irradiance on the site's vertical south, east, west and north facades [W/m2], where the
@@ -109,16 +110,20 @@ class LastInterval(NamedTuple):
 
 
 class Observation(NamedTuple):
-    """What a controller sees at the start of interval k.
+    """What a controller sees at the start of interval k, of a building with the zones ``zones``
+    (:mod:`pinn_mpc.zones`; one today).
 
     ``history`` holds the past in the data format's names: ``T_r`` (k+1,) measured room
-    temperatures up to and including now; ``u`` and ``u_phys`` (k,) demanded and delivered power
+    temperatures up to and including now (each zone's ``T_r[<zone>]`` in a building of several
+    zones: :meth:`t_r_zones_c` reads them); ``u`` and ``u_phys`` (k,) demanded and delivered power
     of past intervals [W]; ``T_a``, ``G``, ``I_g``, ``time_of_day_h`` (k+1,) up to now, and
     ``day_of_week`` (k+1,, 0 = Monday) where the run has dates, and the facades' irradiance and
     the wind speed (:data:`pinn_mpc.data.SITE_COLUMNS`, (k+1,)) where the run has them.
     ``last`` is the interval that just ended (None at the first step), so nobody reads it back
     out of ``history`` by index. ``t_m_true_c`` is the simulator's hidden thermal-mass
-    temperature: only the true-state estimator (oracle) may use it.
+    temperature: only the true-state estimator (oracle) may use it. ``t_r_c`` and
+    ``t_m_true_c`` are the one zone's; NaN in a building of several zones, whose zones
+    :meth:`t_r_zones_c` gives.
     """
 
     k: int
@@ -126,14 +131,24 @@ class Observation(NamedTuple):
     history: dict[str, np.ndarray]
     t_m_true_c: float
     last: LastInterval | None = None
+    zones: tuple[ZoneSpec, ...] = ONE_ZONE
 
     @classmethod
     def from_history(
-        cls, k: int, history: dict[str, np.ndarray], t_m_true_c: float = math.nan
+        cls,
+        k: int,
+        history: dict[str, np.ndarray],
+        t_m_true_c: float | np.ndarray = math.nan,
+        *,
+        zones: tuple[ZoneSpec, ...] = ONE_ZONE,
     ) -> Observation:
-        """The observation of step k from a history as in the class docstring; ``last`` is
-        read from it (``G``, ``I_g`` missing count as 0)."""
-        t_r = np.asarray(history["T_r"], dtype=float)
+        """The observation of step k from a history as in the class docstring, of a building
+        with ``zones`` (``t_m_true_c`` one value per zone, or one for all); ``last`` is read
+        from it (``G``, ``I_g`` missing count as 0)."""
+        columns = zone_columns("T_r", zones)
+        t_r = np.asarray(history[columns[0]], dtype=float)
+        t_m = np.broadcast_to(np.asarray(t_m_true_c, dtype=float), (len(zones),))
+        one = len(zones) == 1
         last = None
         u_phys = np.asarray(history.get("u_phys", np.zeros(0)), dtype=float)
         if len(u_phys) >= 1 and len(t_r) >= 2:
@@ -153,7 +168,14 @@ class Observation(NamedTuple):
                 day_of_week=before_now("day_of_week") if "day_of_week" in history else math.nan,
                 **{name: before_now(name) for name in SITE_COLUMNS if name in history},
             )
-        return cls(k=k, t_r_c=float(t_r[-1]), history=history, t_m_true_c=t_m_true_c, last=last)
+        return cls(
+            k=k, t_r_c=float(t_r[-1]) if one else math.nan, history=history,
+            t_m_true_c=float(t_m[0]) if one else math.nan, last=last, zones=zones,
+        )
+
+    def t_r_zones_c(self) -> np.ndarray:
+        """(Z,) each zone's measured room temperature now [C], in the building's zones' order."""
+        return np.array([self.history[c][-1] for c in zone_columns("T_r", self.zones)], dtype=float)
 
 
 class SolveStats(NamedTuple):
@@ -169,12 +191,15 @@ class ControlSpec:
 
     ``actuators`` are the actuators the controllers set (:class:`pinn_mpc.actuator.ActuatorSpec`:
     each one's bounds, whether it heats or cools, its zone and its efficiency, such as a heat
-    pump's COP curve, which an RC MPC plans with); today exactly one, on zone 0, and
-    :attr:`actuator` is it. Every power a controller decides is electrical and every bound of
-    it is the actuator's. ``sensor_noise_std_c`` is the room sensor's noise as its data sheet
+    pump's COP curve, which an RC MPC plans with); today exactly one, and :attr:`actuator` is
+    it. ``zones`` are the building's zones (:mod:`pinn_mpc.zones`; an actuator's ``zone`` is an
+    index into them): the plant's (the closed loop checks it); every scenario's is one today,
+    and the planners plan one zone (``Observation.t_r_c``). Every power a controller decides is
+    electrical and every bound of it is the actuator's. ``sensor_noise_std_c`` is the room sensor's noise as its data sheet
     states it (the Kalman observers take it as their measurement noise; 0 keeps their default)."""
 
     actuators: tuple[ActuatorSpec, ...]
+    zones: tuple[ZoneSpec, ...] = ONE_ZONE
     dt_s: float = 1800.0
     horizon_steps: int = 48
     comfort_weight_eur_per_kh: float = 1.0
@@ -183,11 +208,13 @@ class ControlSpec:
     def __post_init__(self) -> None:
         if not (isinstance(self.actuators, tuple) and all(isinstance(a, ActuatorSpec) for a in self.actuators)):
             raise TypeError(f"ControlSpec.actuators must be a tuple of ActuatorSpec, got {self.actuators!r}")
-        if len(self.actuators) != 1 or self.actuators[0].zone != 0:
+        if not (isinstance(self.zones, tuple) and self.zones and all(isinstance(z, ZoneSpec) for z in self.zones)):
+            raise TypeError(f"ControlSpec.zones must be a non-empty tuple of ZoneSpec, got {self.zones!r}")
+        if len(self.actuators) != 1 or not 0 <= self.actuators[0].zone < len(self.zones):
             raise ValueError(
-                "ControlSpec.actuators: the controllers set one actuator on zone 0 (one zone, "
-                f"heating or cooling), got {len(self.actuators)} on zones "
-                f"{[a.zone for a in self.actuators]}"
+                "ControlSpec.actuators: the controllers set one actuator (heating or cooling) on "
+                f"one of the building's {len(self.zones)} zone(s), got {len(self.actuators)} on "
+                f"zones {[a.zone for a in self.actuators]}"
             )
         if self.horizon_steps < 1:
             raise ValueError(f"ControlSpec.horizon_steps must be >= 1, got {self.horizon_steps}")

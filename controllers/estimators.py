@@ -236,7 +236,7 @@ class FleetOffsetFilter:
         u_w = torch.tensor([[[v.u_phys], [v.u]] for v in lasts if v is not None], dtype=torch.float32)
         with torch.no_grad():
             roll = self.dynamics.rollout([o.history for o in observations], u_w, exog, drop_last=1)
-            predicted = roll.t_r_c[:, :, 0, 0].mean(1).double().numpy()
+            predicted = roll.t_r_c[:, :, 0, 0, 0].mean(1).double().numpy()
             delivered = roll.u_phys_w[:, :, 1, 0].mean(1).double().numpy()
         error = np.array([o.t_r_c for o in observations], dtype=float) - predicted
         self.power_error_w = np.array([v.u_phys for v in lasts if v is not None], dtype=float) - delivered

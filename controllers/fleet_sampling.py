@@ -230,7 +230,7 @@ class FleetCEM:
         assert step.start is not None
         dtype = torch.float32
         roll = self.dynamics.roll(step.start, u_w)
-        t_r = roll.t_r_c.to(dtype).mean(1) + step.offset
+        t_r = roll.t_r_c[..., 0].to(dtype).mean(1) + step.offset  # each building's one zone
         u_phys = roll.u_phys_w.to(dtype).mean(1)  # (B, N, H)
         spec = self.spec
         comfort = comfort_cost_torch(t_r, step.t_min, step.t_max, spec.dt_h, spec.comfort_weight_eur_per_kh)
@@ -312,7 +312,7 @@ class FleetCEM:
         if self.spread_dynamics is not None and step.spread_start is not None and plan.ok.any():
             members = self.spread_dynamics.roll(
                 step.spread_start, torch.as_tensor(plan.power_w[:, None], dtype=torch.float32)
-            ).t_r_c[:, :, 0]  # (B, M, H)
+            ).t_r_c[:, :, 0, :, 0]  # (B, M, H)
             if members.shape[1] > 1:
                 spread = members.std(1, correction=0).amax(-1).double().numpy()
         u = np.where(plan.ok, plan.power_w[:, 0], 0.0)

@@ -270,7 +270,7 @@ class _SamplingController(PlanningController):
         exog = {name: np.asarray(hist[name], dtype=float)[-r - 1 : -1] for name in self.model.exog_names}
         with torch.no_grad():
             roll = self.model.rollout(past, torch.tensor(u_phys[None], dtype=torch.float32), exog)
-        learned = float(roll.t_r_c[:, 0, -1].mean())
+        learned = float(roll.t_r_c[:, 0, -1, 0].mean())  # the planned zone
         rc = math.nan if self.replay is None else self.replay.error_k(obs.k, obs.t_r_c, hist, r)
         return obs.t_r_c - learned, rc
 
@@ -370,7 +370,7 @@ class _SamplingController(PlanningController):
         if not np.isfinite(cost):
             raise _NonFiniteModelOutput
         with torch.no_grad():
-            members = self.model.rollout(obs.history, plan[None].float(), exog).t_r_c[:, 0]
+            members = self.model.rollout(obs.history, plan[None].float(), exog).t_r_c[:, 0, :, 0]
         spread = float(members.std(0, correction=0).max()) if members.shape[0] > 1 else 0.0
         return plan.numpy().astype(float), cost, result.iterations + polisher.lps, spread
 
@@ -416,7 +416,8 @@ class _SamplingController(PlanningController):
         def rollout(u_w: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
             with torch.no_grad():
                 roll = self.model.rollout(history, u_w, exog)
-                t_r, u_phys = roll.t_r_c.to(dtype), roll.u_phys_w.to(dtype)
+                # The one zone it plans (the LP polish and the setpoint space are one zone's).
+                t_r, u_phys = roll.t_r_c[..., 0].to(dtype), roll.u_phys_w.to(dtype)
             if not (bool(torch.isfinite(t_r).all()) and bool(torch.isfinite(u_phys).all())):
                 raise _NonFiniteModelOutput
             if self.ensemble == "mean":

@@ -12,6 +12,12 @@ Sunday-or-holiday schedules, else 0; an EnergyPlus building's ``RunPeriodControl
 ``cop`` [-] heat delivered per electrical watt of ``u_phys`` (a heat pump's COP; absent or 1 for a
 resistance heater; :func:`pinn_mpc.identify.identify_rc` then fits on ``cop`` x ``u_phys``).
 
+A building of several zones has the zone series (``T_r``, ``T_m``, ``T_min``, ``T_max``) once
+per zone, as ``T_r[<zone>]`` (:mod:`pinn_mpc.zones`); its comfort band may also be one
+``T_min``/``T_max`` for every zone. A file whose only zone columns name one zone is read as a
+one-zone file (``T_r[x]`` read as ``T_r``). Readers take one zone unless asked for zones
+(``zones=True``): the models and controllers are one zone's today.
+
 :func:`read_timeseries` validates a file and returns a DataFrame whose ``time`` column is
 ``datetime64[ns]`` (numeric seconds are taken as seconds since 1970-01-01) with a uniform
 step, stored in ``df.attrs["dt_s"]``. Every problem raises :class:`InputError` naming the
@@ -34,6 +40,7 @@ from pinn_mpc.errors import InputError, setting, warn
 from pinn_mpc.io import atomic_write, atomic_write_json, file_sha256, staged
 from pinn_mpc.physics import DT_RANGE_S, MAX_POWER_W, RCParams
 from pinn_mpc.solar import FACADE_COLUMNS
+from pinn_mpc.zones import ZONE_SERIES, ZoneSpec, parse_zone_column, zone_columns, zones_in
 
 __all__ = [
     "COLUMNS",
@@ -59,6 +66,7 @@ __all__ = [
     "validate_timeseries",
     "write_fleet_params",
     "write_timeseries",
+    "zone_values",
 ]
 
 #: The wind speed column [m/s] (a weather station's, at its 10 m mast).
@@ -120,9 +128,10 @@ def parse_column_map(text: str | None) -> dict[str, str]:
                 f"{setting('columns')} item {item!r} is not NAME=COLUMN; e.g. {setting('columns')} "
                 "T_r=T_int,u_phys=P_hea"
             )
-        if ours not in COLUMNS:
+        if ours not in COLUMNS and parse_zone_column(ours) is None:
             raise InputError(
-                f"{setting('columns')} names unknown column {ours!r}; known: {', '.join(COLUMNS)}"
+                f"{setting('columns')} names unknown column {ours!r}; known: {', '.join(COLUMNS)}, "
+                "and a zone's T_r[<zone>], T_m[<zone>], T_min[<zone>], T_max[<zone>]"
             )
         mapping[ours] = theirs
     return mapping
@@ -224,14 +233,15 @@ def check_celsius(medians: Mapping[str, float], source: str) -> None:
 _UNITS_WARNED = "power_unit_checked"
 
 
-def _warn_power_units(out: pd.DataFrame, source: str) -> None:
+def _warn_power_units(out: pd.DataFrame, source: str, t_r: str = "T_r") -> None:
     """Warn where the power peaks above 0 but below :data:`KW_SUSPECT_W` while the room's
-    temperature moves by degrees (5-95 % spread of ``T_r`` at least 1 K): kW for W?"""
+    temperature (column ``t_r``, the first zone's) moves by degrees (5-95 % spread at least
+    1 K): kW for W?"""
     col = "u_phys" if "u_phys" in out.columns else "u"
-    if col not in out.columns or "T_r" not in out.columns:
+    if col not in out.columns or t_r not in out.columns:
         return
     peak = float(out[col].max())
-    lo, hi = np.percentile(out["T_r"].to_numpy(dtype=float), [5.0, 95.0])
+    lo, hi = np.percentile(out[t_r].to_numpy(dtype=float), [5.0, 95.0])
     if 0 < peak < KW_SUSPECT_W and hi - lo >= 1.0:
         warn(
             f"{source}: column {col!r} peaks at {peak:.3g} W while T_r moves over "
@@ -288,12 +298,65 @@ def _check_steps(times: pd.Series, raw: pd.Series, source: str) -> float:
     return dt_s
 
 
+def _zone_layout(df: pd.DataFrame, source: str, zones: bool) -> tuple[pd.DataFrame, tuple[ZoneSpec, ...]]:
+    """``df`` with its zone columns checked, and its zones (:func:`pinn_mpc.zones.zones_in`);
+    a file whose zone columns name one zone gets the one-zone names. InputError for zone
+    columns without a room temperature, a series given both ways, a series given for some
+    zones only, or several zones where the reader takes one (``zones`` False)."""
+    found = zones_in(df.columns)
+    zoned = {c: parsed for c in map(str, df.columns) if (parsed := parse_zone_column(c))}
+    if not zoned:
+        return df, found
+    names = [zone.name for zone in found]
+    orphans = sorted({name for _, name in zoned.values()} - set(names))
+    if not any(series == "T_r" for series, _ in zoned.values()) or orphans:
+        raise InputError(
+            f"{source}: zone columns name zone(s) {', '.join(orphans or sorted({n for _, n in zoned.values()}))} "
+            "without a room temperature T_r[<zone>]; give every zone its T_r[<zone>] column"
+        )
+    for series in ZONE_SERIES:
+        given = [c for c, (s, _) in zoned.items() if s == series]
+        if given and series in df.columns:
+            raise InputError(
+                f"{source}: has both {series!r} and {', '.join(given)}; give {series} once per "
+                f"zone ({series}[<zone>]) or, for the comfort band, once for every zone"
+            )
+        if given and len(given) != len(names):
+            lacking = [n for n in names if f"{series}[{n}]" not in given]
+            raise InputError(
+                f"{source}: {series} is given for some zones but not for {', '.join(lacking)}; "
+                f"give {series}[<zone>] for every zone"
+            )
+    if len(names) == 1:  # one zone, named: the one-zone file
+        return df.rename(columns={c: s for c, (s, _) in zoned.items()}), found
+    if not zones:
+        raise InputError(
+            f"{source}: holds {len(names)} zones ({', '.join(names)}); the models and "
+            "controllers take one zone today: keep one zone's columns, named T_r, T_min, "
+            "T_max (e.g. pandas: df.rename(columns={'T_r[" + names[0] + "]': 'T_r'}))"
+        )
+    return df, found
+
+
+def _in_format_order(columns: list[str]) -> list[str]:
+    """``columns`` in the data format's order, a zone series' columns at that series' place
+    (in their own order), then the others as they come."""
+
+    def base(column: str) -> str:
+        parsed = parse_zone_column(column)
+        return column if parsed is None else parsed[0]
+
+    known = [c for name in COLUMNS for c in columns if base(c) == name]
+    return known + [c for c in columns if c not in known]
+
+
 def validate_timeseries(
     df: pd.DataFrame,
     *,
     source: str = "data",
     require: tuple[str, ...] = REQUIRED,
     u_max_w: float | None = None,
+    zones: bool = False,
 ) -> pd.DataFrame:
     """Check and normalise a DataFrame in the format; returns a new frame with ``attrs['dt_s']``.
 
@@ -301,9 +364,18 @@ def validate_timeseries(
     refused, :func:`check_celsius`) and within :data:`TEMPERATURE_RANGE_C`, power columns
     within 0 .. :data:`~pinn_mpc.physics.MAX_POWER_W` (and ``u_max_w``, the actuator's limit,
     when known; a warning where they look like kW, :data:`KW_SUSPECT_W`), time strictly
-    increasing at a uniform step within :data:`~pinn_mpc.physics.DT_RANGE_S`.
+    increasing at a uniform step within :data:`~pinn_mpc.physics.DT_RANGE_S`. The zone
+    columns (module docstring) are checked as their series; a frame of several zones is
+    refused unless ``zones``.
     """
-    missing = [c for c in require if c not in df.columns]
+    df, building_zones = _zone_layout(df, source, zones)
+    per_zone = {s: zone_columns(s, building_zones) for s in ZONE_SERIES}
+    # Each zone series' columns in the frame: once per zone, or once for every zone.
+    present = {
+        s: [c for c in cols if c in df.columns] or [c for c in (s,) if c in df.columns]
+        for s, cols in per_zone.items()
+    }
+    missing = [c for c in require if c not in df.columns and not present.get(c)]
     if "u" in missing and "u_phys" in df.columns:
         missing.remove("u")  # one power column: u = u_phys
     if missing:
@@ -321,9 +393,8 @@ def validate_timeseries(
         )
     raw_time = df["time"].reset_index(drop=True)
     out = pd.DataFrame({"time": parse_times(raw_time, source)})
-    for col in NUMERIC:
-        if col not in df.columns:
-            continue
+    ordered = _in_format_order([c for name in COLUMNS for c in present.get(name, [name])])
+    for col in (c for c in ordered if c != "time" and c in df.columns):
         values = pd.to_numeric(df[col].reset_index(drop=True), errors="coerce")
         bad = ~np.isfinite(values.to_numpy(dtype=float))
         if bad.any():
@@ -343,12 +414,13 @@ def validate_timeseries(
         out[col] = values.astype(float)
     if "u" not in out.columns:
         out["u"] = out["u_phys"]
-    check_celsius({c: float(out[c].median()) for c in TEMPERATURES if c in out.columns}, source)
-    for col in TEMPERATURES:
+    temperatures = [c for name in TEMPERATURES for c in present.get(name, [name]) if c in out.columns]
+    check_celsius({c: float(out[c].median()) for c in temperatures}, source)
+    for col in temperatures:
         _check_range(out, col, TEMPERATURE_RANGE_C, source, " C", "; is it in kelvin or Fahrenheit?")
     _check_power(out, source, u_max_w)
     if not df.attrs.get(_UNITS_WARNED):  # a frame this returned (or a part of it) warned once
-        _warn_power_units(out, source)
+        _warn_power_units(out, source, per_zone["T_r"][0])
     _check_range(out, "cop", COP_RANGE, source, "", " (heat delivered per electrical watt)")
     _check_range(out, WIND, WIND_RANGE_M_S, source, " m/s", "; is it in km/h or knots?")
     if "holiday" in out.columns and not out["holiday"].isin((0.0, 1.0)).all():
@@ -358,8 +430,7 @@ def validate_timeseries(
             "be 1 on the building's holidays and 0 on other days"
         )
     dt_s = _check_steps(out["time"], raw_time, source)
-    ordered = [c for c in COLUMNS if c in out.columns]
-    out = out[ordered]
+    out = out[[c for c in ordered if c in out.columns]]
     out.attrs["dt_s"] = dt_s
     out.attrs[_UNITS_WARNED] = True
     return out
@@ -388,8 +459,10 @@ def read_timeseries(
     *,
     columns: Mapping[str, str] | str | None = None,
     require: tuple[str, ...] = REQUIRED,
+    zones: bool = False,
 ) -> pd.DataFrame:
-    """Read and validate a CSV in the format; ``columns`` maps our names to the file's."""
+    """Read and validate a CSV in the format; ``columns`` maps our names to the file's; a
+    file of several zones is refused unless ``zones`` (:func:`validate_timeseries`)."""
     source = str(path)
     mapping = (
         parse_column_map(columns) if isinstance(columns, str) or columns is None else dict(columns)
@@ -402,7 +475,7 @@ def read_timeseries(
             f"have {', '.join(map(str, raw.columns))}"
         )
     renamed = raw.rename(columns={theirs: ours for ours, theirs in mapping.items()})
-    return validate_timeseries(renamed, source=source, require=require)
+    return validate_timeseries(renamed, source=source, require=require, zones=zones)
 
 
 def read_fleet_timeseries(
@@ -438,10 +511,7 @@ def write_timeseries(df: pd.DataFrame, path: str | os.PathLike[str]) -> Path:
     out = df.copy()
     if pd.api.types.is_datetime64_any_dtype(out["time"]):
         out["time"] = out["time"].dt.strftime("%Y-%m-%dT%H:%M:%S")
-    ordered = [c for c in COLUMNS if c in out.columns] + [
-        c for c in out.columns if c not in COLUMNS
-    ]
-    out = out[ordered]
+    out = out[_in_format_order(list(out.columns))]
     return atomic_write(path, lambda tmp: out.to_csv(tmp, index=False, float_format="%.6f"))
 
 
@@ -485,3 +555,12 @@ def read_fleet_params(data: str | os.PathLike[str], n_buildings: int) -> list[RC
             f"buildings; simulate the fleet again, or remove {sidecar}"
         )
     return params
+
+
+def zone_values(frame: pd.DataFrame, series: str) -> np.ndarray:
+    """(T, Z) the zone series ``series`` (``T_r``, ``T_m``, ``T_min``, ``T_max``) of every zone
+    of a validated frame, in its zones' order (a one-zone frame: Z = 1); a comfort band given
+    once for every zone is each zone's."""
+    zones = zones_in(frame.columns)
+    columns = [c if c in frame.columns else series for c in zone_columns(series, zones)]
+    return frame[columns].to_numpy(dtype=float)

@@ -75,7 +75,7 @@ def recursive_paths(
         torch.from_numpy(u[starts[:, None] + ahead].astype(np.float32)),
         torch.from_numpy(tod[starts[:, None] + ahead]),
     )
-    return roll.t_r_c.numpy().astype(float), starts
+    return roll.t_r_c[..., 0].numpy().astype(float), starts  # the model's one zone
 
 
 def evaluate_model(

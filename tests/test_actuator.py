@@ -96,8 +96,8 @@ def test_todays_buildings_declare_one_actuator_from_the_scenario():
     assert not get_scenario("cold_storage").control_spec().heating
 
 
-def test_the_controllers_set_one_actuator_on_zone_0():
-    with pytest.raises(ValueError, match=r"one actuator on zone 0 .* got 2 on zones \[0, 0\]"):
+def test_the_controllers_set_one_actuator_on_one_of_the_zones():
+    with pytest.raises(ValueError, match=r"one actuator \(heating or cooling\) on one of the building's 1 zone.* got 2 on zones \[0, 0\]"):
         ControlSpec(actuators=(FLOOR, FLOOR))
     with pytest.raises(ValueError, match=r"got 1 on zones \[1\]"):
         ControlSpec(actuators=(dataclasses.replace(FLOOR, zone=1),))

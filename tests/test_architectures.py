@@ -128,7 +128,7 @@ def test_a_new_architecture_trains_rolls_out_saves_and_loads(plugged_in: str, tm
     history = {n: df[n].to_numpy()[:10] for n in ("T_r", "u_phys", *series)}
     exog = {n: df[n].to_numpy()[10:16] for n in series} | {"time_of_day_h": np.arange(6) * 0.5}
     roll = model.rollout(history, torch.full((4, 6), 1000.0), exog)
-    assert roll.t_r_c.shape == (2, 4, 6) and roll.t_m_c is None
+    assert roll.t_r_c.shape == (2, 4, 6, 1) and roll.t_m_c is None
     # The fused rollout's first step is the one-step model (the halved outputs included).
     pred, starts = recursive_t_r(model, df, 1)
     one = model.predict_one_step(df)

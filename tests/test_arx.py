@@ -94,10 +94,10 @@ def test_arx_rollout_is_its_recursion_for_the_planners():
     }
     plan = torch.tensor(test["u_phys"].to_numpy()[k : k + h])[None]
     roll = model.rollout(history, plan.repeat(3, 1), exog)
-    assert roll.t_r_c.shape == (1, 3, h) and model.exog_names == ("time_of_day_h", "day_of_week", "T_a", "G")
+    assert roll.t_r_c.shape == (1, 3, h, 1) and model.exog_names == ("time_of_day_h", "day_of_week", "T_a", "G")
     for step in (1, 6, h):
         expected = model.predict_t_r(test, step, np.array([k]))[0]
-        assert float(roll.t_r_c[0, 2, step - 1]) == pytest.approx(expected, abs=1e-9)
+        assert float(roll.t_r_c[0, 2, step - 1, 0]) == pytest.approx(expected, abs=1e-9)
     assert model.eta == 1.0
     with pytest.raises(InputError, match="dates"):
         model.rollout(history, plan, {**exog, "day_of_week": np.full(h, np.nan)})
@@ -320,7 +320,7 @@ def test_polish_linearises_the_physics_informed_arx_exactly_by_probing_every_ste
     for stride in (1, 4):
         batch, step = probes(u0, 10.0, 1000.0, stride)
         roll = model.rollout(history, batch, exog)
-        jr = jacobians(roll.t_r_c, roll.u_phys_w, step)[2][0]
+        jr = jacobians(roll.t_r_c[..., 0], roll.u_phys_w, step)[2][0]
         errors[stride] = np.max(np.abs(jr - gain))
     assert errors[1] < 1e-9 < 1e-5 < errors[4]
     spec = get_scenario("winter_household").control_spec()
@@ -349,7 +349,7 @@ def test_physics_informed_arx_round_trips_plans_as_it_predicts_and_refuses_cooli
     roll = loaded.rollout(history, plan, exog)
     for step in (1, 6, h):
         expected = loaded.predict_t_r(test, step, np.array([k]))[0]
-        assert float(roll.t_r_c[0, 0, step - 1]) == pytest.approx(expected, abs=1e-9)
+        assert float(roll.t_r_c[0, 0, step - 1, 0]) == pytest.approx(expected, abs=1e-9)
     with pytest.raises(InputError, match="more power cools"):
         fit_physics_informed_arx(_occupied_data(21, seed=0, heater_gain=-0.002), lags=1)
     cooling = fit_physics_informed_arx(_occupied_data(21, seed=0, heater_gain=-0.002), lags=1, eta=-3.0)

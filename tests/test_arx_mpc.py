@@ -170,7 +170,7 @@ def test_closed_loop_cost_equals_the_oracles() -> None:
         for _ in range(n):
             decision = loop.advance(controller)
             assert decision.error is None and not decision.fallback
-            t_r.append(float(decision.plant.t_r_c[0]))
+            t_r.append(float(decision.plant.t_r_c[0, 0]))
         u = loop.record().u_w[warm:]
         return u, float(HorizonObjective.from_forecast(_later(fc, warm), SPEC, n).cost(u, np.array(t_r)))
 

@@ -316,9 +316,9 @@ def test_baseline_kpis_of_a_short_run(settings: BoptestSettings) -> None:
         history = plant.history()
     # no input overwritten: the test case's own controller modulated the heat pump
     assert history["signal_mean"].max() > 0.05 and history["signal_mean"].std() > 0.01
-    assert not any(bool(s.result.overridden[0]) for s in steps)
-    u_phys = np.array([s.result.u_phys_w[0] for s in steps])
-    sub = np.vstack([s.result.t_r_sub_c for s in steps])
+    assert not any(bool(s.overridden[0]) for s in steps)
+    u_phys = np.array([s.u_phys_w[0] for s in steps])
+    sub = np.vstack([s.t_r_sub_c[:, :, 0] for s in steps])
     area = settings.points.floor_area_m2
     energy = float(np.sum(u_phys) * run.dt_s / 3.6e6)
     assert energy / area == pytest.approx(kpis["ener_tot"], rel=1e-4)
@@ -478,12 +478,12 @@ def test_a_plant_on_a_borrowed_test_leaves_stopping_it_to_its_owner(settings: Bo
             BoptestPlant(dataclasses.replace(settings, points=wrong), run, test=test)
         assert not test.stopped
         with BoptestPlant(settings, run, test=test) as plant:
-            first = plant.step(2000.0, 0).result.t_r_c[0]
+            first = plant.step(2000.0, 0).t_r_c[0, 0]
         assert plant.test is test and not test.stopped
         assert client.call("GET", f"status/{test.testid}") == "Running"
         with BoptestPlant(settings, run, test=test) as again:  # re-started: the same interval
             assert again.start_time_s == plant.start_time_s
-            assert again.step(2000.0, 0).result.t_r_c[0] == pytest.approx(first, rel=1e-12)
+            assert again.step(2000.0, 0).t_r_c[0, 0] == pytest.approx(first, rel=1e-12)
     assert test.stopped
     assert BoptestClient(settings.url).call("GET", f"status/{test.testid}") == "Stopped"
 

@@ -54,7 +54,7 @@ def test_observation_carries_the_last_interval_in_the_forecast_names():
     for name in ("time_of_day_h", "T_a", "G", "I_g"):
         assert getattr(last, name) == getattr(first.forecast, name)[0]
     assert last.u == first.u_w and last.u_phys == float(first.plant.u_phys_w[0])
-    assert second.observation.t_r_c == pytest.approx(float(first.plant.t_r_c[0]))
+    assert second.observation.t_r_c == pytest.approx(float(first.plant.t_r_c[0, 0]))
     assert second.forecast.T_a[0] == second.observation.history["T_a"][-1]
 
 
@@ -88,7 +88,7 @@ def test_offset_filter_of_an_exact_model_stays_zero_and_follows_a_bias():
         obs = loop.observation()
         history = {**obs.history, "T_m": np.full(len(obs.history["T_r"]), np.nan)}
         if obs.k >= 1:  # the true T_m one step ago, so the model's one-step prediction is exact
-            history["T_m"][-2] = loop.record().t_m_c[-1]
+            history["T_m"][-2] = loop.record().t_m_c[-1, 0]
         exact.update(obs._replace(history=history))
         shifted = obs._replace(history=history, t_r_c=obs.t_r_c + 0.2)
         biased.update(shifted)

@@ -55,7 +55,7 @@ def test_batched_rollout_equals_each_models_rollout(fleet_models):
     first = FleetModels(models, members=1).rollout([o.history for o in observations], u, exog)
     for i, model in enumerate(models):
         own = model.rollout(observations[i].history, u[i], exog)
-        assert batched.t_r_c[i].shape == own.t_r_c.shape == (3, 9, h)
+        assert batched.t_r_c[i].shape == own.t_r_c.shape == (3, 9, h, 1)
         # One recursion (roll_states) for both: only the preparation's round-off differs.
         torch.testing.assert_close(batched.t_r_c[i], own.t_r_c, atol=1e-4, rtol=0)
         torch.testing.assert_close(batched.u_phys_w[i], own.u_phys_w, atol=0.05, rtol=0)
@@ -80,7 +80,7 @@ def test_batched_cem_equals_the_cem_planner_building_by_building(fleet_models):
 
     def cost(i: int, u: torch.Tensor) -> torch.Tensor:  # (N, H) -> (N,)
         roll = models[i].rollout(observations[i].history, u, exog)
-        return (roll.t_r_c.mean(0) - target).abs().sum(-1) + 1e-4 * roll.u_phys_w.mean(0).sum(-1)
+        return (roll.t_r_c[..., 0].mean(0) - target).abs().sum(-1) + 1e-4 * roll.u_phys_w.mean(0).sum(-1)
 
     x0 = torch.full((2, h), 3000.0)
     seeds = (5, 7)
@@ -268,7 +268,7 @@ def test_a_fleet_of_any_family_rolls_out_as_each_building_model(other_families, 
     u = torch.rand((3, 5, h), generator=torch.Generator().manual_seed(0)) * scenario.sim.u_max_w
     histories = [o.history for o in observations]
     roll = fleet_models.rollout([*histories, histories[0]], u, exog)
-    assert roll.t_r_c.shape == (3, 1, 5, h)
+    assert roll.t_r_c.shape == (3, 1, 5, h, 1)
     for i, model in enumerate([*models, fleet_models.models[2]]):
         own = model.rollout(histories[i % 2], u[i], {n: exog[n] for n in model.exog_names})
         assert torch.equal(roll.t_r_c[i], own.t_r_c[:1].to(roll.t_r_c.dtype))

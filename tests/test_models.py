@@ -141,7 +141,7 @@ def test_rollout_feeds_predictions_back_like_a_step_by_step_loop(small_model: Le
     u = torch.tensor(df["u"].to_numpy()[i : i + h], dtype=torch.float32)[None].repeat(2, 1)
     roll = model.rollout(hist, u, exog)
     m = model.n_members
-    assert roll.t_r_c.shape == roll.u_phys_w.shape == (m, 2, h)
+    assert roll.t_r_c.shape == (m, 2, h, 1) and roll.u_phys_w.shape == (m, 2, h)
     assert (roll.t_m_c is None) == (model.arch == "mlp")
     # Step by step: write each member's prediction into the frame and predict one step.
     for member in range(m):
@@ -150,7 +150,7 @@ def test_rollout_feeds_predictions_back_like_a_step_by_step_loop(small_model: Le
             one = model.predict_one_step(frame.iloc[: i + j + 2])
             row = list(one["row"]).index(i + j)
             assert one["T_r_next"][member, row] == pytest.approx(
-                float(roll.t_r_c[member, 0, j]), abs=2e-4
+                float(roll.t_r_c[member, 0, j, 0]), abs=2e-4
             )
             assert one["u_phys"][member, row] == pytest.approx(
                 float(roll.u_phys_w[member, 0, j]), abs=0.5
@@ -183,7 +183,7 @@ def test_every_planner_model_declares_the_rollout_protocol(small_model: LearnedM
     exog |= {"time_of_day_h": time_of_day_h(df["time"])[i : i + h], "day_of_week": np.zeros(h)}
     u = torch.rand(3, h, generator=torch.Generator().manual_seed(0), dtype=torch.float64) * 5000.0
     free, gain = arx.prediction_matrices(hist, exog, h)
-    torch.testing.assert_close(arx.rollout(hist, u, exog).t_r_c[0], torch.as_tensor(free) + u @ torch.as_tensor(gain).T)
+    torch.testing.assert_close(arx.rollout(hist, u, exog).t_r_c[0, ..., 0], torch.as_tensor(free) + u @ torch.as_tensor(gain).T)
 
 
 def test_rollout_rejects_short_history(small_model: LearnedModel) -> None:
@@ -258,7 +258,7 @@ def test_hybrid_without_corrections_is_the_exact_2r2c() -> None:
     rc = RCBatchModel(truth, dt_s=1800.0, actuator=ActuatorSpec(upper_w=5000.0, heats=truth.heating), backup_low_c=-99, backup_high_c=99)
     ref = rc.rollout({**history, "T_m": df["T_m"].to_numpy()[: i + 1]}, u, exog)
     assert roll.t_m_c is not None
-    t_m_error = float((roll.t_m_c[:, :, 0] - df["T_m"].to_numpy()[i]).abs().max())
+    t_m_error = float((roll.t_m_c[:, :, 0, 0] - df["T_m"].to_numpy()[i]).abs().max())
     assert t_m_error < 0.01
     torch.testing.assert_close(roll.u_phys_w, ref.u_phys_w.expand(2, -1, -1), atol=0.5, rtol=0)
     assert float((roll.t_r_c - ref.t_r_c).abs().max()) <= t_m_error + 1e-3
@@ -327,9 +327,9 @@ def test_hybrid_heats_with_the_sign_of_eta() -> None:
     model = train_model(df, arch="hybrid", config=config, progress=False)
     history, exog = _history_and_forecast(df, 200, 12)
     plans = torch.linspace(0.0, 5000.0, 11)[:, None].expand(11, 12)
-    first = model.rollout(history, plans[:, :1], exog).t_r_c[..., 0]  # (M, 11)
+    first = model.rollout(history, plans[:, :1], exog).t_r_c[..., 0, 0]  # (M, 11)
     assert bool((first[:, 1:] > first[:, :-1]).all())
-    t_r = model.rollout(history, plans, exog).t_r_c  # (M, 11, H)
+    t_r = model.rollout(history, plans, exog).t_r_c[..., 0]  # (M, 11, H)
     assert bool((t_r[:, 1:] >= t_r[:, :-1]).all())
 
 
@@ -433,7 +433,7 @@ def test_hybrid_rollout_equals_stepping_the_one_step_model(heating: bool) -> Non
             ref = _reference_hybrid_rollout(net, windows, u, tods, bounds)
             roll = model.rollout_scaled(*windows, u, tods)
             assert roll.t_m_c is not None
-            for a, b, tol in zip(ref, (roll.t_r_c, roll.u_phys_w, roll.t_m_c), (1e-4, 0.5, 1e-4), strict=True):
+            for a, b, tol in zip(ref, (roll.t_r_c[..., 0], roll.u_phys_w, roll.t_m_c[..., 0]), (1e-4, 0.5, 1e-4), strict=True):
                 assert b.shape == (3, u.shape[0], h), name
                 assert float((a - b).abs().max()) < tol, name
             outs.append(roll.t_r_c)
@@ -471,12 +471,12 @@ def test_hybrid_residual_is_bounded_by_what_it_added_on_its_training_data() -> N
     if "G" in hot:
         hot["G"] = np.asarray(hot["G"]) * 3.0
     plans = torch.full((3, 12), 1000.0)
-    with_res = model.rollout(history, plans, hot).t_r_c
+    with_res = model.rollout(history, plans, hot).t_r_c[..., 0]
     with torch.no_grad():
         for p in net.residual_net[-1].parameters():
             p.zero_()
     model._constants = None
-    bare = model.rollout(history, plans, hot).t_r_c
+    bare = model.rollout(history, plans, hot).t_r_c[..., 0]
     # The residual's effect accumulates through the 2R2C, at most the bound per step.
     steps = torch.arange(1, 13, dtype=torch.float32)
     assert bool(((with_res - bare).abs() <= bound[:, None, :] * steps + 1e-4).all())

@@ -78,7 +78,7 @@ def _closed_loop(controller: Controller, n_steps: int, *, hidden_start_t_m_c: fl
     t_r_next, t_m_last = [], np.nan
     for _ in range(n_steps):
         t_m_last = float(loop.true_state()[0, 1])
-        t_r_next.append(float(loop.advance(controller).plant.t_r_c[0]))
+        t_r_next.append(float(loop.advance(controller).plant.t_r_c[0, 0]))
     actions = loop.record().u_w
     error = np.nan
     if isinstance(controller, RCMPC):
@@ -195,7 +195,7 @@ def _below_band(mpc: RCMPC, n: int = 96) -> tuple[float, np.ndarray]:
     fc = _forecast(n + SPEC.horizon_steps, T_a=10.0)
     loop = ClosedLoop(config, ExogenousSeries(**fc._asdict()), spec=SPEC, initial_t_r_c=20.5, initial_t_m_c=20.0)
     mpc.reset(seed=0)
-    t_r = np.array([float(loop.advance(mpc).plant.t_r_c[0]) for _ in range(n)])
+    t_r = np.array([float(loop.advance(mpc).plant.t_r_c[0, 0]) for _ in range(n)])
     below = np.maximum(fc.T_min[1 : n + 1] - t_r, 0.0).sum() * SPEC.dt_s / 3600.0
     return float(below), loop.record().u_w
 

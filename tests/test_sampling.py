@@ -319,7 +319,7 @@ def test_cooling_model_plans_against_overheating():
     assert plan is not None and plan.mean() > 0.3 * 2000.0  # must cool hard all day
     do_nothing = model.rollout(_obs(21.5, 21.5).history, torch.zeros(1, H), {
         "T_a": hot.T_a, "G": np.zeros(H), "I_g": np.zeros(H)})
-    idle = plan_cost(do_nothing.u_phys_w[0].numpy(), do_nothing.t_r_c[0].numpy(), hot, spec)
+    idle = plan_cost(do_nothing.u_phys_w[0].numpy(), do_nothing.t_r_c[0, ..., 0].numpy(), hot, spec)
     assert cem.last_cost_eur < 0.5 * float(idle[0])
 
 
@@ -405,7 +405,7 @@ def test_cem_over_a_trained_physnet_ensemble_in_closed_loop(physnet):
         roll = physnet.rollout(obs.history, torch.tensor(plan[None], dtype=torch.float32), exog)
         margin = cem.monitor.margin_k(0.01)  # the band narrowed by the model's filtered error
         per_member = [
-            plan_cost(roll.u_phys_w[m, 0].numpy(), roll.t_r_c[m, 0].numpy(), fc, SPEC, margin)
+            plan_cost(roll.u_phys_w[m, 0].numpy(), roll.t_r_c[m, 0, :, 0].numpy(), fc, SPEC, margin)
             for m in range(physnet.n_members)
         ]
         expected = np.mean(per_member) + risk_weight * np.std(per_member)
@@ -430,12 +430,12 @@ def test_default_cem_scores_the_ensemble_mean_with_a_measured_offset(physnet):
             past = {name: v[:-1] for name, v in obs.history.items()}
             last = {name: obs.history[name][-2:-1] for name in ("time_of_day_h", "T_a")}
             u_last = torch.tensor([[obs.history["u_phys"][-1]]], dtype=torch.float32)
-            predicted = float(physnet.rollout(past, u_last, last).t_r_c[:, 0, 0].mean())
+            predicted = float(physnet.rollout(past, u_last, last).t_r_c[:, 0, 0, 0].mean())
             offset += gain * (obs.history["T_r"][-1] - predicted - offset)
     k, obs, fc, _u = steps[-1]
     plan = torch.tensor(cem.last_plan[None], dtype=torch.float32)
     roll = physnet.rollout(obs.history, plan, exog)
-    mean_t = roll.t_r_c[:, 0].mean(0).numpy() + offset
+    mean_t = roll.t_r_c[:, 0, :, 0].mean(0).numpy() + offset
     margin = cem.monitor.margin_k(0.01)  # the band narrowed by the model's filtered error
     expected = plan_cost(roll.u_phys_w[:, 0].mean(0).numpy(), mean_t, fc, SPEC, margin)
     assert offset != 0.0
@@ -474,7 +474,7 @@ def _rollout_fn(model: RCBatchModel, obs: Observation, fc: Forecast):
 
     def rollout(u_w: torch.Tensor):
         roll = model.rollout(obs.history, u_w, exog)
-        return roll.t_r_c, roll.u_phys_w
+        return roll.t_r_c[..., 0], roll.u_phys_w
 
     return rollout
 

@@ -393,12 +393,12 @@ class ARXModel(FittedModel):
     ) -> Rollout:
         """The recursion for N plans ``u_w`` (N, H) [W] from ``history`` (data-format names,
         ``T_r`` up to now, ``u_phys`` of past intervals, weather up to now) with ``exog`` (H,)
-        per :attr:`exog_names`; the delivered power is the plan. Tensors (1, N, H), by the
-        affine map of :meth:`prediction_matrices`."""
+        per :attr:`exog_names`; the delivered power is the plan. Tensors (1, N, H) (T_r of the
+        one zone (1, N, H, 1)), by the affine map of :meth:`prediction_matrices`."""
         u = u_w.detach().to(torch.float64)
         free, gain = self.prediction_matrices(history, exog, u.shape[1])
         t_r = torch.as_tensor(free) + u @ torch.as_tensor(gain).T
-        return Rollout(t_r_c=t_r[None], u_phys_w=u.clamp(min=0.0)[None], t_m_c=None)
+        return Rollout.of_one_zone(t_r[None], u.clamp(min=0.0)[None], None)
 
     def to_dict(self) -> dict[str, Any]:
         """The model as JSON-ready data (numbers only)."""

@@ -242,4 +242,4 @@ class ConsistentArchitecture(Architecture):
         lo, hi = model.record.u_phys_range_w
         with torch.no_grad():
             t_r, p_w, t_m, _ = net.roll(with_members(inputs), (lo, hi))
-        return Rollout(t_r_c=t_r, u_phys_w=p_w, t_m_c=t_m)
+        return Rollout.of_one_zone(t_r, p_w, t_m)

@@ -128,7 +128,7 @@ class FleetModels:
         ``u_phys`` and the exogenous series, at least depth+1 values each) under the fleet's
         forecast ``exog`` (one array (>= H,) per name of ``exog_names``). ``drop_last``: start
         that many intervals before the histories' end (their last values unread). Returns
-        tensors (B, M, N, H)."""
+        tensors (B, M, N, H, Z) (the power (B, M, N, H))."""
         u_w = torch.as_tensor(u_w, dtype=torch.float32)
         if u_w.ndim != 3:
             raise InternalError(f"FleetModels.rollout: u_w must be (B, N, H), got {tuple(u_w.shape)}")
@@ -151,7 +151,8 @@ class FleetModels:
         ))
 
     def roll(self, start: FleetStart, u_w: torch.Tensor) -> Rollout:
-        """Every building's N plans ``u_w`` (B, N, H) [W] from ``start``; tensors (B, M, N, H)."""
+        """Every building's N plans ``u_w`` (B, N, H) [W] from ``start``; tensors (B, M, N, H, Z)
+        (the power (B, M, N, H))."""
         u_w = torch.as_tensor(u_w, dtype=torch.float32)
         if u_w.ndim != 3 or u_w.shape[0] != self.n_buildings:
             raise InternalError(f"FleetModels.roll: u_w must be (B={self.n_buildings}, N, H), got {tuple(u_w.shape)}")
@@ -166,7 +167,7 @@ class FleetModels:
         )
 
     def _joined(self, tensors: list[torch.Tensor]) -> torch.Tensor:
-        """The parts' tensors (G_p, M, N, H) in building order, (B, M, N, H)."""
+        """The parts' tensors (G_p, M, N, H, ...) in building order, (B, M, N, H, ...)."""
         dtype = tensors[0].dtype
         for t in tensors[1:]:
             dtype = torch.promote_types(dtype, t.dtype)
@@ -230,7 +231,8 @@ class StackedHybrids(StackedDynamics):
             )
 
     def roll(self, start: object, u_w: torch.Tensor) -> Rollout:
-        """Every building's N plans ``u_w`` (G, N, H) [W] from ``start``; tensors (G, M, N, H)."""
+        """Every building's N plans ``u_w`` (G, N, H) [W] from ``start``; tensors (G, M, N, H, 1)
+        (the power (G, M, N, H))."""
         if not isinstance(start, HybridStart):
             raise InternalError(f"StackedHybrids.roll: a start of prepare(), got {type(start).__name__}")
         g, m = len(self.models), self.n_members
@@ -245,10 +247,10 @@ class StackedHybrids(StackedDynamics):
                 few=self._few if n <= FEW_PLANS else None,
             )
             series = states.permute(1, 2, 3, 0).reshape(g, m, 3, n, h_len + 1)
-            return Rollout(
-                t_r_c=series[:, :, 2, :, 1:].contiguous(),
-                u_phys_w=series[:, :, 0, :, 1:].contiguous(),
-                t_m_c=series[:, :, 1, :, :-1].contiguous(),
+            return Rollout.of_one_zone(
+                series[:, :, 2, :, 1:].contiguous(),
+                series[:, :, 0, :, 1:].contiguous(),
+                series[:, :, 1, :, :-1].contiguous(),
             )
 
 

@@ -682,4 +682,4 @@ class Hybrid(Architecture):
         t_r, p_w, t_m = net.rollout(
             constants, inputs[:3], inputs.u_s, inputs.tod, (lo, hi)
         )
-        return Rollout(t_r_c=t_r, u_phys_w=p_w, t_m_c=t_m)
+        return Rollout.of_one_zone(t_r, p_w, t_m)

@@ -237,7 +237,8 @@ class LearnedModel(FittedModel):
         ``u_w`` (N, H) demanded power [W]. ``exog``: one array (>= H,) per name in
         ``exog_names`` for the next H intervals (``time_of_day_h`` at each interval start;
         ``day_of_week`` too where the features have the calendar).
-        Returns tensors (M, N, H): one batched forward per horizon step.
+        Returns a :class:`~pinn_mpc.models.rollout.Rollout` of the model's one zone, tensors
+        (M, N, H, 1) (the power (M, N, H)): one batched forward per horizon step.
         """
         k1 = self.depth + 1
         f = self.features

@@ -205,8 +205,8 @@ class PaperArchitecture(Architecture):
                 if z_out is not None and z is not None:
                     z_out.select(1, h).copy_(z)
         out = tp[:, k1:].permute(0, 3, 1, 2).contiguous()  # (M, N, H, 2)
-        return Rollout(
-            t_r_c=model.unscale_t(out[..., 0]),
-            u_phys_w=out[..., 1] * f.power.std + f.power.mean,
-            t_m_c=model.unscale_t(z_out.transpose(1, 2)) if z_out is not None else None,
+        return Rollout.of_one_zone(
+            model.unscale_t(out[..., 0]),
+            out[..., 1] * f.power.std + f.power.mean,
+            model.unscale_t(z_out.transpose(1, 2)) if z_out is not None else None,
         )

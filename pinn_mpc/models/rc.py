@@ -86,7 +86,8 @@ class RCBatchModel(BatchDynamics):
     def rollout(
         self, history: dict[str, np.ndarray], u_w: torch.Tensor, exog: dict[str, np.ndarray]
     ) -> Rollout:
-        """u_w (N, H) [W] -> tensors (1, N, H) of end-of-interval T_r, delivered power, T_m."""
+        """u_w (N, H) [W] -> end-of-interval T_r and T_m of the one zone, tensors (1, N, H, 1),
+        and the delivered power (1, N, H)."""
         n, h = u_w.shape
         t_r0, t_m0 = self.state_now(history)
         d = np.stack([np.asarray(exog[k], dtype=float)[:h] for k in self.exog_names], axis=1)
@@ -112,8 +113,6 @@ class RCBatchModel(BatchDynamics):
             out_r.append(t_r)
             out_m.append(t_m)
             out_u.append(p)
-        return Rollout(
-            t_r_c=torch.stack(out_r, 1)[None],
-            u_phys_w=torch.stack(out_u, 1)[None],
-            t_m_c=torch.stack(out_m, 1)[None],
+        return Rollout.of_one_zone(
+            torch.stack(out_r, 1)[None], torch.stack(out_u, 1)[None], torch.stack(out_m, 1)[None]
         )

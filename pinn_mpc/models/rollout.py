@@ -3,7 +3,9 @@
 A learned ensemble (:class:`pinn_mpc.models.LearnedModel`), the 2R2C
 (:class:`pinn_mpc.models.rc.RCBatchModel`) and the ARX (:class:`pinn_mpc.models.arx.ARXModel`)
 all map (history, candidate plans, exogenous forecast) to one :class:`Rollout`: predicted
-end-of-interval T_r, delivered power and T_m, tensors (M members, N plans, H intervals).
+end-of-interval T_r and T_m of each zone, tensors (M members, N plans, H intervals, Z zones),
+and the delivered power (M, N, H). Every model predicts one zone today (Z = 1,
+:meth:`Rollout.of_one_zone`), and the planners plan that zone.
 Planners and the factory take :class:`BatchDynamics`, nothing more; each of those classes
 declares it as its base, so the type checker holds it to the protocol, and what a planner may
 exploit beyond the rollout is a declared property of the protocol, never probed.
@@ -39,11 +41,17 @@ Exogenous = Mapping[str, np.ndarray]
 
 
 class Rollout(NamedTuple):
-    """Recursive predictions for M members x N plans x H intervals (torch tensors)."""
+    """Recursive predictions for M members x N plans x H intervals of a building of Z zones
+    (torch tensors; a fleet's have the buildings first)."""
 
-    t_r_c: torch.Tensor  # (M, N, H) T_r at the end of each interval [C]
+    t_r_c: torch.Tensor  # (M, N, H, Z) each zone's T_r at the end of each interval [C]
     u_phys_w: torch.Tensor  # (M, N, H) delivered power during each interval [W]
-    t_m_c: torch.Tensor | None  # (M, N, H) T_m at the start of each interval [C]; None for mlp
+    t_m_c: torch.Tensor | None  # (M, N, H, Z) T_m at the start of each interval [C]; None for mlp
+
+    @classmethod
+    def of_one_zone(cls, t_r_c: torch.Tensor, u_phys_w: torch.Tensor, t_m_c: torch.Tensor | None) -> Rollout:
+        """The rollout of a one-zone model from its (..., H) predictions (Z = 1)."""
+        return cls(t_r_c[..., None], u_phys_w, None if t_m_c is None else t_m_c[..., None])
 
 
 class BatchDynamics(Protocol):

@@ -12,9 +12,10 @@ import numpy as np
 import pandas as pd
 
 from controllers.base import Forecast
-from pinn_mpc.data import SITE_COLUMNS, day_of_week
+from pinn_mpc.data import SITE_COLUMNS, day_of_week, zone_values
 from pinn_mpc.errors import InternalError
 from pinn_mpc.solar import FACADE_COLUMNS
+from pinn_mpc.zones import zone_columns, zones_in
 from scenarios.inputs.exogenous import time_of_day_h
 
 __all__ = ["EXOGENOUS_FIELDS", "ExogenousSeries", "ForecastErrors", "lead_error_paths"]
@@ -91,7 +92,8 @@ def lead_error_paths(
 @dataclass(frozen=True, kw_only=True)
 class ExogenousSeries:
     """The inputs a run is driven by, one value per control interval, arrays (N,) named as in
-    the data format (and as :class:`controllers.base.Forecast`)."""
+    the data format (and as :class:`controllers.base.Forecast`); the comfort band ``T_min``,
+    ``T_max`` is (N,) for every zone or (N, Z) each zone's (a frame's ``T_min[<zone>]``)."""
 
     time_of_day_h: np.ndarray
     T_a: np.ndarray
@@ -142,8 +144,16 @@ class ExogenousSeries:
     @classmethod
     def from_frame(cls, frame: pd.DataFrame) -> ExogenousSeries:
         """From a frame with ``time`` and :data:`EXOGENOUS_FIELDS` (as Scenario.exogenous makes
-        it), and the facades' irradiance, the wind and ``holiday`` when the frame has them."""
-        missing = [c for c in ("time", *EXOGENOUS_FIELDS) if c not in frame.columns]
+        it; the comfort band once for every zone or as each zone's ``T_min[<zone>]``,
+        ``T_max[<zone>]``), and the facades' irradiance, the wind and ``holiday`` when the frame
+        has them."""
+        zones = zones_in(frame.columns)
+        bands = {
+            name: zone_values(frame, name)
+            for name in ("T_min", "T_max")
+            if all(c in frame.columns for c in zone_columns(name, zones)) and len(zones) > 1
+        }
+        missing = [c for c in ("time", *EXOGENOUS_FIELDS) if c not in frame.columns and c not in bands]
         if missing:
             raise ValueError(
                 f"exogenous frame lacks column(s) {missing}; have {list(frame.columns)}"
@@ -154,7 +164,7 @@ class ExogenousSeries:
             if c in frame.columns
         }
         times = pd.DatetimeIndex(frame["time"]).to_numpy()
-        return cls(time_of_day_h=time_of_day_h(frame["time"]), times=times, **cols)
+        return cls(time_of_day_h=time_of_day_h(frame["time"]), times=times, **(cols | bands))
 
     def __len__(self) -> int:
         return len(self.T_a)

@@ -45,6 +45,7 @@ import pandas as pd
 
 from pinn_mpc.errors import InputError, InternalError, setting
 from pinn_mpc.simulator import StepResult
+from pinn_mpc.zones import ONE_ZONE
 from scenarios.plants.base import PlantStep
 from scenarios.plants.boptest_client import BoptestClient, BoptestError, BoptestTest, end_on_exit
 
@@ -364,6 +365,7 @@ class BoptestPlant:
 
     has_true_state = False
     n_buildings = 1
+    zones = ONE_ZONE  # the test case's room point (BoptestPoints.room_temperature)
 
     def __init__(
         self, settings: BoptestSettings, run: BoptestRun, *, baseline: bool = False,
@@ -468,8 +470,8 @@ class BoptestPlant:
             self._start()
 
     def measure(self) -> np.ndarray:
-        """The room temperature now [C], (1,)."""
-        return np.array([self._state[self.points.room_temperature] - KELVIN])
+        """The room temperature now [C], (1, 1): one building, one zone."""
+        return np.array([[self._state[self.points.room_temperature] - KELVIN]])
 
     def step(self, u_w: float | np.ndarray, row: int) -> PlantStep:
         """Hold the demand ``u_w`` [W] over row ``row``'s interval (the next of the run)."""
@@ -528,7 +530,7 @@ class BoptestPlant:
             t_r_sub_c=t_r_sub.reshape(1, -1),
         )
         gains = float(self._frame["I_g"].iloc[self._row - 1])
-        return PlantStep(
+        return PlantStep.of_one_zone(
             result, np.array([record.values["T_a"]]), np.array([record.values["G"]]), np.array([gains])
         )
 
@@ -761,10 +763,10 @@ def record_data(
         n = run.n_intervals
         t_r, u, u_phys, t_a, g = (np.empty(n) for _ in range(5))
         for k in intervals(n):
-            t_r[k] = float(plant.measure()[0])
+            t_r[k] = float(plant.measure()[0, 0])
             u[k] = float(demand(k, t_r[k], frame.iloc[k]))
             step = plant.step(u[k], k)
-            u_phys[k], t_a[k], g[k] = step.result.u_phys_w[0], step.t_a_c[0], step.g_w_per_m2[0]
+            u_phys[k], t_a[k], g[k] = step.u_phys_w[0], step.t_a_c[0], step.g_w_per_m2[0]
         heat = plant.history()["heat_w"].to_numpy()
     data = pd.DataFrame({
         "time": frame["time"], "T_r": t_r, "u": u, "u_phys": u_phys, "T_a": t_a, "G": g,

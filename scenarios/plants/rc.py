@@ -14,6 +14,7 @@ from pinn_mpc.errors import InputError
 from pinn_mpc.physics import RCParams
 from pinn_mpc.plant import RC_KINDS, Plant
 from pinn_mpc.simulator import SimConfig, Simulator
+from pinn_mpc.zones import ONE_ZONE
 from scenarios.plants.base import PlantStep
 from scenarios.plants.kinds import KindSettings, PlantKind, PlantRequest, register
 from scenarios.plants.settings import PlantSettings
@@ -44,6 +45,7 @@ class RCPlant:
     each, so the interval means are those rows."""
 
     has_true_state = True
+    zones = ONE_ZONE
 
     def __init__(
         self, config: SimConfig, *, t_a_c: np.ndarray, g_w_per_m2: np.ndarray, i_g_w: np.ndarray,
@@ -58,7 +60,7 @@ class RCPlant:
         self.sim.reset(t_r_c, t_m_c, seed=seed)
 
     def measure(self) -> np.ndarray:
-        return self.sim.measure()
+        return self.sim.measure()[:, None]
 
     def true_state(self) -> np.ndarray:
         return np.array(self.sim.state[:, :2], dtype=float)
@@ -67,7 +69,7 @@ class RCPlant:
         t_a, g, i_g = self.t_a_c[row], self.g_w_per_m2[row], self.i_g_w[row]
         result = self.sim.step(u_w, t_a, g, i_g)
         shape = (self.n_buildings,)
-        return PlantStep(result, np.full(shape, t_a), np.full(shape, g), np.full(shape, i_g))
+        return PlantStep.of_one_zone(result, np.full(shape, t_a), np.full(shape, g), np.full(shape, i_g))
 
     def close(self) -> None:
         """Nothing to free."""

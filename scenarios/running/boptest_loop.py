@@ -36,7 +36,6 @@ from controllers.trust import TrustSettings
 from pinn_mpc.choices import ARX, AUTO, COMPARED_ARCHS, MODEL_CHOICES, PHYSICS_ARX
 from pinn_mpc.errors import InputError, setting
 from pinn_mpc.physics import RCParams
-from pinn_mpc.records import ReplayMarginReport, TrustReport
 from scenarios.choices import MODEL_CONTROLLERS, POLICIES
 from scenarios.inputs.exogenous import day_span
 from scenarios.inputs.registry import Scenario, builtin_scenario, check_seed
@@ -59,6 +58,7 @@ from scenarios.running.closed_loop import (
     RunInputs,
     counted_kpis,
     progress_stage,
+    run_kpis,
     run_trajectory,
 )
 from scenarios.running.datagen import SetpointPolicy
@@ -296,7 +296,7 @@ def run_boptest_closed_loop(
             test=test,
         ) as plant:
             frame = plant.exogenous_frame()
-            t_r0 = float(plant.measure()[0])
+            t_r0 = float(plant.measure()[0, 0])
             with ClosedLoop(
                 scenario.sim, ExogenousSeries.from_frame(frame), spec=spec, initial_t_r_c=t_r0,
                 initial_t_m_c=t_r0, seed=0, plant=plant,
@@ -313,27 +313,13 @@ def run_boptest_closed_loop(
     trajectory = run_trajectory(scenario, inputs, rec).drop(columns="T_m")
     if baseline:  # the test case's own controller decided; the demand column is not its
         trajectory["u"] = np.nan
-    kpis: RunKpis = {
-        **counted_kpis(scenario, inputs, rec),
-        "controller": controller_name,
-        "scenario": chosen.name,
-        "days": int(round(run.days)),
-        "seed": seed,
-        "weather_part": "test",
-        "counted_days": day_span(trajectory["time"]),
-        "weather_days": day_span(frame["time"]),  # forecast lead included
-        "boptest": boptest,
-        "boptest_testcase": chosen.settings.points.testcase,
-        "boptest_version": version,
-        "test_period": run.time_period,
-        "price_scenario": run.price_scenario,
-    }
-    report: TrustReport | None = getattr(controller, "trust_report", None)
-    if isinstance(report, dict):  # a planner over a learned model: how often it fell back
-        kpis.update(report)
-    replay: ReplayMarginReport | None = getattr(controller, "replay_report", None)
-    if isinstance(replay, dict):  # an RC MPC planning inside the band by its replay error
-        kpis.update(replay)
+    kpis = run_kpis(
+        counted_kpis(scenario, inputs, rec), controller, label=controller_name,
+        scenario=chosen.name, days=int(round(run.days)), seed=seed, weather_part="test",
+        trajectory=trajectory, weather_times=frame["time"],  # the forecast lead included
+        boptest=boptest, boptest_testcase=chosen.settings.points.testcase,
+        boptest_version=version, test_period=run.time_period, price_scenario=run.price_scenario,
+    )
     return ClosedLoopResult(trajectory=trajectory, kpis=kpis, errors=tuple(errors))
 
 

@@ -29,7 +29,7 @@ import time
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TextIO
+from typing import TextIO, cast
 
 import numpy as np
 import pandas as pd
@@ -40,6 +40,7 @@ from controllers.thermostat import Thermostat
 from pinn_mpc.data import COLUMNS, SITE_COLUMNS, write_timeseries
 from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.physics import RCParams
+from pinn_mpc.zones import ZoneSpec, zone_columns
 from scenarios.inputs.exogenous import day_span
 from scenarios.inputs.registry import EXOGENOUS_COLUMNS, Scenario, check_seed
 from scenarios.inputs.series import ExogenousSeries
@@ -61,6 +62,7 @@ __all__ = [
     "progress_stage",
     "progress_steps",
     "run_closed_loop",
+    "run_kpis",
     "run_trajectory",
     "write_trajectory",
 ]
@@ -159,7 +161,9 @@ def check_plant_supports(scenario: Scenario, controller: Controller) -> None:
 def run_trajectory(scenario: Scenario, run: RunInputs, rec: LoopRecord) -> pd.DataFrame:
     """The counted intervals of a run in the data format, with the plant's own inputs (the
     series' rows on the RC plant, EnergyPlus's otherwise), the backup thermostat's overrides,
-    the fallbacks and the decision times; no ``T_m`` where the plant has none."""
+    the fallbacks and the decision times; no ``T_m`` where the plant has none. Each zone's
+    ``T_r`` and ``T_m`` are its columns (:func:`pinn_mpc.zones.zone_column`: ``T_r`` for the
+    one-zone building)."""
     series, counted, exo = run.series, run.counted, run.exo
     # The inputs the plant had: the series' rows on the RC plant, EnergyPlus's own otherwise.
     # The facades' irradiance and the wind, where the run has them, are the weather file's.
@@ -173,20 +177,32 @@ def run_trajectory(scenario: Scenario, run: RunInputs, rec: LoopRecord) -> pd.Da
     trajectory = pd.DataFrame(
         {
             "time": exo["time"].iloc[counted].reset_index(drop=True),
-            "T_r": rec.t_r_c[counted],
-            "T_m": rec.t_m_c[counted],
+            **{c: rec.t_r_c[counted, z] for z, c in enumerate(zone_columns("T_r", rec.zones))},
+            **{c: rec.t_m_c[counted, z] for z, c in enumerate(zone_columns("T_m", rec.zones))},
             "u": rec.u_w[counted],
             "u_phys": rec.u_phys_w[counted],
-            **{c: cols[c][counted] for c in exogenous},
+            **{
+                column: values
+                for c in exogenous
+                for column, values in _zone_split(c, cols[c][counted], rec.zones).items()
+            },
             "overridden": rec.overridden[counted].astype(int),
             "fallback": rec.fallback[counted].astype(int),
             "decision_ms": rec.decision_s[counted] * 1000.0,
         }
     )
     if not scenario.plant.true_state:  # no true mass temperature
-        trajectory = trajectory.drop(columns="T_m")
+        trajectory = trajectory.drop(columns=list(zone_columns("T_m", rec.zones)))
     trajectory.attrs["dt_s"] = float(scenario.sim.dt_s)
     return trajectory
+
+
+def _zone_split(name: str, values: np.ndarray, zones: tuple[ZoneSpec, ...]) -> dict[str, np.ndarray]:
+    """A series (N,) as its column, or a zone series' (N, Z) (a comfort band per zone) as each
+    zone's column (:func:`pinn_mpc.zones.zone_column`)."""
+    if np.ndim(values) == 1:
+        return {name: values}
+    return dict(zip(zone_columns(name, zones), np.asarray(values).T, strict=True))
 
 
 def free_records(
@@ -312,20 +328,50 @@ def run_closed_loop(
     # The same days free-running: the discomfort no controller could have avoided.
     free = free_records(scenario, run, seed=seed)[0]
     trajectory = run_trajectory(scenario, run, rec)
-    kpis: RunKpis = {
-        **counted_kpis(scenario, run, rec, free),
-        "controller": label or controller.name,
-        "scenario": scenario.name,
+    kpis = run_kpis(
+        counted_kpis(scenario, run, rec, free), controller, label=label or controller.name,
+        scenario=scenario.name, days=days, seed=seed, weather_part=weather_part,
+        trajectory=trajectory, weather_times=run.exo["time"],
+    )
+    return ClosedLoopResult(trajectory=trajectory, kpis=kpis, errors=tuple(errors))
+
+
+def run_kpis(
+    kpis: Kpis,
+    controller: Controller | None,
+    *,
+    label: str,
+    scenario: str,
+    days: int,
+    seed: int,
+    weather_part: str,
+    trajectory: pd.DataFrame,
+    weather_times: pd.Series,
+    **extra: object,
+) -> RunKpis:
+    """The one record of a closed-loop run (:class:`scenarios.records.RunKpis`), of every
+    plant: its counted ``kpis``, the run's labels, the [first, last] dates of the
+    ``trajectory``'s counted intervals and of the weather (``weather_times``: warm-up and
+    forecast lead included), ``extra`` keys of the plant's (BOPTEST's own KPIs, its period),
+    then what the controller reports of its run: a planner over a learned model how often it
+    fell back (``trust_report``), an RC MPC planning inside the band by its replay error how
+    far (``replay_report``)."""
+    record = {
+        **kpis,
+        "controller": label,
+        "scenario": scenario,
         "days": days,
         "seed": seed,
         "weather_part": weather_part,
         "counted_days": day_span(trajectory["time"]),
-        "weather_days": day_span(run.exo["time"]),  # warm-up and forecast lead included
+        "weather_days": day_span(weather_times),
+        **extra,
     }
-    report = controller.trust_report
-    if report is not None:  # a planner over a learned model: how often it fell back
-        kpis.update(report)
-    return ClosedLoopResult(trajectory=trajectory, kpis=kpis, errors=tuple(errors))
+    for name in ("trust_report", "replay_report"):
+        report = getattr(controller, name, None)
+        if isinstance(report, dict):
+            record.update(report)
+    return cast(RunKpis, record)
 
 
 #: Seconds between two progress lines when stderr is not a terminal (a log file, a pipe).

@@ -52,6 +52,7 @@ from pinn_mpc.actuator import ActuatorSpec
 from pinn_mpc.data import SITE_COLUMNS
 from pinn_mpc.errors import InputError, InternalError, setting
 from pinn_mpc.physics import RCParams
+from pinn_mpc.zones import zone_columns
 from scenarios.choices import POLICIES
 from scenarios.inputs.registry import Scenario, check_seed
 from scenarios.inputs.series import ExogenousSeries
@@ -182,7 +183,7 @@ def generate(
         seed=sensor_seed, fleet=fleet, n_buildings=n_buildings, plant_settings=scenario.plant,
     ) as loop:
         for k in range(n):
-            loop.step(act(k, loop.measured()))
+            loop.step(act(k, loop.measured()[:, 0]))  # the policies act on a one-zone building
         records = [loop.record(i) for i in range(n_buildings)]
     return _frame(scenario, exo, cols, records)
 
@@ -233,12 +234,13 @@ def _frame(
     def stacked(name: str) -> np.ndarray:
         return np.concatenate([getattr(r, name) for r in records])
 
+    zones = records[0].zones
     columns: dict[str, np.ndarray] = {
         "time": np.tile(exo["time"].to_numpy()[:n], n_buildings),
-        "T_r": stacked("t_r_c"),
+        **dict(zip(zone_columns("T_r", zones), stacked("t_r_c").T, strict=True)),
     }
     if scenario.plant.true_state:
-        columns["T_m"] = stacked("t_m_c")
+        columns |= dict(zip(zone_columns("T_m", zones), stacked("t_m_c").T, strict=True))
     columns |= {"u": stacked("u_w"), "u_phys": stacked("u_phys_w"), "T_a": stacked("t_a_c")}
     columns |= {c: np.tile(cols[c][:n], n_buildings) for c in ("price", "T_min", "T_max")}
     if scenario.uses_solar:

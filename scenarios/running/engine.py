@@ -48,10 +48,11 @@ from controllers.base import Controller, ControlSpec, Forecast, Observation, fal
 from pinn_mpc.data import SITE_COLUMNS
 from pinn_mpc.errors import InternalError
 from pinn_mpc.physics import RCParams
-from pinn_mpc.simulator import SimConfig, StepResult
+from pinn_mpc.simulator import SimConfig
 from pinn_mpc.solar import FACADE_COLUMNS
+from pinn_mpc.zones import ONE_ZONE, ZoneSpec, zone_columns
 from scenarios.inputs.series import ExogenousSeries, ForecastErrors, lead_error_paths
-from scenarios.plants.base import LoopPlant, TrueStatePlant
+from scenarios.plants.base import LoopPlant, PlantStep, TrueStatePlant
 from scenarios.plants.rc import rc_plant_settings
 from scenarios.plants.settings import PlantSettings, make_plant
 
@@ -77,7 +78,7 @@ class Decision(NamedTuple):
     time_s: float  # decision time
     fallback: bool
     error: str | None  # a controller exception (the loop's fallback acted), else None
-    plant: StepResult
+    plant: PlantStep
 
 
 class FleetStep(NamedTuple):
@@ -90,23 +91,25 @@ class FleetStep(NamedTuple):
     errors: tuple[tuple[int, str], ...]  # (building, controller exception) where the loop fell back
     controllers_s: float  # wall time of every building's observe, forecast and decide [s]
     plant_s: float  # wall time of the one batched plant step [s]
-    plant: StepResult
+    plant: PlantStep
 
 
 class LoopRecord(NamedTuple):
-    """The intervals run so far, arrays (K,) (``t_r_sub_c`` (K, S)); T_r and T_m at their start."""
+    """One building's intervals run so far: arrays (K,), a zone's (K, Z) (``t_r_sub_c``
+    (K, S, Z)) over the building's ``zones``; T_r and T_m at their start."""
 
-    t_r_c: np.ndarray  # measured
-    t_m_c: np.ndarray  # true (hidden)
+    t_r_c: np.ndarray  # (K, Z) measured
+    t_m_c: np.ndarray  # (K, Z) true (hidden)
     u_w: np.ndarray
     u_phys_w: np.ndarray
     overridden: np.ndarray
     fallback: np.ndarray
     decision_s: np.ndarray
-    t_r_sub_c: np.ndarray  # true room temperature at the end of each substep
+    t_r_sub_c: np.ndarray  # (K, S, Z) true room temperature at the end of each substep
     t_a_c: np.ndarray  # the interval means the plant reports
     g_w_per_m2: np.ndarray
     i_g_w: np.ndarray
+    zones: tuple[ZoneSpec, ...] = ONE_ZONE
 
 
 def decide(
@@ -200,6 +203,13 @@ class ClosedLoop:
             times=exogenous.times, seed=seed, fleet=fleet, n_buildings=n_buildings,
         )
         self.n_buildings = self.plant.n_buildings
+        self.zones: tuple[ZoneSpec, ...] = self.plant.zones
+        if spec.zones != self.zones:
+            self.plant.close()
+            raise ValueError(
+                f"ClosedLoop: the control spec's zones {[z.name for z in spec.zones]} are not the "
+                f"plant's {[z.name for z in self.zones]}"
+            )
         try:
             self.reset()
         except BaseException:
@@ -239,17 +249,17 @@ class ClosedLoop:
         t_m = self.initial_state_c[1] if t_m_c is None else t_m_c
         self.plant.reset(t_r, t_m, start=start, seed=seed)
         self.start, self.k = start, 0
-        n, b = len(self.exogenous) - start, self.n_buildings
-        # Interval-major (K, B): one row per interval holds the whole fleet.
-        self._t_r = np.zeros((n + 1, b))
-        self._t_m = np.zeros((n + 1, b))
+        n, b, z = len(self.exogenous) - start, self.n_buildings, len(self.zones)
+        # Interval-major (K, B), a zone's (K, B, Z): one row per interval holds the whole fleet.
+        self._t_r = np.zeros((n + 1, b, z))
+        self._t_m = np.zeros((n + 1, b, z))
         self._measured_k = -1
         self._u = np.zeros((n, b))
         self._u_phys = np.zeros((n, b))
         self._overridden = np.zeros((n, b), dtype=bool)
         self._fallback = np.zeros((n, b), dtype=bool)
         self._decision_s = np.zeros((n, b))
-        self._t_r_sub = np.zeros((n, b, self.plant.n_substeps))
+        self._t_r_sub = np.zeros((n, b, self.plant.n_substeps, z))
         self._means = np.zeros((n, b, 3))  # T_a, G, I_g as the plant had them
 
     @property
@@ -262,18 +272,19 @@ class ClosedLoop:
                 f"ClosedLoop: building={building} must lie in [0, {self.n_buildings - 1}]"
             )
 
-    def measure(self, building: int = 0) -> float:
-        """The measured room temperature of ``building`` now [C] (one sensor reading of every
-        building per interval)."""
+    def measure(self, building: int = 0) -> np.ndarray:
+        """(Z,) the measured room temperature of each zone of ``building`` now [C] (one sensor
+        reading of every zone of every building per interval)."""
         self._check_building(building)
         if self._measured_k != self.k:
             self._t_r[self.k] = self.plant.measure()
-            self._t_m[self.k] = self.true_state()[:, 1] if self.plant.has_true_state else math.nan
+            # The true state is a one-zone RC's (T_r, T_m) per building.
+            self._t_m[self.k] = self.true_state()[:, 1:2] if self.plant.has_true_state else math.nan
             self._measured_k = self.k
-        return float(self._t_r[self.k, building])
+        return self._t_r[self.k, building].copy()
 
     def measured(self) -> np.ndarray:
-        """(B,) every building's measured room temperature now [C] (:meth:`measure`)."""
+        """(B, Z) every building's measured room temperatures now [C] (:meth:`measure`)."""
         self.measure()
         return self._t_r[self.k].copy()
 
@@ -299,14 +310,17 @@ class ClosedLoop:
             "I_g": past_gains,
             "time_of_day_h": np.array(exo.time_of_day_h[rows]),
             "day_of_week": np.array(exo.day_of_week)[rows],
-            "T_r": np.array(self._t_r[: k + 1, building]),
+            **{
+                column: np.array(self._t_r[: k + 1, building, z])
+                for z, column in enumerate(zone_columns("T_r", self.zones))
+            },
             "u": np.array(self._u[:k, building]),
             "u_phys": np.array(self._u_phys[:k, building]),
         }
         for name in SITE_COLUMNS:  # the weather file's, as the plant had it, where the run has it
             if getattr(exo, name) is not None:
                 history[name] = np.array(getattr(exo, name)[rows])
-        return Observation.from_history(k, history, float(self._t_m[k, building]))
+        return Observation.from_history(k, history, self._t_m[k, building], zones=self.zones)
 
     def forecast(self, *, perfect: bool = False) -> Forecast:
         """The exogenous inputs from now to the end of the series, with the errors of
@@ -362,22 +376,21 @@ class ClosedLoop:
         *,
         decision_s: float | np.ndarray = 0.0,
         fallback: bool | np.ndarray = False,
-    ) -> StepResult:
+    ) -> PlantStep:
         """Apply demand ``u_w`` [W] over the current interval (a number, or (B,) one per
-        building; likewise ``decision_s`` and ``fallback``); the plant's step result."""
+        building; likewise ``decision_s`` and ``fallback``); the plant's step."""
         if self.steps_left <= 0:
             raise InternalError("ClosedLoop.step: the exogenous series is exhausted; call reset()")
         self.measure()
         k, row = self.k, self.start + self.k
         stepped = self.plant.step(u_w, row)
-        result = stepped.result
         self._means[k] = np.column_stack([stepped.t_a_c, stepped.g_w_per_m2, stepped.i_g_w])
         self._u[k], self._decision_s[k], self._fallback[k] = u_w, decision_s, fallback
-        self._u_phys[k] = result.u_phys_w
-        self._overridden[k] = result.overridden
-        self._t_r_sub[k] = result.t_r_sub_c
+        self._u_phys[k] = stepped.u_phys_w
+        self._overridden[k] = stepped.overridden
+        self._t_r_sub[k] = stepped.t_r_sub_c
         self.k += 1
-        return result
+        return stepped
 
     def advance(self, controller: Controller) -> Decision:
         """One interval: observe, forecast, decide (:func:`decide`), step. A controller with
@@ -448,6 +461,7 @@ class ClosedLoop:
             t_a_c=self._means[:k, i, 0].copy(),
             g_w_per_m2=self._means[:k, i, 1].copy(),
             i_g_w=self._means[:k, i, 2].copy(),
+            zones=self.zones,
         )
 
     def aggregate_u_phys_w(self) -> np.ndarray:

@@ -140,7 +140,7 @@ class BuildingEnv(gym.Env[np.ndarray, np.ndarray]):
         # After the last interval the next row may not exist: reuse the last row's inputs.
         row = min(self._loop.start + self._loop.k, len(self._exo) - 1)
         raw = np.concatenate(
-            [[self._loop.measure()], self._exo[row], self._clock[row], self._site[row]]
+            [self._loop.measure(), self._exo[row], self._clock[row], self._site[row]]
         )
         return np.clip(raw, self._obs_low, self._obs_high).astype(np.float32)
 
@@ -183,7 +183,7 @@ class BuildingEnv(gym.Env[np.ndarray, np.ndarray]):
         u = float(self.actuator.clip(self._action_w(action)))
         _, _, _, price, t_min, t_max = (float(v) for v in self._exo[self._loop.start + self._loop.k])
         result = self._loop.step(u)
-        t_r_next = float(result.t_r_c[0])
+        t_r_next = float(result.t_r_c[0, 0])  # one building, one zone
         u_phys = float(result.u_phys_w[0])
         dt_h = self.config.dt_s / 3600.0
         objective = HorizonObjective(
@@ -196,7 +196,7 @@ class BuildingEnv(gym.Env[np.ndarray, np.ndarray]):
         reward = -float(objective.cost(np.array([u_phys]), np.array([t_r_next])))
         truncated = self._loop.k >= self.episode_steps
         info = {
-            "T_m": float(result.t_m_c[0]),
+            "T_m": float(result.t_m_c[0, 0]),
             "T_r": t_r_next,
             "u_phys": u_phys,
             "overridden": bool(result.overridden[0]),

@@ -80,24 +80,26 @@ def compute_kpis(
     free_t_r_sub_c: np.ndarray | None = None,
     heating: bool = True,
 ) -> Kpis:
-    """KPIs of N control intervals of one building.
+    """KPIs of N control intervals of one building of Z zones: a zone's discomfort counts
+    for the building (its K h summed over the zones), the energy is every actuator's.
 
     Parameters
     ----------
-    u_phys_w, price_eur_per_kwh, t_min_c, t_max_c, decision_s, overridden, fallback
-        Arrays (N,): delivered power [W], price [EUR/kWh], comfort band [C], decision time
-        [s], and whether the backup thermostat overrode the demand or the controller's
-        fallback acted (bool).
+    u_phys_w, price_eur_per_kwh, decision_s, overridden, fallback
+        Arrays (N,): delivered power [W], price [EUR/kWh], decision time [s], and whether
+        the backup thermostat overrode the demand or the controller's fallback acted (bool).
+    t_min_c, t_max_c
+        The comfort band [C]: (N,) for every zone, or (N, Z) each zone's.
     t_r_sub_c
-        (N, S): the true room temperature at the end of each of the S substeps of every
-        interval [C].
+        (N, S, Z): the true room temperature of each zone at the end of each of the S
+        substeps of every interval [C]; (N, S) for a one-zone building.
     dt_s
         The control interval [s].
     comfort_weight_eur_per_kh
         The price of a kelvin-hour outside the band, in the objective.
     free_t_r_sub_c
-        (N, S): the true room temperature of the same intervals with the actuator asked for
-        nothing [C] (:func:`scenarios.running.closed_loop.free_records`), whose too-warm
+        (N, S, Z) or (N, S) as ``t_r_sub_c``: the true room temperature of the same intervals
+        with the actuator asked for nothing [C] (:func:`scenarios.running.closed_loop.free_records`), whose too-warm
         (``heating``) or too-cold (a cooling machine) discomfort is the unavoidable part; None:
         not computed (``discomfort_unavoidable_kh`` and ``discomfort_avoidable_kh`` None).
     heating
@@ -113,12 +115,13 @@ def compute_kpis(
     sub = np.asarray(t_r_sub_c, dtype=float)
     if n == 0:
         raise InternalError("compute_kpis: no control intervals; run at least one step")
-    if sub.ndim != 2 or sub.shape[0] != n:
-        raise InternalError(f"compute_kpis: t_r_sub_c must be (N={n}, S), got shape {sub.shape}")
+    if sub.ndim == 2:  # one zone
+        sub = sub[:, :, None]
+    if sub.ndim != 3 or sub.shape[0] != n:
+        raise InternalError(f"compute_kpis: t_r_sub_c must be (N={n}, S, Z), got shape {np.shape(t_r_sub_c)}")
+    t_min, t_max = (_zone_band(name, b, sub.shape) for name, b in (("t_min_c", t_min_c), ("t_max_c", t_max_c)))
     for name, arr in (
         ("price_eur_per_kwh", price_eur_per_kwh),
-        ("t_min_c", t_min_c),
-        ("t_max_c", t_max_c),
         ("decision_s", decision_s),
         ("overridden", overridden),
         ("fallback", fallback),
@@ -127,26 +130,30 @@ def compute_kpis(
             raise InternalError(f"compute_kpis: {name} must be ({n},), got shape {np.shape(arr)}")
     dt_h = dt_s / 3600.0
     energy_kwh_k = u / 1000.0 * dt_h
-    t_min = np.asarray(t_min_c, dtype=float)[:, None]
-    t_max = np.asarray(t_max_c, dtype=float)[:, None]
-    violation = band_violation_k(sub, t_min, t_max)
-    discomfort_kh = float(np.sum(violation) * dt_h / sub.shape[1])
-    too_cold_kh, too_warm_kh = _band_sides_kh(sub, t_min, t_max, dt_h)
+    zones = range(sub.shape[2])
+    # Zone by zone, each zone's sum as one zone's (a one-zone building's figures as they were).
+    discomfort_kh = sum(
+        float(np.sum(band_violation_k(sub[:, :, z], t_min[:, :, z], t_max[:, :, z])) * dt_h / sub.shape[1])
+        for z in zones
+    )
+    cold_z, warm_z = _band_sides_kh(sub, t_min, t_max, dt_h)
+    too_cold_kh, too_warm_kh = sum(cold_z), sum(warm_z)
     unavoidable_kh = avoidable_kh = None
     if free_t_r_sub_c is not None:
         free = np.asarray(free_t_r_sub_c, dtype=float)
+        free = free[:, :, None] if free.ndim == 2 else free
         if free.shape != sub.shape:
             raise InternalError(
-                f"compute_kpis: free_t_r_sub_c must be {sub.shape} as t_r_sub_c, got {free.shape}"
+                f"compute_kpis: free_t_r_sub_c must be {np.shape(t_r_sub_c)} as t_r_sub_c, got "
+                f"{np.shape(free_t_r_sub_c)}"
             )
-        free_cold_kh, free_warm_kh = _band_sides_kh(free, t_min, t_max, dt_h)
+        free_cold_z, free_warm_z = _band_sides_kh(free, t_min, t_max, dt_h)
         # The run's own side is at least the free run's wherever the plant is monotone in the
         # actuation; the backup thermostat's floor, applied minute by minute, can leave it
-        # short by a few hundredths of a kelvin for a minute, which the min absorbs.
-        if heating:
-            unavoidable_kh = min(free_warm_kh, too_warm_kh)
-        else:
-            unavoidable_kh = min(free_cold_kh, too_cold_kh)
+        # short by a few hundredths of a kelvin for a minute, which the min absorbs (zone by
+        # zone: each zone's bound is its own free run's).
+        own, free_side = (warm_z, free_warm_z) if heating else (cold_z, free_cold_z)
+        unavoidable_kh = sum(min(f, o) for f, o in zip(free_side, own, strict=True))
         avoidable_kh = discomfort_kh - unavoidable_kh
     cost_eur = float(np.sum(energy_cost_eur(u, np.asarray(price_eur_per_kwh, dtype=float), dt_h)))
     decision_ms = np.asarray(decision_s, dtype=float) * 1000.0
@@ -170,12 +177,27 @@ def compute_kpis(
     }
 
 
+def _zone_band(name: str, band: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
+    """A comfort band, (N,) for every zone or (N, Z) each zone's, as (N, 1, Z) against
+    substep temperatures of ``shape`` (N, S, Z)."""
+    n, _, z = shape
+    b = np.asarray(band, dtype=float)
+    if b.shape == (n,):
+        return np.repeat(b[:, None, None], z, axis=2)
+    if b.shape == (n, z):
+        return b[:, None, :]
+    raise InternalError(f"compute_kpis: {name} must be ({n},) or ({n}, {z}), got shape {b.shape}")
+
+
 def _band_sides_kh(
     sub: np.ndarray, t_min: np.ndarray, t_max: np.ndarray, dt_h: float
-) -> tuple[float, float]:
-    """(too cold, too warm) [K h] of substep temperatures ``sub`` (N, S) against the band
-    (N, 1), integrated as ``discomfort_kh`` is, so that one side alone equals it exactly."""
-    cold = np.maximum(t_min - sub, 0.0)
-    warm = np.maximum(sub - t_max, 0.0)
+) -> tuple[list[float], list[float]]:
+    """Each zone's (too cold, too warm) [K h] of substep temperatures ``sub`` (N, S, Z)
+    against the band (N, 1, Z), integrated as ``discomfort_kh`` is, so that one side alone
+    equals it exactly."""
     n_sub = sub.shape[1]
-    return float(np.sum(cold) * dt_h / n_sub), float(np.sum(warm) * dt_h / n_sub)
+    cold, warm = [], []
+    for z in range(sub.shape[2]):
+        cold.append(float(np.sum(np.maximum(t_min[:, :, z] - sub[:, :, z], 0.0)) * dt_h / n_sub))
+        warm.append(float(np.sum(np.maximum(sub[:, :, z] - t_max[:, :, z], 0.0)) * dt_h / n_sub))
+    return cold, warm

@@ -8,6 +8,7 @@ import numpy as np
 
 from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.simulator import SimConfig, StepResult
+from pinn_mpc.zones import ONE_ZONE
 from scenarios.plants.base import PlantStep
 from scenarios.plants.energyplus.model import prepare_plant
 from scenarios.plants.energyplus.run import EnergyPlusRun
@@ -31,6 +32,7 @@ class EnergyPlusPlant:
     """
 
     has_true_state = False
+    zones = ONE_ZONE  # the zones' mean room temperature (settings.zones: merged or kept)
     n_buildings = 1
 
     def __init__(
@@ -90,7 +92,7 @@ class EnergyPlusPlant:
         t_r = np.array([self._t_r])
         if self.config.noise_std_c > 0:
             t_r += self._rng.normal(0.0, self.config.noise_std_c, size=1)
-        return t_r
+        return t_r[:, None]
 
     def step(self, u_w: float | np.ndarray, row: int) -> PlantStep:
         """One interval at row ``row`` (the next of the run)."""
@@ -111,7 +113,9 @@ class EnergyPlusPlant:
             overridden=np.array([m.overridden]),
             t_r_sub_c=sub.reshape(1, -1),
         )
-        return PlantStep(result, np.array([m.t_a_c]), np.array([m.g_w_per_m2]), np.array([m.i_g_w]))
+        return PlantStep.of_one_zone(
+            result, np.array([m.t_a_c]), np.array([m.g_w_per_m2]), np.array([m.i_g_w])
+        )
 
     def close(self) -> None:
         self.run.close()
