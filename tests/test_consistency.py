@@ -170,7 +170,7 @@ def _draw_rollouts(model: LearnedModel, df: pd.DataFrame, seed: int, shift_c: fl
     raised[d.step] += d.delta_w
     plans = np.stack([d.plan_w, raised])
     with torch.no_grad():
-        t_r = model.rollout(history, torch.as_tensor(plans, dtype=torch.float32), {n: exog[n] for n in model.exog_names}).t_r_c
+        t_r = model.rollout(history, torch.as_tensor(plans, dtype=torch.float32), {n: exog[n] for n in model.exog_names}).t_r_c[..., 0]
     return t_r.double().numpy(), exog["T_a"], d.step, plans
 
 
@@ -218,13 +218,13 @@ def test_pcnn_rolls_out_the_exact_2r2c_on_the_heat_of_a_heat_pump() -> None:
     plan = np.random.default_rng(0).uniform(0.0, float(df["u_phys"].max()), HORIZON)
     with torch.no_grad():
         out = model.rollout(history, torch.as_tensor(plan[None], dtype=torch.float32), {n: exog[n] for n in model.exog_names})
-    x = np.array([df["T_r"].iloc[start], float(out.t_m_c[0, 0, 0])])
+    x = np.array([df["T_r"].iloc[start], float(out.t_m_c[0, 0, 0, 0])])
     heat = curve(exog["T_a"]) * plan
     expected = []
     for h in range(HORIZON):
         x = ad @ x + bd @ np.array([heat[h], exog["T_a"][h], exog["G"][h], exog["I_g"][h]])
         expected.append(x[0])
-    np.testing.assert_allclose(out.t_r_c[0, 0].double().numpy(), expected, atol=2e-3)
+    np.testing.assert_allclose(out.t_r_c[0, 0, :, 0].double().numpy(), expected, atol=2e-3)
 
 
 @pytest.mark.parametrize("arch", ["pcnn", "pcnn-parx"])
