@@ -245,7 +245,7 @@ def continuous_matrices(params: MultiZoneParams, actuators: Sequence[ActuatorSpe
     b_u = np.zeros((2 * z_n, len(actuators)))
     b_d = np.zeros((2 * z_n, len(EXOGENOUS_NAMES)))
     walls = params.walls
-    t_a, g_glob, i_g = (EXOGENOUS_NAMES.index(n) for n in ("T_a", "G", "I_g"))
+    t_a, i_g = EXOGENOUS_NAMES.index("T_a"), EXOGENOUS_NAMES.index("I_g")
     for z, zone in enumerate(params.zones):
         p = zone.rc
         room, mass = z, z_n + z
@@ -256,7 +256,7 @@ def continuous_matrices(params: MultiZoneParams, actuators: Sequence[ActuatorSpe
         a[mass, mass] = -to_mass / p.c_m_j_per_k
         a[mass, room] = to_mass / p.c_m_j_per_k
         b_d[room, t_a] = to_out / p.c_r_j_per_k
-        sun = EXOGENOUS_NAMES.index(zone.solar_input) if zone.solar_input != "G" else g_glob
+        sun = EXOGENOUS_NAMES.index(zone.solar_input)
         b_d[room, sun] = p.solar_to_air_fraction * p.solar_aperture_m2 / p.c_r_j_per_k
         b_d[mass, sun] = (1.0 - p.solar_to_air_fraction) * p.solar_aperture_m2 / p.c_m_j_per_k
         b_d[room, i_g] = p.gain_to_air_fraction * zone.gain_share / p.c_r_j_per_k
@@ -518,6 +518,7 @@ class MultiZoneSimulator:
         self._mats = _discretise_many(buildings, config.actuators, config.substep_s)
         self._needed = _needed_inputs(buildings)
         self._backup = _Backup.of(config)
+        self._min_power_w = np.array([s.min_power_w for s in config.actuators], dtype=float)
         self._rng = np.random.default_rng(seed)
         self._x = np.zeros((n_buildings, 2 * self.n_zones))
 
@@ -560,11 +561,11 @@ class MultiZoneSimulator:
         demand = _power_array(power_w, n_b, len(cfg.actuators))
         if not np.all(np.isfinite(demand)):
             raise InternalError("MultiZoneSimulator.step: demanded power power_w has non-finite values")
-        specs, backup = cfg.actuators, self._backup
-        lower, min_power = backup.lower_w, np.array([s.min_power_w for s in specs])
+        backup, min_power = self._backup, self._min_power_w
+        lower = backup.lower_w
         demand = np.clip(demand, lower, backup.upper_w)
         d = _exogenous(weather, self._needed, n_b)
-        gain = _gains(specs, d[:, 0])
+        gain = _gains(cfg.actuators, d[:, 0])
         # Below its minimum modulation a machine cycles: on at the minimum for the first
         # n_on substeps, then off (the 2R2C kernel's rule, pinn_mpc.substeps).
         cycling = (lower < demand) & (demand < min_power)
