@@ -358,3 +358,18 @@ def test_a_step_or_a_reset_of_the_wrong_shape_and_a_fleet_of_other_zones_are_ref
     renamed = _params(np.zeros((3, 3)), (ZONES[0], ZONES[1], dataclasses.replace(ZONES[2], zone=ZoneSpec("west"))))
     with pytest.raises(ValueError, match=r"fleet building\(s\) \[1\] have other zones than config.params \(south, glass, east\)"):
         MultiZoneSimulator(cfg, fleet=[cfg.params, renamed])
+
+
+def test_a_building_without_actuators_floats_as_the_2r2c_with_its_heater_off():
+    params = MultiZoneParams(zones=(_zone("attic", LIGHT, 1.0),), wall_conductance_w_per_k=[[0.0]])
+    sim = MultiZoneSimulator(MultiZoneConfig(params=params, actuators=()), n_buildings=2)
+    one = _alone(LIGHT, ActuatorSpec(upper_w=1000.0), -50.0, 80.0)
+    sim.reset(21.0, 20.0)
+    one.reset(21.0, 20.0)
+    res = sim.step([], {"T_a": -3.0, "I_g": 250.0})
+    ref = one.step(0.0, -3.0, 0.0, 250.0)
+    assert res.power_w.shape == res.overridden.shape == (2, 0)
+    np.testing.assert_allclose(res.t_r_sub_c[:, :, 0], np.repeat(ref.t_r_sub_c, 2, axis=0), rtol=0, atol=1e-10)
+    np.testing.assert_allclose(
+        steady_state(params, (), power_w=[], weather={"T_a": -3.0, "I_g": 250.0})[0], [-3.0 + 250.0 * 5e-3]
+    )
