@@ -9,7 +9,7 @@ air exchanges heat with every other zone's through an internal wall of conductan
     C_m,z dT_m,z/dt = (T_r,z - T_m,z)/R_rm,z + (1 - alpha_z) A_z S_z + (1 - beta_z) f_z I_g
 
 State ``x = (T_r,1 .. T_r,Z, T_m,1 .. T_m,Z)`` [C] (the rooms, then the masses), so
-``x[..., :Z]`` are the rooms. One zone with no walls is the 2R2C exactly.
+``x[..., :Z]`` are the rooms. One zone is the 2R2C (its matrices to round-off).
 
 **The actuators** (:class:`pinn_mpc.actuator.ActuatorSpec`, any number, each on its
 ``zone``): actuator ``a`` draws electrical power ``p_a`` in ``[lower_w, upper_w]`` and gives its
