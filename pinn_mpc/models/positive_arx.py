@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
@@ -43,7 +44,10 @@ from pinn_mpc.data import WIND
 from pinn_mpc.errors import InputError
 from pinn_mpc.features import time_of_day_h
 
-__all__ = ["CERTIFIED_STEPS_S", "PositiveARX", "fit_positive_arx", "impulse_kernels"]
+if TYPE_CHECKING:
+    from pinn_mpc.models.arx import ARXModel
+
+__all__ = ["CERTIFIED_STEPS_S", "PositiveARX", "fit_positive_arx", "impulse_kernels", "slowest_root"]
 
 #: The horizon [s] over which the fit certifies the impulse responses non-negative.
 CERTIFIED_STEPS_S = 14 * 86400.0
@@ -55,6 +59,8 @@ MARGIN = 0.0
 TOLERANCE = 1e-8
 #: The most the recursion's own weights (on the lagged T_r) may sum to in any block.
 MAX_OWN_SUM = 1.0 - 1e-3
+#: The precision of the own-weight cap that makes the room settle as the identified RC does.
+ROOT_TOLERANCE = 1e-5
 #: Steps ahead the second stage fits every predicted T_r of, from every start: 1, the one-step
 #: least squares. Chosen on the training data (each of the 24 EnergyPlus training sets of issue
 #: 44 fitted on its first three quarters, 24-step error on its last): geometric mean of the
@@ -142,20 +148,33 @@ def _responses(
     return mat, off
 
 
-def fit_positive_arx(
-    df: pd.DataFrame, *, eta: float, lags: int = 8, cop: np.ndarray | None = None
-) -> PositiveARX:
-    """The positive ARX of ``df`` (module docstring); ``eta``'s sign is the actuator's (> 0
-    heating). With ``cop`` (N,) (a heat pump's heat per electrical watt at each row, positive)
-    its power is the heat, ``u_phys x cop`` (``b`` then in K per watt of heat). InputError
-    when the constrained fits fail."""
-    from pinn_mpc.models.arx import fit_physics_informed_arx
+@dataclass(frozen=True)
+class _Design:
+    """The first stage's regression of ``T_r,k+1`` on rows k (``x`` (n, n_own + n_free): the
+    lagged T_r, the indoor-outdoor difference per block, then ``free``), its bounds and column
+    scales, and what the predictions and the second stage read."""
 
-    if cop is not None:
-        df = df.assign(u_phys=df["u_phys"].to_numpy(dtype=float) * cop)
-    dt_s = float(df.attrs.get("dt_s", 1800.0))
-    per_day = round(86400.0 / dt_s)
-    structure = fit_physics_informed_arx(df.drop(columns=[WIND], errors="ignore"), lags=lags, eta=eta)
+    x: np.ndarray
+    y: np.ndarray
+    free: np.ndarray
+    k: np.ndarray
+    lower: np.ndarray
+    norm: np.ndarray
+    t_r: np.ndarray
+    t_a: np.ndarray
+    block: np.ndarray
+    lags: int
+    blocks: int
+
+    @property
+    def n_own(self) -> int:
+        return self.lags - 1 + self.blocks
+
+
+def _design(df: pd.DataFrame, structure: ARXModel) -> tuple[_Design, tuple[str, ...], int]:
+    """The regression of ``df`` (its power the heat) with ``structure``'s inputs, blocks and day
+    types; also the inputs' names and the schedule's day types."""
+    lags = structure.lags
     inputs = tuple(structure.columns[3:])
     block_h = structure.block_h
     blocks = round(24 / block_h)
@@ -177,20 +196,118 @@ def fit_positive_arx(
     # The recursion's own weights, non-negative (lag 0's is q's, per block of the day): its
     # impulse response is then non-negative, whatever the calendar and the horizon.
     x = np.concatenate([lagged(t_r)[:, 1:], inter, free], axis=1)
-    y = t_r[k + 1]
     n_own = lags - 1 + blocks
     lower = np.concatenate([np.zeros(n_own), np.full(free.shape[1], -np.inf)])
     norm = 1.0 / np.maximum(np.linalg.norm(x, axis=0), 1e-12)
+    design = _Design(
+        x=x, y=t_r[k + 1], free=free, k=k, lower=lower, norm=norm, t_r=t_r, t_a=t_a,
+        block=block, lags=lags, blocks=blocks,
+    )
+    return design, inputs, n_days
+
+
+def _own_sum(theta: np.ndarray, lags: int, n_own: int) -> float:
+    """The largest sum of the recursion's own weights over the blocks of the day."""
+    return float(np.sum(theta[: lags - 1])) + float(np.max(theta[lags - 1 : n_own]))
+
+
+def _first_stage(design: _Design, cap: float, *, bound: bool = False) -> np.ndarray:
+    """Least squares of ``design`` with the own weights non-negative and their sum in every
+    block at most ``cap`` (``bound``: the cap known to bind, the bounded least squares
+    skipped); the weights in raw units."""
     from scipy.optimize import lsq_linear
 
-    first = lsq_linear(x * norm, y, bounds=(lower / norm, np.inf), method="bvls").x * norm
-    first[:n_own] = np.maximum(first[:n_own], 0.0)
-    if float(np.sum(first[: lags - 1])) + float(np.max(first[lags - 1 : n_own])) >= MAX_OWN_SUM:
-        first = _settling_fit(x * norm, y, lower / norm, lags, blocks, norm) * norm
+    norm, n_own = design.norm, design.n_own
+    x, y, lower = design.x * norm, design.y, design.lower / norm
+    if not bound:
+        theta = lsq_linear(x, y, bounds=(lower, np.inf), method="bvls").x * norm
+        theta[:n_own] = np.maximum(theta[:n_own], 0.0)
+        if _own_sum(theta, design.lags, n_own) < cap:
+            return theta
+    return _settling_fit(x, y, lower, design.lags, design.blocks, norm, cap) * norm
+
+
+def slowest_root(a: np.ndarray, q_phase: np.ndarray) -> float:
+    """The recursion's slowest mode per interval: the spectral radius of its day's transition
+    (the product of the P intervals' companion matrices, ``a`` (lags,) the weights of T_r,k-j
+    with ``q_phase`` (P,) added to lag 0's at each phase) to the power 1/P. A room left alone
+    forgets a deviation by this factor per interval, on average over the day."""
+    lags, p = a.size, q_phase.size
+    day = np.eye(lags)
+    for ph in range(p):
+        step = np.eye(lags, k=-1)
+        step[0] = a
+        step[0, 0] += q_phase[ph]
+        day = step @ day
+    return float(np.max(np.abs(np.linalg.eigvals(day)))) ** (1.0 / p)
+
+
+def _q_phase(q: np.ndarray, block_h: float, dt_s: float) -> np.ndarray:
+    """(P,) the weight ``q`` of each interval of the day."""
+    per_day = round(86400.0 / dt_s)
+    return q[(np.arange(per_day) * dt_s / 3600.0 // block_h).astype(int)]
+
+
+def _root_of(theta: np.ndarray, design: _Design, block_h: float, dt_s: float) -> float:
+    """:func:`slowest_root` of the first stage's weights ``theta``."""
+    a = np.concatenate([[0.0], theta[: design.lags - 1]])
+    return slowest_root(a, _q_phase(theta[design.lags - 1 : design.n_own], block_h, dt_s))
+
+
+def _settled(
+    design: _Design, first: np.ndarray, pole: float, block_h: float, dt_s: float
+) -> np.ndarray:
+    """The first stage's weights with the room's slowest mode no slower than ``pole`` (per
+    interval): ``first`` where it is not, else the fit with the own-weight cap lowered until
+    its :func:`slowest_root` is ``pole`` (bisection to :data:`ROOT_TOLERANCE`)."""
+    if _root_of(first, design, block_h, dt_s) <= pole:
+        return first
+    lo, hi = 0.0, _own_sum(first, design.lags, design.n_own)
+    theta = first
+    while hi - lo > ROOT_TOLERANCE:
+        cap = 0.5 * (lo + hi)
+        trial = _first_stage(design, cap, bound=True)
+        if _root_of(trial, design, block_h, dt_s) > pole:
+            hi = cap
+        else:
+            lo, theta = cap, trial
+    return theta if theta is not first else _first_stage(design, lo, bound=True)
+
+
+def fit_positive_arx(
+    df: pd.DataFrame,
+    *,
+    eta: float,
+    lags: int = 8,
+    cop: np.ndarray | None = None,
+    slowest_pole: float | None = None,
+) -> PositiveARX:
+    """The positive ARX of ``df`` (module docstring); ``eta``'s sign is the actuator's (> 0
+    heating). With ``cop`` (N,) (a heat pump's heat per electrical watt at each row, positive)
+    its power is the heat, ``u_phys x cop`` (``b`` then in K per watt of heat).
+    ``slowest_pole``: the building's slowest mode per interval (the largest eigenvalue of the
+    discretised RC identified from ``df``; None: not known), which the room's own dynamics are
+    made to settle no slower than (module docstring). InputError when the constrained fits
+    fail."""
+    from pinn_mpc.models.arx import fit_physics_informed_arx
+
+    if cop is not None:
+        df = df.assign(u_phys=df["u_phys"].to_numpy(dtype=float) * cop)
+    dt_s = float(df.attrs.get("dt_s", 1800.0))
+    per_day = round(86400.0 / dt_s)
+    structure = fit_physics_informed_arx(df.drop(columns=[WIND], errors="ignore"), lags=lags, eta=eta)
+    design, inputs, n_days = _design(df, structure)
+    blocks, block_h, n_own = design.blocks, structure.block_h, design.n_own
+    first = _first_stage(design, MAX_OWN_SUM)
+    if slowest_pole is not None:
+        first = _settled(design, first, slowest_pole, block_h, dt_s)
     a = np.concatenate([[0.0], first[: lags - 1]])
     q = first[lags - 1 : n_own]
+    k = design.k
+    t_r, t_a, free = design.t_r, design.t_a, design.free
+    block = design.block
     steps = max(1, round(CERTIFIED_STEPS_S / dt_s))
-    q_phase = q[(np.arange(per_day) * dt_s / 3600.0 // block_h).astype(int)]
+    q_phase = _q_phase(q, block_h, dt_s)
     kernels = impulse_kernels(a, q_phase, steps)
     # The rest, with the T_r weights held: least squares under the response constraints, on
     # every step up to FIT_STEPS ahead from every start (given the T_r weights, each predicted
@@ -248,11 +365,11 @@ def _multi_step(
 
 
 def _settling_fit(
-    x: np.ndarray, y: np.ndarray, lower: np.ndarray, lags: int, blocks: int, norm: np.ndarray
+    x: np.ndarray, y: np.ndarray, lower: np.ndarray, lags: int, blocks: int, norm: np.ndarray,
+    cap: float,
 ) -> np.ndarray:
     """The first stage's least squares (columns scaled: a weight is ``norm`` times the scaled
-    one) with, beyond its bounds, every block's own weights summing to at most
-    :data:`MAX_OWN_SUM`: a positive recursion whose weights on the lagged T_r sum to less than 1
+    one) with, beyond its bounds, every block's own weights summing to at most ``cap``: a positive recursion whose weights on the lagged T_r sum to less than 1
     settles (a store whose fit otherwise lets the room amplify its own history). Solved exactly
     as a least-distance problem (:func:`_least_distance`; an iterative solver at a tolerance
     fine enough for these nearly collinear columns ran out of iterations on a heat pump's
@@ -265,7 +382,7 @@ def _settling_fit(
     rows = rows * norm[None, :]
     finite = np.isfinite(lower)
     g = np.concatenate([-rows, np.eye(n)[finite]])  # g theta >= h
-    h = np.concatenate([np.full(blocks, -MAX_OWN_SUM), lower[finite]])
+    h = np.concatenate([np.full(blocks, -cap), lower[finite]])
     phi = _least_distance(chol, w, g * scale[None, :], h)
     if phi is None or not np.all(np.isfinite(phi)):
         raise InputError("positive ARX: the settling fit found no feasible point (round-off)")
@@ -274,8 +391,8 @@ def _settling_fit(
     theta[:n_own] = np.maximum(theta[:n_own], 0.0)
     own = theta[:n_own] * norm[:n_own]
     worst = float(np.sum(own[: lags - 1])) + float(np.max(own[lags - 1 :]))
-    if worst > MAX_OWN_SUM:
-        theta[:n_own] *= MAX_OWN_SUM / worst
+    if worst > cap:
+        theta[:n_own] *= cap / worst
     return theta
 
 
