@@ -19,7 +19,7 @@ from pinn_mpc.artifacts import load_model, save_model
 from pinn_mpc.consistency import check_draw, draw
 from pinn_mpc.data import validate_timeseries
 from pinn_mpc.models.learned import LearnedModel
-from pinn_mpc.models.pcnn_parx import slowest_pole
+from pinn_mpc.models.pcnn_parx import building_settling
 from pinn_mpc.models.positive_arx import (
     MAX_OWN_SUM,
     TOLERANCE,

@@ -61,7 +61,9 @@ from pinn_mpc.features import time_of_day_h
 if TYPE_CHECKING:
     from pinn_mpc.models.arx import ARXModel
 
-__all__ = ["CERTIFIED_STEPS_S", "PositiveARX", "fit_positive_arx", "impulse_kernels", "slowest_root"]
+__all__ = [
+    "CERTIFIED_STEPS_S", "PositiveARX", "RoomSettling", "fit_positive_arx", "impulse_kernels", "slowest_root",
+]
 
 #: The horizon [s] over which the fit certifies the impulse responses non-negative.
 CERTIFIED_STEPS_S = 14 * 86400.0
@@ -86,6 +88,16 @@ ROUNDS = 40
 PER_ROUND = 400
 #: Power and irradiance scales of the regression (kW, 100 W/m2), as the ARX's.
 _SCALE = {"u_phys": 1e-3, "G": 1e-2, "I_g": 1e-3}
+
+
+@dataclass(frozen=True, kw_only=True)
+class RoomSettling:
+    """How a building settles, as a positive ARX is made to: ``pole`` its slowest mode per
+    interval [-]; ``day_of_heat_k_per_kw`` how much warmer [K] a day of one kW more heat per
+    unit of eta leaves its room (negative for a cooling machine's eta)."""
+
+    pole: float
+    day_of_heat_k_per_kw: float
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -268,24 +280,46 @@ def _root_of(theta: np.ndarray, design: _Design, block_h: float, dt_s: float) ->
     return slowest_root(a, _q_phase(theta[design.lags - 1 : design.n_own], block_h, dt_s))
 
 
+def _day_of_heat(theta: np.ndarray, design: _Design, block_h: float, dt_s: float) -> float:
+    """How much warmer [K] the first stage's weights ``theta`` make the room after a day of one
+    kW more heat (per unit of eta), on average over the time of day it starts."""
+    lags, n_own = design.lags, design.n_own
+    a, b = theta[: lags - 1], theta[n_own : n_own + lags]
+    q_phase = _q_phase(theta[lags - 1 : n_own], block_h, dt_s)
+    p = q_phase.size
+    hist = np.zeros((p, lags))  # per start: the deviations of T_r,k .. T_r,k-lags+1
+    for n in range(p):
+        nxt = hist[:, 1:] @ a + q_phase[(np.arange(p) + n) % p] * hist[:, 0] + b[: n + 1].sum()
+        hist = np.concatenate([nxt[:, None], hist[:, :-1]], axis=1)
+    return float(hist[:, 0].mean())
+
+
 def _settled(
-    design: _Design, first: np.ndarray, pole: float, block_h: float, dt_s: float
+    design: _Design, first: np.ndarray, building: RoomSettling, block_h: float, dt_s: float
 ) -> np.ndarray:
-    """The first stage's weights with the room's slowest mode no slower than ``pole`` (per
-    interval): ``first`` where it is not, else the fit with the own-weight cap lowered until
-    its :func:`slowest_root` is ``pole`` (bisection to :data:`ROOT_TOLERANCE`)."""
-    if _root_of(first, design, block_h, dt_s) <= pole:
+    """The first stage's weights ``first`` where its room's slowest mode is no slower than the
+    building's; else the fit with the own-weight cap lowered (bisection to
+    :data:`ROOT_TOLERANCE`) until that mode is no slower and a day of heat warms the room no
+    more than it warms the building."""
+    if _root_of(first, design, block_h, dt_s) <= building.pole:
         return first
+    sign = 1.0 if building.day_of_heat_k_per_kw >= 0 else -1.0
+
+    def settles(theta: np.ndarray) -> bool:
+        return _root_of(theta, design, block_h, dt_s) <= building.pole and (
+            sign * _day_of_heat(theta, design, block_h, dt_s) <= sign * building.day_of_heat_k_per_kw
+        )
+
     lo, hi = 0.0, _own_sum(first, design.lags, design.n_own)
-    theta = first
+    theta: np.ndarray | None = None
     while hi - lo > ROOT_TOLERANCE:
         cap = 0.5 * (lo + hi)
         trial = _first_stage(design, cap, bound=True)
-        if _root_of(trial, design, block_h, dt_s) > pole:
-            hi = cap
-        else:
+        if settles(trial):
             lo, theta = cap, trial
-    return theta if theta is not first else _first_stage(design, lo, bound=True)
+        else:
+            hi = cap
+    return theta if theta is not None else _first_stage(design, lo, bound=True)
 
 
 def fit_positive_arx(
@@ -294,14 +328,14 @@ def fit_positive_arx(
     eta: float,
     lags: int = 8,
     cop: np.ndarray | None = None,
-    slowest_pole: float | None = None,
+    building: RoomSettling | None = None,
 ) -> PositiveARX:
     """The positive ARX of ``df`` (module docstring); ``eta``'s sign is the actuator's (> 0
     heating). With ``cop`` (N,) (a heat pump's heat per electrical watt at each row, positive)
     its power is the heat, ``u_phys x cop`` (``b`` then in K per watt of heat).
-    ``slowest_pole``: the building's slowest mode per interval (the largest eigenvalue of the
-    discretised RC identified from ``df``; None: not known), which the room's own dynamics are
-    made to settle no slower than (module docstring). InputError when the constrained fits
+    ``building``: how the building settles (from the RC identified from ``df``; None: not
+    known), which the room's own dynamics are made to settle no slower than (module
+    docstring). InputError when the constrained fits
     fail."""
     from pinn_mpc.models.arx import fit_physics_informed_arx
 
@@ -313,8 +347,8 @@ def fit_positive_arx(
     design, inputs, n_days = _design(df, structure)
     blocks, block_h, n_own = design.blocks, structure.block_h, design.n_own
     first = _first_stage(design, MAX_OWN_SUM)
-    if slowest_pole is not None:
-        first = _settled(design, first, slowest_pole, block_h, dt_s)
+    if building is not None:
+        first = _settled(design, first, building, block_h, dt_s)
     a = np.concatenate([[0.0], first[: lags - 1]])
     q = first[lags - 1 : n_own]
     k = design.k
