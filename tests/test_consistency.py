@@ -24,6 +24,7 @@ from pinn_mpc.models.positive_arx import (
     MAX_OWN_SUM,
     TOLERANCE,
     PositiveARX,
+    RoomSettling,
     _least_distance,
     _responses,
     fit_positive_arx,
@@ -170,9 +171,10 @@ def test_positive_arx_settles_at_the_room_s_known_mode() -> None:
     df = _first_order_room()
     free = fit_positive_arx(df, eta=1.0)
     assert _root(free) > _LAMBDA + 2e-3
-    settled = fit_positive_arx(df, eta=1.0, slowest_pole=_LAMBDA)
-    assert _root(settled) == pytest.approx(_LAMBDA, abs=1e-4)
+    day_k = 0.05 * (1 - _LAMBDA**48) / (1 - _LAMBDA)  # 1 kW for 48 intervals, from rest
+    settled = fit_positive_arx(df, eta=1.0, building=RoomSettling(pole=_LAMBDA, day_of_heat_k_per_kw=day_k))
     assert _root(settled) <= _LAMBDA
+    assert _root(settled) == pytest.approx(_LAMBDA, abs=1e-4)
     _assert_responses_non_negative(settled)
 
 
@@ -182,7 +184,7 @@ def test_a_pole_slower_than_the_fit_changes_nothing() -> None:
     df = _data("winter_household")
     free = fit_positive_arx(df, eta=1.0)
     assert _root(free) < 0.9999
-    told = fit_positive_arx(df, eta=1.0, slowest_pole=0.9999)
+    told = fit_positive_arx(df, eta=1.0, building=RoomSettling(pole=0.9999, day_of_heat_k_per_kw=0.0))
     for name in ("a", "q", "b", "c", "d", "s"):
         np.testing.assert_array_equal(getattr(told, name), getattr(free, name))
 
@@ -213,13 +215,15 @@ def test_heat_pump_house_settles_as_its_identified_rc() -> None:
     for _ in range(48):
         x = ad @ x + bd[:, 0] * 1000.0
     plant_day_k = float(x[0])
-    pole = slowest_pole(df, 1.0)
-    assert pole == pytest.approx(plant_mode, abs=1e-3)
+    building = building_settling(df, 1.0)
+    assert building is not None
+    assert building.pole == pytest.approx(plant_mode, abs=1e-3)
+    assert building.day_of_heat_k_per_kw == pytest.approx(plant_day_k, rel=0.05)
     free = fit_positive_arx(df, eta=1.0, cop=cop)
-    settled = fit_positive_arx(df, eta=1.0, cop=cop, slowest_pole=pole)
+    settled = fit_positive_arx(df, eta=1.0, cop=cop, building=building)
     assert _root(free) > plant_mode + 3e-3
-    assert _root(settled) == pytest.approx(pole, abs=1e-4)
-    assert abs(_day_of_heat_k(settled) - plant_day_k) < 0.75 * abs(_day_of_heat_k(free) - plant_day_k)
+    assert _root(settled) <= building.pole
+    assert abs(_day_of_heat_k(settled) - plant_day_k) < 0.25 * abs(_day_of_heat_k(free) - plant_day_k)
 
 
 @pytest.mark.parametrize("name", ["winter_household", "heat_pump_household"])
