@@ -19,14 +19,19 @@ from pinn_mpc.artifacts import load_model, save_model
 from pinn_mpc.consistency import check_draw, draw
 from pinn_mpc.data import validate_timeseries
 from pinn_mpc.models.learned import LearnedModel
+from pinn_mpc.models.pcnn_parx import building_settling
 from pinn_mpc.models.positive_arx import (
     MAX_OWN_SUM,
     TOLERANCE,
+    PositiveARX,
+    RoomSettling,
     _least_distance,
     _responses,
     fit_positive_arx,
     impulse_kernels,
+    slowest_root,
 )
+from pinn_mpc.physics import discretise
 from pinn_mpc.training import TrainConfig, train_model
 from scenarios.inputs.scenario_file import get_scenario
 from scenarios.running.datagen import generate
@@ -69,8 +74,10 @@ def test_the_check_catches_the_mlp() -> None:
 def test_positive_arx_responses_are_non_negative() -> None:
     """Every certified impulse response of the fit (each power, each outdoor temperature, every
     phase of the day) is non-negative, and the recursion's own kernel is."""
-    df = _data("winter_household")
-    fit = fit_positive_arx(df, eta=1.0)
+    _assert_responses_non_negative(fit_positive_arx(_data("winter_household"), eta=1.0))
+
+
+def _assert_responses_non_negative(fit: PositiveARX) -> None:
     per_day = 48
     q_phase = fit.q[(np.arange(per_day) * 0.5 // fit.block_h).astype(int)]
     kernels = impulse_kernels(fit.a, q_phase, 7 * per_day)
@@ -116,6 +123,124 @@ def test_positive_arx_fits_a_heat_pump_house_whose_own_weights_must_be_capped() 
     assert fit.a.min() >= 0.0 and fit.q.min() >= 0.0
     assert fit.a.sum() + fit.q.max() <= MAX_OWN_SUM + 1e-12
     assert fit.a.sum() + fit.q.max() > MAX_OWN_SUM - 1e-6  # the cap binds
+
+
+def _root(fit: PositiveARX) -> float:
+    return slowest_root(fit.a, fit.q[(np.arange(48) * 0.5 // fit.block_h).astype(int)])
+
+
+def test_slowest_root_is_the_day_s_geometric_mean_or_the_characteristic_root() -> None:
+    """A first-order recursion whose weight changes over the day forgets a deviation by the
+    product of its weights per day; a constant second-order one by its characteristic root."""
+    q_phase = np.linspace(0.90, 0.98, 48)
+    assert slowest_root(np.zeros(8), q_phase) == pytest.approx(np.exp(np.mean(np.log(q_phase))), rel=1e-12)
+    a = np.zeros(8)
+    a[1] = 0.1  # T_r,k+1 = 0.8 T_r,k + 0.1 T_r,k-1: z^2 = 0.8 z + 0.1
+    assert slowest_root(a, np.full(48, 0.8)) == pytest.approx(0.4 + np.sqrt(0.26), rel=1e-9)
+
+
+#: The synthetic first-order room: its time constant 20 h at 30-min intervals.
+_LAMBDA = float(np.exp(-0.5 / 20.0))
+
+
+def _first_order_room(days: int = 30, seed: int = 0) -> pd.DataFrame:
+    """A first-order room ``T_r,k+1 = lambda T_r,k + (1 - lambda) T_a,k + 5e-5 u_k + w_k`` (its
+    only mode ``lambda`` per interval) under random power levels held 3 h, with an unmeasured
+    heat ``w`` that drifts (an AR(1) of 0.998 per interval), which the one-step fit reads as a
+    room that forgets more slowly than it does."""
+    rng = np.random.default_rng(seed)
+    n = days * 48
+    t_a = 2.0 + 4.0 * np.sin(2 * np.pi * np.arange(n) / 48) + np.cumsum(rng.normal(0.0, 0.1, n))
+    u = np.repeat(rng.uniform(0.0, 3000.0, n // 6 + 1), 6)[:n]
+    noise = rng.normal(0.0, 0.003, n)
+    t_r, w = np.full(n, 20.0), 0.0
+    for k in range(n - 1):
+        w = 0.998 * w + noise[k]
+        t_r[k + 1] = _LAMBDA * t_r[k] + (1 - _LAMBDA) * t_a[k] + 5e-5 * u[k] + w
+    df = pd.DataFrame({
+        "time": pd.date_range("2023-01-02", periods=n, freq="30min"), "T_r": t_r, "u": u,
+        "u_phys": u, "T_a": t_a,
+    })
+    return validate_timeseries(df, source="first-order room")
+
+
+def _first_order_day_k() -> float:
+    """The first-order room's rise after 1 kW for 48 intervals from rest [K]."""
+    return 0.05 * (1 - _LAMBDA**48) / (1 - _LAMBDA)
+
+
+def test_positive_arx_settles_at_the_room_s_known_mode() -> None:
+    """The one-step fit of the first-order room forgets a deviation more slowly than the room
+    (the drifting unmeasured heat); told the room's mode, the fit's slowest root is that mode
+    (its held-out error 0.44 against the free fit's 0.46 K), its responses non-negative."""
+    df = _first_order_room(seed=1)
+    free = fit_positive_arx(df, eta=1.0)
+    assert _root(free) > _LAMBDA + 2e-3
+    room = RoomSettling(pole=_LAMBDA, day_of_heat_k_per_kw=_first_order_day_k())
+    settled = fit_positive_arx(df, eta=1.0, building=room)
+    assert _root(settled) <= _LAMBDA
+    assert _root(settled) == pytest.approx(_LAMBDA, abs=1e-4)
+    _assert_responses_non_negative(settled)
+
+
+def test_a_settling_the_held_out_data_contradict_is_not_taken() -> None:
+    """Another draw of the first-order room, whose drift the slow fit predicts better 12 h
+    ahead (held-out error 0.24 K, the room's own mode 0.31): the fit stays as it was."""
+    df = _first_order_room(seed=0)
+    free = fit_positive_arx(df, eta=1.0)
+    assert _root(free) > _LAMBDA + 2e-3
+    room = RoomSettling(pole=_LAMBDA, day_of_heat_k_per_kw=_first_order_day_k())
+    told = fit_positive_arx(df, eta=1.0, building=room)
+    for name in ("a", "q", "b", "c", "d", "s"):
+        np.testing.assert_array_equal(getattr(told, name), getattr(free, name))
+
+
+def test_a_pole_slower_than_the_fit_changes_nothing() -> None:
+    """Where the fit's room already settles faster than the building's slowest mode (every
+    EnergyPlus data set of issue 44), the fit is the same bit for bit."""
+    df = _data("winter_household")
+    free = fit_positive_arx(df, eta=1.0)
+    assert _root(free) < 0.9999
+    told = fit_positive_arx(df, eta=1.0, building=RoomSettling(pole=0.9999, day_of_heat_k_per_kw=0.0))
+    for name in ("a", "q", "b", "c", "d", "s"):
+        np.testing.assert_array_equal(getattr(told, name), getattr(free, name))
+
+
+def _day_of_heat_k(fit: PositiveARX) -> float:
+    """T_r's rise after a day of 1 kW more heat from midnight (the fit's recursion)."""
+    lags = fit.lags
+    y, u = np.zeros(48 + lags), np.zeros(48 + lags)
+    u[lags - 1 :] = 1000.0
+    for k in range(lags - 1, 48 + lags - 1):
+        block = int((k - lags + 1) * 0.5 // fit.block_h)
+        y[k + 1] = fit.a @ y[k::-1][:lags] + fit.q[block] * y[k] + fit.b @ u[k::-1][:lags]
+    return float(y[-1])
+
+
+def test_heat_pump_house_settles_as_its_identified_rc() -> None:
+    """heat_pump_household's seed 2 (14 days): the fit on the heat hits the settling cap, its
+    room forgetting a deviation far more slowly than the plant's slowest mode; made to settle
+    as the RC identified from the same data, its slowest root is that RC's and a day of heat
+    warms the room nearer to what it warms the plant (the 2R2C's exact ZOH)."""
+    scenario = get_scenario("heat_pump_household")
+    df = generate(scenario, days=14, seed=2, policy=scenario.data_policy)
+    curve = CopCurve.fit(df["T_a"].to_numpy(float), df["cop"].to_numpy(float)).monotone(increasing=True)
+    cop = curve(df["T_a"].to_numpy(float))
+    ad, bd = discretise(scenario.sim.params, 1800.0)
+    plant_mode = float(max(abs(np.linalg.eigvals(ad))))
+    x = np.zeros(2)
+    for _ in range(48):
+        x = ad @ x + bd[:, 0] * 1000.0
+    plant_day_k = float(x[0])
+    building = building_settling(df, 1.0)
+    assert building is not None
+    assert building.pole == pytest.approx(plant_mode, abs=1e-3)
+    assert building.day_of_heat_k_per_kw == pytest.approx(plant_day_k, rel=0.05)
+    free = fit_positive_arx(df, eta=1.0, cop=cop)
+    settled = fit_positive_arx(df, eta=1.0, cop=cop, building=building)
+    assert _root(free) > plant_mode + 3e-3
+    assert _root(settled) <= building.pole
+    assert abs(_day_of_heat_k(settled) - plant_day_k) < 0.25 * abs(_day_of_heat_k(free) - plant_day_k)
 
 
 @pytest.mark.parametrize("name", ["winter_household", "heat_pump_household"])
