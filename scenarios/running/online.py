@@ -107,8 +107,8 @@ class OnlineSettings:
     planner_options: Mapping[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        if self.retrain_every_days < 1:
-            raise InputError(
+        if self.retrain_every_days < 1:  # the CLI's flag is a positive whole number
+            raise ValueError(
                 f"online: retrain_every_days must be a whole number of days >= 1, got "
                 f"{self.retrain_every_days}"
             )
