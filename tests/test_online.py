@@ -160,3 +160,16 @@ def test_decisions_go_on_while_a_refit_runs(tmp_path):
     controllers = [d["controller"] for d in result.kpis["online"]["days"]]
     assert controllers[0] == "rc"  # one day at hand: the RC alone
     assert Path(tmp_path / "versions" / "v000" / "rc.json").is_file()
+
+
+def test_data_that_do_not_determine_the_building_start_the_thermostat(tmp_path, data_3_days):
+    """Three days with the heater never on identify no RC and fit no model (as `train` refuses
+    them): the run starts with the thermostat, logs why, and refits later nights as data come."""
+    idle = data_3_days.assign(u=0.0, u_phys=0.0)
+    result = run_online(get_scenario(SCENARIO), idle, days=2, seed=0, out_dir=tmp_path / "run", settings=TINY)
+    first = result.log[0]
+    assert first["verdict"] == "initial" and first["rc"] is None and first["model"] is None
+    assert "identify" in first["rc_error"] and "model_error" in first
+    days = result.kpis["online"]["days"]
+    assert days[0]["controller"] == "thermostat"
+    assert result.log[1]["rc"] == "rc.json"  # the first night's data (heated by the thermostat) identify one

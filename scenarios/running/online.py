@@ -233,15 +233,19 @@ def _refit(
         (tmp / "rc.json").write_text(json.dumps(summary, indent=2))
         record["rc"] = "rc.json"
     record.update(model=None, family=None, challenger_error_c=None, champion_error_c=None)
-    if with_model and not hold_out:
-        choice = fitted.fit(frame, arch=arch, config=config)
+    fitted_on = frame if not hold_out else frame.iloc[: len(frame) - steps_per_day].reset_index(drop=True)
+    fitted_on.attrs["dt_s"] = dt_s
+    choice = None
+    if with_model:
+        try:  # data that do not yet determine the building: no model this night, as train says
+            choice = fitted.fit(fitted_on, arch=arch, config=config)
+        except InputError as exc:
+            record["model_error"] = str(exc)
+    if choice is not None and not hold_out:
         fitted.save(choice.model, tmp / "model")
         record.update(model="model", family=choice.chosen)
-    elif with_model:
+    elif choice is not None:
         cut = len(frame) - steps_per_day
-        fitted_on = frame.iloc[:cut].reset_index(drop=True)
-        fitted_on.attrs["dt_s"] = dt_s
-        choice = fitted.fit(fitted_on, arch=arch, config=config)
         fitted.save(choice.model, tmp / "model")
         record.update(
             model="model", family=choice.chosen,
@@ -443,9 +447,12 @@ def run_online(
                 online.advance(loop, k, warmup)
             online.checkpoint(loop, state)
             rec = loop.record()
-    finally:
+    except BaseException:  # Ctrl-C or an error: a refit under way is abandoned (rerun on resume)
         pool.terminate()
         pool.join()
+        raise
+    pool.close()  # every refit started was taken over: the worker is idle
+    pool.join()
     return _result(scenario, run, rec, online, state, days=days, seed=seed, weather_part=weather_part)
 
 
