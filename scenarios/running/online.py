@@ -6,7 +6,10 @@ hand holds (the frame ``data``, its rows retimed to end just before the run's fi
 - at least :data:`MODEL_DAYS` days: a model fitted on them (``fit``'s default, ``auto``) and
   planned over by ``settings.controller`` (cem), its RC fallback the model's own;
 - at least one day but fewer: only the RC identified from them, driven by ``qp-mpc``;
-- less than a day (or none): the thermostat.
+- less than a day (or none): the thermostat;
+
+and where a fit fails (data that do not yet determine the building, as ``train`` refuses them),
+the next of these, the reason in the log.
 
 It records every interval it observes. On the schedule (every ``retrain_every_days`` days of
 service, at :data:`REFIT_HOUR` of the day, 00:00) a worker process (``multiprocessing``
