@@ -135,6 +135,14 @@ def _closed_loop(a: argparse.Namespace) -> str:
             f"closed-loop needs --days N (the counted days after a one-day warm-up) on "
             f"scenario {a.scenario}"
         )
+    if a.online is not None:
+        return _online_closed_loop(a)
+    for option, given in (("--data", a.data is not None), ("--resume", a.resume),
+                          ("--retrain-every", a.retrain_every != 1),
+                          ("--online-seeds", a.online_seeds is not None),
+                          ("--online-epochs", a.online_epochs is not None)):
+        if given:
+            raise InputError(f"{option} belongs to online operation: add --online DIR")
     inputs: dict[str, PathsArg] = {"--rc": a.rc, **scenario_inputs(a.scenario)}
     if a.model is not None:
         from pinn_mpc.fitted import model_files  # torch: only when a model is given
@@ -194,6 +202,43 @@ def _closed_loop(a: argparse.Namespace) -> str:
     if result.errors:
         lines.append(f"{len(result.errors)} controller error(s), first: {result.errors[0]}")
     return "\n".join([*lines, *_wrote(a.json, a.csv, a.plot)])
+
+
+def _online_closed_loop(a: argparse.Namespace) -> str:
+    """``closed-loop --online DIR``: :func:`scenarios.running.online.run_online`."""
+    from pinn_mpc.data import read_timeseries
+    from pinn_mpc.training import TrainConfig
+    from scenarios.running.online import OnlineSettings, run_online
+
+    for option, given in (("--model", a.model is not None), ("--rc", a.rc is not None),
+                          ("--buildings", a.buildings != 1)):
+        if given:
+            raise InputError(f"{option} does not apply to --online: the controller fits its own from --data")
+    config = TrainConfig(
+        **({} if a.online_seeds is None else {"n_seeds": a.online_seeds}),
+        **({} if a.online_epochs is None else {"epochs": a.online_epochs}),
+    )
+    settings = OnlineSettings(controller=a.controller, retrain_every_days=a.retrain_every, config=config)
+    data = None if a.data is None else read_timeseries(a.data)
+    scenario = get_scenario(a.scenario)
+    with one_torch_thread():
+        result = run_online(
+            scenario, data, days=a.days, seed=a.seed, out_dir=a.online, settings=settings,
+            resume=a.resume, weather_part=a.weather_part,
+        )
+    if a.csv is not None:
+        write_timeseries(result.trajectory, a.csv)
+    kpis = with_scenario_file(result.kpis, a.scenario)
+    if a.json is not None:
+        atomic_write_json(a.json, kpis)
+    online = result.kpis["online"]  # type: ignore[typeddict-item]
+    lines = [
+        format_kpis({**kpis, "scenario": scenario_label(a.scenario, scenario)}),
+        f"online: {online['swaps']} swap(s), {online['refusals']} refusal(s), "
+        f"{online['late_refits']} late refit(s); own decisions {100 * online['own_decisions_share']:.0f} %; "
+        f"state in {a.online}",
+    ]
+    return "\n".join([*lines, *_wrote(a.json, a.csv)])
 
 
 def _wrote(*paths: str | None) -> list[str]:

@@ -439,6 +439,34 @@ def add_closed_loop(sub: Commands) -> None:
         "one more QP per three buildings and step; auto (the default): on under "
         "--cap-kw (where the cem's own samples lose the comfort), off without it",
     )
+    p.add_argument(
+        "--online", default=None, metavar="DIR",
+        help="online operation (--controller cem or random-shooting): start from what --data "
+        "holds, record what is observed and refit the model and the RC every --retrain-every "
+        "days at 00:00 in a worker process, taking over at 03:00; DIR keeps the recorded data, "
+        "each model version, the log and the state",
+    )
+    p.add_argument(
+        "--data", default=None,
+        help="with --online: the data set at hand (data format; whole days, its rows taken as "
+        "those right before the run); without it the thermostat starts",
+    )
+    p.add_argument(
+        "--retrain-every", type=_positive_int, default=1,
+        help="with --online: days of service between refits (default 1)",
+    )
+    p.add_argument(
+        "--resume", action="store_true",
+        help="with --online: continue the run DIR holds from its last takeover",
+    )
+    p.add_argument(
+        "--online-seeds", type=_positive_int, default=None,
+        help="with --online: ensemble members of each refit (default train's)",
+    )
+    p.add_argument(
+        "--online-epochs", type=_positive_int, default=None,
+        help="with --online: epochs of each refit (default the recipe's)",
+    )
 
 
 def add_compare(sub: Commands) -> None:

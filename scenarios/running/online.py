@@ -1,0 +1,534 @@
+"""Online operation: one building's controller that refits its model and RC on its own data.
+
+``closed-loop --online`` (:func:`run_online`). The controller starts from what a data set at
+hand holds (the frame ``data``, its rows retimed to end just before the run's first interval):
+
+- at least :data:`MODEL_DAYS` days: a model fitted on them (``fit``'s default, ``auto``) and
+  planned over by ``settings.controller`` (cem), its RC fallback the model's own;
+- at least one day but fewer: only the RC identified from them, driven by ``qp-mpc``;
+- less than a day (or none): the thermostat;
+
+and where a fit fails (data that do not yet determine the building, as ``train`` refuses them),
+the next of these, the reason in the log.
+
+It records every interval it observes. On the schedule (every ``retrain_every_days`` days of
+service, at :data:`REFIT_HOUR` of the day, 00:00) a worker process (``multiprocessing``
+``spawn``, one torch thread) refits, on every row so far (the data set's and the run's, warm-up
+included), the RC (:func:`pinn_mpc.identify.identify_rc`) and, with at least
+:data:`MODEL_DAYS` days besides the last, a challenger model on every row but the last day's.
+The loop does not wait for it: the refit takes over :data:`TAKEOVER_H` simulated hours after it
+started (03:00), whatever the wall time, so a seeded run makes the same decisions every time;
+a worker not finished by then is waited for there and the wait counted (``late_refits``).
+
+Champion/challenger: both models predict the held-out last day, from each of its starts that
+leaves :data:`ERROR_HORIZON_STEPS` steps (12 h) inside it, on the measured power and weather;
+the error is ``evaluate``'s, the mean |error| of the ensemble mean's T_r that many steps ahead.
+The challenger replaces the champion only when its error is smaller (the first model, with no
+champion, takes over the RC). Each night is one JSON line of the log (``log.jsonl``): the data
+span seen, the held-out day, both errors, the verdict.
+
+State (``out_dir``): ``observed.csv`` (every interval so far in the data format, with the
+trajectory's extra columns and ``own``), ``loop.npz`` (the exact demands, decision times and
+flags, for the replay), ``versions/vNNN/`` (each refit's ``rc.json`` and ``model/``),
+``log.jsonl`` and ``state.json``: written together, atomically, at every takeover. A run
+interrupted (Ctrl-C during a refit or a day) resumes (``resume=True``) from the last takeover:
+the plant is replayed on the recorded demands (same seed: the same states, sensor noise and
+forecasts), the controller rebuilt from the recorded versions, and the run goes on as the
+uninterrupted one did; a refit the interruption cut short runs again. The controller is
+rebuilt (and reset with the run's seed) at every takeover, swap or not, which is what makes a
+resumed run equal to an uninterrupted one.
+"""
+
+from __future__ import annotations
+
+import json
+import multiprocessing
+import shutil
+import signal
+import time
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from controllers.base import Controller
+from controllers.thermostat import Thermostat
+from pinn_mpc.data import COLUMNS, validate_timeseries, write_timeseries
+from pinn_mpc.errors import InputError, InternalError
+from pinn_mpc.io import atomic_write, atomic_write_json, atomic_write_text, written_together
+from pinn_mpc.training import TrainConfig
+from scenarios.inputs.exogenous import day_span
+from scenarios.inputs.registry import Scenario
+from scenarios.records import RunKpis
+from scenarios.running.closed_loop import (
+    RunInputs,
+    build_loop,
+    counted_kpis,
+    free_records,
+    prepare_run,
+    run_kpis,
+    run_trajectory,
+)
+from scenarios.running.engine import ClosedLoop, LoopRecord
+
+__all__ = [
+    "ERROR_HORIZON_STEPS",
+    "MODEL_DAYS",
+    "REFIT_HOUR",
+    "TAKEOVER_H",
+    "OnlineResult",
+    "OnlineSettings",
+    "night_steps",
+    "run_online",
+]
+
+#: Days of data a model is fitted on at the least (fewer: the RC alone).
+MODEL_DAYS = 3
+#: The hour of the day a refit starts (the first interval of a day of service).
+REFIT_HOUR = 0
+#: Simulated hours after its start at which a refit takes over.
+TAKEOVER_H = 3.0
+#: Steps ahead of the champion/challenger error (``evaluate``'s horizon; 12 h at 30 min).
+ERROR_HORIZON_STEPS = 24
+_STATE, _LOG, _OBSERVED, _ARRAYS, _VERSIONS = "state.json", "log.jsonl", "observed.csv", "loop.npz", "versions"
+
+
+@dataclass(frozen=True, kw_only=True)
+class OnlineSettings:
+    """How the online controller runs: ``controller`` plans over the model (cem or
+    random-shooting), refits every ``retrain_every_days`` days of service, each fitting
+    ``arch`` (default ``auto``) with ``config`` (its ``eta`` and ``u_max_w`` are the
+    scenario's; ``first_seed`` the run's seed)."""
+
+    controller: str = "cem"
+    retrain_every_days: int = 1
+    arch: str = "auto"
+    config: TrainConfig = field(default_factory=TrainConfig)
+    planner_options: Mapping[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if self.retrain_every_days < 1:  # the CLI's flag is a positive whole number
+            raise ValueError(
+                f"online: retrain_every_days must be a whole number of days >= 1, got "
+                f"{self.retrain_every_days}"
+            )
+        if self.controller not in ("cem", "random-shooting"):
+            raise InputError(
+                f"online: controller {self.controller!r} does not plan over a model; choose cem "
+                "or random-shooting"
+            )
+
+    def record(self) -> dict[str, Any]:
+        """The settings as JSON (what a resumed run must share)."""
+        config = {k: v for k, v in asdict(self.config).items() if k != "prior"}
+        return {"controller": self.controller, "retrain_every_days": self.retrain_every_days,
+                "arch": self.arch, "config": config, "planner_options": dict(self.planner_options)}
+
+
+@dataclass(frozen=True, kw_only=True)
+class OnlineResult:
+    """An online run: ``trajectory`` (counted intervals, as a closed loop's, plus ``own``),
+    ``kpis`` (the closed loop's record plus ``online``: per day of service and per night),
+    ``log`` (one dict per night)."""
+
+    trajectory: pd.DataFrame
+    kpis: RunKpis
+    log: tuple[dict[str, Any], ...]
+
+
+def night_steps(run: RunInputs, *, steps_per_day: int, every_days: int) -> list[int]:
+    """The steps at which refits start: :data:`REFIT_HOUR` of every ``every_days``-th day of
+    service after the first whose takeover lies inside the run."""
+    takeover = _takeover_steps(run, steps_per_day)
+    days = (run.total - run.warmup) // steps_per_day
+    hour = REFIT_HOUR * steps_per_day // 24
+    steps = [run.warmup + d * steps_per_day + hour for d in range(every_days, days, every_days)]
+    return [k for k in steps if k + takeover < run.total]
+
+
+def _takeover_steps(run: RunInputs, steps_per_day: int) -> int:
+    return max(1, round(TAKEOVER_H * steps_per_day / 24))
+
+
+def retimed(data: pd.DataFrame, first_time: pd.Timestamp, dt_s: float) -> pd.DataFrame:
+    """``data``'s rows moved by whole days so that they end right before ``first_time`` (the
+    run's first interval); its clock must agree with the run's."""
+    times = pd.to_datetime(data["time"])
+    after = times.iloc[-1] + pd.Timedelta(seconds=dt_s)
+    shift = first_time - after
+    if shift % pd.Timedelta(days=1) != pd.Timedelta(0):
+        raise InputError(
+            f"online: the data set's last interval ends at {after.time()}, the run starts at "
+            f"{first_time.time()}; give data whose rows end at the run's time of day (whole days "
+            "from midnight, as `pinn-mpc simulate` writes)"
+        )
+    out = data.copy()
+    out["time"] = times + shift
+    out.attrs = dict(data.attrs)
+    return out
+
+
+def _fit_frame(frames: list[pd.DataFrame], dt_s: float) -> pd.DataFrame:
+    columns = [c for c in COLUMNS if all(c in f.columns for f in frames)]
+    df = pd.concat([f[columns] for f in frames], ignore_index=True)
+    df.attrs["dt_s"] = dt_s
+    return df
+
+
+def _worker_init() -> None:
+    """The refit worker: one torch thread, Ctrl-C left to the run (which ends the worker)."""
+    import torch
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    torch.set_num_threads(1)
+
+
+def _held_out_error(model: Any, frame: pd.DataFrame, cut: int) -> float:
+    """``evaluate``'s T_r error :data:`ERROR_HORIZON_STEPS` ahead from every start in rows
+    ``cut ..`` that keeps the target inside the frame (module docstring)."""
+    from pinn_mpc.evaluation import recursive_t_r
+    from pinn_mpc.models.arx import ARXModel
+
+    h = ERROR_HORIZON_STEPS
+    t_r = frame["T_r"].to_numpy(dtype=float)
+    if isinstance(model, ARXModel):
+        starts = np.arange(cut, len(frame) - h)
+        pred = model.predict_path(frame, h, starts)[:, -1]
+    else:
+        paths, all_starts = recursive_t_r(model, frame, h)
+        keep = all_starts >= cut
+        pred, starts = paths.mean(axis=0)[keep], all_starts[keep]
+    return float(np.mean(np.abs(pred - t_r[starts + h])))
+
+
+def _refit(
+    frame: pd.DataFrame, *, dt_s: float, steps_per_day: int, arch: str, config: TrainConfig,
+    champion: str | None, version_dir: str, with_model: bool, hold_out: bool = True,
+) -> dict[str, Any]:
+    """One refit (in the worker): the RC on every row, a challenger (``with_model``) on every
+    row but the last day's and both models' held-out errors on that day (``hold_out``; else
+    the model on every row, unjudged: the initial version); written into ``version_dir``
+    (through a temporary sibling renamed at the end)."""
+    from pinn_mpc import fitted
+    from pinn_mpc.identify import identify_rc
+    from pinn_mpc.physics import rc_summary
+
+    started = time.perf_counter()
+    frame.attrs["dt_s"] = dt_s
+    frame = validate_timeseries(frame, source="online data")
+    target = Path(version_dir)
+    tmp = target.with_name(f".{target.name}.tmp")
+    shutil.rmtree(tmp, ignore_errors=True)
+    tmp.mkdir(parents=True)
+    record: dict[str, Any] = {"rows": len(frame), "data_span": [str(frame["time"].iloc[0]),
+                              str(frame["time"].iloc[-1])]}
+    try:
+        rc = identify_rc(frame, eta=config.eta)
+    except InputError as exc:
+        record["rc"] = None
+        record["rc_error"] = str(exc)
+    else:
+        summary = dict(rc_summary(rc.params, source="online refit"))
+        summary["fit"] = rc.fit_statistics()
+        (tmp / "rc.json").write_text(json.dumps(summary, indent=2))
+        record["rc"] = "rc.json"
+    record.update(model=None, family=None, challenger_error_c=None, champion_error_c=None)
+    fitted_on = frame if not hold_out else frame.iloc[: len(frame) - steps_per_day].reset_index(drop=True)
+    fitted_on.attrs["dt_s"] = dt_s
+    choice = None
+    if with_model:
+        try:  # data that do not yet determine the building: no model this night, as train says
+            choice = fitted.fit(fitted_on, arch=arch, config=config)
+        except InputError as exc:
+            record["model_error"] = str(exc)
+    if choice is not None and not hold_out:
+        fitted.save(choice.model, tmp / "model")
+        record.update(model="model", family=choice.chosen)
+    elif choice is not None:
+        cut = len(frame) - steps_per_day
+        fitted.save(choice.model, tmp / "model")
+        record.update(
+            model="model", family=choice.chosen,
+            held_out_day=[str(frame["time"].iloc[cut]), str(frame["time"].iloc[-1])],
+            fitted_span=[str(fitted_on["time"].iloc[0]), str(fitted_on["time"].iloc[-1])],
+            challenger_error_c=_held_out_error(choice.model, frame, cut),
+        )
+        if champion is not None:
+            record["champion_error_c"] = _held_out_error(fitted.load(champion), frame, cut)
+    record["wall_s"] = time.perf_counter() - started
+    shutil.rmtree(target, ignore_errors=True)
+    tmp.rename(target)
+    return record
+
+
+class _State:
+    """What ``state.json`` holds: the step of the last takeover, the versions running, the
+    nights so far and the waits."""
+
+    def __init__(self, raw: Mapping[str, Any]) -> None:
+        self.step: int = int(raw["step"])
+        self.champion: str | None = raw["champion"]
+        self.rc: str | None = raw["rc"]
+        self.version: int = int(raw["version"])
+        self.late_refits: int = int(raw["late_refits"])
+        self.log: list[dict[str, Any]] = list(raw["log"])
+        self.identity: dict[str, Any] = dict(raw["identity"])
+
+    def raw(self) -> dict[str, Any]:
+        return {"step": self.step, "champion": self.champion, "rc": self.rc, "version": self.version,
+                "late_refits": self.late_refits, "log": self.log, "identity": self.identity}
+
+
+class _Online:
+    """The running state of :func:`run_online`: the loop, the controller, the recorded flags."""
+
+    def __init__(self, scenario: Scenario, run: RunInputs, out: Path, settings: OnlineSettings,
+                 seed: int, config: TrainConfig) -> None:
+        self.scenario, self.run, self.out, self.settings, self.seed = scenario, run, out, settings, seed
+        self.config = config
+        self.spd = scenario.steps_per_day
+        self.own = np.zeros(run.total, dtype=bool)
+        self.mode = np.full(run.total, "", dtype=object)
+        self.controller: Controller = Thermostat(scenario.control_spec())
+        self.kind = "thermostat"
+
+    def path(self, version: str | None, name: str) -> str | None:
+        return None if version is None else str(self.out / _VERSIONS / version / name)
+
+    def build(self, state: _State) -> None:
+        """The controller of the versions running: a model's planner, the RC's qp-mpc, or the
+        thermostat; reset with the run's seed."""
+        from scenarios.running.factory import build_controller
+
+        scenario, n = self.scenario, self.run.total - self.run.warmup
+        if state.champion is not None:
+            from pinn_mpc import fitted
+
+            model = fitted.load(self.path(state.champion, "model") or "")
+            self.controller = build_controller(
+                self.settings.controller, scenario, model=model, n_steps=n,
+                planner_options=self.settings.planner_options,
+            )
+            self.kind = "model"
+        elif state.rc is not None:
+            from pinn_mpc.artifacts import read_rc_json
+
+            params, _ = read_rc_json(self.path(state.rc, "rc.json") or "")
+            self.controller = build_controller("qp-mpc", scenario, rc_params=params, n_steps=n)
+            self.kind = "rc"
+        else:
+            self.controller, self.kind = Thermostat(scenario.control_spec()), "thermostat"
+        self.controller.reset(self.seed)
+
+    def advance(self, loop: ClosedLoop, k: int, warmup: Thermostat) -> None:
+        if k < self.run.warmup:
+            loop.advance(warmup)
+            self.mode[k] = "warm-up"
+            return
+        monitor = getattr(self.controller, "monitor", None)
+        before = monitor.state.fallback_steps if monitor is not None else 0
+        decision = loop.advance(self.controller)
+        after = monitor.state.fallback_steps if monitor is not None else 0
+        self.own[k] = self.kind == "model" and after == before and not decision.fallback
+        self.mode[k] = self.kind
+
+    def observed(self, loop: ClosedLoop) -> pd.DataFrame:
+        k = loop.k
+        sofar = RunInputs(exo=self.run.exo, series=self.run.series, warmup=0, total=k)
+        frame = run_trajectory(self.scenario, sofar, loop.record())
+        frame["own"] = self.own[:k].astype(int)
+        return frame
+
+    def checkpoint(self, loop: ClosedLoop, state: _State) -> None:
+        """Everything so far, written together (each file atomically)."""
+        rec, k = loop.record(), loop.k
+        state.step = k
+        with written_together():
+            write_timeseries(self.observed(loop), self.out / _OBSERVED)
+            atomic_write(self.out / _ARRAYS, lambda tmp: _save_arrays(tmp, rec, self.own[:k], self.mode[:k]))
+            atomic_write_text(self.out / _LOG, "".join(json.dumps(e) + "\n" for e in state.log))
+            atomic_write_json(self.out / _STATE, state.raw())
+
+
+def _save_arrays(tmp: Path, rec: LoopRecord, own: np.ndarray, mode: np.ndarray) -> None:
+    with open(tmp, "wb") as f:
+        np.savez(f, u_w=rec.u_w, decision_s=rec.decision_s, fallback=rec.fallback, own=own,
+                 mode=mode.astype(str))
+
+
+def run_online(
+    scenario: Scenario,
+    data: pd.DataFrame | None,
+    *,
+    days: int,
+    seed: int,
+    out_dir: str | Path,
+    settings: OnlineSettings = OnlineSettings(),
+    resume: bool = False,
+    weather_part: str = "test",
+) -> OnlineResult:
+    """Run the online controller (module docstring) for ``days`` days of service after a
+    one-day warm-up under the thermostat, keeping its state in ``out_dir``.
+
+    ``data``: the validated data set at hand (None: none); ``resume``: continue the run
+    ``out_dir`` holds (the same scenario, days, seed, settings and data), else ``out_dir`` must
+    hold no run. Raises InputError on a mismatch."""
+    out = Path(out_dir)
+    run = prepare_run(scenario, days=days, seed=seed, warmup_steps=None, weather_part=weather_part)
+    spd, dt_s = scenario.steps_per_day, float(scenario.sim.dt_s)
+    first = pd.Timestamp(run.exo["time"].iloc[0])
+    before = None if data is None or len(data) == 0 else retimed(data, first, dt_s)
+    config = replace(settings.config, eta=scenario.sim.params.eta, first_seed=seed,
+                     u_max_w=scenario.control_spec().actuator.upper_w)
+    identity = {
+        "scenario": scenario.name, "days": days, "seed": seed, "weather_part": weather_part,
+        "settings": settings.record(), "data_rows": 0 if before is None else len(before),
+        "data_span": None if before is None else day_span(before["time"]),
+    }
+    online = _Online(scenario, run, out, settings, seed, config)
+    nights = night_steps(run, steps_per_day=spd, every_days=settings.retrain_every_days)
+    takeover = _takeover_steps(run, spd)
+    state_file = out / _STATE
+    if resume:
+        if not state_file.is_file():
+            raise InputError(f"online: {out} holds no run to resume ({_STATE} missing); start it without resume")
+        state = _State(json.loads(state_file.read_text()))
+        if state.identity != json.loads(json.dumps(identity)):
+            raise InputError(
+                f"online: {out} holds another run ({state.identity}); resume it with the same "
+                "scenario, days, seed, settings and data, or give another folder"
+            )
+    else:
+        if state_file.exists():
+            raise InputError(f"online: {out} already holds a run; resume it or give another folder")
+        out.mkdir(parents=True, exist_ok=True)
+        state = _State({"step": 0, "champion": None, "rc": None, "version": 0, "late_refits": 0,
+                        "log": [], "identity": identity})
+    context = multiprocessing.get_context("spawn")
+    pool = context.Pool(1, initializer=_worker_init)
+    try:
+        with build_loop(scenario, run, seed=seed) as loop:
+            if resume:
+                _replay(loop, online, out, state.step)
+            elif before is not None:  # version 0: what the data at hand holds, before the run
+                n_days = len(before) // spd
+                entry = pool.apply(_refit, (_fit_frame([before], dt_s),), dict(
+                    dt_s=dt_s, steps_per_day=spd, arch=settings.arch, config=config, champion=None,
+                    version_dir=str(out / _VERSIONS / "v000"), with_model=n_days >= MODEL_DAYS,
+                    hold_out=False,
+                )) if n_days >= 1 else None
+                if entry is not None:
+                    state.rc = "v000" if entry["rc"] else None
+                    state.champion = "v000" if entry.get("model") else None
+                    state.log.append({"night": 0, "step": 0, "version": "v000", "verdict": "initial", **entry})
+                state.version = 1
+            online.build(state)
+            online.checkpoint(loop, state)
+            warmup = Thermostat(scenario.control_spec())
+            warmup.reset(seed)
+            pending: tuple[int, Any, str] | None = None
+            for k in range(state.step, run.total):
+                if k in nights and pending is None:
+                    version = f"v{state.version:03d}"
+                    state.version += 1
+                    frames = [f for f in (before, online.observed(loop)) if f is not None]
+                    frame = _fit_frame(frames, dt_s)
+                    with_model = len(frame) // spd - 1 >= MODEL_DAYS
+                    pending = (k, pool.apply_async(_refit, (frame,), dict(
+                        dt_s=dt_s, steps_per_day=spd, arch=settings.arch, config=config,
+                        champion=online.path(state.champion, "model"),
+                        version_dir=str(out / _VERSIONS / version), with_model=with_model,
+                    )), version)
+                if pending is not None and k == pending[0] + takeover:
+                    _take_over(pending, k, state, online)
+                    pending = None
+                    online.build(state)
+                    online.checkpoint(loop, state)
+                online.advance(loop, k, warmup)
+            online.checkpoint(loop, state)
+            rec = loop.record()
+    except BaseException:  # Ctrl-C or an error: a refit under way is abandoned (rerun on resume)
+        pool.terminate()
+        pool.join()
+        raise
+    pool.close()  # every refit started was taken over: the worker is idle
+    pool.join()
+    return _result(scenario, run, rec, online, state, days=days, seed=seed, weather_part=weather_part)
+
+
+def _take_over(pending: tuple[int, Any, str], k: int, state: _State, online: _Online) -> None:
+    """The refit started at ``pending[0]`` takes over at step ``k``: waited for if late
+    (counted), the RC replaced, the challenger judged; one log entry."""
+    started, job, version = pending
+    late = not job.ready()
+    state.late_refits += int(late)
+    entry = job.get()
+    if entry["rc"]:
+        state.rc = version
+    verdict = "no model"
+    if entry["model"]:
+        challenger, champion = entry["challenger_error_c"], entry["champion_error_c"]
+        if champion is None or challenger < champion:
+            verdict = "swap"
+            state.champion = version
+        else:
+            verdict = "refused"
+    day = (started - online.run.warmup) // online.spd
+    state.log.append({"night": day, "step": started, "takeover_step": k, "version": version,
+                      "verdict": verdict, "late": late, **entry})
+
+
+def _replay(loop: ClosedLoop, online: _Online, out: Path, steps: int) -> None:
+    """The plant stepped again on the recorded demands up to ``steps`` (resume)."""
+    with np.load(out / _ARRAYS) as arrays:
+        u, decision_s, fallback = arrays["u_w"], arrays["decision_s"], arrays["fallback"]
+        online.own[:steps], online.mode[:steps] = arrays["own"][:steps], arrays["mode"][:steps]
+    if len(u) < steps:
+        raise InternalError(f"online: {_ARRAYS} holds {len(u)} steps, the state says {steps}")
+    for k in range(steps):
+        loop.step(float(u[k]), decision_s=float(decision_s[k]), fallback=bool(fallback[k]))
+
+
+def _result(scenario: Scenario, run: RunInputs, rec: LoopRecord, online: _Online, state: _State,
+            *, days: int, seed: int, weather_part: str) -> OnlineResult:
+    """The closed loop's record of the run, with ``online``: per day of service its
+    objective, discomfort, own decisions, the running model's error on it (judged the night
+    after) and the nights' verdicts."""
+    free = free_records(scenario, run, seed=seed)[0]
+    trajectory = run_trajectory(scenario, run, rec)
+    trajectory["own"] = online.own[run.counted].astype(int)
+    kpis = run_kpis(
+        counted_kpis(scenario, run, rec, free), None, label=f"online {online.settings.controller}",
+        scenario=scenario.name, days=days, seed=seed, weather_part=weather_part,
+        trajectory=trajectory, weather_times=run.exo["time"],
+    )
+    spd = online.spd
+    errors = {e["night"]: e["champion_error_c"] for e in state.log if e.get("night")}
+    per_day = []
+    for d in range(days):
+        start = run.warmup + d * spd
+        day = RunInputs(exo=run.exo, series=run.series, warmup=start, total=start + spd)
+        figures = counted_kpis(scenario, day, rec)
+        modes = online.mode[start : start + spd]
+        per_day.append({
+            "day": d + 1,
+            "objective": figures["objective"],
+            "discomfort_kh": figures["discomfort_kh"],
+            "own_decisions_share": float(np.mean(online.own[start : start + spd])),
+            "controller": max(set(modes), key=list(modes).count),
+            "model_day_ahead_error_c": errors.get(d + 1),
+        })
+    kpis["online"] = {  # type: ignore[typeddict-unknown-key]
+        "days": per_day,
+        "swaps": sum(e["verdict"] == "swap" for e in state.log),
+        "refusals": sum(e["verdict"] == "refused" for e in state.log),
+        "late_refits": state.late_refits,
+        "own_decisions_share": float(np.mean(online.own[run.counted])),
+        "refit_wall_s": [round(e["wall_s"], 3) for e in state.log if "wall_s" in e],
+    }
+    kpis["own_decisions_share"] = float(np.mean(online.own[run.counted]))
+    return OnlineResult(trajectory=trajectory, kpis=kpis, log=tuple(state.log))
+
