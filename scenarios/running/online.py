@@ -236,7 +236,8 @@ def _refit(
         (tmp / "rc.json").write_text(json.dumps(summary, indent=2))
         record["rc"] = "rc.json"
     record.update(model=None, family=None, challenger_error_c=None, champion_error_c=None)
-    fitted_on = frame if not hold_out else frame.iloc[: len(frame) - steps_per_day].reset_index(drop=True)
+    cut = len(frame) - steps_per_day if hold_out else len(frame)  # the held-out day's first row
+    fitted_on = frame.iloc[:cut].reset_index(drop=True)
     fitted_on.attrs["dt_s"] = dt_s
     choice = None
     if with_model:
@@ -244,14 +245,11 @@ def _refit(
             choice = fitted.fit(fitted_on, arch=arch, config=config)
         except InputError as exc:
             record["model_error"] = str(exc)
-    if choice is not None and not hold_out:
+    if choice is not None:
         fitted.save(choice.model, tmp / "model")
         record.update(model="model", family=choice.chosen)
-    elif choice is not None:
-        cut = len(frame) - steps_per_day
-        fitted.save(choice.model, tmp / "model")
+    if choice is not None and hold_out:
         record.update(
-            model="model", family=choice.chosen,
             held_out_day=[str(frame["time"].iloc[cut]), str(frame["time"].iloc[-1])],
             fitted_span=[str(fitted_on["time"].iloc[0]), str(fitted_on["time"].iloc[-1])],
             challenger_error_c=_held_out_error(choice.model, frame, cut),
