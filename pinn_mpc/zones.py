@@ -19,6 +19,8 @@ import re
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
+import numpy as np
+
 __all__ = [
     "ONE_ZONE",
     "ZONE_SERIES",
@@ -26,6 +28,7 @@ __all__ = [
     "parse_zone_column",
     "zone_column",
     "zone_columns",
+    "zone_series_columns",
     "zones_in",
 ]
 
@@ -69,6 +72,15 @@ def zone_column(series: str, zones: Sequence[ZoneSpec], zone: int) -> str:
 def zone_columns(series: str, zones: Sequence[ZoneSpec]) -> tuple[str, ...]:
     """Every zone's column of ``series``, in the zones' order (:func:`zone_column`)."""
     return tuple(zone_column(series, zones, z) for z in range(len(zones)))
+
+
+def zone_series_columns(series: str, values: np.ndarray, zones: Sequence[ZoneSpec]) -> dict[str, np.ndarray]:
+    """A zone series' values as the data format's columns: (N, Z) as each zone's column
+    (:func:`zone_column`), (N,) (one value for every zone, such as a building's comfort band)
+    as the column ``series``."""
+    if np.ndim(values) == 1:
+        return {series: np.asarray(values)}
+    return dict(zip(zone_columns(series, zones), np.asarray(values).T, strict=True))
 
 
 def parse_zone_column(column: str) -> tuple[str, str] | None:

@@ -40,7 +40,7 @@ from controllers.thermostat import Thermostat
 from pinn_mpc.data import COLUMNS, SITE_COLUMNS, write_timeseries
 from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.physics import RCParams
-from pinn_mpc.zones import ZoneSpec, zone_columns
+from pinn_mpc.zones import zone_columns, zone_series_columns
 from scenarios.inputs.exogenous import day_span
 from scenarios.inputs.registry import EXOGENOUS_COLUMNS, Scenario, check_seed
 from scenarios.inputs.series import ExogenousSeries
@@ -177,14 +177,14 @@ def run_trajectory(scenario: Scenario, run: RunInputs, rec: LoopRecord) -> pd.Da
     trajectory = pd.DataFrame(
         {
             "time": exo["time"].iloc[counted].reset_index(drop=True),
-            **{c: rec.t_r_c[counted, z] for z, c in enumerate(zone_columns("T_r", rec.zones))},
-            **{c: rec.t_m_c[counted, z] for z, c in enumerate(zone_columns("T_m", rec.zones))},
+            **zone_series_columns("T_r", rec.t_r_c[counted], rec.zones),
+            **zone_series_columns("T_m", rec.t_m_c[counted], rec.zones),
             "u": rec.u_w[counted],
             "u_phys": rec.u_phys_w[counted],
             **{
                 column: values
                 for c in exogenous
-                for column, values in _zone_split(c, cols[c][counted], rec.zones).items()
+                for column, values in zone_series_columns(c, cols[c][counted], rec.zones).items()
             },
             "overridden": rec.overridden[counted].astype(int),
             "fallback": rec.fallback[counted].astype(int),
@@ -195,14 +195,6 @@ def run_trajectory(scenario: Scenario, run: RunInputs, rec: LoopRecord) -> pd.Da
         trajectory = trajectory.drop(columns=list(zone_columns("T_m", rec.zones)))
     trajectory.attrs["dt_s"] = float(scenario.sim.dt_s)
     return trajectory
-
-
-def _zone_split(name: str, values: np.ndarray, zones: tuple[ZoneSpec, ...]) -> dict[str, np.ndarray]:
-    """A series (N,) as its column, or a zone series' (N, Z) (a comfort band per zone) as each
-    zone's column (:func:`pinn_mpc.zones.zone_column`)."""
-    if np.ndim(values) == 1:
-        return {name: values}
-    return dict(zip(zone_columns(name, zones), np.asarray(values).T, strict=True))
 
 
 def free_records(

@@ -52,7 +52,7 @@ from pinn_mpc.actuator import ActuatorSpec
 from pinn_mpc.data import SITE_COLUMNS
 from pinn_mpc.errors import InputError, InternalError, setting
 from pinn_mpc.physics import RCParams
-from pinn_mpc.zones import zone_columns
+from pinn_mpc.zones import zone_series_columns
 from scenarios.choices import POLICIES
 from scenarios.inputs.registry import Scenario, check_seed
 from scenarios.inputs.series import ExogenousSeries
@@ -237,10 +237,10 @@ def _frame(
     zones = records[0].zones
     columns: dict[str, np.ndarray] = {
         "time": np.tile(exo["time"].to_numpy()[:n], n_buildings),
-        **dict(zip(zone_columns("T_r", zones), stacked("t_r_c").T, strict=True)),
+        **zone_series_columns("T_r", stacked("t_r_c"), zones),
     }
     if scenario.plant.true_state:
-        columns |= dict(zip(zone_columns("T_m", zones), stacked("t_m_c").T, strict=True))
+        columns |= zone_series_columns("T_m", stacked("t_m_c"), zones)
     columns |= {"u": stacked("u_w"), "u_phys": stacked("u_phys_w"), "T_a": stacked("t_a_c")}
     columns |= {c: np.tile(cols[c][:n], n_buildings) for c in ("price", "T_min", "T_max")}
     if scenario.uses_solar:
