@@ -175,6 +175,29 @@ class MultiZoneParams:
         """(Z, Z) the internal walls' conductance [W/K]."""
         return np.array(self.wall_conductance_w_per_k, dtype=float).reshape(self.n_zones, self.n_zones)
 
+    def lumped(self) -> RCParams:
+        """The one 2R2C of the building with its zones merged (the limit of infinitely
+        conductive internal walls): conductances and capacities summed, the solar aperture
+        summed (every zone's windows counted as taking ``G``) and the fractions weighted by
+        what they split. Its steady state with every zone at one temperature is the
+        building's; it is the nominal building a one-zone view of it assumes."""
+        rcs = [z.rc for z in self.zones]
+        aperture = math.fsum(rc.solar_aperture_m2 for rc in rcs)
+        solar_air = (
+            math.fsum(rc.solar_aperture_m2 * rc.solar_to_air_fraction for rc in rcs) / aperture
+            if aperture > 0
+            else 0.0
+        )
+        return RCParams(
+            r_ra_k_per_w=1.0 / math.fsum(1.0 / rc.r_ra_k_per_w for rc in rcs),
+            r_rm_k_per_w=1.0 / math.fsum(1.0 / rc.r_rm_k_per_w for rc in rcs),
+            c_r_j_per_k=math.fsum(rc.c_r_j_per_k for rc in rcs),
+            c_m_j_per_k=math.fsum(rc.c_m_j_per_k for rc in rcs),
+            solar_aperture_m2=aperture,
+            solar_to_air_fraction=solar_air,
+            gain_to_air_fraction=math.fsum(z.gain_share * z.rc.gain_to_air_fraction for z in self.zones),
+        )
+
 
 def _checked_walls(value: Any, names: Sequence[str]) -> tuple[tuple[float, ...], ...]:
     """``value`` as a (Z, Z) tuple of tuples, or a ValueError naming the first problem."""

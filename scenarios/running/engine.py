@@ -215,6 +215,7 @@ class ClosedLoop:
         self.plant = plant if plant is not None else make_plant(
             config, plant_settings, t_a_c=exogenous.T_a, g_w_per_m2=exogenous.G, i_g_w=exogenous.I_g,
             times=exogenous.times, seed=seed, fleet=fleet, n_buildings=n_buildings,
+            facades={n: getattr(exogenous, n) for n in FACADE_COLUMNS} if exogenous.has_facades else None,
         )
         self.n_buildings = self.plant.n_buildings
         self.zones: tuple[ZoneSpec, ...] = self.plant.zones
@@ -413,7 +414,13 @@ class ClosedLoop:
             self._u[k] = u_w
             self._u_act[k, :, 0] = u_w
         else:
-            demand = np.broadcast_to(np.asarray(u_w, dtype=float), (self.n_buildings, n_act))
+            given = np.asarray(u_w, dtype=float)
+            if given.shape not in ((n_act,), (self.n_buildings, n_act)):
+                raise InternalError(
+                    f"ClosedLoop.step: a building of {n_act} actuators takes ({n_act},) or "
+                    f"({self.n_buildings}, {n_act}) demands, got shape {given.shape}"
+                )
+            demand = np.broadcast_to(given, (self.n_buildings, n_act))
             stepped = self.plant.step(np.array(demand), row)
             self._u[k] = demand.sum(axis=1)
             self._u_act[k] = demand
