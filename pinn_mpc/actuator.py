@@ -47,6 +47,8 @@ with the COP evaluated on the forecast (its plan variable is the delivered heat,
 from __future__ import annotations
 
 import math
+import re
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any, overload
 
@@ -54,10 +56,15 @@ import numpy as np
 
 from pinn_mpc.errors import InputError
 
-__all__ = ["ACTUATOR_KINDS", "Actuator", "ActuatorSpec", "CopCurve", "KELVIN"]
+__all__ = ["ACTUATOR_KINDS", "ACTUATOR_SERIES", "Actuator", "ActuatorSpec", "CopCurve", "KELVIN", "actuator_columns"]
 
 ACTUATOR_KINDS = ("ideal", "heat_pump")
 KELVIN = 273.15
+#: The data format's series that a building has once per actuator: the demanded and the
+#: delivered electrical power [W].
+ACTUATOR_SERIES = ("u", "u_phys")
+#: An actuator's name, as a zone's (:mod:`pinn_mpc.zones`): it names data columns.
+_NAME = re.compile(r"[A-Za-z0-9_.\-]+")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -128,6 +135,9 @@ class ActuatorSpec:
     heats: bool = True
     zone: int = 0
     efficiency: Actuator = field(default_factory=Actuator)
+    #: Its name in the data (``u[<name>]``, ``u_phys[<name>]``) where a building has several
+    #: actuators; "" for a building's one actuator, whose columns are ``u`` and ``u_phys``.
+    name: str = ""
 
     def __post_init__(self) -> None:
         lo, hi = self.lower_w, self.upper_w
@@ -142,6 +152,11 @@ class ActuatorSpec:
             raise TypeError(f"ActuatorSpec.heats must be True (heats) or False (cools), got {self.heats!r}")
         if isinstance(self.zone, bool) or not isinstance(self.zone, int) or self.zone < 0:
             raise ValueError(f"ActuatorSpec.zone must be a zone index >= 0, got {self.zone!r}")
+        if not (isinstance(self.name, str) and (self.name == "" or _NAME.fullmatch(self.name))):
+            raise ValueError(
+                f"ActuatorSpec.name must be letters, digits, '_', '-' or '.' (it names the data "
+                f"columns u[<name>]), got {self.name!r}"
+            )
         if self.efficiency.kind == "heat_pump" and not self.heats:
             raise ValueError(
                 "ActuatorSpec: a heat_pump efficiency heats, but heats=False; give a cooling "
@@ -297,3 +312,14 @@ class CopCurve:
             return cls(t_a_c=tuple(map(float, data["t_a_c"])), cop=tuple(map(float, data["cop"])))
         except (KeyError, TypeError, ValueError) as exc:
             raise InputError(f"COP curve must hold lists t_a_c and cop, got {data!r}") from exc
+
+
+def actuator_columns(series: str, actuators: Sequence[ActuatorSpec]) -> tuple[str, ...]:
+    """Each actuator's column of ``series`` (``u`` or ``u_phys``), in their order: ``series``
+    itself for a building's one actuator, else ``series[<name>]`` (the building's total power
+    keeps the column ``series``)."""
+    if series not in ACTUATOR_SERIES:
+        raise ValueError(f"actuator_columns: {series!r} is not an actuator series ({', '.join(ACTUATOR_SERIES)})")
+    if len(actuators) == 1:
+        return (series,)
+    return tuple(f"{series}[{a.name}]" for a in actuators)
