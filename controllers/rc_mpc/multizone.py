@@ -31,10 +31,11 @@ violation of each zone's band by its room temperature at the END of interval j, 
 The QP keeps the states as variables (the sparse form), per step ``A`` heats, ``Z`` slacks and
 ``2Z`` states, and the rows of the dynamics (2Z a step), the band (Z below, Z above), the heats'
 bounds (A) and the slacks' (Z), each two-sided (OSQP's ``l <= A x <= u``). The ZOH's ``Ad`` is
-dense (every zone reaches every other within an interval), so a step's dynamics hold (2Z)^2
-entries, while the condensed form (states eliminated) holds ``H^2/2`` blocks of ``Z x A``: the
-sparse form's matrix is the smaller one at every Z (at H = 48, Z = 12, A = 24: about 40 000
-entries against 330 000), and OSQP's factorisation follows the entries. ``P`` and ``A`` are
+dense (every zone reaches every other within an interval), so a step's dynamics hold about
+``(2Z)^2`` entries and the matrix about ``H (4 Z^2 + 2 Z A)``, while the condensed form (states
+eliminated) holds ``H (H + 1) / 2`` dense blocks of ``Z x A``: with a heater and a cooler per
+zone (A = 2Z) some ``(H + 1) / 8`` times as many, at every Z. OSQP's factorisation and
+iterations follow the entries, so the sparse form is the faster one. ``P`` and ``A`` are
 built once; each step updates ``q``, ``l``, ``u`` and warm-starts from the last solution
 shifted one step. ``benchmarks/bench_multizone_mpc.py`` measures the decision time.
 
