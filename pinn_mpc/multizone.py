@@ -83,6 +83,7 @@ __all__ = [
     "backup_power",
     "continuous_matrices",
     "discretise",
+    "needed_inputs",
     "steady_state",
 ]
 
@@ -325,6 +326,13 @@ def _needed_inputs(buildings: Sequence[MultiZoneParams]) -> tuple[str, ...]:
     and the irradiance every zone with an aperture takes."""
     suns = {z.solar_input for p in buildings for z in p.zones if z.rc.solar_aperture_m2 > 0}
     return tuple(n for n in EXOGENOUS_NAMES if n in {"T_a", "I_g"} | suns)
+
+
+def needed_inputs(params: MultiZoneParams) -> tuple[str, ...]:
+    """The exogenous inputs (names of :data:`EXOGENOUS_NAMES`, in its order) the building
+    takes: T_a, I_g and the irradiance of every zone with windows; the others may be absent
+    (0)."""
+    return _needed_inputs([params])
 
 
 def _exogenous(weather: Mapping[str, Any], needed: Sequence[str], n_buildings: int) -> np.ndarray:
