@@ -1,9 +1,12 @@
 """Multi-zone identification: fit time and parameter errors for 2 and 5 zones.
 
-Run: ``python benchmarks/bench_identify_multizone.py [--days 14] [--seeds 0 1 2]``. The data are
-:mod:`tests.multizone_data`'s: a building run by :class:`pinn_mpc.multizone.MultiZoneSimulator`
-(minute substeps, backup thermostats at 12 and 30 C, sensor noise 0.05 C) at 30-min intervals
-under a synthetic winter, every heater at a random level held 1 to 8 hours. The buildings: the
+Run from the checkout (the data are the tests' :mod:`tests.multizone_data`)::
+
+    PYTHONPATH=$PWD python benchmarks/bench_identify_multizone.py [--days 14] [--seeds 0 1 2]
+
+The data: a building run by :class:`pinn_mpc.multizone.MultiZoneSimulator` (minute substeps,
+backup thermostats at 12 and 30 C, sensor noise 0.05 C) at 30-min intervals under a synthetic
+winter, every heater at a random level held 1 to 8 hours. The buildings: the
 two-zone house (a south zone with windows on G_south and a north zone without, one wall of
 60 W/K) and a row of five zones (each wall between neighbours 40-120 W/K, windows on the
 south, east, west or north facade). The five zones are fitted twice: with every pair as a
