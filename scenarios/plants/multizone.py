@@ -54,16 +54,17 @@ class MultiZoneSettings(KindSettings):
                 f"columns u[<name>]), got names {names}"
             )
         try:  # the actuators on the building's zones, the limits' shape
-            MultiZoneConfig(params=self.building, actuators=self.actuators, **self._limits(17.0, 20.5))
+            low, high = self._limits(17.0, 20.5)
+            MultiZoneConfig(params=self.building, actuators=self.actuators, backup_low_c=low, backup_high_c=high)
         except ValueError as exc:
             raise InputError(f"multizone plant: {exc}") from None
 
-    def _limits(self, low_c: float, high_c: float) -> dict[str, float | tuple[float, ...]]:
-        """The backup limits: the settings' own where given, else ``low_c``/``high_c``."""
-        return {
-            "backup_low_c": low_c if self.backup_low_c is None else self.backup_low_c,
-            "backup_high_c": high_c if self.backup_high_c is None else self.backup_high_c,
-        }
+    def _limits(self, low_c: float, high_c: float) -> tuple[float | tuple[float, ...], float | tuple[float, ...]]:
+        """The backup limits (low, high): the settings' own where given, else ``low_c``/``high_c``."""
+        return (
+            low_c if self.backup_low_c is None else self.backup_low_c,
+            high_c if self.backup_high_c is None else self.backup_high_c,
+        )
 
     @property
     def zone_specs(self) -> tuple[ZoneSpec, ...]:
@@ -116,7 +117,7 @@ class MultiZonePlant:
         shape = (1,)
         return PlantStep(
             t_r_c=result.t_r_c, t_m_c=result.t_m_c, u_phys_w=result.power_w.sum(axis=1),
-            overridden=result.overridden.any(axis=1), t_r_sub_c=result.t_r_sub_c,
+            overridden=np.asarray(result.overridden.any(axis=1)), t_r_sub_c=result.t_r_sub_c,
             t_a_c=np.full(shape, weather["T_a"]), g_w_per_m2=np.full(shape, weather["G"]),
             i_g_w=np.full(shape, weather["I_g"]), u_phys_act_w=result.power_w,
         )
@@ -130,10 +131,10 @@ def _make(settings: KindSettings, request: PlantRequest) -> MultiZonePlant:
     if request.fleet is not None or request.n_buildings != 1:
         raise InputError("a multi-zone plant runs one building today; a fleet runs on the 2R2C simulator")
     sim = request.config
+    low, high = settings._limits(sim.backup_low_c, sim.backup_high_c)
     config = MultiZoneConfig(
         params=settings.building, actuators=settings.actuators, dt_s=sim.dt_s,
-        substep_s=sim.substep_s, noise_std_c=sim.noise_std_c,
-        **settings._limits(sim.backup_low_c, sim.backup_high_c),
+        substep_s=sim.substep_s, noise_std_c=sim.noise_std_c, backup_low_c=low, backup_high_c=high,
     )
     weather = {"T_a": request.t_a_c, "G": request.g_w_per_m2, "I_g": request.i_g_w}
     if settings.needs_facades:

@@ -37,8 +37,8 @@ from tqdm import tqdm
 
 from controllers.base import Controller
 from controllers.thermostat import Thermostat
-from pinn_mpc.data import COLUMNS, SITE_COLUMNS, write_timeseries
 from pinn_mpc.actuator import ActuatorSpec, actuator_columns
+from pinn_mpc.data import COLUMNS, SITE_COLUMNS, write_timeseries
 from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.physics import RCParams
 from pinn_mpc.zones import zone_columns, zone_series_columns

@@ -305,7 +305,7 @@ def build_controller(
             f"actuators: choose {' or '.join(ZONE_CONTROLLERS)}"
         )
     if name == "oracle" and not spec.single:
-        from controllers.rc_mpc.multizone import oracle_multizone
+        from controllers.rc_mpc.references import oracle_multizone
         from scenarios.plants.multizone import MultiZoneSettings
 
         settings = scenario.plant.settings

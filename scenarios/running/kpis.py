@@ -45,9 +45,9 @@ under any heating than free-running).
 
 from __future__ import annotations
 
-import numpy as np
-
 from collections.abc import Sequence
+
+import numpy as np
 
 from controllers.objective import band_violation_k, energy_cost_eur
 from pinn_mpc.errors import InternalError
