@@ -70,6 +70,7 @@ from pinn_mpc.multizone import (
     MultiZoneParams,
     ZoneRC,
     continuous_matrices,
+    wall_tuples,
 )
 from pinn_mpc.physics import DT_RANGE_S, SUMMARY_KEYS, params_from_summary
 from pinn_mpc.zones import ZoneSpec, zone_column
@@ -210,7 +211,7 @@ def _from_json(data: Mapping[str, Any] | str, source: str) -> MultiZoneIdentifyR
             if walls[i, j] != 0:
                 raise ValueError(f"walls[{k}]: the wall {names[i]}-{names[j]} is given twice")
             walls[i, j] = walls[j, i] = u
-        params = MultiZoneParams(zones=zones, wall_conductance_w_per_k=walls)
+        params = MultiZoneParams(zones=zones, wall_conductance_w_per_k=wall_tuples(walls))
         per_zone = {
             key: _per_zone_values(fit, key, names, kind)
             for key, kind in (("rmse_c", float), ("t_m0_c", float), ("identified_solar", bool))
@@ -483,7 +484,9 @@ class _Building:
                 self.zones, self.blocks, self.block_slices, self.gain_shares(theta), self.suns, strict=True
             )
         )
-        return MultiZoneParams(zones=zones, wall_conductance_w_per_k=self.walls(theta) if walls is None else walls)
+        return MultiZoneParams(
+            zones=zones, wall_conductance_w_per_k=wall_tuples(self.walls(theta) if walls is None else walls)
+        )
 
     def t_m0(self, theta: np.ndarray) -> np.ndarray:
         """(Z,) the masses' initial temperatures [C]."""
@@ -515,7 +518,7 @@ def _fit_alone(
 
     def residuals(theta: np.ndarray) -> np.ndarray:
         zone = ZoneRC(zone=spec, rc=block.params(theta[:n_block]), gain_share=1.0, solar_input=sun)
-        alone = MultiZoneParams(zones=(zone,), wall_conductance_w_per_k=[[0.0]])
+        alone = MultiZoneParams(zones=(zone,), wall_conductance_w_per_k=((0.0,),))
         mats = continuous_matrices(alone, local)
         u = np.exp(theta[n_block + n_q :])  # (W,) the walls [W/K]
         a = mats.a.copy()

@@ -85,6 +85,7 @@ __all__ = [
     "discretise",
     "needed_inputs",
     "steady_state",
+    "wall_tuples",
 ]
 
 #: The irradiance a zone's windows may take [W/m2]: the global horizontal, or a facade's.
@@ -139,7 +140,7 @@ class MultiZoneParams:
     The zones' internal-gain shares sum to 1."""
 
     zones: tuple[ZoneRC, ...]
-    wall_conductance_w_per_k: Sequence[Sequence[float]] | np.ndarray
+    wall_conductance_w_per_k: tuple[tuple[float, ...], ...]
 
     def __post_init__(self) -> None:
         zones = tuple(self.zones) if isinstance(self.zones, list | tuple) else self.zones
@@ -198,6 +199,12 @@ class MultiZoneParams:
             solar_to_air_fraction=solar_air,
             gain_to_air_fraction=math.fsum(z.gain_share * z.rc.gain_to_air_fraction for z in self.zones),
         )
+
+
+def wall_tuples(walls: Any) -> tuple[tuple[float, ...], ...]:
+    """A (Z, Z) conductance matrix [W/K] (an array or nested sequences) as the tuples
+    :class:`MultiZoneParams` keeps (checked there)."""
+    return tuple(tuple(float(v) for v in row) for row in np.asarray(walls, dtype=float))
 
 
 def _checked_walls(value: Any, names: Sequence[str]) -> tuple[tuple[float, ...], ...]:
