@@ -70,9 +70,6 @@ class Kpis(TypedDict):
     """``cost_eur`` + comfort weight x ``discomfort_kh`` [EUR]."""
     decision_ms_median: float
     """Median wall-clock time of the controller's decisions [ms]."""
-    zones: dict[str, dict[str, float]]
-    """Each zone's ``discomfort_kh``, ``discomfort_too_cold_kh``, ``discomfort_too_warm_kh`` and
-    ``energy_kwh`` (of the actuators on it), by the zone's name."""
     decision_ms_mean: float
     """Mean decision time [ms]."""
     decision_ms_p95: float
@@ -85,6 +82,9 @@ class Kpis(TypedDict):
     """Intervals in which the controller's documented fallback acted."""
     own_decisions_share: float
     """Share of the intervals the controller decided itself, without its fallback [-]."""
+    zones: dict[str, dict[str, float]]
+    """Each zone's ``discomfort_kh``, ``discomfort_too_cold_kh``, ``discomfort_too_warm_kh`` and
+    ``energy_kwh`` (of the actuators on it), by the zone's name."""
 
 
 class RunKpis(Kpis):

@@ -171,15 +171,19 @@ def _builtins() -> None:
     import scenarios.plants.rc  # noqa: F401
 
 
+#: The built-in kinds, in the order they are listed.
+_BUILTIN_ORDER = ("2r2c", "3r3c", "energyplus", "multizone")
+
+
 def kind_names() -> tuple[str, ...]:
     """Every registered kind's name, the built-ins first."""
     _builtins()
-    return tuple(_KINDS)
+    return (*_BUILTIN_ORDER, *(name for name in _KINDS if name not in _BUILTIN_ORDER))
 
 
 def plant_kind(name: str) -> PlantKind:
     """The registered kind ``name``; InputError naming the kinds if there is none."""
     _builtins()
     if name not in _KINDS:
-        raise InputError(f"plant kind {name!r} is unknown; choose one of {', '.join(_KINDS)}")
+        raise InputError(f"plant kind {name!r} is unknown; choose one of {', '.join(kind_names())}")
     return _KINDS[name]

@@ -74,6 +74,7 @@ KPI_KEYS = (
     "backup_overrides",
     "fallbacks",
     "own_decisions_share",
+    "zones",
 )
 
 
@@ -91,7 +92,7 @@ def compute_kpis(
     comfort_weight_eur_per_kh: float,
     free_t_r_sub_c: np.ndarray | None = None,
     heating: bool | None = True,
-    zones: Sequence[ZoneSpec] = ONE_ZONE,
+    zones: Sequence[ZoneSpec] | None = None,
     u_phys_act_w: np.ndarray | None = None,
     actuator_zones: Sequence[int] = (0,),
 ) -> Kpis:
@@ -120,7 +121,8 @@ def compute_kpis(
     heating
         Whether the actuators heat (True) or cool; None: some do each (no free-run bound).
     zones
-        The building's zones (names of the ``zones`` block), Z of them.
+        The building's zones (names of the ``zones`` block), Z of them; None: the one zone's
+        name for one, ``zone_1`` .. ``zone_Z`` for several.
     u_phys_act_w, actuator_zones
         (N, A) each actuator's delivered power [W] and (A,) the zone each acts on, for each
         zone's energy; None: ``u_phys_w`` is the one actuator's, on zone 0.
@@ -178,6 +180,8 @@ def compute_kpis(
             avoidable_kh = discomfort_kh - unavoidable_kh
     cost_eur = float(np.sum(energy_cost_eur(u, np.asarray(price_eur_per_kwh, dtype=float), dt_h)))
     act = u[:, None] if u_phys_act_w is None else np.asarray(u_phys_act_w, dtype=float)
+    if zones is None:
+        zones = ONE_ZONE if sub.shape[2] == 1 else tuple(ZoneSpec(f"zone_{z + 1}") for z in zones_range)
     if len(zones) != sub.shape[2] or act.shape != (n, len(actuator_zones)):
         raise InternalError(
             f"compute_kpis: {len(zones)} zone names for {sub.shape[2]} zones, or u_phys_act_w "
