@@ -39,6 +39,7 @@ __all__ = [
     "PlanningController",
     "SolveStats",
     "fallback_power",
+    "fallback_powers",
     "first_values",
     "raise_if_interrupted",
     "solver_interrupts_held",
@@ -119,6 +120,9 @@ class Observation(NamedTuple):
     of past intervals [W]; ``T_a``, ``G``, ``I_g``, ``time_of_day_h`` (k+1,) up to now, and
     ``day_of_week`` (k+1,, 0 = Monday) where the run has dates, and the facades' irradiance and
     the wind speed (:data:`pinn_mpc.data.SITE_COLUMNS`, (k+1,)) where the run has them.
+    A building of several actuators (:attr:`ControlSpec.actuators`) also has each one's
+    ``u[<name>]`` and ``u_phys[<name>]`` (k,) (:func:`pinn_mpc.actuator.actuator_columns`);
+    ``u`` and ``u_phys`` are then the building's totals, on which the price is paid.
     ``last`` is the interval that just ended (None at the first step), so nobody reads it back
     out of ``history`` by index. ``t_m_true_c`` is the simulator's hidden thermal-mass
     temperature: only the true-state estimator (oracle) may use it. ``t_r_c`` and
@@ -132,6 +136,9 @@ class Observation(NamedTuple):
     t_m_true_c: float
     last: LastInterval | None = None
     zones: tuple[ZoneSpec, ...] = ONE_ZONE
+    #: (Z,) each zone's hidden thermal-mass temperature [C] (the true-state estimator's only;
+    #: NaN where unknown), None where the observation was made without it.
+    t_m_true_zones_c: np.ndarray | None = None
 
     @classmethod
     def from_history(
@@ -171,6 +178,7 @@ class Observation(NamedTuple):
         return cls(
             k=k, t_r_c=float(t_r[-1]) if one else math.nan, history=history,
             t_m_true_c=float(t_m[0]) if one else math.nan, last=last, zones=zones,
+            t_m_true_zones_c=np.array(t_m),
         )
 
     def t_r_zones_c(self) -> np.ndarray:
@@ -191,10 +199,11 @@ class ControlSpec:
 
     ``actuators`` are the actuators the controllers set (:class:`pinn_mpc.actuator.ActuatorSpec`:
     each one's bounds, whether it heats or cools, its zone and its efficiency, such as a heat
-    pump's COP curve, which an RC MPC plans with); today exactly one, and :attr:`actuator` is
-    it. ``zones`` are the building's zones (:mod:`pinn_mpc.zones`; an actuator's ``zone`` is an
-    index into them): the plant's (the closed loop checks it); every scenario's is one today,
-    and the planners plan one zone (``Observation.t_r_c``). Every power a controller decides is
+    pump's COP curve, which an RC MPC plans with; named where there are several); a one-zone
+    building has one, :attr:`actuator`. ``zones`` are the building's zones (:mod:`pinn_mpc.zones`;
+    an actuator's ``zone`` is an index into them): the plant's (the closed loop checks it). The
+    learned-model planners plan one zone with one actuator (:attr:`single`); the multi-zone
+    controllers (the RC MPC over zones and actuators, the thermostat) any. Every power a controller decides is
     electrical and every bound of it is the actuator's. ``sensor_noise_std_c`` is the room sensor's noise as its data sheet
     states it (the Kalman observers take it as their measurement noise; 0 keeps their default)."""
 
@@ -210,11 +219,19 @@ class ControlSpec:
             raise TypeError(f"ControlSpec.actuators must be a tuple of ActuatorSpec, got {self.actuators!r}")
         if not (isinstance(self.zones, tuple) and self.zones and all(isinstance(z, ZoneSpec) for z in self.zones)):
             raise TypeError(f"ControlSpec.zones must be a non-empty tuple of ZoneSpec, got {self.zones!r}")
-        if len(self.actuators) != 1 or not 0 <= self.actuators[0].zone < len(self.zones):
+        if not self.actuators:
+            raise ValueError("ControlSpec.actuators: a building has at least one actuator, got none")
+        outside = [a.zone for a in self.actuators if not 0 <= a.zone < len(self.zones)]
+        if outside:
             raise ValueError(
-                "ControlSpec.actuators: the controllers set one actuator (heating or cooling) on "
-                f"one of the building's {len(self.zones)} zone(s), got {len(self.actuators)} on "
-                f"zones {[a.zone for a in self.actuators]}"
+                f"ControlSpec.actuators: zone index(es) {outside} outside the building's "
+                f"{len(self.zones)} zone(s); an actuator's zone is an index into ControlSpec.zones"
+            )
+        names = [a.name for a in self.actuators]
+        if len(self.actuators) > 1 and ("" in names or len(set(names)) != len(names)):
+            raise ValueError(
+                f"ControlSpec.actuators: a building of several actuators names each one, uniquely "
+                f"(its data columns u[<name>]), got names {names}"
             )
         if self.horizon_steps < 1:
             raise ValueError(f"ControlSpec.horizon_steps must be >= 1, got {self.horizon_steps}")
@@ -228,8 +245,26 @@ class ControlSpec:
             )
 
     @property
+    def n_actuators(self) -> int:
+        """A, the number of actuators the controllers set."""
+        return len(self.actuators)
+
+    @property
+    def single(self) -> bool:
+        """Whether the building is one zone with one actuator: what every controller plans
+        (the multi-zone controllers plan any)."""
+        return len(self.actuators) == 1 and len(self.zones) == 1
+
+    @property
     def actuator(self) -> ActuatorSpec:
-        """The one actuator the controllers set (``actuators[0]``)."""
+        """The one actuator the controllers set (``actuators[0]``); a building of several has
+        no one actuator (ValueError: a controller of one actuator was given it)."""
+        if len(self.actuators) != 1:
+            raise ValueError(
+                f"ControlSpec.actuator: this building has {len(self.actuators)} actuators "
+                f"({', '.join(a.name for a in self.actuators)}); a controller of one actuator "
+                "cannot plan it (choose a multi-zone controller)"
+            )
         return self.actuators[0]
 
     @property
@@ -276,7 +311,9 @@ def first_values(values: np.ndarray, n: int) -> np.ndarray:
 
 @runtime_checkable
 class Controller(Protocol):
-    """``reset`` then ``act`` once per control interval; ``act`` returns demanded power [W].
+    """``reset`` then ``act`` once per control interval; ``act`` returns demanded electrical
+    power [W]: a number for a building's one actuator, (A,) one per actuator of several
+    (:attr:`ControlSpec.actuators`' order).
 
     What the loop asks of it besides: ``knows_true_state`` (its decisions start from the
     plant's true state, as the oracle's and the clairvoyant's do: it needs a plant with one,
@@ -288,7 +325,7 @@ class Controller(Protocol):
 
     def reset(self, seed: int | None = None) -> None: ...
 
-    def act(self, obs: Observation, forecast: Forecast) -> float: ...
+    def act(self, obs: Observation, forecast: Forecast) -> float | np.ndarray: ...
 
     @property
     def last_plan(self) -> np.ndarray | None: ...
@@ -322,6 +359,26 @@ def fallback_power(obs: Observation, forecast: Forecast, spec: ControlSpec) -> f
     if actuator.heats:
         return actuator.on_off(obs.t_r_c < t_min + quarter)
     return actuator.on_off(obs.t_r_c > t_max - quarter)
+
+
+def fallback_powers(obs: Observation, forecast: Forecast, spec: ControlSpec) -> np.ndarray:
+    """(A,) :func:`fallback_power`'s rule for each actuator of a building (of any number of
+    zones and actuators): a heater at full power when its zone's measured room temperature is
+    in the lower quarter of the zone's band or below it, a cooler in the upper quarter or
+    above, each otherwise off (its lower bound). Without a band every actuator is off."""
+    if spec.single:
+        return np.array([fallback_power(obs, forecast, spec)])
+    powers = np.array([a.lower_w for a in spec.actuators], dtype=float)
+    if len(forecast.T_min) == 0 or len(forecast.T_max) == 0:
+        return powers
+    t_r = obs.t_r_zones_c()
+    t_min, t_max = (np.broadcast_to(np.asarray(b, dtype=float)[0], (len(spec.zones),)) for b in (forecast.T_min, forecast.T_max))
+    for i, actuator in enumerate(spec.actuators):
+        z = actuator.zone
+        quarter = 0.25 * (t_max[z] - t_min[z])
+        on = t_r[z] < t_min[z] + quarter if actuator.heats else t_r[z] > t_max[z] - quarter
+        powers[i] = actuator.on_off(bool(on))
+    return powers
 
 
 #: The statuses of a solver that caught a Ctrl-C itself (OSQP; IPOPT through CasADi), lower case.

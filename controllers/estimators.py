@@ -4,6 +4,8 @@ Each turns the observation of step k into what its controller plans from:
 
 - :class:`KalmanEstimator`: (T_r, T_m) from a Kalman observer on an RC model
   (:class:`pinn_mpc.observer.KalmanObserver`), fed with the last interval's inputs.
+- :class:`MultiZoneKalmanEstimator`: the same of a multi-zone building
+  (:class:`pinn_mpc.multizone.MultiZoneParams`), every zone's room measured and its mass hidden.
 - :class:`TrueState`: the simulator's true (T_r, T_m); only the reference controllers (oracle,
   clairvoyant) may use it.
 - :class:`OffsetFilter`: for learned models, the filtered error of the model's one-step
@@ -21,8 +23,10 @@ from typing import TYPE_CHECKING, Any, Protocol
 import numpy as np
 
 from controllers.base import ControlSpec, Observation
-from pinn_mpc.actuator import Actuator
-from pinn_mpc.errors import InternalError
+from pinn_mpc.actuator import Actuator, actuator_columns
+from pinn_mpc.errors import InputError, InternalError
+from pinn_mpc.multizone import EXOGENOUS_NAMES as ZONE_INPUTS
+from pinn_mpc.multizone import MultiZoneParams, discretise, needed_inputs
 from pinn_mpc.observer import DEFAULT_INITIAL_T_M_STD_C, DEFAULT_MEASUREMENT_STD_C, KalmanObserver
 from pinn_mpc.physics import RCParams
 
@@ -36,6 +40,7 @@ __all__ = [
     "FleetKalmanEstimator",
     "FleetOffsetFilter",
     "KalmanEstimator",
+    "MultiZoneKalmanEstimator",
     "OffsetFilter",
     "StateEstimator",
     "TrueState",
@@ -179,6 +184,88 @@ class FleetKalmanEstimator:
             self._p[restart] = np.diag([self.r, self.initial_t_m_std_c**2])
         self._k_seen = k
         return self.state
+
+
+class MultiZoneKalmanEstimator:
+    """A Kalman observer of a multi-zone building, fed by the observations: state ``x`` (2Z,)
+    the rooms then the masses [C] (:mod:`pinn_mpc.multizone`'s order), every room measured
+    (``Observation.t_r_zones_c``), the masses hidden; the model is the exact ZOH of ``params``
+    over ``spec.dt_s`` (:func:`pinn_mpc.multizone.discretise`).
+
+    Each zone's noises are :meth:`KalmanEstimator.for_spec`'s (:func:`observer_noise`: the
+    spec's sensor noise as the measurement noise where it is the larger), the initial mass
+    guess's standard deviation :data:`~pinn_mpc.observer.DEFAULT_INITIAL_T_M_STD_C`. Its
+    restart rule is :class:`KalmanEstimator`'s: the first call, a step that does not follow
+    the previous one, or an observation without its last interval start it at the measured
+    rooms with each mass guessed equal to its room; otherwise it predicts over the last
+    interval, with each actuator's delivered power (``history["u_phys[<name>]"]``, or
+    ``u_phys`` for a building's one, :func:`pinn_mpc.actuator.actuator_columns`) times its heat
+    per watt at the interval's outdoor temperature and the interval's exogenous inputs, and
+    updates with the new measurement. An input the building takes (T_a, I_g, each zone's
+    irradiance) missing from the history is an InputError."""
+
+    def __init__(self, params: MultiZoneParams, spec: ControlSpec) -> None:
+        self.params, self.spec = params, spec
+        self.matrices = discretise(params, spec.actuators, spec.dt_s)
+        self.needed = needed_inputs(params)
+        z_n = params.n_zones
+        process, measurement = observer_noise(spec)
+        self.q = np.diag(np.repeat(np.square(np.asarray(process, dtype=float)), z_n))  # (2Z, 2Z)
+        self.r = float(measurement) ** 2
+        self.initial_t_m_std_c = DEFAULT_INITIAL_T_M_STD_C
+        self.power_columns = actuator_columns("u_phys", spec.actuators)
+        self.reset()
+
+    @property
+    def n_zones(self) -> int:
+        return self.params.n_zones
+
+    def reset(self) -> None:
+        self._k_seen: int | None = None
+        self._x = np.full(2 * self.n_zones, np.nan)
+        self._p = np.eye(2 * self.n_zones)
+
+    @property
+    def state(self) -> np.ndarray:
+        """(2Z,) the estimated rooms then masses [C] (NaN before the first update)."""
+        return self._x.copy()
+
+    def update(self, obs: Observation) -> np.ndarray:
+        """Fold the observation of step ``obs.k`` in (class docstring); returns the state (2Z,)."""
+        z_n = self.n_zones
+        y = obs.t_r_zones_c()
+        if self._k_seen is None or obs.k != self._k_seen + 1 or obs.last is None:
+            self._x = np.concatenate([y, y])
+            self._p = np.diag(np.concatenate([np.full(z_n, self.r), np.full(z_n, self.initial_t_m_std_c**2)]))
+        else:
+            a, b_u, b_d = self.matrices
+            u_phys, d = self._last_inputs(obs.history)
+            heat = u_phys * np.array([s.gain(d[0]) for s in self.spec.actuators], dtype=float)
+            x = a @ self._x + b_u @ heat + b_d @ d
+            p = a @ self._p @ a.T + self.q
+            gain = np.linalg.solve(p[:z_n, :z_n] + self.r * np.eye(z_n), p[:z_n, :]).T  # (2Z, Z)
+            self._x = x + gain @ (y - x[:z_n])
+            i_kh = np.eye(2 * z_n)
+            i_kh[:, :z_n] -= gain
+            # Joseph form: stays symmetric positive definite in floating point.
+            self._p = i_kh @ p @ i_kh.T + self.r * gain @ gain.T
+        self._k_seen = obs.k
+        return self.state
+
+    def _last_inputs(self, history: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+        """The last interval's delivered power per actuator (A,) [W] and exogenous inputs (7,)
+        in :data:`pinn_mpc.multizone.EXOGENOUS_NAMES` order (held from its start)."""
+        missing = [c for c in self.power_columns if c not in history]
+        missing += [n for n in self.needed if n not in history]
+        if missing:
+            raise InputError(
+                f"the observation's history lacks {missing}, which the multi-zone observer "
+                f"needs (each actuator's delivered power {', '.join(self.power_columns)} and "
+                f"the building's inputs {', '.join(self.needed)})"
+            )
+        u_phys = np.array([float(history[c][-1]) for c in self.power_columns])
+        d = np.array([float(history[n][-2]) if n in history else 0.0 for n in ZONE_INPUTS])
+        return u_phys, d
 
 
 class TrueState:

@@ -7,6 +7,12 @@ lower edge, like :func:`controllers.base.fallback_power`). Cooling mirrors this 
 The band is the forecast's first interval, ``forecast.T_min[0]`` / ``forecast.T_max[0]``.
 Deciding once per control interval at full power, it overshoots by up to the temperature
 change of one interval; that is the baseline's nature, not a bug.
+
+A building of several zones and actuators gets a thermostat per actuator on its own zone's
+room temperature and band: a heater by the heating rule, a cooler by the cooling rule, so a
+zone with both is a dual-setpoint thermostat (heating below a quarter of the band above its
+lower edge, cooling above a quarter below its upper edge, a dead band between). ``act``
+then returns (A,).
 """
 
 from __future__ import annotations
@@ -42,19 +48,22 @@ class Thermostat:
         self.offset_fraction = offset_fraction
         self.hysteresis_k = hysteresis_k
         self._on = False
+        self._zone_on = np.zeros(spec.n_actuators, dtype=bool)  # each actuator's, several
         self._plan: np.ndarray | None = None
         self._stats = SolveStats(time_s=0.0, status="not run", iterations=0, fallback=False)
 
     def reset(self, seed: int | None = None) -> None:
         self._on = False
+        self._zone_on = np.zeros(self.spec.n_actuators, dtype=bool)
         self._plan = None
         self._stats = SolveStats(time_s=0.0, status="not run", iterations=0, fallback=False)
 
-    def thresholds_c(self, t_min_c: float, t_max_c: float) -> tuple[float, float]:
-        """(switch-on, switch-off) room temperatures [C] for this band."""
+    def thresholds_c(self, t_min_c: float, t_max_c: float, *, heats: bool | None = None) -> tuple[float, float]:
+        """(switch-on, switch-off) room temperatures [C] for this band, of a heater or a
+        cooler (``heats``; None: the building's one actuator)."""
         half = 0.5 * self.hysteresis_k
         offset = self.offset_fraction * (t_max_c - t_min_c)
-        if self.spec.actuator.heats:
+        if self.spec.actuator.heats if heats is None else heats:
             return t_min_c + offset - half, t_min_c + offset + half
         return t_max_c - offset + half, t_max_c - offset - half
 
@@ -70,7 +79,9 @@ class Thermostat:
             return (t_r_c < on_at) | (was_on & (t_r_c <= off_at))
         return (t_r_c > on_at) | (was_on & (t_r_c >= off_at))
 
-    def act(self, obs: Observation, forecast: Forecast) -> float:
+    def act(self, obs: Observation, forecast: Forecast) -> float | np.ndarray:
+        if not self.spec.single:
+            return self._act_zones(obs, forecast)
         start = time.perf_counter()
         band = float(forecast.T_min[0]), float(forecast.T_max[0])
         self._on = bool(self.switch(np.array([obs.t_r_c]), np.array([self._on]), *band)[0])
@@ -80,6 +91,27 @@ class Thermostat:
             time_s=time.perf_counter() - start, status="rule", iterations=0, fallback=False
         )
         return power
+
+    def _act_zones(self, obs: Observation, forecast: Forecast) -> np.ndarray:
+        """(A,) each actuator's rule on its zone (module docstring)."""
+        start = time.perf_counter()
+        n_zones = len(self.spec.zones)
+        t_min, t_max = (np.broadcast_to(np.asarray(b, dtype=float)[0], (n_zones,)) for b in (forecast.T_min, forecast.T_max))
+        t_r = obs.t_r_zones_c()
+        powers = np.empty(self.spec.n_actuators)
+        for i, actuator in enumerate(self.spec.actuators):
+            z = actuator.zone
+            on_at, off_at = self.thresholds_c(float(t_min[z]), float(t_max[z]), heats=actuator.heats)
+            was = bool(self._zone_on[i])
+            if actuator.heats:
+                on = t_r[z] < on_at or (was and t_r[z] <= off_at)
+            else:
+                on = t_r[z] > on_at or (was and t_r[z] >= off_at)
+            self._zone_on[i] = on
+            powers[i] = actuator.on_off(bool(on))
+        self._plan = powers[None, :]
+        self._stats = SolveStats(time_s=time.perf_counter() - start, status="rule", iterations=0, fallback=False)
+        return powers
 
     @property
     def last_plan(self) -> np.ndarray | None:

@@ -29,7 +29,16 @@ term). The building receives ``eta * gain(T_a) * u_phys`` watts of heat, where `
   "Time series of heat demand and heat pump efficiency for energy system modeling",
   Sci. Data 6, 189 (2019), who fit COP = 6.08 - 0.09 dT + 0.0005 dT^2 for air sources); with
   the defaults (35 C supply, 45 % of Carnot) it gives 3.96 at 0 C, 3.08 at -10 C and 5.55 at
-  10 C outdoor air, typical of a floor-heated house.
+  10 C outdoor air, typical of a floor-heated house;
+- ``chiller``: a cooling machine's energy efficiency ratio (heat removed per electrical watt),
+  the same fraction of the Carnot EER between the chilled supply and the outdoor air::
+
+      EER(T_a) = carnot_efficiency * T_supply_K / (T_a_K - T_supply_K)
+
+  clipped to ``[cop_min, cop_max]`` (``cop_max`` when T_a <= T_supply); e.g. a 12 C supply at
+  30 % of Carnot gives 4.8 at 30 C and 3.8 at 35 C outdoor air. A multi-zone building's
+  cooling actuators take it (:mod:`pinn_mpc.multizone`); the one-zone building's cooling
+  machine keeps its COP in ``-eta`` with the ideal efficiency.
 
 ``min_modulation`` (a fraction of the upper bound, ``u_max_w``) is the lowest power the machine
 runs at. A demand below it makes the machine cycle within the interval, as a real one does: on
@@ -47,6 +56,8 @@ with the COP evaluated on the forecast (its plan variable is the delivered heat,
 from __future__ import annotations
 
 import math
+import re
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any, overload
 
@@ -54,10 +65,15 @@ import numpy as np
 
 from pinn_mpc.errors import InputError
 
-__all__ = ["ACTUATOR_KINDS", "Actuator", "ActuatorSpec", "CopCurve", "KELVIN"]
+__all__ = ["ACTUATOR_KINDS", "ACTUATOR_SERIES", "Actuator", "ActuatorSpec", "CopCurve", "KELVIN", "actuator_columns"]
 
-ACTUATOR_KINDS = ("ideal", "heat_pump")
+ACTUATOR_KINDS = ("ideal", "heat_pump", "chiller")
 KELVIN = 273.15
+#: The data format's series that a building has once per actuator: the demanded and the
+#: delivered electrical power [W].
+ACTUATOR_SERIES = ("u", "u_phys")
+#: An actuator's name, as a zone's (:mod:`pinn_mpc.zones`): it names data columns.
+_NAME = re.compile(r"[A-Za-z0-9_.\-]+")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -76,8 +92,13 @@ class Actuator:
             raise InputError(
                 f"actuator.kind {self.kind!r} is unknown; choose one of {', '.join(ACTUATOR_KINDS)}"
             )
+        supply = (
+            ("supply_temp_c", 4.0, 20.0, "C for a chiller (chilled water 6-12, chilled ceilings 16-18)")
+            if self.kind == "chiller"
+            else ("supply_temp_c", 20.0, 80.0, "C (floor heating 30-35, radiators 45-70)")
+        )
         checks = (
-            ("supply_temp_c", 20.0, 80.0, "C (floor heating 30-35, radiators 45-70)"),
+            supply,
             ("carnot_efficiency", 0.05, 1.0, "(a fraction of the Carnot COP, typically 0.3-0.55)"),
             ("cop_min", 0.5, 10.0, ""),
             ("cop_max", 0.5, 10.0, ""),
@@ -109,7 +130,9 @@ class Actuator:
         if self.kind == "ideal":
             return np.ones_like(t_a)
         t_supply_k = self.supply_temp_c + KELVIN
-        lift_k = t_supply_k - (t_a + KELVIN)
+        # The lift from the cold side to the warm: supply to outdoor air for a chiller (its EER,
+        # Carnot T_cold / (T_hot - T_cold)), outdoor air to supply for a heat pump.
+        lift_k = (t_a + KELVIN) - t_supply_k if self.kind == "chiller" else t_supply_k - (t_a + KELVIN)
         with np.errstate(divide="ignore", invalid="ignore"):
             carnot = np.where(lift_k > 0, t_supply_k / np.where(lift_k > 0, lift_k, 1.0), np.inf)
         return np.clip(self.carnot_efficiency * carnot, self.cop_min, self.cop_max)
@@ -128,6 +151,9 @@ class ActuatorSpec:
     heats: bool = True
     zone: int = 0
     efficiency: Actuator = field(default_factory=Actuator)
+    #: Its name in the data (``u[<name>]``, ``u_phys[<name>]``) where a building has several
+    #: actuators; "" for a building's one actuator, whose columns are ``u`` and ``u_phys``.
+    name: str = ""
 
     def __post_init__(self) -> None:
         lo, hi = self.lower_w, self.upper_w
@@ -142,11 +168,18 @@ class ActuatorSpec:
             raise TypeError(f"ActuatorSpec.heats must be True (heats) or False (cools), got {self.heats!r}")
         if isinstance(self.zone, bool) or not isinstance(self.zone, int) or self.zone < 0:
             raise ValueError(f"ActuatorSpec.zone must be a zone index >= 0, got {self.zone!r}")
+        if not (isinstance(self.name, str) and (self.name == "" or _NAME.fullmatch(self.name))):
+            raise ValueError(
+                f"ActuatorSpec.name must be letters, digits, '_', '-' or '.' (it names the data "
+                f"columns u[<name>]), got {self.name!r}"
+            )
         if self.efficiency.kind == "heat_pump" and not self.heats:
             raise ValueError(
                 "ActuatorSpec: a heat_pump efficiency heats, but heats=False; give a cooling "
-                "machine the ideal efficiency (its COP is the building's -eta)"
+                "machine the chiller efficiency (or the ideal one, its COP the building's -eta)"
             )
+        if self.efficiency.kind == "chiller" and self.heats:
+            raise ValueError("ActuatorSpec: a chiller efficiency cools, but heats=True; give heats=False")
 
     @property
     def span_w(self) -> float:
@@ -297,3 +330,14 @@ class CopCurve:
             return cls(t_a_c=tuple(map(float, data["t_a_c"])), cop=tuple(map(float, data["cop"])))
         except (KeyError, TypeError, ValueError) as exc:
             raise InputError(f"COP curve must hold lists t_a_c and cop, got {data!r}") from exc
+
+
+def actuator_columns(series: str, actuators: Sequence[ActuatorSpec]) -> tuple[str, ...]:
+    """Each actuator's column of ``series`` (``u`` or ``u_phys``), in their order: ``series``
+    itself for a building's one actuator, else ``series[<name>]`` (the building's total power
+    keeps the column ``series``)."""
+    if series not in ACTUATOR_SERIES:
+        raise ValueError(f"actuator_columns: {series!r} is not an actuator series ({', '.join(ACTUATOR_SERIES)})")
+    if len(actuators) == 1:
+        return (series,)
+    return tuple(f"{series}[{a.name}]" for a in actuators)

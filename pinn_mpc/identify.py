@@ -189,6 +189,38 @@ class _Layout:
             gain_to_air_fraction=float(v["gain_to_air"]) if self.gains else 1.0,
         )
 
+    def starts(self, *, r_ra: float, c_tot: float, aperture: float, t_m0: float) -> list[np.ndarray]:
+        """The grid of starting points around an energy balance's ``R_ra`` [K/W], total
+        capacity ``c_tot`` [J/K] and ``aperture`` [m2]: C_r a fraction of the capacity
+        (:data:`_C_R_FRACTIONS`), R_rm a fraction of R_ra (:data:`_R_RM_FRACTIONS`), half of
+        the sun and the gains to the air, the mass at ``t_m0`` [C]; each inside the bounds."""
+        lower, upper = self.bounds()
+        starts = []
+        for f_c in _C_R_FRACTIONS:
+            for f_r in _R_RM_FRACTIONS:
+                theta = [math.log(r_ra), math.log(f_r * r_ra), math.log(f_c * c_tot),
+                         math.log((1 - f_c) * c_tot)]
+                theta += [math.log(aperture), 0.5] if self.solar else []
+                theta += [0.5] if self.gains else []
+                theta += [t_m0]
+                starts.append(np.clip(np.array(theta), lower + 1e-9, upper - 1e-9))
+        return starts
+
+
+def _best_start(
+    residuals: Any, starts: list[np.ndarray], bounds: tuple[np.ndarray, np.ndarray]
+) -> tuple[Any, int]:
+    """The best of a few short least-squares runs (15 evaluations each) of ``residuals`` from
+    ``starts``: ``(scipy's result, evaluations spent)``."""
+    evaluations = 0
+    best: Any = None
+    for theta0 in starts:
+        fit = scipy.optimize.least_squares(residuals, theta0, bounds=bounds, max_nfev=15)
+        evaluations += fit.nfev
+        if best is None or fit.cost < best.cost:
+            best = fit
+    return best, evaluations
+
 
 def _varies(df: pd.DataFrame, column: str) -> bool:
     return column in df.columns and float(df[column].std()) > _MIN_STD[column]
@@ -335,22 +367,8 @@ def identify_rc(df: pd.DataFrame, *, eta: float = 1.0) -> IdentifyResult:
         return np.where(np.isfinite(res), res, 1e3)
 
     r_ra, c_tot, aperture = _energy_balance_guess(t_r, d, dt_s, eta=eta, solar=solar)
-    starts = []
-    for f_c in _C_R_FRACTIONS:
-        for f_r in _R_RM_FRACTIONS:
-            theta = [math.log(r_ra), math.log(f_r * r_ra), math.log(f_c * c_tot),
-                     math.log((1 - f_c) * c_tot)]
-            theta += [math.log(aperture), 0.5] if solar else []
-            theta += [0.5] if gains else []
-            theta += [float(t_r[0])]
-            starts.append(np.clip(np.array(theta), lower + 1e-9, upper - 1e-9))
-    evaluations = 0
-    best: Any = None
-    for theta0 in starts:
-        fit = scipy.optimize.least_squares(residuals, theta0, bounds=(lower, upper), max_nfev=15)
-        evaluations += fit.nfev
-        if best is None or fit.cost < best.cost:
-            best = fit
+    starts = layout.starts(r_ra=r_ra, c_tot=c_tot, aperture=aperture, t_m0=float(t_r[0]))
+    best, evaluations = _best_start(residuals, starts, (lower, upper))
     final = scipy.optimize.least_squares(
         residuals, best.x, bounds=(lower, upper), xtol=1e-10, ftol=1e-12, max_nfev=400
     )

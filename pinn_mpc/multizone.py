@@ -83,7 +83,9 @@ __all__ = [
     "backup_power",
     "continuous_matrices",
     "discretise",
+    "needed_inputs",
     "steady_state",
+    "wall_tuples",
 ]
 
 #: The irradiance a zone's windows may take [W/m2]: the global horizontal, or a facade's.
@@ -138,7 +140,7 @@ class MultiZoneParams:
     The zones' internal-gain shares sum to 1."""
 
     zones: tuple[ZoneRC, ...]
-    wall_conductance_w_per_k: Sequence[Sequence[float]] | np.ndarray
+    wall_conductance_w_per_k: tuple[tuple[float, ...], ...]
 
     def __post_init__(self) -> None:
         zones = tuple(self.zones) if isinstance(self.zones, list | tuple) else self.zones
@@ -174,6 +176,35 @@ class MultiZoneParams:
     def walls(self) -> np.ndarray:
         """(Z, Z) the internal walls' conductance [W/K]."""
         return np.array(self.wall_conductance_w_per_k, dtype=float).reshape(self.n_zones, self.n_zones)
+
+    def lumped(self) -> RCParams:
+        """The one 2R2C of the building with its zones merged (the limit of infinitely
+        conductive internal walls): conductances and capacities summed, the solar aperture
+        summed (every zone's windows counted as taking ``G``) and the fractions weighted by
+        what they split. Its steady state with every zone at one temperature is the
+        building's; it is the nominal building a one-zone view of it assumes."""
+        rcs = [z.rc for z in self.zones]
+        aperture = math.fsum(rc.solar_aperture_m2 for rc in rcs)
+        solar_air = (
+            math.fsum(rc.solar_aperture_m2 * rc.solar_to_air_fraction for rc in rcs) / aperture
+            if aperture > 0
+            else 0.0
+        )
+        return RCParams(
+            r_ra_k_per_w=1.0 / math.fsum(1.0 / rc.r_ra_k_per_w for rc in rcs),
+            r_rm_k_per_w=1.0 / math.fsum(1.0 / rc.r_rm_k_per_w for rc in rcs),
+            c_r_j_per_k=math.fsum(rc.c_r_j_per_k for rc in rcs),
+            c_m_j_per_k=math.fsum(rc.c_m_j_per_k for rc in rcs),
+            solar_aperture_m2=aperture,
+            solar_to_air_fraction=solar_air,
+            gain_to_air_fraction=math.fsum(z.gain_share * z.rc.gain_to_air_fraction for z in self.zones),
+        )
+
+
+def wall_tuples(walls: Any) -> tuple[tuple[float, ...], ...]:
+    """A (Z, Z) conductance matrix [W/K] (an array or nested sequences) as the tuples
+    :class:`MultiZoneParams` keeps (checked there)."""
+    return tuple(tuple(float(v) for v in row) for row in np.asarray(walls, dtype=float))
 
 
 def _checked_walls(value: Any, names: Sequence[str]) -> tuple[tuple[float, ...], ...]:
@@ -302,6 +333,13 @@ def _needed_inputs(buildings: Sequence[MultiZoneParams]) -> tuple[str, ...]:
     and the irradiance every zone with an aperture takes."""
     suns = {z.solar_input for p in buildings for z in p.zones if z.rc.solar_aperture_m2 > 0}
     return tuple(n for n in EXOGENOUS_NAMES if n in {"T_a", "I_g"} | suns)
+
+
+def needed_inputs(params: MultiZoneParams) -> tuple[str, ...]:
+    """The exogenous inputs (names of :data:`EXOGENOUS_NAMES`, in its order) the building
+    takes: T_a, I_g and the irradiance of every zone with windows; the others may be absent
+    (0)."""
+    return _needed_inputs([params])
 
 
 def _exogenous(weather: Mapping[str, Any], needed: Sequence[str], n_buildings: int) -> np.ndarray:

@@ -64,6 +64,11 @@ class SimConfig:
                 "SimConfig: a heat_pump actuator heats, but params.eta < 0 (cooling); give the "
                 "cooling machine's COP as -eta with the ideal actuator"
             )
+        if self.actuator.kind == "chiller":
+            raise InputError(
+                "SimConfig: the one-zone building's cooling machine has its COP in -eta; give "
+                "the ideal actuator (the chiller efficiency is a multi-zone building's actuator's)"
+            )
         if not (math.isfinite(self.u_max_w) and self.u_max_w > 0):
             raise InputError(f"SimConfig.u_max_w must be positive, got {self.u_max_w!r}")
         if self.u_max_w > MAX_ACTUATOR_W:

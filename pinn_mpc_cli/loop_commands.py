@@ -25,6 +25,7 @@ from pinn_mpc.io import (
     check_writable,
     written_together,
 )
+from pinn_mpc.zones import zone_columns, zones_in
 from pinn_mpc_cli.scenario_args import (
     refuse_boptest_options,
     scenario_inputs,
@@ -101,6 +102,7 @@ def simulate(a: argparse.Namespace) -> str:
                 spread=0.0 if a.spread is None else a.spread,
             )
     per_building = len(frame) // a.buildings
+    rooms = frame[list(zone_columns("T_r", zones_in(frame.columns)))].to_numpy()  # every zone's
     overridden = float(np.mean(~np.isclose(frame["u"], frame["u_phys"])))
     first, last = day_span(frame["time"])
     also = "" if sidecar is None else f"; wrote their parameters to {sidecar}"
@@ -108,7 +110,7 @@ def simulate(a: argparse.Namespace) -> str:
         f"wrote {a.out}: scenario {scenario_label(a.scenario, chosen)}, {a.days} day(s) {first}..{last} "
         f"({a.weather_part} weather), {a.buildings} building(s), {policy} policy, "
         f"{per_building} rows per building at {chosen.sim.dt_s:g} s, T_r "
-        f"{frame['T_r'].min():.1f}..{frame['T_r'].max():.1f} C, backup acted in "
+        f"{rooms.min():.1f}..{rooms.max():.1f} C, backup acted in "
         f"{100 * overridden:.0f} % of intervals{also}"
     )
 

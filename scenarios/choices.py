@@ -18,6 +18,7 @@ __all__ = [
     "RC_CONTROLLERS",
     "TRUTH_CONTROLLERS",
     "WEATHER_PARTS",
+    "ZONE_CONTROLLERS",
     "WeatherPart",
 ]
 
@@ -37,3 +38,7 @@ MODEL_CONTROLLERS = ("random-shooting", "cem")
 RC_CONTROLLERS = ("casadi-mpc", "qp-mpc")
 TRUTH_CONTROLLERS = ("oracle", "clairvoyant")
 CONTROLLER_NAMES = ("thermostat", *MODEL_CONTROLLERS, *RC_CONTROLLERS, *TRUTH_CONTROLLERS)
+#: The controllers of a building of several zones or actuators (the others plan one zone's
+#: one actuator): the dual-setpoint thermostat per zone and the MPC over zones x actuators on
+#: the true building.
+ZONE_CONTROLLERS = ("thermostat", "oracle")

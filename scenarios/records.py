@@ -82,6 +82,9 @@ class Kpis(TypedDict):
     """Intervals in which the controller's documented fallback acted."""
     own_decisions_share: float
     """Share of the intervals the controller decided itself, without its fallback [-]."""
+    zones: dict[str, dict[str, float]]
+    """Each zone's ``discomfort_kh``, ``discomfort_too_cold_kh``, ``discomfort_too_warm_kh`` and
+    ``energy_kwh`` (of the actuators on it), by the zone's name."""
 
 
 class RunKpis(Kpis):

@@ -96,13 +96,17 @@ def test_todays_buildings_declare_one_actuator_from_the_scenario():
     assert not get_scenario("cold_storage").control_spec().heating
 
 
-def test_the_controllers_set_one_actuator_on_one_of_the_zones():
-    with pytest.raises(ValueError, match=r"one actuator \(heating or cooling\) on one of the building's 1 zone.* got 2 on zones \[0, 0\]"):
+def test_a_control_spec_holds_named_actuators_on_its_zones():
+    with pytest.raises(ValueError, match=r"names each one, uniquely .* got names \['', ''\]"):
         ControlSpec(actuators=(FLOOR, FLOOR))
-    with pytest.raises(ValueError, match=r"got 1 on zones \[1\]"):
+    with pytest.raises(ValueError, match=r"zone index\(es\) \[1\] outside"):
         ControlSpec(actuators=(dataclasses.replace(FLOOR, zone=1),))
-    with pytest.raises(ValueError, match="got 0 on zones"):
+    with pytest.raises(ValueError, match="at least one actuator, got none"):
         ControlSpec(actuators=())
+    with pytest.raises(ValueError, match="ActuatorSpec.name must be letters"):
+        dataclasses.replace(FLOOR, name="a[b]")
+    both = ControlSpec(actuators=(dataclasses.replace(FLOOR, name="heat"), ActuatorSpec(upper_w=2000.0, heats=False, name="cool")))
+    assert both.n_actuators == 2 and not both.single
     with pytest.raises(TypeError, match="a tuple of ActuatorSpec"):
         ControlSpec(actuators=[FLOOR])  # type: ignore[arg-type]
 

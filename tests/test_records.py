@@ -88,7 +88,7 @@ def _assert_type(value: Any, tp: Any, where: str) -> None:
 
 
 def test_the_check_refuses_an_undeclared_a_missing_and_a_mistyped_key():
-    kpis = dict.fromkeys(Kpis.__annotations__, 0.0) | {"backup_overrides": 0, "fallbacks": 0}
+    kpis = dict.fromkeys(Kpis.__annotations__, 0.0) | {"backup_overrides": 0, "fallbacks": 0, "zones": {}}
     assert_record(kpis, Kpis)
     with pytest.raises(AssertionError, match="undeclared \\['new_kpi'\\]"):
         assert_record({**kpis, "new_kpi": 1.0}, Kpis)

@@ -223,8 +223,17 @@ def test_an_observation_of_one_zone_reads_as_before():
     np.testing.assert_array_equal(obs.t_r_zones_c(), [19.5])
 
 
-def test_a_control_spec_puts_its_actuator_on_one_of_its_zones():
-    with pytest.raises(ValueError, match="one of the building's 1 zone"):
+def test_a_control_spec_puts_its_actuators_on_its_zones_and_names_several():
+    with pytest.raises(ValueError, match=r"zone index\(es\) \[1\] outside the building's 1 zone"):
         ControlSpec(actuators=(ActuatorSpec(upper_w=1000.0, zone=1),))
     spec = ControlSpec(actuators=(ActuatorSpec(upper_w=1000.0, zone=1),), zones=ZONES)
-    assert spec.actuator.zone == 1
+    assert spec.actuator.zone == 1 and not spec.single
+    with pytest.raises(ValueError, match="names each one, uniquely"):
+        ControlSpec(actuators=(ActuatorSpec(upper_w=1.0, zone=0), ActuatorSpec(upper_w=1.0, zone=1)), zones=ZONES)
+    two = ControlSpec(
+        actuators=(ActuatorSpec(upper_w=1.0, zone=0, name="h0"), ActuatorSpec(upper_w=1.0, zone=1, name="h1")),
+        zones=ZONES,
+    )
+    assert two.n_actuators == 2
+    with pytest.raises(ValueError, match="has 2 actuators"):
+        _ = two.actuator

@@ -14,6 +14,8 @@ the true parameters and perfect forecasts.
   reproduces the single whole-run optimum, so its objective is the lower bound for the run (up
   to the backup thermostat, which no controller models). The forecast must hold the rest of the
   run (the last value is repeated if it is shorter).
+- ``oracle_multizone``: the oracle of a multi-zone building
+  (:class:`controllers.rc_mpc.multizone.MultiZoneMPC` on the true state).
 """
 
 from __future__ import annotations
@@ -22,10 +24,12 @@ from typing import Any
 
 from controllers.base import ControlSpec
 from controllers.estimators import TrueState
+from controllers.rc_mpc.multizone import MultiZoneMPC
 from controllers.rc_mpc.osqp import QPMPC
+from pinn_mpc.multizone import MultiZoneParams
 from pinn_mpc.physics import RCParams
 
-__all__ = ["clairvoyant_mpc", "oracle_mpc"]
+__all__ = ["clairvoyant_mpc", "oracle_mpc", "oracle_multizone"]
 
 
 def oracle_mpc(params: RCParams, spec: ControlSpec, **options: Any) -> QPMPC:
@@ -46,3 +50,9 @@ def clairvoyant_mpc(params: RCParams, spec: ControlSpec, n_steps: int, **options
         run_steps=n_steps,
         **options,
     )
+
+
+def oracle_multizone(params: MultiZoneParams, spec: ControlSpec, **options: Any) -> MultiZoneMPC:
+    """The receding-horizon QP MPC of a multi-zone building on its true state; ``options`` as
+    for :class:`~controllers.rc_mpc.multizone.MultiZoneMPC`."""
+    return MultiZoneMPC(params, spec, estimator="true", name="oracle", **options)

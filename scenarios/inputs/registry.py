@@ -24,9 +24,10 @@ import numpy as np
 import pandas as pd
 
 from controllers.base import ControlSpec
-from pinn_mpc.actuator import Actuator
+from pinn_mpc.actuator import Actuator, ActuatorSpec
 from pinn_mpc.data import WIND
 from pinn_mpc.errors import InputError
+from pinn_mpc.multizone import MultiZoneParams
 from pinn_mpc.physics import PAPER_HOUSEHOLD, RCParams
 from pinn_mpc.simulator import SimConfig
 from pinn_mpc.solar import FACADE_COLUMNS
@@ -42,12 +43,19 @@ from scenarios.inputs.exogenous import (
 )
 from scenarios.inputs.measured import CSVWeather, PriceCSV
 from scenarios.inputs.series import ForecastErrors
+from scenarios.inputs.zoned import (
+    SHOULDER_OFFICE,
+    SHOULDER_OFFICE_ACTUATORS,
+    TWO_ZONE_HOUSE,
+    TWO_ZONE_HOUSE_ACTUATORS,
+)
 from scenarios.plants.energyplus.settings import (
     DATA_POLICY,
     NOMINAL_BUILDING,
     WEATHER_WINDOW,
     EnergyPlusSettings,
 )
+from scenarios.plants.multizone import MultiZoneSettings
 from scenarios.plants.rc import RCSettings
 from scenarios.plants.settings import PlantSettings
 
@@ -240,6 +248,15 @@ class Scenario:
                 "T_max": t_max,
             }
         )
+        if plant.settings.needs_facades and plant.settings.weather_file is None:
+            if not isinstance(self.weather, TMY3Weather):
+                raise InputError(
+                    f"scenario {self.name!r}: the building's windows take facade irradiance "
+                    "(a zone's solar_input), which comes from a TMY3 weather file; give [weather] one"
+                )
+            facades = self.weather.facades(times, dt_s=dt_s)
+            for name in FACADE_COLUMNS:
+                frame[name] = facades[name]
         if plant.settings.weather_file is not None:  # the plant's EPW (checked): its facades' irradiance and wind too
             epw = cast(TMY3Weather, self.weather)
             facades = epw.facades(times, dt_s=dt_s)
@@ -255,8 +272,10 @@ class Scenario:
     def control_spec(self) -> ControlSpec:
         """The objective and the actuators (``sim.actuators``) every controller of this scenario
         shares."""
+        settings = self.plant.settings
         return ControlSpec(
-            actuators=self.sim.actuators,
+            actuators=settings.own_actuators or self.sim.actuators,
+            zones=settings.zone_specs,
             dt_s=self.sim.dt_s,
             horizon_steps=self.horizon_steps,
             comfort_weight_eur_per_kh=self.comfort_weight_eur_per_kh,
@@ -545,6 +564,75 @@ _SCENARIOS["eplus_midrise_apartment"] = _energyplus_scenario(
         day_min_c=20.0, day_max_c=24.0, night_min_c=18.0, night_max_c=24.0,
         day_start_h=6.0, day_end_h=23.0,
     ),
+)
+
+
+def _zoned_scenario(
+    *, name: str, description: str, building: MultiZoneParams, actuators: tuple[ActuatorSpec, ...], **fields: Any
+) -> Scenario:
+    """A built-in scenario of a building of several zones (:mod:`scenarios.inputs.zoned`) on
+    the multi-zone RC plant: its nominal one-zone view is the building with its zones merged
+    (:meth:`MultiZoneParams.lumped`), heated by all its heaters at once."""
+    heaters_w = sum(a.upper_w for a in actuators if a.heats)
+    return _with_split(
+        Scenario(
+            name=name,
+            description=description,
+            sim=SimConfig(params=building.lumped(), u_max_w=heaters_w, **fields.pop("sim")),
+            plant=PlantSettings(kind="multizone", settings=MultiZoneSettings(building=building, actuators=actuators)),
+            **fields,
+        )
+    )
+
+
+_SCENARIOS["two_zone_house"] = _zoned_scenario(
+    name="two_zone_house",
+    description=(
+        "winter_household's house in two zones coupled through an internal wall of 40 W/K: "
+        "a south zone whose 6 m2 of glazing (aperture 3 m2, 30 % to the air) take the south "
+        "facade's irradiance and a north zone without, each a half of the house with its own "
+        "5 kW electric heater; each zone judged against the comfort band (20-22 C 07-22 h, "
+        "17-22 C at night), winter_household's weather, price and gains (split evenly), "
+        "backup 16/24 C per zone."
+    ),
+    building=TWO_ZONE_HOUSE,
+    actuators=TWO_ZONE_HOUSE_ACTUATORS,
+    sim={"backup_low_c": 16.0, "backup_high_c": 24.0},
+    comfort_weight_eur_per_kh=5.0,
+    initial_t_r_c=20.0,
+    initial_t_m_c=20.0,
+    weather=_SCENARIOS["winter_household"].weather,
+    price=_SCENARIOS["winter_household"].price,
+    comfort=_SCENARIOS["winter_household"].comfort,
+    gains=_SCENARIOS["winter_household"].gains,
+)
+_SCENARIOS["shoulder_office"] = _zoned_scenario(
+    name="shoulder_office",
+    description=(
+        "A small office of two 150 m2 perimeter zones, east and west (8 m2 of glazing each, "
+        "taking its facade's irradiance), coupled through an open-plan partition of 150 W/K, "
+        "each with a 3 kW electric heater and a 1 kW chiller (EER 4.8 at 30 C, 6 below 24 C): "
+        "spring (TMY3 Greensboro NC, March-May), whose days can need heat in the morning and "
+        "cooling in the afternoon. Office comfort 21-24 C 07-19 h, 16-28 C otherwise; occupancy 3 kW "
+        "07-19 h on 400 W, split evenly; day/night price; backup 14/30 C per zone."
+    ),
+    building=SHOULDER_OFFICE,
+    actuators=SHOULDER_OFFICE_ACTUATORS,
+    sim={"backup_low_c": 14.0, "backup_high_c": 30.0},
+    comfort_weight_eur_per_kh=5.0,
+    initial_t_r_c=21.0,
+    initial_t_m_c=21.0,
+    # Tested on April to early May, trained on March (heating weeks) and the rest of May
+    # (cooling weeks): the test weeks range from heating-only to cooling-only, with days
+    # that need both between.
+    weather=TMY3Weather(
+        file_name="723170TYA.CSV", window_start="03-01", window_days=92, test_start="04-01", test_days=35
+    ),
+    price=PriceProfile(kind="day_night", level_eur_per_kwh=0.25, night_eur_per_kwh=0.12),
+    comfort=ComfortSchedule(
+        day_min_c=21.0, day_max_c=24.0, night_min_c=16.0, night_max_c=28.0, day_start_h=7.0, day_end_h=19.0
+    ),
+    gains=GainsSchedule(base_w=400.0, scheduled_w=3000.0, periods_h=((7.0, 19.0),)),
 )
 
 

@@ -112,14 +112,16 @@ def _plain(value: Any, tp: Any) -> Any:
     kind and that kind's fields."""
     if isinstance(value, PlantSettings):
         hints = typing.get_type_hints(value.plug.settings_type)
-        return {"kind": value.kind, **{k: _plain(v, hints[k]) for k, v in value.fields().items()}}
+        fields = {k: v for k, v in value.fields().items() if v is not None}
+        return {"kind": value.kind, **{k: _plain(v, hints[k]) for k, v in fields.items()}}
     if dataclasses.is_dataclass(value) and not isinstance(value, type):
         table = {}
         if _union_members(tp):
             table[TYPE_KEY] = type(value).__name__
         hints = typing.get_type_hints(type(value))
         for f in dataclasses.fields(value):
-            table[f.name] = _plain(getattr(value, f.name), hints[f.name])
+            if getattr(value, f.name) is not None:  # None: not given, its default when read
+                table[f.name] = _plain(getattr(value, f.name), hints[f.name])
         return table
     if isinstance(value, tuple):
         return [_plain(v, Any) for v in value]

@@ -34,6 +34,13 @@ class PlantStep(NamedTuple):
     t_a_c: np.ndarray  # (B,) outdoor temperature [C]
     g_w_per_m2: np.ndarray  # (B,) global horizontal irradiance [W/m2]
     i_g_w: np.ndarray  # (B,) internal gains [W]
+    # (B, A) each actuator's mean delivered electrical power [W] (u_phys_w is their sum); None:
+    # the building's one actuator, whose power is u_phys_w
+    u_phys_act_w: np.ndarray | None = None
+
+    def actuator_powers_w(self) -> np.ndarray:
+        """(B, A) each actuator's mean delivered electrical power over the interval [W]."""
+        return self.u_phys_w[:, None] if self.u_phys_act_w is None else self.u_phys_act_w
 
     @classmethod
     def of_one_zone(
@@ -53,9 +60,10 @@ class LoopPlant(Protocol):
     ``n_substeps`` substeps.
 
     ``reset`` starts an episode at row ``start`` of the loop's exogenous series from the state
-    (T_r, T_m) (a plant that cannot set its state warms up towards T_r instead); ``measure``
-    is the sensors' room temperatures now, (B, Z); ``step`` holds the demand over the interval of row
-    ``row`` and returns the step result with the interval's means of the exogenous inputs;
+    (T_r, T_m) (a plant that cannot set its state warms up towards T_r instead; a plant of
+    several zones starts each zone there); ``measure`` is the sensors' room temperatures now,
+    (B, Z); ``step`` holds the demand over the interval of row ``row`` (a number or (B,) for a
+    building's one actuator, (B, A) for a plant of ``n_actuators`` > 1) and returns the step result with the interval's means of the exogenous inputs;
     ``close`` frees what it holds. ``has_true_state``: the plant is a :class:`TrueStatePlant`
     (a controller with perfect knowledge can run on it).
     """
@@ -77,6 +85,9 @@ class LoopPlant(Protocol):
 class TrueStatePlant(LoopPlant, Protocol):
     """A plant whose state is known exactly (the RC simulator): ``true_state`` is the true
     room and thermal-mass temperatures (B, 2) now [C], which only a controller with perfect
-    knowledge (and a reference that plans on the truth) sees."""
+    knowledge (and a reference that plans on the truth) sees; ``true_zone_states`` is every
+    zone's, (B, 2, Z) (the rooms, then the masses)."""
 
     def true_state(self) -> np.ndarray: ...
+
+    def true_zone_states(self) -> np.ndarray: ...

@@ -10,7 +10,8 @@ deliver, whether those gains are measured, whether its heater is sized when read
 simulator structure that describes it) its settings answer (:class:`KindSettings`).
 
 The built-in kinds register themselves where they are implemented: the RC simulator's
-structures ``2r2c`` and ``3r3c`` (:mod:`scenarios.plants.rc`), ``energyplus``
+structures ``2r2c`` and ``3r3c`` (:mod:`scenarios.plants.rc`), the coupled zones'
+``multizone`` (:mod:`scenarios.plants.multizone`), ``energyplus``
 (:mod:`scenarios.plants.energyplus.kind`). Code outside this layer asks a scenario's
 :class:`~scenarios.plants.settings.PlantSettings` what its kind can do, never which kind it
 is; a new kind is one module that calls :func:`register`.
@@ -18,16 +19,18 @@ is; a new kind is one module that calls :func:`register`.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, ClassVar, Protocol
 
 import numpy as np
 
+from pinn_mpc.actuator import ActuatorSpec
 from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.physics import RCParams
 from pinn_mpc.plant import Plant
 from pinn_mpc.simulator import SimConfig
+from pinn_mpc.zones import ONE_ZONE, ZoneSpec
 from scenarios.plants.base import LoopPlant
 
 __all__ = [
@@ -72,6 +75,23 @@ class KindSettings:
         return False
 
     @property
+    def zone_specs(self) -> tuple[ZoneSpec, ...]:
+        """The building's zones (:mod:`pinn_mpc.zones`): one, unless the kind has several."""
+        return ONE_ZONE
+
+    @property
+    def own_actuators(self) -> tuple[ActuatorSpec, ...] | None:
+        """The actuators the plant declares (a building of several zones), which the control
+        spec then holds; None: the scenario's one actuator (``SimConfig.actuators``)."""
+        return None
+
+    @property
+    def needs_facades(self) -> bool:
+        """Whether the plant takes the irradiance on the facades (a zone whose windows face
+        one), which a run of it must then carry (:data:`pinn_mpc.solar.FACADE_COLUMNS`)."""
+        return False
+
+    @property
     def sized_when_read(self) -> bool:
         """Whether the plant's actuator is sized when the scenario is read
         (:func:`scenarios.inputs.registry.with_sized_heater`)."""
@@ -98,8 +118,9 @@ class KindSettings:
 class PlantRequest:
     """What a kind's factory is given for one run: the simulation settings, the exogenous rows
     the run is driven by (N,) each (a plant with weather of its own ignores them), the
-    interval starts ``times`` (N,) (None without dates), the sensor's ``seed``, and the
-    buildings: their own parameters (``fleet``), or ``n_buildings`` of the scenario's."""
+    interval starts ``times`` (N,) (None without dates), the sensor's ``seed``, the
+    buildings: their own parameters (``fleet``), or ``n_buildings`` of the scenario's, and
+    the facades' irradiance (name -> (N,), where the run has it)."""
 
     config: SimConfig
     t_a_c: np.ndarray
@@ -109,6 +130,7 @@ class PlantRequest:
     seed: int | None
     fleet: Sequence[RCParams] | None = None
     n_buildings: int = 1
+    facades: Mapping[str, np.ndarray] | None = None
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -145,18 +167,23 @@ def register(kind: PlantKind) -> PlantKind:
 def _builtins() -> None:
     """Register the built-in kinds (their modules register on import; light: no engine)."""
     import scenarios.plants.energyplus.kind  # noqa: F401
+    import scenarios.plants.multizone  # noqa: F401
     import scenarios.plants.rc  # noqa: F401
+
+
+#: The built-in kinds, in the order they are listed.
+_BUILTIN_ORDER = ("2r2c", "3r3c", "energyplus", "multizone")
 
 
 def kind_names() -> tuple[str, ...]:
     """Every registered kind's name, the built-ins first."""
     _builtins()
-    return tuple(_KINDS)
+    return (*_BUILTIN_ORDER, *(name for name in _KINDS if name not in _BUILTIN_ORDER))
 
 
 def plant_kind(name: str) -> PlantKind:
     """The registered kind ``name``; InputError naming the kinds if there is none."""
     _builtins()
     if name not in _KINDS:
-        raise InputError(f"plant kind {name!r} is unknown; choose one of {', '.join(_KINDS)}")
+        raise InputError(f"plant kind {name!r} is unknown; choose one of {', '.join(kind_names())}")
     return _KINDS[name]

@@ -65,6 +65,9 @@ class RCPlant:
     def true_state(self) -> np.ndarray:
         return np.array(self.sim.state[:, :2], dtype=float)
 
+    def true_zone_states(self) -> np.ndarray:
+        return self.true_state()[:, :, None]
+
     def step(self, u_w: float | np.ndarray, row: int) -> PlantStep:
         t_a, g, i_g = self.t_a_c[row], self.g_w_per_m2[row], self.i_g_w[row]
         result = self.sim.step(u_w, t_a, g, i_g)

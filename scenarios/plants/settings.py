@@ -122,11 +122,12 @@ def make_plant(
     config: SimConfig, plant: PlantSettings, *, t_a_c: np.ndarray, g_w_per_m2: np.ndarray,
     i_g_w: np.ndarray, times: np.ndarray | None, seed: int | None,
     fleet: Sequence[RCParams] | None = None, n_buildings: int = 1,
+    facades: Mapping[str, np.ndarray] | None = None,
 ) -> LoopPlant:
     """The plant of ``plant``'s kind for a run (:class:`~scenarios.plants.kinds.PlantRequest`
     says what each argument is)."""
     request = PlantRequest(
         config=config, t_a_c=t_a_c, g_w_per_m2=g_w_per_m2, i_g_w=i_g_w, times=times, seed=seed,
-        fleet=fleet, n_buildings=n_buildings,
+        fleet=fleet, n_buildings=n_buildings, facades=facades,
     )
     return plant.plug.make(plant.settings, request)

@@ -27,6 +27,7 @@ from matplotlib.axes import Axes  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 
 from pinn_mpc.io import atomic_write  # noqa: E402
+from pinn_mpc.zones import zones_in  # noqa: E402
 from scenarios.running.factory import (  # noqa: E402
     MODEL_CONTROLLERS,
     RC_CONTROLLERS,
@@ -96,17 +97,26 @@ def save_figure(fig: Figure, path: str | os.PathLike[str]) -> Path:
         plt.close(fig)
 
 
-def draw_band(ax: Axes, traj: pd.DataFrame) -> None:
-    """The comfort band ``T_min``..``T_max`` of each interval, shaded."""
+def draw_band(ax: Axes, traj: pd.DataFrame, zone: str | None = None) -> None:
+    """The comfort band ``T_min``..``T_max`` of each interval, shaded (``zone``: that zone's,
+    ``T_min[<zone>]``, where the building's zones have their own)."""
+    low, high = (_zone_column(traj, series, zone) for series in ("T_min", "T_max"))
     ax.fill_between(
-        traj["time"], traj["T_min"], traj["T_max"], step="post", color="tab:green", alpha=0.15,
+        traj["time"], traj[low], traj[high], step="post", color="tab:green", alpha=0.15,
         lw=0, label="comfort band",
     )
 
 
-def draw_room(ax: Axes, traj: pd.DataFrame, label: str, **style: Any) -> None:
-    """Measured room temperature ``T_r`` [C]."""
-    ax.plot(traj["time"], traj["T_r"], label=label, **{"lw": 1.2, **style})
+def _zone_column(traj: pd.DataFrame, series: str, zone: str | None) -> str:
+    """The trajectory's column of a zone series: ``series[<zone>]`` where it has one, else
+    ``series`` (the one zone's, or the band every zone shares)."""
+    column = f"{series}[{zone}]"
+    return column if zone is not None and column in traj else series
+
+
+def draw_room(ax: Axes, traj: pd.DataFrame, label: str, zone: str | None = None, **style: Any) -> None:
+    """Measured room temperature ``T_r`` [C] (``zone``: that zone's)."""
+    ax.plot(traj["time"], traj[_zone_column(traj, "T_r", zone)], label=label, **{"lw": 1.2, **style})
 
 
 def draw_power(ax: Axes, traj: pd.DataFrame, label: str, column: str = "u_phys", **style: Any) -> None:
@@ -134,8 +144,44 @@ def _legend(ax: Axes) -> None:
     ax.legend(loc="upper left", bbox_to_anchor=(1.005, 1.0), fontsize=8, frameon=False)
 
 
+def zones_figure(traj: pd.DataFrame, *, title: str = "") -> Figure:
+    """One run of a building of several zones: a panel per zone (its T_r against its band, and
+    its hidden T_m where the plant has one), each actuator's delivered power (``u_phys[<name>]``)
+    and the price."""
+    zones = [z.name for z in zones_in(traj.columns)]
+    actuators = [c for c in traj.columns if c.startswith("u_phys[")]
+    fig, axes = new_figure(
+        len(zones) + 2, 1, figsize=(11, 2.2 * len(zones) + 3.5),
+        height_ratios=(1.5,) * len(zones) + (1.2, 0.7), sharex=True,
+    )
+    column = axes[:, 0]
+    for ax, zone in zip(column, zones, strict=False):
+        draw_band(ax, traj, zone)
+        draw_room(ax, traj, "T_r (measured)", zone, color="tab:red")
+        if f"T_m[{zone}]" in traj:
+            ax.plot(traj["time"], traj[f"T_m[{zone}]"], color="tab:brown", ls="--", label="T_m (true, hidden)")
+        ax.set_title(zone, loc="left", fontsize=10, fontweight="bold")
+        ax.set_ylabel("[C]")
+    ax_u = column[len(zones)]
+    for name in actuators:
+        draw_power(ax_u, traj, name.removeprefix("u_phys[").removesuffix("]"), column=name)
+    ax_u.set_ylabel("delivered\n[kW]")
+    for ax in column[:-1]:
+        ax.grid(alpha=0.3)
+        _legend(ax)
+    _share_y(list(column[: len(zones)]))
+    draw_price(column[-1], traj)
+    format_time_axis(column[-1], traj)
+    if title:
+        fig.suptitle(title)
+    return fig
+
+
 def trajectory_figure(traj: pd.DataFrame, *, title: str = "") -> Figure:
-    """One run: T_r with the band and the hidden T_m; power demanded and delivered; price."""
+    """One run: T_r with the band and the hidden T_m; power demanded and delivered; price (a
+    building of several zones: :func:`zones_figure`)."""
+    if len(zones_in(traj.columns)) > 1:
+        return zones_figure(traj, title=title)
     fig, axes = new_figure(3, 1, figsize=(11, 7), height_ratios=(2, 1.2, 0.7), sharex=True)
     ax_t, ax_u, ax_p = axes[:, 0]
     draw_band(ax_t, traj)

@@ -275,14 +275,23 @@ def discomfort_text(kpis: Mapping[str, Any]) -> str:
 
 
 def format_kpis(kpis: RunKpis) -> str:
-    """One line: the main KPIs of a run."""
-    return (
+    """One line: the main KPIs of a run; a building of several zones adds a line per zone."""
+    line = (
         f"{kpis['controller']} on {kpis['scenario']}, {kpis['days']} d: "
         f"energy {kpis['energy_kwh']:.2f} kWh, cost {kpis['cost_eur']:.2f} EUR, "
         f"{discomfort_text(kpis)}, peak {kpis['peak_kw']:.2f} kW, "
         f"objective {kpis['objective']:.2f} EUR, decision {kpis['decision_ms_median']:.1f} ms "
         f"(median), overrides {kpis['backup_overrides']}, fallbacks {kpis['fallbacks']}"
     )
+    zones = kpis.get("zones") or {}
+    if len(zones) < 2:
+        return line
+    return "\n".join([line, *(
+        f"  zone {name}: discomfort {z['discomfort_kh']:.2f} K h (too cold "
+        f"{z['discomfort_too_cold_kh']:.2f}, too warm {z['discomfort_too_warm_kh']:.2f}), energy "
+        f"{z['energy_kwh']:.2f} kWh"
+        for name, z in zones.items()
+    )])
 
 
 def format_fleet(result: FleetResult) -> str:

@@ -37,6 +37,7 @@ from tqdm import tqdm
 
 from controllers.base import Controller
 from controllers.thermostat import Thermostat
+from pinn_mpc.actuator import ActuatorSpec, actuator_columns
 from pinn_mpc.data import COLUMNS, SITE_COLUMNS, write_timeseries
 from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.physics import RCParams
@@ -181,6 +182,7 @@ def run_trajectory(scenario: Scenario, run: RunInputs, rec: LoopRecord) -> pd.Da
             **zone_series_columns("T_m", rec.t_m_c[counted], rec.zones),
             "u": rec.u_w[counted],
             "u_phys": rec.u_phys_w[counted],
+            **_actuator_series(rec, counted),
             **{
                 column: values
                 for c in exogenous
@@ -195,6 +197,17 @@ def run_trajectory(scenario: Scenario, run: RunInputs, rec: LoopRecord) -> pd.Da
         trajectory = trajectory.drop(columns=list(zone_columns("T_m", rec.zones)))
     trajectory.attrs["dt_s"] = float(scenario.sim.dt_s)
     return trajectory
+
+
+def _actuator_series(rec: LoopRecord, counted: slice) -> dict[str, np.ndarray]:
+    """Each actuator's demanded and delivered power as its columns ``u[<name>]`` and
+    ``u_phys[<name>]`` in a building of several (one actuator's are ``u`` and ``u_phys``)."""
+    if len(rec.actuators) < 2 or rec.u_act_w is None or rec.u_phys_act_w is None:
+        return {}
+    return {
+        **dict(zip(actuator_columns("u", rec.actuators), rec.u_act_w[counted].T, strict=True)),
+        **dict(zip(actuator_columns("u_phys", rec.actuators), rec.u_phys_act_w[counted].T, strict=True)),
+    }
 
 
 def free_records(
@@ -213,11 +226,11 @@ def free_records(
     thermostats = [Thermostat(spec) for _ in range(n)]
     for thermostat in thermostats:
         thermostat.reset(seed)
-    off = spec.actuator.on_off(False)
+    off = np.array([a.lower_w for a in spec.actuators]) if spec.n_actuators > 1 else spec.actuator.on_off(False)
     with build_loop(scenario, run, seed=seed, fleet=fleet) as loop:
         for k in range(run.total):
             if k >= run.warmup:
-                loop.step(off if fleet is None else np.full(n, off))
+                loop.step(off if fleet is None else np.full((n, *np.shape(off)), off))
             elif fleet is None:
                 loop.advance(thermostats[0])
             else:
@@ -253,8 +266,17 @@ def counted_kpis(
         dt_s=scenario.sim.dt_s,
         comfort_weight_eur_per_kh=scenario.comfort_weight_eur_per_kh,
         free_t_r_sub_c=None if free is None else free.t_r_sub_c[counted],
-        heating=scenario.sim.params.heating,
+        heating=_heating(rec.actuators) if rec.actuators else scenario.sim.params.heating,
+        zones=rec.zones,
+        u_phys_act_w=None if rec.u_phys_act_w is None else rec.u_phys_act_w[counted],
+        actuator_zones=tuple(a.zone for a in rec.actuators) if rec.actuators else (0,),
     )
+
+
+def _heating(actuators: Sequence[ActuatorSpec]) -> bool | None:
+    """Whether a building's actuators all heat (True) or all cool (False); None: some each."""
+    heats = {a.heats for a in actuators}
+    return heats.pop() if len(heats) == 1 else None
 
 
 def run_closed_loop(

@@ -46,13 +46,13 @@ from typing import Literal
 import numpy as np
 import pandas as pd
 
-from controllers.base import ControlSpec
+from controllers.base import ControlSpec, Forecast, Observation
 from controllers.thermostat import Thermostat
-from pinn_mpc.actuator import ActuatorSpec
+from pinn_mpc.actuator import ActuatorSpec, actuator_columns
 from pinn_mpc.data import SITE_COLUMNS
 from pinn_mpc.errors import InputError, InternalError, setting
 from pinn_mpc.physics import RCParams
-from pinn_mpc.zones import zone_series_columns
+from pinn_mpc.zones import zone_columns, zone_series_columns
 from scenarios.choices import POLICIES
 from scenarios.inputs.registry import Scenario, check_seed
 from scenarios.inputs.series import ExogenousSeries
@@ -183,22 +183,36 @@ def generate(
         seed=sensor_seed, fleet=fleet, n_buildings=n_buildings, plant_settings=scenario.plant,
     ) as loop:
         for k in range(n):
-            loop.step(act(k, loop.measured()[:, 0]))  # the policies act on a one-zone building
+            loop.step(act(k, loop.measured()))
         records = [loop.record(i) for i in range(n_buildings)]
     return _frame(scenario, exo, cols, records)
 
 
 class DataPolicy:
     """A data policy (module docstring) for ``n_buildings`` buildings over ``n`` intervals:
-    called with the interval ``k`` and the buildings' measured room temperatures (B,), the
+    called with the interval ``k`` and the buildings' measured room temperatures (B, Z), the
     demand (B,) [W]. Its draws come from ``rng`` up front, in the order the policies have
-    always drawn them."""
+    always drawn them. A building of several actuators (one building) gets each actuator's
+    own draws, (A,) demands: ``random`` and ``random-level`` independently per actuator, the
+    ``thermostat`` each actuator's rule on its zone (:class:`Thermostat`); ``closed-loop``
+    tracks one room's setpoint and is refused there."""
 
     def __init__(
         self, policy: str, spec: ControlSpec, cols: dict[str, np.ndarray], *, n: int, n_buildings: int,
         on_probability: float, rng: np.random.Generator,
     ) -> None:
         self.policy, self.spec, self.cols, self.on_probability = policy, spec, cols, on_probability
+        self.actuators = spec.n_actuators
+        if self.actuators > 1:
+            if policy == "closed-loop":
+                raise InputError(
+                    f"{setting('policy')} closed-loop tracks one room's setpoint; a building of "
+                    f"{len(spec.zones)} zones and {self.actuators} actuators takes random-level, "
+                    "random or thermostat"
+                )
+            self.draws = rng.random((n, self.actuators))
+            self.thermostat = Thermostat(spec)
+            return
         if policy == "closed-loop":
             self.tracking = SetpointPolicy.for_data(spec.actuator, cols["T_min"], cols["T_max"], spec.dt_s)
             self.draws = rng.random((n, 3))
@@ -208,7 +222,10 @@ class DataPolicy:
         self.thermostat = Thermostat(spec)
         self.on = np.zeros(n_buildings, dtype=bool)
 
-    def __call__(self, k: int, t_r: np.ndarray) -> np.ndarray:
+    def __call__(self, k: int, t_r_zones: np.ndarray) -> np.ndarray:
+        if self.actuators > 1:
+            return self._zones(k, t_r_zones[0])
+        t_r = t_r_zones[:, 0]
         actuator = self.spec.actuator
         if self.policy == "random":
             return actuator.on_off(self.draws[k] < self.on_probability)
@@ -219,6 +236,21 @@ class DataPolicy:
         # the thermostat's rule, batched over the buildings (it sees only T_r and the band)
         self.on = self.thermostat.switch(t_r, self.on, self.cols["T_min"][k], self.cols["T_max"][k])
         return actuator.on_off(self.on)
+
+    def _zones(self, k: int, t_r: np.ndarray) -> np.ndarray:
+        """(A,) the demands of a building of several actuators, its zones at ``t_r`` (Z,)."""
+        actuators = self.spec.actuators
+        if self.policy == "random":
+            return np.array([a.on_off(bool(d < self.on_probability)) for a, d in zip(actuators, self.draws[k], strict=True)])
+        if self.policy == "random-level":
+            return np.array([a.at_fraction(float(d)) for a, d in zip(actuators, self.draws[k], strict=True)])
+        history = {c: np.array([t]) for c, t in zip(zone_columns("T_r", self.spec.zones), t_r, strict=True)}
+        band = {c: self.cols[c][k : k + 1] for c in ("T_min", "T_max")}
+        obs = Observation.from_history(k, history, zones=self.spec.zones)
+        forecast = Forecast(
+            time_of_day_h=np.zeros(1), T_a=np.zeros(1), G=np.zeros(1), I_g=np.zeros(1), price=np.zeros(1), **band
+        )
+        return np.asarray(self.thermostat.act(obs, forecast), dtype=float)
 
 
 def _frame(
@@ -241,7 +273,12 @@ def _frame(
     }
     if scenario.plant.true_state:
         columns |= zone_series_columns("T_m", stacked("t_m_c"), zones)
-    columns |= {"u": stacked("u_w"), "u_phys": stacked("u_phys_w"), "T_a": stacked("t_a_c")}
+    columns |= {"u": stacked("u_w"), "u_phys": stacked("u_phys_w")}
+    actuators = records[0].actuators
+    if len(actuators) > 1:  # each actuator's power, beside the building's total
+        for series, name in (("u", "u_act_w"), ("u_phys", "u_phys_act_w")):
+            columns |= dict(zip(actuator_columns(series, actuators), stacked(name).T, strict=True))
+    columns["T_a"] = stacked("t_a_c")
     columns |= {c: np.tile(cols[c][:n], n_buildings) for c in ("price", "T_min", "T_max")}
     if scenario.uses_solar:
         columns["G"] = stacked("g_w_per_m2")

@@ -44,7 +44,8 @@ from typing import Any, NamedTuple, cast
 
 import numpy as np
 
-from controllers.base import Controller, ControlSpec, Forecast, Observation, fallback_power
+from controllers.base import Controller, ControlSpec, Forecast, Observation, fallback_powers
+from pinn_mpc.actuator import ActuatorSpec, actuator_columns
 from pinn_mpc.data import SITE_COLUMNS
 from pinn_mpc.errors import InternalError
 from pinn_mpc.physics import RCParams
@@ -74,18 +75,19 @@ class Decision(NamedTuple):
     k: int
     observation: Observation
     forecast: Forecast
-    u_w: float  # demanded power applied [W]
+    u_w: float  # demanded power applied [W] (a building of several actuators: their total)
     time_s: float  # decision time
     fallback: bool
     error: str | None  # a controller exception (the loop's fallback acted), else None
     plant: PlantStep
+    u_act_w: np.ndarray | None = None  # (A,) each actuator's demand [W]; None: one actuator
 
 
 class FleetStep(NamedTuple):
     """One interval of :meth:`ClosedLoop.advance_fleet`, arrays (B,) over the buildings."""
 
     k: int
-    u_w: np.ndarray  # demanded power applied [W]
+    u_w: np.ndarray  # demanded power applied [W] ((B, A) with several actuators)
     decision_s: np.ndarray  # each controller's decision time [s]
     fallback: np.ndarray  # bool
     errors: tuple[tuple[int, str], ...]  # (building, controller exception) where the loop fell back
@@ -96,7 +98,9 @@ class FleetStep(NamedTuple):
 
 class LoopRecord(NamedTuple):
     """One building's intervals run so far: arrays (K,), a zone's (K, Z) (``t_r_sub_c``
-    (K, S, Z)) over the building's ``zones``; T_r and T_m at their start."""
+    (K, S, Z)) over the building's ``zones``, an actuator's (K, A) over its ``actuators``;
+    T_r and T_m at their start. ``u_w`` and ``u_phys_w`` are the building's total electrical
+    power, each actuator's ``u_act_w`` and ``u_phys_act_w``."""
 
     t_r_c: np.ndarray  # (K, Z) measured
     t_m_c: np.ndarray  # (K, Z) true (hidden)
@@ -110,33 +114,43 @@ class LoopRecord(NamedTuple):
     g_w_per_m2: np.ndarray
     i_g_w: np.ndarray
     zones: tuple[ZoneSpec, ...] = ONE_ZONE
+    u_act_w: np.ndarray | None = None  # (K, A) each actuator's demand [W]
+    u_phys_act_w: np.ndarray | None = None  # (K, A) each actuator's delivered power [W]
+    actuators: tuple[ActuatorSpec, ...] = ()
 
 
 def decide(
     controller: Controller, obs: Observation, forecast: Forecast, spec: ControlSpec
-) -> tuple[float, float, bool, str | None]:
+) -> tuple[float | np.ndarray, float, bool, str | None]:
     """Call ``act`` once, timed: (demand [W] in bounds, decision time [s], fallback used, error).
 
-    A controller that raises or returns no finite number does not end the run: the loop acts
-    with :func:`controllers.base.fallback_power` and reports the error.
+    The demand is a number for a building's one actuator, (A,) one per actuator of several
+    (each within its own bounds). A controller that raises or returns anything else than that
+    many finite numbers does not end the run: the loop acts with
+    :func:`controllers.base.fallback_powers` and reports the error.
     """
     error = None
+    n = spec.n_actuators
     start = time.perf_counter()
     try:
-        action = np.asarray(controller.act(obs, forecast), dtype=float)
-        if action.size != 1 or not math.isfinite(float(action.reshape(-1)[0])):
-            error = f"act returned {action!r}, not one finite number"
+        action = np.asarray(controller.act(obs, forecast), dtype=float).reshape(-1)
+        if action.size != n or not np.all(np.isfinite(action)):
+            what = "one finite number" if n == 1 else f"{n} finite numbers (one per actuator)"
+            error = f"act returned {action!r}, not {what}"
     except Exception as exc:  # a controller failure must not end the run: fall back, count it
         error = f"{type(exc).__name__}: {exc}"
     elapsed = time.perf_counter() - start
     if error is not None:
-        return fallback_power(obs, forecast, spec), elapsed, True, error
+        safe = fallback_powers(obs, forecast, spec)
+        return (float(safe[0]) if n == 1 else safe), elapsed, True, error
     try:
         own_fallback = bool(controller.last_stats.fallback)
     except Exception as exc:
         own_fallback, error = True, f"last_stats: {type(exc).__name__}: {exc}"
-    u = float(spec.actuator.clip(float(action.reshape(-1)[0])))
-    return u, elapsed, own_fallback, error
+    if n == 1:
+        return float(spec.actuators[0].clip(float(action[0]))), elapsed, own_fallback, error
+    clipped = np.array([a.clip(float(v)) for a, v in zip(spec.actuators, action, strict=True)])
+    return clipped, elapsed, own_fallback, error
 
 
 class ClosedLoop:
@@ -201,6 +215,7 @@ class ClosedLoop:
         self.plant = plant if plant is not None else make_plant(
             config, plant_settings, t_a_c=exogenous.T_a, g_w_per_m2=exogenous.G, i_g_w=exogenous.I_g,
             times=exogenous.times, seed=seed, fleet=fleet, n_buildings=n_buildings,
+            facades={n: getattr(exogenous, n) for n in FACADE_COLUMNS} if exogenous.has_facades else None,
         )
         self.n_buildings = self.plant.n_buildings
         self.zones: tuple[ZoneSpec, ...] = self.plant.zones
@@ -254,8 +269,10 @@ class ClosedLoop:
         self._t_r = np.zeros((n + 1, b, z))
         self._t_m = np.zeros((n + 1, b, z))
         self._measured_k = -1
-        self._u = np.zeros((n, b))
+        self._u = np.zeros((n, b))  # the building's total electrical power
         self._u_phys = np.zeros((n, b))
+        self._u_act = np.zeros((n, b, self.spec.n_actuators))  # each actuator's
+        self._u_phys_act = np.zeros((n, b, self.spec.n_actuators))
         self._overridden = np.zeros((n, b), dtype=bool)
         self._fallback = np.zeros((n, b), dtype=bool)
         self._decision_s = np.zeros((n, b))
@@ -278,8 +295,11 @@ class ClosedLoop:
         self._check_building(building)
         if self._measured_k != self.k:
             self._t_r[self.k] = self.plant.measure()
-            # The true state is a one-zone RC's (T_r, T_m) per building.
-            self._t_m[self.k] = self.true_state()[:, 1:2] if self.plant.has_true_state else math.nan
+            self._t_m[self.k] = (
+                cast(TrueStatePlant, self.plant).true_zone_states()[:, 1, :]
+                if self.plant.has_true_state
+                else math.nan
+            )
             self._measured_k = self.k
         return self._t_r[self.k, building].copy()
 
@@ -317,6 +337,10 @@ class ClosedLoop:
             "u": np.array(self._u[:k, building]),
             "u_phys": np.array(self._u_phys[:k, building]),
         }
+        if self.spec.n_actuators > 1:  # each actuator's too, beside the building's totals
+            for series, values in (("u", self._u_act), ("u_phys", self._u_phys_act)):
+                for a, column in enumerate(actuator_columns(series, self.spec.actuators)):
+                    history[column] = np.array(values[:k, building, a])
         for name in SITE_COLUMNS:  # the weather file's, as the plant had it, where the run has it
             if getattr(exo, name) is not None:
                 history[name] = np.array(getattr(exo, name)[rows])
@@ -378,15 +402,32 @@ class ClosedLoop:
         fallback: bool | np.ndarray = False,
     ) -> PlantStep:
         """Apply demand ``u_w`` [W] over the current interval (a number, or (B,) one per
-        building; likewise ``decision_s`` and ``fallback``); the plant's step."""
+        building; with several actuators (A,) for every building or (B, A); likewise
+        ``decision_s`` and ``fallback`` (B,)); the plant's step."""
         if self.steps_left <= 0:
             raise InternalError("ClosedLoop.step: the exogenous series is exhausted; call reset()")
         self.measure()
         k, row = self.k, self.start + self.k
-        stepped = self.plant.step(u_w, row)
+        n_act = self.spec.n_actuators
+        if n_act == 1:
+            stepped = self.plant.step(u_w, row)
+            self._u[k] = u_w
+            self._u_act[k, :, 0] = u_w
+        else:
+            given = np.asarray(u_w, dtype=float)
+            if given.shape not in ((n_act,), (self.n_buildings, n_act)):
+                raise InternalError(
+                    f"ClosedLoop.step: a building of {n_act} actuators takes ({n_act},) or "
+                    f"({self.n_buildings}, {n_act}) demands, got shape {given.shape}"
+                )
+            demand = np.broadcast_to(given, (self.n_buildings, n_act))
+            stepped = self.plant.step(np.array(demand), row)
+            self._u[k] = demand.sum(axis=1)
+            self._u_act[k] = demand
         self._means[k] = np.column_stack([stepped.t_a_c, stepped.g_w_per_m2, stepped.i_g_w])
-        self._u[k], self._decision_s[k], self._fallback[k] = u_w, decision_s, fallback
+        self._decision_s[k], self._fallback[k] = decision_s, fallback
         self._u_phys[k] = stepped.u_phys_w
+        self._u_phys_act[k] = stepped.actuator_powers_w()
         self._overridden[k] = stepped.overridden
         self._t_r_sub[k] = stepped.t_r_sub_c
         self.k += 1
@@ -407,6 +448,8 @@ class ClosedLoop:
         forecast = self.forecast(perfect=perfect)
         u, time_s, fallback, error = decide(controller, obs, forecast, self.spec)
         plant = self.step(u, decision_s=time_s, fallback=fallback)
+        if isinstance(u, np.ndarray):  # several actuators: their total, and each one's
+            return Decision(obs.k, obs, forecast, float(u.sum()), time_s, fallback, error, plant, u)
         return Decision(obs.k, obs, forecast, u, time_s, fallback, error, plant)
 
     def advance_fleet(self, controllers: Sequence[Controller]) -> FleetStep:
@@ -423,7 +466,9 @@ class ClosedLoop:
             )
         start = time.perf_counter()
         forecasts: dict[bool, Forecast] = {}
-        u, decision_s, fallback = np.zeros(b), np.zeros(b), np.zeros(b, dtype=bool)
+        n_act = self.spec.n_actuators
+        u = np.zeros(b) if n_act == 1 else np.zeros((b, n_act))
+        decision_s, fallback = np.zeros(b), np.zeros(b, dtype=bool)
         errors = []
         for i, controller in enumerate(controllers):
             perfect = _perfect_knowledge(controller)
@@ -462,6 +507,9 @@ class ClosedLoop:
             g_w_per_m2=self._means[:k, i, 1].copy(),
             i_g_w=self._means[:k, i, 2].copy(),
             zones=self.zones,
+            u_act_w=self._u_act[:k, i].copy(),
+            u_phys_act_w=self._u_phys_act[:k, i].copy(),
+            actuators=self.spec.actuators,
         )
 
     def aggregate_u_phys_w(self) -> np.ndarray:

@@ -31,6 +31,7 @@ from scenarios.choices import (
     MODEL_CONTROLLERS,
     RC_CONTROLLERS,
     TRUTH_CONTROLLERS,
+    ZONE_CONTROLLERS,
 )
 from scenarios.inputs.registry import Scenario
 
@@ -297,6 +298,19 @@ def build_controller(
     """
     spec = scenario.control_spec()
     options = dict(planner_options or {})
+    if not spec.single and name in CONTROLLER_NAMES and name not in ZONE_CONTROLLERS:
+        raise InputError(
+            f"controller {name!r} plans one zone with one actuator; scenario {scenario.name!r} has "
+            f"{len(spec.zones)} zones ({', '.join(z.name for z in spec.zones)}) and {spec.n_actuators} "
+            f"actuators: choose {' or '.join(ZONE_CONTROLLERS)}"
+        )
+    if name == "oracle" and not spec.single:
+        from controllers.rc_mpc.references import oracle_multizone
+        from scenarios.plants.multizone import MultiZoneSettings
+
+        settings = scenario.plant.settings
+        assert isinstance(settings, MultiZoneSettings)
+        return oracle_multizone(settings.building, spec)
     if name == "thermostat":
         from controllers.thermostat import Thermostat
 

@@ -32,14 +32,26 @@
   over a model with an RC fallback, every decision that MPC made for it, :mod:`controllers.trust`).
 - ``own_decisions_share``: the share of the intervals the controller decided itself, without
   its fallback (1 - fallbacks / intervals).
+- ``zones``: each zone's figures by its name: its ``discomfort_kh`` with its
+  ``discomfort_too_cold_kh`` and ``discomfort_too_warm_kh``, and ``energy_kwh``, the electrical
+  energy of the actuators on it; the building's figures above are their sums.
+
+In a building of several zones with heaters and coolers the free run bounds nothing (a cooler
+can take the heat a free run leaves), so ``discomfort_unavoidable_kh`` is None there; with
+heaters only (coolers only) it is each zone's too-warm (too-cold) discomfort of the free run,
+summed, as for one zone (the zones' coupling is through walls, so every zone is no cooler
+under any heating than free-running).
 """
 
 from __future__ import annotations
+
+from collections.abc import Sequence
 
 import numpy as np
 
 from controllers.objective import band_violation_k, energy_cost_eur
 from pinn_mpc.errors import InternalError
+from pinn_mpc.zones import ONE_ZONE, ZoneSpec
 from scenarios.records import Kpis
 
 __all__ = ["KPI_KEYS", "compute_kpis"]
@@ -62,6 +74,7 @@ KPI_KEYS = (
     "backup_overrides",
     "fallbacks",
     "own_decisions_share",
+    "zones",
 )
 
 
@@ -78,7 +91,10 @@ def compute_kpis(
     dt_s: float,
     comfort_weight_eur_per_kh: float,
     free_t_r_sub_c: np.ndarray | None = None,
-    heating: bool = True,
+    heating: bool | None = True,
+    zones: Sequence[ZoneSpec] | None = None,
+    u_phys_act_w: np.ndarray | None = None,
+    actuator_zones: Sequence[int] = (0,),
 ) -> Kpis:
     """KPIs of N control intervals of one building of Z zones: a zone's discomfort counts
     for the building (its K h summed over the zones), the energy is every actuator's.
@@ -103,7 +119,13 @@ def compute_kpis(
         (``heating``) or too-cold (a cooling machine) discomfort is the unavoidable part; None:
         not computed (``discomfort_unavoidable_kh`` and ``discomfort_avoidable_kh`` None).
     heating
-        Whether the actuator heats (True) or cools.
+        Whether the actuators heat (True) or cool; None: some do each (no free-run bound).
+    zones
+        The building's zones (names of the ``zones`` block), Z of them; None: the one zone's
+        name for one, ``zone_1`` .. ``zone_Z`` for several.
+    u_phys_act_w, actuator_zones
+        (N, A) each actuator's delivered power [W] and (A,) the zone each acts on, for each
+        zone's energy; None: ``u_phys_w`` is the one actuator's, on zone 0.
 
     Returns
     -------
@@ -130,11 +152,11 @@ def compute_kpis(
             raise InternalError(f"compute_kpis: {name} must be ({n},), got shape {np.shape(arr)}")
     dt_h = dt_s / 3600.0
     energy_kwh_k = u / 1000.0 * dt_h
-    zones = range(sub.shape[2])
+    zones_range = range(sub.shape[2])
     # Zone by zone, each zone's sum as one zone's (a one-zone building's figures as they were).
     discomfort_kh = sum(
         float(np.sum(band_violation_k(sub[:, :, z], t_min[:, :, z], t_max[:, :, z])) * dt_h / sub.shape[1])
-        for z in zones
+        for z in zones_range
     )
     cold_z, warm_z = _band_sides_kh(sub, t_min, t_max, dt_h)
     too_cold_kh, too_warm_kh = sum(cold_z), sum(warm_z)
@@ -147,15 +169,27 @@ def compute_kpis(
                 f"compute_kpis: free_t_r_sub_c must be {np.shape(t_r_sub_c)} as t_r_sub_c, got "
                 f"{np.shape(free_t_r_sub_c)}"
             )
-        free_cold_z, free_warm_z = _band_sides_kh(free, t_min, t_max, dt_h)
-        # The run's own side is at least the free run's wherever the plant is monotone in the
-        # actuation; the backup thermostat's floor, applied minute by minute, can leave it
-        # short by a few hundredths of a kelvin for a minute, which the min absorbs (zone by
-        # zone: each zone's bound is its own free run's).
-        own, free_side = (warm_z, free_warm_z) if heating else (cold_z, free_cold_z)
-        unavoidable_kh = sum(min(f, o) for f, o in zip(free_side, own, strict=True))
-        avoidable_kh = discomfort_kh - unavoidable_kh
+        free_sides = _band_sides_kh(free, t_min, t_max, dt_h)
+        if heating is not None:
+            # The run's own side is at least the free run's wherever the plant is monotone in
+            # the actuation; the backup thermostat's floor, applied minute by minute, can leave
+            # it short by a few hundredths of a kelvin for a minute, which the min absorbs
+            # (zone by zone: each zone's bound is its own free run's).
+            own, free_side = (warm_z, free_sides[1]) if heating else (cold_z, free_sides[0])
+            unavoidable_kh = sum(min(f, o) for f, o in zip(free_side, own, strict=True))
+            avoidable_kh = discomfort_kh - unavoidable_kh
     cost_eur = float(np.sum(energy_cost_eur(u, np.asarray(price_eur_per_kwh, dtype=float), dt_h)))
+    act = u[:, None] if u_phys_act_w is None else np.asarray(u_phys_act_w, dtype=float)
+    if zones is None:
+        zones = ONE_ZONE if sub.shape[2] == 1 else tuple(ZoneSpec(f"zone_{z + 1}") for z in zones_range)
+    if len(zones) != sub.shape[2] or act.shape != (n, len(actuator_zones)):
+        raise InternalError(
+            f"compute_kpis: {len(zones)} zone names for {sub.shape[2]} zones, or u_phys_act_w "
+            f"{act.shape} not (N, A) for the {len(actuator_zones)} actuator zones"
+        )
+    zone_energy_kwh = [
+        float(np.sum(act[:, [i for i, a in enumerate(actuator_zones) if a == z]]) / 1000.0 * dt_h) for z in zones_range
+    ]
     decision_ms = np.asarray(decision_s, dtype=float) * 1000.0
     return {
         "energy_kwh": float(np.sum(energy_kwh_k)),
@@ -174,6 +208,15 @@ def compute_kpis(
         "backup_overrides": int(np.count_nonzero(overridden)),
         "fallbacks": int(np.count_nonzero(fallback)),
         "own_decisions_share": 1.0 - float(np.count_nonzero(fallback)) / n,
+        "zones": {
+            spec.name: {
+                "discomfort_kh": cold_z[z] + warm_z[z],
+                "discomfort_too_cold_kh": cold_z[z],
+                "discomfort_too_warm_kh": warm_z[z],
+                "energy_kwh": zone_energy_kwh[z],
+            }
+            for z, spec in enumerate(zones)
+        },
     }
 
 

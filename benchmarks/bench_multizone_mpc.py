@@ -1,0 +1,127 @@
+"""Multi-zone QP MPC decision time: median and 95th percentile [ms] of the oracle's decisions
+(:func:`controllers.rc_mpc.references.oracle_multizone`) in a closed loop of 2, 5 and 12 zones,
+each zone with a heater and a cooler (A = 2Z), horizon H = 48.
+
+Run: ``python benchmarks/bench_multizone_mpc.py [--steps 96] [--zones 2,5,12] [--eps 1e-3]``.
+Each building is a row of Z zones of a light 2R2C (``R_ra`` 5 mK/W, ``C_m`` 1e7 J/K), each
+wall between neighbours 150 W/K, odd zones facing south (``G_south``), in spring weather (nights
+near 5 C, sunny afternoons near 21 C) with a 20-22 C band, so both machines of a zone work
+within a day; the loop steps :class:`pinn_mpc.multizone.MultiZoneSimulator` and warm-starts the
+solver as a run does. ``--eps`` sets OSQP's ``eps_abs`` and ``eps_rel`` (the default is
+:data:`controllers.rc_mpc.osqp.OSQP_OPTIONS`'). Prints one line per Z: the QP's size, the
+decision times, OSQP's median iterations, the fallbacks and the discomfort [K h] of the run;
+then the load average. Exits 0.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+
+import numpy as np
+
+from controllers.base import ControlSpec, Forecast, Observation
+from controllers.rc_mpc.references import oracle_multizone
+from pinn_mpc.actuator import ActuatorSpec
+from pinn_mpc.multizone import MultiZoneConfig, MultiZoneParams, MultiZoneSimulator, ZoneRC
+from pinn_mpc.physics import RCParams
+from pinn_mpc.zones import ZoneSpec, zone_columns
+
+LIGHT = RCParams(
+    r_ra_k_per_w=5e-3, r_rm_k_per_w=1e-3, c_r_j_per_k=2e6, c_m_j_per_k=1e7,
+    solar_aperture_m2=3.0, solar_to_air_fraction=0.4,
+)
+INPUTS = ("T_a", "G", "I_g", "G_south")
+
+
+def building(n_zones: int) -> tuple[MultiZoneParams, ControlSpec]:
+    """A row of ``n_zones`` zones, each with a heater and a cooler."""
+    zones = tuple(
+        ZoneRC(zone=ZoneSpec(f"z{z}"), rc=LIGHT, gain_share=1.0 / n_zones, solar_input="G_south" if z % 2 else "G")
+        for z in range(n_zones)
+    )
+    walls = np.zeros((n_zones, n_zones))
+    for z in range(n_zones - 1):
+        walls[z, z + 1] = walls[z + 1, z] = 150.0
+    params = MultiZoneParams(zones=zones, wall_conductance_w_per_k=walls)
+    actuators = tuple(
+        ActuatorSpec(upper_w=power, zone=z, heats=heats, name=f"{kind}{z}")
+        for z in range(n_zones)
+        for kind, heats, power in (("heat", True, 4000.0), ("cool", False, 3000.0))
+    )
+    return params, ControlSpec(actuators=actuators, zones=params.zone_specs, horizon_steps=48)
+
+
+def spring(n: int) -> dict[str, np.ndarray]:
+    """n half-hour steps of spring weather, a flat-ish price and a 20-22 C band."""
+    hours = (np.arange(n) * 0.5) % 24.0
+    daylight = np.maximum(0.0, np.sin(np.pi * (hours - 7.0) / 10.0))
+    return {
+        "time_of_day_h": hours,
+        "T_a": 13.0 + 8.0 * np.sin(2 * np.pi * (hours - 9.0) / 24.0),
+        "G": 650.0 * daylight,
+        "I_g": np.where((hours >= 7) & (hours < 22), 400.0, 150.0),
+        "G_south": 975.0 * daylight,
+        "price": np.where((hours > 17) & (hours < 21), 0.45, np.where(hours < 6, 0.12, 0.25)),
+        "T_min": np.full(n, 20.0),
+        "T_max": np.full(n, 22.0),
+    }
+
+
+def run(n_zones: int, steps: int, eps: float | None) -> dict[str, float]:
+    """A closed loop of ``steps`` decisions; the decision times and the run's figures."""
+    params, spec = building(n_zones)
+    options = {} if eps is None else {"eps_abs": eps, "eps_rel": eps}
+    mpc = oracle_multizone(params, spec, solver_options=options)
+    series = spring(steps + spec.horizon_steps + 1)
+    sim = MultiZoneSimulator(MultiZoneConfig(params=params, actuators=spec.actuators, backup_low_c=10.0, backup_high_c=35.0))
+    sim.reset(21.0, 20.5)
+    rooms = zone_columns("T_r", params.zone_specs)
+    history = {c: np.array([t]) for c, t in zip(rooms, sim.measure()[0], strict=True)}
+    history |= {name: series[name][:1] for name in ("time_of_day_h", *INPUTS)}
+    times, iterations, discomfort = [], [], 0.0
+    for k in range(steps):
+        obs = Observation.from_history(k, history, sim.state[0, n_zones:], zones=params.zone_specs)
+        forecast = Forecast(**{name: v[k : k + spec.horizon_steps + 1] for name, v in series.items()})
+        action = mpc.act(obs, forecast)
+        times.append(mpc.last_stats.time_s)
+        iterations.append(mpc.last_stats.iterations)
+        step = sim.step(action, {name: series[name][k] for name in INPUTS})
+        over = np.maximum(series["T_min"][k] - step.t_r_sub_c, 0) + np.maximum(step.t_r_sub_c - series["T_max"][k], 0)
+        discomfort += float(over.mean(axis=1).sum()) * spec.dt_h
+        for c, v in zip(rooms, sim.measure()[0], strict=True):
+            history[c] = np.append(history[c], v)
+        for name in ("time_of_day_h", *INPUTS):
+            history[name] = series[name][: k + 2]
+    ms = np.array(times) * 1e3
+    return {
+        "variables": mpc.qp.n_variables,
+        "nnz": mpc.qp._a.nnz,
+        "median_ms": float(np.median(ms)),
+        "p95_ms": float(np.percentile(ms, 95)),
+        "iterations": float(np.median(iterations)),
+        "fallbacks": mpc.n_fallbacks,
+        "discomfort_kh": discomfort,
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--steps", type=int, default=96, help="decisions per building (default 96, two days)")
+    parser.add_argument("--zones", default="2,5,12", help="comma-separated zone counts")
+    parser.add_argument("--eps", type=float, default=None, help="OSQP eps_abs = eps_rel (default: OSQP_OPTIONS')")
+    args = parser.parse_args(argv)
+    print(f"{'Z':>3} {'A':>3} {'vars':>6} {'nnz(A)':>7} {'median ms':>10} {'p95 ms':>8} {'iter':>6} {'fallbacks':>9} {'discomfort Kh':>13}")
+    for z in (int(v) for v in args.zones.split(",")):
+        r = run(z, args.steps, args.eps)
+        print(
+            f"{z:>3} {2 * z:>3} {r['variables']:>6} {r['nnz']:>7} {r['median_ms']:>10.1f} {r['p95_ms']:>8.1f} "
+            f"{r['iterations']:>6.0f} {r['fallbacks']:>9} {r['discomfort_kh']:>13.3f}"
+        )
+    print(f"load average: {', '.join(f'{v:.2f}' for v in os.getloadavg())}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

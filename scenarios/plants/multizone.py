@@ -1,0 +1,157 @@
+"""The multi-zone RC simulator as a plant: the kind ``multizone`` of the registry
+(:mod:`scenarios.plants.kinds`).
+
+The building is :class:`pinn_mpc.multizone.MultiZoneParams` (each zone a 2R2C, the zones'
+air nodes coupled through internal walls), with its own actuators
+(:class:`pinn_mpc.actuator.ActuatorSpec`, each named, on a zone, heating or cooling) and a
+backup thermostat per actuator (:class:`pinn_mpc.multizone.MultiZoneSimulator`). Its settings
+(:class:`MultiZoneSettings`) declare the building and its actuators; the scenario's
+``SimConfig`` gives the control interval, the substep, the sensor noise and (unless the
+settings give each zone's) the backup limits. Its zones and actuators are the control spec's
+(:meth:`scenarios.inputs.registry.Scenario.control_spec`). It has a true state (each zone's
+room and mass), so the oracle runs on it; one building per run (no fleets yet).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from pinn_mpc.actuator import ActuatorSpec
+from pinn_mpc.errors import InputError
+from pinn_mpc.multizone import MultiZoneConfig, MultiZoneParams, MultiZoneSimulator
+from pinn_mpc.plant import Plant
+from pinn_mpc.solar import FACADE_COLUMNS
+from pinn_mpc.zones import ZoneSpec
+from scenarios.plants.base import PlantStep
+from scenarios.plants.kinds import KindSettings, PlantKind, PlantRequest, register
+
+__all__ = ["MULTIZONE", "MultiZonePlant", "MultiZoneSettings"]
+
+
+@dataclass(frozen=True, kw_only=True)
+class MultiZoneSettings(KindSettings):
+    """A multi-zone RC building (``building``), its actuators (``actuators``, each named, on
+    one of its zones) and, optionally, each zone's backup-thermostat limits [C]
+    (``backup_low_c``/``backup_high_c``: a number for every zone or one per zone; None: the
+    scenario's ``SimConfig`` limits)."""
+
+    building: MultiZoneParams
+    actuators: tuple[ActuatorSpec, ...]
+    backup_low_c: float | tuple[float, ...] | None = None
+    backup_high_c: float | tuple[float, ...] | None = None
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.building, MultiZoneParams):
+            raise InputError(f"multizone plant: building must be a MultiZoneParams, got {type(self.building).__name__}")
+        object.__setattr__(self, "actuators", tuple(self.actuators))
+        names = [a.name for a in self.actuators]
+        if not self.actuators or "" in names or len(set(names)) != len(names):
+            raise InputError(
+                f"multizone plant: give one or more actuators, each with its own name (its data "
+                f"columns u[<name>]), got names {names}"
+            )
+        try:  # the actuators on the building's zones, the limits' shape
+            low, high = self._limits(17.0, 20.5)
+            MultiZoneConfig(params=self.building, actuators=self.actuators, backup_low_c=low, backup_high_c=high)
+        except ValueError as exc:
+            raise InputError(f"multizone plant: {exc}") from None
+
+    def _limits(self, low_c: float, high_c: float) -> tuple[float | tuple[float, ...], float | tuple[float, ...]]:
+        """The backup limits (low, high): the settings' own where given, else ``low_c``/``high_c``."""
+        return (
+            low_c if self.backup_low_c is None else self.backup_low_c,
+            high_c if self.backup_high_c is None else self.backup_high_c,
+        )
+
+    @property
+    def zone_specs(self) -> tuple[ZoneSpec, ...]:
+        return self.building.zone_specs
+
+    @property
+    def own_actuators(self) -> tuple[ActuatorSpec, ...] | None:
+        return self.actuators
+
+    @property
+    def needs_facades(self) -> bool:
+        return any(z.solar_input != "G" for z in self.building.zones)
+
+
+class MultiZonePlant:
+    """:class:`~pinn_mpc.multizone.MultiZoneSimulator` as a
+    :class:`~scenarios.plants.base.LoopPlant` of one building, driven by the rows of the
+    exogenous series (``weather``: name -> (N,), :data:`pinn_mpc.multizone.EXOGENOUS_NAMES`
+    those it has), so the interval means are those rows."""
+
+    has_true_state = True
+    n_buildings = 1
+
+    def __init__(self, config: MultiZoneConfig, weather: Mapping[str, np.ndarray], *, seed: int | None) -> None:
+        self.sim = MultiZoneSimulator(config, seed=seed)
+        self.weather = weather
+        self.zones = config.params.zone_specs
+        self.n_substeps = config.n_substeps
+        self.n_actuators = len(config.actuators)
+
+    def reset(self, t_r_c: float, t_m_c: float, *, start: int, seed: int | None) -> None:
+        self.sim.reset(t_r_c, t_m_c, seed=seed)
+
+    def measure(self) -> np.ndarray:
+        return self.sim.measure()
+
+    def true_state(self) -> np.ndarray:
+        """(1, 2) the first zone's room and mass (the one-zone references' view; the zones'
+        are :meth:`true_zone_states`)."""
+        return self.true_zone_states()[:, :, 0]
+
+    def true_zone_states(self) -> np.ndarray:
+        z = len(self.zones)
+        state = self.sim.state
+        return np.stack([state[:, :z], state[:, z:]], axis=1)
+
+    def step(self, u_w: float | np.ndarray, row: int) -> PlantStep:
+        weather = {name: float(values[row]) for name, values in self.weather.items()}
+        result = self.sim.step(u_w, weather)
+        shape = (1,)
+        return PlantStep(
+            t_r_c=result.t_r_c, t_m_c=result.t_m_c, u_phys_w=result.power_w.sum(axis=1),
+            overridden=np.asarray(result.overridden.any(axis=1)), t_r_sub_c=result.t_r_sub_c,
+            t_a_c=np.full(shape, weather["T_a"]), g_w_per_m2=np.full(shape, weather["G"]),
+            i_g_w=np.full(shape, weather["I_g"]), u_phys_act_w=result.power_w,
+        )
+
+    def close(self) -> None:
+        """Nothing to free."""
+
+
+def _make(settings: KindSettings, request: PlantRequest) -> MultiZonePlant:
+    assert isinstance(settings, MultiZoneSettings)
+    if request.fleet is not None or request.n_buildings != 1:
+        raise InputError("a multi-zone plant runs one building today; a fleet runs on the 2R2C simulator")
+    sim = request.config
+    low, high = settings._limits(sim.backup_low_c, sim.backup_high_c)
+    config = MultiZoneConfig(
+        params=settings.building, actuators=settings.actuators, dt_s=sim.dt_s,
+        substep_s=sim.substep_s, noise_std_c=sim.noise_std_c, backup_low_c=low, backup_high_c=high,
+    )
+    weather = {"T_a": request.t_a_c, "G": request.g_w_per_m2, "I_g": request.i_g_w}
+    if settings.needs_facades:
+        facades = request.facades or {}
+        missing = [name for name in FACADE_COLUMNS if name not in facades]
+        if missing:
+            raise InputError(
+                f"the multi-zone building's windows take facade irradiance, but the run has no "
+                f"{', '.join(missing)}: give its scenario a TMY3 weather file"
+            )
+        weather.update({name: np.asarray(facades[name]) for name in FACADE_COLUMNS})
+    return MultiZonePlant(config, weather, seed=request.seed)
+
+
+MULTIZONE = register(PlantKind(
+    name="multizone",
+    summary="the package's minute-level RC simulator of coupled zones, each a 2R2C, with heating and cooling",
+    settings_type=MultiZoneSettings, make=_make, structure=lambda settings: Plant(),
+    true_state=True, fleets=False,
+))
