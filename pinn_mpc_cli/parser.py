@@ -352,7 +352,7 @@ def add_identify(sub: Commands) -> None:
     _eta_option(p)
     _scenario(
         p, help="for data of several zones: the building's layout (its zones, their actuators and "
-        "windows) from this scenario, one of: {scenarios}; or a scenario file",
+        "windows) from this scenario, a built-in name (`pinn-mpc scenario list`) or a scenario file",
     )
     p.add_argument("--out", required=True, help="RC JSON file to write (for --rc)")
 
