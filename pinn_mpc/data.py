@@ -103,6 +103,9 @@ KELVIN_MEDIAN_RANGE = (180.0, 400.0)
 KW_SUSPECT_W = 50.0
 
 
+#: An actuator's power column in a file of several actuators (:func:`pinn_mpc.actuator.actuator_columns`).
+_ACTUATOR_COLUMN = re.compile(r"(u|u_phys)\[[A-Za-z0-9_.\-]+\]")
+
 def day_of_week(times: np.ndarray, holiday: np.ndarray | None = None) -> np.ndarray:
     """(N,) the day of the week (0 = Monday) of each time (datetime64), as floats; 6 (Sunday)
     where ``holiday`` is 1: a building runs its Sunday-or-holiday schedules on its holidays."""
@@ -180,8 +183,10 @@ def _check_range(
 
 
 def _check_power(out: pd.DataFrame, source: str, u_max_w: float | None) -> None:
-    """Power columns within 0 .. min(MAX_POWER_W, u_max_w) [W], or InputError naming the row."""
-    for col in (c for c in POWER if c in out.columns):
+    """Power columns (each actuator's ``u[<name>]`` too) within 0 .. min(MAX_POWER_W,
+    u_max_w) [W], or InputError naming the row."""
+    powers = [*POWER, *(c for c in out.columns if _ACTUATOR_COLUMN.fullmatch(str(c)))]
+    for col in (c for c in powers if c in out.columns):
         values = out[col].to_numpy(dtype=float)
         negative = np.flatnonzero(values < 0)
         if negative.size:
@@ -393,7 +398,9 @@ def validate_timeseries(
         )
     raw_time = df["time"].reset_index(drop=True)
     out = pd.DataFrame({"time": parse_times(raw_time, source)})
-    ordered = _in_format_order([c for name in COLUMNS for c in present.get(name, [name])])
+    # A reader of several zones keeps each actuator's power, u[<name>] and u_phys[<name>].
+    actuators = [str(c) for c in df.columns if zones and _ACTUATOR_COLUMN.fullmatch(str(c))]
+    ordered = _in_format_order([c for name in COLUMNS for c in present.get(name, [name])] + actuators)
     for col in (c for c in ordered if c != "time" and c in df.columns):
         values = pd.to_numeric(df[col].reset_index(drop=True), errors="coerce")
         bad = ~np.isfinite(values.to_numpy(dtype=float))

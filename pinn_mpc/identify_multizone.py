@@ -189,7 +189,7 @@ def _from_json(data: Mapping[str, Any] | str, source: str) -> MultiZoneIdentifyR
         raise refuse(f"holds a {type(data).__name__}, not an object")
     if data.get("format") != JSON_FORMAT:
         raise refuse(f"format is {data.get('format')!r}, not {JSON_FORMAT!r}")
-    extra = sorted(set(data) - {"format", "zones", "walls", "fit"})
+    extra = sorted(set(data) - {"format", "zones", "walls", "fit", "source"})  # source: who wrote it
     if extra:
         raise refuse(f"has unknown key(s) {extra}")
     raw_zones, raw_walls, fit = data.get("zones"), data.get("walls"), data.get("fit")

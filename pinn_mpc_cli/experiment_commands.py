@@ -109,6 +109,13 @@ def _compare(a: argparse.Namespace) -> str:
     }
     check_distinct(inputs=scenario_inputs(a.scenario), outputs=outputs)
     scenario = get_scenario(a.scenario)
+    zones = scenario.control_spec().zones
+    if len(zones) > 1:
+        raise InputError(
+            f"compare trains and runs the one-zone model families; scenario {a.scenario} has "
+            f"{len(zones)} zones ({', '.join(z.name for z in zones)}): compare its controllers with "
+            f"`pinn-mpc sweep --scenarios {a.scenario} --controllers thermostat,oracle --out DIR`"
+        )
     settings = CompareSettings.for_run(
         train_days=a.train_days, days=a.days, seed=a.seed, quick=a.quick,
         policy=a.policy or scenario.data_policy,

@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from pinn_mpc.actuator import actuator_columns
 from pinn_mpc.choices import AUTO
 from pinn_mpc.data import read_timeseries
 from pinn_mpc.errors import InputError, InternalError, setting, warn
@@ -28,6 +29,7 @@ from pinn_mpc.io import (
 )
 from pinn_mpc.physics import rc_summary
 from pinn_mpc.records import EvaluationMetrics, HorizonErrors
+from pinn_mpc.zones import zones_in
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -298,6 +300,49 @@ def _arx_rc(model: ARXModel, model_dir: str) -> dict[str, Any]:
     return data
 
 
+def _identify_zones(a: argparse.Namespace, df: pd.DataFrame) -> str:
+    """``identify`` of data of several zones: the building of ``--scenario``'s layout
+    (:func:`pinn_mpc.identify_multizone.identify_multizone`), its multi-zone RC file."""
+    from pinn_mpc.identify_multizone import identify_multizone
+    from scenarios.inputs.scenario_file import get_scenario
+
+    zones = zones_in(df.columns)
+    names = ", ".join(z.name for z in zones)
+    if a.scenario is None:
+        raise InputError(
+            f"{a.data}: holds {len(zones)} zones ({names}); identifying them needs the building's "
+            "layout (which actuator acts on which zone, which facade each zone's windows face): "
+            "add --scenario NAME or a scenario file of that building"
+        )
+    if a.eta is not None:
+        raise InputError("--eta is a one-zone building's; a building of several zones has each actuator's efficiency in its scenario")
+    spec = get_scenario(a.scenario).control_spec()
+    building = getattr(get_scenario(a.scenario).plant.settings, "building", None)
+    if spec.zones != zones or building is None:
+        raise InputError(
+            f"--scenario {a.scenario}: its zones ({', '.join(z.name for z in spec.zones)}) are not "
+            f"the data's ({names}); give the scenario of the building the data were measured in"
+        )
+    columns = actuator_columns("u_phys", spec.actuators)
+    missing = [c for c in columns if c not in df.columns]
+    if missing:
+        raise InputError(
+            f"{a.data}: no column {', '.join(missing)}; data of a building of several actuators give "
+            "each one's delivered power, u_phys[<actuator>]"
+        )
+    solar = [z.solar_input if z.rc.solar_aperture_m2 > 0 else None for z in building.zones]
+    result = identify_multizone(
+        df, zones=zones, actuators=spec.actuators, power_columns=columns, solar_inputs=solar,
+        dt_s=float(df.attrs["dt_s"]),
+    )
+    for note in result.notes:
+        warn(note)
+    atomic_write_json(a.out, {**result.to_json(), "source": f"identify:{a.data}"})
+    walls = ", ".join(f"{x}-{y} {u:.4g} W/K" for (x, y), u in result.walls.items()) or "none"
+    rmse = ", ".join(f"{z.name} {r:.3f} C" for z, r in zip(zones, result.rmse_c, strict=True))
+    return f"identified {len(zones)} zones ({names}), walls {walls} (rmse {rmse} over {result.n_rows} rows) -> {a.out}"
+
+
 def identify(a: argparse.Namespace) -> str:
     """Read ``--data``, identify, write the RC JSON ``--out``:
     :func:`pinn_mpc.physics.rc_summary` plus a ``fit`` block
@@ -306,6 +351,14 @@ def identify(a: argparse.Namespace) -> str:
 
     check_writable(a.out)
     check_distinct(inputs={"--data": a.data}, outputs={"--out": a.out})
+    df = read_timeseries(a.data, columns=a.columns, zones=True)
+    if len(zones_in(df.columns)) > 1:
+        return _identify_zones(a, df)
+    if a.scenario is not None:
+        raise InputError(
+            "--scenario gives the layout of a building of several zones; the data hold one zone: "
+            "leave --scenario out"
+        )
     df = read_timeseries(a.data, columns=a.columns)
     result = identify_rc(df, eta=_eta(a.eta))
     summary = rc_summary(result.params, source=f"identify:{a.data}")

@@ -160,11 +160,8 @@ def _add(sub: Commands, name: str, handler: str, help_: str) -> argparse.Argumen
 
 
 def _scenario(p: argparse.ArgumentParser, **kwargs: Any) -> None:
-    p.add_argument(
-        "--scenario",
-        help="scenario name, one of: {scenarios}; or a scenario file (.toml, see `scenario`)",
-        **kwargs,
-    )
+    kwargs.setdefault("help", "scenario name, one of: {scenarios}; or a scenario file (.toml, see `scenario`)")
+    p.add_argument("--scenario", **kwargs)
 
 
 def _days_option(p: argparse.ArgumentParser, help_: str, **kwargs: Any) -> None:
@@ -353,6 +350,10 @@ def add_identify(sub: Commands) -> None:
     _data(p, "measured data")
     _columns(p)
     _eta_option(p)
+    _scenario(
+        p, help="for data of several zones: the building's layout (its zones, their actuators and "
+        "windows) from this scenario, a built-in name (`pinn-mpc scenario list`) or a scenario file",
+    )
     p.add_argument("--out", required=True, help="RC JSON file to write (for --rc)")
 
 

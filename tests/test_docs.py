@@ -219,7 +219,7 @@ def test_walkthrough_runs_as_written(tmp_path: Path) -> None:
 #: The pages whose commands run as written (test_pages_run_as_written); "your building" has its
 #: own test (test_walkthrough_runs_as_written).
 RUN_AS_WRITTEN = ("README.md", "docs/getting-started.md", "docs/realistic-conditions.md",
-                  "docs/sweeps-and-fleets.md", "docs/boptest.md")
+                  "docs/sweeps-and-fleets.md", "docs/boptest.md", "docs/zones.md")
 REALISTIC = "docs/realistic-conditions.md"
 #: The sizes a run as written shrinks: {(page, command, option): value}, "*" for any page or
 #: command, the most specific entry first. No other word of a command changes.

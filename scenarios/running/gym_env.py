@@ -112,6 +112,12 @@ class BuildingEnv(gym.Env[np.ndarray, np.ndarray]):
         high = np.array([t_hi, t_hi, 2000.0, 1e6, 10.0, t_hi, t_hi, 1.0, 1.0, *site_high], dtype=np.float32)
         self._obs_low, self._obs_high = low, high
         self.observation_space = gym.spaces.Box(low=low, high=high, dtype=np.float32)
+        if plant_settings is not None and len(plant_settings.settings.zone_specs) > 1:
+            names = ", ".join(z.name for z in plant_settings.settings.zone_specs)
+            raise ValueError(
+                f"BuildingEnv: its spaces are one zone's and one actuator's; this building has the "
+                f"zones {names}: run it with closed-loop's zone controllers (thermostat, oracle)"
+            )
         (self.actuator,) = config.actuators
         self.action_space = gym.spaces.Box(
             low=self.actuator.lower_w, high=self.actuator.upper_w, shape=(1,), dtype=np.float32
