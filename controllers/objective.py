@@ -8,6 +8,11 @@ interval j. Built once per decision (:meth:`HorizonObjective.from_forecast`, wit
 the RC MPCs take its arrays as QP data, the Gymnasium reward is the one-interval objective and
 the closed-loop KPIs integrate the same primitives (:func:`band_violation_k`,
 :func:`energy_cost_eur`) at the simulator's substep resolution.
+
+A building of several zones (:class:`ZoneObjective`) pays the price on its total electrical
+power and each zone's band violation, summed over the zones (as the closed-loop KPIs sum a
+building's discomfort); each zone's band is :func:`planning_band` of its own
+(:func:`zone_bands`).
 """
 
 from __future__ import annotations
@@ -20,6 +25,7 @@ import numpy as np
 
 from controllers.base import ControlSpec, Forecast, first_values
 from pinn_mpc.errors import InternalError
+from pinn_mpc.zones import ZoneSpec
 
 if TYPE_CHECKING:
     import torch
@@ -27,6 +33,7 @@ if TYPE_CHECKING:
 __all__ = [
     "OPEN_BAND_C",
     "HorizonObjective",
+    "ZoneObjective",
     "band_violation_k",
     "comfort_cost_torch",
     "cost_torch",
@@ -34,6 +41,7 @@ __all__ = [
     "narrowed",
     "narrowed_band",
     "planning_band",
+    "zone_bands",
 ]
 
 #: A comfort band that never binds (after the run end of the clairvoyant).
@@ -79,6 +87,28 @@ def planning_band(forecast: Forecast, h: int) -> tuple[np.ndarray, np.ndarray]:
     t_min, t_max = first_values(forecast.T_min, h + 1), first_values(forecast.T_max, h + 1)
     lower = np.maximum(t_min[:-1], t_min[1:])
     upper = np.minimum(t_max[:-1], t_max[1:])
+    return lower, upper
+
+
+def zone_bands(forecast: Forecast, zones: tuple[ZoneSpec, ...], h: int) -> tuple[np.ndarray, np.ndarray]:
+    """(h, Z) the band each zone's room keeps at the end of each of the next h intervals [C]:
+    :func:`planning_band` of the zone's forecast band, which is (H',) for every zone or (H', Z)
+    each zone's. A ValueError names a band of another shape."""
+    z_n = len(zones)
+    t_min, t_max = (np.asarray(b, dtype=float) for b in (forecast.T_min, forecast.T_max))
+    for name, b in (("T_min", t_min), ("T_max", t_max)):
+        if not (b.ndim == 1 or (b.ndim == 2 and b.shape[1] == z_n)) or b.shape[0] == 0:
+            raise ValueError(
+                f"forecast.{name} has shape {b.shape}; give (H,) for every zone or (H, {z_n}), "
+                f"one column per zone of {', '.join(z.name for z in zones)}"
+            )
+    lower, upper = np.empty((h, z_n)), np.empty((h, z_n))
+    for z in range(z_n):
+        zone = forecast._replace(
+            T_min=t_min if t_min.ndim == 1 else t_min[:, z],
+            T_max=t_max if t_max.ndim == 1 else t_max[:, z],
+        )
+        lower[:, z], upper[:, z] = planning_band(zone, h)
     return lower, upper
 
 
@@ -185,3 +215,66 @@ def cost_torch(
         t_r_c, t_min_c, t_max_c, dt_h, comfort_weight_eur_per_kh
     )
     return step_cost.sum(dim=-1)
+
+
+@dataclass(frozen=True, kw_only=True)
+class ZoneObjective:
+    """The objective of H intervals of a building of Z zones: the price (H,) [EUR/kWh] of the
+    building's total electrical energy and each zone's band (H, Z) [C] (module docstring)."""
+
+    price_eur_per_kwh: np.ndarray  # (H,)
+    t_min_c: np.ndarray  # (H, Z)
+    t_max_c: np.ndarray  # (H, Z)
+    dt_h: float
+    comfort_weight_eur_per_kh: float
+
+    def __post_init__(self) -> None:
+        h = np.shape(self.price_eur_per_kwh)
+        bands = {np.shape(self.t_min_c), np.shape(self.t_max_c)}
+        if len(h) != 1 or len(bands) != 1 or next(iter(bands))[:1] != h or len(next(iter(bands))) != 2:
+            raise InternalError(
+                f"ZoneObjective: price (H,) and bands (H, Z), got {h} and {sorted(bands)}"
+            )
+
+    @classmethod
+    def from_forecast(cls, forecast: Forecast, spec: ControlSpec, horizon_steps: int) -> ZoneObjective:
+        """The objective of the next ``horizon_steps`` intervals of the building of ``spec``'s
+        zones: the forecast's price and each zone's :func:`zone_bands`."""
+        lower, upper = zone_bands(forecast, spec.zones, horizon_steps)
+        return cls(
+            price_eur_per_kwh=first_values(forecast.price, horizon_steps),
+            t_min_c=lower,
+            t_max_c=upper,
+            dt_h=spec.dt_h,
+            comfort_weight_eur_per_kh=spec.comfort_weight_eur_per_kh,
+        )
+
+    @property
+    def horizon_steps(self) -> int:
+        return len(self.price_eur_per_kwh)
+
+    def tightened(self, margin_k: float) -> ZoneObjective:
+        """Every zone's band narrowed by ``margin_k`` [K] on each side
+        (:meth:`HorizonObjective.tightened`)."""
+        if margin_k == 0:
+            return self
+        t_min, t_max = narrowed_band(self.t_min_c, self.t_max_c, margin_k)
+        return dataclasses.replace(self, t_min_c=t_min, t_max_c=t_max)
+
+    def cost(self, u_phys_w: np.ndarray, t_r_c: np.ndarray) -> np.ndarray:
+        """The objective (...,) [EUR] of the total delivered power (..., H) [W] and each zone's
+        end-of-interval T_r (..., H, Z) [C] (numpy, float64)."""
+        violation = band_violation_k(np.asarray(t_r_c, dtype=float), self.t_min_c, self.t_max_c).sum(axis=-1)
+        energy = energy_cost_eur(np.asarray(u_phys_w, dtype=float), self.price_eur_per_kwh, self.dt_h)
+        return np.sum(energy + self.comfort_weight_eur_per_kh * self.dt_h * violation, axis=-1)
+
+    def cost_torch(self, u_phys_w: torch.Tensor, t_r_c: torch.Tensor) -> torch.Tensor:
+        """:meth:`cost` in torch, in the predictions' dtype."""
+        import torch
+
+        dtype = t_r_c.dtype
+        price, t_min, t_max = (
+            torch.as_tensor(a, dtype=dtype) for a in (self.price_eur_per_kwh, self.t_min_c, self.t_max_c)
+        )
+        comfort = comfort_cost_torch(t_r_c, t_min, t_max, self.dt_h, self.comfort_weight_eur_per_kh).sum(dim=-1)
+        return (energy_cost_eur(u_phys_w, price, self.dt_h) + comfort).sum(dim=-1)
