@@ -23,10 +23,9 @@ from typing import TYPE_CHECKING, Any, Protocol
 import numpy as np
 
 from controllers.base import ControlSpec, Observation
-from pinn_mpc.actuator import Actuator, actuator_columns
-from pinn_mpc.errors import InputError, InternalError
-from pinn_mpc.multizone import EXOGENOUS_NAMES as ZONE_INPUTS
-from pinn_mpc.multizone import MultiZoneParams, discretise, needed_inputs
+from pinn_mpc.actuator import Actuator
+from pinn_mpc.errors import InternalError
+from pinn_mpc.multizone import MultiZoneParams, discretise, history_arrays
 from pinn_mpc.observer import (
     DEFAULT_INITIAL_T_M_STD_C,
     DEFAULT_MEASUREMENT_STD_C,
@@ -213,12 +212,10 @@ class MultiZoneKalmanEstimator:
 
     def __init__(self, params: MultiZoneParams, spec: ControlSpec) -> None:
         self.params, self.spec = params, spec
-        self.needed = needed_inputs(params)
         process, measurement = observer_noise(spec)
         self.observer = MultiZoneObserver(
             discretise(params, spec.actuators, spec.dt_s), process_std_c=process, measurement_std_c=measurement
         )
-        self.power_columns = actuator_columns("u_phys", spec.actuators)
         self.reset()
 
     @property
@@ -250,17 +247,8 @@ class MultiZoneKalmanEstimator:
     def _last_inputs(self, history: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
         """The last interval's delivered power per actuator (A,) [W] and exogenous inputs (7,)
         in :data:`pinn_mpc.multizone.EXOGENOUS_NAMES` order (held from its start)."""
-        missing = [c for c in self.power_columns if c not in history]
-        missing += [n for n in self.needed if n not in history]
-        if missing:
-            raise InputError(
-                f"the observation's history lacks {missing}, which the multi-zone observer "
-                f"needs (each actuator's delivered power {', '.join(self.power_columns)} and "
-                f"the building's inputs {', '.join(self.needed)})"
-            )
-        u_phys = np.array([float(history[c][-1]) for c in self.power_columns])
-        d = np.array([float(history[n][-2]) if n in history else 0.0 for n in ZONE_INPUTS])
-        return u_phys, d
+        _, powers, inputs = history_arrays(history, self.params, self.spec.actuators)
+        return powers[-1], inputs[-2]
 
 
 class TrueState:

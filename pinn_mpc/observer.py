@@ -193,8 +193,3 @@ class MultiZoneObserver:
     def state(self) -> np.ndarray:
         """(2Z,) the estimated rooms then masses [C] (NaN before :meth:`reset`)."""
         return self._x.copy()
-
-    @property
-    def covariance(self) -> np.ndarray:
-        """(2Z, 2Z) the estimate's covariance [K^2]."""
-        return self._p.copy()

@@ -28,8 +28,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 import torch
 
-from pinn_mpc.actuator import ActuatorSpec, actuator_columns
-from pinn_mpc.errors import InputError
+from pinn_mpc.actuator import ActuatorSpec
 from pinn_mpc.models.rollout import BatchDynamics, Rollout
 from pinn_mpc.multizone import (
     EXOGENOUS_NAMES,
@@ -37,6 +36,7 @@ from pinn_mpc.multizone import (
     MultiZoneParams,
     SystemMatrices,
     discretise,
+    history_arrays,
     needed_inputs,
 )
 from pinn_mpc.observer import DEFAULT_MEASUREMENT_STD_C, MultiZoneObserver
@@ -93,7 +93,6 @@ class MultiZoneRCModel(BatchDynamics):
         )
         self._rooms = zone_columns("T_r", params.zone_specs)
         self._masses = zone_columns("T_m", params.zone_specs)
-        self._powers = actuator_columns("u_phys", config.actuators)
         self._needed = needed_inputs(params)
         # The history the filter has folded in, (rooms (k+1, Z), powers (k, A), inputs (k+1, 7)).
         self._seen: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
@@ -124,43 +123,12 @@ class MultiZoneRCModel(BatchDynamics):
         return self.params.zone_specs
 
     @property
-    def zone_params(self) -> MultiZoneParams:
+    def zone_params(self) -> MultiZoneParams | None:
         return self.params
 
     def _gains(self, t_a_c: np.ndarray) -> np.ndarray:
         """(T, A) each actuator's heat per electrical watt at the outdoor temperatures (T,)."""
         return np.stack([a.gain(t_a_c) for a in self.config.actuators], axis=-1)
-
-    def _history_arrays(self, history: Mapping[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The history as (rooms (k+1, Z) [C], delivered powers (k, A) [W], exogenous inputs
-        (k+1, 7) in :data:`pinn_mpc.multizone.EXOGENOUS_NAMES` order, 0 for those the building
-        does not take)."""
-        missing = [c for c in self._rooms if c not in history]
-        if missing:
-            raise InputError(
-                f"MultiZoneRCModel: the history lacks {missing}; it needs each zone's room "
-                f"temperature ({', '.join(self._rooms)}) up to now"
-            )
-        rooms = np.stack([np.asarray(history[c], dtype=float) for c in self._rooms], axis=1)
-        k = len(rooms) - 1
-        if k < 0:
-            raise InputError("MultiZoneRCModel: the history is empty; it needs the rooms' temperatures now")
-        lacking = [c for c in self._powers if k > 0 and c not in history]
-        lacking += [n for n in self._needed if n not in history]
-        if lacking:
-            raise InputError(
-                f"MultiZoneRCModel: the history lacks {lacking}; its state filter needs each "
-                f"actuator's delivered power ({', '.join(self._powers)}) and the building's "
-                f"inputs ({', '.join(self._needed)})"
-            )
-        powers = np.zeros((k, len(self._powers)))
-        for i, c in enumerate(self._powers):
-            if k > 0:
-                powers[:, i] = np.asarray(history[c], dtype=float)[-k:]
-        inputs = np.zeros((k + 1, len(EXOGENOUS_NAMES)))
-        for name in self._needed:
-            inputs[:, EXOGENOUS_NAMES.index(name)] = np.asarray(history[name], dtype=float)[-(k + 1) :]
-        return rooms, powers, inputs
 
     def state_now(self, history: Mapping[str, np.ndarray]) -> np.ndarray:
         """(2Z,) the state now [C]: each zone's measured room temperature, then each zone's
@@ -168,7 +136,7 @@ class MultiZoneRCModel(BatchDynamics):
         ``T_m[<zone>]`` has it (module docstring)."""
         if all(c in history for c in (*self._rooms, *self._masses)):
             return np.array([float(np.asarray(history[c])[-1]) for c in (*self._rooms, *self._masses)])
-        rooms, powers, inputs = self._history_arrays(history)
+        rooms, powers, inputs = history_arrays(history, self.params, self.config.actuators)
         start = 0
         seen = self._seen
         if seen is not None and len(seen[0]) <= len(rooms):
