@@ -39,7 +39,7 @@ import scipy.sparse as sp
 import torch
 
 from controllers.base import solver_interrupts_held
-from controllers.objective import HorizonObjective, ZoneObjective
+from controllers.objective import HorizonObjective
 
 __all__ = [
     "PiggybackPolish",
@@ -86,7 +86,7 @@ class PlanProblem:
     fractions of each actuator's range, 0 and 1, of a plan of several actuators with the zones'
     objective)."""
 
-    objective: HorizonObjective | ZoneObjective
+    objective: HorizonObjective
     lower: float
     upper: float
 

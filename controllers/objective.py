@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Self
 
 import numpy as np
 
@@ -130,10 +130,10 @@ class HorizonObjective:
             )
 
     @classmethod
-    def from_forecast(cls, forecast: Forecast, spec: ControlSpec, horizon_steps: int) -> HorizonObjective:
+    def from_forecast(cls, forecast: Forecast, spec: ControlSpec, horizon_steps: int) -> Self:
         """The objective of the next ``horizon_steps`` intervals: the forecast's price and
-        :func:`planning_band` (a shorter forecast repeats its last value)."""
-        lower, upper = planning_band(forecast, horizon_steps)
+        :meth:`bands` (a shorter forecast repeats its last value)."""
+        lower, upper = cls.bands(forecast, spec, horizon_steps)
         return cls(
             price_eur_per_kwh=first_values(forecast.price, horizon_steps),
             t_min_c=lower,
@@ -141,6 +141,11 @@ class HorizonObjective:
             dt_h=spec.dt_h,
             comfort_weight_eur_per_kh=spec.comfort_weight_eur_per_kh,
         )
+
+    @classmethod
+    def bands(cls, forecast: Forecast, spec: ControlSpec, horizon_steps: int) -> tuple[np.ndarray, np.ndarray]:
+        """The band (:func:`planning_band`), (H,) each."""
+        return planning_band(forecast, horizon_steps)
 
     @property
     def horizon_steps(self) -> int:
@@ -218,58 +223,33 @@ def cost_torch(
 
 
 @dataclass(frozen=True, kw_only=True)
-class ZoneObjective:
+class ZoneObjective(HorizonObjective):
     """The objective of H intervals of a building of Z zones: the price (H,) [EUR/kWh] of the
-    building's total electrical energy and each zone's band (H, Z) [C] (module docstring)."""
-
-    price_eur_per_kwh: np.ndarray  # (H,)
-    t_min_c: np.ndarray  # (H, Z)
-    t_max_c: np.ndarray  # (H, Z)
-    dt_h: float
-    comfort_weight_eur_per_kh: float
+    building's total electrical energy and each zone's band ``t_min_c``, ``t_max_c`` (H, Z) [C]
+    (module docstring); its predictions are the total delivered power (..., H) [W] and each
+    zone's end-of-interval T_r (..., H, Z) [C]."""
 
     def __post_init__(self) -> None:
         h = np.shape(self.price_eur_per_kwh)
         bands = {np.shape(self.t_min_c), np.shape(self.t_max_c)}
-        if len(h) != 1 or len(bands) != 1 or next(iter(bands))[:1] != h or len(next(iter(bands))) != 2:
-            raise InternalError(
-                f"ZoneObjective: price (H,) and bands (H, Z), got {h} and {sorted(bands)}"
-            )
+        band = next(iter(bands))
+        if len(h) != 1 or len(bands) != 1 or len(band) != 2 or band[0] != h[0]:
+            raise InternalError(f"ZoneObjective: price (H,) and bands (H, Z), got {h} and {sorted(bands)}")
 
     @classmethod
-    def from_forecast(cls, forecast: Forecast, spec: ControlSpec, horizon_steps: int) -> ZoneObjective:
-        """The objective of the next ``horizon_steps`` intervals of the building of ``spec``'s
-        zones: the forecast's price and each zone's :func:`zone_bands`."""
-        lower, upper = zone_bands(forecast, spec.zones, horizon_steps)
-        return cls(
-            price_eur_per_kwh=first_values(forecast.price, horizon_steps),
-            t_min_c=lower,
-            t_max_c=upper,
-            dt_h=spec.dt_h,
-            comfort_weight_eur_per_kh=spec.comfort_weight_eur_per_kh,
-        )
+    def bands(cls, forecast: Forecast, spec: ControlSpec, horizon_steps: int) -> tuple[np.ndarray, np.ndarray]:
+        """Each zone's band of ``spec``'s zones (:func:`zone_bands`), (H, Z) each."""
+        return zone_bands(forecast, spec.zones, horizon_steps)
 
-    @property
-    def horizon_steps(self) -> int:
-        return len(self.price_eur_per_kwh)
-
-    def tightened(self, margin_k: float) -> ZoneObjective:
-        """Every zone's band narrowed by ``margin_k`` [K] on each side
-        (:meth:`HorizonObjective.tightened`)."""
-        if margin_k == 0:
-            return self
-        t_min, t_max = narrowed_band(self.t_min_c, self.t_max_c, margin_k)
-        return dataclasses.replace(self, t_min_c=t_min, t_max_c=t_max)
-
-    def cost(self, u_phys_w: np.ndarray, t_r_c: np.ndarray) -> np.ndarray:
-        """The objective (...,) [EUR] of the total delivered power (..., H) [W] and each zone's
-        end-of-interval T_r (..., H, Z) [C] (numpy, float64)."""
+    def stage_costs(self, u_phys_w: np.ndarray, t_r_c: np.ndarray) -> np.ndarray:
+        """Cost of each interval (..., H) [EUR] of the total delivered power (..., H) and each
+        zone's end-of-interval T_r (..., H, Z), the zones' violations summed."""
         violation = band_violation_k(np.asarray(t_r_c, dtype=float), self.t_min_c, self.t_max_c).sum(axis=-1)
         energy = energy_cost_eur(np.asarray(u_phys_w, dtype=float), self.price_eur_per_kwh, self.dt_h)
-        return np.sum(energy + self.comfort_weight_eur_per_kh * self.dt_h * violation, axis=-1)
+        return energy + self.comfort_weight_eur_per_kh * self.dt_h * violation
 
     def cost_torch(self, u_phys_w: torch.Tensor, t_r_c: torch.Tensor) -> torch.Tensor:
-        """:meth:`cost` in torch, in the predictions' dtype."""
+        """The objective (...,) [EUR] in torch, in the predictions' dtype (:meth:`stage_costs`)."""
         import torch
 
         dtype = t_r_c.dtype
