@@ -26,6 +26,10 @@ the polish rides along with the planner's own objective calls (:class:`Piggyback
 probes around the warm start join the planner's first batch, the line-search plans its second;
 only what is left over after the planner's last call costs a rollout of its own. With CEM's two
 iterations, polishing adds no rollout at all.
+
+:class:`ZonePolish` is the same over plans of several actuators (H, A) and predictions of
+several zones: every step of every actuator probed, the LP's rows each zone's temperature at
+each step (:func:`solve_lp` with R = H x Z rows and P = H x A columns).
 """
 
 from __future__ import annotations

@@ -6,7 +6,10 @@ members out in one :meth:`pinn_mpc.models.rollout.BatchDynamics.rollout` call un
 with :class:`controllers.objective.HorizonObjective` (evaluated in torch): price x delivered energy + comfort weight x band
 violation x dt_h, where *delivered* is the model's predicted ``u_phys`` (so the planner knows
 the backup thermostat will override it) and the temperature is the predicted ``T_r`` at the end
-of each interval.
+of each interval. On a building of several zones or actuators (a spec that is not
+:attr:`controllers.base.ControlSpec.single`) plans are (N, H, A) over a model of the building's
+zones and actuators, and ``act`` returns (A,): :mod:`controllers.zone_sampling`; what follows
+is the one-zone path.
 
 Four defaults matter in closed loop (their measured effect, and what was tried instead, is in
 ``CHANGELOG.md`` and ``docs/results/measured.md``):

@@ -9,10 +9,11 @@ that actuators of different bounds share one box; a fraction ``f`` is ``lower_w 
 span_w``. The objective (:class:`controllers.objective.ZoneObjective`) is the price times the
 building's total delivered electrical power plus the comfort weight times each zone's band
 violation summed over the zones, against each zone's band narrowed by ``comfort_margin_k``.
-CEM's plan is polished by one LP over every step of every actuator
-(:class:`controllers.lp_polish.ZonePolish`). The warm start is the previous plan shifted by
-one step, the first plan half of each actuator's range. ``act`` returns (A,) in
-``spec.actuators``' order and keeps the plan (H, A) in ``last_plan``.
+The plan is polished by ``polish_iters`` LPs over every step of every actuator
+(:class:`controllers.lp_polish.ZonePolish`; CEM's default one, random shooting's none): the
+sampling finds the plan's shape, the LP its optimum on the model. The warm start is the
+previous plan shifted by one step, the first plan half of each actuator's range. ``act``
+returns (A,) in ``spec.actuators``' order and keeps the plan (H, A) in ``last_plan``.
 
 What the one-zone path has and this one has not: the offset filter (the model's state is its
 own estimate: the multi-zone RC's Kalman filter over the history), the trust monitor and its
@@ -63,16 +64,26 @@ class NonFiniteModelOutput(Exception):
 
 
 class _LastEstimate:
-    """The state the planner's observer estimated at this decision, for its fallback QP (the
-    planner updates the observer at every decision, the QP only reads it)."""
+    """The planner's Kalman observer, updated at every decision (:meth:`observe`), and the state
+    it estimated at this decision for the fallback QP (:meth:`update`, NaN when the observer
+    could not fold this observation in: the QP then falls back in turn)."""
 
     def __init__(self, observer: MultiZoneKalmanEstimator) -> None:
         self.observer = observer
+        self._k: int | None = None
+
+    def observe(self, obs: Observation) -> None:
+        self._k = None
+        self.observer.update(obs)
+        self._k = obs.k
 
     def reset(self) -> None:
-        pass  # the planner resets the observer
+        self.observer.reset()
+        self._k = None
 
     def update(self, obs: Observation) -> np.ndarray:
+        if self._k != obs.k:
+            return np.full(2 * self.observer.n_zones, np.nan)
         return self.observer.state
 
 
@@ -134,15 +145,15 @@ class ZoneSampling:
                 f"building's, {described}; build the model with the spec's actuators, on the "
                 "building's zones in its order"
             )
-        self._zone_observer: MultiZoneKalmanEstimator | None = None
+        self._zone_observer: _LastEstimate | None = None
         qp = None
         params = model.zone_params
         if params is not None:
             from controllers.estimators import MultiZoneKalmanEstimator
             from controllers.rc_mpc.multizone import MultiZoneMPC
 
-            self._zone_observer = MultiZoneKalmanEstimator(params, spec)
-            qp = MultiZoneMPC(params, spec, estimator=_LastEstimate(self._zone_observer), name=f"{name} fallback")
+            self._zone_observer = _LastEstimate(MultiZoneKalmanEstimator(params, spec))
+            qp = MultiZoneMPC(params, spec, estimator=self._zone_observer, name=f"{name} fallback")
         self.fallback = _ZoneFallback(spec, qp)
         self._lower_w = torch.tensor([a.lower_w for a in spec.actuators], dtype=torch.float32)
         self._span_w = torch.tensor([a.span_w for a in spec.actuators], dtype=torch.float32)
@@ -168,7 +179,7 @@ class ZoneSampling:
         start = time.perf_counter()
         try:
             if self._zone_observer is not None:  # every decision, so that it stays current
-                self._zone_observer.update(obs)
+                self._zone_observer.observe(obs)
             plan_w, cost, iterations = self._solve_zones(obs, forecast)
         except NonFiniteModelOutput:
             return self._zones_failed(obs, forecast, start, "non-finite model output")

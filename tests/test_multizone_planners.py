@@ -353,6 +353,22 @@ def test_without_an_rc_building_a_failure_falls_back_on_the_band_rule():
     assert cem.last_plan is None and cem.n_fallbacks == 1
 
 
+def test_an_observation_the_observer_cannot_read_falls_back_past_the_qp_on_the_band_rule():
+    """The QP plans from the planner's observer: when that cannot fold the observation in, the
+    QP has no state and falls back in turn (no plan of its own yet: the band rule)."""
+    building, spec = _building("shoulder_office")
+    cem = CEM(MultiZoneRCModel(building, spec.actuators, spec.dt_s), spec)
+    loop, _ = _loop("shoulder_office", 1, 1)
+    obs, fc = loop.observation(), loop.forecast()
+    loop.step(cem.act(obs, fc))
+    obs = loop.observation()
+    broken = obs._replace(history={k: v for k, v in obs.history.items() if k != "u_phys[heat_west]"})
+    action = cem.act(broken, fc)
+    assert cem.last_stats.fallback and "multi-zone QP fallback: model error: InputError" in cem.last_stats.status
+    assert cem.zone_qp is not None and cem.zone_qp.n_fallbacks == 1
+    np.testing.assert_array_equal(action, fallback_powers(broken, fc, spec))
+
+
 def test_a_planner_over_zones_refuses_a_model_of_other_zones_or_actuators():
     building, spec = _building("shoulder_office")
     with pytest.raises(ValueError, match=r"CEM: the model's zones \(east, west\) and actuators \(heat_east, cool_east\) differ"):
