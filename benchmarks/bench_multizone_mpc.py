@@ -18,13 +18,21 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+from collections.abc import Callable
+from typing import NamedTuple
 
 import numpy as np
 
-from controllers.base import ControlSpec, Forecast, Observation
+from controllers.base import Controller, ControlSpec, Forecast, Observation
 from controllers.rc_mpc.references import oracle_multizone
-from pinn_mpc.actuator import ActuatorSpec
-from pinn_mpc.multizone import MultiZoneConfig, MultiZoneParams, MultiZoneSimulator, ZoneRC
+from pinn_mpc.actuator import ActuatorSpec, actuator_columns
+from pinn_mpc.multizone import (
+    MultiZoneConfig,
+    MultiZoneParams,
+    MultiZoneSimulator,
+    ZoneRC,
+    wall_tuples,
+)
 from pinn_mpc.physics import RCParams
 from pinn_mpc.zones import ZoneSpec, zone_columns
 
@@ -44,7 +52,7 @@ def building(n_zones: int) -> tuple[MultiZoneParams, ControlSpec]:
     walls = np.zeros((n_zones, n_zones))
     for z in range(n_zones - 1):
         walls[z, z + 1] = walls[z + 1, z] = 150.0
-    params = MultiZoneParams(zones=zones, wall_conductance_w_per_k=walls)
+    params = MultiZoneParams(zones=zones, wall_conductance_w_per_k=wall_tuples(walls))
     actuators = tuple(
         ActuatorSpec(upper_w=power, zone=z, heats=heats, name=f"{kind}{z}")
         for z in range(n_zones)
@@ -69,57 +77,95 @@ def spring(n: int) -> dict[str, np.ndarray]:
     }
 
 
+class LoopRun(NamedTuple):
+    """What a closed loop of a controller over a building measured."""
+
+    times_s: np.ndarray  # (K,) each decision's time
+    iterations: np.ndarray  # (K,) each decision's solver iterations
+    discomfort_kh: float  # every zone's band violation, integrated over the substeps
+    energy_cost_eur: float  # the price times the delivered electrical energy
+
+
+def closed_loop(params: MultiZoneParams, spec: ControlSpec, controller: Controller, steps: int) -> LoopRun:
+    """``steps`` decisions of ``controller`` on the building in :func:`spring` weather, its
+    observation's history holding each zone's room, each actuator's delivered power and the
+    inputs, as a run's does."""
+    series = spring(steps + spec.horizon_steps + 1)
+    sim = MultiZoneSimulator(MultiZoneConfig(params=params, actuators=spec.actuators, backup_low_c=10.0, backup_high_c=35.0))
+    sim.reset(21.0, 20.5)
+    rooms = zone_columns("T_r", params.zone_specs)
+    powers = actuator_columns("u_phys", spec.actuators)
+    history = {c: np.array([t]) for c, t in zip(rooms, sim.measure()[0], strict=True)}
+    history |= {name: series[name][:1] for name in ("time_of_day_h", *INPUTS)}
+    history |= {c: np.zeros(0) for c in (*powers, "u_phys")}
+    times, iterations, discomfort, cost = [], [], 0.0, 0.0
+    for k in range(steps):
+        obs = Observation.from_history(k, history, sim.state[0, params.n_zones :], zones=params.zone_specs)
+        forecast = Forecast(**{name: v[k : k + spec.horizon_steps + 1] for name, v in series.items()})
+        action = controller.act(obs, forecast)
+        times.append(controller.last_stats.time_s)
+        iterations.append(controller.last_stats.iterations)
+        step = sim.step(action, {name: series[name][k] for name in INPUTS})
+        over = np.maximum(series["T_min"][k] - step.t_r_sub_c, 0) + np.maximum(step.t_r_sub_c - series["T_max"][k], 0)
+        discomfort += float(over.mean(axis=1).sum()) * spec.dt_h
+        cost += float(step.power_w.sum()) / 1000.0 * spec.dt_h * float(series["price"][k])
+        for c, v in zip(rooms, sim.measure()[0], strict=True):
+            history[c] = np.append(history[c], v)
+        for c, v in zip((*powers, "u_phys"), (*step.power_w[0], step.power_w.sum()), strict=True):
+            history[c] = np.append(history[c], v)
+        for name in ("time_of_day_h", *INPUTS):
+            history[name] = series[name][: k + 2]
+    return LoopRun(np.array(times), np.array(iterations), discomfort, cost)
+
+
 def run(n_zones: int, steps: int, eps: float | None) -> dict[str, float]:
     """A closed loop of ``steps`` decisions; the decision times and the run's figures."""
     params, spec = building(n_zones)
     options = {} if eps is None else {"eps_abs": eps, "eps_rel": eps}
     mpc = oracle_multizone(params, spec, solver_options=options)
-    series = spring(steps + spec.horizon_steps + 1)
-    sim = MultiZoneSimulator(MultiZoneConfig(params=params, actuators=spec.actuators, backup_low_c=10.0, backup_high_c=35.0))
-    sim.reset(21.0, 20.5)
-    rooms = zone_columns("T_r", params.zone_specs)
-    history = {c: np.array([t]) for c, t in zip(rooms, sim.measure()[0], strict=True)}
-    history |= {name: series[name][:1] for name in ("time_of_day_h", *INPUTS)}
-    times, iterations, discomfort = [], [], 0.0
-    for k in range(steps):
-        obs = Observation.from_history(k, history, sim.state[0, n_zones:], zones=params.zone_specs)
-        forecast = Forecast(**{name: v[k : k + spec.horizon_steps + 1] for name, v in series.items()})
-        action = mpc.act(obs, forecast)
-        times.append(mpc.last_stats.time_s)
-        iterations.append(mpc.last_stats.iterations)
-        step = sim.step(action, {name: series[name][k] for name in INPUTS})
-        over = np.maximum(series["T_min"][k] - step.t_r_sub_c, 0) + np.maximum(step.t_r_sub_c - series["T_max"][k], 0)
-        discomfort += float(over.mean(axis=1).sum()) * spec.dt_h
-        for c, v in zip(rooms, sim.measure()[0], strict=True):
-            history[c] = np.append(history[c], v)
-        for name in ("time_of_day_h", *INPUTS):
-            history[name] = series[name][: k + 2]
-    ms = np.array(times) * 1e3
+    loop = closed_loop(params, spec, mpc, steps)
+    ms = loop.times_s * 1e3
     return {
         "variables": mpc.qp.n_variables,
         "nnz": mpc.qp._a.nnz,
         "median_ms": float(np.median(ms)),
         "p95_ms": float(np.percentile(ms, 95)),
-        "iterations": float(np.median(iterations)),
+        "iterations": float(np.median(loop.iterations)),
         "fallbacks": mpc.n_fallbacks,
-        "discomfort_kh": discomfort,
+        "discomfort_kh": loop.discomfort_kh,
     }
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def zones_parser(doc: str) -> argparse.ArgumentParser:
+    """The options of a benchmark over zone counts: ``--steps`` and ``--zones``."""
+    parser = argparse.ArgumentParser(description=doc.splitlines()[0])
     parser.add_argument("--steps", type=int, default=96, help="decisions per building (default 96, two days)")
     parser.add_argument("--zones", default="2,5,12", help="comma-separated zone counts")
+    return parser
+
+
+def print_rows(header: str, zones: str, row: Callable[[int], str]) -> None:
+    """The header, one row per zone count of ``zones`` (comma-separated), the load average."""
+    print(header)
+    for z in (int(v) for v in zones.split(",")):
+        print(row(z))
+    print(f"load average: {', '.join(f'{v:.2f}' for v in os.getloadavg())}")
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = zones_parser(__doc__)
     parser.add_argument("--eps", type=float, default=None, help="OSQP eps_abs = eps_rel (default: OSQP_OPTIONS')")
     args = parser.parse_args(argv)
-    print(f"{'Z':>3} {'A':>3} {'vars':>6} {'nnz(A)':>7} {'median ms':>10} {'p95 ms':>8} {'iter':>6} {'fallbacks':>9} {'discomfort Kh':>13}")
-    for z in (int(v) for v in args.zones.split(",")):
+
+    def row(z: int) -> str:
         r = run(z, args.steps, args.eps)
-        print(
+        return (
             f"{z:>3} {2 * z:>3} {r['variables']:>6} {r['nnz']:>7} {r['median_ms']:>10.1f} {r['p95_ms']:>8.1f} "
             f"{r['iterations']:>6.0f} {r['fallbacks']:>9} {r['discomfort_kh']:>13.3f}"
         )
-    print(f"load average: {', '.join(f'{v:.2f}' for v in os.getloadavg())}")
+
+    header = f"{'Z':>3} {'A':>3} {'vars':>6} {'nnz(A)':>7} {'median ms':>10} {'p95 ms':>8} {'iter':>6} {'fallbacks':>9} {'discomfort Kh':>13}"
+    print_rows(header, args.zones, row)
     return 0
 
 

@@ -23,11 +23,15 @@ from typing import TYPE_CHECKING, Any, Protocol
 import numpy as np
 
 from controllers.base import ControlSpec, Observation
-from pinn_mpc.actuator import Actuator, actuator_columns
-from pinn_mpc.errors import InputError, InternalError
-from pinn_mpc.multizone import EXOGENOUS_NAMES as ZONE_INPUTS
-from pinn_mpc.multizone import MultiZoneParams, discretise, needed_inputs
-from pinn_mpc.observer import DEFAULT_INITIAL_T_M_STD_C, DEFAULT_MEASUREMENT_STD_C, KalmanObserver
+from pinn_mpc.actuator import Actuator
+from pinn_mpc.errors import InternalError
+from pinn_mpc.multizone import MultiZoneParams, discretise, history_arrays
+from pinn_mpc.observer import (
+    DEFAULT_INITIAL_T_M_STD_C,
+    DEFAULT_MEASUREMENT_STD_C,
+    KalmanObserver,
+    MultiZoneObserver,
+)
 from pinn_mpc.physics import RCParams
 
 if TYPE_CHECKING:
@@ -48,7 +52,8 @@ __all__ = [
 
 
 class StateEstimator(Protocol):
-    """Turns observations into a state estimate ``(T_r, T_m)`` (2,) [C]."""
+    """Turns observations into a state estimate ``(T_r, T_m)`` (2,) [C] (of a building of Z
+    zones, (2Z,): the rooms then the masses)."""
 
     def reset(self) -> None: ...
 
@@ -190,7 +195,8 @@ class MultiZoneKalmanEstimator:
     """A Kalman observer of a multi-zone building, fed by the observations: state ``x`` (2Z,)
     the rooms then the masses [C] (:mod:`pinn_mpc.multizone`'s order), every room measured
     (``Observation.t_r_zones_c``), the masses hidden; the model is the exact ZOH of ``params``
-    over ``spec.dt_s`` (:func:`pinn_mpc.multizone.discretise`).
+    over ``spec.dt_s`` (:func:`pinn_mpc.multizone.discretise`), the filter
+    :class:`pinn_mpc.observer.MultiZoneObserver`.
 
     Each zone's noises are :meth:`KalmanEstimator.for_spec`'s (:func:`observer_noise`: the
     spec's sensor noise as the measurement noise where it is the larger), the initial mass
@@ -206,14 +212,10 @@ class MultiZoneKalmanEstimator:
 
     def __init__(self, params: MultiZoneParams, spec: ControlSpec) -> None:
         self.params, self.spec = params, spec
-        self.matrices = discretise(params, spec.actuators, spec.dt_s)
-        self.needed = needed_inputs(params)
-        z_n = params.n_zones
         process, measurement = observer_noise(spec)
-        self.q = np.diag(np.repeat(np.square(np.asarray(process, dtype=float)), z_n))  # (2Z, 2Z)
-        self.r = float(measurement) ** 2
-        self.initial_t_m_std_c = DEFAULT_INITIAL_T_M_STD_C
-        self.power_columns = actuator_columns("u_phys", spec.actuators)
+        self.observer = MultiZoneObserver(
+            discretise(params, spec.actuators, spec.dt_s), process_std_c=process, measurement_std_c=measurement
+        )
         self.reset()
 
     @property
@@ -222,50 +224,31 @@ class MultiZoneKalmanEstimator:
 
     def reset(self) -> None:
         self._k_seen: int | None = None
-        self._x = np.full(2 * self.n_zones, np.nan)
-        self._p = np.eye(2 * self.n_zones)
 
     @property
     def state(self) -> np.ndarray:
         """(2Z,) the estimated rooms then masses [C] (NaN before the first update)."""
-        return self._x.copy()
+        if self._k_seen is None:
+            return np.full(2 * self.n_zones, np.nan)
+        return self.observer.state
 
     def update(self, obs: Observation) -> np.ndarray:
         """Fold the observation of step ``obs.k`` in (class docstring); returns the state (2Z,)."""
-        z_n = self.n_zones
         y = obs.t_r_zones_c()
         if self._k_seen is None or obs.k != self._k_seen + 1 or obs.last is None:
-            self._x = np.concatenate([y, y])
-            self._p = np.diag(np.concatenate([np.full(z_n, self.r), np.full(z_n, self.initial_t_m_std_c**2)]))
+            self.observer.reset(y)
         else:
-            a, b_u, b_d = self.matrices
             u_phys, d = self._last_inputs(obs.history)
             heat = u_phys * np.array([s.gain(d[0]) for s in self.spec.actuators], dtype=float)
-            x = a @ self._x + b_u @ heat + b_d @ d
-            p = a @ self._p @ a.T + self.q
-            gain = np.linalg.solve(p[:z_n, :z_n] + self.r * np.eye(z_n), p[:z_n, :]).T  # (2Z, Z)
-            self._x = x + gain @ (y - x[:z_n])
-            i_kh = np.eye(2 * z_n)
-            i_kh[:, :z_n] -= gain
-            # Joseph form: stays symmetric positive definite in floating point.
-            self._p = i_kh @ p @ i_kh.T + self.r * gain @ gain.T
+            self.observer.step(heat, d, y)
         self._k_seen = obs.k
         return self.state
 
     def _last_inputs(self, history: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
         """The last interval's delivered power per actuator (A,) [W] and exogenous inputs (7,)
         in :data:`pinn_mpc.multizone.EXOGENOUS_NAMES` order (held from its start)."""
-        missing = [c for c in self.power_columns if c not in history]
-        missing += [n for n in self.needed if n not in history]
-        if missing:
-            raise InputError(
-                f"the observation's history lacks {missing}, which the multi-zone observer "
-                f"needs (each actuator's delivered power {', '.join(self.power_columns)} and "
-                f"the building's inputs {', '.join(self.needed)})"
-            )
-        u_phys = np.array([float(history[c][-1]) for c in self.power_columns])
-        d = np.array([float(history[n][-2]) if n in history else 0.0 for n in ZONE_INPUTS])
-        return u_phys, d
+        _, powers, inputs = history_arrays(history, self.params, self.spec.actuators)
+        return powers[-1], inputs[-2]
 
 
 class TrueState:

@@ -26,6 +26,10 @@ the polish rides along with the planner's own objective calls (:class:`Piggyback
 probes around the warm start join the planner's first batch, the line-search plans its second;
 only what is left over after the planner's last call costs a rollout of its own. With CEM's two
 iterations, polishing adds no rollout at all.
+
+:class:`ZonePolish` is the same over plans of several actuators (H, A) and predictions of
+several zones: every step of every actuator probed, the LP's rows each zone's temperature at
+each step (:func:`solve_lp` with R = H x Z rows and P = H x A columns).
 """
 
 from __future__ import annotations
@@ -41,7 +45,17 @@ import torch
 from controllers.base import solver_interrupts_held
 from controllers.objective import HorizonObjective
 
-__all__ = ["PiggybackPolish", "PlanProblem", "PolishSettings", "RolloutFn", "jacobians", "probes", "solve_lp"]
+__all__ = [
+    "PiggybackPolish",
+    "PlanProblem",
+    "PolishSettings",
+    "RolloutFn",
+    "ZonePolish",
+    "jacobians",
+    "probes",
+    "solve_lp",
+    "zone_probes",
+]
 
 #: Rollout of N demand plans (N, H) [W] -> (T_r (M, N, H) [C], u_phys (M, N, H) [W]).
 RolloutFn = Callable[[torch.Tensor], tuple[torch.Tensor, torch.Tensor]]
@@ -72,7 +86,9 @@ class PolishSettings:
 
 @dataclass(frozen=True, kw_only=True)
 class PlanProblem:
-    """What the LP needs: the horizon objective and the demand bounds [W]."""
+    """What the LP needs: the horizon objective and the plan's bounds (the demand's [W]; the
+    fractions of each actuator's range, 0 and 1, of a plan of several actuators with the zones'
+    objective)."""
 
     objective: HorizonObjective
     lower: float
@@ -153,33 +169,38 @@ def solve_lp(
     u0: np.ndarray,
     problem: PlanProblem,
     trust_w: float,
+    *,
+    unit: float = 1000.0,
 ) -> np.ndarray | None:
-    """The LP of the module docstring; the new plan (H,) [W], or None if HiGHS fails.
+    """The LP of the module docstring; the new plan (P,), or None if HiGHS fails.
 
-    Variables: the change of demand in kW (H,) and one violation slack per member and step.
+    ``t0`` (M, R) the predicted temperatures at the plan ``u0`` (P,): one zone's (R = P = H,
+    the plan in W), or each zone's step by step (R = H x Z, :class:`ZonePolish`); ``jr`` (M, R,
+    P) their sensitivities to the plan, ``jp`` (M, H, P) the delivered power's [W per plan
+    unit]; the bands are the objective's, flattened to R. Variables: the change of the plan in
+    units of ``unit`` (kW of a plan in W) (P,) and one violation slack per member and row.
     The energy term is linear in the change, so the predicted power at ``u0`` drops out.
     """
-    m, h = t0.shape
-    kw = 1000.0
+    m, r = t0.shape
+    n_plan = u0.shape[0]
     obj = problem.objective
     energy = obj.price_eur_per_kwh * obj.dt_h  # EUR per kW over each interval
-    c_du = np.einsum("j,mji->i", energy, jp) / m  # d(mean cost)/d(du in kW)
-    c_s = np.full(m * h, obj.comfort_weight_eur_per_kh * obj.dt_h / m)
-    a_ub = _constraint_matrix((jr * kw).reshape(m * h, h))
+    c_du = np.einsum("j,mji->i", energy, jp) / m * (unit / 1000.0)  # d(mean cost)/d(du in units)
+    c_s = np.full(m * r, obj.comfort_weight_eur_per_kh * obj.dt_h / m)
+    a_ub = _constraint_matrix((jr * unit).reshape(m * r, n_plan))
     t_flat = t0.reshape(-1)
-    b_ub = np.concatenate(
-        [t_flat - np.tile(obj.t_min_c[:h], m), np.tile(obj.t_max_c[:h], m) - t_flat]
-    )
-    lo = np.maximum(problem.lower - u0, -trust_w) / kw
-    hi = np.minimum(problem.upper - u0, trust_w) / kw
-    bounds = np.concatenate([np.stack([lo, hi], 1), np.tile([0.0, np.inf], (m * h, 1))])
+    t_min, t_max = obj.t_min_c.reshape(-1)[:r], obj.t_max_c.reshape(-1)[:r]
+    b_ub = np.concatenate([t_flat - np.tile(t_min, m), np.tile(t_max, m) - t_flat])
+    lo = np.maximum(problem.lower - u0, -trust_w) / unit
+    hi = np.minimum(problem.upper - u0, trust_w) / unit
+    bounds = np.concatenate([np.stack([lo, hi], 1), np.tile([0.0, np.inf], (m * r, 1))])
     with solver_interrupts_held():
         res = scipy.optimize.linprog(
             np.concatenate([c_du, c_s]), A_ub=a_ub, b_ub=b_ub, bounds=bounds, method="highs"
         )
     if res.status != 0 or res.x is None:
         return None
-    return np.clip(u0 + res.x[:h] * kw, problem.lower, problem.upper)
+    return np.clip(u0 + res.x[:n_plan] * unit, problem.lower, problem.upper)
 
 
 class PiggybackPolish:
@@ -210,10 +231,20 @@ class PiggybackPolish:
 
     def _queue_probes(self, u0: torch.Tensor) -> None:
         self._rounds -= 1
+        self._pending, self._step = self._probes(u0)
+
+    def _probes(self, u0: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """The batch that linearises the model around ``u0`` and its signed steps (:func:`probes`)."""
         delta = self.settings.delta_frac * self.span
-        self._pending, self._step = probes(
-            u0, delta, self.problem.upper, self.settings.probe_stride
-        )
+        return probes(u0, delta, self.problem.upper, self.settings.probe_stride)
+
+    def _target(
+        self, batch: torch.Tensor, t_r: torch.Tensor, u_phys: torch.Tensor, step: torch.Tensor
+    ) -> np.ndarray | None:
+        """The LP's plan from the predictions of the probe batch (None if the LP failed)."""
+        t0, _p0, jr, jp = jacobians(t_r, u_phys, step)
+        u0 = batch[0].double().numpy()
+        return solve_lp(t0, jr, jp, u0, self.problem, self.settings.trust_frac * self.span)
 
     def objective(self, u_w: torch.Tensor) -> torch.Tensor:
         """Costs (N,) of the planner's batch; pending polish plans are rolled out with it."""
@@ -245,13 +276,12 @@ class PiggybackPolish:
                 self._queue_probes(self.best[0])
             return
         step, self._step = self._step, None
-        t0, _p0, jr, jp = jacobians(t_r, u_phys, step)
-        u0 = batch[0]
-        target = solve_lp(t0, jr, jp, u0.double().numpy(), self.problem, self.settings.trust_frac * self.span)
+        target = self._target(batch, t_r, u_phys, step)
         if target is None:
             return
         self.lps += 1
-        alphas = torch.tensor(self.settings.line_search, dtype=u0.dtype)[:, None]
+        u0 = batch[0]
+        alphas = torch.tensor(self.settings.line_search, dtype=u0.dtype).reshape(-1, *[1] * u0.dim())
         direction = torch.as_tensor(target, dtype=u0.dtype) - u0
         lo, hi = self.problem.lower, self.problem.upper
         self._pending = (u0 + alphas * direction).clamp(lo, hi)
@@ -261,3 +291,43 @@ class PiggybackPolish:
         i = int(torch.argmin(finite))
         if bool(torch.isfinite(finite[i])) and (self.best is None or float(finite[i]) < self.best[1]):
             self.best = (batch[i].clone(), float(finite[i]))
+
+
+def zone_probes(u0: torch.Tensor, delta: float, upper: float) -> tuple[torch.Tensor, torch.Tensor]:
+    """``u0`` (H, A) and a copy with each step of each actuator moved by ``delta`` (down where
+    up would leave ``upper``): the batch (1 + H A, H, A), probe ``1 + j A + a`` moving step j
+    of actuator a, and the signed steps (H, A)."""
+    h, a = u0.shape
+    step = torch.where(u0 + delta <= upper, delta, -delta).to(u0.dtype)
+    batch = u0.expand(1 + h * a, h, a).clone()
+    batch[1:] += torch.diag(step.reshape(-1)).reshape(h * a, h, a)
+    return batch, step
+
+
+class ZonePolish(PiggybackPolish):
+    """:class:`PiggybackPolish` of plans of several actuators (H, A) over predictions of
+    several zones (T_r (M, N, H, Z), the building's total delivered power (M, N, H)), with
+    the zones' objective (:class:`controllers.objective.ZoneObjective`) and the plan in units
+    of ``problem``'s bounds (the planners' fractions of each actuator's range). Every step of
+    every actuator is probed (``probe_stride`` does not apply: a model with a time-varying
+    COP is linearised exactly only so); the LP is :func:`solve_lp` with each zone's
+    temperature at each step a row and each step of each actuator a column."""
+
+    def _probes(self, u0: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        return zone_probes(u0, self.settings.delta_frac * self.span, self.problem.upper)
+
+    def _target(
+        self, batch: torch.Tensor, t_r: torch.Tensor, u_phys: torch.Tensor, step: torch.Tensor
+    ) -> np.ndarray | None:
+        t = t_r.double().numpy()  # (M, 1 + P, H, Z)
+        p = u_phys.double().numpy()  # (M, 1 + P, H)
+        d = step.double().numpy().reshape(-1)  # (P,)
+        m, _, h, z_n = t.shape
+        jr = np.moveaxis((t[:, 1:] - t[:, :1]) / d[None, :, None, None], 1, -1)  # (M, H, Z, P)
+        jp = np.moveaxis((p[:, 1:] - p[:, :1]) / d[None, :, None], 1, -1)  # (M, H, P)
+        u0 = batch[0].double().numpy()
+        plan = solve_lp(
+            t[:, 0].reshape(m, h * z_n), jr.reshape(m, h * z_n, -1), jp, u0.reshape(-1), self.problem,
+            self.settings.trust_frac * self.span, unit=1.0,
+        )
+        return None if plan is None else plan.reshape(u0.shape)

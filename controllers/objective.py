@@ -8,18 +8,24 @@ interval j. Built once per decision (:meth:`HorizonObjective.from_forecast`, wit
 the RC MPCs take its arrays as QP data, the Gymnasium reward is the one-interval objective and
 the closed-loop KPIs integrate the same primitives (:func:`band_violation_k`,
 :func:`energy_cost_eur`) at the simulator's substep resolution.
+
+A building of several zones (:class:`ZoneObjective`) pays the price on its total electrical
+power and each zone's band violation, summed over the zones (as the closed-loop KPIs sum a
+building's discomfort); each zone's band is :func:`planning_band` of its own
+(:func:`zone_bands`).
 """
 
 from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Self
 
 import numpy as np
 
 from controllers.base import ControlSpec, Forecast, first_values
 from pinn_mpc.errors import InternalError
+from pinn_mpc.zones import ZoneSpec
 
 if TYPE_CHECKING:
     import torch
@@ -27,6 +33,7 @@ if TYPE_CHECKING:
 __all__ = [
     "OPEN_BAND_C",
     "HorizonObjective",
+    "ZoneObjective",
     "band_violation_k",
     "comfort_cost_torch",
     "cost_torch",
@@ -34,6 +41,7 @@ __all__ = [
     "narrowed",
     "narrowed_band",
     "planning_band",
+    "zone_bands",
 ]
 
 #: A comfort band that never binds (after the run end of the clairvoyant).
@@ -82,6 +90,28 @@ def planning_band(forecast: Forecast, h: int) -> tuple[np.ndarray, np.ndarray]:
     return lower, upper
 
 
+def zone_bands(forecast: Forecast, zones: tuple[ZoneSpec, ...], h: int) -> tuple[np.ndarray, np.ndarray]:
+    """(h, Z) the band each zone's room keeps at the end of each of the next h intervals [C]:
+    :func:`planning_band` of the zone's forecast band, which is (H',) for every zone or (H', Z)
+    each zone's. A ValueError names a band of another shape."""
+    z_n = len(zones)
+    t_min, t_max = (np.asarray(b, dtype=float) for b in (forecast.T_min, forecast.T_max))
+    for name, b in (("T_min", t_min), ("T_max", t_max)):
+        if not (b.ndim == 1 or (b.ndim == 2 and b.shape[1] == z_n)) or b.shape[0] == 0:
+            raise ValueError(
+                f"forecast.{name} has shape {b.shape}; give (H,) for every zone or (H, {z_n}), "
+                f"one column per zone of {', '.join(z.name for z in zones)}"
+            )
+    lower, upper = np.empty((h, z_n)), np.empty((h, z_n))
+    for z in range(z_n):
+        zone = forecast._replace(
+            T_min=t_min if t_min.ndim == 1 else t_min[:, z],
+            T_max=t_max if t_max.ndim == 1 else t_max[:, z],
+        )
+        lower[:, z], upper[:, z] = planning_band(zone, h)
+    return lower, upper
+
+
 @dataclass(frozen=True, kw_only=True)
 class HorizonObjective:
     """The objective of H intervals: price [EUR/kWh] and band [C] arrays (H,), weights."""
@@ -100,10 +130,10 @@ class HorizonObjective:
             )
 
     @classmethod
-    def from_forecast(cls, forecast: Forecast, spec: ControlSpec, horizon_steps: int) -> HorizonObjective:
+    def from_forecast(cls, forecast: Forecast, spec: ControlSpec, horizon_steps: int) -> Self:
         """The objective of the next ``horizon_steps`` intervals: the forecast's price and
-        :func:`planning_band` (a shorter forecast repeats its last value)."""
-        lower, upper = planning_band(forecast, horizon_steps)
+        :meth:`bands` (a shorter forecast repeats its last value)."""
+        lower, upper = cls.bands(forecast, spec, horizon_steps)
         return cls(
             price_eur_per_kwh=first_values(forecast.price, horizon_steps),
             t_min_c=lower,
@@ -111,6 +141,11 @@ class HorizonObjective:
             dt_h=spec.dt_h,
             comfort_weight_eur_per_kh=spec.comfort_weight_eur_per_kh,
         )
+
+    @classmethod
+    def bands(cls, forecast: Forecast, spec: ControlSpec, horizon_steps: int) -> tuple[np.ndarray, np.ndarray]:
+        """The band (:func:`planning_band`), (H,) each."""
+        return planning_band(forecast, horizon_steps)
 
     @property
     def horizon_steps(self) -> int:
@@ -185,3 +220,41 @@ def cost_torch(
         t_r_c, t_min_c, t_max_c, dt_h, comfort_weight_eur_per_kh
     )
     return step_cost.sum(dim=-1)
+
+
+@dataclass(frozen=True, kw_only=True)
+class ZoneObjective(HorizonObjective):
+    """The objective of H intervals of a building of Z zones: the price (H,) [EUR/kWh] of the
+    building's total electrical energy and each zone's band ``t_min_c``, ``t_max_c`` (H, Z) [C]
+    (module docstring); its predictions are the total delivered power (..., H) [W] and each
+    zone's end-of-interval T_r (..., H, Z) [C]."""
+
+    def __post_init__(self) -> None:
+        h = np.shape(self.price_eur_per_kwh)
+        bands = {np.shape(self.t_min_c), np.shape(self.t_max_c)}
+        band = next(iter(bands))
+        if len(h) != 1 or len(bands) != 1 or len(band) != 2 or band[0] != h[0]:
+            raise InternalError(f"ZoneObjective: price (H,) and bands (H, Z), got {h} and {sorted(bands)}")
+
+    @classmethod
+    def bands(cls, forecast: Forecast, spec: ControlSpec, horizon_steps: int) -> tuple[np.ndarray, np.ndarray]:
+        """Each zone's band of ``spec``'s zones (:func:`zone_bands`), (H, Z) each."""
+        return zone_bands(forecast, spec.zones, horizon_steps)
+
+    def stage_costs(self, u_phys_w: np.ndarray, t_r_c: np.ndarray) -> np.ndarray:
+        """Cost of each interval (..., H) [EUR] of the total delivered power (..., H) and each
+        zone's end-of-interval T_r (..., H, Z), the zones' violations summed."""
+        violation = band_violation_k(np.asarray(t_r_c, dtype=float), self.t_min_c, self.t_max_c).sum(axis=-1)
+        energy = energy_cost_eur(np.asarray(u_phys_w, dtype=float), self.price_eur_per_kwh, self.dt_h)
+        return energy + self.comfort_weight_eur_per_kh * self.dt_h * violation
+
+    def cost_torch(self, u_phys_w: torch.Tensor, t_r_c: torch.Tensor) -> torch.Tensor:
+        """The objective (...,) [EUR] in torch, in the predictions' dtype (:meth:`stage_costs`)."""
+        import torch
+
+        dtype = t_r_c.dtype
+        price, t_min, t_max = (
+            torch.as_tensor(a, dtype=dtype) for a in (self.price_eur_per_kwh, self.t_min_c, self.t_max_c)
+        )
+        comfort = comfort_cost_torch(t_r_c, t_min, t_max, self.dt_h, self.comfort_weight_eur_per_kh).sum(dim=-1)
+        return (energy_cost_eur(u_phys_w, price, self.dt_h) + comfort).sum(dim=-1)

@@ -12,6 +12,12 @@ All randomness comes from the ``torch.Generator`` passed in; the planners hold n
 
 Actions are either continuous in ``[lower, upper]`` or, with ``binary=True``, on/off: exactly
 ``lower`` or ``upper``. Non-finite costs rank last (they never become elites or the result).
+
+A plan of several actuators is (H, A) (the batch (N, H, A)): each actuator's sequence is
+sampled as one actuator's is (its own noise, coloured along the horizon; CEM's mean and
+standard deviation per step and actuator), all within the one box ``[lower, upper]`` (a
+controller of actuators of different bounds plans their fractions of range, in [0, 1]).
+With one actuator (plans (H,)) the draws and the results are those of plans (H, 1).
 """
 
 from __future__ import annotations
@@ -121,6 +127,17 @@ def colored_noise_batch(
     return torch.fft.irfft(torch.fft.rfft(white, dim=-1) * scale, n=h, dim=-1) / kernel_norm
 
 
+def _plan_noise(
+    n: int, h: int, rest: tuple[int, ...], beta: float, generators: Sequence[torch.Generator], dtype: torch.dtype
+) -> torch.Tensor:
+    """:func:`colored_noise_batch` (B, n, h) of plans with trailing axes ``rest`` (the
+    actuators): (B, n, h, *rest), each actuator's own numbers, coloured along the horizon."""
+    if not rest:
+        return colored_noise_batch(n, h, beta, generators, dtype)
+    noise = colored_noise_batch(n * math.prod(rest), h, beta, generators, dtype)
+    return noise.reshape(len(generators), n, *rest, h).movedim(-1, 2)
+
+
 def _snap(x: torch.Tensor, lower: float, upper: float) -> torch.Tensor:
     """Round to the nearer of ``lower`` / ``upper`` (on/off actions)."""
     return torch.where(x >= 0.5 * (lower + upper), upper, lower).to(x.dtype)
@@ -185,10 +202,10 @@ class RandomShootingPlanner:
     def optimize(
         self, objective: Objective, x0: torch.Tensor, generator: torch.Generator
     ) -> PlanResult:
-        """x0 (H,) [W] -> the best of ``n_samples`` candidates (one objective call)."""
-        h, dtype = x0.shape[0], x0.dtype
+        """x0 (H,) or (H, A) [W] -> the best of ``n_samples`` candidates (one objective call)."""
+        h, dtype, rest = x0.shape[0], x0.dtype, tuple(x0.shape[1:])
         if self.binary:
-            r = torch.rand((self.n_samples, h), generator=generator, dtype=dtype)
+            r = torch.rand((self.n_samples, h, *rest), generator=generator, dtype=dtype)
             samples = torch.where(r < 0.5, self.upper, self.lower).to(dtype)
             samples[0] = _snap(x0, self.lower, self.upper)
         else:
@@ -199,11 +216,11 @@ class RandomShootingPlanner:
             for frac, n in zip(self.local_std_fracs, shares, strict=True):
                 if n == 0:
                     continue
-                noise = colored_noise(n, h, self.noise_beta, generator, dtype)
+                noise = _plan_noise(n, h, rest, self.noise_beta, (generator,), dtype)[0]
                 parts.append(x0 + frac * span * noise)
             blocks = move_blocks(h)
             levels = torch.rand(
-                (self.n_samples - 1 - n_local, int(blocks[-1]) + 1), generator=generator, dtype=dtype
+                (self.n_samples - 1 - n_local, int(blocks[-1]) + 1, *rest), generator=generator, dtype=dtype
             )
             parts.append(self.lower + span * levels[:, blocks])
             samples = torch.cat(parts).clamp(self.lower, self.upper)
@@ -256,8 +273,8 @@ class CEMPlanner:
     def optimize(
         self, objective: Objective, x0: torch.Tensor, generator: torch.Generator
     ) -> PlanResult:
-        """x0 (H,) [W] -> best sequence after ``n_iters`` objective calls of ``n_samples`` each:
-        the one-building case of :meth:`optimize_batch`."""
+        """x0 (H,) or (H, A) [W] -> best sequence after ``n_iters`` objective calls of
+        ``n_samples`` each: the one-building case of :meth:`optimize_batch`."""
         plans, costs = self.optimize_batch(lambda u: objective(u[0])[None], x0[None], (generator,))
         return PlanResult(plans[0], float(costs[0]), self.n_iters, self.n_iters * self.n_samples)
 
@@ -269,12 +286,14 @@ class CEMPlanner:
         candidates: torch.Tensor | None = None,
     ) -> tuple[torch.Tensor, torch.Tensor]:
         """CEM for B buildings at once: ``objective`` maps plans (B, N, H) to costs (B, N);
-        ``x0`` (B, H) the warm starts; building b draws its samples from ``generators[b]``
+        ``x0`` (B, H) the warm starts (plans (B, N, H, A) and warm starts (B, H, A) of several
+        actuators); building b draws its samples from ``generators[b]``
         alone, so its plan does not depend on the others'. ``candidates`` (B, C, H) are
         scored in the first iteration in place of C of the samples (e.g. another planner's
         plans: the best of them is kept if nothing sampled beats it; continuous actions only).
         Returns (plans (B, H), costs (B,) float64)."""
-        b, h = x0.shape
+        b, h = x0.shape[:2]
+        rest = tuple(x0.shape[2:])  # (A,) for plans of several actuators
         dtype, n, span = x0.dtype, self.n_samples, self.upper - self.lower
         if len(generators) != b:
             raise InternalError(f"CEMPlanner: {len(generators)} generators for {b} warm starts")
@@ -297,11 +316,11 @@ class CEMPlanner:
         rows = torch.arange(b)
         for it in range(self.n_iters):
             if self.binary:
-                r = torch.stack([torch.rand((n, h), generator=g, dtype=dtype) for g in generators])
+                r = torch.stack([torch.rand((n, h, *rest), generator=g, dtype=dtype) for g in generators])
                 samples = torch.where(r < mean[:, None], self.upper, self.lower).to(dtype)
                 samples[:, 0] = best
             else:
-                noise = colored_noise_batch(n, h, self.noise_beta, generators, dtype)
+                noise = _plan_noise(n, h, rest, self.noise_beta, generators, dtype)
                 samples = (mean[:, None] + std[:, None] * noise).clamp(self.lower, self.upper)
                 samples[:, 0] = best
                 samples[:, 1] = mean
@@ -312,8 +331,8 @@ class CEMPlanner:
             top = costs[rows, order[:, 0]]
             better = top <= best_cost
             best_cost = torch.where(better, top, best_cost)
-            best = torch.where(better[:, None], samples[rows, order[:, 0]], best)
-            elites = samples[rows[:, None], order[:, : self.n_elites]]  # (B, E, H)
+            best = torch.where(better.reshape(b, *[1] * (x0.dim() - 1)), samples[rows, order[:, 0]], best)
+            elites = samples[rows[:, None], order[:, : self.n_elites]]  # (B, E, H, *A)
             if self.binary:
                 freq = (elites - self.lower) / span
                 mean = self.alpha * mean + (1 - self.alpha) * freq.mean(dim=1)

@@ -6,7 +6,10 @@ members out in one :meth:`pinn_mpc.models.rollout.BatchDynamics.rollout` call un
 with :class:`controllers.objective.HorizonObjective` (evaluated in torch): price x delivered energy + comfort weight x band
 violation x dt_h, where *delivered* is the model's predicted ``u_phys`` (so the planner knows
 the backup thermostat will override it) and the temperature is the predicted ``T_r`` at the end
-of each interval.
+of each interval. On a building of several zones or actuators (a spec that is not
+:attr:`controllers.base.ControlSpec.single`) plans are (N, H, A) over a model of the building's
+zones and actuators, and ``act`` returns (A,): :mod:`controllers.zone_sampling`; what follows
+is the one-zone path.
 
 Four defaults matter in closed loop (their measured effect, and what was tried instead, is in
 ``CHANGELOG.md`` and ``docs/results/measured.md``):
@@ -76,6 +79,7 @@ from controllers.objective import HorizonObjective
 from controllers.planners import CEMPlanner, Planner, PlanResult, RandomShootingPlanner
 from controllers.setpoint_space import SetpointSpace
 from controllers.trust import RCReplay, TrustMonitor, TrustSettings
+from controllers.zone_sampling import ZoneSampling
 from pinn_mpc.errors import InternalError
 from pinn_mpc.features import check_interval
 from pinn_mpc.models.rollout import BatchDynamics
@@ -124,8 +128,9 @@ class Guard(NamedTuple):
 NO_GUARD = Guard()
 
 
-class _SamplingController(PlanningController):
-    """Shared ``reset``/``act`` of the sampling controllers (see the module docstring)."""
+class _SamplingController(ZoneSampling, PlanningController):
+    """Shared ``reset``/``act`` of the sampling controllers (see the module docstring; over a
+    building of several zones or actuators, :mod:`controllers.zone_sampling`)."""
 
     name = "sampling"
 
@@ -138,7 +143,14 @@ class _SamplingController(PlanningController):
         guard: Guard,
     ):
         risk_weight, ensemble = options.risk_weight, options.ensemble
-        check_heating(model.eta, spec, what="the model")
+        if spec.single:
+            if model.actuators is not None:
+                raise ValueError(
+                    f"{type(self).__name__}: the model plans {len(model.actuators)} actuator(s) "
+                    "of a building of zones, but the scenario has one zone with one actuator; "
+                    "give a model of one zone (a trained model, or pinn_mpc.models.rc.RCBatchModel)"
+                )
+            check_heating(model.eta, spec, what="the model")
         check_interval(model.dt_s, spec.dt_s, what="the scenario's control interval is")
         for name in model.exog_names:
             if name not in EXOGENOUS_NAMES:
@@ -169,6 +181,16 @@ class _SamplingController(PlanningController):
                 f"{type(self).__name__}.risk_weight needs ensemble='members' (the spread of the "
                 f"members' costs); got risk_weight={risk_weight} with ensemble={ensemble!r}"
             )
+        self.last_cost_eur = float("nan")  # planned objective of the last plan [EUR]
+        if not spec.single:  # a building of several zones or actuators
+            if guard != NO_GUARD:
+                raise ValueError(
+                    f"{type(self).__name__}.guard: a planner of several actuators falls back on "
+                    "the QP MPC of its model's zone_params, not a guard's one-zone RC; leave guard out"
+                )
+            self._init_zones()
+            self.reset()
+            return
         try:
             self.estimator = OffsetFilter(model, options.offset_gain)
         except ValueError as exc:
@@ -185,12 +207,12 @@ class _SamplingController(PlanningController):
             self.shadow = QPMPC(guard.rc, spec)
             self.replay = RCReplay(guard.rc, spec, guard.settings.replay_steps)
         self.setpoint_stride: int | None = None  # probe stride when planning in setpoint space
-        self.last_cost_eur = float("nan")  # planned objective of the last plan [EUR]
         self.reset()
 
     @property
     def offset_gain(self) -> float:
-        return self.estimator.gain
+        """The offset filter's gain (0 over several zones, which have none)."""
+        return self.estimator.gain if self.spec.single else 0.0
 
     def reset(self, seed: int | None = None) -> None:
         """Forget the warm start; reseed the sampling generator (entropy when ``seed`` is None)."""
@@ -199,17 +221,23 @@ class _SamplingController(PlanningController):
             self._generator.seed()
         else:
             self._generator.manual_seed(seed)
+        self._stats = SolveStats(time_s=0.0, status="reset", iterations=0, fallback=False)
+        if not self.spec.single:
+            self._reset_zones()
+            return
         self.fallback.reset()
         self.estimator.reset()
         self.monitor.reset()
         if self.shadow is not None and self.replay is not None:
             self.shadow.reset(seed)
             self.replay.reset()
-        self._stats = SolveStats(time_s=0.0, status="reset", iterations=0, fallback=False)
 
     @property
-    def trust_report(self) -> TrustReport:
-        """The trust monitor's counts since ``reset`` (the KPIs report them)."""
+    def trust_report(self) -> TrustReport | None:
+        """The trust monitor's counts since ``reset`` (the KPIs report them); None over several
+        zones, whose model is not monitored."""
+        if not self.spec.single:
+            return None
         s = self.monitor.state
         return {
             "model_fallback": self.shadow is not None,
@@ -222,9 +250,12 @@ class _SamplingController(PlanningController):
             "rc_replay_error_k": round(s.replay_rc_k, 4) if math.isfinite(s.replay_rc_k) else None,
         }
 
-    def act(self, obs: Observation, forecast: Forecast) -> float:
+    def act(self, obs: Observation, forecast: Forecast) -> float | np.ndarray:
         """Demanded power for the coming interval [W], within the actuator's bounds: the model's plan,
-        or the fallback RC MPC's action while the model is not to be trusted."""
+        or the fallback RC MPC's action while the model is not to be trusted (over several
+        actuators, (A,): :mod:`controllers.zone_sampling`)."""
+        if not self.spec.single:
+            return self._act_zones(obs, forecast)
         start = time.perf_counter()
         shadow_u = None
         try:
@@ -437,13 +468,27 @@ _RS = RandomShootingPlanner(lower=0.0, upper=1.0)  # the defaults, defined once 
 _CEM = CEMPlanner(lower=0.0, upper=1.0)
 
 
+def _plan_box(spec: ControlSpec, binary: bool, name: str) -> tuple[float, float]:
+    """The planner's box: the one actuator's bounds [W], or each actuator's fraction of its
+    range, [0, 1], over several (:mod:`controllers.zone_sampling`)."""
+    if spec.single:
+        return spec.actuator.lower_w, spec.actuator.upper_w
+    if binary:
+        raise ValueError(
+            f"{name}.binary: on/off plans are one actuator's; this building has "
+            f"{spec.n_actuators} actuators: leave binary=False"
+        )
+    return 0.0, 1.0
+
+
 class RandomShooting(_SamplingController):
     """Random shooting over a model: ``n_samples`` sequences scored once, the best one applied
     (sampled around the warm start and in a move-blocked plan space, see
     :class:`controllers.planners.RandomShootingPlanner`). By default the samples are setpoint
     offsets [K] in ``[0, setpoint_span_k]`` from the band edge, tracked through the model (the
     linearising probes, every ``probe_stride``-th step, count against ``n_samples``);
-    ``space="power"`` samples demanded powers (and on/off plans always do)."""
+    ``space="power"`` samples demanded powers (and on/off plans always do, and so does a plan of
+    several actuators, whatever ``space``: :mod:`controllers.zone_sampling`)."""
 
     name = "random-shooting"
 
@@ -469,7 +514,8 @@ class RandomShooting(_SamplingController):
             raise ValueError(
                 f"RandomShooting.space must be one of {', '.join(PLAN_SPACES)}, got {space!r}"
             )
-        setpoints = space == "setpoint" and not binary
+        lower, upper = _plan_box(spec, binary, "RandomShooting")
+        setpoints = space == "setpoint" and not binary and spec.single
         if setpoints:
             if not (0 < setpoint_span_k < 10):
                 raise ValueError(
@@ -489,8 +535,7 @@ class RandomShooting(_SamplingController):
             )
         else:
             planner = RandomShootingPlanner(
-                lower=spec.actuator.lower_w, upper=spec.actuator.upper_w, n_samples=n_samples,
-                local_frac=local_frac, binary=binary,
+                lower=lower, upper=upper, n_samples=n_samples, local_frac=local_frac, binary=binary,
             )
         options = _Options(
             risk_weight, ensemble, offset_gain, 0 if binary else polish_iters, comfort_margin_k
@@ -531,9 +576,10 @@ class CEM(_SamplingController):
         comfort_margin_k: float = 0.01,
         guard: Guard = NO_GUARD,
     ):
+        lower, upper = _plan_box(spec, binary, "CEM")
         planner = CEMPlanner(
-            lower=spec.actuator.lower_w,
-            upper=spec.actuator.upper_w,
+            lower=lower,
+            upper=upper,
             n_samples=n_samples,
             n_iters=n_iters,
             elite_frac=elite_frac,

@@ -64,11 +64,11 @@ from typing import Any, NamedTuple
 import numpy as np
 import scipy.linalg
 
-from pinn_mpc.actuator import ActuatorSpec
-from pinn_mpc.errors import InternalError
+from pinn_mpc.actuator import ActuatorSpec, actuator_columns
+from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.physics import PLAUSIBLE_RANGES, RCParams
 from pinn_mpc.solar import FACADE_COLUMNS
-from pinn_mpc.zones import ZoneSpec
+from pinn_mpc.zones import ZoneSpec, zone_columns
 
 __all__ = [
     "EXOGENOUS_NAMES",
@@ -83,6 +83,7 @@ __all__ = [
     "backup_power",
     "continuous_matrices",
     "discretise",
+    "history_arrays",
     "needed_inputs",
     "steady_state",
     "wall_tuples",
@@ -340,6 +341,38 @@ def needed_inputs(params: MultiZoneParams) -> tuple[str, ...]:
     takes: T_a, I_g and the irradiance of every zone with windows; the others may be absent
     (0)."""
     return _needed_inputs([params])
+
+
+def history_arrays(
+    history: Mapping[str, Any], params: MultiZoneParams, actuators: Sequence[ActuatorSpec]
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A building's past in the data format's names (an observation's history: each zone's
+    ``T_r[<zone>]`` (k+1,) up to now, each actuator's delivered ``u_phys[<name>]`` (k,), the
+    inputs (k+1,)) as arrays: the rooms (k+1, Z) [C], the delivered powers (k, A) [W] and the
+    exogenous inputs (k+1, 7) in :data:`EXOGENOUS_NAMES` order, 0 for those the building does
+    not take. An :class:`~pinn_mpc.errors.InputError` names the columns it lacks."""
+    rooms_at = zone_columns("T_r", params.zone_specs)
+    powers_at = actuator_columns("u_phys", actuators)
+    needed = needed_inputs(params)
+    k = len(history[rooms_at[0]]) - 1 if rooms_at[0] in history else 0
+    missing = [c for c in rooms_at if c not in history]
+    missing += [c for c in powers_at if k > 0 and c not in history]
+    missing += [n for n in needed if n not in history]
+    if missing or k < 0:
+        raise InputError(
+            f"the history lacks {missing or rooms_at}: a multi-zone building's state needs each zone's "
+            f"room temperature ({', '.join(rooms_at)}) up to now, each actuator's delivered power "
+            f"({', '.join(powers_at)}) and the building's inputs ({', '.join(needed)})"
+        )
+    rooms = np.stack([np.asarray(history[c], dtype=float)[-(k + 1) :] for c in rooms_at], axis=1)
+    powers = np.zeros((k, len(powers_at)))
+    for i, c in enumerate(powers_at):
+        if k > 0:
+            powers[:, i] = np.asarray(history[c], dtype=float)[-k:]
+    inputs = np.zeros((k + 1, len(EXOGENOUS_NAMES)))
+    for name in needed:
+        inputs[:, EXOGENOUS_NAMES.index(name)] = np.asarray(history[name], dtype=float)[-(k + 1) :]
+    return rooms, powers, inputs
 
 
 def _exogenous(weather: Mapping[str, Any], needed: Sequence[str], n_buildings: int) -> np.ndarray:

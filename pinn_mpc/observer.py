@@ -15,6 +15,9 @@ deviation of ``initial_t_m_std_c = 3`` K, so a wrong guess is forgotten within h
 
 Batch-friendly: B buildings share the model and the measurement pattern, so the covariance
 (2, 2) is common to all and only the means (B, 2) differ.
+
+:class:`MultiZoneObserver` is the same filter of a building of several zones
+(:mod:`pinn_mpc.multizone`): every zone's room measured, every zone's mass hidden.
 """
 
 from __future__ import annotations
@@ -23,11 +26,27 @@ import math
 
 import numpy as np
 
+from pinn_mpc.multizone import SystemMatrices
 from pinn_mpc.physics import RCParams, discretise
 
-__all__ = ["DEFAULT_INITIAL_T_M_STD_C", "DEFAULT_MEASUREMENT_STD_C", "KalmanObserver"]
+__all__ = ["DEFAULT_INITIAL_T_M_STD_C", "DEFAULT_MEASUREMENT_STD_C", "KalmanObserver", "MultiZoneObserver"]
 
 _H = np.array([1.0, 0.0])  # measurement row: y = T_r
+
+
+def _check_noises(
+    name: str, process_std_c: tuple[float, float], measurement_std_c: float, initial_t_m_std_c: float
+) -> None:
+    """A ValueError naming ``name`` for noises that are not finite and >= 0 (R > 0)."""
+    stds = (*process_std_c, measurement_std_c, initial_t_m_std_c)
+    if len(process_std_c) != 2 or not all(math.isfinite(s) and s >= 0 for s in stds):
+        raise ValueError(
+            f"{name}: process_std_c (2 values), measurement_std_c and "
+            f"initial_t_m_std_c must be finite and >= 0, got {process_std_c}, "
+            f"{measurement_std_c}, {initial_t_m_std_c}"
+        )
+    if measurement_std_c == 0:
+        raise ValueError(f"{name}.measurement_std_c must be > 0 (R must be invertible)")
 
 
 #: The measurement noise [C] the observer assumes unless told (a good room sensor).
@@ -55,15 +74,7 @@ class KalmanObserver:
     ) -> None:
         if n_batch < 1:
             raise ValueError(f"KalmanObserver.n_batch must be >= 1, got {n_batch}")
-        stds = (*process_std_c, measurement_std_c, initial_t_m_std_c)
-        if len(process_std_c) != 2 or not all(math.isfinite(s) and s >= 0 for s in stds):
-            raise ValueError(
-                "KalmanObserver: process_std_c (2 values), measurement_std_c and "
-                f"initial_t_m_std_c must be finite and >= 0, got {process_std_c}, "
-                f"{measurement_std_c}, {initial_t_m_std_c}"
-            )
-        if measurement_std_c == 0:
-            raise ValueError("KalmanObserver.measurement_std_c must be > 0 (R must be invertible)")
+        _check_noises("KalmanObserver", process_std_c, measurement_std_c, initial_t_m_std_c)
         self.params = params
         self.dt_s = dt_s
         self.n_batch = n_batch
@@ -120,3 +131,65 @@ class KalmanObserver:
     def covariance(self) -> np.ndarray:
         """(2, 2) estimate covariance [K^2], shared by the batch."""
         return self._p.copy()
+
+
+class MultiZoneObserver:
+    """Kalman filter of one building of Z zones on its exact zero-order hold ``matrices``
+    (:func:`pinn_mpc.multizone.discretise` over the control interval).
+
+    State ``x`` (2Z,) the rooms then the masses [C] (:mod:`pinn_mpc.multizone`'s order), every
+    room measured, every mass hidden; each zone's process noise is ``process_std_c`` (room,
+    mass) [C per interval], the measurement noise ``measurement_std_c`` [C]. :meth:`reset`
+    starts at the measured rooms with each mass guessed equal to its room (standard deviation
+    ``initial_t_m_std_c``); :meth:`step` predicts over one interval with each actuator's heat
+    [W] (its electrical power times its heat per watt) and the exogenous inputs (7,) held, in
+    :data:`pinn_mpc.multizone.EXOGENOUS_NAMES` order, then updates with the rooms measured at
+    its end.
+    """
+
+    def __init__(
+        self,
+        matrices: SystemMatrices,
+        *,
+        process_std_c: tuple[float, float] = (0.05, 0.01),
+        measurement_std_c: float = DEFAULT_MEASUREMENT_STD_C,
+        initial_t_m_std_c: float = DEFAULT_INITIAL_T_M_STD_C,
+    ) -> None:
+        _check_noises("MultiZoneObserver", process_std_c, measurement_std_c, initial_t_m_std_c)
+        self.matrices = matrices
+        self.n_zones = matrices.a.shape[0] // 2
+        self.q = np.diag(np.repeat(np.square(np.asarray(process_std_c, dtype=float)), self.n_zones))  # (2Z, 2Z)
+        self.r = float(measurement_std_c) ** 2
+        self.initial_t_m_std_c = float(initial_t_m_std_c)
+        self._x = np.full(2 * self.n_zones, np.nan)
+        self._p = np.eye(2 * self.n_zones)
+
+    def reset(self, t_r_c: np.ndarray) -> np.ndarray:
+        """Start from the measured rooms (Z,) [C], each mass guessed equal to its room; returns
+        the state (2Z,)."""
+        y = np.asarray(t_r_c, dtype=float).reshape(self.n_zones)
+        z_n = self.n_zones
+        self._x = np.concatenate([y, y])
+        self._p = np.diag(np.concatenate([np.full(z_n, self.r), np.full(z_n, self.initial_t_m_std_c**2)]))
+        return self.state
+
+    def step(self, heat_w: np.ndarray, d: np.ndarray, t_r_c: np.ndarray) -> np.ndarray:
+        """Predict over one interval (each actuator's heat ``heat_w`` (A,) [W], the exogenous
+        inputs ``d`` (7,)) and update with the rooms ``t_r_c`` (Z,) [C] measured at its end;
+        returns the state (2Z,)."""
+        z_n = self.n_zones
+        a, b_u, b_d = self.matrices
+        x = a @ self._x + b_u @ heat_w + b_d @ d
+        p = a @ self._p @ a.T + self.q
+        gain = np.linalg.solve(p[:z_n, :z_n] + self.r * np.eye(z_n), p[:z_n, :]).T  # (2Z, Z)
+        self._x = x + gain @ (np.asarray(t_r_c, dtype=float) - x[:z_n])
+        i_kh = np.eye(2 * z_n)
+        i_kh[:, :z_n] -= gain
+        # Joseph form: stays symmetric positive definite in floating point.
+        self._p = i_kh @ p @ i_kh.T + self.r * gain @ gain.T
+        return self.state
+
+    @property
+    def state(self) -> np.ndarray:
+        """(2Z,) the estimated rooms then masses [C] (NaN before :meth:`reset`)."""
+        return self._x.copy()

@@ -163,7 +163,7 @@ def _closed_loop(a: argparse.Namespace) -> str:
             raise InputError(f"{option} coordinates a fleet: add --buildings N with N > 1")
     if a.spread is not None:
         raise InputError("--spread draws a fleet: add --buildings N with N > 1")
-    _check_controller_inputs(a)
+    _check_controller_inputs(a, zones=not scenario.control_spec().single)
     controller = make_controller(
         a.controller,
         scenario,
@@ -250,13 +250,15 @@ def _wrote(*paths: str | None) -> list[str]:
     return [f"wrote {', '.join(written)}"] if written else []
 
 
-def _check_controller_inputs(a: argparse.Namespace) -> None:
+def _check_controller_inputs(a: argparse.Namespace, *, zones: bool = False) -> None:
     """Refuse, in the user's terms, a controller without the file it plans with, a directory
     of per-building models for one building, or an RC file that is a directory (a model
-    directory given to ``--rc``)."""
-    if a.controller in MODEL_CONTROLLERS and a.model is None:
+    directory given to ``--rc``). On a building of several zones (``zones``) the planners
+    plan on a multi-zone RC file, which the factory checks."""
+    if a.controller in MODEL_CONTROLLERS and a.model is None and not zones:
+        rc = "" if a.rc is None else " in place of --rc (a multi-zone RC file plans only a scenario of several zones)"
         raise InputError(
-            f"controller {a.controller!r} plans over a trained model: add --model MODEL_DIR "
+            f"controller {a.controller!r} plans over a trained model: add --model MODEL_DIR{rc} "
             "(make one with `pinn-mpc train --data data.csv --out MODEL_DIR`; "
             "data from `pinn-mpc simulate`)"
         )

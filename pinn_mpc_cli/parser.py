@@ -372,7 +372,9 @@ def add_closed_loop(sub: Commands) -> None:
         "(train --arch arx or parx)", default=None,
     )
     p.add_argument(
-        "--rc", default=None, help="RC JSON for casadi-mpc and qp-mpc (from identify, export-rc)"
+        "--rc", default=None, help="RC JSON for casadi-mpc and qp-mpc (from identify, export-rc); on "
+        "a scenario of several zones the multi-zone RC JSON (from identify) for qp-mpc, cem and "
+        "random-shooting"
     )
     _days_option(
         p, "counted days after a one-day thermostat warm-up (required; on a BOPTEST scenario the "

@@ -39,6 +39,7 @@ RC_CONTROLLERS = ("casadi-mpc", "qp-mpc")
 TRUTH_CONTROLLERS = ("oracle", "clairvoyant")
 CONTROLLER_NAMES = ("thermostat", *MODEL_CONTROLLERS, *RC_CONTROLLERS, *TRUTH_CONTROLLERS)
 #: The controllers of a building of several zones or actuators (the others plan one zone's
-#: one actuator): the dual-setpoint thermostat per zone and the MPC over zones x actuators on
-#: the true building.
-ZONE_CONTROLLERS = ("thermostat", "oracle")
+#: one actuator): the dual-setpoint thermostat per zone, the MPC over zones x actuators on the
+#: true building (oracle) or on a multi-zone RC file (qp-mpc, with a Kalman observer), and the
+#: sampling planners over that file's building (cem, random-shooting).
+ZONE_CONTROLLERS = ("thermostat", "oracle", "qp-mpc", "cem", "random-shooting")

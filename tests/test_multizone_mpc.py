@@ -25,6 +25,7 @@ from pinn_mpc.multizone import (
     ZoneRC,
     discretise,
     steady_state,
+    wall_tuples,
 )
 from pinn_mpc.physics import PAPER_HOUSEHOLD, RCParams
 from pinn_mpc.zones import ONE_ZONE, ZoneSpec, zone_columns
@@ -48,7 +49,7 @@ def _house(zones: tuple[ZoneRC, ...], wall_w_per_k: float = 0.0) -> MultiZonePar
     walls = np.zeros((n, n))
     for z in range(n - 1):
         walls[z, z + 1] = walls[z + 1, z] = wall_w_per_k
-    return MultiZoneParams(zones=zones, wall_conductance_w_per_k=walls)
+    return MultiZoneParams(zones=zones, wall_conductance_w_per_k=wall_tuples(walls))
 
 
 def _spec(params: MultiZoneParams, *actuators: ActuatorSpec, **kw) -> ControlSpec:
@@ -107,7 +108,7 @@ def _simulate(params: MultiZoneParams, spec: ControlSpec, mpc: MultiZoneMPC, fc:
 def test_one_zone_is_todays_qp_mpc(efficiency: Actuator, t_a_mean: float, t_r_c: float, t_m_c: float) -> None:
     rc = dataclasses.replace(PAPER_HOUSEHOLD, solar_aperture_m2=4.0, solar_to_air_fraction=0.3, gain_to_air_fraction=0.6)
     params = MultiZoneParams(zones=(ZoneRC(zone=ONE_ZONE[0], rc=rc, gain_share=1.0, solar_input="G"),),
-                             wall_conductance_w_per_k=[[0.0]])
+                             wall_conductance_w_per_k=((0.0,),))
     spec = ControlSpec(actuators=(ActuatorSpec(upper_w=5000.0, efficiency=efficiency),))
     fc = _forecast(_day(60, t_a_mean=t_a_mean))
     obs = _obs(params, np.array([t_r_c]), np.array([t_m_c]))
@@ -123,7 +124,7 @@ def test_the_first_action_is_interior_in_the_cases_compared() -> None:
     """The comparison above would be weak if every first action sat on a bound."""
     rc = dataclasses.replace(PAPER_HOUSEHOLD, solar_aperture_m2=4.0, solar_to_air_fraction=0.3, gain_to_air_fraction=0.6)
     spec = ControlSpec(actuators=(ActuatorSpec(upper_w=5000.0, efficiency=HEAT_PUMP),))
-    params = MultiZoneParams(zones=(ZoneRC(zone=ONE_ZONE[0], rc=rc, gain_share=1.0),), wall_conductance_w_per_k=[[0.0]])
+    params = MultiZoneParams(zones=(ZoneRC(zone=ONE_ZONE[0], rc=rc, gain_share=1.0),), wall_conductance_w_per_k=((0.0,),))
     u = oracle_multizone(params, spec, solver_options=TIGHT).act(_obs(params, np.array([19.5]), np.array([20.0])), _forecast(_day(60, t_a_mean=8.0)))
     assert 100.0 < u < 4900.0
 

@@ -69,8 +69,8 @@ from controllers.base import (
     raise_if_interrupted,
     solver_interrupts_held,
 )
-from controllers.estimators import MultiZoneKalmanEstimator
-from controllers.objective import band_violation_k, energy_cost_eur, planning_band
+from controllers.estimators import MultiZoneKalmanEstimator, StateEstimator
+from controllers.objective import band_violation_k, energy_cost_eur, zone_bands
 from controllers.rc_mpc.osqp import OSQP_OPTIONS
 from controllers.rc_mpc.problem import DEFAULT_REGULARISATION
 from controllers.rc_mpc.qp import shift_steps
@@ -178,24 +178,9 @@ class MultiZoneProblem:
         return d
 
     def bands(self, forecast: Forecast) -> tuple[np.ndarray, np.ndarray]:
-        """(H, Z) each zone's band at each step's end [C]: :func:`planning_band` of the zone's
-        forecast band, which is (H',) for every zone or (H', Z) each zone's."""
-        z_n, h = self.n_zones, self.horizon_steps
-        t_min, t_max = (np.asarray(b, dtype=float) for b in (forecast.T_min, forecast.T_max))
-        for name, b in (("T_min", t_min), ("T_max", t_max)):
-            if not (b.ndim == 1 or (b.ndim == 2 and b.shape[1] == z_n)) or b.shape[0] == 0:
-                raise ValueError(
-                    f"forecast.{name} has shape {b.shape}; give (H,) for every zone or (H, {z_n}), "
-                    f"one column per zone of {', '.join(z.name for z in self.spec.zones)}"
-                )
-        lower, upper = np.empty((h, z_n)), np.empty((h, z_n))
-        for z in range(z_n):
-            zone = forecast._replace(
-                T_min=t_min if t_min.ndim == 1 else t_min[:, z],
-                T_max=t_max if t_max.ndim == 1 else t_max[:, z],
-            )
-            lower[:, z], upper[:, z] = planning_band(zone, h)
-        return lower, upper
+        """(H, Z) each zone's band at each step's end [C] (:func:`controllers.objective.zone_bands`
+        of the zone's forecast band, which is (H',) for every zone or (H', Z) each zone's)."""
+        return zone_bands(forecast, self.spec.zones, self.horizon_steps)
 
     def stage(self, x0_c: np.ndarray, forecast: Forecast) -> MultiZoneStage:
         """Numeric data for a solve from state ``x0_c`` (2Z,) [C] and the forecast."""
@@ -408,8 +393,10 @@ class MultiZoneMPC(PlanningController):
     fallbacks since ``reset``.
 
     ``params`` is the building (its zones ``spec.zones``); ``estimator`` ``"true"`` (the
-    plant's true state, :attr:`knows_true_state`) or ``"kalman"``
-    (:class:`~controllers.estimators.MultiZoneKalmanEstimator` with the spec's sensor noise);
+    plant's true state, :attr:`knows_true_state`), ``"kalman"``
+    (:class:`~controllers.estimators.MultiZoneKalmanEstimator` with the spec's sensor noise)
+    or an estimator object whose ``update(obs)`` returns the state (2Z,) (a planner's own
+    observer, whose fallback this MPC is);
     ``horizon_steps`` H (``spec.horizon_steps`` unless given); ``regularisation_eur_per_kw2h``
     rho; ``solver_options`` update :data:`controllers.rc_mpc.osqp.OSQP_OPTIONS` (e.g.
     ``{"max_iter": 1}`` stops OSQP before it converges, which exercises the fallback).
@@ -424,16 +411,17 @@ class MultiZoneMPC(PlanningController):
         params: MultiZoneParams,
         spec: ControlSpec,
         *,
-        estimator: str = "kalman",
+        estimator: str | StateEstimator = "kalman",
         name: str = "qp-mpc",
         horizon_steps: int | None = None,
         regularisation_eur_per_kw2h: float = DEFAULT_REGULARISATION,
         solver_options: dict[str, Any] | None = None,
     ) -> None:
-        if estimator not in ESTIMATORS:
+        if isinstance(estimator, str) and estimator not in ESTIMATORS:
             raise ValueError(
                 f"MultiZoneMPC.estimator = {estimator!r} is unknown; choose 'true' (the plant's "
-                "true state, the oracle's) or 'kalman' (a Kalman observer of the building)"
+                "true state, the oracle's) or 'kalman' (a Kalman observer of the building), or "
+                "give an estimator object (reset(), update(obs) -> the state (2Z,))"
             )
         if not isinstance(name, str) or not name:
             raise ValueError(f"MultiZoneMPC.name must be a non-empty string, got {name!r}")
@@ -447,9 +435,9 @@ class MultiZoneMPC(PlanningController):
         )
         self.solver_options = {**OSQP_OPTIONS, **(solver_options or {})}
         self.qp = ZonesQP(self.problem, self.solver_options)
-        self.estimator: _TrueZones | MultiZoneKalmanEstimator = (
-            _TrueZones() if estimator == "true" else MultiZoneKalmanEstimator(params, spec)
-        )
+        if isinstance(estimator, str):
+            estimator = _TrueZones() if estimator == "true" else MultiZoneKalmanEstimator(params, spec)
+        self.estimator: StateEstimator = estimator
         self.fallback = _PlanFallback(spec)
         self.reset()
 

@@ -4,8 +4,12 @@ A learned ensemble (:class:`pinn_mpc.models.LearnedModel`), the 2R2C
 (:class:`pinn_mpc.models.rc.RCBatchModel`) and the ARX (:class:`pinn_mpc.models.arx.ARXModel`)
 all map (history, candidate plans, exogenous forecast) to one :class:`Rollout`: predicted
 end-of-interval T_r and T_m of each zone, tensors (M members, N plans, H intervals, Z zones),
-and the delivered power (M, N, H). Every model predicts one zone today (Z = 1,
-:meth:`Rollout.of_one_zone`), and the planners plan that zone.
+and the delivered power (M, N, H). A model of one zone's one actuator (Z = 1,
+:meth:`Rollout.of_one_zone`; the learned ensembles, the 2R2C, the ARX) takes plans (N, H) of
+that actuator; a model of a building of several zones or actuators
+(:class:`pinn_mpc.models.multizone_rc.MultiZoneRCModel`) declares its
+:attr:`BatchDynamics.actuators` and takes plans (N, H, A), one power per actuator, and its
+delivered power is the building's total, on which the price is paid.
 Planners and the factory take :class:`BatchDynamics`, nothing more; each of those classes
 declares it as its base, so the type checker holds it to the protocol, and what a planner may
 exploit beyond the rollout is a declared property of the protocol, never probed.
@@ -25,12 +29,17 @@ default, so a new kind is a fleet's without doing anything.
 from __future__ import annotations
 
 from collections.abc import Hashable, Mapping, Sequence
-from typing import Any, NamedTuple, Protocol
+from typing import TYPE_CHECKING, Any, NamedTuple, Protocol
 
 import numpy as np
 import torch
 
 from pinn_mpc.errors import InternalError
+from pinn_mpc.zones import ONE_ZONE, ZoneSpec
+
+if TYPE_CHECKING:
+    from pinn_mpc.actuator import ActuatorSpec
+    from pinn_mpc.multizone import MultiZoneParams
 
 __all__ = ["BatchDynamics", "Exogenous", "FittedModel", "Histories", "Rollout", "StackedDynamics"]
 
@@ -59,7 +68,8 @@ class BatchDynamics(Protocol):
 
     ``rollout(history, u_w, exog)``: ``history`` in the data format's names (``T_r`` up to and
     including now, ``u_phys`` of past intervals, exogenous series up to now; see
-    :class:`controllers.base.Observation`), ``u_w`` (N, H) demanded power [W], ``exog`` one
+    :class:`controllers.base.Observation`), ``u_w`` (N, H) demanded power [W] ((N, H, A) for a
+    model that declares :attr:`actuators`), ``exog`` one
     array (H,) per name in ``exog_names`` (data-format names). The model needs ``depth + 1``
     past intervals of history. ``eta`` (heat per W of actuator power, < 0 cooling) and ``dt_s``
     (the interval it steps) must match the scenario's. ``affine_in_plan``: the horizon's T_r is
@@ -88,6 +98,24 @@ class BatchDynamics(Protocol):
     def rollout(
         self, history: dict[str, np.ndarray], u_w: torch.Tensor, exog: dict[str, np.ndarray]
     ) -> Rollout: ...
+
+    @property
+    def actuators(self) -> tuple[ActuatorSpec, ...] | None:
+        """The actuators of a model of a building of several zones or actuators, in the order
+        of the last axis of its plans ``u_w`` (N, H, A); None, the default: a model of one
+        zone's one actuator, whose plans are (N, H)."""
+        return None
+
+    @property
+    def zones(self) -> tuple[ZoneSpec, ...]:
+        """The zones of its predictions' last axis (Z), in order (the one zone by default)."""
+        return ONE_ZONE
+
+    @property
+    def zone_params(self) -> MultiZoneParams | None:
+        """The multi-zone RC building a planner over this model falls back on (the QP MPC on
+        it, :class:`controllers.rc_mpc.multizone.MultiZoneMPC`); None, the default: none."""
+        return None
 
     @property
     def stack_key(self) -> Hashable | None:

@@ -54,12 +54,12 @@ class MultiZoneSettings(KindSettings):
                 f"columns u[<name>]), got names {names}"
             )
         try:  # the actuators on the building's zones, the limits' shape
-            low, high = self._limits(17.0, 20.5)
+            low, high = self.backup_limits(17.0, 20.5)
             MultiZoneConfig(params=self.building, actuators=self.actuators, backup_low_c=low, backup_high_c=high)
         except ValueError as exc:
             raise InputError(f"multizone plant: {exc}") from None
 
-    def _limits(self, low_c: float, high_c: float) -> tuple[float | tuple[float, ...], float | tuple[float, ...]]:
+    def backup_limits(self, low_c: float, high_c: float) -> tuple[float | tuple[float, ...], float | tuple[float, ...]]:
         """The backup limits (low, high): the settings' own where given, else ``low_c``/``high_c``."""
         return (
             low_c if self.backup_low_c is None else self.backup_low_c,
@@ -131,7 +131,7 @@ def _make(settings: KindSettings, request: PlantRequest) -> MultiZonePlant:
     if request.fleet is not None or request.n_buildings != 1:
         raise InputError("a multi-zone plant runs one building today; a fleet runs on the 2R2C simulator")
     sim = request.config
-    low, high = settings._limits(sim.backup_low_c, sim.backup_high_c)
+    low, high = settings.backup_limits(sim.backup_low_c, sim.backup_high_c)
     config = MultiZoneConfig(
         params=settings.building, actuators=settings.actuators, dt_s=sim.dt_s,
         substep_s=sim.substep_s, noise_std_c=sim.noise_std_c, backup_low_c=low, backup_high_c=high,

@@ -10,6 +10,13 @@ the models (``SimConfig.plant`` 3r3c, :mod:`pinn_mpc.plant`) no 2-state QP has t
 they then plan on the plant's R/C without its envelope node (the 2R2C it reduces to as C_e ->
 0, same steady state) with the true T_r and T_m, so they are strong references there, not
 bounds. With a heat pump they plan on its COP curve at the forecast T_a (exact).
+
+On a building of several zones or actuators (:data:`ZONE_CONTROLLERS`): ``oracle`` is the QP
+MPC over zones x actuators on the true building and state; ``qp-mpc`` the same on a multi-zone
+RC file (``--rc``, :class:`pinn_mpc.identify_multizone.MultiZoneIdentifyResult`'s JSON) with a
+Kalman observer; ``cem`` and ``random-shooting`` plan over that file's building
+(:class:`pinn_mpc.models.multizone_rc.MultiZoneRCModel`, with the scenario's backup limits) and
+fall back on its QP MPC.
 """
 
 from __future__ import annotations
@@ -38,8 +45,10 @@ from scenarios.inputs.registry import Scenario
 if TYPE_CHECKING:
     import pandas as pd
 
+    from controllers.base import ControlSpec
     from controllers.sampling import Guard
     from pinn_mpc.models.learned import ModelRecord
+    from pinn_mpc.multizone import MultiZoneParams
 
 __all__ = [
     "CONTROLLER_NAMES",
@@ -52,11 +61,14 @@ __all__ = [
     "check_rc_fits",
     "make_controller",
     "model_guard",
+    "read_zone_rc",
     "weather_range_note",
 ]
 
 #: Ranges of the training data's inputs a planner watches (see controllers.trust).
 _WATCHED = ("T_a", "G")
+#: The controllers of a building of several zones that plan on a multi-zone RC file (``--rc``).
+_ZONE_RC_CONTROLLERS = ("qp-mpc", *MODEL_CONTROLLERS)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -258,6 +270,7 @@ def build_controller(
     *,
     model: BatchDynamics | None = None,
     rc_params: RCParams | None = None,
+    zone_params: MultiZoneParams | None = None,
     n_steps: int,
     planner_options: Mapping[str, Any] | None = None,
     checks: FitChecks = FitChecks(),
@@ -278,6 +291,9 @@ def build_controller(
         of ``rc_params``.
     rc_params
         For ``qp-mpc`` and ``casadi-mpc``: the RC parameters they plan on.
+    zone_params
+        On a building of several zones or actuators, for ``qp-mpc``, ``cem`` and
+        ``random-shooting``: the multi-zone RC building they plan on (:func:`read_zone_rc`).
     n_steps
         The number of counted intervals of the run (used by ``clairvoyant``).
     planner_options
@@ -298,19 +314,15 @@ def build_controller(
     """
     spec = scenario.control_spec()
     options = dict(planner_options or {})
-    if not spec.single and name in CONTROLLER_NAMES and name not in ZONE_CONTROLLERS:
-        raise InputError(
-            f"controller {name!r} plans one zone with one actuator; scenario {scenario.name!r} has "
-            f"{len(spec.zones)} zones ({', '.join(z.name for z in spec.zones)}) and {spec.n_actuators} "
-            f"actuators: choose {' or '.join(ZONE_CONTROLLERS)}"
+    if not spec.single and name in CONTROLLER_NAMES:
+        return _zone_controller(
+            name, scenario, spec, model=model, rc_params=rc_params, zone_params=zone_params, options=options
         )
-    if name == "oracle" and not spec.single:
-        from controllers.rc_mpc.references import oracle_multizone
-        from scenarios.plants.multizone import MultiZoneSettings
-
-        settings = scenario.plant.settings
-        assert isinstance(settings, MultiZoneSettings)
-        return oracle_multizone(settings.building, spec)
+    if zone_params is not None:
+        raise InputError(
+            f"a multi-zone RC building plans a scenario of several zones or actuators; scenario "
+            f"{scenario.name!r} has one zone with one actuator: give a one-zone RC file"
+        )
     if name == "thermostat":
         from controllers.thermostat import Thermostat
 
@@ -357,6 +369,103 @@ def build_controller(
 
         return clairvoyant_mpc(scenario.sim.params, spec, n_steps)
     raise _unknown(name)
+
+
+def _zones_text(spec: ControlSpec) -> str:
+    return (
+        f"{len(spec.zones)} zones ({', '.join(z.name for z in spec.zones)}) and {spec.n_actuators} "
+        "actuators"
+    )
+
+
+def _zone_controller(
+    name: str,
+    scenario: Scenario,
+    spec: ControlSpec,
+    *,
+    model: BatchDynamics | None,
+    rc_params: RCParams | None,
+    zone_params: MultiZoneParams | None,
+    options: dict[str, Any],
+) -> Controller:
+    """:func:`build_controller` on a building of several zones or actuators (module docstring)."""
+    from scenarios.plants.multizone import MultiZoneSettings
+
+    where = f"scenario {scenario.name!r} has {_zones_text(spec)}"
+    if name not in ZONE_CONTROLLERS:
+        raise InputError(f"controller {name!r} plans one zone with one actuator; {where}: choose {' or '.join(ZONE_CONTROLLERS)}")
+    settings = scenario.plant.settings
+    if name == "oracle":
+        from controllers.rc_mpc.references import oracle_multizone
+
+        if not isinstance(settings, MultiZoneSettings):
+            raise InputError(f"the oracle needs the true building of a multi-zone plant; {where} on another plant")
+        return oracle_multizone(settings.building, spec)
+    if name == "thermostat":
+        from controllers.thermostat import Thermostat
+
+        return Thermostat(spec)
+    if model is not None or rc_params is not None:
+        what = "a trained model (--model)" if model is not None else "a one-zone RC"
+        raise InputError(
+            f"controller {name!r} plans {what} of one zone; {where}: give it a multi-zone RC file "
+            "(--rc, `pinn-mpc identify` on the scenario's data) instead"
+        )
+    if zone_params is None:
+        raise InputError(
+            f"controller {name!r} on a building of several zones plans on a multi-zone RC file; {where}: "
+            f"add {setting('rc_path')} rc.json (`pinn-mpc identify` on the scenario's data writes one)"
+        )
+    if name == "qp-mpc":
+        from controllers.rc_mpc.multizone import MultiZoneMPC
+
+        return MultiZoneMPC(zone_params, spec, estimator="kalman")
+    from controllers.estimators import observer_noise
+    from controllers.sampling import CEM, RandomShooting
+    from pinn_mpc.models.multizone_rc import MultiZoneRCModel
+
+    low, high = scenario.sim.backup_low_c, scenario.sim.backup_high_c
+    limits = settings.backup_limits(low, high) if isinstance(settings, MultiZoneSettings) else (low, high)
+    process, measurement = observer_noise(spec)
+    planner_model = MultiZoneRCModel(
+        zone_params, spec.actuators, spec.dt_s, backup_low_c=limits[0], backup_high_c=limits[1],
+        process_std_c=process, measurement_std_c=measurement,
+    )
+    planner = RandomShooting if name == "random-shooting" else CEM
+    return planner(planner_model, spec, **options)
+
+
+def read_zone_rc(path: str | os.PathLike[str], spec: ControlSpec, scenario_name: str) -> MultiZoneParams:
+    """The building of a multi-zone RC file (:meth:`MultiZoneIdentifyResult.from_json
+    <pinn_mpc.identify_multizone.MultiZoneIdentifyResult.from_json>`), refused in one line when
+    it cannot be read, is not a multi-zone RC file, or has other zones than ``spec``'s (the
+    scenario ``scenario_name``'s) in their order."""
+    import json
+
+    from pinn_mpc.identify_multizone import JSON_FORMAT, MultiZoneIdentifyResult
+
+    label = f"the RC file {Path(path).name}"
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"{label}: cannot read it ({exc}); give the multi-zone RC file of `pinn-mpc identify`") from None
+    try:
+        data = json.loads(text)
+    except ValueError:
+        data = text  # from_json names what is wrong with it
+    if isinstance(data, dict) and data.get("format") != JSON_FORMAT:
+        raise InputError(
+            f"{label} is not a multi-zone RC file (format {data.get('format')!r}, not {JSON_FORMAT!r}), "
+            f"but scenario {scenario_name!r} has {_zones_text(spec)}: give the multi-zone RC file "
+            "`pinn-mpc identify` writes from the scenario's data"
+        )
+    params = MultiZoneIdentifyResult.from_json(data, source=label).params
+    if params.zone_specs != spec.zones:
+        raise InputError(
+            f"{label} is a building of the zones {', '.join(z.name for z in params.zone_specs)}, but scenario "
+            f"{scenario_name!r} has {', '.join(z.name for z in spec.zones)}: identify on the scenario's data"
+        )
+    return params
 
 
 def _not_linear() -> InputError:
@@ -406,9 +515,18 @@ def make_controller(
             f"{setting('model_dir')} is not used by controller {name!r}; "
             f"only {', '.join(MODEL_CONTROLLERS)} and qp-mpc (an ARX model) take it"
         )
-    if rc_path is not None and name not in RC_CONTROLLERS:
+    spec = scenario.control_spec()
+    if model_dir is not None and not spec.single:
         raise InputError(
-            f"{setting('rc_path')} is not used by controller {name!r}; only {', '.join(RC_CONTROLLERS)} take it"
+            f"{setting('model_dir')}: a trained model plans one zone with one actuator; scenario "
+            f"{scenario.name!r} has {_zones_text(spec)}: plan it over a multi-zone RC file "
+            f"({setting('rc_path')} rc.json of `pinn-mpc identify`) with {' or '.join(_ZONE_RC_CONTROLLERS)}"
+        )
+    takes_rc = RC_CONTROLLERS if spec.single else _ZONE_RC_CONTROLLERS
+    if rc_path is not None and name not in takes_rc:
+        also = "" if spec.single else " (a multi-zone RC file)"
+        raise InputError(
+            f"{setting('rc_path')} is not used by controller {name!r}; only {', '.join(takes_rc)} take it{also}"
         )
     if model_dir is not None and rc_path is not None:
         raise _both()
@@ -417,9 +535,13 @@ def make_controller(
         from pinn_mpc.fitted import load
 
         model = load(model_dir)  # qp-mpc checks that it is linear (build_controller)
-    rc_params = None
-    if rc_path is not None:  # read once: the parameters and what the file says of its data
+    rc_params = zone_params = None
+    if rc_path is not None and not spec.single:
+        zone_params = read_zone_rc(rc_path, spec, scenario.name)
+    elif rc_path is not None:  # read once: the parameters and what the file says of its data
         rc_params, data = read_rc_json(rc_path)
         for note in _rc_fit_notes(Path(rc_path).name, rc_params, data, scenario, checks):
             warn(note)
-    return build_controller(name, scenario, model=model, rc_params=rc_params, n_steps=n_steps, checks=checks)
+    return build_controller(
+        name, scenario, model=model, rc_params=rc_params, zone_params=zone_params, n_steps=n_steps, checks=checks
+    )

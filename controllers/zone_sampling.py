@@ -1,0 +1,252 @@
+"""The sampling controllers (:class:`controllers.sampling.CEM`, :class:`~controllers.sampling.RandomShooting`)
+over a building of several zones or actuators (a spec that is not :attr:`ControlSpec.single`).
+
+The model is one of the building's zones and actuators (:attr:`BatchDynamics.actuators`, such
+as :class:`pinn_mpc.models.multizone_rc.MultiZoneRCModel`); a plan is (H, A), each actuator's
+electrical power. The planners sample each actuator's fraction of its range, ``[0, 1]``
+(CEM's mean and standard deviation per step and actuator, :mod:`controllers.planners`), so
+that actuators of different bounds share one box; a fraction ``f`` is ``lower_w + f x
+span_w``. The objective (:class:`controllers.objective.ZoneObjective`) is the price times the
+building's total delivered electrical power plus the comfort weight times each zone's band
+violation summed over the zones, against each zone's band narrowed by ``comfort_margin_k``.
+The plan is polished by ``polish_iters`` LPs over every step of every actuator
+(:class:`controllers.lp_polish.ZonePolish`; CEM's default one, random shooting's none): the
+sampling finds the plan's shape, the LP its optimum on the model. The warm start is the
+previous plan shifted by one step, the first plan half of each actuator's range. ``act``
+returns (A,) in ``spec.actuators``' order and keeps the plan (H, A) in ``last_plan``.
+
+What the one-zone path has and this one has not: the offset filter (the model's state is its
+own estimate: the multi-zone RC's Kalman filter over the history), the trust monitor and its
+RC shadow (a model of the building's RC needs no watching), setpoint-space sampling (random
+shooting samples powers here) and on/off plans.
+
+Fallback (never an exception out of ``act``): when the planning fails (a non-finite
+prediction or any exception) the decision is the QP MPC's on the model's RC building
+(:attr:`BatchDynamics.zone_params`, :class:`controllers.rc_mpc.multizone.MultiZoneMPC`; its
+state the Kalman observer :class:`controllers.estimators.MultiZoneKalmanEstimator` that this
+controller keeps current at every decision), or without one the band rule of
+:func:`controllers.base.fallback_powers`. The decision's stats say it fell back (the KPIs
+count it) and the next warm start is from scratch.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from typing import TYPE_CHECKING
+
+import numpy as np
+import torch
+
+from controllers.base import (
+    ControlSpec,
+    Fallback,
+    Forecast,
+    Observation,
+    SolveStats,
+    fallback_powers,
+)
+from controllers.lp_polish import PlanProblem, PolishSettings, ZonePolish
+from controllers.objective import ZoneObjective
+from pinn_mpc.errors import InternalError
+
+if TYPE_CHECKING:
+    from controllers.estimators import MultiZoneKalmanEstimator
+    from controllers.planners import Planner
+    from controllers.rc_mpc.multizone import MultiZoneMPC
+    from pinn_mpc.models.rollout import BatchDynamics
+
+__all__ = ["ZoneSampling"]
+
+
+class NonFiniteModelOutput(Exception):
+    """The model predicted a non-finite temperature or power."""
+
+
+class _LastEstimate:
+    """The planner's Kalman observer, updated at every decision (:meth:`observe`), and the state
+    it estimated at this decision for the fallback QP (:meth:`update`, NaN when the observer
+    could not fold this observation in: the QP then falls back in turn)."""
+
+    def __init__(self, observer: MultiZoneKalmanEstimator) -> None:
+        self.observer = observer
+        self._k: int | None = None
+
+    def observe(self, obs: Observation) -> None:
+        self._k = None
+        self.observer.update(obs)
+        self._k = obs.k
+
+    def reset(self) -> None:
+        self.observer.reset()
+        self._k = None
+
+    def update(self, obs: Observation) -> np.ndarray:
+        if self._k != obs.k:
+            return np.full(2 * self.observer.n_zones, np.nan)
+        return self.observer.state
+
+
+class _ZoneFallback(Fallback):
+    """The sampling planners' :class:`controllers.base.Fallback` of plans of several actuators
+    (H, A): :meth:`act_all` counts the event, forgets the plan (the next warm start is from
+    scratch) and returns the fallback QP's action (A,), or :func:`controllers.base.fallback_powers`
+    without one or when the forecast does not fit it."""
+
+    def __init__(self, spec: ControlSpec, qp: MultiZoneMPC | None) -> None:
+        super().__init__(spec, reuse_plan=False)
+        self.qp = qp
+
+    def act_all(self, obs: Observation, forecast: Forecast) -> np.ndarray:
+        self.n_events += 1
+        self.plan_w = None
+        if self.qp is not None:
+            try:
+                return np.asarray(self.qp.act(obs, forecast), dtype=float).reshape(-1)
+            except Exception:  # a forecast the QP refuses: the band rule decides
+                pass
+        return fallback_powers(obs, forecast, self.spec)
+
+
+class ZoneSampling:
+    """The path of :class:`controllers.sampling.CEM` and
+    :class:`~controllers.sampling.RandomShooting` over a building of several zones or
+    actuators (module docstring), a base of their shared class."""
+
+    model: BatchDynamics
+    spec: ControlSpec
+    planner: Planner
+    polish: PolishSettings
+    ensemble: str
+    risk_weight: float
+    comfort_margin_k: float
+    last_cost_eur: float
+    fallback: Fallback
+    _generator: torch.Generator
+    _stats: SolveStats
+
+    def _init_zones(self) -> None:
+        """Check the model against the building of ``spec`` and build the fallback."""
+        model, spec, name = self.model, self.spec, type(self).__name__
+        described = (
+            f"{len(spec.zones)} zone(s) ({', '.join(z.name for z in spec.zones)}) and "
+            f"{spec.n_actuators} actuator(s) ({', '.join(a.name for a in spec.actuators)})"
+        )
+        if model.actuators is None:
+            raise ValueError(
+                f"{name}: the building has {described}, but the model plans one zone's one "
+                "actuator; give a model of the building's zones and actuators "
+                "(pinn_mpc.models.multizone_rc.MultiZoneRCModel)"
+            )
+        if tuple(model.actuators) != spec.actuators or tuple(model.zones) != spec.zones:
+            raise ValueError(
+                f"{name}: the model's zones ({', '.join(z.name for z in model.zones)}) and "
+                f"actuators ({', '.join(a.name for a in model.actuators)}) differ from the "
+                f"building's, {described}; build the model with the spec's actuators, on the "
+                "building's zones in its order"
+            )
+        self._zone_observer: _LastEstimate | None = None
+        qp = None
+        params = model.zone_params
+        if params is not None:
+            from controllers.estimators import MultiZoneKalmanEstimator
+            from controllers.rc_mpc.multizone import MultiZoneMPC
+
+            self._zone_observer = _LastEstimate(MultiZoneKalmanEstimator(params, spec))
+            qp = MultiZoneMPC(params, spec, estimator=self._zone_observer, name=f"{name} fallback")
+        self.fallback = _ZoneFallback(spec, qp)
+        self._lower_w = torch.tensor([a.lower_w for a in spec.actuators], dtype=torch.float32)
+        self._span_w = torch.tensor([a.span_w for a in spec.actuators], dtype=torch.float32)
+
+    @property
+    def zone_qp(self) -> MultiZoneMPC | None:
+        """The QP MPC on the model's RC building that decides when the planning fails (None:
+        the band rule does)."""
+        fallback = self.fallback
+        return fallback.qp if isinstance(fallback, _ZoneFallback) else None
+
+    def _reset_zones(self) -> None:
+        """Forget the observer, the fallback QP's plan and warm start, and the counts."""
+        self.fallback.reset()
+        if self._zone_observer is not None:
+            self._zone_observer.reset()
+        if self.zone_qp is not None:
+            self.zone_qp.reset()
+
+    def _act_zones(self, obs: Observation, forecast: Forecast) -> np.ndarray:
+        """Each actuator's demanded power for the coming interval (A,) [W], within its bounds:
+        the plan's first step, or the fallback's action."""
+        start = time.perf_counter()
+        try:
+            if self._zone_observer is not None:  # every decision, so that it stays current
+                self._zone_observer.observe(obs)
+            plan_w, cost, iterations = self._solve_zones(obs, forecast)
+        except NonFiniteModelOutput:
+            return self._zones_failed(obs, forecast, start, "non-finite model output")
+        except Exception as exc:  # a failed solve must not stop a closed-loop run
+            return self._zones_failed(obs, forecast, start, f"model error: {type(exc).__name__}: {exc}")
+        self.fallback.planned(plan_w)
+        self.last_cost_eur = cost
+        self._stats = SolveStats(time_s=time.perf_counter() - start, status="ok", iterations=iterations, fallback=False)
+        return np.array([a.clip(float(u)) for a, u in zip(self.spec.actuators, plan_w[0], strict=True)])
+
+    def _zones_failed(self, obs: Observation, forecast: Forecast, start: float, reason: str) -> np.ndarray:
+        assert isinstance(self.fallback, _ZoneFallback)
+        action = self.fallback.act_all(obs, forecast)
+        self.last_cost_eur = math.nan
+        by = "multi-zone QP" if self.zone_qp is not None else "band rule"
+        self._stats = SolveStats(
+            time_s=time.perf_counter() - start, status=f"{by} fallback: {reason}", iterations=0, fallback=True
+        )
+        return action
+
+    def _zone_warm_start(self, h: int) -> torch.Tensor:
+        """(h, A) fractions of each actuator's range: the last plan shifted by one step (its last
+        step repeated), or half of each range."""
+        plan = self.fallback.plan_w
+        if plan is None:
+            return torch.full((h, self.spec.n_actuators), 0.5)
+        fractions = (torch.as_tensor(plan, dtype=torch.float32) - self._lower_w) / self._span_w
+        shifted = torch.cat([fractions[1:], fractions[-1:]])
+        if len(shifted) < h:
+            shifted = torch.cat([shifted, shifted[-1:].expand(h - len(shifted), -1)])
+        return shifted[:h].clamp(0.0, 1.0)
+
+    def _solve_zones(self, obs: Observation, forecast: Forecast) -> tuple[np.ndarray, float, int]:
+        """(plan (H, A) [W], its planned cost [EUR], iterations)."""
+        h = min(self.spec.horizon_steps, forecast.horizon)
+        if h < 1:
+            raise InternalError("the forecast is empty")
+        objective = ZoneObjective.from_forecast(forecast, self.spec, h).tightened(self.comfort_margin_k)
+        exog = forecast.exogenous(self.model.exog_names, h)
+        history, lower, span = obs.history, self._lower_w, self._span_w
+        dtype = torch.float32
+
+        def rollout(fractions: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+            with torch.no_grad():
+                roll = self.model.rollout(history, lower + span * fractions, exog)
+                t_r, u_phys = roll.t_r_c.to(dtype), roll.u_phys_w.to(dtype)  # (M, N, H, Z), (M, N, H)
+            if not (bool(torch.isfinite(t_r).all()) and bool(torch.isfinite(u_phys).all())):
+                raise NonFiniteModelOutput
+            if self.ensemble == "mean":
+                return t_r.mean(0, keepdim=True), u_phys.mean(0, keepdim=True)
+            return t_r, u_phys
+
+        def score(t_r: torch.Tensor, u_phys: torch.Tensor) -> torch.Tensor:
+            costs = objective.cost_torch(u_phys, t_r)  # (M, N)
+            if self.risk_weight > 0 and costs.shape[0] > 1:
+                return costs.mean(0) + self.risk_weight * costs.std(0, correction=0)
+            return costs.mean(0)
+
+        x0 = self._zone_warm_start(h)
+        problem = PlanProblem(objective=objective, lower=0.0, upper=1.0)
+        polisher = ZonePolish(rollout, score, problem, self.polish, x0)
+        result = self.planner.optimize(polisher.objective, x0, self._generator)
+        plan, cost = result.plan, result.cost
+        polished = polisher.finish()
+        if polished is not None and polished[1] < cost:
+            plan, cost = polished
+        if not math.isfinite(cost):
+            raise NonFiniteModelOutput
+        plan_w = (lower + span * plan.to(dtype)).double().numpy()
+        return plan_w, cost, result.iterations + polisher.lps
