@@ -48,7 +48,7 @@ from tqdm import tqdm
 
 from controllers.planners import CEMPlanner, RandomShootingPlanner
 from pinn_mpc.choices import ARX, COMPARED_ARCHS, DEFAULT_ARCH, PHYSICS_ARX
-from pinn_mpc.errors import warn
+from pinn_mpc.errors import InputError, warn
 from pinn_mpc.physics import RCParams, params_from_summary, rc_summary
 from pinn_mpc.records import RcSummary
 from scenarios.choices import RANDOM_POLICIES
@@ -61,6 +61,7 @@ from scenarios.running.closed_loop import one_torch_thread, run_closed_loop
 from scenarios.running.factory import build_controller, weather_range_note
 
 if TYPE_CHECKING:
+    from pinn_mpc.identify_multizone import MultiZoneIdentifyResult
     from pinn_mpc.models.arx import ARXModel
     from pinn_mpc.models.learned import LearnedModel
     from pinn_mpc.training import TrainConfig
@@ -401,13 +402,36 @@ def _notes(rows: list[CompareRow], weather_note: str | None) -> list[str]:
 
 def identify_scenario_rc(scenario: Scenario, data: pd.DataFrame) -> RCParams:
     """The grey-box identification of ``data`` (on the delivered heat when it has a ``cop``
-    column, as a heat pump's data has)."""
+    column, as a heat pump's data has); a building of several zones:
+    :func:`identify_scenario_zones`."""
     from pinn_mpc.identify import identify_rc
 
     result = identify_rc(data, eta=scenario.sim.params.eta)
     for note in result.notes:
         warn(note)
     return result.params
+
+
+def identify_scenario_zones(scenario: Scenario, data: pd.DataFrame) -> MultiZoneIdentifyResult:
+    """The multi-zone identification of ``data`` of a building of several zones, its layout
+    (which actuator acts on which zone, which facade each zone's windows face) the scenario's
+    (:func:`pinn_mpc.identify_multizone.identify_multizone`)."""
+    from pinn_mpc.actuator import actuator_columns
+    from pinn_mpc.identify_multizone import identify_multizone
+
+    spec = scenario.control_spec()
+    building = getattr(scenario.plant.settings, "building", None)
+    if building is None:
+        raise InputError(f"scenario {scenario.name!r}: its building's zones are not declared; identify needs its layout")
+    result = identify_multizone(
+        data, zones=spec.zones, actuators=spec.actuators,
+        power_columns=actuator_columns("u_phys", spec.actuators),
+        solar_inputs=[z.solar_input if z.rc.solar_aperture_m2 > 0 else None for z in building.zones],
+        dt_s=scenario.sim.dt_s,
+    )
+    for note in result.notes:
+        warn(note)
+    return result
 
 
 def rc_for_mpc(params: RCParams, scenario: Scenario) -> RCParams:

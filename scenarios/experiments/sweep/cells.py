@@ -6,9 +6,16 @@ import socket
 import time
 from typing import TYPE_CHECKING
 
+from pinn_mpc.errors import InternalError
 from pinn_mpc.physics import RCParams
 from scenarios.experiments.sweep.boptest import _boptest_chosen
-from scenarios.experiments.sweep.grid import RC_KIND, Cell, SweepSettings, model_kind
+from scenarios.experiments.sweep.grid import (
+    RC_KIND,
+    Cell,
+    SweepSettings,
+    model_kind,
+    zoned_scenario,
+)
 from scenarios.experiments.sweep.models import SweepModel, _model_family
 from scenarios.inputs.scenario_file import get_scenario
 from scenarios.records import CellResult
@@ -39,13 +46,19 @@ def run_cell(
     if cell.test_period is not None:
         return _run_boptest_cell(cell, settings, model, boptest_url, start)
     scenario = get_scenario(cell.scenario)
-    kind = model_kind(cell.controller)
-    learned = model if kind not in (None, RC_KIND) and not isinstance(model, RCParams) else None
+    from pinn_mpc.identify_multizone import MultiZoneIdentifyResult
+
+    kind = model_kind(cell.controller, zoned=zoned_scenario(cell.scenario))
+    zones = model if kind == RC_KIND and isinstance(model, MultiZoneIdentifyResult) else None
+    learned = (
+        model if kind not in (None, RC_KIND) and not isinstance(model, RCParams | MultiZoneIdentifyResult) else None
+    )
     controller = build_controller(
         cell.controller.partition("/")[0],  # cem/<arch>: cem, over the model of that arch
         scenario,
         model=learned,
         rc_params=model if kind == RC_KIND and isinstance(model, RCParams) else None,
+        zone_params=None if zones is None else zones.params,
         n_steps=settings.test_days * scenario.steps_per_day,
     )
     with one_torch_thread():
@@ -63,10 +76,13 @@ def _run_boptest_cell(
     boptest_url: str | None,
     start: float,
 ) -> CellResult:
+    from pinn_mpc.identify_multizone import MultiZoneIdentifyResult
     from scenarios.plants.boptest import BoptestRun
     from scenarios.running.boptest_loop import boptest_planner, run_boptest_closed_loop
     from scenarios.running.closed_loop import one_torch_thread
 
+    if isinstance(model, MultiZoneIdentifyResult):
+        raise InternalError(f"sweep cell {cell.name}: a BOPTEST test case is one zone's, got a multi-zone RC")
     chosen = _boptest_chosen(cell.scenario, boptest_url)
     run = BoptestRun(
         time_period=cell.test_period, days=float(settings.test_days),

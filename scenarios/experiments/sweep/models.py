@@ -15,19 +15,23 @@ from scenarios.running.boptest_loop import is_boptest_scenario
 if TYPE_CHECKING:
     import pandas as pd
 
+    from pinn_mpc.identify_multizone import MultiZoneIdentifyResult
     from pinn_mpc.models.rollout import FittedModel
 
 __all__ = ["SweepModel", "fit_model"]
 
 #: What a sweep fits for a cell (:func:`fit_model`): a model of any family
-#: (:func:`pinn_mpc.fitted.fit`) or an identified RC.
-SweepModel: TypeAlias = "FittedModel | RCParams"
+#: (:func:`pinn_mpc.fitted.fit`), an identified RC, or a building of several zones' identified
+#: multi-zone RC.
+SweepModel: TypeAlias = "FittedModel | RCParams | MultiZoneIdentifyResult"
 
 
 def _model_family(model: SweepModel) -> str:
     """What a fitted model is: its family (a network's architecture, ``arx``, ``parx``), or
     the RC."""
-    return RC_KIND if isinstance(model, RCParams) else model.family
+    from pinn_mpc.identify_multizone import MultiZoneIdentifyResult
+
+    return RC_KIND if isinstance(model, RCParams | MultiZoneIdentifyResult) else model.family
 
 
 def fit_model(key: ModelKey, settings: SweepSettings, data: pd.DataFrame | None = None) -> SweepModel:
@@ -36,7 +40,11 @@ def fit_model(key: ModelKey, settings: SweepSettings, data: pd.DataFrame | None 
     ``key`` on the scenario's simulated data (``train_days`` days under the settings' policy, by default the scenario's, seed ``key.seed``).
     A BOPTEST scenario's ``data`` is the emulator's (:func:`boptest_training_data`), its
     ensembles trained as ``compare`` trains them (:func:`boptest_fit`)."""
-    from scenarios.experiments.compare import CompareSettings, identify_scenario_rc
+    from scenarios.experiments.compare import (
+        CompareSettings,
+        identify_scenario_rc,
+        identify_scenario_zones,
+    )
     from scenarios.running.datagen import generate
 
     if is_boptest_scenario(key.scenario):
@@ -52,6 +60,8 @@ def fit_model(key: ModelKey, settings: SweepSettings, data: pd.DataFrame | None 
     scenario = get_scenario(key.scenario)
     policy = scenario.data_policy if settings.policy == "scenario" else settings.policy
     data = generate(scenario, days=key.train_days, seed=key.seed, policy=policy)
+    if key.kind == RC_KIND and len(scenario.control_spec().zones) > 1:
+        return identify_scenario_zones(scenario, data)
     if key.kind == RC_KIND:  # as compare identifies (on delivered heat under a heat pump)
         return identify_scenario_rc(scenario, data)
     from pinn_mpc.fitted import fit

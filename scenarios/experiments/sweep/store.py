@@ -121,7 +121,12 @@ def _load_model(out: Path, key: ModelKey) -> SweepModel | None:
     if not path.exists():
         return None
     if key.kind == RC_KIND:
-        return params_from_summary(_read_json(path))
+        data = _read_json(path)
+        if isinstance(data, dict) and "zones" in data:  # a building of several zones
+            from pinn_mpc.identify_multizone import MultiZoneIdentifyResult
+
+            return MultiZoneIdentifyResult.from_json(data, source=str(path))
+        return params_from_summary(data)
     from pinn_mpc.fitted import load
 
     return load(path)
@@ -131,6 +136,11 @@ def _store_model(out: Path, key: ModelKey, model: SweepModel) -> None:
     path = _model_path(out, key)
     if isinstance(model, RCParams):
         atomic_write_json(path, rc_summary(model, source=f"identify ({key.name})"))
+        return
+    from pinn_mpc.identify_multizone import MultiZoneIdentifyResult
+
+    if isinstance(model, MultiZoneIdentifyResult):
+        atomic_write_json(path, {**model.to_json(), "source": f"identify ({key.name})"})
         return
     from pinn_mpc.fitted import save
 
