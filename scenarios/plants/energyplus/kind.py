@@ -122,7 +122,7 @@ def _complete_zones(plant: dict[str, Any], simulation: dict[str, Any]) -> None:
             if isinstance(power, int | float) and not isinstance(power, bool) and power > MAX_ACTUATOR_W:
                 raise InputError(
                     f"simulation.plant.{key} = {power:.3g} W is above the plausible "
-                    f"{MAX_ACTUATOR_W:.0e} W of one building's heater; give it in W"
+                    f"{MAX_ACTUATOR_W:.0e} W of one building's {key.removesuffix('_w')}; give it in W"
                 )
     total = sum(heater) if isinstance(heater, list) and all(isinstance(p, int | float) for p in heater) else heater
     if isinstance(total, int | float) and not isinstance(total, bool) and total > 0:
