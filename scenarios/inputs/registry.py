@@ -53,7 +53,10 @@ from scenarios.plants.energyplus.settings import (
     DATA_POLICY,
     NOMINAL_BUILDING,
     WEATHER_WINDOW,
+    ZONE_CHILLER,
     EnergyPlusSettings,
+    WeatherWindow,
+    season_window,
 )
 from scenarios.plants.multizone import MultiZoneSettings
 from scenarios.plants.rc import RCSettings
@@ -176,6 +179,14 @@ class Scenario:
         day = pd.date_range("2001-01-01", periods=self.steps_per_day, freq=f"{int(self.sim.dt_s)}s")
         t_min, t_max = self.comfort.sample(day)
         return float(np.max(t_min)) if self.sim.params.heating else float(np.min(t_max))
+
+    @property
+    def band_limits_c(self) -> tuple[float, float]:
+        """The comfort band's highest lower bound and lowest upper bound over a day [C]: where
+        a building's heaters and its coolers are sized."""
+        day = pd.date_range("2001-01-01", periods=self.steps_per_day, freq=f"{int(self.sim.dt_s)}s")
+        t_min, t_max = self.comfort.sample(day)
+        return float(np.max(t_min)), float(np.min(t_max))
 
     @property
     def reference(self) -> Literal["oracle", "thermostat"]:
@@ -313,21 +324,34 @@ def with_sized_heater(scenario: Scenario, *, given_u_max_w: float | None = None)
     """The scenario of an EnergyPlus plant with ``heater_w = "auto"``, its ``u_max_w`` the
     heater :func:`scenarios.plants.energyplus.sizing.size_heater` finds for it: holding the comfort band's
     highest lower bound (a chiller, ``eta < 0``: its lowest upper bound) through the weather
-    file's coldest (hottest) three days. A note (``logging``, level INFO) says what was sized
+    file's coldest (hottest) three days. A plant that sizes its own actuators (an EnergyPlus
+    building whose zones are each controlled: each zone's heater and chiller,
+    :func:`scenarios.plants.energyplus.sizing.size_zones`) gets them in its settings, the
+    heaters at the band's highest lower bound and the coolers at its lowest upper bound, and
+    ``u_max_w`` their heaters' total. A note (``logging``, level INFO) says what was sized
     (once per process). A ``given_u_max_w`` must be that value (a file ``scenario export`` wrote)."""
-    sim = scenario.sim
-    sizing = scenario.plant.settings.size_actuator(scenario.band_setpoint_c, heat_per_w=sim.params.eta, dt_s=sim.dt_s)
-    if given_u_max_w is not None and abs(given_u_max_w - sizing.power_w) > 1e-6 * sizing.power_w:
+    sim, settings = scenario.sim, scenario.plant.settings
+    if settings.sizes_own_actuators:  # each of the plant's own actuators, into its settings
+        heating_c, cooling_c = scenario.band_limits_c
+        settings, sizings = settings.size_own_actuators(heating_c=heating_c, cooling_c=cooling_c, dt_s=sim.dt_s)
+        own = settings.own_actuators or ()
+        heaters_w = sum(a.upper_w for a in own if a.heats) or sum(a.upper_w for a in own)
+        scenario = dataclasses.replace(scenario, plant=dataclasses.replace(scenario.plant, settings=settings))
+    else:
+        sizings = (settings.size_actuator(scenario.band_setpoint_c, heat_per_w=sim.params.eta, dt_s=sim.dt_s),)
+        heaters_w = sizings[0].power_w
+    if given_u_max_w is not None and abs(given_u_max_w - heaters_w) > 1e-6 * heaters_w:
         raise InputError(
             f"simulation.u_max_w = {given_u_max_w:g} W, but plant.heater_w = \"auto\" sizes "
-            f"{sizing.power_w:g} W; give the heater's power once (a number in heater_w, or "
+            f"{heaters_w:g} W; give the heater's power once (a number in heater_w, or "
             "leave u_max_w out)"
         )
-    line = f"scenario {scenario.name!r}: {sizing.line()}"
-    if line not in _SIZING_REPORTED:
-        _SIZING_REPORTED.add(line)
-        _LOG.info(line)
-    return dataclasses.replace(scenario, sim=dataclasses.replace(sim, u_max_w=sizing.power_w))
+    for sizing in sizings:
+        line = f"scenario {scenario.name!r}: {sizing.line()}"
+        if line not in _SIZING_REPORTED:
+            _SIZING_REPORTED.add(line)
+            _LOG.info(line)
+    return dataclasses.replace(scenario, sim=dataclasses.replace(sim, u_max_w=heaters_w))
 
 
 def eplus_weather(file_name: str) -> TMY3Weather:
@@ -496,10 +520,15 @@ def _energyplus_scenario(
     heater_w: float,
     initial_t_r_c: float,
     comfort: ComfortSchedule,
+    settings: EnergyPlusSettings | None = None,
+    window: WeatherWindow = WEATHER_WINDOW,
+    data_policy: Literal["random", "random-level", "closed-loop"] = ENERGYPLUS_DATA_POLICY,
 ) -> Scenario:
     """A built-in EnergyPlus scenario: the bundled ``building`` in the bundled ``weather``,
-    heated by an ideal ``heater_w`` electric heater, backup 14/28 C, winter_household's
-    dynamic price, January to train and February to test (:func:`eplus_weather`)."""
+    heated by an ideal ``heater_w`` electric heater (``settings``: the plant's, its actuators
+    of its own), backup 14/28 C, winter_household's dynamic price, January to train and
+    February to test (:func:`eplus_weather`; ``window``: another part of the year), its
+    training data ``data_policy``'s."""
     return _with_split(
         Scenario(
             name=name,
@@ -512,13 +541,13 @@ def _energyplus_scenario(
             ),
             plant=PlantSettings(
                 kind="energyplus",
-                settings=EnergyPlusSettings(building=building, weather=weather, heater_w=heater_w),
+                settings=settings or EnergyPlusSettings(building=building, weather=weather, heater_w=heater_w),
             ),
             comfort_weight_eur_per_kh=5.0,
             initial_t_r_c=initial_t_r_c,
             initial_t_m_c=initial_t_r_c,
-            data_policy=ENERGYPLUS_DATA_POLICY,
-            weather=eplus_weather(weather),
+            data_policy=data_policy,
+            weather=TMY3Weather(file_name=weather, **window),
             price=PriceProfile(kind="dynamic", level_eur_per_kwh=0.22, peak_eur_per_kwh=0.15),
             comfort=comfort,
         )
@@ -565,6 +594,58 @@ _SCENARIOS["eplus_midrise_apartment"] = _energyplus_scenario(
         day_start_h=6.0, day_end_h=23.0,
     ),
 )
+
+
+#: The small office's zones' heaters and chillers (electrical) [W], in its zones' order
+#: (Core_ZN, Perimeter_ZN_1 .. 4): what heater_w and chiller_w = "auto" size for them at
+#: 21 C (6-8 January) and 24 C (16-18 July) in Chicago.
+_OFFICE_ZONE_HEATERS_W = (4600.0, 5600.0, 3800.0, 5800.0, 3700.0)
+_OFFICE_ZONE_CHILLERS_W = (900.0, 1100.0, 800.0, 1000.0, 1000.0)
+#: The seasons of the small office of zones: a built-in each (the first without a suffix).
+_OFFICE_ZONE_SEASONS = ("january", "april", "july")
+
+
+def _office_zones(season: str) -> Scenario:
+    """eplus_small_office with its five zones kept, heated and cooled each on its own, tested
+    on ``season`` (a month: :func:`season_window`)."""
+    def name(month: str) -> str:
+        return "eplus_small_office_zones" + ("" if month == _OFFICE_ZONE_SEASONS[0] else f"_{month}")
+
+    others = [s for s in _OFFICE_ZONE_SEASONS if s != season]
+    return _energyplus_scenario(
+        name=name(season),
+        description=(
+            "DOE's small office (EnergyPlus reference building, 511 m2) in Chicago (TMY3), its "
+            "HVAC removed, its five conditioned zones kept (Core_ZN, Perimeter_ZN_1-4), each "
+            "with an ideal electric heater and an ideal chiller of its own (heat_<zone>, "
+            "cool_<zone>: ten actuators; heaters 3.7-5.8 kW, 23.5 kW in all, chillers 0.8-1.1 "
+            "kW electrical, 4.8 kW, EER 4.8 at 30 C: what \"auto\" sizes for 21 and 24 C); run "
+            "by EnergyPlus (no R/C parameters, no oracle). Office comfort 21-24 C 07-19 h, "
+            "16-27 C otherwise, in every zone; winter_household's dynamic price, backup 14/28 C "
+            "per actuator on its zone; the office's internal gains are unmeasured. "
+            f"Season: {season.capitalize()} (in {' and '.join(m.capitalize() for m in others)}: "
+            f"{' and '.join(map(name, others))}; a scenario file takes [weather] "
+            "season = \"<month>\")."
+        ),
+        building="small_office",
+        weather="usa_il_chicago",
+        heater_w=sum(_OFFICE_ZONE_HEATERS_W),
+        initial_t_r_c=21.0,
+        comfort=ComfortSchedule(
+            day_min_c=21.0, day_max_c=24.0, night_min_c=16.0, night_max_c=27.0,
+            day_start_h=7.0, day_end_h=19.0,
+        ),
+        settings=EnergyPlusSettings(
+            building="small_office", weather="usa_il_chicago", zones="controlled",
+            heater_w=_OFFICE_ZONE_HEATERS_W, chiller_w=_OFFICE_ZONE_CHILLERS_W, chiller=ZONE_CHILLER,
+        ),
+        window=season_window(season),
+        # The setpoint tracking of "closed-loop" is one room's; random levels per actuator.
+        data_policy="random-level",
+    )
+
+
+_SCENARIOS.update((s.name, s) for s in map(_office_zones, _OFFICE_ZONE_SEASONS))
 
 
 def _zoned_scenario(

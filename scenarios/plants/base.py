@@ -5,7 +5,7 @@ and closed. Its step returns :class:`PlantStep`: what happened in the building o
 interval, zone by zone (each zone's room at its end and over its substeps, the power delivered,
 the backup thermostat's overrides) and the interval's means of the exogenous inputs as the
 plant had them (its own weather and gains, where it has them). A plant has a zone axis
-(``zones``; one zone for every plant today): its measurements and states are (B, Z). Every plant of
+(``zones``): its measurements and states are (B, Z). Every plant of
 :mod:`scenarios.plants` implements :class:`LoopPlant`; none knows a scenario.
 """
 
@@ -56,7 +56,7 @@ class PlantStep(NamedTuple):
 
 class LoopPlant(Protocol):
     """What :class:`scenarios.running.engine.ClosedLoop` steps: B buildings of the zones
-    ``zones`` (:class:`pinn_mpc.zones.ZoneSpec`; every plant's today is one), each interval in
+    ``zones`` (:class:`pinn_mpc.zones.ZoneSpec`), each interval in
     ``n_substeps`` substeps.
 
     ``reset`` starts an episode at row ``start`` of the loop's exogenous series from the state

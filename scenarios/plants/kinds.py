@@ -101,6 +101,20 @@ class KindSettings:
         """The actuator the plant needs to hold ``setpoint_c`` (:attr:`sized_when_read`)."""
         raise InternalError(f"{type(self).__name__}: this plant's actuator is not sized when read")
 
+    @property
+    def sizes_own_actuators(self) -> bool:
+        """Whether what is sized when read (:attr:`sized_when_read`) is the plant's own
+        actuators (:attr:`own_actuators`, :meth:`size_own_actuators`) rather than the
+        scenario's one (:meth:`size_actuator`)."""
+        return False
+
+    def size_own_actuators(
+        self, *, heating_c: float, cooling_c: float, dt_s: float
+    ) -> tuple[KindSettings, tuple[ActuatorSizing, ...]]:
+        """These settings with the plant's own actuators sized: the heaters to hold
+        ``heating_c``, the coolers ``cooling_c`` [C]; and one sizing per kind sized."""
+        raise InternalError(f"{type(self).__name__}: this plant's own actuators are not sized when read")
+
     def holidays(self, times: np.ndarray) -> np.ndarray | None:
         """(N,) 1.0 where the interval starting at ``times`` falls on one of the building's
         holidays, else 0.0; None for a plant without a calendar."""

@@ -4,7 +4,9 @@
 everything else (HVAC, plant, service water, sizing, output requests, and any code the model
 would run); the conditioned zones are merged into one thermal zone (partitions between them
 become internal mass, per-area loads absolute) or kept; one ideal electric heater (an
-``OtherEquipment`` object) heats each. A model declaring ``PythonPlugin:*`` or
+``OtherEquipment`` object) heats each, and where the zones are kept to be controlled each
+(``zones = "controlled"``) one ideal chiller (another, of negative power) cools each too. A
+model declaring ``PythonPlugin:*`` or
 ``ExternalInterface:*`` objects is refused unless ``allow_code``; then those objects are kept.
 Sizing is off.
 """
@@ -15,6 +17,7 @@ import copy
 import functools
 import json
 import math
+import re
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -22,9 +25,10 @@ from typing import Any
 
 from pinn_mpc.errors import InputError
 from scenarios.plants.energyplus.files import first_severe, require_energyplus, resolve_building
-from scenarios.plants.energyplus.settings import EnergyPlusSettings
+from scenarios.plants.energyplus.settings import ZONE_LAYOUTS, EnergyPlusSettings
 
 __all__ = [
+    "CHILLER_PREFIX",
     "CODE_OBJECT_PREFIXES",
     "HEATER_PREFIX",
     "MERGED_ZONE",
@@ -35,11 +39,14 @@ __all__ = [
     "prepare_model",
     "prepare_plant",
     "prepared_from_key",
+    "zone_layout",
+    "zone_names",
 ]
 
 #: Object types that make EnergyPlus run code or talk to other programs.
 CODE_OBJECT_PREFIXES = ("PythonPlugin:", "ExternalInterface")
 HEATER_PREFIX = "PINN-MPC Heater"
+CHILLER_PREFIX = "PINN-MPC Chiller"
 MERGED_ZONE = "Merged Zone"
 
 # Object types kept from a model: the envelope, its schedules and internal loads; nothing of
@@ -386,7 +393,9 @@ class PreparedModel:
     their heaters, ``weights`` each zone's share of the conditioned floor area (zone
     multipliers counted; they sum to 1) and ``multipliers`` the zones' multipliers: a power
     ``u`` is split as ``u * weight / multiplier`` per heater, so the building receives ``u``,
-    and T_r is the floor-area-weighted mean of the zones' air temperatures."""
+    and T_r is the floor-area-weighted mean of the zones' air temperatures. Zones kept to be
+    controlled each have a chiller too (``chillers``, in the zones' order; empty otherwise);
+    ``zone_floor_m2`` is each zone's own floor area [m2] (one instance of a multiplied zone)."""
 
     model: dict[str, Any]
     source: str
@@ -398,6 +407,8 @@ class PreparedModel:
     volume_m3: float
     merged_zones: tuple[str, ...]
     timesteps_per_hour: int
+    chillers: tuple[str, ...] = ()
+    zone_floor_m2: tuple[float, ...] = ()
 
     @property
     def zone(self) -> str:
@@ -410,11 +421,14 @@ class PreparedModel:
         return self.heaters[0]
 
 
-def _add_heaters(model: dict[str, Any], zones: list[str], radiant_fraction: float) -> list[str]:
+def _add_heaters(
+    model: dict[str, Any], zones: list[str], radiant_fraction: float, *, prefix: str = HEATER_PREFIX
+) -> list[str]:
     """One ideal electric heater (``OtherEquipment``, 0 W until a run sets it, always on) in
-    each of ``zones``; their names."""
+    each of ``zones``, named ``<prefix> <zone>`` (a chiller's prefix: the same object, its
+    power set negative); their names."""
     model.setdefault("Schedule:Constant", {})["PINN-MPC Always On"] = {"hourly_value": 1.0}
-    heaters = [f"{HEATER_PREFIX} {z}" for z in zones]
+    heaters = [f"{prefix} {z}" for z in zones]
     for zone, heater in zip(zones, heaters, strict=True):
         model.setdefault("OtherEquipment", {})[heater] = {
             "fuel_type": "Electricity",
@@ -425,9 +439,23 @@ def _add_heaters(model: dict[str, Any], zones: list[str], radiant_fraction: floa
             "fraction_latent": 0.0,
             "fraction_radiant": float(radiant_fraction),
             "fraction_lost": 0.0,
-            "end_use_subcategory": "PINN-MPC Heater",
+            "end_use_subcategory": prefix,
         }
     return heaters
+
+
+def zone_names(zones: tuple[str, ...]) -> tuple[str, ...]:
+    """EnergyPlus's zone names as the package's (:class:`pinn_mpc.zones.ZoneSpec`: letters,
+    digits, ``_``, ``-``, ``.``): every other character (a space) becomes ``_``. InputError
+    when two zones would get one name."""
+    names = tuple(re.sub(r"[^A-Za-z0-9_.\-]", "_", z) for z in zones)
+    if len(set(names)) != len(names):
+        twins = sorted({z for z, n in zip(zones, names, strict=True) if names.count(n) > 1})
+        raise InputError(
+            f"zones {twins} would have the same name in the data ({', '.join(sorted(set(names)))}): "
+            "rename them in the model, or use zones = 'merged' or 'separate'"
+        )
+    return names
 
 
 def prepare_model(
@@ -439,11 +467,12 @@ def prepare_model(
     radiant_fraction: float = 0.0,
 ) -> PreparedModel:
     """A building (a bundled name or an IDF/epJSON path) without its HVAC, its conditioned
-    zones merged into one (``zones="merged"``) or kept (``"separate"``), an ideal electric
-    heater (0 W until a run sets it; ``radiant_fraction`` of its heat radiant) in each.
+    zones merged into one (``zones="merged"``) or kept (``"separate"``, ``"controlled"``), an
+    ideal electric heater (0 W until a run sets it; ``radiant_fraction`` of its heat radiant)
+    in each; kept to be controlled, an ideal chiller (all convective) in each too.
     A model with code objects (:data:`CODE_OBJECT_PREFIXES`) is refused unless ``allow_code``."""
-    if zones not in ("merged", "separate"):
-        raise ValueError(f"plant.zones = {zones!r} is not one of 'merged', 'separate'")
+    if zones not in ZONE_LAYOUTS:
+        raise ValueError(f"plant.zones = {zones!r} is not one of {', '.join(map(repr, ZONE_LAYOUTS))}")
     if isinstance(radiant_fraction, bool) or not 0.0 <= radiant_fraction <= 1.0:
         raise ValueError(f"plant.radiant_fraction = {radiant_fraction!r} must lie in [0, 1]")
     require_energyplus()
@@ -486,6 +515,7 @@ def prepare_model(
         areas = [geo[z]["floor_m2"] * m for z, m in zip(heated, multipliers, strict=True)]
         weights = [a / sum(areas) for a in areas] if len(heated) > 1 else [1.0]
     heaters = _add_heaters(model, heated, radiant_fraction)
+    chillers = _add_heaters(model, heated, 0.0, prefix=CHILLER_PREFIX) if zones == "controlled" else []
     return PreparedModel(
         model=model,
         source=str(path),
@@ -497,6 +527,11 @@ def prepare_model(
         volume_m3=sum(geo[z]["volume_m3"] for z in conditioned),
         merged_zones=tuple(conditioned) if zones == "merged" else (),
         timesteps_per_hour=timesteps_per_hour,
+        chillers=tuple(chillers),
+        zone_floor_m2=(
+            (sum(geo[z]["floor_m2"] for z in conditioned),) if zones == "merged"
+            else tuple(geo[z]["floor_m2"] for z in heated)
+        ),
     )
 
 
@@ -507,6 +542,18 @@ def prepare_plant(plant: EnergyPlusSettings) -> PreparedModel:
         radiant_fraction=plant.radiant_fraction,
     )
 
+
+
+@functools.lru_cache(maxsize=16)
+def _zone_layout_cached(key: PlantKey) -> tuple[tuple[str, ...], tuple[float, ...]]:
+    prepared = prepared_from_key(key)
+    return zone_names(prepared.zones), prepared.weights
+
+
+def zone_layout(plant: EnergyPlusSettings) -> tuple[tuple[str, ...], tuple[float, ...]]:
+    """The zones an EnergyPlus plant's model has heated (:func:`zone_names`) and each one's
+    share of the floor area (:attr:`PreparedModel.weights`); computed once per process."""
+    return _zone_layout_cached(plant_key(plant))
 
 
 #: What :func:`prepare_plant` reads of a plant: building, allow_code, zones, radiant fraction

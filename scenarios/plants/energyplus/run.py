@@ -64,6 +64,11 @@ class IntervalMeans:
     g_w_per_m2: float  # global horizontal irradiance [W/m2]
     i_g_w: float  # the building's own sensible internal gains (the heater's excluded) [W]
     overridden: bool  # the backup thermostat changed the power in some zone timestep
+    # A run of several actuators on zones kept (:class:`scenarios.plants.energyplus.zoned.ZonedRun`);
+    # None in a run of the building's one actuator:
+    t_r_zones_c: np.ndarray | None = None  # (Z,) each zone's air temperature at the end [C]
+    t_r_zones_sub_c: np.ndarray | None = None  # (S, Z) each zone's at the end of each zone timestep [C]
+    u_phys_act_w: np.ndarray | None = None  # (A,) each actuator's mean electrical power [W]
 
 
 _STOP = object()
@@ -144,6 +149,12 @@ class EnergyPlusRun:
         the calendar, so the building's weekday schedules follow the caller's dates; by default
         the year whose weekdays match the weather file.
         """
+        first = self._start(start_day, days, year=year)
+        assert isinstance(first, float)
+        return first
+
+    def _start(self, start_day: int, days: int, *, year: int | None) -> Any:
+        """:meth:`start`: what the run hands over at its start (:meth:`_first`)."""
         from pyenergyplus import runtime as ep_runtime
         from pyenergyplus.api import EnergyPlusAPI
 
@@ -184,7 +195,7 @@ class EnergyPlusRun:
         self._state = state = api.state_manager.new_state()
         api.runtime.set_console_output_status(state, False)
         self._handles: dict[str, Any] | None = None
-        self._u = self.actuator.lower_w
+        self._u: Any = self._off()
         self._last_t_r: float | None = None
         self._acc = self._new_acc()
         self._stopping = False
@@ -201,15 +212,13 @@ class EnergyPlusRun:
         args = ["-d", str(self._tmp), "-w", str(self.epw), str(path)]
         self._thread = threading.Thread(target=self._run, args=(args,), name="energyplus", daemon=True)
         self._thread.start()
-        first = self._receive_or_close()
-        assert isinstance(first, float)
-        return first
+        return self._receive_or_close()
 
-    def step(self, u_w: float) -> IntervalMeans:
+    def step(self, u_w: Any) -> IntervalMeans:
         """Hold heater power ``u_w`` [W] (clipped to the actuator's bounds) for one control interval."""
         if self._done or self._thread is None:
             raise InternalError("EnergyPlusRun.step: no run in progress (start one, or the run has ended)")
-        self._act_q.put(float(self.actuator.clip(float(u_w))), timeout=self.timeout_s)
+        self._act_q.put(self._clipped(u_w), timeout=self.timeout_s)
         result = self._receive_or_close()
         assert isinstance(result, IntervalMeans)
         return result
@@ -254,7 +263,7 @@ class EnergyPlusRun:
     def __exit__(self, *exc: object) -> None:
         self.close()
 
-    def _receive_or_close(self) -> float | IntervalMeans:
+    def _receive_or_close(self) -> Any:
         """:meth:`_receive`; on any error or interrupt the run is closed first."""
         try:
             return self._receive()
@@ -262,7 +271,7 @@ class EnergyPlusRun:
             self.close()
             raise
 
-    def _receive(self) -> float | IntervalMeans:
+    def _receive(self) -> Any:
         try:
             kind, payload = self._obs_q.get(timeout=self.timeout_s)
         except queue.Empty:
@@ -321,17 +330,21 @@ class EnergyPlusRun:
         else:
             self._obs_q.put(("done", None))
 
+    def _equipment(self) -> tuple[str, ...]:
+        """The ``OtherEquipment`` objects whose power the run sets: the heaters."""
+        return self.prepared.heaters
+
     def _get_handles(self, state: Any) -> dict[str, Any]:
         ex = self.api.exchange
         var = {(n, k): ex.get_variable_handle(state, n, k) for n, k in self._variables()}
-        act = [ex.get_actuator_handle(state, "OtherEquipment", "Power Level", h) for h in self.prepared.heaters]
+        act = [ex.get_actuator_handle(state, "OtherEquipment", "Power Level", h) for h in self._equipment()]
         missing = [f"{n} of {k}" for (n, k), v in var.items() if v < 0]
-        missing += [f"actuator of {h}" for h, a in zip(self.prepared.heaters, act, strict=True) if a < 0]
+        missing += [f"actuator of {h}" for h, a in zip(self._equipment(), act, strict=True) if a < 0]
         if missing:
             raise RuntimeError(f"EnergyPlus has no handle for {missing}")
         return {"var": var, "act": act}
 
-    def _read(self, state: Any) -> dict[str, float]:
+    def _read(self, state: Any) -> dict[str, Any]:
         assert self._handles is not None
         ex, var, prepared = self.api.exchange, self._handles["var"], self.prepared
 
@@ -369,9 +382,73 @@ class EnergyPlusRun:
             day += 365
         return int((day - 1) * SECONDS_PER_DAY + ex.hour(state) * 3600 + n * step_s)
 
-    @staticmethod
-    def _new_acc() -> dict[str, Any]:
+    def _new_acc(self) -> dict[str, Any]:
         return {"n": 0, "T_a": 0.0, "G": 0.0, "u_phys": 0.0, "I_g": 0.0, "T_r": [], "overridden": False}
+
+    def _accumulate(self, r: dict[str, Any]) -> None:
+        """Add one zone timestep's reading (:meth:`_read`) to the interval."""
+        acc = self._acc
+        acc["n"] += 1
+        for key in ("T_a", "G", "u_phys", "I_g"):
+            acc[key] += r[key]
+        acc["T_r"].append(r["T_r"])
+
+    def _observed(self, r: dict[str, Any]) -> None:
+        """Keep what the next zone timestep's control acts on (the room at this one's end)."""
+        self._last_t_r = r["T_r"]
+
+    def _first(self) -> Any:
+        """The room temperature handed over when the run starts."""
+        return float(self._last_t_r)  # type: ignore[arg-type]
+
+    # ---- the one actuator's control (a run of several overrides these) -----------------
+
+    def _off(self) -> Any:
+        """The power before any is asked: the actuator's lower bound."""
+        return self.actuator.lower_w
+
+    def _clipped(self, u_w: Any) -> Any:
+        """The power asked within the actuator's bounds."""
+        return float(self.actuator.clip(float(u_w)))
+
+    def _demand(self, msg: Any) -> Any:
+        """The power the controller's message asks for."""
+        return float(msg)
+
+    def _warm_up(self, state: Any) -> None:
+        """A warm-up zone timestep: integral control to the warm-up setpoint."""
+        gain = 0.1 * self.actuator.span_w if self.hold_c is None else self.hold_gain_w_per_k
+        self._integral_control(self.warmup_setpoint_c, gain)
+        self._set_heater(state, self._u)
+
+    def _hold(self, state: Any) -> None:
+        """The holding thermostat's zone timestep (``hold_c``)."""
+        assert self.hold_c is not None
+        self._integral_control(self.hold_c, self.hold_gain_w_per_k)
+
+    def _switch_off(self, state: Any) -> None:
+        """Nothing heats any more (the run is stopping)."""
+        self._set_heater(state, 0.0)
+
+    def _apply(self, state: Any) -> None:
+        """Set the power asked (``self._u``) for this zone timestep, the backup thermostat's
+        override (full power below ``backup_c[0]``, off above ``backup_c[1]``, mirrored for a
+        chiller) applied on the room at the last one's end."""
+        u = self._u
+        if self.backup_c is not None and self._last_t_r is not None:
+            low, high = self.backup_c
+            force_on, force_off = (
+                (self._last_t_r < low, self._last_t_r > high)
+                if self.heat_per_w > 0
+                else (self._last_t_r > high, self._last_t_r < low)
+            )
+            if force_on:
+                u = self.actuator.upper_w
+            elif force_off:
+                u = self.actuator.lower_w
+            if u != self._u:
+                self._acc["overridden"] = True
+        self._set_heater(state, u)
 
     def _means(self) -> IntervalMeans:
         acc, n = self._acc, max(self._acc["n"], 1)
@@ -413,14 +490,12 @@ class EnergyPlusRun:
                     return
                 self._handles = self._get_handles(state)
             if ex.warmup_flag(state):  # integral control to the warm-up setpoint
-                gain = 0.1 * self.actuator.span_w if self.hold_c is None else self.hold_gain_w_per_k
-                self._integral_control(self.warmup_setpoint_c, gain)
-                self._set_heater(state, self._u)
+                self._warm_up(state)
                 return
             if self._seconds(state) % self.dt_s == 0:
                 if self._last_t_r is None:
-                    self._last_t_r = self._read(state)["T_r"]
-                first = float(self._last_t_r)
+                    self._observed(self._read(state))
+                first = self._first()
                 self._obs_q.put(("obs", first if self._acc["n"] == 0 else self._means()))
                 try:
                     msg = self._act_q.get(timeout=self.timeout_s)
@@ -428,28 +503,14 @@ class EnergyPlusRun:
                     msg = _STOP
                 if msg is _STOP:
                     self._stopping = True
-                    self._set_heater(state, 0.0)
+                    self._switch_off(state)
                     self.api.runtime.stop_simulation(state)
                     return
                 if self.hold_c is None:
-                    self._u = float(msg)
+                    self._u = self._demand(msg)
             if self.hold_c is not None:
-                self._integral_control(self.hold_c, self.hold_gain_w_per_k)
-            u = self._u
-            if self.backup_c is not None and self._last_t_r is not None:
-                low, high = self.backup_c
-                force_on, force_off = (
-                    (self._last_t_r < low, self._last_t_r > high)
-                    if self.heat_per_w > 0
-                    else (self._last_t_r > high, self._last_t_r < low)
-                )
-                if force_on:
-                    u = self.actuator.upper_w
-                elif force_off:
-                    u = self.actuator.lower_w
-                if u != self._u:
-                    self._acc["overridden"] = True
-            self._set_heater(state, u)
+                self._hold(state)
+            self._apply(state)
         except BaseException as exc:  # a callback must not raise into EnergyPlus
             self._fail(state, exc)
 
@@ -459,14 +520,10 @@ class EnergyPlusRun:
             if self._handles is None or self._stopping or self._error is not None:
                 return
             r = self._read(state)
-            self._last_t_r = r["T_r"]
+            self._observed(r)
             if self.api.exchange.warmup_flag(state):
                 return
-            acc = self._acc
-            acc["n"] += 1
-            for key in ("T_a", "G", "u_phys", "I_g"):
-                acc[key] += r[key]
-            acc["T_r"].append(r["T_r"])
+            self._accumulate(r)
             if self._seconds(state) + 3600 // self.prepared.timesteps_per_hour >= self._end_s:
                 self._obs_q.put(("obs", self._means()))
         except BaseException as exc:  # a callback must not raise into EnergyPlus
