@@ -308,7 +308,7 @@ def _identify_zones(a: argparse.Namespace, df: pd.DataFrame) -> str:
 
     zones = zones_in(df.columns)
     names = ", ".join(z.name for z in zones)
-    if a.scenario is None:
+    if a.layout is None:
         raise InputError(
             f"{a.data}: holds {len(zones)} zones ({names}); identifying them needs the building's "
             "layout (which actuator acts on which zone, which facade each zone's windows face): "
@@ -316,11 +316,11 @@ def _identify_zones(a: argparse.Namespace, df: pd.DataFrame) -> str:
         )
     if a.eta is not None:
         raise InputError("--eta is a one-zone building's; a building of several zones has each actuator's efficiency in its scenario")
-    scenario = get_scenario(a.scenario)
+    scenario = get_scenario(a.layout)
     spec = scenario.control_spec()
     if spec.zones != zones:
         raise InputError(
-            f"--scenario {a.scenario}: its zones ({', '.join(z.name for z in spec.zones)}) are not "
+            f"--scenario {a.layout}: its zones ({', '.join(z.name for z in spec.zones)}) are not "
             f"the data's ({names}); give the scenario of the building the data were measured in"
         )
     columns = actuator_columns("u_phys", spec.actuators)
@@ -353,7 +353,7 @@ def identify(a: argparse.Namespace) -> str:
     df = read_timeseries(a.data, columns=a.columns, zones=True)
     if len(zones_in(df.columns)) > 1:
         return _identify_zones(a, df)
-    if a.scenario is not None:
+    if a.layout is not None:
         raise InputError(
             "--scenario gives the layout of a building of several zones; the data hold one zone: "
             "leave --scenario out"
