@@ -303,12 +303,12 @@ def _arx_rc(model: ARXModel, model_dir: str) -> dict[str, Any]:
 def _identify_zones(a: argparse.Namespace, df: pd.DataFrame) -> str:
     """``identify`` of data of several zones: the building of ``--scenario``'s layout
     (:func:`pinn_mpc.identify_multizone.identify_multizone`), its multi-zone RC file."""
-    from pinn_mpc.identify_multizone import identify_multizone
+    from scenarios.experiments.compare import identify_scenario_zones
     from scenarios.inputs.scenario_file import get_scenario
 
     zones = zones_in(df.columns)
     names = ", ".join(z.name for z in zones)
-    if a.scenario is None:
+    if a.layout is None:
         raise InputError(
             f"{a.data}: holds {len(zones)} zones ({names}); identifying them needs the building's "
             "layout (which actuator acts on which zone, which facade each zone's windows face): "
@@ -316,11 +316,11 @@ def _identify_zones(a: argparse.Namespace, df: pd.DataFrame) -> str:
         )
     if a.eta is not None:
         raise InputError("--eta is a one-zone building's; a building of several zones has each actuator's efficiency in its scenario")
-    spec = get_scenario(a.scenario).control_spec()
-    building = getattr(get_scenario(a.scenario).plant.settings, "building", None)
-    if spec.zones != zones or building is None:
+    scenario = get_scenario(a.layout)
+    spec = scenario.control_spec()
+    if spec.zones != zones:
         raise InputError(
-            f"--scenario {a.scenario}: its zones ({', '.join(z.name for z in spec.zones)}) are not "
+            f"--scenario {a.layout}: its zones ({', '.join(z.name for z in spec.zones)}) are not "
             f"the data's ({names}); give the scenario of the building the data were measured in"
         )
     columns = actuator_columns("u_phys", spec.actuators)
@@ -330,13 +330,12 @@ def _identify_zones(a: argparse.Namespace, df: pd.DataFrame) -> str:
             f"{a.data}: no column {', '.join(missing)}; data of a building of several actuators give "
             "each one's delivered power, u_phys[<actuator>]"
         )
-    solar = [z.solar_input if z.rc.solar_aperture_m2 > 0 else None for z in building.zones]
-    result = identify_multizone(
-        df, zones=zones, actuators=spec.actuators, power_columns=columns, solar_inputs=solar,
-        dt_s=float(df.attrs["dt_s"]),
-    )
-    for note in result.notes:
-        warn(note)
+    if float(df.attrs["dt_s"]) != scenario.sim.dt_s:
+        raise InputError(
+            f"{a.data}: its step is {df.attrs['dt_s']:g} s, the scenario's control interval "
+            f"{scenario.sim.dt_s:g} s; give data at the scenario's interval"
+        )
+    result = identify_scenario_zones(scenario, df)
     atomic_write_json(a.out, {**result.to_json(), "source": f"identify:{a.data}"})
     walls = ", ".join(f"{x}-{y} {u:.4g} W/K" for (x, y), u in result.walls.items()) or "none"
     rmse = ", ".join(f"{z.name} {r:.3f} C" for z, r in zip(zones, result.rmse_c, strict=True))
@@ -354,7 +353,7 @@ def identify(a: argparse.Namespace) -> str:
     df = read_timeseries(a.data, columns=a.columns, zones=True)
     if len(zones_in(df.columns)) > 1:
         return _identify_zones(a, df)
-    if a.scenario is not None:
+    if a.layout is not None:
         raise InputError(
             "--scenario gives the layout of a building of several zones; the data hold one zone: "
             "leave --scenario out"

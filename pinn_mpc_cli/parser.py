@@ -351,7 +351,8 @@ def add_identify(sub: Commands) -> None:
     _columns(p)
     _eta_option(p)
     _scenario(
-        p, help="for data of several zones: the building's layout (its zones, their actuators and "
+        p, dest="layout", metavar="SCENARIO",
+        help="for data of several zones: the building's layout (its zones, their actuators and "
         "windows) from this scenario, a built-in name (`pinn-mpc scenario list`) or a scenario file",
     )
     p.add_argument("--out", required=True, help="RC JSON file to write (for --rc)")

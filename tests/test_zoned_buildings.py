@@ -163,8 +163,13 @@ def test_generated_data_of_a_zoned_building_holds_each_zone_and_actuator():
     np.testing.assert_allclose(frame["u"], frame.filter(regex=r"^u\[").sum(axis=1))
     levels = frame["u[cool_east]"].to_numpy()
     assert levels.min() >= 0 and levels.max() <= 1000.0 and len(np.unique(levels)) > 50
-    with pytest.raises(InputError, match="closed-loop tracks one room's setpoint"):
-        generate(scenario, days=1, seed=0, policy="closed-loop")
+    tracked = generate(scenario, days=7, seed=0, policy="closed-loop")
+    # each zone tracks its own setpoints in the band widened by 1 K: the rooms stay near it
+    # (the backup's 14/30 C untouched) and the zones' own setpoints part them at times
+    rooms = tracked[["T_r[east]", "T_r[west]"]].to_numpy()
+    assert rooms.min() > 14.5 and rooms.max() < 29.5
+    assert np.max(np.abs(rooms[:, 0] - rooms[:, 1])) > 1.0
+    assert (tracked["u[heat_east]"] > 0).any() and (tracked["u[cool_east]"] > 0).any()
 
 
 def test_a_chiller_efficiency_is_the_carnot_eer_fraction_and_cools_only():

@@ -48,7 +48,7 @@ from tqdm import tqdm
 
 from controllers.planners import CEMPlanner, RandomShootingPlanner
 from pinn_mpc.choices import ARX, COMPARED_ARCHS, DEFAULT_ARCH, PHYSICS_ARX
-from pinn_mpc.errors import InputError, warn
+from pinn_mpc.errors import warn
 from pinn_mpc.physics import RCParams, params_from_summary, rc_summary
 from pinn_mpc.records import RcSummary
 from scenarios.choices import RANDOM_POLICIES
@@ -414,19 +414,24 @@ def identify_scenario_rc(scenario: Scenario, data: pd.DataFrame) -> RCParams:
 
 def identify_scenario_zones(scenario: Scenario, data: pd.DataFrame) -> MultiZoneIdentifyResult:
     """The multi-zone identification of ``data`` of a building of several zones, its layout
-    (which actuator acts on which zone, which facade each zone's windows face) the scenario's
-    (:func:`pinn_mpc.identify_multizone.identify_multizone`)."""
+    the scenario's (:func:`pinn_mpc.identify_multizone.identify_multizone`): which actuator
+    acts on which zone, and which irradiance each zone's windows take, the declared building's
+    (an RC plant of several zones) or, where the plant does not declare it (EnergyPlus), the
+    global horizontal ``G`` for every zone, each zone's aperture identified."""
     from pinn_mpc.actuator import actuator_columns
     from pinn_mpc.identify_multizone import identify_multizone
+    from pinn_mpc.multizone import MultiZoneParams
 
     spec = scenario.control_spec()
     building = getattr(scenario.plant.settings, "building", None)
-    if building is None:
-        raise InputError(f"scenario {scenario.name!r}: its building's zones are not declared; identify needs its layout")
+    solar: list[str | None] = (
+        ["G"] * len(spec.zones)
+        if not isinstance(building, MultiZoneParams)
+        else [z.solar_input if z.rc.solar_aperture_m2 > 0 else None for z in building.zones]
+    )
     result = identify_multizone(
         data, zones=spec.zones, actuators=spec.actuators,
-        power_columns=actuator_columns("u_phys", spec.actuators),
-        solar_inputs=[z.solar_input if z.rc.solar_aperture_m2 > 0 else None for z in building.zones],
+        power_columns=actuator_columns("u_phys", spec.actuators), solar_inputs=solar,
         dt_s=scenario.sim.dt_s,
     )
     for note in result.notes:

@@ -194,8 +194,10 @@ class DataPolicy:
     demand (B,) [W]. Its draws come from ``rng`` up front, in the order the policies have
     always drawn them. A building of several actuators (one building) gets each actuator's
     own draws, (A,) demands: ``random`` and ``random-level`` independently per actuator, the
-    ``thermostat`` each actuator's rule on its zone (:class:`Thermostat`); ``closed-loop``
-    tracks one room's setpoint and is refused there."""
+    ``thermostat`` each actuator's rule on its zone (:class:`Thermostat`), ``closed-loop`` a
+    setpoint sequence per zone (:class:`SetpointPolicy`'s, drawn for each zone) which each
+    actuator tracks on its zone, a heater below it and a chiller above it, each with its own
+    dither."""
 
     def __init__(
         self, policy: str, spec: ControlSpec, cols: dict[str, np.ndarray], *, n: int, n_buildings: int,
@@ -204,12 +206,15 @@ class DataPolicy:
         self.policy, self.spec, self.cols, self.on_probability = policy, spec, cols, on_probability
         self.actuators = spec.n_actuators
         if self.actuators > 1:
-            if policy == "closed-loop":
-                raise InputError(
-                    f"{setting('policy')} closed-loop tracks one room's setpoint; a building of "
-                    f"{len(spec.zones)} zones and {self.actuators} actuators takes random-level, "
-                    "random or thermostat"
-                )
+            if policy == "closed-loop":  # each zone its own setpoints, each actuator its dither
+                zone_draws = rng.random((len(spec.zones), n, 3))
+                self.zone_tracking = [
+                    SetpointPolicy.for_data(spec.actuators[0], cols["T_min"], cols["T_max"], spec.dt_s)
+                    for _ in spec.zones
+                ]
+                self.zone_setpoints = np.stack(
+                    [p.setpoints(d) for p, d in zip(self.zone_tracking, zone_draws, strict=True)], axis=1
+                )  # (n, Z)
             self.draws = rng.random((n, self.actuators))
             self.thermostat = Thermostat(spec)
             return
@@ -244,6 +249,14 @@ class DataPolicy:
             return np.array([a.on_off(bool(d < self.on_probability)) for a, d in zip(actuators, self.draws[k], strict=True)])
         if self.policy == "random-level":
             return np.array([a.at_fraction(float(d)) for a, d in zip(actuators, self.draws[k], strict=True)])
+        if self.policy == "closed-loop":
+            tracking = self.zone_tracking[0]
+            levels = np.array([
+                tracking.gain_per_k * a.sign * (self.zone_setpoints[k, a.zone] - t_r[a.zone])
+                + tracking.dither * (2.0 * d - 1.0)
+                for a, d in zip(actuators, self.draws[k], strict=True)
+            ])
+            return np.array([a.at_fraction(float(level)) for a, level in zip(actuators, levels, strict=True)])
         history = {c: np.array([t]) for c, t in zip(zone_columns("T_r", self.spec.zones), t_r, strict=True)}
         band = {c: self.cols[c][k : k + 1] for c in ("T_min", "T_max")}
         obs = Observation.from_history(k, history, zones=self.spec.zones)

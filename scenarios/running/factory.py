@@ -406,10 +406,10 @@ def _zone_controller(
 
         return Thermostat(spec)
     if model is not None or rc_params is not None:
-        what = "a trained model (--model)" if model is not None else "a one-zone RC"
+        what = f"a trained model ({setting('model_dir')})" if model is not None else "a one-zone RC"
         raise InputError(
             f"controller {name!r} plans {what} of one zone; {where}: give it a multi-zone RC file "
-            "(--rc, `pinn-mpc identify` on the scenario's data) instead"
+            f"({setting('rc_path')}, `pinn-mpc identify` on the scenario's data with its layout) instead"
         )
     if zone_params is None:
         raise InputError(
