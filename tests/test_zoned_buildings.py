@@ -204,3 +204,39 @@ def test_a_zoned_plant_needs_named_actuators_on_its_zones():
         MultiZoneSettings(building=TWO_ZONE_HOUSE, actuators=(ActuatorSpec(upper_w=1000.0, zone=5, name="x"),))
     spec = get_scenario("two_zone_house").control_spec()
     assert isinstance(spec, ControlSpec) and spec.n_actuators == 2 and not spec.single
+
+
+def test_a_plant_with_only_the_one_zone_true_state_still_gives_the_oracle_its_mass():
+    """A plant kind written before the zone axis gives ``true_state`` (B, 2) only: the loop
+    reads its one zone's mass from it."""
+    from scenarios.plants.rc import RCPlant
+
+    scenario = get_scenario("winter_household")
+    series = ExogenousSeries.from_frame(scenario.exogenous(days=1, seed=0, part="test", lead_steps=48))
+    inner = RCPlant(scenario.sim, t_a_c=series.T_a, g_w_per_m2=series.G, i_g_w=series.I_g, seed=0, fleet=None)
+
+    class OneZoneOnly:
+        has_true_state, zones, n_buildings, n_substeps = True, inner.zones, 1, inner.n_substeps
+
+        def reset(self, t_r_c, t_m_c, *, start, seed):
+            inner.reset(t_r_c, t_m_c, start=start, seed=seed)
+
+        def measure(self):
+            return inner.measure()
+
+        def true_state(self):
+            return inner.true_state()
+
+        def step(self, u_w, row):
+            return inner.step(u_w, row)
+
+        def close(self):
+            inner.close()
+
+    loop = ClosedLoop(
+        scenario.sim, series, spec=scenario.control_spec(), initial_t_r_c=20.0, initial_t_m_c=18.5,
+        plant=OneZoneOnly(),  # type: ignore[arg-type]
+    )
+    assert loop.observation().t_m_true_c == 18.5
+    loop.step(1000.0)
+    assert loop.observation().t_m_true_c == pytest.approx(float(inner.true_state()[0, 1]))

@@ -295,13 +295,18 @@ class ClosedLoop:
         self._check_building(building)
         if self._measured_k != self.k:
             self._t_r[self.k] = self.plant.measure()
-            self._t_m[self.k] = (
-                cast(TrueStatePlant, self.plant).true_zone_states()[:, 1, :]
-                if self.plant.has_true_state
-                else math.nan
-            )
+            self._t_m[self.k] = self._true_masses() if self.plant.has_true_state else math.nan
             self._measured_k = self.k
         return self._t_r[self.k, building].copy()
+
+    def _true_masses(self) -> np.ndarray:
+        """(B, Z) each zone's true thermal-mass temperature now [C]; a one-zone plant that
+        gives only ``true_state`` (B, 2) (a plant kind written before the zone axis) is read as
+        its one zone."""
+        plant = cast(TrueStatePlant, self.plant)
+        if hasattr(plant, "true_zone_states"):
+            return plant.true_zone_states()[:, 1, :]
+        return plant.true_state()[:, 1:2]
 
     def measured(self) -> np.ndarray:
         """(B, Z) every building's measured room temperatures now [C] (:meth:`measure`)."""
