@@ -40,6 +40,7 @@ __all__ = [
     "SolveStats",
     "fallback_power",
     "fallback_powers",
+    "current_band_c",
     "first_values",
     "raise_if_interrupted",
     "solver_interrupts_held",
@@ -354,11 +355,16 @@ def fallback_power(obs: Observation, forecast: Forecast, spec: ControlSpec) -> f
     actuator = spec.actuator
     if len(forecast.T_min) == 0 or len(forecast.T_max) == 0:
         return actuator.lower_w
-    t_min, t_max = float(forecast.T_min[0]), float(forecast.T_max[0])
-    quarter = 0.25 * (t_max - t_min)
+    return _band_rule(actuator, obs.t_r_c, float(forecast.T_min[0]), float(forecast.T_max[0]))
+
+
+def _band_rule(actuator: ActuatorSpec, t_r_c: float, t_min_c: float, t_max_c: float) -> float:
+    """The fallback's rule for one actuator on its zone's room temperature and band: full power
+    in the band's lower (a heater) or upper (a cooler) quarter or beyond it, else off."""
+    quarter = 0.25 * (t_max_c - t_min_c)
     if actuator.heats:
-        return actuator.on_off(obs.t_r_c < t_min + quarter)
-    return actuator.on_off(obs.t_r_c > t_max - quarter)
+        return actuator.on_off(t_r_c < t_min_c + quarter)
+    return actuator.on_off(t_r_c > t_max_c - quarter)
 
 
 def fallback_powers(obs: Observation, forecast: Forecast, spec: ControlSpec) -> np.ndarray:
@@ -368,17 +374,20 @@ def fallback_powers(obs: Observation, forecast: Forecast, spec: ControlSpec) -> 
     above, each otherwise off (its lower bound). Without a band every actuator is off."""
     if spec.single:
         return np.array([fallback_power(obs, forecast, spec)])
-    powers = np.array([a.lower_w for a in spec.actuators], dtype=float)
     if len(forecast.T_min) == 0 or len(forecast.T_max) == 0:
-        return powers
+        return np.array([a.lower_w for a in spec.actuators], dtype=float)
     t_r = obs.t_r_zones_c()
-    t_min, t_max = (np.broadcast_to(np.asarray(b, dtype=float)[0], (len(spec.zones),)) for b in (forecast.T_min, forecast.T_max))
-    for i, actuator in enumerate(spec.actuators):
-        z = actuator.zone
-        quarter = 0.25 * (t_max[z] - t_min[z])
-        on = t_r[z] < t_min[z] + quarter if actuator.heats else t_r[z] > t_max[z] - quarter
-        powers[i] = actuator.on_off(bool(on))
-    return powers
+    t_min, t_max = current_band_c(forecast, len(spec.zones))
+    return np.array([
+        _band_rule(a, float(t_r[a.zone]), float(t_min[a.zone]), float(t_max[a.zone])) for a in spec.actuators
+    ])
+
+
+def current_band_c(forecast: Forecast, n_zones: int) -> tuple[np.ndarray, np.ndarray]:
+    """(T_min (Z,), T_max (Z,)) each zone's comfort band of the forecast's first interval [C]
+    (the forecast's band is (H,) for every zone or (H, Z) each zone's)."""
+    low, high = (np.broadcast_to(np.asarray(b, dtype=float)[0], (n_zones,)) for b in (forecast.T_min, forecast.T_max))
+    return low, high
 
 
 #: The statuses of a solver that caught a Ctrl-C itself (OSQP; IPOPT through CasADi), lower case.

@@ -22,7 +22,7 @@ import time
 
 import numpy as np
 
-from controllers.base import ControlSpec, Forecast, Observation, SolveStats
+from controllers.base import ControlSpec, Forecast, Observation, SolveStats, current_band_c
 
 __all__ = ["Thermostat"]
 
@@ -68,14 +68,17 @@ class Thermostat:
         return t_max_c - offset + half, t_max_c - offset - half
 
     def switch(
-        self, t_r_c: np.ndarray, was_on: np.ndarray, t_min_c: float, t_max_c: float
+        self, t_r_c: np.ndarray, was_on: np.ndarray, t_min_c: float, t_max_c: float,
+        *, heats: bool | None = None,
     ) -> np.ndarray:
-        """The rule for a batch: room temperatures (B,) [C] and states (B,) bool -> on (B,) bool.
+        """The rule for a batch: room temperatures (B,) [C] and states (B,) bool -> on (B,) bool,
+        of a heater or a cooler (``heats``; None: the building's one actuator).
 
         Stateless, so data generation can run it over many buildings at once.
         """
-        on_at, off_at = self.thresholds_c(t_min_c, t_max_c)
-        if self.spec.actuator.heats:
+        heats = self.spec.actuator.heats if heats is None else heats
+        on_at, off_at = self.thresholds_c(t_min_c, t_max_c, heats=heats)
+        if heats:
             return (t_r_c < on_at) | (was_on & (t_r_c <= off_at))
         return (t_r_c > on_at) | (was_on & (t_r_c >= off_at))
 
@@ -95,18 +98,14 @@ class Thermostat:
     def _act_zones(self, obs: Observation, forecast: Forecast) -> np.ndarray:
         """(A,) each actuator's rule on its zone (module docstring)."""
         start = time.perf_counter()
-        n_zones = len(self.spec.zones)
-        t_min, t_max = (np.broadcast_to(np.asarray(b, dtype=float)[0], (n_zones,)) for b in (forecast.T_min, forecast.T_max))
+        t_min, t_max = current_band_c(forecast, len(self.spec.zones))
         t_r = obs.t_r_zones_c()
         powers = np.empty(self.spec.n_actuators)
         for i, actuator in enumerate(self.spec.actuators):
             z = actuator.zone
-            on_at, off_at = self.thresholds_c(float(t_min[z]), float(t_max[z]), heats=actuator.heats)
-            was = bool(self._zone_on[i])
-            if actuator.heats:
-                on = t_r[z] < on_at or (was and t_r[z] <= off_at)
-            else:
-                on = t_r[z] > on_at or (was and t_r[z] >= off_at)
+            on = self.switch(
+                t_r[z : z + 1], self._zone_on[i : i + 1], float(t_min[z]), float(t_max[z]), heats=actuator.heats
+            )[0]
             self._zone_on[i] = on
             powers[i] = actuator.on_off(bool(on))
         self._plan = powers[None, :]
