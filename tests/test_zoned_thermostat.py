@@ -140,7 +140,7 @@ def test_a_zone_that_answers_within_an_interval_settles_at_the_setpoint_where_on
     assert np.ptp(t[-10:]) >= swing
 
 
-def test_in_closed_loop_no_zone_heats_and_cools_at_once_and_modes_change_only_outside_the_dead_band():
+def test_in_closed_loop_no_zone_heats_and_cools_at_once_and_modes_change_only_outside_the_dead_band() -> None:
     scenario = get_scenario("shoulder_office")
     spec = scenario.control_spec()
     seen: list[tuple[np.ndarray, float, float, np.ndarray]] = []
