@@ -47,7 +47,10 @@ INTEGRAL_TIME_S = 600.0
 
 class Thermostat:
     """On/off rule; ``act`` returns the actuator's off or full power (``spec.actuator.on_off``)
-    [W]. Deterministic; keeps one bit of state (on or off) between calls, cleared by ``reset``."""
+    [W]. Deterministic; keeps one bit of state (on or off) between calls, cleared by ``reset``.
+    A building of several zones or actuators gets the dual-setpoint thermostat per zone
+    (module docstring): ``act`` returns (A,) [W], the state kept is each zone's mode and each
+    actuator's stage."""
 
     name = "thermostat"
     #: A rule on the measured room temperature: no model, no state estimate, nothing to trust.
