@@ -5,7 +5,7 @@ The physics is the multi-zone RC building identified from the training data
 the internal gains, and the conductance of every internal wall, each positive), so the heat each
 zone exchanges with its neighbours is physics with a learned conductance. The learned part is
 each zone's residual heat (:class:`pinn_mpc.models.zone_residual.ResidualHeat`): a small network
-of the clock, the calendar and the weather, trained on the data's day-long windows, each rolled
+of the clock and the calendar (a workday or not), trained on the data's day-long windows, each rolled
 out from the state a Kalman filter on the identified building estimates at its start. The
 residual takes neither the plan nor the state, so a planner cannot exploit it: the predicted
 temperatures rise with every heater's power and fall with every chiller's.
@@ -51,7 +51,7 @@ from pinn_mpc.models.zone_residual import (
     ResidualTraining,
     fit_residual,
 )
-from pinn_mpc.multizone import EXOGENOUS_NAMES, history_arrays, needed_inputs
+from pinn_mpc.multizone import EXOGENOUS_NAMES, history_arrays
 from pinn_mpc.observer import MultiZoneObserver
 from pinn_mpc.zones import ZoneSpec
 
@@ -79,6 +79,10 @@ FAMILY = "hybrid"
 #: :data:`_DEFAULT_SCALE_W` where none does).
 _SCALE_SHARE = 0.5
 _DEFAULT_SCALE_W = 1000.0
+#: The residual's inputs: the clock and the calendar. The weather is the RC's: a network of
+#: the weather extrapolates to the days it was not trained on (a colder week) and was found
+#: to predict held-out days worse than the RC alone.
+RESIDUAL_INPUTS = (CLOCK, DAY_TYPE)
 #: The relative improvement of the held-out error the residual must bring to be kept.
 _KEEP_GAIN = 0.02
 
@@ -156,13 +160,6 @@ def _heat_scale_w(zones: Sequence[ZoneSpec], actuators: Sequence[ActuatorSpec]) 
     return _SCALE_SHARE * np.where(scale > 0, scale, _DEFAULT_SCALE_W)
 
 
-def _residual_names(frame: pd.DataFrame, needed: Sequence[str]) -> tuple[str, ...]:
-    """The residual's inputs: the clock, the calendar where the data has dates, and the
-    weather and gains the building takes."""
-    names = [CLOCK]
-    if "time" in frame.columns:
-        names.append(DAY_TYPE)
-    return (*names, *needed)
 
 
 def _series(frame: pd.DataFrame, names: Sequence[str]) -> dict[str, np.ndarray]:
@@ -171,13 +168,13 @@ def _series(frame: pd.DataFrame, names: Sequence[str]) -> dict[str, np.ndarray]:
     from pinn_mpc.features import time_of_day_h
 
     out: dict[str, np.ndarray] = {}
-    times = pd.to_datetime(frame["time"]) if "time" in frame.columns else None
+    if "time" not in frame.columns:
+        raise InputError("train: data of several zones need a time column (the residual's clock and calendar)")
+    times = pd.to_datetime(frame["time"])
     for name in names:
         if name == CLOCK:
-            if times is None:
-                raise InputError("train: data of several zones need a time column (the residual's clock)")
             out[name] = time_of_day_h(times)
-        elif name == DAY_TYPE and times is not None:
+        elif name == DAY_TYPE:
             holiday = frame["holiday"].to_numpy(dtype=float) if "holiday" in frame.columns else None
             out[name] = day_of_week(times.to_numpy(), holiday)
         else:
@@ -237,12 +234,14 @@ def fit_multizone_hybrid(
     from pinn_mpc.training import data_summary
 
     settings = ResidualTraining() if settings is None else settings
+    if "I_g" not in frame.columns:  # no measured internal gains: the residual learns them
+        frame = frame.assign(I_g=0.0)
     identified = identify_multizone(
         frame, zones=zones, actuators=actuators, power_columns=actuator_columns("u_phys", actuators),
         solar_inputs=solar_inputs, dt_s=dt_s,
     )
     rc = MultiZoneRCModel(identified.params, actuators, dt_s)
-    names = _residual_names(frame, needed_inputs(identified.params))
+    names = RESIDUAL_INPUTS
     series = _series(frame, names)
     windows = _Windows(rc, frame)
     scale = _heat_scale_w(zones, actuators)

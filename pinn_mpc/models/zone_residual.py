@@ -1,11 +1,10 @@
-"""The learned part of the multi-zone hybrid: each zone's residual heat, a small network of the
-clock, the calendar and the weather.
+"""The learned part of the multi-zone hybrid: each zone's residual heat, a small network of its
+inputs (the hybrid gives it the clock and the calendar).
 
-:class:`ResidualHeat` maps the exogenous inputs of an interval (its time of day, its day type
-where the data has dates, the outdoor temperature, the irradiance the building takes and the
-internal gains where measured) to the heat [W] each zone's air receives beyond what the RC
-building explains: unmeasured occupancy and equipment schedules, the sun's share a lumped
-aperture misses. It depends on neither the plan nor the state, so the hybrid's predicted
+:class:`ResidualHeat` maps the exogenous inputs of an interval (its time of day, whether its
+day is a workday, and any other series it was given, scaled) to the heat [W] each zone's air
+receives beyond what the RC building explains: unmeasured occupancy and equipment
+schedules. It depends on neither the plan nor the state, so the hybrid's predicted
 temperatures stay non-decreasing in every heating power and non-increasing in every cooling
 power (the RC's), whatever the network learned: a planner cannot exploit it.
 
@@ -30,7 +29,9 @@ __all__ = ["CLOCK", "DAY_TYPE", "HIDDEN", "ResidualHeat", "ResidualTraining", "f
 
 #: The time-of-day input (hours since midnight), encoded as the daily phase's sine and cosine.
 CLOCK = "time_of_day_h"
-#: The calendar input (0 = Monday), encoded as workday / Saturday / Sunday-or-holiday.
+#: The calendar input (0 = Monday), encoded as one flag: a weekend day or holiday (the data's
+#: Sunday-or-holiday, :func:`pinn_mpc.data.day_of_week`), whose schedules differ from a
+#: workday's.
 DAY_TYPE = "day_of_week"
 #: Hidden units of the residual network.
 HIDDEN = 16
@@ -46,8 +47,7 @@ def _encode(inputs: Mapping[str, np.ndarray], names: Sequence[str], mean: np.nda
             phase = 2.0 * math.pi * values / 24.0
             columns += [np.sin(phase), np.cos(phase)]
         elif name == DAY_TYPE:
-            day = np.nan_to_num(values, nan=0.0)
-            columns += [(day < 5).astype(float), (day == 5).astype(float), (day >= 6).astype(float)]
+            columns.append((np.nan_to_num(values, nan=0.0) >= 5).astype(float))
         else:
             columns.append((values - mean[scaled]) / std[scaled])
             scaled += 1
@@ -79,7 +79,7 @@ class ResidualHeat:
 
     def __post_init__(self) -> None:
         n_scaled = len(residual_inputs(self.names))
-        n_features = sum(2 if n == CLOCK else 3 if n == DAY_TYPE else 1 for n in self.names)
+        n_features = sum(2 if n == CLOCK else 1 for n in self.names)
         shapes = {
             "mean": (n_scaled,), "std": (n_scaled,), "w1": (n_features, None), "b1": (None,),
             "w2": (None, None), "b2": (None,), "scale_w": (None,),
@@ -143,10 +143,10 @@ class ResidualTraining:
     windows of ``horizon`` intervals starting every ``stride``, and ``penalty`` times the mean
     squared heat in units of ``scale_w`` added to the mean squared room error [K2]."""
 
-    epochs: int = 300
+    epochs: int = 200
     learning_rate: float = 0.01
     horizon: int = 48
-    stride: int = 4
+    stride: int = 8
     penalty: float = 0.01
 
 
