@@ -247,7 +247,7 @@ def fit_multizone_hybrid(
     scale = _heat_scale_w(zones, actuators)
     n = len(frame)
     h = min(settings.horizon, max(1, n // 8))
-    split = int(round(SELECTION_SHARE * n))
+    split = int(round((1.0 - SELECTION_SHARE) * n))  # the last quarter held out
 
     def trained(rows: int) -> ResidualHeat:
         starts = np.arange(0, max(1, rows - 1 - h), settings.stride)
