@@ -254,7 +254,7 @@ def fit_multizone_hybrid(
         return fit_residual(
             names=names, inputs={k: v[:rows] for k, v in series.items()}, forced=windows.forced[: rows - 1],
             starts_x=windows.states[starts], starts=starts, rooms=windows.rooms[:rows], a=windows.a,
-            b_q=rc._b_q, scale_w=scale, settings=settings, seed=seed,
+            b_q=rc.heat_input_matrix, scale_w=scale, settings=settings, seed=seed,
         )
 
     held_out = np.arange(split, n - 1 - h)
@@ -263,8 +263,8 @@ def fit_multizone_hybrid(
     if len(held_out) >= 1 and split - 1 - h >= 1:
         candidate = trained(split)
         q = candidate.heat_w(series)[:-1]
-        without = windows.mean_error_c(held_out, h, None, rc._b_q)
-        with_ = windows.mean_error_c(held_out, h, q, rc._b_q)
+        without = windows.mean_error_c(held_out, h, None, rc.heat_input_matrix)
+        with_ = windows.mean_error_c(held_out, h, q, rc.heat_input_matrix)
         kept = with_ < (1.0 - _KEEP_GAIN) * without
         selection |= {"held_out_mae_c": {"rc": without, "hybrid": with_}, "kept": bool(kept)}
         if kept:
