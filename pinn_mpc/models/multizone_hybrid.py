@@ -288,7 +288,8 @@ def save_multizone(model: MultiZoneHybrid, path: str | os.PathLike[str]) -> Path
     return out
 
 
-def _actuator(raw: Any, file: Path, index: int) -> ActuatorSpec:
+def read_actuator(raw: Any, file: Path, index: int) -> ActuatorSpec:
+    """Actuator ``index`` of a model file ``file``, checked (InputError naming the file)."""
     if not isinstance(raw, dict) or not isinstance(raw.get("efficiency"), dict):
         raise InputError(f"{file}: actuator {index + 1} must be an object with its efficiency; train it again")
     try:
@@ -315,7 +316,7 @@ def load_multizone(path: str | os.PathLike[str]) -> MultiZoneHybrid:
     raw_actuators = data.get("actuators")
     if not isinstance(raw_actuators, list) or not raw_actuators:
         raise InputError(f"{file}: actuators must be a non-empty list; train it again")
-    actuators = [_actuator(raw, file, i) for i, raw in enumerate(raw_actuators)]
+    actuators = [read_actuator(raw, file, i) for i, raw in enumerate(raw_actuators)]
     dt_s = data.get("dt_s")
     if isinstance(dt_s, bool) or not isinstance(dt_s, int | float) or not math.isfinite(dt_s) or dt_s <= 0:
         raise InputError(f"{file}: dt_s must be a positive number of seconds; train it again")
