@@ -61,7 +61,9 @@ __all__ = [
     "MULTIZONE_FILE",
     "MultiZoneHybrid",
     "fit_multizone_hybrid",
+    "held_out_error_c",
     "load_multizone",
+    "read_actuator",
     "save_multizone",
 ]
 
@@ -276,6 +278,21 @@ def fit_multizone_hybrid(
         identified, actuators, dt_s, residual=residual, solar_inputs=solar_inputs, selection=selection,
         training=summary,
     )
+
+
+def held_out_error_c(model: MultiZoneHybrid, frame: pd.DataFrame, starts: np.ndarray, horizon: int) -> float:
+    """The rooms' mean |error| [K] of ``model`` over the ``horizon`` intervals after each of
+    the rows ``starts`` of ``frame`` (data of its building, as :func:`fit_multizone_hybrid`
+    takes them): each from the state a Kalman filter on its identified building estimates from
+    the rows up to that start, then on the data's delivered powers and weather, the residual
+    heat added where it has one. Every start needs ``horizon`` rows after it."""
+    if "I_g" not in frame.columns:
+        frame = frame.assign(I_g=0.0)
+    rc = MultiZoneRCModel(model.identified.params, model.actuators, model.dt_s)
+    windows = _Windows(rc, frame)
+    residual = model.residual
+    q = None if residual is None else residual.heat_w(_series(frame, residual.names))[:-1]
+    return windows.mean_error_c(np.asarray(starts, dtype=int), horizon, q, rc._b_q)
 
 
 def save_multizone(model: MultiZoneHybrid, path: str | os.PathLike[str]) -> Path:
