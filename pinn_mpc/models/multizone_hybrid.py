@@ -292,7 +292,7 @@ def held_out_error_c(model: MultiZoneHybrid, frame: pd.DataFrame, starts: np.nda
     windows = _Windows(rc, frame)
     residual = model.residual
     q = None if residual is None else residual.heat_w(_series(frame, residual.names))[:-1]
-    return windows.mean_error_c(np.asarray(starts, dtype=int), horizon, q, rc._b_q)
+    return windows.mean_error_c(np.asarray(starts, dtype=int), horizon, q, rc.heat_input_matrix)
 
 
 def save_multizone(model: MultiZoneHybrid, path: str | os.PathLike[str]) -> Path:
