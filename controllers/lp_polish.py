@@ -36,6 +36,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.optimize
@@ -44,6 +45,9 @@ import torch
 
 from controllers.base import solver_interrupts_held
 from controllers.objective import HorizonObjective
+
+if TYPE_CHECKING:
+    from pinn_mpc.models.rollout import LinearResponse
 
 __all__ = [
     "PiggybackPolish",
@@ -54,6 +58,7 @@ __all__ = [
     "jacobians",
     "probes",
     "solve_lp",
+    "solve_state_lp",
     "zone_probes",
 ]
 
@@ -203,6 +208,70 @@ def solve_lp(
     return np.clip(u0 + res.x[:n_plan] * unit, problem.lower, problem.upper)
 
 
+def solve_state_lp(
+    response: LinearResponse, u0: np.ndarray, scale_w: np.ndarray, problem: PlanProblem, trust: float
+) -> np.ndarray | None:
+    """The LP of :func:`solve_lp` for a plan of several actuators ``u0`` (H, A) (in the plan's
+    units, ``scale_w`` (A,) W per unit) over a model's :class:`~pinn_mpc.models.rollout.LinearResponse`
+    at it, with the states as variables instead of the dense sensitivities: the change of the
+    plan (H, A), the state's change after each interval (H, S), free, tied to it by the
+    response's recursion (equality rows), and a violation slack per zone and step. The same
+    optimum as :func:`solve_lp` on the response's :meth:`~pinn_mpc.models.rollout.LinearResponse.jacobians`
+    (the states eliminated), with a constraint matrix of O(H (S^2 + S A)) nonzeros instead of
+    O(H^2 Z A). The new plan (H, A), or None if HiGHS fails."""
+    h, a_n = u0.shape
+    z_n, s_n = response.t_r_c.shape[1], response.a.shape[0]
+    obj = problem.objective
+    n_u, n_x = h * a_n, h * s_n
+    energy = np.broadcast_to(obj.price_eur_per_kwh * obj.dt_h, (h,))  # EUR per kW over each interval
+    c_u = (energy[:, None] * response.power * scale_w / 1000.0).reshape(-1)
+    c_s = np.full(h * z_n, obj.comfort_weight_eur_per_kh * obj.dt_h)
+    b = response.b * scale_w  # (H, S, A) per plan unit
+    # Equalities: dx_j - a dx_(j-1) - b_j du_j = 0, row j S + s.
+    eq_rows = np.arange(n_x).reshape(h, s_n)
+    rows_b = np.broadcast_to(eq_rows[:, :, None], (h, s_n, a_n))
+    cols_b = np.broadcast_to((np.arange(n_u).reshape(h, 1, a_n)), (h, s_n, a_n))
+    rows_a = np.broadcast_to(eq_rows[1:, :, None], (h - 1, s_n, s_n))
+    cols_a = n_u + np.broadcast_to(np.arange(n_x - s_n).reshape(h - 1, 1, s_n), (h - 1, s_n, s_n))
+    a_eq = sp.csr_matrix(
+        (
+            np.concatenate([-b.reshape(-1), np.ones(n_x), np.broadcast_to(-response.a, (h - 1, s_n, s_n)).reshape(-1)]),
+            (
+                np.concatenate([rows_b.reshape(-1), np.arange(n_x), rows_a.reshape(-1)]),
+                np.concatenate([cols_b.reshape(-1), n_u + np.arange(n_x), cols_a.reshape(-1)]),
+            ),
+        ),
+        shape=(n_x, n_u + n_x + h * z_n),
+    )
+    # Comfort: t_min - t0 - dx_j[room] <= s and dx_j[room] + t0 - t_max <= s, row (j, z).
+    r = np.arange(h * z_n)
+    room_cols = n_u + (np.arange(h)[:, None] * s_n + response.rooms[None, :]).reshape(-1)
+    slack_cols = n_u + n_x + r
+    a_ub = sp.csr_matrix(
+        (
+            np.concatenate([-np.ones(h * z_n), -np.ones(h * z_n), np.ones(h * z_n), -np.ones(h * z_n)]),
+            (np.concatenate([r, r, h * z_n + r, h * z_n + r]), np.concatenate([room_cols, slack_cols, room_cols, slack_cols])),
+        ),
+        shape=(2 * h * z_n, n_u + n_x + h * z_n),
+    )
+    t0 = response.t_r_c.reshape(-1)
+    b_ub = np.concatenate([t0 - obj.t_min_c.reshape(-1), obj.t_max_c.reshape(-1) - t0])
+    flat = u0.reshape(-1)
+    bounds = np.concatenate([
+        np.stack([np.maximum(problem.lower - flat, -trust), np.minimum(problem.upper - flat, trust)], 1),
+        np.tile([-np.inf, np.inf], (n_x, 1)),
+        np.tile([0.0, np.inf], (h * z_n, 1)),
+    ])
+    with solver_interrupts_held():
+        res = scipy.optimize.linprog(
+            np.concatenate([c_u, np.zeros(n_x), c_s]), A_ub=a_ub, b_ub=b_ub, A_eq=a_eq,
+            b_eq=np.zeros(n_x), bounds=bounds, method="highs",
+        )
+    if res.status != 0 or res.x is None:
+        return None
+    return np.clip(flat + res.x[:n_u], problem.lower, problem.upper).reshape(h, a_n)
+
+
 class PiggybackPolish:
     """Polish riding on a planner's objective calls (see the module docstring).
 
@@ -276,15 +345,20 @@ class PiggybackPolish:
                 self._queue_probes(self.best[0])
             return
         step, self._step = self._step, None
-        target = self._target(batch, t_r, u_phys, step)
+        self._search(batch[0], self._target(batch, t_r, u_phys, step))
+
+    def _search(self, u0: torch.Tensor, target: np.ndarray | None, *, with_u0: bool = False) -> None:
+        """Queue the line search from ``u0`` towards the LP's plan ``target`` (nothing when the
+        LP failed), ``u0`` itself first where ``with_u0``."""
         if target is None:
             return
         self.lps += 1
-        u0 = batch[0]
         alphas = torch.tensor(self.settings.line_search, dtype=u0.dtype).reshape(-1, *[1] * u0.dim())
         direction = torch.as_tensor(target, dtype=u0.dtype) - u0
         lo, hi = self.problem.lower, self.problem.upper
         self._pending = (u0 + alphas * direction).clamp(lo, hi)
+        if with_u0:
+            self._pending = torch.cat([u0[None], self._pending])
 
     def _consider(self, batch: torch.Tensor, costs: torch.Tensor) -> None:
         finite = torch.where(torch.isfinite(costs), costs, torch.full_like(costs, float("inf")))
@@ -311,7 +385,44 @@ class ZonePolish(PiggybackPolish):
     of ``problem``'s bounds (the planners' fractions of each actuator's range). Every step of
     every actuator is probed (``probe_stride`` does not apply: a model with a time-varying
     COP is linearised exactly only so); the LP is :func:`solve_lp` with each zone's
-    temperature at each step a row and each step of each actuator a column."""
+    temperature at each step a row and each step of each actuator a column.
+
+    A model that gives its response to the plan (``linearise``: a plan (H, A) in the plan's
+    units -> its :class:`pinn_mpc.models.rollout.LinearResponse` [per W], or None) is not
+    probed where it gives one: the LP is :func:`solve_state_lp` on that response (``scale_w``
+    (A,): W per plan unit of each actuator), solved at once, and its line search, the plan it
+    linearised around first, rides along with the planner's next batch."""
+
+    def __init__(
+        self,
+        rollout: RolloutFn,
+        score: Callable[[torch.Tensor, torch.Tensor], torch.Tensor],
+        problem: PlanProblem,
+        settings: PolishSettings,
+        x0: torch.Tensor,
+        *,
+        linearise: Callable[[torch.Tensor], LinearResponse | None] | None = None,
+        scale_w: np.ndarray | None = None,
+    ):
+        if (linearise is None) != (scale_w is None):
+            raise ValueError("ZonePolish: give linearise and scale_w together (the W per plan unit of each actuator)")
+        self.linearise, self.scale_w = linearise, scale_w
+        super().__init__(rollout, score, problem, settings, x0)
+
+    def _queue_probes(self, u0: torch.Tensor) -> None:
+        if self.linearise is None or self.scale_w is None:
+            super()._queue_probes(u0)
+            return
+        response = self.linearise(u0)
+        if response is None:  # not given at this plan: probe it
+            super()._queue_probes(u0)
+            return
+        self._rounds -= 1
+        self._pending = self._step = None
+        plan = solve_state_lp(
+            response, u0.double().numpy(), self.scale_w, self.problem, self.settings.trust_frac * self.span
+        )
+        self._search(u0, plan, with_u0=True)
 
     def _probes(self, u0: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         return zone_probes(u0, self.settings.delta_frac * self.span, self.problem.upper)

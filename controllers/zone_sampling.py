@@ -54,7 +54,7 @@ if TYPE_CHECKING:
     from controllers.estimators import MultiZoneKalmanEstimator
     from controllers.planners import Planner
     from controllers.rc_mpc.multizone import MultiZoneMPC
-    from pinn_mpc.models.rollout import BatchDynamics
+    from pinn_mpc.models.rollout import BatchDynamics, LinearResponse
 
 __all__ = ["ZoneSampling"]
 
@@ -238,9 +238,15 @@ class ZoneSampling:
                 return costs.mean(0) + self.risk_weight * costs.std(0, correction=0)
             return costs.mean(0)
 
+        def linearise(fractions: torch.Tensor) -> LinearResponse | None:
+            plan_w = (lower + span * fractions.to(dtype)).double().numpy()
+            return self.model.linear_response(history, plan_w, exog)
+
         x0 = self._zone_warm_start(h)
         problem = PlanProblem(objective=objective, lower=0.0, upper=1.0)
-        polisher = ZonePolish(rollout, score, problem, self.polish, x0)
+        polisher = ZonePolish(
+            rollout, score, problem, self.polish, x0, linearise=linearise, scale_w=span.double().numpy()
+        )
         result = self.planner.optimize(polisher.objective, x0, self._generator)
         plan, cost = result.plan, result.cost
         polished = polisher.finish()
