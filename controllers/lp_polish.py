@@ -36,7 +36,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import scipy.optimize
@@ -50,10 +50,13 @@ if TYPE_CHECKING:
     from pinn_mpc.models.rollout import LinearResponse
 
 __all__ = [
+    "MAX_LP_PLAN",
+    "POLISH_REGULARISATION_EUR_PER_KW2H",
     "PiggybackPolish",
     "PlanProblem",
     "PolishSettings",
     "RolloutFn",
+    "StateQP",
     "ZonePolish",
     "jacobians",
     "probes",
@@ -64,6 +67,9 @@ __all__ = [
 
 #: Rollout of N demand plans (N, H) [W] -> (T_r (M, N, H) [C], u_phys (M, N, H) [W]).
 RolloutFn = Callable[[torch.Tensor], tuple[torch.Tensor, torch.Tensor]]
+#: The polish LP over a model's response: (response, plan (H, A), W per plan unit (A,), problem,
+#: trust) -> the new plan (H, A), or None (:func:`solve_state_lp`, :meth:`StateQP.solve`).
+StateSolver = Callable[["LinearResponse", np.ndarray, np.ndarray, "PlanProblem", float], "np.ndarray | None"]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -272,6 +278,147 @@ def solve_state_lp(
     return np.clip(flat + res.x[:n_u], problem.lower, problem.upper).reshape(h, a_n)
 
 
+#: The largest plan (steps x actuators) whose polish LP HiGHS solves (:func:`solve_state_lp`);
+#: a larger one is solved as a QP by OSQP, warm-started (:class:`StateQP`). HiGHS's time grows
+#: about as the plan's square (a building of 15 zones and 30 actuators over 48 steps: 1,440
+#: columns), OSQP's with its nonzeros, its factorisation kept from decision to decision.
+MAX_LP_PLAN = 192
+#: The polish QP's regulariser [EUR per (kW of heat)^2 h] (the multi-zone QP MPC's default): it
+#: makes the optimum unique and costs a millionth of a euro per kW moved.
+POLISH_REGULARISATION_EUR_PER_KW2H = 1e-4
+#: OSQP's statuses whose solution the polish takes: its line search keeps a plan only where it
+#: beats the sampled one on the model, so a solution stopped at the iteration limit is a
+#: direction as good as the iterations got.
+QP_USABLE = ("solved", "solved inaccurate", "maximum iterations reached")
+#: OSQP's settings of the polish: the QP MPC's (:data:`controllers.rc_mpc.osqp.OSQP_OPTIONS`)
+#: with at most :data:`POLISH_MAX_ITER` iterations, the decision's time bound.
+POLISH_MAX_ITER = 200
+
+
+class StateQP:
+    """The LP of :func:`solve_state_lp` as a QP solved by OSQP, for a plan too large for HiGHS
+    (:data:`MAX_LP_PLAN`), kept across a controller's decisions. The variables are the change
+    of each actuator's heat (H, A) [kW] (its demand's change times its heat per W, so the
+    matrix does not move with the COP: the price of heat is the price over it, and an actuator
+    the backup forces has bounds 0), the state's change (H, S) and the slacks (H, Z); the
+    regulariser :data:`POLISH_REGULARISATION_EUR_PER_KW2H` on the heat's change. The matrix is
+    built and factorised once per horizon and building; each solve updates the vectors and
+    starts from no change, with the last solve's duals shifted one step, and stops after
+    ``warm_max_iter`` iterations (the first solve after a setup after ``options``' ``max_iter``).
+    ``options`` update :data:`controllers.rc_mpc.osqp.OSQP_OPTIONS`."""
+
+    def __init__(self, options: dict[str, object] | None = None, *, warm_max_iter: int = POLISH_MAX_ITER) -> None:
+        from controllers.rc_mpc.osqp import OSQP_OPTIONS
+
+        if warm_max_iter < 1:
+            raise ValueError(f"StateQP.warm_max_iter must be >= 1 (OSQP's iterations), got {warm_max_iter!r}")
+        self.options = {**OSQP_OPTIONS, **(options or {})}
+        self.warm_max_iter = warm_max_iter
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the solver, its matrices and its last duals."""
+        self._solver: Any = None
+        self._key: tuple[int, bytes, bytes, bytes] | None = None
+        self._y: np.ndarray | None = None
+        self.last_info: Any = None  # OSQP's info of the last solve
+        #: Values a step of the variables (heat, states, slacks) and of the rows (dynamics,
+        #: below, above, heat bounds, slack bounds): the warm start's shift.
+        self._per_step: tuple[tuple[int, ...], tuple[int, ...]] = ((), ())
+
+    def _setup(
+        self, response: LinearResponse, h: int, dt_h: float, q: np.ndarray, lower: np.ndarray, upper: np.ndarray
+    ) -> None:
+        """Build the QP's matrices of ``response``'s building over ``h`` steps and set OSQP up."""
+        import osqp
+
+        a_n, z_n, s_n = response.b_heat.shape[1], response.rooms.shape[0], response.a.shape[0]
+        n_u, n_x, n_s = h * a_n, h * s_n, h * z_n
+        rows: list[np.ndarray] = []
+        cols: list[np.ndarray] = []
+        vals: list[np.ndarray] = []
+
+        def add(r: np.ndarray, c: np.ndarray, v: np.ndarray | float) -> None:
+            r, c = np.broadcast_arrays(r, c)
+            rows.append(r.reshape(-1))
+            cols.append(c.reshape(-1))
+            vals.append(np.broadcast_to(v, r.shape).reshape(-1).astype(float))
+
+        steps = np.arange(h)
+        eq = steps[:, None] * s_n + np.arange(s_n)  # (H, S) the rows of dx_j - a dx_(j-1) - B dq_j = 0
+        add(eq, n_u + eq, 1.0)
+        heat_cols = steps[:, None, None] * a_n + np.arange(a_n)  # (H, 1, A)
+        add(eq[:, :, None], heat_cols, -1000.0 * response.b_heat[None])
+        state_cols = n_u + (steps[:-1, None, None] * s_n + np.arange(s_n))  # (H-1, 1, S) dx_(j-1)
+        add(eq[1:, :, None], state_cols, -response.a[None])
+        band = n_x + steps[:, None] * z_n + np.arange(z_n)  # (H, Z) below, then above at + n_s
+        room = n_u + steps[:, None] * s_n + response.rooms
+        slack = n_u + n_x + steps[:, None] * z_n + np.arange(z_n)
+        add(band, room, 1.0)
+        add(band, slack, 1.0)
+        add(band + n_s, room, 1.0)
+        add(band + n_s, slack, -1.0)
+        add(n_x + 2 * n_s + np.arange(n_u), np.arange(n_u), 1.0)
+        add(n_x + 2 * n_s + n_u + np.arange(n_s), n_u + n_x + np.arange(n_s), 1.0)
+        n = n_u + n_x + n_s
+        a_mat = sp.csc_matrix(
+            (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n_x + 3 * n_s + n_u, n)
+        )
+        diag = np.zeros(n)
+        diag[:n_u] = 2.0 * dt_h * POLISH_REGULARISATION_EUR_PER_KW2H
+        self._solver = osqp.OSQP()
+        self._solver.setup(P=sp.diags(diag, format="csc"), A=a_mat, q=q, l=lower, u=upper, **self.options)
+        self._per_step = ((a_n, s_n, z_n), (s_n, z_n, z_n, a_n, z_n))
+
+    def solve(
+        self, response: LinearResponse, u0: np.ndarray, scale_w: np.ndarray, problem: PlanProblem, trust: float
+    ) -> np.ndarray | None:
+        """The polished plan (H, A) in ``u0``'s units (:func:`solve_state_lp`'s arguments), or
+        None when OSQP does not solve it."""
+        from controllers.rc_mpc.qp import shift_steps
+
+        h, a_n = u0.shape
+        z_n, s_n = response.t_r_c.shape[1], response.a.shape[0]
+        obj = problem.objective
+        follows = response.heat_per_w > 0
+        heat = np.where(follows, response.heat_per_w, 1.0)  # (H, A) heat per W, 1 where it does not follow
+        energy = np.broadcast_to(obj.price_eur_per_kwh * obj.dt_h, (h,))  # EUR per kW over each interval
+        q = np.concatenate([
+            (energy[:, None] * response.power / heat).reshape(-1),
+            np.zeros(h * s_n),
+            np.full(h * z_n, obj.comfort_weight_eur_per_kh * obj.dt_h),
+        ])
+        per_kw = np.where(follows, heat * scale_w / 1000.0, 0.0)  # (H, A) kW of heat per plan unit
+        lo = np.maximum(problem.lower - u0, -trust) * per_kw
+        hi = np.minimum(problem.upper - u0, trust) * per_kw
+        t0 = response.t_r_c.reshape(-1)
+        inf = np.full(h * z_n, np.inf)
+        lower = np.concatenate([np.zeros(h * s_n), obj.t_min_c.reshape(-1) - t0, -inf, lo.reshape(-1), np.zeros(h * z_n)])
+        upper = np.concatenate([np.zeros(h * s_n), inf, obj.t_max_c.reshape(-1) - t0, hi.reshape(-1), inf])
+        key = (h, response.a.tobytes(), response.b_heat.tobytes(), response.rooms.tobytes())
+        with solver_interrupts_held():
+            if self._solver is None or key != self._key:
+                self._setup(response, h, float(np.mean(obj.dt_h)), q, lower, upper)
+                self._key = key
+            else:
+                self._solver.update(q=q, l=lower, u=upper)
+                self._solver.update_settings(max_iter=self.warm_max_iter)
+                x0 = np.zeros(len(q))
+                if self._y is not None:
+                    self._solver.warm_start(x=x0, y=shift_steps(self._y, self._per_step[1], h))
+                else:
+                    self._solver.warm_start(x=x0)
+            result = self._solver.solve(raise_error=False)
+        x, y = np.asarray(result.x, dtype=float), np.asarray(result.y, dtype=float)
+        self.last_info = result.info
+        if str(result.info.status) not in QP_USABLE or not np.all(np.isfinite(x)):
+            self._y = None
+            return None
+        self._y = y
+        du = np.where(follows, x[: h * a_n].reshape(h, a_n) / np.where(follows, per_kw, 1.0), 0.0)
+        return np.clip(u0 + du, problem.lower, problem.upper)
+
+
 class PiggybackPolish:
     """Polish riding on a planner's objective calls (see the module docstring).
 
@@ -389,9 +536,10 @@ class ZonePolish(PiggybackPolish):
 
     A model that gives its response to the plan (``linearise``: a plan (H, A) in the plan's
     units -> its :class:`pinn_mpc.models.rollout.LinearResponse` [per W], or None) is not
-    probed where it gives one: the LP is :func:`solve_state_lp` on that response (``scale_w``
-    (A,): W per plan unit of each actuator), solved at once, and its line search, the plan it
-    linearised around first, rides along with the planner's next batch."""
+    probed where it gives one: the LP is ``solve_state`` (:func:`solve_state_lp`, or a
+    :class:`StateQP`'s ``solve``) on that response (``scale_w`` (A,): W per plan unit of each
+    actuator), solved at once, and its line search, the plan it linearised around first, rides
+    along with the planner's next batch."""
 
     def __init__(
         self,
@@ -403,10 +551,12 @@ class ZonePolish(PiggybackPolish):
         *,
         linearise: Callable[[torch.Tensor], LinearResponse | None] | None = None,
         scale_w: np.ndarray | None = None,
+        solve_state: StateSolver | None = None,
     ):
         if (linearise is None) != (scale_w is None):
             raise ValueError("ZonePolish: give linearise and scale_w together (the W per plan unit of each actuator)")
         self.linearise, self.scale_w = linearise, scale_w
+        self.solve_state: StateSolver = solve_state_lp if solve_state is None else solve_state
         super().__init__(rollout, score, problem, settings, x0)
 
     def _queue_probes(self, u0: torch.Tensor) -> None:
@@ -419,7 +569,7 @@ class ZonePolish(PiggybackPolish):
             return
         self._rounds -= 1
         self._pending = self._step = None
-        plan = solve_state_lp(
+        plan = self.solve_state(
             response, u0.double().numpy(), self.scale_w, self.problem, self.settings.trust_frac * self.span
         )
         self._search(u0, plan, with_u0=True)

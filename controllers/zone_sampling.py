@@ -46,7 +46,7 @@ from controllers.base import (
     SolveStats,
     fallback_powers,
 )
-from controllers.lp_polish import PlanProblem, PolishSettings, ZonePolish
+from controllers.lp_polish import MAX_LP_PLAN, PlanProblem, PolishSettings, StateQP, ZonePolish
 from controllers.objective import ZoneObjective
 from pinn_mpc.errors import InternalError
 
@@ -124,6 +124,7 @@ class ZoneSampling:
     fallback: Fallback
     _generator: torch.Generator
     _stats: SolveStats
+    _state_qp: StateQP
 
     def _init_zones(self) -> None:
         """Check the model against the building of ``spec`` and build the fallback."""
@@ -155,6 +156,7 @@ class ZoneSampling:
             self._zone_observer = _LastEstimate(MultiZoneKalmanEstimator(params, spec))
             qp = MultiZoneMPC(params, spec, estimator=self._zone_observer, name=f"{name} fallback")
         self.fallback = _ZoneFallback(spec, qp)
+        self._state_qp = StateQP()  # the polish of a plan too large for HiGHS
         self._lower_w = torch.tensor([a.lower_w for a in spec.actuators], dtype=torch.float32)
         self._span_w = torch.tensor([a.span_w for a in spec.actuators], dtype=torch.float32)
 
@@ -168,6 +170,7 @@ class ZoneSampling:
     def _reset_zones(self) -> None:
         """Forget the observer, the fallback QP's plan and warm start, and the counts."""
         self.fallback.reset()
+        self._state_qp.reset()
         if self._zone_observer is not None:
             self._zone_observer.reset()
         if self.zone_qp is not None:
@@ -245,7 +248,8 @@ class ZoneSampling:
         x0 = self._zone_warm_start(h)
         problem = PlanProblem(objective=objective, lower=0.0, upper=1.0)
         polisher = ZonePolish(
-            rollout, score, problem, self.polish, x0, linearise=linearise, scale_w=span.double().numpy()
+            rollout, score, problem, self.polish, x0, linearise=linearise, scale_w=span.double().numpy(),
+            solve_state=self._state_qp.solve if h * self.spec.n_actuators > MAX_LP_PLAN else None,
         )
         result = self.planner.optimize(polisher.objective, x0, self._generator)
         plan, cost = result.plan, result.cost

@@ -11,7 +11,7 @@ import pytest
 import torch
 
 from controllers.base import Forecast
-from controllers.lp_polish import PlanProblem, solve_lp, solve_state_lp
+from controllers.lp_polish import PlanProblem, StateQP, solve_lp, solve_state_lp
 from controllers.objective import ZoneObjective
 from controllers.sampling import CEM
 from pinn_mpc import multizone
@@ -82,13 +82,13 @@ def test_the_response_is_the_rollouts_finite_differences_and_zero_where_the_back
     np.testing.assert_allclose(jp, fd_p, rtol=0, atol=1e-6)
     forced = response.power == 0
     assert forced.any() and (~forced).any()
-    assert np.all(jr[:, :, forced] == 0) and np.all(response.b[forced.nonzero()[0], :, forced.nonzero()[1]] == 0)
+    assert np.all(jr[:, :, forced] == 0) and np.all(response.heat_per_w[forced] == 0)
 
 
 def test_a_response_of_mismatched_shapes_is_refused_naming_the_field():
     with pytest.raises(ValueError, match=r"LinearResponse\.power has shape \(3, 1\)"):
-        LinearResponse(t_r_c=np.zeros((4, 2)), u_phys_w=np.zeros(4), a=np.eye(4), b=np.zeros((4, 4, 2)),
-                       rooms=np.arange(2), power=np.ones((3, 1)))
+        LinearResponse(t_r_c=np.zeros((4, 2)), u_phys_w=np.zeros(4), a=np.eye(4), b_heat=np.zeros((4, 2)),
+                       heat_per_w=np.ones((4, 2)), rooms=np.arange(2), power=np.ones((3, 1)))
 
 
 def test_the_state_lp_has_the_dense_lps_optimum():
@@ -140,3 +140,56 @@ def test_cem_polished_over_the_response_plans_what_cem_polished_over_probes_plan
         plans.append(cem.last_plan)
     span = np.array([a.span_w for a in actuators])
     np.testing.assert_allclose(plans[0] / span, plans[1] / span, rtol=0, atol=2e-3)
+
+
+def test_the_qp_of_a_large_plan_reaches_the_lps_optimum():
+    """:class:`StateQP` (OSQP, without its iteration limit) on the LP of
+    :func:`test_the_state_lp_has_the_dense_lps_optimum`: the linearised objective of its plan
+    within 0.1 % of the LP's optimum (the regulariser and OSQP's tolerance apart); a second
+    solve, warm-started, reuses the factorisation."""
+    params, actuators = _three_zones()
+    model = MultiZoneRCModel(params, actuators, DT_S, backup_low_c=(19.0, 18.0, 17.5), backup_high_c=(21.0, 22.0, 20.5))
+    spec = _spec(params, actuators, horizon_steps=16)
+    h = 16
+    fc = Forecast(**_spring_day(40))
+    objective = ZoneObjective.from_forecast(fc, spec, h)
+    weather = fc.exogenous(model.exog_names, h)
+    history = _first_history(params, np.array([20.5, 18.5, 19.0]), np.array([19.0, 19.5, 18.0]), weather)
+    span = np.array([a.span_w for a in actuators])
+    lower = np.array([a.lower_w for a in actuators])
+    problem = PlanProblem(objective=objective, lower=0.0, upper=1.0)
+    qp = StateQP({"max_iter": 100000, "eps_abs": 1e-6, "eps_rel": 1e-6}, warm_max_iter=100000)
+    rng = np.random.default_rng(3)
+    for _ in range(2):
+        u0 = rng.uniform(0.0, 1.0, (h, 4))
+        response = model.linear_response(history, lower + span * u0, weather)
+        jr, jp = response.jacobians()
+
+        def cost(plan: np.ndarray) -> float:
+            du = (plan - u0) * span  # noqa: B023 (this iteration's plan)
+            t_r = response.t_r_c + np.einsum("jzia,ia->jz", jr, du)  # noqa: B023
+            power = np.einsum("jia,ia->j", jp, du)  # noqa: B023
+            violation = np.maximum(objective.t_min_c - t_r, 0) + np.maximum(t_r - objective.t_max_c, 0)
+            energy = objective.price_eur_per_kwh * objective.dt_h * power / 1000.0
+            return float(energy.sum() + objective.comfort_weight_eur_per_kh * objective.dt_h * violation.sum())
+
+        lp = solve_state_lp(response, u0, span, problem, 0.5)
+        plan = qp.solve(response, u0, span, problem, 0.5)
+        assert lp is not None and plan is not None and qp.last_info.status == "solved"
+        assert cost(lp) < cost(u0) - 0.5  # the LP gains something
+        assert cost(plan) == pytest.approx(cost(lp), rel=1e-3, abs=1e-3)
+        assert np.all(plan >= 0.0) and np.all(plan <= 1.0) and np.abs(plan - u0).max() <= 0.5 + 1e-9
+
+
+def test_cem_polishing_a_large_plan_by_the_qp_finds_the_optimum_of_its_model(monkeypatch):
+    """test_multizone_planners' optimum test with every plan polished by the QP (the LP's
+    size limit 0): the plan's cost on the model within 0.5 % of the QP MPC's optimum."""
+    import controllers.zone_sampling
+    from tests.test_multizone_planners import test_cem_over_zones_finds_the_optimum_of_its_model
+
+    monkeypatch.setattr(controllers.zone_sampling, "MAX_LP_PLAN", 0)
+    calls = []
+    solve = StateQP.solve
+    monkeypatch.setattr(StateQP, "solve", lambda self, *a: calls.append(1) or solve(self, *a))
+    test_cem_over_zones_finds_the_optimum_of_its_model()
+    assert calls

@@ -203,7 +203,7 @@ class MultiZoneRCModel(BatchDynamics):
             rooms[j], powers[j], free[j] = x[:z_n], p.sum(), ~(force_on | force_off) & inside
         follows = free.astype(float)
         return LinearResponse(
-            t_r_c=rooms, u_phys_w=powers, a=a, b=b_u[None] * (gain * follows)[:, None, :],
+            t_r_c=rooms, u_phys_w=powers, a=a, b_heat=b_u, heat_per_w=gain * follows,
             rooms=np.arange(z_n), power=follows,
         )
 

@@ -77,33 +77,39 @@ class LinearResponse:
     """A model's rollout of one plan (H, A) of a building of Z zones and A actuators and its
     exact response to a change of that plan, as an affine state-space system (what
     :meth:`BatchDynamics.linear_response` gives): the state's change after interval j is
-    ``dx_j = a dx_(j-1) + b[j] du_j`` (``dx_(-1) = 0``), each zone's room change
-    ``dx_j[rooms]``, the delivered power's change ``power[j] * du_j``, for ``du_j`` (A,) the
-    change of each actuator's demand in interval j [W]. Exact while the change switches no
+    ``dx_j = a dx_(j-1) + b_heat (heat_per_w[j] * du_j)`` (``dx_(-1) = 0``), each zone's room
+    change ``dx_j[rooms]``, the delivered power's change ``power[j] * du_j``, for ``du_j`` (A,)
+    the change of each actuator's demand in interval j [W]. Exact while the change switches no
     rule the rollout applies to the state (a backup thermostat): the derivative of the rollout
     where it is affine in the plan."""
 
     t_r_c: np.ndarray  # (H, Z) each zone's room at the end of each interval, at the plan [C]
     u_phys_w: np.ndarray  # (H,) the building's delivered power in each interval, at the plan [W]
     a: np.ndarray  # (S, S) the state's transition over one interval
-    b: np.ndarray  # (H, S, A) the state's change per W of each actuator's demand in interval j [K/W]
+    b_heat: np.ndarray  # (S, A) the state's change per W of each actuator's heat (its sign in it) [K/W]
+    heat_per_w: np.ndarray  # (H, A) each actuator's heat per W of demand in interval j (0: it does not follow)
     rooms: np.ndarray  # (Z,) the rooms' indices in the state
     power: np.ndarray  # (H, A) the delivered power's change per W of demand [W/W]
 
     def __post_init__(self) -> None:
         h, z_n = self.t_r_c.shape
-        s_n, a_n = self.b.shape[1:]
+        s_n, a_n = self.b_heat.shape
         shapes = {
             "u_phys_w": (self.u_phys_w.shape, (h,)), "a": (self.a.shape, (s_n, s_n)),
-            "b": (self.b.shape, (h, s_n, a_n)), "rooms": (self.rooms.shape, (z_n,)),
+            "heat_per_w": (self.heat_per_w.shape, (h, a_n)), "rooms": (self.rooms.shape, (z_n,)),
             "power": (self.power.shape, (h, a_n)),
         }
         for name, (got, want) in shapes.items():
             if got != want:
                 raise ValueError(
-                    f"LinearResponse.{name} has shape {got}, but t_r_c {self.t_r_c.shape} and b "
-                    f"{self.b.shape} make it {want}; give arrays of one horizon, state and plan"
+                    f"LinearResponse.{name} has shape {got}, but t_r_c {self.t_r_c.shape} and b_heat "
+                    f"{self.b_heat.shape} make it {want}; give arrays of one horizon, state and plan"
                 )
+
+    @property
+    def b(self) -> np.ndarray:
+        """(H, S, A) the state's change per W of each actuator's demand in interval j [K/W]."""
+        return self.b_heat[None] * self.heat_per_w[:, None, :]
 
     def jacobians(self) -> tuple[np.ndarray, np.ndarray]:
         """The rollout's derivatives, dense: ``jr`` (H, Z, H, A), d(room z at the end of
@@ -111,14 +117,15 @@ class LinearResponse:
         ``a^(j-i) b[i]`` of the rooms, 0 for i > j), and ``jp`` (H, H, A), d(delivered power
         in interval j) / d(demand in interval i) [W/W]."""
         h, z_n = self.t_r_c.shape
-        a_n = self.b.shape[2]
+        a_n = self.b_heat.shape[1]
+        b = self.b
         reach = np.empty((h, z_n, self.a.shape[0]))  # (L, Z, S) the rooms' rows of a^L
         reach[0] = np.eye(self.a.shape[0])[self.rooms]
         for lag in range(1, h):
             reach[lag] = reach[lag - 1] @ self.a
         jr = np.zeros((h, z_n, h, a_n))
         for i in range(h):
-            jr[i:, :, i, :] = reach[: h - i] @ self.b[i]
+            jr[i:, :, i, :] = reach[: h - i] @ b[i]
         jp = np.zeros((h, h, a_n))
         jp[np.arange(h), np.arange(h)] = self.power
         return jr, jp
