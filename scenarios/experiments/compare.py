@@ -417,7 +417,10 @@ def identify_scenario_zones(scenario: Scenario, data: pd.DataFrame) -> MultiZone
     the scenario's (:func:`pinn_mpc.identify_multizone.identify_multizone`): which actuator
     acts on which zone, and which irradiance each zone's windows take, the declared building's
     (an RC plant of several zones) or, where the plant does not declare it (EnergyPlus), the
-    global horizontal ``G`` for every zone, each zone's aperture identified."""
+    global horizontal ``G`` for every zone, each zone's aperture identified; the walls fitted
+    those between zones the plant says touch (:attr:`KindSettings.zone_adjacency
+    <scenarios.plants.kinds.KindSettings.zone_adjacency>`: EnergyPlus's share a surface), else
+    every pair's."""
     from pinn_mpc.actuator import actuator_columns
     from pinn_mpc.identify_multizone import identify_multizone
     from pinn_mpc.multizone import MultiZoneParams
@@ -432,7 +435,7 @@ def identify_scenario_zones(scenario: Scenario, data: pd.DataFrame) -> MultiZone
     result = identify_multizone(
         data, zones=spec.zones, actuators=spec.actuators,
         power_columns=actuator_columns("u_phys", spec.actuators), solar_inputs=solar,
-        dt_s=scenario.sim.dt_s,
+        dt_s=scenario.sim.dt_s, adjacency=scenario.plant.settings.zone_adjacency,
     )
     for note in result.notes:
         warn(note)
