@@ -29,7 +29,12 @@ iterations, polishing adds no rollout at all.
 
 :class:`ZonePolish` is the same over plans of several actuators (H, A) and predictions of
 several zones: every step of every actuator probed, the LP's rows each zone's temperature at
-each step (:func:`solve_lp` with R = H x Z rows and P = H x A columns).
+each step (:func:`solve_lp` with R = H x Z rows and P = H x A columns). A model that gives its
+response to the plan (:meth:`pinn_mpc.models.rollout.BatchDynamics.linear_response`: the
+multi-zone RC's matrices, exact where no backup thermostat switches) is not probed: the LP
+keeps the states as variables (:func:`solve_state_lp`, the same optimum with a sparse matrix),
+and a plan of more than :data:`MAX_LP_PLAN` steps x actuators is solved as a QP by OSQP,
+warm-started from one decision to the next (:class:`StateQP`).
 """
 
 from __future__ import annotations

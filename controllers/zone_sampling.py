@@ -11,7 +11,12 @@ building's total delivered electrical power plus the comfort weight times each z
 violation summed over the zones, against each zone's band narrowed by ``comfort_margin_k``.
 The plan is polished by ``polish_iters`` LPs over every step of every actuator
 (:class:`controllers.lp_polish.ZonePolish`; CEM's default one, random shooting's none): the
-sampling finds the plan's shape, the LP its optimum on the model. The warm start is the
+sampling finds the plan's shape, the LP its optimum on the model. The LP is linearised by
+probing the model, or from the model's response to the plan where it gives one
+(:meth:`~pinn_mpc.models.rollout.BatchDynamics.linear_response`, the multi-zone RC), then
+solved by HiGHS, or as a QP by OSQP above :data:`controllers.lp_polish.MAX_LP_PLAN` steps x
+actuators (the controller keeps that solver, :class:`controllers.lp_polish.StateQP`, warm from
+decision to decision). The warm start is the
 previous plan shifted by one step, the first plan half of each actuator's range. ``act``
 returns (A,) in ``spec.actuators``' order and keeps the plan (H, A) in ``last_plan``.
 
