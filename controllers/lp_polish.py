@@ -254,6 +254,7 @@ def solve_state_lp(
         ),
         shape=(n_x, n_u + n_x + h * z_n),
     )
+    a_eq.eliminate_zeros()  # zones without walls between them: a block-diagonal transition
     # Comfort: t_min - t0 - dx_j[room] <= s and dx_j[room] + t0 - t_max <= s, row (j, z).
     r = np.arange(h * z_n)
     room_cols = n_u + (np.arange(h)[:, None] * s_n + response.rooms[None, :]).reshape(-1)
@@ -369,6 +370,7 @@ class StateQP:
         a_mat = sp.csc_matrix(
             (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n_x + 3 * n_s + n_u, n)
         )
+        a_mat.eliminate_zeros()  # zones without walls between them: a block-diagonal transition
         diag = np.zeros(n)
         diag[:n_u] = 2.0 * dt_h * POLISH_REGULARISATION_EUR_PER_KW2H
         self._solver = osqp.OSQP()
