@@ -352,3 +352,25 @@ def test_run_misuse_names_the_fix():
         run.start(20, 1)
         with pytest.raises(InternalError, match=r"one finite power per actuator \(10\)"):
             run.step(np.zeros(3))
+
+
+@pytest.mark.slow
+def test_identify_smoke_on_three_days_of_the_medium_office(tmp_path, capsys):
+    """simulate then identify --scenario on the medium office: a multi-zone RC file of its 15
+    zones in order, walls only between zones that share a surface, every zone's fit finite."""
+    from pinn_mpc.data import write_timeseries
+    from pinn_mpc.identify_multizone import MultiZoneIdentifyResult
+    from pinn_mpc_cli.cli import main
+    from scenarios.running.datagen import generate
+
+    scenario = get_scenario(MEDIUM)
+    data, out = tmp_path / "medium.csv", tmp_path / "medium_rc.json"
+    write_timeseries(generate(scenario, days=3, seed=0, policy=scenario.data_policy), data)
+    assert main(["identify", "--data", str(data), "--scenario", MEDIUM, "--out", str(out)]) == 0
+    assert "identified 15 zones (Core_bottom, Core_mid" in capsys.readouterr().out
+    result = MultiZoneIdentifyResult.from_json(out.read_text(encoding="utf-8"), source=str(out))
+    assert [z.name for z in result.params.zone_specs] == list(MEDIUM_ZONES)
+    touching = scenario.plant.settings.zone_adjacency
+    walls = np.asarray(result.params.walls)
+    assert np.all(walls[~touching] == 0) and np.all(walls >= 0)
+    assert np.all(np.isfinite(result.rmse_c)) and result.n_rows == 144
