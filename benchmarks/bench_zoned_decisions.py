@@ -24,7 +24,7 @@ import numpy as np
 
 from pinn_mpc.multizone import MultiZoneParams
 from scenarios import get_scenario
-from scenarios.running.closed_loop import run_closed_loop
+from scenarios.running.closed_loop import one_torch_thread, run_closed_loop
 from scenarios.running.factory import build_controller, read_zone_rc
 
 BUILDINGS = ("two_zone_house", "eplus_small_office_zones", "eplus_medium_office_zones")
@@ -58,7 +58,8 @@ def run(name: str, controller: str, params: MultiZoneParams, days: int) -> dict[
     """One closed loop of ``days`` days; the decision times and the run's figures."""
     scenario = get_scenario(name)
     built = build_controller(controller, scenario, zone_params=params, n_steps=days * 48)
-    result = run_closed_loop(scenario, built, days=days, seed=0)
+    with one_torch_thread():  # as closed-loop runs the planners
+        result = run_closed_loop(scenario, built, days=days, seed=0)
     ms = result.trajectory["decision_ms"].to_numpy(dtype=float)
     return {
         "median_ms": float(np.median(ms)),
