@@ -29,13 +29,19 @@ iterations, polishing adds no rollout at all.
 
 :class:`ZonePolish` is the same over plans of several actuators (H, A) and predictions of
 several zones: every step of every actuator probed, the LP's rows each zone's temperature at
-each step (:func:`solve_lp` with R = H x Z rows and P = H x A columns).
+each step (:func:`solve_lp` with R = H x Z rows and P = H x A columns). A model that gives its
+response to the plan (:meth:`pinn_mpc.models.rollout.BatchDynamics.linear_response`: the
+multi-zone RC's matrices, exact where no backup thermostat switches) is not probed: the LP
+keeps the states as variables (:func:`solve_state_lp`, the same optimum with a sparse matrix),
+and a plan of more than :data:`MAX_LP_PLAN` steps x actuators is solved as a QP by OSQP,
+warm-started from one decision to the next (:class:`StateQP`).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import scipy.optimize
@@ -45,20 +51,30 @@ import torch
 from controllers.base import solver_interrupts_held
 from controllers.objective import HorizonObjective
 
+if TYPE_CHECKING:
+    from pinn_mpc.models.rollout import LinearResponse
+
 __all__ = [
+    "MAX_LP_PLAN",
+    "POLISH_REGULARISATION_EUR_PER_KW2H",
     "PiggybackPolish",
     "PlanProblem",
     "PolishSettings",
     "RolloutFn",
+    "StateQP",
     "ZonePolish",
     "jacobians",
     "probes",
     "solve_lp",
+    "solve_state_lp",
     "zone_probes",
 ]
 
 #: Rollout of N demand plans (N, H) [W] -> (T_r (M, N, H) [C], u_phys (M, N, H) [W]).
 RolloutFn = Callable[[torch.Tensor], tuple[torch.Tensor, torch.Tensor]]
+#: The polish LP over a model's response: (response, plan (H, A), W per plan unit (A,), problem,
+#: trust) -> the new plan (H, A), or None (:func:`solve_state_lp`, :meth:`StateQP.solve`).
+StateSolver = Callable[["LinearResponse", np.ndarray, np.ndarray, "PlanProblem", float], "np.ndarray | None"]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -203,6 +219,213 @@ def solve_lp(
     return np.clip(u0 + res.x[:n_plan] * unit, problem.lower, problem.upper)
 
 
+def solve_state_lp(
+    response: LinearResponse, u0: np.ndarray, scale_w: np.ndarray, problem: PlanProblem, trust: float
+) -> np.ndarray | None:
+    """The LP of :func:`solve_lp` for a plan of several actuators ``u0`` (H, A) (in the plan's
+    units, ``scale_w`` (A,) W per unit) over a model's :class:`~pinn_mpc.models.rollout.LinearResponse`
+    at it, with the states as variables instead of the dense sensitivities: the change of the
+    plan (H, A), the state's change after each interval (H, S), free, tied to it by the
+    response's recursion (equality rows), and a violation slack per zone and step. The same
+    optimum as :func:`solve_lp` on the response's :meth:`~pinn_mpc.models.rollout.LinearResponse.jacobians`
+    (the states eliminated), with a constraint matrix of O(H (S^2 + S A)) nonzeros instead of
+    O(H^2 Z A). The new plan (H, A), or None if HiGHS fails."""
+    h, a_n = u0.shape
+    z_n, s_n = response.t_r_c.shape[1], response.a.shape[0]
+    obj = problem.objective
+    n_u, n_x = h * a_n, h * s_n
+    energy = np.broadcast_to(obj.price_eur_per_kwh * obj.dt_h, (h,))  # EUR per kW over each interval
+    c_u = (energy[:, None] * response.power * scale_w / 1000.0).reshape(-1)
+    c_s = np.full(h * z_n, obj.comfort_weight_eur_per_kh * obj.dt_h)
+    b = response.b * scale_w  # (H, S, A) per plan unit
+    # Equalities: dx_j - a dx_(j-1) - b_j du_j = 0, row j S + s.
+    eq_rows = np.arange(n_x).reshape(h, s_n)
+    rows_b = np.broadcast_to(eq_rows[:, :, None], (h, s_n, a_n))
+    cols_b = np.broadcast_to((np.arange(n_u).reshape(h, 1, a_n)), (h, s_n, a_n))
+    rows_a = np.broadcast_to(eq_rows[1:, :, None], (h - 1, s_n, s_n))
+    cols_a = n_u + np.broadcast_to(np.arange(n_x - s_n).reshape(h - 1, 1, s_n), (h - 1, s_n, s_n))
+    a_eq = sp.csr_matrix(
+        (
+            np.concatenate([-b.reshape(-1), np.ones(n_x), np.broadcast_to(-response.a, (h - 1, s_n, s_n)).reshape(-1)]),
+            (
+                np.concatenate([rows_b.reshape(-1), np.arange(n_x), rows_a.reshape(-1)]),
+                np.concatenate([cols_b.reshape(-1), n_u + np.arange(n_x), cols_a.reshape(-1)]),
+            ),
+        ),
+        shape=(n_x, n_u + n_x + h * z_n),
+    )
+    a_eq.eliminate_zeros()  # zones without walls between them: a block-diagonal transition
+    # Comfort: t_min - t0 - dx_j[room] <= s and dx_j[room] + t0 - t_max <= s, row (j, z).
+    r = np.arange(h * z_n)
+    room_cols = n_u + (np.arange(h)[:, None] * s_n + response.rooms[None, :]).reshape(-1)
+    slack_cols = n_u + n_x + r
+    a_ub = sp.csr_matrix(
+        (
+            np.concatenate([-np.ones(h * z_n), -np.ones(h * z_n), np.ones(h * z_n), -np.ones(h * z_n)]),
+            (np.concatenate([r, r, h * z_n + r, h * z_n + r]), np.concatenate([room_cols, slack_cols, room_cols, slack_cols])),
+        ),
+        shape=(2 * h * z_n, n_u + n_x + h * z_n),
+    )
+    t0 = response.t_r_c.reshape(-1)
+    b_ub = np.concatenate([t0 - obj.t_min_c.reshape(-1), obj.t_max_c.reshape(-1) - t0])
+    flat = u0.reshape(-1)
+    bounds = np.concatenate([
+        np.stack([np.maximum(problem.lower - flat, -trust), np.minimum(problem.upper - flat, trust)], 1),
+        np.tile([-np.inf, np.inf], (n_x, 1)),
+        np.tile([0.0, np.inf], (h * z_n, 1)),
+    ])
+    with solver_interrupts_held():
+        res = scipy.optimize.linprog(
+            np.concatenate([c_u, np.zeros(n_x), c_s]), A_ub=a_ub, b_ub=b_ub, A_eq=a_eq,
+            b_eq=np.zeros(n_x), bounds=bounds, method="highs",
+        )
+    if res.status != 0 or res.x is None:
+        return None
+    return np.clip(flat + res.x[:n_u], problem.lower, problem.upper).reshape(h, a_n)
+
+
+#: The largest plan (steps x actuators) whose polish LP HiGHS solves (:func:`solve_state_lp`);
+#: a larger one is solved as a QP by OSQP, warm-started (:class:`StateQP`). HiGHS's time grows
+#: about as the plan's square (a building of 15 zones and 30 actuators over 48 steps: 1,440
+#: columns), OSQP's with its nonzeros, its factorisation kept from decision to decision.
+MAX_LP_PLAN = 192
+#: The polish QP's regulariser [EUR per (kW of heat)^2 h] (the multi-zone QP MPC's default): it
+#: makes the optimum unique and costs a millionth of a euro per kW moved.
+POLISH_REGULARISATION_EUR_PER_KW2H = 1e-4
+#: OSQP's statuses whose solution the polish takes: its line search keeps a plan only where it
+#: beats the sampled one on the model, so a solution stopped at the iteration limit is a
+#: direction as good as the iterations got.
+QP_USABLE = ("solved", "solved inaccurate", "maximum iterations reached")
+#: OSQP's settings of the polish: the QP MPC's (:data:`controllers.rc_mpc.osqp.OSQP_OPTIONS`)
+#: with at most :data:`POLISH_MAX_ITER` iterations, the decision's time bound.
+POLISH_MAX_ITER = 200
+
+
+class StateQP:
+    """The LP of :func:`solve_state_lp` as a QP solved by OSQP, for a plan too large for HiGHS
+    (:data:`MAX_LP_PLAN`), kept across a controller's decisions. The variables are the change
+    of each actuator's heat (H, A) [kW] (its demand's change times its heat per W, so the
+    matrix does not move with the COP: the price of heat is the price over it, and an actuator
+    the backup forces has bounds 0), the state's change (H, S) and the slacks (H, Z); the
+    regulariser :data:`POLISH_REGULARISATION_EUR_PER_KW2H` on the heat's change. The matrix is
+    built and factorised once per horizon and building; each solve updates the vectors and
+    starts from no change, with the last solve's duals shifted one step, and stops after
+    ``warm_max_iter`` iterations (the first solve after a setup after ``options``' ``max_iter``).
+    ``options`` update :data:`controllers.rc_mpc.osqp.OSQP_OPTIONS`."""
+
+    def __init__(self, options: dict[str, object] | None = None, *, warm_max_iter: int = POLISH_MAX_ITER) -> None:
+        from controllers.rc_mpc.osqp import OSQP_OPTIONS
+
+        if warm_max_iter < 1:
+            raise ValueError(f"StateQP.warm_max_iter must be >= 1 (OSQP's iterations), got {warm_max_iter!r}")
+        self.options = {**OSQP_OPTIONS, **(options or {})}
+        self.warm_max_iter = warm_max_iter
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the solver, its matrices and its last duals."""
+        self._solver: Any = None
+        self._key: tuple[int, bytes, bytes, bytes] | None = None
+        self._y: np.ndarray | None = None
+        self.last_info: Any = None  # OSQP's info of the last solve
+        #: Values a step of the variables (heat, states, slacks) and of the rows (dynamics,
+        #: below, above, heat bounds, slack bounds): the warm start's shift.
+        self._per_step: tuple[tuple[int, ...], tuple[int, ...]] = ((), ())
+
+    def _setup(
+        self, response: LinearResponse, h: int, dt_h: float, q: np.ndarray, lower: np.ndarray, upper: np.ndarray
+    ) -> None:
+        """Build the QP's matrices of ``response``'s building over ``h`` steps and set OSQP up."""
+        import osqp
+
+        a_n, z_n, s_n = response.b_heat.shape[1], response.rooms.shape[0], response.a.shape[0]
+        n_u, n_x, n_s = h * a_n, h * s_n, h * z_n
+        rows: list[np.ndarray] = []
+        cols: list[np.ndarray] = []
+        vals: list[np.ndarray] = []
+
+        def add(r: np.ndarray, c: np.ndarray, v: np.ndarray | float) -> None:
+            r, c = np.broadcast_arrays(r, c)
+            rows.append(r.reshape(-1))
+            cols.append(c.reshape(-1))
+            vals.append(np.broadcast_to(v, r.shape).reshape(-1).astype(float))
+
+        steps = np.arange(h)
+        eq = steps[:, None] * s_n + np.arange(s_n)  # (H, S) the rows of dx_j - a dx_(j-1) - B dq_j = 0
+        add(eq, n_u + eq, 1.0)
+        heat_cols = steps[:, None, None] * a_n + np.arange(a_n)  # (H, 1, A)
+        add(eq[:, :, None], heat_cols, -1000.0 * response.b_heat[None])
+        state_cols = n_u + (steps[:-1, None, None] * s_n + np.arange(s_n))  # (H-1, 1, S) dx_(j-1)
+        add(eq[1:, :, None], state_cols, -response.a[None])
+        band = n_x + steps[:, None] * z_n + np.arange(z_n)  # (H, Z) below, then above at + n_s
+        room = n_u + steps[:, None] * s_n + response.rooms
+        slack = n_u + n_x + steps[:, None] * z_n + np.arange(z_n)
+        add(band, room, 1.0)
+        add(band, slack, 1.0)
+        add(band + n_s, room, 1.0)
+        add(band + n_s, slack, -1.0)
+        add(n_x + 2 * n_s + np.arange(n_u), np.arange(n_u), 1.0)
+        add(n_x + 2 * n_s + n_u + np.arange(n_s), n_u + n_x + np.arange(n_s), 1.0)
+        n = n_u + n_x + n_s
+        a_mat = sp.csc_matrix(
+            (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n_x + 3 * n_s + n_u, n)
+        )
+        a_mat.eliminate_zeros()  # zones without walls between them: a block-diagonal transition
+        diag = np.zeros(n)
+        diag[:n_u] = 2.0 * dt_h * POLISH_REGULARISATION_EUR_PER_KW2H
+        self._solver = osqp.OSQP()
+        self._solver.setup(P=sp.diags(diag, format="csc"), A=a_mat, q=q, l=lower, u=upper, **self.options)
+        self._per_step = ((a_n, s_n, z_n), (s_n, z_n, z_n, a_n, z_n))
+
+    def solve(
+        self, response: LinearResponse, u0: np.ndarray, scale_w: np.ndarray, problem: PlanProblem, trust: float
+    ) -> np.ndarray | None:
+        """The polished plan (H, A) in ``u0``'s units (:func:`solve_state_lp`'s arguments), or
+        None when OSQP does not solve it."""
+        from controllers.rc_mpc.qp import shift_steps
+
+        h, a_n = u0.shape
+        z_n, s_n = response.t_r_c.shape[1], response.a.shape[0]
+        obj = problem.objective
+        follows = response.heat_per_w > 0
+        heat = np.where(follows, response.heat_per_w, 1.0)  # (H, A) heat per W, 1 where it does not follow
+        energy = np.broadcast_to(obj.price_eur_per_kwh * obj.dt_h, (h,))  # EUR per kW over each interval
+        q = np.concatenate([
+            (energy[:, None] * response.power / heat).reshape(-1),
+            np.zeros(h * s_n),
+            np.full(h * z_n, obj.comfort_weight_eur_per_kh * obj.dt_h),
+        ])
+        per_kw = np.where(follows, heat * scale_w / 1000.0, 0.0)  # (H, A) kW of heat per plan unit
+        lo = np.maximum(problem.lower - u0, -trust) * per_kw
+        hi = np.minimum(problem.upper - u0, trust) * per_kw
+        t0 = response.t_r_c.reshape(-1)
+        inf = np.full(h * z_n, np.inf)
+        lower = np.concatenate([np.zeros(h * s_n), obj.t_min_c.reshape(-1) - t0, -inf, lo.reshape(-1), np.zeros(h * z_n)])
+        upper = np.concatenate([np.zeros(h * s_n), inf, obj.t_max_c.reshape(-1) - t0, hi.reshape(-1), inf])
+        key = (h, response.a.tobytes(), response.b_heat.tobytes(), response.rooms.tobytes())
+        with solver_interrupts_held():
+            if self._solver is None or key != self._key:
+                self._setup(response, h, float(np.mean(obj.dt_h)), q, lower, upper)
+                self._key = key
+            else:
+                self._solver.update(q=q, l=lower, u=upper)
+                self._solver.update_settings(max_iter=self.warm_max_iter)
+                x0 = np.zeros(len(q))
+                if self._y is not None:
+                    self._solver.warm_start(x=x0, y=shift_steps(self._y, self._per_step[1], h))
+                else:
+                    self._solver.warm_start(x=x0)
+            result = self._solver.solve(raise_error=False)
+        x, y = np.asarray(result.x, dtype=float), np.asarray(result.y, dtype=float)
+        self.last_info = result.info
+        if str(result.info.status) not in QP_USABLE or not np.all(np.isfinite(x)):
+            self._y = None
+            return None
+        self._y = y
+        du = np.where(follows, x[: h * a_n].reshape(h, a_n) / np.where(follows, per_kw, 1.0), 0.0)
+        return np.clip(u0 + du, problem.lower, problem.upper)
+
+
 class PiggybackPolish:
     """Polish riding on a planner's objective calls (see the module docstring).
 
@@ -276,15 +499,20 @@ class PiggybackPolish:
                 self._queue_probes(self.best[0])
             return
         step, self._step = self._step, None
-        target = self._target(batch, t_r, u_phys, step)
+        self._search(batch[0], self._target(batch, t_r, u_phys, step))
+
+    def _search(self, u0: torch.Tensor, target: np.ndarray | None, *, with_u0: bool = False) -> None:
+        """Queue the line search from ``u0`` towards the LP's plan ``target`` (nothing when the
+        LP failed), ``u0`` itself first where ``with_u0``."""
         if target is None:
             return
         self.lps += 1
-        u0 = batch[0]
         alphas = torch.tensor(self.settings.line_search, dtype=u0.dtype).reshape(-1, *[1] * u0.dim())
         direction = torch.as_tensor(target, dtype=u0.dtype) - u0
         lo, hi = self.problem.lower, self.problem.upper
         self._pending = (u0 + alphas * direction).clamp(lo, hi)
+        if with_u0:
+            self._pending = torch.cat([u0[None], self._pending])
 
     def _consider(self, batch: torch.Tensor, costs: torch.Tensor) -> None:
         finite = torch.where(torch.isfinite(costs), costs, torch.full_like(costs, float("inf")))
@@ -311,7 +539,47 @@ class ZonePolish(PiggybackPolish):
     of ``problem``'s bounds (the planners' fractions of each actuator's range). Every step of
     every actuator is probed (``probe_stride`` does not apply: a model with a time-varying
     COP is linearised exactly only so); the LP is :func:`solve_lp` with each zone's
-    temperature at each step a row and each step of each actuator a column."""
+    temperature at each step a row and each step of each actuator a column.
+
+    A model that gives its response to the plan (``linearise``: a plan (H, A) in the plan's
+    units -> its :class:`pinn_mpc.models.rollout.LinearResponse` [per W], or None) is not
+    probed where it gives one: the LP is ``solve_state`` (:func:`solve_state_lp`, or a
+    :class:`StateQP`'s ``solve``) on that response (``scale_w`` (A,): W per plan unit of each
+    actuator), solved at once, and its line search, the plan it linearised around first, rides
+    along with the planner's next batch."""
+
+    def __init__(
+        self,
+        rollout: RolloutFn,
+        score: Callable[[torch.Tensor, torch.Tensor], torch.Tensor],
+        problem: PlanProblem,
+        settings: PolishSettings,
+        x0: torch.Tensor,
+        *,
+        linearise: Callable[[torch.Tensor], LinearResponse | None] | None = None,
+        scale_w: np.ndarray | None = None,
+        solve_state: StateSolver | None = None,
+    ):
+        if (linearise is None) != (scale_w is None):
+            raise ValueError("ZonePolish: give linearise and scale_w together (the W per plan unit of each actuator)")
+        self.linearise, self.scale_w = linearise, scale_w
+        self.solve_state: StateSolver = solve_state_lp if solve_state is None else solve_state
+        super().__init__(rollout, score, problem, settings, x0)
+
+    def _queue_probes(self, u0: torch.Tensor) -> None:
+        if self.linearise is None or self.scale_w is None:
+            super()._queue_probes(u0)
+            return
+        response = self.linearise(u0)
+        if response is None:  # not given at this plan: probe it
+            super()._queue_probes(u0)
+            return
+        self._rounds -= 1
+        self._pending = self._step = None
+        plan = self.solve_state(
+            response, u0.double().numpy(), self.scale_w, self.problem, self.settings.trust_frac * self.span
+        )
+        self._search(u0, plan, with_u0=True)
 
     def _probes(self, u0: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         return zone_probes(u0, self.settings.delta_frac * self.span, self.problem.upper)

@@ -11,7 +11,12 @@ building's total delivered electrical power plus the comfort weight times each z
 violation summed over the zones, against each zone's band narrowed by ``comfort_margin_k``.
 The plan is polished by ``polish_iters`` LPs over every step of every actuator
 (:class:`controllers.lp_polish.ZonePolish`; CEM's default one, random shooting's none): the
-sampling finds the plan's shape, the LP its optimum on the model. The warm start is the
+sampling finds the plan's shape, the LP its optimum on the model. The LP is linearised by
+probing the model, or from the model's response to the plan where it gives one
+(:meth:`~pinn_mpc.models.rollout.BatchDynamics.linear_response`, the multi-zone RC), then
+solved by HiGHS, or as a QP by OSQP above :data:`controllers.lp_polish.MAX_LP_PLAN` steps x
+actuators (the controller keeps that solver, :class:`controllers.lp_polish.StateQP`, warm from
+decision to decision). The warm start is the
 previous plan shifted by one step, the first plan half of each actuator's range. ``act``
 returns (A,) in ``spec.actuators``' order and keeps the plan (H, A) in ``last_plan``.
 
@@ -36,6 +41,7 @@ count it) and the next warm start is from scratch.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from typing import TYPE_CHECKING
@@ -51,7 +57,7 @@ from controllers.base import (
     SolveStats,
     fallback_powers,
 )
-from controllers.lp_polish import PlanProblem, PolishSettings, ZonePolish
+from controllers.lp_polish import MAX_LP_PLAN, PlanProblem, PolishSettings, StateQP, ZonePolish
 from controllers.objective import ZoneObjective
 from pinn_mpc.actuator import actuator_columns
 from pinn_mpc.errors import InternalError
@@ -61,7 +67,7 @@ if TYPE_CHECKING:
     from controllers.estimators import MultiZoneKalmanEstimator
     from controllers.planners import Planner
     from controllers.rc_mpc.multizone import MultiZoneMPC
-    from pinn_mpc.models.rollout import BatchDynamics
+    from pinn_mpc.models.rollout import BatchDynamics, LinearResponse
 
 __all__ = ["ZoneSampling"]
 
@@ -167,6 +173,7 @@ class ZoneSampling:
     fallback: Fallback
     _generator: torch.Generator
     _stats: SolveStats
+    _state_qp: StateQP
 
     def _init_zones(self, offset_gain: float) -> None:
         """Check the model against the building of ``spec``, build the fallback and each
@@ -200,6 +207,7 @@ class ZoneSampling:
             qp = MultiZoneMPC(params, spec, estimator=self._zone_observer, name=f"{name} fallback")
         self.fallback = _ZoneFallback(spec, qp)
         self._zone_offset = _ZoneOffset(model, offset_gain)
+        self._state_qp = StateQP()  # the polish of a plan too large for HiGHS
         self._lower_w = torch.tensor([a.lower_w for a in spec.actuators], dtype=torch.float32)
         self._span_w = torch.tensor([a.span_w for a in spec.actuators], dtype=torch.float32)
 
@@ -214,6 +222,7 @@ class ZoneSampling:
         """Forget the observer, the fallback QP's plan and warm start, and the counts."""
         self.fallback.reset()
         self._zone_offset.reset()
+        self._state_qp.reset()
         if self._zone_observer is not None:
             self._zone_observer.reset()
         if self.zone_qp is not None:
@@ -286,9 +295,19 @@ class ZoneSampling:
                 return costs.mean(0) + self.risk_weight * costs.std(0, correction=0)
             return costs.mean(0)
 
+        def linearise(fractions: torch.Tensor) -> LinearResponse | None:
+            plan_w = (lower + span * fractions.to(dtype)).double().numpy()
+            response = self.model.linear_response(history, plan_w, exog)
+            if response is None:
+                return None  # each zone's offset moves the rooms, not their response
+            return dataclasses.replace(response, t_r_c=response.t_r_c + self._zone_offset.offset_k)
+
         x0 = self._zone_warm_start(h)
         problem = PlanProblem(objective=objective, lower=0.0, upper=1.0)
-        polisher = ZonePolish(rollout, score, problem, self.polish, x0)
+        polisher = ZonePolish(
+            rollout, score, problem, self.polish, x0, linearise=linearise, scale_w=span.double().numpy(),
+            solve_state=self._state_qp.solve if h * self.spec.n_actuators > MAX_LP_PLAN else None,
+        )
         result = self.planner.optimize(polisher.objective, x0, self._generator)
         plan, cost = result.plan, result.cost
         polished = polisher.finish()

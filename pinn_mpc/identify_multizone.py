@@ -744,11 +744,24 @@ def identify_multizone(
 def _edge_notes(building: _Building, theta: np.ndarray) -> list[str]:
     """Each zone's R and C checked against the edges of their plausible ranges as identify_rc
     checks them (:meth:`pinn_mpc.identify._Layout.check_inside`): the InputError of one at
-    an edge, naming the zone; the notes of a mass at its largest capacity."""
+    an edge, naming the zone; the notes of a mass at its largest capacity. A zone with walls
+    to others whose ``R_ra`` ran to its largest plausible value is an inner zone (no envelope
+    to the outdoor air, a core between storeys): kept, with a note."""
     notes = []
-    for spec, block, sl in zip(building.zones, building.blocks, building.block_slices, strict=True):
+    touching = {z for pair in building.pairs for z in pair}
+    for z, (spec, block, sl) in enumerate(zip(building.zones, building.blocks, building.block_slices, strict=True)):
+        own = theta[sl].copy()
+        k = block.names.index("ln_r_ra")
+        upper = block.bounds()[1][k]
+        if z in touching and own[k] >= upper - 1e-6:
+            notes.append(
+                f"{_PREFIX}: zone {spec.name!r}: R_ra ran to its largest plausible value "
+                f"({math.exp(upper):g} K/W): the data see no heat to the outdoor air but through "
+                "its walls to other zones (an inner zone); kept"
+            )
+            own[k] = upper - 1e-3  # checked as inside: the other values still are
         try:
-            found = block.check_inside(theta[sl])
+            found = block.check_inside(own)
         except InputError as exc:
             raise InputError(f"{_PREFIX}: zone {spec.name!r}: {exc.marked.removeprefix('identify: ')}") from None
         notes += [f"{_PREFIX}: zone {spec.name!r}: {n.removeprefix('identify: ')}" for n in found]

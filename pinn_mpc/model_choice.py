@@ -60,6 +60,7 @@ if TYPE_CHECKING:
     from pinn_mpc.actuator import ActuatorSpec
     from pinn_mpc.identify_multizone import MultiZoneIdentifyResult
     from pinn_mpc.models.multizone_arx import MultiZoneARX
+    from pinn_mpc.models.multizone_hybrid import MultiZoneHybrid
     from pinn_mpc.models.rollout import FittedModel
     from pinn_mpc.zones import ZoneSpec
 
@@ -209,6 +210,7 @@ def choose_zone_model(
     solar_inputs: Sequence[str | None],
     dt_s: float,
     seed: int = 0,
+    adjacency: Sequence[Sequence[bool]] | np.ndarray | None = None,
 ) -> ModelChoice:
     """``train --arch auto`` on data of a building of several zones (its layout ``zones``,
     ``actuators``, ``solar_inputs``, step ``dt_s`` [s]): the multi-zone hybrid
@@ -224,14 +226,16 @@ def choose_zone_model(
     from pinn_mpc.models.multizone_hybrid import fit_multizone_hybrid, held_out_error_c
     from pinn_mpc.zones import zone_columns
 
-    def hybrid_on(data: pd.DataFrame) -> FittedModel:
+    def hybrid_on(data: pd.DataFrame) -> MultiZoneHybrid:
         return fit_multizone_hybrid(
-            data, zones=zones, actuators=actuators, solar_inputs=solar_inputs, dt_s=dt_s, seed=seed
+            data, zones=zones, actuators=actuators, solar_inputs=solar_inputs, dt_s=dt_s, seed=seed,
+            adjacency=adjacency,
         )
 
     def arx_on(data: pd.DataFrame, identified: MultiZoneIdentifyResult | None = None) -> MultiZoneARX:
         return fit_multizone_arx(
-            data, zones=zones, actuators=actuators, solar_inputs=solar_inputs, dt_s=dt_s, identified=identified
+            data, zones=zones, actuators=actuators, solar_inputs=solar_inputs, dt_s=dt_s, identified=identified,
+            adjacency=adjacency,
         )
 
     n = len(frame)
@@ -246,9 +250,7 @@ def choose_zone_model(
         )
     fitted = frame.iloc[:cut].reset_index(drop=True)
     starts = np.arange(cut, n - horizon)
-    hybrid = fit_multizone_hybrid(
-        fitted, zones=zones, actuators=actuators, solar_inputs=solar_inputs, dt_s=dt_s, seed=seed
-    )
+    hybrid = hybrid_on(fitted)
     errors = {hybrid_name: held_out_error_c(hybrid, frame, starts, horizon)}
     try:
         parx = arx_on(fitted, hybrid.identified)

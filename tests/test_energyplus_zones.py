@@ -188,6 +188,52 @@ def test_the_control_spec_has_five_zones_and_ten_actuators():
     assert split[1].upper_w == pytest.approx(5000.0 * CORE_SHARE, rel=1e-3)
 
 
+MEDIUM = "eplus_medium_office_zones"
+#: The medium office's conditioned zones: each storey's core and four perimeter zones (its
+#: three plenums are not conditioned).
+MEDIUM_ZONES = (
+    "Core_bottom", "Core_mid", "Core_top",
+    *(f"Perimeter_{storey}_ZN_{k}" for storey in ("bot", "mid", "top") for k in range(1, 5)),
+)
+
+
+def test_the_medium_office_has_fifteen_zones_and_thirty_actuators():
+    """DOE's medium office with its conditioned zones kept (its plenums left out): a heater then
+    a chiller on each, the powers the built-in's, tested in January, trained in December."""
+    scenario = get_scenario(MEDIUM)
+    spec = scenario.control_spec()
+    assert [z.name for z in spec.zones] == list(MEDIUM_ZONES) and spec.n_actuators == 30
+    assert [a.name for a in spec.actuators] == [f"{k}_{z}" for z in MEDIUM_ZONES for k in ("heat", "cool")]
+    assert [a.zone for a in spec.actuators] == [z for z in range(15) for _ in range(2)]
+    assert [a.heats for a in spec.actuators] == [True, False] * 15
+    settings = scenario.plant.settings
+    assert tuple(a.upper_w for a in spec.actuators[0::2]) == settings.heater_w
+    assert tuple(a.upper_w for a in spec.actuators[1::2]) == settings.chiller_w
+    assert scenario.sim.u_max_w == sum(settings.heater_w)
+    assert (scenario.weather.test_start, scenario.weather.window_start) == ("01-01", "12-01")
+
+
+@pytest.mark.parametrize(("name", "zones", "storeys"), [(SCENARIO, ZONES, 1), (MEDIUM, MEDIUM_ZONES, 3)])
+def test_zones_touch_where_they_share_a_surface(name, zones, storeys):
+    """DOE's offices: on each storey the core touches its four perimeter zones and each
+    perimeter zone its two neighbours (eight walls a storey); storeys touch only through the
+    plenums left out, so no zone of one touches a zone of another."""
+    touching = get_scenario(name).plant.settings.zone_adjacency
+    assert touching.shape == (len(zones),) * 2 and (touching == touching.T).all() and not touching.diagonal().any()
+    assert touching.sum() == 2 * 8 * storeys
+    storey = ["" if storeys == 1 else ("bot" if "bot" in z else "mid" if "mid" in z else "top") for z in zones]
+    for i, a in enumerate(zones):
+        core, numbered = a.startswith("Core"), int(a[-1]) if not a.startswith("Core") else 0
+        for j, b in enumerate(zones):
+            if i == j or storey[i] != storey[j]:
+                assert not touching[i, j], (a, b)
+            elif core or b.startswith("Core"):
+                assert touching[i, j], (a, b)
+            else:  # two perimeter zones: neighbours around the ring 1-2-3-4
+                assert touching[i, j] == ((numbered - int(b[-1])) % 4 in (1, 3)), (a, b)
+    assert get_scenario("eplus_small_office").plant.settings.zone_adjacency is None  # merged: one zone
+
+
 @pytest.mark.parametrize(("name", "month", "before"), [
     (SCENARIO, 1, 12), (f"{SCENARIO}_april", 4, 3), (f"{SCENARIO}_july", 7, 6),
 ])
@@ -306,3 +352,25 @@ def test_run_misuse_names_the_fix():
         run.start(20, 1)
         with pytest.raises(InternalError, match=r"one finite power per actuator \(10\)"):
             run.step(np.zeros(3))
+
+
+@pytest.mark.slow
+def test_identify_smoke_on_three_days_of_the_medium_office(tmp_path, capsys):
+    """simulate then identify --scenario on the medium office: a multi-zone RC file of its 15
+    zones in order, walls only between zones that share a surface, every zone's fit finite."""
+    from pinn_mpc.data import write_timeseries
+    from pinn_mpc.identify_multizone import MultiZoneIdentifyResult
+    from pinn_mpc_cli.cli import main
+    from scenarios.running.datagen import generate
+
+    scenario = get_scenario(MEDIUM)
+    data, out = tmp_path / "medium.csv", tmp_path / "medium_rc.json"
+    write_timeseries(generate(scenario, days=3, seed=0, policy=scenario.data_policy), data)
+    assert main(["identify", "--data", str(data), "--scenario", MEDIUM, "--out", str(out)]) == 0
+    assert "identified 15 zones (Core_bottom, Core_mid" in capsys.readouterr().out
+    result = MultiZoneIdentifyResult.from_json(out.read_text(encoding="utf-8"), source=str(out))
+    assert [z.name for z in result.params.zone_specs] == list(MEDIUM_ZONES)
+    touching = scenario.plant.settings.zone_adjacency
+    walls = np.asarray(result.params.walls)
+    assert np.all(walls[~touching] == 0) and np.all(walls >= 0)
+    assert np.all(np.isfinite(result.rmse_c)) and result.n_rows == 144

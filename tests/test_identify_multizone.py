@@ -116,6 +116,30 @@ def test_a_heat_pump_and_a_zone_heated_only_through_its_walls() -> None:
     np.testing.assert_allclose(result.params.walls, params.walls, rtol=0.15)
 
 
+@pytest.mark.parametrize("walls", [True, False], ids=["inner-zone", "isolated-zone"])
+def test_an_r_ra_at_its_largest_value_is_kept_for_a_zone_with_walls(walls: bool) -> None:
+    """The joint fit's edge check: a zone's R_ra at its largest plausible value (10 K/W) is an
+    inner zone (no envelope to the outdoor air, a core between storeys) where the zone has
+    walls to others: kept with a note; a zone without walls at that edge is refused as
+    identify_rc refuses it. Any other value inside its range passes without a note."""
+    from pinn_mpc.identify import _Layout
+    from pinn_mpc.identify_multizone import _Building, _edge_notes
+
+    blocks = [_Layout(solar=False, gains=True, eta=1.0) for _ in range(2)]
+    building = _Building(HOUSE.zone_specs, blocks, (None, None), [(0, 1)] if walls else [], None)
+    lower, upper = building.bounds()
+    theta = 0.5 * (lower + upper)
+    assert _edge_notes(building, theta) == []
+    k = building.block_slices[1].start + blocks[1].names.index("ln_r_ra")
+    theta[k] = upper[k]
+    if walls:
+        (note,) = _edge_notes(building, theta)
+        assert "zone 'north': R_ra ran to its largest plausible value (10 K/W)" in note
+    else:
+        with pytest.raises(InputError, match="zone 'north': the fit ran into the edge of the plausible range of R_ra"):
+            _edge_notes(building, theta)
+
+
 def test_given_gain_shares_are_kept() -> None:
     frame = multizone_frame(HOUSE, HEATERS, days=14, seed=3)
     result = _identify(frame, gain_shares=(0.6, 0.4))

@@ -483,11 +483,13 @@ def fit_multizone_arx(
     lags: int = DEFAULT_LAGS,
     power_lags: int = DEFAULT_POWER_LAGS,
     identified: MultiZoneIdentifyResult | None = None,
+    adjacency: Sequence[Sequence[bool]] | np.ndarray | None = None,
 ) -> MultiZoneARX:
     """Fit the multi-zone physics-informed ARX on ``frame`` (module docstring): the building of
     ``zones`` and ``actuators``, each zone's windows taking its ``solar_inputs`` (None: no
     windows), at the data's step ``dt_s`` [s]; ``lags`` of each room and ``power_lags`` of each
-    heat. ``identified``: the multi-zone RC it carries (identified from ``frame`` if None).
+    heat. ``identified``: the multi-zone RC it carries (identified from ``frame`` if None, its
+    walls those ``adjacency`` allows: :func:`~pinn_mpc.identify_multizone.identify_multizone`'s).
     InputError where the data are too few or the fit does not settle."""
     from scipy.optimize import lsq_linear
 
@@ -499,6 +501,7 @@ def fit_multizone_arx(
         identified = identify_multizone(
             frame if "I_g" in frame.columns else frame.assign(I_g=0.0), zones=zones, actuators=actuators,
             power_columns=actuator_columns("u_phys", actuators), solar_inputs=solar_inputs, dt_s=dt_s,
+            adjacency=adjacency,
         )
     uses_gains = "I_g" in frame.columns and bool(np.any(frame["I_g"].to_numpy(dtype=float) != 0))
     z_n, a_n = len(zones), len(actuators)

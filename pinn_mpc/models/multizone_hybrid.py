@@ -227,11 +227,14 @@ def fit_multizone_hybrid(
     dt_s: float,
     seed: int = 0,
     settings: ResidualTraining | None = None,
+    adjacency: Sequence[Sequence[bool]] | np.ndarray | None = None,
 ) -> MultiZoneHybrid:
     """Fit the multi-zone hybrid on ``frame`` (module docstring): the building of ``zones``
     and ``actuators`` identified, each zone's windows taking its ``solar_inputs`` (None: no
     windows), at the data's step ``dt_s`` [s]; the residual trained from ``seed`` with
-    ``settings`` (:class:`ResidualTraining`'s defaults if None). InputError where the data cannot be fitted (as
+    ``settings`` (:class:`ResidualTraining`'s defaults if None); ``adjacency`` the zones whose
+    walls are fitted (:func:`~pinn_mpc.identify_multizone.identify_multizone`'s; None: every
+    pair). InputError where the data cannot be fitted (as
     :func:`~pinn_mpc.identify_multizone.identify_multizone` says)."""
     from pinn_mpc.training import data_summary
 
@@ -240,7 +243,7 @@ def fit_multizone_hybrid(
         frame = frame.assign(I_g=0.0)
     identified = identify_multizone(
         frame, zones=zones, actuators=actuators, power_columns=actuator_columns("u_phys", actuators),
-        solar_inputs=solar_inputs, dt_s=dt_s,
+        solar_inputs=solar_inputs, dt_s=dt_s, adjacency=adjacency,
     )
     rc = MultiZoneRCModel(identified.params, actuators, dt_s)
     names = RESIDUAL_INPUTS

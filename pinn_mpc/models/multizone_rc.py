@@ -33,7 +33,7 @@ import numpy as np
 import torch
 
 from pinn_mpc.actuator import ActuatorSpec
-from pinn_mpc.models.rollout import BatchDynamics, Rollout
+from pinn_mpc.models.rollout import BatchDynamics, LinearResponse, Rollout
 from pinn_mpc.models.zone_residual import ResidualHeat
 from pinn_mpc.multizone import (
     EXOGENOUS_NAMES,
@@ -190,6 +190,61 @@ class MultiZoneRCModel(BatchDynamics):
         z_n = self.params.n_zones
         return np.concatenate([rooms[-1], self.observer.state[z_n:]])
 
+    def _inputs(self, exog: Mapping[str, np.ndarray], h: int) -> np.ndarray:
+        """(H, 7) the forecast's inputs in :data:`pinn_mpc.multizone.EXOGENOUS_NAMES` order (0
+        for those the building does not take)."""
+        d = np.zeros((h, len(EXOGENOUS_NAMES)))
+        for name in self._needed:
+            d[:, EXOGENOUS_NAMES.index(name)] = np.asarray(exog[name], dtype=float)[:h]
+        return d
+
+    def _drift(self, d: np.ndarray, exog: Mapping[str, np.ndarray], h: int) -> np.ndarray:
+        """(H, 2Z) each interval's plan-free input to the state: the exogenous inputs ``d``
+        (H, 7) through the ZOH, and the residual heat where the model has one."""
+        q = self.residual_heat_w(exog, h)
+        return d @ self.matrices.b_d.T + (0.0 if q is None else q @ self.heat_input_matrix.T)
+
+    def linear_response(
+        self, history: Mapping[str, np.ndarray], u_w: np.ndarray, exog: Mapping[str, np.ndarray]
+    ) -> LinearResponse:
+        """The rollout of one plan ``u_w`` (H, A) [W] (as :meth:`rollout`'s, in float64) and its
+        exact response to a change of the plan (:class:`~pinn_mpc.models.rollout.LinearResponse`):
+        the building's matrices, each actuator's column scaled by its heat per watt in each
+        interval, and 0 where the rollout's backup thermostat forces the actuator (its power
+        then does not follow the demand)."""
+        plan = np.asarray(u_w, dtype=float)
+        a_n, z_n = len(self.config.actuators), self.params.n_zones
+        if plan.ndim != 2 or plan.shape[1] != a_n:
+            raise ValueError(
+                f"MultiZoneRCModel.linear_response: u_w must be (H, {a_n}), one demand per "
+                f"actuator, got {plan.shape}"
+            )
+        h = len(plan)
+        x = self.state_now(history)
+        d = self._inputs(exog, h)
+        a, b_u, _ = self.matrices
+        drift = self._drift(d, exog, h)  # (H, 2Z)
+        gain = self._gains(d[:, 0])  # (H, A)
+        lower = np.array([s.lower_w for s in self.config.actuators])
+        upper = np.array([s.upper_w for s in self.config.actuators])
+        backup = self._backup
+        zone, heats = backup["zone"].numpy(), backup["heats"].numpy()
+        demand = np.clip(plan, lower, upper)
+        rooms, powers, free = np.empty((h, z_n)), np.empty(h), np.empty((h, a_n), dtype=bool)
+        for j in range(h):
+            t = x[zone]  # (A,) each actuator's zone's room now
+            force_on = np.where(heats, t < backup["low_c"], t > backup["high_c"])
+            force_off = np.where(heats, t > backup["high_c"], t < backup["low_c"])
+            p = np.where(force_on, upper, np.where(force_off, lower, demand[j]))
+            x = a @ x + b_u @ (p * gain[j]) + drift[j]
+            inside = (plan[j] >= lower) & (plan[j] <= upper)  # a clipped demand does not move
+            rooms[j], powers[j], free[j] = x[:z_n], p.sum(), ~(force_on | force_off) & inside
+        follows = free.astype(float)
+        return LinearResponse(
+            t_r_c=rooms, u_phys_w=powers, a=a, b_heat=b_u, heat_per_w=gain * follows,
+            rooms=np.arange(z_n), power=follows,
+        )
+
     def rollout(
         self, history: dict[str, np.ndarray], u_w: torch.Tensor, exog: dict[str, np.ndarray]
     ) -> Rollout:
@@ -205,13 +260,10 @@ class MultiZoneRCModel(BatchDynamics):
         n, h, _ = u_w.shape
         dtype = u_w.dtype
         x0 = self.state_now(history)
-        d = np.zeros((h, len(EXOGENOUS_NAMES)))
-        for name in self._needed:
-            d[:, EXOGENOUS_NAMES.index(name)] = np.asarray(exog[name], dtype=float)[:h]
-        a, b_u, b_d = self.matrices
+        d = self._inputs(exog, h)
+        a, b_u, _ = self.matrices
         a_t, b_u_t = torch.as_tensor(a.T, dtype=dtype), torch.as_tensor(b_u.T, dtype=dtype)
-        q = self.residual_heat_w(exog, h)
-        drift = torch.as_tensor(d @ b_d.T + (0.0 if q is None else q @ self.heat_input_matrix.T), dtype=dtype)  # (H, 2Z)
+        drift = torch.as_tensor(self._drift(d, exog, h), dtype=dtype)  # (H, 2Z)
         gain = torch.as_tensor(self._gains(d[:, 0]), dtype=dtype)  # (H, A)
         lower = torch.tensor([s.lower_w for s in self.config.actuators], dtype=dtype)
         upper = torch.tensor([s.upper_w for s in self.config.actuators], dtype=dtype)

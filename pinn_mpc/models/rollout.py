@@ -29,6 +29,7 @@ default, so a new kind is a fleet's without doing anything.
 from __future__ import annotations
 
 from collections.abc import Hashable, Mapping, Sequence
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, NamedTuple, Protocol
 
 import numpy as np
@@ -41,7 +42,15 @@ if TYPE_CHECKING:
     from pinn_mpc.actuator import ActuatorSpec
     from pinn_mpc.multizone import MultiZoneParams
 
-__all__ = ["BatchDynamics", "Exogenous", "FittedModel", "Histories", "Rollout", "StackedDynamics"]
+__all__ = [
+    "BatchDynamics",
+    "Exogenous",
+    "FittedModel",
+    "Histories",
+    "LinearResponse",
+    "Rollout",
+    "StackedDynamics",
+]
 
 #: Each building's history, in the data format's names (as :meth:`BatchDynamics.rollout` takes it).
 Histories = Sequence[Mapping[str, np.ndarray]]
@@ -61,6 +70,65 @@ class Rollout(NamedTuple):
     def of_one_zone(cls, t_r_c: torch.Tensor, u_phys_w: torch.Tensor, t_m_c: torch.Tensor | None) -> Rollout:
         """The rollout of a one-zone model from its (..., H) predictions (Z = 1)."""
         return cls(t_r_c[..., None], u_phys_w, None if t_m_c is None else t_m_c[..., None])
+
+
+@dataclass(frozen=True, kw_only=True)
+class LinearResponse:
+    """A model's rollout of one plan (H, A) of a building of Z zones and A actuators and its
+    exact response to a change of that plan, as an affine state-space system (what
+    :meth:`BatchDynamics.linear_response` gives): the state's change after interval j is
+    ``dx_j = a dx_(j-1) + b_heat (heat_per_w[j] * du_j)`` (``dx_(-1) = 0``), each zone's room
+    change ``dx_j[rooms]``, the delivered power's change ``power[j] * du_j``, for ``du_j`` (A,)
+    the change of each actuator's demand in interval j [W]. Exact while the change switches no
+    rule the rollout applies to the state (a backup thermostat): the derivative of the rollout
+    where it is affine in the plan."""
+
+    t_r_c: np.ndarray  # (H, Z) each zone's room at the end of each interval, at the plan [C]
+    u_phys_w: np.ndarray  # (H,) the building's delivered power in each interval, at the plan [W]
+    a: np.ndarray  # (S, S) the state's transition over one interval
+    b_heat: np.ndarray  # (S, A) the state's change per W of each actuator's heat (its sign in it) [K/W]
+    heat_per_w: np.ndarray  # (H, A) each actuator's heat per W of demand in interval j (0: it does not follow)
+    rooms: np.ndarray  # (Z,) the rooms' indices in the state
+    power: np.ndarray  # (H, A) the delivered power's change per W of demand [W/W]
+
+    def __post_init__(self) -> None:
+        h, z_n = self.t_r_c.shape
+        s_n, a_n = self.b_heat.shape
+        shapes = {
+            "u_phys_w": (self.u_phys_w.shape, (h,)), "a": (self.a.shape, (s_n, s_n)),
+            "heat_per_w": (self.heat_per_w.shape, (h, a_n)), "rooms": (self.rooms.shape, (z_n,)),
+            "power": (self.power.shape, (h, a_n)),
+        }
+        for name, (got, want) in shapes.items():
+            if got != want:
+                raise ValueError(
+                    f"LinearResponse.{name} has shape {got}, but t_r_c {self.t_r_c.shape} and b_heat "
+                    f"{self.b_heat.shape} make it {want}; give arrays of one horizon, state and plan"
+                )
+
+    @property
+    def b(self) -> np.ndarray:
+        """(H, S, A) the state's change per W of each actuator's demand in interval j [K/W]."""
+        return self.b_heat[None] * self.heat_per_w[:, None, :]
+
+    def jacobians(self) -> tuple[np.ndarray, np.ndarray]:
+        """The rollout's derivatives, dense: ``jr`` (H, Z, H, A), d(room z at the end of
+        interval j) / d(demand of actuator a in interval i) [K/W] (the impulse response
+        ``a^(j-i) b[i]`` of the rooms, 0 for i > j), and ``jp`` (H, H, A), d(delivered power
+        in interval j) / d(demand in interval i) [W/W]."""
+        h, z_n = self.t_r_c.shape
+        a_n = self.b_heat.shape[1]
+        b = self.b
+        reach = np.empty((h, z_n, self.a.shape[0]))  # (L, Z, S) the rooms' rows of a^L
+        reach[0] = np.eye(self.a.shape[0])[self.rooms]
+        for lag in range(1, h):
+            reach[lag] = reach[lag - 1] @ self.a
+        jr = np.zeros((h, z_n, h, a_n))
+        for i in range(h):
+            jr[i:, :, i, :] = reach[: h - i] @ b[i]
+        jp = np.zeros((h, h, a_n))
+        jp[np.arange(h), np.arange(h)] = self.power
+        return jr, jp
 
 
 class BatchDynamics(Protocol):
@@ -115,6 +183,15 @@ class BatchDynamics(Protocol):
     def zone_params(self) -> MultiZoneParams | None:
         """The multi-zone RC building a planner over this model falls back on (the QP MPC on
         it, :class:`controllers.rc_mpc.multizone.MultiZoneMPC`); None, the default: none."""
+        return None
+
+    def linear_response(
+        self, history: Mapping[str, np.ndarray], u_w: np.ndarray, exog: Exogenous
+    ) -> LinearResponse | None:
+        """The rollout of one plan ``u_w`` (H, A) [W] of a model of several actuators and its
+        exact response to a change of the plan (:class:`LinearResponse`), which a planner's LP
+        polish uses instead of probing every step of every actuator; None, the default: the
+        model does not give it (the polish probes)."""
         return None
 
     @property

@@ -435,7 +435,9 @@ def identify_scenario_zones(scenario: Scenario, data: pd.DataFrame) -> MultiZone
     """The multi-zone identification of ``data`` of a building of several zones, its layout
     the scenario's (:func:`pinn_mpc.identify_multizone.identify_multizone`): which actuator
     acts on which zone, and which irradiance each zone's windows take
-    (:func:`zone_solar_inputs`)."""
+    (:func:`zone_solar_inputs`); the walls fitted those between zones the plant says touch
+    (:attr:`KindSettings.zone_adjacency <scenarios.plants.kinds.KindSettings.zone_adjacency>`:
+    EnergyPlus's share a surface), else every pair's."""
     from pinn_mpc.actuator import actuator_columns
     from pinn_mpc.identify_multizone import identify_multizone
 
@@ -443,7 +445,7 @@ def identify_scenario_zones(scenario: Scenario, data: pd.DataFrame) -> MultiZone
     result = identify_multizone(
         data, zones=spec.zones, actuators=spec.actuators,
         power_columns=actuator_columns("u_phys", spec.actuators), solar_inputs=zone_solar_inputs(scenario),
-        dt_s=scenario.sim.dt_s,
+        dt_s=scenario.sim.dt_s, adjacency=scenario.plant.settings.zone_adjacency,
     )
     for note in result.notes:
         warn(note)
@@ -464,17 +466,18 @@ def train_scenario_zones(
     from pinn_mpc.models.multizone_hybrid import fit_multizone_hybrid
 
     spec = scenario.control_spec()
-    zones, actuators, solar, dt_s = spec.zones, spec.actuators, zone_solar_inputs(scenario), scenario.sim.dt_s
+    layout: dict[str, Any] = {
+        "zones": spec.zones, "actuators": spec.actuators, "solar_inputs": zone_solar_inputs(scenario),
+        "dt_s": scenario.sim.dt_s, "adjacency": scenario.plant.settings.zone_adjacency,
+    }
     model: FittedModel
     if arch == AUTO:
-        choice = choose_zone_model(data, zones=zones, actuators=actuators, solar_inputs=solar, dt_s=dt_s, seed=seed)
+        choice = choose_zone_model(data, seed=seed, **layout)
     elif arch in (DEFAULT_ARCH, PHYSICS_ARX.name):
         if arch == DEFAULT_ARCH:
-            model = fit_multizone_hybrid(
-                data, zones=zones, actuators=actuators, solar_inputs=solar, dt_s=dt_s, seed=seed
-            )
+            model = fit_multizone_hybrid(data, seed=seed, **layout)
         else:
-            model = fit_multizone_arx(data, zones=zones, actuators=actuators, solar_inputs=solar, dt_s=dt_s)
+            model = fit_multizone_arx(data, **layout)
         choice = ModelChoice(chosen=arch, model=model, held_out_mae_c={}, horizon_steps=0, why="as asked")
     else:
         raise ValueError(

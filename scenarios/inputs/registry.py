@@ -601,6 +601,10 @@ _SCENARIOS["eplus_midrise_apartment"] = _energyplus_scenario(
 #: 21 C (6-8 January) and 24 C (16-18 July) in Chicago.
 _OFFICE_ZONE_HEATERS_W = (4600.0, 5600.0, 3800.0, 5800.0, 3700.0)
 _OFFICE_ZONE_CHILLERS_W = (900.0, 1100.0, 800.0, 1000.0, 1000.0)
+#: The comfort band of the offices of zones, in every zone.
+_OFFICE_ZONE_COMFORT = ComfortSchedule(
+    day_min_c=21.0, day_max_c=24.0, night_min_c=16.0, night_max_c=27.0, day_start_h=7.0, day_end_h=19.0,
+)
 #: The seasons of the small office of zones: a built-in each (the first without a suffix).
 _OFFICE_ZONE_SEASONS = ("january", "april", "july")
 
@@ -631,10 +635,7 @@ def _office_zones(season: str) -> Scenario:
         weather="usa_il_chicago",
         heater_w=sum(_OFFICE_ZONE_HEATERS_W),
         initial_t_r_c=21.0,
-        comfort=ComfortSchedule(
-            day_min_c=21.0, day_max_c=24.0, night_min_c=16.0, night_max_c=27.0,
-            day_start_h=7.0, day_end_h=19.0,
-        ),
+        comfort=_OFFICE_ZONE_COMFORT,
         settings=EnergyPlusSettings(
             building="small_office", weather="usa_il_chicago", zones="controlled",
             heater_w=_OFFICE_ZONE_HEATERS_W, chiller_w=_OFFICE_ZONE_CHILLERS_W, chiller=ZONE_CHILLER,
@@ -646,6 +647,49 @@ def _office_zones(season: str) -> Scenario:
 
 
 _SCENARIOS.update((s.name, s) for s in map(_office_zones, _OFFICE_ZONE_SEASONS))
+
+#: The medium office's zones' heaters and chillers (electrical) [W], in its zones' order
+#: (Core_bottom, Core_mid, Core_top, then each storey's Perimeter_<storey>_ZN_1 .. 4): what
+#: heater_w and chiller_w = "auto" size for them at 21 C (6-8 January) and 24 C (16-18 July)
+#: in Chicago.
+_MEDIUM_OFFICE_ZONE_HEATERS_W = (
+    1100.0, 900.0, 25900.0,
+    10000.0, 7000.0, 10400.0, 6900.0,
+    10000.0, 7100.0, 10600.0, 7000.0,
+    15900.0, 10800.0, 16400.0, 10700.0,
+)
+_MEDIUM_OFFICE_ZONE_CHILLERS_W = (
+    7300.0, 5900.0, 7600.0,
+    2800.0, 2100.0, 2000.0, 2700.0,
+    3200.0, 2400.0, 2400.0, 3000.0,
+    3500.0, 2400.0, 2800.0, 3300.0,
+)
+_SCENARIOS["eplus_medium_office_zones"] = _energyplus_scenario(
+    name="eplus_medium_office_zones",
+    description=(
+        "DOE's medium office (EnergyPlus reference building, three storeys, 4,982 m2) in "
+        "Chicago (TMY3), its HVAC removed, its 15 conditioned zones kept (each storey's core "
+        "and four perimeter zones; its three plenums unconditioned, not zones of the "
+        "building), each with an ideal electric heater and an ideal chiller of its own "
+        "(heat_<zone>, cool_<zone>: 30 actuators; heaters 0.9-25.9 kW, 150.7 kW in all, "
+        "chillers 2.0-7.6 kW electrical, 53.4 kW, EER 4.8 at 30 C: what \"auto\" sizes for 21 "
+        "and 24 C); run by EnergyPlus (no R/C parameters, no oracle). Office comfort 21-24 C "
+        "07-19 h, 16-27 C otherwise, in every zone; winter_household's dynamic price, backup "
+        "14/28 C per actuator on its zone; the office's internal gains are unmeasured. "
+        "Season: January (a scenario file takes [weather] season = \"<month>\")."
+    ),
+    building="medium_office",
+    weather="usa_il_chicago",
+    heater_w=sum(_MEDIUM_OFFICE_ZONE_HEATERS_W),
+    initial_t_r_c=21.0,
+    comfort=_OFFICE_ZONE_COMFORT,
+    settings=EnergyPlusSettings(
+        building="medium_office", weather="usa_il_chicago", zones="controlled",
+        heater_w=_MEDIUM_OFFICE_ZONE_HEATERS_W, chiller_w=_MEDIUM_OFFICE_ZONE_CHILLERS_W,
+        chiller=ZONE_CHILLER,
+    ),
+    window=season_window("january"),
+)
 
 
 def _zoned_scenario(

@@ -80,6 +80,12 @@ class KindSettings:
         return ONE_ZONE
 
     @property
+    def zone_adjacency(self) -> np.ndarray | None:
+        """(Z, Z) bools, True where two of :attr:`zone_specs` share a surface (the internal walls
+        an identification fits); None: not known in advance (every pair may)."""
+        return None
+
+    @property
     def own_actuators(self) -> tuple[ActuatorSpec, ...] | None:
         """The actuators the plant declares (a building of several zones), which the control
         spec then holds; None: the scenario's one actuator (``SimConfig.actuators``)."""

@@ -39,6 +39,7 @@ __all__ = [
     "prepare_model",
     "prepare_plant",
     "prepared_from_key",
+    "zone_adjacency",
     "zone_layout",
     "zone_names",
 ]
@@ -548,6 +549,29 @@ def prepare_plant(plant: EnergyPlusSettings) -> PreparedModel:
 def _zone_layout_cached(key: PlantKey) -> tuple[tuple[str, ...], tuple[float, ...]]:
     prepared = prepared_from_key(key)
     return zone_names(prepared.zones), prepared.weights
+
+
+@functools.lru_cache(maxsize=16)
+def _zone_adjacency_cached(key: PlantKey) -> tuple[tuple[bool, ...], ...]:
+    prepared = prepared_from_key(key)
+    index = {z: i for i, z in enumerate(prepared.zones)}
+    touching = [[False] * len(index) for _ in index]
+    surfaces = prepared.model.get("BuildingSurface:Detailed", {})
+    for s in surfaces.values():
+        other = surfaces.get(s.get("outside_boundary_condition_object", ""))
+        if s["outside_boundary_condition"] != "Surface" or other is None:
+            continue
+        i, j = index.get(s["zone_name"]), index.get(other["zone_name"])
+        if i is not None and j is not None and i != j:
+            touching[i][j] = touching[j][i] = True
+    return tuple(map(tuple, touching))
+
+
+def zone_adjacency(plant: EnergyPlusSettings) -> tuple[tuple[bool, ...], ...]:
+    """(Z, Z) of the zones of :func:`zone_layout`: True where two of them share a surface (a
+    wall, a floor or a ceiling between them); zones that touch only through a zone left out
+    (a plenum) do not. Computed once per process."""
+    return _zone_adjacency_cached(plant_key(plant))
 
 
 def zone_layout(plant: EnergyPlusSettings) -> tuple[tuple[str, ...], tuple[float, ...]]:

@@ -261,6 +261,16 @@ class EnergyPlusSettings(KindSettings):
         return tuple(ZoneSpec(name) for name in zone_layout(self)[0])
 
     @property
+    def zone_adjacency(self) -> np.ndarray | None:
+        """Where the zones are controlled, (Z, Z) True where two zones share a surface in the
+        model (:func:`scenarios.plants.energyplus.model.zone_adjacency`); None otherwise."""
+        if not self.controlled:
+            return None
+        from scenarios.plants.energyplus.model import zone_adjacency
+
+        return np.array(zone_adjacency(self), dtype=bool)
+
+    @property
     def own_actuators(self) -> tuple[ActuatorSpec, ...] | None:
         """Where the zones are controlled, each zone's heater ``heat_<zone>`` then its chiller
         ``cool_<zone>`` (those of power > 0), zone by zone; None otherwise (the scenario's one
