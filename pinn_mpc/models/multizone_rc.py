@@ -71,6 +71,7 @@ class MultiZoneRCModel(BatchDynamics):
     depth = 0
     eta = 1.0
     affine_in_plan = False  # the backup thermostats' clipping
+    estimates_state = True  # the Kalman filter over the history
 
     def __init__(
         self,

@@ -185,6 +185,14 @@ class BatchDynamics(Protocol):
         it, :class:`controllers.rc_mpc.multizone.MultiZoneMPC`); None, the default: none."""
         return None
 
+    @property
+    def estimates_state(self) -> bool:
+        """Whether each rollout starts from a state a filter re-estimates from every measured
+        room (:class:`pinn_mpc.models.multizone_rc.MultiZoneRCModel`'s Kalman filter): its
+        one-step errors are then the filter's innovations, noise that a planner's offset filter
+        would only pass on. False, the default: the planner's offset filter corrects it."""
+        return False
+
     def linear_response(
         self, history: Mapping[str, np.ndarray], u_w: np.ndarray, exog: Exogenous
     ) -> LinearResponse | None:
