@@ -190,9 +190,10 @@ class Coordination:
                 power = np.where(ok[:, None], a.plan.power_w, 0.0)
                 power[:, 0] += share * np.where(ok, b.plan.power_w[:, 0] - a.plan.power_w[:, 0], 0.0)
                 actuators = None
-                if a.plan.actuator_w is not None and b.plan.actuator_w is not None:
-                    first_a, first_b = a.plan.actuator_w, b.plan.actuator_w  # (B, A)
-                    actuators = np.where(ok[:, None], first_a + share * (first_b - first_a), 0.0)
+                if a.plan.actuator_w is not None and b.plan.actuator_w is not None:  # (B, H, A)
+                    actuators = np.where(ok[:, None, None], a.plan.actuator_w, 0.0)
+                    step = b.plan.actuator_w[:, 0] - a.plan.actuator_w[:, 0]
+                    actuators[:, 0] += share * np.where(ok[:, None], step, 0.0)
                 return a.price, a.plan._replace(power_w=power, ok=ok, actuator_w=actuators), False
             if len(under):
                 best = tried[int(under[np.argmax(first[under])])]
@@ -204,7 +205,9 @@ class Coordination:
             return last.price, plan, False
         power = plan.power_w.copy()
         power[:, 0] *= cap0 / total
-        actuators = None if plan.actuator_w is None else plan.actuator_w * (cap0 / total)
+        actuators = None if plan.actuator_w is None else plan.actuator_w.copy()
+        if actuators is not None:
+            actuators[:, 0] *= cap0 / total
         return last.price, plan._replace(power_w=power, actuator_w=actuators), True
 
 

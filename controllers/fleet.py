@@ -54,9 +54,9 @@ class FleetPlan(NamedTuple):
     """Plans of B buildings over H intervals: ``power_w`` (B, H) planned electrical power [W]
     (demanded; what the aggregate is summed from; a building of several actuators: their
     total), ``ok`` (B,) whether the building planned (False: it falls back on commit),
-    ``status`` the solver's word, ``iterations``; ``actuator_w`` (B, A) each actuator's first
-    action [W] of a fleet of buildings of several actuators (its rows sum to ``power_w[:, 0]``;
-    None: one actuator a building, whose first action is ``power_w[:, 0]``)."""
+    ``status`` the solver's word, ``iterations``; ``actuator_w`` (B, H, A) each actuator's
+    planned power [W] in a fleet of buildings of several actuators (summed over A it is
+    ``power_w``; None: one actuator a building, whose plan is ``power_w``)."""
 
     power_w: np.ndarray
     ok: np.ndarray
