@@ -301,9 +301,8 @@ def _fleet_closed_loop(a: argparse.Namespace, scenario: Scenario, inputs: dict[s
     (``--batched``, ``--cap-kw``; then the fleet figure is written next to the JSON). A fleet
     that would not fit in memory is refused before anything is built."""
     from scenarios.fleets.fleet import fleet_json, run_fleet_closed_loop
-    from scenarios.running.budget import check_fleet_memory, check_fleet_size
-
     from scenarios.fleets.zoned import is_zoned
+    from scenarios.running.budget import check_fleet_memory, check_fleet_size
 
     batched = a.batched or a.cap_kw is not None or a.model is not None
     zoned = is_zoned(scenario)

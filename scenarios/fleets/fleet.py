@@ -372,6 +372,7 @@ def fleet_json(result: FleetResult, scenario_arg: str) -> FleetJson:
     (``time``, ``power_kw`` per counted interval), ``cap`` (None without one), ``fell_back``
     (the buildings whose fallback or whose model's RC MPC acted at least once), ``step_time``
     and ``buildings``."""
+    buildings: Sequence[RCParams | MultiZoneParams] = result.params
     return {
         "fleet": (
             {**result.info, "scenario_file": os.path.abspath(scenario_arg)}
@@ -392,6 +393,6 @@ def fleet_json(result: FleetResult, scenario_arg: str) -> FleetJson:
         "step_time": result.step_time,
         "buildings": [
             {**kpis, "params": dataclasses.asdict(params)}
-            for kpis, params in zip(result.kpis, result.params, strict=True)
+            for kpis, params in zip(result.kpis, buildings, strict=True)
         ],
     }
