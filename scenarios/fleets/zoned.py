@@ -220,7 +220,8 @@ class ZoneFleetPlanner:
                 u[i] = plan.actuator_w[i, 0]
         self._fallbacks += fallback
         self._observed = False
-        return FleetDecision(u_w=u, fallback=fallback)
+        # A building of one actuator takes (B,) demands, as the loop steps it.
+        return FleetDecision(u_w=u[:, 0] if self.spec.n_actuators == 1 else u, fallback=fallback)
 
 
 def zoned_planner_factory(
