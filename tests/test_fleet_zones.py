@@ -99,6 +99,14 @@ def test_uncapped_coordinated_fleet_runs_each_building_as_alone_to_1e9(name, con
         )
 
 
+def test_a_fleet_of_cems_runs_each_building_as_alone():
+    """cem on each building's own RC, seeded as alone."""
+    scenario = get_scenario("two_zone_house")
+    result = run_fleet_closed_loop(scenario, "cem", n_buildings=2, days=1, seed=COLD_SEED, spread=0.3)
+    for b, params in enumerate(result.params):
+        assert_same_plant_kpis(result.kpis[b], _alone(scenario, params, "cem", days=1, seed=COLD_SEED).kpis)
+
+
 @pytest.mark.parametrize("controller", ["thermostat", "oracle"])
 def test_fleet_of_zoned_buildings_reproduces_each_building_alone(controller):
     """The per-building path (each building's controller, one batched plant step)."""
