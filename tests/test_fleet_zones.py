@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from controllers.coordination import Coordination
+from controllers.rc_mpc.references import oracle_multizone
 from controllers.thermostat import Thermostat
 from pinn_mpc.errors import InputError
 from pinn_mpc.multizone import draw_zoned_fleet
@@ -17,7 +18,7 @@ from pinn_mpc.simulator import FLEET_SCALED, draw_fleet
 from pinn_mpc_cli.cli import main
 from scenarios.fleets.aggregator import _run_batched, run_coordinated_fleet
 from scenarios.fleets.fleet import draw_buildings, run_fleet_closed_loop
-from scenarios.fleets.zoned import with_building, zoned_controller, zoned_planner_factory
+from scenarios.fleets.zoned import ZoneFleetPlanner, with_building, zoned_controller, zoned_planner_factory
 from scenarios.inputs.scenario_file import get_scenario
 from scenarios.inputs.zoned import TWO_ZONE_HOUSE
 from scenarios.running.closed_loop import build_loop, prepare_run, run_closed_loop
@@ -135,6 +136,22 @@ def test_a_binding_cap_holds_at_every_interval(controller):
     # The same buildings and the same plant: only the decisions differ.
     assert capped.params == free.params
     assert np.any(np.abs(capped.aggregate_u_phys_w - free.aggregate_u_phys_w) > 1.0)
+
+
+def test_a_capped_building_whose_solver_fails_falls_back_and_is_counted():
+    scenario = get_scenario("two_zone_house")
+
+    def planner(fleet, spec):
+        # OSQP stopped after one iteration: a real non-optimal status (MultiZoneMPC's documented option).
+        return ZoneFleetPlanner(
+            [oracle_multizone(p, spec, solver_options={"max_iter": 1} if i == 1 else None) for i, p in enumerate(fleet)],
+            spec,
+        )
+
+    result = run_coordinated_fleet(scenario, planner, n_buildings=3, days=1, seed=COLD_SEED, cap_kw=9.0)
+    assert [k["fallbacks"] for k in result.kpis] == [0, 48, 0]
+    assert result.cap is not None and result.cap["intervals_over"] == 0
+    assert result.errors == ()  # the controller's own fallback acted, nothing raised
 
 
 def test_a_cap_settles_every_actuator_within_its_bounds_on_the_building_total():

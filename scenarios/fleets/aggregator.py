@@ -308,7 +308,8 @@ def run_coordinated_fleet(
     if fleet_planner.rc_candidates is not None:  # a batched cem over learned models
         info["rc_candidates"] = bool(fleet_planner.rc_candidates)
     return fleet_result(
-        scenario, run, loop, times_s, seed=seed, params=buildings, errors=(),
+        scenario, run, loop, times_s, seed=seed, params=buildings,
+        errors=tuple(fleet_planner.errors) if isinstance(fleet_planner, ZoneFleetPlanner) else (),
         cap=cap_info,
         prices=prices,
         extra_kpis={"model_fallback_steps": model_fallbacks},

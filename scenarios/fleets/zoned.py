@@ -118,7 +118,8 @@ class ZoneFleetPlanner:
     whatever the price. A plan's ``power_w`` is each building's total over its actuators,
     ``actuator_w`` each actuator's (B, H, A); :meth:`commit` applies each building's settled
     first row. Uncapped (one plan a step, no price), every building decides exactly as its
-    controller's ``act`` would."""
+    controller's ``act`` would. :attr:`errors` holds one line per controller exception (its
+    building and the planner's step), where the loop's fallback acted."""
 
     #: It plans on RC parameters, over no learned model (:class:`FleetPlanner`).
     rc_candidates = None
@@ -158,6 +159,8 @@ class ZoneFleetPlanner:
         self._decided_w = np.zeros((b, a))  # (B, A) the once-a-step decisions
         self._decided_fallback = np.zeros(b, dtype=bool)
         self._status = ["not run"] * b
+        self.errors: list[str] = []
+        self._steps = 0
         self._iterations = np.zeros(b, dtype=int)
         self._observed = False
 
@@ -173,10 +176,13 @@ class ZoneFleetPlanner:
             if isinstance(controller, MultiZoneMPC):
                 controller.observe(obs, own)
                 continue
-            u, _, fell_back, _ = decide(controller, obs, own, self.spec)
+            u, _, fell_back, error = decide(controller, obs, own, self.spec)
             self._decided_w[i] = u
             self._decided_fallback[i] = fell_back
+            if error is not None:
+                self.errors.append(f"building {i}, step {self._steps}: {error}")
         self._observed = True
+        self._steps += 1
 
     def plan(self, extra_price_eur_per_kwh: np.ndarray | None = None) -> FleetPlan:
         """Every building's plan under the forecast plus ``extra_price_eur_per_kwh`` (H,) on
