@@ -18,7 +18,12 @@ from pinn_mpc.simulator import FLEET_SCALED, draw_fleet
 from pinn_mpc_cli.cli import main
 from scenarios.fleets.aggregator import _run_batched, run_coordinated_fleet
 from scenarios.fleets.fleet import draw_buildings, run_fleet_closed_loop
-from scenarios.fleets.zoned import ZoneFleetPlanner, with_building, zoned_controller, zoned_planner_factory
+from scenarios.fleets.zoned import (
+    ZoneFleetPlanner,
+    with_building,
+    zoned_controller,
+    zoned_planner_factory,
+)
 from scenarios.inputs.scenario_file import get_scenario
 from scenarios.inputs.zoned import TWO_ZONE_HOUSE
 from scenarios.running.closed_loop import build_loop, prepare_run, run_closed_loop
