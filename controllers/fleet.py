@@ -56,13 +56,16 @@ class FleetPlan(NamedTuple):
     total), ``ok`` (B,) whether the building planned (False: it falls back on commit),
     ``status`` the solver's word, ``iterations``; ``actuator_w`` (B, H, A) each actuator's
     planned power [W] in a fleet of buildings of several actuators (summed over A it is
-    ``power_w``; None: one actuator a building, whose plan is ``power_w``)."""
+    ``power_w``; None: one actuator a building, whose plan is ``power_w``); ``plan_id`` which of
+    the planner's plans of the step it is (a coordination's settled plan keeps the id of the
+    plan it was made from), for a planner that keeps a state per plan (None: it keeps none)."""
 
     power_w: np.ndarray
     ok: np.ndarray
     status: str
     iterations: int
     actuator_w: np.ndarray | None = None
+    plan_id: int | None = None
 
 
 class FleetDecision(NamedTuple):

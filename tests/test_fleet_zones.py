@@ -9,7 +9,7 @@ import json
 import numpy as np
 import pytest
 
-from controllers.coordination import Coordination
+from controllers.coordination import Coordination, DualAscent
 from controllers.rc_mpc.references import oracle_multizone
 from controllers.thermostat import Thermostat
 from pinn_mpc.errors import InputError
@@ -72,7 +72,7 @@ def _alone(scenario, params, name, *, days, seed):
 @pytest.mark.parametrize(
     ("name", "controller"),
     [("two_zone_house", "thermostat"), ("two_zone_house", "oracle"), ("shoulder_office", "oracle"),
-     ("two_zone_house", "qp-mpc")],
+     ("two_zone_house", "qp-mpc"), ("two_zone_house", "cem")],
 )
 def test_uncapped_coordinated_fleet_runs_each_building_as_alone_to_1e9(name, controller):
     """The batched path (ZoneFleetPlanner under the coordination, no cap): every zone's
@@ -141,6 +141,25 @@ def test_a_binding_cap_holds_at_every_interval(controller):
     # The same buildings and the same plant: only the decisions differ.
     assert capped.params == free.params
     assert np.any(np.abs(capped.aggregate_u_phys_w - free.aggregate_u_phys_w) > 1.0)
+
+
+@pytest.mark.slow
+def test_capped_cems_follow_the_price_and_hold_the_cap():
+    """A sampler plans each price on a copy of itself: under a binding cap the coordination's
+    plans (a bracket of prices, the first actions settled between them) keep more of the comfort
+    than the plain dual ascent's (one plan a step, its first actions scaled down when over)."""
+    scenario = get_scenario("two_zone_house")
+    kwargs = {"n_buildings": 4, "days": 1, "seed": COLD_SEED, "spread": 0.3}
+    free = run_coordinated_fleet(scenario, "cem", **kwargs)
+    cap_kw = 0.5 * (free.aggregate_u_phys_w.mean() + free.aggregate_u_phys_w.max()) / 1000.0
+    capped = run_coordinated_fleet(scenario, "cem", cap_kw=cap_kw, **kwargs)
+    curtailed = run_coordinated_fleet(
+        scenario, "cem", cap_kw=cap_kw, dual=DualAscent(iterations=1, secant=False, interpolate=False), **kwargs
+    )
+    for result in (capped, curtailed):
+        assert result.cap is not None and result.cap["intervals_over"] == 0
+    assert capped.info["plans_per_step"] > 1.5
+    assert capped.totals["discomfort_kh"] < curtailed.totals["discomfort_kh"]
 
 
 def test_a_capped_building_whose_solver_fails_falls_back_and_is_counted():

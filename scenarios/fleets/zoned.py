@@ -15,20 +15,23 @@ fleet's (:class:`controllers.coordination.Coordination`), on each building's tot
 actuators: :class:`ZoneFleetPlanner` is a :class:`controllers.fleet.FleetPlanner` over the
 buildings' controllers. An MPC (``oracle``, ``qp-mpc``) plans under the coordination's price on
 the building's electrical energy (:meth:`controllers.rc_mpc.multizone.MultiZoneMPC.plan`), so
-the price moves its plan; the others (the thermostat, the samplers) decide once a step and do
-not respond to a price, so their fleet is held on the cap by the coordination's curtailment:
-every building's actuators scaled down by the one factor that puts the aggregate on the cap.
+the price moves its plan. A sampler (``cem``, ``random-shooting``) plans each price on a copy of
+itself, with the price added to its forecast's, and the copy whose plan is applied carries on
+(a plan costs one decision). The thermostat has no price: it decides once a step, and its fleet
+is held on the cap by the coordination's curtailment, every building's actuators scaled down by
+the one factor that puts the aggregate on the cap.
 """
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
 
-from controllers.base import Controller, ControlSpec, Forecast, Observation
+from controllers.base import Controller, ControlSpec, Forecast, Observation, PlanningController
 from controllers.fleet import FleetDecision, FleetPlan
 from controllers.rc_mpc.multizone import MultiZoneMPC, ZonePlan
 from pinn_mpc.errors import InputError, InternalError
@@ -113,11 +116,13 @@ class ZoneFleetPlanner:
     (module docstring), for :class:`controllers.coordination.Coordination`.
 
     A :class:`~controllers.rc_mpc.multizone.MultiZoneMPC` observes once a step and plans under
-    each extra price asked; any other controller decides once a step, on :meth:`observe`
-    (:func:`scenarios.running.engine.decide`: a failure falls back), and plans that decision
-    whatever the price. A plan's ``power_w`` is each building's total over its actuators,
-    ``actuator_w`` each actuator's (B, H, A); :meth:`commit` applies each building's settled
-    first row. Uncapped (one plan a step, no price), every building decides exactly as its
+    each extra price asked; another planning controller (a sampler) decides on a copy of itself
+    per extra price (:func:`scenarios.running.engine.decide`, the price added to its forecast's;
+    a failure falls back), and the copy of the plan applied replaces it on :meth:`commit`; a
+    controller without a plan (the thermostat) decides once a step, on :meth:`observe`, and
+    plans that decision whatever the price. A plan's ``power_w`` is each building's total over
+    its actuators, ``actuator_w`` each actuator's (B, H, A); :meth:`commit` applies each
+    building's settled first row. Uncapped (one plan a step, no price), every building decides exactly as its
     controller's ``act`` would. :attr:`errors` holds one line per controller exception (its
     building and the planner's step), where the loop's fallback acted."""
 
@@ -127,9 +132,12 @@ class ZoneFleetPlanner:
     def __init__(self, controllers: Sequence[Controller], spec: ControlSpec) -> None:
         if not controllers:
             raise InternalError("ZoneFleetPlanner needs at least one building's controller")
-        self.controllers, self.spec = tuple(controllers), spec
+        self.controllers, self.spec = list(controllers), spec
         self.name = self.controllers[0].name
         self._mpc = np.array([isinstance(c, MultiZoneMPC) for c in self.controllers])
+        self._copied = np.array(
+            [isinstance(c, PlanningController) and not isinstance(c, MultiZoneMPC) for c in self.controllers]
+        )
         self.reset()
 
     @property
@@ -161,20 +169,26 @@ class ZoneFleetPlanner:
         self._status = ["not run"] * b
         self.errors: list[str] = []
         self._steps = 0
+        self._seen: list[tuple[Observation, Forecast]] = []  # the samplers' step inputs
+        self._copies: list[dict[int, tuple[Controller, bool, str | None]]] = []  # per plan: building -> copy
         self._iterations = np.zeros(b, dtype=int)
         self._observed = False
 
     def observe(self, observations: Sequence[Observation], forecast: Forecast) -> None:
         """Every building's observation, with its own copy of ``forecast``: the MPCs
-        estimate; the others decide."""
+        estimate, the thermostats decide, the samplers keep them for :meth:`plan`."""
         if len(observations) != self.n_buildings:
             raise InternalError(
                 f"ZoneFleetPlanner.observe: {len(observations)} observations for {self.n_buildings} buildings"
             )
+        self._seen, self._copies = [], []
         for i, (controller, obs) in enumerate(zip(self.controllers, observations, strict=True)):
-            own = forecast._replace(**{n: np.array(v) for n, v in forecast._asdict().items() if v is not None})
+            own = _copied(forecast)
+            self._seen.append((obs, own))
             if isinstance(controller, MultiZoneMPC):
                 controller.observe(obs, own)
+                continue
+            if self._copied[i]:
                 continue
             u, _, fell_back, error = decide(controller, obs, own, self.spec)
             self._decided_w[i] = u
@@ -193,6 +207,23 @@ class ZoneFleetPlanner:
         actuators = np.broadcast_to(self._decided_w[:, None, :], (b, h, a)).copy()  # (B, H, A)
         ok = np.ones(b, dtype=bool)
         iterations = 0
+        copies: dict[int, tuple[Controller, bool, str | None]] = {}
+        for i in np.flatnonzero(self._copied):
+            obs, forecast = self._seen[i]
+            priced = _copied(forecast)
+            if extra_price_eur_per_kwh is not None:
+                extra = np.asarray(extra_price_eur_per_kwh, dtype=float)[: len(priced.price)]
+                priced.price[: len(extra)] += extra
+            planner = copy.deepcopy(self.controllers[i])  # it may keep or change what it is given
+            u, _, fell_back, error = decide(planner, copy.deepcopy(obs), priced, self.spec)
+            copies[int(i)] = (planner, fell_back, error)
+            plan_w = planner.last_plan if isinstance(planner, PlanningController) else None
+            if not fell_back and plan_w is not None and np.shape(plan_w) == (h, a):
+                actuators[i] = plan_w
+                actuators[i, 0] = u
+            else:  # no plan over the horizon: its decision held
+                actuators[i] = u
+        self._copies.append(copies)
         for i in np.flatnonzero(self._mpc):
             controller = self.controllers[i]
             assert isinstance(controller, MultiZoneMPC)
@@ -206,7 +237,7 @@ class ZoneFleetPlanner:
         statuses = {s for s, m in zip(self._status, self._mpc, strict=True) if m} or {"decided"}
         return FleetPlan(
             power_w=actuators.sum(axis=2), ok=ok, status=", ".join(sorted(statuses)),
-            iterations=iterations, actuator_w=actuators,
+            iterations=iterations, actuator_w=actuators, plan_id=len(self._copies) - 1,
         )
 
     def commit(self, plan: FleetPlan) -> FleetDecision:
@@ -216,6 +247,14 @@ class ZoneFleetPlanner:
             raise InternalError("ZoneFleetPlanner.commit: call observe() and plan() first")
         u = np.zeros((self.n_buildings, self.spec.n_actuators))
         fallback = self._decided_fallback.copy()
+        if self._copied.any():  # the copies of the plan applied carry on
+            if plan.plan_id is None or not 0 <= plan.plan_id < len(self._copies):
+                raise InternalError(f"ZoneFleetPlanner.commit: plan_id {plan.plan_id} is not one of this step's plans")
+            for i, (planner, fell_back, error) in self._copies[plan.plan_id].items():
+                self.controllers[i] = planner
+                fallback[i] = fell_back
+                if error is not None:
+                    self.errors.append(f"building {i}, step {self._steps - 1}: {error}")
         for i, controller in enumerate(self.controllers):
             if isinstance(controller, MultiZoneMPC):
                 planned = plan.actuator_w[i] if plan.ok[i] else None
@@ -226,8 +265,14 @@ class ZoneFleetPlanner:
                 u[i] = plan.actuator_w[i, 0]
         self._fallbacks += fallback
         self._observed = False
+        self._seen, self._copies = [], []
         # A building of one actuator takes (B,) demands, as the loop steps it.
         return FleetDecision(u_w=u[:, 0] if self.spec.n_actuators == 1 else u, fallback=fallback)
+
+
+def _copied(forecast: Forecast) -> Forecast:
+    """A copy of ``forecast`` (its arrays too) for one controller to keep or change."""
+    return forecast._replace(**{n: np.array(v) for n, v in forecast._asdict().items() if v is not None})
 
 
 def zoned_planner_factory(
