@@ -336,9 +336,10 @@ def _zone_layout(df: pd.DataFrame, source: str, zones: bool) -> tuple[pd.DataFra
         return df.rename(columns={c: s for c, (s, _) in zoned.items()}), found
     if not zones:
         raise InputError(
-            f"{source}: holds {len(names)} zones ({', '.join(names)}); the models and "
-            "controllers take one zone today: keep one zone's columns, named T_r, T_min, "
-            "T_max (e.g. pandas: df.rename(columns={'T_r[" + names[0] + "]': 'T_r'}))"
+            f"{source}: holds {len(names)} zones ({', '.join(names)}); this takes one zone "
+            "(train and identify take several with --scenario, the building's layout): keep one "
+            "zone's columns, named T_r, T_min, T_max (e.g. pandas: df.rename(columns={'T_r["
+            + names[0] + "]': 'T_r'}))"
         )
     return df, found
 

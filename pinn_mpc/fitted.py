@@ -11,7 +11,9 @@ hold.
 
 How each family is kept on disk is :data:`FORMATS`, the one place that knows the formats: the
 networks' ``model.json`` with ``weights.safetensors`` (:mod:`pinn_mpc.artifacts`), the ARX's
-``arx.json`` (:mod:`pinn_mpc.models.arx`). A new network architecture (a registry entry,
+``arx.json`` (:mod:`pinn_mpc.models.arx`), the hybrid of a building of several zones'
+``multizone.json`` (:mod:`pinn_mpc.models.multizone_hybrid`, fitted with the building's layout
+by :func:`scenarios.experiments.compare.train_scenario_zones`). A new network architecture (a registry entry,
 :mod:`pinn_mpc.models.registry`) saves and loads as the networks do; a family with files of
 its own adds its format here. A directory holds one model: :func:`save` removes the other
 formats' files, and :func:`load` refuses a directory holding two.
@@ -31,6 +33,13 @@ from pinn_mpc.io import DirectoryLayout
 from pinn_mpc.model_choice import ModelChoice, choose_model
 from pinn_mpc.models.arx import ARX_DIRECTORY, ARX_FILE, ARXModel, fit_linear, load_arx, save_arx
 from pinn_mpc.models.learned import LearnedModel
+from pinn_mpc.models.multizone_hybrid import (
+    MULTIZONE_DIRECTORY,
+    MULTIZONE_FILE,
+    MultiZoneHybrid,
+    load_multizone,
+    save_multizone,
+)
 from pinn_mpc.models.registry import ALL_ARCHS, AUTO, BASELINES, MODEL_CHOICES
 from pinn_mpc.models.rollout import FittedModel
 from pinn_mpc.training import TrainConfig, train_model
@@ -81,6 +90,12 @@ def _write_arx(model: FittedModel, path: Path) -> list[Path]:
     return [save_arx(model, path)]
 
 
+def _write_multizone(model: FittedModel, path: Path) -> list[Path]:
+    if not isinstance(model, MultiZoneHybrid):
+        raise InternalError(f"a multi-zone model directory given a {type(model).__name__}")
+    return [save_multizone(model, path)]
+
+
 #: The model directory formats, one per kind of fitted model.
 FORMATS: tuple[ModelFormat, ...] = (
     ModelFormat(
@@ -90,6 +105,10 @@ FORMATS: tuple[ModelFormat, ...] = (
     ModelFormat(
         layout=ARX_DIRECTORY, marker=ARX_FILE, what="an ARX's", families=tuple(BASELINES),
         model_type=ARXModel, write=_write_arx, read=load_arx,
+    ),
+    ModelFormat(
+        layout=MULTIZONE_DIRECTORY, marker=MULTIZONE_FILE, what="a multi-zone hybrid's", families=(),
+        model_type=MultiZoneHybrid, write=_write_multizone, read=load_multizone,
     ),
 )
 

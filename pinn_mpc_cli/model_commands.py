@@ -38,6 +38,7 @@ if TYPE_CHECKING:
     from pinn_mpc.models.arx import ARXModel
     from pinn_mpc.models.learned import LearnedModel
     from pinn_mpc.training import TrainConfig
+    from scenarios.inputs.registry import Scenario
 
 __all__ = ["evaluate", "export_rc_json", "identify", "train"]
 
@@ -122,6 +123,11 @@ def _train_one(a: argparse.Namespace) -> str:
     layout = output_layout(a.arch)
     check_output_directory(a.out, layout, force=a.force)
     check_distinct(inputs={"--data": a.data}, outputs={"--out": layout.paths(a.out)})
+    df = read_timeseries(a.data, columns=a.columns, zones=True)
+    if len(zones_in(df.columns)) > 1:
+        return _train_zones(a, df, network_options)
+    if a.layout is not None:
+        raise InputError("--scenario gives the layout of a building of several zones; the data hold one zone: leave --scenario out")
     df = read_timeseries(a.data, columns=a.columns)
     if a.arch in BASELINES and "building" in df.columns:
         raise InputError(f"{a.data}: a fleet's data (a building column); train --arch {a.arch} takes one building's")
@@ -139,6 +145,44 @@ def _train_one(a: argparse.Namespace) -> str:
         warn(f"{unused} did not apply: the chosen model has no network")
     written = ", ".join(map(str, save(choice.model, a.out)))
     return f"{_fitted_line(a.arch, choice, len(df), seconds)}; wrote {written}"
+
+
+def _train_zones(a: argparse.Namespace, df: pd.DataFrame, network_options: list[str]) -> str:
+    """``train`` on data of several zones: the multi-zone hybrid of ``--scenario``'s layout
+    (:func:`scenarios.experiments.compare.train_scenario_zones`), saved into ``--out``."""
+    from pinn_mpc.fitted import save
+    from pinn_mpc.models.registry import DEFAULT_ARCH
+    from scenarios.experiments.compare import train_scenario_zones
+
+    if a.arch not in (AUTO, DEFAULT_ARCH):
+        raise InputError(
+            f"train --arch {a.arch}: on a building of several zones train fits the {DEFAULT_ARCH} "
+            f"(each zone's RC and walls identified, a learned residual heat per zone); give --arch "
+            f"{AUTO} or {DEFAULT_ARCH}"
+        )
+    given = [*network_options, *(["--seeds"] if a.seeds != 20 else [])]
+    if given:
+        raise InputError(
+            f"train: {', '.join(given).replace('--lam', '--lambda')} set a network ensemble's training; the "
+            "hybrid of several zones is one model with its own settings: leave them out"
+        )
+    scenario = _zone_layout(a, df, "training on them")
+    start = time.perf_counter()
+    model = train_scenario_zones(scenario, df, seed=a.seed)
+    seconds = time.perf_counter() - start
+    written = ", ".join(map(str, save(model, a.out)))
+    sel = model.selection
+    errors = sel.get("held_out_mae_c")
+    judged = (
+        f"residual {'kept' if sel['kept'] else 'dropped'}: held-out {sel['horizon_steps']}-step MAE "
+        f"{errors['hybrid']:.3f} C with it, {errors['rc']:.3f} C without"
+        if errors else f"no residual: {sel.get('why', 'not judged')}"
+    )
+    walls = ", ".join(f"{x}-{y} {u:.4g} W/K" for (x, y), u in model.identified.walls.items()) or "none"
+    return (
+        f"fitted the {DEFAULT_ARCH} of {len(model.zones)} zones ({', '.join(z.name for z in model.zones)}; "
+        f"walls {walls}; {judged}) on {len(df)} rows in {seconds:.1f} s; wrote {written}"
+    )
 
 
 def _fitted_line(arch: str, choice: ModelChoice, rows: int, seconds: float) -> str:
@@ -255,16 +299,29 @@ def _refuse_fleet_directory(model: str, command: str, rest: str) -> None:
 def export_rc_json(a: argparse.Namespace) -> str:
     """``export-rc``: load ``--model`` (any model directory, :func:`pinn_mpc.fitted.load`),
     write its RC JSON ``--out``: a physics-informed network's learned R/C values, or the RC an
-    ARX model carries (identified from its training data by ``train``)."""
+    ARX model carries (identified from its training data by ``train``); of a model of several
+    zones, its multi-zone RC file (each zone's R and C, each wall's conductance), which qp-mpc
+    takes with ``--rc``."""
     from pinn_mpc.export import export_rc
     from pinn_mpc.fitted import load, model_files
     from pinn_mpc.models.arx import ARXModel
     from pinn_mpc.models.learned import LearnedModel
+    from pinn_mpc.models.multizone_hybrid import MultiZoneHybrid
 
     check_writable(a.out)
     _refuse_fleet_directory(a.model, "export-rc", "--out rc.json")
     check_distinct(inputs={"--model": model_files(a.model)}, outputs={"--out": a.out})
     model = load(a.model)
+    if isinstance(model, MultiZoneHybrid):
+        rc = model.identified
+        atomic_write_json(a.out, {**rc.to_json(), "source": f"export-rc of the {model.family} of several zones from {a.model}"})
+        zones = "; ".join(
+            f"{z.zone.name} R_ra={z.rc.r_ra_k_per_w:.4g} K/W R_rm={z.rc.r_rm_k_per_w:.4g} K/W "
+            f"C_r={z.rc.c_r_j_per_k:.4g} J/K C_m={z.rc.c_m_j_per_k:.4g} J/K"
+            for z in rc.params.zones
+        )
+        walls = ", ".join(f"{x}-{y} U={u:.4g} W/K" for (x, y), u in rc.walls.items()) or "no walls"
+        return f"{zones}; {walls} -> {a.out}"
     if isinstance(model, ARXModel):
         data = _arx_rc(model, a.model)
     elif isinstance(model, LearnedModel):
@@ -300,17 +357,17 @@ def _arx_rc(model: ARXModel, model_dir: str) -> dict[str, Any]:
     return data
 
 
-def _identify_zones(a: argparse.Namespace, df: pd.DataFrame) -> str:
-    """``identify`` of data of several zones: the building of ``--scenario``'s layout
-    (:func:`pinn_mpc.identify_multizone.identify_multizone`), its multi-zone RC file."""
-    from scenarios.experiments.compare import identify_scenario_zones
+def _zone_layout(a: argparse.Namespace, df: pd.DataFrame, doing: str) -> Scenario:
+    """The scenario of ``--scenario`` that gives the layout of ``df``'s building of several
+    zones, checked against the data (its zones, each actuator's power column, its step);
+    ``doing`` names the command's work in the messages ("identifying them")."""
     from scenarios.inputs.scenario_file import get_scenario
 
     zones = zones_in(df.columns)
     names = ", ".join(z.name for z in zones)
     if a.layout is None:
         raise InputError(
-            f"{a.data}: holds {len(zones)} zones ({names}); identifying them needs the building's "
+            f"{a.data}: holds {len(zones)} zones ({names}); {doing} needs the building's "
             "layout (which actuator acts on which zone, which facade each zone's windows face): "
             "add --scenario NAME or a scenario file of that building"
         )
@@ -335,6 +392,17 @@ def _identify_zones(a: argparse.Namespace, df: pd.DataFrame) -> str:
             f"{a.data}: its step is {df.attrs['dt_s']:g} s, the scenario's control interval "
             f"{scenario.sim.dt_s:g} s; give data at the scenario's interval"
         )
+    return scenario
+
+
+def _identify_zones(a: argparse.Namespace, df: pd.DataFrame) -> str:
+    """``identify`` of data of several zones: the building of ``--scenario``'s layout
+    (:func:`pinn_mpc.identify_multizone.identify_multizone`), its multi-zone RC file."""
+    from scenarios.experiments.compare import identify_scenario_zones
+
+    scenario = _zone_layout(a, df, "identifying them")
+    zones = scenario.control_spec().zones
+    names = ", ".join(z.name for z in zones)
     result = identify_scenario_zones(scenario, df)
     atomic_write_json(a.out, {**result.to_json(), "source": f"identify:{a.data}"})
     walls = ", ".join(f"{x}-{y} {u:.4g} W/K" for (x, y), u in result.walls.items()) or "none"

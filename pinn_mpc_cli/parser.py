@@ -304,6 +304,11 @@ def add_train(sub: Commands) -> None:
         "--out", required=True, help="model directory to write (model.json, weights.safetensors)"
     )
     _eta_option(p)
+    _scenario(
+        p, dest="layout", metavar="SCENARIO",
+        help="for data of several zones: the building's layout (its zones, their actuators and "
+        "windows) from this scenario; train then fits the hybrid of every zone",
+    )
     _force(p)
     p.add_argument(
         "--per-building",

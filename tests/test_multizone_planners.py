@@ -458,8 +458,8 @@ def test_closed_loop_plans_a_zoned_scenario_over_a_multizone_rc_file(tmp_path, c
     ("argv", "message"),
     [
         (["--controller", "cem", "--model", "model_dir"],
-         "--model: a trained model plans one zone with one actuator; scenario 'two_zone_house' has 2 zones"),
-        (["--controller", "cem"], "controller 'cem' on a building of several zones plans on a multi-zone RC file"),
+         "controller 'cem' plans a trained model (--model) of one zone; scenario 'two_zone_house' has 2 zones"),
+        (["--controller", "cem"], "controller 'cem' on a building of several zones plans on a multi-zone RC file or model"),
         (["--controller", "casadi-mpc", "--rc", "{house}"], "--rc is not used by controller 'casadi-mpc'; only qp-mpc, random-shooting, cem"),
         (["--controller", "cem", "--rc", "{one_zone}"], "is not a multi-zone RC file (format None"),
         (["--controller", "qp-mpc", "--rc", "{office}"], "is a building of the zones east, west, but scenario 'two_zone_house' has south, north"),
@@ -475,7 +475,12 @@ def test_closed_loop_refuses_what_does_not_plan_a_zoned_building_in_one_line(tmp
         "one_zone": tmp_path / "rc.json",
     }
     files["one_zone"].write_text(json.dumps({"R_ra_K_per_W": 0.003}), encoding="utf-8")
-    (tmp_path / "model_dir").mkdir()
+    from pinn_mpc.fitted import save
+    from pinn_mpc.models.arx import fit_linear
+    from scenarios import get_scenario
+    from scenarios.running.datagen import generate
+
+    save(fit_linear("arx", generate(get_scenario("winter_household"), days=4, seed=0), eta=1.0), tmp_path / "model_dir")
     argv = [a.format(**{k: str(v) for k, v in files.items()}).replace("model_dir", str(tmp_path / "model_dir")) for a in argv]
     assert main(["closed-loop", "--scenario", "two_zone_house", "--days", "1", *argv]) == 2
     err = capsys.readouterr().err

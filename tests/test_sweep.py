@@ -468,19 +468,22 @@ def test_an_arch_cell_runs_on_the_packages_own_plants():
     assert kpis["objective"] > 0 and kpis["own_decisions_share"] > 0.9
 
 
-def test_a_sweep_of_a_zoned_building_plans_over_its_identified_multi_zone_rc(tmp_path):
-    """On a building of several zones, the planners and qp-mpc share the multi-zone RC
-    identified on the cell's training data (one model per seed, stored as the multi-zone RC
-    file and read back on reuse)."""
+def test_a_sweep_of_a_zoned_building_plans_over_its_trained_model_and_identified_rc(tmp_path):
+    """On a building of several zones, cem plans over the hybrid of every zone ``train``
+    fits and qp-mpc over the multi-zone RC identified, both on the cell's training data (one
+    of each per seed, stored as the model directory and the multi-zone RC file and read back
+    on reuse)."""
     out = tmp_path / "zones"
     args = ["--scenarios", "two_zone_house", "--controllers", "cem,qp-mpc", "--seeds", "0",
             "--train-days", "7", "--days", "1", "--quick", "--out", str(out)]
     first = sweep_cli(*args)
     assert first.returncode == 0, first.stderr[-3000:]
     summary = json.loads((out / "summary.json").read_text())
-    assert summary["models_trained"] == 1 and summary["cells_run"] == 3
+    assert summary["models_trained"] == 2 and summary["cells_run"] == 3
     stored = json.loads(next((out / "models").glob("*--rc--*.json")).read_text())
     assert [z["name"] for z in stored["zones"]] == ["south", "north"]
+    model = json.loads(next((out / "models").glob("*--hybrid--*/multizone.json")).read_text())
+    assert model["zones"] == ["south", "north"] and model["family"] == "hybrid"
     rows = {r["controller"]: r for r in summary["rows"]}
     for controller in ("cem", "qp-mpc"):
         assert rows[controller]["objective_to_oracle_mean"] < 1.05, rows[controller]

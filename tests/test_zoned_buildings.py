@@ -86,7 +86,7 @@ def test_the_dual_setpoint_thermostat_heats_below_and_cools_above_each_zones_ban
     spec = get_scenario("shoulder_office").control_spec()
     names = [a.name for a in spec.actuators]
     assert names == ["heat_east", "cool_east", "heat_west", "cool_west"]
-    thermostat = Thermostat(spec)
+    thermostat = Thermostat(spec, proportional_band_k=0.0)  # on/off (tests/test_zoned_thermostat.py: modulating)
     thermostat.reset()
     forecast = Forecast(
         time_of_day_h=np.zeros(1), T_a=np.zeros(1), G=np.zeros(1), I_g=np.zeros(1), price=np.zeros(1),

@@ -65,7 +65,7 @@ def test_a_two_zone_file_round_trips_and_the_one_zone_reader_refuses_it(tmp_path
     np.testing.assert_allclose(zone_values(frame, "T_r")[-1], [21.0, 18.0])
     np.testing.assert_array_equal(zone_values(frame, "T_min")[0], [20.0, 20.0])  # one band for both
     np.testing.assert_array_equal(zone_values(frame, "T_max")[0], [24.0, 23.0])
-    with pytest.raises(InputError, match=r"holds 2 zones \(south, north\).*take one zone today"):
+    with pytest.raises(InputError, match=r"holds 2 zones \(south, north\); this takes one zone \(train and identify take several"):
         read_timeseries(path)
 
 

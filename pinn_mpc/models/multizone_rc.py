@@ -19,6 +19,10 @@ exogenous inputs and the rooms measured at its end). The filter's state is kept 
 so a history that extends the previous one costs only its new rows. Simulated data with each
 zone's true mass temperature (``T_m[<zone>]``, as ``simulate`` writes it) give the masses
 directly, as :class:`pinn_mpc.models.rc.RCBatchModel` takes the one zone's ``T_m``.
+
+With a ``residual`` (:class:`pinn_mpc.models.zone_residual.ResidualHeat`, the multi-zone
+hybrid's learned part) each zone's air also receives the residual heat the network gives for
+each interval's clock, calendar and weather, in the filter and in the rollout alike.
 """
 
 from __future__ import annotations
@@ -30,6 +34,7 @@ import torch
 
 from pinn_mpc.actuator import ActuatorSpec
 from pinn_mpc.models.rollout import BatchDynamics, Rollout
+from pinn_mpc.models.zone_residual import ResidualHeat
 from pinn_mpc.multizone import (
     EXOGENOUS_NAMES,
     MultiZoneConfig,
@@ -59,7 +64,8 @@ class MultiZoneRCModel(BatchDynamics):
     :class:`pinn_mpc.multizone.MultiZoneConfig`'s); ``process_std_c`` (room, mass) [C per
     interval] and ``measurement_std_c`` [C] the state filter's noises
     (:class:`pinn_mpc.observer.MultiZoneObserver`). ``eta`` is 1: the heat per watt is each
-    actuator's (its sign and efficiency)."""
+    actuator's (its sign and efficiency). ``residual``: each zone's learned residual heat
+    (module docstring), whose inputs the history and the forecast then also hold."""
 
     n_members = 1
     depth = 0
@@ -76,6 +82,7 @@ class MultiZoneRCModel(BatchDynamics):
         backup_high_c: float | tuple[float, ...] = 20.5,
         process_std_c: tuple[float, float] = (0.05, 0.01),
         measurement_std_c: float = DEFAULT_MEASUREMENT_STD_C,
+        residual: ResidualHeat | None = None,
     ) -> None:
         if not isinstance(params, MultiZoneParams):
             raise TypeError(f"MultiZoneRCModel.params must be a MultiZoneParams, got {type(params).__name__}")
@@ -86,10 +93,21 @@ class MultiZoneRCModel(BatchDynamics):
         )
         if not config.actuators:
             raise ValueError("MultiZoneRCModel.actuators: give at least one actuator (an ActuatorSpec on a zone)")
-        self.params, self.config = params, config
+        if residual is not None and residual.n_zones != params.n_zones:
+            raise ValueError(
+                f"MultiZoneRCModel.residual gives {residual.n_zones} zone(s)' heat for a building of {params.n_zones}"
+            )
+        self.params, self.config, self.residual = params, config, residual
         self.matrices: SystemMatrices = discretise(params, config.actuators, dt_s)
+        # The ZOH of one watt into each zone's air (the residual's input matrix), (2Z, Z).
+        self._b_q = discretise(
+            params, [ActuatorSpec(upper_w=1.0, zone=z) for z in range(params.n_zones)], dt_s
+        ).b_u
+        observed = self.matrices
+        if residual is not None:  # the filter takes the residual heat as Z more heaters
+            observed = observed._replace(b_u=np.concatenate([observed.b_u, self._b_q], axis=1))
         self.observer = MultiZoneObserver(
-            self.matrices, process_std_c=process_std_c, measurement_std_c=measurement_std_c
+            observed, process_std_c=process_std_c, measurement_std_c=measurement_std_c
         )
         self._rooms = zone_columns("T_r", params.zone_specs)
         self._masses = zone_columns("T_m", params.zone_specs)
@@ -111,8 +129,17 @@ class MultiZoneRCModel(BatchDynamics):
 
     @property
     def exog_names(self) -> tuple[str, ...]:
-        """The forecast's series the building takes (:func:`pinn_mpc.multizone.needed_inputs`)."""
-        return self._needed
+        """The forecast's series the building takes (:func:`pinn_mpc.multizone.needed_inputs`),
+        then those only the residual takes."""
+        extra = () if self.residual is None else tuple(n for n in self.residual.names if n not in self._needed)
+        return (*self._needed, *extra)
+
+    def residual_heat_w(self, series: Mapping[str, np.ndarray], rows: int) -> np.ndarray | None:
+        """(rows, Z) each zone's residual heat [W] over the first ``rows`` values of ``series``
+        (the residual's inputs by name), or None without a residual."""
+        if self.residual is None:
+            return None
+        return self.residual.heat_w({n: np.asarray(series[n], dtype=float)[:rows] for n in self.residual.names})
 
     @property
     def actuators(self) -> tuple[ActuatorSpec, ...]:
@@ -151,9 +178,13 @@ class MultiZoneRCModel(BatchDynamics):
             self.observer.reset(rooms[0])
             start = 1
         if start < len(rooms):
-            gains = self._gains(inputs[start - 1 : -1, 0])
+            heat = powers[start - 1 :] * self._gains(inputs[start - 1 : -1, 0])
+            if self.residual is not None:
+                k = len(rooms)
+                past = {n: np.asarray(history[n], dtype=float)[-k:][start - 1 : -1] for n in self.residual.names}
+                heat = np.concatenate([heat, self.residual.heat_w(past)], axis=1)
             for i in range(start, len(rooms)):
-                self.observer.step(powers[i - 1] * gains[i - start], inputs[i - 1], rooms[i])
+                self.observer.step(heat[i - start], inputs[i - 1], rooms[i])
         self._seen = (rooms, powers, inputs)
         z_n = self.params.n_zones
         return np.concatenate([rooms[-1], self.observer.state[z_n:]])
@@ -178,7 +209,8 @@ class MultiZoneRCModel(BatchDynamics):
             d[:, EXOGENOUS_NAMES.index(name)] = np.asarray(exog[name], dtype=float)[:h]
         a, b_u, b_d = self.matrices
         a_t, b_u_t = torch.as_tensor(a.T, dtype=dtype), torch.as_tensor(b_u.T, dtype=dtype)
-        drift = torch.as_tensor(d @ b_d.T, dtype=dtype)  # (H, 2Z)
+        q = self.residual_heat_w(exog, h)
+        drift = torch.as_tensor(d @ b_d.T + (0.0 if q is None else q @ self._b_q.T), dtype=dtype)  # (H, 2Z)
         gain = torch.as_tensor(self._gains(d[:, 0]), dtype=dtype)  # (H, A)
         lower = torch.tensor([s.lower_w for s in self.config.actuators], dtype=dtype)
         upper = torch.tensor([s.upper_w for s in self.config.actuators], dtype=dtype)

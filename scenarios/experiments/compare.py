@@ -64,6 +64,7 @@ if TYPE_CHECKING:
     from pinn_mpc.identify_multizone import MultiZoneIdentifyResult
     from pinn_mpc.models.arx import ARXModel
     from pinn_mpc.models.learned import LearnedModel
+    from pinn_mpc.models.multizone_hybrid import MultiZoneHybrid
     from pinn_mpc.training import TrainConfig
 
 __all__ = [
@@ -72,8 +73,11 @@ __all__ = [
     "CompareSettings",
     "ComparisonResult",
     "identify_scenario_rc",
+    "identify_scenario_zones",
     "rc_for_mpc",
     "run_comparison",
+    "train_scenario_zones",
+    "zone_solar_inputs",
 ]
 
 #: The recommended model first; physnet for the paper's best; physreg and mlp for the CEM rows.
@@ -412,31 +416,53 @@ def identify_scenario_rc(scenario: Scenario, data: pd.DataFrame) -> RCParams:
     return result.params
 
 
-def identify_scenario_zones(scenario: Scenario, data: pd.DataFrame) -> MultiZoneIdentifyResult:
-    """The multi-zone identification of ``data`` of a building of several zones, its layout
-    the scenario's (:func:`pinn_mpc.identify_multizone.identify_multizone`): which actuator
-    acts on which zone, and which irradiance each zone's windows take, the declared building's
-    (an RC plant of several zones) or, where the plant does not declare it (EnergyPlus), the
-    global horizontal ``G`` for every zone, each zone's aperture identified."""
-    from pinn_mpc.actuator import actuator_columns
-    from pinn_mpc.identify_multizone import identify_multizone
+def zone_solar_inputs(scenario: Scenario) -> list[str | None]:
+    """Which irradiance each zone's windows take in a building of several zones: the declared
+    building's (an RC plant of several zones; None for a zone without windows) or, where the
+    plant does not declare it (EnergyPlus), the global horizontal ``G`` for every zone, each
+    zone's aperture identified."""
     from pinn_mpc.multizone import MultiZoneParams
 
     spec = scenario.control_spec()
     building = getattr(scenario.plant.settings, "building", None)
-    solar: list[str | None] = (
-        ["G"] * len(spec.zones)
-        if not isinstance(building, MultiZoneParams)
-        else [z.solar_input if z.rc.solar_aperture_m2 > 0 else None for z in building.zones]
-    )
+    if not isinstance(building, MultiZoneParams):
+        return ["G"] * len(spec.zones)
+    return [z.solar_input if z.rc.solar_aperture_m2 > 0 else None for z in building.zones]
+
+
+def identify_scenario_zones(scenario: Scenario, data: pd.DataFrame) -> MultiZoneIdentifyResult:
+    """The multi-zone identification of ``data`` of a building of several zones, its layout
+    the scenario's (:func:`pinn_mpc.identify_multizone.identify_multizone`): which actuator
+    acts on which zone, and which irradiance each zone's windows take
+    (:func:`zone_solar_inputs`)."""
+    from pinn_mpc.actuator import actuator_columns
+    from pinn_mpc.identify_multizone import identify_multizone
+
+    spec = scenario.control_spec()
     result = identify_multizone(
         data, zones=spec.zones, actuators=spec.actuators,
-        power_columns=actuator_columns("u_phys", spec.actuators), solar_inputs=solar,
+        power_columns=actuator_columns("u_phys", spec.actuators), solar_inputs=zone_solar_inputs(scenario),
         dt_s=scenario.sim.dt_s,
     )
     for note in result.notes:
         warn(note)
     return result
+
+
+def train_scenario_zones(scenario: Scenario, data: pd.DataFrame, *, seed: int = 0) -> MultiZoneHybrid:
+    """``train``'s model of ``data`` of a building of several zones, its layout the scenario's
+    (:func:`pinn_mpc.models.multizone_hybrid.fit_multizone_hybrid`, its residual from
+    ``seed``)."""
+    from pinn_mpc.models.multizone_hybrid import fit_multizone_hybrid
+
+    spec = scenario.control_spec()
+    model = fit_multizone_hybrid(
+        data, zones=spec.zones, actuators=spec.actuators, solar_inputs=zone_solar_inputs(scenario),
+        dt_s=scenario.sim.dt_s, seed=seed,
+    )
+    for note in model.identified.notes:
+        warn(note)
+    return model
 
 
 def rc_for_mpc(params: RCParams, scenario: Scenario) -> RCParams:

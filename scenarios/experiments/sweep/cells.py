@@ -14,7 +14,6 @@ from scenarios.experiments.sweep.grid import (
     Cell,
     SweepSettings,
     model_kind,
-    zoned_scenario,
 )
 from scenarios.experiments.sweep.models import SweepModel, _model_family
 from scenarios.inputs.scenario_file import get_scenario
@@ -48,7 +47,7 @@ def run_cell(
     scenario = get_scenario(cell.scenario)
     from pinn_mpc.identify_multizone import MultiZoneIdentifyResult
 
-    kind = model_kind(cell.controller, zoned=zoned_scenario(cell.scenario))
+    kind = model_kind(cell.controller)
     zones = model if kind == RC_KIND and isinstance(model, MultiZoneIdentifyResult) else None
     learned = (
         model if kind not in (None, RC_KIND) and not isinstance(model, RCParams | MultiZoneIdentifyResult) else None

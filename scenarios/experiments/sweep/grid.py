@@ -92,7 +92,7 @@ class Cell:
 
     @property
     def model(self) -> ModelKey | None:
-        kind = model_kind(self.controller, zoned=zoned_scenario(self.scenario))
+        kind = model_kind(self.controller)
         if kind is None or self.train_days is None:
             return None
         return ModelKey(
@@ -158,23 +158,13 @@ def _model_key(cell: Cell, settings: SweepSettings) -> ModelKey | None:
     return key
 
 
-@functools.cache
-def zoned_scenario(scenario: str) -> bool:
-    """Whether ``scenario`` (a name or a file) is a building of several zones; a BOPTEST
-    scenario is one zone's."""
-    if is_boptest_scenario(scenario):
-        return False
-    return len(get_scenario(scenario).control_spec().zones) > 1
-
-
-def model_kind(controller: str, *, zoned: bool = False) -> str | None:
+def model_kind(controller: str) -> str | None:
     """What a controller needs trained: the learned architecture (``cem/<arch>``: that one; a
-    bare planner: :data:`ARCH`, on a building of several zones (``zoned``) its identified
-    multi-zone RC, the model the planners plan such a building over), an identified RC, or
-    nothing."""
+    bare planner: :data:`ARCH`, on a building of several zones the hybrid of every zone), an
+    identified RC (one zone's or several zones'), or nothing."""
     name, _, arch = controller.partition("/")
     if name in MODEL_CONTROLLERS:
-        return arch or (RC_KIND if zoned else ARCH)
+        return arch or ARCH
     if name in RC_CONTROLLERS:
         return RC_KIND
     return None

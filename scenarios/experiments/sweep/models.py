@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, TypeAlias
 
-from pinn_mpc.errors import InternalError
+from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.physics import RCParams
 from scenarios.experiments.sweep.grid import RC_KIND, ModelKey, SweepSettings
 from scenarios.inputs.scenario_file import get_scenario
@@ -40,10 +40,12 @@ def fit_model(key: ModelKey, settings: SweepSettings, data: pd.DataFrame | None 
     ``key`` on the scenario's simulated data (``train_days`` days under the settings' policy, by default the scenario's, seed ``key.seed``).
     A BOPTEST scenario's ``data`` is the emulator's (:func:`boptest_training_data`), its
     ensembles trained as ``compare`` trains them (:func:`boptest_fit`)."""
+    from pinn_mpc.models.registry import AUTO, DEFAULT_ARCH
     from scenarios.experiments.compare import (
         CompareSettings,
         identify_scenario_rc,
         identify_scenario_zones,
+        train_scenario_zones,
     )
     from scenarios.running.datagen import generate
 
@@ -60,8 +62,15 @@ def fit_model(key: ModelKey, settings: SweepSettings, data: pd.DataFrame | None 
     scenario = get_scenario(key.scenario)
     policy = scenario.data_policy if settings.policy == "scenario" else settings.policy
     data = generate(scenario, days=key.train_days, seed=key.seed, policy=policy)
-    if key.kind == RC_KIND and len(scenario.control_spec().zones) > 1:
-        return identify_scenario_zones(scenario, data)
+    if len(scenario.control_spec().zones) > 1:
+        if key.kind == RC_KIND:
+            return identify_scenario_zones(scenario, data)
+        if key.kind not in (AUTO, DEFAULT_ARCH):
+            raise InputError(
+                f"sweep: scenario {key.scenario!r} has several zones, on which train fits the "
+                f"{DEFAULT_ARCH} of every zone; --arch {key.kind} takes one zone"
+            )
+        return train_scenario_zones(scenario, data, seed=key.seed)
     if key.kind == RC_KIND:  # as compare identifies (on delivered heat under a heat pump)
         return identify_scenario_rc(scenario, data)
     from pinn_mpc.fitted import fit
