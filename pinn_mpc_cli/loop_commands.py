@@ -397,8 +397,8 @@ def _check_fleet_options(
     batches any zoned controller."""
     if zoned and a.model is not None:
         raise InputError(
-            f"--model: a trained model plans one zone with one actuator; scenario {a.scenario} has "
-            "several zones: its fleet's RC planners plan on each building's own RC, or on --rc rc.json"
+            f"--model does not apply to a fleet of scenario {a.scenario} (several zones): its planners "
+            "plan on each building's own RC, or all on --rc rc.json; run a trained model on one building"
         )
     for option, value in (("--rc", None if zoned else a.rc), ("--csv", a.csv), ("--plot", a.plot)):
         if value is not None:
