@@ -45,7 +45,7 @@ def main() -> None:
             wall_s = time.perf_counter() - start
             peak_kw = float(result.aggregate_u_phys_w.max()) / 1000.0
             print(format_fleet(result))
-            if result.cap is not None:
+            if result.cap is not None and cap_kw is not None:
                 print(
                     f"  cap {cap_kw:g} kW: max total / cap = {peak_kw / cap_kw:.6f}, "
                     f"{result.cap['intervals_over']} of {result.cap['intervals']} capped intervals over it, "
