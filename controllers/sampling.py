@@ -188,7 +188,7 @@ class _SamplingController(ZoneSampling, PlanningController):
                     f"{type(self).__name__}.guard: a planner of several actuators falls back on "
                     "the QP MPC of its model's zone_params, not a guard's one-zone RC; leave guard out"
                 )
-            self._init_zones()
+            self._init_zones(options.offset_gain)
             self.reset()
             return
         try:
@@ -211,8 +211,8 @@ class _SamplingController(ZoneSampling, PlanningController):
 
     @property
     def offset_gain(self) -> float:
-        """The offset filter's gain (0 over several zones, which have none)."""
-        return self.estimator.gain if self.spec.single else 0.0
+        """The offset filter's gain (over several zones, each zone's filter's)."""
+        return self.estimator.gain if self.spec.single else self._zone_offset.gain
 
     def reset(self, seed: int | None = None) -> None:
         """Forget the warm start; reseed the sampling generator (entropy when ``seed`` is None)."""

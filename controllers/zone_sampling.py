@@ -15,10 +15,15 @@ sampling finds the plan's shape, the LP its optimum on the model. The warm start
 previous plan shifted by one step, the first plan half of each actuator's range. ``act``
 returns (A,) in ``spec.actuators``' order and keeps the plan (H, A) in ``last_plan``.
 
-What the one-zone path has and this one has not: the offset filter (the model's state is its
-own estimate: the multi-zone RC's Kalman filter over the history), the trust monitor and its
-RC shadow (a model of the building's RC needs no watching), setpoint-space sampling (random
-shooting samples powers here) and on/off plans.
+Each zone's predicted rooms carry an offset (offset-free MPC, ``offset_gain``, 0.5 by
+default as for one zone): the error of the model's prediction of the interval that just ended,
+zone by zone, filtered. A model whose rooms run from measured lags (the physics-informed ARX
+of every zone) keeps a bias in closed loop that the offset removes; on EnergyPlus's small
+office it cut cem's January objective by an eighth.
+
+What the one-zone path has and this one has not: the trust monitor and its RC shadow (the
+fallback is the QP on the model's own RC), setpoint-space sampling (random shooting samples
+powers here) and on/off plans.
 
 Fallback (never an exception out of ``act``): when the planning fails (a non-finite
 prediction or any exception) the decision is the QP MPC's on the model's RC building
@@ -48,7 +53,9 @@ from controllers.base import (
 )
 from controllers.lp_polish import PlanProblem, PolishSettings, ZonePolish
 from controllers.objective import ZoneObjective
+from pinn_mpc.actuator import actuator_columns
 from pinn_mpc.errors import InternalError
+from pinn_mpc.zones import zone_columns
 
 if TYPE_CHECKING:
     from controllers.estimators import MultiZoneKalmanEstimator
@@ -108,6 +115,42 @@ class _ZoneFallback(Fallback):
         return fallback_powers(obs, forecast, self.spec)
 
 
+class _ZoneOffset:
+    """Each zone's output-disturbance estimate [K] (offset-free MPC, as
+    :class:`controllers.estimators.OffsetFilter` for one zone): each update predicts the
+    interval that just ended from the history one interval earlier and each actuator's
+    delivered power, and filters the error against each zone's measured room with ``gain``
+    into the offset the planner adds to that zone's every predicted room. Gain 0 keeps it at 0;
+    a history too short for the model, or a prediction that is not finite, leaves it
+    unchanged."""
+
+    def __init__(self, model: BatchDynamics, gain: float) -> None:
+        if not (0.0 <= gain <= 1.0):
+            raise ValueError(f"offset_gain must lie in [0, 1], got {gain}")
+        self.model, self.gain = model, float(gain)
+        self._rooms = zone_columns("T_r", model.zones)
+        self._powers = actuator_columns("u_phys", model.actuators or ())
+        self.offset_k = np.zeros(len(self._rooms))
+
+    def reset(self) -> None:
+        self.offset_k = np.zeros(len(self._rooms))
+
+    def update(self, obs: Observation) -> None:
+        """Fold the interval that just ended into each zone's offset."""
+        history = obs.history
+        if self.gain == 0.0 or len(history.get(self._rooms[0], ())) < self.model.depth + 3:
+            return
+        past = {name: np.asarray(values)[:-1] for name, values in history.items()}
+        exog = {name: np.asarray(history[name], dtype=float)[-2:-1] for name in self.model.exog_names}
+        delivered = torch.tensor([[[float(history[c][-1]) for c in self._powers]]], dtype=torch.float64)
+        with torch.no_grad():
+            predicted = self.model.rollout(past, delivered, exog).t_r_c[0, 0, 0].double().numpy()
+        measured = np.array([float(history[c][-1]) for c in self._rooms])
+        innovation = measured - predicted - self.offset_k
+        if np.all(np.isfinite(innovation)):
+            self.offset_k = self.offset_k + self.gain * innovation
+
+
 class ZoneSampling:
     """The path of :class:`controllers.sampling.CEM` and
     :class:`~controllers.sampling.RandomShooting` over a building of several zones or
@@ -125,8 +168,9 @@ class ZoneSampling:
     _generator: torch.Generator
     _stats: SolveStats
 
-    def _init_zones(self) -> None:
-        """Check the model against the building of ``spec`` and build the fallback."""
+    def _init_zones(self, offset_gain: float) -> None:
+        """Check the model against the building of ``spec``, build the fallback and each
+        zone's offset filter of ``offset_gain``."""
         model, spec, name = self.model, self.spec, type(self).__name__
         described = (
             f"{len(spec.zones)} zone(s) ({', '.join(z.name for z in spec.zones)}) and "
@@ -155,6 +199,7 @@ class ZoneSampling:
             self._zone_observer = _LastEstimate(MultiZoneKalmanEstimator(params, spec))
             qp = MultiZoneMPC(params, spec, estimator=self._zone_observer, name=f"{name} fallback")
         self.fallback = _ZoneFallback(spec, qp)
+        self._zone_offset = _ZoneOffset(model, offset_gain)
         self._lower_w = torch.tensor([a.lower_w for a in spec.actuators], dtype=torch.float32)
         self._span_w = torch.tensor([a.span_w for a in spec.actuators], dtype=torch.float32)
 
@@ -168,6 +213,7 @@ class ZoneSampling:
     def _reset_zones(self) -> None:
         """Forget the observer, the fallback QP's plan and warm start, and the counts."""
         self.fallback.reset()
+        self._zone_offset.reset()
         if self._zone_observer is not None:
             self._zone_observer.reset()
         if self.zone_qp is not None:
@@ -180,6 +226,7 @@ class ZoneSampling:
         try:
             if self._zone_observer is not None:  # every decision, so that it stays current
                 self._zone_observer.observe(obs)
+            self._zone_offset.update(obs)
             plan_w, cost, iterations = self._solve_zones(obs, forecast)
         except NonFiniteModelOutput:
             return self._zones_failed(obs, forecast, start, "non-finite model output")
@@ -221,11 +268,12 @@ class ZoneSampling:
         exog = forecast.exogenous(self.model.exog_names, h)
         history, lower, span = obs.history, self._lower_w, self._span_w
         dtype = torch.float32
+        offset = torch.as_tensor(self._zone_offset.offset_k, dtype=dtype)  # (Z,)
 
         def rollout(fractions: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
             with torch.no_grad():
                 roll = self.model.rollout(history, lower + span * fractions, exog)
-                t_r, u_phys = roll.t_r_c.to(dtype), roll.u_phys_w.to(dtype)  # (M, N, H, Z), (M, N, H)
+                t_r, u_phys = roll.t_r_c.to(dtype) + offset, roll.u_phys_w.to(dtype)  # (M, N, H, Z), (M, N, H)
             if not (bool(torch.isfinite(t_r).all()) and bool(torch.isfinite(u_phys).all())):
                 raise NonFiniteModelOutput
             if self.ensemble == "mean":

@@ -12,8 +12,9 @@ hold.
 How each family is kept on disk is :data:`FORMATS`, the one place that knows the formats: the
 networks' ``model.json`` with ``weights.safetensors`` (:mod:`pinn_mpc.artifacts`), the ARX's
 ``arx.json`` (:mod:`pinn_mpc.models.arx`), the hybrid of a building of several zones'
-``multizone.json`` (:mod:`pinn_mpc.models.multizone_hybrid`, fitted with the building's layout
-by :func:`scenarios.experiments.compare.train_scenario_zones`). A new network architecture (a registry entry,
+``multizone.json`` (:mod:`pinn_mpc.models.multizone_hybrid`) and the physics-informed ARX of
+such a building's ``multizone_arx.json`` (:mod:`pinn_mpc.models.multizone_arx`), both fitted with
+the building's layout by :func:`scenarios.experiments.compare.train_scenario_zones`. A new network architecture (a registry entry,
 :mod:`pinn_mpc.models.registry`) saves and loads as the networks do; a family with files of
 its own adds its format here. A directory holds one model: :func:`save` removes the other
 formats' files, and :func:`load` refuses a directory holding two.
@@ -33,6 +34,13 @@ from pinn_mpc.io import DirectoryLayout
 from pinn_mpc.model_choice import ModelChoice, choose_model
 from pinn_mpc.models.arx import ARX_DIRECTORY, ARX_FILE, ARXModel, fit_linear, load_arx, save_arx
 from pinn_mpc.models.learned import LearnedModel
+from pinn_mpc.models.multizone_arx import (
+    MULTIZONE_ARX_DIRECTORY,
+    MULTIZONE_ARX_FILE,
+    MultiZoneARX,
+    load_multizone_arx,
+    save_multizone_arx,
+)
 from pinn_mpc.models.multizone_hybrid import (
     MULTIZONE_DIRECTORY,
     MULTIZONE_FILE,
@@ -96,6 +104,12 @@ def _write_multizone(model: FittedModel, path: Path) -> list[Path]:
     return [save_multizone(model, path)]
 
 
+def _write_multizone_arx(model: FittedModel, path: Path) -> list[Path]:
+    if not isinstance(model, MultiZoneARX):
+        raise InternalError(f"a multi-zone ARX model directory given a {type(model).__name__}")
+    return [save_multizone_arx(model, path)]
+
+
 #: The model directory formats, one per kind of fitted model.
 FORMATS: tuple[ModelFormat, ...] = (
     ModelFormat(
@@ -109,6 +123,10 @@ FORMATS: tuple[ModelFormat, ...] = (
     ModelFormat(
         layout=MULTIZONE_DIRECTORY, marker=MULTIZONE_FILE, what="a multi-zone hybrid's", families=(),
         model_type=MultiZoneHybrid, write=_write_multizone, read=load_multizone,
+    ),
+    ModelFormat(
+        layout=MULTIZONE_ARX_DIRECTORY, marker=MULTIZONE_ARX_FILE, what="a multi-zone ARX's", families=(),
+        model_type=MultiZoneARX, write=_write_multizone_arx, read=load_multizone_arx,
     ),
 )
 

@@ -55,7 +55,13 @@ from pinn_mpc.models.registry import AUTO, DEFAULT_ARCH, PHYSICS_ARX
 from pinn_mpc.training import TrainConfig, train_model
 
 if TYPE_CHECKING:
+    from collections.abc import Sequence
+
+    from pinn_mpc.actuator import ActuatorSpec
+    from pinn_mpc.identify_multizone import MultiZoneIdentifyResult
+    from pinn_mpc.models.multizone_arx import MultiZoneARX
     from pinn_mpc.models.rollout import FittedModel
+    from pinn_mpc.zones import ZoneSpec
 
 __all__ = [
     "AUTO",
@@ -65,6 +71,7 @@ __all__ = [
     "ROUGH_MAE_C",
     "ModelChoice",
     "choose_model",
+    "choose_zone_model",
 ]
 
 #: The physics-informed ARX replaces the hybrid when its held-out error is at most this
@@ -191,4 +198,79 @@ def choose_model(df: pd.DataFrame, config: TrainConfig, *, progress: bool = Fals
     model = train_model(df, arch=DEFAULT_ARCH, config=config, progress=progress)
     return ModelChoice(
         chosen=DEFAULT_ARCH, model=model, held_out_mae_c=errors, horizon_steps=horizon, why=said
+    )
+
+
+def choose_zone_model(
+    frame: pd.DataFrame,
+    *,
+    zones: Sequence[ZoneSpec],
+    actuators: Sequence[ActuatorSpec],
+    solar_inputs: Sequence[str | None],
+    dt_s: float,
+    seed: int = 0,
+) -> ModelChoice:
+    """``train --arch auto`` on data of a building of several zones (its layout ``zones``,
+    ``actuators``, ``solar_inputs``, step ``dt_s`` [s]): the multi-zone hybrid
+    (:func:`pinn_mpc.models.multizone_hybrid.fit_multizone_hybrid`, its residual from
+    ``seed``) or the multi-zone physics-informed ARX
+    (:func:`pinn_mpc.models.multizone_arx.fit_multizone_arx`), chosen as :func:`choose_model`
+    chooses for one zone: both fitted on the first three quarters, each judged by the rooms'
+    mean |error| over the planner's horizon from every start in the last quarter (the hybrid
+    from its Kalman state, the ARX from the measured lags), the ARX taken where it errs at
+    most :data:`AUTO_RATIO` times the hybrid's (or less at all where the hybrid errs more than
+    :data:`ROUGH_MAE_C`), and the chosen one fitted again on all the data."""
+    from pinn_mpc.models.multizone_arx import fit_multizone_arx
+    from pinn_mpc.models.multizone_hybrid import fit_multizone_hybrid, held_out_error_c
+    from pinn_mpc.zones import zone_columns
+
+    def hybrid_on(data: pd.DataFrame) -> FittedModel:
+        return fit_multizone_hybrid(
+            data, zones=zones, actuators=actuators, solar_inputs=solar_inputs, dt_s=dt_s, seed=seed
+        )
+
+    def arx_on(data: pd.DataFrame, identified: MultiZoneIdentifyResult | None = None) -> MultiZoneARX:
+        return fit_multizone_arx(
+            data, zones=zones, actuators=actuators, solar_inputs=solar_inputs, dt_s=dt_s, identified=identified
+        )
+
+    n = len(frame)
+    least = max(1, round(SELECTION_HORIZON_S / dt_s))
+    cut = n - int(n * SELECTION_SHARE)
+    horizon = min(max(1, round(PLANNER_HORIZON_S / dt_s)), n - cut - least)
+    hybrid_name, arx_name = DEFAULT_ARCH, PHYSICS_ARX.name
+    if horizon < least:
+        return ModelChoice(
+            chosen=hybrid_name, model=hybrid_on(frame), held_out_mae_c={},
+            horizon_steps=0, why="too little data to hold a quarter out for the comparison",
+        )
+    fitted = frame.iloc[:cut].reset_index(drop=True)
+    starts = np.arange(cut, n - horizon)
+    hybrid = fit_multizone_hybrid(
+        fitted, zones=zones, actuators=actuators, solar_inputs=solar_inputs, dt_s=dt_s, seed=seed
+    )
+    errors = {hybrid_name: held_out_error_c(hybrid, frame, starts, horizon)}
+    try:
+        parx = arx_on(fitted, hybrid.identified)
+    except InputError:
+        errors[arx_name] = math.inf
+    else:
+        rooms = frame[list(zone_columns("T_r", zones))].to_numpy(dtype=float)
+        truth = rooms[starts[:, None] + np.arange(1, horizon + 1)]  # (N, horizon, Z)
+        errors[arx_name] = float(np.mean(np.abs(parx.predict_paths(frame, starts, horizon) - truth)))
+    said = (
+        f"the rooms' mean error over {horizon * dt_s / 3600.0:g} h ahead on the last quarter: "
+        f"{arx_name} {errors[arx_name]:.3f} C, {hybrid_name} {errors[hybrid_name]:.3f} C"
+    )
+    hybrid_rough = errors[hybrid_name] > ROUGH_MAE_C and errors[arx_name] < errors[hybrid_name]
+    if errors[arx_name] <= AUTO_RATIO * errors[hybrid_name] or hybrid_rough:
+        try:
+            model = arx_on(frame)
+        except InputError as exc:  # the fit on every day does not settle, that on 3/4 did
+            said = f"{said}; {arx_name} refitted on all the data: {exc}"
+        else:
+            return ModelChoice(chosen=arx_name, model=model, held_out_mae_c=errors, horizon_steps=horizon, why=said)
+    return ModelChoice(
+        chosen=hybrid_name, model=hybrid_on(frame), held_out_mae_c=errors,
+        horizon_steps=horizon, why=said,
     )

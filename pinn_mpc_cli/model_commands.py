@@ -148,41 +148,55 @@ def _train_one(a: argparse.Namespace) -> str:
 
 
 def _train_zones(a: argparse.Namespace, df: pd.DataFrame, network_options: list[str]) -> str:
-    """``train`` on data of several zones: the multi-zone hybrid of ``--scenario``'s layout
+    """``train`` on data of several zones: with ``--arch auto`` the multi-zone hybrid or
+    physics-informed ARX of ``--scenario``'s layout, whichever predicts the data's last quarter
+    better, or the one ``--arch`` names
     (:func:`scenarios.experiments.compare.train_scenario_zones`), saved into ``--out``."""
     from pinn_mpc.fitted import save
-    from pinn_mpc.models.registry import DEFAULT_ARCH
+    from pinn_mpc.models.multizone_arx import MultiZoneARX
+    from pinn_mpc.models.multizone_hybrid import MultiZoneHybrid
+    from pinn_mpc.models.registry import DEFAULT_ARCH, PHYSICS_ARX
     from scenarios.experiments.compare import train_scenario_zones
 
-    if a.arch not in (AUTO, DEFAULT_ARCH):
+    if a.arch not in (AUTO, DEFAULT_ARCH, PHYSICS_ARX.name):
         raise InputError(
             f"train --arch {a.arch}: on a building of several zones train fits the {DEFAULT_ARCH} "
-            f"(each zone's RC and walls identified, a learned residual heat per zone); give --arch "
-            f"{AUTO} or {DEFAULT_ARCH}"
+            f"(each zone's RC and walls identified, a learned residual heat per zone) or the {PHYSICS_ARX.name} "
+            f"(a physics-informed ARX per zone); give --arch {AUTO}, {DEFAULT_ARCH} or {PHYSICS_ARX.name}"
         )
     given = [*network_options, *(["--seeds"] if a.seeds != 20 else [])]
     if given:
         raise InputError(
             f"train: {', '.join(given).replace('--lam', '--lambda')} set a network ensemble's training; the "
-            "hybrid of several zones is one model with its own settings: leave them out"
+            "models of several zones have their own settings: leave them out"
         )
     scenario = _zone_layout(a, df, "training on them")
     start = time.perf_counter()
-    model = train_scenario_zones(scenario, df, seed=a.seed)
+    choice = train_scenario_zones(scenario, df, seed=a.seed, arch=a.arch)
     seconds = time.perf_counter() - start
+    model = choice.model
     written = ", ".join(map(str, save(model, a.out)))
-    sel = model.selection
-    errors = sel.get("held_out_mae_c")
-    judged = (
-        f"residual {'kept' if sel['kept'] else 'dropped'}: held-out {sel['horizon_steps']}-step MAE "
-        f"{errors['hybrid']:.3f} C with it, {errors['rc']:.3f} C without"
-        if errors else f"no residual: {sel.get('why', 'not judged')}"
-    )
-    walls = ", ".join(f"{x}-{y} {u:.4g} W/K" for (x, y), u in model.identified.walls.items()) or "none"
-    return (
-        f"fitted the {DEFAULT_ARCH} of {len(model.zones)} zones ({', '.join(z.name for z in model.zones)}; "
-        f"walls {walls}; {judged}) on {len(df)} rows in {seconds:.1f} s; wrote {written}"
-    )
+    names = ", ".join(z.name for z in model.zones)
+    chose = f"chose {choice.chosen} ({choice.why}); " if a.arch == AUTO else ""
+    if isinstance(model, MultiZoneARX):
+        c = model.coefficients
+        what = (
+            f"the {PHYSICS_ARX.name} of {len(model.zones)} zones ({names}; {c.lags} lags of each room, "
+            f"{c.power_lags} of each heat, settling radius {c.settling_radius():.3f})"
+        )
+    elif isinstance(model, MultiZoneHybrid):
+        sel = model.selection
+        errors = sel.get("held_out_mae_c")
+        judged = (
+            f"residual {'kept' if sel['kept'] else 'dropped'}: held-out {sel['horizon_steps']}-step MAE "
+            f"{errors['hybrid']:.3f} C with it, {errors['rc']:.3f} C without"
+            if errors else f"no residual: {sel.get('why', 'not judged')}"
+        )
+        walls = ", ".join(f"{x}-{y} {u:.4g} W/K" for (x, y), u in model.identified.walls.items()) or "none"
+        what = f"the {DEFAULT_ARCH} of {len(model.zones)} zones ({names}; walls {walls}; {judged})"
+    else:
+        raise InternalError(f"train on several zones made a {type(model).__name__}")
+    return f"{chose}fitted {what} on {len(df)} rows in {seconds:.1f} s; wrote {written}"
 
 
 def _fitted_line(arch: str, choice: ModelChoice, rows: int, seconds: float) -> str:
@@ -306,13 +320,14 @@ def export_rc_json(a: argparse.Namespace) -> str:
     from pinn_mpc.fitted import load, model_files
     from pinn_mpc.models.arx import ARXModel
     from pinn_mpc.models.learned import LearnedModel
+    from pinn_mpc.models.multizone_arx import MultiZoneARX
     from pinn_mpc.models.multizone_hybrid import MultiZoneHybrid
 
     check_writable(a.out)
     _refuse_fleet_directory(a.model, "export-rc", "--out rc.json")
     check_distinct(inputs={"--model": model_files(a.model)}, outputs={"--out": a.out})
     model = load(a.model)
-    if isinstance(model, MultiZoneHybrid):
+    if isinstance(model, MultiZoneHybrid | MultiZoneARX):  # the RC it carries
         rc = model.identified
         atomic_write_json(a.out, {**rc.to_json(), "source": f"export-rc of the {model.family} of several zones from {a.model}"})
         zones = "; ".join(

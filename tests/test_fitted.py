@@ -27,14 +27,14 @@ def test_every_family_train_fits_has_one_format():
         assert sum(arch in fmt.families for fmt in FORMATS) == 1, arch
         assert output_layout(arch).markers
     assert output_layout(AUTO).markers == ()
-    assert set(output_layout(AUTO).files) == {WEIGHTS, META, ARX_FILE, "multizone.json"}
+    assert set(output_layout(AUTO).files) == {WEIGHTS, META, ARX_FILE, "multizone.json", "multizone_arx.json"}
 
 
 def test_a_directory_of_no_model_or_of_two_is_refused_saying_what_it_holds(tmp_path):
     empty = tmp_path / "empty"
     empty.mkdir()
     assert not holds_model(empty)
-    with pytest.raises(ModelFileError, match=rf"has no {META} \(a network's\) or {ARX_FILE} \(an ARX's\) or multizone.json \(a multi-zone hybrid's\); it is not a saved model"):
+    with pytest.raises(ModelFileError, match=rf"has no {META} \(a network's\) or {ARX_FILE} \(an ARX's\) or multizone.json \(a multi-zone hybrid's\) or multizone_arx.json \(a multi-zone ARX's\); it is not a saved model"):
         load(empty)
     with pytest.raises(ModelFileError, match="does not exist; train one"):
         load(tmp_path / "nowhere")

@@ -224,3 +224,32 @@ def test_residual_bound_and_shapes_are_checked() -> None:
                      w2=np.zeros((4, 2)), b2=np.zeros(2), scale_w=np.ones(2))
     heat = _constant_residual((1999.0, -1999.0)).heat_w({CLOCK: np.zeros(2), DAY_TYPE: np.zeros(2)})
     assert np.all(np.abs(heat) <= 2000.0) and math.isclose(heat[0, 0], 1999.0, rel_tol=1e-9)
+
+
+def test_each_zones_offset_converges_on_a_constant_bias_as_its_filter_law_says() -> None:
+    """The rooms measured 0.4 K above and 0.2 K below what the model predicts for the interval
+    that just ended: each zone's offset after n updates of gain g is the bias times
+    1 - (1 - g)^n (the filter's law, solved)."""
+    from controllers.base import Observation
+    from controllers.zone_sampling import _ZoneOffset
+
+    params, actuators = two_zone_house()
+    actuators = _named(actuators)
+    model = MultiZoneRCModel(params, actuators, DT_S, backup_low_c=5.0, backup_high_c=40.0)
+    frame = multizone_frame(params, actuators, days=2, seed=2)
+    powers, rooms = ["u_phys[a0]", "u_phys[a1]"], ["T_r[south]", "T_r[north]"]
+    offset = _ZoneOffset(model, 0.5)
+    bias = np.array([0.4, -0.2])
+    for n in range(1, 7):
+        history = {k: v.copy() for k, v in _history(frame, 40 + n, powers).items()}
+        past = {k: v[:-1] for k, v in history.items()}
+        exog = {k: history[k][-2:-1] for k in model.exog_names}
+        delivered = torch.tensor([[[history[c][-1] for c in powers]]], dtype=torch.float64)
+        predicted = model.rollout(past, delivered, exog).t_r_c[0, 0, 0].numpy()
+        for z, column in enumerate(rooms):
+            history[column][-1] = predicted[z] + bias[z]
+        offset.update(Observation(k=40 + n, t_r_c=float("nan"), history=history, t_m_true_c=float("nan"), zones=params.zone_specs))
+        np.testing.assert_allclose(offset.offset_k, bias * (1.0 - 0.5**n), atol=1e-9)
+    silent = _ZoneOffset(model, 0.0)
+    silent.update(Observation(k=46, t_r_c=float("nan"), history=history, t_m_true_c=float("nan"), zones=params.zone_specs))
+    assert np.array_equal(silent.offset_k, [0.0, 0.0])

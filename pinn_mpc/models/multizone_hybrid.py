@@ -61,7 +61,9 @@ __all__ = [
     "MULTIZONE_FILE",
     "MultiZoneHybrid",
     "fit_multizone_hybrid",
+    "held_out_error_c",
     "load_multizone",
+    "read_actuator",
     "save_multizone",
 ]
 
@@ -247,14 +249,14 @@ def fit_multizone_hybrid(
     scale = _heat_scale_w(zones, actuators)
     n = len(frame)
     h = min(settings.horizon, max(1, n // 8))
-    split = int(round(SELECTION_SHARE * n))
+    split = int(round((1.0 - SELECTION_SHARE) * n))  # the last quarter held out
 
     def trained(rows: int) -> ResidualHeat:
         starts = np.arange(0, max(1, rows - 1 - h), settings.stride)
         return fit_residual(
             names=names, inputs={k: v[:rows] for k, v in series.items()}, forced=windows.forced[: rows - 1],
             starts_x=windows.states[starts], starts=starts, rooms=windows.rooms[:rows], a=windows.a,
-            b_q=rc._b_q, scale_w=scale, settings=settings, seed=seed,
+            b_q=rc.heat_input_matrix, scale_w=scale, settings=settings, seed=seed,
         )
 
     held_out = np.arange(split, n - 1 - h)
@@ -263,8 +265,8 @@ def fit_multizone_hybrid(
     if len(held_out) >= 1 and split - 1 - h >= 1:
         candidate = trained(split)
         q = candidate.heat_w(series)[:-1]
-        without = windows.mean_error_c(held_out, h, None, rc._b_q)
-        with_ = windows.mean_error_c(held_out, h, q, rc._b_q)
+        without = windows.mean_error_c(held_out, h, None, rc.heat_input_matrix)
+        with_ = windows.mean_error_c(held_out, h, q, rc.heat_input_matrix)
         kept = with_ < (1.0 - _KEEP_GAIN) * without
         selection |= {"held_out_mae_c": {"rc": without, "hybrid": with_}, "kept": bool(kept)}
         if kept:
@@ -278,6 +280,21 @@ def fit_multizone_hybrid(
     )
 
 
+def held_out_error_c(model: MultiZoneHybrid, frame: pd.DataFrame, starts: np.ndarray, horizon: int) -> float:
+    """The rooms' mean |error| [K] of ``model`` over the ``horizon`` intervals after each of
+    the rows ``starts`` of ``frame`` (data of its building, as :func:`fit_multizone_hybrid`
+    takes them): each from the state a Kalman filter on its identified building estimates from
+    the rows up to that start, then on the data's delivered powers and weather, the residual
+    heat added where it has one. Every start needs ``horizon`` rows after it."""
+    if "I_g" not in frame.columns:
+        frame = frame.assign(I_g=0.0)
+    rc = MultiZoneRCModel(model.identified.params, model.actuators, model.dt_s)
+    windows = _Windows(rc, frame)
+    residual = model.residual
+    q = None if residual is None else residual.heat_w(_series(frame, residual.names))[:-1]
+    return windows.mean_error_c(np.asarray(starts, dtype=int), horizon, q, rc.heat_input_matrix)
+
+
 def save_multizone(model: MultiZoneHybrid, path: str | os.PathLike[str]) -> Path:
     """Write ``model`` as ``path/multizone.json`` (the directory is created); the file written."""
     from pinn_mpc.io import atomic_write_json
@@ -288,7 +305,8 @@ def save_multizone(model: MultiZoneHybrid, path: str | os.PathLike[str]) -> Path
     return out
 
 
-def _actuator(raw: Any, file: Path, index: int) -> ActuatorSpec:
+def read_actuator(raw: Any, file: Path, index: int) -> ActuatorSpec:
+    """Actuator ``index`` of a model file ``file``, checked (InputError naming the file)."""
     if not isinstance(raw, dict) or not isinstance(raw.get("efficiency"), dict):
         raise InputError(f"{file}: actuator {index + 1} must be an object with its efficiency; train it again")
     try:
@@ -315,7 +333,7 @@ def load_multizone(path: str | os.PathLike[str]) -> MultiZoneHybrid:
     raw_actuators = data.get("actuators")
     if not isinstance(raw_actuators, list) or not raw_actuators:
         raise InputError(f"{file}: actuators must be a non-empty list; train it again")
-    actuators = [_actuator(raw, file, i) for i, raw in enumerate(raw_actuators)]
+    actuators = [read_actuator(raw, file, i) for i, raw in enumerate(raw_actuators)]
     dt_s = data.get("dt_s")
     if isinstance(dt_s, bool) or not isinstance(dt_s, int | float) or not math.isfinite(dt_s) or dt_s <= 0:
         raise InputError(f"{file}: dt_s must be a positive number of seconds; train it again")

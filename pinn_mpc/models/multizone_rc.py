@@ -99,13 +99,14 @@ class MultiZoneRCModel(BatchDynamics):
             )
         self.params, self.config, self.residual = params, config, residual
         self.matrices: SystemMatrices = discretise(params, config.actuators, dt_s)
-        # The ZOH of one watt into each zone's air (the residual's input matrix), (2Z, Z).
-        self._b_q = discretise(
+        #: (2Z, Z) the ZOH of one watt held into each zone's air over an interval (the
+        #: residual heat's input matrix).
+        self.heat_input_matrix: np.ndarray = discretise(
             params, [ActuatorSpec(upper_w=1.0, zone=z) for z in range(params.n_zones)], dt_s
         ).b_u
         observed = self.matrices
         if residual is not None:  # the filter takes the residual heat as Z more heaters
-            observed = observed._replace(b_u=np.concatenate([observed.b_u, self._b_q], axis=1))
+            observed = observed._replace(b_u=np.concatenate([observed.b_u, self.heat_input_matrix], axis=1))
         self.observer = MultiZoneObserver(
             observed, process_std_c=process_std_c, measurement_std_c=measurement_std_c
         )
@@ -210,7 +211,7 @@ class MultiZoneRCModel(BatchDynamics):
         a, b_u, b_d = self.matrices
         a_t, b_u_t = torch.as_tensor(a.T, dtype=dtype), torch.as_tensor(b_u.T, dtype=dtype)
         q = self.residual_heat_w(exog, h)
-        drift = torch.as_tensor(d @ b_d.T + (0.0 if q is None else q @ self._b_q.T), dtype=dtype)  # (H, 2Z)
+        drift = torch.as_tensor(d @ b_d.T + (0.0 if q is None else q @ self.heat_input_matrix.T), dtype=dtype)  # (H, 2Z)
         gain = torch.as_tensor(self._gains(d[:, 0]), dtype=dtype)  # (H, A)
         lower = torch.tensor([s.lower_w for s in self.config.actuators], dtype=dtype)
         upper = torch.tensor([s.upper_w for s in self.config.actuators], dtype=dtype)

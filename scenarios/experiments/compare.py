@@ -47,7 +47,7 @@ import pandas as pd
 from tqdm import tqdm
 
 from controllers.planners import CEMPlanner, RandomShootingPlanner
-from pinn_mpc.choices import ARX, COMPARED_ARCHS, DEFAULT_ARCH, PHYSICS_ARX
+from pinn_mpc.choices import ARX, AUTO, COMPARED_ARCHS, DEFAULT_ARCH, PHYSICS_ARX
 from pinn_mpc.errors import warn
 from pinn_mpc.physics import RCParams, params_from_summary, rc_summary
 from pinn_mpc.records import RcSummary
@@ -62,9 +62,10 @@ from scenarios.running.factory import build_controller, weather_range_note
 
 if TYPE_CHECKING:
     from pinn_mpc.identify_multizone import MultiZoneIdentifyResult
+    from pinn_mpc.model_choice import ModelChoice
     from pinn_mpc.models.arx import ARXModel
     from pinn_mpc.models.learned import LearnedModel
-    from pinn_mpc.models.multizone_hybrid import MultiZoneHybrid
+    from pinn_mpc.models.rollout import FittedModel
     from pinn_mpc.training import TrainConfig
 
 __all__ = [
@@ -449,20 +450,41 @@ def identify_scenario_zones(scenario: Scenario, data: pd.DataFrame) -> MultiZone
     return result
 
 
-def train_scenario_zones(scenario: Scenario, data: pd.DataFrame, *, seed: int = 0) -> MultiZoneHybrid:
-    """``train``'s model of ``data`` of a building of several zones, its layout the scenario's
+def train_scenario_zones(
+    scenario: Scenario, data: pd.DataFrame, *, seed: int = 0, arch: str = AUTO
+) -> ModelChoice:
+    """``train``'s model of ``data`` of a building of several zones, its layout the scenario's:
+    with ``arch`` ``auto`` (the default) the multi-zone hybrid or physics-informed ARX,
+    whichever predicts the data's last quarter better
+    (:func:`pinn_mpc.model_choice.choose_zone_model`); ``hybrid`` or ``parx`` that one
     (:func:`pinn_mpc.models.multizone_hybrid.fit_multizone_hybrid`, its residual from
-    ``seed``)."""
+    ``seed``; :func:`pinn_mpc.models.multizone_arx.fit_multizone_arx`)."""
+    from pinn_mpc.model_choice import ModelChoice, choose_zone_model
+    from pinn_mpc.models.multizone_arx import fit_multizone_arx
     from pinn_mpc.models.multizone_hybrid import fit_multizone_hybrid
 
     spec = scenario.control_spec()
-    model = fit_multizone_hybrid(
-        data, zones=spec.zones, actuators=spec.actuators, solar_inputs=zone_solar_inputs(scenario),
-        dt_s=scenario.sim.dt_s, seed=seed,
-    )
-    for note in model.identified.notes:
+    zones, actuators, solar, dt_s = spec.zones, spec.actuators, zone_solar_inputs(scenario), scenario.sim.dt_s
+    model: FittedModel
+    if arch == AUTO:
+        choice = choose_zone_model(data, zones=zones, actuators=actuators, solar_inputs=solar, dt_s=dt_s, seed=seed)
+    elif arch in (DEFAULT_ARCH, PHYSICS_ARX.name):
+        if arch == DEFAULT_ARCH:
+            model = fit_multizone_hybrid(
+                data, zones=zones, actuators=actuators, solar_inputs=solar, dt_s=dt_s, seed=seed
+            )
+        else:
+            model = fit_multizone_arx(data, zones=zones, actuators=actuators, solar_inputs=solar, dt_s=dt_s)
+        choice = ModelChoice(chosen=arch, model=model, held_out_mae_c={}, horizon_steps=0, why="as asked")
+    else:
+        raise ValueError(
+            f"train_scenario_zones: arch {arch!r} is not fitted on a building of several zones; choose "
+            f"{AUTO}, {DEFAULT_ARCH} or {PHYSICS_ARX.name}"
+        )
+    identified: MultiZoneIdentifyResult | None = getattr(choice.model, "identified", None)
+    for note in () if identified is None else identified.notes:
         warn(note)
-    return model
+    return choice
 
 
 def rc_for_mpc(params: RCParams, scenario: Scenario) -> RCParams:

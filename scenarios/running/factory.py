@@ -16,7 +16,9 @@ MPC over zones x actuators on the true building and state; ``qp-mpc`` the same o
 RC file (``--rc``, :class:`pinn_mpc.identify_multizone.MultiZoneIdentifyResult`'s JSON) with a
 Kalman observer; ``cem`` and ``random-shooting`` plan over that file's building
 (:class:`pinn_mpc.models.multizone_rc.MultiZoneRCModel`, with the scenario's backup limits) and
-fall back on its QP MPC.
+fall back on its QP MPC, or over the model ``train --scenario`` fits (``--model``: the
+multi-zone hybrid or physics-informed ARX, with the scenario's backup limits) and fall back on
+the QP MPC on the RC it carries.
 """
 
 from __future__ import annotations
@@ -48,6 +50,7 @@ if TYPE_CHECKING:
     from controllers.base import ControlSpec
     from controllers.sampling import Guard
     from pinn_mpc.models.learned import ModelRecord
+    from pinn_mpc.models.multizone_arx import MultiZoneARX
     from pinn_mpc.models.multizone_hybrid import MultiZoneHybrid
     from pinn_mpc.multizone import MultiZoneParams
 
@@ -415,9 +418,11 @@ def _zone_controller(
         from controllers.thermostat import Thermostat
 
         return Thermostat(spec)
+    from pinn_mpc.models.multizone_arx import MultiZoneARX
     from pinn_mpc.models.multizone_hybrid import MultiZoneHybrid
 
-    if rc_params is not None or (model is not None and not isinstance(model, MultiZoneHybrid)):
+    zone_model = isinstance(model, MultiZoneHybrid | MultiZoneARX)
+    if rc_params is not None or (model is not None and not zone_model):
         what = f"a trained model ({setting('model_dir')})" if model is not None else "a one-zone RC"
         raise InputError(
             f"controller {name!r} plans {what} of one zone; {where}: give it a multi-zone RC file "
@@ -450,8 +455,8 @@ def _zone_controller(
         "backup_low_c": limits[0], "backup_high_c": limits[1], "process_std_c": process,
         "measurement_std_c": measurement,
     }
-    planner_model: MultiZoneRCModel
-    if isinstance(model, MultiZoneHybrid):
+    planner_model: BatchDynamics
+    if isinstance(model, MultiZoneHybrid | MultiZoneARX):
         check_zone_model(model, spec, scenario.name)
         planner_model = model.for_planning(**planner_settings)
     elif zone_params is not None:
@@ -463,7 +468,7 @@ def _zone_controller(
     return planner(planner_model, spec, **options)
 
 
-def check_zone_model(model: MultiZoneHybrid, spec: ControlSpec, scenario_name: str) -> None:
+def check_zone_model(model: MultiZoneHybrid | MultiZoneARX, spec: ControlSpec, scenario_name: str) -> None:
     """Refuse in one line a model of several zones trained on another building than the
     scenario ``scenario_name``'s (``spec``): other zones, or other actuators (names, zones,
     heating or cooling), or another control interval."""

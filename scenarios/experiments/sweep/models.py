@@ -40,7 +40,7 @@ def fit_model(key: ModelKey, settings: SweepSettings, data: pd.DataFrame | None 
     ``key`` on the scenario's simulated data (``train_days`` days under the settings' policy, by default the scenario's, seed ``key.seed``).
     A BOPTEST scenario's ``data`` is the emulator's (:func:`boptest_training_data`), its
     ensembles trained as ``compare`` trains them (:func:`boptest_fit`)."""
-    from pinn_mpc.models.registry import AUTO, DEFAULT_ARCH
+    from pinn_mpc.models.registry import AUTO, DEFAULT_ARCH, PHYSICS_ARX
     from scenarios.experiments.compare import (
         CompareSettings,
         identify_scenario_rc,
@@ -65,12 +65,12 @@ def fit_model(key: ModelKey, settings: SweepSettings, data: pd.DataFrame | None 
     if len(scenario.control_spec().zones) > 1:
         if key.kind == RC_KIND:
             return identify_scenario_zones(scenario, data)
-        if key.kind not in (AUTO, DEFAULT_ARCH):
+        if key.kind not in (AUTO, DEFAULT_ARCH, PHYSICS_ARX.name):
             raise InputError(
                 f"sweep: scenario {key.scenario!r} has several zones, on which train fits the "
-                f"{DEFAULT_ARCH} of every zone; --arch {key.kind} takes one zone"
+                f"{DEFAULT_ARCH} or the {PHYSICS_ARX.name} of every zone; --arch {key.kind} takes one zone"
             )
-        return train_scenario_zones(scenario, data, seed=key.seed)
+        return train_scenario_zones(scenario, data, seed=key.seed, arch=key.kind).model
     if key.kind == RC_KIND:  # as compare identifies (on delivered heat under a heat pump)
         return identify_scenario_rc(scenario, data)
     from pinn_mpc.fitted import fit

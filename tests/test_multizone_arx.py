@@ -1,0 +1,266 @@
+"""The physics-informed ARX of a building of several zones: its rollout is the recursion its
+equations say (checked against a plain loop written here), warms every zone with every heater's
+power, applies the backups as the RC model does, its fit recovers a known multi-zone ARX from
+the data it generates, it refuses what does not settle, its file round-trips and refuses
+tampering in one line, and ``train``'s auto choice keeps the hybrid on the RC house."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+import torch
+
+from pinn_mpc.actuator import ActuatorSpec
+from pinn_mpc.data import day_of_week, write_timeseries
+from pinn_mpc.errors import InputError
+from pinn_mpc.fitted import load
+from pinn_mpc.identify_multizone import MultiZoneIdentifyResult
+from pinn_mpc.models.arx import BLOCK_H
+from pinn_mpc.models.multizone_arx import (
+    MULTIZONE_ARX_FILE,
+    WEATHER_LAGS,
+    MultiZoneARX,
+    ZoneCoefficients,
+    fit_multizone_arx,
+    load_multizone_arx,
+    save_multizone_arx,
+)
+from pinn_mpc.models.multizone_hybrid import load_multizone
+from pinn_mpc_cli.cli import main
+from scenarios import get_scenario
+from scenarios.running.datagen import generate
+from tests.multizone_data import DT_S, multizone_frame, two_zone_house
+
+_SOLAR = ("G_south", None)
+_BLOCKS = int(24 / BLOCK_H)
+
+
+def _named(actuators: tuple[ActuatorSpec, ...]) -> tuple[ActuatorSpec, ...]:
+    return tuple(dataclasses.replace(a, name=f"a{i}") for i, a in enumerate(actuators))
+
+
+def _identified() -> MultiZoneIdentifyResult:
+    params, _ = two_zone_house()
+    return MultiZoneIdentifyResult(
+        params=params, rmse_c=(0.0, 0.0), t_m0_c=(20.0, 20.0), n_rows=0, identified_solar=(True, False),
+        identified_gain_shares=True, cost_evaluations=0,
+    )
+
+
+def _truth() -> ZoneCoefficients:
+    """A two-zone ARX of 2 room lags and 2 heat lags (scaled units: heat in kW, sun in 100
+    W/m2, gains in kW); zone 1 has no windows."""
+    schedule = np.zeros((2, 2 * _BLOCKS))
+    schedule[0] = 0.9 + 0.3 * np.sin(np.arange(2 * _BLOCKS))
+    schedule[1] = 1.2 + 0.2 * np.cos(np.arange(2 * _BLOCKS))
+    return ZoneCoefficients(
+        own=np.array([[0.6, 0.15], [0.55, 0.1]]),
+        coupling=np.array([[0.0, 0.08], [0.12, 0.0]]),
+        heat=np.array([[[0.35, 0.1], [0.0, 0.0]], [[0.0, 0.0], [0.4, 0.05]]]),
+        outdoor=np.array([[0.07, 0.03], [0.1, 0.05]]),
+        solar=np.array([[0.2, 0.1], [0.0, 0.0]]),
+        gains=np.array([[0.5, 0.2], [0.3, 0.1]]),
+        schedule=schedule,
+    )
+
+
+def _model(coefficients: ZoneCoefficients, **backup: float) -> MultiZoneARX:
+    _, actuators = two_zone_house()
+    return MultiZoneARX(
+        coefficients, _identified(), _named(actuators), DT_S, solar_inputs=_SOLAR, uses_gains=True,
+        selection={}, training={}, **backup,
+    )
+
+
+def _weather(days: int, seed: int) -> pd.DataFrame:
+    """The house's weather, gains, dates and random-level powers (rooms to be replaced)."""
+    params, actuators = two_zone_house()
+    frame = multizone_frame(params, _named(actuators), days=days, seed=seed)
+    return frame.assign(time=pd.Timestamp("2023-01-02") + pd.to_timedelta(frame["time"], unit="s"))
+
+
+def _recursion(c: ZoneCoefficients, frame: pd.DataFrame, start: int, rows: int, powers: np.ndarray) -> np.ndarray:
+    """(rows, 2) the rooms at rows start+1 .. start+rows by the module docstring's equation,
+    one term at a time, from the frame's rooms up to ``start`` and ``powers`` (T, 2) [W] (ideal
+    heaters: heat = power)."""
+    t = frame[["T_r[south]", "T_r[north]"]].to_numpy(dtype=float).copy()
+    t_a, sun, gains = (frame[n].to_numpy(dtype=float) for n in ("T_a", "G_south", "I_g"))
+    times = pd.to_datetime(frame["time"])
+    hour = (times.dt.hour + times.dt.minute / 60.0).to_numpy()
+    dow = day_of_week(times.to_numpy())
+    for k in range(start, start + rows):
+        block = int(hour[k] // BLOCK_H) + _BLOCKS * int(dow[k] >= 5)
+        new = np.zeros(2)
+        for z in range(2):
+            value = c.schedule[z, block]
+            for lag in range(c.lags):
+                value += c.own[z, lag] * t[k - lag, z]
+            value += c.coupling[z, 1 - z] * t[k, 1 - z]
+            for lag in range(c.power_lags):
+                value += c.heat[z, z, lag] * powers[k - lag, z] / 1000.0
+            for lag in range(WEATHER_LAGS):
+                value += c.outdoor[z, lag] * t_a[k - lag] + c.gains[z, lag] * gains[k - lag] / 1000.0
+                value += c.solar[z, lag] * sun[k - lag] / 100.0
+            new[z] = value
+        t[k + 1] = new
+    return t[start + 1 : start + rows + 1]
+
+
+def _observation(frame: pd.DataFrame, now: int, h: int) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
+    """The history up to row ``now`` and the forecast of the next ``h`` rows, as a planner gets them."""
+    history = {c: frame[c].to_numpy(dtype=float)[: now + 1] for c in ("T_r[south]", "T_r[north]", "T_a", "G_south", "I_g")}
+    for c in ("u_phys[a0]", "u_phys[a1]"):
+        history[c] = frame[c].to_numpy(dtype=float)[:now]
+    times = pd.to_datetime(frame["time"])
+    exog = {c: frame[c].to_numpy(dtype=float)[now : now + h] for c in ("T_a", "G_south", "I_g")}
+    exog["time_of_day_h"] = (times.dt.hour + times.dt.minute / 60.0).to_numpy()[now : now + h]
+    exog["day_of_week"] = day_of_week(times.to_numpy())[now : now + h]
+    return history, exog
+
+
+def test_rollout_is_the_recursion_of_its_equations() -> None:
+    """Three plans over 30 intervals from a history of measured rooms: the rollout equals the
+    equation evaluated term by term, and the delivered power is the clipped plan."""
+    model = _model(_truth(), backup_low_c=-50.0, backup_high_c=80.0)
+    frame = _weather(3, seed=2)
+    now, h = 40, 30
+    history, exog = _observation(frame, now, h)
+    plans = torch.rand(3, h, 2, dtype=torch.float64) * 6000.0 - 500.0  # some beyond the bounds
+    roll = model.rollout(history, plans, exog)
+    assert roll.t_r_c.shape == (1, 3, h, 2) and roll.t_r_c.dtype == torch.float64
+    clipped = plans.clamp(0.0, 5000.0).numpy()
+    for i in range(3):
+        powers = frame[["u_phys[a0]", "u_phys[a1]"]].to_numpy(dtype=float).copy()
+        powers[now : now + h] = clipped[i]
+        want = _recursion(model.coefficients, frame, now, h, powers)
+        np.testing.assert_allclose(roll.t_r_c[0, i].numpy(), want, rtol=0, atol=1e-10)
+    np.testing.assert_allclose(roll.u_phys_w[0].numpy(), clipped.sum(axis=2), rtol=0, atol=1e-9)
+
+
+def test_every_zone_warms_with_each_heaters_power_and_the_backups_act_as_the_rc_models() -> None:
+    model = _model(_truth(), backup_low_c=-50.0, backup_high_c=80.0)
+    frame = _weather(3, seed=4)
+    history, exog = _observation(frame, 30, 24)
+    base = torch.rand(6, 24, 2, dtype=torch.float64) * 4000.0
+    more = base.clone()
+    more[:, 5, 1] += 700.0  # the north heater, one interval
+    low, high = model.rollout(history, base, exog).t_r_c, model.rollout(history, more, exog).t_r_c
+    assert torch.equal(high[..., :5, :], low[..., :5, :])
+    assert torch.all(high[..., 5:, 1] > low[..., 5:, 1])
+    assert torch.all(high[..., 6:, 0] > low[..., 6:, 0])  # the south zone, through the coupling
+    # Backups: a zone below its low limit at an interval's start gets its heater at full power,
+    # above its high limit none, whatever the plan.
+    now_rooms = np.array([history["T_r[south]"][-1], history["T_r[north]"][-1]])
+    guarded = _model(_truth(), backup_low_c=float(now_rooms[0]) + 0.5, backup_high_c=float(now_rooms[0]) + 1.0)
+    roll = guarded.rollout(history, torch.zeros(1, 1, 2, dtype=torch.float64), exog)
+    north_on = now_rooms[1] < now_rooms[0] + 0.5
+    assert roll.u_phys_w[0, 0, 0].item() == pytest.approx(5000.0 + (5000.0 if north_on else 0.0))
+    off = _model(_truth(), backup_low_c=float(now_rooms.min()) - 2.0, backup_high_c=float(now_rooms.min()) - 1.0)
+    assert off.rollout(history, torch.full((1, 1, 2), 4000.0, dtype=torch.float64), exog).u_phys_w.item() == 0.0
+
+
+def test_the_fit_recovers_a_known_multi_zone_arx() -> None:
+    """Rooms generated by the known equations from 14 days of the house's weather, gains and
+    random-level powers: the bounded least squares gives back every coefficient."""
+    truth = _truth()
+    fit = _fit(_generated(truth, 14))
+    for name in ("own", "coupling", "heat", "outdoor", "solar", "gains", "schedule"):
+        np.testing.assert_allclose(getattr(fit.coefficients, name), getattr(truth, name), rtol=0, atol=2e-4, err_msg=name)
+    assert fit.coefficients.settling_radius() == pytest.approx(truth.settling_radius(), abs=1e-4)
+
+
+def _generated(truth: ZoneCoefficients, days: int) -> pd.DataFrame:
+    """The house's weather, gains and random-level powers, the rooms from ``truth``'s equations."""
+    frame = _weather(days, seed=1)
+    powers = frame[["u_phys[a0]", "u_phys[a1]"]].to_numpy(dtype=float)
+    frame[["T_r[south]", "T_r[north]"]] = 20.0
+    start = WEATHER_LAGS
+    frame.loc[start + 1 :, ["T_r[south]", "T_r[north]"]] = _recursion(truth, frame, start, len(frame) - start - 1, powers)
+    return frame.iloc[start - 1 :].reset_index(drop=True)  # every step from its lags by the equations
+
+
+def _fit(frame: pd.DataFrame, lags: int = 2) -> MultiZoneARX:
+    _, actuators = two_zone_house()
+    return fit_multizone_arx(
+        frame, zones=_identified().params.zone_specs, actuators=_named(actuators), solar_inputs=_SOLAR, dt_s=DT_S,
+        lags=lags, power_lags=2, identified=_identified(),
+    )
+
+
+def test_a_fit_that_does_not_settle_is_refused() -> None:
+    """Data of rooms that grow by nearly 1 % an interval left alone: the mode of both zones
+    alike solves l**2 = (0.8 + 0.06) l + 0.15, l = 1.0087; the fit recovers it and is refused
+    in one line."""
+    truth = _truth()
+    truth.own[:] = [[0.8, 0.15], [0.8, 0.15]]
+    truth.coupling[:] = [[0.0, 0.06], [0.06, 0.0]]
+    assert truth.settling_radius() == pytest.approx((0.86 + np.sqrt(0.86**2 + 4 * 0.15)) / 2, abs=1e-12)
+    with pytest.raises(InputError, match=r"never settle \(spectral radius 1.0087 >= 1\)") as caught:
+        _fit(_generated(truth, 14))
+    assert "\n" not in str(caught.value)
+
+
+def test_a_saved_model_round_trips_and_refuses_a_tampered_file(tmp_path: Path) -> None:
+    model = _model(_truth())
+    save_multizone_arx(model, tmp_path / "ok")
+    again = load(tmp_path / "ok")
+    assert isinstance(again, MultiZoneARX) and again.family == "parx"
+    frame = _weather(2, seed=5)
+    history, exog = _observation(frame, 20, 12)
+    plans = torch.rand(4, 12, 2, dtype=torch.float64) * 5000.0
+    torch.testing.assert_close(again.rollout(history, plans, exog).t_r_c, model.rollout(history, plans, exog).t_r_c,
+                               rtol=0, atol=0)
+    data = json.loads((tmp_path / "ok" / MULTIZONE_ARX_FILE).read_text())
+    runaway = data["coefficients"] | {"own": [[0.9, 0.2], [0.55, 0.1]]}
+    for key, value, message in (
+        ("format", "pickle", "not a multi-zone ARX"),
+        ("dt_s", 0, "dt_s must be a positive number"),
+        ("coefficients", runaway, "its rooms never settle"),
+        ("coefficients", data["coefficients"] | {"heat": [[[0.3, -0.1], [0, 0]], [[0, 0], [0.4, 0.05]]]}, "must be >= 0"),
+        ("coefficients", data["coefficients"] | {"own": [[1e9, 0.1], [0.5, 0.1]]}, "beyond 1000"),
+        ("coefficients", data["coefficients"] | {"gains": "x"}, "coefficients.gains must be an array of numbers"),
+        ("solar_inputs", ["G_south"], "give each of the 2 zones an irradiance"),
+    ):
+        bad = tmp_path / f"bad-{key}-{message[:8]}"
+        bad.mkdir()
+        (bad / MULTIZONE_ARX_FILE).write_text(json.dumps(data | {key: value}))
+        with pytest.raises(InputError, match=message) as caught:
+            load_multizone_arx(bad)
+        assert "\n" not in str(caught.value)
+
+
+@pytest.fixture(scope="module")
+def house_data(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    path = tmp_path_factory.mktemp("house") / "house.csv"
+    write_timeseries(generate(get_scenario("two_zone_house"), days=14, seed=0, policy="random-level"), path)
+    return path
+
+
+def test_train_auto_keeps_the_hybrid_on_the_rc_house(house_data: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """On the RC house the identified building is the plant: the hybrid predicts the held-out
+    quarter better than 3/4 of the ARX's error allows, so auto keeps it and says so."""
+    out = tmp_path / "auto"
+    assert main(["train", "--data", str(house_data), "--scenario", "two_zone_house", "--out", str(out)]) == 0
+    said = capsys.readouterr().out
+    assert "chose hybrid (the rooms' mean error over 24 h ahead on the last quarter: parx" in said, said
+    assert load_multizone(out).family == "hybrid"
+
+
+def test_train_parx_plans_with_cem_and_exports_the_rc_it_carries(house_data: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "parx"
+    assert main(["train", "--arch", "parx", "--data", str(house_data), "--scenario", "two_zone_house", "--out", str(out)]) == 0
+    model = load(out)
+    assert isinstance(model, MultiZoneARX) and model.coefficients.settling_radius() < 1.0
+    rc = tmp_path / "rc.json"
+    assert main(["export-rc", "--model", str(out), "--out", str(rc)]) == 0
+    assert MultiZoneIdentifyResult.from_json(rc.read_text(), source=str(rc)).to_json() == model.identified.to_json()
+    kpis = tmp_path / "cem.json"
+    argv = ["closed-loop", "--scenario", "two_zone_house", "--controller", "cem", "--model", str(out), "--days", "1",
+            "--json", str(kpis)]
+    assert main(argv) == 0, capsys.readouterr().err
+    assert json.loads(kpis.read_text())["fallbacks"] == 0
