@@ -28,6 +28,12 @@ the same convex combination of its two actions that puts the aggregate exactly o
 respond to the price get the headroom, as at the optimum). When all plans are under the cap at
 a positive price, one more plan without the price on that interval closes the bracket. When
 all are over, every building's first action is scaled down by the same factor (``curtailed``).
+A fleet of buildings of several actuators (zones, a heater and a cooler) is coordinated on each
+building's total, the sum over its actuators: the price is on the building's electrical energy,
+the aggregate sums the totals, and the settled first actions are each actuator's, combined or
+scaled by the building's factor (:attr:`controllers.fleet.FleetPlan.actuator_w`), so every
+actuator stays within its own bounds.
+
 The plant may still deliver more than the cap (a backup thermostat forcing heat in a room below
 its limit): the closed loop counts those intervals, it does not hide them.
 """
@@ -160,7 +166,8 @@ class Coordination:
         applied, plan, curtailed = self._settle(tried, cap[0])
         decision = planner.commit(plan)
         if math.isfinite(cap[0]) and decision.u_w.sum() > cap[0] * (1 + 1e-9):
-            # Fallbacks act on their own rule; they too are held to the cap, by the same factor.
+            # Fallbacks act on their own rule; they too are held to the cap, by the same factor
+            # (every actuator of every building: u_w (B,) or (B, A)).
             decision = decision._replace(u_w=decision.u_w * (cap[0] / decision.u_w.sum()))
             curtailed = True
         return CoordinationStep(decision, applied, tried[-1].aggregate, len(tried), curtailed)
@@ -182,7 +189,12 @@ class Coordination:
                 ok = a.plan.ok & b.plan.ok
                 power = np.where(ok[:, None], a.plan.power_w, 0.0)
                 power[:, 0] += share * np.where(ok, b.plan.power_w[:, 0] - a.plan.power_w[:, 0], 0.0)
-                return a.price, a.plan._replace(power_w=power, ok=ok), False
+                actuators = None
+                if a.plan.actuator_w is not None and b.plan.actuator_w is not None:  # (B, H, A)
+                    actuators = np.where(ok[:, None, None], a.plan.actuator_w, 0.0)
+                    step = b.plan.actuator_w[:, 0] - a.plan.actuator_w[:, 0]
+                    actuators[:, 0] += share * np.where(ok[:, None], step, 0.0)
+                return a.price, a.plan._replace(power_w=power, ok=ok, actuator_w=actuators), False
             if len(under):
                 best = tried[int(under[np.argmax(first[under])])]
                 return best.price, best.plan, False
@@ -193,7 +205,10 @@ class Coordination:
             return last.price, plan, False
         power = plan.power_w.copy()
         power[:, 0] *= cap0 / total
-        return last.price, plan._replace(power_w=power), True
+        actuators = None if plan.actuator_w is None else plan.actuator_w.copy()
+        if actuators is not None:
+            actuators[:, 0] *= cap0 / total
+        return last.price, plan._replace(power_w=power, actuator_w=actuators), True
 
 
 class _Point(NamedTuple):

@@ -52,17 +52,25 @@ __all__ = ["CANDIDATE_OPTIONS", "FleetDecision", "FleetPlan", "FleetPlanner", "F
 
 class FleetPlan(NamedTuple):
     """Plans of B buildings over H intervals: ``power_w`` (B, H) planned electrical power [W]
-    (demanded; what the aggregate is summed from), ``ok`` (B,) whether the building planned
-    (False: it falls back on commit), ``status`` the solver's word, ``iterations``."""
+    (demanded; what the aggregate is summed from; a building of several actuators: their
+    total), ``ok`` (B,) whether the building planned (False: it falls back on commit),
+    ``status`` the solver's word, ``iterations``; ``actuator_w`` (B, H, A) each actuator's
+    planned power [W] in a fleet of buildings of several actuators (summed over A it is
+    ``power_w``; None: one actuator a building, whose plan is ``power_w``); ``plan_id`` which of
+    the planner's plans of the step it is (a coordination's settled plan keeps the id of the
+    plan it was made from), for a planner that keeps a state per plan (None: it keeps none)."""
 
     power_w: np.ndarray
     ok: np.ndarray
     status: str
     iterations: int
+    actuator_w: np.ndarray | None = None
+    plan_id: int | None = None
 
 
 class FleetDecision(NamedTuple):
-    """What :meth:`FleetPlanner.commit` applies: ``u_w`` (B,) demanded power [W], ``fallback``
+    """What :meth:`FleetPlanner.commit` applies: ``u_w`` (B,) demanded power [W] ((B, A) each
+    actuator's, for buildings of several actuators), ``fallback``
     (B,) bool (the building's fallback acted: no plan, or its RC MPC decided for a distrusted
     model), ``model_fallback`` (B,) bool (a planner over learned models handed the building to
     its RC MPC; None: no such fallback)."""

@@ -56,6 +56,7 @@ an array of the wrong shape) is a ValueError naming the field, the value and the
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -67,6 +68,7 @@ import scipy.linalg
 from pinn_mpc.actuator import ActuatorSpec, actuator_columns
 from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.physics import PLAUSIBLE_RANGES, RCParams
+from pinn_mpc.simulator import draw_fleet
 from pinn_mpc.solar import FACADE_COLUMNS
 from pinn_mpc.zones import ZoneSpec, zone_columns
 
@@ -83,6 +85,7 @@ __all__ = [
     "backup_power",
     "continuous_matrices",
     "discretise",
+    "draw_zoned_fleet",
     "history_arrays",
     "needed_inputs",
     "steady_state",
@@ -200,6 +203,32 @@ class MultiZoneParams:
             solar_to_air_fraction=solar_air,
             gain_to_air_fraction=math.fsum(z.gain_share * z.rc.gain_to_air_fraction for z in self.zones),
         )
+
+
+def draw_zoned_fleet(
+    base: MultiZoneParams, n_buildings: int, *, spread: float, rng: np.random.Generator
+) -> tuple[MultiZoneParams, ...]:
+    """``n_buildings`` buildings around ``base``, drawn as
+    :func:`pinn_mpc.simulator.draw_fleet` draws one-zone buildings: each zone's
+    :data:`~pinn_mpc.simulator.FLEET_SCALED` values multiplied by their own log-normal factors
+    ``exp(spread * N(0, 1))``, and each internal wall's conductance [W/K] by one of its own
+    (the same both ways); the zones' fractions, gain shares and windows stay ``base``'s.
+    ``spread`` 0 gives copies of ``base``. Per building, the zones are drawn in order, then
+    the walls (upper triangle, row by row)."""
+    if isinstance(n_buildings, bool) or not isinstance(n_buildings, int) or n_buildings < 1:
+        raise ValueError(f"draw_zoned_fleet: n_buildings must be a whole number >= 1, got {n_buildings!r}")
+    walls = base.walls
+    rows, cols = np.nonzero(np.triu(walls, k=1))
+    buildings = []
+    for _ in range(n_buildings):
+        zones = tuple(
+            dataclasses.replace(z, rc=draw_fleet(z.rc, 1, spread=spread, rng=rng)[0]) for z in base.zones
+        )
+        factors = np.exp(spread * rng.standard_normal(len(rows)))  # (W,) one per wall
+        drawn = np.zeros_like(walls)
+        drawn[rows, cols] = walls[rows, cols] * factors
+        buildings.append(MultiZoneParams(zones=zones, wall_conductance_w_per_k=wall_tuples(drawn + drawn.T)))
+    return tuple(buildings)
 
 
 def wall_tuples(walls: Any) -> tuple[tuple[float, ...], ...]:

@@ -32,7 +32,7 @@ from pinn_mpc_cli.scenario_args import (
     scenario_label,
     with_scenario_file,
 )
-from scenarios.choices import MODEL_CONTROLLERS
+from scenarios.choices import MODEL_CONTROLLERS, ZONE_CONTROLLERS
 from scenarios.inputs.exogenous import day_span
 from scenarios.inputs.registry import Scenario
 from scenarios.inputs.scenario_file import get_scenario
@@ -301,15 +301,27 @@ def _fleet_closed_loop(a: argparse.Namespace, scenario: Scenario, inputs: dict[s
     (``--batched``, ``--cap-kw``; then the fleet figure is written next to the JSON). A fleet
     that would not fit in memory is refused before anything is built."""
     from scenarios.fleets.fleet import fleet_json, run_fleet_closed_loop
+    from scenarios.fleets.zoned import is_zoned
     from scenarios.running.budget import check_fleet_memory, check_fleet_size
 
     batched = a.batched or a.cap_kw is not None or a.model is not None
-    figure = _check_fleet_options(a, inputs, batched=batched)
+    zoned = is_zoned(scenario)
+    figure = _check_fleet_options(a, inputs, batched=batched, zoned=zoned)
     check_fleet_memory(scenario, a.controller, days=a.days, buildings=a.buildings)
     check_fleet_size(a.controller, buildings=a.buildings, days=a.days, large=a.large)
     spread = 0.2 if a.spread is None else a.spread
     planner: Any = a.controller
     fleet = None
+    zone_rc = None
+    if zoned and a.rc is not None:  # every building's RC planners plan on the identified building
+        from scenarios.running.factory import read_zone_rc
+
+        if a.controller not in ("qp-mpc", *MODEL_CONTROLLERS):
+            raise InputError(
+                f"--rc is not used by controller {a.controller!r}; only qp-mpc, "
+                f"{', '.join(MODEL_CONTROLLERS)} take it (a multi-zone RC file)"
+            )
+        zone_rc = read_zone_rc(a.rc, scenario.control_spec(), scenario.name)
     if a.model is not None:
         from scenarios.fleets.aggregator import learned_fleet_planner
         from scenarios.fleets.training import load_fleet_models
@@ -341,12 +353,12 @@ def _fleet_closed_loop(a: argparse.Namespace, scenario: Scenario, inputs: dict[s
             result = run_coordinated_fleet(
                 scenario, planner, n_buildings=a.buildings, days=a.days, seed=a.seed,
                 spread=spread, weather_part=a.weather_part, cap_kw=a.cap_kw,
-                cap_window=a.cap_window, fleet=fleet, progress=True,
+                cap_window=a.cap_window, fleet=fleet, rc=zone_rc, progress=True,
             )
         else:
             result = run_fleet_closed_loop(
                 scenario, a.controller, n_buildings=a.buildings, days=a.days, seed=a.seed,
-                spread=spread, weather_part=a.weather_part, progress=True,
+                spread=spread, weather_part=a.weather_part, rc=zone_rc, progress=True,
             )
     if a.json is not None:
         atomic_write_json(a.json, fleet_json(result, a.scenario))
@@ -375,11 +387,20 @@ def _fleet_closed_loop(a: argparse.Namespace, scenario: Scenario, inputs: dict[s
     return "\n".join([*lines, *_wrote(a.json)])
 
 
-def _check_fleet_options(a: argparse.Namespace, inputs: dict[str, PathsArg], *, batched: bool) -> str | None:
+def _check_fleet_options(
+    a: argparse.Namespace, inputs: dict[str, PathsArg], *, batched: bool, zoned: bool = False
+) -> str | None:
     """Refuse the options a fleet does not take, and a batched fleet's wrong controller or cap
     window; the fleet figure's path (written next to ``--json``) when the fleet is batched
-    and ``--json`` is given."""
-    for option, value in (("--rc", a.rc), ("--csv", a.csv), ("--plot", a.plot)):
+    and ``--json`` is given. A fleet of buildings of several zones (``zoned``) takes a
+    multi-zone RC file (``--rc``, the building its RC planners plan on), no trained model, and
+    batches any zoned controller."""
+    if zoned and a.model is not None:
+        raise InputError(
+            f"--model does not apply to a fleet of scenario {a.scenario} (several zones): its planners "
+            "plan on each building's own RC, or all on --rc rc.json; run a trained model on one building"
+        )
+    for option, value in (("--rc", None if zoned else a.rc), ("--csv", a.csv), ("--plot", a.plot)):
         if value is not None:
             raise InputError(
                 f"{option} does not apply to a fleet (--buildings {a.buildings}): "
@@ -392,7 +413,12 @@ def _check_fleet_options(a: argparse.Namespace, inputs: dict[str, PathsArg], *, 
     from scenarios.fleets.aggregator import BATCHED_CONTROLLERS, parse_cap_window
 
     wanted = "cem" if a.model is not None else "qp-mpc"
-    if a.controller != wanted:
+    if zoned and a.controller not in ZONE_CONTROLLERS:
+        raise InputError(
+            f"controller {a.controller!r} plans one zone with one actuator; scenario {a.scenario} has "
+            f"several zones: choose one of {', '.join(ZONE_CONTROLLERS)}"
+        )
+    if not zoned and a.controller != wanted:
         raise InputError(
             f"a batched fleet plans with qp-mpc (each building's RC) or, with --model DIR of "
             f"per-building models, with cem; got --controller {a.controller} "

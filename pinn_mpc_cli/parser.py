@@ -429,7 +429,9 @@ def add_closed_loop(sub: Commands) -> None:
         default=None,
         help="keep the fleet's aggregate electrical power at or under this many kW (a price "
         "signal by dual ascent over the batched planners; the JSON counts every capped "
-        "interval over it); writes the fleet figure next to --json",
+        "interval over it); writes the fleet figure next to --json. On a scenario of several "
+        "zones any of its controllers, each building's total over its actuators coordinated "
+        "(a thermostat or sampler, deaf to the price, is scaled down to the cap)",
     )
     p.add_argument(
         "--cap-window",

@@ -45,6 +45,10 @@ a Kalman observer of the building
 (:class:`controllers.estimators.MultiZoneKalmanEstimator`). A decision that fails (an
 exception, a status other than solved, a non-finite plan) falls back on the previous plan
 shifted by the steps since it was made, else on :func:`controllers.base.fallback_powers`.
+Its ``act`` is three steps a fleet's coordination (:mod:`controllers.coordination`) also calls
+apart: :meth:`MultiZoneMPC.observe` (the estimate, once a step), :meth:`MultiZoneMPC.plan` (under
+an extra price on the building's electrical energy, as often as the coordination asks) and
+:meth:`MultiZoneMPC.commit` (the plan applied, its first row possibly settled on the cap).
 """
 
 from __future__ import annotations
@@ -74,7 +78,7 @@ from controllers.objective import band_violation_k, energy_cost_eur, zone_bands
 from controllers.rc_mpc.osqp import OSQP_OPTIONS
 from controllers.rc_mpc.problem import DEFAULT_REGULARISATION
 from controllers.rc_mpc.qp import shift_steps
-from pinn_mpc.errors import InputError
+from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.multizone import (
     EXOGENOUS_NAMES,
     MultiZoneParams,
@@ -86,7 +90,7 @@ from pinn_mpc.multizone import (
 if TYPE_CHECKING:
     from controllers.base import Forecast, Observation
 
-__all__ = ["ESTIMATORS", "MultiZoneMPC", "MultiZoneProblem", "MultiZoneStage", "ZonesQP"]
+__all__ = ["ESTIMATORS", "MultiZoneMPC", "MultiZoneProblem", "MultiZoneStage", "ZonePlan", "ZonesQP"]
 
 #: The state estimators :class:`MultiZoneMPC` plans from: the plant's true state, or a Kalman
 #: observer of the building.
@@ -367,6 +371,26 @@ class _PlanFallback(Fallback):
         return self.plan_w[self._age].copy()
 
 
+class ZonePlan(NamedTuple):
+    """A plan of :meth:`MultiZoneMPC.plan`: each actuator's electrical power [W] (H, A), None
+    when the step could not plan (no estimate, no solution); the solver's word and its
+    iterations."""
+
+    power_w: np.ndarray | None
+    status: str
+    iterations: int
+
+
+class _Observed(NamedTuple):
+    """What :meth:`MultiZoneMPC.observe` kept for the step's plans and its commit."""
+
+    obs: Observation
+    forecast: Forecast
+    stage: MultiZoneStage | None  # None: the estimate failed (``error`` says how)
+    error: str | None
+    start_s: float
+
+
 class _TrueZones:
     """The plant's true state (the oracle's): the measured rooms and the hidden masses."""
 
@@ -454,17 +478,50 @@ class MultiZoneMPC(PlanningController):
         self.qp.reset()
         self._stats = SolveStats(time_s=0.0, status="not run", iterations=0, fallback=False)
         self.state_estimate_c = np.full(2 * self.problem.n_zones, np.nan)
+        self._step: _Observed | None = None
 
     def act(self, obs: Observation, forecast: Forecast) -> float | np.ndarray:
+        self.observe(obs, forecast)
+        return self._one_or_all(self.commit(self.plan()))
+
+    def observe(self, obs: Observation, forecast: Forecast) -> None:
+        """The first part of :meth:`act`: estimate the state from ``obs`` and make the step's
+        problem data from ``forecast``, once a step. A forecast that does not fit the building
+        raises (a mistake to report); a failed estimate is kept for :meth:`plan` to report and
+        :meth:`commit` to fall back on."""
         start = time.perf_counter()
-        # A forecast that does not fit the building is a mistake to report, not a failed solve.
         self.problem.bands(forecast)
         self.problem.exogenous(forecast)
-        status, iterations = "error", 0
+        stage, error = None, None
         try:
             self.state_estimate_c = np.full(2 * self.problem.n_zones, np.nan)
             self.state_estimate_c = self.estimator.update(obs)
             stage = self.problem.stage(self.state_estimate_c, forecast)
+        except Exception as exc:  # any failure acts through the fallback, never raises
+            error = f"error: {type(exc).__name__}: {exc}"
+        self._step = _Observed(obs=obs, forecast=forecast, stage=stage, error=error, start_s=start)
+
+    def plan(self, extra_price_eur_per_kwh: np.ndarray | None = None) -> ZonePlan:
+        """The step's plan (after :meth:`observe`) under the forecast price plus
+        ``extra_price_eur_per_kwh`` (H,) [EUR/kWh] on the building's electrical energy (a
+        fleet's coordination price; None: none); it changes no estimate or fallback, so it may
+        be called many times a step (each solve warm-starts the next)."""
+        step = self._step
+        if step is None:
+            raise InternalError("MultiZoneMPC.plan: call observe() first")
+        if step.stage is None:
+            return ZonePlan(power_w=None, status=step.error or "error", iterations=0)
+        stage = step.stage
+        if extra_price_eur_per_kwh is not None:
+            extra = np.asarray(extra_price_eur_per_kwh, dtype=float)
+            if extra.shape != stage.price_eur_per_kwh.shape or not np.all(np.isfinite(extra)):
+                raise ValueError(
+                    f"MultiZoneMPC.plan: extra_price_eur_per_kwh must be {len(stage.price_eur_per_kwh)} "
+                    f"finite prices [EUR/kWh] (one per step of the horizon), got shape {extra.shape}"
+                )
+            stage = stage._replace(price_eur_per_kwh=stage.price_eur_per_kwh + extra)
+        status, iterations = "error", 0
+        try:
             heat, status, iterations = self.qp.solve(stage)
             if status != "solved":
                 raise RuntimeError(f"solver status {status!r}")
@@ -472,18 +529,29 @@ class MultiZoneMPC(PlanningController):
             if not np.all(np.isfinite(p_kw)):
                 raise FloatingPointError("solver returned a non-finite plan")
         except Exception as exc:  # any failure acts through the fallback, never raises
-            action = self.fallback.act_all(obs, forecast)
-            self._stats = SolveStats(
-                time_s=time.perf_counter() - start,
-                status=f"{status}: {type(exc).__name__}: {exc}",
-                iterations=iterations,
-                fallback=True,
-            )
-            return self._one_or_all(action)
+            return ZonePlan(power_w=None, status=f"{status}: {type(exc).__name__}: {exc}", iterations=iterations)
         plan_w = np.stack([a.clip_kw(p_kw[:, i]) for i, a in enumerate(self.spec.actuators)], axis=1) * 1000.0
-        self.fallback.planned(plan_w)
-        self._stats = SolveStats(time_s=time.perf_counter() - start, status=status, iterations=iterations, fallback=False)
-        return self._one_or_all(plan_w[0].copy())
+        return ZonePlan(power_w=plan_w, status=status, iterations=iterations)
+
+    def commit(self, plan: ZonePlan) -> np.ndarray:
+        """Apply ``plan`` (of this step's :meth:`plan`; its first row may have been settled
+        otherwise, e.g. on a fleet's cap): each actuator's power [W] (A,), its first row, or
+        the fallback's when it has none; kept as :attr:`last_plan`, counted in the stats."""
+        step = self._step
+        if step is None:
+            raise InternalError("MultiZoneMPC.commit: call observe() first")
+        self._step = None
+        failed = plan.power_w is None
+        if plan.power_w is None:
+            action = self.fallback.act_all(step.obs, step.forecast)
+        else:
+            self.fallback.planned(plan.power_w)
+            action = plan.power_w[0].copy()
+        self._stats = SolveStats(
+            time_s=time.perf_counter() - step.start_s, status=plan.status, iterations=plan.iterations,
+            fallback=failed,
+        )
+        return action
 
     def _one_or_all(self, powers_w: np.ndarray) -> float | np.ndarray:
         """A building's one actuator's power as a number, several actuators' as (A,)."""

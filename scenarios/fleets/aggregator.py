@@ -13,6 +13,10 @@ Beyond the fleet run's output, the result holds the aggregate power per counted 
 its times, the cap's account (:func:`cap_account`: capped intervals, those over the cap and the
 energy over it, measured on the plant's delivered power, never hidden) and the district KPIs
 CityLearn reports (:func:`scenarios.fleets.fleet.district_kpis`).
+
+A fleet of buildings of several zones is planned by its buildings' zoned controllers, any of
+them (:class:`scenarios.fleets.zoned.ZoneFleetPlanner`), coordinated on each building's total
+over its actuators.
 """
 
 from __future__ import annotations
@@ -31,9 +35,10 @@ from controllers.coordination import Coordination, DualAscent
 from controllers.fleet import FleetPlanner, FleetQPMPC
 from controllers.thermostat import Thermostat
 from pinn_mpc.errors import InputError, InternalError, setting
+from pinn_mpc.multizone import MultiZoneParams
 from pinn_mpc.physics import RCParams
-from pinn_mpc.simulator import draw_fleet
-from scenarios.fleets.fleet import FLEET_STREAM, FleetResult, fleet_info, fleet_result
+from scenarios.fleets.fleet import FleetResult, draw_buildings, fleet_info, fleet_result
+from scenarios.fleets.zoned import ZoneFleetPlanner, is_zoned, zoned_planner_factory
 from scenarios.inputs.registry import Scenario, check_seed
 from scenarios.records import CapAccount, FleetInfo
 from scenarios.running.closed_loop import RunInputs, build_loop, prepare_run, progress_steps
@@ -57,8 +62,9 @@ __all__ = [
 #: Controllers a fleet can be planned in one batch with (by name).
 BATCHED_CONTROLLERS = ("qp-mpc", "cem")
 
-#: The fleet planner for buildings ``fleet`` under ``spec``.
-FleetPlannerFactory = Callable[[Sequence[RCParams], ControlSpec], FleetPlanner]
+#: The fleet planner for buildings ``fleet`` under ``spec`` (RCParams, or MultiZoneParams for a
+#: fleet of buildings of several zones).
+FleetPlannerFactory = Callable[[Any, ControlSpec], FleetPlanner]
 
 #: The coordination's default settings.
 DEFAULT_DUAL_ASCENT = DualAscent()
@@ -138,10 +144,21 @@ def _qp_factory(fleet: Sequence[RCParams], spec: ControlSpec) -> FleetPlanner:
     return FleetQPMPC(fleet, spec)
 
 
-def _planner_factory(planner: str | FleetPlannerFactory) -> FleetPlannerFactory:
-    """The factory of a batched fleet's planner: a given one, or each building's qp-mpc."""
+def _planner_factory(
+    planner: str | FleetPlannerFactory, scenario: Scenario, *, n_steps: int, rc: MultiZoneParams | None
+) -> FleetPlannerFactory:
+    """The factory of a batched fleet's planner: a given one, each building's qp-mpc, or on a
+    building of several zones each building's zoned controller ``planner`` (on ``rc``, None:
+    its own building)."""
     if not isinstance(planner, str):
         return planner
+    if is_zoned(scenario):
+        return zoned_planner_factory(planner, scenario, rc=rc, n_steps=n_steps)
+    if rc is not None:
+        raise InputError(
+            f"a multi-zone RC plans a fleet of buildings of several zones; scenario {scenario.name!r} "
+            "has one zone (its fleet's qp-mpc plans on each building's own RC)"
+        )
     if planner != "qp-mpc":
         raise ValueError(
             f"a batched fleet without models plans with qp-mpc, got {planner!r}; cem needs "
@@ -169,9 +186,11 @@ def _run_batched(
     *,
     label: str,
     progress: bool,
+    perfect: bool = False,
 ) -> _BatchedRun:
     """Every interval of ``run``: the thermostats through the warm-up, then one batched plan
-    of every building a step, settled on the cap by ``coordination``."""
+    of every building a step, settled on the cap by ``coordination``; ``perfect``: the
+    planner knows the truth (the observations and forecasts a true-state controller sees)."""
     n_counted, b = run.total - run.warmup, loop.n_buildings
     times_s = np.zeros((n_counted, 2))
     prices = np.zeros(n_counted)
@@ -182,8 +201,8 @@ def _run_batched(
             loop.advance_fleet(warmup_controllers)
             continue
         start = time.perf_counter()
-        forecast = loop.forecast()
-        observations = [loop.observation(building=i) for i in range(b)]
+        forecast = loop.forecast(perfect=perfect)
+        observations = [loop.observation(perfect=perfect, building=i) for i in range(b)]
         planner.observe(observations, forecast)
         step = coordination.step(planner, loop.start + loop.k)
         decided = time.perf_counter()
@@ -212,6 +231,7 @@ def run_coordinated_fleet(
     warmup_steps: int | None = None,
     weather_part: str = "test",
     fleet: Sequence[RCParams] | None = None,
+    rc: MultiZoneParams | None = None,
     progress: bool = False,
 ) -> FleetResult:
     """Run ``n_buildings`` buildings around ``scenario``'s under one fleet planner.
@@ -226,21 +246,26 @@ def run_coordinated_fleet(
     ``model_fallback_steps`` (the decisions its RC MPC made for a distrusted model). ``fleet``
     gives the buildings (e.g. those the learned models were trained on) instead of the draw
     around the scenario's (``n_buildings`` must match).
+
+    On a building of several zones (:mod:`scenarios.fleets.zoned`) ``planner`` may name any of
+    its controllers (thermostat, oracle, qp-mpc, cem, random-shooting), each building's on its
+    own building (the RC planners on ``rc`` if given); the fleet is drawn zone by zone.
     """
     check_seed(seed)
     if cap_kw is None and cap_window is not None:
         raise ValueError("cap_window needs cap_kw (the cap in that window)")
     window = parse_cap_window(cap_window) if cap_window is not None else None
-    factory = _planner_factory(planner)
+    run = prepare_run(scenario, days=days, seed=seed, warmup_steps=warmup_steps, weather_part=weather_part)
+    factory = _planner_factory(planner, scenario, n_steps=run.total - run.warmup, rc=rc)
+    buildings: tuple[RCParams, ...] | tuple[MultiZoneParams, ...]
     if fleet is None:
-        fleet = draw_fleet(
-            scenario.sim.params, n_buildings, spread=spread, rng=np.random.default_rng([seed, FLEET_STREAM])
-        )
+        buildings = draw_buildings(scenario, n_buildings, spread=spread, seed=seed)
     elif len(fleet) != n_buildings:
         raise InternalError(f"run_coordinated_fleet: {len(fleet)} buildings given for n_buildings={n_buildings}")
-    run = prepare_run(scenario, days=days, seed=seed, warmup_steps=warmup_steps, weather_part=weather_part)
+    else:
+        buildings = tuple(fleet)
     spec = scenario.control_spec()
-    fleet_planner = factory(fleet, spec)
+    fleet_planner = factory(buildings, spec)
     fleet_planner.reset(seed)
     series = run.series
     cap = (
@@ -249,14 +274,15 @@ def run_coordinated_fleet(
         else np.full(len(series), np.inf)
     )
     coordination = Coordination(cap, dual)
-    warmup_controllers = [Thermostat(spec) for _ in fleet]
+    warmup_controllers = [Thermostat(spec) for _ in buildings]
     for c in warmup_controllers:
         c.reset(seed)
-    loop = build_loop(scenario, run, seed=seed, fleet=fleet)
-    n_counted, b = run.total - run.warmup, len(fleet)
+    loop = build_loop(scenario, run, seed=seed, fleet=buildings)
+    n_counted, b = run.total - run.warmup, len(buildings)
     label = f"{fleet_planner.name} x {b} (batched{', capped' if cap_kw is not None else ''})"
     times_s, prices, curtailed, plans, model_fallbacks = _run_batched(
-        loop, run, fleet_planner, coordination, warmup_controllers, label=label, progress=progress
+        loop, run, fleet_planner, coordination, warmup_controllers, label=label, progress=progress,
+        perfect=isinstance(fleet_planner, ZoneFleetPlanner) and fleet_planner.knows_true_state,
     )
     cap_info = None
     if cap_kw is not None:
@@ -282,7 +308,8 @@ def run_coordinated_fleet(
     if fleet_planner.rc_candidates is not None:  # a batched cem over learned models
         info["rc_candidates"] = bool(fleet_planner.rc_candidates)
     return fleet_result(
-        scenario, run, loop, times_s, seed=seed, params=fleet, errors=(),
+        scenario, run, loop, times_s, seed=seed, params=buildings,
+        errors=tuple(fleet_planner.errors) if isinstance(fleet_planner, ZoneFleetPlanner) else (),
         cap=cap_info,
         prices=prices,
         extra_kpis={"model_fallback_steps": model_fallbacks},

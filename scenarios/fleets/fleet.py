@@ -14,6 +14,10 @@ know every building's RC, e.g. from ``pinn-mpc identify`` on its data), ``cem`` 
 ``random-shooting`` plan over its exact RC as a batch model (:class:`RCBatchModel`), ``oracle``
 and ``clairvoyant`` use its true parameters and state. A callable ``controller`` builds them
 otherwise (e.g. on identified parameters with errors).
+
+A scenario on the multi-zone RC plant (``two_zone_house``, ``shoulder_office``) draws its fleet
+zone by zone and wall by wall and gives each building its zoned controller
+(:mod:`scenarios.fleets.zoned`).
 """
 
 from __future__ import annotations
@@ -30,9 +34,11 @@ import pandas as pd
 from controllers.base import Controller
 from controllers.thermostat import Thermostat
 from pinn_mpc.errors import InputError
+from pinn_mpc.multizone import MultiZoneParams
 from pinn_mpc.physics import RCParams
 from pinn_mpc.simulator import draw_fleet
 from scenarios.choices import CONTROLLER_NAMES, MODEL_CONTROLLERS, RC_CONTROLLERS
+from scenarios.fleets.zoned import draw_zoned_buildings, is_zoned, zoned_controller
 from scenarios.inputs.registry import Scenario, check_seed, is_scenario_file
 from scenarios.records import BuildingKpis, CapAccount, FleetInfo, FleetJson, FleetTotals
 from scenarios.running.closed_loop import (
@@ -50,6 +56,7 @@ __all__ = [
     "FLEET_TOTAL_KEYS",
     "FleetResult",
     "district_kpis",
+    "draw_buildings",
     "fleet_controller",
     "fleet_info",
     "fleet_json",
@@ -75,8 +82,9 @@ FLEET_TOTAL_KEYS = (
     "buildings_with_fallbacks",
 )
 
-#: A controller for building ``index`` with parameters ``params``.
-ControllerFactory = Callable[[int, RCParams], Controller]
+#: A controller for building ``index`` with parameters ``params`` (an RCParams, or a
+#: MultiZoneParams in a fleet of buildings of several zones).
+ControllerFactory = Callable[[int, Any], Controller]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -107,7 +115,7 @@ class FleetResult:
     totals: FleetTotals
     aggregate_u_phys_w: np.ndarray
     step_time: dict[str, float]
-    params: tuple[RCParams, ...]
+    params: tuple[RCParams, ...] | tuple[MultiZoneParams, ...]
     errors: tuple[str, ...]
     info: FleetInfo
     times: tuple[str, ...] = ()
@@ -116,15 +124,39 @@ class FleetResult:
     coordination_price_eur_per_kwh: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
 
+def draw_buildings(
+    scenario: Scenario, n_buildings: int, *, spread: float, seed: int
+) -> tuple[RCParams, ...] | tuple[MultiZoneParams, ...]:
+    """The fleet of a run of ``seed``: ``n_buildings`` buildings around ``scenario``'s with the
+    log-normal ``spread`` (:func:`pinn_mpc.simulator.draw_fleet`; a building of several zones:
+    :func:`pinn_mpc.multizone.draw_zoned_fleet`), from a generator of its own stream."""
+    rng = np.random.default_rng([seed, FLEET_STREAM])
+    if is_zoned(scenario):
+        return draw_zoned_buildings(scenario, n_buildings, spread=spread, rng=rng)
+    return draw_fleet(scenario.sim.params, n_buildings, spread=spread, rng=rng)
+
+
 def fleet_controller(
-    name: str, scenario: Scenario, *, n_steps: int, planner_options: Mapping[str, Any] | None = None
+    name: str, scenario: Scenario, *, n_steps: int, planner_options: Mapping[str, Any] | None = None,
+    rc: MultiZoneParams | None = None,
 ) -> ControllerFactory:
     """The factory of :func:`run_fleet_closed_loop` for controller ``name``: each building's
-    controller on that building's own parameters (see the module docstring)."""
+    controller on that building's own parameters (see the module docstring); in a fleet of
+    buildings of several zones, ``rc`` (None: each its own) is the building the RC planners
+    plan on (:func:`scenarios.fleets.zoned.zoned_controller`)."""
     from scenarios.running.factory import build_controller
 
     if name not in CONTROLLER_NAMES:
         raise InputError(f"unknown controller {name!r}; choose one of {', '.join(CONTROLLER_NAMES)}")
+    if is_zoned(scenario):
+        return lambda index, params: zoned_controller(
+            name, scenario, params, rc=rc, n_steps=n_steps, planner_options=planner_options
+        )
+    if rc is not None:
+        raise InputError(
+            f"a multi-zone RC plans a fleet of buildings of several zones; scenario {scenario.name!r} "
+            "has one zone (its fleet's controllers plan on each building's own RC)"
+        )
 
     def make(index: int, params: RCParams) -> Controller:
         building = dataclasses.replace(scenario, sim=dataclasses.replace(scenario.sim, params=params))
@@ -161,12 +193,15 @@ def run_fleet_closed_loop(
     warmup_steps: int | None = None,
     weather_part: str = "test",
     planner_options: Mapping[str, Any] | None = None,
+    rc: MultiZoneParams | None = None,
     progress: bool = False,
 ) -> FleetResult:
     """Run ``n_buildings`` buildings around ``scenario``'s building for ``days`` counted days.
 
-    The fleet is ``draw_fleet(scenario.sim.params, n_buildings, spread=spread)`` with a
-    generator seeded by ``seed`` (``spread=0``: copies of the scenario's building).
+    The fleet is :func:`draw_buildings` (``draw_fleet(scenario.sim.params, n_buildings,
+    spread=spread)`` with a generator seeded by ``seed``; ``spread=0``: copies of the
+    scenario's building; a building of several zones drawn zone by zone and wall by wall, its
+    RC planners planning on ``rc`` if given, else on each building's own).
     ``controller`` is a controller name (:func:`fleet_controller`: each building's own
     controller on its own parameters; ``planner_options`` as for ``cem``) or a factory
     ``(index, params) -> Controller``. ``seed``, ``warmup_steps`` (default one day of the
@@ -176,16 +211,14 @@ def run_fleet_closed_loop(
     is counted in that building's ``fallbacks``; the run goes on.
     """
     check_seed(seed)
-    fleet = draw_fleet(
-        scenario.sim.params, n_buildings, spread=spread, rng=np.random.default_rng([seed, FLEET_STREAM])
-    )
+    fleet = draw_buildings(scenario, n_buildings, spread=spread, seed=seed)
     run = prepare_run(
         scenario, days=days, seed=seed, warmup_steps=warmup_steps, weather_part=weather_part
     )
     n_counted = run.total - run.warmup
     factory = (
         fleet_controller(
-            controller, scenario, n_steps=n_counted, planner_options=planner_options
+            controller, scenario, n_steps=n_counted, planner_options=planner_options, rc=rc
         )
         if isinstance(controller, str)
         else controller
@@ -241,7 +274,7 @@ def fleet_result(
     times_s: np.ndarray,
     *,
     seed: int,
-    params: Sequence[RCParams],
+    params: tuple[RCParams, ...] | tuple[MultiZoneParams, ...],
     errors: tuple[str, ...],
     info: FleetInfo,
     cap: CapAccount | None = None,
@@ -271,7 +304,7 @@ def fleet_result(
         totals=fleet_totals(kpis, aggregate),
         aggregate_u_phys_w=aggregate,
         step_time=fleet_step_time(times_s),
-        params=tuple(params),
+        params=params,
         errors=errors,
         info=info,
         times=tuple(times.strftime("%Y-%m-%dT%H:%M:%S")),
@@ -339,6 +372,7 @@ def fleet_json(result: FleetResult, scenario_arg: str) -> FleetJson:
     (``time``, ``power_kw`` per counted interval), ``cap`` (None without one), ``fell_back``
     (the buildings whose fallback or whose model's RC MPC acted at least once), ``step_time``
     and ``buildings``."""
+    buildings: Sequence[RCParams | MultiZoneParams] = result.params
     return {
         "fleet": (
             {**result.info, "scenario_file": os.path.abspath(scenario_arg)}
@@ -359,6 +393,6 @@ def fleet_json(result: FleetResult, scenario_arg: str) -> FleetJson:
         "step_time": result.step_time,
         "buildings": [
             {**kpis, "params": dataclasses.asdict(params)}
-            for kpis, params in zip(result.kpis, result.params, strict=True)
+            for kpis, params in zip(result.kpis, buildings, strict=True)
         ],
     }

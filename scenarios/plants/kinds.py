@@ -27,6 +27,7 @@ import numpy as np
 
 from pinn_mpc.actuator import ActuatorSpec
 from pinn_mpc.errors import InputError, InternalError
+from pinn_mpc.multizone import MultiZoneParams
 from pinn_mpc.physics import RCParams
 from pinn_mpc.plant import Plant
 from pinn_mpc.simulator import SimConfig
@@ -35,6 +36,7 @@ from scenarios.plants.base import LoopPlant
 
 __all__ = [
     "ActuatorSizing",
+    "FleetBuildings",
     "KindSettings",
     "PlantKind",
     "PlantRequest",
@@ -42,6 +44,11 @@ __all__ = [
     "plant_kind",
     "register",
 ]
+
+
+#: The buildings of a fleet, each its own: one-zone RC parameters, or buildings of several
+#: zones (:class:`~pinn_mpc.multizone.MultiZoneParams`) for a plant of zones.
+FleetBuildings = Sequence[RCParams] | Sequence[MultiZoneParams]
 
 
 class ActuatorSizing(Protocol):
@@ -139,7 +146,7 @@ class PlantRequest:
     """What a kind's factory is given for one run: the simulation settings, the exogenous rows
     the run is driven by (N,) each (a plant with weather of its own ignores them), the
     interval starts ``times`` (N,) (None without dates), the sensor's ``seed``, the
-    buildings: their own parameters (``fleet``), or ``n_buildings`` of the scenario's, and
+    buildings: their own parameters (``fleet``, :data:`FleetBuildings`), or ``n_buildings`` of the scenario's, and
     the facades' irradiance (name -> (N,), where the run has it)."""
 
     config: SimConfig
@@ -148,7 +155,7 @@ class PlantRequest:
     i_g_w: np.ndarray
     times: np.ndarray | None
     seed: int | None
-    fleet: Sequence[RCParams] | None = None
+    fleet: FleetBuildings | None = None
     n_buildings: int = 1
     facades: Mapping[str, np.ndarray] | None = None
 

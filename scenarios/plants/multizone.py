@@ -9,12 +9,16 @@ backup thermostat per actuator (:class:`pinn_mpc.multizone.MultiZoneSimulator`).
 ``SimConfig`` gives the control interval, the substep, the sensor noise and (unless the
 settings give each zone's) the backup limits. Its zones and actuators are the control spec's
 (:meth:`scenarios.inputs.registry.Scenario.control_spec`). It has a true state (each zone's
-room and mass), so the oracle runs on it; one building per run (no fleets yet).
+room and mass), so the oracle runs on it. A run holds one building or a fleet: ``n_buildings``
+copies of the settings' building, or buildings of their own (each a
+:class:`~pinn_mpc.multizone.MultiZoneParams` with the settings' zones, e.g. from
+:func:`pinn_mpc.multizone.draw_zoned_fleet`), stepped in one batch with the settings'
+actuators and backup limits.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -81,15 +85,21 @@ class MultiZoneSettings(KindSettings):
 
 class MultiZonePlant:
     """:class:`~pinn_mpc.multizone.MultiZoneSimulator` as a
-    :class:`~scenarios.plants.base.LoopPlant` of one building, driven by the rows of the
+    :class:`~scenarios.plants.base.LoopPlant` of B buildings (``fleet``: each its own
+    building; None: ``n_buildings`` of ``config.params``), driven by the rows of the
     exogenous series (``weather``: name -> (N,), :data:`pinn_mpc.multizone.EXOGENOUS_NAMES`
     those it has), so the interval means are those rows."""
 
     has_true_state = True
-    n_buildings = 1
 
-    def __init__(self, config: MultiZoneConfig, weather: Mapping[str, np.ndarray], *, seed: int | None) -> None:
-        self.sim = MultiZoneSimulator(config, seed=seed)
+    def __init__(
+        self, config: MultiZoneConfig, weather: Mapping[str, np.ndarray], *, seed: int | None,
+        fleet: Sequence[MultiZoneParams] | None = None, n_buildings: int = 1,
+    ) -> None:
+        self.sim = MultiZoneSimulator(
+            config, seed=seed, fleet=fleet, n_buildings=None if fleet is not None else n_buildings
+        )
+        self.n_buildings = self.sim.n_buildings
         self.weather = weather
         self.zones = config.params.zone_specs
         self.n_substeps = config.n_substeps
@@ -102,7 +112,7 @@ class MultiZonePlant:
         return self.sim.measure()
 
     def true_state(self) -> np.ndarray:
-        """(1, 2) the first zone's room and mass (the one-zone references' view; the zones'
+        """(B, 2) the first zone's room and mass (the one-zone references' view; the zones'
         are :meth:`true_zone_states`)."""
         return self.true_zone_states()[:, :, 0]
 
@@ -114,7 +124,7 @@ class MultiZonePlant:
     def step(self, u_w: float | np.ndarray, row: int) -> PlantStep:
         weather = {name: float(values[row]) for name, values in self.weather.items()}
         result = self.sim.step(u_w, weather)
-        shape = (1,)
+        shape = (self.n_buildings,)
         return PlantStep(
             t_r_c=result.t_r_c, t_m_c=result.t_m_c, u_phys_w=result.power_w.sum(axis=1),
             overridden=np.asarray(result.overridden.any(axis=1)), t_r_sub_c=result.t_r_sub_c,
@@ -128,8 +138,16 @@ class MultiZonePlant:
 
 def _make(settings: KindSettings, request: PlantRequest) -> MultiZonePlant:
     assert isinstance(settings, MultiZoneSettings)
-    if request.fleet is not None or request.n_buildings != 1:
-        raise InputError("a multi-zone plant runs one building today; a fleet runs on the 2R2C simulator")
+    fleet: list[MultiZoneParams] | None = None
+    if request.fleet is not None:
+        given = list(request.fleet)
+        wrong = [i for i, p in enumerate(given) if not isinstance(p, MultiZoneParams)]
+        if wrong:
+            raise InputError(
+                f"a multi-zone plant's fleet holds multi-zone buildings, but building {wrong[0]} is a "
+                f"{type(given[wrong[0]]).__name__}: draw it with pinn_mpc.multizone.draw_zoned_fleet"
+            )
+        fleet = [p for p in given if isinstance(p, MultiZoneParams)]
     sim = request.config
     low, high = settings.backup_limits(sim.backup_low_c, sim.backup_high_c)
     config = MultiZoneConfig(
@@ -146,12 +164,15 @@ def _make(settings: KindSettings, request: PlantRequest) -> MultiZonePlant:
                 f"{', '.join(missing)}: give its scenario a TMY3 weather file"
             )
         weather.update({name: np.asarray(facades[name]) for name in FACADE_COLUMNS})
-    return MultiZonePlant(config, weather, seed=request.seed)
+    try:
+        return MultiZonePlant(config, weather, seed=request.seed, fleet=fleet, n_buildings=request.n_buildings)
+    except ValueError as exc:  # a fleet building of other zones than the settings'
+        raise InputError(f"multizone plant: {exc}") from None
 
 
 MULTIZONE = register(PlantKind(
     name="multizone",
     summary="the package's minute-level RC simulator of coupled zones, each a 2R2C, with heating and cooling",
     settings_type=MultiZoneSettings, make=_make, structure=lambda settings: Plant(),
-    true_state=True, fleets=False,
+    true_state=True, fleets=True,
 ))

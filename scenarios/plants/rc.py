@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 
@@ -90,9 +91,15 @@ def _structure(kind: str):  # the simulator's structure of an RC kind's settings
 
 
 def _make(settings: KindSettings, request: PlantRequest) -> RCPlant:
+    fleet = None if request.fleet is None else list(request.fleet)
+    if fleet is not None and not all(isinstance(p, RCParams) for p in fleet):
+        raise InputError(
+            "the RC simulator's fleet holds one-zone buildings (RCParams); a fleet of buildings of "
+            "several zones runs on a multizone plant"
+        )
     return RCPlant(
         request.config, t_a_c=request.t_a_c, g_w_per_m2=request.g_w_per_m2, i_g_w=request.i_g_w,
-        seed=request.seed, fleet=request.fleet, n_buildings=request.n_buildings,
+        seed=request.seed, fleet=cast("list[RCParams] | None", fleet), n_buildings=request.n_buildings,
     )
 
 

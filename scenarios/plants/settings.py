@@ -13,18 +13,24 @@ do, never which kind it is.
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from pinn_mpc.errors import InputError
-from pinn_mpc.physics import RCParams
 from pinn_mpc.plant import Plant
 from pinn_mpc.simulator import SimConfig
 from scenarios.plants.base import LoopPlant
-from scenarios.plants.kinds import KindSettings, PlantKind, PlantRequest, kind_names, plant_kind
+from scenarios.plants.kinds import (
+    FleetBuildings,
+    KindSettings,
+    PlantKind,
+    PlantRequest,
+    kind_names,
+    plant_kind,
+)
 
 __all__ = ["PlantSettings", "make_plant"]
 
@@ -121,7 +127,7 @@ class PlantSettings:
 def make_plant(
     config: SimConfig, plant: PlantSettings, *, t_a_c: np.ndarray, g_w_per_m2: np.ndarray,
     i_g_w: np.ndarray, times: np.ndarray | None, seed: int | None,
-    fleet: Sequence[RCParams] | None = None, n_buildings: int = 1,
+    fleet: FleetBuildings | None = None, n_buildings: int = 1,
     facades: Mapping[str, np.ndarray] | None = None,
 ) -> LoopPlant:
     """The plant of ``plant``'s kind for a run (:class:`~scenarios.plants.kinds.PlantRequest`

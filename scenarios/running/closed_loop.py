@@ -40,11 +40,11 @@ from controllers.thermostat import Thermostat
 from pinn_mpc.actuator import ActuatorSpec, actuator_columns
 from pinn_mpc.data import COLUMNS, SITE_COLUMNS, write_timeseries
 from pinn_mpc.errors import InputError, InternalError
-from pinn_mpc.physics import RCParams
 from pinn_mpc.zones import zone_columns, zone_series_columns
 from scenarios.inputs.exogenous import day_span
 from scenarios.inputs.registry import EXOGENOUS_COLUMNS, Scenario, check_seed
 from scenarios.inputs.series import ExogenousSeries
+from scenarios.plants.kinds import FleetBuildings
 from scenarios.records import Kpis, RunKpis
 from scenarios.running.engine import ClosedLoop, LoopRecord
 from scenarios.running.kpis import compute_kpis
@@ -128,7 +128,7 @@ def prepare_run(
 
 
 def build_loop(
-    scenario: Scenario, run: RunInputs, *, seed: int, fleet: Sequence[RCParams] | None = None
+    scenario: Scenario, run: RunInputs, *, seed: int, fleet: FleetBuildings | None = None
 ) -> ClosedLoop:
     """The engine of a run: sensor noise and forecast errors seeded by ``seed``; ``fleet``
     gives many buildings their own parameters (see :class:`ClosedLoop`)."""
@@ -211,7 +211,7 @@ def _actuator_series(rec: LoopRecord, counted: slice) -> dict[str, np.ndarray]:
 
 
 def free_records(
-    scenario: Scenario, run: RunInputs, *, seed: int, fleet: Sequence[RCParams] | None = None
+    scenario: Scenario, run: RunInputs, *, seed: int, fleet: FleetBuildings | None = None
 ) -> tuple[LoopRecord, ...]:
     """Each building's record of ``run`` with its actuator asked for nothing after the warm-up.
 

@@ -170,6 +170,12 @@ def generate(
             f"an EnergyPlus building is one building; {setting('n_buildings')} {n_buildings} needs an "
             "RC scenario"
         )
+    if n_buildings > 1 and not scenario.control_spec().single:
+        raise InputError(
+            f"{setting('n_buildings')} {n_buildings}: data of a building of several zones are "
+            f"simulated one building at a time; leave it at 1 (a fleet of scenario {scenario.name!r} "
+            "runs in closed-loop --buildings N)"
+        )
     exo = scenario.exogenous(days=days, seed=seed, part=weather_part)
     cols = {c: exo[c].to_numpy(dtype=float) for c in ("price", "T_min", "T_max")}
     spec = scenario.control_spec()

@@ -24,7 +24,8 @@ reports, the series only the inputs still to come. An EnergyPlus plant holds a t
 temporary directory: close the loop (:meth:`ClosedLoop.close`, or use it as a context manager).
 
 A loop built with ``fleet`` (one :class:`~pinn_mpc.physics.RCParams` per building, e.g. from
-:func:`pinn_mpc.simulator.draw_fleet`) runs many buildings under the same weather, prices and
+:func:`pinn_mpc.simulator.draw_fleet`, or one :class:`~pinn_mpc.multizone.MultiZoneParams` on a
+plant of several zones, :func:`pinn_mpc.multizone.draw_zoned_fleet`) runs many buildings under the same weather, prices and
 forecasts: :meth:`ClosedLoop.advance_fleet` lets each building's own controller decide on its
 own observation, then advances the whole fleet in one call of the batched simulator.
 
@@ -48,12 +49,12 @@ from controllers.base import Controller, ControlSpec, Forecast, Observation, fal
 from pinn_mpc.actuator import ActuatorSpec, actuator_columns
 from pinn_mpc.data import SITE_COLUMNS
 from pinn_mpc.errors import InternalError
-from pinn_mpc.physics import RCParams
 from pinn_mpc.simulator import SimConfig
 from pinn_mpc.solar import FACADE_COLUMNS
 from pinn_mpc.zones import ONE_ZONE, ZoneSpec, zone_columns
 from scenarios.inputs.series import ExogenousSeries, ForecastErrors, lead_error_paths
 from scenarios.plants.base import LoopPlant, PlantStep, TrueStatePlant
+from scenarios.plants.kinds import FleetBuildings
 from scenarios.plants.rc import rc_plant_settings
 from scenarios.plants.settings import PlantSettings, make_plant
 
@@ -183,7 +184,7 @@ class ClosedLoop:
         forecast_errors: ForecastErrors = ForecastErrors(),
         forecast_seed: int | list[int] = 0,
         expected_gains_w: np.ndarray | None = None,
-        fleet: Sequence[RCParams] | None = None,
+        fleet: FleetBuildings | None = None,
         plant: LoopPlant | None = None,
         plant_settings: PlantSettings | None = None,
         measured_gains: bool = False,
