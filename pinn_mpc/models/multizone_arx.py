@@ -49,7 +49,6 @@ settles, and runs nothing.
 
 from __future__ import annotations
 
-import json
 import math
 import os
 from collections.abc import Mapping, Sequence
@@ -606,28 +605,11 @@ def save_multizone_arx(model: MultiZoneARX, path: str | os.PathLike[str]) -> Pat
 def load_multizone_arx(path: str | os.PathLike[str]) -> MultiZoneARX:
     """Read ``path/multizone_arx.json``: every number checked, and that the model settles
     (reading runs nothing from the file); InputError naming the file otherwise."""
-    from pinn_mpc.models.multizone_hybrid import read_actuator
+    from pinn_mpc.models.multizone_hybrid import read_zone_model_file
 
     file = Path(path) / MULTIZONE_ARX_FILE
     again = "train it again"
-    try:
-        data = json.loads(file.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, ValueError) as exc:
-        raise InputError(f"{file}: not a readable multi-zone ARX ({exc}); {again}") from None
-    if not isinstance(data, dict) or data.get("format") != FORMAT:
-        got = data.get("format") if isinstance(data, dict) else None
-        raise InputError(f"{file}: not a multi-zone ARX (format {got!r}, not {FORMAT!r}); {again}")
-    rc = data.get("rc")
-    if not isinstance(rc, dict):
-        raise InputError(f"{file}: rc must be the identified building (an object); {again}")
-    identified = MultiZoneIdentifyResult.from_json(rc, source=f"{file} (rc)")
-    raw_actuators = data.get("actuators")
-    if not isinstance(raw_actuators, list) or not raw_actuators:
-        raise InputError(f"{file}: actuators must be a non-empty list; {again}")
-    actuators = [read_actuator(raw, file, i) for i, raw in enumerate(raw_actuators)]
-    dt_s = data.get("dt_s")
-    if isinstance(dt_s, bool) or not isinstance(dt_s, int | float) or not math.isfinite(dt_s) or dt_s <= 0:
-        raise InputError(f"{file}: dt_s must be a positive number of seconds; {again}")
+    data, identified, actuators, dt_s = read_zone_model_file(file, FORMAT, "multi-zone ARX")
     raw = data.get("coefficients")
     if not isinstance(raw, dict) or set(raw) != set(_COEFFICIENTS):
         raise InputError(f"{file}: coefficients must be an object of {', '.join(_COEFFICIENTS)}; {again}")

@@ -33,7 +33,7 @@ import os
 from collections.abc import Sequence
 from dataclasses import asdict
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -318,28 +318,48 @@ def read_actuator(raw: Any, file: Path, index: int) -> ActuatorSpec:
         raise InputError(f"{file}: actuator {index + 1}: {exc}; train it again") from None
 
 
+class ZoneModelFile(NamedTuple):
+    """What every model file of a building of several zones holds: its dict as read, the
+    identified building, the actuators and the control interval [s]."""
+
+    data: dict[str, Any]
+    identified: MultiZoneIdentifyResult
+    actuators: list[ActuatorSpec]
+    dt_s: float
+
+
+def read_zone_model_file(file: Path, format_tag: str, what: str) -> ZoneModelFile:
+    """Read a model file of a building of several zones (``format_tag``, ``what`` it is in a
+    message: "multi-zone model"): its JSON, the identified building (``rc``), the actuators
+    and ``dt_s``, each checked; InputError of one line naming ``file`` otherwise. Reading runs
+    nothing from the file."""
+    again = "train it again"
+    try:
+        data = json.loads(file.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        raise InputError(f"{file}: not a readable {what} ({exc}); {again}") from None
+    if not isinstance(data, dict) or data.get("format") != format_tag:
+        got = data.get("format") if isinstance(data, dict) else None
+        raise InputError(f"{file}: not a {what} (format {got!r}, not {format_tag!r}); {again}")
+    rc = data.get("rc")
+    if not isinstance(rc, dict):
+        raise InputError(f"{file}: rc must be the identified building (an object); {again}")
+    identified = MultiZoneIdentifyResult.from_json(rc, source=f"{file} (rc)")
+    raw_actuators = data.get("actuators")
+    if not isinstance(raw_actuators, list) or not raw_actuators:
+        raise InputError(f"{file}: actuators must be a non-empty list; {again}")
+    actuators = [read_actuator(raw, file, i) for i, raw in enumerate(raw_actuators)]
+    dt_s = data.get("dt_s")
+    if isinstance(dt_s, bool) or not isinstance(dt_s, int | float) or not math.isfinite(dt_s) or dt_s <= 0:
+        raise InputError(f"{file}: dt_s must be a positive number of seconds; {again}")
+    return ZoneModelFile(data=data, identified=identified, actuators=actuators, dt_s=float(dt_s))
+
+
 def load_multizone(path: str | os.PathLike[str]) -> MultiZoneHybrid:
     """Read ``path/multizone.json``: every number checked (reading runs nothing from the file);
     InputError naming the file otherwise."""
     file = Path(path) / MULTIZONE_FILE
-    try:
-        data = json.loads(file.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, ValueError) as exc:
-        raise InputError(f"{file}: not a readable multi-zone model ({exc}); train it again") from None
-    if not isinstance(data, dict) or data.get("format") != FORMAT:
-        got = data.get("format") if isinstance(data, dict) else None
-        raise InputError(f"{file}: not a multi-zone model (format {got!r}, not {FORMAT!r}); train it again")
-    rc = data.get("rc")
-    if not isinstance(rc, dict):
-        raise InputError(f"{file}: rc must be the identified building (an object); train it again")
-    identified = MultiZoneIdentifyResult.from_json(rc, source=f"{file} (rc)")
-    raw_actuators = data.get("actuators")
-    if not isinstance(raw_actuators, list) or not raw_actuators:
-        raise InputError(f"{file}: actuators must be a non-empty list; train it again")
-    actuators = [read_actuator(raw, file, i) for i, raw in enumerate(raw_actuators)]
-    dt_s = data.get("dt_s")
-    if isinstance(dt_s, bool) or not isinstance(dt_s, int | float) or not math.isfinite(dt_s) or dt_s <= 0:
-        raise InputError(f"{file}: dt_s must be a positive number of seconds; train it again")
+    data, identified, actuators, dt_s = read_zone_model_file(file, FORMAT, "multi-zone model")
     solar = data.get("solar_inputs")
     n_zones = identified.params.n_zones
     if (
