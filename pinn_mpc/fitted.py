@@ -48,7 +48,14 @@ from pinn_mpc.models.multizone_hybrid import (
     load_multizone,
     save_multizone,
 )
-from pinn_mpc.models.registry import ALL_ARCHS, AUTO, BASELINES, MODEL_CHOICES
+from pinn_mpc.models.registry import (
+    ALL_ARCHS,
+    AUTO,
+    BASELINES,
+    DEFAULT_ARCH,
+    MODEL_CHOICES,
+    PHYSICS_ARX,
+)
 from pinn_mpc.models.rollout import FittedModel
 from pinn_mpc.training import TrainConfig, train_model
 
@@ -73,8 +80,9 @@ class ModelFormat:
     """How the models of some families are kept in a directory: its ``layout`` (the files it
     writes), its ``marker`` (the file that says a directory holds this format: it describes
     the rest), ``what`` (the format in a message: "a network's"), the ``families`` it holds
-    (registry names), the ``model_type`` of its models, and how to ``write`` one (returning
-    the files written) and ``read`` one (checked, raising InputError naming the file)."""
+    (registry names) and whether of buildings of several ``zones``, the ``model_type`` of its
+    models, and how to ``write`` one (returning the files written) and ``read`` one (checked,
+    raising InputError naming the file)."""
 
     layout: DirectoryLayout
     marker: str
@@ -83,6 +91,7 @@ class ModelFormat:
     model_type: type
     write: Callable[[FittedModel, Path], list[Path]]
     read: Callable[[Path], FittedModel]
+    zones: bool = False
 
 
 def _write_network(model: FittedModel, path: Path) -> list[Path]:
@@ -121,12 +130,13 @@ FORMATS: tuple[ModelFormat, ...] = (
         model_type=ARXModel, write=_write_arx, read=load_arx,
     ),
     ModelFormat(
-        layout=MULTIZONE_DIRECTORY, marker=MULTIZONE_FILE, what="a multi-zone hybrid's", families=(),
-        model_type=MultiZoneHybrid, write=_write_multizone, read=load_multizone,
+        layout=MULTIZONE_DIRECTORY, marker=MULTIZONE_FILE, what="a multi-zone hybrid's", families=(DEFAULT_ARCH,),
+        model_type=MultiZoneHybrid, write=_write_multizone, read=load_multizone, zones=True,
     ),
     ModelFormat(
-        layout=MULTIZONE_ARX_DIRECTORY, marker=MULTIZONE_ARX_FILE, what="a multi-zone ARX's", families=(),
-        model_type=MultiZoneARX, write=_write_multizone_arx, read=load_multizone_arx,
+        layout=MULTIZONE_ARX_DIRECTORY, marker=MULTIZONE_ARX_FILE, what="a multi-zone ARX's",
+        families=(PHYSICS_ARX.name,), model_type=MultiZoneARX, write=_write_multizone_arx, read=load_multizone_arx,
+        zones=True,
     ),
 )
 
@@ -208,14 +218,15 @@ def model_files(path: str | os.PathLike[str]) -> list[Path]:
     return [file for fmt in FORMATS for file in fmt.layout.paths(path)]
 
 
-def output_layout(arch: str) -> DirectoryLayout:
-    """What ``train --arch arch --out DIR`` writes, for checking ``DIR`` first: any model's
-    files (the other formats' are removed, :func:`save`); a directory is already this kind of
-    output when it holds the format's ``arch`` writes (``auto``: either)."""
+def output_layout(arch: str, *, zones: bool = False) -> DirectoryLayout:
+    """What ``train --arch arch --out DIR`` writes (on data of several ``zones`` or one), for
+    checking ``DIR`` first: any model's files (the other formats' are removed, :func:`save`); a
+    directory is already this kind of output when it holds the format's ``arch`` writes
+    (``auto``: any)."""
     files = tuple(file for fmt in FORMATS for file in fmt.layout.files)
     if arch == AUTO:
         return DirectoryLayout(kind="model directory", files=files, markers=())
-    fmt = next((f for f in FORMATS if arch in f.families), None)
+    fmt = next((f for f in FORMATS if arch in f.families and f.zones == zones), None)
     if fmt is None:
         raise ValueError(f"unknown architecture {arch!r}; choose one of {AUTO}, {', '.join(MODEL_CHOICES)}")
     return DirectoryLayout(kind=fmt.layout.kind, files=files, markers=fmt.layout.markers)

@@ -120,12 +120,15 @@ def _train_one(a: argparse.Namespace) -> str:
             f"train --arch {a.arch}: {unused} do(es) not apply to the least-squares ARX model; "
             "leave them out"
         )
-    layout = output_layout(a.arch)
-    check_output_directory(a.out, layout, force=a.force)
-    check_distinct(inputs={"--data": a.data}, outputs={"--out": layout.paths(a.out)})
+    # Every layout lists every model file: the data must be none of them, checked before reading.
+    check_distinct(inputs={"--data": a.data}, outputs={"--out": output_layout(a.arch).paths(a.out)})
     df = read_timeseries(a.data, columns=a.columns, zones=True)
-    if len(zones_in(df.columns)) > 1:
-        return _train_zones(a, df, network_options)
+    zoned = len(zones_in(df.columns)) > 1
+    if zoned:
+        _check_zone_training(a, network_options)
+    check_output_directory(a.out, output_layout(a.arch, zones=zoned), force=a.force)
+    if zoned:
+        return _train_zones(a, df)
     if a.layout is not None:
         raise InputError("--scenario gives the layout of a building of several zones; the data hold one zone: leave --scenario out")
     df = read_timeseries(a.data, columns=a.columns)
@@ -147,16 +150,10 @@ def _train_one(a: argparse.Namespace) -> str:
     return f"{_fitted_line(a.arch, choice, len(df), seconds)}; wrote {written}"
 
 
-def _train_zones(a: argparse.Namespace, df: pd.DataFrame, network_options: list[str]) -> str:
-    """``train`` on data of several zones: with ``--arch auto`` the multi-zone hybrid or
-    physics-informed ARX of ``--scenario``'s layout, whichever predicts the data's last quarter
-    better, or the one ``--arch`` names
-    (:func:`scenarios.experiments.compare.train_scenario_zones`), saved into ``--out``."""
-    from pinn_mpc.fitted import save
-    from pinn_mpc.models.multizone_arx import MultiZoneARX
-    from pinn_mpc.models.multizone_hybrid import MultiZoneHybrid
+def _check_zone_training(a: argparse.Namespace, network_options: list[str]) -> None:
+    """Refuse in one line what ``train`` does not fit on data of several zones: another
+    ``--arch`` than auto, hybrid or parx, and a network ensemble's options."""
     from pinn_mpc.models.registry import DEFAULT_ARCH, PHYSICS_ARX
-    from scenarios.experiments.compare import train_scenario_zones
 
     if a.arch not in (AUTO, DEFAULT_ARCH, PHYSICS_ARX.name):
         raise InputError(
@@ -170,6 +167,19 @@ def _train_zones(a: argparse.Namespace, df: pd.DataFrame, network_options: list[
             f"train: {', '.join(given).replace('--lam', '--lambda')} set a network ensemble's training; the "
             "models of several zones have their own settings: leave them out"
         )
+
+
+def _train_zones(a: argparse.Namespace, df: pd.DataFrame) -> str:
+    """``train`` on data of several zones: with ``--arch auto`` the multi-zone hybrid or
+    physics-informed ARX of ``--scenario``'s layout, whichever predicts the data's last quarter
+    better, or the one ``--arch`` names
+    (:func:`scenarios.experiments.compare.train_scenario_zones`), saved into ``--out``."""
+    from pinn_mpc.fitted import save
+    from pinn_mpc.models.multizone_arx import MultiZoneARX
+    from pinn_mpc.models.multizone_hybrid import MultiZoneHybrid
+    from pinn_mpc.models.registry import DEFAULT_ARCH, PHYSICS_ARX
+    from scenarios.experiments.compare import train_scenario_zones
+
     scenario = _zone_layout(a, df, "training on them")
     start = time.perf_counter()
     choice = train_scenario_zones(scenario, df, seed=a.seed, arch=a.arch)

@@ -21,11 +21,15 @@ TINY = TrainConfig(n_seeds=1, epochs=1, depth=4)
 
 
 def test_every_family_train_fits_has_one_format():
-    """Each name ``train --arch`` takes is held by exactly one format, and ``auto``'s output
-    may be any of them."""
+    """Each name ``train --arch`` takes is held by exactly one format of one zone's data
+    (and the hybrid and the physics-informed ARX by one of several zones' too), and ``auto``'s
+    output may be any of them."""
     for arch in MODEL_CHOICES:
-        assert sum(arch in fmt.families for fmt in FORMATS) == 1, arch
+        assert sum(arch in fmt.families for fmt in FORMATS if not fmt.zones) == 1, arch
         assert output_layout(arch).markers
+    for arch, marker in (("hybrid", "multizone.json"), ("parx", "multizone_arx.json")):
+        assert [fmt.marker for fmt in FORMATS if fmt.zones and arch in fmt.families] == [marker]
+        assert output_layout(arch, zones=True).markers == (marker,)
     assert output_layout(AUTO).markers == ()
     assert set(output_layout(AUTO).files) == {WEIGHTS, META, ARX_FILE, "multizone.json", "multizone_arx.json"}
 
