@@ -337,7 +337,7 @@ def _zone_layout(df: pd.DataFrame, source: str, zones: bool) -> tuple[pd.DataFra
     if not zones:
         raise InputError(
             f"{source}: holds {len(names)} zones ({', '.join(names)}); this takes one zone "
-            "(train and identify take several with --scenario, the building's layout): keep one "
+            "(train and identify take several, given the building's layout in its scenario): keep one "
             "zone's columns, named T_r, T_min, T_max (e.g. pandas: df.rename(columns={'T_r["
             + names[0] + "]': 'T_r'}))"
         )

@@ -199,7 +199,7 @@ def _train_zones(a: argparse.Namespace, df: pd.DataFrame) -> str:
         errors = sel.get("held_out_mae_c")
         judged = (
             f"residual {'kept' if sel['kept'] else 'dropped'}: held-out {sel['horizon_steps']}-step MAE "
-            f"{errors['hybrid']:.3f} C with it, {errors['rc']:.3f} C without"
+            f"{errors['with_residual']:.3f} C with it, {errors['rc']:.3f} C without"
             if errors else f"no residual: {sel.get('why', 'not judged')}"
         )
         walls = ", ".join(f"{x}-{y} {u:.4g} W/K" for (x, y), u in model.identified.walls.items()) or "none"

@@ -122,7 +122,7 @@ def test_a_residual_is_kept_where_unmeasured_gains_leave_the_rc_short() -> None:
                                  solar_inputs=["G_south", None], dt_s=DT_S)
     errors = model.selection["held_out_mae_c"]
     assert model.selection["kept"] and model.residual is not None
-    assert errors["hybrid"] < 0.9 * errors["rc"], errors
+    assert errors["with_residual"] < 0.9 * errors["rc"], errors
 
 
 @pytest.fixture(scope="module")

@@ -61,7 +61,7 @@ import pandas as pd
 import torch
 
 from pinn_mpc.actuator import ActuatorSpec, actuator_columns
-from pinn_mpc.errors import InputError
+from pinn_mpc.errors import InputError, setting
 from pinn_mpc.identify_multizone import MultiZoneIdentifyResult, identify_multizone
 from pinn_mpc.io import DirectoryLayout
 from pinn_mpc.models.arx import BLOCK_H, _schedule_index
@@ -580,7 +580,7 @@ def fit_multizone_arx(
     if not radius < 1.0:
         raise InputError(
             f"multi-zone ARX: the fit's rooms never settle (spectral radius {radius:.4f} >= 1), so its "
-            "predictions would run away; give more days of data, or train the hybrid (--arch hybrid)"
+            "predictions would run away; give more days of data, or train the hybrid (" + setting("arch") + " hybrid)"
         )
     selection = {
         "lags": lags, "power_lags": power_lags, "weather_lags": WEATHER_LAGS,

@@ -44,6 +44,7 @@ from pinn_mpc.identify_multizone import MultiZoneIdentifyResult, identify_multiz
 from pinn_mpc.io import DirectoryLayout
 from pinn_mpc.models.arx import SELECTION_SHARE
 from pinn_mpc.models.multizone_rc import MultiZoneRCModel
+from pinn_mpc.models.registry import DEFAULT_ARCH
 from pinn_mpc.models.zone_residual import (
     CLOCK,
     DAY_TYPE,
@@ -76,7 +77,7 @@ MULTIZONE_DIRECTORY = DirectoryLayout(
 #: The file's format tag.
 FORMAT = "pinn-mpc multi-zone hybrid 1"
 #: The family's name (the one-zone hybrid's: the same model, per zone).
-FAMILY = "hybrid"
+FAMILY = DEFAULT_ARCH
 #: Each zone's residual bound, as a share of the heating power that acts on the zone (or of
 #: :data:`_DEFAULT_SCALE_W` where none does).
 _SCALE_SHARE = 0.5
@@ -271,7 +272,7 @@ def fit_multizone_hybrid(
         without = windows.mean_error_c(held_out, h, None, rc.heat_input_matrix)
         with_ = windows.mean_error_c(held_out, h, q, rc.heat_input_matrix)
         kept = with_ < (1.0 - _KEEP_GAIN) * without
-        selection |= {"held_out_mae_c": {"rc": without, "hybrid": with_}, "kept": bool(kept)}
+        selection |= {"held_out_mae_c": {"rc": without, "with_residual": with_}, "kept": bool(kept)}
         if kept:
             residual = trained(n)
     else:

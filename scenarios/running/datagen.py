@@ -174,7 +174,7 @@ def generate(
         raise InputError(
             f"{setting('n_buildings')} {n_buildings}: data of a building of several zones are "
             f"simulated one building at a time; leave it at 1 (a fleet of scenario {scenario.name!r} "
-            "runs in closed-loop --buildings N)"
+            "runs in `pinn-mpc closed-loop`, its buildings drawn there)"
         )
     exo = scenario.exogenous(days=days, seed=seed, part=weather_part)
     cols = {c: exo[c].to_numpy(dtype=float) for c in ("price", "T_min", "T_max")}

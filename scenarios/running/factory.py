@@ -427,7 +427,7 @@ def _zone_controller(
         raise InputError(
             f"controller {name!r} plans {what} of one zone; {where}: give it a multi-zone RC file "
             f"({setting('rc_path')}, `pinn-mpc identify` on the scenario's data with its layout) or "
-            f"the model `pinn-mpc train --scenario` fits on that data instead"
+            f"the model `pinn-mpc train` fits on that data, given the scenario's layout, instead"
         )
     if model is not None and name == "qp-mpc":
         raise InputError(
@@ -438,7 +438,7 @@ def _zone_controller(
         raise InputError(
             f"controller {name!r} on a building of several zones plans on a multi-zone RC file or model; "
             f"{where}: add {setting('rc_path')} rc.json (`pinn-mpc identify` on the scenario's data writes "
-            f"one) or {setting('model_dir')} DIR (`pinn-mpc train --scenario`)"
+            f"one) or {setting('model_dir')} DIR (`pinn-mpc train` on that data with the scenario's layout)"
         )
     if name == "qp-mpc" and zone_params is not None:
         from controllers.rc_mpc.multizone import MultiZoneMPC
@@ -476,7 +476,7 @@ def check_zone_model(model: MultiZoneHybrid | MultiZoneARX, spec: ControlSpec, s
     if model.zones != spec.zones:
         raise InputError(
             f"{label}: scenario {scenario_name!r} has the zones {', '.join(z.name for z in spec.zones)}; "
-            "train on the scenario's data (`pinn-mpc train --scenario`)"
+            "train on the scenario's data (`pinn-mpc train` with the scenario's layout)"
         )
     mine = [(a.name, a.zone, a.heats) for a in model.actuators]
     theirs = [(a.name, a.zone, a.heats) for a in spec.actuators]

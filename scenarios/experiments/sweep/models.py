@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, TypeAlias
 
-from pinn_mpc.errors import InputError, InternalError
+from pinn_mpc.errors import InputError, InternalError, setting
 from pinn_mpc.physics import RCParams
 from scenarios.experiments.sweep.grid import RC_KIND, ModelKey, SweepSettings
 from scenarios.inputs.scenario_file import get_scenario
@@ -68,7 +68,7 @@ def fit_model(key: ModelKey, settings: SweepSettings, data: pd.DataFrame | None 
         if key.kind not in (AUTO, DEFAULT_ARCH, PHYSICS_ARX.name):
             raise InputError(
                 f"sweep: scenario {key.scenario!r} has several zones, on which train fits the "
-                f"{DEFAULT_ARCH} or the {PHYSICS_ARX.name} of every zone; --arch {key.kind} takes one zone"
+                f"{DEFAULT_ARCH} or the {PHYSICS_ARX.name} of every zone; {setting('arch')} {key.kind} takes one zone"
             )
         return train_scenario_zones(scenario, data, seed=key.seed, arch=key.kind).model
     if key.kind == RC_KIND:  # as compare identifies (on delivered heat under a heat pump)
