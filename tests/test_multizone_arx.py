@@ -264,3 +264,12 @@ def test_train_parx_plans_with_cem_and_exports_the_rc_it_carries(house_data: Pat
             "--json", str(kpis)]
     assert main(argv) == 0, capsys.readouterr().err
     assert json.loads(kpis.read_text())["fallbacks"] == 0
+    # The ARX runs from measured lags: cem plans it with the lagged model's margin and each
+    # zone's offset; the RC it carries, Kalman-filtered, with neither.
+    from scenarios.running.factory import ZONE_COMFORT_MARGIN_K, ZONE_LAGGED_MARGIN_K, build_controller
+
+    scenario = get_scenario("two_zone_house")
+    over_arx = build_controller("cem", scenario, model=model, n_steps=48)
+    over_rc = build_controller("cem", scenario, zone_params=model.identified.params, n_steps=48)
+    assert over_arx.comfort_margin_k == ZONE_LAGGED_MARGIN_K > 0 and over_arx.offset_gain == 0.5
+    assert over_rc.comfort_margin_k == ZONE_COMFORT_MARGIN_K == 0 and over_rc.offset_gain == 0.0
