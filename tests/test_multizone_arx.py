@@ -266,7 +266,11 @@ def test_train_parx_plans_with_cem_and_exports_the_rc_it_carries(house_data: Pat
     assert json.loads(kpis.read_text())["fallbacks"] == 0
     # The ARX runs from measured lags: cem plans it with the lagged model's margin and each
     # zone's offset; the RC it carries, Kalman-filtered, with neither.
-    from scenarios.running.factory import ZONE_COMFORT_MARGIN_K, ZONE_LAGGED_MARGIN_K, build_controller
+    from scenarios.running.factory import (
+        ZONE_COMFORT_MARGIN_K,
+        ZONE_LAGGED_MARGIN_K,
+        build_controller,
+    )
 
     scenario = get_scenario("two_zone_house")
     over_arx = build_controller("cem", scenario, model=model, n_steps=48)
