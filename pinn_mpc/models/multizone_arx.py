@@ -452,8 +452,7 @@ def _frame_arrays(
 ) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
     """The data's rooms (T, Z) [C], delivered powers (T, A) [W] and the series ``names``
     (the clock and calendar from its ``time`` and ``holiday``); InputError naming what it lacks."""
-    from pinn_mpc.data import day_of_week
-    from pinn_mpc.features import time_of_day_h
+    from pinn_mpc.models.multizone_hybrid import frame_series
 
     columns = [*zone_columns("T_r", zones), *actuator_columns("u_phys", actuators), "time"]
     columns += [n for n in names if n not in ("time_of_day_h", "day_of_week")]
@@ -462,14 +461,7 @@ def _frame_arrays(
         raise InputError(f"multi-zone ARX: the data lack the column(s) {', '.join(missing)}; give the building's data")
     rooms = np.stack([frame[c].to_numpy(dtype=float) for c in zone_columns("T_r", zones)], axis=1)
     powers = np.stack([frame[c].to_numpy(dtype=float) for c in actuator_columns("u_phys", actuators)], axis=1)
-    times = pd.to_datetime(frame["time"])
-    holiday = frame["holiday"].to_numpy(dtype=float) if "holiday" in frame.columns else None
-    series = {
-        n: frame[n].to_numpy(dtype=float) for n in names if n not in ("time_of_day_h", "day_of_week")
-    }
-    series["time_of_day_h"] = time_of_day_h(times)
-    series["day_of_week"] = day_of_week(times.to_numpy(), holiday)
-    return rooms, powers, series
+    return rooms, powers, frame_series(frame, (*names, "time_of_day_h", "day_of_week"))
 
 
 def fit_multizone_arx(

@@ -165,8 +165,10 @@ def _heat_scale_w(zones: Sequence[ZoneSpec], actuators: Sequence[ActuatorSpec]) 
 
 
 
-def _series(frame: pd.DataFrame, names: Sequence[str]) -> dict[str, np.ndarray]:
-    """The residual's inputs of every row of ``frame``."""
+def frame_series(frame: pd.DataFrame, names: Sequence[str]) -> dict[str, np.ndarray]:
+    """The series ``names`` of every row of ``frame``: the clock (:data:`CLOCK`) and the
+    calendar (:data:`DAY_TYPE`, the ``holiday`` column's days as Sundays) from its ``time``,
+    the others its columns."""
     from pinn_mpc.data import day_of_week
     from pinn_mpc.features import time_of_day_h
 
@@ -248,7 +250,7 @@ def fit_multizone_hybrid(
     )
     rc = MultiZoneRCModel(identified.params, actuators, dt_s)
     names = RESIDUAL_INPUTS
-    series = _series(frame, names)
+    series = frame_series(frame, names)
     windows = _Windows(rc, frame)
     scale = _heat_scale_w(zones, actuators)
     n = len(frame)
@@ -295,7 +297,7 @@ def held_out_error_c(model: MultiZoneHybrid, frame: pd.DataFrame, starts: np.nda
     rc = MultiZoneRCModel(model.identified.params, model.actuators, model.dt_s)
     windows = _Windows(rc, frame)
     residual = model.residual
-    q = None if residual is None else residual.heat_w(_series(frame, residual.names))[:-1]
+    q = None if residual is None else residual.heat_w(frame_series(frame, residual.names))[:-1]
     return windows.mean_error_c(np.asarray(starts, dtype=int), horizon, q, rc.heat_input_matrix)
 
 
