@@ -12,8 +12,9 @@ hold.
 How each family is kept on disk is :data:`FORMATS`, the one place that knows the formats: the
 networks' ``model.json`` with ``weights.safetensors`` (:mod:`pinn_mpc.artifacts`), the ARX's
 ``arx.json`` (:mod:`pinn_mpc.models.arx`), the hybrid of a building of several zones'
-``multizone.json`` (:mod:`pinn_mpc.models.multizone_hybrid`) and the physics-informed ARX of
-such a building's ``multizone_arx.json`` (:mod:`pinn_mpc.models.multizone_arx`), both fitted with
+``multizone.json`` (:mod:`pinn_mpc.models.multizone_hybrid`), the physics-informed ARX of
+such a building's ``multizone_arx.json`` (:mod:`pinn_mpc.models.multizone_arx`) and the paper's
+networks of such a building's ``multizone_paper.json`` (:mod:`pinn_mpc.models.multizone_paper`), all fitted with
 the building's layout by :func:`scenarios.experiments.compare.train_scenario_zones`. A new network architecture (a registry entry,
 :mod:`pinn_mpc.models.registry`) saves and loads as the networks do; a family with files of
 its own adds its format here. A directory holds one model: :func:`save` removes the other
@@ -47,6 +48,14 @@ from pinn_mpc.models.multizone_hybrid import (
     MultiZoneHybrid,
     load_multizone,
     save_multizone,
+)
+from pinn_mpc.models.multizone_paper import ARCHS as PAPER_ZONE_ARCHS
+from pinn_mpc.models.multizone_paper import (
+    MULTIZONE_PAPER_DIRECTORY,
+    MULTIZONE_PAPER_FILE,
+    MultiZonePaperModel,
+    load_multizone_paper,
+    save_multizone_paper,
 )
 from pinn_mpc.models.registry import (
     ALL_ARCHS,
@@ -119,6 +128,12 @@ def _write_multizone_arx(model: FittedModel, path: Path) -> list[Path]:
     return [save_multizone_arx(model, path)]
 
 
+def _write_multizone_paper(model: FittedModel, path: Path) -> list[Path]:
+    if not isinstance(model, MultiZonePaperModel):
+        raise InternalError(f"a multi-zone paper network directory given a {type(model).__name__}")
+    return [save_multizone_paper(model, path)]
+
+
 #: The model directory formats, one per kind of fitted model.
 FORMATS: tuple[ModelFormat, ...] = (
     ModelFormat(
@@ -137,6 +152,11 @@ FORMATS: tuple[ModelFormat, ...] = (
         layout=MULTIZONE_ARX_DIRECTORY, marker=MULTIZONE_ARX_FILE, what="a multi-zone ARX's",
         families=(PHYSICS_ARX.name,), model_type=MultiZoneARX, write=_write_multizone_arx, read=load_multizone_arx,
         zones=True,
+    ),
+    ModelFormat(
+        layout=MULTIZONE_PAPER_DIRECTORY, marker=MULTIZONE_PAPER_FILE, what="a multi-zone paper network's",
+        families=PAPER_ZONE_ARCHS, model_type=MultiZonePaperModel, write=_write_multizone_paper,
+        read=load_multizone_paper, zones=True,
     ),
 )
 

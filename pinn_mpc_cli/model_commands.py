@@ -153,13 +153,15 @@ def _train_one(a: argparse.Namespace) -> str:
 def _check_zone_training(a: argparse.Namespace, network_options: list[str]) -> None:
     """Refuse in one line what ``train`` does not fit on data of several zones: another
     ``--arch`` than auto, hybrid or parx, and a network ensemble's options."""
+    from pinn_mpc.models.multizone_paper import ARCHS as PAPER_ARCHS
     from pinn_mpc.models.registry import DEFAULT_ARCH, PHYSICS_ARX
 
-    if a.arch not in (AUTO, DEFAULT_ARCH, PHYSICS_ARX.name):
+    if a.arch not in (AUTO, DEFAULT_ARCH, PHYSICS_ARX.name, *PAPER_ARCHS):
         raise InputError(
             f"train --arch {a.arch}: on a building of several zones train fits the {DEFAULT_ARCH} "
-            f"(each zone's RC and walls identified, a learned residual heat per zone) or the {PHYSICS_ARX.name} "
-            f"(a physics-informed ARX per zone); give --arch {AUTO}, {DEFAULT_ARCH} or {PHYSICS_ARX.name}"
+            f"(each zone's RC and walls identified, a learned residual heat per zone), the {PHYSICS_ARX.name} "
+            f"(a physics-informed ARX per zone) or the paper's {' or '.join(PAPER_ARCHS)} per zone (coupled "
+            f"through learned walls); give --arch {AUTO}, {DEFAULT_ARCH}, {PHYSICS_ARX.name}, {', '.join(PAPER_ARCHS)}"
         )
     given = [*network_options, *(["--seeds"] if a.seeds != 20 else [])]
     if given:
@@ -177,6 +179,7 @@ def _train_zones(a: argparse.Namespace, df: pd.DataFrame) -> str:
     from pinn_mpc.fitted import save
     from pinn_mpc.models.multizone_arx import MultiZoneARX
     from pinn_mpc.models.multizone_hybrid import MultiZoneHybrid
+    from pinn_mpc.models.multizone_paper import MultiZonePaperModel
     from pinn_mpc.models.registry import DEFAULT_ARCH, PHYSICS_ARX
     from scenarios.experiments.compare import train_scenario_zones
 
@@ -204,6 +207,13 @@ def _train_zones(a: argparse.Namespace, df: pd.DataFrame) -> str:
         )
         walls = ", ".join(f"{x}-{y} {u:.4g} W/K" for (x, y), u in model.identified.walls.items()) or "none"
         what = f"the {DEFAULT_ARCH} of {len(model.zones)} zones ({names}; walls {walls}; {judged})"
+    elif isinstance(model, MultiZonePaperModel):
+        loss = model.training["final_loss"]
+        walls = ", ".join(f"{x}-{y} {u:.4g} W/K" for (x, y), u in model.learned_rc().walls.items()) or "none"
+        what = (
+            f"the {model.family} of {len(model.zones)} zones ({names}; learned walls {walls}; final loss reg "
+            f"{loss['reg']:.3g}, phys {loss['phys']:.3g})"
+        )
     else:
         raise InternalError(f"train on several zones made a {type(model).__name__}")
     return f"{chose}fitted {what} on {len(df)} rows in {seconds:.1f} s; wrote {written}"
@@ -332,14 +342,18 @@ def export_rc_json(a: argparse.Namespace) -> str:
     from pinn_mpc.models.learned import LearnedModel
     from pinn_mpc.models.multizone_arx import MultiZoneARX
     from pinn_mpc.models.multizone_hybrid import MultiZoneHybrid
+    from pinn_mpc.models.multizone_paper import MultiZonePaperModel
 
     check_writable(a.out)
     _refuse_fleet_directory(a.model, "export-rc", "--out rc.json")
     check_distinct(inputs={"--model": model_files(a.model)}, outputs={"--out": a.out})
     model = load(a.model)
-    if isinstance(model, MultiZoneHybrid | MultiZoneARX):  # the RC it carries
-        rc = model.identified
-        atomic_write_json(a.out, {**rc.to_json(), "source": f"export-rc of the {model.family} of several zones from {a.model}"})
+    if isinstance(model, MultiZoneHybrid | MultiZoneARX | MultiZonePaperModel):
+        # The RC it carries; the paper's networks' learned one (its R, C and walls trained).
+        learned = isinstance(model, MultiZonePaperModel)
+        rc = model.learned_rc() if learned else model.identified
+        what = "the learned RC of" if learned else "export-rc of"
+        atomic_write_json(a.out, {**rc.to_json(), "source": f"{what} the {model.family} of several zones from {a.model}"})
         zones = "; ".join(
             f"{z.zone.name} R_ra={z.rc.r_ra_k_per_w:.4g} K/W R_rm={z.rc.r_rm_k_per_w:.4g} K/W "
             f"C_r={z.rc.c_r_j_per_k:.4g} J/K C_m={z.rc.c_m_j_per_k:.4g} J/K"

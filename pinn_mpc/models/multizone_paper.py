@@ -722,9 +722,9 @@ def fit_multizone_paper(
     physics = ZonePhysics(identified.params, _wall_pairs(z_n, adjacency))
     nets = ZoneNets(arch, z_n, k, seed).double()
     step = _Stepper(nets, physics, scaling, dt_s)
-    rooms_t = torch.as_tensor(rooms_c)
+    rooms_t = torch.tensor(rooms_c)
     inputs = physics.heat_inputs(
-        torch.as_tensor(heat_w), torch.as_tensor(series["T_a"]), torch.as_tensor(sun), torch.as_tensor(gains_w)
+        torch.tensor(heat_w), torch.tensor(series["T_a"]), torch.tensor(sun), torch.tensor(gains_w)
     ).detach()
     windows = torch.arange(k, len(frame) - 1)  # every row with a full window (the physics residual's)
     offsets = torch.arange(-k, 1)
@@ -801,6 +801,8 @@ def _load_state(module: nn.Module, raw: Any, file: Path, what: str) -> None:
             value = torch.as_tensor(np.asarray(raw[name], dtype=float), dtype=target.dtype)
         except (TypeError, ValueError):
             raise InputError(f"{file}: {what}.{name} must be an array of numbers; {again}") from None
+        if value.numel() == 0 == target.numel():  # JSON's [] keeps no shape
+            value = value.reshape(target.shape)
         if tuple(value.shape) != tuple(target.shape):
             raise InputError(f"{file}: {what}.{name} has shape {tuple(value.shape)}, not {tuple(target.shape)}; {again}")
         if value.numel() and not float(value.double().abs().max()) <= MAX_ABS_PARAM:

@@ -458,12 +458,15 @@ def train_scenario_zones(
     """``train``'s model of ``data`` of a building of several zones, its layout the scenario's:
     with ``arch`` ``auto`` (the default) the multi-zone hybrid or physics-informed ARX,
     whichever predicts the data's last quarter better
-    (:func:`pinn_mpc.model_choice.choose_zone_model`); ``hybrid`` or ``parx`` that one
-    (:func:`pinn_mpc.models.multizone_hybrid.fit_multizone_hybrid`, its residual from
-    ``seed``; :func:`pinn_mpc.models.multizone_arx.fit_multizone_arx`)."""
+    (:func:`pinn_mpc.model_choice.choose_zone_model`); ``hybrid``, ``parx``, ``physnet`` or
+    ``physreg`` that one (:func:`pinn_mpc.models.multizone_hybrid.fit_multizone_hybrid`, its
+    residual from ``seed``; :func:`pinn_mpc.models.multizone_arx.fit_multizone_arx`;
+    :func:`pinn_mpc.models.multizone_paper.fit_multizone_paper`, its networks from ``seed``)."""
     from pinn_mpc.model_choice import ModelChoice, choose_zone_model
     from pinn_mpc.models.multizone_arx import fit_multizone_arx
     from pinn_mpc.models.multizone_hybrid import fit_multizone_hybrid
+    from pinn_mpc.models.multizone_paper import ARCHS as PAPER_ARCHS
+    from pinn_mpc.models.multizone_paper import fit_multizone_paper
 
     spec = scenario.control_spec()
     layout: dict[str, Any] = {
@@ -473,16 +476,18 @@ def train_scenario_zones(
     model: FittedModel
     if arch == AUTO:
         choice = choose_zone_model(data, seed=seed, **layout)
-    elif arch in (DEFAULT_ARCH, PHYSICS_ARX.name):
+    elif arch in (DEFAULT_ARCH, PHYSICS_ARX.name, *PAPER_ARCHS):
         if arch == DEFAULT_ARCH:
             model = fit_multizone_hybrid(data, seed=seed, **layout)
-        else:
+        elif arch == PHYSICS_ARX.name:
             model = fit_multizone_arx(data, **layout)
+        else:
+            model = fit_multizone_paper(data, arch=arch, seed=seed, **layout)
         choice = ModelChoice(chosen=arch, model=model, held_out_mae_c={}, horizon_steps=0, why="as asked")
     else:
         raise ValueError(
             f"train_scenario_zones: arch {arch!r} is not fitted on a building of several zones; choose "
-            f"{AUTO}, {DEFAULT_ARCH} or {PHYSICS_ARX.name}"
+            f"{AUTO}, {DEFAULT_ARCH}, {PHYSICS_ARX.name} or {' or '.join(PAPER_ARCHS)}"
         )
     identified: MultiZoneIdentifyResult | None = getattr(choice.model, "identified", None)
     for note in () if identified is None else identified.notes:

@@ -52,6 +52,7 @@ if TYPE_CHECKING:
     from pinn_mpc.models.learned import ModelRecord
     from pinn_mpc.models.multizone_arx import MultiZoneARX
     from pinn_mpc.models.multizone_hybrid import MultiZoneHybrid
+    from pinn_mpc.models.multizone_paper import MultiZonePaperModel
     from pinn_mpc.multizone import MultiZoneParams
 
 __all__ = [
@@ -428,8 +429,9 @@ def _zone_controller(
         return Thermostat(spec)
     from pinn_mpc.models.multizone_arx import MultiZoneARX
     from pinn_mpc.models.multizone_hybrid import MultiZoneHybrid
+    from pinn_mpc.models.multizone_paper import MultiZonePaperModel
 
-    zone_model = isinstance(model, MultiZoneHybrid | MultiZoneARX)
+    zone_model = isinstance(model, MultiZoneHybrid | MultiZoneARX | MultiZonePaperModel)
     if rc_params is not None or (model is not None and not zone_model):
         what = f"a trained model ({setting('model_dir')})" if model is not None else "a one-zone RC"
         raise InputError(
@@ -464,7 +466,7 @@ def _zone_controller(
         "measurement_std_c": measurement,
     }
     planner_model: BatchDynamics
-    if isinstance(model, MultiZoneHybrid | MultiZoneARX):
+    if isinstance(model, MultiZoneHybrid | MultiZoneARX | MultiZonePaperModel):
         check_zone_model(model, spec, scenario.name)
         planner_model = model.for_planning(**planner_settings)
     elif zone_params is not None:
@@ -477,7 +479,7 @@ def _zone_controller(
     return planner(planner_model, spec, **options)
 
 
-def check_zone_model(model: MultiZoneHybrid | MultiZoneARX, spec: ControlSpec, scenario_name: str) -> None:
+def check_zone_model(model: MultiZoneHybrid | MultiZoneARX | MultiZonePaperModel, spec: ControlSpec, scenario_name: str) -> None:
     """Refuse in one line a model of several zones trained on another building than the
     scenario ``scenario_name``'s (``spec``): other zones, or other actuators (names, zones,
     heating or cooling), or another control interval."""

@@ -40,6 +40,7 @@ def fit_model(key: ModelKey, settings: SweepSettings, data: pd.DataFrame | None 
     ``key`` on the scenario's simulated data (``train_days`` days under the settings' policy, by default the scenario's, seed ``key.seed``).
     A BOPTEST scenario's ``data`` is the emulator's (:func:`boptest_training_data`), its
     ensembles trained as ``compare`` trains them (:func:`boptest_fit`)."""
+    from pinn_mpc.models.multizone_paper import ARCHS as PAPER_ARCHS
     from pinn_mpc.models.registry import AUTO, DEFAULT_ARCH, PHYSICS_ARX
     from scenarios.experiments.compare import (
         CompareSettings,
@@ -65,10 +66,11 @@ def fit_model(key: ModelKey, settings: SweepSettings, data: pd.DataFrame | None 
     if len(scenario.control_spec().zones) > 1:
         if key.kind == RC_KIND:
             return identify_scenario_zones(scenario, data)
-        if key.kind not in (AUTO, DEFAULT_ARCH, PHYSICS_ARX.name):
+        if key.kind not in (AUTO, DEFAULT_ARCH, PHYSICS_ARX.name, *PAPER_ARCHS):
             raise InputError(
                 f"sweep: scenario {key.scenario!r} has several zones, on which train fits the "
-                f"{DEFAULT_ARCH} or the {PHYSICS_ARX.name} of every zone; {setting('arch')} {key.kind} takes one zone"
+                f"{DEFAULT_ARCH}, the {PHYSICS_ARX.name} or the paper's {' or '.join(PAPER_ARCHS)} of every zone; "
+                f"{setting('arch')} {key.kind} takes one zone"
             )
         return train_scenario_zones(scenario, data, seed=key.seed, arch=key.kind).model
     if key.kind == RC_KIND:  # as compare identifies (on delivered heat under a heat pump)
