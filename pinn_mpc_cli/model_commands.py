@@ -350,9 +350,8 @@ def export_rc_json(a: argparse.Namespace) -> str:
     model = load(a.model)
     if isinstance(model, MultiZoneHybrid | MultiZoneARX | MultiZonePaperModel):
         # The RC it carries; the paper's networks' learned one (its R, C and walls trained).
-        learned = isinstance(model, MultiZonePaperModel)
-        rc = model.learned_rc() if learned else model.identified
-        what = "the learned RC of" if learned else "export-rc of"
+        rc = model.learned_rc() if isinstance(model, MultiZonePaperModel) else model.identified
+        what = "the learned RC of" if isinstance(model, MultiZonePaperModel) else "export-rc of"
         atomic_write_json(a.out, {**rc.to_json(), "source": f"{what} the {model.family} of several zones from {a.model}"})
         zones = "; ".join(
             f"{z.zone.name} R_ra={z.rc.r_ra_k_per_w:.4g} K/W R_rm={z.rc.r_rm_k_per_w:.4g} K/W "

@@ -19,6 +19,7 @@ import torch
 from pinn_mpc.actuator import ActuatorSpec
 from pinn_mpc.errors import InputError
 from pinn_mpc.identify_multizone import MultiZoneIdentifyResult
+from pinn_mpc.models.layers import EnsembleLinear
 from pinn_mpc.models.multizone_paper import (
     MULTIZONE_PAPER_FILE,
     MultiZonePaperModel,
@@ -89,6 +90,7 @@ def test_the_walls_move_each_room_by_the_heat_a_wall_conducts() -> None:
     physics = ZonePhysics(params, [(0, 1), (1, 2)])
     nets = ZoneNets("physreg", 3, 2, seed=0).double()
     last = nets.trunk[-1]
+    assert isinstance(last, EnsembleLinear)
     with torch.no_grad():
         last.weight.zero_()
         last.bias.zero_()

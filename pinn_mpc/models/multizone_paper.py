@@ -153,6 +153,12 @@ class ZonePhysics(nn.Module):
     identified): ``solar_air``, ``solar_mass`` (Z,) [m2] the aperture's share into air and mass,
     ``gains_air``, ``gains_mass`` (Z,) the internal gains' share into air and mass."""
 
+    pairs: torch.Tensor
+    solar_air: torch.Tensor
+    solar_mass: torch.Tensor
+    gains_air: torch.Tensor
+    gains_mass: torch.Tensor
+
     def __init__(self, params: MultiZoneParams, pairs: Sequence[tuple[int, int]]) -> None:
         super().__init__()
         rcs = [z.rc for z in params.zones]
@@ -272,6 +278,9 @@ class ZoneNets(nn.Module):
     The window's features (F), scaled: the room at rows ``i-depth .. i``, the heat then each
     of the :data:`N_EXOG` exogenous series at the same rows (row ``i``'s the interval's own),
     then the :data:`N_CLOCK` clock and calendar of row ``i``."""
+
+    past_index: torch.Tensor
+    now_index: torch.Tensor
 
     def __init__(self, arch: str, n_zones: int, depth: int, seed: int) -> None:
         super().__init__()
