@@ -65,9 +65,9 @@ from pinn_mpc.errors import InputError, setting
 from pinn_mpc.identify_multizone import MultiZoneIdentifyResult, identify_multizone
 from pinn_mpc.io import DirectoryLayout
 from pinn_mpc.models.arx import BLOCK_H, _schedule_index
+from pinn_mpc.models.lagged_zones import LaggedZoneModel
 from pinn_mpc.models.registry import PHYSICS_ARX
-from pinn_mpc.models.rollout import BatchDynamics, Rollout
-from pinn_mpc.multizone import EXOGENOUS_NAMES, MultiZoneParams
+from pinn_mpc.models.rollout import Rollout
 from pinn_mpc.zones import ZoneSpec, zone_columns
 
 __all__ = [
@@ -180,7 +180,7 @@ class ZoneCoefficients:
 _COEFFICIENTS = ("own", "coupling", "heat", "outdoor", "solar", "gains", "schedule")
 
 
-class MultiZoneARX(BatchDynamics):
+class MultiZoneARX(LaggedZoneModel):
     """The physics-informed ARX of every zone (module docstring), as a planner model and a
     fitted model (:class:`~pinn_mpc.models.rollout.FittedModel`, family ``parx``):
     ``coefficients`` its equations, ``actuators`` each on a zone of ``identified``'s building,
@@ -189,10 +189,6 @@ class MultiZoneARX(BatchDynamics):
     same data (the fallback QP's building, ``export-rc``'s), ``selection`` what its fit
     measured, ``training`` the summary of its data. ``backup_low_c`` / ``backup_high_c`` [C]
     the zones' backup-thermostat limits, as :class:`MultiZoneRCModel` takes them."""
-
-    n_members = 1
-    eta = 1.0
-    affine_in_plan = False  # the backup thermostats' clipping
 
     def __init__(
         self,
@@ -208,32 +204,20 @@ class MultiZoneARX(BatchDynamics):
         backup_low_c: float | tuple[float, ...] = 17.0,
         backup_high_c: float | tuple[float, ...] = 20.5,
     ) -> None:
-        from pinn_mpc.multizone import MultiZoneConfig
-
-        params = identified.params
-        config = MultiZoneConfig(
-            params=params, actuators=tuple(actuators), dt_s=dt_s, substep_s=dt_s,
+        super().__init__(
+            identified, actuators, dt_s, solar_inputs=solar_inputs, uses_gains=uses_gains, training=training,
             backup_low_c=backup_low_c, backup_high_c=backup_high_c,
         )
-        z_n, a_n = params.n_zones, len(config.actuators)
+        z_n, a_n = identified.params.n_zones, len(self.actuators)
         if coefficients.own.shape[0] != z_n or coefficients.heat.shape[1] != a_n:
             raise ValueError(
                 f"MultiZoneARX.coefficients: {coefficients.own.shape[0]} zone(s) and {coefficients.heat.shape[1]} "
                 f"actuator(s), the building has {z_n} and {a_n}"
             )
-        for i, a in enumerate(config.actuators):
+        for i, a in enumerate(self.actuators):
             if np.any(np.delete(coefficients.heat[:, i], a.zone, axis=0) != 0):
                 raise ValueError(f"MultiZoneARX.coefficients.heat: actuator {i + 1} acts on zone {a.zone} only")
-        if len(solar_inputs) != z_n or not all(s is None or s in EXOGENOUS_NAMES for s in solar_inputs):
-            raise ValueError(f"MultiZoneARX.solar_inputs: give each of the {z_n} zones an irradiance name or None")
-        self.coefficients, self.identified, self.config = coefficients, identified, config
-        self.solar_inputs, self.uses_gains = tuple(solar_inputs), bool(uses_gains)
-        self.selection, self.training = dict(selection), dict(training)
-        low, high = config.backup_limits_c
-        zone = np.array([a.zone for a in config.actuators])
-        self._zone_of = torch.as_tensor(zone)
-        self._heats = torch.tensor([a.heats for a in config.actuators])
-        self._low_c, self._high_c = low[zone], high[zone]
+        self.coefficients, self.selection = coefficients, dict(selection)
 
     # -- what it is ------------------------------------------------------------------------
     @property
@@ -241,40 +225,9 @@ class MultiZoneARX(BatchDynamics):
         return PHYSICS_ARX.name
 
     @property
-    def identified_rc(self) -> dict[str, Any] | None:
-        """None: its RC is :attr:`identified` (the multi-zone RC file, ``export-rc``)."""
-        return None
-
-    @property
-    def training_data(self) -> dict[str, Any]:
-        return self.training
-
-    @property
-    def dt_s(self) -> float:
-        return self.config.dt_s
-
-    @property
     def depth(self) -> int:
         """Its longest lag (intervals of history it reads)."""
         return max(self.coefficients.lags, self.coefficients.power_lags, WEATHER_LAGS)
-
-    @property
-    def actuators(self) -> tuple[ActuatorSpec, ...]:
-        return self.config.actuators
-
-    @property
-    def zones(self) -> tuple[ZoneSpec, ...]:
-        return self.identified.params.zone_specs
-
-    @property
-    def zone_params(self) -> MultiZoneParams | None:
-        return self.identified.params
-
-    @property
-    def exog_names(self) -> tuple[str, ...]:
-        """T_a, the zones' irradiance, I_g if it reads it, and the schedule's clock and calendar."""
-        solar = tuple(n for n in EXOGENOUS_NAMES if n in self.solar_inputs)
-        return ("T_a", *solar, *(("I_g",) if self.uses_gains else ()), "time_of_day_h", "day_of_week")
 
     def for_planning(
         self,
@@ -375,20 +328,11 @@ class MultiZoneARX(BatchDynamics):
         actuator's delivered ``u_phys[<name>]`` of the past intervals, the weather of
         :attr:`exog_names` up to now; ``exog`` (>= H,) per :attr:`exog_names` from now."""
         a_n, z_n = len(self.actuators), len(self.zones)
-        if u_w.dim() != 3 or u_w.shape[2] != a_n:
-            raise ValueError(
-                f"MultiZoneARX.rollout: u_w must be (N, H, {a_n}), one demand per actuator "
-                f"({', '.join(a.name or str(i) for i, a in enumerate(self.actuators))}), got {tuple(u_w.shape)}"
-            )
+        plan = self.plan_bounds(u_w)
         n, h, _ = u_w.shape
         c = self.coefficients
         lags, power_lags = c.lags, c.power_lags
-        room_names = zone_columns("T_r", self.zones)
-        power_names = actuator_columns("u_phys", self.actuators)
-        weather = [n_ for n_ in self.exog_names if n_ not in ("time_of_day_h", "day_of_week")]
-        missing = [x for x in (*room_names, *power_names, *weather) if x not in history]
-        if missing:
-            raise InputError(f"MultiZoneARX: the history lacks {', '.join(missing)}; give the building's observations")
+        room_names, power_names, weather = self.check_history(history)
         rooms_past = np.stack([np.asarray(history[x], dtype=float) for x in room_names], axis=1)  # (k+1, Z)
         past_rows = power_lags - 1
         need = max(lags, past_rows + 1, WEATHER_LAGS)
@@ -410,18 +354,9 @@ class MultiZoneARX(BatchDynamics):
             heats_past = p_past * self._gains(t_a_past)
         rooms = torch.as_tensor(rooms_past[::-1][:lags].copy()).expand(n, lags, z_n)
         heat_lags = torch.as_tensor(heats_past.copy()).expand(n, past_rows, a_n)
-        lower = torch.tensor([s.lower_w for s in self.actuators], dtype=torch.float64)
-        upper = torch.tensor([s.upper_w for s in self.actuators], dtype=torch.float64)
-        low_c = torch.as_tensor(self._low_c, dtype=torch.float64)
-        high_c = torch.as_tensor(self._high_c, dtype=torch.float64)
-        demand = torch.maximum(torch.minimum(u_w.detach().to(torch.float64), upper), lower)
         out, powers = [], []
         for j in range(h):
-            t = rooms[:, 0][:, self._zone_of]  # (N, A) each actuator's zone's room now
-            too_cold, too_warm = t < low_c, t > high_c
-            force_on = torch.where(self._heats, too_cold, too_warm)
-            force_off = torch.where(self._heats, too_warm, too_cold)
-            p = torch.where(force_on, upper, torch.where(force_off, lower, demand[:, j]))
+            p = self.delivered_w(rooms[:, 0], plan, j)
             heats = torch.cat([(p * gain[j])[:, None], heat_lags], dim=1)
             new = self._step(rooms, heats, drift[j])
             rooms = torch.cat([new[:, None], rooms[:, :-1]], dim=1)

@@ -66,11 +66,12 @@ from pinn_mpc.actuator import ActuatorSpec, actuator_columns
 from pinn_mpc.errors import InputError
 from pinn_mpc.identify_multizone import MultiZoneIdentifyResult, identify_multizone
 from pinn_mpc.io import DirectoryLayout
+from pinn_mpc.models.lagged_zones import LaggedZoneModel
 from pinn_mpc.models.layers import mlp_layers, run_layers
 from pinn_mpc.models.physnet import DYNAMICS, ENCODER
-from pinn_mpc.models.rollout import BatchDynamics, Rollout
-from pinn_mpc.multizone import EXOGENOUS_NAMES, MultiZoneConfig, MultiZoneParams
-from pinn_mpc.zones import ZoneSpec, zone_columns
+from pinn_mpc.models.rollout import Rollout
+from pinn_mpc.multizone import EXOGENOUS_NAMES, MultiZoneParams
+from pinn_mpc.zones import ZoneSpec
 
 __all__ = [
     "ARCHS",
@@ -403,19 +404,13 @@ def _rollout_data(step: _Stepper, series: _Series, starts: torch.Tensor, horizon
     return torch.stack(out, dim=1)
 
 
-class MultiZonePaperModel(BatchDynamics):
+class MultiZonePaperModel(LaggedZoneModel):
     """The paper's networks of every zone and the walls between them (module docstring), as a
-    planner model and a fitted model (:class:`~pinn_mpc.models.rollout.FittedModel`, family
-    ``arch``): ``nets`` and ``physics`` the trained modules, ``scaling`` their inputs' scaling,
-    ``identified`` the multi-zone RC of the same data (the fallback QP's building; the
-    physics' start), ``actuators`` each on one of its zones, ``solar_inputs`` each zone's
-    windows' irradiance (None: no windows), ``uses_gains`` whether it reads I_g, ``dt_s`` [s]
-    its interval, ``training`` what it was trained on and how. ``backup_low_c`` /
-    ``backup_high_c`` [C] the zones' backup-thermostat limits (:class:`MultiZoneRCModel`'s)."""
-
-    n_members = 1
-    eta = 1.0
-    affine_in_plan = False
+    planner model (:class:`~pinn_mpc.models.lagged_zones.LaggedZoneModel`: ``identified``,
+    ``actuators``, ``dt_s``, ``solar_inputs``, ``uses_gains``, ``training`` and the backup
+    limits as it takes them) and a fitted model (:class:`~pinn_mpc.models.rollout.FittedModel`,
+    family ``nets.arch``): ``nets`` and ``physics`` the trained modules, ``scaling`` their
+    inputs' scaling. ``identified`` is also the physics' start."""
 
     def __init__(
         self,
@@ -426,76 +421,27 @@ class MultiZonePaperModel(BatchDynamics):
         identified: MultiZoneIdentifyResult,
         actuators: Sequence[ActuatorSpec],
         dt_s: float,
-        solar_inputs: Sequence[str | None],
-        uses_gains: bool,
-        training: dict[str, Any],
-        backup_low_c: float | tuple[float, ...] = 17.0,
-        backup_high_c: float | tuple[float, ...] = 20.5,
+        **layout: Any,
     ) -> None:
-        params = identified.params
-        self.config = MultiZoneConfig(
-            params=params, actuators=tuple(actuators), dt_s=dt_s, substep_s=dt_s,
-            backup_low_c=backup_low_c, backup_high_c=backup_high_c,
-        )
-        z_n = params.n_zones
-        if len(solar_inputs) != z_n or not all(s is None or s in EXOGENOUS_NAMES for s in solar_inputs):
-            raise ValueError(f"MultiZonePaperModel.solar_inputs: give each of the {z_n} zones an irradiance name or None")
+        super().__init__(identified, actuators, dt_s, **layout)
+        z_n = identified.params.n_zones
         if physics.n_zones != z_n or len(scaling.heat_scale_w) != z_n:
             raise ValueError(
                 f"MultiZonePaperModel: physics of {physics.n_zones} zone(s) and scaling of {len(scaling.heat_scale_w)} "
                 f"for a building of {z_n}"
             )
-        self.nets, self.physics, self.scaling, self.identified = nets.eval(), physics.eval(), scaling, identified
-        self.solar_inputs, self.uses_gains, self.training = tuple(solar_inputs), bool(uses_gains), dict(training)
-        low, high = self.config.backup_limits_c
-        zone = np.array([a.zone for a in self.config.actuators])
-        self._zone_of = torch.as_tensor(zone)
-        self._heats = torch.tensor([a.heats for a in self.config.actuators])
-        self._low_c = torch.as_tensor(low[zone])
-        self._high_c = torch.as_tensor(high[zone])
-        self._onto = torch.zeros(len(zone), z_n, dtype=torch.float64)  # actuator -> its zone, signed
-        for i, a in enumerate(self.config.actuators):
+        self.nets, self.physics, self.scaling = nets.eval(), physics.eval(), scaling
+        self._onto = torch.zeros(len(self.actuators), z_n, dtype=torch.float64)  # actuator -> its zone, signed
+        for i, a in enumerate(self.actuators):
             self._onto[i, a.zone] = a.sign
 
-    # -- what it is ------------------------------------------------------------------------
     @property
     def family(self) -> str:
         return self.nets.arch
 
     @property
-    def identified_rc(self) -> dict[str, Any] | None:
-        """None: its RC is :attr:`identified` (and the learned one, :meth:`learned_rc`)."""
-        return None
-
-    @property
-    def training_data(self) -> dict[str, Any]:
-        return self.training
-
-    @property
-    def dt_s(self) -> float:
-        return self.config.dt_s
-
-    @property
     def depth(self) -> int:
         return self.nets.depth
-
-    @property
-    def actuators(self) -> tuple[ActuatorSpec, ...]:
-        return self.config.actuators
-
-    @property
-    def zones(self) -> tuple[ZoneSpec, ...]:
-        return self.identified.params.zone_specs
-
-    @property
-    def zone_params(self) -> MultiZoneParams | None:
-        return self.identified.params
-
-    @property
-    def exog_names(self) -> tuple[str, ...]:
-        """T_a, the zones' irradiance, I_g if it reads it, the clock and the calendar."""
-        solar = tuple(n for n in EXOGENOUS_NAMES if n in self.solar_inputs)
-        return ("T_a", *solar, *(("I_g",) if self.uses_gains else ()), "time_of_day_h", "day_of_week")
 
     def learned_rc(self) -> MultiZoneIdentifyResult:
         """The learned building: :attr:`identified` with each zone's R and C and the walls'
@@ -565,18 +511,9 @@ class MultiZonePaperModel(BatchDynamics):
         past intervals, the series of :attr:`exog_names` but the clock up to now (at least
         ``depth`` + 1 rows); ``exog`` (>= H,) per :attr:`exog_names` from now."""
         a_n, z_n, k = len(self.actuators), len(self.zones), self.depth
-        if u_w.dim() != 3 or u_w.shape[2] != a_n:
-            raise ValueError(
-                f"MultiZonePaperModel.rollout: u_w must be (N, H, {a_n}), one demand per actuator "
-                f"({', '.join(a.name or str(i) for i, a in enumerate(self.actuators))}), got {tuple(u_w.shape)}"
-            )
+        plan = self.plan_bounds(u_w)
         n, h, _ = u_w.shape
-        room_names = zone_columns("T_r", self.zones)
-        power_names = actuator_columns("u_phys", self.actuators)
-        weather = [x for x in self.exog_names if x not in ("time_of_day_h", "day_of_week")]
-        missing = [x for x in (*room_names, *power_names, *weather) if x not in history]
-        if missing:
-            raise InputError(f"{self.family} of several zones: the history lacks {', '.join(missing)}; give the building's observations")
+        room_names, power_names, weather = self.check_history(history)
         short = [x for x in (*room_names, *weather) if len(history[x]) < k + 1]
         short += [x for x in power_names if len(history[x]) < k]
         if short:
@@ -594,17 +531,11 @@ class MultiZonePaperModel(BatchDynamics):
         rooms = torch.as_tensor((rooms_now - s.t_mean_c) / s.t_std_k).expand(n, k + 1, z_n)
         heat = data.heat[:k].expand(n, k, z_n)
         gain_t = torch.as_tensor(gain[k:])
-        lower = torch.tensor([a.lower_w for a in self.actuators], dtype=torch.float64)
-        upper = torch.tensor([a.upper_w for a in self.actuators], dtype=torch.float64)
-        demand = torch.maximum(torch.minimum(u_w.detach().to(torch.float64), upper), lower)
         step = self._stepper()
         out, masses, powers = [], [], []
         with torch.no_grad():
             for j in range(h):
-                t = rooms[:, -1][:, self._zone_of] * s.t_std_k + s.t_mean_c  # (N, A) each actuator's zone now
-                cold, warm = t < self._low_c, t > self._high_c
-                on, off = torch.where(self._heats, cold, warm), torch.where(self._heats, warm, cold)
-                p = torch.where(on, upper, torch.where(off, lower, demand[:, j]))
+                p = self.delivered_w(rooms[:, -1] * s.t_std_k + s.t_mean_c, plan, j)
                 heat = torch.cat([heat, ((p * gain_t[j]) @ self._onto / scale)[:, None]], dim=1)
                 rows = torch.arange(j, j + k + 1)
                 nxt, t_m = step(rooms, heat, data.exog[rows].expand(n, k + 1, z_n, N_EXOG), data.clock[k + j].expand(n, N_CLOCK))
