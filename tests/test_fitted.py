@@ -22,23 +22,30 @@ TINY = TrainConfig(n_seeds=1, epochs=1, depth=4)
 
 def test_every_family_train_fits_has_one_format():
     """Each name ``train --arch`` takes is held by exactly one format of one zone's data
-    (and the hybrid and the physics-informed ARX by one of several zones' too), and ``auto``'s
-    output may be any of them."""
+    (and the hybrid, the physics-informed ARX and the paper's two physics-informed networks by
+    one of several zones' too), and ``auto``'s output may be any of them."""
     for arch in MODEL_CHOICES:
         assert sum(arch in fmt.families for fmt in FORMATS if not fmt.zones) == 1, arch
         assert output_layout(arch).markers
-    for arch, marker in (("hybrid", "multizone.json"), ("parx", "multizone_arx.json")):
+    zoned = (
+        ("hybrid", "multizone.json"), ("parx", "multizone_arx.json"), ("physnet", "multizone_paper.json"),
+        ("physreg", "multizone_paper.json"),
+    )
+    for arch, marker in zoned:
         assert [fmt.marker for fmt in FORMATS if fmt.zones and arch in fmt.families] == [marker]
         assert output_layout(arch, zones=True).markers == (marker,)
     assert output_layout(AUTO).markers == ()
-    assert set(output_layout(AUTO).files) == {WEIGHTS, META, ARX_FILE, "multizone.json", "multizone_arx.json"}
+    assert set(output_layout(AUTO).files) == {
+        WEIGHTS, META, ARX_FILE, "multizone.json", "multizone_arx.json", "multizone_paper.json",
+    }
 
 
 def test_a_directory_of_no_model_or_of_two_is_refused_saying_what_it_holds(tmp_path):
     empty = tmp_path / "empty"
     empty.mkdir()
     assert not holds_model(empty)
-    with pytest.raises(ModelFileError, match=rf"has no {META} \(a network's\) or {ARX_FILE} \(an ARX's\) or multizone.json \(a multi-zone hybrid's\) or multizone_arx.json \(a multi-zone ARX's\); it is not a saved model"):
+    with pytest.raises(ModelFileError, match=rf"has no {META} \(a network's\) or {ARX_FILE} \(an ARX's\) or multizone.json \(a multi-zone hybrid's\) or multizone_arx.json \(a multi-zone ARX's\) "
+                       rf"or multizone_paper.json \(a multi-zone paper network's\); it is not a saved model"):
         load(empty)
     with pytest.raises(ModelFileError, match="does not exist; train one"):
         load(tmp_path / "nowhere")

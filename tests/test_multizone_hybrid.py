@@ -192,8 +192,8 @@ def test_a_saved_model_loads_to_the_same_predictions_and_refuses_a_tampered_file
 @pytest.mark.parametrize(
     ("argv", "message"),
     [
-        (["train", "--arch", "physnet", "--scenario", "two_zone_house"],
-         "train --arch physnet: on a building of several zones train fits the hybrid"),
+        (["train", "--arch", "mlp", "--scenario", "two_zone_house"],
+         "train --arch mlp: on a building of several zones train fits the hybrid"),
         (["train", "--seeds", "3", "--scenario", "two_zone_house"], "train: --seeds set a network ensemble's training"),
         (["train", "--scenario", "winter_household"], "--scenario winter_household: its zones (room) are not the data's"),
         (["closed-loop", "--scenario", "shoulder_office", "--controller", "cem"],

@@ -261,15 +261,16 @@ def zone_residuals(
     physics: ZonePhysics, dt_s: float, *, rooms_c: torch.Tensor, masses_c: torch.Tensor, inputs: torch.Tensor
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """The exact-ZOH residuals of the learned building over consecutive rows [K]: ``rooms_c``
-    (T, Z) measured rooms, ``masses_c`` (T, Z) the networks' masses [C], ``inputs`` (T, 2Z + 1)
-    (:meth:`ZonePhysics.heat_inputs`) of each row's interval. Returns (T-1, Z) each measured
-    room minus the room the building gives from the row before (its measured rooms, predicted
-    masses), and (T-1, Z) each predicted mass minus the building's."""
+    (T, ..., Z) measured rooms, ``masses_c`` (T, ..., Z) the networks' masses [C], ``inputs``
+    (T, ..., 2Z + 1) (:meth:`ZonePhysics.heat_inputs`) of each row's interval, the rows along
+    the first axis (any batch axes after it). Returns (T-1, ..., Z) each measured room minus the
+    room the building gives from the row before (its measured room, predicted mass), and
+    (T-1, ..., Z) each predicted mass minus the building's."""
     ad, bd = physics.discretised(dt_s)
-    x = torch.cat([rooms_c, masses_c], dim=1).to(torch.float64)
+    x = torch.cat([rooms_c, masses_c], dim=-1).to(torch.float64)
     nxt = x[:-1] @ ad.T + inputs[:-1].to(torch.float64) @ bd.T
-    z_n = rooms_c.shape[1]
-    return rooms_c[1:] - nxt[:, :z_n], masses_c[1:] - nxt[:, z_n:]
+    z_n = rooms_c.shape[-1]
+    return rooms_c[1:] - nxt[..., :z_n], masses_c[1:] - nxt[..., z_n:]
 
 
 class ZoneNets(nn.Module):
@@ -347,15 +348,14 @@ class ZoneScaling:
 
 
 class _Series:
-    """A building's series for the networks, scaled: ``rooms`` (T, Z), ``heat`` (T, Z),
-    ``exog`` (T, Z, :data:`N_EXOG`) and ``clock`` (T, :data:`N_CLOCK`); and in physical units
-    the physics' ``inputs`` (T, 2Z + 1) (:meth:`ZonePhysics.heat_inputs`) where given."""
+    """A building's series for the networks, scaled, of ``dtype`` (the networks'): ``rooms``
+    (T, Z), ``heat`` (T, Z), ``exog`` (T, Z, :data:`N_EXOG`) and ``clock`` (T, :data:`N_CLOCK`)."""
 
     def __init__(
         self, s: ZoneScaling, *, rooms_c: np.ndarray, heat_w: np.ndarray, t_a_c: np.ndarray, sun: np.ndarray,
-        gains_w: np.ndarray, tod_h: np.ndarray, day: np.ndarray,
+        gains_w: np.ndarray, tod_h: np.ndarray, day: np.ndarray, dtype: torch.dtype = torch.float32,
     ) -> None:
-        f64 = torch.float64
+        f64 = dtype
         self.rooms = torch.as_tensor((rooms_c - s.t_mean_c) / s.t_std_k, dtype=f64)
         self.heat = torch.as_tensor(heat_w / np.asarray(s.heat_scale_w), dtype=f64)
         t_a = np.broadcast_to(((t_a_c - s.t_mean_c) / s.t_std_k)[:, None], sun.shape)
@@ -386,7 +386,7 @@ class _Stepper:
         ], dim=-1)
         increment, t_m = self.nets(x)
         now = rooms[:, -1]
-        walls = self.physics.coupling_k(now * self.t_std, self.dt_s) / self.t_std  # differences: no offset
+        walls = self.physics.coupling_k(now.double() * self.t_std, self.dt_s).to(now.dtype) / self.t_std  # differences
         return now + increment.T * self.ratio + walls, t_m.T
 
 
@@ -484,6 +484,7 @@ class MultiZonePaperModel(LaggedZoneModel):
         return _Series(
             self.scaling, rooms_c=np.zeros_like(sun), heat_w=heat_w, t_a_c=t_a, sun=sun, gains_w=gains,
             tod_h=np.asarray(series["time_of_day_h"], dtype=float), day=np.asarray(series["day_of_week"], dtype=float),
+            dtype=next(self.nets.parameters()).dtype,
         )
 
     def predict_paths(self, frame: pd.DataFrame, starts: np.ndarray, horizon: int) -> np.ndarray:
@@ -496,10 +497,10 @@ class MultiZonePaperModel(LaggedZoneModel):
             raise ValueError(f"MultiZonePaperModel.predict_paths: starts must lie in {self.depth} .. {len(frame) - 1 - horizon}")
         rooms, heat_w, series = _frame_arrays(frame, self.zones, self.actuators, self.exog_names)
         data = self._series(series, heat_w)
-        data.rooms = torch.as_tensor((rooms - self.scaling.t_mean_c) / self.scaling.t_std_k)
+        data.rooms = torch.as_tensor((rooms - self.scaling.t_mean_c) / self.scaling.t_std_k, dtype=data.heat.dtype)
         with torch.no_grad():
             paths = _rollout_data(self._stepper(), data, torch.as_tensor(starts), horizon, self.depth)
-        return paths.numpy() * self.scaling.t_std_k + self.scaling.t_mean_c
+        return paths.double().numpy() * self.scaling.t_std_k + self.scaling.t_mean_c
 
     def rollout(
         self, history: dict[str, np.ndarray], u_w: torch.Tensor, exog: dict[str, np.ndarray]
@@ -528,7 +529,8 @@ class MultiZonePaperModel(LaggedZoneModel):
         s = self.scaling
         scale = torch.as_tensor(s.heat_scale_w)
         rooms_now = np.stack([np.asarray(history[x], dtype=float)[-k - 1 :] for x in room_names], axis=1)
-        rooms = torch.as_tensor((rooms_now - s.t_mean_c) / s.t_std_k).expand(n, k + 1, z_n)
+        dtype = data.heat.dtype  # the networks'
+        rooms = torch.as_tensor((rooms_now - s.t_mean_c) / s.t_std_k, dtype=dtype).expand(n, k + 1, z_n)
         heat = data.heat[:k].expand(n, k, z_n)
         gain_t = torch.as_tensor(gain[k:])
         step = self._stepper()
@@ -536,7 +538,7 @@ class MultiZonePaperModel(LaggedZoneModel):
         with torch.no_grad():
             for j in range(h):
                 p = self.delivered_w(rooms[:, -1] * s.t_std_k + s.t_mean_c, plan, j)
-                heat = torch.cat([heat, ((p * gain_t[j]) @ self._onto / scale)[:, None]], dim=1)
+                heat = torch.cat([heat, ((p * gain_t[j]) @ self._onto / scale).to(dtype)[:, None]], dim=1)
                 rows = torch.arange(j, j + k + 1)
                 nxt, t_m = step(rooms, heat, data.exog[rows].expand(n, k + 1, z_n, N_EXOG), data.clock[k + j].expand(n, N_CLOCK))
                 rooms = torch.cat([rooms[:, 1:], nxt[:, None]], dim=1)
@@ -544,8 +546,8 @@ class MultiZonePaperModel(LaggedZoneModel):
                 out.append(nxt)
                 masses.append(t_m)
                 powers.append(p.sum(dim=1))
-        t_r = torch.stack(out, dim=1) * s.t_std_k + s.t_mean_c
-        t_m_c = torch.stack(masses, dim=1) * s.t_std_k + s.t_mean_c
+        t_r = torch.stack(out, dim=1).double() * s.t_std_k + s.t_mean_c
+        t_m_c = torch.stack(masses, dim=1).double() * s.t_std_k + s.t_mean_c
         return Rollout(t_r[None], torch.stack(powers, dim=1)[None], t_m_c[None])
 
     # -- on disk ---------------------------------------------------------------------------
@@ -660,13 +662,12 @@ def fit_multizone_paper(
     )
     z_n = len(zones)
     physics = ZonePhysics(identified.params, _wall_pairs(z_n, adjacency))
-    nets = ZoneNets(arch, z_n, k, seed).double()
+    nets = ZoneNets(arch, z_n, k, seed)
     step = _Stepper(nets, physics, scaling, dt_s)
     rooms_t = torch.tensor(rooms_c)
     inputs = physics.heat_inputs(
         torch.tensor(heat_w), torch.tensor(series["T_a"]), torch.tensor(sun), torch.tensor(gains_w)
     ).detach()
-    windows = torch.arange(k, len(frame) - 1)  # every row with a full window (the physics residual's)
     offsets = torch.arange(-k, 1)
     generator = torch.Generator().manual_seed(seed)
     n_batches = math.ceil(len(starts) / settings.batch)
@@ -691,12 +692,14 @@ def fit_multizone_paper(
                 truth = data.rooms[batch[:, None] + torch.arange(1, h + 1)]
                 loss_reg = torch.mean((paths - truth) ** 2)
                 loss_phys = torch.zeros((), dtype=torch.float64)
-                if settings.lam > 0:
-                    rows = windows[:, None] + offsets
-                    _, t_m = step(data.rooms[rows], data.heat[rows], data.exog[rows], data.clock[windows])
+                if settings.lam > 0:  # on each rollout's first row and the next (a pair of consecutive rows)
+                    pair = torch.stack([batch, batch + 1], dim=1).reshape(-1)
+                    rows = pair[:, None] + offsets
+                    _, t_m = step(data.rooms[rows], data.heat[rows], data.exog[rows], data.clock[pair])
                     r_room, r_mass = zone_residuals(
-                        physics, dt_s, rooms_c=rooms_t[windows], masses_c=t_m * scaling.t_std_k + scaling.t_mean_c,
-                        inputs=inputs[windows],
+                        physics, dt_s, rooms_c=rooms_t[pair].reshape(-1, 2, z_n).transpose(0, 1),
+                        masses_c=(t_m.double() * scaling.t_std_k + scaling.t_mean_c).reshape(-1, 2, z_n).transpose(0, 1),
+                        inputs=inputs[pair].reshape(-1, 2, inputs.shape[1]).transpose(0, 1),
                     )
                     loss_phys = (torch.mean(r_room**2) + torch.mean(r_mass**2)) / scaling.t_std_k**2
                 for group in optimiser.param_groups:
@@ -780,7 +783,7 @@ def load_multizone_paper(path: str | os.PathLike[str]) -> MultiZonePaperModel:
     except (TypeError, ValueError, KeyError):
         raise InputError(f"{file}: physics.pairs must be pairs of zones and scaling its numbers; {again}") from None
     physics = ZonePhysics(identified.params, pair_list)
-    nets = ZoneNets(arch, z_n, depth, 0).double()
+    nets = ZoneNets(arch, z_n, depth, 0)
     _load_state(physics, raw_physics, file, "physics")
     _load_state(nets, data.get("networks"), file, "networks")
     training = data.get("training_data", {})
