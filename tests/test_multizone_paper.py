@@ -224,3 +224,35 @@ def test_trained_on_a_week_of_the_two_zone_house_it_predicts_the_next_day() -> N
         assert isinstance(model, MultiZonePaperModel)
         error = float(np.mean(np.abs(model.predict_paths(data, starts, h) - truth)))
         assert error < 0.6, (arch, error)
+
+
+@pytest.mark.slow
+def test_train_physreg_on_the_house_exports_its_learned_rc_and_cem_plans_over_it(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``train --arch physreg`` on the two-zone house's data writes the paper network's file;
+    ``export-rc`` writes the learned building (its wall's conductance with its unit), which
+    reads back as a multi-zone RC file; ``closed-loop --controller cem --model`` plans over it
+    for a day without falling back."""
+    from pinn_mpc.data import write_timeseries
+    from pinn_mpc_cli.cli import main
+    from scenarios import get_scenario
+    from scenarios.running.datagen import generate
+
+    data = tmp_path / "house.csv"
+    write_timeseries(generate(get_scenario("two_zone_house"), days=8, seed=0, policy="random-level"), data)
+    model = tmp_path / "model"
+    assert main(["train", "--data", str(data), "--scenario", "two_zone_house", "--arch", "physreg", "--out", str(model)]) == 0
+    assert "the physreg of 2 zones (south, north; learned walls south-north" in capsys.readouterr().out
+    assert (model / MULTIZONE_PAPER_FILE).is_file()
+    rc = tmp_path / "rc.json"
+    assert main(["export-rc", "--model", str(model), "--out", str(rc)]) == 0
+    assert "south-north U=" in capsys.readouterr().out
+    learned = MultiZoneIdentifyResult.from_json(rc.read_text(), source=str(rc))
+    assert learned.params.walls[0, 1] == pytest.approx(load_multizone_paper(model).physics.conductances()[0, 1].item())
+    kpis = tmp_path / "cem.json"
+    argv = ["closed-loop", "--scenario", "two_zone_house", "--controller", "cem", "--model", str(model),
+            "--days", "1", "--json", str(kpis)]
+    assert main(argv) == 0, capsys.readouterr().err
+    result = json.loads(kpis.read_text())
+    assert result["fallbacks"] == 0 and set(result["zones"]) == {"south", "north"}
