@@ -119,9 +119,9 @@ class PaperZoneTraining:
     cosine to ``lr_final`` (the physics' parameters at ``physics_lr_factor`` times it), the
     physics residual weighted ``lam`` (the paper's lambda), ``depth`` history rows."""
 
-    epochs: int = 60
+    epochs: int = 150
     horizon: int = 24
-    batch: int = 64
+    batch: int = 32
     learning_rate: float = 1e-2
     lr_final: float = 1e-4
     physics_lr_factor: float = 1.0
