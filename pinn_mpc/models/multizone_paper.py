@@ -24,9 +24,10 @@ Training (:func:`fit_multizone_paper`) minimises the paper's loss, ``L_reg + lam
 on all zones at once: ``L_reg`` the mean squared error of the rooms [scaled] over rollouts of
 ``horizon`` intervals from every row (the recursion the planner runs, on the data's delivered
 heat and weather), ``L_phys`` the exact-ZOH residuals of the learned multi-zone 2R2C on the
-networks' ``T_m`` of consecutive rows (:func:`zone_residuals`: every room from the measured
-rooms and predicted masses, every mass one row on), divided by the temperature scale squared,
-as :func:`pinn_mpc.models.physics_block.residual_exact` does for one zone. The one-zone loop
+networks' ``T_m`` of each rollout's first two rows, the windows measured
+(:func:`zone_residuals`: every room from the measured rooms and predicted masses, every mass
+one row on), divided by the temperature scale squared, as
+:func:`pinn_mpc.models.physics_block.residual_exact` does for one zone. The one-zone loop
 (:func:`pinn_mpc.training.train_model`) draws mini-batches of one zone's feature windows for an
 ensemble of one architecture's :class:`~pinn_mpc.models.learned.EnsembleModule`; these networks
 read Z zones' windows whose power is a plan of A actuators, so they have their own short loop
@@ -47,6 +48,7 @@ all of it; loading it checks every shape and number and the checksum, and runs n
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
 import math
@@ -242,8 +244,6 @@ class ZonePhysics(nn.Module):
 
     def learned(self, base: MultiZoneParams) -> MultiZoneParams:
         """``base`` with each zone's R and C and the walls' conductances this block's."""
-        import dataclasses
-
         with torch.no_grad():
             c_r, c_m = self.log_c_r.exp().tolist(), self.log_c_m.exp().tolist()
             r_ra, r_rm = (1.0 / self.log_h_ra.exp()).tolist(), (1.0 / self.log_h_rm.exp()).tolist()
