@@ -18,6 +18,7 @@ from __future__ import annotations
 import argparse
 import os
 import time
+from typing import Any
 
 import numpy as np
 
@@ -30,14 +31,13 @@ from scenarios.running.datagen import generate
 
 
 def main() -> None:
-    from pinn_mpc.models.multizone_arx import fit_multizone_arx
+    from pinn_mpc.models.multizone_arx import MultiZoneARX, fit_multizone_arx
     from pinn_mpc.models.multizone_hybrid import (
         MultiZoneHybrid,
         fit_multizone_hybrid,
         held_out_error_c,
     )
-    from pinn_mpc.models.multizone_paper import fit_multizone_paper
-    from pinn_mpc.models.rollout import FittedModel
+    from pinn_mpc.models.multizone_paper import MultiZonePaperModel, fit_multizone_paper
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scenario", default="two_zone_house")
@@ -55,7 +55,7 @@ def main() -> None:
     truth = rooms[starts[:, None] + np.arange(1, horizon + 1)]
     print(f"{a.scenario} {a.days} d seed {a.seed}: fitted on {cut} rows, {len(starts)} starts x {horizon} steps held out")
     spec = scenario.control_spec()
-    layout = {
+    layout: dict[str, Any] = {
         "zones": spec.zones, "actuators": spec.actuators, "solar_inputs": zone_solar_inputs(scenario),
         "dt_s": scenario.sim.dt_s, "adjacency": scenario.plant.settings.zone_adjacency,
     }
@@ -65,7 +65,7 @@ def main() -> None:
     print(f"the RC identified once for all in {time.perf_counter() - began:.1f} s (each fit's time below is without it)")
     for arch in a.archs:
         began = time.perf_counter()
-        model: FittedModel
+        model: MultiZoneHybrid | MultiZoneARX | MultiZonePaperModel
         if arch == "hybrid":  # identifies again: its time includes the identification
             model = fit_multizone_hybrid(fitted, seed=a.seed, **layout)
         elif arch == "parx":
@@ -77,7 +77,7 @@ def main() -> None:
             per_zone = [float("nan")] * rooms.shape[1]
             error = held_out_error_c(model, data, starts, horizon)
         else:
-            paths = model.predict_paths(data, starts, horizon)  # type: ignore[attr-defined]
+            paths = model.predict_paths(data, starts, horizon)
             per_zone = list(np.mean(np.abs(paths - truth), axis=(0, 1)))
             error = float(np.mean(np.abs(paths - truth)))
         zones = " ".join(f"{v:.3f}" for v in per_zone)
