@@ -78,8 +78,7 @@ class LaggedZoneModel(BatchDynamics):
         zone = np.array([a.zone for a in self.config.actuators])
         self._zone_of = torch.as_tensor(zone)
         self._heats = torch.tensor([a.heats for a in self.config.actuators])
-        self._low_c = torch.as_tensor(low[zone], dtype=torch.float64)
-        self._high_c = torch.as_tensor(high[zone], dtype=torch.float64)
+        self._low_c, self._high_c = low[zone], high[zone]  # (A,) each actuator's zone's limits [C]
 
     @property
     def identified_rc(self) -> dict[str, Any] | None:
@@ -127,7 +126,8 @@ class LaggedZoneModel(BatchDynamics):
         """(N, A) each actuator's power [W] in interval ``step`` of ``plan``: its demand, or what
         its zone's backup thermostat forces at the rooms ``rooms_c`` (N, Z) [C] at its start."""
         t = rooms_c[:, self._zone_of]  # (N, A) each actuator's zone's room now
-        cold, warm = t < self._low_c, t > self._high_c
+        cold = t < torch.as_tensor(self._low_c, dtype=t.dtype)
+        warm = t > torch.as_tensor(self._high_c, dtype=t.dtype)
         force_on = torch.where(self._heats, cold, warm)
         force_off = torch.where(self._heats, warm, cold)
         return torch.where(force_on, plan.upper, torch.where(force_off, plan.lower, plan.demand[:, step]))
