@@ -259,6 +259,11 @@ def test_train_parx_plans_with_cem_and_exports_the_rc_it_carries(house_data: Pat
     rc = tmp_path / "rc.json"
     assert main(["export-rc", "--model", str(out), "--out", str(rc)]) == 0
     assert MultiZoneIdentifyResult.from_json(rc.read_text(), source=str(rc)).to_json() == model.identified.to_json()
+    metrics = tmp_path / "metrics.json"
+    assert main(["evaluate", "--model", str(out), "--data", str(house_data), "--horizons", "1,12", "--json", str(metrics)]) == 0
+    errors = json.loads(metrics.read_text())
+    for zone in ("south", "north"):  # the ARX of the RC house predicts half a day ahead better than persistence
+        assert errors["horizons"]["12"]["zones"][zone] < errors["persistence"]["horizons"]["12"]["zones"][zone]
     kpis = tmp_path / "cem.json"
     argv = ["closed-loop", "--scenario", "two_zone_house", "--controller", "cem", "--model", str(out), "--days", "1",
             "--json", str(kpis)]
