@@ -18,20 +18,23 @@ The price of heat (``price / g``) is a parameter; the drift, band and the heats'
 ``qpsol`` function is built once (and again on ``reset``) and each solve warm-starts from the
 last solution and multipliers shifted one step.
 
-Why the sparse form and OSQP (``plugin="osqp"``, the default): the ZOH's ``Ad`` is dense, so
-the condensed form (states eliminated, as the one-zone :mod:`controllers.rc_mpc.casadi`) holds
-``H (H + 1) / 2`` dense ``Z x A`` blocks; qpOASES, the one-zone default, is a dense active-set
-solver whose work grows with the square of the decisions (H (A + Z)) and with the active-set
-changes, which grow with them: measured on the benchmark's building it is already some hundred
-times slower than OSQP at 5 zones and H = 48, and unusable on the medium office (H = 96,
-A = 30). Its sparse mode needs the HSL linear solvers, which are not shipped. OSQP on the
-sparse form factorises once per ``rho`` and its iterations follow the matrix's entries, as
-qp-mpc's does (:mod:`controllers.rc_mpc.multizone`), and with qp-mpc's settings
-(:data:`controllers.rc_mpc.osqp.OSQP_OPTIONS`) it solves in about qp-mpc's time.
-``plugin="qrqp"`` (CasADi's own active-set solver, sparse) solves to the exact optimum but is
-many times slower; it is the cross-check. The expressions are CasADi's ``MX`` (matrix
-operations): the scalar ``SX`` graph of the same problem took seconds to differentiate at 15
-zones. ``benchmarks/bench_multizone_mpc.py`` measures the decision time beside qp-mpc's.
+Why the sparse form and OSQP: the ZOH's ``Ad`` is dense, so the condensed form (states
+eliminated, as the one-zone :mod:`controllers.rc_mpc.casadi`) holds ``H (H + 1) / 2`` dense
+``Z x A`` blocks; qpOASES, the one-zone plugin, is a dense active-set solver whose work grows
+with the square of the decisions (H (A + Z)) and with the active-set changes, which grow with
+them: measured on the benchmark's building it is already about a hundred times slower than
+OSQP at 5 zones and H = 48, and unusable on the medium office (H = 96, A = 30); its sparse
+mode needs the HSL linear solvers, which CasADi does not ship. qrqp, CasADi's sparse
+active-set solver, was slower still from a cold start and reported success at plans well
+above the optimum (on the two-zone case of ``tests/test_multizone_casadi.py`` an objective a
+quarter above OSQP's and qp-mpc's). OSQP on the sparse form factorises once per ``rho`` and
+its iterations follow the matrix's entries, as qp-mpc's (:mod:`controllers.rc_mpc.multizone`);
+with qp-mpc's settings (:data:`controllers.rc_mpc.osqp.OSQP_OPTIONS`) it finds qp-mpc's plans.
+CasADi hands OSQP the matrices again on every call (a factorisation each solve, where qp-mpc
+updates only the vectors), so it is slower than qp-mpc by about that factorisation. The
+expressions are CasADi's ``MX`` (matrix operations): the scalar ``SX`` graph of the same problem
+took seconds to differentiate at 15 zones. ``benchmarks/bench_multizone_mpc.py`` measures the
+decision time beside qp-mpc's.
 """
 
 from __future__ import annotations
@@ -43,45 +46,35 @@ import numpy as np
 
 from controllers.base import ControlSpec, raise_if_interrupted, solver_interrupts_held
 from controllers.estimators import StateEstimator
-from controllers.rc_mpc.casadi import PLUGIN_OPTIONS
 from controllers.rc_mpc.multizone import MultiZoneMPC, MultiZoneProblem, MultiZoneStage, ZoneSolver
 from controllers.rc_mpc.osqp import OSQP_OPTIONS
 from controllers.rc_mpc.qp import shift_steps
 from pinn_mpc.multizone import MultiZoneParams
 
-__all__ = ["ZONE_PLUGIN_OPTIONS", "MultiZoneCasadiMPC", "ZonesCasadi"]
+__all__ = ["CASADI_OSQP_OPTIONS", "MultiZoneCasadiMPC", "ZonesCasadi"]
 
-#: The ``qpsol`` plugins of :class:`ZonesCasadi` and their defaults: OSQP with qp-mpc's
-#: settings (:data:`controllers.rc_mpc.osqp.OSQP_OPTIONS`, under the names of the OSQP CasADi
-#: ships) warm-started on the primal and the dual, and qrqp silenced.
-ZONE_PLUGIN_OPTIONS: dict[str, dict[str, Any]] = {
-    "osqp": {
-        "osqp": {("polish" if key == "polishing" else key): value for key, value in OSQP_OPTIONS.items()},
-        "warm_start_primal": True,
-        "warm_start_dual": True,
-    },
-    "qrqp": PLUGIN_OPTIONS["qrqp"],
+#: The options of CasADi's ``qpsol`` OSQP plugin: qp-mpc's settings
+#: (:data:`controllers.rc_mpc.osqp.OSQP_OPTIONS`, under the names of the OSQP CasADi ships),
+#: warm-started on the primal and the dual.
+CASADI_OSQP_OPTIONS: dict[str, Any] = {
+    "osqp": {("polish" if key == "polishing" else key): value for key, value in OSQP_OPTIONS.items()},
+    "warm_start_primal": True,
+    "warm_start_dual": True,
 }
 
 
 class ZonesCasadi:
-    """The problem of ``problem`` in CasADi (module docstring) and its ``qpsol`` solver.
+    """The problem of ``problem`` in CasADi (module docstring) and its ``qpsol`` OSQP solver.
 
     Variables, block after block, each time-major: the heats ``q[j, a]`` [kW] (H A), the
     slacks ``s[j, z]`` [K] (H Z), the states ``x[j]`` at the end of step j [C] (H 2Z).
     Constraints: the dynamics (H 2Z), each zone's band from below and from above (H Z each).
-    ``plugin`` is one of :data:`ZONE_PLUGIN_OPTIONS`; ``solver_options`` update its defaults,
-    a dict value merging into the default's (e.g. ``{"osqp": {"max_iter": 1}}`` stops OSQP
-    before it converges)."""
+    ``solver_options`` update :data:`CASADI_OSQP_OPTIONS`, a dict value merging into the
+    default's (``{"osqp": {"max_iter": 1}}`` stops OSQP before it converges)."""
 
-    def __init__(self, problem: MultiZoneProblem, plugin: str, solver_options: dict[str, Any]) -> None:
-        if plugin not in ZONE_PLUGIN_OPTIONS or not ca.has_conic(plugin):
-            raise ValueError(
-                f"MultiZoneCasadiMPC.plugin = {plugin!r} is not available; use one of "
-                f"{[p for p in ZONE_PLUGIN_OPTIONS if ca.has_conic(p)]}"
-            )
-        self.problem, self.plugin = problem, plugin
-        options = dict(ZONE_PLUGIN_OPTIONS[plugin])
+    def __init__(self, problem: MultiZoneProblem, solver_options: dict[str, Any]) -> None:
+        self.problem = problem
+        options = dict(CASADI_OSQP_OPTIONS)
         for key, value in solver_options.items():
             options[key] = {**options.get(key, {}), **value} if isinstance(value, dict) else value
         options["error_on_fail"] = False
@@ -141,14 +134,14 @@ class ZonesCasadi:
 
     def reset(self) -> None:
         """A fresh solver (OSQP keeps its state inside the CasADi function) and no warm start."""
-        self._solver = ca.qpsol("casadi_zones", self.plugin, self._qp, self.options)
+        self._solver = ca.qpsol("casadi_zones", "osqp", self._qp, self.options)
         self._warm: dict[str, np.ndarray] = {}
         self.last_x = np.full(self.n_variables, np.nan)
 
     def solve(self, stage: MultiZoneStage) -> tuple[np.ndarray, str, int]:
         """Solve from the last solution shifted one step; returns the heats (H, A) [kW] (NaN
-        unless solved), ``"solved"`` or the solver's status, and its iterations (0 where the
-        plugin does not count them)."""
+        unless solved), ``"solved"`` or OSQP's status, and its iterations (0: CasADi's OSQP
+        plugin does not report them)."""
         args = {**self.arguments(stage), **self._warm}
         with solver_interrupts_held():
             sol = self._solver(**args)
@@ -180,10 +173,10 @@ class ZonesCasadi:
 
 class MultiZoneCasadiMPC(MultiZoneMPC):
     """``casadi-mpc`` of a multi-zone building: :class:`MultiZoneMPC` solving its problem with
-    ``casadi.qpsol`` (module docstring). ``plugin`` is one of :data:`ZONE_PLUGIN_OPTIONS`
-    (``"osqp"`` by default); ``solver_options`` update its defaults (:class:`ZonesCasadi`;
-    ``{"osqp": {"max_iter": 1}}`` stops OSQP before it converges, which exercises the
-    fallback); the other keywords are :class:`MultiZoneMPC`'s."""
+    ``casadi.qpsol`` (module docstring, :class:`ZonesCasadi`). The keywords are
+    :class:`MultiZoneMPC`'s, but ``solver_options`` update :data:`CASADI_OSQP_OPTIONS`
+    (``{"osqp": {"max_iter": 1}}`` stops OSQP before it converges, which exercises the
+    fallback) and ``name`` is ``"casadi-mpc"`` unless given."""
 
     def __init__(
         self,
@@ -192,12 +185,10 @@ class MultiZoneCasadiMPC(MultiZoneMPC):
         *,
         estimator: str | StateEstimator = "kalman",
         name: str = "casadi-mpc",
-        plugin: str = "osqp",
         **options: Any,
     ) -> None:
-        self.plugin = plugin
         super().__init__(params, spec, estimator=estimator, name=name, **options)
 
     def _new_solver(self, solver_options: dict[str, Any] | None) -> ZoneSolver:
         self.solver_options = dict(solver_options or {})
-        return ZonesCasadi(self.problem, self.plugin, self.solver_options)
+        return ZonesCasadi(self.problem, self.solver_options)
