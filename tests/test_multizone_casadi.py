@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import dataclasses
 import json
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 import pytest
@@ -19,11 +21,11 @@ from controllers.rc_mpc.multizone import MultiZoneMPC
 from controllers.rc_mpc.multizone_casadi import MultiZoneCasadiMPC, ZonesCasadi
 from controllers.rc_mpc.references import oracle_multizone
 from pinn_mpc.actuator import ActuatorSpec
-from pinn_mpc_cli.cli import main
 from pinn_mpc.errors import InputError
 from pinn_mpc.multizone import MultiZoneParams, ZoneRC
 from pinn_mpc.physics import PAPER_HOUSEHOLD
 from pinn_mpc.zones import ONE_ZONE
+from pinn_mpc_cli.cli import main
 from scenarios import get_scenario, run_closed_loop
 from scenarios.running.factory import build_controller
 from tests.test_multizone_mpc import (
@@ -56,7 +58,8 @@ def _two_heated_zones() -> tuple[MultiZoneParams, ControlSpec]:
     )
 
 
-CASES = {
+#: Each case: the building, its weather (:func:`_day`'s keywords), the rooms and the masses [C].
+CASES: dict[str, tuple[Callable[[], tuple[MultiZoneParams, ControlSpec]], dict[str, Any], tuple[float, ...], tuple[float, ...]]] = {
     "two-heated-zones": (_two_heated_zones, dict(t_a_mean=4.0), (19.5, 20.5), (19.0, 20.0)),
     "heat-and-cool-in-a-zone": (
         _two_zone_house, dict(t_a_mean=12.0, swing=9.0, sun=700.0), (20.5, 21.5), (20.0, 21.0)
