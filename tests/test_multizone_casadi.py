@@ -178,3 +178,18 @@ def test_cli_closed_loop_plans_the_house_on_a_multizone_rc_file(tmp_path, capsys
 def test_without_an_rc_file_the_zoned_casadi_mpc_asks_for_one() -> None:
     with pytest.raises(InputError, match=r"controller 'casadi-mpc' on a building of several zones plans on a multi-zone RC file"):
         build_controller("casadi-mpc", get_scenario("two_zone_house"), n_steps=48)
+
+
+def test_a_sweep_cell_plans_the_house_on_its_identified_multizone_rc() -> None:
+    from pinn_mpc.identify_multizone import MultiZoneIdentifyResult
+    from scenarios.experiments.sweep import Cell, SweepSettings, fit_model, run_cell
+
+    cell = Cell(scenario="two_zone_house", controller="casadi-mpc", seed=0, train_days=7)
+    settings = SweepSettings(test_days=1, quick=True)
+    assert cell.model is not None
+    model = fit_model(cell.model, settings)
+    assert isinstance(model, MultiZoneIdentifyResult)
+    result = run_cell(cell, settings, model)
+    assert result["errors"] == []
+    kpis = result["kpis"]
+    assert kpis["controller"] == "casadi-mpc" and kpis["fallbacks"] == 0 and set(kpis["zones"]) == {"south", "north"}
