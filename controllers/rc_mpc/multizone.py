@@ -49,6 +49,8 @@ Its ``act`` is three steps a fleet's coordination (:mod:`controllers.coordinatio
 apart: :meth:`MultiZoneMPC.observe` (the estimate, once a step), :meth:`MultiZoneMPC.plan` (under
 an extra price on the building's electrical energy, as often as the coordination asks) and
 :meth:`MultiZoneMPC.commit` (the plan applied, its first row possibly settled on the cap).
+``casadi-mpc`` (:mod:`controllers.rc_mpc.multizone_casadi`) is this controller with another
+solver of the same problem (:class:`ZoneSolver`).
 """
 
 from __future__ import annotations

@@ -49,6 +49,7 @@ from controllers.estimators import StateEstimator
 from controllers.rc_mpc.multizone import MultiZoneMPC, MultiZoneProblem, MultiZoneStage, ZoneSolver
 from controllers.rc_mpc.osqp import OSQP_OPTIONS
 from controllers.rc_mpc.qp import shift_steps
+from pinn_mpc.errors import InternalError
 from pinn_mpc.multizone import MultiZoneParams
 
 __all__ = ["CASADI_OSQP_OPTIONS", "MultiZoneCasadiMPC", "ZonesCasadi"]
@@ -84,6 +85,8 @@ class ZonesCasadi:
         self.per_step = (a_n, z_n, 2 * z_n)
         self.rows_per_step = (2 * z_n, z_n, z_n)
         self._qp = self._expressions()
+        self._solver: ca.Function | None = None
+        self._solved_since_reset = False
         self.reset()
 
     @property
@@ -133,8 +136,11 @@ class ZonesCasadi:
         }
 
     def reset(self) -> None:
-        """A fresh solver (OSQP keeps its state inside the CasADi function) and no warm start."""
-        self._solver = ca.qpsol("casadi_zones", "osqp", self._qp, self.options)
+        """A fresh solver (OSQP keeps its state inside the CasADi function; one that has not
+        solved yet is kept) and no warm start."""
+        if self._solver is None or self._solved_since_reset:
+            self._solver = ca.qpsol("casadi_zones", "osqp", self._qp, self.options)
+        self._solved_since_reset = False
         self._warm: dict[str, np.ndarray] = {}
         self.last_x = np.full(self.n_variables, np.nan)
 
@@ -143,6 +149,9 @@ class ZonesCasadi:
         unless solved), ``"solved"`` or OSQP's status, and its iterations (0: CasADi's OSQP
         plugin does not report them)."""
         args = {**self.arguments(stage), **self._warm}
+        if self._solver is None:
+            raise InternalError("ZonesCasadi.solve: no solver (reset() makes it)")
+        self._solved_since_reset = True
         with solver_interrupts_held():
             sol = self._solver(**args)
             # Every call into CasADi may hold its own SIGINT handler while it runs: all within.
