@@ -159,7 +159,7 @@ def zones_parser(doc: str) -> argparse.ArgumentParser:
     """The options of a benchmark over zone counts: ``--steps`` and ``--zones``."""
     parser = argparse.ArgumentParser(description=doc.splitlines()[0])
     parser.add_argument("--steps", type=int, default=96, help="decisions per building (default 96, two days)")
-    parser.add_argument("--zones", default="2,5,15", help="comma-separated zone counts")
+    parser.add_argument("--zones", default="2,5,12", help="comma-separated zone counts")
     return parser
 
 
@@ -176,6 +176,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--eps", type=float, default=None, help="OSQP eps_abs = eps_rel (default: OSQP_OPTIONS')")
     parser.add_argument("--horizon", type=int, default=48, help="horizon H [steps] (default 48)")
     parser.add_argument("--controllers", default="qp-mpc,casadi-mpc", help="comma-separated: qp-mpc, casadi-mpc")
+    parser.set_defaults(zones="2,5,15")
     args = parser.parse_args(argv)
 
     def row(z: int) -> str:
