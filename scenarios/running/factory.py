@@ -14,7 +14,8 @@ bounds. With a heat pump they plan on its COP curve at the forecast T_a (exact).
 On a building of several zones or actuators (:data:`ZONE_CONTROLLERS`): ``oracle`` is the QP
 MPC over zones x actuators on the true building and state; ``qp-mpc`` the same on a multi-zone
 RC file (``--rc``, :class:`pinn_mpc.identify_multizone.MultiZoneIdentifyResult`'s JSON) with a
-Kalman observer; ``cem`` and ``random-shooting`` plan over that file's building
+Kalman observer, and ``casadi-mpc`` that problem solved by ``casadi.qpsol``
+(:mod:`controllers.rc_mpc.multizone_casadi`); ``cem`` and ``random-shooting`` plan over that file's building
 (:class:`pinn_mpc.models.multizone_rc.MultiZoneRCModel`, with the scenario's backup limits) and
 fall back on its QP MPC, or over the model ``train --scenario`` fits (``--model``: the
 multi-zone hybrid or physics-informed ARX, with the scenario's backup limits) and fall back on
@@ -41,6 +42,7 @@ from scenarios.choices import (
     RC_CONTROLLERS,
     TRUTH_CONTROLLERS,
     ZONE_CONTROLLERS,
+    ZONE_RC_CONTROLLERS,
 )
 from scenarios.inputs.registry import Scenario
 
@@ -72,8 +74,6 @@ __all__ = [
 
 #: Ranges of the training data's inputs a planner watches (see controllers.trust).
 _WATCHED = ("T_a", "G")
-#: The controllers of a building of several zones that plan on a multi-zone RC file (``--rc``).
-_ZONE_RC_CONTROLLERS = ("qp-mpc", *MODEL_CONTROLLERS)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -437,9 +437,9 @@ def _zone_controller(
             f"({setting('rc_path')}, `pinn-mpc identify` on the scenario's data with its layout) or "
             f"the model `pinn-mpc train` fits on that data, given the scenario's layout, instead"
         )
-    if model is not None and name == "qp-mpc":
+    if model is not None and name in RC_CONTROLLERS:
         raise InputError(
-            f"qp-mpc plans on a multi-zone RC file ({setting('rc_path')}); write the model's with "
+            f"{name} plans on a multi-zone RC file ({setting('rc_path')}); write the model's with "
             "`pinn-mpc export-rc`, or plan over the model with cem or random-shooting"
         )
     if model is None and zone_params is None:
@@ -452,6 +452,10 @@ def _zone_controller(
         from controllers.rc_mpc.multizone import MultiZoneMPC
 
         return MultiZoneMPC(zone_params, spec, estimator="kalman")
+    if name == "casadi-mpc" and zone_params is not None:
+        from controllers.rc_mpc.multizone_casadi import MultiZoneCasadiMPC
+
+        return MultiZoneCasadiMPC(zone_params, spec, estimator="kalman")
     from controllers.estimators import observer_noise
     from controllers.sampling import CEM, RandomShooting
     from pinn_mpc.models.multizone_rc import MultiZoneRCModel
@@ -583,7 +587,7 @@ def make_controller(
             f"only {', '.join(MODEL_CONTROLLERS)} and qp-mpc (an ARX model) take it"
         )
     spec = scenario.control_spec()
-    takes_rc = RC_CONTROLLERS if spec.single else _ZONE_RC_CONTROLLERS
+    takes_rc = RC_CONTROLLERS if spec.single else ZONE_RC_CONTROLLERS
     if rc_path is not None and name not in takes_rc:
         also = "" if spec.single else " (a multi-zone RC file)"
         raise InputError(
