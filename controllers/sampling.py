@@ -25,8 +25,9 @@ Four defaults matter in closed loop (their measured effect, and what was tried i
 - CEM polishes its plan with one LP on the linearised model (:mod:`controllers.lp_polish`),
   which takes a plan the last few percent to the optimum of the model; random shooting does
   not by default (``polish_iters``), so it shows what sampling alone does.
-- CEM and random shooting plan against the comfort band narrowed by ``comfort_margin_k=0.01`` K
-  on each side (constraint tightening,
+- CEM and random shooting plan against the comfort band narrowed by ``comfort_margin_k`` (None:
+  :data:`ONE_ZONE_COMFORT_MARGIN_K`, 0.01 K; over several zones
+  :func:`controllers.zone_sampling.zone_comfort_margin_k`) on each side (constraint tightening,
   :meth:`controllers.objective.HorizonObjective.tightened`): a plan that rides a band edge
   exactly (the optimum does) and a model a few millikelvin off in closed loop would overshoot
   it at most intervals.

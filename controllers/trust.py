@@ -33,6 +33,11 @@ band's edges. With ``margin_from_replay`` the fallback RC MPC is held to the sam
 plans against the band narrowed by the RC's own filtered replay error
 (:meth:`TrustMonitor.fallback_margin_k`), for an RC that errs as much as the model it replaces
 otherwise rides the band's edge and the plant sits just outside it.
+
+Over a building of several zones (:mod:`controllers.zone_sampling`) the same monitor filters
+each zone's replay errors (:class:`ZoneTrust`: the model's against those of the multi-zone RC
+its QP fallback plans on, :class:`ZoneRCReplay`) and narrows each zone's band by its own; one
+more monitor holds the building's verdict.
 """
 
 from __future__ import annotations
@@ -322,10 +327,12 @@ class ZoneRCReplay(_Replay):
 class ZoneTrust:
     """The trust of a planner over a building of several zones in its model: one
     :class:`TrustMonitor` of each zone filters that zone's replay errors (the model's and the
-    fallback RC's) and gives its comfort margin (:meth:`TrustMonitor.margin_k`), one more
-    holds the building's verdict (:meth:`TrustMonitor.decide`: switches, recovery, counts).
-    The model is distrusted when any zone's monitor finds a reason (:meth:`reason`, which
-    names the zone)."""
+    fallback RC's) and gives its comfort margin (:meth:`TrustMonitor.margin_k`); one more, the
+    building's, filters the zones' mean absolute replay errors and holds the verdict
+    (:meth:`TrustMonitor.reason` on them, :meth:`TrustMonitor.decide`: switches, recovery,
+    counts). The verdict is the building's because the fallback QP takes every zone at once:
+    it pays where the model errs more than the RC over the building, not where the RC is
+    better in one zone for a few hours."""
 
     def __init__(self, settings: TrustSettings, zone_names: Sequence[str], u_range_w: float) -> None:
         self.settings, self.zone_names = settings, tuple(zone_names)
@@ -337,9 +344,13 @@ class ZoneTrust:
             monitor.reset()
 
     def observe(self, replay_k: np.ndarray, replay_rc_k: np.ndarray) -> None:
-        """Each zone's replay error (Z,) [K] of the model and of the RC (NaN: not known)."""
+        """Each zone's replay error (Z,) [K] of the model and of the RC (NaN: not known; the
+        building's mean only when every zone's is known)."""
         for monitor, model, rc in zip(self.zones, replay_k, replay_rc_k, strict=True):
             monitor.observe(math.nan, math.nan, float(model), float(rc))
+        self.building.observe(
+            math.nan, math.nan, float(np.mean(np.abs(replay_k))), float(np.mean(np.abs(replay_rc_k)))
+        )
 
     def margins_k(self, base_k: float) -> np.ndarray:
         """(Z,) each zone's comfort margin [K]: ``margin_factor`` times its filtered replay
@@ -347,13 +358,13 @@ class ZoneTrust:
         return np.array([monitor.margin_k(base_k) for monitor in self.zones])
 
     def reason(self) -> str | None:
-        """Why the model is not to be trusted now, with the first zone that says so (None when
-        it is)."""
-        for name, monitor in zip(self.zone_names, self.zones, strict=True):
-            reason = monitor.reason()
-            if reason is not None:
-                return f"{reason} in {name}"
-        return None
+        """Why the model is not to be trusted now, by the building's mean errors, with the zone
+        the model errs most in (None when it is)."""
+        reason = self.building.reason()
+        if reason is None:
+            return None
+        worst = int(np.nanargmax([m.state.replay_k if math.isfinite(m.state.replay_k) else -1.0 for m in self.zones]))
+        return f"{reason} (most in {self.zone_names[worst]})"
 
     def worst(self) -> tuple[float, float]:
         """The largest filtered replay error over the zones [K], of the model and of the RC

@@ -30,9 +30,29 @@ hybrid) takes none: its one-step errors are the filter's innovations, and on the
 filtering them into an offset cost up to 2 % of the objective (worst cell 1.013 -> 1.032
 x the oracle).
 
-What the one-zone path has and this one has not: the trust monitor and its RC shadow (the
-fallback is the QP on the model's own RC), setpoint-space sampling (random shooting samples
-powers here) and on/off plans.
+The comfort margin ``comfort_margin_k`` (None by default: :func:`zone_comfort_margin_k`) is
+the least each zone's band is narrowed by: :data:`ZONE_COMFORT_MARGIN_K` over a model that
+estimates its state, :data:`ZONE_LAGGED_MARGIN_K` over one that runs from measured lags.
+
+The trust guard (:class:`ZoneGuard`, :class:`controllers.trust.ZoneTrust`), the one-zone
+guard's rule (:mod:`controllers.trust`) zone by zone: at every decision the model replays the
+last ``replay_steps`` intervals from the history it had then, with the offsets it planned with
+then, under each actuator's delivered power, and so does the fallback multi-zone RC from its
+Kalman state of then (:class:`controllers.trust.ZoneRCReplay`); each zone's errors against its
+measured room are filtered. Each zone's band is narrowed by ``margin_factor`` times its
+model's filtered replay error (at most ``max_margin_k``, never less than ``comfort_margin_k``):
+a zone the model predicts worse hours ahead keeps more distance from its band's edges. The
+model is distrusted when its zones' mean error passes the floor and the ratio to the RC's (or
+the error alone while the RC has none): a building's verdict, for the fallback QP takes every
+zone at once (judged zone by zone, on EnergyPlus's small office in January, seed 3, the QP
+took 21 % of the decisions from an ARX that erred less than the RC over the building, and the
+objective rose from 0.72 to 1.12 x the thermostat's). The fallback QP then decides until the model has been
+within the limits for ``recover_steps`` decisions (doubled after each further switch). Its
+decisions are fallbacks (``last_stats.fallback``: the KPIs count the model's own decisions),
+and ``trust_report`` counts them with the worst zone's errors. Not watched here (the
+one-zone guard watches them): the error of the delivered power, the ensemble's spread and the
+forecast's distance from the training data; setpoint-space sampling (random shooting samples
+powers here) and on/off plans are one zone's too.
 
 Fallback (never an exception out of ``act``): when the planning fails (a non-finite
 prediction or any exception) the decision is the QP MPC's on the model's RC building

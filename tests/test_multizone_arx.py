@@ -266,14 +266,14 @@ def test_train_parx_plans_with_cem_and_exports_the_rc_it_carries(house_data: Pat
     assert json.loads(kpis.read_text())["fallbacks"] == 0
     # The ARX runs from measured lags: cem plans it with the lagged model's margin and each
     # zone's offset; the RC it carries, Kalman-filtered, with neither.
-    from scenarios.running.factory import (
-        ZONE_COMFORT_MARGIN_K,
-        ZONE_LAGGED_MARGIN_K,
-        build_controller,
-    )
+    from controllers.sampling import CEM
+    from controllers.zone_sampling import ZONE_COMFORT_MARGIN_K, ZONE_LAGGED_MARGIN_K
+    from scenarios.running.factory import build_controller
 
     scenario = get_scenario("two_zone_house")
     over_arx = build_controller("cem", scenario, model=model, n_steps=48)
     over_rc = build_controller("cem", scenario, zone_params=model.identified.params, n_steps=48)
     assert over_arx.comfort_margin_k == ZONE_LAGGED_MARGIN_K > 0 and over_arx.offset_gain == 0.5
+    # the Python API's default is the command line's
+    assert CEM(model.for_planning(), scenario.control_spec()).comfort_margin_k == over_arx.comfort_margin_k
     assert over_rc.comfort_margin_k == ZONE_COMFORT_MARGIN_K == 0 and over_rc.offset_gain == 0.0
