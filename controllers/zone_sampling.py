@@ -113,8 +113,10 @@ ZONE_COMFORT_MARGIN_K = 0.0
 #: turns into discomfort (chosen on EnergyPlus's small office, ``CHANGELOG.md``).
 ZONE_LAGGED_MARGIN_K = 0.6
 #: The limits of a zoned planner's trust in its model (:class:`ZoneGuard`): each zone's
-#: band is narrowed by its filtered replay error (``margin_from_replay``), up to 1 K.
-ZONE_TRUST = TrustSettings(margin_from_replay=True, max_margin_k=1.0)
+#: band is narrowed by its filtered replay error (``margin_from_replay``), up to 1 K; the
+#: model hands over only when its zones' mean replay error passes what that margin covers
+#: (``error_floor_k`` 1 K) and twice the RC's.
+ZONE_TRUST = TrustSettings(margin_from_replay=True, max_margin_k=1.0, error_floor_k=1.0)
 
 
 def zone_comfort_margin_k(model: BatchDynamics) -> float:
