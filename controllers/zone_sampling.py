@@ -377,8 +377,10 @@ class ZoneSampling:
     def _watch(self, obs: Observation) -> None:
         """Replay the model and the fallback RC over the last intervals, filter each zone's
         errors into the guard, record this step's RC state and offsets, and set each zone's
-        margin (module docstring)."""
-        errors = self._zone_replay_errors(obs)
+        margin (module docstring); nothing but the offsets when the guard neither hands over
+        nor narrows the bands."""
+        watched = self.zone_guard.hand_over or self.zone_guard.adaptive_margin
+        errors = self._zone_replay_errors(obs) if watched else None
         if errors is not None:
             self._zone_trust.observe(*errors)
         if self._rc_replay is not None and self._zone_observer is not None:

@@ -279,6 +279,7 @@ def test_train_parx_plans_with_cem_and_exports_the_rc_it_carries(house_data: Pat
     scenario = get_scenario("two_zone_house")
     over_arx = build_controller("cem", scenario, model=model, n_steps=48)
     over_rc = build_controller("cem", scenario, zone_params=model.identified.params, n_steps=48)
+    assert isinstance(over_arx, CEM) and isinstance(over_rc, CEM)
     assert over_arx.comfort_margin_k == ZONE_LAGGED_MARGIN_K > 0 and over_arx.offset_gain == 0.5
     # the Python API's default is the command line's
     planned = model.for_planning(backup_low_c=scenario.sim.backup_low_c, backup_high_c=scenario.sim.backup_high_c)
