@@ -268,17 +268,25 @@ def test_train_parx_plans_with_cem_and_exports_the_rc_it_carries(house_data: Pat
     argv = ["closed-loop", "--scenario", "two_zone_house", "--controller", "cem", "--model", str(out), "--days", "1",
             "--json", str(kpis)]
     assert main(argv) == 0, capsys.readouterr().err
-    assert json.loads(kpis.read_text())["fallbacks"] == 0
+    # Its planning never fails; on the RC house the ARX errs more than a kelvin over 4 h
+    # where the RC it carries errs 7 mK, and the guard hands the building to the QP on that
+    # RC (tests/test_zone_guard.py): every decision it did not make is the guard's.
+    run = json.loads(kpis.read_text())
+    assert run["fallbacks"] == run["model_fallback_steps"] > 0
+    assert set(run["model_fallback_reasons"]) <= {"prediction error above the RC's (most in south)",
+                                                  "prediction error above the RC's (most in north)"}
     # The ARX runs from measured lags: cem plans it with the lagged model's margin and each
     # zone's offset; the RC it carries, Kalman-filtered, with neither.
-    from scenarios.running.factory import (
-        ZONE_COMFORT_MARGIN_K,
-        ZONE_LAGGED_MARGIN_K,
-        build_controller,
-    )
+    from controllers.sampling import CEM
+    from controllers.zone_sampling import ZONE_COMFORT_MARGIN_K, ZONE_LAGGED_MARGIN_K
+    from scenarios.running.factory import build_controller
 
     scenario = get_scenario("two_zone_house")
     over_arx = build_controller("cem", scenario, model=model, n_steps=48)
     over_rc = build_controller("cem", scenario, zone_params=model.identified.params, n_steps=48)
+    assert isinstance(over_arx, CEM) and isinstance(over_rc, CEM)
     assert over_arx.comfort_margin_k == ZONE_LAGGED_MARGIN_K > 0 and over_arx.offset_gain == 0.5
+    # the Python API's default is the command line's
+    planned = model.for_planning(backup_low_c=scenario.sim.backup_low_c, backup_high_c=scenario.sim.backup_high_c)
+    assert CEM(planned, scenario.control_spec()).comfort_margin_k == over_arx.comfort_margin_k
     assert over_rc.comfort_margin_k == ZONE_COMFORT_MARGIN_K == 0 and over_rc.offset_gain == 0.0

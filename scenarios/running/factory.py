@@ -383,22 +383,6 @@ def _zones_text(spec: ControlSpec) -> str:
     )
 
 
-#: The comfort margin [K] cem and random-shooting plan a building of several zones with: none.
-#: The one-zone default (0.01 K, :mod:`controllers.sampling`) guards against a learned
-#: model's millikelvin bias, which the one-zone offset filter leaves; a model of several zones
-#: starts from its Kalman filter's state of every zone and mass instead, and on shoulder_office
-#: the margin cost 3 % of the objective (worst cell 1.036 x the oracle against 1.007 without).
-ZONE_COMFORT_MARGIN_K = 0.0
-#: The comfort margin [K] of cem and random-shooting over a model of several zones that runs from
-#: measured lags and does not re-estimate its state (:attr:`BatchDynamics.estimates_state`
-#: False: the physics-informed ARX of every zone). Its rooms are off by about the model's
-#: one-step error (0.25-0.69 K on EnergyPlus's small office), which a plan riding the band
-#: edge turns into discomfort. Chosen on the small office's April (3 test days, seed 0:
-#: objective 81.1 EUR without, 24.2 at 0.3 K, 9.2 at 0.6 K; the thermostat 10.5) and checked on
-#: its January (93.0 -> 54.4; thermostat 70.7) and July (97.8 -> 16.2; thermostat 23.5).
-ZONE_LAGGED_MARGIN_K = 0.6
-
-
 def _zone_controller(
     name: str,
     scenario: Scenario,
@@ -476,9 +460,7 @@ def _zone_controller(
     else:
         raise InternalError(f"controller {name!r} on {where} reached planning with neither a model nor an RC")
     planner = RandomShooting if name == "random-shooting" else CEM
-    margin = ZONE_COMFORT_MARGIN_K if planner_model.estimates_state else ZONE_LAGGED_MARGIN_K
-    options.setdefault("comfort_margin_k", margin)
-    return planner(planner_model, spec, **options)
+    return planner(planner_model, spec, **options)  # the zones' margin and guard by default
 
 
 def check_zone_model(model: MultiZoneHybrid | MultiZoneARX, spec: ControlSpec, scenario_name: str) -> None:
