@@ -142,6 +142,32 @@ def test_rollout_is_the_recursion_of_its_equations() -> None:
     np.testing.assert_allclose(roll.u_phys_w[0].numpy(), clipped.sum(axis=2), rtol=0, atol=1e-9)
 
 
+def test_linear_response_is_the_exact_change_of_the_rollout() -> None:
+    """The ARX is linear in the heats: a change of the plan moves every room as the
+    state-space recursion of :meth:`MultiZoneARX.linear_response` says, to rounding; a
+    demand beyond an actuator's bounds does not move (its power and heat per watt are 0)."""
+    model = _model(_truth(), backup_low_c=-50.0, backup_high_c=80.0)
+    frame = _weather(3, seed=2)
+    now, h = 40, 24
+    history, exog = _observation(frame, now, h)
+    rng = np.random.default_rng(0)
+    plan = rng.uniform(500.0, 4500.0, (h, 2))
+    plan[3, 1] = 6000.0  # beyond the 5 kW bound
+    change = rng.uniform(-300.0, 300.0, (h, 2))
+    response = model.linear_response(history, plan, exog)
+    base = model.rollout(history, torch.as_tensor(plan[None]), exog).t_r_c[0, 0].numpy()
+    moved = model.rollout(history, torch.as_tensor((plan + change)[None]), exog).t_r_c[0, 0].numpy()
+    np.testing.assert_allclose(response.t_r_c, base, rtol=0, atol=1e-12)
+    assert response.power[3, 1] == 0.0 and response.heat_per_w[3, 1] == 0.0 and response.power[3, 0] == 1.0
+    assert np.all(response.heat_per_w >= 0.0)  # the sign is b_heat's, as the polish takes it
+    change[3, 1] = 0.0  # clipped either way
+    dx, predicted = np.zeros(len(response.a)), []
+    for j in range(h):
+        dx = response.a @ dx + response.b_heat @ (response.heat_per_w[j] * change[j])
+        predicted.append(dx[response.rooms])
+    np.testing.assert_allclose(np.array(predicted), moved - base, rtol=0, atol=1e-9)
+
+
 def test_every_zone_warms_with_each_heaters_power_and_the_backups_act_as_the_rc_models() -> None:
     model = _model(_truth(), backup_low_c=-50.0, backup_high_c=80.0)
     frame = _weather(3, seed=4)
