@@ -198,7 +198,7 @@ def zone_table(directory: Path, order: list[str]) -> list[str]:
         "|---|---|---|---|---|---|",
     ]
     for (scenario, controller, days), runs in sorted(
-        groups.items(), key=lambda item: (item[0][0], rank.get(item[0][1], len(rank)), item[0][1], item[0][2] or 0)
+        groups.items(), key=lambda item: (item[0][0], rank.get(item[0][1].partition("/")[0], len(rank)), item[0][1], item[0][2] or 0)
     ):
         shares = [k.get("own_decisions_share") for k in runs]
         share = (
