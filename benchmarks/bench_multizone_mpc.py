@@ -1,29 +1,37 @@
-"""Multi-zone QP MPC decision time: median and 95th percentile [ms] of the oracle's decisions
-(:func:`controllers.rc_mpc.references.oracle_multizone`) in a closed loop of 2, 5 and 12 zones,
-each zone with a heater and a cooler (A = 2Z), horizon H = 48.
+"""Multi-zone QP MPC decision time: median and 95th percentile [ms] of the decisions of the
+oracle (:func:`controllers.rc_mpc.references.oracle_multizone`, qp-mpc's OSQP) and of casadi-mpc
+(:class:`controllers.rc_mpc.multizone_casadi.MultiZoneCasadiMPC`, the same problem by
+``casadi.qpsol``) on the true state, in a closed loop of 2, 5 and 15 zones, each zone with a
+heater and a cooler (A = 2Z), horizon H = 48.
 
-Run: ``python benchmarks/bench_multizone_mpc.py [--steps 96] [--zones 2,5,12] [--eps 1e-3]``.
+Run: ``python benchmarks/bench_multizone_mpc.py [--steps 96] [--zones 2,5,15] [--horizon 48]
+[--controllers qp-mpc,casadi-mpc] [--eps 1e-3]``.
 Each building is a row of Z zones of a light 2R2C (``R_ra`` 5 mK/W, ``C_m`` 1e7 J/K), each
 wall between neighbours 150 W/K, odd zones facing south (``G_south``), in spring weather (nights
 near 5 C, sunny afternoons near 21 C) with a 20-22 C band, so both machines of a zone work
 within a day; the loop steps :class:`pinn_mpc.multizone.MultiZoneSimulator` and warm-starts the
-solver as a run does. ``--eps`` sets OSQP's ``eps_abs`` and ``eps_rel`` (the default is
-:data:`controllers.rc_mpc.osqp.OSQP_OPTIONS`'). Prints one line per Z: the QP's size, the
-decision times, OSQP's median iterations, the fallbacks and the discomfort [K h] of the run;
-then the load average. Exits 0.
+solver as a run does. ``--eps`` sets OSQP's ``eps_abs`` and ``eps_rel`` for both (the default is
+:data:`controllers.rc_mpc.osqp.OSQP_OPTIONS`'). Prints one line per Z and controller: the QP's
+size, the controller's construction time [s], the decision times, OSQP's median iterations
+(0: CasADi's plugin does not report them), the fallbacks, the discomfort [K h] and the energy
+cost [EUR] of the run; then the load average. Exits 0.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 import sys
+import time
 from collections.abc import Callable
 from typing import NamedTuple
 
 import numpy as np
 
 from controllers.base import Controller, ControlSpec, Forecast, Observation
+from controllers.rc_mpc.multizone import MultiZoneMPC
+from controllers.rc_mpc.multizone_casadi import MultiZoneCasadiMPC
 from controllers.rc_mpc.references import oracle_multizone
 from pinn_mpc.actuator import ActuatorSpec, actuator_columns
 from pinn_mpc.multizone import (
@@ -118,21 +126,32 @@ def closed_loop(params: MultiZoneParams, spec: ControlSpec, controller: Controll
     return LoopRun(np.array(times), np.array(iterations), discomfort, cost)
 
 
-def run(n_zones: int, steps: int, eps: float | None) -> dict[str, float]:
-    """A closed loop of ``steps`` decisions; the decision times and the run's figures."""
+def run(n_zones: int, steps: int, eps: float | None, controller: str = "qp-mpc", horizon: int = 48) -> dict[str, float]:
+    """A closed loop of ``steps`` decisions of ``controller`` (``qp-mpc``: the oracle,
+    ``casadi-mpc``) over horizon ``horizon``; the decision times and the run's figures."""
     params, spec = building(n_zones)
+    spec = dataclasses.replace(spec, horizon_steps=horizon)
     options = {} if eps is None else {"eps_abs": eps, "eps_rel": eps}
-    mpc = oracle_multizone(params, spec, solver_options=options)
+    start = time.perf_counter()
+    mpc: MultiZoneMPC
+    if controller == "casadi-mpc":
+        mpc = MultiZoneCasadiMPC(params, spec, estimator="true", solver_options={"osqp": options})
+    elif controller == "qp-mpc":
+        mpc = oracle_multizone(params, spec, solver_options=options)
+    else:
+        raise ValueError(f"bench_multizone_mpc: controller {controller!r} is unknown; choose qp-mpc or casadi-mpc")
+    build_s = time.perf_counter() - start
     loop = closed_loop(params, spec, mpc, steps)
     ms = loop.times_s * 1e3
     return {
         "variables": mpc.qp.n_variables,
-        "nnz": mpc.qp._a.nnz,
+        "build_s": build_s,
         "median_ms": float(np.median(ms)),
         "p95_ms": float(np.percentile(ms, 95)),
         "iterations": float(np.median(loop.iterations)),
         "fallbacks": mpc.n_fallbacks,
         "discomfort_kh": loop.discomfort_kh,
+        "cost_eur": loop.energy_cost_eur,
     }
 
 
@@ -155,16 +174,27 @@ def print_rows(header: str, zones: str, row: Callable[[int], str]) -> None:
 def main(argv: list[str] | None = None) -> int:
     parser = zones_parser(__doc__)
     parser.add_argument("--eps", type=float, default=None, help="OSQP eps_abs = eps_rel (default: OSQP_OPTIONS')")
+    parser.add_argument("--horizon", type=int, default=48, help="horizon H [steps] (default 48)")
+    parser.add_argument("--controllers", default="qp-mpc,casadi-mpc", help="comma-separated: qp-mpc, casadi-mpc")
+    parser.set_defaults(zones="2,5,15")
     args = parser.parse_args(argv)
 
     def row(z: int) -> str:
-        r = run(z, args.steps, args.eps)
-        return (
-            f"{z:>3} {2 * z:>3} {r['variables']:>6} {r['nnz']:>7} {r['median_ms']:>10.1f} {r['p95_ms']:>8.1f} "
-            f"{r['iterations']:>6.0f} {r['fallbacks']:>9} {r['discomfort_kh']:>13.3f}"
-        )
+        lines = []
+        for name in args.controllers.split(","):
+            r = run(z, args.steps, args.eps, name, args.horizon)
+            lines.append(
+                f"{z:>3} {2 * z:>3} {r['variables']:>6} {name:>10} {r['build_s']:>7.2f} {r['median_ms']:>10.1f} "
+                f"{r['p95_ms']:>8.1f} {r['iterations']:>6.0f} {r['fallbacks']:>9} {r['discomfort_kh']:>13.3f} "
+                f"{r['cost_eur']:>8.3f}"
+            )
+        return "\n".join(lines)
 
-    header = f"{'Z':>3} {'A':>3} {'vars':>6} {'nnz(A)':>7} {'median ms':>10} {'p95 ms':>8} {'iter':>6} {'fallbacks':>9} {'discomfort Kh':>13}"
+    header = (
+        f"{'Z':>3} {'A':>3} {'vars':>6} {'controller':>10} {'build s':>7} {'median ms':>10} {'p95 ms':>8} "
+        f"{'iter':>6} {'fallbacks':>9} {'discomfort Kh':>13} {'cost EUR':>8}"
+    )
+    print(f"H = {args.horizon}, {args.steps} decisions per building")
     print_rows(header, args.zones, row)
     return 0
 

@@ -241,6 +241,17 @@ class ZoneObjective(HorizonObjective):
         """Each zone's band of ``spec``'s zones (:func:`zone_bands`), (H, Z) each."""
         return zone_bands(forecast, spec.zones, horizon_steps)
 
+    def tightened_zones(self, margins_k: np.ndarray) -> ZoneObjective:
+        """The objective with each zone's band narrowed by its margin ``margins_k`` (Z,) [K] on
+        each side (to its middle where it is narrower than twice the margin)."""
+        margins = np.asarray(margins_k, dtype=float)
+        if margins.shape != (np.shape(self.t_min_c)[1],):
+            raise InternalError(f"ZoneObjective: one margin per zone, got {margins.shape} for bands {np.shape(self.t_min_c)}")
+        if not np.any(margins):
+            return self
+        t_min, t_max = narrowed_band(self.t_min_c, self.t_max_c, margins)
+        return dataclasses.replace(self, t_min_c=t_min, t_max_c=t_max)
+
     def stage_costs(self, u_phys_w: np.ndarray, t_r_c: np.ndarray) -> np.ndarray:
         """Cost of each interval (..., H) [EUR] of the total delivered power (..., H) and each
         zone's end-of-interval T_r (..., H, Z), the zones' violations summed."""

@@ -25,8 +25,9 @@ Four defaults matter in closed loop (their measured effect, and what was tried i
 - CEM polishes its plan with one LP on the linearised model (:mod:`controllers.lp_polish`),
   which takes a plan the last few percent to the optimum of the model; random shooting does
   not by default (``polish_iters``), so it shows what sampling alone does.
-- CEM and random shooting plan against the comfort band narrowed by ``comfort_margin_k=0.01`` K
-  on each side (constraint tightening,
+- CEM and random shooting plan against the comfort band narrowed by ``comfort_margin_k`` (None:
+  :data:`ONE_ZONE_COMFORT_MARGIN_K`, 0.01 K; over several zones
+  :func:`controllers.zone_sampling.zone_comfort_margin_k`) on each side (constraint tightening,
   :meth:`controllers.objective.HorizonObjective.tightened`): a plan that rides a band edge
   exactly (the optimum does) and a model a few millikelvin off in closed loop would overshoot
   it at most intervals.
@@ -79,7 +80,7 @@ from controllers.objective import HorizonObjective
 from controllers.planners import CEMPlanner, Planner, PlanResult, RandomShootingPlanner
 from controllers.setpoint_space import SetpointSpace
 from controllers.trust import RCReplay, TrustMonitor, TrustSettings
-from controllers.zone_sampling import ZoneSampling
+from controllers.zone_sampling import ZoneGuard, ZoneSampling, zone_comfort_margin_k
 from pinn_mpc.errors import InternalError
 from pinn_mpc.features import check_interval
 from pinn_mpc.models.rollout import BatchDynamics
@@ -92,6 +93,10 @@ __all__ = ["CEM", "ENSEMBLE_MODES", "Guard", "RandomShooting"]
 #: seed ensemble as one point predictor); "members" averages the members' costs (plus
 #: ``risk_weight`` x their std), which plans for every member and so hedges against their spread.
 ENSEMBLE_MODES = ("mean", "members")
+
+#: The comfort margin [K] a planner of one zone plans with by default (module docstring; over
+#: several zones :func:`controllers.zone_sampling.zone_comfort_margin_k`).
+ONE_ZONE_COMFORT_MARGIN_K = 0.01
 
 #: What random shooting samples: demanded powers, or room-temperature setpoint schedules tracked
 #: through the model (:mod:`controllers.setpoint_space`).
@@ -106,7 +111,7 @@ class _Options(NamedTuple):
     ensemble: str
     offset_gain: float
     polish_iters: int
-    comfort_margin_k: float
+    comfort_margin_k: float | None
 
 
 class _NonFiniteModelOutput(Exception):
@@ -140,7 +145,7 @@ class _SamplingController(ZoneSampling, PlanningController):
         spec: ControlSpec,
         planner: Planner,
         options: _Options,
-        guard: Guard,
+        guard: Guard | ZoneGuard,
     ):
         risk_weight, ensemble = options.risk_weight, options.ensemble
         if spec.single:
@@ -170,12 +175,15 @@ class _SamplingController(ZoneSampling, PlanningController):
                 f"got {ensemble!r}"
             )
         self.ensemble = ensemble
-        if not (0 <= options.comfort_margin_k < 1 and np.isfinite(options.comfort_margin_k)):
+        margin = options.comfort_margin_k
+        if margin is None:  # the default: one zone's, or the zones' by the model's kind
+            margin = ONE_ZONE_COMFORT_MARGIN_K if spec.single else zone_comfort_margin_k(model)
+        if not (0 <= margin < 1 and np.isfinite(margin)):
             raise ValueError(
-                f"{type(self).__name__}.comfort_margin_k must lie in [0, 1) K, "
-                f"got {options.comfort_margin_k}"
+                f"{type(self).__name__}.comfort_margin_k must lie in [0, 1) K (or None: the "
+                f"default), got {margin}"
             )
-        self.comfort_margin_k = options.comfort_margin_k
+        self.comfort_margin_k = margin
         if risk_weight > 0 and ensemble != "members":
             raise ValueError(
                 f"{type(self).__name__}.risk_weight needs ensemble='members' (the spread of the "
@@ -183,14 +191,20 @@ class _SamplingController(ZoneSampling, PlanningController):
             )
         self.last_cost_eur = float("nan")  # planned objective of the last plan [EUR]
         if not spec.single:  # a building of several zones or actuators
-            if guard != NO_GUARD:
+            if isinstance(guard, Guard) and guard != NO_GUARD:
                 raise ValueError(
                     f"{type(self).__name__}.guard: a planner of several actuators falls back on "
-                    "the QP MPC of its model's zone_params, not a guard's one-zone RC; leave guard out"
+                    "the QP MPC of its model's zone_params, not a guard's one-zone RC; leave guard "
+                    "out or give a controllers.zone_sampling.ZoneGuard"
                 )
-            self._init_zones(options.offset_gain)
+            self._init_zones(options.offset_gain, guard if isinstance(guard, ZoneGuard) else ZoneGuard())
             self.reset()
             return
+        if isinstance(guard, ZoneGuard):
+            raise ValueError(
+                f"{type(self).__name__}.guard: a ZoneGuard watches a model of several zones; this "
+                "scenario has one zone: give a controllers.sampling.Guard or leave guard out"
+            )
         try:
             self.estimator = OffsetFilter(model, options.offset_gain)
         except ValueError as exc:
@@ -234,10 +248,10 @@ class _SamplingController(ZoneSampling, PlanningController):
 
     @property
     def trust_report(self) -> TrustReport | None:
-        """The trust monitor's counts since ``reset`` (the KPIs report them); None over several
-        zones, whose model is not monitored."""
+        """The trust monitor's counts since ``reset`` (the KPIs report them; over several
+        zones the building's, with the worst zone's errors)."""
         if not self.spec.single:
-            return None
+            return self._zone_trust_report()
         s = self.monitor.state
         return {
             "model_fallback": self.shadow is not None,
@@ -504,11 +518,11 @@ class RandomShooting(_SamplingController):
         polish_iters: int = 0,
         ensemble: str = "mean",
         offset_gain: float = 0.5,
-        comfort_margin_k: float = 0.01,
+        comfort_margin_k: float | None = None,
         space: str = "setpoint",
         setpoint_span_k: float = 1.0,
         probe_stride: int = 4,
-        guard: Guard = NO_GUARD,
+        guard: Guard | ZoneGuard = NO_GUARD,
     ):
         if space not in PLAN_SPACES:
             raise ValueError(
@@ -573,8 +587,8 @@ class CEM(_SamplingController):
         polish_iters: int = 1,
         ensemble: str = "mean",
         offset_gain: float = 0.5,
-        comfort_margin_k: float = 0.01,
-        guard: Guard = NO_GUARD,
+        comfort_margin_k: float | None = None,
+        guard: Guard | ZoneGuard = NO_GUARD,
     ):
         lower, upper = _plan_box(spec, binary, "CEM")
         planner = CEMPlanner(

@@ -33,6 +33,11 @@ band's edges. With ``margin_from_replay`` the fallback RC MPC is held to the sam
 plans against the band narrowed by the RC's own filtered replay error
 (:meth:`TrustMonitor.fallback_margin_k`), for an RC that errs as much as the model it replaces
 otherwise rides the band's edge and the plant sits just outside it.
+
+Over a building of several zones (:mod:`controllers.zone_sampling`) the same monitor filters
+each zone's replay errors (:class:`ZoneTrust`: the model's against those of the multi-zone RC
+its QP fallback plans on, :class:`ZoneRCReplay`) and narrows each zone's band by its own; one
+more monitor holds the building's verdict.
 """
 
 from __future__ import annotations
@@ -48,8 +53,9 @@ from pinn_mpc.physics import RCParams, discretise, step
 
 if TYPE_CHECKING:
     from controllers.base import ControlSpec
+    from pinn_mpc.multizone import MultiZoneParams
 
-__all__ = ["RCReplay", "TrustMonitor", "TrustSettings", "TrustState"]
+__all__ = ["RCReplay", "TrustMonitor", "TrustSettings", "TrustState", "ZoneRCReplay", "ZoneTrust"]
 
 #: Decisions of an RC MPC before its Kalman estimates start replays (its observer settles).
 SETTLE_STEPS = 3
@@ -219,16 +225,14 @@ class TrustMonitor:
         return s.trusted
 
 
-class RCReplay:
-    """An RC replaying the recent past from where its observer stood: the multi-step error of
-    the RC an MPC plans on (the guard's fallback, or ``qp-mpc`` itself where it plans with
-    a margin from it). :meth:`record` keeps the observer's ``(T_r, T_m)`` estimate of each
-    step (after :data:`SETTLE_STEPS`); :meth:`error_k` replays the RC from the estimate of
-    ``r`` steps ago under the power that was delivered and the measured weather."""
+class _Replay:
+    """The observer's estimates of the recent steps an RC replays from (:class:`RCReplay` of
+    one zone, :class:`ZoneRCReplay` of a building of several): :meth:`record` keeps the
+    estimate of each step (after :data:`SETTLE_STEPS`), :meth:`longest` finds the longest
+    replay from a kept one."""
 
-    def __init__(self, rc: RCParams, spec: ControlSpec, replay_steps: int) -> None:
+    def __init__(self, spec: ControlSpec, replay_steps: int) -> None:
         self.spec, self.replay_steps = spec, replay_steps
-        self.matrices = discretise(rc, spec.dt_s)
         self.reset()
 
     def reset(self) -> None:
@@ -247,13 +251,32 @@ class RCReplay:
         ``k``, else ``longest``."""
         return next((j for j in range(longest, 1, -1) if k - j in self._estimates), longest)
 
+    def _start(self, k: int, r: int) -> np.ndarray | None:
+        """The finite estimate recorded ``r`` >= 1 steps before step ``k``, else None."""
+        start = self._estimates.get(k - r)
+        if r < 1 or start is None or not np.all(np.isfinite(start)):
+            return None
+        return start
+
+
+class RCReplay(_Replay):
+    """An RC replaying the recent past from where its observer stood: the multi-step error of
+    the RC an MPC plans on (the guard's fallback, or ``qp-mpc`` itself where it plans with
+    a margin from it). :meth:`record` keeps the observer's ``(T_r, T_m)`` estimate of each
+    step (after :data:`SETTLE_STEPS`); :meth:`error_k` replays the RC from the estimate of
+    ``r`` steps ago under the power that was delivered and the measured weather."""
+
+    def __init__(self, rc: RCParams, spec: ControlSpec, replay_steps: int) -> None:
+        self.matrices = discretise(rc, spec.dt_s)
+        super().__init__(spec, replay_steps)
+
     def error_k(
         self, k: int, t_r_c: float, hist: Mapping[str, Sequence[float] | np.ndarray], r: int
     ) -> float:
         """Measured ``t_r_c`` minus the RC's T_r replayed over the last ``r`` intervals of
         ``hist`` from its estimate at step ``k - r`` [K]; NaN without a finite one."""
-        start = self._estimates.get(k - r)
-        if r < 1 or start is None or not np.all(np.isfinite(start)):
+        start = self._start(k, r)
+        if start is None:
             return math.nan
         zeros = np.zeros(len(hist["T_r"]))
         u_phys = np.asarray(hist["u_phys"], dtype=float)[-r:]
@@ -265,3 +288,87 @@ class RCReplay:
         for j in range(r):
             x = step(x, d[j : j + 1], *self.matrices)
         return t_r_c - float(x[0, 0])
+
+
+class ZoneRCReplay(_Replay):
+    """:class:`RCReplay` of a building of several zones (``params``, the multi-zone RC a
+    zoned planner falls back on): :meth:`record` keeps its Kalman observer's state (2Z,) of
+    each step, the rooms then the masses [C]; :meth:`errors_k` replays the building's exact
+    ZOH (:func:`pinn_mpc.multizone.discretise`) from the state of ``r`` steps ago under each
+    actuator's delivered power and the measured inputs."""
+
+    def __init__(self, params: MultiZoneParams, spec: ControlSpec, replay_steps: int) -> None:
+        from pinn_mpc.multizone import discretise as discretise_zones
+
+        self.params = params
+        self.zone_matrices = discretise_zones(params, spec.actuators, spec.dt_s)
+        super().__init__(spec, replay_steps)
+
+    def errors_k(self, k: int, hist: Mapping[str, Sequence[float] | np.ndarray], r: int) -> np.ndarray:
+        """(Z,) each zone's measured room now minus the RC's replayed over the last ``r``
+        intervals of ``hist`` from its state at step ``k - r`` [K]; NaN without a finite one."""
+        from pinn_mpc.multizone import history_arrays
+
+        start = self._start(k, r)
+        if start is None:
+            return np.full(self.params.n_zones, np.nan)
+        rooms, powers, inputs = history_arrays(hist, self.params, self.spec.actuators)
+        if len(powers) < r:
+            return np.full(self.params.n_zones, np.nan)
+        d = inputs[-r - 1 : -1]  # (r, 7) each interval's inputs, held from its start
+        heat = powers[-r:] * np.stack([a.gain(d[:, 0]) for a in self.spec.actuators], axis=-1)  # (r, A)
+        a, b_u, b_d = self.zone_matrices
+        x = start
+        for j in range(r):
+            x = a @ x + b_u @ heat[j] + b_d @ d[j]
+        return rooms[-1] - x[: self.params.n_zones]
+
+
+class ZoneTrust:
+    """The trust of a planner over a building of several zones in its model: one
+    :class:`TrustMonitor` of each zone filters that zone's replay errors (the model's and the
+    fallback RC's) and gives its comfort margin (:meth:`TrustMonitor.margin_k`); one more, the
+    building's, filters the zones' mean absolute replay errors and holds the verdict
+    (:meth:`TrustMonitor.reason` on them, :meth:`TrustMonitor.decide`: switches, recovery,
+    counts). The verdict is the building's because the fallback QP takes every zone at once:
+    it pays where the model errs more than the RC over the building, not where the RC is
+    better in one zone for a few hours."""
+
+    def __init__(self, settings: TrustSettings, zone_names: Sequence[str], u_range_w: float) -> None:
+        self.settings, self.zone_names = settings, tuple(zone_names)
+        self.zones = [TrustMonitor(settings, u_range_w) for _ in self.zone_names]
+        self.building = TrustMonitor(settings, u_range_w)
+
+    def reset(self) -> None:
+        for monitor in (*self.zones, self.building):
+            monitor.reset()
+
+    def observe(self, replay_k: np.ndarray, replay_rc_k: np.ndarray) -> None:
+        """Each zone's replay error (Z,) [K] of the model and of the RC (NaN: not known; the
+        building's mean only when every zone's is known)."""
+        for monitor, model, rc in zip(self.zones, replay_k, replay_rc_k, strict=True):
+            monitor.observe(math.nan, math.nan, float(model), float(rc))
+        self.building.observe(
+            math.nan, math.nan, float(np.mean(np.abs(replay_k))), float(np.mean(np.abs(replay_rc_k)))
+        )
+
+    def margins_k(self, base_k: float) -> np.ndarray:
+        """(Z,) each zone's comfort margin [K]: ``margin_factor`` times its filtered replay
+        error, at least ``base_k``, at most ``max_margin_k`` (unless ``base_k`` is more)."""
+        return np.array([monitor.margin_k(base_k) for monitor in self.zones])
+
+    def reason(self) -> str | None:
+        """Why the model is not to be trusted now, by the building's mean errors, with the zone
+        the model errs most in (None when it is)."""
+        reason = self.building.reason()
+        if reason is None:
+            return None
+        worst = int(np.nanargmax([m.state.replay_k if math.isfinite(m.state.replay_k) else -1.0 for m in self.zones]))
+        return f"{reason} (most in {self.zone_names[worst]})"
+
+    def worst(self) -> tuple[float, float]:
+        """The largest filtered replay error over the zones [K], of the model and of the RC
+        (NaN before the first)."""
+        model = [m.state.replay_k for m in self.zones if math.isfinite(m.state.replay_k)]
+        rc = [m.state.replay_rc_k for m in self.zones if math.isfinite(m.state.replay_rc_k)]
+        return (max(model) if model else math.nan), (max(rc) if rc else math.nan)

@@ -36,6 +36,8 @@ from collections import Counter
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from scenarios.reports.sweep_report import place_label, ratio
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -170,6 +172,46 @@ def cell_table(directory: Path, order: list[str], references: dict[str, str]) ->
             + f" | {'' if ref is None else f'{ref:.2f}'} | {', '.join(fallbacks)} |"
         )
     return lines
+
+
+def zone_table(directory: Path, order: list[str]) -> list[str]:
+    """Buildings of several zones: each zone's discomfort too cold / too warm [K h] and the
+    share of the planner's own decisions (not the fallback's), the mean over seeds (the share's
+    worst seed beside it), per scenario, controller and training days; empty without such
+    cells."""
+    groups: dict[tuple[str, str, int | None], list[dict[str, Any]]] = {}
+    for record in _cells(directory):
+        c, kpis = record["cell"], record["kpis"]
+        if len(kpis.get("zones") or {}) > 1:
+            groups.setdefault((c["scenario"], c["controller"], c["train_days"]), []).append(kpis)
+    if not groups:
+        return []
+    rank = {name: i for i, name in enumerate(order)}
+    lines = [
+        "## Discomfort by zone",
+        "",
+        "Each zone's discomfort too cold / too warm in K h, the mean over seeds, and the share "
+        "of decisions the controller made itself (the rest its fallback's: a failed plan or, "
+        "over a learned model, its guard), the mean and the worst seed.",
+        "",
+        "| scenario | controller | train days | seeds | own decisions mean (worst) | each zone: too cold / too warm K h |",
+        "|---|---|---|---|---|---|",
+    ]
+    for (scenario, controller, days), runs in sorted(
+        groups.items(), key=lambda item: (item[0][0], rank.get(item[0][1].partition("/")[0], len(rank)), item[0][1], item[0][2] or 0)
+    ):
+        shares = [k.get("own_decisions_share") for k in runs]
+        share = (
+            f"{100 * float(np.mean(shares)):.1f} % ({100 * min(shares):.1f} %)"
+            if all(s is not None for s in shares) else ""
+        )
+        zones = ", ".join(
+            f"{zone} {np.mean([k['zones'][zone]['discomfort_too_cold_kh'] for k in runs]):.2f} / "
+            f"{np.mean([k['zones'][zone]['discomfort_too_warm_kh'] for k in runs]):.2f}"
+            for zone in runs[0]["zones"]
+        )
+        lines.append(f"| {scenario} | {controller} | {'' if days is None else days} | {len(runs)} | {share} | {zones} |")
+    return [*lines, ""]
 
 
 #: BOPTEST's published KPIs of its baseline controller on bestest_hydronic_heat_pump (its
@@ -364,6 +406,7 @@ def page(spec: Path, directory: Path, command: str, wall_s: float | None, at: st
             {r["scenario"]: r.get("reference", "oracle") for r in summary["rows"]},
         ),
         "",
+        *zone_table(directory, list(tomllib.loads(spec_text).get("controllers", []))),
     ]
     return _relative("\n".join(lines))
 

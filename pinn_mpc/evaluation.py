@@ -9,7 +9,9 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
@@ -19,9 +21,14 @@ from pinn_mpc.data import validate_timeseries
 from pinn_mpc.errors import InputError, setting
 from pinn_mpc.features import check_interval
 from pinn_mpc.models import LearnedModel
-from pinn_mpc.records import EvaluationMetrics
+from pinn_mpc.records import EvaluationMetrics, HorizonErrors
 
-__all__ = ["evaluate_model", "recursive_paths", "recursive_t_r"]
+if TYPE_CHECKING:
+    from pinn_mpc.models.multizone_arx import MultiZoneARX
+    from pinn_mpc.models.multizone_hybrid import MultiZoneHybrid
+    from pinn_mpc.models.multizone_paper import MultiZonePaperModel
+
+__all__ = ["evaluate_model", "evaluate_zone_model", "recursive_paths", "recursive_t_r"]
 
 
 def _mae(a: np.ndarray, b: np.ndarray) -> float:
@@ -114,4 +121,63 @@ def evaluate_model(
             "T_r_mae_std": float(np.std(members)),
         }
         out["persistence"]["horizons"][str(h)] = {"T_r_mae": _mae(t_r[starts], truth)}
+    return out
+
+
+def evaluate_zone_model(
+    model: MultiZoneHybrid | MultiZoneARX | MultiZonePaperModel, df: pd.DataFrame, horizons: Sequence[int]
+) -> EvaluationMetrics:
+    """Metrics of a model of several zones on data of its building ``df`` (the data format
+    of several zones, each actuator's delivered power ``u_phys[<actuator>]``): for each
+    horizon h in ``horizons`` [intervals], each zone's room MAE [K] h intervals ahead, rolled
+    out from every start with h rows after it on the data's delivered powers and weather
+    (``predict_paths`` of the model: the hybrid from its Kalman state, the ARX and the paper's
+    networks from the measured lags), their mean, and persistence (each room at i+h predicted as at i) over the
+    same starts; ``one_step`` is horizon 1. InputError where the data are not the model's
+    building's (other zones, a missing power column, another interval) or too short."""
+    from pinn_mpc.actuator import actuator_columns
+    from pinn_mpc.zones import zone_columns, zones_in
+
+    if not horizons or min(horizons) < 1:
+        raise ValueError(f"horizons must be whole numbers >= 1, got {list(horizons)}")
+    names = [z.name for z in model.zones]
+    theirs = [z.name for z in zones_in(df.columns)]
+    if theirs != names:
+        raise InputError(
+            f"evaluation data hold the zones {', '.join(theirs)}, the model was trained on {', '.join(names)}; "
+            "give data of the model's building"
+        )
+    missing = [c for c in actuator_columns("u_phys", model.actuators) if c not in df.columns]
+    if missing:
+        raise InputError(
+            f"evaluation data have no column {', '.join(missing)}; data of a building of several "
+            "actuators give each one's delivered power, u_phys[<actuator>]"
+        )
+    check_interval(model.dt_s, df.attrs["dt_s"], what="the evaluation data has")
+    rooms = df[list(zone_columns("T_r", model.zones))].to_numpy(dtype=float)  # (T, Z)
+    from pinn_mpc.models.multizone_paper import MultiZonePaperModel
+
+    # The ARX reads its `depth` latest rows, the networks `depth` rows before the latest.
+    first = model.depth if isinstance(model, MultiZonePaperModel) else max(0, model.depth - 1)
+    n = len(df)
+
+    def errors(pred: np.ndarray, truth: np.ndarray) -> HorizonErrors:
+        per_zone = np.mean(np.abs(pred - truth), axis=0)
+        return {"T_r_mae": float(np.mean(per_zone)), "zones": dict(zip(names, map(float, per_zone), strict=True))}
+
+    out: EvaluationMetrics = {"one_step": {"T_r_mae": math.nan}, "horizons": {}, "persistence": {"horizons": {}}}  # one_step set below
+    for h in sorted({int(v) for v in horizons}):
+        starts = np.arange(first, n - h)
+        if starts.size == 0:
+            raise InputError(
+                f"evaluation data have {n} rows; the model's {first} rows of history and horizon {h} "
+                f"need at least {first + h + 1}; give more data or smaller horizons ({setting('horizons')})"
+            )
+        truth = rooms[starts + h]
+        out["horizons"][str(h)] = errors(model.predict_paths(df, starts, h)[:, -1], truth)
+        out["persistence"]["horizons"][str(h)] = errors(rooms[starts], truth)
+    one = out["horizons"].get("1")
+    if one is None:  # horizon 1 not asked for
+        one = errors(model.predict_paths(df, np.arange(first, n - 1), 1)[:, -1], rooms[first + 1 :])
+    out["one_step"] = {"T_r_mae": one["T_r_mae"], "zones": one.get("zones", {})}
     return out

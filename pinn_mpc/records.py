@@ -70,6 +70,8 @@ class OneStepErrors(TypedDict):
 
     T_r_mae: float
     """Room temperature one interval ahead, MAE [K]."""
+    zones: NotRequired[dict[str, float]]
+    """A model of several zones: each zone's room MAE [K], by zone name."""
     u_phys_mae: NotRequired[float]
     """Delivered power, MAE [W] (not for an ARX model)."""
     T_m_mae: NotRequired[float | None]
@@ -84,6 +86,9 @@ class HorizonErrors(TypedDict):
     """MAE of the ensemble mean [K]."""
     T_r_mae_std: NotRequired[float]
     """Standard deviation of the members' MAEs [K] (not for an ARX model)."""
+    zones: NotRequired[dict[str, float]]
+    """A model of several zones: each zone's room MAE [K], by zone name (``T_r_mae`` is
+    their mean)."""
 
 
 class PersistenceErrors(TypedDict):

@@ -32,7 +32,7 @@ from pinn_mpc_cli.scenario_args import (
     scenario_label,
     with_scenario_file,
 )
-from scenarios.choices import MODEL_CONTROLLERS, ZONE_CONTROLLERS
+from scenarios.choices import MODEL_CONTROLLERS, ZONE_CONTROLLERS, ZONE_RC_CONTROLLERS
 from scenarios.inputs.exogenous import day_span
 from scenarios.inputs.registry import Scenario
 from scenarios.inputs.scenario_file import get_scenario
@@ -316,10 +316,10 @@ def _fleet_closed_loop(a: argparse.Namespace, scenario: Scenario, inputs: dict[s
     if zoned and a.rc is not None:  # every building's RC planners plan on the identified building
         from scenarios.running.factory import read_zone_rc
 
-        if a.controller not in ("qp-mpc", *MODEL_CONTROLLERS):
+        if a.controller not in ZONE_RC_CONTROLLERS:
             raise InputError(
-                f"--rc is not used by controller {a.controller!r}; only qp-mpc, "
-                f"{', '.join(MODEL_CONTROLLERS)} take it (a multi-zone RC file)"
+                f"--rc is not used by controller {a.controller!r}; only "
+                f"{', '.join(ZONE_RC_CONTROLLERS)} take it (a multi-zone RC file)"
             )
         zone_rc = read_zone_rc(a.rc, scenario.control_spec(), scenario.name)
     if a.model is not None:

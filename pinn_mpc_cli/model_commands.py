@@ -37,6 +37,9 @@ if TYPE_CHECKING:
     from pinn_mpc.model_choice import ModelChoice
     from pinn_mpc.models.arx import ARXModel
     from pinn_mpc.models.learned import LearnedModel
+    from pinn_mpc.models.multizone_arx import MultiZoneARX
+    from pinn_mpc.models.multizone_hybrid import MultiZoneHybrid
+    from pinn_mpc.models.multizone_paper import MultiZonePaperModel
     from pinn_mpc.training import TrainConfig
     from scenarios.inputs.registry import Scenario
 
@@ -287,11 +290,16 @@ def evaluate(a: argparse.Namespace) -> str:
     from pinn_mpc.fitted import load, model_files
     from pinn_mpc.models.arx import ARXModel
     from pinn_mpc.models.learned import LearnedModel
+    from pinn_mpc.models.multizone_arx import MultiZoneARX
+    from pinn_mpc.models.multizone_hybrid import MultiZoneHybrid
+    from pinn_mpc.models.multizone_paper import MultiZonePaperModel
 
     check_writable(a.json)
     _refuse_fleet_directory(a.model, "evaluate", "--data BUILDING.csv --json metrics.json")
     check_distinct(inputs={"--model": model_files(a.model), "--data": a.data}, outputs={"--json": a.json})
     model = load(a.model)
+    if isinstance(model, MultiZoneHybrid | MultiZoneARX | MultiZonePaperModel):
+        return _evaluate_zones(model, a)
     df = read_timeseries(a.data, columns=a.columns)
     if isinstance(model, ARXModel):
         metrics = _arx_metrics(model, df, a)
@@ -314,6 +322,23 @@ def evaluate(a: argparse.Namespace) -> str:
         f"{last}-step T_r MAE {last_mae:.3f} C "
         f"(persistence {metrics['persistence']['horizons'][str(last)]['T_r_mae']:.3f} C) "
         f"-> {a.json}"
+    )
+
+
+def _evaluate_zones(model: MultiZoneHybrid | MultiZoneARX | MultiZonePaperModel, a: argparse.Namespace) -> str:
+    """``evaluate`` of a model of several zones (:func:`pinn_mpc.evaluation.evaluate_zone_model`)
+    on ``--data`` of its building: each zone's errors, written to ``--json``."""
+    from pinn_mpc.evaluation import evaluate_zone_model
+
+    df = read_timeseries(a.data, columns=a.columns, zones=True)
+    metrics = evaluate_zone_model(model, df, a.horizons)
+    atomic_write_json(a.json, metrics)
+    last = str(max(int(h) for h in metrics["horizons"]))
+    ahead, still = metrics["horizons"][last], metrics["persistence"]["horizons"][last]
+    per_zone = ", ".join(f"{name} {mae:.3f}" for name, mae in ahead.get("zones", {}).items())
+    return (
+        f"one-step MAE of the rooms: {metrics['one_step']['T_r_mae']:.3f} C; {last}-step {ahead['T_r_mae']:.3f} C "
+        f"(persistence {still['T_r_mae']:.3f} C; by zone {per_zone}) -> {a.json}"
     )
 
 

@@ -19,6 +19,7 @@ __all__ = [
     "TRUTH_CONTROLLERS",
     "WEATHER_PARTS",
     "ZONE_CONTROLLERS",
+    "ZONE_RC_CONTROLLERS",
     "WeatherPart",
 ]
 
@@ -40,6 +41,9 @@ TRUTH_CONTROLLERS = ("oracle", "clairvoyant")
 CONTROLLER_NAMES = ("thermostat", *MODEL_CONTROLLERS, *RC_CONTROLLERS, *TRUTH_CONTROLLERS)
 #: The controllers of a building of several zones or actuators (the others plan one zone's
 #: one actuator): the dual-setpoint thermostat per zone, the MPC over zones x actuators on the
-#: true building (oracle) or on a multi-zone RC file (qp-mpc, with a Kalman observer), and the
-#: sampling planners over that file's building (cem, random-shooting).
-ZONE_CONTROLLERS = ("thermostat", "oracle", "qp-mpc", "cem", "random-shooting")
+#: true building (oracle) or on a multi-zone RC file (qp-mpc with OSQP, casadi-mpc with
+#: casadi.qpsol, each with a Kalman observer), and the sampling planners over that file's
+#: building (cem, random-shooting).
+ZONE_CONTROLLERS = ("thermostat", "oracle", "qp-mpc", "casadi-mpc", "cem", "random-shooting")
+#: The controllers of a building of several zones that plan on a multi-zone RC file (``--rc``).
+ZONE_RC_CONTROLLERS = ("qp-mpc", "casadi-mpc", *MODEL_CONTROLLERS)

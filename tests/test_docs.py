@@ -507,6 +507,23 @@ def test_results_page_states_command_commit_machine_and_cells(tmp_path: Path) ->
     assert "| winter_household | oracle |" not in text
 
 
+def test_a_zoned_results_page_gives_each_zones_discomfort_and_own_decisions(tmp_path: Path) -> None:
+    """Cells of a building of several zones get a table of each zone's too cold / too warm
+    discomfort (the mean over seeds) and the own decisions' share (mean and worst seed)."""
+    gen = _gen_results()
+    sweep = tmp_path / "sweep"
+    (sweep / "cells").mkdir(parents=True)
+    for seed, (cold, warm, share) in enumerate([(0.2, 1.0, 1.0), (0.4, 3.0, 0.9)]):
+        zones = {"south": {"discomfort_too_cold_kh": cold, "discomfort_too_warm_kh": warm},
+                 "north": {"discomfort_too_cold_kh": 0.0, "discomfort_too_warm_kh": 0.5}}
+        cell = {"cell": {"scenario": "two_zone_house", "controller": "cem", "seed": seed, "train_days": 14},
+                "kpis": {"objective": 1.0, "days": 1, "own_decisions_share": share, "zones": zones}}
+        (sweep / "cells" / f"{seed}.json").write_text(json.dumps(cell))
+    lines = gen.zone_table(sweep, ["cem"])
+    assert "| two_zone_house | cem | 14 | 2 | 95.0 % (90.0 %) | south 0.30 / 2.00, north 0.00 / 0.50 |" in lines
+    assert gen.zone_table(tmp_path / "nothing", ["cem"]) == []
+
+
 def test_a_boptest_results_page_says_what_it_was_measured_on(tmp_path: Path) -> None:
     """A BOPTEST sweep's page names BOPTEST's version and the test case its cells record, and
     the commands that measure it again (the cells here are written by the test: only the

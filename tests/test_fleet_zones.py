@@ -253,8 +253,8 @@ def test_cli_capped_zoned_fleet_writes_its_cap_account(tmp_path, capsys):
 @pytest.mark.parametrize(
     ("args", "message"),
     [
-        (["--controller", "casadi-mpc", "--buildings", "2", "--cap-kw", "5"], "plans one zone with one actuator"),
-        (["--controller", "casadi-mpc", "--buildings", "2"], "plans one zone with one actuator"),
+        (["--controller", "clairvoyant", "--buildings", "2", "--cap-kw", "5"], "plans one zone with one actuator"),
+        (["--controller", "clairvoyant", "--buildings", "2"], "plans one zone with one actuator"),
         (["--controller", "cem", "--buildings", "2", "--model", "m"], "--model does not apply to a fleet of scenario two_zone_house"),
         (["--controller", "thermostat", "--buildings", "2", "--rc", "rc.json"], "--rc is not used by controller"),
         (["--controller", "oracle", "--buildings", "2", "--csv", "t.csv"], "--csv does not apply to a fleet"),

@@ -274,7 +274,8 @@ def test_a_plan_over_zones_is_one_power_per_actuator_within_its_bounds(planner):
     lower, upper = np.array([a.lower_w for a in actuators]), np.array([a.upper_w for a in actuators])
     assert np.all(plan >= lower - 1e-3) and np.all(plan <= upper + 1e-3)
     np.testing.assert_allclose(action, plan[0])
-    assert controller.trust_report is None and np.isfinite(controller.last_cost_eur)
+    report = controller.trust_report  # the guard over zones (tests/test_zone_guard.py)
+    assert report is not None and report["model_fallback_steps"] == 0 and np.isfinite(controller.last_cost_eur)
 
 
 def test_cem_over_zones_finds_the_optimum_of_its_model():
@@ -460,11 +461,11 @@ def test_closed_loop_plans_a_zoned_scenario_over_a_multizone_rc_file(tmp_path, c
         (["--controller", "cem", "--model", "model_dir"],
          "controller 'cem' plans a trained model (--model) of one zone; scenario 'two_zone_house' has 2 zones"),
         (["--controller", "cem"], "controller 'cem' on a building of several zones plans on a multi-zone RC file or model"),
-        (["--controller", "casadi-mpc", "--rc", "{house}"], "--rc is not used by controller 'casadi-mpc'; only qp-mpc, random-shooting, cem"),
+        (["--controller", "oracle", "--rc", "{house}"], "--rc is not used by controller 'oracle'; only qp-mpc, casadi-mpc, random-shooting, cem"),
         (["--controller", "cem", "--rc", "{one_zone}"], "is not a multi-zone RC file (format None"),
         (["--controller", "qp-mpc", "--rc", "{office}"], "is a building of the zones east, west, but scenario 'two_zone_house' has south, north"),
     ],
-    ids=["model", "no-rc", "casadi", "one-zone-rc", "other-zones"],
+    ids=["model", "no-rc", "oracle-rc", "one-zone-rc", "other-zones"],
 )
 def test_closed_loop_refuses_what_does_not_plan_a_zoned_building_in_one_line(tmp_path, capsys, argv, message):
     from scenarios.inputs.zoned import SHOULDER_OFFICE, TWO_ZONE_HOUSE

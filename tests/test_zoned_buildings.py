@@ -151,8 +151,8 @@ def test_a_closed_loop_on_each_zoned_scenario_reports_each_zone_and_the_oracle_b
 
 def test_the_one_zone_controllers_refuse_a_zoned_building_in_one_line():
     scenario = get_scenario("two_zone_house")
-    with pytest.raises(InputError, match=r"'casadi-mpc' plans one zone with one actuator; scenario 'two_zone_house' has 2 zones \(south, north\) and 2 actuators: choose thermostat or oracle or qp-mpc or cem or random-shooting"):
-        build_controller("casadi-mpc", scenario, n_steps=48)
+    with pytest.raises(InputError, match=r"'clairvoyant' plans one zone with one actuator; scenario 'two_zone_house' has 2 zones \(south, north\) and 2 actuators: choose thermostat or oracle or qp-mpc or casadi-mpc or cem or random-shooting"):
+        build_controller("clairvoyant", scenario, n_steps=48)
 
 
 def test_generated_data_of_a_zoned_building_holds_each_zone_and_actuator():

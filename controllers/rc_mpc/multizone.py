@@ -49,6 +49,8 @@ Its ``act`` is three steps a fleet's coordination (:mod:`controllers.coordinatio
 apart: :meth:`MultiZoneMPC.observe` (the estimate, once a step), :meth:`MultiZoneMPC.plan` (under
 an extra price on the building's electrical energy, as often as the coordination asks) and
 :meth:`MultiZoneMPC.commit` (the plan applied, its first row possibly settled on the cap).
+``casadi-mpc`` (:mod:`controllers.rc_mpc.multizone_casadi`) is this controller with another
+solver of the same problem (:class:`ZoneSolver`).
 """
 
 from __future__ import annotations
@@ -57,7 +59,7 @@ import math
 import time
 from dataclasses import dataclass
 from functools import cached_property
-from typing import TYPE_CHECKING, Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple, Protocol
 
 import numpy as np
 import osqp
@@ -90,7 +92,7 @@ from pinn_mpc.multizone import (
 if TYPE_CHECKING:
     from controllers.base import Forecast, Observation
 
-__all__ = ["ESTIMATORS", "MultiZoneMPC", "MultiZoneProblem", "MultiZoneStage", "ZonePlan", "ZonesQP"]
+__all__ = ["ESTIMATORS", "MultiZoneMPC", "MultiZoneProblem", "MultiZoneStage", "ZonePlan", "ZoneSolver", "ZonesQP"]
 
 #: The state estimators :class:`MultiZoneMPC` plans from: the plant's true state, or a Kalman
 #: observer of the building.
@@ -224,6 +226,21 @@ class MultiZoneProblem:
         energy = energy_cost_eur(p_kw.sum(axis=1) * 1000.0, stage.price_eur_per_kwh, dt_h)
         violation = band_violation_k(t_r, stage.t_min_c, stage.t_max_c)
         return float(np.sum(energy) + self.spec.comfort_weight_eur_per_kh * dt_h * np.sum(violation))
+
+
+class ZoneSolver(Protocol):
+    """What :class:`MultiZoneMPC` asks of its solver: ``solve`` returns the heats (H, A) [kW]
+    (NaN unless solved), the status (``"solved"`` when the optimum was found, else the
+    solver's word) and the iterations; ``reset`` forgets the warm start."""
+
+    @property
+    def n_variables(self) -> int: ...
+
+    def reset(self) -> None: ...
+
+    def solve(self, stage: MultiZoneStage) -> tuple[np.ndarray, str, int]: ...
+
+    def predicted_states_c(self) -> np.ndarray: ...
 
 
 class ZonesQP:
@@ -457,13 +474,18 @@ class MultiZoneMPC(PlanningController):
             horizon_steps=spec.horizon_steps if horizon_steps is None else horizon_steps,
             regularisation_eur_per_kw2h=regularisation_eur_per_kw2h,
         )
-        self.solver_options = {**OSQP_OPTIONS, **(solver_options or {})}
-        self.qp = ZonesQP(self.problem, self.solver_options)
+        self.qp: ZoneSolver = self._new_solver(solver_options)
         if isinstance(estimator, str):
             estimator = _TrueZones() if estimator == "true" else MultiZoneKalmanEstimator(params, spec)
         self.estimator: StateEstimator = estimator
         self.fallback = _PlanFallback(spec)
         self.reset()
+
+    def _new_solver(self, solver_options: dict[str, Any] | None) -> ZoneSolver:
+        """The problem's solver (OSQP on :class:`ZonesQP`; a subclass its own), its options
+        ``solver_options`` updating the defaults, kept as :attr:`solver_options`."""
+        self.solver_options = {**OSQP_OPTIONS, **(solver_options or {})}
+        return ZonesQP(self.problem, self.solver_options)
 
     @property
     def knows_true_state(self) -> bool:

@@ -67,7 +67,7 @@ from pinn_mpc.io import DirectoryLayout
 from pinn_mpc.models.arx import BLOCK_H, _schedule_index
 from pinn_mpc.models.lagged_zones import LaggedZoneModel
 from pinn_mpc.models.registry import PHYSICS_ARX
-from pinn_mpc.models.rollout import Rollout
+from pinn_mpc.models.rollout import LinearResponse, Rollout
 from pinn_mpc.zones import ZoneSpec, zone_columns
 
 __all__ = [
@@ -364,6 +364,54 @@ class MultiZoneARX(LaggedZoneModel):
             out.append(new)
             powers.append(p.sum(dim=1))
         return Rollout(torch.stack(out, dim=1)[None], torch.stack(powers, dim=1)[None], None)
+
+    def linear_response(
+        self, history: dict[str, np.ndarray], u_w: np.ndarray, exog: dict[str, np.ndarray]
+    ) -> LinearResponse:
+        """The rollout of one plan ``u_w`` (H, A) [W] (:meth:`rollout`'s) and its exact
+        response to a change of the plan (:class:`~pinn_mpc.models.rollout.LinearResponse`):
+        the equations are linear in the heats, so the state is every zone's lagged rooms
+        (latest first, zone-minor, :meth:`ZoneCoefficients.companion`'s order) and each
+        actuator's lagged heats after this interval's (scaled, signed, as the equations take
+        them), each actuator's heat per watt in each interval its efficiency at the forecast
+        outdoor temperature (its sign in ``b_heat``, as the RC's), 0 where the rollout's
+        backup thermostat forces the actuator or the demand lies outside its bounds (its power
+        then does not follow the demand)."""
+        plan = np.asarray(u_w, dtype=float)
+        a_n, z_n = len(self.actuators), len(self.zones)
+        if plan.ndim != 2 or plan.shape[1] != a_n:
+            raise ValueError(f"MultiZoneARX.linear_response: u_w must be (H, {a_n}), one demand per actuator, got {plan.shape}")
+        roll = self.rollout(history, torch.as_tensor(plan[None]), exog)
+        rooms = roll.t_r_c[0, 0].numpy()  # (H, Z)
+        now = np.array([float(np.asarray(history[x], dtype=float)[-1]) for x in zone_columns("T_r", self.zones)])
+        start = np.vstack([now, rooms[:-1]])[:, self._zone_of.numpy()]  # (H, A) each actuator's zone's room then
+        heats = self._heats.numpy()
+        forced = np.where(heats, start < self._low_c, start > self._high_c) | np.where(
+            heats, start > self._high_c, start < self._low_c
+        )
+        lower = np.array([s.lower_w for s in self.actuators])
+        upper = np.array([s.upper_w for s in self.actuators])
+        follows = (~forced & (plan >= lower) & (plan <= upper)).astype(float)
+        t_a = np.asarray(exog["T_a"], dtype=float)[: len(plan)]
+        heat_per_w = np.stack([s.gain(t_a) for s in self.actuators], axis=-1)  # (H, A) >= 0, as the rollout's
+        signed = np.array([s.sign * _HEAT_SCALE for s in self.actuators])  # (A,) a heat's scaled, signed unit per W
+        c = self.coefficients
+        lags, rest = c.lags, c.power_lags - 1
+        s_n = lags * z_n + rest * a_n
+        a = np.zeros((s_n, s_n))
+        a[: lags * z_n, : lags * z_n] = c.companion()
+        for m in range(rest):  # the lagged heats' part of the new rooms, and their shift
+            a[:z_n, lags * z_n + m * a_n : lags * z_n + (m + 1) * a_n] = c.heat[:, :, m + 1]
+            if m:
+                a[lags * z_n + m * a_n : lags * z_n + (m + 1) * a_n, lags * z_n + (m - 1) * a_n : lags * z_n + m * a_n] = np.eye(a_n)
+        b_heat = np.zeros((s_n, a_n))  # per W of heat, its sign in it
+        b_heat[:z_n] = c.heat[:, :, 0] * signed
+        if rest:
+            b_heat[lags * z_n : lags * z_n + a_n] = np.diag(signed)
+        return LinearResponse(
+            t_r_c=rooms, u_phys_w=roll.u_phys_w[0, 0].numpy(), a=a, b_heat=b_heat, heat_per_w=heat_per_w * follows,
+            rooms=np.arange(z_n), power=follows,
+        )
 
     def to_json(self) -> dict[str, Any]:
         """The model file's dict (module docstring)."""

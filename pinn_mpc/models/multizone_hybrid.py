@@ -130,6 +130,23 @@ class MultiZoneHybrid(MultiZoneRCModel):
     def training_data(self) -> dict[str, Any]:
         return self.training
 
+    def predict_paths(self, frame: pd.DataFrame, starts: np.ndarray, horizon: int) -> np.ndarray:
+        """(len(starts), horizon, Z) each zone's room [C] at the end of the ``horizon``
+        intervals after each start row of ``frame`` (data of its building, as
+        :func:`fit_multizone_hybrid` takes them): each from the state a Kalman filter on its
+        identified building estimates from the rows up to that start, then on the data's
+        delivered powers and weather, the residual heat added where it has one. Every start
+        needs ``horizon`` rows after it."""
+        starts = np.asarray(starts, dtype=int)
+        if starts.size and (starts.min() < 0 or starts.max() + horizon > len(frame) - 1):
+            raise ValueError(f"MultiZoneHybrid.predict_paths: starts must lie in 0 .. {len(frame) - 1 - horizon}")
+        if "I_g" not in frame.columns:
+            frame = frame.assign(I_g=0.0)
+        rc = MultiZoneRCModel(self.identified.params, self.actuators, self.dt_s)
+        residual = self.residual
+        q = None if residual is None else residual.heat_w(frame_series(frame, residual.names))[:-1]
+        return _Windows(rc, frame).paths_c(starts, horizon, q, rc.heat_input_matrix)
+
     def for_planning(self, **planner: Any) -> MultiZoneHybrid:
         """This model with the planner's settings (``backup_low_c``, ``backup_high_c``,
         ``process_std_c``, ``measurement_std_c`` of :class:`MultiZoneRCModel`)."""
@@ -207,18 +224,24 @@ class _Windows:
         self.states = np.array(states)  # (T, 2Z) the filter's state after each row
         self.a = a
 
-    def mean_error_c(self, starts: np.ndarray, horizon: int, q: np.ndarray | None, b_q: np.ndarray) -> float:
-        """The rooms' mean |error| over ``horizon`` intervals from each start, the residual
-        heat ``q`` (T-1, Z) added (None: the RC alone)."""
+    def paths_c(self, starts: np.ndarray, horizon: int, q: np.ndarray | None, b_q: np.ndarray) -> np.ndarray:
+        """(len(starts), horizon, Z) the rooms [C] at the end of each of the ``horizon``
+        intervals after each start, from the filter's state there, the residual heat ``q``
+        (T-1, Z) added (None: the RC alone)."""
         drive = self.forced if q is None else self.forced + q @ b_q.T
         z_n = self.rooms.shape[1]
         x = self.states[starts]
-        errors = []
+        paths = []
         for j in range(horizon):
-            rows = starts + j
-            x = x @ self.a.T + drive[rows]
-            errors.append(np.abs(x[:, :z_n] - self.rooms[rows + 1]))
-        return float(np.mean(errors))
+            x = x @ self.a.T + drive[starts + j]
+            paths.append(x[:, :z_n])
+        return np.stack(paths, axis=1)
+
+    def mean_error_c(self, starts: np.ndarray, horizon: int, q: np.ndarray | None, b_q: np.ndarray) -> float:
+        """The rooms' mean |error| over ``horizon`` intervals from each start, the residual
+        heat ``q`` (T-1, Z) added (None: the RC alone)."""
+        truth = self.rooms[starts[:, None] + np.arange(1, horizon + 1)]
+        return float(np.mean(np.abs(self.paths_c(starts, horizon, q, b_q) - truth)))
 
 
 def fit_multizone_hybrid(
@@ -288,17 +311,13 @@ def fit_multizone_hybrid(
 
 def held_out_error_c(model: MultiZoneHybrid, frame: pd.DataFrame, starts: np.ndarray, horizon: int) -> float:
     """The rooms' mean |error| [K] of ``model`` over the ``horizon`` intervals after each of
-    the rows ``starts`` of ``frame`` (data of its building, as :func:`fit_multizone_hybrid`
-    takes them): each from the state a Kalman filter on its identified building estimates from
-    the rows up to that start, then on the data's delivered powers and weather, the residual
-    heat added where it has one. Every start needs ``horizon`` rows after it."""
-    if "I_g" not in frame.columns:
-        frame = frame.assign(I_g=0.0)
-    rc = MultiZoneRCModel(model.identified.params, model.actuators, model.dt_s)
-    windows = _Windows(rc, frame)
-    residual = model.residual
-    q = None if residual is None else residual.heat_w(frame_series(frame, residual.names))[:-1]
-    return windows.mean_error_c(np.asarray(starts, dtype=int), horizon, q, rc.heat_input_matrix)
+    the rows ``starts`` of ``frame`` (:meth:`MultiZoneHybrid.predict_paths`' predictions)."""
+    from pinn_mpc.zones import zone_columns
+
+    starts = np.asarray(starts, dtype=int)
+    rooms = frame[list(zone_columns("T_r", model.zones))].to_numpy(dtype=float)
+    truth = rooms[starts[:, None] + np.arange(1, horizon + 1)]
+    return float(np.mean(np.abs(model.predict_paths(frame, starts, horizon) - truth)))
 
 
 def save_multizone(model: MultiZoneHybrid, path: str | os.PathLike[str]) -> Path:

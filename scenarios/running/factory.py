@@ -14,7 +14,8 @@ bounds. With a heat pump they plan on its COP curve at the forecast T_a (exact).
 On a building of several zones or actuators (:data:`ZONE_CONTROLLERS`): ``oracle`` is the QP
 MPC over zones x actuators on the true building and state; ``qp-mpc`` the same on a multi-zone
 RC file (``--rc``, :class:`pinn_mpc.identify_multizone.MultiZoneIdentifyResult`'s JSON) with a
-Kalman observer; ``cem`` and ``random-shooting`` plan over that file's building
+Kalman observer, and ``casadi-mpc`` that problem solved by ``casadi.qpsol``
+(:mod:`controllers.rc_mpc.multizone_casadi`); ``cem`` and ``random-shooting`` plan over that file's building
 (:class:`pinn_mpc.models.multizone_rc.MultiZoneRCModel`, with the scenario's backup limits) and
 fall back on its QP MPC, or over the model ``train --scenario`` fits (``--model``: the
 multi-zone hybrid or physics-informed ARX, with the scenario's backup limits) and fall back on
@@ -41,6 +42,7 @@ from scenarios.choices import (
     RC_CONTROLLERS,
     TRUTH_CONTROLLERS,
     ZONE_CONTROLLERS,
+    ZONE_RC_CONTROLLERS,
 )
 from scenarios.inputs.registry import Scenario
 
@@ -73,8 +75,6 @@ __all__ = [
 
 #: Ranges of the training data's inputs a planner watches (see controllers.trust).
 _WATCHED = ("T_a", "G")
-#: The controllers of a building of several zones that plan on a multi-zone RC file (``--rc``).
-_ZONE_RC_CONTROLLERS = ("qp-mpc", *MODEL_CONTROLLERS)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -384,22 +384,6 @@ def _zones_text(spec: ControlSpec) -> str:
     )
 
 
-#: The comfort margin [K] cem and random-shooting plan a building of several zones with: none.
-#: The one-zone default (0.01 K, :mod:`controllers.sampling`) guards against a learned
-#: model's millikelvin bias, which the one-zone offset filter leaves; a model of several zones
-#: starts from its Kalman filter's state of every zone and mass instead, and on shoulder_office
-#: the margin cost 3 % of the objective (worst cell 1.036 x the oracle against 1.007 without).
-ZONE_COMFORT_MARGIN_K = 0.0
-#: The comfort margin [K] of cem and random-shooting over a model of several zones that runs from
-#: measured lags and does not re-estimate its state (:attr:`BatchDynamics.estimates_state`
-#: False: the physics-informed ARX of every zone). Its rooms are off by about the model's
-#: one-step error (0.25-0.69 K on EnergyPlus's small office), which a plan riding the band
-#: edge turns into discomfort. Chosen on the small office's April (3 test days, seed 0:
-#: objective 81.1 EUR without, 24.2 at 0.3 K, 9.2 at 0.6 K; the thermostat 10.5) and checked on
-#: its January (93.0 -> 54.4; thermostat 70.7) and July (97.8 -> 16.2; thermostat 23.5).
-ZONE_LAGGED_MARGIN_K = 0.6
-
-
 def _zone_controller(
     name: str,
     scenario: Scenario,
@@ -439,9 +423,9 @@ def _zone_controller(
             f"({setting('rc_path')}, `pinn-mpc identify` on the scenario's data with its layout) or "
             f"the model `pinn-mpc train` fits on that data, given the scenario's layout, instead"
         )
-    if model is not None and name == "qp-mpc":
+    if model is not None and name in RC_CONTROLLERS:
         raise InputError(
-            f"qp-mpc plans on a multi-zone RC file ({setting('rc_path')}); write the model's with "
+            f"{name} plans on a multi-zone RC file ({setting('rc_path')}); write the model's with "
             "`pinn-mpc export-rc`, or plan over the model with cem or random-shooting"
         )
     if model is None and zone_params is None:
@@ -454,6 +438,10 @@ def _zone_controller(
         from controllers.rc_mpc.multizone import MultiZoneMPC
 
         return MultiZoneMPC(zone_params, spec, estimator="kalman")
+    if name == "casadi-mpc" and zone_params is not None:
+        from controllers.rc_mpc.multizone_casadi import MultiZoneCasadiMPC
+
+        return MultiZoneCasadiMPC(zone_params, spec, estimator="kalman")
     from controllers.estimators import observer_noise
     from controllers.sampling import CEM, RandomShooting
     from pinn_mpc.models.multizone_rc import MultiZoneRCModel
@@ -474,9 +462,7 @@ def _zone_controller(
     else:
         raise InternalError(f"controller {name!r} on {where} reached planning with neither a model nor an RC")
     planner = RandomShooting if name == "random-shooting" else CEM
-    margin = ZONE_COMFORT_MARGIN_K if planner_model.estimates_state else ZONE_LAGGED_MARGIN_K
-    options.setdefault("comfort_margin_k", margin)
-    return planner(planner_model, spec, **options)
+    return planner(planner_model, spec, **options)  # the zones' margin and guard by default
 
 
 def check_zone_model(model: MultiZoneHybrid | MultiZoneARX | MultiZonePaperModel, spec: ControlSpec, scenario_name: str) -> None:
@@ -585,7 +571,7 @@ def make_controller(
             f"only {', '.join(MODEL_CONTROLLERS)} and qp-mpc (an ARX model) take it"
         )
     spec = scenario.control_spec()
-    takes_rc = RC_CONTROLLERS if spec.single else _ZONE_RC_CONTROLLERS
+    takes_rc = RC_CONTROLLERS if spec.single else ZONE_RC_CONTROLLERS
     if rc_path is not None and name not in takes_rc:
         also = "" if spec.single else " (a multi-zone RC file)"
         raise InputError(
