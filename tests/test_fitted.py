@@ -58,7 +58,7 @@ def test_a_directory_of_no_model_or_of_two_is_refused_saying_what_it_holds(tmp_p
     with pytest.raises(ModelFileError, match=rf"holds two models, {META} \(a network's\) and {ARX_FILE} \(an ARX's\)"):
         load(both)
     with pytest.raises(TypeError, match="save takes a fitted model"):
-        save(data, tmp_path / "frame")  # type: ignore[arg-type]
+        save(data, tmp_path / "frame")
 
 
 def test_save_leaves_one_model_in_a_directory_that_held_the_other_family(tmp_path):

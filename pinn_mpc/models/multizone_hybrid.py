@@ -322,11 +322,17 @@ def held_out_error_c(model: MultiZoneHybrid, frame: pd.DataFrame, starts: np.nda
 
 def save_multizone(model: MultiZoneHybrid, path: str | os.PathLike[str]) -> Path:
     """Write ``model`` as ``path/multizone.json`` (the directory is created); the file written."""
+    return write_zone_model_file(model.to_json(), path, MULTIZONE_FILE)
+
+
+def write_zone_model_file(data: dict[str, Any], path: str | os.PathLike[str], name: str) -> Path:
+    """Write the model file ``data`` of a building of several zones as ``path/name`` (the
+    directory is created); the file written (:func:`read_zone_model_file` reads it)."""
     from pinn_mpc.io import atomic_write_json
 
-    out = Path(path) / MULTIZONE_FILE
+    out = Path(path) / name
     out.parent.mkdir(parents=True, exist_ok=True)
-    atomic_write_json(out, model.to_json())
+    atomic_write_json(out, data)
     return out
 
 

@@ -723,12 +723,9 @@ def fit_multizone_paper(
 
 def save_multizone_paper(model: MultiZonePaperModel, path: str | os.PathLike[str]) -> Path:
     """Write ``model`` as ``path/multizone_paper.json`` (the directory is created); the file written."""
-    from pinn_mpc.io import atomic_write_json
+    from pinn_mpc.models.multizone_hybrid import write_zone_model_file
 
-    out = Path(path) / MULTIZONE_PAPER_FILE
-    out.parent.mkdir(parents=True, exist_ok=True)
-    atomic_write_json(out, model.to_json())
-    return out
+    return write_zone_model_file(model.to_json(), path, MULTIZONE_PAPER_FILE)
 
 
 def _load_state(module: nn.Module, raw: Any, file: Path, what: str) -> None:
