@@ -46,7 +46,14 @@ model is distrusted when its zones' mean error passes the floor and the ratio to
 the error alone while the RC has none): a building's verdict, for the fallback QP takes every
 zone at once (judged zone by zone, on EnergyPlus's small office in January, seed 3, the QP
 took 21 % of the decisions from an ARX that erred less than the RC over the building, and the
-objective rose from 0.72 to 1.12 x the thermostat's). The fallback QP then decides until the model has been
+objective rose from 0.72 to 1.12 x the thermostat's). The hand-over is off by default
+(``ZoneGuard.hand_over``): on EnergyPlus's small office the QP on the identified multi-zone RC
+is 1.9-16 x the thermostat where cem over the ARX is 0.6-1.2 x, and with the hand-over on
+(sweeps/eplus_zones.toml's cells, 3789177) the QP's 9 % of January seed 1's decisions raised
+cem from 0.77 to 1.14 x the thermostat and its 14 % of April seed 1's (30 days) from 0.80 to
+1.19, though the RC replayed those hours better (0.60 K against the ARX's 2.03 K in April):
+the RC's replay starts from its Kalman estimate of every hour, its plan does not. With the
+hand-over on, the fallback QP decides until the model has been
 within the limits for ``recover_steps`` decisions (doubled after each further switch). Its
 decisions are fallbacks (``last_stats.fallback``: the KPIs count the model's own decisions),
 and ``trust_report`` counts them with the worst zone's errors. Not watched here (the
@@ -134,10 +141,14 @@ class ZoneGuard:
     distrusted model hands its decisions to the fallback QP (False: its errors are still
     filtered and counted, and the model drives); ``adaptive_margin``, whether each zone's band
     is narrowed by ``settings.margin_factor`` times its filtered replay error (at most
-    ``settings.max_margin_k``, never less than the planner's ``comfort_margin_k``)."""
+    ``settings.max_margin_k``, never less than the planner's ``comfort_margin_k``).
+
+    ``hand_over`` is False by default (module docstring: on EnergyPlus the QP on the
+    identified RC controls worse than the model it would replace, even where it replays the
+    past better); give ``ZoneGuard(hand_over=True)`` where the identified RC is trusted."""
 
     settings: TrustSettings = ZONE_TRUST
-    hand_over: bool = True
+    hand_over: bool = False
     adaptive_margin: bool = True
 
     def __post_init__(self) -> None:

@@ -183,7 +183,7 @@ def test_the_rc_replayed_from_the_true_state_is_the_plant_and_from_its_observer_
 
 def _day(name: str, model: MultiZoneRCModel, guard: ZoneGuard | None = None) -> tuple[CEM, RunKpis]:
     scenario = get_scenario(name)
-    cem = CEM(model, scenario.control_spec(), guard=ZoneGuard() if guard is None else guard)
+    cem = CEM(model, scenario.control_spec(), guard=ZoneGuard(hand_over=True) if guard is None else guard)
     result = run_closed_loop(scenario, cem, days=1, seed=1)
     assert not result.errors
     return cem, result.kpis
