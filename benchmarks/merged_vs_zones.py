@@ -1,0 +1,213 @@
+"""Per-zone control of a building of several zones against the merged one-zone control of the
+same building, days, weather, prices and comfort bands (issue 43), judged by the zoned
+scenario's own KPIs (each zone's discomfort, the price on the building's electrical power).
+
+For each seed ``s``: ``train_days`` days of the scenario's training data (its data policy,
+seed ``s``, as a sweep's model), then closed loops of ``days`` test days (seed ``s + 1``) of
+
+- ``cem``: cem over the model ``train`` chooses for the zones (``--arch auto``);
+- ``qp-mpc``: the QP over zones x actuators on the multi-zone RC ``identify`` fits;
+- ``thermostat``: the dual-setpoint thermostat per zone (a reference);
+- ``merged-cem``: the one-zone cem over the one-zone model ``train`` chooses (``auto``) on the
+  merged view of the same data (:meth:`controllers.merged.MergedView.frame`: the zones'
+  floor-area-weighted mean temperature, the net heat), its one heater's decision split over
+  the zones' heaters by floor area (:class:`controllers.merged.MergedZones`);
+- ``merged-qp-mpc``: the one-zone QP MPC on the one-zone RC identified from that merged data,
+  split likewise.
+
+The one-zone planners plan one actuator, so the merged controllers heat only (the zones'
+chillers stay off but for their backup thermostat). The floor-area shares are EnergyPlus's
+(:func:`scenarios.plants.energyplus.model.zone_layout`); on the package's RC buildings of
+several zones, which declare no floor, each zone's share of the building's heat capacity.
+
+Run from the checkout: ``PYTHONPATH=. python benchmarks/merged_vs_zones.py --scenario
+eplus_small_office_zones --seeds 0-2 --train-days 14 --days 3 --out merged_january`` (each
+cell's KPI JSON is written to ``--out`` as it finishes and read back on a rerun; ``--controllers``
+picks some). Prints each cell's line, then a table per controller: the objective [EUR], the
+cost, each zone's discomfort too cold / too warm [Kh] and the energy [kWh], as the mean over the
+seeds and the worst seed's, then the load average. Exits 0.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from controllers.base import Controller
+from controllers.merged import MergedView, MergedZones
+from scenarios import get_scenario
+from scenarios.inputs.registry import Scenario
+from scenarios.running.closed_loop import one_torch_thread, run_closed_loop
+
+ZONED = ("cem", "qp-mpc", "thermostat")
+MERGED = ("merged-cem", "merged-qp-mpc")
+CONTROLLERS = (*ZONED, *MERGED)
+
+
+def zone_shares(scenario: Scenario) -> tuple[float, ...]:
+    """(Z,) each zone's share of the building: its floor area's on EnergyPlus, its heat
+    capacity's (air and mass) on the package's RC building of several zones."""
+    from pinn_mpc.multizone import MultiZoneParams
+    from scenarios.plants.energyplus.model import zone_layout
+    from scenarios.plants.energyplus.settings import EnergyPlusSettings
+
+    settings = scenario.plant.settings
+    if isinstance(settings, EnergyPlusSettings):
+        return tuple(zone_layout(settings)[1])
+    building = getattr(settings, "building", None)
+    if not isinstance(building, MultiZoneParams):
+        raise SystemExit(f"--scenario {scenario.name}: neither EnergyPlus nor an RC building of several zones")
+    capacity = np.array([z.rc.c_r_j_per_k + z.rc.c_m_j_per_k for z in building.zones])
+    return tuple(capacity / capacity.sum())
+
+
+def fit_models(scenario: Scenario, view: MergedView, seed: int, train_days: int) -> dict[str, Any]:
+    """The zones' model and RC and the merged building's model and RC, fitted on
+    ``train_days`` days of the scenario's training data of seed ``seed``."""
+    from pinn_mpc.fitted import fit
+    from pinn_mpc.training import TrainConfig
+    from scenarios.experiments.compare import (
+        CompareSettings,
+        identify_scenario_rc,
+        identify_scenario_zones,
+        train_scenario_zones,
+    )
+    from scenarios.experiments.sweep.grid import SweepSettings
+    from scenarios.running.datagen import generate
+
+    data = generate(scenario, days=train_days, seed=seed, policy=scenario.data_policy)
+    merged = view.frame(data)
+    sweep = SweepSettings()  # a sweep's ensembles: members, depth, epochs
+    epochs = CompareSettings(train_days=train_days, test_days=1, seed=seed, epochs=sweep.epochs).training_epochs
+    heater = view.one_zone_spec.actuator
+    config = TrainConfig(
+        depth=sweep.depth, n_seeds=sweep.n_members, first_seed=seed, epochs=epochs, eta=1.0, u_max_w=heater.upper_w,
+    )
+    started = time.perf_counter()
+    models = {
+        "zones_model": train_scenario_zones(scenario, data, seed=seed).model,
+        "zones_rc": identify_scenario_zones(scenario, data).params,
+        "merged_choice": fit(merged, arch="auto", config=config),
+        "merged_rc": identify_scenario_rc(scenario, merged),
+    }
+    print(
+        f"seed {seed}: models fitted in {time.perf_counter() - started:.0f} s; merged: "
+        f"{models['merged_choice'].chosen} ({models['merged_choice'].why})", flush=True,
+    )
+    return models
+
+
+def controller(name: str, scenario: Scenario, view: MergedView, models: dict[str, Any], n_steps: int) -> Controller:
+    """The controller ``name`` (:data:`CONTROLLERS`) of the scenario on the fitted ``models``."""
+    from controllers.rc_mpc.osqp import QPMPC
+    from controllers.sampling import CEM
+    from scenarios.running.factory import build_controller, model_guard
+
+    if name == "cem":
+        return build_controller(name, scenario, model=models["zones_model"], n_steps=n_steps)
+    if name == "qp-mpc":
+        return build_controller(name, scenario, zone_params=models["zones_rc"], n_steps=n_steps)
+    if name == "thermostat":
+        return build_controller(name, scenario, n_steps=n_steps)
+    spec = view.one_zone_spec
+    if name == "merged-cem":
+        model = models["merged_choice"].model
+        return MergedZones(CEM(model, spec, guard=model_guard(model)), view)
+    if name == "merged-qp-mpc":
+        return MergedZones(QPMPC(models["merged_rc"], spec), view)
+    raise SystemExit(f"--controllers: {name!r} is not one of {', '.join(CONTROLLERS)}")
+
+
+def _seeds(text: str) -> list[int]:
+    first, _, last = text.partition("-")
+    return list(range(int(first), int(last or first) + 1))
+
+
+def _row(kpis: dict[str, Any]) -> dict[str, float]:
+    """The figures of one run: objective, cost, energy and each zone's discomfort."""
+    row = {k: float(kpis[k]) for k in ("objective", "cost_eur", "energy_kwh", "discomfort_kh")}
+    for zone, z in kpis["zones"].items():
+        row[f"cold[{zone}]"] = float(z["discomfort_too_cold_kh"])
+        row[f"warm[{zone}]"] = float(z["discomfort_too_warm_kh"])
+    return row
+
+
+def table(cells: dict[tuple[str, int], dict[str, Any]], names: list[str]) -> str:
+    """Per controller the mean over its seeds and its worst seed's (highest objective) figures."""
+    lines = []
+    for name in names:
+        rows = {seed: _row(k) for (n, seed), k in sorted(cells.items()) if n == name}
+        if not rows:
+            continue
+        worst = max(rows, key=lambda s: rows[s]["objective"])
+        keys = list(next(iter(rows.values())))
+        mean = {k: float(np.mean([r[k] for r in rows.values()])) for k in keys}
+        for label, row in (("mean", mean), (f"worst (seed {worst})", rows[worst])):
+            zones = " ".join(
+                f"{k.split('[')[1][:-1]} {row[k]:.2f}/{row['warm' + k[4:]]:.2f}" for k in keys if k.startswith("cold[")
+            )
+            lines.append(
+                f"{name:14s} {label:16s} objective {row['objective']:7.2f} EUR  cost {row['cost_eur']:6.2f} EUR  "
+                f"energy {row['energy_kwh']:6.1f} kWh  discomfort {row['discomfort_kh']:6.2f} Kh  "
+                f"cold/warm Kh: {zones}  (seeds {sorted(rows)})"
+            )
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0] if __doc__ else None)
+    parser.add_argument("--scenario", default="eplus_small_office_zones")
+    parser.add_argument("--seeds", default="0-2", help="a seed or a range, e.g. 0-2 (training seed s, test seed s+1)")
+    parser.add_argument("--train-days", type=int, default=14)
+    parser.add_argument("--days", type=int, default=3, help="test days")
+    parser.add_argument("--controllers", default=",".join(CONTROLLERS))
+    parser.add_argument("--out", required=True, help="directory of each cell's KPI JSON")
+    args = parser.parse_args(argv)
+    names = [n.strip() for n in args.controllers.split(",") if n.strip()]
+    unknown = [n for n in names if n not in CONTROLLERS]
+    if unknown:
+        raise SystemExit(f"--controllers: {unknown} not among {', '.join(CONTROLLERS)}")
+    scenario = get_scenario(args.scenario)
+    view = MergedView(spec=scenario.control_spec(), shares=zone_shares(scenario))
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    cells: dict[tuple[str, int], dict[str, Any]] = {}
+    n_steps = args.days * scenario.steps_per_day
+    for seed in _seeds(args.seeds):
+        paths = {name: out / f"{args.scenario}_s{seed}_t{args.train_days}_{name}.json" for name in names}
+        cells.update({(n, seed): json.loads(p.read_text()) for n, p in paths.items() if p.is_file()})
+        todo = [n for n in names if (n, seed) not in cells]
+        if not todo:
+            continue
+        models = fit_models(scenario, view, seed, args.train_days)
+        for name in todo:
+            started = time.perf_counter()
+            with one_torch_thread():
+                result = run_closed_loop(
+                    scenario, controller(name, scenario, view, models, n_steps), days=args.days,
+                    seed=seed + 1, label=name,
+                )
+            kpis = dict(result.kpis)
+            kpis["wall_time_s"] = time.perf_counter() - started
+            paths[name].write_text(json.dumps(kpis, indent=1, default=float))
+            cells[(name, seed)] = kpis
+            print(
+                f"seed {seed} {name}: objective {kpis['objective']:.2f} EUR, discomfort "
+                f"{kpis['discomfort_kh']:.2f} Kh, energy {kpis['energy_kwh']:.1f} kWh, fallbacks "
+                f"{kpis['fallbacks']}, {kpis['wall_time_s']:.0f} s", flush=True,
+            )
+    print(f"{args.scenario}, {args.train_days} training days, {args.days} test days")
+    print(table(cells, names))
+    print(f"load average {' '.join(f'{x:.2f}' for x in os.getloadavg())} on {os.cpu_count()} cores")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
