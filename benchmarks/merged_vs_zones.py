@@ -47,7 +47,7 @@ from scenarios.inputs.registry import Scenario
 from scenarios.running.closed_loop import one_torch_thread, run_closed_loop
 
 ZONED = ("cem", "qp-mpc", "thermostat")
-MERGED = ("merged-cem", "merged-qp-mpc")
+MERGED = ("merged-cem", "merged-qp-mpc", "merged-hc-cem", "merged-hc-qp-mpc")
 CONTROLLERS = (*ZONED, *MERGED)
 
 
@@ -68,10 +68,25 @@ def zone_shares(scenario: Scenario) -> tuple[float, ...]:
     return tuple(capacity / capacity.sum())
 
 
-def fit_models(scenario: Scenario, view: MergedView, seed: int, train_days: int) -> dict[str, Any]:
-    """The zones' model and RC and the merged building's model and RC, fitted on
-    ``train_days`` days of the scenario's training data of seed ``seed``."""
+#: The models each controller plans on (:func:`fit_models`).
+NEEDS = {
+    "cem": "zones_model", "qp-mpc": "zones_rc", "thermostat": None,
+    "merged-cem": "merged_model", "merged-qp-mpc": "merged_rc",
+    "merged-hc-cem": "merged_hc_model", "merged-hc-qp-mpc": "merged_hc_rc",
+}
+
+
+def fit_models(
+    scenario: Scenario, views: dict[bool, MergedView], seed: int, train_days: int, names: list[str]
+) -> dict[str, Any]:
+    """The models the controllers ``names`` plan on (:data:`NEEDS`), fitted on ``train_days``
+    days of the scenario's training data of seed ``seed``: the zones' model and RC as a sweep
+    fits them, the merged building's (``views[False]``: one heater; ``views[True]``: a heater
+    and a chiller) on the merged view of the same data."""
+    from pinn_mpc.actuator import actuator_columns
     from pinn_mpc.fitted import fit
+    from pinn_mpc.identify_multizone import identify_multizone
+    from pinn_mpc.model_choice import choose_zone_model
     from pinn_mpc.training import TrainConfig
     from scenarios.experiments.compare import (
         CompareSettings,
@@ -82,47 +97,76 @@ def fit_models(scenario: Scenario, view: MergedView, seed: int, train_days: int)
     from scenarios.experiments.sweep.grid import SweepSettings
     from scenarios.running.datagen import generate
 
+    needed = {NEEDS[n] for n in names} - {None}
+    if not needed:
+        return {}
     data = generate(scenario, days=train_days, seed=seed, policy=scenario.data_policy)
-    merged = view.frame(data)
-    sweep = SweepSettings()  # a sweep's ensembles: members, depth, epochs
-    epochs = CompareSettings(train_days=train_days, test_days=1, seed=seed, epochs=sweep.epochs).training_epochs
-    heater = view.one_zone_spec.actuator
-    config = TrainConfig(
-        depth=sweep.depth, n_seeds=sweep.n_members, first_seed=seed, epochs=epochs, eta=1.0, u_max_w=heater.upper_w,
-    )
     started = time.perf_counter()
-    models = {
-        "zones_model": train_scenario_zones(scenario, data, seed=seed).model,
-        "zones_rc": identify_scenario_zones(scenario, data).params,
-        "merged_choice": fit(merged, arch="auto", config=config),
-        "merged_rc": identify_scenario_rc(scenario, merged),
+    models: dict[str, Any] = {}
+    if "zones_model" in needed:
+        models["zones_model"] = train_scenario_zones(scenario, data, seed=seed).model
+    if "zones_rc" in needed:
+        models["zones_rc"] = identify_scenario_zones(scenario, data).params
+    merged = views[False].frame(data)
+    if "merged_model" in needed:
+        sweep = SweepSettings()  # a sweep's ensembles: members, depth, epochs
+        epochs = CompareSettings(train_days=train_days, test_days=1, seed=seed, epochs=sweep.epochs).training_epochs
+        config = TrainConfig(
+            depth=sweep.depth, n_seeds=sweep.n_members, first_seed=seed, epochs=epochs, eta=1.0,
+            u_max_w=views[False].one_zone_spec.actuator.upper_w,
+        )
+        choice = fit(merged, arch="auto", config=config)
+        models["merged_model"] = choice.model
+        print(f"seed {seed}: merged one-zone model {choice.chosen} ({choice.why})", flush=True)
+    if "merged_rc" in needed:
+        models["merged_rc"] = identify_scenario_rc(scenario, merged)
+    both = views[True].one_zone_spec
+    layout: dict[str, Any] = {
+        "zones": both.zones, "actuators": both.actuators, "solar_inputs": ["G"], "dt_s": both.dt_s,
+        "adjacency": None,
     }
-    print(
-        f"seed {seed}: models fitted in {time.perf_counter() - started:.0f} s; merged: "
-        f"{models['merged_choice'].chosen} ({models['merged_choice'].why})", flush=True,
-    )
+    merged_hc = views[True].frame(data)
+    if "merged_hc_model" in needed:
+        zone_choice = choose_zone_model(merged_hc, seed=seed, **layout)
+        models["merged_hc_model"] = zone_choice.model
+        print(f"seed {seed}: merged heat+cool model {zone_choice.chosen} ({zone_choice.why})", flush=True)
+    if "merged_hc_rc" in needed:
+        models["merged_hc_rc"] = identify_multizone(
+            merged_hc, power_columns=actuator_columns("u_phys", both.actuators), **layout,
+        ).params
+    print(f"seed {seed}: models fitted in {time.perf_counter() - started:.0f} s", flush=True)
     return models
 
 
-def controller(name: str, scenario: Scenario, view: MergedView, models: dict[str, Any], n_steps: int) -> Controller:
+def controller(
+    name: str, scenario: Scenario, views: dict[bool, MergedView], models: dict[str, Any], n_steps: int
+) -> Controller:
     """The controller ``name`` (:data:`CONTROLLERS`) of the scenario on the fitted ``models``."""
     from controllers.rc_mpc.osqp import QPMPC
     from controllers.sampling import CEM
-    from scenarios.running.factory import build_controller, model_guard
+    from scenarios.plants.multizone import MultiZoneSettings
+    from scenarios.running.factory import build_controller, model_guard, zone_planner
 
-    if name == "cem":
-        return build_controller(name, scenario, model=models["zones_model"], n_steps=n_steps)
-    if name == "qp-mpc":
-        return build_controller(name, scenario, zone_params=models["zones_rc"], n_steps=n_steps)
-    if name == "thermostat":
-        return build_controller(name, scenario, n_steps=n_steps)
-    spec = view.one_zone_spec
+    if name in ZONED:
+        return build_controller(
+            name, scenario, model=models.get("zones_model") if name == "cem" else None,
+            zone_params=models.get("zones_rc") if name == "qp-mpc" else None, n_steps=n_steps,
+        )
     if name == "merged-cem":
-        model = models["merged_choice"].model
-        return MergedZones(CEM(model, spec, guard=model_guard(model)), view)
+        model = models["merged_model"]
+        return MergedZones(CEM(model, views[False].one_zone_spec, guard=model_guard(model)), views[False])
     if name == "merged-qp-mpc":
-        return MergedZones(QPMPC(models["merged_rc"], spec), view)
-    raise SystemExit(f"--controllers: {name!r} is not one of {', '.join(CONTROLLERS)}")
+        return MergedZones(QPMPC(models["merged_rc"], views[False].one_zone_spec), views[False])
+    settings, sim = scenario.plant.settings, scenario.sim
+    limits = (
+        settings.backup_limits(sim.backup_low_c, sim.backup_high_c) if isinstance(settings, MultiZoneSettings)
+        else (sim.backup_low_c, sim.backup_high_c)
+    )
+    planner = zone_planner(
+        name.removeprefix("merged-hc-"), views[True].one_zone_spec, model=models.get("merged_hc_model"),
+        zone_params=models.get("merged_hc_rc"), backup_limits_c=limits,
+    )
+    return MergedZones(planner, views[True])
 
 
 def _seeds(text: str) -> list[int]:
@@ -175,7 +219,8 @@ def main(argv: list[str] | None = None) -> int:
     if unknown:
         raise SystemExit(f"--controllers: {unknown} not among {', '.join(CONTROLLERS)}")
     scenario = get_scenario(args.scenario)
-    view = MergedView(spec=scenario.control_spec(), shares=zone_shares(scenario))
+    shares = zone_shares(scenario)
+    views = {c: MergedView(spec=scenario.control_spec(), shares=shares, cooling=c) for c in (False, True)}
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     cells: dict[tuple[str, int], dict[str, Any]] = {}
@@ -186,12 +231,12 @@ def main(argv: list[str] | None = None) -> int:
         todo = [n for n in names if (n, seed) not in cells]
         if not todo:
             continue
-        models = fit_models(scenario, view, seed, args.train_days)
+        models = fit_models(scenario, views, seed, args.train_days, todo)
         for name in todo:
             started = time.perf_counter()
             with one_torch_thread():
                 result = run_closed_loop(
-                    scenario, controller(name, scenario, view, models, n_steps), days=args.days,
+                    scenario, controller(name, scenario, views, models, n_steps), days=args.days,
                     seed=seed + 1, label=name,
                 )
             kpis = dict(result.kpis)

@@ -121,13 +121,9 @@ class MergedView:
         object.__setattr__(self, "shares", shares)
         if not self.heaters:
             raise ValueError("MergedView.spec: the building has no heater; the merged view plans one")
-        kinds = [(HEAT, self.heaters)] + ([(COOL, self.coolers)] if self.cooling else [])
-        for kind, members in kinds:
-            if not members:
-                raise ValueError(
-                    f"MergedView.cooling = True, but the building has no chiller; give cooling = False"
-                    if kind == COOL else "unreachable"
-                )
+        if self.cooling and not self.coolers:
+            raise ValueError("MergedView.cooling = True, but the building has no chiller; give cooling = False")
+        for kind, members in zip((HEAT, COOL), self._members(), strict=False):
             efficiencies = {self.spec.actuators[i].efficiency for i in members}
             if len(efficiencies) > 1:
                 raise ValueError(
