@@ -15,10 +15,13 @@ seed ``s``, as a sweep's model), then closed loops of ``days`` test days (seed `
 - ``merged-qp-mpc``: the one-zone QP MPC on the one-zone RC identified from that merged data,
   split likewise.
 
-The one-zone planners plan one actuator, so the merged controllers heat only (the zones'
-chillers stay off but for their backup thermostat). The floor-area shares are EnergyPlus's
-(:func:`scenarios.plants.energyplus.model.zone_layout`); on the package's RC buildings of
-several zones, which declare no floor, each zone's share of the building's heat capacity.
+The one-zone planners plan one actuator, so these two heat only (the zones'
+chillers stay off but for their backup thermostat); ``merged-hc-cem`` and ``merged-hc-qp-mpc``
+plan the merged building with one heater and one chiller (their decisions split likewise)
+with the planners of several zones (which take one zone with two actuators): cem over the
+model of one zone ``train`` chooses for that data, and the QP on the RC of one zone
+``identify`` fits. The shares are the plant's (``zone_shares``: EnergyPlus's floor areas;
+equal on the package's RC buildings of several zones, which declare no floor).
 
 Run from the checkout: ``PYTHONPATH=. python benchmarks/merged_vs_zones.py --scenario
 eplus_small_office_zones --seeds 0-2 --train-days 14 --days 3 --out merged_january`` (each
@@ -49,23 +52,6 @@ from scenarios.running.closed_loop import one_torch_thread, run_closed_loop
 ZONED = ("cem", "qp-mpc", "thermostat")
 MERGED = ("merged-cem", "merged-qp-mpc", "merged-hc-cem", "merged-hc-qp-mpc")
 CONTROLLERS = (*ZONED, *MERGED)
-
-
-def zone_shares(scenario: Scenario) -> tuple[float, ...]:
-    """(Z,) each zone's share of the building: its floor area's on EnergyPlus, its heat
-    capacity's (air and mass) on the package's RC building of several zones."""
-    from pinn_mpc.multizone import MultiZoneParams
-    from scenarios.plants.energyplus.model import zone_layout
-    from scenarios.plants.energyplus.settings import EnergyPlusSettings
-
-    settings = scenario.plant.settings
-    if isinstance(settings, EnergyPlusSettings):
-        return tuple(zone_layout(settings)[1])
-    building = getattr(settings, "building", None)
-    if not isinstance(building, MultiZoneParams):
-        raise SystemExit(f"--scenario {scenario.name}: neither EnergyPlus nor an RC building of several zones")
-    capacity = np.array([z.rc.c_r_j_per_k + z.rc.c_m_j_per_k for z in building.zones])
-    return tuple(capacity / capacity.sum())
 
 
 #: The models each controller plans on (:func:`fit_models`).
@@ -144,8 +130,12 @@ def controller(
     """The controller ``name`` (:data:`CONTROLLERS`) of the scenario on the fitted ``models``."""
     from controllers.rc_mpc.osqp import QPMPC
     from controllers.sampling import CEM
-    from scenarios.plants.multizone import MultiZoneSettings
-    from scenarios.running.factory import build_controller, model_guard, zone_planner
+    from scenarios.running.factory import (
+        build_controller,
+        model_guard,
+        zone_backup_limits,
+        zone_planner,
+    )
 
     if name in ZONED:
         return build_controller(
@@ -157,14 +147,9 @@ def controller(
         return MergedZones(CEM(model, views[False].one_zone_spec, guard=model_guard(model)), views[False])
     if name == "merged-qp-mpc":
         return MergedZones(QPMPC(models["merged_rc"], views[False].one_zone_spec), views[False])
-    settings, sim = scenario.plant.settings, scenario.sim
-    limits = (
-        settings.backup_limits(sim.backup_low_c, sim.backup_high_c) if isinstance(settings, MultiZoneSettings)
-        else (sim.backup_low_c, sim.backup_high_c)
-    )
     planner = zone_planner(
         name.removeprefix("merged-hc-"), views[True].one_zone_spec, model=models.get("merged_hc_model"),
-        zone_params=models.get("merged_hc_rc"), backup_limits_c=limits,
+        zone_params=models.get("merged_hc_rc"), backup_limits_c=zone_backup_limits(scenario),
     )
     return MergedZones(planner, views[True])
 
@@ -219,7 +204,7 @@ def main(argv: list[str] | None = None) -> int:
     if unknown:
         raise SystemExit(f"--controllers: {unknown} not among {', '.join(CONTROLLERS)}")
     scenario = get_scenario(args.scenario)
-    shares = zone_shares(scenario)
+    shares = scenario.plant.settings.zone_shares
     views = {c: MergedView(spec=scenario.control_spec(), shares=shares, cooling=c) for c in (False, True)}
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)

@@ -27,7 +27,7 @@ import os
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeAlias
 
 from controllers.base import Controller
 from pinn_mpc.artifacts import read_rc_json
@@ -68,6 +68,7 @@ __all__ = [
     "model_guard",
     "read_zone_rc",
     "weather_range_note",
+    "zone_backup_limits",
     "zone_planner",
 ]
 
@@ -451,18 +452,33 @@ def _zone_controller(
         )
     if isinstance(model, MultiZoneHybrid | MultiZoneARX):
         check_zone_model(model, spec, scenario.name)
+    return zone_planner(
+        name, spec, model=model, zone_params=zone_params, backup_limits_c=zone_backup_limits(scenario),
+        options=options,
+    )
+
+
+#: The backup thermostat's (low, high) limits [C]: one for every zone or one per zone.
+BackupLimits: TypeAlias = tuple[float | tuple[float, ...], float | tuple[float, ...]]
+
+
+def zone_backup_limits(scenario: Scenario) -> BackupLimits:
+    """The limits of the backup thermostat of the scenario's building of several zones: its
+    multi-zone plant's own where it gives them, else the scenario's (``SimConfig``)."""
+    from scenarios.plants.multizone import MultiZoneSettings
+
     low, high = scenario.sim.backup_low_c, scenario.sim.backup_high_c
-    limits = settings.backup_limits(low, high) if isinstance(settings, MultiZoneSettings) else (low, high)
-    return zone_planner(name, spec, model=model, zone_params=zone_params, backup_limits_c=limits, options=options)
+    settings = scenario.plant.settings
+    return settings.backup_limits(low, high) if isinstance(settings, MultiZoneSettings) else (low, high)
 
 
 def zone_planner(
     name: str,
     spec: ControlSpec,
     *,
-    model: MultiZoneHybrid | MultiZoneARX | None = None,
+    model: BatchDynamics | None = None,
     zone_params: MultiZoneParams | None = None,
-    backup_limits_c: tuple[float, float],
+    backup_limits_c: BackupLimits,
     options: Mapping[str, Any] | None = None,
 ) -> Controller:
     """``qp-mpc`` on the multi-zone RC ``zone_params``, or ``cem`` / ``random-shooting`` over
