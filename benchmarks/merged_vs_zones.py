@@ -8,10 +8,13 @@ seed ``s``, as a sweep's model), then closed loops of ``days`` test days (seed `
 - ``cem``: cem over the model ``train`` chooses for the zones (``--arch auto``);
 - ``qp-mpc``: the QP over zones x actuators on the multi-zone RC ``identify`` fits;
 - ``thermostat``: the dual-setpoint thermostat per zone (a reference);
-- ``merged-cem``: the one-zone cem over the one-zone model ``train`` chooses (``auto``) on the
-  merged view of the same data (:meth:`controllers.merged.MergedView.frame`: the zones'
-  floor-area-weighted mean temperature, the net heat), its one heater's decision split over
-  the zones' heaters by floor area (:class:`controllers.merged.MergedZones`);
+- ``merged-cem``: the one-zone cem over the one-zone physics-informed ARX ``train --arch parx``
+  fits on the merged view of the same data (:meth:`controllers.merged.MergedView.frame`: the
+  zones' floor-area-weighted mean temperature, the net heat), its one heater's decision split
+  over the zones' heaters by floor area (:class:`controllers.merged.MergedZones`). Not
+  ``auto``: where the data's chillers took out more heat than the heaters gave, the net heat is
+  negative, which the hybrid's training refuses (a power >= 0); ``auto`` chooses this ARX on
+  the zones of this building;
 - ``merged-qp-mpc``: the one-zone QP MPC on the one-zone RC identified from that merged data,
   split likewise.
 
@@ -73,14 +76,11 @@ def fit_models(
     from pinn_mpc.fitted import fit
     from pinn_mpc.identify_multizone import identify_multizone
     from pinn_mpc.model_choice import choose_zone_model
-    from pinn_mpc.training import TrainConfig
     from scenarios.experiments.compare import (
-        CompareSettings,
         identify_scenario_rc,
         identify_scenario_zones,
         train_scenario_zones,
     )
-    from scenarios.experiments.sweep.grid import SweepSettings
     from scenarios.running.datagen import generate
 
     needed = {NEEDS[n] for n in names} - {None}
@@ -90,20 +90,14 @@ def fit_models(
     started = time.perf_counter()
     models: dict[str, Any] = {}
     if "zones_model" in needed:
-        models["zones_model"] = train_scenario_zones(scenario, data, seed=seed).model
+        choice = train_scenario_zones(scenario, data, seed=seed)
+        models["zones_model"] = choice.model
+        print(f"seed {seed}: the zones' model {choice.chosen} ({choice.why})", flush=True)
     if "zones_rc" in needed:
         models["zones_rc"] = identify_scenario_zones(scenario, data).params
     merged = views[False].frame(data)
-    if "merged_model" in needed:
-        sweep = SweepSettings()  # a sweep's ensembles: members, depth, epochs
-        epochs = CompareSettings(train_days=train_days, test_days=1, seed=seed, epochs=sweep.epochs).training_epochs
-        config = TrainConfig(
-            depth=sweep.depth, n_seeds=sweep.n_members, first_seed=seed, epochs=epochs, eta=1.0,
-            u_max_w=views[False].one_zone_spec.actuator.upper_w,
-        )
-        choice = fit(merged, arch="auto", config=config)
-        models["merged_model"] = choice.model
-        print(f"seed {seed}: merged one-zone model {choice.chosen} ({choice.why})", flush=True)
+    if "merged_model" in needed:  # train --arch parx (the hybrid's training refuses a negative power)
+        models["merged_model"] = fit(merged, arch="parx").model
     if "merged_rc" in needed:
         models["merged_rc"] = identify_scenario_rc(scenario, merged)
     both = views[True].one_zone_spec
