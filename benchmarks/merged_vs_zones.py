@@ -100,6 +100,8 @@ def fit_models(
         models["merged_model"] = fit(merged, arch="parx").model
     if "merged_rc" in needed:
         models["merged_rc"] = identify_scenario_rc(scenario, merged)
+    if not needed & {"merged_hc_model", "merged_hc_rc"}:
+        return models
     both = views[True].one_zone_spec
     layout: dict[str, Any] = {
         "zones": both.zones, "actuators": both.actuators, "solar_inputs": ["G"], "dt_s": both.dt_s,
@@ -198,8 +200,11 @@ def main(argv: list[str] | None = None) -> int:
     if unknown:
         raise SystemExit(f"--controllers: {unknown} not among {', '.join(CONTROLLERS)}")
     scenario = get_scenario(args.scenario)
-    shares = scenario.plant.settings.zone_shares
-    views = {c: MergedView(spec=scenario.control_spec(), shares=shares, cooling=c) for c in (False, True)}
+    spec, shares = scenario.control_spec(), scenario.plant.settings.zone_shares
+    chillers = any(not a.heats for a in spec.actuators)
+    if not chillers and any(n.startswith("merged-hc-") for n in names):
+        raise SystemExit(f"--controllers: {args.scenario} has no chiller; the merged-hc controllers plan one")
+    views = {c: MergedView(spec=spec, shares=shares, cooling=c) for c in (False, True) if c <= chillers}
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     cells: dict[tuple[str, int], dict[str, Any]] = {}

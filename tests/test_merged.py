@@ -217,3 +217,16 @@ def test_merged_zones_refuses_a_controller_of_the_true_state():
 
     with pytest.raises(ValueError, match=r"MergedZones.inner = 'thermostat' plans on the plant's true state"):
         MergedZones(Knowing(view.one_zone_spec), view)
+
+
+def test_the_comparison_script_runs_the_merged_and_the_zoned_controllers(tmp_path, capsys):
+    from benchmarks.merged_vs_zones import main
+
+    args = ["--scenario", "two_zone_house", "--seeds", "0", "--train-days", "4", "--days", "1", "--out", str(tmp_path)]
+    with pytest.raises(SystemExit, match="two_zone_house has no chiller; the merged-hc controllers plan one"):
+        main([*args, "--controllers", "merged-hc-qp-mpc"])
+    assert main([*args, "--controllers", "thermostat,merged-qp-mpc"]) == 0
+    out = capsys.readouterr().out
+    assert "merged-qp-mpc  mean" in out and "thermostat     worst (seed 0)" in out
+    cells = sorted(p.name for p in tmp_path.iterdir())
+    assert cells == [f"two_zone_house_s0_t4_{n}.json" for n in ("merged-qp-mpc", "thermostat")]
