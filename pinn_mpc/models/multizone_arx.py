@@ -431,7 +431,7 @@ class MultiZoneARX(BatchDynamics):
         return Rollout(torch.stack(out, dim=1)[None], torch.stack(powers, dim=1)[None], None)
 
     def linear_response(
-        self, history: dict[str, np.ndarray], u_w: np.ndarray, exog: dict[str, np.ndarray]
+        self, history: Mapping[str, np.ndarray], u_w: np.ndarray, exog: Mapping[str, np.ndarray]
     ) -> LinearResponse:
         """The rollout of one plan ``u_w`` (H, A) [W] (:meth:`rollout`'s) and its exact
         response to a change of the plan (:class:`~pinn_mpc.models.rollout.LinearResponse`):
@@ -446,7 +446,7 @@ class MultiZoneARX(BatchDynamics):
         a_n, z_n = len(self.actuators), len(self.zones)
         if plan.ndim != 2 or plan.shape[1] != a_n:
             raise ValueError(f"MultiZoneARX.linear_response: u_w must be (H, {a_n}), one demand per actuator, got {plan.shape}")
-        roll = self.rollout(history, torch.as_tensor(plan[None]), exog)
+        roll = self.rollout(dict(history), torch.as_tensor(plan[None]), dict(exog))
         rooms = roll.t_r_c[0, 0].numpy()  # (H, Z)
         now = np.array([float(np.asarray(history[x], dtype=float)[-1]) for x in zone_columns("T_r", self.zones)])
         start = np.vstack([now, rooms[:-1]])[:, self._zone_of.numpy()]  # (H, A) each actuator's zone's room then
