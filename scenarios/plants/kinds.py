@@ -93,6 +93,14 @@ class KindSettings:
         return None
 
     @property
+    def zone_shares(self) -> tuple[float, ...]:
+        """Each of :attr:`zone_specs`' share of the building (summing to 1), by which a merged
+        one-zone control weighs the zones (:class:`controllers.merged.MergedView`): the floor
+        area's where the kind knows it, else equal."""
+        n_zones = len(self.zone_specs)
+        return (1.0 / n_zones,) * n_zones
+
+    @property
     def own_actuators(self) -> tuple[ActuatorSpec, ...] | None:
         """The actuators the plant declares (a building of several zones), which the control
         spec then holds; None: the scenario's one actuator (``SimConfig.actuators``)."""

@@ -28,7 +28,7 @@ import os
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeAlias
 
 from controllers.base import Controller
 from pinn_mpc.artifacts import read_rc_json
@@ -71,6 +71,8 @@ __all__ = [
     "model_guard",
     "read_zone_rc",
     "weather_range_note",
+    "zone_backup_limits",
+    "zone_planner",
 ]
 
 #: Ranges of the training data's inputs a planner watches (see controllers.trust).
@@ -434,6 +436,43 @@ def _zone_controller(
             f"{where}: add {setting('rc_path')} rc.json (`pinn-mpc identify` on the scenario's data writes "
             f"one) or {setting('model_dir')} DIR (`pinn-mpc train` on that data with the scenario's layout)"
         )
+    if isinstance(model, MultiZoneHybrid | MultiZoneARX | MultiZonePaperModel):
+        check_zone_model(model, spec, scenario.name)
+    return zone_planner(
+        name, spec, model=model, zone_params=zone_params, backup_limits_c=zone_backup_limits(scenario),
+        options=options,
+    )
+
+
+#: The backup thermostat's (low, high) limits [C]: one for every zone or one per zone.
+BackupLimits: TypeAlias = tuple[float | tuple[float, ...], float | tuple[float, ...]]
+
+
+def zone_backup_limits(scenario: Scenario) -> BackupLimits:
+    """The limits of the backup thermostat of the scenario's building of several zones: its
+    multi-zone plant's own where it gives them, else the scenario's (``SimConfig``)."""
+    from scenarios.plants.multizone import MultiZoneSettings
+
+    low, high = scenario.sim.backup_low_c, scenario.sim.backup_high_c
+    settings = scenario.plant.settings
+    return settings.backup_limits(low, high) if isinstance(settings, MultiZoneSettings) else (low, high)
+
+
+def zone_planner(
+    name: str,
+    spec: ControlSpec,
+    *,
+    model: BatchDynamics | None = None,
+    zone_params: MultiZoneParams | None = None,
+    backup_limits_c: BackupLimits,
+    options: Mapping[str, Any] | None = None,
+) -> Controller:
+    """``qp-mpc`` on the multi-zone RC ``zone_params``, or ``cem`` / ``random-shooting`` over
+    the model of every zone ``model`` (else over ``zone_params``' RC) of the building ``spec``
+    (any zones and actuators, one zone with a heater and a chiller too), its backup
+    thermostat's limits ``backup_limits_c`` [C]: the planners :func:`build_controller` makes on
+    a building of several zones, once the model or RC is checked against it."""
+    options = dict(options or {})
     if name == "qp-mpc" and zone_params is not None:
         from controllers.rc_mpc.multizone import MultiZoneMPC
 
@@ -444,23 +483,23 @@ def _zone_controller(
         return MultiZoneCasadiMPC(zone_params, spec, estimator="kalman")
     from controllers.estimators import observer_noise
     from controllers.sampling import CEM, RandomShooting
+    from pinn_mpc.models.multizone_arx import MultiZoneARX
+    from pinn_mpc.models.multizone_hybrid import MultiZoneHybrid
+    from pinn_mpc.models.multizone_paper import MultiZonePaperModel
     from pinn_mpc.models.multizone_rc import MultiZoneRCModel
 
-    low, high = scenario.sim.backup_low_c, scenario.sim.backup_high_c
-    limits = settings.backup_limits(low, high) if isinstance(settings, MultiZoneSettings) else (low, high)
     process, measurement = observer_noise(spec)
     planner_settings: dict[str, Any] = {
-        "backup_low_c": limits[0], "backup_high_c": limits[1], "process_std_c": process,
+        "backup_low_c": backup_limits_c[0], "backup_high_c": backup_limits_c[1], "process_std_c": process,
         "measurement_std_c": measurement,
     }
     planner_model: BatchDynamics
     if isinstance(model, MultiZoneHybrid | MultiZoneARX | MultiZonePaperModel):
-        check_zone_model(model, spec, scenario.name)
         planner_model = model.for_planning(**planner_settings)
     elif zone_params is not None:
         planner_model = MultiZoneRCModel(zone_params, spec.actuators, spec.dt_s, **planner_settings)
     else:
-        raise InternalError(f"controller {name!r} on {where} reached planning with neither a model nor an RC")
+        raise InternalError(f"controller {name!r} reached planning with neither a model nor an RC")
     planner = RandomShooting if name == "random-shooting" else CEM
     return planner(planner_model, spec, **options)  # the zones' margin and guard by default
 

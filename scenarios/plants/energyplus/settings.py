@@ -271,6 +271,16 @@ class EnergyPlusSettings(KindSettings):
         return np.array(zone_adjacency(self), dtype=bool)
 
     @property
+    def zone_shares(self) -> tuple[float, ...]:
+        """Where the zones are controlled, each zone's share of the floor area (zone multipliers
+        counted, :func:`scenarios.plants.energyplus.model.zone_layout`); else (1.0,)."""
+        if not self.controlled:
+            return (1.0,)
+        from scenarios.plants.energyplus.model import zone_layout
+
+        return tuple(zone_layout(self)[1])
+
+    @property
     def own_actuators(self) -> tuple[ActuatorSpec, ...] | None:
         """Where the zones are controlled, each zone's heater ``heat_<zone>`` then its chiller
         ``cool_<zone>`` (those of power > 0), zone by zone; None otherwise (the scenario's one
