@@ -266,6 +266,8 @@ NOT_RUN = {
     "write pages of a small and of a BOPTEST sweep)",
     "python benchmarks/boptest_least_discomfort.py": "a measurement of 11 minutes whose figures "
     "the page quotes (tests/test_least_discomfort.py checks its model and programme)",
+    "PYTHONPATH=. python benchmarks/merged_vs_zones.py": "a measurement of most of an hour on "
+    "EnergyPlus whose figures the page quotes (tests/test_merged.py runs the script on two_zone_house)",
 }
 #: Commands a page shares with another page that runs them: {(page, command): the other page}.
 RUN_ON_ANOTHER_PAGE = {

@@ -71,6 +71,7 @@ from pinn_mpc.io import DirectoryLayout
 from pinn_mpc.models.lagged_zones import LaggedZoneModel
 from pinn_mpc.models.layers import mlp_layers, run_layers
 from pinn_mpc.models.physnet import DYNAMICS, ENCODER
+from pinn_mpc.models.registry import ARCHITECTURES
 from pinn_mpc.models.rollout import Rollout
 from pinn_mpc.multizone import EXOGENOUS_NAMES, MultiZoneParams
 from pinn_mpc.zones import ZoneSpec
@@ -98,8 +99,17 @@ MULTIZONE_PAPER_DIRECTORY = DirectoryLayout(
 )
 #: The file's format tag.
 FORMAT = "pinn-mpc multi-zone paper network 1"
+
+
+def _arch_of(module: str) -> str:
+    """The registry's name of the architecture implemented in ``module``."""
+    return next(name for name, spec in ARCHITECTURES.items() if spec.implementation.startswith(f"{module}:"))
+
+
+#: The paper's PhysNet and PhysReg MLP, by the registry's names.
+PHYSNET, PHYSREG = _arch_of("pinn_mpc.models.physnet"), _arch_of("pinn_mpc.models.physreg")
 #: The architectures: the paper's two physics-informed networks.
-ARCHS = ("physnet", "physreg")
+ARCHS = (PHYSNET, PHYSREG)
 #: The PhysReg MLP's trunk (:class:`pinn_mpc.models.mlp.MLP`'s).
 TRUNK = (64, 64)
 #: History rows before now each zone's window holds (the registry's depth of both networks).
@@ -298,14 +308,14 @@ class ZoneNets(nn.Module):
         self.register_buffer("past_index", torch.tensor(sorted(past)))
         self.register_buffer("now_index", torch.tensor(now + clock))
         self.n_features = n_features
-        if arch == "physnet":
+        if arch == PHYSNET:
             self.encoder = mlp_layers((len(past), *ENCODER, 1), n_zones, gens)
             self.dynamics = mlp_layers((1 + len(now) + N_CLOCK, *DYNAMICS, 1), n_zones, gens)
         else:
             self.trunk = mlp_layers((n_features, *TRUNK, 2), n_zones, gens)
 
     def forward(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        if self.arch == "physnet":
+        if self.arch == PHYSNET:
             z = run_layers(self.encoder, x.index_select(-1, self.past_index))
             out = run_layers(self.dynamics, torch.cat([z, x.index_select(-1, self.now_index)], dim=-1))
             return out[..., 0], z[..., 0]
