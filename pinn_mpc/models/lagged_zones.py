@@ -122,14 +122,18 @@ class LaggedZoneModel(BatchDynamics):
             )
         return PlanBounds(u_w, self.actuators)
 
-    def delivered_w(self, rooms_c: torch.Tensor, plan: PlanBounds, step: int) -> torch.Tensor:
-        """(N, A) each actuator's power [W] in interval ``step`` of ``plan``: its demand, or what
-        its zone's backup thermostat forces at the rooms ``rooms_c`` (N, Z) [C] at its start."""
+    def backup_forces(self, rooms_c: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """(force_on, force_off), each (N, A) bool: the actuators each zone's backup thermostat
+        forces to full power or off at the rooms ``rooms_c`` (N, Z) [C]."""
         t = rooms_c[:, self._zone_of]  # (N, A) each actuator's zone's room now
         cold = t < torch.as_tensor(self._low_c, dtype=t.dtype)
         warm = t > torch.as_tensor(self._high_c, dtype=t.dtype)
-        force_on = torch.where(self._heats, cold, warm)
-        force_off = torch.where(self._heats, warm, cold)
+        return torch.where(self._heats, cold, warm), torch.where(self._heats, warm, cold)
+
+    def delivered_w(self, rooms_c: torch.Tensor, plan: PlanBounds, step: int) -> torch.Tensor:
+        """(N, A) each actuator's power [W] in interval ``step`` of ``plan``: its demand, or what
+        its zone's backup thermostat forces at the rooms ``rooms_c`` (N, Z) [C] at its start."""
+        force_on, force_off = self.backup_forces(rooms_c)
         return torch.where(force_on, plan.upper, torch.where(force_off, plan.lower, plan.demand[:, step]))
 
     def check_history(self, history: Mapping[str, Any]) -> tuple[tuple[str, ...], tuple[str, ...], list[str]]:

@@ -384,14 +384,10 @@ class MultiZoneARX(LaggedZoneModel):
         roll = self.rollout(dict(history), torch.as_tensor(plan[None]), dict(exog))
         rooms = roll.t_r_c[0, 0].numpy()  # (H, Z)
         now = np.array([float(np.asarray(history[x], dtype=float)[-1]) for x in zone_columns("T_r", self.zones)])
-        start = np.vstack([now, rooms[:-1]])[:, self._zone_of.numpy()]  # (H, A) each actuator's zone's room then
-        heats = self._heats.numpy()
-        forced = np.where(heats, start < self._low_c, start > self._high_c) | np.where(
-            heats, start > self._high_c, start < self._low_c
-        )
-        lower = np.array([s.lower_w for s in self.actuators])
-        upper = np.array([s.upper_w for s in self.actuators])
-        follows = (~forced & (plan >= lower) & (plan <= upper)).astype(float)
+        force_on, force_off = self.backup_forces(torch.as_tensor(np.vstack([now, rooms[:-1]])))  # at each start
+        bounds = self.plan_bounds(torch.as_tensor(plan[None]))
+        inside = (plan >= bounds.lower.numpy()) & (plan <= bounds.upper.numpy())
+        follows = (~(force_on | force_off).numpy() & inside).astype(float)
         t_a = np.asarray(exog["T_a"], dtype=float)[: len(plan)]
         heat_per_w = np.stack([s.gain(t_a) for s in self.actuators], axis=-1)  # (H, A) >= 0, as the rollout's
         signed = np.array([s.sign * _HEAT_SCALE for s in self.actuators])  # (A,) a heat's scaled, signed unit per W
