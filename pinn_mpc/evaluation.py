@@ -155,11 +155,7 @@ def evaluate_zone_model(
         )
     check_interval(model.dt_s, df.attrs["dt_s"], what="the evaluation data has")
     rooms = df[list(zone_columns("T_r", model.zones))].to_numpy(dtype=float)  # (T, Z)
-    from pinn_mpc.models.multizone_paper import MultiZonePaperModel
-
-    # The ARX reads its `depth` latest rows, the networks `depth` rows before the latest.
-    first = model.depth if isinstance(model, MultiZonePaperModel) else max(0, model.depth - 1)
-    n = len(df)
+    first, n = model.first_path_start, len(df)
 
     def errors(pred: np.ndarray, truth: np.ndarray) -> HorizonErrors:
         per_zone = np.mean(np.abs(pred - truth), axis=0)

@@ -292,13 +292,18 @@ class MultiZoneARX(LaggedZoneModel):
             "heat": torch.as_tensor(c.heat, dtype=torch.float64),
         }
 
+    @property
+    def first_path_start(self) -> int:
+        """The first row of a frame :meth:`predict_paths` predicts from: its lags' rows."""
+        return self.depth - 1
+
     def predict_paths(self, frame: pd.DataFrame, starts: np.ndarray, horizon: int) -> np.ndarray:
         """(len(starts), horizon, Z) each zone's room [C] at the end of the ``horizon``
         intervals after each start row of ``frame`` (data format, as :func:`fit_multizone_arx`
         takes it): the recursion from the measured rooms up to each start, on the data's
         delivered powers (no backups: the data's powers were delivered) and weather."""
         starts = np.asarray(starts, dtype=int)
-        lo = self.depth - 1
+        lo = self.first_path_start
         if starts.size and (starts.min() < lo or starts.max() + horizon > len(frame) - 1):
             raise ValueError(f"MultiZoneARX.predict_paths: starts must lie in {lo} .. {len(frame) - 1 - horizon}")
         rooms_all, heat_all, series = self._frame_arrays(frame)

@@ -130,6 +130,9 @@ class MultiZoneHybrid(MultiZoneRCModel):
     def training_data(self) -> dict[str, Any]:
         return self.training
 
+    #: The first row of a frame :meth:`predict_paths` predicts from: its filter starts at row 0.
+    first_path_start = 0
+
     def predict_paths(self, frame: pd.DataFrame, starts: np.ndarray, horizon: int) -> np.ndarray:
         """(len(starts), horizon, Z) each zone's room [C] at the end of the ``horizon``
         intervals after each start row of ``frame`` (data of its building, as
@@ -138,7 +141,7 @@ class MultiZoneHybrid(MultiZoneRCModel):
         delivered powers and weather, the residual heat added where it has one. Every start
         needs ``horizon`` rows after it."""
         starts = np.asarray(starts, dtype=int)
-        if starts.size and (starts.min() < 0 or starts.max() + horizon > len(frame) - 1):
+        if starts.size and (starts.min() < self.first_path_start or starts.max() + horizon > len(frame) - 1):
             raise ValueError(f"MultiZoneHybrid.predict_paths: starts must lie in 0 .. {len(frame) - 1 - horizon}")
         if "I_g" not in frame.columns:
             frame = frame.assign(I_g=0.0)

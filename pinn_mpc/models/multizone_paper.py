@@ -497,14 +497,21 @@ class MultiZonePaperModel(LaggedZoneModel):
             dtype=next(self.nets.parameters()).dtype,
         )
 
+    @property
+    def first_path_start(self) -> int:
+        """The first row of a frame :meth:`predict_paths` predicts from: a window of
+        ``depth`` rows before it."""
+        return self.depth
+
     def predict_paths(self, frame: pd.DataFrame, starts: np.ndarray, horizon: int) -> np.ndarray:
         """(len(starts), horizon, Z) each zone's room [C] at the end of the ``horizon``
         intervals after each start row of ``frame`` (data of its building, as
         :func:`fit_multizone_paper` takes them): rolled from the measured rooms up to each
         start, on the data's delivered powers and weather."""
         starts = np.asarray(starts, dtype=int)
-        if starts.size and (starts.min() < self.depth or starts.max() + horizon > len(frame) - 1):
-            raise ValueError(f"MultiZonePaperModel.predict_paths: starts must lie in {self.depth} .. {len(frame) - 1 - horizon}")
+        lo = self.first_path_start
+        if starts.size and (starts.min() < lo or starts.max() + horizon > len(frame) - 1):
+            raise ValueError(f"MultiZonePaperModel.predict_paths: starts must lie in {lo} .. {len(frame) - 1 - horizon}")
         rooms, heat_w, series = _frame_arrays(frame, self.zones, self.actuators, self.exog_names)
         data = self._series(series, heat_w)
         data.rooms = torch.as_tensor((rooms - self.scaling.t_mean_c) / self.scaling.t_std_k, dtype=data.heat.dtype)
