@@ -358,18 +358,23 @@ def test_pcnn_on_the_true_physics_starts_at_the_true_mass_and_rolls_out_the_plan
     observer over the history, no network) and its rollout of a random plan is the plant's
     exact zero-order hold from the true state (pinn_mpc.physics.discretise)."""
     from pinn_mpc.consistency import history_at
+    from pinn_mpc.models.layers import EnsembleLinear
+    from pinn_mpc.models.pcnn import PcnnNet
     from pinn_mpc.models.physics_block import Physics
 
     scenario = get_scenario("winter_household")
     truth = scenario.sim.params
     df = _data("winter_household")
     model = train_model(df, arch="pcnn", config=TrainConfig(n_seeds=2, epochs=1), progress=False)
-    net = model.module.net
+    net, block = model.module.net, model.module.physics
+    assert isinstance(net, PcnnNet) and block is not None
+    last = net.unforced.layers[-1]
+    assert isinstance(last, EnsembleLinear)
     with torch.no_grad():
-        net.unforced.layers[-1].weight.zero_()
-        net.unforced.layers[-1].bias.zero_()
+        last.weight.zero_()
+        last.bias.zero_()
         exact = Physics(truth, n_members=2, exog_names=model.exog_names)
-        for p, p0 in zip(model.module.physics.parameters(), exact.parameters(), strict=True):
+        for p, p0 in zip(block.parameters(), exact.parameters(), strict=True):
             p.copy_(p0)
     ad, bd = discretise(truth, model.dt_s)
     u, u_phys = df["u"].to_numpy(), df["u_phys"].to_numpy()
