@@ -402,8 +402,8 @@ def test_pcnn_keeps_the_heat_pump_house_s_response_to_its_power() -> None:
     """Trained on heat_pump_household (a 2R2C plant heated through the COP), pcnn's response to
     one kW more electrical power held over 12 h, at every start of a held-out week, is the
     plant's exact one (its R and C through pinn_mpc.physics.discretise, times the COP at each
-    interval's outdoor temperature) within 3 %; PhysNet's encoder let the mass's capacity
-    drift and fell 7-11 % short (module docstring of pinn_mpc.models.pcnn)."""
+    interval's outdoor temperature) within 3 %; with PhysNet's encoder the mass's capacity
+    drifted and the response fell short of that (CHANGELOG.md)."""
     from pinn_mpc.consistency import history_at
 
     scenario = get_scenario("heat_pump_household")

@@ -28,13 +28,10 @@ forecast outdoor temperature. The learned R and C are the model's (``export-rc``
 
 Why the observer and the anchor (``anchor_weight``: the physics block learns ten times slower
 than the network, pulled back to the grey-box identification of the training data it starts
-at, as the hybrid's): PhysNet's encoder sees eight hours of history of a building whose mass
+at, as the hybrid's): PhysNet's encoder sees a few hours of history of a building whose mass
 settles over days, and a rollout loss can then trade the mass's capacity against the encoder's
-start. On ``heat_pump_household`` (a 2R2C plant, seeds 0-2, 14 and 30 days) the encoder's
-pcnn learned a slow time constant of 100-131 h where the plant's is 87 h (the identification
-86-89 h, 77 h on one set) and a day of 1 kW of heat warming its room 1.04-1.25 K where it warms
-the plant 1.34 K; its response to the heat pump's power held over 12 h was 7-11 % short of
-the plant's exact one.
+start; the identification, which estimates the hidden mass with the whole record, pins that
+mode. ``CHANGELOG.md`` has what the change measured on ``heat_pump_household``.
 """
 
 from __future__ import annotations
