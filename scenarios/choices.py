@@ -23,6 +23,7 @@ __all__ = [
     "ZONE_CONTROLLERS",
     "ZONE_RC_CONTROLLERS",
     "WeatherPart",
+    "online_controller",
 ]
 
 #: Demand policies of generated data (:mod:`scenarios.running.datagen`).
@@ -54,3 +55,10 @@ ONLINE_CONTROLLERS = (*MODEL_CONTROLLERS, "qp-mpc")
 ONLINE_SUFFIX = "-online"
 #: The controllers of a building of several zones that plan on a multi-zone RC file (``--rc``).
 ZONE_RC_CONTROLLERS = ("qp-mpc", "casadi-mpc", *MODEL_CONTROLLERS)
+
+
+def online_controller(label: str) -> str | None:
+    """The controller a label ``<controller>-online`` runs online (one of
+    :data:`ONLINE_CONTROLLERS`), None for any other label."""
+    name = label.removesuffix(ONLINE_SUFFIX)
+    return name if name != label and name in ONLINE_CONTROLLERS else None

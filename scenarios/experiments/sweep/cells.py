@@ -8,13 +8,13 @@ from typing import TYPE_CHECKING
 
 from pinn_mpc.errors import InternalError
 from pinn_mpc.physics import RCParams
+from scenarios.choices import online_controller
 from scenarios.experiments.sweep.boptest import _boptest_chosen
 from scenarios.experiments.sweep.grid import (
     RC_KIND,
     Cell,
     SweepSettings,
     model_kind,
-    online_controller,
 )
 from scenarios.experiments.sweep.models import SweepModel, _model_family
 from scenarios.inputs.scenario_file import get_scenario

@@ -13,7 +13,12 @@ from pathlib import Path
 
 from pinn_mpc.choices import AUTO, DEFAULT_ARCH, MODEL_CHOICES
 from pinn_mpc.errors import InputError
-from scenarios.choices import ONLINE_CONTROLLERS, ONLINE_SUFFIX, TRUTH_CONTROLLERS
+from scenarios.choices import (
+    ONLINE_CONTROLLERS,
+    ONLINE_SUFFIX,
+    TRUTH_CONTROLLERS,
+    online_controller,
+)
 from scenarios.inputs.registry import is_scenario_file
 from scenarios.inputs.scenario_file import get_scenario
 from scenarios.plants.boptest import BUILTIN_BOPTEST
@@ -22,7 +27,7 @@ from scenarios.running.boptest_loop import BASELINE as BOPTEST_BASELINE
 from scenarios.running.boptest_loop import is_boptest_scenario
 from scenarios.running.factory import CONTROLLER_NAMES, MODEL_CONTROLLERS, RC_CONTROLLERS
 
-__all__ = ["ARCH", "BOPTEST_CONTROLLERS", "QUICK_TEST_DAYS", "RC_KIND", "START_DAYS", "TEST_DAYS", "Cell", "ModelKey", "SweepGrid", "SweepSettings", "model_kind", "online_controller", "scenario_digest"]
+__all__ = ["ARCH", "BOPTEST_CONTROLLERS", "QUICK_TEST_DAYS", "RC_KIND", "START_DAYS", "TEST_DAYS", "Cell", "ModelKey", "SweepGrid", "SweepSettings", "model_kind", "scenario_digest"]
 
 #: The architecture the model-based controllers plan over by default: the one ``train`` makes by
 #: default (``SweepSettings.arch`` another, e.g. the physics-informed ARX).
@@ -159,13 +164,6 @@ def _model_key(cell: Cell, settings: SweepSettings) -> ModelKey | None:
     if key is not None and key.kind == ARCH and "/" not in cell.controller:
         return dataclasses.replace(key, kind=settings.arch)
     return key
-
-
-def online_controller(label: str) -> str | None:
-    """The controller a label ``<controller>-online`` runs online (one of
-    :data:`scenarios.choices.ONLINE_CONTROLLERS`), None for any other label."""
-    name = label.removesuffix(ONLINE_SUFFIX)
-    return name if name != label and name in ONLINE_CONTROLLERS else None
 
 
 def model_kind(controller: str) -> str | None:
