@@ -411,9 +411,15 @@ def page(
         ),
         "",
         *zone_table(directory, list(tomllib.loads(spec_text).get("controllers", []))),
-        *online_section(_cells(directory), baseline=summary["baseline"], figure_name=days_figure),
+        *online_section(_cells(directory), baseline=_baseline(summary), figure_name=days_figure),
     ]
     return _relative("\n".join(lines))
+
+
+def _baseline(summary: dict[str, Any]) -> str:
+    """The sweep's baseline (a summary of an older sweep names it in its rows only)."""
+    rows = summary.get("rows") or [{}]
+    return str(summary.get("baseline") or rows[0].get("baseline", ""))
 
 
 def days_figure(directory: Path, target: Path) -> str | None:
@@ -421,7 +427,7 @@ def days_figure(directory: Path, target: Path) -> str | None:
     beside the page ``target`` (``<page>_days.png``); its file name, None when none ran."""
     figure = target.with_name(f"{target.stem}_days.png")
     summary = json.loads((directory / "summary.json").read_text(encoding="utf-8"))
-    written = plot_online_days(_cells(directory), figure, baseline=summary["baseline"])
+    written = plot_online_days(_cells(directory), figure, baseline=_baseline(summary))
     return None if written is None else written.name
 
 

@@ -459,8 +459,8 @@ def add_closed_loop(sub: Commands) -> None:
     )
     p.add_argument(
         "--online", default=None, metavar="DIR",
-        help="online operation (--controller cem or random-shooting): start from what --data "
-        "holds, record what is observed and refit the model and the RC every --retrain-every "
+        help="online operation (--controller cem or random-shooting; qp-mpc on the RC alone): "
+        "start from what --data holds, record what is observed and refit the model and the RC every --retrain-every "
         "days at 00:00 in a worker process, taking over at 03:00; DIR keeps the recorded data, "
         "each model version, the log and the state",
     )

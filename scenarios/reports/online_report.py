@@ -23,7 +23,7 @@ from scenarios.choices import online_controller
 from scenarios.reports.plots import save_figure
 from scenarios.reports.report import markdown_table
 
-__all__ = ["WEEK_DAYS", "WeekRow", "cell_days", "online_section", "plot_online_days", "week_rows", "week_table"]
+__all__ = ["WEEK_DAYS", "WeekRow", "cell_days", "online_section", "plot_online_days", "refit_table", "week_rows", "week_table"]
 
 #: Days of service in a week of the per-week table.
 WEEK_DAYS = 7
@@ -193,13 +193,44 @@ def plot_online_days(records: Sequence[Mapping[str, Any]], path: str | os.PathLi
     return save_figure(fig, path)
 
 
+def refit_table(records: Sequence[Mapping[str, Any]]) -> list[str]:
+    """Per scenario and controller run online: each night's refit wall time [s] over its nights
+    and seeds (median, largest and the rows it refitted on), the refits late for their
+    takeover, and the machine's 1-minute load as the refits ended (median, largest); from the
+    records' ``online_log``, empty without one."""
+    groups: dict[tuple[str, str], list[Mapping[str, Any]]] = {}
+    for r in records:
+        if online_controller(r["cell"]["controller"]) and r.get("online_log"):
+            key = (r["cell"]["scenario"], r["cell"]["controller"])
+            groups.setdefault(key, []).extend(e for e in r["online_log"] if e.get("verdict") != "initial")
+    body = []
+    for (scenario, controller), nights in sorted(groups.items()):
+        if not nights:
+            continue
+        walls = [float(e["wall_s"]) for e in nights]
+        longest = max(nights, key=lambda e: float(e["wall_s"]))
+        loads = [float(e["load_1min"]) for e in nights if e.get("load_1min") is not None]
+        body.append([
+            scenario, controller, str(len(nights)), f"{np.median(walls):.1f}",
+            f"{max(walls):.1f} ({longest['rows']} rows)", str(sum(bool(e.get("late")) for e in nights)),
+            f"{np.median(loads):.1f} / {max(loads):.1f}" if loads else "not recorded",
+        ])
+    if not body:
+        return []
+    return markdown_table(
+        ["scenario", "controller", "nights", "refit wall s (median)", "refit wall s (largest)",
+         "late refits", "load 1 min (median / largest)"],
+        body,
+    )
+
+
 def online_section(records: Sequence[Mapping[str, Any]], *, baseline: str, figure_name: str | None) -> list[str]:
     """The markdown section of the controllers run online (per-week table and, when given,
     the figure ``figure_name``); empty when none ran."""
     rows = week_rows(records, baseline=baseline)
     if not rows:
         return []
-    return [
+    lines = [
         "## Online: per week of service",
         "",
         "Controllers run online start from their days of data and refit their model and RC every "
@@ -215,3 +246,12 @@ def online_section(records: Sequence[Mapping[str, Any]], *, baseline: str, figur
         "",
         *([f"![objective per day of service, mean over seeds]({figure_name})", ""] if figure_name else []),
     ]
+    refits = refit_table(records)
+    return lines + ([
+        "Each night's refit in its worker process (one torch thread), over every night of every "
+        "seed: its wall time, the refits not done by their takeover at 03:00 (waited for there: "
+        "the decisions do not change, the run takes longer), and the machine's load as they ended.",
+        "",
+        *refits,
+        "",
+    ] if refits else [])

@@ -77,6 +77,7 @@ from scenarios.running.closed_loop import (
     run_kpis,
     run_trajectory,
 )
+from scenarios.running.datagen import add_cop
 from scenarios.running.engine import ClosedLoop, LoopRecord
 
 __all__ = [
@@ -349,6 +350,7 @@ class _Online:
         k = loop.k
         sofar = RunInputs(exo=self.run.exo, series=self.run.series, warmup=0, total=k)
         frame = run_trajectory(self.scenario, sofar, loop.record())
+        add_cop(self.scenario, frame)  # a heat pump's: its refits fit on the delivered heat
         frame["own"] = self.own[:k].astype(int)
         return frame
 
