@@ -38,6 +38,7 @@ from typing import Any
 
 import numpy as np
 
+from scenarios.reports.online_report import online_section, plot_online_days
 from scenarios.reports.sweep_report import place_label, ratio
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -331,9 +332,12 @@ def _boptest_sections(spec_text: str, directory: Path) -> list[str]:
     ]
 
 
-def page(spec: Path, directory: Path, command: str, wall_s: float | None, at: str) -> str:
+def page(
+    spec: Path, directory: Path, command: str, wall_s: float | None, at: str, days_figure: str | None = None
+) -> str:
     """The markdown of the results page (of a BOPTEST sweep: BOPTEST's KPIs of every cell and
-    its published baseline instead of the objective ratio of every cell)."""
+    its published baseline instead of the objective ratio of every cell); with controllers run
+    online, their per-week table and the figure ``days_figure`` (:func:`days_figure`)."""
     summary = json.loads((directory / "summary.json").read_text(encoding="utf-8"))
     spec_text = spec.read_text(encoding="utf-8").rstrip()
     now = datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d %H:%M UTC")
@@ -407,8 +411,24 @@ def page(spec: Path, directory: Path, command: str, wall_s: float | None, at: st
         ),
         "",
         *zone_table(directory, list(tomllib.loads(spec_text).get("controllers", []))),
+        *online_section(_cells(directory), baseline=_baseline(summary), figure_name=days_figure),
     ]
     return _relative("\n".join(lines))
+
+
+def _baseline(summary: dict[str, Any]) -> str:
+    """The sweep's baseline (a summary of an older sweep names it in its rows only)."""
+    rows = summary.get("rows") or [{}]
+    return str(summary.get("baseline") or rows[0].get("baseline", ""))
+
+
+def days_figure(directory: Path, target: Path) -> str | None:
+    """Write the figure of the objective per day of service of the controllers run online
+    beside the page ``target`` (``<page>_days.png``); its file name, None when none ran."""
+    figure = target.with_name(f"{target.stem}_days.png")
+    summary = json.loads((directory / "summary.json").read_text(encoding="utf-8"))
+    written = plot_online_days(_cells(directory), figure, baseline=_baseline(summary))
+    return None if written is None else written.name
 
 
 def _relative(text: str) -> str:
@@ -432,7 +452,7 @@ def main() -> int:
     command = "python docs/gen_results.py --spec " + shlex.quote(str(spec.relative_to(ROOT)))
     if args.from_dir is not None:  # the page says so: its sweep ran before, maybe elsewhere
         command += f" --from-dir {shlex.quote(args.from_dir.name)}"
-        text = page(spec, args.from_dir, command, None, commit())
+        text = page(spec, args.from_dir, command, None, commit(), days_figure(args.from_dir, target))
     else:
         with tempfile.TemporaryDirectory(prefix="gen_results_") as tmp:
             directory = args.out or Path(tmp) / spec.stem
@@ -442,7 +462,9 @@ def main() -> int:
                  *(["--workers", str(args.workers)] if args.workers else [])],
                 cwd=ROOT, check=True,
             )
-            text = page(spec, directory, command, time.perf_counter() - start, at)
+            text = page(
+                spec, directory, command, time.perf_counter() - start, at, days_figure(directory, target)
+            )
     target.write_text(text, encoding="utf-8")
     print(f"wrote {target}")
     return 0

@@ -209,6 +209,7 @@ def sweep(a: argparse.Namespace) -> str:
         read_sweep_spec,
         run_sweep,
     )
+    from scenarios.experiments.sweep.grid import START_DAYS
     from scenarios.inputs.registry import is_scenario_file
     from scenarios.reports.sweep_report import place_label, ratio
     from scenarios.running.budget import check_grid_size
@@ -235,6 +236,7 @@ def sweep(a: argparse.Namespace) -> str:
         controllers=parse_names(controllers, "controllers"),
         seeds=parse_ints(seeds, "seeds"),
         train_days=parse_ints(train_days, "training days"),
+        start_days=given("start_days", START_DAYS),
         **{
             key: parse_names(value, key.replace("_", " "))
             for key in ("archs", "test_periods", "price_scenarios")

@@ -37,6 +37,13 @@ def _positive_int(text: str) -> int:
     return value
 
 
+def _nonnegative_int(text: str) -> int:
+    value = _whole(text)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be at least 0, got {value}")
+    return value
+
+
 def _days(text: str) -> int:
     value = _positive_int(text)
     if value > MAX_DAYS:
@@ -452,8 +459,8 @@ def add_closed_loop(sub: Commands) -> None:
     )
     p.add_argument(
         "--online", default=None, metavar="DIR",
-        help="online operation (--controller cem or random-shooting): start from what --data "
-        "holds, record what is observed and refit the model and the RC every --retrain-every "
+        help="online operation (--controller cem or random-shooting; qp-mpc on the RC alone): "
+        "start from what --data holds, record what is observed and refit the model and the RC every --retrain-every "
         "days at 00:00 in a worker process, taking over at 03:00; DIR keeps the recorded data, "
         "each model version, the log and the state",
     )
@@ -531,14 +538,22 @@ def add_sweep(sub: Commands) -> None:
     p.add_argument(
         "--spec", default=None,
         help="a sweep definition (TOML: scenarios, controllers, seeds, train_days, days, "
-        "baseline, arch, archs, test_periods, price_scenarios), e.g. sweeps/robustness.toml; "
+        "baseline, arch, archs, test_periods, price_scenarios, start_days), e.g. sweeps/robustness.toml; "
         "options given here override it",
     )
     p.add_argument("--scenarios", default=None, help="comma-separated scenario names")
-    p.add_argument("--controllers", default=None, help="comma-separated, e.g. oracle,qp-mpc,cem")
+    p.add_argument(
+        "--controllers", default=None,
+        help="comma-separated, e.g. oracle,qp-mpc,cem; cem-online, qp-mpc-online: run online, "
+        "refitting every night from --start-days days of data",
+    )
     p.add_argument("--seeds", default=None, help="e.g. 0-7 or 0,3,5")
     p.add_argument("--train-days", default=None, help="training days, e.g. 30 or 14,30,60 (default 30)")
     p.add_argument("--days", type=_positive_int, default=None, help="test days per cell (default 3; with --quick 2)")
+    p.add_argument(
+        "--start-days", type=_nonnegative_int, default=None,
+        help="days of data the controllers run online start from (default 3; 0: the thermostat first)",
+    )
     p.add_argument("--out", required=True, help="directory of cells, models, summary, report")
     p.add_argument("--quick", action="store_true", help="2-member ensembles, 30 epochs, 2 test days unless --days is given")
     p.add_argument("--address", default=None, help="Ray cluster (HOST:PORT, ray://HOST:PORT, auto)")

@@ -13,6 +13,8 @@ from typing import Literal, get_args
 __all__ = [
     "CONTROLLER_NAMES",
     "MODEL_CONTROLLERS",
+    "ONLINE_CONTROLLERS",
+    "ONLINE_SUFFIX",
     "POLICIES",
     "RANDOM_POLICIES",
     "RC_CONTROLLERS",
@@ -21,6 +23,7 @@ __all__ = [
     "ZONE_CONTROLLERS",
     "ZONE_RC_CONTROLLERS",
     "WeatherPart",
+    "online_controller",
 ]
 
 #: Demand policies of generated data (:mod:`scenarios.running.datagen`).
@@ -45,5 +48,17 @@ CONTROLLER_NAMES = ("thermostat", *MODEL_CONTROLLERS, *RC_CONTROLLERS, *TRUTH_CO
 #: casadi.qpsol, each with a Kalman observer), and the sampling planners over that file's
 #: building (cem, random-shooting).
 ZONE_CONTROLLERS = ("thermostat", "oracle", "qp-mpc", "casadi-mpc", "cem", "random-shooting")
+#: The controllers that run online (:mod:`scenarios.running.online`): a planner over the model
+#: it refits every night, or the RC MPC on the RC it refits every night.
+ONLINE_CONTROLLERS = (*MODEL_CONTROLLERS, "qp-mpc")
+#: A sweep's label of a controller run online: ``<controller>-online`` (e.g. ``cem-online``).
+ONLINE_SUFFIX = "-online"
 #: The controllers of a building of several zones that plan on a multi-zone RC file (``--rc``).
 ZONE_RC_CONTROLLERS = ("qp-mpc", "casadi-mpc", *MODEL_CONTROLLERS)
+
+
+def online_controller(label: str) -> str | None:
+    """The controller a label ``<controller>-online`` runs online (one of
+    :data:`ONLINE_CONTROLLERS`), None for any other label."""
+    name = label.removesuffix(ONLINE_SUFFIX)
+    return name if name != label and name in ONLINE_CONTROLLERS else None

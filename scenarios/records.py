@@ -11,7 +11,7 @@ modelling layer's records (RC summary, evaluation metrics, trust report) are in
 
 # No `from __future__ import annotations`: evaluated, the annotations tell NotRequired keys at
 # run time too (`__optional_keys__`, which tests/test_records.py checks the producers against).
-from typing import NotRequired, TypedDict
+from typing import Any, NotRequired, TypedDict
 
 from pinn_mpc.records import RcSummary, TrustReport
 
@@ -25,6 +25,7 @@ __all__ = [
     "CellResult",
     "CompareRow",
     "CompareTable",
+    "DayKpis",
     "DualAscentRecord",
     "EngineRecord",
     "FleetInfo",
@@ -87,6 +88,19 @@ class Kpis(TypedDict):
     ``energy_kwh`` (of the actuators on it), by the zone's name."""
 
 
+class DayKpis(TypedDict):
+    """One counted day of a closed loop (:func:`scenarios.running.closed_loop.day_kpis`)."""
+
+    day: int
+    """The day's number, 1 for the first counted day."""
+    objective: float
+    """The day's cost + comfort weight x discomfort [EUR]."""
+    discomfort_kh: float
+    """The day's discomfort [K h]."""
+    own_decisions_share: float
+    """Share of the day's intervals the controller decided itself [-]."""
+
+
 class RunKpis(Kpis):
     """A closed loop's KPI JSON (:attr:`scenarios.running.closed_loop.ClosedLoopResult.kpis`,
     ``closed-loop --json``): the :class:`Kpis`, the run's labels, and a planner over a learned
@@ -120,6 +134,8 @@ class RunKpis(Kpis):
     margin at the end [K]."""
     scenario_file: NotRequired[str]
     """``closed-loop --scenario FILE``: the scenario file's absolute path."""
+    per_day: NotRequired[list[DayKpis]]
+    """Each counted day's figures (a sweep's cells on the package's own plants)."""
     # a run on a BOPTEST scenario (scenarios.running.boptest_loop)
     boptest: NotRequired[dict[str, float | None]]
     """BOPTEST's own KPIs of the run (``GET /kpi``: ``tdis_tot``, ``ener_tot``, ...)."""
@@ -232,6 +248,8 @@ class CellResult(TypedDict):
     """The machine the cell ran on."""
     wall_time_s: float
     """Wall-clock time of the cell [s]."""
+    online_log: NotRequired[list[dict[str, Any]]]
+    """A controller run online: its nights, the lines of its ``log.jsonl``."""
 
 
 class CellRecord(CellResult):

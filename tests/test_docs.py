@@ -266,6 +266,9 @@ NOT_RUN = {
     "write pages of a small and of a BOPTEST sweep)",
     "python benchmarks/boptest_least_discomfort.py": "a measurement of 11 minutes whose figures "
     "the page quotes (tests/test_least_discomfort.py checks its model and programme)",
+    "nice -n 10 pinn-mpc sweep --spec sweeps/online_households.toml": "a measurement of "
+    "about an hour on one worker whose figures docs/results/online_households.md gives "
+    "(tests/test_sweep_online.py runs online cells on winter_household)",
     "PYTHONPATH=. python benchmarks/merged_vs_zones.py": "a measurement of most of an hour on "
     "EnergyPlus whose figures the page quotes (tests/test_merged.py runs the script on two_zone_house)",
 }

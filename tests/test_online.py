@@ -173,3 +173,22 @@ def test_data_that_do_not_determine_the_building_start_the_thermostat(tmp_path, 
     days = result.kpis["online"]["days"]
     assert days[0]["controller"] == "thermostat"
     assert result.log[1]["rc"] == "rc.json"  # the first night's data (heated by the thermostat) identify one
+
+
+@pytest.mark.slow
+def test_a_heat_pumps_refits_see_its_cop_and_qp_mpc_runs_on_the_rc_alone(tmp_path):
+    """A heat pump's observed intervals keep the COP the plant applied at their outdoor
+    temperature (its actuator's law), so each night's RC is identified on the delivered heat as
+    the data at hand's was; qp-mpc online fits no model and its own decisions are the RC's."""
+    scenario = get_scenario("heat_pump_household")
+    data = generate(scenario, days=1, seed=0, policy="random-level")
+    result = run_online(scenario, data, days=2, seed=1, out_dir=tmp_path, settings=OnlineSettings(controller="qp-mpc"))
+    observed = pd.read_csv(tmp_path / "observed.csv")
+    (pump,) = scenario.sim.actuators
+    assert not pump.is_ideal
+    np.testing.assert_allclose(observed["cop"], pump.gain(observed["T_a"].to_numpy()), rtol=1e-6)
+    assert all(e["model"] is None for e in result.log) and result.log[1]["rc"] == "rc.json"
+    days = result.kpis["online"]["days"]
+    assert [d["controller"] for d in days] == ["rc", "rc"]
+    fallback = result.trajectory["fallback"].to_numpy()
+    assert days[0]["own_decisions_share"] == pytest.approx(1.0 - fallback[: scenario.steps_per_day].mean())

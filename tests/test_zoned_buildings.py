@@ -155,6 +155,17 @@ def test_the_one_zone_controllers_refuse_a_zoned_building_in_one_line():
         build_controller("clairvoyant", scenario, n_steps=48)
 
 
+def test_cem_given_both_a_model_and_an_rc_names_itself_in_one_line(tmp_path):
+    """cem over zones plans on a model or on a multi-zone RC file; both given is refused naming
+    cem (not another controller), before either is read."""
+    from scenarios.running.factory import make_controller
+
+    with pytest.raises(InputError, match=r"^cem plans on either RC parameters \(rc_path\) or a model \(model_dir\), not both$"):
+        make_controller(
+            "cem", get_scenario("two_zone_house"), model_dir=tmp_path / "m", rc_path=tmp_path / "rc.json", n_steps=48
+        )
+
+
 def test_generated_data_of_a_zoned_building_holds_each_zone_and_actuator():
     scenario = get_scenario("shoulder_office")
     frame = generate(scenario, days=2, seed=0, policy="random-level")

@@ -219,20 +219,27 @@ class ConsistentArchitecture(Architecture):
         lo = float(data.df["u_phys"].min())
         hi = float(data.df["u_phys"].max())
         weight = config.residual_weight
+        block = module.physics
+        start = [] if block is None else [p.detach().clone() for p in block.parameters()]
 
         def loss(batch: Batch) -> LossTerms:
             inputs, target = chunk_inputs(data, batch)
             t_r, _, _, unforced = net.roll(inputs, (lo, hi))
             reg = torch.mean(((t_r - target) / f.temperature.std) ** 2)
-            penalty = torch.mean((unforced / f.delta_t_r.std) ** 2)
-            return LossTerms(total=reg + weight * penalty, reg=reg, phys=torch.zeros(()))
+            total = reg + weight * torch.mean((unforced / f.delta_t_r.std) ** 2)
+            if block is not None:  # the physics anchored at its start, the identified RC
+                anchor = sum(torch.mean((p - p0) ** 2) for p, p0 in zip(block.parameters(), start, strict=True))
+                total = total + config.anchor_weight * cast(torch.Tensor, anchor)
+            return LossTerms(total=total, reg=reg, phys=torch.zeros(()))
 
         return loss
 
     def record_fields(self, config: TrainConfig, cop_curve: CopCurve | None) -> dict[str, Any]:
         used = consistent_cop(cop_curve, heating=config.eta > 0)
+        anchor = {"anchor_weight": config.anchor_weight} if self.has_physics else {}
         return {
             "residual_weight": config.residual_weight,
+            **anchor,
             "cop_curve": None if used is None else used.to_dict(),
         }
 

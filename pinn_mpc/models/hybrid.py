@@ -33,7 +33,7 @@ from pinn_mpc.models.base import (
     regression_loss,
 )
 from pinn_mpc.models.layers import EnsembleLinear, mlp_layers, run_layers, sigmoid_form, transposed
-from pinn_mpc.models.physics_block import discretise_torch, interp_clamped
+from pinn_mpc.models.physics_block import discretise_torch, interp_clamped, observe_t_m
 from pinn_mpc.models.rollout import Rollout, StackedDynamics
 
 if TYPE_CHECKING:
@@ -400,23 +400,10 @@ class HybridNet(nn.Module):
         t_r: torch.Tensor,
         d: torch.Tensor,
     ) -> torch.Tensor:
-        """T_m at the end of a window [C]: ``t_r`` (M, B, k+1) measured, ``d`` (M, B, k, 4)
-        inputs of the k steps; ``ad`` (M, 2, 2), ``bd`` (M, 2, 4). Returns (M, B)."""
-        k = d.shape[-2]
-        a = lambda i, j: ad[:, i, j][:, None, None]  # noqa: E731
-        drive = torch.einsum("mbkd,msd->mbks", d, bd)  # (M, B, k, 2)
-        y = t_r[..., 1:] - a(0, 0) * t_r[..., :-1] - drive[..., 0]  # = Ad01 T_m,j
-        v = a(1, 0) * t_r[..., :-1] + drive[..., 1]  # T_m,j+1 = Ad11 T_m,j + v_j
-        steps = torch.arange(k + 1, dtype=ad.dtype)
-        powers = ad[:, 1, 1][:, None] ** steps  # (M, k+1): Ad11^j
-        # c_j = sum_{t<j} Ad11^(j-1-t) v_t: lower-triangular (M, k+1, k) convolution.
-        idx = torch.arange(k + 1)
-        lag = idx[:, None] - 1 - idx[None, :-1]  # (k+1, k)
-        conv = torch.where(lag >= 0, powers[:, lag.clamp(min=0)], torch.zeros(()))
-        c = torch.einsum("mjt,mbt->mbj", conv, v)  # (M, B, k+1)
-        g = powers[:, None, :k]
-        s = (g * (y / a(0, 1) - c[..., :k])).sum(-1) / (g**2).sum(-1)
-        return powers[:, None, k] * s + c[..., k]
+        """T_m at the end of a window [C] (:func:`~pinn_mpc.models.physics_block.observe_t_m`):
+        ``t_r`` (M, B, k+1) measured, ``d`` (M, B, k, 4) inputs of the k steps; ``ad`` (M, 2,
+        2), ``bd`` (M, 2, 4). Returns (M, B)."""
+        return observe_t_m(ad, bd, t_r, d)
 
     def observer_weights(self, ad: torch.Tensor, bd: torch.Tensor) -> torch.Tensor:
         """:meth:`observe_t_m` is linear in the window (see :class:`HybridInputs`): its weights

@@ -1,9 +1,10 @@
 """``pcnn``: the paper's PhysNet made physically consistent (Di Natale et al., 2022).
 
-As PhysNet, an encoder network estimates the hidden thermal-mass temperature T_m from the
-history (T_r up to now, the delivered power and weather of past intervals: given, not planned
-or forecast) and a learnable 2R2C ties
-the two states together. Unlike PhysNet, no network sees the plan or the outdoor temperature:
+As PhysNet, a learnable 2R2C ties the room's temperature to a hidden thermal-mass temperature
+T_m. Unlike PhysNet, T_m at the start is not a network's estimate but the physics' own: the
+hybrid's least-squares observer over the history window (:func:`~pinn_mpc.models.physics_block.
+observe_t_m`: T_r up to now, the delivered power and weather of past intervals, given, not
+planned or forecast); and no network sees the plan or the outdoor temperature:
 the states step through the 2R2C's exact zero-order hold,
 
     (T_r, T_m)_k+1 = Ad (T_r, T_m)_k + Bd (heat_k, T_a,k, G_k, I_g,k) + n_k
@@ -22,8 +23,15 @@ whose ``B`` column is (the outdoor temperature's ``(1/(C_r R_ra), 0)``, the gain
 ``(eta/C_r, 0)`` for a heater, non-positive for a cooling machine). Each predicted state is
 then a sum of non-negative multiples of the heats (times eta's sign; each heat non-decreasing
 in its power and, through a monotone COP, moving with its outdoor temperature in the heat's
-direction), the outdoor temperatures and terms of neither; the network's ``n_k`` and the encoder's start depend on no plan and no
+direction), the outdoor temperatures and terms of neither; the network's ``n_k`` and the observer's start depend on no plan and no
 forecast outdoor temperature. The learned R and C are the model's (``export-rc``).
+
+Why the observer and the anchor (``anchor_weight``: the physics block learns ten times slower
+than the network, pulled back to the grey-box identification of the training data it starts
+at, as the hybrid's): PhysNet's encoder sees a few hours of history of a building whose mass
+settles over days, and a rollout loss can then trade the mass's capacity against the encoder's
+start; the identification, which estimates the hidden mass with the whole record, pins that
+mode. ``CHANGELOG.md`` has what the change measured on ``heat_pump_household``.
 """
 
 from __future__ import annotations
@@ -45,21 +53,17 @@ from pinn_mpc.models.consistent import (
     ConsistentNet,
     UnforcedNet,
 )
-from pinn_mpc.models.layers import mlp_layers, run_layers
-from pinn_mpc.models.physics_block import Physics, discretise_torch
+from pinn_mpc.models.physics_block import Physics, discretise_torch, observe_t_m
 
 if TYPE_CHECKING:
     from pinn_mpc.identify import IdentifyResult
     from pinn_mpc.training import TrainConfig
 
-__all__ = ["ENCODER", "Pcnn", "PcnnNet"]
-
-#: Hidden layers of the T_m encoder (PhysNet's).
-ENCODER = (24, 24)
+__all__ = ["Pcnn", "PcnnNet"]
 
 
 class PcnnNet(ConsistentNet):
-    """The encoder, the unforced network and (owned by the module) the physics block."""
+    """The unforced network, the T_m observer and (owned by the module) the physics block."""
 
     def __init__(
         self,
@@ -75,8 +79,6 @@ class PcnnNet(ConsistentNet):
         self.features = features
         self.set_cop(cop_curve, heating=heating)
         self.coefficients = block.coefficients  # the block itself is the module's
-        n_in = 2 * (features.depth + 1) + len(features.exog_series) * features.depth
-        self.encoder = mlp_layers((n_in, *ENCODER, 1), n_members, generators)
         self.unforced = UnforcedNet(features, n_members, generators, 2)
         names = features.exog_series
         self._exog_pos = [names.index(n) if n in names else None for n in ("T_a", "G", "I_g")]
@@ -92,19 +94,22 @@ class PcnnNet(ConsistentNet):
         ad, bd = discretise_torch(self.coefficients(), f.dt_s)
         ad, bd = ad.float(), bd.float()  # (M, 2, 2), (M, 2, 4)
         m = ad.shape[0]
-        # The weather up to the last interval only: now's is the forecast's first value.
-        series = [e_seq[..., j, :k] for j in range(e_seq.shape[-2])]
-        window = torch.cat([t_win - t_win[..., -1:], p_win, *series], dim=-1)
-        lead = window.shape[:-1]
-        enc = run_layers(self.encoder, window.expand(m, *lead[1:], -1).reshape(m, -1, window.shape[-1]))
-        t_r0 = t_win[..., -1] * t.std + t.mean
-        t_m0 = t_r0 + enc.reshape(m, *lead[1:]) * t.std
-        plan = (u_s * pw.std + pw.mean).clamp(lo, hi)  # (M|1, N, H)
         scales = [f.exog[name] for name in f.exog_series]
-        raw = [
-            torch.zeros(()) if j is None else e_seq[..., j, k : k + h_len] * scales[j].std + scales[j].mean
+        raw = [  # (T_a, G, I_g) of the window's k+1 intervals and the horizon's, zero where absent
+            torch.zeros(()) if j is None else e_seq[..., j, : k + h_len] * scales[j].std + scales[j].mean
             for j in self._exog_pos
         ]
+        t_r_win = t_win * t.std + t.mean  # (M|1, N, k+1)
+        lead = t_r_win.shape[1:-1]
+        # The window's k steps: the delivered power u_phys,i-k .. u_phys,i-1 and the weather
+        # of their intervals (given, not planned or forecast).
+        p_past = p_win[..., 1:] * pw.std + pw.mean
+        past = [v[..., :k].expand(*p_past.shape) if v.ndim else v.expand(*p_past.shape) for v in raw]
+        d_win = torch.stack([self.heat(p_past, past[0]), *past], dim=-1)  # (M|1, N, k, 4)
+        t_m0 = observe_t_m(ad, bd, t_r_win.expand(m, *lead, -1), d_win.expand(m, *lead, k, 4))
+        t_r0 = t_r_win[..., -1]
+        plan = (u_s * pw.std + pw.mean).clamp(lo, hi)  # (M|1, N, H)
+        raw = [v if not v.ndim else v[..., k:] for v in raw]
         unforced = self.unforced(e_seq, tod)  # (M, N0, H, 2) on (T_r, T_m)
         col = lambda i: bd[:, None, None, :, i]  # noqa: E731  (M, 1, 1, 2)
         drive = col(0) * self.heat(plan, raw[0])[..., None] + unforced  # raw[0]: T_a
@@ -124,9 +129,10 @@ class PcnnNet(ConsistentNet):
 
 class Pcnn(ConsistentArchitecture):
     """The consistent PhysNet (module docstring). Its physics block starts at the grey-box
-    identification of the training data and learns at the network's rate."""
+    identification of the training data, learns ten times slower than the network and is
+    anchored there (``anchor_weight``, as the hybrid's)."""
 
-    physics_lr_factor = 1.0
+    physics_lr_factor = 0.1
 
     def build_net(self, parts: NetParts) -> nn.Module:
         assert parts.physics_block is not None

@@ -25,6 +25,7 @@ __all__ = [
     "Physics",
     "discretise_torch",
     "interp_clamped",
+    "observe_t_m",
     "residual_exact",
     "residual_finite_difference",
 ]
@@ -95,6 +96,30 @@ def discretise_torch(coef: physics.Coefficients, dt_s: float) -> tuple[torch.Ten
     return e[:, : physics.N_STATES, : physics.N_STATES], e[
         :, : physics.N_STATES, physics.N_STATES :
     ]
+
+
+def observe_t_m(ad: torch.Tensor, bd: torch.Tensor, t_r: torch.Tensor, d: torch.Tensor) -> torch.Tensor:
+    """The hidden T_m at the end of a history window [C], from the 2R2C's exact ZOH ``ad`` (M,
+    2, 2), ``bd`` (M, 2, 4): ``t_r`` (M|1, B, k+1) the measured T_r of the window, ``d`` (M|1,
+    B, k, 4) the inputs (heat, T_a, G, I_g) of its k steps. With the measured T_r in the T_m
+    row, T_m,j = Ad11^j s + c_j is affine in the unknown T_m at the window's start s, and each
+    step gives one equation of the T_r row; s is their least-squares solution (closed form,
+    differentiable), propagated to the window's end. Returns (M, B)."""
+    k = d.shape[-2]
+    a = lambda i, j: ad[:, i, j][:, None, None]  # noqa: E731
+    drive = torch.einsum("mbkd,msd->mbks", d, bd)  # (M, B, k, 2)
+    y = t_r[..., 1:] - a(0, 0) * t_r[..., :-1] - drive[..., 0]  # = Ad01 T_m,j
+    v = a(1, 0) * t_r[..., :-1] + drive[..., 1]  # T_m,j+1 = Ad11 T_m,j + v_j
+    steps = torch.arange(k + 1, dtype=ad.dtype)
+    powers = ad[:, 1, 1][:, None] ** steps  # (M, k+1): Ad11^j
+    # c_j = sum_{t<j} Ad11^(j-1-t) v_t: lower-triangular (M, k+1, k) convolution.
+    idx = torch.arange(k + 1)
+    lag = idx[:, None] - 1 - idx[None, :-1]  # (k+1, k)
+    conv = torch.where(lag >= 0, powers[:, lag.clamp(min=0)], torch.zeros(()))
+    c = torch.einsum("mjt,mbt->mbj", conv, v)  # (M, B, k+1)
+    g = powers[:, None, :k]
+    s = (g * (y / a(0, 1) - c[..., :k])).sum(-1) / (g**2).sum(-1)
+    return powers[:, None, k] * s + c[..., k]
 
 
 def interp_clamped(x: torch.Tensor, knots: torch.Tensor, values: torch.Tensor) -> torch.Tensor:

@@ -45,7 +45,7 @@ from scenarios.inputs.exogenous import day_span
 from scenarios.inputs.registry import EXOGENOUS_COLUMNS, Scenario, check_seed
 from scenarios.inputs.series import ExogenousSeries
 from scenarios.plants.kinds import FleetBuildings
-from scenarios.records import Kpis, RunKpis
+from scenarios.records import DayKpis, Kpis, RunKpis
 from scenarios.running.engine import ClosedLoop, LoopRecord
 from scenarios.running.kpis import compute_kpis
 
@@ -57,6 +57,7 @@ __all__ = [
     "build_loop",
     "check_plant_supports",
     "counted_kpis",
+    "day_kpis",
     "free_records",
     "one_torch_thread",
     "prepare_run",
@@ -273,6 +274,25 @@ def counted_kpis(
     )
 
 
+def day_kpis(scenario: Scenario, run: RunInputs, rec: LoopRecord) -> list[DayKpis]:
+    """Per counted day of ``run`` (midnight to midnight after the warm-up): its ``objective``
+    [EUR], ``discomfort_kh`` [K h] and ``own_decisions_share`` (decisions not handed to a
+    fallback), each day's :func:`counted_kpis` alone."""
+    spd = scenario.steps_per_day
+    out: list[DayKpis] = []
+    for d in range((run.total - run.warmup) // spd):
+        start = run.warmup + d * spd
+        day = RunInputs(exo=run.exo, series=run.series, warmup=start, total=start + spd)
+        figures = counted_kpis(scenario, day, rec)
+        out.append({
+            "day": d + 1,
+            "objective": figures["objective"],
+            "discomfort_kh": figures["discomfort_kh"],
+            "own_decisions_share": figures["own_decisions_share"],
+        })
+    return out
+
+
 def _heating(actuators: Sequence[ActuatorSpec]) -> bool | None:
     """Whether a building's actuators all heat (True) or all cool (False); None: some each."""
     heats = {a.heats for a in actuators}
@@ -289,6 +309,7 @@ def run_closed_loop(
     label: str | None = None,
     weather_part: str = "test",
     progress: bool = False,
+    per_day: bool = False,
 ) -> ClosedLoopResult:
     """Run ``controller`` on ``scenario`` for ``days`` counted days after the warm-up.
 
@@ -318,6 +339,9 @@ def run_closed_loop(
         ``"train"`` or ``"whole"`` (see :mod:`scenarios.inputs.exogenous`).
     progress
         Show progress on stderr (:func:`progress_steps`).
+    per_day
+        Add ``per_day`` to the KPIs: each counted day's objective, discomfort and own
+        decisions (:func:`day_kpis`).
 
     Returns
     -------
@@ -347,6 +371,8 @@ def run_closed_loop(
         scenario=scenario.name, days=days, seed=seed, weather_part=weather_part,
         trajectory=trajectory, weather_times=run.exo["time"],
     )
+    if per_day:
+        kpis["per_day"] = day_kpis(scenario, run, rec)
     return ClosedLoopResult(trajectory=trajectory, kpis=kpis, errors=tuple(errors))
 
 

@@ -58,10 +58,19 @@ from scenarios.inputs.registry import Scenario, check_seed
 from scenarios.inputs.series import ExogenousSeries
 from scenarios.running.engine import ClosedLoop, LoopRecord
 
-__all__ = ["DataPolicy", "SetpointPolicy", "generate"]
+__all__ = ["DataPolicy", "SetpointPolicy", "add_cop", "generate"]
 
 # Random streams apart from the exogenous ones (see scenarios.inputs.registry).
 _POLICY_STREAM, _SENSOR_STREAM = 11, 12
+
+
+def add_cop(scenario: Scenario, frame: pd.DataFrame) -> None:
+    """Add ``cop`` to ``frame`` (data of ``scenario``) when its one actuator is a heat pump: the
+    heat per electrical watt [-] at each row's outdoor temperature ``T_a`` [degC], as the plant
+    applied it (what identification and training take the delivered heat from)."""
+    actuators = scenario.sim.actuators
+    if len(actuators) == 1 and not actuators[0].is_ideal:
+        frame["cop"] = actuators[0].gain(frame["T_a"].to_numpy(dtype=float))
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -308,8 +317,7 @@ def _frame(
             columns[name] = np.tile(exo[name].to_numpy(dtype=float)[:n], n_buildings)
     frame = pd.DataFrame(columns)
     (actuator,) = scenario.sim.actuators
-    if not actuator.is_ideal:  # a heat pump: heat per electrical watt, per row
-        frame["cop"] = actuator.gain(frame["T_a"].to_numpy(dtype=float))
+    add_cop(scenario, frame)
     if n_buildings > 1:
         frame.insert(0, "building", np.repeat(np.arange(n_buildings), n))
     frame.attrs["dt_s"] = float(scenario.sim.dt_s)

@@ -571,8 +571,10 @@ def _not_linear() -> InputError:
     )
 
 
-def _both() -> InputError:
-    return InputError(f"qp-mpc plans on either RC parameters ({setting('rc_path')}) or an ARX model ({setting('model_dir')}), not both")
+def _both(name: str) -> InputError:
+    """Both a model and RC parameters given to controller ``name``, which plans on one."""
+    over = "an ARX model" if name == "qp-mpc" else "a model"
+    return InputError(f"{name} plans on either RC parameters ({setting('rc_path')}) or {over} ({setting('model_dir')}), not both")
 
 
 def _arx_mpc(model: BatchDynamics, scenario: Scenario, rc_params: RCParams | None) -> Controller:
@@ -580,7 +582,7 @@ def _arx_mpc(model: BatchDynamics, scenario: Scenario, rc_params: RCParams | Non
     from pinn_mpc.models.arx import ARXModel
 
     if rc_params is not None:
-        raise _both()
+        raise _both("qp-mpc")
     if not isinstance(model, ARXModel):
         raise _not_linear()
     from controllers.arx_mpc import ARXQPMPC
@@ -617,7 +619,7 @@ def make_controller(
             f"{setting('rc_path')} is not used by controller {name!r}; only {', '.join(takes_rc)} take it{also}"
         )
     if model_dir is not None and rc_path is not None:
-        raise _both()
+        raise _both(name)
     model: BatchDynamics | None = None
     if model_dir is not None:
         from pinn_mpc.fitted import load

@@ -4,7 +4,9 @@
 hand holds (the frame ``data``, its rows retimed to end just before the run's first interval):
 
 - at least :data:`MODEL_DAYS` days: a model fitted on them (``fit``'s default, ``auto``) and
-  planned over by ``settings.controller`` (cem), its RC fallback the model's own;
+  planned over by ``settings.controller`` (cem), its RC fallback the model's own (with
+  ``settings.controller`` the RC MPC, ``qp-mpc``, no model is ever fitted: the RC alone,
+  refitted every night);
 - at least one day but fewer: only the RC identified from them, driven by ``qp-mpc``;
 - less than a day (or none): the thermostat;
 
@@ -43,6 +45,7 @@ from __future__ import annotations
 
 import json
 import multiprocessing
+import os
 import shutil
 import signal
 import time
@@ -60,6 +63,7 @@ from pinn_mpc.data import COLUMNS, validate_timeseries, write_timeseries
 from pinn_mpc.errors import InputError, InternalError
 from pinn_mpc.io import atomic_write, atomic_write_json, atomic_write_text, written_together
 from pinn_mpc.training import TrainConfig
+from scenarios.choices import MODEL_CONTROLLERS, ONLINE_CONTROLLERS
 from scenarios.inputs.exogenous import day_span
 from scenarios.inputs.registry import Scenario
 from scenarios.records import RunKpis
@@ -67,11 +71,13 @@ from scenarios.running.closed_loop import (
     RunInputs,
     build_loop,
     counted_kpis,
+    day_kpis,
     free_records,
     prepare_run,
     run_kpis,
     run_trajectory,
 )
+from scenarios.running.datagen import add_cop
 from scenarios.running.engine import ClosedLoop, LoopRecord
 
 __all__ = [
@@ -99,9 +105,9 @@ _STATE, _LOG, _OBSERVED, _ARRAYS, _VERSIONS = "state.json", "log.jsonl", "observ
 @dataclass(frozen=True, kw_only=True)
 class OnlineSettings:
     """How the online controller runs: ``controller`` plans over the model (cem or
-    random-shooting), refits every ``retrain_every_days`` days of service, each fitting
-    ``arch`` (default ``auto``) with ``config`` (its ``eta`` and ``u_max_w`` are the
-    scenario's; ``first_seed`` the run's seed)."""
+    random-shooting) or, the RC MPC (qp-mpc), on the RC alone; it refits every
+    ``retrain_every_days`` days of service, each fitting ``arch`` (default ``auto``) with
+    ``config`` (its ``eta`` and ``u_max_w`` are the scenario's; ``first_seed`` the run's seed)."""
 
     controller: str = "cem"
     retrain_every_days: int = 1
@@ -115,11 +121,16 @@ class OnlineSettings:
                 f"online: retrain_every_days must be a whole number of days >= 1, got "
                 f"{self.retrain_every_days}"
             )
-        if self.controller not in ("cem", "random-shooting"):
+        if self.controller not in ONLINE_CONTROLLERS:
             raise InputError(
-                f"online: controller {self.controller!r} does not plan over a model; choose cem "
-                "or random-shooting"
+                f"online: controller {self.controller!r} does not run online; choose one of "
+                f"{', '.join(ONLINE_CONTROLLERS)}"
             )
+
+    @property
+    def learns_model(self) -> bool:
+        """Whether the controller plans over a model it refits (else it runs on the RC alone)."""
+        return self.controller in MODEL_CONTROLLERS
 
     def record(self) -> dict[str, Any]:
         """The settings as JSON (what a resumed run must share)."""
@@ -257,6 +268,7 @@ def _refit(
         if champion is not None:
             record["champion_error_c"] = _held_out_error(fitted.load(champion), frame, cut)
     record["wall_s"] = time.perf_counter() - started
+    record["load_1min"] = os.getloadavg()[0] if hasattr(os, "getloadavg") else None
     shutil.rmtree(target, ignore_errors=True)
     tmp.rename(target)
     return record
@@ -330,13 +342,15 @@ class _Online:
         before = monitor.state.fallback_steps if monitor is not None else 0
         decision = loop.advance(self.controller)
         after = monitor.state.fallback_steps if monitor is not None else 0
-        self.own[k] = self.kind == "model" and after == before and not decision.fallback
+        own_kind = "model" if self.settings.learns_model else "rc"
+        self.own[k] = self.kind == own_kind and after == before and not decision.fallback
         self.mode[k] = self.kind
 
     def observed(self, loop: ClosedLoop) -> pd.DataFrame:
         k = loop.k
         sofar = RunInputs(exo=self.run.exo, series=self.run.series, warmup=0, total=k)
         frame = run_trajectory(self.scenario, sofar, loop.record())
+        add_cop(self.scenario, frame)  # a heat pump's: its refits fit on the delivered heat
         frame["own"] = self.own[:k].astype(int)
         return frame
 
@@ -415,7 +429,8 @@ def run_online(
                 n_days = len(before) // spd
                 entry = pool.apply(_refit, (_fit_frame([before], dt_s),), dict(
                     dt_s=dt_s, steps_per_day=spd, arch=settings.arch, config=config, champion=None,
-                    version_dir=str(out / _VERSIONS / "v000"), with_model=n_days >= MODEL_DAYS,
+                    version_dir=str(out / _VERSIONS / "v000"),
+                    with_model=settings.learns_model and n_days >= MODEL_DAYS,
                     hold_out=False,
                 )) if n_days >= 1 else None
                 if entry is not None:
@@ -434,7 +449,7 @@ def run_online(
                     state.version += 1
                     frames = [f for f in (before, online.observed(loop)) if f is not None]
                     frame = _fit_frame(frames, dt_s)
-                    with_model = len(frame) // spd - 1 >= MODEL_DAYS
+                    with_model = settings.learns_model and len(frame) // spd - 1 >= MODEL_DAYS
                     pending = (k, pool.apply_async(_refit, (frame,), dict(
                         dt_s=dt_s, steps_per_day=spd, arch=settings.arch, config=config,
                         champion=online.path(state.champion, "model"),
@@ -503,21 +518,16 @@ def _result(scenario: Scenario, run: RunInputs, rec: LoopRecord, online: _Online
         scenario=scenario.name, days=days, seed=seed, weather_part=weather_part,
         trajectory=trajectory, weather_times=run.exo["time"],
     )
-    spd = online.spd
     errors = {e["night"]: e["champion_error_c"] for e in state.log if e.get("night")}
     per_day = []
-    for d in range(days):
-        start = run.warmup + d * spd
-        day = RunInputs(exo=run.exo, series=run.series, warmup=start, total=start + spd)
-        figures = counted_kpis(scenario, day, rec)
-        modes = online.mode[start : start + spd]
+    for figures in day_kpis(scenario, run, rec):
+        start = run.warmup + (figures["day"] - 1) * online.spd
+        modes = list(online.mode[start : start + online.spd])
         per_day.append({
-            "day": d + 1,
-            "objective": figures["objective"],
-            "discomfort_kh": figures["discomfort_kh"],
-            "own_decisions_share": float(np.mean(online.own[start : start + spd])),
-            "controller": max(set(modes), key=list(modes).count),
-            "model_day_ahead_error_c": errors.get(d + 1),
+            **figures,
+            "own_decisions_share": float(np.mean(online.own[start : start + online.spd])),
+            "controller": max(set(modes), key=modes.count),
+            "model_day_ahead_error_c": errors.get(figures["day"]),
         })
     kpis["online"] = {  # type: ignore[typeddict-unknown-key]
         "days": per_day,

@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING
 
 from pinn_mpc.errors import InternalError
 from pinn_mpc.physics import RCParams
+from scenarios.choices import online_controller
 from scenarios.experiments.sweep.boptest import _boptest_chosen
 from scenarios.experiments.sweep.grid import (
     RC_KIND,
@@ -36,7 +37,9 @@ def run_cell(
     ``model`` is what :func:`fit_model` returned for ``cell.model`` (None when it has none):
     the learned model a planner plans over, or the RC an RC MPC works on. On BOPTEST the
     cell is one test on the server (``boptest_url`` when the scenario file names none): the
-    first ``test_days`` of its test period, its KPIs with BOPTEST's under ``boptest``.
+    first ``test_days`` of its test period, its KPIs with BOPTEST's under ``boptest``. A
+    controller run online (``cem-online``) is :func:`_run_online_cell`. On the package's own
+    plants the KPIs hold ``per_day``, each test day's figures.
     """
     from scenarios.running.closed_loop import one_torch_thread, run_closed_loop
     from scenarios.running.factory import build_controller
@@ -44,6 +47,8 @@ def run_cell(
     start = time.perf_counter()
     if cell.test_period is not None:
         return _run_boptest_cell(cell, settings, model, boptest_url, start)
+    if online_controller(cell.controller) is not None:
+        return _run_online_cell(cell, settings, start)
     scenario = get_scenario(cell.scenario)
     from pinn_mpc.identify_multizone import MultiZoneIdentifyResult
 
@@ -63,9 +68,53 @@ def run_cell(
     with one_torch_thread():
         result = run_closed_loop(
             scenario, controller, days=settings.test_days, seed=cell.seed + 1,
-            label=cell.controller,
+            label=cell.controller, per_day=True,
         )
     return _cell_result(result, learned, time.perf_counter() - start)
+
+
+def _run_online_cell(cell: Cell, settings: SweepSettings, start: float) -> CellResult:
+    """A controller run online (:func:`scenarios.running.online.run_online`): it starts from
+    ``cell.train_days`` days of the scenario's data (its data policy, seed ``cell.seed``, the
+    rows taken as the days right before the test days), then runs ``test_days`` days (seed
+    ``cell.seed + 1``) refitting every night with the default schedule, its ensembles of the
+    settings' members, depth and epochs (None: the recipe's). The run's folder (versions,
+    ``log.jsonl``) is a temporary one: its nights are the record's ``online_log``; the KPIs
+    hold ``online`` and ``per_day``."""
+    import tempfile
+
+    from pinn_mpc.training import TrainConfig
+    from scenarios.running.closed_loop import one_torch_thread
+    from scenarios.running.datagen import generate
+    from scenarios.running.online import OnlineSettings, run_online
+
+    name = online_controller(cell.controller)
+    if name is None or cell.train_days is None:
+        raise InternalError(f"sweep cell {cell.name}: not a controller run online with its days of data")
+    scenario = get_scenario(cell.scenario)
+    policy = scenario.data_policy if settings.policy == "scenario" else settings.policy
+    data = (
+        generate(scenario, days=cell.train_days, seed=cell.seed, policy=policy)
+        if cell.train_days > 0 else None
+    )
+    config = TrainConfig(n_seeds=settings.n_members, depth=settings.depth, epochs=settings.epochs)
+    online = OnlineSettings(controller=name, config=config)
+    with tempfile.TemporaryDirectory(prefix="sweep_online_") as out, one_torch_thread():
+        result = run_online(scenario, data, days=settings.test_days, seed=cell.seed + 1,
+                            out_dir=out, settings=online)
+    result.kpis["controller"] = cell.controller
+    result.kpis["per_day"] = [
+        {"day": day["day"], "objective": day["objective"], "discomfort_kh": day["discomfort_kh"],
+         "own_decisions_share": day["own_decisions_share"]}
+        for day in result.kpis["online"]["days"]  # type: ignore[typeddict-item]
+    ]
+    return {
+        "kpis": result.kpis,
+        "errors": [],
+        "host": socket.gethostname(),
+        "wall_time_s": time.perf_counter() - start,
+        "online_log": list(result.log),
+    }
 
 
 def _run_boptest_cell(

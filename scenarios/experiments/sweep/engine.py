@@ -33,12 +33,15 @@ from scenarios.experiments.sweep.store import (
 from scenarios.plants.boptest import TEST_PERIOD_DAYS
 from scenarios.plants.boptest_client import BOPTEST_URL_ENV
 from scenarios.records import CellRecord, CellResult, GridRecord, SweepSummary
+from scenarios.reports.online_report import online_section, plot_online_days
 from scenarios.reports.sweep_report import plot_sweep, render_sweep_report, summarise
 from scenarios.running.ray_engine import check_engine_options, ray_engine
 
-__all__ = ["ENERGYPLUS_CALLS_PER_WORKER", "FIGURE", "SweepOutcome", "run_sweep"]
+__all__ = ["ENERGYPLUS_CALLS_PER_WORKER", "FIGURE", "ONLINE_FIGURE", "SweepOutcome", "run_sweep"]
 
 FIGURE = "objective_to_oracle.png"
+#: The objective per day of service of the controllers run online and the baseline.
+ONLINE_FIGURE = "online_days.png"
 #: Tasks an engine worker runs before it is replaced when the grid has an EnergyPlus scenario.
 ENERGYPLUS_CALLS_PER_WORKER = 20
 
@@ -275,8 +278,13 @@ def run_sweep(
     }
     summary_path = atomic_write_json(root / "summary.json", summary)
     figure_path = plot_sweep(rows, root / FIGURE)
+    online_figure = plot_online_days(done, root / ONLINE_FIGURE, baseline=baseline)
+    online = online_section(
+        done, baseline=baseline, figure_name=None if online_figure is None else ONLINE_FIGURE
+    )
     report_path = atomic_write_text(
-        root / "report.md", render_sweep_report(summary, figure_name=FIGURE)
+        root / "report.md",
+        render_sweep_report(summary, figure_name=FIGURE) + "".join(f"\n{line}" for line in online),
     )
     return SweepOutcome(
         summary=summary, summary_path=summary_path, report_path=report_path, figure_path=figure_path

@@ -13,7 +13,12 @@ from pathlib import Path
 
 from pinn_mpc.choices import AUTO, DEFAULT_ARCH, MODEL_CHOICES
 from pinn_mpc.errors import InputError
-from scenarios.choices import TRUTH_CONTROLLERS
+from scenarios.choices import (
+    ONLINE_CONTROLLERS,
+    ONLINE_SUFFIX,
+    TRUTH_CONTROLLERS,
+    online_controller,
+)
 from scenarios.inputs.registry import is_scenario_file
 from scenarios.inputs.scenario_file import get_scenario
 from scenarios.plants.boptest import BUILTIN_BOPTEST
@@ -22,12 +27,14 @@ from scenarios.running.boptest_loop import BASELINE as BOPTEST_BASELINE
 from scenarios.running.boptest_loop import is_boptest_scenario
 from scenarios.running.factory import CONTROLLER_NAMES, MODEL_CONTROLLERS, RC_CONTROLLERS
 
-__all__ = ["ARCH", "BOPTEST_CONTROLLERS", "QUICK_TEST_DAYS", "RC_KIND", "TEST_DAYS", "Cell", "ModelKey", "SweepGrid", "SweepSettings", "model_kind", "scenario_digest"]
+__all__ = ["ARCH", "BOPTEST_CONTROLLERS", "QUICK_TEST_DAYS", "RC_KIND", "START_DAYS", "TEST_DAYS", "Cell", "ModelKey", "SweepGrid", "SweepSettings", "model_kind", "scenario_digest"]
 
 #: The architecture the model-based controllers plan over by default: the one ``train`` makes by
 #: default (``SweepSettings.arch`` another, e.g. the physics-informed ARX).
 ARCH = DEFAULT_ARCH
 RC_KIND = "rc"
+#: Days of data an online cell starts from, when none are asked for.
+START_DAYS = 3
 #: Test days per cell, and with ``--quick``, when none are asked for.
 TEST_DAYS = 3
 QUICK_TEST_DAYS = 2
@@ -78,7 +85,8 @@ class Cell:
     scenario: str
     controller: str  # a controller's name, or ``cem/<arch>``: cem over that model
     seed: int
-    train_days: int | None  # None for controllers that need no model
+    # None for controllers that need no model; an online cell's: the days of data it starts from
+    train_days: int | None
     #: BOPTEST's test period and price scenario (None on the package's own plants).
     test_period: str | None = None
     price_scenario: str | None = None
@@ -176,7 +184,8 @@ class SweepGrid:
     (``cem``, ``random-shooting``) runs over, one controller label ``cem/<arch>`` each (``auto``:
     ``train``'s default choice); empty: the settings' one, label ``cem``. ``test_periods`` and
     ``price_scenarios``: BOPTEST's (BOPTEST scenarios only; by default peak_heat_day and
-    dynamic)."""
+    dynamic). ``start_days``: the days of data a controller run online (``cem-online``,
+    ``qp-mpc-online``) starts from, its cells' training days."""
 
     scenarios: tuple[str, ...]
     controllers: tuple[str, ...]
@@ -185,6 +194,7 @@ class SweepGrid:
     archs: tuple[str, ...] = ()
     test_periods: tuple[str, ...] = ()
     price_scenarios: tuple[str, ...] = ()
+    start_days: int = START_DAYS
 
     def __post_init__(self) -> None:
         for name in ("scenarios", "controllers", "seeds", "train_days"):
@@ -209,6 +219,8 @@ class SweepGrid:
             self._check_boptest()
         else:
             self._check_own()
+        if self.start_days < 0:
+            raise InputError(f"sweep: start days must be >= 0 (0: no data, the thermostat first), got {self.start_days}")
         if min(self.train_days) < 2:
             raise InputError(f"sweep: training days must be >= 2, got {min(self.train_days)}")
 
@@ -267,12 +279,25 @@ class SweepGrid:
                     f"so {', '.join(truth)} cannot run on it; leave them out (its cells are "
                     "measured against the thermostat)"
                 )
-        unknown = [c for c in self.controllers if c.partition("/")[0] not in CONTROLLER_NAMES]
+        unknown = [
+            c for c in self.controllers
+            if c.partition("/")[0] not in CONTROLLER_NAMES and online_controller(c) is None
+        ]
         if unknown:
+            run_online = ", ".join(f"{c}{ONLINE_SUFFIX}" for c in ONLINE_CONTROLLERS)
             raise InputError(
                 f"sweep: unknown controller(s) {', '.join(unknown)}; "
-                f"choose from {', '.join(CONTROLLER_NAMES)}"
+                f"choose from {', '.join(CONTROLLER_NAMES)}, or run online {run_online}"
             )
+        online = [c for c in self.controllers if online_controller(c) is not None]
+        for scenario in self.scenarios if online else ():
+            chosen = get_scenario(scenario)
+            if chosen.reference != REFERENCE or len(chosen.control_spec().zones) > 1:
+                raise InputError(
+                    f"sweep: {', '.join(online)} run(s) on the package's RC plants of one zone "
+                    f"(their replay on resume steps the plant again); {scenario!r} is not one: "
+                    "sweep it without them"
+                )
 
     @property
     def boptest_periods(self) -> tuple[str, ...]:
@@ -324,7 +349,8 @@ class SweepGrid:
         for scenario in self.scenarios:
             for controller in dict.fromkeys([*self.labels, self.references[scenario]]):
                 days: Sequence[int | None] = (
-                    self.train_days if model_kind(controller) else (None,)
+                    self.train_days if model_kind(controller)
+                    else (self.start_days,) if online_controller(controller) else (None,)
                 )
                 out += [
                     Cell(scenario=scenario, controller=controller, seed=s, train_days=d,

@@ -24,14 +24,15 @@ def parse_names(text: str, what: str) -> tuple[str, ...]:
 
 #: Keys of a sweep definition file (``pinn-mpc sweep --spec FILE.toml``).
 SPEC_KEYS = ("description", "scenarios", "controllers", "seeds", "train_days", "days", "baseline", "arch",
-             "archs", "test_periods", "price_scenarios")
+             "archs", "test_periods", "price_scenarios", "start_days")
 
 
 def read_sweep_spec(path: str | os.PathLike[str]) -> dict[str, Any]:
     """A sweep definition (TOML): lists or comma-separated strings for ``scenarios``,
     ``controllers``, ``seeds`` and ``train_days`` (ranges as ``"0-7"``), ``archs`` (cem over
     each), and BOPTEST's ``test_periods`` and ``price_scenarios``; an integer ``days``, a
-    controller name ``baseline``, an architecture ``arch``; scenario files named relative to the
+    controller name ``baseline``, an architecture ``arch``, the whole number ``start_days`` (the
+    days of data a controller run online starts from); scenario files named relative to the
     definition file.
     Returns the values as the command line gives them."""
     import tomllib
@@ -64,6 +65,11 @@ def read_sweep_spec(path: str | os.PathLike[str]) -> dict[str, Any]:
         if isinstance(data["days"], bool) or not isinstance(data["days"], int) or data["days"] < 1:
             raise InputError(f"{source}: days must be a whole number >= 1, got {data['days']!r}")
         out["days"] = data["days"]
+    if "start_days" in data:
+        value = data["start_days"]
+        if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+            raise InputError(f"{source}: start_days must be a whole number >= 0, got {value!r}")
+        out["start_days"] = value
     if "baseline" in data:
         if not isinstance(data["baseline"], str):
             raise InputError(f"{source}: baseline must be a controller name, got {data['baseline']!r}")
