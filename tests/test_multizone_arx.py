@@ -313,3 +313,45 @@ def test_train_parx_plans_with_cem_and_exports_the_rc_it_carries(house_data: Pat
     planned = model.for_planning(backup_low_c=scenario.sim.backup_low_c, backup_high_c=scenario.sim.backup_high_c)
     assert CEM(planned, scenario.control_spec()).comfort_margin_k == over_arx.comfort_margin_k
     assert over_rc.comfort_margin_k == ZONE_COMFORT_MARGIN_K == 0 and over_rc.offset_gain == 0.0
+
+
+def test_a_zones_heater_and_chiller_share_one_weight_per_lag_recovered_from_a_feedback_loop() -> None:
+    """The south zone with a heater and a chiller (its EER following the outdoor air), the
+    chiller run by a tracking rule on the room, as a building's data come from inside a loop:
+    rooms from known equations in which a zone's net heat (each actuator's power x its
+    efficiency at the row's outdoor air, + heating, - cooling) has one weight per lag; the fit
+    gives the heater and the chiller that weight, each zone its own."""
+    from pinn_mpc.actuator import Actuator
+
+    truth = _truth()
+    _, (south_heater, north_heater) = two_zone_house()
+    chiller = ActuatorSpec(
+        upper_w=1500.0, heats=False, zone=0, name="a2",
+        efficiency=Actuator(kind="chiller", supply_temp_c=12.0, carnot_efficiency=0.3, cop_min=1.0, cop_max=6.0),
+    )
+    actuators = (*_named((south_heater, north_heater)), chiller)
+    frame = _weather(14, seed=3)
+    t_a = frame["T_a"].to_numpy(dtype=float)
+    powers = np.column_stack([frame["u_phys[a0]"].to_numpy(dtype=float), frame["u_phys[a1]"].to_numpy(dtype=float),
+                              np.zeros(len(frame))])
+    frame[["T_r[south]", "T_r[north]"]] = 20.0
+    dither = np.random.default_rng(5).uniform(-300.0, 300.0, len(frame))
+    start = WEATHER_LAGS
+    for k in range(start, len(frame) - 1):  # the chiller tracks 21 C on the room it measures
+        powers[k, 2] = chiller.clip(600.0 * (frame.at[k, "T_r[south]"] - 21.0) + dither[k])
+        # the rooms' equation sees each zone's net heat on its heater's column
+        net = powers[: k + 1, :2].copy()
+        net[:, 0] -= powers[: k + 1, 2] * chiller.efficiency.gain(t_a[: k + 1])
+        frame.loc[k + 1, ["T_r[south]", "T_r[north]"]] = _recursion(truth, frame, k, 1, net)[0]
+    frame["u_phys[a2]"] = powers[:, 2]
+    frame["u[a2]"] = powers[:, 2]
+    fit = fit_multizone_arx(
+        frame.iloc[start - 1 :].reset_index(drop=True), zones=_identified().params.zone_specs, actuators=actuators,
+        solar_inputs=_SOLAR, dt_s=DT_S, lags=2, power_lags=2, identified=_identified(),
+    )
+    heat = fit.coefficients.heat
+    assert np.array_equal(heat[0, 0], heat[0, 2])  # one weight, not two that happen to agree
+    np.testing.assert_allclose(heat[0, 0], truth.heat[0, 0], atol=2e-4)
+    np.testing.assert_allclose(heat[0, 2], truth.heat[0, 0], atol=2e-4)
+    np.testing.assert_allclose(heat[1, 1], truth.heat[1, 1], atol=2e-4)
+    assert np.all(heat[1, [0, 2]] == 0) and np.all(heat[0, 1] == 0)

@@ -5,12 +5,16 @@ building's physics says it depends on::
 
     T_z,k+1 = sum_l a_z,l T_z,k-l                      (its own L lags, a >= 0)
               + sum_{j != z} c_z,j T_j,k               (every other zone now, c >= 0)
-              + sum_{i on z} sum_l b_z,i,l q_i,k-l     (its own actuators' heat, b >= 0)
+              + sum_l b_z,l sum_{i on z} q_i,k-l      (its own actuators' net heat, b >= 0)
               + sum_l o_z,l T_a,k-l + sum_l s_z,l S_z,k-l [+ sum_l g_z,l I_g,k-l]
               + schedule_z(block of day of t_k, workday of t_k)
 
 with ``q_i = u_phys,i x gain_i(T_a) x sign_i`` the heat an actuator delivers [kW] (its
-electrical power, its efficiency at the outdoor temperature, + heating, - cooling), ``S_z``
+electrical power, its efficiency at the outdoor temperature, + heating, - cooling; a zone's
+actuators share their weights, since a watt a heater gives and a watt a chiller takes move the
+zone's air alike, which is how the package's plants and its RC models deliver them: fitted
+apart, a chiller run mostly while the data's tracking fights a warm disturbance takes a weight
+too weak, the bias of identifying inside a feedback loop), ``S_z``
 the irradiance the zone's windows take (:func:`scenarios.experiments.compare.zone_solar_inputs`;
 none for a zone without windows), ``I_g`` the internal gains where the data has them, and the
 schedule one intercept per 2-hour block of the day, separately for workdays and weekends
@@ -504,7 +508,8 @@ def fit_multizone_arx(
         others = [j for j in range(z_n) if j != z]
         parts = [rooms[k - lag, z][:, None] for lag in range(lags)]
         parts += [rooms[k][:, others]]
-        parts += [heat[k - lag][:, own_z] for lag in range(power_lags)]
+        n_heat = 1 if own_z else 0  # heat is heat: the zone's actuators' summed, one weight per lag
+        parts += [heat[k - lag][:, own_z].sum(axis=1, keepdims=True)[:, :n_heat] for lag in range(power_lags)]
         parts += [series["T_a"][k - lag][:, None] for lag in range(WEATHER_LAGS)]
         name = solar_inputs[z]
         if name is not None:
@@ -521,7 +526,7 @@ def fit_multizone_arx(
                 f"multi-zone ARX: {len(frame)} rows are too few to fit {x.shape[1]} coefficients per zone; "
                 "give more days of data"
             )
-        n_pos = len(others) + power_lags * len(own_z)
+        n_pos = len(others) + power_lags * n_heat
         lower = np.full(x.shape[1], -np.inf)
         lower[: lags + n_pos] = 0.0
         rms = np.sqrt(np.mean(x**2, axis=0))
@@ -538,8 +543,8 @@ def fit_multizone_arx(
         coef["coupling"][z, others] = w[i : i + len(others)]
         i += len(others)
         for lag in range(power_lags):
-            coef["heat"][z, own_z, lag] = w[i : i + len(own_z)]
-            i += len(own_z)
+            coef["heat"][z, own_z, lag] = w[i : i + n_heat].sum()
+            i += n_heat
         coef["outdoor"][z] = w[i : i + WEATHER_LAGS]
         i += WEATHER_LAGS
         if name is not None:
