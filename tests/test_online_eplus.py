@@ -1,37 +1,63 @@
 """Online operation on an EnergyPlus plant (:mod:`scenarios.running.online`): a resume re-runs
 EnergyPlus from its start on the recorded demands and reaches the uninterrupted run's states
-and figures; the sweep's online cells run on EnergyPlus of one zone, not on its zones."""
+and figures; the data at hand are the days simulated right before the run; the sweep's online
+cells run on EnergyPlus of one zone."""
 
 import _thread
 import json
 import threading
 import time
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
 
-from pinn_mpc.errors import InputError
 from pinn_mpc.training import TrainConfig
 from scenarios.experiments.sweep.grid import SweepGrid
 from scenarios.inputs.scenario_file import get_scenario
 from scenarios.running.datagen import generate
-from scenarios.running.online import MODEL_DAYS, OnlineSettings, run_online
+from scenarios.running.online import (
+    MODEL_DAYS,
+    OnlineSettings,
+    data_before_run,
+    retimed,
+    run_online,
+)
 
 SCENARIO = "eplus_small_office"
+JANUARY = str(Path(__file__).resolve().parents[1] / "sweeps" / "buildings" / "eplus_small_office_january.toml")
 DAYS = 4
 TINY = OnlineSettings(
     config=TrainConfig(n_seeds=2, epochs=2), planner_options={"n_samples": 16, "n_iters": 2}
 )
 
 
-def test_online_cells_run_on_energyplus_of_one_zone_not_on_its_zones():
+def test_online_cells_run_on_energyplus_of_one_zone():
     grid = SweepGrid(scenarios=(SCENARIO,), controllers=("cem-online", "qp-mpc-online"), seeds=(0,),
                      train_days=(14,))
     assert {c.controller for c in grid.cells()} >= {"cem-online", "qp-mpc-online"}
-    with pytest.raises(InputError, match="several zones"):
-        SweepGrid(scenarios=("eplus_small_office_zones",), controllers=("cem-online",), seeds=(0,),
-                  train_days=(14,))
+
+
+def test_the_data_at_hand_are_the_days_simulated_right_before_the_run():
+    """The small office tested in January from the test part's first day (1 January): its 3
+    days of data are 29-31 December, on their own dates (so the office's weekday schedules and
+    the weather are those days'), the last 3 of a longer draw of the same seed; a run starting
+    later in its test part gets the usual draw instead (rows moved to end before it)."""
+    scenario = get_scenario(JANUARY)
+    spd = scenario.steps_per_day
+    first = pd.Timestamp("2023-01-01 00:00")
+    data = data_before_run(scenario, days=MODEL_DAYS, seed=0, policy=scenario.data_policy, first_time=first)
+    times = pd.to_datetime(data["time"])
+    assert times.iloc[0] == pd.Timestamp("2022-12-29 00:00") and len(data) == MODEL_DAYS * spd
+    assert times.iloc[-1] + pd.Timedelta(minutes=30) == first
+    assert retimed(data, first, 1800.0)["time"].equals(data["time"])  # nothing moved
+    longer = generate(scenario, days=32, seed=0, policy=scenario.data_policy)
+    np.testing.assert_array_equal(data["T_r"].to_numpy(), longer["T_r"].to_numpy()[-MODEL_DAYS * spd :])
+    later = data_before_run(scenario, days=MODEL_DAYS, seed=0, policy=scenario.data_policy,
+                            first_time=pd.Timestamp("2023-01-02 00:00"))
+    usual = generate(scenario, days=MODEL_DAYS, seed=0, policy=scenario.data_policy)
+    assert later["time"].equals(usual["time"])
 
 
 @pytest.mark.slow
