@@ -100,7 +100,7 @@ def test_a_resumed_energyplus_run_is_the_uninterrupted_one(tmp_path):
         np.testing.assert_array_equal(again[column].to_numpy(), whole[column].to_numpy(), err_msg=column)
     keep = ("objective", "cost_eur", "discomfort_kh", "energy_kwh", "own_decisions_share")
     assert {k: resumed.kpis[k] for k in keep} == {k: expected.kpis[k] for k in keep}
-    assert resumed.kpis["online"]["days"] == expected.kpis["online"]["days"]  # type: ignore[typeddict-item]
+    assert resumed.kpis["online"]["days"] == expected.kpis["online"]["days"]
     assert [e["verdict"] for e in resumed.log] == [e["verdict"] for e in expected.log]
     observed = pd.read_csv(out / "observed.csv")
     assert len(observed) == (DAYS + 1) * spd  # warm-up and every day, each interval once
