@@ -70,6 +70,7 @@ def test_a_resumed_energyplus_run_is_the_uninterrupted_one(tmp_path):
     data = generate(scenario, days=MODEL_DAYS, seed=0, policy=scenario.data_policy)
     spd = scenario.steps_per_day
     expected = run_online(scenario, data, days=DAYS, seed=1, out_dir=tmp_path / "whole", settings=TINY)
+    assert any(e["model"] for e in expected.log[1:])  # the resume rebuilds a refitted model
 
     out = tmp_path / "cut"
     state = out / "state.json"
