@@ -37,8 +37,8 @@ def test_an_online_cell_starts_from_its_days_of_data():
 def test_online_cells_are_refused_where_they_cannot_run():
     with pytest.raises(InputError, match="unknown controller.*cem-online"):
         SweepGrid(scenarios=("winter_household",), controllers=("oracle-online",), seeds=(0,), train_days=(14,))
-    with pytest.raises(InputError, match="one zone"):
-        SweepGrid(scenarios=("eplus_small_office",), controllers=("cem-online",), seeds=(0,), train_days=(14,))
+    with pytest.raises(InputError, match="several zones"):
+        SweepGrid(scenarios=("eplus_small_office_zones",), controllers=("cem-online",), seeds=(0,), train_days=(14,))
     with pytest.raises(InputError, match="start days"):
         SweepGrid(scenarios=("winter_household",), controllers=("cem-online",), seeds=(0,), train_days=(14,),
                   start_days=-1)

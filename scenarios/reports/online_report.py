@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from scenarios.choices import online_controller
+from scenarios.inputs.registry import is_scenario_file
 from scenarios.reports.plots import save_figure
 from scenarios.reports.report import markdown_table
 
@@ -185,7 +186,7 @@ def plot_online_days(records: Sequence[Mapping[str, Any]], path: str | os.PathLi
                     color="black" if controller == baseline else None)
         for week_end in range(WEEK_DAYS, max(r.last_day for r in rows), WEEK_DAYS):
             ax.axvline(week_end + 0.5, color="grey", lw=0.6, ls=":")
-        ax.set_title(scenario)
+        ax.set_title(Path(scenario).name if is_scenario_file(scenario) else scenario)  # no machine's path
         ax.set_xlabel("day of service")
         ax.set_ylabel("objective per day [EUR], mean over seeds")
         ax.legend(fontsize=8)

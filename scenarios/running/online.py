@@ -87,6 +87,7 @@ __all__ = [
     "TAKEOVER_H",
     "OnlineResult",
     "OnlineSettings",
+    "data_before_run",
     "night_steps",
     "run_online",
 ]
@@ -180,6 +181,33 @@ def retimed(data: pd.DataFrame, first_time: pd.Timestamp, dt_s: float) -> pd.Dat
     out["time"] = times + shift
     out.attrs = dict(data.attrs)
     return out
+
+
+def data_before_run(
+    scenario: Scenario, *, days: int, seed: int, policy: str, first_time: pd.Timestamp
+) -> pd.DataFrame:
+    """``days`` days of ``scenario``'s data under ``policy`` (seed ``seed``) for a run whose
+    first interval starts at ``first_time``.
+
+    On an EnergyPlus plant whose training weather ends the day before ``first_time`` (a TMY3
+    window, the run starting on the test part's first day) the training part's last ``days``
+    days, simulated by EnergyPlus on those very dates (their weather, weekdays and holidays):
+    :func:`retimed` leaves them in place and the seam is the building's state only (the data's
+    EnergyPlus run is not the run's). Otherwise (the package's RC plants, or a run starting
+    later in its test part) the scenario's usual draw of ``days`` days, which :func:`retimed`
+    moves by whole days to end right before the run."""
+    from scenarios.inputs.exogenous import TMY3Weather
+    from scenarios.running.datagen import generate
+
+    weather, spd = scenario.weather, scenario.steps_per_day
+    if scenario.plant.true_state or not isinstance(weather, TMY3Weather):
+        return generate(scenario, days=days, seed=seed, policy=policy)
+    # A draw longer than the training part's core ends on its last day (TMY3Weather's rule).
+    longer = generate(scenario, days=max(days, weather.training_core_days + 1), seed=seed, policy=policy)
+    last = longer.iloc[len(longer) - days * spd :].reset_index(drop=True)
+    last.attrs = dict(longer.attrs)
+    ends = pd.Timestamp(last["time"].iloc[-1]) + pd.Timedelta(seconds=float(scenario.sim.dt_s))
+    return last if ends == first_time else generate(scenario, days=days, seed=seed, policy=policy)
 
 
 def _fit_frame(frames: list[pd.DataFrame], dt_s: float) -> pd.DataFrame:

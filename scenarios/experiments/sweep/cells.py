@@ -76,25 +76,29 @@ def run_cell(
 def _run_online_cell(cell: Cell, settings: SweepSettings, start: float) -> CellResult:
     """A controller run online (:func:`scenarios.running.online.run_online`): it starts from
     ``cell.train_days`` days of the scenario's data (its data policy, seed ``cell.seed``, the
-    rows taken as the days right before the test days), then runs ``test_days`` days (seed
-    ``cell.seed + 1``) refitting every night with the default schedule, its ensembles of the
+    rows taken as the days right before the test days; on EnergyPlus, where they can be, the
+    days simulated right before them: :func:`scenarios.running.online.data_before_run`), then
+    runs ``test_days`` days (seed ``cell.seed + 1``) refitting every night with the default schedule, its ensembles of the
     settings' members, depth and epochs (None: the recipe's). The run's folder (versions,
     ``log.jsonl``) is a temporary one: its nights are the record's ``online_log``; the KPIs
     hold ``online`` and ``per_day``."""
     import tempfile
 
+    import pandas as pd
+
     from pinn_mpc.training import TrainConfig
-    from scenarios.running.closed_loop import one_torch_thread
-    from scenarios.running.datagen import generate
-    from scenarios.running.online import OnlineSettings, run_online
+    from scenarios.running.closed_loop import one_torch_thread, prepare_run
+    from scenarios.running.online import OnlineSettings, data_before_run, run_online
 
     name = online_controller(cell.controller)
     if name is None or cell.train_days is None:
         raise InternalError(f"sweep cell {cell.name}: not a controller run online with its days of data")
     scenario = get_scenario(cell.scenario)
     policy = scenario.data_policy if settings.policy == "scenario" else settings.policy
+    run = prepare_run(scenario, days=settings.test_days, seed=cell.seed + 1, warmup_steps=None, weather_part="test")
     data = (
-        generate(scenario, days=cell.train_days, seed=cell.seed, policy=policy)
+        data_before_run(scenario, days=cell.train_days, seed=cell.seed, policy=policy,
+                        first_time=pd.Timestamp(run.exo["time"].iloc[0]))
         if cell.train_days > 0 else None
     )
     config = TrainConfig(n_seeds=settings.n_members, depth=settings.depth, epochs=settings.epochs)

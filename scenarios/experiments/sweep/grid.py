@@ -291,12 +291,12 @@ class SweepGrid:
             )
         online = [c for c in self.controllers if online_controller(c) is not None]
         for scenario in self.scenarios if online else ():
-            chosen = get_scenario(scenario)
-            if chosen.reference != REFERENCE or len(chosen.control_spec().zones) > 1:
+            # The package's RC plants and EnergyPlus of one zone: a resume steps the plant
+            # again from the same seed on the recorded demands (EnergyPlus from its start).
+            if len(get_scenario(scenario).control_spec().zones) > 1:
                 raise InputError(
-                    f"sweep: {', '.join(online)} run(s) on the package's RC plants of one zone "
-                    f"(their replay on resume steps the plant again); {scenario!r} is not one: "
-                    "sweep it without them"
+                    f"sweep: {', '.join(online)} run(s) on buildings of one zone (the RC plants "
+                    f"or EnergyPlus merged); {scenario!r} has several zones: sweep it without them"
                 )
 
     @property
