@@ -20,8 +20,8 @@ from pinn_mpc.data import day_of_week, write_timeseries
 from pinn_mpc.errors import InputError
 from pinn_mpc.fitted import load
 from pinn_mpc.identify_multizone import MultiZoneIdentifyResult
-from pinn_mpc.models.arx import BLOCK_H
 from pinn_mpc.models.multizone_arx import (
+    BLOCK_H,
     MULTIZONE_ARX_FILE,
     WEATHER_LAGS,
     MultiZoneARX,
@@ -37,7 +37,6 @@ from scenarios.running.datagen import generate
 from tests.multizone_data import DT_S, multizone_frame, two_zone_house
 
 _SOLAR = ("G_south", None)
-_BLOCKS = int(24 / BLOCK_H)
 
 
 def _named(actuators: tuple[ActuatorSpec, ...]) -> tuple[ActuatorSpec, ...]:
@@ -52,12 +51,13 @@ def _identified() -> MultiZoneIdentifyResult:
     )
 
 
-def _truth() -> ZoneCoefficients:
+def _truth(block_h: float = BLOCK_H) -> ZoneCoefficients:
     """A two-zone ARX of 2 room lags and 2 heat lags (scaled units: heat in kW, sun in 100
-    W/m2, gains in kW); zone 1 has no windows."""
-    schedule = np.zeros((2, 2 * _BLOCKS))
-    schedule[0] = 0.9 + 0.3 * np.sin(np.arange(2 * _BLOCKS))
-    schedule[1] = 1.2 + 0.2 * np.cos(np.arange(2 * _BLOCKS))
+    W/m2, gains in kW), its schedule in blocks of ``block_h`` hours; zone 1 has no windows."""
+    blocks = int(24 / block_h)
+    schedule = np.zeros((2, 2 * blocks))
+    schedule[0] = 0.9 + 0.3 * np.sin(np.arange(2 * blocks))
+    schedule[1] = 1.2 + 0.2 * np.cos(np.arange(2 * blocks))
     return ZoneCoefficients(
         own=np.array([[0.6, 0.15], [0.55, 0.1]]),
         coupling=np.array([[0.0, 0.08], [0.12, 0.0]]),
@@ -94,7 +94,8 @@ def _recursion(c: ZoneCoefficients, frame: pd.DataFrame, start: int, rows: int, 
     hour = (times.dt.hour + times.dt.minute / 60.0).to_numpy()
     dow = day_of_week(times.to_numpy())
     for k in range(start, start + rows):
-        block = int(hour[k] // BLOCK_H) + _BLOCKS * int(dow[k] >= 5)
+        blocks = c.schedule.shape[1] // 2
+        block = int(hour[k] // (24 / blocks)) + blocks * int(dow[k] >= 5)
         new = np.zeros(2)
         for z in range(2):
             value = c.schedule[z, block]
@@ -123,10 +124,13 @@ def _observation(frame: pd.DataFrame, now: int, h: int) -> tuple[dict[str, np.nd
     return history, exog
 
 
-def test_rollout_is_the_recursion_of_its_equations() -> None:
+@pytest.mark.parametrize("block_h", [BLOCK_H, 2.0])
+def test_rollout_is_the_recursion_of_its_equations(block_h: float) -> None:
     """Three plans over 30 intervals from a history of measured rooms: the rollout equals the
-    equation evaluated term by term, and the delivered power is the clipped plan."""
-    model = _model(_truth(), backup_low_c=-50.0, backup_high_c=80.0)
+    equation evaluated term by term, and the delivered power is the clipped plan; a schedule of
+    2-hour blocks (a model saved before the schedule went hourly) is read by its own blocks."""
+    model = _model(_truth(block_h), backup_low_c=-50.0, backup_high_c=80.0)
+    assert model.coefficients.block_h == block_h
     frame = _weather(3, seed=2)
     now, h = 40, 30
     history, exog = _observation(frame, now, h)

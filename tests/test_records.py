@@ -146,9 +146,10 @@ def test_a_planner_over_a_learned_model_adds_its_trust_report():
     assert_record(result.kpis, RunKpis)
     assert set(TrustReport.__annotations__) <= set(result.kpis)
     # the trust keys a run may have are exactly the trust report's and an RC MPC's replay
-    # margin's (the rest: a scenario file's name and a BOPTEST run's own)
+    # margin's (the rest: a scenario file's name, the per-day figures a sweep asks for and a
+    # BOPTEST run's own)
     boptest = {"boptest", "boptest_testcase", "boptest_version", "test_period", "price_scenario"}
-    assert set(RunKpis.__optional_keys__) - {"scenario_file"} - boptest == set(
+    assert set(RunKpis.__optional_keys__) - {"scenario_file", "per_day"} - boptest == set(
         TrustReport.__annotations__
     ) | set(ReplayMarginReport.__annotations__)
 

@@ -17,8 +17,8 @@ apart, a chiller run mostly while the data's tracking fights a warm disturbance 
 too weak, the bias of identifying inside a feedback loop), ``S_z``
 the irradiance the zone's windows take (:func:`scenarios.experiments.compare.zone_solar_inputs`;
 none for a zone without windows), ``I_g`` the internal gains where the data has them, and the
-schedule one intercept per 2-hour block of the day, separately for workdays and weekends
-(:mod:`pinn_mpc.models.arx`'s schedule: holidays count as Sundays), standing in for the
+schedule one intercept per hour of the day (:data:`BLOCK_H`), separately for workdays and
+weekends (:mod:`pinn_mpc.models.arx`'s calendar: holidays count as Sundays), standing in for the
 unmeasured occupancy, equipment and lighting. The signs are physics: heat into a zone warms
 it and a warmer neighbour warms it, and with its own lags' weights also at least 0 the
 recursion is a positive system: every zone's predicted temperature rises with every heater's
@@ -68,7 +68,7 @@ from pinn_mpc.actuator import ActuatorSpec, actuator_columns
 from pinn_mpc.errors import InputError, setting
 from pinn_mpc.identify_multizone import MultiZoneIdentifyResult, identify_multizone
 from pinn_mpc.io import DirectoryLayout
-from pinn_mpc.models.arx import BLOCK_H, _schedule_index
+from pinn_mpc.models.arx import _schedule_index
 from pinn_mpc.models.lagged_zones import LaggedZoneModel
 from pinn_mpc.models.registry import PHYSICS_ARX
 from pinn_mpc.models.rollout import LinearResponse, Rollout
@@ -100,7 +100,11 @@ FORMAT = "pinn-mpc multi-zone parx 1"
 DEFAULT_LAGS = 8
 DEFAULT_POWER_LAGS = 2
 WEATHER_LAGS = 2
-#: The schedule: blocks of BLOCK_H hours, workdays then weekends.
+#: The schedule a fit takes: blocks of BLOCK_H hours, workdays then weekends. An hour, not the
+#: one-zone ARX's two: an office's occupancy, lights and ventilation switch on the hour, and a
+#: two-hour block smears the evening's step over the hour before it. A saved model's schedule
+#: says its own block (:attr:`ZoneCoefficients.block_h`).
+BLOCK_H = 1.0
 DAY_TYPES = 2
 #: Scales that bring the inputs to order one: heat W -> kW, irradiance W/m2 -> 100 W/m2,
 #: internal gains W -> kW.
@@ -114,8 +118,8 @@ _RIDGE = 1e-8
 MAX_ABS_COEF = 1e3
 
 
-def _blocks() -> int:
-    return int(round(24 / BLOCK_H))
+def _blocks(block_h: float = BLOCK_H) -> int:
+    return int(round(24 / block_h))
 
 
 class ZoneCoefficients:
@@ -137,11 +141,18 @@ class ZoneCoefficients:
             "own": (own, (z_n, own.shape[1])), "coupling": (coupling, (z_n, z_n)),
             "heat": (heat, (z_n, heat.shape[1], heat.shape[2])),
             "outdoor": (outdoor, (z_n, WEATHER_LAGS)), "solar": (solar, (z_n, WEATHER_LAGS)),
-            "gains": (gains, (z_n, WEATHER_LAGS)), "schedule": (schedule, (z_n, DAY_TYPES * _blocks())),
+            "gains": (gains, (z_n, WEATHER_LAGS)),
+            "schedule": (schedule, (z_n, schedule.shape[1] if schedule.ndim == 2 else -1)),
         }
         for name, (value, shape) in shapes.items():
             if value.shape != shape or not np.all(np.isfinite(value)):
                 raise ValueError(f"ZoneCoefficients.{name}: must be {shape} finite numbers, got {value.shape}")
+        blocks, rest = divmod(schedule.shape[1], DAY_TYPES)
+        if rest or blocks < 1 or 24 % blocks:
+            raise ValueError(
+                f"ZoneCoefficients.schedule: must hold {DAY_TYPES} day types x a number of blocks that divides "
+                f"24 hours, got {schedule.shape[1]} intercepts"
+            )
         if own.shape[1] < 1 or heat.shape[2] < 1:
             raise ValueError("ZoneCoefficients: own and heat need at least one lag each")
         if np.any(np.diag(coupling) != 0) or np.any(coupling < 0) or np.any(heat < 0) or np.any(own < 0):
@@ -155,6 +166,11 @@ class ZoneCoefficients:
     @property
     def lags(self) -> int:
         return int(self.own.shape[1])
+
+    @property
+    def block_h(self) -> float:
+        """The hours of each block of :attr:`schedule`."""
+        return 24.0 / (self.schedule.shape[1] // DAY_TYPES)
 
     @property
     def power_lags(self) -> int:
@@ -271,7 +287,7 @@ class MultiZoneARX(LaggedZoneModel):
                     drift[:, z] += np.asarray(series[name], dtype=float)[rows - lag] * _SOLAR_SCALE * c.solar[z, lag]
         index = _schedule_index(
             np.asarray(series["time_of_day_h"], dtype=float)[rows],
-            np.asarray(series["day_of_week"], dtype=float)[rows], DAY_TYPES, BLOCK_H,
+            np.asarray(series["day_of_week"], dtype=float)[rows], DAY_TYPES, c.block_h,
         )
         return drift + c.schedule[:, index].T
 
@@ -463,11 +479,12 @@ def fit_multizone_arx(
     power_lags: int = DEFAULT_POWER_LAGS,
     identified: MultiZoneIdentifyResult | None = None,
     adjacency: Sequence[Sequence[bool]] | np.ndarray | None = None,
+    block_h: float = BLOCK_H,
 ) -> MultiZoneARX:
     """Fit the multi-zone physics-informed ARX on ``frame`` (module docstring): the building of
     ``zones`` and ``actuators``, each zone's windows taking its ``solar_inputs`` (None: no
     windows), at the data's step ``dt_s`` [s]; ``lags`` of each room and ``power_lags`` of each
-    heat. ``identified``: the multi-zone RC it carries (identified from ``frame`` if None, its
+    heat; its schedule in blocks of ``block_h`` hours (a divisor of 24). ``identified``: the multi-zone RC it carries (identified from ``frame`` if None, its
     walls those ``adjacency`` allows: :func:`~pinn_mpc.identify_multizone.identify_multizone`'s).
     InputError where the data are too few or the fit does not settle."""
     from scipy.optimize import lsq_linear
@@ -476,6 +493,8 @@ def fit_multizone_arx(
 
     if lags < 1 or power_lags < 1:
         raise ValueError(f"fit_multizone_arx: lags and power_lags must be >= 1, got {lags} and {power_lags}")
+    if not (isinstance(block_h, int | float) and block_h > 0 and math.isclose(24 / block_h, round(24 / block_h))):
+        raise ValueError(f"fit_multizone_arx: block_h must divide 24 hours, got {block_h!r}")
     if identified is None:
         identified = identify_multizone(
             frame if "I_g" in frame.columns else frame.assign(I_g=0.0), zones=zones, actuators=actuators,
@@ -487,7 +506,7 @@ def fit_multizone_arx(
     blank = ZoneCoefficients(
         own=np.zeros((z_n, lags)), coupling=np.zeros((z_n, z_n)), heat=np.zeros((z_n, a_n, power_lags)),
         outdoor=np.zeros((z_n, WEATHER_LAGS)), solar=np.zeros((z_n, WEATHER_LAGS)),
-        gains=np.zeros((z_n, WEATHER_LAGS)), schedule=np.zeros((z_n, DAY_TYPES * _blocks())),
+        gains=np.zeros((z_n, WEATHER_LAGS)), schedule=np.zeros((z_n, DAY_TYPES * _blocks(block_h))),
     )
     model = MultiZoneARX(
         blank, identified, actuators, dt_s, solar_inputs=solar_inputs, uses_gains=uses_gains, selection={},
@@ -497,8 +516,8 @@ def fit_multizone_arx(
     k = np.arange(model.depth - 1, len(frame) - 1)
     finite = np.all(np.isfinite(rooms[k + 1]), axis=1)
     k = k[finite]
-    index = _schedule_index(series["time_of_day_h"][k], series["day_of_week"][k], DAY_TYPES, BLOCK_H)
-    sched = np.zeros((len(k), DAY_TYPES * _blocks()))
+    index = _schedule_index(series["time_of_day_h"][k], series["day_of_week"][k], DAY_TYPES, block_h)
+    sched = np.zeros((len(k), DAY_TYPES * _blocks(block_h)))
     sched[np.arange(len(k)), index] = 1.0
     seen = sched.any(axis=0)
     coef = {name: np.array(getattr(blank, name)) for name in _COEFFICIENTS}
@@ -564,7 +583,7 @@ def fit_multizone_arx(
             "predictions would run away; give more days of data, or train the hybrid (" + setting("arch") + " hybrid)"
         )
     selection = {
-        "lags": lags, "power_lags": power_lags, "weather_lags": WEATHER_LAGS,
+        "lags": lags, "power_lags": power_lags, "weather_lags": WEATHER_LAGS, "block_h": float(block_h),
         "one_step_mae_c": one_step, "settling_radius": radius,
     }
     return MultiZoneARX(
