@@ -269,9 +269,11 @@ NOT_RUN = {
     "nice -n 10 pinn-mpc sweep --spec sweeps/online_households.toml": "a measurement of "
     "about an hour on one worker whose figures docs/results/online_households.md gives "
     "(tests/test_sweep_online.py runs online cells on winter_household)",
-    "nice -n 10 pinn-mpc sweep --spec sweeps/online_eplus.toml": "a measurement of about 20 "
+    "nice -n 10 pinn-mpc sweep --spec sweeps/online_eplus.toml": "a measurement of about 25 "
     "minutes on one worker on EnergyPlus whose figures docs/results/online_eplus.md gives "
     "(tests/test_online_eplus.py runs the online runner on EnergyPlus and resumes it)",
+    "PYTHONPATH=. python benchmarks/bench_online_decisions.py": "a measurement of a few minutes "
+    "whose figures the CHANGELOG gives (tests/test_online.py runs the online runner and its refits)",
     "PYTHONPATH=. python benchmarks/merged_vs_zones.py": "a measurement of most of an hour on "
     "EnergyPlus whose figures the page quotes (tests/test_merged.py runs the script on two_zone_house)",
 }
