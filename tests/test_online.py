@@ -2,10 +2,7 @@
 spans each refit saw, resume after Ctrl-C, nothing half-written, refits that do not hold up
 decisions."""
 
-import _thread
 import json
-import threading
-import time
 from pathlib import Path
 
 import numpy as np
@@ -25,6 +22,7 @@ from scenarios.running.online import (
     night_steps,
     run_online,
 )
+from tests.online_stop import stopped_then_resumed
 
 SCENARIO = "winter_household"
 TINY = OnlineSettings(
@@ -109,30 +107,13 @@ def test_a_worse_challenger_is_refused(uninterrupted):
 def test_ctrl_c_and_resume_give_the_uninterrupted_figures(tmp_path, uninterrupted, data_3_days):
     _, expected = uninterrupted
     out = tmp_path / "run"
-    state = out / "state.json"
-
-    def interrupt_after_first_night() -> None:
-        while True:
-            if state.is_file():
-                try:
-                    step = json.loads(state.read_text())["step"]
-                except (json.JSONDecodeError, KeyError):
-                    continue  # never happens with atomic writes; would fail the equality below
-                if step > 48 * 2:
-                    _thread.interrupt_main()
-                    return
-            time.sleep(0.01)
-
-    watcher = threading.Thread(target=interrupt_after_first_night, daemon=True)
-    watcher.start()
-    with pytest.raises(KeyboardInterrupt):
-        run_online(get_scenario(SCENARIO), data_3_days, days=3, seed=0, out_dir=out, settings=TINY)
-    watcher.join()
-    stopped_at = json.loads(state.read_text())["step"]
-    assert 48 * 2 < stopped_at < 48 * 4
-    resumed = run_online(
-        get_scenario(SCENARIO), data_3_days, days=3, seed=0, out_dir=out, settings=TINY, resume=True
+    stopped_at, resumed = stopped_then_resumed(
+        lambda resume: run_online(
+            get_scenario(SCENARIO), data_3_days, days=3, seed=0, out_dir=out, settings=TINY, resume=resume
+        ),
+        out / "state.json", 48 * 2,
     )
+    assert 48 * 2 < stopped_at < 48 * 4
     assert _figures(resumed.kpis) == _figures(expected.kpis)
     assert [e["verdict"] for e in resumed.log] == [e["verdict"] for e in expected.log]
 

@@ -3,10 +3,6 @@ EnergyPlus from its start on the recorded demands and reaches the uninterrupted 
 and figures; the data at hand are the days simulated right before the run; the sweep's online
 cells run on EnergyPlus of one zone."""
 
-import _thread
-import json
-import threading
-import time
 from pathlib import Path
 
 import numpy as np
@@ -24,6 +20,7 @@ from scenarios.running.online import (
     retimed,
     run_online,
 )
+from tests.online_stop import stopped_then_resumed
 
 SCENARIO = "eplus_small_office"
 JANUARY = str(Path(__file__).resolve().parents[1] / "sweeps" / "buildings" / "eplus_small_office_january.toml")
@@ -73,28 +70,11 @@ def test_a_resumed_energyplus_run_is_the_uninterrupted_one(tmp_path):
     assert any(e["model"] for e in expected.log[1:])  # the resume rebuilds a refitted model
 
     out = tmp_path / "cut"
-    state = out / "state.json"
-
-    def interrupt_after_first_night() -> None:
-        while True:
-            if state.is_file():
-                try:
-                    step = json.loads(state.read_text())["step"]
-                except (json.JSONDecodeError, KeyError):
-                    continue  # never with atomic writes; would fail the equality below
-                if step > 2 * spd:
-                    _thread.interrupt_main()
-                    return
-            time.sleep(0.01)
-
-    watcher = threading.Thread(target=interrupt_after_first_night, daemon=True)
-    watcher.start()
-    with pytest.raises(KeyboardInterrupt):
-        run_online(scenario, data, days=DAYS, seed=1, out_dir=out, settings=TINY)
-    watcher.join()
-    stopped_at = json.loads(state.read_text())["step"]
+    stopped_at, resumed = stopped_then_resumed(
+        lambda resume: run_online(scenario, data, days=DAYS, seed=1, out_dir=out, settings=TINY, resume=resume),
+        out / "state.json", 2 * spd,
+    )
     assert 2 * spd < stopped_at < (DAYS + 1) * spd
-    resumed = run_online(scenario, data, days=DAYS, seed=1, out_dir=out, settings=TINY, resume=True)
 
     whole, again = expected.trajectory, resumed.trajectory
     for column in ("T_r", "u", "u_phys", "overridden", "fallback", "own"):
