@@ -13,6 +13,7 @@ the differences between the zones move. The zones' backup thermostats are at 12 
 from __future__ import annotations
 
 from collections.abc import Sequence
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -140,3 +141,21 @@ def multizone_frame(
     columns |= {zone_column("T_m", zones, z): t_m[:, z] for z in range(len(zones))}
     columns |= dict(zip(heater_columns(actuators), power.T, strict=True))
     return pd.DataFrame(columns | weather)
+
+
+def cem_plans_the_house_for_a_day(model_dir: Path, tmp_path: Path) -> tuple[int, str, dict]:
+    """``closed-loop --scenario two_zone_house --controller cem --model model_dir --days 1``:
+    its exit status, what it wrote on stderr and its KPI JSON (empty when it wrote none)."""
+    import contextlib
+    import io
+    import json
+
+    from pinn_mpc_cli.cli import main
+
+    out = tmp_path / "cem.json"
+    argv = ["closed-loop", "--scenario", "two_zone_house", "--controller", "cem", "--model", str(model_dir),
+            "--days", "1", "--json", str(out)]
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err):
+        status = main(argv)
+    return status, err.getvalue(), json.loads(out.read_text()) if out.is_file() else {}

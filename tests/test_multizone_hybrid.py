@@ -26,7 +26,12 @@ from pinn_mpc.models.zone_residual import CLOCK, DAY_TYPE, HIDDEN, ResidualHeat
 from pinn_mpc_cli.cli import main
 from scenarios import get_scenario
 from scenarios.running.datagen import generate
-from tests.multizone_data import DT_S, multizone_frame, two_zone_house
+from tests.multizone_data import (
+    DT_S,
+    cem_plans_the_house_for_a_day,
+    multizone_frame,
+    two_zone_house,
+)
 
 _RC = ("r_ra_k_per_w", "r_rm_k_per_w", "c_r_j_per_k", "c_m_j_per_k")
 
@@ -155,12 +160,9 @@ def test_train_fits_the_house_and_export_rc_gives_its_r_c_and_wall(house_model: 
     assert found.walls[0, 1] == pytest.approx(true.walls[0, 1], rel=0.15)
 
 
-def test_cem_plans_the_house_over_the_trained_model(house_model: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    out = tmp_path / "cem.json"
-    argv = ["closed-loop", "--scenario", "two_zone_house", "--controller", "cem", "--model", str(house_model),
-            "--days", "1", "--json", str(out)]
-    assert main(argv) == 0, capsys.readouterr().err
-    kpis = json.loads(out.read_text())
+def test_cem_plans_the_house_over_the_trained_model(house_model: Path, tmp_path: Path) -> None:
+    status, err, kpis = cem_plans_the_house_for_a_day(house_model, tmp_path)
+    assert status == 0, err
     assert kpis["fallbacks"] == 0 and set(kpis["zones"]) == {"south", "north"}
 
 

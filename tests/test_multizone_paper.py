@@ -31,7 +31,13 @@ from pinn_mpc.models.multizone_paper import (
     zone_residuals,
 )
 from pinn_mpc.multizone import MultiZoneParams, discretise
-from tests.multizone_data import DT_S, multizone_frame, row_of_zones, two_zone_house
+from tests.multizone_data import (
+    DT_S,
+    cem_plans_the_house_for_a_day,
+    multizone_frame,
+    row_of_zones,
+    two_zone_house,
+)
 
 _QUICK = PaperZoneTraining(epochs=1, horizon=4, batch=32, depth=2)
 #: The mean |error| [K] the networks trained on a week stay under, 12 h ahead on the next day
@@ -270,9 +276,6 @@ def test_train_physreg_on_the_house_exports_its_learned_rc_and_cem_plans_over_it
     assert "south-north U=" in capsys.readouterr().out
     learned = MultiZoneIdentifyResult.from_json(rc.read_text(), source=str(rc))
     assert learned.params.walls[0, 1] == pytest.approx(load_multizone_paper(model).physics.conductances()[0, 1].item())
-    kpis = tmp_path / "cem.json"
-    argv = ["closed-loop", "--scenario", "two_zone_house", "--controller", "cem", "--model", str(model),
-            "--days", "1", "--json", str(kpis)]
-    assert main(argv) == 0, capsys.readouterr().err
-    result = json.loads(kpis.read_text())
+    status, err, result = cem_plans_the_house_for_a_day(model, tmp_path)
+    assert status == 0, err
     assert result["fallbacks"] == 0 and set(result["zones"]) == {"south", "north"}
