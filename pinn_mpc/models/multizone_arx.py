@@ -484,9 +484,10 @@ def fit_multizone_arx(
     """Fit the multi-zone physics-informed ARX on ``frame`` (module docstring): the building of
     ``zones`` and ``actuators``, each zone's windows taking its ``solar_inputs`` (None: no
     windows), at the data's step ``dt_s`` [s]; ``lags`` of each room and ``power_lags`` of each
-    heat; its schedule in blocks of ``block_h`` hours (a divisor of 24). ``identified``: the multi-zone RC it carries (identified from ``frame`` if None, its
-    walls those ``adjacency`` allows: :func:`~pinn_mpc.identify_multizone.identify_multizone`'s).
-    InputError where the data are too few or the fit does not settle."""
+    heat; its schedule in blocks of ``block_h`` hours (a divisor of 24). ``identified``: the
+    multi-zone RC it carries (identified from ``frame`` if None, its walls those ``adjacency``
+    allows: :func:`~pinn_mpc.identify_multizone.identify_multizone`'s). InputError where the
+    data are too few or the fit does not settle."""
     from scipy.optimize import lsq_linear
 
     from pinn_mpc.training import data_summary
