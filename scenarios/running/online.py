@@ -15,8 +15,8 @@ the next of these, the reason in the log.
 
 It records every interval it observes. On the schedule (every ``retrain_every_days`` days of
 service, at :data:`REFIT_HOUR` of the day, 00:00) a worker process (``multiprocessing``
-``spawn``, one torch thread) refits, on every row so far (the data set's and the run's, warm-up
-included), the RC (:func:`pinn_mpc.identify.identify_rc`) and, with at least
+``spawn``, one torch and one BLAS thread) refits, on every row so far (the data set's and
+the run's, warm-up included), the RC (:func:`pinn_mpc.identify.identify_rc`) and, with at least
 :data:`MODEL_DAYS` days besides the last, a challenger model on every row but the last day's.
 The loop does not wait for it: the refit takes over :data:`TAKEOVER_H` simulated hours after it
 started (03:00), whatever the wall time, so a seeded run makes the same decisions every time;
@@ -218,11 +218,15 @@ def _fit_frame(frames: list[pd.DataFrame], dt_s: float) -> pd.DataFrame:
 
 
 def _worker_init() -> None:
-    """The refit worker: one torch thread, Ctrl-C left to the run (which ends the worker)."""
+    """The refit worker: one torch thread and one BLAS/OpenMP thread (the run's decisions keep
+    the other core of a 2-core machine to themselves), Ctrl-C left to the run (which ends the
+    worker)."""
     import torch
+    from threadpoolctl import threadpool_limits
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     torch.set_num_threads(1)
+    threadpool_limits(1)
 
 
 def _held_out_error(model: Any, frame: pd.DataFrame, cut: int) -> float:
