@@ -26,6 +26,7 @@ import datetime
 import json
 import os
 import platform
+import re
 import shlex
 import subprocess
 import sys
@@ -396,7 +397,7 @@ def page(
     ]
     if is_boptest_sweep(directory):
         lines += _boptest_sections(spec_text, directory)
-        return _relative("\n".join(lines))
+        return _relative("\n".join(lines), spec)
     lines += [
         "## Every cell",
         "",
@@ -413,7 +414,7 @@ def page(
         *zone_table(directory, list(tomllib.loads(spec_text).get("controllers", []))),
         *online_section(_cells(directory), baseline=_baseline(summary), figure_name=days_figure),
     ]
-    return _relative("\n".join(lines))
+    return _relative("\n".join(lines), spec)
 
 
 def _baseline(summary: dict[str, Any]) -> str:
@@ -431,10 +432,17 @@ def days_figure(directory: Path, target: Path) -> str | None:
     return None if written is None else written.name
 
 
-def _relative(text: str) -> str:
-    """``text`` with the repository's own paths (a scenario file a sweep names) relative to it,
-    as the committed specification names them."""
-    return text.replace(f"{ROOT}{os.sep}", "")
+def _relative(text: str, spec: Path) -> str:
+    """``text`` with the paths of the scenario files ``spec`` names relative to the repository,
+    as the committed files lie: this checkout's and another's (a sweep run from a clone records
+    its own absolute paths)."""
+    text = text.replace(f"{ROOT}{os.sep}", "")
+    for entry in tomllib.loads(spec.read_text(encoding="utf-8")).get("scenarios", []):
+        path = (spec.parent / entry).resolve()
+        if path.is_file() and path.is_relative_to(ROOT):
+            name = str(path.relative_to(ROOT))
+            text = re.sub(rf"(?<![\w.{os.sep}]){re.escape(os.sep)}[^\s|`'\"]*?{re.escape(os.sep + name)}", name, text)
+    return text
 
 
 def main() -> int:

@@ -534,6 +534,24 @@ def test_a_zoned_results_page_gives_each_zones_discomfort_and_own_decisions(tmp_
     assert gen.zone_table(tmp_path / "nothing", ["cem"]) == []
 
 
+def test_a_results_page_names_a_sweeps_scenario_files_as_the_repository_holds_them() -> None:
+    """A sweep run from another checkout records its scenario files' absolute paths; the page
+    names each as the repository holds it (relative to the repository's root), wherever the
+    sweep ran, and leaves other paths as they are."""
+    gen = _gen_results()
+    spec = ROOT / "sweeps" / "eplus_consistent.toml"
+    text = (
+        "| /work/clone-7/sweeps/buildings/eplus_warehouse.toml | cem | 14 |\n"
+        f"| {ROOT}/sweeps/buildings/eplus_standalone_retail.toml | cem |\n"
+        "| /data/other/eplus_warehouse.toml | eplus_small_office |"
+    )
+    assert gen._relative(text, spec).splitlines() == [
+        "| sweeps/buildings/eplus_warehouse.toml | cem | 14 |",
+        "| sweeps/buildings/eplus_standalone_retail.toml | cem |",
+        "| /data/other/eplus_warehouse.toml | eplus_small_office |",
+    ]
+
+
 def test_a_boptest_results_page_says_what_it_was_measured_on(tmp_path: Path) -> None:
     """A BOPTEST sweep's page names BOPTEST's version and the test case its cells record, and
     the commands that measure it again (the cells here are written by the test: only the
