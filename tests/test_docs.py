@@ -184,7 +184,8 @@ def test_walkthrough_commands_are_its_steps() -> None:
 @pytest.mark.slow
 def test_walkthrough_runs_as_written(tmp_path: Path) -> None:
     """"Your building from your data", from an empty directory: the Python block, the TOML file
-    and every command, as the page gives them."""
+    and every command, as the page gives them; compare runs on the scenario file whose building
+    is the identified RC."""
     page = DOCS / "your-building.md"
     env = {**_env(), "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}"}
     workdir = tmp_path
@@ -216,6 +217,9 @@ def test_walkthrough_runs_as_written(tmp_path: Path) -> None:
     assert kpis["cem"]["objective"] < 1.02 * kpis["oracle"]["objective"]
     assert kpis["thermostat"]["objective"] > 1.3 * kpis["oracle"]["objective"]
     assert (workdir / "compare" / "report.md").exists()
+    table = json.loads((workdir / "compare" / "table.json").read_text())
+    assert table["scenario"] == "my_building"
+    assert {"oracle", "qp-mpc / identified RC"} <= {row["controller"] for row in table["rows"]}
 
 
 #: The pages whose commands run as written (test_pages_run_as_written); "your building" has its
