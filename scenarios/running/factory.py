@@ -173,7 +173,7 @@ def check_rc_fits(
     under half of it or its time constants differ from the scenario's building by more than a
     factor of 3. An RC JSON without the data's power range (written by hand, or before it was
     recorded) is checked for its time constants only."""
-    from pinn_mpc.artifacts import read_rc_json
+    from pinn_mpc.physics import read_rc_json
 
     params, data = read_rc_json(path)
     return _rc_fit_notes(Path(path).name, params, data, scenario, checks)
@@ -636,7 +636,7 @@ def make_controller(
     if rc_path is not None and not spec.single:
         zone_params = read_zone_rc(rc_path, spec, scenario.name)
     elif rc_path is not None:  # read once: the parameters and what the file says of its data
-        from pinn_mpc.artifacts import read_rc_json
+        from pinn_mpc.physics import read_rc_json
 
         rc_params, data = read_rc_json(rc_path)
         for note in _rc_fit_notes(Path(rc_path).name, rc_params, data, scenario, checks):
