@@ -28,7 +28,7 @@ import os
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, TypeAlias
+from typing import TYPE_CHECKING, Any, TypeAlias, TypeGuard
 
 from controllers.base import Controller
 from pinn_mpc.data import KW_SUSPECT_W
@@ -414,11 +414,7 @@ def _zone_controller(
         from controllers.thermostat import Thermostat
 
         return Thermostat(spec)
-    from pinn_mpc.models.multizone_arx import MultiZoneARX
-    from pinn_mpc.models.multizone_hybrid import MultiZoneHybrid
-    from pinn_mpc.models.multizone_paper import MultiZonePaperModel
-
-    zone_model = isinstance(model, MultiZoneHybrid | MultiZoneARX | MultiZonePaperModel)
+    zone_model = model is not None and _is_zone_model(model)
     if rc_params is not None or (model is not None and not zone_model):
         what = f"a trained model ({setting('model_dir')})" if model is not None else "a one-zone RC"
         raise InputError(
@@ -437,12 +433,22 @@ def _zone_controller(
             f"{where}: add {setting('rc_path')} rc.json (`pinn-mpc identify` on the scenario's data writes "
             f"one) or {setting('model_dir')} DIR (`pinn-mpc train` on that data with the scenario's layout)"
         )
-    if isinstance(model, MultiZoneHybrid | MultiZoneARX | MultiZonePaperModel):
+    if model is not None and _is_zone_model(model):
         check_zone_model(model, spec, scenario.name)
     return zone_planner(
         name, spec, model=model, zone_params=zone_params, backup_limits_c=zone_backup_limits(scenario),
         options=options,
     )
+
+
+def _is_zone_model(model: BatchDynamics) -> TypeGuard[MultiZoneHybrid | MultiZoneARX | MultiZonePaperModel]:
+    """Whether ``model`` is a trained model of several zones (their classes, and torch, are
+    imported here: an RC or no model needs neither)."""
+    from pinn_mpc.models.multizone_arx import MultiZoneARX
+    from pinn_mpc.models.multizone_hybrid import MultiZoneHybrid
+    from pinn_mpc.models.multizone_paper import MultiZonePaperModel
+
+    return isinstance(model, MultiZoneHybrid | MultiZoneARX | MultiZonePaperModel)
 
 
 #: The backup thermostat's (low, high) limits [C]: one for every zone or one per zone.
