@@ -34,6 +34,7 @@ from pinn_mpc.features import FeatureConfig, whole_number
 from pinn_mpc.io import DirectoryLayout, atomic_directory, file_sha256
 from pinn_mpc.models.learned import MAX_MEMBERS, EnsembleModule, LearnedModel, ModelRecord
 from pinn_mpc.models.registry import get_architecture
+from pinn_mpc.physics import read_rc_json  # torch-free: the RC MPCs read rc.json without torch
 
 __all__ = [
     "CHECKSUM",
@@ -255,26 +256,3 @@ def load_model(path: str | os.PathLike[str]) -> LearnedModel:
 def read_rc(path: str | os.PathLike[str]) -> physics.RCParams:
     """RC parameters from the JSON written by ``identify`` / ``export-rc``."""
     return read_rc_json(path)[0]
-
-
-def read_rc_json(path: str | os.PathLike[str]) -> tuple[physics.RCParams, dict[str, Any]]:
-    """:func:`read_rc`'s parameters and the JSON object they were read from."""
-    source = Path(path)
-    if not source.is_file():
-        raise InputError(
-            f"{source}: no such RC file; write one with `pinn-mpc identify` or `pinn-mpc export-rc`"
-        )
-    try:
-        data = json.loads(source.read_text(encoding="utf-8"))
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise InputError(
-            f"{source}: not valid JSON ({exc}); expected the RC JSON of identify or export-rc"
-        ) from exc
-    if not isinstance(data, dict):
-        raise InputError(
-            f"{source}: expected a JSON object of RC parameters, got {type(data).__name__}"
-        )
-    try:
-        return physics.params_from_summary(data), data
-    except InputError as exc:
-        raise InputError(f"{source}: {exc.marked}") from exc

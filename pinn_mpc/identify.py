@@ -26,7 +26,6 @@ from typing import Any
 import numpy as np
 import pandas as pd
 import scipy.optimize
-import scipy.signal
 
 from pinn_mpc.errors import InputError, InternalError, PinnMpcWarning, setting
 from pinn_mpc.physics import PLAUSIBLE_RANGES, RCParams, check_plausible, discretise
@@ -112,6 +111,8 @@ def simulate_rc(
     Uses the modal form (the eigenvalues of an RC network's ``Ad`` are real, distinct and in
     (0, 1)), so each mode is a first-order recursion run by :func:`scipy.signal.lfilter`.
     """
+    import scipy.signal  # here, not at the top: every command imports this module, few call this
+
     lam, v = np.linalg.eig(ad)
     lam, v = np.real(lam), np.real(v)
     v_inv = np.linalg.inv(v)

@@ -57,7 +57,6 @@ import numpy as np
 import pandas as pd
 import scipy.linalg
 import scipy.optimize
-import scipy.signal
 
 from pinn_mpc.actuator import ActuatorSpec
 from pinn_mpc.data import check_celsius
@@ -392,6 +391,8 @@ def _simulate_rooms(
     ``S = C^(1/2) a C^(-1/2)`` is symmetric: ``S = Q diag(l) Q^T`` and ``a = V diag(l) V^-1``
     with ``V = C^(-1/2) Q``, ``V^-1 = Q^T C^(1/2)``. Mode i steps as
     ``z+ = e^(l dt) z + (e^(l dt) - 1)/l (V^-1 b d)_i``."""
+    import scipy.signal  # here, not at the top: every command imports this module, few call this
+
     root = np.sqrt(capacities)
     s = root[:, None] * a / root[None, :]
     lam, q = scipy.linalg.eigh(0.5 * (s + s.T))

@@ -26,9 +26,12 @@ The physically plausible ranges of everything that enters from outside (R/C valu
 
 from __future__ import annotations
 
+import json
 import math
+import os
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass, fields
+from pathlib import Path
 from typing import Any, cast
 
 import numpy as np
@@ -55,6 +58,7 @@ __all__ = [
     "from_coefficients",
     "params_from_summary",
     "rc_summary",
+    "read_rc_json",
     "state_space_entries",
     "steady_state",
     "step",
@@ -378,3 +382,27 @@ def params_from_summary(data: Mapping[str, Any]) -> RCParams:
         if key in data
     }
     return RCParams(**values)
+
+
+def read_rc_json(path: str | os.PathLike[str]) -> tuple[RCParams, dict[str, Any]]:
+    """The parameters of the RC JSON at ``path`` (written by ``identify`` / ``export-rc``,
+    :func:`pinn_mpc.artifacts.read_rc`) and the JSON object they were read from."""
+    source = Path(path)
+    if not source.is_file():
+        raise InputError(
+            f"{source}: no such RC file; write one with `pinn-mpc identify` or `pinn-mpc export-rc`"
+        )
+    try:
+        data = json.loads(source.read_text(encoding="utf-8"))
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise InputError(
+            f"{source}: not valid JSON ({exc}); expected the RC JSON of identify or export-rc"
+        ) from exc
+    if not isinstance(data, dict):
+        raise InputError(
+            f"{source}: expected a JSON object of RC parameters, got {type(data).__name__}"
+        )
+    try:
+        return params_from_summary(data), data
+    except InputError as exc:
+        raise InputError(f"{source}: {exc.marked}") from exc

@@ -6,6 +6,7 @@ included) run as written, sizes shrunk, and the results generator writes what it
 
 from __future__ import annotations
 
+import hashlib
 import importlib
 import importlib.util
 import json
@@ -15,6 +16,7 @@ import shlex
 import subprocess
 import sys
 import tomllib
+from collections import Counter
 from functools import cache
 from pathlib import Path
 
@@ -182,7 +184,8 @@ def test_walkthrough_commands_are_its_steps() -> None:
 @pytest.mark.slow
 def test_walkthrough_runs_as_written(tmp_path: Path) -> None:
     """"Your building from your data", from an empty directory: the Python block, the TOML file
-    and every command, as the page gives them."""
+    and every command, as the page gives them; compare runs on the scenario file whose building
+    is the identified RC."""
     page = DOCS / "your-building.md"
     env = {**_env(), "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}"}
     workdir = tmp_path
@@ -214,6 +217,9 @@ def test_walkthrough_runs_as_written(tmp_path: Path) -> None:
     assert kpis["cem"]["objective"] < 1.02 * kpis["oracle"]["objective"]
     assert kpis["thermostat"]["objective"] > 1.3 * kpis["oracle"]["objective"]
     assert (workdir / "compare" / "report.md").exists()
+    table = json.loads((workdir / "compare" / "table.json").read_text())
+    assert table["scenario"] == "my_building"
+    assert {"oracle", "qp-mpc / identified RC"} <= {row["controller"] for row in table["rows"]}
 
 
 #: The pages whose commands run as written (test_pages_run_as_written); "your building" has its
@@ -284,9 +290,11 @@ RUN_ON_ANOTHER_PAGE = {
 #: The options that name a command's outputs.
 OUTPUTS = ("--out", "--json", "--report", "--csv", "--plot")
 #: Pages whose commands run as several tests, so that the suite's workers share them: {page:
-#: {part: its sections (the page's "## " headings)}}. A part runs its sections' commands in the
-#: page's order from an empty directory of its own: no part reads what another writes, and the
-#: parts together hold every command of the page that runs, each once.
+#: {part: its selectors}}. A selector is a section (a "## " heading of the page, "" the text
+#: before the first) or, written "$ " and the start of a command line, the commands that start so
+#: wherever they are; a command a "$ " selector names belongs to that selector's part only. A part
+#: runs its commands in the page's order from an empty directory of its own: no part reads what
+#: another writes, and the parts together hold every command of the page that runs, each once.
 PARTS: dict[str, dict[str, tuple[str, ...]]] = {
     "docs/boptest.md": {
         # one part: _boptest_page_outputs compares the MPC on the identified RC with the thermostat
@@ -294,6 +302,30 @@ PARTS: dict[str, dict[str, tuple[str, ...]]] = {
         "compare": ("A comparison",),
         "sweep": ("Sweeps",),
     },
+    REALISTIC: {
+        # the user's path: a scenario file, then the office's data, models, evaluation and loops
+        "user-path": ("", "EnergyPlus buildings"),
+        "compare": ("$ pinn-mpc compare ",),
+        "sweep": ("$ pinn-mpc sweep ",),
+    },
+    "docs/sweeps-and-fleets.md": {
+        "sweep": ("$ pinn-mpc sweep --scenarios ",),
+        "robustness": ("$ pinn-mpc sweep --spec sweeps/robustness.toml", "$ python benchmarks/robustness_table.py"),
+        "fleets": ("Fleets: many buildings",),
+    },
+    "docs/zones.md": {
+        "shoulder-office": ("",),
+        "two-zone-house": ("Data and identification", "Fleets of buildings of several zones"),
+    },
+}
+#: Commands a page repeats word for word, each run once: at the repeat, the files the first run
+#: wrote and the files it names are as that run left them, so the repeat (the same command on the
+#: same files) would write what is there already. {page: command lines}.
+REPEATED: dict[str, tuple[str, ...]] = {
+    REALISTIC: (  # its last example trains the office's default model again, for cem's seed 1
+        "pinn-mpc simulate --scenario eplus_small_office --days 30 --seed 0 --out train.csv",
+        "pinn-mpc train --data train.csv --out model",
+    ),
 }
 
 
@@ -326,12 +358,25 @@ def _sections(text: str) -> dict[str, str]:
 
 def _page_commands(page: str, part: str | None = None) -> list[list[str]]:
     """The commands of ``page``'s shell blocks (``bash`` and unlabelled), in the page's order;
-    of the sections of its ``part`` (:data:`PARTS`) only, if one is given."""
+    of its ``part`` (:data:`PARTS`) only, if one is given."""
     text = (ROOT / page).read_text(encoding="utf-8")
-    if part is not None:
-        sections = _sections(text)
-        text = "".join(sections[heading] for heading in PARTS[page][part])
-    return [c for tag, code in FENCE.findall(text) if tag in ("bash", "") for c in _commands(code)]
+    sections = _sections(text) if part is not None else {"": text}
+    out = []
+    for heading, body in sections.items():
+        for command in (c for tag, code in FENCE.findall(body) if tag in ("bash", "") for c in _commands(code)):
+            if part is None or _part_of(page, heading, shlex.join(command)) == part:
+                out.append(command)
+    return out
+
+
+def _part_of(page: str, heading: str, line: str) -> str | None:
+    """The part (:data:`PARTS`) of ``page`` that runs the command ``line`` of section
+    ``heading``: the part of a "$ " selector it starts with, else of its section."""
+    parts = PARTS[page]
+    by_start = [p for p, selectors in parts.items() for s in selectors if s.startswith("$ ") and line.startswith(s[2:])]
+    if by_start:
+        return by_start[0]
+    return next((p for p, selectors in parts.items() if heading in selectors), None)
 
 
 def _runs_as_written() -> list[tuple[str, str | None]]:
@@ -346,7 +391,9 @@ def _runs_as_written() -> list[tuple[str, str | None]]:
 
 def test_every_command_of_the_pages_run_as_written_is_run_or_says_why() -> None:
     """Each command of those pages is a `pinn-mpc` command or a script of benchmarks/ (run), or
-    listed with the reason it is not run; the size tables shrink what they name."""
+    listed with the reason it is not run; the parts of a page hold each command that runs once
+    (in the page's order), each selector naming a section or a command of the page; a repeated
+    command is repeated in one part; the size tables shrink what they name."""
     for page in RUN_AS_WRITTEN:
         for command in _page_commands(page):
             if _not_run(page, command) is None:
@@ -355,10 +402,23 @@ def test_every_command_of_the_pages_run_as_written_is_run_or_says_why() -> None:
                 ), f"{page}: `{shlex.join(command)}` is neither run nor listed in NOT_RUN"
     for page, parts in PARTS.items():
         sections = _sections((ROOT / page).read_text(encoding="utf-8"))
-        assert all(h in sections for part in parts.values() for h in part), (page, parts)
-        run = [c for c in _page_commands(page) if _not_run(page, c) is None]
-        in_parts = [c for part in parts for c in _page_commands(page, part) if _not_run(page, c) is None]
-        assert in_parts == run, f"{page}: its parts do not hold each command that runs once"
+        run = [shlex.join(c) for c in _page_commands(page) if _not_run(page, c) is None]
+        for selector in (s for part in parts.values() for s in part):
+            assert (selector in sections) if not selector.startswith("$ ") else any(
+                line.startswith(selector[2:]) for line in run), f"{page}: no {selector!r}"
+        in_parts = {
+            part: [shlex.join(c) for c in _page_commands(page, part) if _not_run(page, c) is None]
+            for part in parts
+        }
+        assert Counter(line for lines in in_parts.values() for line in lines) == Counter(run), (
+            f"{page}: its parts do not hold each command that runs once")
+        for lines in in_parts.values():
+            assert lines == [line for line in run if line in lines], f"{page}: not in the page's order"
+    for page, repeated in REPEATED.items():
+        for line in repeated:
+            holding = [part for part in PARTS.get(page, {None: ()})
+                       if [shlex.join(c) for c in _page_commands(page, part)].count(line) >= 2]
+            assert len(holding) == 1, f"{page}: `{line}` is not repeated within one part"
     assert _shrunk(REALISTIC, ["pinn-mpc", "simulate", "--days", "30", "--out", "t.csv"])[3] == "7"
     assert _shrunk("README.md", ["pinn-mpc", "sweep", "--seeds", "0-7", "--out", "s"]) == [
         "pinn-mpc", "sweep", "--seeds", "0", "--out", "s", "--quick", "--days", "1", "--train-days", "2"]
@@ -373,9 +433,9 @@ def test_every_command_of_the_pages_run_as_written_is_run_or_says_why() -> None:
 def test_pages_run_as_written(
     page: str, part: str | None, tmp_path: Path, request: pytest.FixtureRequest
 ) -> None:
-    """Every command of the page's shell blocks (of its part's sections, for a page of
-    ``PARTS``: BOPTEST's closed loops with its training data, its comparison, its sweep, each
-    a test of its own), in order, from an empty directory (with the
+    """Every command of the page's shell blocks (of its part, for a page of ``PARTS``: e.g.
+    BOPTEST's closed loops with its training data, its comparison, its sweep, each a test of
+    its own), in order, from an empty directory (with the
     checkout's ``sweeps/`` and ``benchmarks/``, which the pages name, linked in), exactly as
     written but for the sizes, each shrunk to the smallest the command and the page's later
     commands accept, through these tables alone (and nothing else):
@@ -390,7 +450,10 @@ def test_pages_run_as_written(
       period and one price (``--test-periods peak_heat_day --price-scenarios dynamic``), on
       realistic-conditions (the EnergyPlus sweep) the default model only (``--archs auto``), and
       the BOPTEST ``compare`` gets ``--quick`` (small ensembles, short training of every family);
-    - ``NOT_RUN`` and ``RUN_ON_ANOTHER_PAGE``: the commands not run, each with its reason.
+    - ``NOT_RUN`` and ``RUN_ON_ANOTHER_PAGE``: the commands not run, each with its reason;
+    - ``REPEATED``: a command the page repeats word for word is not run again when the files
+      its first run wrote and the files it names are as that run left them (else it runs
+      again).
 
     Each command must exit 0 and leave the outputs it names (``--out``, ``--json``,
     ``--report``, ``--csv``, ``--plot``). The BOPTEST page runs against the session's server,
@@ -401,20 +464,70 @@ def test_pages_run_as_written(
     for linked in ("sweeps", "benchmarks"):
         (tmp_path / linked).symlink_to(ROOT / linked)
     ran = 0
+    printed: dict[str, str] = {}  # each command's standard output
+    left: dict[str, dict[str, str]] = {}  # a repeated command: the files as its first run left them
     for command in _page_commands(page, part):
         if _not_run(page, command) is not None:
             continue
+        line = shlex.join(command)
+        if line in left and _files(tmp_path, left[line]) == left[line]:
+            continue
         run = _shrunk(page, command) if command[0] == "pinn-mpc" else command
         argv = [sys.executable, "-m", "pinn_mpc", *run[1:]] if run[0] == "pinn-mpc" else [sys.executable, *run[1:]]
+        before = _files(tmp_path) if line in REPEATED.get(page, ()) else {}
         result = subprocess.run(argv, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=900)
         assert result.returncode == 0, f"{page}: `{shlex.join(run)}`: {result.stderr[-3000:]}"
+        printed[line] = result.stdout
         for option, value in zip(run, run[1:], strict=False):
             if option in OUTPUTS:
                 assert (tmp_path / value).exists(), f"{page}: `{shlex.join(run)}` wrote no {value}"
+        if line in REPEATED.get(page, ()):  # what it wrote and the files it names
+            after = _files(tmp_path)
+            left[line] = {name: digest for name, digest in after.items() if before.get(name) != digest
+                          or any(name == word or name.startswith(f"{word}/") for word in run)}
         ran += 1
     assert ran > 0
     if page == "docs/boptest.md":
         _boptest_page_outputs(tmp_path, part)
+    if page == REALISTIC:
+        _energyplus_page_outputs(tmp_path, part, printed)
+
+
+def _energyplus_page_outputs(workdir: Path, part: str | None, printed: dict[str, str]) -> None:
+    """What realistic-conditions says of ``compare`` and ``sweep`` on EnergyPlus: no oracle
+    (nor clairvoyant) exists there, every controller is measured against the thermostat
+    (``/ thermostat`` in the tables, ``objective_to_thermostat`` in the JSON), and the prediction
+    table gives the ARX baseline's error 1, 6, 24 and 48 steps ahead beside the learned models."""
+    if part == "compare":
+        table = json.loads((workdir / "t.json").read_text())
+        rows = {r["controller"]: r for r in table["rows"]}
+        assert "oracle" not in rows and "clairvoyant" not in rows
+        assert rows["thermostat"]["objective_to_thermostat"] == pytest.approx(1.0)
+        assert all("objective_to_oracle" not in r for r in rows.values())
+        assert "true" not in table["rc"]
+        prediction = {r["model"]: r for r in table["prediction"]}
+        assert {"ARX", "hybrid"} <= set(prediction) and "true RC" not in prediction
+        assert set(prediction["ARX"]["T_r_mae_by_horizon_c"]) == {"1", "6", "24", "48"}
+        assert "/ thermostat" in (workdir / "r.md").read_text()
+    elif part == "sweep":
+        summary = json.loads((workdir / "eplus" / "summary.json").read_text())
+        assert {r["controller"] for r in summary["rows"]} == {"cem/auto", "qp-mpc", "thermostat"}
+        assert all(r["reference"] == "thermostat" for r in summary["rows"])
+        assert all(r["objective_to_thermostat_mean"] == pytest.approx(1.0)
+                   for r in summary["rows"] if r["controller"] == "thermostat")
+        [sweep] = [out for line, out in printed.items() if line.startswith("pinn-mpc sweep ")]
+        assert "objective/thermostat" in sweep
+
+
+def _files(directory: Path, only: dict[str, str] | None = None) -> dict[str, str]:
+    """{path relative to ``directory``: sha256} of its files (of those of ``only`` that still
+    exist, if given), not following its symbolic links."""
+    found = {}
+    for path in sorted(directory.rglob("*")):
+        name = path.relative_to(directory).as_posix()
+        if path.is_file() and not path.is_symlink() and (only is None or name in only):
+            found[name] = hashlib.sha256(path.read_bytes()).hexdigest()
+    return found
 
 
 def _boptest_page_outputs(workdir: Path, part: str | None) -> None:

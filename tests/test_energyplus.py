@@ -314,23 +314,8 @@ def test_a_run_crosses_the_year_on_the_typical_years_weather():
     assert _energyplus_threads() == []
 
 
-@pytest.mark.slow
-def test_compare_on_energyplus_measures_against_the_thermostat(tmp_path):
-    """No oracle exists on EnergyPlus: compare runs without it, divides by the thermostat and
-    reports every model's prediction error, the ARX baseline's included, at 1-48 steps."""
-    result = run_cli("compare", "--scenario", SCENARIO, "--quick", "--train-days", "7",
-                     "--days", "1", "--json", "t.json", "--report", "r.md", cwd=tmp_path)
-    assert result.returncode == 0, result.stderr
-    table = json.loads((tmp_path / "t.json").read_text())
-    rows = {r["controller"]: r for r in table["rows"]}
-    assert "oracle" not in rows and "clairvoyant" not in rows
-    assert rows["thermostat"]["objective_to_thermostat"] == pytest.approx(1.0)
-    assert all("objective_to_oracle" not in r for r in rows.values())
-    assert "true" not in table["rc"]
-    prediction = {r["model"]: r for r in table["prediction"]}
-    assert "ARX" in prediction and "true RC" not in prediction
-    assert set(prediction["ARX"]["T_r_mae_by_horizon_c"]) == {"1", "6", "24", "48"}
-    assert "/ thermostat" in (tmp_path / "r.md").read_text()
+# compare and sweep on EnergyPlus, against the thermostat: tests/test_docs.py runs them as
+# docs/realistic-conditions.md gives them and checks their outputs (_energyplus_page_outputs).
 
 
 def test_sweep_refuses_the_oracle_on_energyplus(tmp_path):
@@ -338,20 +323,6 @@ def test_sweep_refuses_the_oracle_on_energyplus(tmp_path):
                      "--seeds", "0", "--out", "sw", cwd=tmp_path)
     assert result.returncode == 2 and "oracle cannot run on it" in result.stderr
     assert not (tmp_path / "sw").exists()
-
-
-@pytest.mark.slow
-def test_sweep_on_energyplus_against_the_thermostat(tmp_path):
-    result = run_cli("sweep", "--scenarios", SCENARIO, "--controllers", "qp-mpc",
-                     "--seeds", "0", "--train-days", "7", "--days", "1", "--quick",
-                     "--workers", "2", "--out", "sw", cwd=tmp_path)
-    assert result.returncode == 0, result.stderr
-    summary = json.loads((tmp_path / "sw" / "summary.json").read_text())
-    rows = {r["controller"]: r for r in summary["rows"]}
-    assert set(rows) == {"qp-mpc", "thermostat"}
-    assert all(r["reference"] == "thermostat" for r in rows.values())
-    assert rows["thermostat"]["objective_to_thermostat_mean"] == pytest.approx(1.0)
-    assert "objective/thermostat" in result.stdout
 
 
 def test_gymnasium_env_on_energyplus_starts_at_midnight_and_closes_its_thread():

@@ -82,6 +82,28 @@ def test_importing_the_packages_and_the_cli_stays_light() -> None:
     assert result.stdout.strip() == "[]"
 
 
+def test_commands_that_plan_on_no_learned_model_load_no_torch(tmp_path: Path) -> None:
+    """simulate, identify, and the closed loops of the thermostat, the oracle and qp-mpc on an
+    identified rc.json run without importing torch."""
+    code = (
+        "import sys\n"
+        "from pinn_mpc_cli.cli import main\n"
+        "for args in (\n"
+        "    'simulate --scenario winter_household --days 2 --seed 0 --out d.csv',\n"
+        "    'identify --data d.csv --out rc.json',\n"
+        "    'closed-loop --scenario winter_household --controller thermostat --days 1',\n"
+        "    'closed-loop --scenario winter_household --controller oracle --days 1',\n"
+        "    'closed-loop --scenario winter_household --controller qp-mpc --rc rc.json --days 1',\n"
+        "):\n"
+        "    assert main(args.split()) == 0, args\n"
+        "print('torch' in sys.modules)\n"
+    )
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "OMP_NUM_THREADS": "1"}
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, cwd=tmp_path)
+    assert result.returncode == 0, result.stderr[-2000:]
+    assert result.stdout.strip().splitlines()[-1] == "False"
+
+
 def _block(after: str, lang: str = "", text: str = README) -> str:
     section = text[text.index(after) :]
     match = re.search(rf"```{lang or '[a-z]*'}\n(.*?)```", section, re.S)

@@ -166,7 +166,7 @@ GRID = [
 
 
 @pytest.mark.slow
-def test_sweep_runs_then_reuses_every_cell(tmp_path):
+def test_sweep_runs_then_reuses_every_cell(tmp_path, monkeypatch):
     out = tmp_path / "sweep"
     first = sweep_cli(*GRID, "--out", str(out))
     assert first.returncode == 0, first.stderr[-3000:]
@@ -196,6 +196,16 @@ def test_sweep_runs_then_reuses_every_cell(tmp_path):
     summary2 = json.loads((out / "summary.json").read_text())
     assert summary2["cells_run"] == 0 and summary2["cells_reused"] == 24
     assert summary2["rows"] == summary["rows"]
+    assert summary2["engine"] == summary["engine"]  # the engine the cells ran on
+    import scenarios.experiments.sweep.engine as engine
+    from pinn_mpc_cli.cli import main
+
+    def no_ray(*_args: object) -> None:
+        raise AssertionError("a sweep with every cell stored started Ray")
+
+    monkeypatch.setattr(engine, "ray_engine", no_ray)
+    assert main(["sweep", *GRID, "--out", str(out)]) == 0  # nothing to run: no engine started
+    assert json.loads((out / "summary.json").read_text())["rows"] == summary["rows"]
     assert {p.name: p.stat().st_mtime_ns for p in (out / "cells").glob("*.json")} == cell_times
 
     other = sweep_cli(*[a if a != "1" else "2" for a in GRID], "--out", str(out))

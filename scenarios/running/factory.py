@@ -28,13 +28,11 @@ import os
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, TypeAlias
+from typing import TYPE_CHECKING, Any, TypeAlias, TypeGuard
 
 from controllers.base import Controller
-from pinn_mpc.artifacts import read_rc_json
 from pinn_mpc.data import KW_SUSPECT_W
 from pinn_mpc.errors import InputError, InternalError, setting, warn
-from pinn_mpc.models.rollout import BatchDynamics
 from pinn_mpc.physics import RCParams, params_from_summary, time_constants_h
 from scenarios.choices import (
     CONTROLLER_NAMES,
@@ -55,6 +53,7 @@ if TYPE_CHECKING:
     from pinn_mpc.models.multizone_arx import MultiZoneARX
     from pinn_mpc.models.multizone_hybrid import MultiZoneHybrid
     from pinn_mpc.models.multizone_paper import MultiZonePaperModel
+    from pinn_mpc.models.rollout import BatchDynamics
     from pinn_mpc.multizone import MultiZoneParams
 
 __all__ = [
@@ -174,6 +173,8 @@ def check_rc_fits(
     under half of it or its time constants differ from the scenario's building by more than a
     factor of 3. An RC JSON without the data's power range (written by hand, or before it was
     recorded) is checked for its time constants only."""
+    from pinn_mpc.physics import read_rc_json
+
     params, data = read_rc_json(path)
     return _rc_fit_notes(Path(path).name, params, data, scenario, checks)
 
@@ -413,11 +414,7 @@ def _zone_controller(
         from controllers.thermostat import Thermostat
 
         return Thermostat(spec)
-    from pinn_mpc.models.multizone_arx import MultiZoneARX
-    from pinn_mpc.models.multizone_hybrid import MultiZoneHybrid
-    from pinn_mpc.models.multizone_paper import MultiZonePaperModel
-
-    zone_model = isinstance(model, MultiZoneHybrid | MultiZoneARX | MultiZonePaperModel)
+    zone_model = model is not None and _is_zone_model(model)
     if rc_params is not None or (model is not None and not zone_model):
         what = f"a trained model ({setting('model_dir')})" if model is not None else "a one-zone RC"
         raise InputError(
@@ -436,12 +433,22 @@ def _zone_controller(
             f"{where}: add {setting('rc_path')} rc.json (`pinn-mpc identify` on the scenario's data writes "
             f"one) or {setting('model_dir')} DIR (`pinn-mpc train` on that data with the scenario's layout)"
         )
-    if isinstance(model, MultiZoneHybrid | MultiZoneARX | MultiZonePaperModel):
+    if model is not None and _is_zone_model(model):
         check_zone_model(model, spec, scenario.name)
     return zone_planner(
         name, spec, model=model, zone_params=zone_params, backup_limits_c=zone_backup_limits(scenario),
         options=options,
     )
+
+
+def _is_zone_model(model: BatchDynamics) -> TypeGuard[MultiZoneHybrid | MultiZoneARX | MultiZonePaperModel]:
+    """Whether ``model`` is a trained model of several zones (their classes, and torch, are
+    imported here: an RC or no model needs neither)."""
+    from pinn_mpc.models.multizone_arx import MultiZoneARX
+    from pinn_mpc.models.multizone_hybrid import MultiZoneHybrid
+    from pinn_mpc.models.multizone_paper import MultiZonePaperModel
+
+    return isinstance(model, MultiZoneHybrid | MultiZoneARX | MultiZonePaperModel)
 
 
 #: The backup thermostat's (low, high) limits [C]: one for every zone or one per zone.
@@ -635,6 +642,8 @@ def make_controller(
     if rc_path is not None and not spec.single:
         zone_params = read_zone_rc(rc_path, spec, scenario.name)
     elif rc_path is not None:  # read once: the parameters and what the file says of its data
+        from pinn_mpc.physics import read_rc_json
+
         rc_params, data = read_rc_json(rc_path)
         for note in _rc_fit_notes(Path(rc_path).name, rc_params, data, scenario, checks):
             warn(note)

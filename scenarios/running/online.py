@@ -356,7 +356,7 @@ class _Online:
             )
             self.kind = "model"
         elif state.rc is not None:
-            from pinn_mpc.artifacts import read_rc_json
+            from pinn_mpc.physics import read_rc_json
 
             params, _ = read_rc_json(self.path(state.rc, "rc.json") or "")
             self.controller = build_controller("qp-mpc", scenario, rc_params=params, n_steps=n)

@@ -4,6 +4,8 @@ report and figure at the end (:func:`run_sweep`)."""
 from __future__ import annotations
 
 import dataclasses
+import importlib.metadata
+import json
 import os
 import sys
 import time
@@ -32,7 +34,7 @@ from scenarios.experiments.sweep.store import (
 )
 from scenarios.plants.boptest import TEST_PERIOD_DAYS
 from scenarios.plants.boptest_client import BOPTEST_URL_ENV
-from scenarios.records import CellRecord, CellResult, GridRecord, SweepSummary
+from scenarios.records import CellRecord, CellResult, EngineRecord, GridRecord, SweepSummary
 from scenarios.reports.online_report import online_section, plot_online_days
 from scenarios.reports.sweep_report import plot_sweep, render_sweep_report, summarise
 from scenarios.running.ray_engine import check_engine_options, ray_engine
@@ -211,6 +213,26 @@ def _grid_record(grid: SweepGrid) -> GridRecord:
     return record
 
 
+def _start_directory(root: Path, settings: SweepSettings) -> None:
+    """Make the sweep directory ``root`` (its ``models/`` and ``cells/``) and write its
+    ``sweep.json`` (the settings its cells are kept under)."""
+    (root / "models").mkdir(parents=True, exist_ok=True)
+    (root / "cells").mkdir(exist_ok=True)
+    atomic_write_json(root / "sweep.json", {"settings": _settings_record(settings)})
+
+
+def _stored_engine(root: Path) -> EngineRecord:
+    """The engine the stored cells of ``root`` ran on: its ``summary.json``'s, or (no summary,
+    or one without it) Ray's name and version with no resources."""
+    try:
+        engine = json.loads((root / "summary.json").read_text(encoding="utf-8"))["engine"]
+    except (OSError, ValueError, KeyError, TypeError):
+        engine = None
+    if isinstance(engine, dict) and set(engine) == {"name", "version", "resources"}:
+        return cast(EngineRecord, engine)
+    return {"name": "ray", "version": importlib.metadata.version("ray"), "resources": {}}
+
+
 def run_sweep(
     grid: SweepGrid,
     settings: SweepSettings,
@@ -221,7 +243,8 @@ def run_sweep(
     workers: int | None = None,
     force: bool = False,
 ) -> SweepOutcome:
-    """Run the missing cells of ``grid`` on Ray, then write the summary, report and figure.
+    """Run the missing cells of ``grid`` on Ray, then write the summary, report and figure
+    (none missing: Ray is not started, and the summary keeps the engine the cells ran on).
 
     ``out`` must be new, empty or an earlier sweep's directory (it holds ``sweep.json``); any
     other directory needs ``force`` (then the sweep's files are added and nothing else in it is
@@ -248,15 +271,18 @@ def run_sweep(
     missing = [c for c in cells if records[c] is None]
     reused = len(cells) - len(missing)
     keys = sorted({k for c in missing if (k := _model_key(c, settings)) is not None})
-    with ray_engine(address, workers) as engine:
-        # Only now that the engine runs: a refused address leaves no directory behind.
-        (root / "models").mkdir(parents=True, exist_ok=True)
-        (root / "cells").mkdir(exist_ok=True)
-        atomic_write_json(root / "sweep.json", {"settings": _settings_record(settings)})
-        trained = _run_on_ray(
-            root, grid, settings, keys=keys, missing=missing, records=records,
-            total=len(cells), reused=reused,
-        )
+    if missing:
+        with ray_engine(address, workers) as engine:
+            # Only now that the engine runs: a refused address leaves no directory behind.
+            _start_directory(root, settings)
+            trained = _run_on_ray(
+                root, grid, settings, keys=keys, missing=missing, records=records,
+                total=len(cells), reused=reused,
+            )
+    else:  # every cell stored: nothing to run, no engine to start
+        engine = _stored_engine(root)
+        _start_directory(root, settings)
+        trained = 0
     done = [r for r in records.values() if r is not None]
     rows = summarise(
         done,
