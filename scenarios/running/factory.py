@@ -33,7 +33,7 @@ from typing import TYPE_CHECKING, Any, TypeAlias, TypeGuard
 from controllers.base import Controller
 from pinn_mpc.data import KW_SUSPECT_W
 from pinn_mpc.errors import InputError, InternalError, setting, warn
-from pinn_mpc.physics import RCParams, params_from_summary, time_constants_h
+from pinn_mpc.physics import RCParams, params_from_summary, read_rc_json, time_constants_h
 from scenarios.choices import (
     CONTROLLER_NAMES,
     MODEL_CONTROLLERS,
@@ -173,8 +173,6 @@ def check_rc_fits(
     under half of it or its time constants differ from the scenario's building by more than a
     factor of 3. An RC JSON without the data's power range (written by hand, or before it was
     recorded) is checked for its time constants only."""
-    from pinn_mpc.physics import read_rc_json
-
     params, data = read_rc_json(path)
     return _rc_fit_notes(Path(path).name, params, data, scenario, checks)
 
@@ -642,8 +640,6 @@ def make_controller(
     if rc_path is not None and not spec.single:
         zone_params = read_zone_rc(rc_path, spec, scenario.name)
     elif rc_path is not None:  # read once: the parameters and what the file says of its data
-        from pinn_mpc.physics import read_rc_json
-
         rc_params, data = read_rc_json(rc_path)
         for note in _rc_fit_notes(Path(rc_path).name, rc_params, data, scenario, checks):
             warn(note)
