@@ -29,6 +29,7 @@ from typing import NamedTuple, Protocol
 
 import torch
 
+from pinn_mpc import torch_generator  # noqa: F401  (copies and pickles of the planners' generators keep None's count)
 from pinn_mpc.errors import InternalError
 
 __all__ = [

@@ -212,3 +212,32 @@ def test_random_shooting_samples_stay_in_bounds_and_centre_on_the_warm_start():
         torch.testing.assert_close(cols, cols[:, :1].expand_as(cols))
     assert result.cost == pytest.approx(float(objective(result.plan[None])[0]))
     assert result.cost <= float((x0 - 0.7).pow(2).sum())
+
+
+def test_copying_or_pickling_a_planners_generator_keeps_nones_reference_count() -> None:
+    """torch's ``Generator.__reduce__`` takes a reference from ``None`` each call
+    (pytorch/pytorch#188032): a capped fleet that copies its controllers every step aborted
+    at exit with ``none_dealloc``. With :mod:`pinn_mpc.torch_generator` registered (the
+    planners import it), 2000 copies and pickles leave ``None``'s count where it was, and
+    every copy draws what the original draws."""
+    import copy
+    import gc
+    import pickle
+    import sys
+
+    generator = torch.Generator().manual_seed(123)
+    torch.rand(5, generator=generator)  # a state past the seed
+    gc.collect()
+    before = sys.getrefcount(None)
+    for _ in range(1000):
+        copied = copy.deepcopy(generator)
+        unpickled = pickle.loads(pickle.dumps(generator))
+        del copied, unpickled
+    gc.collect()
+    assert abs(sys.getrefcount(None) - before) < 100  # the bug: 2000 fewer
+
+    copied, unpickled = copy.deepcopy(generator), pickle.loads(pickle.dumps(generator))
+    assert copied.initial_seed() == unpickled.initial_seed() == 123
+    expected = torch.rand(8, generator=generator)
+    assert torch.equal(torch.rand(8, generator=copied), expected)
+    assert torch.equal(torch.rand(8, generator=unpickled), expected)
