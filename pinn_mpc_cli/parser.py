@@ -204,8 +204,8 @@ def _replace(p: argparse.ArgumentParser, files: str) -> None:
     p.add_argument(
         "--force",
         action="store_true",
-        help=f"replace an existing {files} (without it an existing file is refused before any "
-        "work is done)",
+        help=f"replace an existing {files}; without it an existing file is refused before any "
+        "work is done",
     )
 
 
