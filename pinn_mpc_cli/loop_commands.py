@@ -1,8 +1,8 @@
 """The closed-loop commands: ``simulate`` (data from a scenario) and ``closed-loop`` (one
 controller on one building, or a fleet of them).
 
-Each takes the parsed arguments, refuses outputs that cannot be written or would overwrite an
-input or another output (before any work), calls the library (which returns typed results),
+Each takes the parsed arguments, refuses outputs that cannot be written, would overwrite an
+input or another output, or exist already without ``--force`` (before any work), calls the library (which returns typed results),
 writes the outputs atomically and returns the summary the CLI prints.
 """
 
@@ -120,8 +120,8 @@ def simulate(a: argparse.Namespace) -> str:
 def closed_loop(a: argparse.Namespace) -> str:
     """Run, write the KPI JSON (and CSV, plot) together or not at all
     (:func:`pinn_mpc.io.written_together`); the summary names every file written.
-    Outputs are checked before the run: writable, and none of them the same file as an input
-    (``--model``'s files, ``--rc``) or as another output."""
+    Outputs are checked before the run: writable, none of them the same file as an input
+    (``--model``'s files, ``--rc``) or as another output, and none existing without ``--force``."""
     with written_together():
         return _closed_loop(a)
 

@@ -1,8 +1,10 @@
 """The model commands: ``train``, ``evaluate``, ``export-rc``, ``identify``.
 
-Each takes the parsed arguments, refuses outputs that cannot be written or would overwrite an
-input or another output (before any work), calls the library (which returns typed results and
-never writes), writes the outputs atomically and returns the summary the CLI prints.
+Each takes the parsed arguments, refuses outputs that cannot be written, would overwrite an
+input or another output, or exist already without ``--force`` (a model directory: as
+:func:`pinn_mpc.io.check_output_directory` says) before any work, calls the library (which
+returns typed results and never writes), writes the outputs atomically and returns the
+summary the CLI prints.
 Libraries are imported inside the commands, so that ``identify`` does not wait for torch.
 """
 
