@@ -237,6 +237,17 @@ def _outputs(step: Step) -> list[Path]:
     return [Path(v) for f, v in zip(step.args, step.args[1:], strict=False) if f in flags]
 
 
+def _remove_earlier_files(output: Path) -> None:
+    """Remove what an earlier run of a step left at its output file ``output`` (a resumed
+    recording reruns the step; the commands refuse to replace an existing file), and the files
+    the command writes beside it (``data.fleet.json``, ``k.fleet.png``); a directory is left to
+    the command, which replaces its own files there."""
+    if output.is_file():
+        output.unlink()
+    for beside in output.parent.glob(f"{output.stem}.fleet.*"):
+        beside.unlink()
+
+
 def record(out: Path, resume: bool = False) -> int:
     """Run every step in ``out`` and write ``manifest.json``; 1 if a command failed.
 
@@ -279,6 +290,7 @@ def record(out: Path, resume: bool = False) -> int:
             continue
         for path in _outputs(step):
             (out / path).parent.mkdir(parents=True, exist_ok=True)
+            _remove_earlier_files(out / path)
         argv = [sys.executable, "-m", "pinn_mpc_cli", *step.args]
         t0, cpu0 = time.perf_counter(), _children_cpu_s()
         with (out / "logs" / f"{step.name}.stdout").open("w") as so, \

@@ -4,7 +4,8 @@ Files are written to a temporary sibling, then renamed. A command that writes a 
 writes only its own files there (:class:`DirectoryLayout`); an existing directory holding
 anything else is refused unless the user says ``force``, and even then only the command's own
 files are replaced. Before any work, :func:`check_writable` and :func:`check_distinct` refuse
-outputs that cannot be written or that would overwrite an input or another output.
+outputs that cannot be written or that would overwrite an input or another output, and
+:func:`check_new_files` an existing output file the user has not said ``force`` to replace.
 """
 
 from __future__ import annotations
@@ -36,6 +37,7 @@ __all__ = [
     "atomic_write_json",
     "atomic_write_text",
     "check_distinct",
+    "check_new_files",
     "check_output_directory",
     "check_writable",
     "file_sha256",
@@ -243,6 +245,34 @@ def check_distinct(*, inputs: Mapping[str, PathsArg], outputs: Mapping[str, Path
                 "would overwrite the other; give them different names"
             )
         seen.append((label, path, False))
+
+
+def check_new_files(files: Mapping[str, PathsArg], *, force: bool) -> None:
+    """Fail before any work (one-line :class:`InputError`) if an output file exists, unless
+    ``force``: a file the user owns (a recorded data set, an edited RC) is replaced only when
+    asked to.
+
+    Keys are the settings that name the files (``out``; the command line names them by their
+    flags); a value is the file (``None``: not given) or several, the file the setting names
+    first and then those written beside it (a fleet's parameters file next to its data).
+    """
+    if force:
+        return
+    for name, value in files.items():
+        if value is None:
+            continue
+        named, *beside = [value] if isinstance(value, str | os.PathLike) else list(value)
+        for path in (named, *beside):
+            if path is None or not Path(path).exists():
+                continue
+            what = (
+                f"{setting(name)} {path}" if path is named
+                else f"{path} (written beside {setting(name)} {named})"
+            )
+            another = "another name" if path is named else f"another {setting(name)}"
+            raise InputError(
+                f"{what} already exists; choose {another}, or add {setting('force')} to replace it"
+            )
 
 
 @dataclass(frozen=True, kw_only=True)

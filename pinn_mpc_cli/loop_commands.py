@@ -1,8 +1,8 @@
 """The closed-loop commands: ``simulate`` (data from a scenario) and ``closed-loop`` (one
 controller on one building, or a fleet of them).
 
-Each takes the parsed arguments, refuses outputs that cannot be written or would overwrite an
-input or another output (before any work), calls the library (which returns typed results),
+Each takes the parsed arguments, refuses outputs that cannot be written, would overwrite an
+input or another output, or exist already without ``--force`` (before any work), calls the library (which returns typed results),
 writes the outputs atomically and returns the summary the CLI prints.
 """
 
@@ -22,6 +22,7 @@ from pinn_mpc.io import (
     PathsArg,
     atomic_write_json,
     check_distinct,
+    check_new_files,
     check_writable,
     written_together,
 )
@@ -75,6 +76,7 @@ def simulate(a: argparse.Namespace) -> str:
         )
     check_writable(a.out, sidecar)
     check_distinct(inputs=scenario_inputs(a.scenario), outputs={"--out": a.out, "fleet file": sidecar})
+    check_new_files({"out": [a.out] if sidecar is None else [a.out, sidecar]}, force=a.force)
     chosen = get_scenario(a.scenario)
     check_simulate_memory(chosen, days=a.days, buildings=a.buildings)
     fleet = None
@@ -118,8 +120,8 @@ def simulate(a: argparse.Namespace) -> str:
 def closed_loop(a: argparse.Namespace) -> str:
     """Run, write the KPI JSON (and CSV, plot) together or not at all
     (:func:`pinn_mpc.io.written_together`); the summary names every file written.
-    Outputs are checked before the run: writable, and none of them the same file as an input
-    (``--model``'s files, ``--rc``) or as another output."""
+    Outputs are checked before the run: writable, none of them the same file as an input
+    (``--model``'s files, ``--rc``) or as another output, and none existing without ``--force``."""
     with written_together():
         return _closed_loop(a)
 
@@ -153,6 +155,7 @@ def _closed_loop(a: argparse.Namespace) -> str:
         fleet_dir = (Path(a.model) / FLEET_FILE).is_file()  # per-building models
         inputs["--model"] = fleet_model_files(a.model) if fleet_dir else model_files(a.model)
     check_distinct(inputs=inputs, outputs=outputs)
+    _check_new_outputs(a)
     scenario = get_scenario(a.scenario)
     if a.buildings > 1:
         return _fleet_closed_loop(a, scenario, inputs)
@@ -216,6 +219,7 @@ def _online_closed_loop(a: argparse.Namespace) -> str:
                           ("--buildings", a.buildings != 1)):
         if given:
             raise InputError(f"{option} does not apply to --online: the controller fits its own from --data")
+    check_new_files({"json": a.json, "csv": a.csv}, force=a.force)  # the files it writes
     config = TrainConfig(
         **({} if a.online_seeds is None else {"n_seeds": a.online_seeds}),
         **({} if a.online_epochs is None else {"epochs": a.online_epochs}),
@@ -241,6 +245,12 @@ def _online_closed_loop(a: argparse.Namespace) -> str:
         f"state in {a.online}",
     ]
     return "\n".join([*lines, *_wrote(a.json, a.csv)])
+
+
+def _check_new_outputs(a: argparse.Namespace) -> None:
+    """Refuse, before the run, a ``--json``, ``--csv`` or ``--plot`` file that exists, unless
+    ``--force``."""
+    check_new_files({"json": a.json, "csv": a.csv, "plot": a.plot}, force=a.force)
 
 
 def _wrote(*paths: str | None) -> list[str]:
@@ -432,6 +442,7 @@ def _check_fleet_options(
     figure = str(Path(a.json).with_suffix(".fleet.png"))
     check_writable(figure)
     check_distinct(inputs=inputs, outputs={"--json": a.json, "figure": figure})
+    check_new_files({"json": [a.json, figure]}, force=a.force)
     return figure
 
 
@@ -467,6 +478,7 @@ def _boptest_simulate(a: argparse.Namespace) -> str:
     chosen = boptest_scenario(a.scenario)
     check_writable(a.out)
     check_distinct(inputs={"--scenario": str(chosen.path)}, outputs={"--out": a.out})
+    check_new_files({"out": a.out}, force=a.force)
     if a.test_period is not None and a.first_day is not None:
         raise InputError("give --test-period (the days nearest it) or --first-day, not both")
     if a.test_period is not None:
@@ -509,6 +521,7 @@ def _boptest_closed_loop(a: argparse.Namespace, outputs: dict[str, str | None]) 
 
         inputs["--model"] = model_files(a.model)
     check_distinct(inputs=inputs, outputs=outputs)
+    _check_new_outputs(a)
     if a.days is not None and a.days > TEST_PERIOD_DAYS:
         raise InputError(
             f"--days {a.days}: a BOPTEST test period has {TEST_PERIOD_DAYS:g} days; give at most "

@@ -1,8 +1,10 @@
 """The model commands: ``train``, ``evaluate``, ``export-rc``, ``identify``.
 
-Each takes the parsed arguments, refuses outputs that cannot be written or would overwrite an
-input or another output (before any work), calls the library (which returns typed results and
-never writes), writes the outputs atomically and returns the summary the CLI prints.
+Each takes the parsed arguments, refuses outputs that cannot be written, would overwrite an
+input or another output, or exist already without ``--force`` (a model directory: as
+:func:`pinn_mpc.io.check_output_directory` says) before any work, calls the library (which
+returns typed results and never writes), writes the outputs atomically and returns the
+summary the CLI prints.
 Libraries are imported inside the commands, so that ``identify`` does not wait for torch.
 """
 
@@ -23,6 +25,7 @@ from pinn_mpc.errors import InputError, InternalError, setting, warn
 from pinn_mpc.io import (
     atomic_write_json,
     check_distinct,
+    check_new_files,
     check_output_directory,
     check_writable,
     output_lock,
@@ -297,6 +300,7 @@ def evaluate(a: argparse.Namespace) -> str:
     check_writable(a.json)
     _refuse_fleet_directory(a.model, "evaluate", "--data BUILDING.csv --json metrics.json")
     check_distinct(inputs={"--model": model_files(a.model), "--data": a.data}, outputs={"--json": a.json})
+    check_new_files({"json": a.json}, force=a.force)
     model = load(a.model)
     if isinstance(model, MultiZoneHybrid | MultiZoneARX | MultiZonePaperModel):
         return _evaluate_zones(model, a)
@@ -372,6 +376,7 @@ def export_rc_json(a: argparse.Namespace) -> str:
     check_writable(a.out)
     _refuse_fleet_directory(a.model, "export-rc", "--out rc.json")
     check_distinct(inputs={"--model": model_files(a.model)}, outputs={"--out": a.out})
+    check_new_files({"out": a.out}, force=a.force)
     model = load(a.model)
     if isinstance(model, MultiZoneHybrid | MultiZoneARX | MultiZonePaperModel):
         # The RC it carries; the paper's networks' learned one (its R, C and walls trained).
@@ -481,6 +486,7 @@ def identify(a: argparse.Namespace) -> str:
 
     check_writable(a.out)
     check_distinct(inputs={"--data": a.data}, outputs={"--out": a.out})
+    check_new_files({"out": a.out}, force=a.force)
     df = read_timeseries(a.data, columns=a.columns, zones=True)
     if len(zones_in(df.columns)) > 1:
         return _identify_zones(a, df)

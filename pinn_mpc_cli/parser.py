@@ -199,6 +199,16 @@ def _force(p: argparse.ArgumentParser) -> None:
     )
 
 
+def _replace(p: argparse.ArgumentParser, files: str) -> None:
+    """``--force`` of a command that writes the files ``files`` names (one or more options)."""
+    p.add_argument(
+        "--force",
+        action="store_true",
+        help=f"replace an existing {files}; without it an existing file is refused before any "
+        "work is done",
+    )
+
+
 def _eta_option(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--eta",
@@ -263,6 +273,7 @@ def add_simulate(sub: Commands) -> None:
         "its warm-up, else right after it), as compare takes them",
     )
     p.add_argument("--out", required=True, help="CSV file to write")
+    _replace(p, "--out file (and the parameters file beside it)")
 
 
 def add_train(sub: Commands) -> None:
@@ -344,6 +355,7 @@ def add_evaluate(sub: Commands) -> None:
     )
     _columns(p)
     p.add_argument("--json", required=True, help="metrics JSON file to write")
+    _replace(p, "--json file")
 
 
 def add_export_rc(sub: Commands) -> None:
@@ -351,6 +363,7 @@ def add_export_rc(sub: Commands) -> None:
     p = _add(sub, "export-rc", "model_commands:export_rc_json", "export the learned 2R2C parameters of a model")
     _model(p, "physreg or physnet model directory", required=True)
     p.add_argument("--out", required=True, help="RC JSON file to write (for --rc)")
+    _replace(p, "--out file")
 
 
 def add_identify(sub: Commands) -> None:
@@ -368,6 +381,7 @@ def add_identify(sub: Commands) -> None:
         "windows) from this scenario, a built-in name (`pinn-mpc scenario list`) or a scenario file",
     )
     p.add_argument("--out", required=True, help="RC JSON file to write (for --rc)")
+    _replace(p, "--out file")
 
 
 def add_closed_loop(sub: Commands) -> None:
@@ -401,6 +415,7 @@ def add_closed_loop(sub: Commands) -> None:
     )
     p.add_argument("--csv", default=None, help="trajectory CSV file to write")
     p.add_argument("--plot", default=None, help="trajectory figure (PNG) to write")
+    _replace(p, "--json, --csv or --plot file (and a fleet's figure beside --json)")
     _add_weather_part(p, "test")
     p.add_argument(
         "--buildings",
@@ -598,9 +613,7 @@ def add_scenario(sub: Commands) -> None:
         q.add_argument("name", metavar="NAME", help="scenario name, one of: {scenarios}; or a .toml file")
         if action == "export":
             q.add_argument("--out", required=True, help="TOML file to write (ending in .toml)")
-            q.add_argument(
-                "--force", action="store_true", help="replace --out if it exists"
-            )
+            _replace(q, "--out file")
 
 
 #: The commands in the order ``--help`` lists them.

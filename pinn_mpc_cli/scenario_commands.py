@@ -7,7 +7,7 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 
 from pinn_mpc.errors import InputError, InternalError
-from pinn_mpc.io import PathsArg, atomic_write_text, check_distinct, check_writable
+from pinn_mpc.io import PathsArg, atomic_write_text, check_distinct, check_new_files, check_writable
 
 __all__ = ["scenario"]
 
@@ -60,11 +60,7 @@ def _check_export(a: argparse.Namespace, inputs: Callable[[], Mapping[str, Paths
         raise InputError(f"--out {a.out}: scenario files end in .toml{fix}")
     check_writable(a.out)
     check_distinct(inputs=inputs(), outputs={"--out": a.out})
-    if Path(a.out).exists() and not a.force:
-        raise InputError(
-            f"--out {a.out} already exists (perhaps edited); choose another name, or add --force "
-            "to replace it"
-        )
+    check_new_files({"out": a.out}, force=a.force)
 
 
 def _boptest_scenario(a: argparse.Namespace, source: Path) -> str:

@@ -133,7 +133,7 @@ def test_train_arch_arx_writes_numbers_that_evaluate_and_closed_loop_load(tmp_pa
     stored = json.loads((model / "arx.json").read_text())
     (model / "arx.json").write_text(json.dumps({**stored, "coef": stored["coef"][:-1]}))
     capsys.readouterr()
-    assert main(["evaluate", "--model", str(model), "--data", str(test), "--json", str(metrics)]) == 2
+    assert main(["evaluate", "--model", str(model), "--data", str(test), "--json", str(tmp_path / "m2.json")]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "not a valid ARX model" in err
 

@@ -602,7 +602,7 @@ def test_simulate_never_leaves_a_stale_fleet_file(tmp_path, capsys, monkeypatch)
             "earlier `simulate --buildings N` run", "add --buildings N")
     assert checksums(tmp_path) == before
     assert main(["simulate", "--scenario", "winter_household", "--days", "1", "--buildings", "3",
-                 "--out", "fleet.csv"]) == 0
+                 "--out", "fleet.csv", "--force"]) == 0  # the old fleet's data and parameters replaced
     stored = json.loads((tmp_path / "fleet.fleet.json").read_text())
     nominal = dataclasses.asdict(get_scenario("winter_household").sim.params)
     assert stored["spread"] == 0.0 and stored["params"] == [nominal] * 3

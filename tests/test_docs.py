@@ -323,7 +323,6 @@ PARTS: dict[str, dict[str, tuple[str, ...]]] = {
 #: same files) would write what is there already. {page: command lines}.
 REPEATED: dict[str, tuple[str, ...]] = {
     REALISTIC: (  # its last example trains the office's default model again, for cem's seed 1
-        "pinn-mpc simulate --scenario eplus_small_office --days 30 --seed 0 --out train.csv",
         "pinn-mpc train --data train.csv --out model",
     ),
 }

@@ -148,8 +148,8 @@ def test_documented_fleet_commands_run_as_written(tmp_path, capsys, monkeypatch)
     assert stored["arch"] == "auto" and stored["chosen"] == {"0": "hybrid", "1": "hybrid"}
     assert main(["closed-loop", "--scenario", "winter_household", "--controller", "cem", "--model",
                  "fleet_models", "--buildings", "2", "--batched", "--cap-kw", "8", "--days", "1",
-                 "--json", "fleet.json"]) == 0
-    assert json.loads((tmp_path / "fleet.json").read_text())["fleet"]["n_buildings"] == 2
+                 "--json", "learned.json"]) == 0
+    assert json.loads((tmp_path / "learned.json").read_text())["fleet"]["n_buildings"] == 2
 
 
 @pytest.mark.slow

@@ -281,5 +281,5 @@ def test_evaluate_gives_each_zones_errors_and_persistence_as_computed_by_hand(
     assert metrics["one_step"]["zones"] == metrics["horizons"]["1"]["zones"]
     other = tmp_path / "other.csv"
     frame.rename(columns=lambda c: c.replace("[north]", "[attic]")).to_csv(other, index=False)
-    assert main([*argv[:4], str(other), *argv[5:]]) == 2
+    assert main([*argv[:4], str(other), *argv[5:-1], str(tmp_path / "other.json")]) == 2
     assert "zones south, attic" in capsys.readouterr().err

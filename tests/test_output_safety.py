@@ -1,5 +1,6 @@
 """An output held by one run at a time; a command's files written together or not at all; a
-full disk named by the file it could not write (issue 33)."""
+full disk named by the file it could not write (issue 33); an existing output file replaced
+only with --force."""
 
 from __future__ import annotations
 
@@ -13,9 +14,16 @@ from pathlib import Path
 
 import pytest
 
-from pinn_mpc.data import read_fleet_params, write_timeseries
-from pinn_mpc.io import atomic_write_text, written_together
+from pinn_mpc.data import (
+    read_fleet_params,
+    read_fleet_timeseries,
+    read_timeseries,
+    write_timeseries,
+)
+from pinn_mpc.errors import InputError
+from pinn_mpc.io import atomic_write_text, check_new_files, written_together
 from pinn_mpc_cli.cli import main
+from scenarios.inputs.scenario_file import get_scenario, load_scenario_file
 from tests.model_data import household_data
 
 HOLD = """
@@ -80,7 +88,7 @@ def test_the_lock_of_a_dead_run_is_taken_over_and_released_at_the_end(tmp_path, 
 
 def _loop(tmp_path: Path) -> list[str]:
     return ["closed-loop", "--scenario", "winter_household", "--controller", "thermostat", "--days", "1",
-            "--json", str(tmp_path / "k.json"), "--csv", str(tmp_path / "traj.csv")]
+            "--json", str(tmp_path / "k.json"), "--csv", str(tmp_path / "traj.csv"), "--force"]
 
 
 def test_a_full_disk_on_the_last_file_leaves_every_file_as_it_was(tmp_path, capsys, monkeypatch):
@@ -115,7 +123,7 @@ def test_a_fleet_file_that_cannot_be_written_leaves_the_fleet_data_as_it_was(tmp
     data.write_text("old data")
     sidecar.write_text("old parameters")
     args = ["simulate", "--scenario", "winter_household", "--buildings", "2", "--spread", "0.2",
-            "--days", "1", "--seed", "0", "--out", str(data)]
+            "--days", "1", "--seed", "0", "--out", str(data), "--force"]
     write_text = pathlib.Path.write_text
 
     def full(self: Path, *a: object, **kw: object) -> int:
@@ -171,3 +179,122 @@ def test_written_together_renames_nothing_until_the_block_ends(tmp_path):
         atomic_write_text(a, "new A")
         raise RuntimeError("a failure after the first file")
     assert a.read_text() == "A" and sorted(p.name for p in tmp_path.iterdir()) == ["a.txt", "b.txt"]
+
+
+# ------------------------------------------------------- an existing file is replaced only with --force
+
+PNG = b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.fixture(scope="module")
+def inputs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """Data of the paper's household and an ARX model trained on them (which carries the RC
+    identified from them), in a directory of their own."""
+    root = tmp_path_factory.mktemp("inputs")
+    write_timeseries(household_data(6, 0), root / "d.csv")
+    assert main(["train", "--data", str(root / "d.csv"), "--arch", "arx", "--out", str(root / "arx")]) == 0
+    return {"data": root / "d.csv", "model": root / "arx"}
+
+
+LOOP_1 = ["closed-loop", "--scenario", "winter_household", "--days", "1"]
+
+
+def _writers(out: Path, inputs: dict[str, Path]) -> dict[str, tuple[list[str], list[tuple[str, Path]]]]:
+    """Each command that writes files the user names: its arguments and the files it writes
+    into ``out``, each with the option that names it (a file written beside another: that one's)."""
+    data, model = str(inputs["data"]), str(inputs["model"])
+    return {
+        "simulate": (["simulate", "--scenario", "winter_household", "--days", "1", "--out", str(out / "s.csv")],
+                     [("--out", out / "s.csv")]),
+        "simulate-fleet": (["simulate", "--scenario", "winter_household", "--days", "1", "--buildings", "2",
+                            "--out", str(out / "f.csv")],
+                           [("--out", out / "f.csv"), ("--out", out / "f.fleet.json")]),
+        "identify": (["identify", "--data", data, "--out", str(out / "rc.json")], [("--out", out / "rc.json")]),
+        "evaluate": (["evaluate", "--model", model, "--data", data, "--json", str(out / "m.json")],
+                     [("--json", out / "m.json")]),
+        "export-rc": (["export-rc", "--model", model, "--out", str(out / "rc.json")], [("--out", out / "rc.json")]),
+        "closed-loop": ([*LOOP_1, "--controller", "thermostat", "--json", str(out / "k.json"),
+                         "--csv", str(out / "t.csv"), "--plot", str(out / "p.png")],
+                        [("--json", out / "k.json"), ("--csv", out / "t.csv"), ("--plot", out / "p.png")]),
+        "closed-loop-fleet": ([*LOOP_1, "--controller", "qp-mpc", "--buildings", "2", "--batched",
+                               "--json", str(out / "k.json")],
+                              [("--json", out / "k.json"), ("--json", out / "k.fleet.png")]),
+        "scenario-export": (["scenario", "export", "winter_household", "--out", str(out / "s.toml")],
+                            [("--out", out / "s.toml")]),
+    }
+
+
+def _tree(root: Path) -> dict[str, bytes]:
+    """{path relative to ``root``: its bytes} of every file under ``root``."""
+    return {p.relative_to(root).as_posix(): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
+
+
+def _is_written(path: Path) -> bool:
+    """``path`` holds what its command writes (not the user's bytes): a data CSV, a JSON
+    object, a PNG or a scenario file."""
+    if path.suffix == ".png":
+        return path.read_bytes()[:8] == PNG
+    if path.suffix == ".json":
+        return isinstance(json.loads(path.read_text()), dict)
+    if path.suffix == ".toml":
+        return load_scenario_file(path) == get_scenario("winter_household")
+    frames = list(read_fleet_timeseries(path).values()) if path.name == "f.csv" else [read_timeseries(path)]
+    return [len(f) for f in frames] == [48] * len(frames)  # one day of each building
+
+
+CASES = [
+    pytest.param(command, i, id=f"{command}-{i}")
+    for command, n in (("simulate", 1), ("simulate-fleet", 2), ("identify", 1), ("evaluate", 1),
+                       ("export-rc", 1), ("closed-loop", 3), ("closed-loop-fleet", 2), ("scenario-export", 1))
+    for i in range(n)
+]
+
+
+@pytest.mark.parametrize(("command", "index"), CASES)
+def test_an_existing_output_file_is_refused_before_any_work_and_replaced_only_with_force(
+    tmp_path, capsys, inputs, command, index
+):
+    """The file ``index`` of the command's outputs exists (the user's): the command exits 2 in
+    one line naming it, its option and --force, leaves it byte for byte and writes nothing
+    else (the files before it not either: every output is checked before any work); with
+    --force every output is written and the user's file replaced."""
+    args, files = _writers(tmp_path, inputs)[command]
+    option, mine = files[index]
+    user_bytes = b"the user's own file, perhaps edited\n"
+    mine.write_bytes(user_bytes)
+    assert main(args) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1, err
+    named = next(p for o, p in files if o == option)  # the file its option names
+    assert f"{mine}" in err and f"{option} {named}" in err and "already exists" in err, err
+    assert err.endswith("add --force to replace it"), err
+    assert _tree(tmp_path) == {mine.name: user_bytes}  # nothing else written, no temporaries
+    assert main([*args, "--force"]) == 0, capsys.readouterr().err
+    assert sorted(_tree(tmp_path)) == sorted(p.name for _, p in files)
+    assert all(_is_written(p) for _, p in files)
+
+
+def test_an_existing_output_of_an_online_run_is_refused_before_its_directory_is_made(tmp_path, capsys):
+    """closed-loop --online DIR keeps its directory's semantics (--resume); its --json is a
+    file as any other: an existing one is refused before DIR is made."""
+    (tmp_path / "k.json").write_text("my KPIs")
+    assert main([*LOOP_1, "--controller", "qp-mpc", "--online", str(tmp_path / "run"),
+                 "--json", str(tmp_path / "k.json")]) == 2
+    assert "--json " in capsys.readouterr().err
+    assert _tree(tmp_path) == {"k.json": b"my KPIs"}
+
+
+def test_the_library_names_the_settings_not_the_flags(tmp_path):
+    """From Python the message names the settings (``out``, ``force``); nothing is refused
+    with ``force`` or where no file exists."""
+    out = tmp_path / "x.json"
+    check_new_files({"out": out, "json": None}, force=False)
+    out.write_text("{}")
+    check_new_files({"out": out}, force=True)
+    with pytest.raises(InputError) as refused:
+        check_new_files({"json": None, "out": [tmp_path / "new.csv", out]}, force=False)
+    assert str(refused.value) == (
+        f"{out} (written beside out {tmp_path / 'new.csv'}) already exists; choose another out, or "
+        "add force to replace it"
+    )
+    assert "--" not in str(refused.value)
