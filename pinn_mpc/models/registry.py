@@ -29,6 +29,7 @@ __all__ = [
     "PHYSICS_ARX",
     "COMPARED_ARCHS",
     "CONSISTENT_ARCHS",
+    "CONSISTENT_ARX",
     "DEFAULT_ARCH",
     "MODEL_CHOICES",
     "TRAIN_CHOICES",
@@ -138,6 +139,10 @@ ALL_ARCHS = tuple(ARCHITECTURES)
 DEFAULT_ARCH = next(name for name, spec in ARCHITECTURES.items() if not spec.paper)
 #: The physically consistent architectures (Di Natale et al., 2022).
 CONSISTENT_ARCHS = tuple(name for name, spec in ARCHITECTURES.items() if spec.consistent)
+#: The consistent network on the physics-informed ARX's structure: ``train``'s default
+#: (:mod:`pinn_mpc.model_choice`) weighs it against the ARX where the ARX beats the hybrid.
+CONSISTENT_ARX = "pcnn-parx"
+
 #: The architectures ``compare`` trains, in its order: the default, then the paper's
 #: networks from the most physical (PhysNet) to the plain MLP.
 COMPARED_ARCHS = (DEFAULT_ARCH, *reversed(ARCHS))
