@@ -20,6 +20,8 @@ from typing import Any
 
 import torch
 
+__all__ = ["generator_from_state", "reduce_generator"]
+
 
 def generator_from_state(
     device: torch.device, initial_seed: int, offset: int | None, state: torch.Tensor
