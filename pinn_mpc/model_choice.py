@@ -32,7 +32,7 @@ Where the ARX is taken, the physically consistent network on its structure
 system, a network for the heat no controller changes) is trained on the same three quarters and
 judged the same way, and taken, trained on all the data, where it errs less than the ARX. The
 consistent PhysNet (``pcnn``) is not a candidate: it would add a network's training to every
-building, and where it erred less than the hybrid the two ARX candidates erred less still.
+building (``docs/concepts.md`` says what was measured).
 
 Where even the chosen model errs more than :data:`ROUGH_MAE_C` on the held-out quarter,
 :attr:`ModelChoice.caution` says so (``train`` prints it): neither candidate predicts this data
