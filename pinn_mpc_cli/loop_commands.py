@@ -230,7 +230,7 @@ def _online_closed_loop(a: argparse.Namespace) -> str:
     with one_torch_thread():
         result = run_online(
             scenario, data, days=a.days, seed=a.seed, out_dir=a.online, settings=settings,
-            resume=a.resume, weather_part=a.weather_part,
+            resume=a.resume, weather_part=a.weather_part, warn_weekdays=True,
         )
     if a.csv is not None:
         write_timeseries(result.trajectory, a.csv)

@@ -173,3 +173,25 @@ def test_a_heat_pumps_refits_see_its_cop_and_qp_mpc_runs_on_the_rc_alone(tmp_pat
     assert [d["controller"] for d in days] == ["rc", "rc"]
     fallback = result.trajectory["fallback"].to_numpy()
     assert days[0]["own_decisions_share"] == pytest.approx(1.0 - fallback[: scenario.steps_per_day].mean())
+
+
+def test_data_moved_by_days_that_change_their_weekdays_are_warned_about():
+    """``retimed`` moves the data at hand to end right before the run by whole days; where the
+    move is not a whole number of weeks, a Friday's rows become another day's, and the command
+    line (``warn_weekdays``) says which; a move by whole weeks keeps every weekday and says
+    nothing."""
+    import warnings
+
+    from pinn_mpc.errors import PinnMpcWarning
+    from scenarios.running.online import retimed
+
+    data = pd.DataFrame({"time": pd.date_range("2023-01-04", periods=3 * 48, freq="30min")})  # Wed-Fri
+    monday = pd.Timestamp("2023-01-09")  # the run's first interval
+    with pytest.warns(PinnMpcWarning, match="moved by 2 days .* a Friday, is taken as a Sunday"):
+        moved = retimed(data, monday, 1800.0, warn_weekdays=True)
+    assert moved["time"].iloc[-1] + pd.Timedelta(minutes=30) == monday
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        retimed(data, monday, 1800.0)  # the library's callers (a sweep's cell) are not told
+        weeks = retimed(data, pd.Timestamp("2023-01-14"), 1800.0, warn_weekdays=True)  # 7 days
+    assert (weeks["time"].dt.day_name() == data["time"].dt.day_name()).all()

@@ -60,7 +60,7 @@ import pandas as pd
 from controllers.base import Controller
 from controllers.thermostat import Thermostat
 from pinn_mpc.data import COLUMNS, validate_timeseries, write_timeseries
-from pinn_mpc.errors import InputError, InternalError
+from pinn_mpc.errors import InputError, InternalError, warn
 from pinn_mpc.io import atomic_write, atomic_write_json, atomic_write_text, written_together
 from pinn_mpc.training import TrainConfig
 from scenarios.choices import MODEL_CONTROLLERS, ONLINE_CONTROLLERS
@@ -165,9 +165,12 @@ def _takeover_steps(run: RunInputs, steps_per_day: int) -> int:
     return max(1, round(TAKEOVER_H * steps_per_day / 24))
 
 
-def retimed(data: pd.DataFrame, first_time: pd.Timestamp, dt_s: float) -> pd.DataFrame:
+def retimed(
+    data: pd.DataFrame, first_time: pd.Timestamp, dt_s: float, *, warn_weekdays: bool = False
+) -> pd.DataFrame:
     """``data``'s rows moved by whole days so that they end right before ``first_time`` (the
-    run's first interval); its clock must agree with the run's."""
+    run's first interval); its clock must agree with the run's. ``warn_weekdays``: warn when
+    the move is not a whole number of weeks (the rows' weekdays then change)."""
     times = pd.to_datetime(data["time"])
     after = times.iloc[-1] + pd.Timedelta(seconds=dt_s)
     shift = first_time - after
@@ -176,6 +179,16 @@ def retimed(data: pd.DataFrame, first_time: pd.Timestamp, dt_s: float) -> pd.Dat
             f"online: the data set's last interval ends at {after.time()}, the run starts at "
             f"{first_time.time()}; give data whose rows end at the run's time of day (whole days "
             "from midnight, as `pinn-mpc simulate` writes)"
+        )
+    days = shift // pd.Timedelta(days=1)
+    if warn_weekdays and days % 7:
+        last = times.iloc[-1]
+        warn(
+            f"online: the data set's rows are moved by {days} days to end right before the run, "
+            f"so its last day, a {last.day_name()}, is taken as a {(last + shift).day_name()}: a "
+            "building whose schedules follow the week (an office) is learned on shifted weekdays "
+            "until the run's own days replace them; give data that end right before the run, or "
+            "a whole number of weeks before it"
         )
     out = data.copy()
     out["time"] = times + shift
@@ -413,18 +426,20 @@ def run_online(
     settings: OnlineSettings = OnlineSettings(),
     resume: bool = False,
     weather_part: str = "test",
+    warn_weekdays: bool = False,
 ) -> OnlineResult:
     """Run the online controller (module docstring) for ``days`` days of service after a
     one-day warm-up under the thermostat, keeping its state in ``out_dir``.
 
     ``data``: the validated data set at hand (None: none); ``resume``: continue the run
     ``out_dir`` holds (the same scenario, days, seed, settings and data), else ``out_dir`` must
-    hold no run. Raises InputError on a mismatch."""
+    hold no run; ``warn_weekdays``: warn when ``data`` are moved by days that change their
+    weekdays (:func:`retimed`). Raises InputError on a mismatch."""
     out = Path(out_dir)
     run = prepare_run(scenario, days=days, seed=seed, warmup_steps=None, weather_part=weather_part)
     spd, dt_s = scenario.steps_per_day, float(scenario.sim.dt_s)
     first = pd.Timestamp(run.exo["time"].iloc[0])
-    before = None if data is None or len(data) == 0 else retimed(data, first, dt_s)
+    before = None if data is None or len(data) == 0 else retimed(data, first, dt_s, warn_weekdays=warn_weekdays)
     config = replace(settings.config, eta=scenario.sim.params.eta, first_seed=seed,
                      u_max_w=scenario.control_spec().actuator.upper_w)
     identity = {
