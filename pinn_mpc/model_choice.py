@@ -176,10 +176,15 @@ def choose_model(df: pd.DataFrame, config: TrainConfig, *, progress: bool = Fals
     fitted, held_out, starts, horizon = split
     t_r = held_out["T_r"].to_numpy(dtype=float)
     truth = t_r[starts[:, None] + np.arange(1, horizon + 1)]  # (N, horizon)
-    hybrid = train_model(fitted, arch=DEFAULT_ARCH, config=config, progress=progress)
-    paths, hybrid_starts = recursive_paths(hybrid, held_out, horizon)
-    rows = np.searchsorted(hybrid_starts, starts)
-    errors = {DEFAULT_ARCH: float(np.mean(np.abs(paths.mean(axis=0)[rows] - truth)))}
+
+    def network_error(arch: str) -> float:
+        """The held-out error of the network ``arch`` trained on the first three quarters."""
+        network = train_model(fitted, arch=arch, config=config, progress=progress)
+        paths, network_starts = recursive_paths(network, held_out, horizon)
+        rows = np.searchsorted(network_starts, starts)
+        return float(np.mean(np.abs(paths.mean(axis=0)[rows] - truth)))
+
+    errors = {DEFAULT_ARCH: network_error(DEFAULT_ARCH)}
     try:
         parx = fit_physics_informed_arx(fitted, eta=config.eta)
         check_settles(parx, PHYSICS_ARX.name)  # as fit_linear requires
@@ -194,27 +199,23 @@ def choose_model(df: pd.DataFrame, config: TrainConfig, *, progress: bool = Fals
     arx_wins = errors[PHYSICS_ARX.name] <= AUTO_RATIO * errors[DEFAULT_ARCH] or hybrid_rough
     if arx_wins:  # the consistent network on the ARX's structure competes with the ARX
         try:
-            consistent = train_model(fitted, arch=CONSISTENT_ARX, config=config, progress=progress)
-            paths, consistent_starts = recursive_paths(consistent, held_out, horizon)
+            errors[CONSISTENT_ARX] = network_error(CONSISTENT_ARX)
         except InputError:
             errors[CONSISTENT_ARX] = math.inf
-        else:
-            rows = np.searchsorted(consistent_starts, starts)
-            errors[CONSISTENT_ARX] = float(np.mean(np.abs(paths.mean(axis=0)[rows] - truth)))
     order = (PHYSICS_ARX.name, DEFAULT_ARCH, CONSISTENT_ARX)
     said = f"mean error over {hours:g} h ahead on the last quarter: " + ", ".join(
         f"{name} {errors[name]:.3f} C" for name in order if name in errors
     )
-    if arx_wins and errors[CONSISTENT_ARX] < errors[PHYSICS_ARX.name]:
-        try:
-            model = train_model(df, arch=CONSISTENT_ARX, config=config, progress=progress)
-        except InputError as exc:  # its linear part does not settle on every day, on 3/4 it did
-            said = f"{said}; {CONSISTENT_ARX} trained on all the data: {exc}"
-        else:
-            return ModelChoice(
-                chosen=CONSISTENT_ARX, model=model, held_out_mae_c=errors, horizon_steps=horizon, why=said
-            )
     if arx_wins:
+        if errors[CONSISTENT_ARX] < errors[PHYSICS_ARX.name]:
+            try:
+                model = train_model(df, arch=CONSISTENT_ARX, config=config, progress=progress)
+            except InputError as exc:  # its linear part does not settle on every day, on 3/4 it did
+                said = f"{said}; {CONSISTENT_ARX} trained on all the data: {exc}"
+            else:
+                return ModelChoice(
+                    chosen=CONSISTENT_ARX, model=model, held_out_mae_c=errors, horizon_steps=horizon, why=said
+                )
         try:
             linear = fit_linear(PHYSICS_ARX.name, df, eta=config.eta)
         except InputError as exc:  # the fit on every day does not settle, that on 3/4 did
