@@ -219,7 +219,7 @@ def _online_closed_loop(a: argparse.Namespace) -> str:
                           ("--buildings", a.buildings != 1)):
         if given:
             raise InputError(f"{option} does not apply to --online: the controller fits its own from --data")
-    check_new_files({"json": a.json, "csv": a.csv}, force=a.force)  # the files it writes
+    _check_new_outputs(a)  # the files it writes beside DIR
     config = TrainConfig(
         **({} if a.online_seeds is None else {"n_seeds": a.online_seeds}),
         **({} if a.online_epochs is None else {"epochs": a.online_epochs}),
@@ -234,6 +234,10 @@ def _online_closed_loop(a: argparse.Namespace) -> str:
         )
     if a.csv is not None:
         write_timeseries(result.trajectory, a.csv)
+    if a.plot is not None:
+        from scenarios.reports.plots import plot_trajectory
+
+        plot_trajectory(result.trajectory, a.plot, title=f"{a.controller} online on {a.scenario}")
     kpis = with_scenario_file(result.kpis, a.scenario)
     if a.json is not None:
         atomic_write_json(a.json, kpis)
@@ -244,7 +248,7 @@ def _online_closed_loop(a: argparse.Namespace) -> str:
         f"{online['late_refits']} late refit(s); own decisions {100 * online['own_decisions_share']:.0f} %; "
         f"state in {a.online}",
     ]
-    return "\n".join([*lines, *_wrote(a.json, a.csv)])
+    return "\n".join([*lines, *_wrote(a.json, a.csv, a.plot)])
 
 
 def _check_new_outputs(a: argparse.Namespace) -> None:

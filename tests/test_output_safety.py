@@ -298,3 +298,17 @@ def test_the_library_names_the_settings_not_the_flags(tmp_path):
         "add force to replace it"
     )
     assert "--" not in str(refused.value)
+
+
+def test_an_online_runs_plot_is_drawn_and_an_existing_one_refused(tmp_path, capsys):
+    """closed-loop --online DIR --plot F draws the run's trajectory into F (it used to be
+    ignored without a word); an existing F is refused before DIR is made, as --json is."""
+    figure, run = tmp_path / "online.png", tmp_path / "run"
+    figure.write_bytes(b"my figure")
+    args = [*LOOP_1, "--controller", "qp-mpc", "--online", str(run), "--plot", str(figure)]
+    assert main(args) == 2
+    assert "--plot " in capsys.readouterr().err
+    assert _tree(tmp_path) == {"online.png": b"my figure"}
+    figure.unlink()
+    assert main(args) == 0, capsys.readouterr().err
+    assert figure.read_bytes().startswith(b"\x89PNG") and f"wrote {figure}" in capsys.readouterr().out
