@@ -556,6 +556,7 @@ def fit_multizone_arx(
         xa = np.concatenate([xs, ridge * np.eye(x.shape[1])])
         ya = np.concatenate([y, np.zeros(x.shape[1])])
         w = lsq_linear(xa, ya, bounds=(lower, np.full(x.shape[1], np.inf)), method="bvls").x / rms
+        w[: lags + n_pos] = np.maximum(w[: lags + n_pos], 0.0)  # BVLS may leave a bound at -1e-20
         one_step.append(float(np.mean(np.abs(x @ w - y))))
         i = 0
         coef["own"][z] = w[i : i + lags]
