@@ -312,3 +312,15 @@ def test_an_online_runs_plot_is_drawn_and_an_existing_one_refused(tmp_path, caps
     figure.unlink()
     assert main(args) == 0, capsys.readouterr().err
     assert figure.read_bytes().startswith(b"\x89PNG") and f"wrote {figure}" in capsys.readouterr().out
+
+
+def test_an_online_run_on_a_zoned_building_is_refused_in_one_line(tmp_path, capsys):
+    """closed-loop --online on a building of several zones stopped with an internal error (its
+    refits fit one zone); it is refused in one line, as the sweep refuses such cells, before
+    DIR is made."""
+    run = tmp_path / "run"
+    args = ["closed-loop", "--scenario", "two_zone_house", "--days", "1", "--controller", "cem", "--online", str(run)]
+    assert main(args) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "'two_zone_house' has 2 zones" in err, err
+    assert not run.exists()

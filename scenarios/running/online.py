@@ -435,6 +435,12 @@ def run_online(
     ``out_dir`` holds (the same scenario, days, seed, settings and data), else ``out_dir`` must
     hold no run; ``warn_weekdays``: warn when ``data`` are moved by days that change their
     weekdays (:func:`retimed`). Raises InputError on a mismatch."""
+    zones = scenario.control_spec().zones
+    if len(zones) > 1:  # what the sweep refuses too: its refits fit one zone
+        raise InputError(
+            f"online: runs on buildings of one zone (the RC plants or EnergyPlus merged); "
+            f"{scenario.name!r} has {len(zones)} zones: run it without online operation"
+        )
     out = Path(out_dir)
     run = prepare_run(scenario, days=days, seed=seed, warmup_steps=None, weather_part=weather_part)
     spd, dt_s = scenario.steps_per_day, float(scenario.sim.dt_s)
