@@ -1,0 +1,85 @@
+"""Each stored model's T_r error h intervals ahead on held-out days: the models a sweep trained
+(its ``models/`` folder) predicting days of the test part of the weather that no model saw, by
+family, building and training days (mean over seeds and the worst seed), with each family's
+error over parx's (issue 44's accuracy criterion).
+
+    PYTHONPATH=. python benchmarks/held_out_errors.py --sweep eplus_consistent \\
+        --spec sweeps/eplus_consistent.toml --days 7 --horizon 24
+
+The held-out days are simulated as the training days were (the scenario's data policy) on the
+weather's test part with seed s + 1 for the models trained with seed s, so the data differ from
+the training data in their days, their weather and their policy's draws. The error is what
+``pinn-mpc evaluate`` reports at the horizon (``horizons[h].T_r_mae``): every start of the
+held-out days, each model's recursive prediction from the measured history.
+"""
+
+from __future__ import annotations
+
+import argparse
+import re
+import statistics
+from collections import defaultdict
+from pathlib import Path
+
+import pandas as pd
+
+from pinn_mpc.fitted import load
+from pinn_mpc.models.arx import ARXModel
+from pinn_mpc.models.learned import LearnedModel
+from pinn_mpc_cli.model_commands import _arx_metrics, _network_metrics
+from scenarios.experiments.sweep.spec import read_sweep_spec
+from scenarios.inputs.scenario_file import get_scenario
+from scenarios.running.datagen import generate
+
+__all__: list[str] = []
+
+#: A stored model's folder: <scenario>[-<hash>]--<arch>--seed<s>--train<d>.
+MODEL_DIR = re.compile(r"^(?P<scenario>.+?)(?:-[0-9a-f]{12})?--(?P<arch>[a-z0-9-]+)--seed(?P<seed>\d+)--train(?P<days>\d+)$")
+
+
+def main() -> None:
+    """Parse the arguments, evaluate every stored model, print the table."""
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--sweep", required=True, help="a sweep's output folder (its models/)")
+    p.add_argument("--spec", required=True, help="the sweep's definition (its scenarios)")
+    p.add_argument("--days", type=int, default=7, help="held-out days per seed (default 7)")
+    p.add_argument("--horizon", type=int, default=24, help="intervals ahead (default 24)")
+    a = p.parse_args()
+    scenarios = {}
+    for ref in read_sweep_spec(a.spec)["scenarios"].split(","):  # files relative to the spec
+        sc = get_scenario(ref)
+        scenarios[sc.name] = sc
+    held: dict[tuple[str, int], pd.DataFrame] = {}
+    errors: dict[tuple[str, str, int], dict[int, float]] = defaultdict(dict)
+    args = argparse.Namespace(horizons=[a.horizon], data="held-out days")
+    for folder in sorted((Path(a.sweep) / "models").iterdir()):
+        m = MODEL_DIR.match(folder.name)
+        if m is None or m["arch"] == "rc" or m["scenario"] not in scenarios:
+            continue
+        name, seed = m["scenario"], int(m["seed"])
+        sc = scenarios[name]
+        if (name, seed) not in held:
+            held[name, seed] = generate(sc, days=a.days, seed=seed + 1, policy=sc.data_policy, weather_part="test")
+        model = load(folder)
+        df = held[name, seed]
+        if isinstance(model, ARXModel):
+            metrics = _arx_metrics(model, df, args)
+        elif isinstance(model, LearnedModel):
+            metrics = _network_metrics(model, df, args)
+        else:
+            continue
+        mae = metrics["horizons"][str(a.horizon)]["T_r_mae"]
+        errors[name, m["arch"], int(m["days"])][seed] = mae
+        print(f"{folder.name}: {mae:.3f} C", flush=True)
+    print()
+    print(f"| building | family | training days | seeds | T_r error {a.horizon} ahead, mean (worst) [C] | / parx's (mean) |")
+    print("|---|---|---|---|---|---|")
+    for (name, arch, days), by_seed in sorted(errors.items()):
+        mean = statistics.fmean(by_seed.values())
+        parx = errors.get((name, "parx", days), {})
+        ratio = f"{mean / statistics.fmean(parx.values()):.3f}" if parx else ""
+        print(f"| {name} | {arch} | {days} | {len(by_seed)} | {mean:.3f} ({max(by_seed.values()):.3f}) | {ratio} |")
+
+
+if __name__ == "__main__":
+    main()
