@@ -21,12 +21,13 @@ import statistics
 from collections import defaultdict
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
+from pinn_mpc.evaluation import evaluate_model
 from pinn_mpc.fitted import load
 from pinn_mpc.models.arx import ARXModel
 from pinn_mpc.models.learned import LearnedModel
-from pinn_mpc_cli.model_commands import _arx_metrics, _network_metrics
 from scenarios.experiments.sweep.spec import read_sweep_spec
 from scenarios.inputs.scenario_file import get_scenario
 from scenarios.running.datagen import generate
@@ -51,7 +52,6 @@ def main() -> None:
         scenarios[sc.name] = sc
     held: dict[tuple[str, int], pd.DataFrame] = {}
     errors: dict[tuple[str, str, int], dict[int, float]] = defaultdict(dict)
-    args = argparse.Namespace(horizons=[a.horizon], data="held-out days")
     for folder in sorted((Path(a.sweep) / "models").iterdir()):
         m = MODEL_DIR.match(folder.name)
         if m is None or m["arch"] == "rc" or m["scenario"] not in scenarios:
@@ -61,14 +61,15 @@ def main() -> None:
         if (name, seed) not in held:
             held[name, seed] = generate(sc, days=a.days, seed=seed + 1, policy=sc.data_policy, weather_part="test")
         model = load(folder)
-        df = held[name, seed]
-        if isinstance(model, ARXModel):
-            metrics = _arx_metrics(model, df, args)
+        df, h = held[name, seed], a.horizon
+        if isinstance(model, ARXModel):  # as evaluate: every start its lags allow
+            starts = np.arange(model.lags - 1, len(df) - h)
+            t_r = df["T_r"].to_numpy(dtype=float)
+            mae = float(np.mean(np.abs(model.predict_t_r(df, h, starts) - t_r[starts + h])))
         elif isinstance(model, LearnedModel):
-            metrics = _network_metrics(model, df, args)
+            mae = evaluate_model(model, df, [h])["horizons"][str(h)]["T_r_mae"]
         else:
             continue
-        mae = metrics["horizons"][str(a.horizon)]["T_r_mae"]
         errors[name, m["arch"], int(m["days"])][seed] = mae
         print(f"{folder.name}: {mae:.3f} C", flush=True)
     print()
