@@ -38,14 +38,15 @@ __all__: list[str] = []
 MODEL_DIR = re.compile(r"^(?P<scenario>.+?)(?:-[0-9a-f]{12})?--(?P<arch>[a-z0-9-]+)--seed(?P<seed>\d+)--train(?P<days>\d+)$")
 
 
-def main() -> None:
-    """Parse the arguments, evaluate every stored model, print the table."""
+def main(argv: list[str] | None = None) -> int:
+    """Parse the arguments (``argv``, default the command line's), evaluate every stored model,
+    print each one's error and the table."""
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--sweep", required=True, help="a sweep's output folder (its models/)")
     p.add_argument("--spec", required=True, help="the sweep's definition (its scenarios)")
     p.add_argument("--days", type=int, default=7, help="held-out days per seed (default 7)")
     p.add_argument("--horizon", type=int, default=24, help="intervals ahead (default 24)")
-    a = p.parse_args()
+    a = p.parse_args(argv)
     scenarios = {}
     for ref in read_sweep_spec(a.spec)["scenarios"].split(","):  # files relative to the spec
         sc = get_scenario(ref)
@@ -80,7 +81,8 @@ def main() -> None:
         parx = errors.get((name, "parx", days), {})
         ratio = f"{mean / statistics.fmean(parx.values()):.3f}" if parx else ""
         print(f"| {name} | {arch} | {days} | {len(by_seed)} | {mean:.3f} ({max(by_seed.values()):.3f}) | {ratio} |")
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())
