@@ -494,3 +494,32 @@ def test_a_fit_whose_room_never_settles_is_refused_when_fitted_not_when_loaded(t
     choice = choose_model(df, TrainConfig(n_seeds=1, epochs=2, eta=eta))
     save(choice.model, tmp_path / "model")
     load(tmp_path / "model")  # loads: what auto writes is never refused as damaged
+
+
+def test_physics_informed_arx_on_too_few_rows_for_its_lags_fits_fewer():
+    """Three days hold too few rows for any schedule with 8 lags (an online run's first nights):
+    the fit halves them to 4, the model a direct fit with 4 lags gives, and on the room of one
+    lag it predicts its days 24 steps ahead exactly; a week fits 8 lags as it did before the
+    fallback, and two days, too few for 2 lags, are still refused."""
+    from pinn_mpc.models.arx import (
+        DEFAULT_LAGS,
+        TooFewRowsError,
+        _physics_informed_fit,
+        fit_physics_informed_arx,
+    )
+
+    short = _occupied_data(3, seed=0)
+    with pytest.raises(TooFewRowsError):
+        _physics_informed_fit(short, lags=DEFAULT_LAGS, eta=1.0)
+    model = fit_physics_informed_arx(short)
+    assert model.lags == 4
+    np.testing.assert_array_equal(model.coef, fit_physics_informed_arx(short, lags=4).coef)
+    starts = np.arange(model.lags, len(short) - 24)
+    truth = short["T_r"].to_numpy()
+    assert np.max(np.abs(model.predict_t_r(short, 24, starts) - truth[starts + 24])) < 1e-3
+    week = _occupied_data(7, seed=0)
+    model = fit_physics_informed_arx(week)
+    assert model.lags == DEFAULT_LAGS
+    np.testing.assert_array_equal(model.coef, _physics_informed_fit(week, lags=DEFAULT_LAGS, eta=1.0).coef)
+    with pytest.raises(TooFewRowsError, match="too few"):
+        fit_physics_informed_arx(_occupied_data(2, seed=0))

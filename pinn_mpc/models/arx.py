@@ -72,9 +72,11 @@ __all__ = [
     "BLOCK_H",
     "DEFAULT_LAGS",
     "MEASURED_INPUTS",
+    "MIN_LAGS",
     "SELECTION_FOLDS",
     "SELECTION_HORIZON_S",
     "SELECTION_SHARE",
+    "TooFewRowsError",
     "fit_arx",
     "fit_linear",
     "fit_physics_informed_arx",
@@ -91,6 +93,10 @@ ARX_DIRECTORY = DirectoryLayout(kind="ARX model directory", files=(ARX_FILE,), m
 
 #: Lags of every input (4 h at 30-min intervals).
 DEFAULT_LAGS = 8
+#: The fewest lags the physics-informed ARX falls back to, halving :data:`DEFAULT_LAGS`, where
+#: the data are too few for the default's coefficients (a few days, an online run's first
+#: nights).
+MIN_LAGS = 2
 #: Length of one block of the daily schedule [h], unless a model says otherwise; the
 #: schedule has one coefficient per block for workdays, then one per block for weekends.
 BLOCK_H = 2.0
@@ -455,7 +461,7 @@ def fit_arx(
     n_coef = _n_coef(lags, len(columns), day_types, block_h, interaction, wind)
     k = np.arange(lags - 1, len(df) - 1) if rows is None else np.asarray(rows, dtype=int)
     if len(k) < 2 * n_coef:
-        raise InputError(
+        raise TooFewRowsError(
             f"ARX model: {len(k) + lags} rows are too few to fit {lags} lags of {len(columns)} "
             "inputs; give more days of data"
         )
@@ -471,6 +477,10 @@ def fit_arx(
     coef = np.linalg.solve(gram + _RIDGE * np.diag(np.diag(gram) + 1e-12), x.T @ y)
     mae = float(np.mean(np.abs(x @ coef - y))) / _SCALE["T_r"]
     return dataclasses.replace(model, coef=coef, train_mae_c=mae)
+
+
+class TooFewRowsError(InputError):
+    """The data hold too few rows for the ARX's coefficients (:func:`fit_arx`)."""
 
 
 def fit_physics_informed_arx(
@@ -517,6 +527,19 @@ def fit_physics_informed_arx(
     from pinn_mpc.identify import check_power_sign
 
     check_power_sign(df, eta, what=PHYSICS_ARX.name)
+    n_lags = lags
+    while True:
+        try:
+            return _physics_informed_fit(df, lags=n_lags, eta=eta)
+        except TooFewRowsError:  # no schedule fits so many lags: halve them, down to MIN_LAGS
+            if n_lags // 2 < MIN_LAGS:
+                raise
+            n_lags //= 2
+
+
+def _physics_informed_fit(df: pd.DataFrame, *, lags: int, eta: float) -> ARXModel:
+    """:func:`fit_physics_informed_arx` with ``lags`` lags; TooFewRowsError where no schedule
+    can be fitted with so many."""
     facades = ("I_g", *FACADE_COLUMNS) if all(c in df for c in FACADE_COLUMNS) else None
     wind = WIND in df
     choices = [
@@ -546,6 +569,8 @@ def fit_physics_informed_arx(
             except (InputError, np.linalg.LinAlgError) as exc:  # e.g. too few rows for it
                 failures.append(exc)
     if not fits:
+        if all(isinstance(f, TooFewRowsError) for f in failures):
+            raise failures[-1]
         raise failures[-1] if isinstance(failures[-1], InputError) else InputError(
             f"physics-informed ARX: no schedule could be fitted on the data ({failures[-1]})"
         )

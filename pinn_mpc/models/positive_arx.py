@@ -390,13 +390,17 @@ def fit_positive_arx(
     ``building``: how the building settles (from the RC identified from ``df``; None: not
     known), which the room's own dynamics are made to settle no slower than where the
     held-out data agree (module docstring). InputError when the constrained fits fail."""
-    from pinn_mpc.models.arx import fit_physics_informed_arx
+    from pinn_mpc.models.arx import TooFewRowsError, fit_physics_informed_arx
 
     if cop is not None:
         df = df.assign(u_phys=df["u_phys"].to_numpy(dtype=float) * cop)
     dt_s = float(df.attrs.get("dt_s", 1800.0))
     per_day = round(86400.0 / dt_s)
     structure = fit_physics_informed_arx(df.drop(columns=[WIND], errors="ignore"), lags=lags, eta=eta)
+    if structure.lags != lags:  # the ARX fell back to fewer lags: the data are too few for these
+        raise TooFewRowsError(
+            f"positive ARX: {len(df)} rows are too few for {lags} lags; give more days of data"
+        )
     design, inputs, n_days = _design(df, structure)
     blocks, block_h, n_own = design.blocks, structure.block_h, design.n_own
     first = _first_stage(design, MAX_OWN_SUM)
