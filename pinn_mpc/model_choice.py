@@ -204,7 +204,8 @@ def choose_model(df: pd.DataFrame, config: TrainConfig, *, progress: bool = Fals
             errors[CONSISTENT_ARX] = math.inf
     order = (PHYSICS_ARX.name, DEFAULT_ARCH, CONSISTENT_ARX)
     said = f"mean error over {hours:g} h ahead on the last quarter: " + ", ".join(
-        f"{name} {errors[name]:.3f} C" for name in order if name in errors
+        f"{name} {errors[name]:.3f} C" if math.isfinite(errors[name]) else f"{name} could not be fitted"
+        for name in order if name in errors
     )
     if arx_wins:
         if errors[CONSISTENT_ARX] < errors[PHYSICS_ARX.name]:
