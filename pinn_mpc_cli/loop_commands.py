@@ -234,13 +234,13 @@ def _online_closed_loop(a: argparse.Namespace) -> str:
         )
     if a.csv is not None:
         write_timeseries(result.trajectory, a.csv)
-    if a.plot is not None:
-        from scenarios.reports.plots import plot_trajectory
-
-        plot_trajectory(result.trajectory, a.plot, title=f"{a.controller} online on {a.scenario}")
     kpis = with_scenario_file(result.kpis, a.scenario)
     if a.json is not None:
         atomic_write_json(a.json, kpis)
+    if a.plot is not None:  # after the figures: a figure that fails loses none of them
+        from scenarios.reports.plots import plot_trajectory
+
+        plot_trajectory(result.trajectory, a.plot, title=f"{a.controller} online on {a.scenario}")
     online = result.kpis["online"]  # type: ignore[typeddict-item]
     lines = [
         format_kpis({**kpis, "scenario": scenario_label(a.scenario, scenario)}),

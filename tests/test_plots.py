@@ -125,6 +125,18 @@ def test_one_run_figure_uses_the_same_band_and_power(runs: dict[str, pd.DataFram
     assert ax_p.get_ylabel().startswith("price")
 
 
+@pytest.mark.parametrize("t_m", ["missing", "nan"])
+def test_a_run_without_a_hidden_mass_is_drawn_without_it(runs: dict[str, pd.DataFrame], t_m: str) -> None:
+    """EnergyPlus and BOPTEST runs have no T_m (an online run's trajectory no column at all,
+    which stopped `closed-loop --online --plot` with a KeyError): the figure draws T_r without it."""
+    traj = runs["qp-mpc / true RC"].drop(columns=["T_m"])
+    if t_m == "nan":
+        traj["T_m"] = np.nan
+    ax_t = trajectory_figure(traj).axes[0]
+    labels = [line.get_label() for line in ax_t.get_lines()]
+    assert "T_r (measured)" in labels and "T_m (true, hidden)" not in labels
+
+
 def test_plot_comparison_writes_a_png(runs: dict[str, pd.DataFrame], tmp_path: Path) -> None:
     path = plot_comparison(runs, tmp_path / "cmp.png", title="x")
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

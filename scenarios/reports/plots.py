@@ -178,15 +178,16 @@ def zones_figure(traj: pd.DataFrame, *, title: str = "") -> Figure:
 
 
 def trajectory_figure(traj: pd.DataFrame, *, title: str = "") -> Figure:
-    """One run: T_r with the band and the hidden T_m; power demanded and delivered; price (a
-    building of several zones: :func:`zones_figure`)."""
+    """One run: T_r with the band and the hidden T_m (where the plant has one); power demanded
+    and delivered; price (a building of several zones: :func:`zones_figure`)."""
     if len(zones_in(traj.columns)) > 1:
         return zones_figure(traj, title=title)
     fig, axes = new_figure(3, 1, figsize=(11, 7), height_ratios=(2, 1.2, 0.7), sharex=True)
     ax_t, ax_u, ax_p = axes[:, 0]
     draw_band(ax_t, traj)
     draw_room(ax_t, traj, "T_r (measured)", color="tab:red")
-    ax_t.plot(traj["time"], traj["T_m"], color="tab:brown", ls="--", label="T_m (true, hidden)")
+    if "T_m" in traj and traj["T_m"].notna().any():  # EnergyPlus and BOPTEST have none
+        ax_t.plot(traj["time"], traj["T_m"], color="tab:brown", ls="--", label="T_m (true, hidden)")
     ax_t.set_ylabel("temperature [C]")
     draw_power(ax_u, traj, "demanded u", column="u", lw=3, alpha=0.4, color="tab:blue")
     draw_power(ax_u, traj, "delivered u_phys", color="tab:blue")
