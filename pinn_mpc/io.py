@@ -44,6 +44,7 @@ __all__ = [
     "output_lock",
     "setting_changes",
     "staged",
+    "written_at_once",
     "written_together",
 ]
 
@@ -119,6 +120,19 @@ def written_together() -> Iterator[None]:
     with _interrupt_deferred():
         for tmp, target in pending:
             os.replace(tmp, target)
+
+
+@contextlib.contextmanager
+def written_at_once() -> Iterator[None]:
+    """Inside a :func:`written_together` block, write every file :func:`atomic_write` writes in
+    this block into place as it is written (each still atomically), not when the outer block
+    ends: what a long run saves to survive an interruption (an online run's state each night)
+    must be on disk before the interruption, not held for the command's last files."""
+    token = _BATCH.set(None)
+    try:
+        yield
+    finally:
+        _BATCH.reset(token)
 
 
 def staged(path: PathArg) -> Path:

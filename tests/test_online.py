@@ -195,3 +195,49 @@ def test_data_moved_by_days_that_change_their_weekdays_are_warned_about():
         retimed(data, monday, 1800.0)  # the library's callers (a sweep's cell) are not told
         weeks = retimed(data, pd.Timestamp("2023-01-14"), 1800.0, warn_weekdays=True)  # 7 days
     assert (weeks["time"].dt.day_name() == data["time"].dt.day_name()).all()
+
+
+@pytest.mark.slow
+def test_ctrl_c_of_the_command_leaves_its_state_and_resume_gives_the_uninterrupted_figures(tmp_path, data_3_days):
+    """`closed-loop --online` through the command line: its state goes to DIR night by night
+    (the command's written-together outputs used to hold it back until the end, so a Ctrl-C
+    left nothing to resume); interrupted after two nights and resumed, its KPI JSON is an
+    uninterrupted command's, and no temporary file is left in DIR."""
+    import _thread
+    import threading
+    import time
+
+    from pinn_mpc.data import write_timeseries
+    from pinn_mpc_cli.cli import INTERRUPT_EXIT, main
+
+    data = tmp_path / "d.csv"
+    write_timeseries(data_3_days, data)
+    args = ["closed-loop", "--scenario", SCENARIO, "--controller", "cem", "--data", str(data), "--days", "3",
+            "--seed", "0", "--online-seeds", "2", "--online-epochs", "2", "--json"]
+    assert main([*args, str(tmp_path / "whole.json"), "--online", str(tmp_path / "whole")]) == 0
+    run, state = [*args, str(tmp_path / "run.json"), "--online", str(tmp_path / "run")], tmp_path / "run" / "state.json"
+    running = threading.Event()
+    running.set()
+
+    def interrupt_after_two_nights() -> None:  # only while the command runs
+        while running.is_set():
+            if state.is_file() and json.loads(state.read_text())["step"] > 48 * 2:
+                _thread.interrupt_main()
+                return
+            time.sleep(0.01)
+
+    watcher = threading.Thread(target=interrupt_after_two_nights, daemon=True)
+    watcher.start()
+    try:
+        status = main(run)
+        running.clear()
+        watcher.join()
+    except KeyboardInterrupt:  # one that came after the command had ended: it never stopped
+        status = 0
+    assert status == INTERRUPT_EXIT, "the command ran to its end: its state was not on disk mid-run"
+    assert 48 * 2 < json.loads(state.read_text())["step"] < 48 * 4
+    assert not (tmp_path / "run.json").exists() and not list((tmp_path / "run").glob(".*.tmp"))
+    assert main([*run, "--resume"]) == 0
+    whole, resumed = (json.loads((tmp_path / name).read_text()) for name in ("whole.json", "run.json"))
+    assert _figures(resumed) == _figures(whole)
+    assert not list((tmp_path / "run").glob(".*.tmp"))
