@@ -22,7 +22,7 @@ def export_rc(model: LearnedModel, *, source: str) -> RcSummary:
     if coef is None:
         raise InputError(
             f"model is a plain {model.arch}: it has no physics block to export; "
-            "train physreg or physnet, or use `pinn-mpc identify`"
+            "train physreg, physnet or hybrid, or use `pinn-mpc identify`"
         )
     try:
         params = physics.from_coefficients(coef, eta=model.eta)
