@@ -24,7 +24,6 @@ from pinn_mpc.io import (
     check_distinct,
     check_new_files,
     check_writable,
-    written_at_once,
     written_together,
 )
 from pinn_mpc.zones import zone_columns, zones_in
@@ -228,9 +227,7 @@ def _online_closed_loop(a: argparse.Namespace) -> str:
     settings = OnlineSettings(controller=a.controller, retrain_every_days=a.retrain_every, config=config)
     data = None if a.data is None else read_timeseries(a.data)
     scenario = get_scenario(a.scenario)
-    # Its state goes to DIR night by night, so that Ctrl-C leaves a run to resume; the JSON,
-    # CSV and figure after it are written together.
-    with one_torch_thread(), written_at_once():
+    with one_torch_thread():
         result = run_online(
             scenario, data, days=a.days, seed=a.seed, out_dir=a.online, settings=settings,
             resume=a.resume, weather_part=a.weather_part, warn_weekdays=True,

@@ -61,7 +61,13 @@ from controllers.base import Controller
 from controllers.thermostat import Thermostat
 from pinn_mpc.data import COLUMNS, validate_timeseries, write_timeseries
 from pinn_mpc.errors import InputError, InternalError, warn
-from pinn_mpc.io import atomic_write, atomic_write_json, atomic_write_text, written_together
+from pinn_mpc.io import (
+    atomic_write,
+    atomic_write_json,
+    atomic_write_text,
+    written_at_once,
+    written_together,
+)
 from pinn_mpc.training import TrainConfig
 from scenarios.choices import MODEL_CONTROLLERS, ONLINE_CONTROLLERS
 from scenarios.inputs.exogenous import day_span
@@ -400,10 +406,12 @@ class _Online:
         return frame
 
     def checkpoint(self, loop: ClosedLoop, state: _State) -> None:
-        """Everything so far, written together (each file atomically)."""
+        """Everything so far, written together (each file atomically) and on disk when this
+        returns, even inside a caller's :func:`~pinn_mpc.io.written_together` block (the
+        command's outputs): a run interrupted later resumes from here."""
         rec, k = loop.record(), loop.k
         state.step = k
-        with written_together():
+        with written_at_once(), written_together():
             write_timeseries(self.observed(loop), self.out / _OBSERVED)
             atomic_write(self.out / _ARRAYS, lambda tmp: _save_arrays(tmp, rec, self.own[:k], self.mode[:k]))
             atomic_write_text(self.out / _LOG, "".join(json.dumps(e) + "\n" for e in state.log))
