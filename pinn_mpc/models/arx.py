@@ -283,6 +283,16 @@ class ARXModel(FittedModel):
             raise InternalError(f"ARX model: a prediction needs a horizon of at least 1 step, got {horizon}")
         return self.predict_path(df, horizon, starts)[:, -1]
 
+    def horizon_mae(self, df: pd.DataFrame, horizon: int) -> float | None:
+        """The mean absolute error [K] of :meth:`predict_t_r` ``horizon`` steps ahead on
+        ``df``, from every start its lags allow (``evaluate``'s figure); None where ``df`` is
+        too short for any."""
+        starts = np.arange(self.lags - 1, len(df) - horizon)
+        if not starts.size:
+            return None
+        truth = df["T_r"].to_numpy(dtype=float)[starts + horizon]
+        return float(np.mean(np.abs(self.predict_t_r(df, horizon, starts) - truth)))
+
     def predict_path(self, df: pd.DataFrame, horizon: int, starts: np.ndarray) -> np.ndarray:
         """``T_r`` [C] at ``starts + 1`` .. ``starts + horizon`` (N, horizon): the recursion of
         :meth:`predict_t_r`, every step of it."""
@@ -569,8 +579,6 @@ def _physics_informed_fit(df: pd.DataFrame, *, lags: int, eta: float) -> ARXMode
             except (InputError, np.linalg.LinAlgError) as exc:  # e.g. too few rows for it
                 failures.append(exc)
     if not fits:
-        if all(isinstance(f, TooFewRowsError) for f in failures):
-            raise failures[-1]
         raise failures[-1] if isinstance(failures[-1], InputError) else InputError(
             f"physics-informed ARX: no schedule could be fitted on the data ({failures[-1]})"
         )
