@@ -56,6 +56,27 @@ def test_arx_predicts_a_linear_plant(measured_gains, tolerance_c):
     assert set(model.to_dict()) >= {"kind", "columns", "lags", "coef", "dt_s"}
 
 
+def test_a_planned_prediction_takes_the_demand_from_its_start_and_the_delivered_before():
+    """``planned``: the power from each start on is the demanded ``u`` (as a network's
+    rollout and a planner take it), the history's the delivered ``u_phys``. On data where the
+    two differ (a backup heater that delivers what was not demanded), the planned prediction
+    is the ordinary one on data whose delivered power from the start on is the demand."""
+    model = fit_arx(_rc_data(21, seed=0, measured_gains=True), lags=4)
+    test = _rc_data(7, seed=1, measured_gains=True)
+    rng = np.random.default_rng(2)
+    test["u_phys"] = test["u"] + rng.choice([0.0, 3000.0], len(test), p=[0.8, 0.2])
+    start, horizon = 100, 24
+    planned = model.predict_path(test, horizon, np.array([start]), planned=True)
+    as_demanded = test.copy()
+    as_demanded.loc[start:, "u_phys"] = as_demanded.loc[start:, "u"]
+    np.testing.assert_allclose(planned, model.predict_path(as_demanded, horizon, np.array([start])), rtol=0, atol=1e-12)
+    assert not np.allclose(planned, model.predict_path(test, horizon, np.array([start])))
+    assert model.horizon_mae(test, horizon, planned=True) == pytest.approx(float(np.mean(np.abs(
+        model.predict_t_r(test, horizon, np.arange(3, len(test) - horizon), planned=True)
+        - test["T_r"].to_numpy()[np.arange(3, len(test) - horizon) + horizon]
+    ))))
+
+
 def test_arx_refuses_short_data_and_out_of_range_starts():
     with pytest.raises(InputError, match="too few"):
         fit_arx(_rc_data(1, seed=0))

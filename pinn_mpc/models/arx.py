@@ -274,28 +274,34 @@ class ARXModel(FittedModel):
         )
         return values, _schedule(df, self.day_types, self.block_h)
 
-    def predict_t_r(self, df: pd.DataFrame, horizon: int, starts: np.ndarray) -> np.ndarray:
+    def predict_t_r(
+        self, df: pd.DataFrame, horizon: int, starts: np.ndarray, *, planned: bool = False
+    ) -> np.ndarray:
         """``T_r`` [C] at ``starts + horizon`` (N,): the model's own recursion from the
-        measured ``T_r`` up to each start, on the data's delivered power and weather.
+        measured ``T_r`` up to each start, on the data's delivered power and weather
+        (``planned``: the power from each start on is the demanded ``u``, as a planner gives
+        it and as a network's rollout takes it; the history's is the delivered).
         Every start must have ``lags - 1`` rows before it; data at another interval than the
         model's (``df.attrs["dt_s"]``) is refused (InputError)."""
         if horizon < 1:
             raise InternalError(f"ARX model: a prediction needs a horizon of at least 1 step, got {horizon}")
-        return self.predict_path(df, horizon, starts)[:, -1]
+        return self.predict_path(df, horizon, starts, planned=planned)[:, -1]
 
-    def horizon_mae(self, df: pd.DataFrame, horizon: int) -> float | None:
+    def horizon_mae(self, df: pd.DataFrame, horizon: int, *, planned: bool = False) -> float | None:
         """The mean absolute error [K] of :meth:`predict_t_r` ``horizon`` steps ahead on
-        ``df``, from every start its lags allow (``evaluate``'s figure); None where ``df`` is
-        too short for any."""
+        ``df`` (``planned`` as there), from every start its lags allow (``evaluate``'s figure,
+        on the delivered power); None where ``df`` is too short for any."""
         starts = np.arange(self.lags - 1, len(df) - horizon)
         if not starts.size:
             return None
         truth = df["T_r"].to_numpy(dtype=float)[starts + horizon]
-        return float(np.mean(np.abs(self.predict_t_r(df, horizon, starts) - truth)))
+        return float(np.mean(np.abs(self.predict_t_r(df, horizon, starts, planned=planned) - truth)))
 
-    def predict_path(self, df: pd.DataFrame, horizon: int, starts: np.ndarray) -> np.ndarray:
+    def predict_path(
+        self, df: pd.DataFrame, horizon: int, starts: np.ndarray, *, planned: bool = False
+    ) -> np.ndarray:
         """``T_r`` [C] at ``starts + 1`` .. ``starts + horizon`` (N, horizon): the recursion of
-        :meth:`predict_t_r`, every step of it."""
+        :meth:`predict_t_r` (``planned`` as there), every step of it."""
         if "dt_s" in df.attrs:
             check_interval(self.dt_s, float(df.attrs["dt_s"]), what="the data has")
         starts = np.asarray(starts, dtype=int)
@@ -304,6 +310,7 @@ class ARXModel(FittedModel):
                 f"ARX model: starts must lie in {self.lags - 1} .. {len(df) - 1 - horizon}"
             )
         values, sched = self._inputs(df)
+        demand = df["u"].to_numpy(dtype=float) * _SCALE["u_phys"] if planned else None
         wind = self._wind(df) * self._wind_coef
         n_lag = self.lags * len(self.columns)
         a_tr = self.coef[0:n_lag:len(self.columns)]  # weights of T_r,k-j
@@ -315,6 +322,10 @@ class ARXModel(FittedModel):
         for step in range(horizon):
             k = starts + step
             reg = self._regressors(values, k)
+            if demand is not None:  # the power from the start on: the demand
+                for j in range(self.lags):
+                    ahead = k - j >= starts
+                    reg[ahead, j * len(self.columns) + 1] = demand[(k - j)[ahead]]
             other = reg @ self.coef[:n_lag] - reg[:, 0::len(self.columns)] @ a_tr
             t_next = (
                 other + t_hist @ a_tr + sched[k] @ s_coef
