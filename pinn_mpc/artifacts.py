@@ -230,7 +230,9 @@ def load_model(path: str | os.PathLike[str]) -> LearnedModel:
         generators=[torch.Generator().manual_seed(0)],
     )
     expected = {k: (n_members, *v.shape[1:]) for k, v in one.state_dict().items()}
-    _check_sizes(directory, shapes, expected)
+    # Terms added to an architecture later, which a model saved before them has without (zero).
+    later = {f"net.{n}" for n in getattr(one.net, "ZERO_WHEN_ABSENT", ())} - set(shapes)
+    _check_sizes(directory, shapes, {k: v for k, v in expected.items() if k not in later})
     try:
         state = load_file(str(directory / WEIGHTS))
     except Exception as exc:  # safetensors raises its own error types for bad headers/sizes
@@ -238,6 +240,7 @@ def load_model(path: str | os.PathLike[str]) -> LearnedModel:
     for name, tensor in state.items():
         if not torch.isfinite(tensor).all():
             raise ModelFileError(f"{directory / WEIGHTS}: tensor {name} has non-finite values")
+    state.update({name: torch.zeros(expected[name]) for name in later})
     gens = [torch.Generator().manual_seed(0) for _ in range(n_members)]
     module = EnsembleModule(
         meta["arch"],

@@ -460,3 +460,85 @@ def test_without_a_cop_column_the_heat_is_the_power(arch: str) -> None:
     finally:
         net.set_cop(None, heating=True)
     assert np.array_equal(base, unit)
+
+
+#: The wind's infiltration weight [1/(m/s)] of the windy house below.
+WIND_LOSS = 4e-3
+
+
+@functools.lru_cache(maxsize=1)
+def _windy_data() -> pd.DataFrame:
+    """winter_household's inputs (14 days) with a wind speed, and a room that follows a
+    first-order recursion whose loss grows with the wind: ``T_r,k+1 = T_r,k + 0.02 (T_a,k -
+    T_r,k) + WIND_LOSS wind_k (T_a,k - t_ref) + 1.5e-4 K/W u_phys,k``, with ``t_ref`` the
+    room's mean (found by fixed point), the positive ARX's own form."""
+    df = _data("winter_household").copy()
+    rng = np.random.default_rng(5)
+    wind = np.convolve(rng.gamma(2.0, 2.0, len(df) + 11), np.ones(12) / 12, mode="valid")
+    t_a, u = df["T_a"].to_numpy(dtype=float), df["u_phys"].to_numpy(dtype=float)
+    t_ref = 20.0
+    for _ in range(100):
+        t_r = np.empty(len(df))
+        t_r[0] = 20.0
+        for k in range(len(df) - 1):
+            t_r[k + 1] = t_r[k] + 0.02 * (t_a[k] - t_r[k]) + WIND_LOSS * wind[k] * (t_a[k] - t_ref) + 1.5e-4 * u[k]
+        if abs(t_r.mean() - t_ref) < 1e-12:
+            break
+        t_ref = float(t_r.mean())
+    out = df.assign(T_r=t_r, wind=wind)
+    out.attrs = dict(df.attrs)
+    return out
+
+
+def test_positive_arx_finds_the_wind_s_infiltration() -> None:
+    """On a room whose loss grows with the wind (its recursion the fit's own form), the fit
+    finds the wind's weight and the room's mean temperature, and its responses stay
+    certified; on the same room without the wind column there is no such term."""
+    df = _windy_data()
+    fit = fit_positive_arx(df, eta=1.0)
+    assert fit.wind_loss == pytest.approx(WIND_LOSS, rel=0.02)
+    assert fit.t_ref == pytest.approx(float(df["T_r"].mean()), abs=1e-9)
+    _assert_responses_non_negative(fit)
+    assert fit_positive_arx(df.drop(columns=["wind"]), eta=1.0).wind_loss == 0.0
+
+
+def test_pcnn_parx_with_the_wind_stays_consistent() -> None:
+    """pcnn-parx trained on the windy house (its wind term non-zero) predicts every T_r
+    non-decreasing in each power and outdoor temperature on random draws."""
+    df = _windy_data()
+    model = train_model(df, arch="pcnn-parx", config=TrainConfig(n_seeds=2, epochs=10, eta=1.0), progress=False)
+    assert float(model.module.net.wind_loss[0, 0]) > 0.0
+    for seed in range(20):
+        d = draw(np.random.default_rng(seed), n_rows=len(df), first=64, horizon=HORIZON, u_max_w=float(df["u_phys"].max()))
+        assert check_draw(model, df, d) == (True, True), seed
+
+
+def test_a_pcnn_parx_saved_before_the_wind_term_loads_without_it(tmp_path) -> None:
+    """A model file without the wind's buffer (saved before the term existed) loads, with the
+    term zero, and rolls out as the same model with the term zeroed."""
+    import json
+
+    from safetensors.torch import load_file, save_file
+
+    from pinn_mpc.consistency import history_at
+    from pinn_mpc.io import file_sha256
+
+    df = _windy_data()
+    model = train_model(df, arch="pcnn-parx", config=TrainConfig(n_seeds=2, epochs=10, eta=1.0), progress=False)
+    save_model(model, tmp_path / "m")
+    weights = load_file(str(tmp_path / "m" / "weights.safetensors"))
+    del weights["net.wind_loss"]
+    save_file(weights, str(tmp_path / "m" / "weights.safetensors"))
+    meta = json.loads((tmp_path / "m" / "model.json").read_text())
+    meta["weights_sha256"] = file_sha256(tmp_path / "m" / "weights.safetensors")
+    (tmp_path / "m" / "model.json").write_text(json.dumps(meta))
+    loaded = load_model(tmp_path / "m")
+    assert float(loaded.module.net.wind_loss.abs().max()) == 0.0
+    with torch.no_grad():
+        model.module.net.wind_loss.zero_()
+    d = draw(np.random.default_rng(3), n_rows=len(df), first=64, horizon=HORIZON, u_max_w=float(df["u_phys"].max()))
+    history, exog = history_at(df, d.start, HORIZON)
+    plan = torch.as_tensor(d.plan_w[None], dtype=torch.float32)
+    a = model.rollout(history, plan, {n: exog[n] for n in model.exog_names}).t_r_c
+    b = loaded.rollout(history, plan, {n: exog[n] for n in loaded.exog_names}).t_r_c
+    assert torch.allclose(a, b)

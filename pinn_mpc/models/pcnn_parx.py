@@ -32,6 +32,7 @@ import torch
 from torch import nn
 
 from pinn_mpc.actuator import CopCurve
+from pinn_mpc.data import WIND
 from pinn_mpc.errors import InputError, setting
 from pinn_mpc.features import FeatureConfig
 from pinn_mpc.models.base import NetParts, TrainingSet
@@ -89,6 +90,9 @@ def building_settling(df: pd.DataFrame, eta: float) -> RoomSettling | None:
 class PcnnParxNet(ConsistentNet):
     """The positive ARX (buffers, one copy per member) and the unforced network."""
 
+    #: Buffers a model saved before them lacks, loaded as zeros (the term absent).
+    ZERO_WHEN_ABSENT = ("wind_loss",)
+
     def __init__(
         self,
         *,
@@ -110,11 +114,14 @@ class PcnnParxNet(ConsistentNet):
         self.w_exog: torch.Tensor
         self.q: torch.Tensor
         self.s: torch.Tensor
+        self.wind_loss: torch.Tensor
         self.register_buffer("a", torch.zeros(m, LAGS))  # T_r,k-j [-]
         self.register_buffer("b", torch.zeros(m, LAGS))  # heat,k-j [K/W]
         self.register_buffer("w_exog", torch.zeros(m, n_series, LAGS))  # each series' lags
         self.register_buffer("q", torch.zeros(m, 24))  # T_r,k - T_a,k by hour of the day
         self.register_buffer("s", torch.zeros(m, 3, 24))  # schedule by day type, hour [K]
+        # The wind's infiltration: its weight [1/(m/s)] and the room's mean temperature [C].
+        self.register_buffer("wind_loss", torch.zeros(m, 2))
 
     def set_linear(self, df: pd.DataFrame, eta: float) -> None:
         """Fit the positive ARX on ``df`` (on the heat, with the COP curve; its room settling
@@ -131,7 +138,7 @@ class PcnnParxNet(ConsistentNet):
         with torch.no_grad():
             for buf, value in (
                 (self.a, fit.a), (self.b, fit.b), (self.w_exog, w), (self.q, fit.q[hours]),
-                (self.s, fit.s[:, hours]),
+                (self.s, fit.s[:, hours]), (self.wind_loss, np.array([fit.wind_loss, fit.t_ref])),
             ):
                 buf.copy_(torch.as_tensor(value, dtype=buf.dtype).expand_as(buf))
 
@@ -171,6 +178,10 @@ class PcnnParxNet(ConsistentNet):
         t_a = e_raw[..., i_ta, k : k + h_len]
         unforced = self.unforced(e_seq, tod)  # (M, N0, H, 1)
         drive = drive + s_k - q_k * t_a + unforced[..., 0]
+        if WIND in f.exog_series:  # its weight on T_a, wind x wind_loss, is never negative
+            wind = e_raw[..., f.exog_series.index(WIND), k : k + h_len].clamp(min=0.0)
+            g, t_ref = self.wind_loss[:, None, None, 0], self.wind_loss[:, None, None, 1]
+            drive = drive + g * wind * (t_a - t_ref)
         hist = t_r[..., -LAGS:].flip(-1).expand(m, *drive.shape[1:-1], LAGS)  # T_r,k .. T_r,k-7
         a = self.a[:, None, :]  # (M, 1, LAGS)
         out = []
