@@ -21,9 +21,11 @@ the error 24 steps ahead on 7 held-out days): with 30 days of data it lowered th
 error from 0.143 to 0.107 C (parx's 0.110), the warehouse's from 0.258 to 0.251, and left the
 office and the retail within 0.005; with 14 days it moved them by -0.008 to +0.013 (apartment
 0.150 to 0.163). A weight ``q`` per day type (parx's, which the office's ventilation schedule
-needs) was tried and is not made: certified on every calendar (responses on each block's
-least ``q``, a calendar's larger ``q`` adding a non-negative response), it erred 2-7 times more
-with 14 days on the office and the retail.
+needs) was tried two ways and is not made: certified on every calendar (responses on each
+block's least ``q``, a calendar's larger ``q`` adding a non-negative response), it erred up to
+7 times more with 14 days (office and retail; chosen on the last quarter of the training data,
+it was rarely taken where it helped); as a non-negative loss of each day type and block on
+``T_a - t_ref`` (the wind's form), it erred more on 18 of the 24 data sets.
 
 **Why it is monotone.** The recursion is linear in the powers and outdoor temperatures, so the
 effect of one more watt at interval k on ``T_r`` m steps later is an impulse response
