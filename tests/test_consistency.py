@@ -490,6 +490,11 @@ def _windy_data() -> pd.DataFrame:
     return out
 
 
+@functools.lru_cache(maxsize=1)
+def _windy_model() -> LearnedModel:
+    return train_model(_windy_data(), arch="pcnn-parx", config=TrainConfig(n_seeds=2, epochs=10, eta=1.0), progress=False)
+
+
 def test_positive_arx_finds_the_wind_s_infiltration() -> None:
     """On a room whose loss grows with the wind (its recursion the fit's own form), the fit
     finds the wind's weight and the room's mean temperature, and its responses stay
@@ -506,7 +511,7 @@ def test_pcnn_parx_with_the_wind_stays_consistent() -> None:
     """pcnn-parx trained on the windy house (its wind term non-zero) predicts every T_r
     non-decreasing in each power and outdoor temperature on random draws."""
     df = _windy_data()
-    model = train_model(df, arch="pcnn-parx", config=TrainConfig(n_seeds=2, epochs=10, eta=1.0), progress=False)
+    model = _windy_model()
     assert float(model.module.net.wind_loss[0, 0]) > 0.0
     for seed in range(20):
         d = draw(np.random.default_rng(seed), n_rows=len(df), first=64, horizon=HORIZON, u_max_w=float(df["u_phys"].max()))
@@ -516,6 +521,7 @@ def test_pcnn_parx_with_the_wind_stays_consistent() -> None:
 def test_a_pcnn_parx_saved_before_the_wind_term_loads_without_it(tmp_path) -> None:
     """A model file without the wind's buffer (saved before the term existed) loads, with the
     term zero, and rolls out as the same model with the term zeroed."""
+    import copy
     import json
 
     from safetensors.torch import load_file, save_file
@@ -524,7 +530,7 @@ def test_a_pcnn_parx_saved_before_the_wind_term_loads_without_it(tmp_path) -> No
     from pinn_mpc.io import file_sha256
 
     df = _windy_data()
-    model = train_model(df, arch="pcnn-parx", config=TrainConfig(n_seeds=2, epochs=10, eta=1.0), progress=False)
+    model = copy.deepcopy(_windy_model())
     save_model(model, tmp_path / "m")
     weights = load_file(str(tmp_path / "m" / "weights.safetensors"))
     del weights["net.wind_loss"]
