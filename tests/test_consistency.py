@@ -498,13 +498,16 @@ def _windy_model() -> LearnedModel:
 def test_positive_arx_finds_the_wind_s_infiltration() -> None:
     """On a room whose loss grows with the wind (its recursion the fit's own form), the fit
     finds the wind's weight and the room's mean temperature, and its responses stay
-    certified; on the same room without the wind column there is no such term."""
+    certified; on the same room without the wind column there is no such term, and on a room
+    the wind does not touch the weight is at least 0 (the solver left it at -1.6e-18)."""
     df = _windy_data()
     fit = fit_positive_arx(df, eta=1.0)
     assert fit.wind_loss == pytest.approx(WIND_LOSS, rel=0.02)
     assert fit.t_ref == pytest.approx(float(df["T_r"].mean()), abs=1e-9)
     _assert_responses_non_negative(fit)
     assert fit_positive_arx(df.drop(columns=["wind"]), eta=1.0).wind_loss == 0.0
+    calm = df.assign(T_r=_data("winter_household")["T_r"])  # a room the wind does not touch
+    assert fit_positive_arx(calm, eta=1.0).wind_loss >= 0.0
 
 
 def test_pcnn_parx_with_the_wind_stays_consistent() -> None:

@@ -460,7 +460,8 @@ def fit_positive_arx(
     b = theta[:lags] * _scale("u_phys")
     c = theta[lags : 2 * lags]
     d = np.array([theta[2 * lags + i * lags : 2 * lags + (i + 1) * lags] * _scale(n) for i, n in enumerate(inputs)]).reshape(len(inputs), lags)
-    wind_loss = float(theta[-1]) * _WIND_SCALE if design.wind else 0.0
+    # The solver may leave a weight at its bound of 0 a round-off below it (-8e-18 on a store).
+    wind_loss = max(float(theta[-1]), 0.0) * _WIND_SCALE if design.wind else 0.0
     s = theta[(2 + len(inputs)) * lags : theta.size - int(design.wind)].reshape(n_days, blocks)
     if n_days == 2:
         s = np.concatenate([s, s[1:]], axis=0)
