@@ -589,7 +589,7 @@ def _cutting_planes(
     chol, w, scale = _normal_equations(free.T @ free, free.T @ target)
     full = np.zeros((rows_u.shape[0] + rows_a.shape[0], n_free))
     full[: rows_u.shape[0], :lags] = rows_u
-    full[rows_u.shape[0] : rows_u.shape[0] + rows_a.shape[0], lags : 2 * lags] = rows_a
+    full[rows_u.shape[0] :, lags : 2 * lags] = rows_a
     offset = np.concatenate([np.zeros(rows_u.shape[0]), off_a])
     if wind:
         full = np.concatenate([full, np.eye(n_free)[-1:]])
@@ -622,6 +622,4 @@ def _cutting_planes(
     theta[:lags] = sign_of_rows * np.maximum(sign_of_rows * theta[:lags], 0.0)
     theta[lags + 1 : 2 * lags] = np.maximum(theta[lags + 1 : 2 * lags], 0.0)
     theta[lags] = max(theta[lags], q_max)
-    if wind:
-        theta[-1] = max(theta[-1], 0.0)
-    return theta
+    return theta  # the wind's weight, if any, is taken at 0 or more by the fit
