@@ -129,12 +129,7 @@ class MultiZoneIdentifyResult:
     def walls(self) -> dict[tuple[str, str], float]:
         """``{(zone, zone): U [W/K]}`` of every wall with a conductance > 0 (each pair once,
         in the zones' order)."""
-        names = [z.name for z in self.params.zone_specs]
-        u = self.params.walls
-        return {
-            (names[i], names[j]): float(u[i, j])
-            for i in range(len(names)) for j in range(i + 1, len(names)) if u[i, j] > 0
-        }
+        return self.params.wall_pairs()
 
     def to_json(self) -> dict[str, Any]:
         """The multi-zone RC file as a dict for :func:`json.dump`: ``zones`` (each its

@@ -181,6 +181,16 @@ class MultiZoneParams:
         """(Z, Z) the internal walls' conductance [W/K]."""
         return np.array(self.wall_conductance_w_per_k, dtype=float).reshape(self.n_zones, self.n_zones)
 
+    def wall_pairs(self) -> dict[tuple[str, str], float]:
+        """``{(zone, zone): U [W/K]}`` of every wall with a conductance > 0 (each pair once,
+        in the zones' order)."""
+        names = [z.name for z in self.zone_specs]
+        u = self.walls
+        return {
+            (names[i], names[j]): float(u[i, j])
+            for i in range(len(names)) for j in range(i + 1, len(names)) if u[i, j] > 0
+        }
+
     def lumped(self) -> RCParams:
         """The one 2R2C of the building with its zones merged (the limit of infinitely
         conductive internal walls): conductances and capacities summed, the solar aperture

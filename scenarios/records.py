@@ -180,6 +180,8 @@ class PredictionRow(TypedDict):
     """Starts the main horizon's errors are taken over."""
     T_r_mae_by_horizon_c: dict[str, float]
     """MAE [K] by intervals ahead (as a string), for each horizon the data holds."""
+    T_r_mae_by_zone_c: NotRequired[dict[str, float]]
+    """A model of several zones: each zone's MAE [K] at the main horizon, by zone name."""
 
 
 class CompareTable(TypedDict):
@@ -194,8 +196,12 @@ class CompareTable(TypedDict):
     """What the comparison depended on (its report's settings table)."""
     rows: list[CompareRow]
     rc: dict[str, RcSummary]
-    """The RC parameters by source (``true``, ``identified``, ``<arch> export``)."""
+    """The RC parameters by source (``true``, ``identified``, ``<arch> export``); empty on a
+    building of several zones, whose are ``zone_rc``."""
     prediction: list[PredictionRow]
+    zone_rc: NotRequired[dict[str, dict[str, object]]]
+    """A building of several zones: each source's zones' R and C and walls' conductances
+    (:func:`scenarios.experiments.compare_zones.zone_rc_summary`)."""
 
 
 # ---- sweeps ----

@@ -316,6 +316,7 @@ PARTS: dict[str, dict[str, tuple[str, ...]]] = {
     "docs/zones.md": {
         "shoulder-office": ("",),
         "two-zone-house": ("Data and identification", "Fleets of buildings of several zones"),
+        "compare": ("$ pinn-mpc compare ",),
     },
 }
 #: Commands a page repeats word for word, each run once: at the repeat, the files the first run
@@ -490,6 +491,45 @@ def test_pages_run_as_written(
         _boptest_page_outputs(tmp_path, part)
     if page == REALISTIC:
         _energyplus_page_outputs(tmp_path, part, printed)
+    if page == "docs/zones.md" and part == "compare":
+        _zones_compare_outputs(tmp_path / "house_compare")
+
+
+def _zones_compare_outputs(out: Path) -> None:
+    """What the zones page says of ``compare`` on the two-zone house (two training days and
+    one test day, as the page's sizes shrink): every controller it names, each row with each
+    zone's discomfort; the RC identified from the data within 15 % of the plant's (each R, C
+    and the wall: the house's scenario file gives them), the paper networks' learned RCs
+    beside it; each model's error per zone; the ARX, which two days cannot fit, left out with
+    the reason in the notes."""
+    table = json.loads((out / "table.json").read_text())
+    rows = {r["controller"]: r for r in table["rows"]}
+    default = next(c for c in rows if c.startswith("cem / default ("))
+    family = default.removeprefix("cem / default (").removesuffix(")")
+    assert family == "hybrid"  # the ARX cannot be fitted on two days
+    expected = {"thermostat", f"random-shooting / default ({family})", default, "cem / physnet", "cem / physreg",
+                "casadi-mpc / identified RC", "qp-mpc / identified RC", "qp-mpc / physnet RC",
+                "qp-mpc / physreg RC", "oracle"}
+    assert set(rows) == expected, sorted(rows)
+    for row in rows.values():
+        assert set(row["zones"]) == {"south", "north"}
+        assert row["objective_to_oracle"] == pytest.approx(row["objective"] / rows["oracle"]["objective"])
+    assert rows[default]["objective"] < rows["thermostat"]["objective"]
+    assert table["rc"] == {} and set(table["zone_rc"]) == {"true", "identified", "physnet learned", "physreg learned"}
+    true, identified = table["zone_rc"]["true"], table["zone_rc"]["identified"]
+    assert true["walls"] == {"south-north": pytest.approx(40.0)}
+    assert identified["walls"]["south-north"] == pytest.approx(40.0, rel=0.15)
+    for zone, values in true["zones"].items():
+        for key, value in values.items():
+            assert identified["zones"][zone][key] == pytest.approx(value, rel=0.15), (zone, key)
+    models = {r["model"]: r for r in table["prediction"]}
+    assert set(models) == {"hybrid", "physnet", "physreg"}
+    assert all(set(r["T_r_mae_by_zone_c"]) == {"south", "north"} for r in models.values())
+    assert models["hybrid"]["T_r_mae_c"] < 0.1  # the identified RC and its residual on noise-free data
+    report = (out / "report.md").read_text()
+    assert "## Zones" in report and "wall south-north U [W/K]" in report
+    assert "parx is not compared: multi-zone ARX: 96 rows are too few" in report
+    assert (out / "report.png").is_file()
 
 
 def _energyplus_page_outputs(workdir: Path, part: str | None, printed: dict[str, str]) -> None:

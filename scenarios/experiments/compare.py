@@ -65,6 +65,7 @@ if TYPE_CHECKING:
     from pinn_mpc.model_choice import ModelChoice
     from pinn_mpc.models.arx import ARXModel
     from pinn_mpc.models.learned import LearnedModel
+    from pinn_mpc.models.multizone_paper import PaperZoneTraining
     from pinn_mpc.models.rollout import FittedModel
     from pinn_mpc.training import TrainConfig
 
@@ -77,6 +78,7 @@ __all__ = [
     "identify_scenario_zones",
     "rc_for_mpc",
     "run_comparison",
+    "run_plan",
     "train_scenario_zones",
     "zone_solar_inputs",
 ]
@@ -192,6 +194,11 @@ class ComparisonResult:
     errors: dict[str, tuple[str, ...]]
     prediction: list[PredictionRow] = dataclasses.field(default_factory=list)
     notes: tuple[str, ...] = ()  # what a user should know: weather outside the training range
+    #: A building of several zones (:mod:`scenarios.experiments.compare_zones`): each source's
+    #: zones' R and C and walls' conductances, by source (``rc`` then empty).
+    zone_rc: dict[str, dict[str, Any]] = dataclasses.field(default_factory=dict)
+    #: Which model ``train``'s default chose and why, where the comparison ran it (zones).
+    default_model: str | None = None
 
 
 def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonResult:
@@ -247,7 +254,7 @@ def run_comparison(scenario: Scenario, settings: CompareSettings) -> ComparisonR
 
     n_steps = settings.test_days * scenario.steps_per_day
     plan = _controller_plan(settings, models, best, arx, parx, rc_params, has_truth=has_truth)
-    rows, trajectories, errors = _run_plan(scenario, settings, plan, n_steps=n_steps, wall=wall)
+    rows, trajectories, errors = run_plan(scenario, settings, plan, n_steps=n_steps, wall=wall)
     for row, ratio in zip(rows, objective_ratios(rows, reference=scenario.reference), strict=True):
         if scenario.reference == "oracle":
             row["objective_to_oracle"] = ratio
@@ -354,7 +361,7 @@ def _controller_plan(
     ]
 
 
-def _run_plan(
+def run_plan(
     scenario: Scenario,
     settings: CompareSettings,
     plan: list[tuple[str, str, dict[str, Any]]],
@@ -453,7 +460,12 @@ def identify_scenario_zones(scenario: Scenario, data: pd.DataFrame) -> MultiZone
 
 
 def train_scenario_zones(
-    scenario: Scenario, data: pd.DataFrame, *, seed: int = 0, arch: str = AUTO
+    scenario: Scenario,
+    data: pd.DataFrame,
+    *,
+    seed: int = 0,
+    arch: str = AUTO,
+    paper: PaperZoneTraining | None = None,
 ) -> ModelChoice:
     """``train``'s model of ``data`` of a building of several zones, its layout the scenario's:
     with ``arch`` ``auto`` (the default) the multi-zone hybrid or physics-informed ARX,
@@ -461,7 +473,8 @@ def train_scenario_zones(
     (:func:`pinn_mpc.model_choice.choose_zone_model`); ``hybrid``, ``parx``, ``physnet`` or
     ``physreg`` that one (:func:`pinn_mpc.models.multizone_hybrid.fit_multizone_hybrid`, its
     residual from ``seed``; :func:`pinn_mpc.models.multizone_arx.fit_multizone_arx`;
-    :func:`pinn_mpc.models.multizone_paper.fit_multizone_paper`, its networks from ``seed``)."""
+    :func:`pinn_mpc.models.multizone_paper.fit_multizone_paper`, its networks from ``seed``,
+    trained as ``paper`` says: None, that function's defaults)."""
     from pinn_mpc.model_choice import ModelChoice, choose_zone_model
     from pinn_mpc.models.multizone_arx import fit_multizone_arx
     from pinn_mpc.models.multizone_hybrid import fit_multizone_hybrid
@@ -482,7 +495,7 @@ def train_scenario_zones(
         elif arch == PHYSICS_ARX.name:
             model = fit_multizone_arx(data, **layout)
         else:
-            model = fit_multizone_paper(data, arch=arch, seed=seed, **layout)
+            model = fit_multizone_paper(data, arch=arch, seed=seed, settings=paper, **layout)
         choice = ModelChoice(chosen=arch, model=model, held_out_mae_c={}, horizon_steps=0, why="as asked")
     else:
         raise ValueError(

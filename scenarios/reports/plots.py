@@ -51,6 +51,7 @@ __all__ = [
     "plot_trajectory",
     "save_figure",
     "trajectory_figure",
+    "zone_comparison_figure",
 ]
 
 #: Panels of the comparison figure: (title, controller names), in drawing order.
@@ -167,9 +168,17 @@ def zones_figure(traj: pd.DataFrame, *, title: str = "") -> Figure:
         draw_power(ax_u, traj, name.removeprefix("u_phys[").removesuffix("]"), column=name)
     ax_u.set_ylabel("delivered\n[kW]")
     for ax in column[:-1]:
-        ax.grid(alpha=0.3)
         _legend(ax)
-    _share_y(list(column[: len(zones)]))
+    return _finish_zone_panels(fig, column, len(zones), traj, title)
+
+
+def _finish_zone_panels(fig: Figure, column: np.ndarray, n_zones: int, traj: pd.DataFrame, title: str) -> Figure:
+    """A figure of a panel per zone, a power panel and a price panel (``column``, its axes),
+    finished: grids, one scale for the zones' panels, the price of ``traj``, the time axis
+    and ``title``."""
+    for ax in column[:-1]:
+        ax.grid(alpha=0.3)
+    _share_y(list(column[:n_zones]))
     draw_price(column[-1], traj)
     format_time_axis(column[-1], traj)
     if title:
@@ -278,6 +287,41 @@ def _share_y(axes: Sequence[Axes]) -> None:
     axes[0].autoscale_view(scalex=False)  # sharing keeps the first axes' limits otherwise
 
 
+def zone_comparison_figure(
+    trajectories: Mapping[str, pd.DataFrame], *, title: str = "", reference: str = REFERENCE
+) -> Figure:
+    """A comparison on a building of several zones: a panel per zone (every controller's T_r
+    of that zone against its band, the ``reference`` dashed black where it ran), the
+    building's delivered power of every controller and the price. Shared time axis; the zones'
+    panels share one scale."""
+    first = next(iter(trajectories.values()))
+    zones = [z.name for z in zones_in(first.columns)]
+    fig, axes = new_figure(
+        len(zones) + 2, 1, figsize=(11, 2.4 * len(zones) + 3.8),
+        height_ratios=(1.6,) * len(zones) + (1.2, 0.7), sharex=True,
+    )
+    column = axes[:, 0]
+    reference_run = trajectories.get(reference)
+    members = [label for label in trajectories if not (label == reference and reference_run is not None)]
+    styles = _member_styles(len(members))
+    ax_u = column[len(zones)]
+    for ax, zone in zip(column, zones, strict=False):
+        draw_band(ax, first, zone)
+        if reference_run is not None:
+            draw_room(ax, reference_run, f"{reference} (reference)", zone, **_REFERENCE_STYLE)
+        for label, style in zip(members, styles, strict=True):
+            draw_room(ax, trajectories[label], label, zone, **style)
+        ax.set_title(zone, loc="left", fontsize=10, fontweight="bold")
+        ax.set_ylabel("T_r [C]")
+    if reference_run is not None:
+        draw_power(ax_u, reference_run, f"{reference} (reference)", **_REFERENCE_STYLE)
+    for label, style in zip(members, styles, strict=True):
+        draw_power(ax_u, trajectories[label], label, **style)
+    ax_u.set_ylabel("delivered,\nbuilding [kW]")
+    _legend(column[0])
+    return _finish_zone_panels(fig, column, len(zones), first, title)
+
+
 def plot_comparison(
     trajectories: Mapping[str, pd.DataFrame],
     path: str | os.PathLike[str],
@@ -285,8 +329,11 @@ def plot_comparison(
     title: str = "",
     reference: str = REFERENCE,
 ) -> Path:
-    """Write :func:`comparison_figure` as PNG."""
-    return save_figure(comparison_figure(trajectories, title=title, reference=reference), path)
+    """Write :func:`comparison_figure` as PNG (on a building of several zones
+    :func:`zone_comparison_figure`)."""
+    zoned = len(zones_in(next(iter(trajectories.values())).columns)) > 1
+    figure = zone_comparison_figure if zoned else comparison_figure
+    return save_figure(figure(trajectories, title=title, reference=reference), path)
 
 
 def fleet_figure(

@@ -31,6 +31,13 @@ __all__ = [
     "reference_of",
     "render_report",
     "text_table",
+    "ZONES_TEXT",
+    "ZONE_PREDICTION_TEXT",
+    "ZONE_RC_ROWS",
+    "ZONE_RC_TEXT",
+    "zone_kpi_table_markdown",
+    "zone_prediction_markdown",
+    "zone_rc_table_markdown",
 ]
 
 #: Prefix of a row's objective divided by the reference controller's.
@@ -186,6 +193,76 @@ def rc_table_markdown(rc: Mapping[str, Mapping[str, Any]]) -> list[str]:
     return markdown_table(["parameter", *sources], body)
 
 
+#: The report's words on a building of several zones' KPIs per zone.
+ZONES_TEXT = (
+    "Each zone's discomfort, too cold / too warm [K h] against its own band, and the energy "
+    "its actuators delivered [kWh]; the KPI table above gives the building's (the sum over "
+    "the zones)."
+)
+#: The report's words on the prediction of a building of several zones ({h}: main horizon).
+ZONE_PREDICTION_TEXT = (
+    "Each model predicts every zone's room temperature from the same starts of held-out data "
+    "(test part of the weather, the training data's policy, not the closed loop), rolled on "
+    "the data's delivered powers and weather (see `scenarios.experiments.compare_zones`): MAE "
+    "over the zones by intervals ahead, bias (prediction - truth) and each zone's MAE "
+    "{h} intervals ahead."
+)
+#: The report's words on the RC values of a building of several zones.
+ZONE_RC_TEXT = (
+    "Each zone's 2R2C and each internal wall's conductance: the true building (where the plant "
+    "has one), the multi-zone RC identified from the training data (grey-box, T_m hidden) and "
+    "the RC each paper network of every zone learned (PhysNet, PhysReg)."
+)
+#: Each zone's RC values as the report gives them: (key, label, scale, unit).
+ZONE_RC_ROWS = (
+    ("r_ra_k_per_w", "R_ra", 1e3, "mK/W"),
+    ("r_rm_k_per_w", "R_rm", 1e3, "mK/W"),
+    ("c_r_j_per_k", "C_r", 1e-6, "MJ/K"),
+    ("c_m_j_per_k", "C_m", 1e-6, "MJ/K"),
+)
+
+
+def zone_kpi_table_markdown(rows: Sequence[Mapping[str, Any]]) -> list[str]:
+    """Each controller's discomfort too cold / too warm [K h] and energy [kWh] per zone."""
+    zones = list(dict.fromkeys(z for r in rows for z in r.get("zones", {})))
+    body = []
+    for r in rows:
+        cells = []
+        for zone in zones:
+            z = r.get("zones", {}).get(zone)
+            cells.append("n/a" if z is None else (
+                f"{z['discomfort_too_cold_kh']:.2f} / {z['discomfort_too_warm_kh']:.2f}, {z['energy_kwh']:.1f} kWh"
+            ))
+        body.append([f"`{r['controller']}`", *cells])
+    return markdown_table(["controller", *(f"{z}: cold / warm K h, energy" for z in zones)], body)
+
+
+def zone_prediction_markdown(rows: Sequence[PredictionRow]) -> list[str]:
+    """The prediction table of a building of several zones: :func:`_prediction_cells` and
+    each zone's MAE at the main horizon."""
+    headers, body = _prediction_cells(rows)
+    zones = list(dict.fromkeys(z for r in rows for z in r.get("T_r_mae_by_zone_c", {})))
+    for line, r in zip(body, rows, strict=True):
+        line += [_cell(r.get("T_r_mae_by_zone_c", {}).get(z), "{:.3f}") for z in zones]
+    return markdown_table([*headers, *(f"{z} [K]" for z in zones)], body)
+
+
+def zone_rc_table_markdown(zone_rc: Mapping[str, Mapping[str, Any]]) -> list[str]:
+    """Each zone's R and C and each wall's conductance (rows) of each source (columns)."""
+    sources = list(zone_rc)
+    zones = list(dict.fromkeys(z for s in sources for z in zone_rc[s]["zones"]))
+    walls = list(dict.fromkeys(w for s in sources for w in zone_rc[s]["walls"]))
+    body = []
+    for zone in zones:
+        for key, label, scale, unit in ZONE_RC_ROWS:
+            values = [zone_rc[s]["zones"].get(zone, {}).get(key) for s in sources]
+            body.append([f"{zone} {label} [{unit}]",
+                         *(_cell(None if v is None else v * scale, "{:.4g}") for v in values)])
+    for wall in walls:  # a source without the wall has none: its conductance 0
+        body.append([f"wall {wall} U [W/K]", *(_cell(zone_rc[s]["walls"].get(wall, 0.0), "{:.4g}") for s in sources)])
+    return markdown_table(["parameter", *sources], body)
+
+
 def render_report(
     *,
     scenario: str,
@@ -198,9 +275,12 @@ def render_report(
     notes: Sequence[str] = (),
     prediction: Sequence[PredictionRow] = (),
     prediction_horizon: int = 24,
+    zone_rc: Mapping[str, Mapping[str, Any]] | None = None,
 ) -> str:
     """The markdown report of a comparison; ``dates`` says when the training data and the
-    test days are; ``prediction`` the rows of :func:`scenarios.experiments.prediction.prediction_errors`."""
+    test days are; ``prediction`` the rows of :func:`scenarios.experiments.prediction.prediction_errors`
+    (on a building of several zones, :func:`scenarios.experiments.compare_zones.zone_prediction_errors`,
+    with ``zone_rc`` its RC values in place of ``rc``: a section per zone's discomfort besides)."""
     reference = reference_of(rows)
     lines = [
         f"# Closed-loop comparison on `{scenario}`",
@@ -225,7 +305,12 @@ def render_report(
     headers = ["controller", *(h for _, h, _ in columns)]
     body = [[f"`{r['controller']}`", *_kpi_cells(r, columns)] for r in rows]
     lines += markdown_table(headers, body)
-    if prediction:
+    if zone_rc is not None:
+        lines += ["", "## Zones", "", ZONES_TEXT, "", *zone_kpi_table_markdown(rows)]
+    if prediction and zone_rc is not None:
+        lines += ["", "## Prediction", "", ZONE_PREDICTION_TEXT.format(h=prediction_horizon), "",
+                  *zone_prediction_markdown(prediction)]
+    elif prediction:
         lines += [
             "",
             "## Prediction",
@@ -238,17 +323,22 @@ def render_report(
             "",
             *markdown_table(*_prediction_cells(prediction)),
         ]
+    if zone_rc is not None:
+        lines += ["", "## RC parameters", "", ZONE_RC_TEXT, "", *zone_rc_table_markdown(zone_rc), ""]
+    else:
+        lines += [
+            "",
+            "## RC parameters",
+            "",
+            "The true building (where the plant has one), the parameters identified from the training data (grey-box, T_m "
+            "hidden) and those exported from the trained ensembles (hybrid and PhysNet; geometric "
+            "mean over members). Under a heat pump the exports' eta holds the training data's mean "
+            "COP; the RC MPCs use the building's own eta and apply the COP per step.",
+            "",
+            *rc_table_markdown(rc),
+            "",
+        ]
     lines += [
-        "",
-        "## RC parameters",
-        "",
-        "The true building (where the plant has one), the parameters identified from the training data (grey-box, T_m "
-        "hidden) and those exported from the trained ensembles (hybrid and PhysNet; geometric "
-        "mean over members). Under a heat pump the exports' eta holds the training data's mean "
-        "COP; the RC MPCs use the building's own eta and apply the COP per step.",
-        "",
-        *rc_table_markdown(rc),
-        "",
         "## Trajectories",
         "",
         f"![room temperature and delivered power of every controller]({figure_name})",
