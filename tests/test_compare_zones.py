@@ -67,3 +67,17 @@ def test_prediction_errors_per_zone_against_a_ramp() -> None:
     assert row["T_r_mae_by_zone_c"] == {"south": pytest.approx(2.4), "north": pytest.approx(4.8)}
     assert row["n_starts"] == 120 - 1 - 48 - 2
     assert zone_prediction_errors(frame.iloc[:3], {"persistence": _Persistence()}) == []  # type: ignore[dict-item]
+
+
+def test_a_planner_whose_model_replays_past_the_guard_s_limits_is_said_to_have_decided() -> None:
+    """The zones' guard hands nothing over by default: a row whose model replayed worse than
+    the floor (1 K) and twice the RC's gets a note; one within either limit, or a row whose
+    fallback acted, none."""
+    from scenarios.experiments.compare_zones import _distrusted_note
+
+    row = {"controller": "cem / physreg", "model_fallback": False, "rc_replay_error_k": 0.02}
+    assert "2.08 K off" in _distrusted_note({**row, "model_replay_error_k": 2.08})
+    assert _distrusted_note({**row, "model_replay_error_k": 0.9}) == ""  # under the floor
+    assert _distrusted_note({**row, "model_replay_error_k": 1.5, "rc_replay_error_k": 0.8}) == ""
+    assert _distrusted_note({**row, "model_fallback": True, "model_replay_error_k": 2.08}) == ""
+    assert _distrusted_note({"controller": "thermostat", "model_fallback": None}) == ""

@@ -126,6 +126,7 @@ def run_zone_comparison(scenario: Scenario, settings: CompareSettings) -> Compar
         f"{n_steps} intervals"
         for row in rows if row.get("model_fallback_steps")
     ]
+    notes += [_distrusted_note(row) for row in rows if _distrusted_note(row)]
     truth = _true_building(scenario)
     zone_rc = {
         **({"true": zone_rc_summary(truth, source=f"scenario {scenario.name}")} if truth is not None else {}),
@@ -185,6 +186,26 @@ def _each_warning_once() -> Iterator[None]:
         if text not in seen:
             seen.add(text)
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+
+
+def _distrusted_note(row: Mapping[str, Any]) -> str:
+    """What a row of a planner whose model replayed the past worse than its RC by the zones'
+    trust limits, yet decided, should say: the guard of several zones watches but does not
+    hand decisions over by default (:class:`controllers.zone_sampling.ZoneGuard`). Empty
+    for any other row."""
+    from controllers.zone_sampling import ZONE_TRUST
+
+    model, rc = row.get("model_replay_error_k"), row.get("rc_replay_error_k")
+    if row.get("model_fallback") is not False or model is None or rc is None:
+        return ""
+    if model <= max(ZONE_TRUST.error_floor_k, ZONE_TRUST.error_ratio * rc):
+        return ""
+    return (
+        f"`{row['controller']}`: its model replayed the past hours {model:.2f} K off (the identified "
+        f"RC {rc:.2f} K), past the guard's limits, yet made every decision: on a building of several "
+        "zones the guard narrows each zone's band by the model's error but hands no decision to "
+        "the RC MPC unless asked (`ZoneGuard(hand_over=True)`)"
+    )
 
 
 def _true_building(scenario: Scenario) -> MultiZoneParams | None:
