@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 import re
 import time
+from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -389,7 +390,11 @@ def export_rc_json(a: argparse.Namespace) -> str:
         walls = ", ".join(f"{x}-{y} U={u:.4g} W/K" for (x, y), u in rc.walls.items()) or "no walls"
         return f"{zones}; {walls} -> {a.out}"
     if isinstance(model, ARXModel):
-        data = _arx_rc(model, a.model)
+        data = _identified_rc(model.identified_rc, model.training_data, a.model, "an ARX model")
+    elif isinstance(model, LearnedModel) and model.physics_coefficients() is None:
+        data = _identified_rc(
+            model.record.identified_rc, model.record.training_data, a.model, f"the {model.arch} model"
+        )
     elif isinstance(model, LearnedModel):
         data = dict(export_rc(
             model, source=f"export-rc of {model.arch} x{model.n_members} from {a.model}"
@@ -399,27 +404,36 @@ def export_rc_json(a: argparse.Namespace) -> str:
     else:
         raise InternalError(f"export-rc cannot export a {type(model).__name__}")
     atomic_write_json(a.out, data)
+    own = isinstance(model, LearnedModel) and model.physics_coefficients() is not None
     return (
-        f"R_ra={data['R_ra_K_per_W']:.4g} K/W R_rm={data['R_rm_K_per_W']:.4g} K/W "
+        ("" if own else "the RC identified from its training data (the model has no R or C of its own): ")
+        + f"R_ra={data['R_ra_K_per_W']:.4g} K/W R_rm={data['R_rm_K_per_W']:.4g} K/W "
         f"C_r={data['C_r_J_per_K']:.4g} J/K C_m={data['C_m_J_per_K']:.4g} J/K -> {a.out}"
     )
 
 
-def _arx_rc(model: ARXModel, model_dir: str) -> dict[str, Any]:
-    """The RC JSON of the ARX ``model`` from ``model_dir``: the 2R2C ``train`` identified from
-    the same data (an ARX has no R or C of its own); refused where there is none."""
-    if model.identified_rc is None:
+def _identified_rc(
+    identified: Mapping[str, Any] | None, training_data: Mapping[str, Any], model_dir: str, what: str
+) -> dict[str, Any]:
+    """The RC JSON of a model from ``model_dir`` that has no R or C of its own (``what``: an
+    ARX, a network without a physics block such as the mlp or pcnn-parx): the 2R2C ``train``
+    identified from the same data (``identified``, which its guard falls back on; its data's
+    summary ``training_data``), the source saying so; refused where there is none."""
+    if identified is None:
         raise InputError(
-            f"--model {model_dir} is an ARX model, which has no R or C of its own, and no RC "
+            f"--model {model_dir} is {what}, which has no R or C of its own, and no RC "
             "could be identified from its training data; run `pinn-mpc identify --data DATA.csv "
             "--out rc.json` on that data to see why"
         )
-    data = dict(model.identified_rc)
-    data["source"] = f"export-rc of an ARX model from {model_dir}: the RC identified from its training data"
-    power = model.training_data.get("u_phys_range")
+    data = dict(identified)
+    data["source"] = (
+        f"export-rc of {what} from {model_dir}, which has no R or C of its own: the RC identified "
+        "from its training data"
+    )
+    power = training_data.get("u_phys_range")
     if power is not None:
         data["power_range_w"] = [float(v) for v in power]
-    data["heat_pump_data"] = "cop" in model.training_data.get("columns", [])
+    data["heat_pump_data"] = "cop" in training_data.get("columns", [])
     return data
 
 

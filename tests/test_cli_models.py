@@ -131,13 +131,31 @@ def test_real_world_data_too_short(tmp_path: Path, capsys: pytest.CaptureFixture
     assert not (tmp_path / "model").exists()
 
 
-def test_export_rc_of_mlp_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    write_timeseries(household_data(2, 0), tmp_path / "d.csv")
+def test_export_rc_of_an_mlp_is_the_rc_identified_from_its_data(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A network without R or C of its own (the mlp; pcnn-parx likewise) exports, as an ARX
+    does, the RC ``train`` identified from its training data, which its guard falls back on:
+    the household's true one here, the source and the printed line saying whose it is;
+    without one it is refused with the reason."""
+    from pinn_mpc.physics import params_from_summary
+    from scenarios.inputs.registry import builtin_scenario
+
+    write_timeseries(household_data(6, 0), tmp_path / "d.csv")
     assert _train(tmp_path / "d.csv", tmp_path / "mlp", "mlp", "--seeds", "1", "--epochs", "1") == 0
     capsys.readouterr()
-    assert _export(tmp_path / "mlp", tmp_path / "rc.json") == 2
-    assert "no physics block" in _error_line(capsys)
-    assert not (tmp_path / "rc.json").exists()
+    assert _export(tmp_path / "mlp", tmp_path / "rc.json") == 0
+    assert capsys.readouterr().out.startswith("the RC identified from its training data (the model has no R or C")
+    rc = json.loads((tmp_path / "rc.json").read_text())
+    assert "the mlp model" in rc["source"] and "identified from its training data" in rc["source"]
+    got, true = params_from_summary(rc), builtin_scenario("winter_household").sim.params
+    assert got.r_ra_k_per_w == pytest.approx(true.r_ra_k_per_w, rel=0.05)
+    record = json.loads((tmp_path / "mlp" / "model.json").read_text())
+    del record["identified_rc"]
+    (tmp_path / "mlp" / "model.json").write_text(json.dumps(record))
+    assert _export(tmp_path / "mlp", tmp_path / "rc2.json") == 2
+    assert "the mlp model, which has no R or C of its own" in _error_line(capsys)
+    assert not (tmp_path / "rc2.json").exists()
 
 
 def test_export_rc_of_an_arx_model_is_the_rc_identified_from_its_data(
