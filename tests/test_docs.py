@@ -523,9 +523,10 @@ def _zones_compare_outputs(out: Path) -> None:
         for key, value in values.items():
             assert identified["zones"][zone][key] == pytest.approx(value, rel=0.15), (zone, key)
     models = {r["model"]: r for r in table["prediction"]}
-    assert set(models) == {"hybrid", "physnet", "physreg"}
+    assert set(models) == {"hybrid", "physnet", "physreg", "identified RC", "physnet RC", "physreg RC", "true RC"}
     assert all(set(r["T_r_mae_by_zone_c"]) == {"south", "north"} for r in models.values())
-    assert models["hybrid"]["T_r_mae_c"] < 0.1  # the identified RC and its residual on noise-free data
+    assert models["true RC"]["kind"] == "RC" and models["true RC"]["T_r_mae_c"] < 0.1  # the plant itself
+    assert models["hybrid"]["T_r_mae_c"] < 0.1  # the identified RC and its residual
     report = (out / "report.md").read_text()
     assert "## Zones" in report and "wall south-north U [W/K]" in report
     assert "parx is not compared: multi-zone ARX: 96 rows are too few" in report

@@ -17,8 +17,9 @@ controller that plans such a building, on one scenario.
    identified RC, qp-mpc on each paper network's learned RC, and the oracle where the plant
    is the package's multi-zone RC (on EnergyPlus none exists: every objective is divided by
    the thermostat's).
-4. Prediction: every model's rooms' error 1, 6, 24 and 48 steps ahead from the same starts of
-   held-out data of the test part, on the data's delivered powers (:func:`zone_prediction_errors`):
+4. Prediction: every model's and every RC's rooms' error 1, 6, 24 and 48 steps ahead from the
+   same starts of held-out data of the test part, on the data's delivered powers
+   (:func:`zone_prediction_errors`; an RC from a Kalman estimate of its state, :func:`rc_models`):
    the mean over the zones, and each zone's at 24 steps.
 5. RC parameters (:func:`zone_rc_summary`): each zone's R and C and each internal wall's
    conductance, of the true building (where the plant has one), the identified RC and each
@@ -27,6 +28,7 @@ controller that plans such a building, on one scenario.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 import warnings
 from collections.abc import Iterator, Mapping
@@ -44,6 +46,7 @@ from scenarios.experiments.compare import (
     identify_scenario_zones,
     run_plan,
     train_scenario_zones,
+    zone_solar_inputs,
 )
 from scenarios.experiments.prediction import PREDICTION_HORIZON, PREDICTION_HORIZONS
 from scenarios.inputs.exogenous import day_span
@@ -58,7 +61,7 @@ if TYPE_CHECKING:
     from pinn_mpc.models.rollout import FittedModel
     from pinn_mpc.multizone import MultiZoneParams
 
-__all__ = ["paper_training", "run_zone_comparison", "zone_prediction_errors", "zone_rc_summary"]
+__all__ = ["paper_training", "rc_models", "run_zone_comparison", "zone_prediction_errors", "zone_rc_summary"]
 
 
 def paper_training(settings: CompareSettings) -> PaperZoneTraining:
@@ -99,7 +102,13 @@ def run_zone_comparison(scenario: Scenario, settings: CompareSettings) -> Compar
     start = time.perf_counter()
     held_out = generate(scenario, days=settings.test_days + 1, seed=settings.test_seed,
                         policy=settings.policy, weather_part="test")
-    prediction = zone_prediction_errors(held_out, models)
+    truth = _true_building(scenario)
+    rc_sets = {
+        "identified RC": identified,
+        **{f"{family} RC": rc for family, rc in learned_rc.items()},
+        **({"true RC": dataclasses.replace(identified, params=truth)} if truth is not None else {}),
+    }
+    prediction = zone_prediction_errors(held_out, {**models, **rc_models(scenario, rc_sets)})
     wall["prediction"] = time.perf_counter() - start
 
     default = f"default ({choice.chosen})"
@@ -127,7 +136,6 @@ def run_zone_comparison(scenario: Scenario, settings: CompareSettings) -> Compar
         for row in rows if row.get("model_fallback_steps")
     ]
     notes += [_distrusted_note(row) for row in rows if _distrusted_note(row)]
-    truth = _true_building(scenario)
     zone_rc = {
         **({"true": zone_rc_summary(truth, source=f"scenario {scenario.name}")} if truth is not None else {}),
         "identified": zone_rc_summary(identified.params, source="identify (training data)"),
@@ -186,6 +194,20 @@ def _each_warning_once() -> Iterator[None]:
         if text not in seen:
             seen.add(text)
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+
+
+def rc_models(scenario: Scenario, rc_sets: Mapping[str, MultiZoneIdentifyResult]) -> dict[str, FittedModel]:
+    """Each multi-zone RC of ``rc_sets`` as a model whose predictions are the RC's alone
+    (:class:`~pinn_mpc.models.multizone_hybrid.MultiZoneHybrid` without a residual: from a
+    Kalman estimate of its state at each start, as the RC MPCs estimate it)."""
+    from pinn_mpc.models.multizone_hybrid import MultiZoneHybrid
+
+    spec = scenario.control_spec()
+    return {
+        name: MultiZoneHybrid(rc, spec.actuators, scenario.sim.dt_s, residual=None,
+                              solar_inputs=zone_solar_inputs(scenario), selection={}, training={})
+        for name, rc in rc_sets.items()
+    }
 
 
 def _distrusted_note(row: Mapping[str, Any]) -> str:
@@ -263,7 +285,7 @@ def zone_prediction_errors(
         main = error.get(horizon)
         rows.append({
             "model": name,
-            "kind": "linear" if name == PHYSICS_ARX.name else "learned",
+            "kind": "RC" if name.endswith(" RC") else "linear" if name == PHYSICS_ARX.name else "learned",
             "T_r_mae_c": float("nan") if main is None else float(np.mean(np.abs(main))),
             "T_r_bias_c": float("nan") if main is None else float(np.mean(main)),
             "n_starts": int(len(starts)),

@@ -203,9 +203,11 @@ ZONES_TEXT = (
 ZONE_PREDICTION_TEXT = (
     "Each model predicts every zone's room temperature from the same starts of held-out data "
     "(test part of the weather, the training data's policy, not the closed loop), rolled on "
-    "the data's delivered powers and weather (see `scenarios.experiments.compare_zones`): MAE "
-    "over the zones by intervals ahead, bias (prediction - truth) and each zone's MAE "
-    "{h} intervals ahead."
+    "the data's delivered powers and weather (see `scenarios.experiments.compare_zones`): the "
+    "learned models and the ARX from the measured rooms, the hybrid and each RC (identified, "
+    "learned by a paper network, the true building's where the plant has one) from a Kalman "
+    "estimate of their state at the start. MAE over the zones by intervals ahead, bias "
+    "(prediction - truth) and each zone's MAE {h} intervals ahead."
 )
 #: The report's words on the RC values of a building of several zones.
 ZONE_RC_TEXT = (
