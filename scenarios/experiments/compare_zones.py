@@ -13,7 +13,9 @@ controller that plans such a building, on one scenario.
 3. Closed loop on the same test days as a one-zone comparison (seed ``seed + 1``, one-day
    thermostat warm-up, perfect forecasts): the dual-setpoint thermostat of every zone,
    random shooting and cem over the default model, cem over every other family (each with
-   its guard, the RC MPC on the RC identified with it), casadi-mpc and qp-mpc on the
+   the guard of several zones, which narrows each zone's band by its model's replay error and
+   hands no decision to the RC MPC by default: a row whose model replayed past the guard's
+   limits says so in the notes), casadi-mpc and qp-mpc on the
    identified RC, qp-mpc on each paper network's learned RC, and the oracle where the plant
    is the package's multi-zone RC (on EnergyPlus none exists: every objective is divided by
    the thermostat's).
