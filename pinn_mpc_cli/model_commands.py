@@ -389,9 +389,10 @@ def export_rc_json(a: argparse.Namespace) -> str:
         )
         walls = ", ".join(f"{x}-{y} U={u:.4g} W/K" for (x, y), u in rc.walls.items()) or "no walls"
         return f"{zones}; {walls} -> {a.out}"
+    own = isinstance(model, LearnedModel) and model.physics_coefficients() is not None
     if isinstance(model, ARXModel):
         data = _identified_rc(model.identified_rc, model.training_data, a.model, "an ARX model")
-    elif isinstance(model, LearnedModel) and model.physics_coefficients() is None:
+    elif isinstance(model, LearnedModel) and not own:
         data = _identified_rc(
             model.record.identified_rc, model.record.training_data, a.model, f"the {model.arch} model"
         )
@@ -404,7 +405,6 @@ def export_rc_json(a: argparse.Namespace) -> str:
     else:
         raise InternalError(f"export-rc cannot export a {type(model).__name__}")
     atomic_write_json(a.out, data)
-    own = isinstance(model, LearnedModel) and model.physics_coefficients() is not None
     return (
         ("" if own else "the RC identified from its training data (the model has no R or C of its own): ")
         + f"R_ra={data['R_ra_K_per_W']:.4g} K/W R_rm={data['R_rm_K_per_W']:.4g} K/W "

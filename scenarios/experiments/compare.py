@@ -466,6 +466,7 @@ def train_scenario_zones(
     seed: int = 0,
     arch: str = AUTO,
     paper: PaperZoneTraining | None = None,
+    identified: MultiZoneIdentifyResult | None = None,
 ) -> ModelChoice:
     """``train``'s model of ``data`` of a building of several zones, its layout the scenario's:
     with ``arch`` ``auto`` (the default) the multi-zone hybrid or physics-informed ARX,
@@ -474,7 +475,9 @@ def train_scenario_zones(
     ``physreg`` that one (:func:`pinn_mpc.models.multizone_hybrid.fit_multizone_hybrid`, its
     residual from ``seed``; :func:`pinn_mpc.models.multizone_arx.fit_multizone_arx`;
     :func:`pinn_mpc.models.multizone_paper.fit_multizone_paper`, its networks from ``seed``,
-    trained as ``paper`` says: None, that function's defaults)."""
+    trained as ``paper`` says: None, that function's defaults). ``identified``: the building
+    already identified from ``data`` (:func:`identify_scenario_zones`), which parx and the
+    paper's networks then start from instead of identifying it again (None: they identify it)."""
     from pinn_mpc.model_choice import ModelChoice, choose_zone_model
     from pinn_mpc.models.multizone_arx import fit_multizone_arx
     from pinn_mpc.models.multizone_hybrid import fit_multizone_hybrid
@@ -493,17 +496,17 @@ def train_scenario_zones(
         if arch == DEFAULT_ARCH:
             model = fit_multizone_hybrid(data, seed=seed, **layout)
         elif arch == PHYSICS_ARX.name:
-            model = fit_multizone_arx(data, **layout)
+            model = fit_multizone_arx(data, identified=identified, **layout)
         else:
-            model = fit_multizone_paper(data, arch=arch, seed=seed, settings=paper, **layout)
+            model = fit_multizone_paper(data, arch=arch, seed=seed, settings=paper, identified=identified, **layout)
         choice = ModelChoice(chosen=arch, model=model, held_out_mae_c={}, horizon_steps=0, why="as asked")
     else:
         raise ValueError(
             f"train_scenario_zones: arch {arch!r} is not fitted on a building of several zones; choose "
             f"{AUTO}, {DEFAULT_ARCH}, {PHYSICS_ARX.name} or {' or '.join(PAPER_ARCHS)}"
         )
-    identified: MultiZoneIdentifyResult | None = getattr(choice.model, "identified", None)
-    for note in () if identified is None else identified.notes:
+    carried: MultiZoneIdentifyResult | None = getattr(choice.model, "identified", None)
+    for note in () if carried is None else carried.notes:
         warn(note)
     return choice
 

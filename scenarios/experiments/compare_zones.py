@@ -137,7 +137,7 @@ def run_zone_comparison(scenario: Scenario, settings: CompareSettings) -> Compar
         f"{n_steps} intervals"
         for row in rows if row.get("model_fallback_steps")
     ]
-    notes += [_distrusted_note(row) for row in rows if _distrusted_note(row)]
+    notes += [note for note in map(_distrusted_note, rows) if note]
     zone_rc = {
         **({"true": zone_rc_summary(truth, source=f"scenario {scenario.name}")} if truth is not None else {}),
         "identified": zone_rc_summary(identified.params, source="identify (training data)"),
@@ -176,7 +176,7 @@ def _fit_zone_models(
             start = time.perf_counter()
             try:
                 models[family] = train_scenario_zones(
-                    scenario, data, seed=settings.seed, arch=family, paper=paper
+                    scenario, data, seed=settings.seed, arch=family, paper=paper, identified=identified
                 ).model
             except InputError as e:  # too few rows for its coefficients: left out, said why
                 notes.append(f"{family} is not compared: {e}")
