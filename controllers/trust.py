@@ -361,10 +361,28 @@ class ZoneTrust:
         """Why the model is not to be trusted now, by the building's mean errors, with the zone
         the model errs most in (None when it is)."""
         reason = self.building.reason()
-        if reason is None:
+        return None if reason is None else f"{reason} (most in {self._worst_zone()})"
+
+    def rc_credible(self, credible_k: float) -> bool:
+        """Whether the RC's filtered replay error, the zones' mean, is under ``credible_k``."""
+        rc = self.building.state.replay_rc_k
+        return math.isfinite(rc) and rc < credible_k
+
+    def credible_reason(self, credible_k: float, floor_k: float) -> str | None:
+        """Why the model is not to be trusted now beside a credible RC (:meth:`rc_credible`):
+        its filtered replay error, the zones' mean, above ``floor_k`` and ``error_ratio`` times
+        the RC's; None when it is trusted or the RC is not credible."""
+        s = self.building.state
+        if not self.rc_credible(credible_k):
             return None
-        worst = int(np.nanargmax([m.state.replay_k if math.isfinite(m.state.replay_k) else -1.0 for m in self.zones]))
-        return f"{reason} (most in {self.zone_names[worst]})"
+        if s.replay_k > floor_k and s.replay_k > self.settings.error_ratio * s.replay_rc_k:
+            return f"prediction error above a credible RC's (most in {self._worst_zone()})"
+        return None
+
+    def _worst_zone(self) -> str:
+        """The zone whose filtered replay error of the model is the largest."""
+        errors = [m.state.replay_k if math.isfinite(m.state.replay_k) else -1.0 for m in self.zones]
+        return self.zone_names[int(np.argmax(errors))]
 
     def worst(self) -> tuple[float, float]:
         """The largest filtered replay error over the zones [K], of the model and of the RC

@@ -46,14 +46,18 @@ model is distrusted when its zones' mean error passes the floor and the ratio to
 the error alone while the RC has none): a building's verdict, for the fallback QP takes every
 zone at once (judged zone by zone, on EnergyPlus's small office in January, seed 3, the QP
 took 21 % of the decisions from an ARX that erred less than the RC over the building, and the
-objective rose from 0.72 to 1.12 x the thermostat's). The hand-over is off by default
-(``ZoneGuard.hand_over``): on EnergyPlus's small office the QP on the identified multi-zone RC
-is 1.9-16 x the thermostat where cem over the ARX is 0.6-1.2 x, and with the hand-over on
-(sweeps/eplus_zones.toml's cells, 3789177) the QP's 9 % of January seed 1's decisions raised
-cem from 0.77 to 1.14 x the thermostat and its 14 % of April seed 1's (30 days) from 0.80 to
-1.19, though the RC replayed those hours better (0.60 K against the ARX's 2.03 K in April):
-the RC's replay starts from its Kalman estimate of every hour, its plan does not. With the
-hand-over on, the fallback QP decides until the model has been
+objective rose from 0.72 to 1.12 x the thermostat's). By default (``ZoneGuard.hand_over``
+None) the model hands over only beside a credible RC, whose zones' mean filtered replay error
+is under :data:`ZONE_CREDIBLE_RC_K` (the model's then above :data:`ZONE_CREDIBLE_FLOOR_K` and
+twice the RC's): on EnergyPlus's small office the QP on the identified multi-zone RC is
+1.9-16 x the thermostat where cem over the ARX is 0.6-1.2 x, and with the hand-over by the
+limits alone (``hand_over=True``; sweeps/eplus_zones.toml's cells, 3789177) the QP's 9 % of
+January seed 1's decisions raised cem from 0.77 to 1.14 x the thermostat and its 14 % of April
+seed 1's (30 days) from 0.80 to 1.19, though the RC replayed those hours better (0.60 K against
+the ARX's 2.03 K in April): the RC's replay starts from its Kalman estimate of every hour, its
+plan does not. On the RC buildings, whose identified RC replays within hundredths of a kelvin,
+a planner that exploits a network's errors hands the building to the QP. Once handed over, the
+fallback QP decides until the model has been
 within the limits for ``recover_steps`` decisions (doubled after each further switch). Its
 decisions are fallbacks (``last_stats.fallback``: the KPIs count the model's own decisions),
 and ``trust_report`` counts them with the worst zone's errors. Not watched here (the
@@ -104,7 +108,8 @@ if TYPE_CHECKING:
     from pinn_mpc.records import TrustReport
 
 __all__ = [
-    "ZONE_COMFORT_MARGIN_K", "ZONE_LAGGED_MARGIN_K", "ZONE_TRUST", "ZoneGuard", "ZoneSampling", "zone_comfort_margin_k",
+    "ZONE_COMFORT_MARGIN_K", "ZONE_CREDIBLE_FLOOR_K", "ZONE_CREDIBLE_RC_K", "ZONE_LAGGED_MARGIN_K", "ZONE_TRUST",
+    "ZoneGuard", "ZoneSampling", "zone_comfort_margin_k",
 ]
 
 #: The comfort margin [K] cem and random-shooting plan a building of several zones with over a
@@ -121,10 +126,19 @@ ZONE_COMFORT_MARGIN_K = 0.0
 #: adaptive margins come on top of it: beneath them 0.3 K or none did worse in April).
 ZONE_LAGGED_MARGIN_K = 0.6
 #: The limits of a zoned planner's trust in its model (:class:`ZoneGuard`): each zone's
-#: band is narrowed by its filtered replay error (``margin_from_replay``), up to 1 K; the
-#: model hands over only when its zones' mean replay error passes what that margin covers
-#: (``error_floor_k`` 1 K) and twice the RC's.
+#: band is narrowed by its filtered replay error (``margin_from_replay``), up to 1 K; with
+#: ``ZoneGuard(hand_over=True)`` the model hands over when its zones' mean replay error passes
+#: what that margin covers (``error_floor_k`` 1 K) and twice the RC's.
 ZONE_TRUST = TrustSettings(margin_from_replay=True, max_margin_k=1.0, error_floor_k=1.0)
+#: The default hand-over (``ZoneGuard.hand_over`` None) goes to the fallback QP only while its
+#: RC is credible: the zones' mean filtered replay error of the RC under this [K]. On the RC
+#: buildings the identified RC replays within 0.01-0.03 K; on EnergyPlus's small office it errs
+#: 0.6-2.8 K, where its QP controls worse than the model it would replace (module docstring).
+ZONE_CREDIBLE_RC_K = 0.2
+#: Beside a credible RC the model is distrusted when its zones' mean filtered replay error
+#: passes this [K] (the one-zone guard's floor, :class:`controllers.trust.TrustSettings`) and
+#: twice the RC's.
+ZONE_CREDIBLE_FLOOR_K = 0.3
 
 
 def zone_comfort_margin_k(model: BatchDynamics) -> float:
@@ -137,25 +151,44 @@ def zone_comfort_margin_k(model: BatchDynamics) -> float:
 @dataclass(frozen=True, kw_only=True)
 class ZoneGuard:
     """How a planner over several zones watches its model (module docstring): ``settings``,
-    the limits of each zone's :class:`controllers.trust.TrustMonitor`; ``hand_over``, whether a
-    distrusted model hands its decisions to the fallback QP (False: its errors are still
-    filtered and counted, and the model drives); ``adaptive_margin``, whether each zone's band
-    is narrowed by ``settings.margin_factor`` times its filtered replay error (at most
-    ``settings.max_margin_k``, never less than the planner's ``comfort_margin_k``).
+    the limits of each zone's :class:`controllers.trust.TrustMonitor`; ``hand_over``, when a
+    distrusted model hands its decisions to the fallback QP:
 
-    ``hand_over`` is False by default (module docstring: on EnergyPlus the QP on the
-    identified RC controls worse than the model it would replace, even where it replays the
-    past better); give ``ZoneGuard(hand_over=True)`` where the identified RC is trusted."""
+    - None (the default): only beside a credible RC, whose zones' mean filtered replay error is
+      under ``credible_rc_k``, when the model's passes ``credible_floor_k`` and
+      ``settings.error_ratio`` times the RC's (a planner that exploits a network's errors on an
+      RC building hands over; on EnergyPlus, whose identified RC is not credible, the model
+      drives: there the QP on that RC controls worse than the model it would replace, even
+      where it replays the past better, module docstring);
+    - True: by ``settings``' limits whatever the RC's error;
+    - False: never (the errors are still filtered and counted, and the model drives).
+
+    ``adaptive_margin``: whether each zone's band is narrowed by ``settings.margin_factor``
+    times its filtered replay error (at most ``settings.max_margin_k``, never less than the
+    planner's ``comfort_margin_k``)."""
 
     settings: TrustSettings = ZONE_TRUST
-    hand_over: bool = False
+    hand_over: bool | None = None
     adaptive_margin: bool = True
+    credible_rc_k: float = ZONE_CREDIBLE_RC_K
+    credible_floor_k: float = ZONE_CREDIBLE_FLOOR_K
 
     def __post_init__(self) -> None:
         if not isinstance(self.settings, TrustSettings):
             raise TypeError(
                 f"ZoneGuard.settings must be a controllers.trust.TrustSettings, got {type(self.settings).__name__}"
             )
+        if self.hand_over not in (None, True, False):
+            raise TypeError(f"ZoneGuard.hand_over must be None, True or False, got {self.hand_over!r}")
+        for name in ("credible_rc_k", "credible_floor_k"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+                raise ValueError(f"ZoneGuard.{name} must be a positive number of kelvin, got {value!r}")
+
+    @property
+    def watches(self) -> bool:
+        """Whether the guard may hand decisions over (``hand_over`` not False)."""
+        return self.hand_over is not False
 
 
 
@@ -345,7 +378,7 @@ class ZoneSampling:
         s = self._zone_trust.building.state
         model, rc = self._zone_trust.worst()
         return {
-            "model_fallback": self.zone_qp is not None and self.zone_guard.hand_over,
+            "model_fallback": self.zone_qp is not None and self.zone_guard.watches,
             "model_fallback_switches": s.switches,
             "model_fallback_steps": s.fallback_steps,
             "model_fallback_reasons": dict(s.reasons),
@@ -371,9 +404,8 @@ class ZoneSampling:
             return self._zones_failed(obs, forecast, start, f"model error: {type(exc).__name__}: {exc}")
         self.fallback.planned(plan_w)
         self.last_cost_eur = cost
-        guarded = self.zone_guard.hand_over and self.zone_qp is not None
-        if guarded:
-            reason = self._zone_trust.reason()
+        if self.zone_qp is not None and self.zone_guard.watches:
+            reason = self._guard_reason()
             if not self._zone_trust.building.decide(reason):
                 assert isinstance(self.fallback, _ZoneFallback)
                 action = self.fallback.qp_action(obs, forecast)
@@ -385,12 +417,20 @@ class ZoneSampling:
         self._stats = SolveStats(time_s=time.perf_counter() - start, status="ok", iterations=iterations, fallback=False)
         return np.array([a.clip(float(u)) for a, u in zip(self.spec.actuators, plan_w[0], strict=True)])
 
+    def _guard_reason(self) -> str | None:
+        """Why the guard does not trust the model now (:class:`ZoneGuard`'s ``hand_over``), or
+        None."""
+        guard = self.zone_guard
+        if guard.hand_over:
+            return self._zone_trust.reason()
+        return self._zone_trust.credible_reason(guard.credible_rc_k, guard.credible_floor_k)
+
     def _watch(self, obs: Observation) -> None:
         """Replay the model and the fallback RC over the last intervals, filter each zone's
         errors into the guard, record this step's RC state and offsets, and set each zone's
         margin (module docstring); nothing but the offsets when the guard neither hands over
         nor narrows the bands."""
-        watched = self.zone_guard.hand_over or self.zone_guard.adaptive_margin
+        watched = self.zone_guard.watches or self.zone_guard.adaptive_margin
         errors = self._zone_replay_errors(obs) if watched else None
         if errors is not None:
             self._zone_trust.observe(*errors)
@@ -432,7 +472,8 @@ class ZoneSampling:
         assert isinstance(self.fallback, _ZoneFallback)
         action = self.fallback.act_all(obs, forecast)
         self.last_cost_eur = math.nan
-        if self.zone_qp is not None and self.zone_guard.hand_over:
+        guard = self.zone_guard
+        if self.zone_qp is not None and (guard.hand_over or (guard.watches and self._zone_trust.rc_credible(guard.credible_rc_k))):
             self._zone_trust.building.decide(reason)  # a model that failed is distrusted
         by = "multi-zone QP" if self.zone_qp is not None else "band rule"
         self._stats = SolveStats(

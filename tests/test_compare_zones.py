@@ -77,7 +77,11 @@ def test_a_planner_whose_model_replays_past_the_guard_s_limits_is_said_to_have_d
 
     row = {"controller": "cem / physreg", "model_fallback": False, "rc_replay_error_k": 0.02}
     assert "2.08 K off" in _distrusted_note({**row, "model_replay_error_k": 2.08})
+    assert "hand_over=False" in _distrusted_note({**row, "model_replay_error_k": 2.08})
     assert _distrusted_note({**row, "model_replay_error_k": 0.9}) == ""  # under the floor
     assert _distrusted_note({**row, "model_replay_error_k": 1.5, "rc_replay_error_k": 0.8}) == ""
-    assert _distrusted_note({**row, "model_fallback": True, "model_replay_error_k": 2.08}) == ""
+    # by default: the RC was not credible (on EnergyPlus), or the guard handed over
+    beside = {**row, "model_fallback": True, "model_replay_error_k": 2.5, "rc_replay_error_k": 1.2}
+    assert "only beside an RC that replays the past within 0.2 K" in _distrusted_note(beside)
+    assert _distrusted_note({**beside, "model_fallback_steps": 12}) == ""
     assert _distrusted_note({"controller": "thermostat", "model_fallback": None}) == ""

@@ -214,21 +214,27 @@ def rc_models(scenario: Scenario, rc_sets: Mapping[str, MultiZoneIdentifyResult]
 
 def _distrusted_note(row: Mapping[str, Any]) -> str:
     """What a row of a planner whose model replayed the past worse than its RC by the zones'
-    trust limits, yet decided, should say: the guard of several zones watches but does not
-    hand decisions over by default (:class:`controllers.zone_sampling.ZoneGuard`). Empty
-    for any other row."""
-    from controllers.zone_sampling import ZONE_TRUST
+    trust limits (``ZONE_TRUST``'s floor and ratio), yet made every decision, should say: the
+    guard of several zones hands decisions over by default only beside a credible RC, or not
+    at all when asked so (:class:`controllers.zone_sampling.ZoneGuard`). Empty for any other
+    row."""
+    from controllers.zone_sampling import ZONE_CREDIBLE_RC_K, ZONE_TRUST
 
     model, rc = row.get("model_replay_error_k"), row.get("rc_replay_error_k")
-    if row.get("model_fallback") is not False or model is None or rc is None:
+    if row.get("model_fallback") is None or model is None or rc is None or row.get("model_fallback_steps"):
         return ""
     if model <= max(ZONE_TRUST.error_floor_k, ZONE_TRUST.error_ratio * rc):
         return ""
+    why = (
+        "the guard was asked to hand no decision to the RC MPC (`ZoneGuard(hand_over=False)`)"
+        if row["model_fallback"] is False
+        else "on a building of several zones the guard hands decisions to the RC MPC only beside an "
+        f"RC that replays the past within {ZONE_CREDIBLE_RC_K:g} K (`ZoneGuard(hand_over=True)` "
+        "hands them over whatever the RC's error)"
+    )
     return (
         f"`{row['controller']}`: its model replayed the past hours {model:.2f} K off (the identified "
-        f"RC {rc:.2f} K), past the guard's limits, yet made every decision: on a building of several "
-        "zones the guard narrows each zone's band by the model's error but hands no decision to "
-        "the RC MPC unless asked (`ZoneGuard(hand_over=True)`)"
+        f"RC {rc:.2f} K), past the guard's limits, yet made every decision: {why}"
     )
 
 
