@@ -332,25 +332,30 @@ class ZoneTrust:
     (:meth:`TrustMonitor.reason` on them, :meth:`TrustMonitor.decide`: switches, recovery,
     counts). The verdict is the building's because the fallback QP takes every zone at once:
     it pays where the model errs more than the RC over the building, not where the RC is
-    better in one zone for a few hours."""
+    better in one zone for a few hours. It also keeps the RC's mean replay error over the run
+    (the zones' mean, every replay alike), which judges whether the RC is credible at all
+    (:meth:`rc_credible`)."""
 
     def __init__(self, settings: TrustSettings, zone_names: Sequence[str], u_range_w: float) -> None:
         self.settings, self.zone_names = settings, tuple(zone_names)
         self.zones = [TrustMonitor(settings, u_range_w) for _ in self.zone_names]
         self.building = TrustMonitor(settings, u_range_w)
+        self._rc_sum_k, self._rc_replays = 0.0, 0
 
     def reset(self) -> None:
         for monitor in (*self.zones, self.building):
             monitor.reset()
+        self._rc_sum_k, self._rc_replays = 0.0, 0
 
     def observe(self, replay_k: np.ndarray, replay_rc_k: np.ndarray) -> None:
         """Each zone's replay error (Z,) [K] of the model and of the RC (NaN: not known; the
         building's mean only when every zone's is known)."""
         for monitor, model, rc in zip(self.zones, replay_k, replay_rc_k, strict=True):
             monitor.observe(math.nan, math.nan, float(model), float(rc))
-        self.building.observe(
-            math.nan, math.nan, float(np.mean(np.abs(replay_k))), float(np.mean(np.abs(replay_rc_k)))
-        )
+        rc = float(np.mean(np.abs(replay_rc_k)))
+        self.building.observe(math.nan, math.nan, float(np.mean(np.abs(replay_k))), rc)
+        if math.isfinite(rc):
+            self._rc_sum_k, self._rc_replays = self._rc_sum_k + rc, self._rc_replays + 1
 
     def margins_k(self, base_k: float) -> np.ndarray:
         """(Z,) each zone's comfort margin [K]: ``margin_factor`` times its filtered replay
@@ -363,17 +368,19 @@ class ZoneTrust:
         reason = self.building.reason()
         return None if reason is None else f"{reason} (most in {self._worst_zone()})"
 
-    def rc_credible(self, credible_k: float) -> bool:
-        """Whether the RC's filtered replay error, the zones' mean, is under ``credible_k``."""
-        rc = self.building.state.replay_rc_k
-        return math.isfinite(rc) and rc < credible_k
+    def rc_credible(self, credible_k: float, min_replays: int) -> bool:
+        """Whether the RC has replayed the past within ``credible_k`` [K] on the mean over the
+        run (the zones' mean error of each replay), after at least ``min_replays`` replays:
+        a slow judgement, which the hours where a wrong RC happens to replay well do not
+        sway."""
+        return self._rc_replays >= min_replays and self._rc_sum_k / self._rc_replays < credible_k
 
-    def credible_reason(self, credible_k: float, floor_k: float) -> str | None:
+    def credible_reason(self, credible_k: float, min_replays: int, floor_k: float) -> str | None:
         """Why the model is not to be trusted now beside a credible RC (:meth:`rc_credible`):
         its filtered replay error, the zones' mean, above ``floor_k`` and ``error_ratio`` times
         the RC's; None when it is trusted or the RC is not credible."""
         s = self.building.state
-        if not self.rc_credible(credible_k):
+        if not self.rc_credible(credible_k, min_replays):
             return None
         if s.replay_k > floor_k and s.replay_k > self.settings.error_ratio * s.replay_rc_k:
             return f"prediction error above a credible RC's (most in {self._worst_zone()})"

@@ -47,9 +47,9 @@ the error alone while the RC has none): a building's verdict, for the fallback Q
 zone at once (judged zone by zone, on EnergyPlus's small office in January, seed 3, the QP
 took 21 % of the decisions from an ARX that erred less than the RC over the building, and the
 objective rose from 0.72 to 1.12 x the thermostat's). By default (``ZoneGuard.hand_over``
-None) the model hands over only beside a credible RC, whose zones' mean filtered replay error
-is under :data:`ZONE_CREDIBLE_RC_K` (the model's then above :data:`ZONE_CREDIBLE_FLOOR_K` and
-twice the RC's): on EnergyPlus's small office the QP on the identified multi-zone RC is
+None) the model hands over only beside a credible RC, whose replay error (the zones' mean over
+the run's replays) is under :data:`ZONE_CREDIBLE_RC_K` (the model's filtered one then above
+:data:`ZONE_CREDIBLE_FLOOR_K` and twice the RC's): on EnergyPlus's small office the QP on the identified multi-zone RC is
 1.9-16 x the thermostat where cem over the ARX is 0.6-1.2 x, and with the hand-over by the
 limits alone (``hand_over=True``; sweeps/eplus_zones.toml's cells, 3789177) the QP's 9 % of
 January seed 1's decisions raised cem from 0.77 to 1.14 x the thermostat and its 14 % of April
@@ -108,7 +108,7 @@ if TYPE_CHECKING:
     from pinn_mpc.records import TrustReport
 
 __all__ = [
-    "ZONE_COMFORT_MARGIN_K", "ZONE_CREDIBLE_FLOOR_K", "ZONE_CREDIBLE_RC_K", "ZONE_LAGGED_MARGIN_K", "ZONE_TRUST",
+    "ZONE_COMFORT_MARGIN_K", "ZONE_CREDIBLE_FLOOR_K", "ZONE_CREDIBLE_MIN_REPLAYS", "ZONE_CREDIBLE_RC_K", "ZONE_LAGGED_MARGIN_K", "ZONE_TRUST",
     "ZoneGuard", "ZoneSampling", "zone_comfort_margin_k",
 ]
 
@@ -131,10 +131,13 @@ ZONE_LAGGED_MARGIN_K = 0.6
 #: what that margin covers (``error_floor_k`` 1 K) and twice the RC's.
 ZONE_TRUST = TrustSettings(margin_from_replay=True, max_margin_k=1.0, error_floor_k=1.0)
 #: The default hand-over (``ZoneGuard.hand_over`` None) goes to the fallback QP only while its
-#: RC is credible: the zones' mean filtered replay error of the RC under this [K]. On the RC
-#: buildings the identified RC replays within 0.01-0.03 K; on EnergyPlus's small office it errs
-#: 0.6-2.8 K, where its QP controls worse than the model it would replace (module docstring).
+#: RC is credible: its replay error, the zones' mean over every replay of the run so far, under
+#: this [K] (after :data:`ZONE_CREDIBLE_MIN_REPLAYS` replays). On the RC buildings the
+#: identified RC replays within 0.01-0.03 K; on EnergyPlus's small office it errs 0.6-2.8 K,
+#: where its QP controls worse than the model it would replace (module docstring).
 ZONE_CREDIBLE_RC_K = 0.2
+#: Replays of the RC before it can be judged credible (8 hours of half-hours).
+ZONE_CREDIBLE_MIN_REPLAYS = 16
 #: Beside a credible RC the model is distrusted when its zones' mean filtered replay error
 #: passes this [K] (the one-zone guard's floor, :class:`controllers.trust.TrustSettings`) and
 #: twice the RC's.
@@ -154,8 +157,9 @@ class ZoneGuard:
     the limits of each zone's :class:`controllers.trust.TrustMonitor`; ``hand_over``, when a
     distrusted model hands its decisions to the fallback QP:
 
-    - None (the default): only beside a credible RC, whose zones' mean filtered replay error is
-      under ``credible_rc_k``, when the model's passes ``credible_floor_k`` and
+    - None (the default): only beside a credible RC, whose replay error, the zones' mean over
+      the run's replays (at least ``credible_min_replays``), is under ``credible_rc_k``, when
+      the model's filtered one passes ``credible_floor_k`` and
       ``settings.error_ratio`` times the RC's (a planner that exploits a network's errors on an
       RC building hands over; on EnergyPlus, whose identified RC is not credible, the model
       drives: there the QP on that RC controls worse than the model it would replace, even
@@ -172,6 +176,7 @@ class ZoneGuard:
     adaptive_margin: bool = True
     credible_rc_k: float = ZONE_CREDIBLE_RC_K
     credible_floor_k: float = ZONE_CREDIBLE_FLOOR_K
+    credible_min_replays: int = ZONE_CREDIBLE_MIN_REPLAYS
 
     def __post_init__(self) -> None:
         if not isinstance(self.settings, TrustSettings):
@@ -184,6 +189,8 @@ class ZoneGuard:
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise ValueError(f"ZoneGuard.{name} must be a positive number of kelvin, got {value!r}")
+        if not (isinstance(self.credible_min_replays, int) and self.credible_min_replays >= 1):
+            raise ValueError(f"ZoneGuard.credible_min_replays must be a whole number >= 1, got {self.credible_min_replays!r}")
 
     @property
     def watches(self) -> bool:
@@ -423,7 +430,7 @@ class ZoneSampling:
         guard = self.zone_guard
         if guard.hand_over:
             return self._zone_trust.reason()
-        return self._zone_trust.credible_reason(guard.credible_rc_k, guard.credible_floor_k)
+        return self._zone_trust.credible_reason(guard.credible_rc_k, guard.credible_min_replays, guard.credible_floor_k)
 
     def _watch(self, obs: Observation) -> None:
         """Replay the model and the fallback RC over the last intervals, filter each zone's
@@ -473,7 +480,9 @@ class ZoneSampling:
         action = self.fallback.act_all(obs, forecast)
         self.last_cost_eur = math.nan
         guard = self.zone_guard
-        if self.zone_qp is not None and (guard.hand_over or (guard.watches and self._zone_trust.rc_credible(guard.credible_rc_k))):
+        if self.zone_qp is not None and (
+            guard.hand_over or (guard.watches and self._zone_trust.rc_credible(guard.credible_rc_k, guard.credible_min_replays))
+        ):
             self._zone_trust.building.decide(reason)  # a model that failed is distrusted
         by = "multi-zone QP" if self.zone_qp is not None else "band rule"
         self._stats = SolveStats(

@@ -17,6 +17,7 @@ from controllers.sampling import CEM, Guard, RandomShooting
 from controllers.trust import TrustSettings, ZoneRCReplay, ZoneTrust
 from controllers.zone_sampling import (
     ZONE_COMFORT_MARGIN_K,
+    ZONE_CREDIBLE_RC_K,
     ZONE_LAGGED_MARGIN_K,
     ZoneGuard,
     zone_comfort_margin_k,
@@ -215,3 +216,31 @@ def test_a_model_with_three_times_the_air_to_mass_resistance_hands_over_to_the_q
     _, kept = _day(name, wrong, ZoneGuard(hand_over=False))
     assert kept["own_decisions_share"] == 1.0
     assert kpis["objective"] < kept["objective"]
+
+
+def test_by_default_the_guard_hands_over_beside_a_credible_rc_only():
+    """The default guard (``ZoneGuard()``, hand_over None): beside the true building, which
+    replays the past exactly, the wrong model (3 x the air-to-mass resistance) hands over, the
+    reason naming the credible RC; beside an RC as wrong as the model, whose replay error is
+    past :data:`ZONE_CREDIBLE_RC_K`, the model decides every interval (the guard on EnergyPlus,
+    whose identified RC is no better)."""
+    name = "two_zone_house"
+    building, _ = _building(name)
+    wrong_params = _scaled(building, "r_rm_k_per_w", 3.0)
+    cem, kpis = _day(name, _WrongModel(_planner_model(name, wrong_params), building), ZoneGuard())
+    report = cem.trust_report
+    assert report is not None and report["model_fallback"] and report["model_fallback_switches"] >= 1
+    assert any(r.startswith("prediction error above a credible RC's (most in ") for r in report["model_fallback_reasons"])
+    assert kpis["own_decisions_share"] < 0.8
+    beside_wrong, kept = _day(name, _WrongModel(_planner_model(name, wrong_params), _scaled(building, "c_r_j_per_k", 4.0)), ZoneGuard())
+    report = beside_wrong.trust_report
+    assert report is not None and report["rc_replay_error_k"] is not None
+    assert report["rc_replay_error_k"] > ZONE_CREDIBLE_RC_K
+    assert kept["own_decisions_share"] == 1.0 and report["model_fallback_switches"] == 0
+
+
+def test_the_zone_guards_settings_are_checked():
+    with pytest.raises(TypeError, match="hand_over must be None, True or False"):
+        ZoneGuard(hand_over="yes")  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="credible_rc_k must be a positive number of kelvin"):
+        ZoneGuard(credible_rc_k=0.0)
