@@ -347,14 +347,16 @@ class ZoneTrust:
             monitor.reset()
         self._rc_sum_k, self._rc_replays = 0.0, 0
 
-    def observe(self, replay_k: np.ndarray, replay_rc_k: np.ndarray) -> None:
+    def observe(self, replay_k: np.ndarray, replay_rc_k: np.ndarray, full: bool = True) -> None:
         """Each zone's replay error (Z,) [K] of the model and of the RC (NaN: not known; the
-        building's mean only when every zone's is known)."""
+        building's mean only when every zone's is known); ``full``: the replay was
+        ``replay_steps`` long (only those count toward the RC's credibility, :meth:`rc_credible`:
+        shorter ones, early in a run, err less whatever the RC)."""
         for monitor, model, rc in zip(self.zones, replay_k, replay_rc_k, strict=True):
             monitor.observe(math.nan, math.nan, float(model), float(rc))
         rc = float(np.mean(np.abs(replay_rc_k)))
         self.building.observe(math.nan, math.nan, float(np.mean(np.abs(replay_k))), rc)
-        if math.isfinite(rc):
+        if full and math.isfinite(rc):
             self._rc_sum_k, self._rc_replays = self._rc_sum_k + rc, self._rc_replays + 1
 
     def margins_k(self, base_k: float) -> np.ndarray:
@@ -370,7 +372,7 @@ class ZoneTrust:
 
     def rc_credible(self, credible_k: float, min_replays: int) -> bool:
         """Whether the RC has replayed the past within ``credible_k`` [K] on the mean over the
-        run (the zones' mean error of each replay), after at least ``min_replays`` replays:
+        run (the zones' mean error of each full replay), after at least ``min_replays`` of them:
         a slow judgement, which the hours where a wrong RC happens to replay well do not
         sway."""
         return self._rc_replays >= min_replays and self._rc_sum_k / self._rc_replays < credible_k
