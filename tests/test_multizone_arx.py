@@ -324,10 +324,12 @@ def test_train_parx_plans_with_cem_and_exports_the_rc_it_carries(house_data: Pat
     argv = ["closed-loop", "--scenario", "two_zone_house", "--controller", "cem", "--model", str(out), "--days", "1",
             "--json", str(kpis)]
     assert main(argv) == 0, capsys.readouterr().err
-    # Its planning never fails; the guard watches it but does not hand over by default
-    # (controllers.zone_sampling.ZoneGuard): every decision is the ARX's.
+    # Its planning never fails: every fallback is the guard's, which hands the house to the QP
+    # on the RC the ARX carries while the ARX replays the past worse than that RC, credible on
+    # the RC house (controllers.zone_sampling.ZoneGuard's default).
     run = json.loads(kpis.read_text())
-    assert run["fallbacks"] == run["model_fallback_steps"] == 0 and run["model_fallback"] is False
+    assert run["model_fallback"] is True and run["fallbacks"] == run["model_fallback_steps"] > 0
+    assert all(r.startswith("prediction error above a credible RC's") for r in run["model_fallback_reasons"])
     # The ARX runs from measured lags: cem plans it with the lagged model's margin and each
     # zone's offset; the RC it carries, Kalman-filtered, with neither.
     from controllers.sampling import CEM
