@@ -333,7 +333,7 @@ class ZoneTrust:
     counts). The verdict is the building's because the fallback QP takes every zone at once:
     it pays where the model errs more than the RC over the building, not where the RC is
     better in one zone for a few hours. It also keeps the RC's mean replay error over the run
-    (the zones' mean, every replay alike), which judges whether the RC is credible at all
+    (the zones' mean, over its full-length replays), which judges whether the RC is credible at all
     (:meth:`rc_credible`)."""
 
     def __init__(self, settings: TrustSettings, zone_names: Sequence[str], u_range_w: float) -> None:

@@ -48,7 +48,7 @@ zone at once (judged zone by zone, on EnergyPlus's small office in January, seed
 took 21 % of the decisions from an ARX that erred less than the RC over the building, and the
 objective rose from 0.72 to 1.12 x the thermostat's). By default (``ZoneGuard.hand_over``
 None) the model hands over only beside a credible RC, whose replay error (the zones' mean over
-the run's replays) is under :data:`ZONE_CREDIBLE_RC_K` (the model's filtered one then above
+the run's full replays) is under :data:`ZONE_CREDIBLE_RC_K` (the model's filtered one then above
 :data:`ZONE_CREDIBLE_FLOOR_K` and twice the RC's): on EnergyPlus's small office the QP on the identified multi-zone RC is
 1.9-16 x the thermostat where cem over the ARX is 0.6-1.2 x, and with the hand-over by the
 limits alone (``hand_over=True``; sweeps/eplus_zones.toml's cells, 3789177) the QP's 9 % of
@@ -136,12 +136,10 @@ ZONE_TRUST = TrustSettings(margin_from_replay=True, max_margin_k=1.0, error_floo
 #: identified RC replays within 0.01-0.03 K; on EnergyPlus's small office it errs 0.4-2.8 K,
 #: where its QP controls worse than the model it would replace (module docstring).
 ZONE_CREDIBLE_RC_K = 0.2
-#: Full replays (``replay_steps`` long) of the RC before it can be judged credible. On
-#: two_zone_house, a model of 3 x the air-to-mass resistance beside the true RC (then beside
-#: one of 4 x the room's capacity, 0.44 K off): after 4 it hands over early enough to end the
-#: day within 0.4 % of the true model's objective and never trusts the wrong RC; after 2 the
-#: wrong RC took a quarter of the decisions (objective 1.37 x never handing over), after 8 the
-#: day beside the true RC cost 10 % more (tests/test_zone_guard.py).
+#: Full replays (``replay_steps`` long) of the RC before it can be judged credible: enough that
+#: a wrong RC's few good hours do not pass for credibility, few enough that a credible one takes
+#: over before an exploited model's plans cost much (chosen on two_zone_house, CHANGELOG.md;
+#: tests/test_zone_guard.py holds both).
 ZONE_CREDIBLE_MIN_REPLAYS = 4
 #: Beside a credible RC the model is distrusted when its zones' mean filtered replay error
 #: passes this [K] (the one-zone guard's floor, :class:`controllers.trust.TrustSettings`) and
