@@ -435,6 +435,14 @@ class ZoneSampling:
             return self._zone_trust.reason()
         return self._zone_trust.credible_reason(guard.credible_rc_k, guard.credible_min_replays, guard.credible_floor_k)
 
+    def _may_hand_over(self) -> bool:
+        """Whether the guard may hand this decision to the fallback QP: always with
+        ``hand_over`` True, beside a credible RC with None, never with False."""
+        guard = self.zone_guard
+        return bool(guard.hand_over) or (
+            guard.watches and self._zone_trust.rc_credible(guard.credible_rc_k, guard.credible_min_replays)
+        )
+
     def _watch(self, obs: Observation) -> None:
         """Replay the model and the fallback RC over the last intervals, filter each zone's
         errors into the guard, record this step's RC state and offsets, and set each zone's
@@ -443,7 +451,8 @@ class ZoneSampling:
         watched = self.zone_guard.watches or self.zone_guard.adaptive_margin
         errors = self._zone_replay_errors(obs) if watched else None
         if errors is not None:
-            self._zone_trust.observe(*errors[:2], full=errors[2] == self.zone_guard.settings.replay_steps)
+            model_k, rc_k, replayed = errors
+            self._zone_trust.observe(model_k, rc_k, full=replayed == self.zone_guard.settings.replay_steps)
         if self._rc_replay is not None and self._zone_observer is not None:
             self._rc_replay.record(obs.k, self._zone_observer.observer.state)
         steps = self.zone_guard.settings.replay_steps
@@ -483,10 +492,7 @@ class ZoneSampling:
         assert isinstance(self.fallback, _ZoneFallback)
         action = self.fallback.act_all(obs, forecast)
         self.last_cost_eur = math.nan
-        guard = self.zone_guard
-        if self.zone_qp is not None and (
-            guard.hand_over or (guard.watches and self._zone_trust.rc_credible(guard.credible_rc_k, guard.credible_min_replays))
-        ):
+        if self.zone_qp is not None and self._may_hand_over():
             self._zone_trust.building.decide(reason)  # a model that failed is distrusted
         by = "multi-zone QP" if self.zone_qp is not None else "band rule"
         self._stats = SolveStats(
