@@ -234,6 +234,36 @@ def test_zones_touch_where_they_share_a_surface(name, zones, storeys):
     assert get_scenario("eplus_small_office").plant.settings.zone_adjacency is None  # merged: one zone
 
 
+@pytest.mark.parametrize(("name", "zones"), [(SCENARIO, ZONES), (MEDIUM, MEDIUM_ZONES)])
+def test_each_zone_takes_the_irradiance_of_the_facade_its_windows_face(name, zones):
+    """DOE's offices name each perimeter zone's windows by their wall (``..._ZN_1_wall_south_
+    Window_1``: zones 1-4 face south, east, north and west); the cores have no windows and take
+    the global horizontal G. The merged office has one zone, whose facades are not known."""
+    from scenarios.plants.energyplus.model import prepare_model
+
+    settings = get_scenario(name).plant.settings
+    facing = {"1": "G_south", "2": "G_east", "3": "G_north", "4": "G_west"}
+    assert settings.zone_solar_inputs == tuple("G" if z.startswith("Core") else facing[z[-1]] for z in zones)
+    windows = prepare_model(settings.building, zones="controlled").model["FenestrationSurface:Detailed"]
+    for window in windows:  # each window's name says its wall, which its zone's input faces
+        zone = next(i for i, z in enumerate(zones) if window.lower().startswith(f"{z.lower()}_wall_"))
+        assert settings.zone_solar_inputs[zone] == "G_" + window.lower().split("_wall_")[1].split("_")[0], window
+    assert get_scenario("eplus_small_office").plant.settings.zone_solar_inputs is None
+
+
+def test_a_window_faces_its_azimuth_turned_by_the_north_axis():
+    """A window's outward normal (x east, y north, z up) gives its facade; the building's north
+    axis turns it clockwise; a skylight takes G."""
+    from scenarios.plants.energyplus.model import window_facade
+
+    assert [window_facade(v, 0.0) for v in [(0, -2, 0), (3, 0, 0), (0, 1, 0), (-1, 0, 0)]] == [
+        "G_south", "G_east", "G_north", "G_west",
+    ]
+    assert window_facade((0, -2, 0), 90.0) == "G_west" and window_facade((0, -2, 0), -90.0) == "G_east"
+    assert window_facade((0, -1, 0), 30.0) == "G_south" and window_facade((0, -1, 0), 50.0) == "G_west"
+    assert window_facade((0.2, 0.1, 1.0), 0.0) == "G" and window_facade((0, -1, 0.9), 0.0) == "G_south"
+
+
 @pytest.mark.parametrize(("name", "month", "before"), [
     (SCENARIO, 1, 12), (f"{SCENARIO}_april", 4, 3), (f"{SCENARIO}_july", 7, 6),
 ])

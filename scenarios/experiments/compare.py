@@ -425,17 +425,15 @@ def identify_scenario_rc(scenario: Scenario, data: pd.DataFrame) -> RCParams:
 
 
 def zone_solar_inputs(scenario: Scenario) -> list[str | None]:
-    """Which irradiance each zone's windows take in a building of several zones: the declared
-    building's (an RC plant of several zones; None for a zone without windows) or, where the
-    plant does not declare it (EnergyPlus), the global horizontal ``G`` for every zone, each
+    """Which irradiance each zone's windows take in a building of several zones: what the
+    plant knows of them (an RC plant of several zones its declared building's, None for a
+    zone without windows; EnergyPlus the facade each zone's windows face, from the model's
+    geometry) or, where it knows nothing, the global horizontal ``G`` for every zone, each
     zone's aperture identified."""
-    from pinn_mpc.multizone import MultiZoneParams
-
-    spec = scenario.control_spec()
-    building = getattr(scenario.plant.settings, "building", None)
-    if not isinstance(building, MultiZoneParams):
-        return ["G"] * len(spec.zones)
-    return [z.solar_input if z.rc.solar_aperture_m2 > 0 else None for z in building.zones]
+    known = scenario.plant.settings.zone_solar_inputs
+    if known is None:
+        return ["G"] * len(scenario.control_spec().zones)
+    return list(known)
 
 
 def identify_scenario_zones(scenario: Scenario, data: pd.DataFrame) -> MultiZoneIdentifyResult:

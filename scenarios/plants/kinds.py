@@ -113,6 +113,13 @@ class KindSettings:
         return False
 
     @property
+    def zone_solar_inputs(self) -> tuple[str | None, ...] | None:
+        """The irradiance each of :attr:`zone_specs`' windows take (``G`` or one of
+        :data:`pinn_mpc.solar.FACADE_COLUMNS`; None for a zone without windows) where the kind
+        knows it; None: not known (each zone's aperture on ``G`` is identified)."""
+        return None
+
+    @property
     def sized_when_read(self) -> bool:
         """Whether the plant's actuator is sized when the scenario is read
         (:func:`scenarios.inputs.registry.with_sized_heater`)."""

@@ -82,6 +82,10 @@ class MultiZoneSettings(KindSettings):
     def needs_facades(self) -> bool:
         return any(z.solar_input != "G" for z in self.building.zones)
 
+    @property
+    def zone_solar_inputs(self) -> tuple[str | None, ...] | None:
+        return tuple(z.solar_input if z.rc.solar_aperture_m2 > 0 else None for z in self.building.zones)
+
 
 class MultiZonePlant:
     """:class:`~pinn_mpc.multizone.MultiZoneSimulator` as a

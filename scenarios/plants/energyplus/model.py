@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import Any
 
 from pinn_mpc.errors import InputError
+from pinn_mpc.solar import FACADE_AZIMUTHS_DEG
 from scenarios.plants.energyplus.files import first_severe, require_energyplus, resolve_building
 from scenarios.plants.energyplus.settings import ZONE_LAYOUTS, EnergyPlusSettings
 
@@ -40,6 +41,8 @@ __all__ = [
     "prepare_plant",
     "prepared_from_key",
     "zone_adjacency",
+    "window_facade",
+    "zone_window_facades",
     "zone_layout",
     "zone_names",
 ]
@@ -565,6 +568,63 @@ def _zone_adjacency_cached(key: PlantKey) -> tuple[tuple[bool, ...], ...]:
         if i is not None and j is not None and i != j:
             touching[i][j] = touching[j][i] = True
     return tuple(map(tuple, touching))
+
+
+def _window_area_vector(window: dict[str, Any]) -> tuple[float, float, float]:
+    """A window's (FenestrationSurface:Detailed) outward normal times its area [m2]."""
+    pts = [
+        (window[f"vertex_{i}_x_coordinate"], window[f"vertex_{i}_y_coordinate"], window[f"vertex_{i}_z_coordinate"])
+        for i in range(1, 5)
+        if isinstance(window.get(f"vertex_{i}_x_coordinate"), int | float)
+    ]
+    return _area_vector(pts) if len(pts) >= 3 else (0.0, 0.0, 0.0)
+
+
+def window_facade(area_vector: tuple[float, float, float], north_axis_deg: float) -> str:
+    """The irradiance a window of outward ``area_vector`` (x east, y north, z up in the
+    building's axes) takes, the building turned ``north_axis_deg`` clockwise from true north:
+    ``G`` for a skylight (facing up more than sideways), else the facade of
+    :data:`pinn_mpc.solar.FACADE_AZIMUTHS_DEG` nearest its azimuth."""
+    ax, ay, az = area_vector
+    if abs(az) >= math.hypot(ax, ay):
+        return "G"
+    azimuth = (math.degrees(math.atan2(ax, ay)) + north_axis_deg) % 360.0
+    return min(
+        FACADE_AZIMUTHS_DEG, key=lambda name: abs((azimuth - FACADE_AZIMUTHS_DEG[name] + 180.0) % 360.0 - 180.0)
+    )
+
+
+@functools.lru_cache(maxsize=16)
+def _zone_window_facades_cached(key: PlantKey) -> tuple[str, ...]:
+    prepared = prepared_from_key(key)
+    model = prepared.model
+    building: dict[str, Any] = next(iter(model.get("Building", {}).values()), {})
+    north = building.get("north_axis", 0.0)
+    north = float(north) if isinstance(north, int | float) else 0.0
+    rules: dict[str, Any] = next(iter(model.get("GlobalGeometryRules", {}).values()), {})
+    relative = str(rules.get("coordinate_system", "Relative")).lower() == "relative"
+    surfaces = model.get("BuildingSurface:Detailed", {})
+    areas: dict[str, dict[str, float]] = {z: {} for z in prepared.zones}
+    for window in model.get("FenestrationSurface:Detailed", {}).values():
+        zone = surfaces.get(window.get("building_surface_name", ""), {}).get("zone_name")
+        if zone not in areas:
+            continue
+        vector = _window_area_vector(window)
+        turn = model["Zone"][zone].get("direction_of_relative_north", 0.0) if relative else 0.0
+        facade = window_facade(vector, north + (float(turn) if isinstance(turn, int | float) else 0.0))
+        multiplier = window.get("multiplier", 1.0)
+        scale = float(multiplier) if isinstance(multiplier, int | float) else 1.0
+        areas[zone][facade] = areas[zone].get(facade, 0.0) + math.sqrt(sum(c * c for c in vector)) * scale
+    return tuple(max(a, key=a.__getitem__) if a else "G" for a in (areas[z] for z in prepared.zones))
+
+
+def zone_window_facades(plant: EnergyPlusSettings) -> tuple[str, ...]:
+    """The irradiance each zone of :func:`zone_layout` takes through its windows: the facade
+    (:data:`pinn_mpc.solar.FACADE_COLUMNS`) its largest window area faces, by the windows'
+    outward normals turned by the building's north axis (and a zone's own relative north);
+    ``G`` (global horizontal) where that area is skylights or the zone has no windows (its
+    roof's and walls' absorbed sun). Computed once per process."""
+    return _zone_window_facades_cached(plant_key(plant))
 
 
 def zone_adjacency(plant: EnergyPlusSettings) -> tuple[tuple[bool, ...], ...]:

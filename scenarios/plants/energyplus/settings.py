@@ -271,6 +271,17 @@ class EnergyPlusSettings(KindSettings):
         return np.array(zone_adjacency(self), dtype=bool)
 
     @property
+    def zone_solar_inputs(self) -> tuple[str | None, ...] | None:
+        """Where the zones are controlled, the facade each zone's windows face (``G`` for
+        skylights or none, :func:`scenarios.plants.energyplus.model.zone_window_facades`);
+        None otherwise."""
+        if not self.controlled:
+            return None
+        from scenarios.plants.energyplus.model import zone_window_facades
+
+        return zone_window_facades(self)
+
+    @property
     def zone_shares(self) -> tuple[float, ...]:
         """Where the zones are controlled, each zone's share of the floor area (zone multipliers
         counted, :func:`scenarios.plants.energyplus.model.zone_layout`); else (1.0,)."""
