@@ -133,7 +133,7 @@ ZONE_TRUST = TrustSettings(margin_from_replay=True, max_margin_k=1.0, error_floo
 #: The default hand-over (``ZoneGuard.hand_over`` None) goes to the fallback QP only while its
 #: RC is credible: its replay error, the zones' mean over every full replay of the run so far,
 #: under this [K] (after :data:`ZONE_CREDIBLE_MIN_REPLAYS` of them). On the RC buildings the
-#: identified RC replays within 0.01-0.03 K; on EnergyPlus's small office it errs 0.4-2.8 K,
+#: identified RC replays within 0.01-0.03 K; on EnergyPlus's small office it errs 0.2-2.8 K,
 #: where its QP controls worse than the model it would replace (module docstring).
 ZONE_CREDIBLE_RC_K = 0.2
 #: Full replays (``replay_steps`` long) of the RC before it can be judged credible: enough that
