@@ -387,3 +387,45 @@ def test_a_zones_heater_and_chiller_share_one_weight_per_lag_recovered_from_a_fe
     np.testing.assert_allclose(heat[0, 2], truth.heat[0, 0], atol=2e-4)
     np.testing.assert_allclose(heat[1, 1], truth.heat[1, 1], atol=2e-4)
     assert np.all(heat[1, [0, 2]] == 0) and np.all(heat[0, 1] == 0)
+
+
+def test_the_polish_qp_over_an_arx_keeps_only_its_rooms_as_variables_and_reaches_the_lps_optimum() -> None:
+    """The ARX's state holds its lagged rooms (each the room of one interval before) and its
+    lagged heats (each the heat of the interval); :class:`controllers.lp_polish.StateQP` keeps
+    only the rooms of each step as variables, the lags being earlier steps' rooms and heats.
+    Solved without its iteration limit, its plan's linearised cost equals the LP's over the
+    whole state (:func:`controllers.lp_polish.solve_state_lp`, HiGHS) within 0.1 %."""
+    from controllers.lp_polish import PlanProblem, StateQP, _state_sources, solve_state_lp
+    from controllers.objective import ZoneObjective
+
+    model = _model(_truth(), backup_low_c=-50.0, backup_high_c=80.0)
+    frame = _weather(3, seed=4)
+    now, h = 40, 24
+    history, exog = _observation(frame, now, h)
+    span = np.array([a.span_w for a in model.actuators])
+    rng = np.random.default_rng(5)
+    u0 = rng.uniform(0.0, 1.0, (h, 2))
+    response = model.linear_response(history, u0 * span, exog)
+    free, _, _ = _state_sources(response.a, response.b_heat, h, 2)
+    assert response.a.shape == (6, 6) and list(free) == list(response.rooms)  # 2 rooms of 6 states
+    band = np.where(np.arange(h) % 12 < 6, 19.0, 21.0)[:, None] * np.ones(2)
+    objective = ZoneObjective(
+        price_eur_per_kwh=0.2 + 0.1 * np.sin(np.arange(h) / 3.0), t_min_c=band, t_max_c=band + 2.0, dt_h=0.5,
+        comfort_weight_eur_per_kh=5.0,
+    )
+    problem = PlanProblem(objective=objective, lower=0.0, upper=1.0)
+    jr, jp = response.jacobians()
+
+    def cost(plan: np.ndarray) -> float:
+        du = (plan - u0) * span
+        t_r = response.t_r_c + np.einsum("jzia,ia->jz", jr, du)
+        energy = objective.price_eur_per_kwh * objective.dt_h * np.einsum("jia,ia->j", jp, du) / 1000.0
+        violation = np.maximum(objective.t_min_c - t_r, 0) + np.maximum(t_r - objective.t_max_c, 0)
+        return float(energy.sum() + objective.comfort_weight_eur_per_kh * objective.dt_h * violation.sum())
+
+    lp = solve_state_lp(response, u0, span, problem, 0.5)
+    qp = StateQP({"max_iter": 100000, "eps_abs": 1e-7, "eps_rel": 1e-7}, warm_max_iter=100000)
+    plan = qp.solve(response, u0, span, problem, 0.5)
+    assert lp is not None and plan is not None and qp.last_info.status == "solved"
+    assert cost(lp) < cost(u0) - 0.5
+    assert cost(plan) == pytest.approx(cost(lp), rel=1e-3, abs=1e-3)

@@ -53,6 +53,7 @@ settles, and runs nothing.
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 from collections.abc import Mapping, Sequence
@@ -299,17 +300,20 @@ class MultiZoneARX(LaggedZoneModel):
         and ``drift`` (N, Z) or (Z,)."""
         c = self._torch
         return (
-            torch.einsum("nlz,zl->nz", rooms, c["own"]) + rooms[:, 0] @ c["coupling"].T
-            + torch.einsum("nla,zal->nz", heats, c["heat"]) + drift
+            (rooms * c["own"]).sum(1) + rooms[:, 0] @ c["coupling"]
+            + heats.reshape(len(heats), -1) @ c["heat"] + drift
         )
 
-    @property
+    @functools.cached_property
     def _torch(self) -> dict[str, torch.Tensor]:
+        """The equations' weights as :meth:`_step` applies them (built once: the coefficients
+        are fixed): ``own`` (L, Z), ``coupling`` (Z, Z) transposed, ``heat`` (Lu A, Z), lag-major."""
         c = self.coefficients
+        lags = c.heat.shape[2]
         return {
-            "own": torch.as_tensor(c.own, dtype=torch.float64),
-            "coupling": torch.as_tensor(c.coupling, dtype=torch.float64),
-            "heat": torch.as_tensor(c.heat, dtype=torch.float64),
+            "own": torch.as_tensor(c.own.T.copy(), dtype=torch.float64),
+            "coupling": torch.as_tensor(c.coupling.T.copy(), dtype=torch.float64),
+            "heat": torch.as_tensor(c.heat.transpose(2, 1, 0).reshape(lags * c.heat.shape[1], -1).copy(), dtype=torch.float64),
         }
 
     @property
