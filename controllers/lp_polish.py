@@ -338,9 +338,8 @@ class StateQP:
     matrix does not move with the COP: the price of heat is the price over it, and an actuator
     the backup forces has bounds 0), the state's change (H, S) but for the states that only
     delay another or copy a heat (:func:`_state_sources`: an ARX's lagged rooms and heats, which
-    are earlier steps' rooms and this step's heats; the ARX of 15 zones keeps 15 of its 150
-    states, and a warm solve of the medium office's polish took a quarter less time, its setup
-    a quarter of the time) and the slacks (H, Z); the
+    are earlier steps' rooms and this step's heats: of the medium office ARX's 150 states, its 15
+    rooms) and the slacks (H, Z); the
     regulariser :data:`POLISH_REGULARISATION_EUR_PER_KW2H` on the heat's change. The matrix is
     built and factorised once per horizon and building; each solve updates the vectors and
     starts from no change, with the last solve's duals shifted one step, and stops after
