@@ -366,16 +366,24 @@ class StateQP:
         self._per_step: tuple[tuple[int, ...], tuple[int, ...]] = ((), ())
 
     def _setup(
-        self, response: LinearResponse, h: int, dt_h: float, q: np.ndarray, lower: np.ndarray, upper: np.ndarray
+        self,
+        response: LinearResponse,
+        sources: tuple[np.ndarray, np.ndarray, np.ndarray],
+        h: int,
+        dt_h: float,
+        q: np.ndarray,
+        lower: np.ndarray,
+        upper: np.ndarray,
     ) -> None:
         """Build the QP's matrices of ``response``'s building over ``h`` steps and set OSQP up.
         A state that only delays another by an interval (the lagged rooms of an ARX) or copies
         one actuator's heat (its lagged heats) is no variable of its own but the one it
-        repeats (:func:`_state_sources`): the same QP, its KKT system a fraction of the size."""
+        repeats (``sources``, :func:`_state_sources`'s over ``h`` steps): the same QP, its KKT
+        system a fraction of the size."""
         import osqp
 
         a_n, z_n = response.b_heat.shape[1], response.rooms.shape[0]
-        free, source_col, source_coef = _state_sources(response.a, response.b_heat, h, a_n)
+        free, source_col, source_coef = sources
         f_n = len(free)
         n_u, n_x, n_s = h * a_n, h * f_n, h * z_n
         rows: list[np.ndarray] = []
@@ -424,7 +432,11 @@ class StateQP:
         from controllers.rc_mpc.qp import shift_steps
 
         h, a_n = u0.shape
-        z_n, s_n = response.t_r_c.shape[1], len(_state_sources(response.a, response.b_heat, 1, a_n)[0])
+        key = (h, response.a.tobytes(), response.b_heat.tobytes(), response.rooms.tobytes())
+        fresh = self._solver is None or key != self._key  # a new building or horizon: set up again
+        sources = _state_sources(response.a, response.b_heat, h, a_n) if fresh else None
+        z_n = response.t_r_c.shape[1]
+        s_n = len(sources[0]) if sources is not None else self._per_step[0][1]  # the QP's states a step
         obj = problem.objective
         follows = response.heat_per_w > 0
         heat = np.where(follows, response.heat_per_w, 1.0)  # (H, A) heat per W, 1 where it does not follow
@@ -441,10 +453,9 @@ class StateQP:
         inf = np.full(h * z_n, np.inf)
         lower = np.concatenate([np.zeros(h * s_n), obj.t_min_c.reshape(-1) - t0, -inf, lo.reshape(-1), np.zeros(h * z_n)])
         upper = np.concatenate([np.zeros(h * s_n), inf, obj.t_max_c.reshape(-1) - t0, hi.reshape(-1), inf])
-        key = (h, response.a.tobytes(), response.b_heat.tobytes(), response.rooms.tobytes())
         with solver_interrupts_held():
-            if self._solver is None or key != self._key:
-                self._setup(response, h, float(np.mean(obj.dt_h)), q, lower, upper)
+            if sources is not None:
+                self._setup(response, sources, h, float(np.mean(obj.dt_h)), q, lower, upper)
                 self._key = key
             else:
                 self._solver.update(q=q, l=lower, u=upper)

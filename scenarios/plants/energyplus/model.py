@@ -614,7 +614,7 @@ def _zone_window_facades_cached(key: PlantKey) -> tuple[str, ...]:
         facade = window_facade(vector, north + (float(turn) if isinstance(turn, int | float) else 0.0))
         multiplier = window.get("multiplier", 1.0)
         scale = float(multiplier) if isinstance(multiplier, int | float) else 1.0
-        areas[zone][facade] = areas[zone].get(facade, 0.0) + math.sqrt(sum(c * c for c in vector)) * scale
+        areas[zone][facade] = areas[zone].get(facade, 0.0) + math.hypot(*vector) * scale
     return tuple(max(a, key=a.__getitem__) if a else "G" for a in (areas[z] for z in prepared.zones))
 
 
