@@ -19,12 +19,17 @@ from pathlib import Path
 
 
 def load_cells(directory: Path) -> dict[tuple[str, str, int, int | None], dict]:
-    """The sweep's cells: (scenario, controller, seed, training days) -> KPIs."""
+    """The sweep's cells: (scenario, controller, seed, training days) -> KPIs; a planner over
+    the default model (``cem/auto``, the sweep's ``archs = ["auto"]``) is named as the
+    planner alone (``cem``)."""
     cells = {}
     for path in sorted((directory / "cells").glob("*.json")):
         record = json.loads(path.read_text(encoding="utf-8"))
         c = record["cell"]
-        cells[(c["scenario"], c["controller"], c["seed"], c["train_days"])] = record["kpis"]
+        controller = c["controller"].removesuffix("/auto")
+        cells[(c["scenario"], controller, c["seed"], c["train_days"])] = record["kpis"]
+    if not any(controller == "cem" for _, controller, _, _ in cells):
+        raise SystemExit(f"{directory}: no cells of cem over the default model (cem or cem/auto)")
     return cells
 
 
