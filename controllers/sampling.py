@@ -373,13 +373,12 @@ class _SamplingController(ZoneSampling, PlanningController):
     def _warm_start(self, h: int) -> torch.Tensor:
         """(h,) powers [W] the sampling starts from: the last plan shifted by one step (its last
         step repeated); with no plan (after a reset or a failed planning), the plan the shadow
-        RC MPC made for this same step (unless its own solve failed), else half the actuator's
-        range (a first decision keeps part of the start it is given, and an online controller
-        is rebuilt at every takeover)."""
+        RC MPC made for this same step, else half the actuator's range (a first decision keeps
+        part of the start it is given, and an online controller is rebuilt at every takeover)."""
         plan = self.fallback.plan_w
         if plan is not None:
             plan = np.append(plan[1:], plan[-1])
-        elif self.shadow is not None and not self.shadow.last_stats.fallback:
+        elif self.shadow is not None:
             plan = self.shadow.last_plan  # made this step, before the model's planning
         if plan is None:
             x0 = np.full(h, self.spec.actuator.at_fraction(0.5))
