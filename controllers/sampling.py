@@ -371,19 +371,12 @@ class _SamplingController(ZoneSampling, PlanningController):
         return action
 
     def _warm_start(self, h: int) -> torch.Tensor:
-        """(h,) powers [W] the sampling starts from: the last plan shifted by one step (its last
-        step repeated); with no plan (after a reset or a failed planning), the plan the shadow
-        RC MPC made for this same step, else half the actuator's range (a first decision keeps
-        part of the start it is given, and an online controller is rebuilt at every takeover)."""
         plan = self.fallback.plan_w
-        if plan is not None:
-            plan = np.append(plan[1:], plan[-1])
-        elif self.shadow is not None:
-            plan = self.shadow.last_plan  # made this step, before the model's planning
         if plan is None:
             x0 = np.full(h, self.spec.actuator.at_fraction(0.5))
         else:
-            x0 = np.pad(plan, (0, max(h - len(plan), 0)), mode="edge")[:h]
+            shifted = np.append(plan[1:], plan[-1])
+            x0 = np.pad(shifted, (0, max(h - len(shifted), 0)), mode="edge")[:h]
         return torch.as_tensor(x0, dtype=torch.float32)
 
     def _solve(

@@ -13,7 +13,7 @@ from controllers.base import (
     fallback_power,
 )
 from controllers.objective import HorizonObjective, planning_band
-from controllers.sampling import CEM, NO_GUARD, Guard, RandomShooting
+from controllers.sampling import CEM, RandomShooting
 from controllers.setpoint_space import SetpointSpace
 from pinn_mpc.actuator import ActuatorSpec
 from pinn_mpc.errors import InputError
@@ -172,22 +172,6 @@ def test_warm_started_cem_closes_in_on_the_optimum_in_receding_horizon():
         assert not cem.last_stats.fallback
     assert min(gaps) >= -1e-5  # float32 rollouts
     assert gaps[-1] < 0.05 and gaps[-1] < gaps[0]
-
-
-@pytest.mark.parametrize("seed", range(3))
-def test_a_cold_start_samples_from_the_shadow_rc_mpc_s_plan(seed):
-    # Sampling alone, a first decision (no plan of its own yet): with an RC fallback, whose
-    # shadow MPC plans the same step first, CEM starts from that plan instead of half the range
-    # and its first plan comes within 6 % of the LP optimum (from half the range: 7-16 %).
-    x, fc = np.array([19.5, 19.0]), _forecast()
-    gaps = {}
-    for guard in (NO_GUARD, Guard(rc=PAPER_HOUSEHOLD)):
-        cem = CEM(LINEAR, SPEC, polish_iters=0, comfort_margin_k=0.0, guard=guard)
-        cem.reset(seed=seed)
-        cem.act(_obs(*x, t_a_c=float(fc.T_a[0])), fc)
-        assert not cem.last_stats.fallback
-        gaps[guard.rc is not None] = cem.last_cost_eur / _lp_optimum(x, fc) - 1.0
-    assert 0.0 <= gaps[True] < 0.06 and gaps[True] < gaps[False], gaps
 
 
 def test_lp_polish_reaches_the_exact_optimum_on_a_linear_model():
