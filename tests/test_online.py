@@ -241,3 +241,33 @@ def test_ctrl_c_of_the_command_leaves_its_state_and_resume_gives_the_uninterrupt
     whole, resumed = (json.loads((tmp_path / name).read_text()) for name in ("whole.json", "run.json"))
     assert _figures(resumed) == _figures(whole)
     assert not list((tmp_path / "run").glob(".*.tmp"))
+
+
+@pytest.mark.slow
+def test_a_planner_rebuilt_at_a_takeover_goes_on_from_the_running_plan(uninterrupted):
+    """At a takeover the rebuilt planner starts from the plan the planner it replaces made at
+    the step before (as one that had run on would), not from half the actuator's range; the run's
+    arrays keep that plan for a resume; a thermostat carries nothing."""
+    from controllers.thermostat import Thermostat
+    from scenarios.running.online import _Online, _State
+
+    out, result = uninterrupted
+    with np.load(out / "loop.npz") as arrays:
+        assert len(arrays["carried_plan"]) > 0  # the last takeover carried the running plan
+    scenario = get_scenario(SCENARIO)
+    run = prepare_run(scenario, days=3, seed=0, warmup_steps=None, weather_part="test")
+    online = _Online(scenario, run, out, TINY, 0, TINY.config)
+    state = _State(json.loads((out / "state.json").read_text()))
+    assert state.champion is not None
+    online.build(state)  # from the thermostat: no plan to go on from
+    assert online.carried_plan is None and online.controller.last_plan is None
+    plan = np.linspace(0.0, 3000.0, 48)
+    online.controller.fallback.planned(plan)
+    online.build(state)
+    assert np.array_equal(online.controller.last_plan, plan) and np.array_equal(online.carried_plan, plan)
+    online.build(state, carried=plan[::-1])  # a resume gives the plan its arrays kept
+    assert np.array_equal(online.controller.last_plan, plan[::-1])
+    online.controller = Thermostat(scenario.control_spec())
+    state.champion = None
+    online.build(state)
+    assert online.carried_plan is None

@@ -57,7 +57,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from controllers.base import Controller
+from controllers.base import Controller, PlanningController
 from controllers.thermostat import Thermostat
 from pinn_mpc.data import COLUMNS, validate_timeseries, write_timeseries
 from pinn_mpc.errors import InputError, InternalError, warn
@@ -355,14 +355,22 @@ class _Online:
         self.mode = np.full(run.total, "", dtype=object)
         self.controller: Controller = Thermostat(scenario.control_spec())
         self.kind = "thermostat"
+        self.carried_plan: np.ndarray | None = None  # the plan the running planner started from
 
     def path(self, version: str | None, name: str) -> str | None:
         return None if version is None else str(self.out / _VERSIONS / version / name)
 
-    def build(self, state: _State) -> None:
+    def build(self, state: _State, carried: np.ndarray | None = None) -> None:
         """The controller of the versions running: a model's planner, the RC's qp-mpc, or the
-        thermostat; reset with the run's seed."""
+        thermostat; reset with the run's seed. A planner goes on from the plan the controller
+        it replaces made at the last step (``carried``, else that controller's, as
+        :attr:`carried_plan` keeps it): a planner rebuilt at a takeover decides as one that
+        had run on, where a planner started without a plan samples around half the actuator's
+        range at first."""
         from scenarios.running.factory import build_controller
+
+        if carried is None:
+            carried = getattr(self.controller, "last_plan", None)
 
         scenario, n = self.scenario, self.run.total - self.run.warmup
         if state.champion is not None:
@@ -383,6 +391,10 @@ class _Online:
         else:
             self.controller, self.kind = Thermostat(scenario.control_spec()), "thermostat"
         self.controller.reset(self.seed)
+        self.carried_plan = None
+        if carried is not None and self.kind == "model" and isinstance(self.controller, PlanningController):
+            self.carried_plan = np.asarray(carried, dtype=float).copy()
+            self.controller.fallback.planned(self.carried_plan.copy())
 
     def advance(self, loop: ClosedLoop, k: int, warmup: Thermostat) -> None:
         if k < self.run.warmup:
@@ -413,15 +425,18 @@ class _Online:
         state.step = k
         with written_at_once(), written_together():
             write_timeseries(self.observed(loop), self.out / _OBSERVED)
-            atomic_write(self.out / _ARRAYS, lambda tmp: _save_arrays(tmp, rec, self.own[:k], self.mode[:k]))
+            atomic_write(self.out / _ARRAYS, lambda tmp: _save_arrays(
+                tmp, rec, self.own[:k], self.mode[:k], self.carried_plan))
             atomic_write_text(self.out / _LOG, "".join(json.dumps(e) + "\n" for e in state.log))
             atomic_write_json(self.out / _STATE, state.raw())
 
 
-def _save_arrays(tmp: Path, rec: LoopRecord, own: np.ndarray, mode: np.ndarray) -> None:
+def _save_arrays(
+    tmp: Path, rec: LoopRecord, own: np.ndarray, mode: np.ndarray, carried: np.ndarray | None
+) -> None:
     with open(tmp, "wb") as f:
         np.savez(f, u_w=rec.u_w, decision_s=rec.decision_s, fallback=rec.fallback, own=own,
-                 mode=mode.astype(str))
+                 mode=mode.astype(str), carried_plan=np.array([]) if carried is None else carried)
 
 
 def run_online(
@@ -484,8 +499,9 @@ def run_online(
     pool = context.Pool(1, initializer=_worker_init)
     try:
         with build_loop(scenario, run, seed=seed) as loop:
+            carried = None
             if resume:
-                _replay(loop, online, out, state.step)
+                carried = _replay(loop, online, out, state.step)
             elif before is not None:  # version 0: what the data at hand holds, before the run
                 n_days = len(before) // spd
                 entry = pool.apply(_refit, (_fit_frame([before], dt_s),), dict(
@@ -499,7 +515,7 @@ def run_online(
                     state.champion = "v000" if entry.get("model") else None
                     state.log.append({"night": 0, "step": 0, "version": "v000", "verdict": "initial", **entry})
                 state.version = 1
-            online.build(state)
+            online.build(state, carried)
             online.checkpoint(loop, state)
             warmup = Thermostat(scenario.control_spec())
             warmup.reset(seed)
@@ -555,15 +571,18 @@ def _take_over(pending: tuple[int, Any, str], k: int, state: _State, online: _On
                       "verdict": verdict, "late": late, **entry})
 
 
-def _replay(loop: ClosedLoop, online: _Online, out: Path, steps: int) -> None:
-    """The plant stepped again on the recorded demands up to ``steps`` (resume)."""
+def _replay(loop: ClosedLoop, online: _Online, out: Path, steps: int) -> np.ndarray | None:
+    """The plant stepped again on the recorded demands up to ``steps`` (resume); the plan the
+    planner running then started from (None: none was carried over)."""
     with np.load(out / _ARRAYS) as arrays:
         u, decision_s, fallback = arrays["u_w"], arrays["decision_s"], arrays["fallback"]
         online.own[:steps], online.mode[:steps] = arrays["own"][:steps], arrays["mode"][:steps]
+        carried = arrays["carried_plan"] if "carried_plan" in arrays.files else np.array([])
     if len(u) < steps:
         raise InternalError(f"online: {_ARRAYS} holds {len(u)} steps, the state says {steps}")
     for k in range(steps):
         loop.step(float(u[k]), decision_s=float(decision_s[k]), fallback=bool(fallback[k]))
+    return carried if len(carried) else None
 
 
 def _result(scenario: Scenario, run: RunInputs, rec: LoopRecord, online: _Online, state: _State,
