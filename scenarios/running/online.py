@@ -393,8 +393,8 @@ class _Online:
         self.controller.reset(self.seed)
         self.carried_plan = None
         if carried is not None and self.kind == "model" and isinstance(self.controller, PlanningController):
-            self.carried_plan = np.asarray(carried, dtype=float).copy()
-            self.controller.fallback.planned(self.carried_plan.copy())
+            self.carried_plan = np.asarray(carried, dtype=float)  # a copy already: last_plan's, or read
+            self.controller.fallback.planned(self.carried_plan)  # a plan is replaced, never changed
 
     def advance(self, loop: ClosedLoop, k: int, warmup: Thermostat) -> None:
         if k < self.run.warmup:
