@@ -11,7 +11,7 @@ import pytest
 
 from pinn_mpc.training import TrainConfig
 from scenarios.inputs.scenario_file import get_scenario
-from scenarios.running.closed_loop import prepare_run
+from scenarios.running.closed_loop import build_loop, prepare_run
 from scenarios.running.datagen import generate
 from scenarios.running.online import (
     MODEL_DAYS,
@@ -259,15 +259,49 @@ def test_a_planner_rebuilt_at_a_takeover_goes_on_from_the_running_plan(uninterru
     online = _Online(scenario, run, out, TINY, 0, TINY.config)
     state = _State(json.loads((out / "state.json").read_text()))
     assert state.champion is not None
-    online.build(state)  # from the thermostat: no plan to go on from
-    assert online.carried_plan is None and online.controller.last_plan is None
-    plan = np.linspace(0.0, 3000.0, 48)
-    online.controller.fallback.planned(plan)
-    online.build(state)
-    assert np.array_equal(online.controller.last_plan, plan) and np.array_equal(online.carried_plan, plan)
-    online.build(state, carried=plan[::-1])  # a resume gives the plan its arrays kept
-    assert np.array_equal(online.controller.last_plan, plan[::-1])
-    online.controller = Thermostat(scenario.control_spec())
-    state.champion = None
-    online.build(state)
-    assert online.carried_plan is None
+    with build_loop(scenario, run, seed=0) as loop:
+        online.build(state, loop)  # from the thermostat: no plan to go on from
+        assert online.carried_plan is None and online.controller.last_plan is None
+        plan = np.linspace(0.0, 3000.0, 48)
+        online.controller.fallback.planned(plan)
+        online.build(state, loop)
+        assert np.array_equal(online.controller.last_plan, plan) and np.array_equal(online.carried_plan, plan)
+        online.build(state, loop, carried=plan[::-1])  # a resume gives the plan its arrays kept
+        assert np.array_equal(online.controller.last_plan, plan[::-1])
+        online.controller = Thermostat(scenario.control_spec())
+        state.champion = None
+        online.build(state, loop)
+        assert online.carried_plan is None
+
+
+@pytest.mark.slow
+def test_a_controller_built_at_a_takeover_has_seen_the_recent_past(uninterrupted):
+    """A planner built at a takeover is shown the last WARM_H hours before it decides: its
+    shadow RC MPC's observer and its trust monitor stand where a planner that had run on would
+    (the observer at the last step, the replay errors judged), and the plant is not touched;
+    at the run's first step there is nothing to show."""
+    from controllers.thermostat import Thermostat
+    from scenarios.running.online import WARM_H, _Online, _State
+
+    out, _ = uninterrupted
+    scenario = get_scenario(SCENARIO)
+    run = prepare_run(scenario, days=3, seed=0, warmup_steps=None, weather_part="test")
+    online = _Online(scenario, run, out, TINY, 0, TINY.config)
+    state = _State(json.loads((out / "state.json").read_text()))
+    spd = scenario.steps_per_day
+    with build_loop(scenario, run, seed=0) as loop:
+        online.build(state, loop)
+        fresh = online.controller.monitor.state
+        assert not np.isfinite(fresh.replay_k) and not np.isfinite(fresh.replay_rc_k)
+        thermostat = Thermostat(scenario.control_spec())
+        thermostat.reset(0)
+        while loop.k < run.warmup + spd // 2:
+            loop.advance(thermostat)
+        before = loop.record()
+        online.build(state, loop)
+        after = loop.record()
+        assert loop.k == run.warmup + spd // 2 and np.array_equal(before.u_w, after.u_w)
+        shown = online.controller
+        assert shown.shadow.estimator._k_seen == loop.k - 1  # its observer is at the last step
+        assert np.isfinite(shown.monitor.state.replay_k) and np.isfinite(shown.monitor.state.replay_rc_k)
+        assert WARM_H * spd / 24 <= loop.k

@@ -314,12 +314,15 @@ class ClosedLoop:
         self.measure()
         return self._t_r[self.k].copy()
 
-    def observation(self, *, perfect: bool = False, building: int = 0) -> Observation:
-        """What ``building``'s controller sees now: copies of the past (data-format names),
-        the last interval and the true T_m (for the true-state estimator only). Unknown gains
-        (``gains_known = false``) are the expected ones unless ``perfect``."""
-        self.measure(building)
-        k, rows = self.k, slice(self.start, self.start + self.k + 1)
+    def observation(self, *, perfect: bool = False, building: int = 0, at: int | None = None) -> Observation:
+        """What ``building``'s controller sees now (or saw at an earlier step ``at``, its
+        measurement as it was then): copies of the past (data-format names), the last interval
+        and the true T_m (for the true-state estimator only). Unknown gains (``gains_known =
+        false``) are the expected ones unless ``perfect``."""
+        k = self._step_at(at)
+        if k == self.k:
+            self.measure(building)
+        rows = slice(self.start, self.start + k + 1)
         exo = self.exogenous
         gains = exo.I_g if perfect else self._seen_gains_w
         past_gains = (
@@ -352,11 +355,12 @@ class ClosedLoop:
                 history[name] = np.array(getattr(exo, name)[rows])
         return Observation.from_history(k, history, self._t_m[k, building], zones=self.zones)
 
-    def forecast(self, *, perfect: bool = False) -> Forecast:
-        """The exogenous inputs from now to the end of the series, with the errors of
-        :class:`ForecastErrors` unless ``perfect``. The errors depend only on the forecast
-        seed and the row, so repeated calls and every controller get the same forecast."""
-        row = self.start + self.k
+    def forecast(self, *, perfect: bool = False, at: int | None = None) -> Forecast:
+        """The exogenous inputs from now (or from an earlier step ``at``) to the end of the
+        series, with the errors of :class:`ForecastErrors` unless ``perfect``. The errors depend
+        only on the forecast seed and the row, so repeated calls and every controller get the
+        same forecast."""
+        row = self.start + self._step_at(at)
         forecast = self.exogenous.forecast(row)
         errors = self.forecast_errors
         if perfect or errors.perfect:
@@ -390,6 +394,14 @@ class ClosedLoop:
                 if series is not None:
                     series[:] *= np.maximum(1.0 + e, 0.0)
         return forecast
+
+    def _step_at(self, at: int | None) -> int:
+        """The step ``at`` (None: now), which must not lie ahead of now."""
+        if at is None:
+            return self.k
+        if not 0 <= at <= self.k:
+            raise InternalError(f"ClosedLoop: step {at} is not in 0 .. {self.k} (steps so far)")
+        return at
 
     def last_means(self, building: int = 0) -> tuple[float, float, float]:
         """``T_a`` [C], ``G`` [W/m2] and ``I_g`` [W] of the interval just stepped, as the plant

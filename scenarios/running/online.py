@@ -84,13 +84,14 @@ from scenarios.running.closed_loop import (
     run_trajectory,
 )
 from scenarios.running.datagen import add_cop
-from scenarios.running.engine import ClosedLoop, LoopRecord
+from scenarios.running.engine import ClosedLoop, LoopRecord, decide
 
 __all__ = [
     "ERROR_HORIZON_STEPS",
     "MODEL_DAYS",
     "REFIT_HOUR",
     "TAKEOVER_H",
+    "WARM_H",
     "OnlineResult",
     "OnlineSettings",
     "data_before_run",
@@ -104,6 +105,8 @@ MODEL_DAYS = 3
 REFIT_HOUR = 0
 #: Simulated hours after its start at which a refit takes over.
 TAKEOVER_H = 3.0
+#: Hours of service a controller built at a takeover is shown before it decides (``_Online.warm``).
+WARM_H = 12.0
 #: Steps ahead of the champion/challenger error (``evaluate``'s horizon; 12 h at 30 min).
 ERROR_HORIZON_STEPS = 24
 _STATE, _LOG, _OBSERVED, _ARRAYS, _VERSIONS = "state.json", "log.jsonl", "observed.csv", "loop.npz", "versions"
@@ -360,10 +363,11 @@ class _Online:
     def path(self, version: str | None, name: str) -> str | None:
         return None if version is None else str(self.out / _VERSIONS / version / name)
 
-    def build(self, state: _State, carried: np.ndarray | None = None) -> None:
+    def build(self, state: _State, loop: ClosedLoop, carried: np.ndarray | None = None) -> None:
         """The controller of the versions running: a model's planner, the RC's qp-mpc, or the
-        thermostat; reset with the run's seed. A planner goes on from the plan the controller
-        it replaces made at the last step (``carried``, else that controller's, as
+        thermostat; reset with the run's seed, then shown what it would have seen over the last
+        :data:`WARM_H` hours of service (:meth:`warm`). A planner goes on from the plan the
+        controller it replaces made at the last step (``carried``, else that controller's, as
         :attr:`carried_plan` keeps it): a planner rebuilt at a takeover decides as one that
         had run on, where a planner started without a plan samples around half the actuator's
         range at first."""
@@ -391,10 +395,27 @@ class _Online:
         else:
             self.controller, self.kind = Thermostat(scenario.control_spec()), "thermostat"
         self.controller.reset(self.seed)
+        self.warm(loop)
         self.carried_plan = None
         if carried is not None and self.kind == "model" and isinstance(self.controller, PlanningController):
             self.carried_plan = np.asarray(carried, dtype=float)  # a copy already: last_plan's, or read
             self.controller.fallback.planned(self.carried_plan)  # a plan is replaced, never changed
+
+    def warm(self, loop: ClosedLoop) -> None:
+        """Show a controller just built (an MPC's observer, a planner's offset filter, shadow
+        RC MPC and trust monitor) the observations and forecasts of the last :data:`WARM_H`
+        hours of service, its actions discarded: it takes over with its estimates settled and
+        its trust judged on the recent past, as one that had run on. Built fresh, the shadow
+        RC MPC's observer starts with the mass at the room's temperature and the monitor with
+        the model unjudged, and judges it on the first replay alone: on the small office's
+        cold January nights the fallback then took over at 03:00, heated at up to full power
+        there and drove for hours after. The recorded past is the same on a resume, so a
+        resumed run warms the same way."""
+        if self.kind == "thermostat":
+            return
+        first = max(0, loop.k - round(WARM_H * self.spd / 24.0))
+        for j in range(first, loop.k):
+            decide(self.controller, loop.observation(at=j), loop.forecast(at=j), self.scenario.control_spec())
 
     def advance(self, loop: ClosedLoop, k: int, warmup: Thermostat) -> None:
         if k < self.run.warmup:
@@ -515,7 +536,7 @@ def run_online(
                     state.champion = "v000" if entry.get("model") else None
                     state.log.append({"night": 0, "step": 0, "version": "v000", "verdict": "initial", **entry})
                 state.version = 1
-            online.build(state, carried)
+            online.build(state, loop, carried)
             online.checkpoint(loop, state)
             warmup = Thermostat(scenario.control_spec())
             warmup.reset(seed)
@@ -535,7 +556,7 @@ def run_online(
                 if pending is not None and k == pending[0] + takeover:
                     _take_over(pending, k, state, online)
                     pending = None
-                    online.build(state)
+                    online.build(state, loop)
                     online.checkpoint(loop, state)
                 online.advance(loop, k, warmup)
             online.checkpoint(loop, state)
