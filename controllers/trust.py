@@ -77,8 +77,7 @@ class TrustSettings:
     plan carries hours ahead, for plants whose measured temperature is noise-free (a noisy
     sensor's error is in the replay error too, and a margin for it only costs energy); with
     it the fallback RC MPC's band is narrowed by ``margin_factor`` times the RC's filtered
-    replay error (at most ``max_margin_k``) too; ``fallback_margin_from_replay``: that rule
-    for the fallback RC MPC alone, the model keeping its one-step margin.
+    replay error (at most ``max_margin_k``) too.
     """
 
     replay_steps: int = 8
@@ -93,7 +92,6 @@ class TrustSettings:
     margin_factor: float = 1.0
     max_margin_k: float = 0.5
     margin_from_replay: bool = False
-    fallback_margin_from_replay: bool = False
 
     def __post_init__(self) -> None:
         for name in (
@@ -174,12 +172,11 @@ class TrustMonitor:
         return max(base_k, self._margin_for(error))
 
     def fallback_margin_k(self) -> float:
-        """The margin [K] the fallback RC MPC plans with: with ``margin_from_replay`` or
-        ``fallback_margin_from_replay``, the model's rule applied to the RC's filtered replay
-        error; 0 without either or before the RC has been replayed."""
+        """The margin [K] the fallback RC MPC plans with: with ``margin_from_replay``, the
+        model's rule applied to the RC's filtered replay error; 0 without it or before the RC
+        has been replayed."""
         error = self.state.replay_rc_k
-        from_replay = self.settings.margin_from_replay or self.settings.fallback_margin_from_replay
-        if not (from_replay and math.isfinite(error)):
+        if not (self.settings.margin_from_replay and math.isfinite(error)):
             return 0.0
         return self._margin_for(error)
 

@@ -762,23 +762,25 @@ def test_a_control_interval_energyplus_cannot_step_names_the_key_and_the_values(
     assert not (tmp_path / "k.json").exists()
 
 
-def test_a_fallback_on_energyplus_plans_inside_the_band_by_its_replay_error() -> None:
-    """On EnergyPlus (measured without noise) a guarded planner's fallback RC MPC plans inside
-    the band by its RC's replay error, the planner keeping its own margin and qp-mpc none; not on
-    the RC simulator, nor on EnergyPlus with a noisy sensor (the replayed error is then the
-    sensor's)."""
+def test_every_mpc_on_energyplus_plans_inside_the_band_by_its_replay_error() -> None:
+    """On EnergyPlus (measured without noise) qp-mpc, casadi-mpc and a guarded planner's
+    fallback plan inside the band by their replay error, as on BOPTEST; not on the RC
+    simulator, nor on EnergyPlus with a noisy sensor (the replayed error is then the sensor's)."""
     from dataclasses import replace
 
     from pinn_mpc.models.rc import RCBatchModel
-    from scenarios.running.factory import build_controller, fallback_replay_margin
+    from scenarios.running.factory import build_controller, replay_margin
 
     office, household = get_scenario(SCENARIO), get_scenario("winter_household")
     noisy = replace(office, sim=replace(office.sim, noise_std_c=0.1))
-    assert fallback_replay_margin(office)
-    assert not fallback_replay_margin(household) and not fallback_replay_margin(noisy)
+    assert replay_margin(office) and not replay_margin(household) and not replay_margin(noisy)
     rc = household.sim.params
-    for scenario, expected in ((office, True), (household, False), (noisy, False)):
-        model = RCBatchModel(rc, dt_s=scenario.sim.dt_s, actuator=scenario.control_spec().actuator)
-        settings = build_controller("cem", scenario, model=model, n_steps=48).monitor.settings
-        assert settings.fallback_margin_from_replay is expected and not settings.margin_from_replay
-        assert build_controller("qp-mpc", scenario, rc_params=rc, n_steps=48).replay_report is None
+    for name in ("qp-mpc", "casadi-mpc"):
+        assert build_controller(name, office, rc_params=rc, n_steps=48).replay_report is not None
+        assert build_controller(name, household, rc_params=rc, n_steps=48).replay_report is None
+        assert build_controller(name, noisy, rc_params=rc, n_steps=48).replay_report is None
+    model = RCBatchModel(rc, dt_s=office.sim.dt_s, actuator=office.control_spec().actuator)
+    cem = build_controller("cem", office, model=model, n_steps=48)
+    assert cem.monitor.settings.margin_from_replay
+    model = RCBatchModel(rc, dt_s=household.sim.dt_s, actuator=household.control_spec().actuator)
+    assert not build_controller("cem", household, model=model, n_steps=48).monitor.settings.margin_from_replay

@@ -123,9 +123,9 @@ class KindSettings:
     def rc_errs_hours_ahead(self) -> bool:
         """Whether an RC identified from the plant's data errs hours ahead by its structure (a
         building simulated in detail, not an RC of the identified structure): measured without
-        noise, a learned model's fallback RC MPC then plans inside the band by its RC's filtered
-        replay error (:func:`scenarios.running.factory.fallback_replay_margin`). False: the RC
-        simulator."""
+        noise, an MPC on it, or on a learned model with it as the fallback, then plans inside
+        the band by its filtered replay error (:func:`scenarios.running.factory.replay_margin`),
+        as on BOPTEST and over a building of several zones. False: the RC simulator."""
         return False
 
     @property

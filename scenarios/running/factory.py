@@ -61,7 +61,7 @@ __all__ = [
     "CONTROLLER_NAMES",
     "MODEL_CONTROLLERS",
     "RC_CONTROLLERS",
-    "FALLBACK_MARGIN_TRUST",
+    "REPLAY_MARGIN_TRUST",
     "FitChecks",
     "TRUTH_CONTROLLERS",
     "build_controller",
@@ -70,16 +70,16 @@ __all__ = [
     "check_rc_fits",
     "make_controller",
     "model_guard",
-    "fallback_replay_margin",
     "read_zone_rc",
+    "replay_margin",
     "weather_range_note",
     "zone_backup_limits",
     "zone_planner",
 ]
 
-#: The trust settings of a planner's guard whose fallback plans inside the band by its RC's
-#: replay error (:func:`fallback_replay_margin`).
-FALLBACK_MARGIN_TRUST = TrustSettings(fallback_margin_from_replay=True)
+#: The trust settings of a planner's guard, and of an RC MPC, that plan inside the band by their
+#: replay error (:func:`replay_margin`).
+REPLAY_MARGIN_TRUST = TrustSettings(margin_from_replay=True)
 
 #: Ranges of the training data's inputs a planner watches (see controllers.trust).
 _WATCHED = ("T_a", "G")
@@ -134,15 +134,14 @@ def _ranges(summary: Mapping[str, Any]) -> dict[str, tuple[float, float]]:
     }
 
 
-def fallback_replay_margin(scenario: Scenario) -> bool:
-    """Whether a guarded planner's fallback RC MPC on ``scenario`` plans inside the comfort band
-    by its RC's filtered replay error
-    (:attr:`controllers.trust.TrustSettings.fallback_margin_from_replay`): where the identified
-    RC errs hours ahead by its structure (the plant's kind says so,
+def replay_margin(scenario: Scenario) -> bool:
+    """Whether an MPC on ``scenario`` plans inside the comfort band by the error its model
+    makes over the replayed hours (:attr:`controllers.trust.TrustSettings.margin_from_replay`):
+    where the identified RC errs hours ahead by its structure (the plant's kind says so,
     :attr:`scenarios.plants.kinds.KindSettings.rc_errs_hours_ahead`: EnergyPlus) and the room
-    is measured without noise (then the replayed error is the RC's own, not the sensor's). A
-    fallback that rides the band's edge then misses it by that error: on the small office it did
-    on the cold January mornings it took over."""
+    is measured without noise (then the replayed error is the model's own, not the sensor's).
+    A plan that rides the band's edge hours ahead then misses it by that error: on the small
+    office an RC MPC falling back for a model did on every cold January morning."""
     return scenario.plant.settings.rc_errs_hours_ahead and scenario.sim.noise_std_c == 0
 
 
@@ -362,8 +361,8 @@ def build_controller(
         from controllers.sampling import CEM, RandomShooting
 
         guard = model_guard(model)
-        if fallback_replay_margin(scenario):
-            guard = guard._replace(settings=FALLBACK_MARGIN_TRUST)
+        if replay_margin(scenario):
+            guard = guard._replace(settings=REPLAY_MARGIN_TRUST)
         options.setdefault("guard", guard)
         planner = RandomShooting if name == "random-shooting" else CEM
         controller = planner(model, spec, **options)  # checks heating vs cooling and interval
@@ -382,13 +381,13 @@ def build_controller(
                 f"controller {name!r} needs RC parameters: add {setting('rc_path')} rc.json{also} "
                 "(`pinn-mpc identify` writes one from data)"
             )
-        if name == "casadi-mpc":
-            from controllers.rc_mpc.casadi import CasadiMPC
-
-            return CasadiMPC(rc_params, spec)
+        from controllers.rc_mpc.casadi import CasadiMPC
         from controllers.rc_mpc.osqp import QPMPC
 
-        return QPMPC(rc_params, spec)
+        rc_mpc = CasadiMPC(rc_params, spec) if name == "casadi-mpc" else QPMPC(rc_params, spec)
+        if replay_margin(scenario):
+            rc_mpc.plan_with_replay_margin(REPLAY_MARGIN_TRUST)
+        return rc_mpc
     if name == "oracle":
         from controllers.rc_mpc.references import oracle_mpc
 
