@@ -760,27 +760,3 @@ def test_a_control_interval_energyplus_cannot_step_names_the_key_and_the_values(
     assert len(err.splitlines()) == 1, err
     assert "[simulation] dt_s = 900 s" in err and "set dt_s to one of 600, 1200, 1800" in err
     assert not (tmp_path / "k.json").exists()
-
-
-def test_every_mpc_on_energyplus_plans_inside_the_band_by_its_replay_error() -> None:
-    """On EnergyPlus (measured without noise) qp-mpc, casadi-mpc and a guarded planner's
-    fallback plan inside the band by their replay error, as on BOPTEST; not on the RC
-    simulator, nor on EnergyPlus with a noisy sensor (the replayed error is then the sensor's)."""
-    from dataclasses import replace
-
-    from pinn_mpc.models.rc import RCBatchModel
-    from scenarios.running.factory import build_controller, replay_margin
-
-    office, household = get_scenario(SCENARIO), get_scenario("winter_household")
-    noisy = replace(office, sim=replace(office.sim, noise_std_c=0.1))
-    assert replay_margin(office) and not replay_margin(household) and not replay_margin(noisy)
-    rc = household.sim.params
-    for name in ("qp-mpc", "casadi-mpc"):
-        assert build_controller(name, office, rc_params=rc, n_steps=48).replay_report is not None
-        assert build_controller(name, household, rc_params=rc, n_steps=48).replay_report is None
-        assert build_controller(name, noisy, rc_params=rc, n_steps=48).replay_report is None
-    model = RCBatchModel(rc, dt_s=office.sim.dt_s, actuator=office.control_spec().actuator)
-    cem = build_controller("cem", office, model=model, n_steps=48)
-    assert cem.monitor.settings.margin_from_replay
-    model = RCBatchModel(rc, dt_s=household.sim.dt_s, actuator=household.control_spec().actuator)
-    assert not build_controller("cem", household, model=model, n_steps=48).monitor.settings.margin_from_replay
