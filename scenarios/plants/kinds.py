@@ -120,15 +120,6 @@ class KindSettings:
         return None
 
     @property
-    def rc_errs_hours_ahead(self) -> bool:
-        """Whether an RC identified from the plant's data errs hours ahead by its structure (a
-        building simulated in detail, not an RC of the identified structure): measured without
-        noise, an MPC on it, or on a learned model with it as the fallback, then plans inside
-        the band by its filtered replay error (:func:`scenarios.running.factory.replay_margin`),
-        as on BOPTEST and over a building of several zones. False: the RC simulator."""
-        return False
-
-    @property
     def sized_when_read(self) -> bool:
         """Whether the plant's actuator is sized when the scenario is read
         (:func:`scenarios.inputs.registry.with_sized_heater`)."""

@@ -31,7 +31,6 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeAlias, TypeGuard
 
 from controllers.base import Controller
-from controllers.trust import TrustSettings
 from pinn_mpc.data import KW_SUSPECT_W
 from pinn_mpc.errors import InputError, InternalError, setting, warn
 from pinn_mpc.physics import RCParams, params_from_summary, read_rc_json, time_constants_h
@@ -61,7 +60,6 @@ __all__ = [
     "CONTROLLER_NAMES",
     "MODEL_CONTROLLERS",
     "RC_CONTROLLERS",
-    "REPLAY_MARGIN_TRUST",
     "FitChecks",
     "TRUTH_CONTROLLERS",
     "build_controller",
@@ -71,15 +69,10 @@ __all__ = [
     "make_controller",
     "model_guard",
     "read_zone_rc",
-    "replay_margin",
     "weather_range_note",
     "zone_backup_limits",
     "zone_planner",
 ]
-
-#: The trust settings of a planner's guard, and of an RC MPC, that plan inside the band by their
-#: replay error (:func:`replay_margin`).
-REPLAY_MARGIN_TRUST = TrustSettings(margin_from_replay=True)
 
 #: Ranges of the training data's inputs a planner watches (see controllers.trust).
 _WATCHED = ("T_a", "G")
@@ -132,17 +125,6 @@ def _ranges(summary: Mapping[str, Any]) -> dict[str, tuple[float, float]]:
         for name in _WATCHED
         if f"{name}_range" in summary
     }
-
-
-def replay_margin(scenario: Scenario) -> bool:
-    """Whether an MPC on ``scenario`` plans inside the comfort band by the error its model
-    makes over the replayed hours (:attr:`controllers.trust.TrustSettings.margin_from_replay`):
-    where the identified RC errs hours ahead by its structure (the plant's kind says so,
-    :attr:`scenarios.plants.kinds.KindSettings.rc_errs_hours_ahead`: EnergyPlus) and the room
-    is measured without noise (then the replayed error is the model's own, not the sensor's).
-    A plan that rides the band's edge hours ahead then misses it by that error: on the small
-    office an RC MPC falling back for a model did on every cold January morning."""
-    return scenario.plant.settings.rc_errs_hours_ahead and scenario.sim.noise_std_c == 0
 
 
 def model_guard(model: BatchDynamics) -> Guard:
@@ -360,10 +342,7 @@ def build_controller(
             )
         from controllers.sampling import CEM, RandomShooting
 
-        guard = model_guard(model)
-        if replay_margin(scenario):
-            guard = guard._replace(settings=REPLAY_MARGIN_TRUST)
-        options.setdefault("guard", guard)
+        options.setdefault("guard", model_guard(model))
         planner = RandomShooting if name == "random-shooting" else CEM
         controller = planner(model, spec, **options)  # checks heating vs cooling and interval
         for note in check_model_fits(model, scenario, checks):
@@ -381,13 +360,13 @@ def build_controller(
                 f"controller {name!r} needs RC parameters: add {setting('rc_path')} rc.json{also} "
                 "(`pinn-mpc identify` writes one from data)"
             )
-        from controllers.rc_mpc.casadi import CasadiMPC
+        if name == "casadi-mpc":
+            from controllers.rc_mpc.casadi import CasadiMPC
+
+            return CasadiMPC(rc_params, spec)
         from controllers.rc_mpc.osqp import QPMPC
 
-        rc_mpc = CasadiMPC(rc_params, spec) if name == "casadi-mpc" else QPMPC(rc_params, spec)
-        if replay_margin(scenario):
-            rc_mpc.plan_with_replay_margin(REPLAY_MARGIN_TRUST)
-        return rc_mpc
+        return QPMPC(rc_params, spec)
     if name == "oracle":
         from controllers.rc_mpc.references import oracle_mpc
 
