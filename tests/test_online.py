@@ -283,7 +283,8 @@ def test_a_controller_built_at_a_takeover_has_seen_the_recent_past(uninterrupted
     from controllers.thermostat import Thermostat
     from scenarios.running.online import WARM_H, _Online, _State
 
-    out, _ = uninterrupted
+    out, result = uninterrupted
+    assert all(e["warm_s"] > 0 for e in result.log if e["verdict"] != "initial")  # each takeover's
     scenario = get_scenario(SCENARIO)
     run = prepare_run(scenario, days=3, seed=0, warmup_steps=None, weather_part="test")
     online = _Online(scenario, run, out, TINY, 0, TINY.config)

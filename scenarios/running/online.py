@@ -359,6 +359,7 @@ class _Online:
         self.controller: Controller = Thermostat(scenario.control_spec())
         self.kind = "thermostat"
         self.carried_plan: np.ndarray | None = None  # the plan the running planner started from
+        self.warm_s = 0.0  # wall time of the last build's warming [s]
 
     def path(self, version: str | None, name: str) -> str | None:
         return None if version is None else str(self.out / _VERSIONS / version / name)
@@ -395,27 +396,27 @@ class _Online:
         else:
             self.controller, self.kind = Thermostat(scenario.control_spec()), "thermostat"
         self.controller.reset(self.seed)
-        self.warm(loop)
+        self.warm_s = self.warm(loop)
         self.carried_plan = None
         if carried is not None and self.kind == "model" and isinstance(self.controller, PlanningController):
             self.carried_plan = np.asarray(carried, dtype=float)  # a copy already: last_plan's, or read
             self.controller.fallback.planned(self.carried_plan)  # a plan is replaced, never changed
 
-    def warm(self, loop: ClosedLoop) -> None:
+    def warm(self, loop: ClosedLoop) -> float:
         """Show a controller just built (an MPC's observer, a planner's offset filter, shadow
         RC MPC and trust monitor) the observations and forecasts of the last :data:`WARM_H`
         hours of service, its actions discarded: it takes over with its estimates settled and
-        its trust judged on the recent past, as one that had run on. Built fresh, the shadow
-        RC MPC's observer starts with the mass at the room's temperature and the monitor with
-        the model unjudged, and judges it on the first replay alone: on the small office's
-        cold January nights the fallback then took over at 03:00, heated at up to full power
-        there and drove for hours after. The recorded past is the same on a resume, so a
-        resumed run warms the same way."""
-        if self.kind == "thermostat":
-            return
-        first = max(0, loop.k - round(WARM_H * self.spd / 24.0))
-        for j in range(first, loop.k):
-            decide(self.controller, loop.observation(at=j), loop.forecast(at=j), self.scenario.control_spec())
+        its trust judged on the recent past, as one that had run on (built fresh, the shadow
+        RC MPC's observer starts with the mass at the room's temperature, and the monitor
+        judges the model on its first replay alone). The recorded past is the same on a resume,
+        so a resumed run warms the same way. Returns its wall time [s]: the decision at the
+        takeover waits for it."""
+        started = time.perf_counter()
+        if self.kind != "thermostat":
+            first = max(0, loop.k - round(WARM_H * self.spd / 24.0))
+            for j in range(first, loop.k):
+                decide(self.controller, loop.observation(at=j), loop.forecast(at=j), self.scenario.control_spec())
+        return time.perf_counter() - started
 
     def advance(self, loop: ClosedLoop, k: int, warmup: Thermostat) -> None:
         if k < self.run.warmup:
@@ -557,6 +558,7 @@ def run_online(
                     _take_over(pending, k, state, online)
                     pending = None
                     online.build(state, loop)
+                    state.log[-1]["warm_s"] = online.warm_s
                     online.checkpoint(loop, state)
                 online.advance(loop, k, warmup)
             online.checkpoint(loop, state)
