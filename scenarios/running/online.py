@@ -38,7 +38,8 @@ the plant is replayed on the recorded demands (same seed: the same states, senso
 forecasts), the controller rebuilt from the recorded versions, and the run goes on as the
 uninterrupted one did; a refit the interruption cut short runs again. The controller is
 rebuilt (and reset with the run's seed) at every takeover, swap or not, which is what makes a
-resumed run equal to an uninterrupted one.
+resumed run equal to an uninterrupted one, and shown the last :data:`WARM_H` hours of service
+before it decides (``_Online.warm``).
 """
 
 from __future__ import annotations
