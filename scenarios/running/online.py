@@ -416,7 +416,7 @@ class _Online:
         if self.kind != "thermostat":
             first = max(0, loop.k - round(WARM_H * self.spd / 24.0))
             for j in range(first, loop.k):
-                decide(self.controller, loop.observation(at=j), loop.forecast(at=j), self.scenario.control_spec())
+                decide(self.controller, loop.observation(at=j), loop.forecast(at=j), loop.spec)
         return time.perf_counter() - started
 
     def advance(self, loop: ClosedLoop, k: int, warmup: Thermostat) -> None:
