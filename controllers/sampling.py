@@ -274,7 +274,7 @@ class _SamplingController(ZoneSampling, PlanningController):
         shadow_u = None
         try:
             if self.shadow is not None:  # every step, so that its observer stays current
-                self.shadow.comfort_margin_k = self.monitor.fallback_margin_k()
+                self.shadow.comfort_margin_k = self.monitor.fallback_margin_k(self._colder(forecast))
                 shadow_u = self.shadow.act(obs, forecast)
                 if self.replay is not None:
                     self.replay.record(obs.k, self.shadow.state_estimate_c)
@@ -318,6 +318,13 @@ class _SamplingController(ZoneSampling, PlanningController):
         learned = float(roll.t_r_c[:, 0, -1, 0].mean())  # the planned zone
         rc = math.nan if self.replay is None else self.replay.error_k(obs.k, obs.t_r_c, hist, r)
         return obs.t_r_c - learned, rc
+
+    def _colder(self, forecast: Forecast) -> bool:
+        """Whether the forecast's outdoor temperature over the horizon falls below the lowest
+        of the training data (False where that is unknown)."""
+        lo = self.training_ranges.get("T_a", (math.nan, math.nan))[0]
+        t_a = np.asarray(forecast.T_a, dtype=float)[: self.spec.horizon_steps]
+        return math.isfinite(lo) and t_a.size > 0 and float(np.nanmin(t_a)) < lo
 
     def _out_of_range(self, exog: dict[str, np.ndarray]) -> None:
         """Count a forecast that leaves the training data's input ranges."""

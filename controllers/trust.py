@@ -32,7 +32,9 @@ less than its ``comfort_margin_k``), so a model that errs more keeps more distan
 band's edges. With ``margin_from_replay`` the fallback RC MPC is held to the same rule: it
 plans against the band narrowed by the RC's own filtered replay error
 (:meth:`TrustMonitor.fallback_margin_k`), for an RC that errs as much as the model it replaces
-otherwise rides the band's edge and the plant sits just outside it.
+otherwise rides the band's edge and the plant sits just outside it. With
+``fallback_margin_when_colder`` the fallback alone follows that rule, and only while the
+forecast is colder than the data the model and its RC were fitted on.
 
 Over a building of several zones (:mod:`controllers.zone_sampling`) the same monitor filters
 each zone's replay errors (:class:`ZoneTrust`: the model's against those of the multi-zone RC
@@ -77,7 +79,9 @@ class TrustSettings:
     plan carries hours ahead, for plants whose measured temperature is noise-free (a noisy
     sensor's error is in the replay error too, and a margin for it only costs energy); with
     it the fallback RC MPC's band is narrowed by ``margin_factor`` times the RC's filtered
-    replay error (at most ``max_margin_k``) too.
+    replay error (at most ``max_margin_k``) too; ``fallback_margin_when_colder``: that margin
+    for the fallback alone, and only while the forecast is colder than the data the model and
+    its RC were fitted on (where an RC that errs by its structure errs most).
     """
 
     replay_steps: int = 8
@@ -92,6 +96,7 @@ class TrustSettings:
     margin_factor: float = 1.0
     max_margin_k: float = 0.5
     margin_from_replay: bool = False
+    fallback_margin_when_colder: bool = False
 
     def __post_init__(self) -> None:
         for name in (
@@ -171,12 +176,14 @@ class TrustMonitor:
             error = max(error, self.state.replay_k)
         return max(base_k, self._margin_for(error))
 
-    def fallback_margin_k(self) -> float:
-        """The margin [K] the fallback RC MPC plans with: with ``margin_from_replay``, the
-        model's rule applied to the RC's filtered replay error; 0 without it or before the RC
-        has been replayed."""
+    def fallback_margin_k(self, colder: bool = False) -> float:
+        """The margin [K] the fallback RC MPC plans with: the model's rule applied to the RC's
+        filtered replay error with ``margin_from_replay``, or with
+        ``fallback_margin_when_colder`` where ``colder`` (the forecast is colder than the data
+        the RC was fitted on); else 0, and 0 before the RC has been replayed."""
         error = self.state.replay_rc_k
-        if not (self.settings.margin_from_replay and math.isfinite(error)):
+        s = self.settings
+        if not ((s.margin_from_replay or (s.fallback_margin_when_colder and colder)) and math.isfinite(error)):
             return 0.0
         return self._margin_for(error)
 

@@ -760,3 +760,25 @@ def test_a_control_interval_energyplus_cannot_step_names_the_key_and_the_values(
     assert len(err.splitlines()) == 1, err
     assert "[simulation] dt_s = 900 s" in err and "set dt_s to one of 600, 1200, 1800" in err
     assert not (tmp_path / "k.json").exists()
+
+
+def test_a_planners_fallback_on_energyplus_keeps_a_margin_while_colder_than_its_data() -> None:
+    """On EnergyPlus (measured without noise) a guarded planner's fallback plans inside the
+    band by its RC's replay error while the forecast is colder than its data; not on the RC
+    simulator, nor on EnergyPlus with a noisy sensor; qp-mpc plans on the band itself."""
+    from dataclasses import replace
+
+    from pinn_mpc.models.rc import RCBatchModel
+    from scenarios.running.factory import build_controller, cold_fallback_margin
+
+    office, household = get_scenario(SCENARIO), get_scenario("winter_household")
+    noisy = replace(office, sim=replace(office.sim, noise_std_c=0.1))
+    assert cold_fallback_margin(office)
+    assert not cold_fallback_margin(household) and not cold_fallback_margin(noisy)
+    rc = household.sim.params
+    for scenario, expected in ((office, True), (household, False), (noisy, False)):
+        model = RCBatchModel(rc, dt_s=scenario.sim.dt_s, actuator=scenario.control_spec().actuator)
+        cem = build_controller("cem", scenario, model=model, n_steps=48)
+        assert cem.monitor.settings.fallback_margin_when_colder is expected
+        assert not cem.monitor.settings.margin_from_replay
+    assert build_controller("qp-mpc", office, rc_params=rc, n_steps=48).replay_report is None

@@ -164,6 +164,48 @@ def test_a_model_that_mispredicts_is_replaced_by_the_rc_mpc_and_counted(winter_m
     assert kpis["cem"]["objective"] < kpis["cem, no fallback"]["objective"]
 
 
+def test_the_fallback_plans_inside_the_band_only_while_colder_than_its_data_where_asked() -> None:
+    """With ``fallback_margin_when_colder`` the fallback's margin is the RC's filtered replay
+    error while the forecast is colder than the data, 0 otherwise; the model's own margin is
+    unchanged (one step ahead)."""
+    m = TrustMonitor(TrustSettings(filter_gain=1.0, fallback_margin_when_colder=True), u_range_w=1.0)
+    assert m.fallback_margin_k(colder=True) == 0.0  # not replayed yet
+    m.observe(0.02, float("nan"), replay_k=0.4, replay_rc_k=-0.3)
+    assert m.fallback_margin_k(colder=True) == pytest.approx(0.3)
+    assert m.fallback_margin_k(colder=False) == 0.0
+    assert m.margin_k(0.01) == pytest.approx(0.02)
+    plain = TrustMonitor(TrustSettings(filter_gain=1.0), u_range_w=1.0)
+    plain.observe(0.02, float("nan"), replay_k=0.4, replay_rc_k=-0.3)
+    assert plain.fallback_margin_k(colder=True) == 0.0
+
+
+def test_a_guarded_planner_calls_a_forecast_colder_than_its_training_data_colder(winter_model) -> None:
+    """The planner compares the forecast's outdoor temperature over its horizon with the
+    lowest of its training data; unknown ranges are never colder."""
+    from controllers.base import Forecast
+
+    scenario, model = winter_model
+    controller = build_controller("cem", scenario, model=model, n_steps=scenario.steps_per_day)
+    lo = controller.training_ranges["T_a"][0]
+    h = controller.spec.horizon_steps
+
+    def forecast(t_a: np.ndarray) -> Forecast:
+        zeros = np.zeros(len(t_a))
+        return Forecast(
+            time_of_day_h=zeros, T_a=t_a, G=zeros, I_g=zeros, price=zeros + 0.2, T_min=zeros + 20, T_max=zeros + 24
+        )
+    warm = np.full(h + 10, lo + 1.0)
+    assert not controller._colder(forecast(warm))
+    cold_late = warm.copy()
+    cold_late[h - 1] = lo - 0.5
+    assert controller._colder(forecast(cold_late))
+    beyond = warm.copy()
+    beyond[h] = lo - 5.0  # past the horizon: not planned over
+    assert not controller._colder(forecast(beyond))
+    controller.training_ranges = {}
+    assert not controller._colder(forecast(cold_late))
+
+
 def test_a_guarded_planner_sets_its_fallbacks_margin_only_where_asked(winter_model) -> None:
     """cem's shadow RC MPC plans with the monitor's fallback margin: positive after a day with
     ``margin_from_replay`` (the RC errs a little on the winter household), 0 without."""

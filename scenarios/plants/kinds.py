@@ -120,6 +120,15 @@ class KindSettings:
         return None
 
     @property
+    def rc_errs_hours_ahead(self) -> bool:
+        """Whether an RC identified from the plant's data errs hours ahead by its structure (a
+        building simulated in detail, not an RC of the identified structure): measured without
+        noise, a learned model's fallback RC MPC then plans inside the band by its RC's
+        filtered replay error while the forecast is colder than its data
+        (:func:`scenarios.running.factory.cold_fallback_margin`). False: the RC simulator."""
+        return False
+
+    @property
     def sized_when_read(self) -> bool:
         """Whether the plant's actuator is sized when the scenario is read
         (:func:`scenarios.inputs.registry.with_sized_heater`)."""

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeAlias, TypeGuard
 
@@ -66,6 +66,7 @@ __all__ = [
     "check_zone_model",
     "check_model_fits",
     "check_rc_fits",
+    "cold_fallback_margin",
     "make_controller",
     "model_guard",
     "read_zone_rc",
@@ -137,6 +138,18 @@ def model_guard(model: BatchDynamics) -> Guard:
     identified, summary = _trained_on(model)
     rc = params_from_summary(identified) if isinstance(identified, dict) else None
     return Guard(rc=rc, training_ranges=_ranges(summary))
+
+
+def cold_fallback_margin(scenario: Scenario) -> bool:
+    """Whether a guarded planner's fallback RC MPC on ``scenario`` plans inside the comfort band
+    by its RC's filtered replay error while the forecast is colder than the data it was fitted
+    on (:attr:`controllers.trust.TrustSettings.fallback_margin_when_colder`): where the
+    identified RC errs hours ahead by its structure (the plant's kind says so,
+    :attr:`scenarios.plants.kinds.KindSettings.rc_errs_hours_ahead`: EnergyPlus) and the room
+    is measured without noise (the replayed error is then the RC's own, not the sensor's). An
+    RC fitted on milder days, riding the band's edge on a colder one, leaves the room below
+    it."""
+    return scenario.plant.settings.rc_errs_hours_ahead and scenario.sim.noise_std_c == 0
 
 
 def check_model_fits(
@@ -342,7 +355,10 @@ def build_controller(
             )
         from controllers.sampling import CEM, RandomShooting
 
-        options.setdefault("guard", model_guard(model))
+        guard = model_guard(model)
+        if cold_fallback_margin(scenario):
+            guard = guard._replace(settings=replace(guard.settings, fallback_margin_when_colder=True))
+        options.setdefault("guard", guard)
         planner = RandomShooting if name == "random-shooting" else CEM
         controller = planner(model, spec, **options)  # checks heating vs cooling and interval
         for note in check_model_fits(model, scenario, checks):

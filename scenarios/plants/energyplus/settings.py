@@ -271,6 +271,12 @@ class EnergyPlusSettings(KindSettings):
         return np.array(zone_adjacency(self), dtype=bool)
 
     @property
+    def rc_errs_hours_ahead(self) -> bool:
+        """True: EnergyPlus's building (its envelope's layers, ventilation and schedules) is no
+        2R2C, and the RC identified from its data errs hours ahead by that."""
+        return True
+
+    @property
     def zone_solar_inputs(self) -> tuple[str | None, ...] | None:
         """Where the zones are controlled, the facade each zone's windows face (``G`` for
         skylights or none, :func:`scenarios.plants.energyplus.model.zone_window_facades`);
