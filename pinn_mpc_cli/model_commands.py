@@ -108,9 +108,9 @@ def _eta(value: float | None) -> float:
 
 def _train_one(a: argparse.Namespace) -> str:
     """Read ``--data``, fit the model ``--arch`` names (:func:`pinn_mpc.fitted.fit`: a network's
-    ensemble, a least-squares ARX, or with ``auto``, the default, the hybrid or the
-    physics-informed ARX, whichever predicts the data's last quarter better), save it into the
-    model directory ``--out``.
+    ensemble, a least-squares ARX, or with ``auto``, the default, the hybrid, the
+    physics-informed ARX or ``pcnn-parx``, whichever predicts the data's last quarter better),
+    save it into the model directory ``--out``.
 
     ``--out`` is checked before fitting: it must be new, empty or a model directory of the kind
     ``--arch`` writes (``auto``: either), or ``--force`` given (then only model files in it are

@@ -13,7 +13,7 @@ from typing import Any, NoReturn, TypeAlias
 
 from pinn_mpc import __version__
 from pinn_mpc.choices import AUTO, DEFAULT_ARCH, MODEL_CHOICES, RECIPES, TRAIN_CHOICES
-from pinn_mpc.models.registry import ARCHITECTURES, BASELINES, PHYSICS_ARX
+from pinn_mpc.models.registry import ARCHITECTURES, BASELINES, CONSISTENT_ARX, PHYSICS_ARX
 from scenarios.choices import CONTROLLER_NAMES, POLICIES, RANDOM_POLICIES, WEATHER_PARTS
 
 __all__ = ["COMMANDS", "MAX_DAYS", "SETTING_DESTS", "Commands", "build_parser", "command_flags"]
@@ -109,7 +109,8 @@ def arch_help() -> str:
         + [
             f"{AUTO} (the default): {DEFAULT_ARCH} or {PHYSICS_ARX.name}, whichever predicts the "
             f"data's last quarter better over a planner's 24 h ({PHYSICS_ARX.name} when its error is at most "
-            "three quarters of the hybrid's), fitted on all of it"
+            f"three quarters of the hybrid's, and then {CONSISTENT_ARX} where it errs less still), "
+            "fitted on all of it"
         ]
     )
 
@@ -282,8 +283,9 @@ def add_train(sub: Commands) -> None:
         sub,
         "train",
         "model_commands:train",
-        "train a model on data: by default the hybrid or the physics-informed ARX, whichever "
-        "predicts it better; or a seed ensemble of hybrid, mlp, physreg or physnet, or an ARX",
+        "train a model on data: by default the hybrid, the physics-informed ARX or the "
+        "consistent network on its structure (pcnn-parx), whichever predicts it better; or a "
+        "seed ensemble of hybrid, mlp, physreg, physnet, pcnn or pcnn-parx, or an ARX",
     )
     _data(p, "training data")
     p.add_argument(
