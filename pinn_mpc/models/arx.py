@@ -24,7 +24,8 @@ speed (``wind``, an EnergyPlus building's weather file), infiltration that the w
 (as the DOE reference buildings' does) adds ``+ c_w wind_k (T_r,k - T_a,k)``. It chooses by cross-validation
 on its own training data whether to take the facades' irradiance instead of ``G``, then by
 Akaike's information criterion of its one-step fit whether its schedule tells Saturdays
-from Sundays (reference office and retail buildings run a Saturday schedule of their own) and
+from Sundays (reference office and retail buildings run a Saturday schedule of their own; the
+two are then pooled towards one weekend schedule as far as the same criterion says) and
 the schedule's block length (1 or 2 hours: an office's hourly schedules against fewer
 coefficients to fit). The fit must
 say that more power warms the room (the sum of the power's coefficients positive, as a heater
@@ -73,6 +74,7 @@ __all__ = [
     "DEFAULT_LAGS",
     "MEASURED_INPUTS",
     "MIN_LAGS",
+    "POOL_CHOICES",
     "SELECTION_FOLDS",
     "SELECTION_HORIZON_S",
     "SELECTION_SHARE",
@@ -109,6 +111,10 @@ MAX_ABS_COEF = 1e3
 _ARCH = setting("arch")
 #: Ridge weight relative to each regressor's own sum of squares (keeps collinear lags well posed).
 _RIDGE = 1e-9
+#: The strengths of the pooling of Saturdays and Sundays (:func:`fit_arx`'s ``pool``) the
+#: physics-informed ARX chooses from, with none, by Akaike's criterion on the fit's effective
+#: number of coefficients (:func:`schedule_aic`).
+POOL_CHOICES = (0.005, 0.01, 0.02, 0.05)
 #: Scales that bring the inputs to order one: W -> kW, W/m2 -> 100 W/m2, W -> kW.
 _SCALE = {
     "T_r": 1.0, "u_phys": 1e-3, "T_a": 1.0, "G": 1e-2, **dict.fromkeys(FACADE_COLUMNS, 1e-2),
@@ -455,6 +461,7 @@ def fit_arx(
     block_h: float = BLOCK_H,
     rows: np.ndarray | None = None,
     wind: bool = False,
+    pool: float = 0.0,
 ) -> ARXModel:
     """Least-squares ARX fit of ``df`` (data format: ``time``, ``T_r``, ``u_phys``, ``T_a``,
     optional ``G``, the facades' irradiance (:data:`pinn_mpc.solar.FACADE_COLUMNS`) and ``I_g``;
@@ -463,11 +470,31 @@ def fit_arx(
     them (by default the measured ones, :data:`MEASURED_INPUTS`); ``block_h`` the length [h] of
     the schedule's blocks (it must divide the day). ``rows``: fit only the steps from these
     rows to the next (each at least ``lags - 1``, before the last; default all of them).
-    ``wind``: also weigh ``wind_k (T_r,k - T_a,k)`` (the data must have ``wind``)."""
+    ``wind``: also weigh ``wind_k (T_r,k - T_a,k)`` (the data must have ``wind``).
+
+    ``pool`` (with 3 ``day_types``): Saturdays and Sundays share a weekend schedule, each with
+    its own deviation from it, and the deviations (of the schedule and, with ``interaction``, of
+    the indoor-outdoor weights) are held towards zero by a ridge of ``pool`` times each one's
+    own sum of squares: what the days of one type show and the other's do not is kept where
+    many rows say it, and shrunk where a few rows of two or three days would otherwise be fitted
+    exactly. The model is the same ARX of 3 day types (each one's coefficients the weekend's
+    plus its deviation); ``pool`` 0 is the plain least squares."""
+    return _fit(df, lags=lags, day_types=day_types, interaction=interaction, inputs=inputs,
+                block_h=block_h, rows=rows, wind=wind, pool=pool)[0]
+
+
+def _fit(
+    df: pd.DataFrame, *, lags: int, day_types: int, interaction: bool, inputs: tuple[str, ...],
+    block_h: float, rows: np.ndarray | None, wind: bool, pool: float,
+) -> tuple[ARXModel, float]:
+    """:func:`fit_arx`, and the fit's effective number of coefficients (the trace of its hat
+    matrix: the number of coefficients for a least-squares fit, fewer for a pooled one)."""
     if lags < 1:
         raise ValueError(f"ARX model: lags must be >= 1, got {lags}")
     if day_types not in (2, 3):
         raise ValueError(f"ARX model: day_types must be 2 or 3, got {day_types}")
+    if not (math.isfinite(pool) and pool >= 0):
+        raise ValueError(f"ARX model: pool must be a non-negative number, got {pool}")
     if not _valid_block(block_h):
         raise ValueError(f"ARX model: block_h must divide the day into whole hours' blocks, got {block_h}")
     unknown = set(inputs) - set(_INPUT_ORDER)
@@ -487,17 +514,49 @@ def fit_arx(
             "inputs; give more days of data"
         )
     values, sched = model._inputs(df)
-    parts = [model._regressors(values, k), sched[k]]
+    pooled = pool > 0 and day_types == 3
+    # Pooled, each schedule's columns [workday, Saturday, Sunday] become [workday, weekend,
+    # Saturday's deviation, Sunday's deviation]: a weekend row sets the weekend's and its own.
+    design = _pooled_schedule(sched) if pooled else sched
+    parts = [model._regressors(values, k), design[k]]
     if interaction:
-        parts.append(sched[k] * (values[k, 0] - values[k, 2])[:, None])
+        parts.append(design[k] * (values[k, 0] - values[k, 2])[:, None])
     if wind:
         parts.append((model._wind(df)[k] * (values[k, 0] - values[k, 2]))[:, None])
     x = np.concatenate(parts, axis=1)
     y = values[k + 1, 0]
     gram = x.T @ x
-    coef = np.linalg.solve(gram + _RIDGE * np.diag(np.diag(gram) + 1e-12), x.T @ y)
-    mae = float(np.mean(np.abs(x @ coef - y))) / _SCALE["T_r"]
-    return dataclasses.replace(model, coef=coef, train_mae_c=mae)
+    penalty = _RIDGE * (np.diag(gram) + 1e-12)
+    n_lag, n_design = lags * len(columns), design.shape[1]
+    if pooled:
+        for first in (n_lag, *((n_lag + n_design,) if interaction else ())):
+            deviations = slice(first + n_design // 2, first + n_design)
+            penalty[deviations] += pool * np.diag(gram)[deviations]
+    system = gram + np.diag(penalty)
+    solved = np.linalg.solve(system, x.T @ y)
+    mae = float(np.mean(np.abs(x @ solved - y))) / _SCALE["T_r"]
+    coef = _unpooled(solved, n_lag, n_design, interaction) if pooled else solved
+    dof = float(np.trace(np.linalg.solve(system, gram)))  # the hat matrix's trace
+    return dataclasses.replace(model, coef=coef, train_mae_c=mae), dof
+
+
+def _pooled_schedule(sched: np.ndarray) -> np.ndarray:
+    """The one-hot schedule of 3 day types, (N, 3 blocks), as the columns of a pooled fit
+    (:func:`fit_arx`'s ``pool``), (N, 4 blocks): workday, weekend, Saturday's deviation,
+    Sunday's deviation."""
+    workday, saturday, sunday = np.split(sched, 3, axis=1)
+    return np.concatenate([workday, saturday + sunday, saturday, sunday], axis=1)
+
+
+def _unpooled(solved: np.ndarray, n_lag: int, n_design: int, interaction: bool) -> np.ndarray:
+    """The coefficients of 3 day types from a pooled fit's (:func:`_pooled_schedule`): each
+    weekend day's the weekend's plus its deviation; the lags' and the wind's as they are."""
+    out, at = [solved[:n_lag]], n_lag
+    for _ in range(2 if interaction else 1):
+        workday, weekend, saturday, sunday = np.split(solved[at : at + n_design], 4)
+        out += [workday, weekend + saturday, weekend + sunday]
+        at += n_design
+    return np.concatenate([*out, solved[at:]])
 
 
 class TooFewRowsError(InputError):
@@ -541,7 +600,13 @@ def fit_physics_informed_arx(
     blocks fitted on one day, and that part's predictions run away (tens to hundreds of
     kelvin), while the fit on both Saturdays predicts the next month well. With one Saturday
     in the data its blocks can fit that day with a room that does not settle, whose
-    predictions run away just the same: the settling requirement rules it out. Where the data
+    predictions run away just the same: the settling requirement rules it out. A schedule that
+    tells Saturdays from Sundays is then fitted with the two pooled towards one weekend
+    schedule (:func:`fit_arx`'s ``pool``) as strongly as Akaike's criterion on the fit's
+    effective number of coefficients says (:data:`POOL_CHOICES`, or not at all), among the
+    fits whose room settles: two weeks hold two Sundays, an online run's first weeks a Sunday
+    of its warm-up and a cold snap's, and the plain least squares follows their few rows
+    exactly and mispredicts the next such nights by kelvins. Where the data
     has the wind speed, every choice takes the wind's term: one coefficient whose use a month
     of the same season's wind hardly shows, but a building's infiltration follows the wind
     (the DOE reference buildings' does)."""
@@ -597,6 +662,17 @@ def _physics_informed_fit(df: pd.DataFrame, *, lags: int, eta: float) -> ARXMode
     horizon = max(1, round(SELECTION_HORIZON_S / float(df.attrs.get("dt_s", 1800.0))))
     settling = [fit for fit in fits if fit.offset_response(horizon, wind_m_s) <= 1.0]
     model = min(settling or fits, key=lambda fit: schedule_aic(fit, df))
+    if model.day_types == 3:  # how far to pool Saturdays and Sundays (POOL_CHOICES)
+        pooled = [
+            _fit(df, lags=lags, day_types=3, interaction=True, inputs=inputs, block_h=model.block_h,
+                 rows=None, wind=wind, pool=pool)
+            for pool in (0.0, *POOL_CHOICES)
+        ]
+        settles = max(1.0, model.offset_response(horizon, wind_m_s))
+        model = min(
+            ((fit, dof) for fit, dof in pooled if fit.offset_response(horizon, wind_m_s) <= settles),
+            key=lambda fit_dof: schedule_aic(fit_dof[0], df, dof=fit_dof[1]),
+        )[0]
     n_col = len(model.columns)
     if float(np.sum(model.coef[1 : lags * n_col : n_col])) * float(np.sign(eta)) <= 0:
         raise InputError(
@@ -607,14 +683,15 @@ def _physics_informed_fit(df: pd.DataFrame, *, lags: int, eta: float) -> ARXMode
     return model
 
 
-def schedule_aic(model: ARXModel, df: pd.DataFrame) -> float:
+def schedule_aic(model: ARXModel, df: pd.DataFrame, *, dof: float | None = None) -> float:
     """Akaike's information criterion of ``model``'s fit of ``df`` (the data it was fitted
     on): ``n log(MSE) + 2 k`` over its ``n`` one-step errors of ``T_r`` (the MSE at least
-    :data:`AIC_RESOLUTION_C` squared) and its ``k`` coefficients; lower is better."""
+    :data:`AIC_RESOLUTION_C` squared) and its ``k`` coefficients, or ``dof``, a pooled fit's
+    effective number of them; lower is better."""
     steps = np.arange(model.lags - 1, len(df) - 1)
     errors = model.predict_t_r(df, 1, steps) - df["T_r"].to_numpy(dtype=float)[steps + 1]
     mse = max(float(np.mean(np.square(errors))), AIC_RESOLUTION_C**2)
-    return steps.size * math.log(mse) + 2.0 * model.coef.size
+    return steps.size * math.log(mse) + 2.0 * (model.coef.size if dof is None else dof)
 
 
 def _cross_validated_error(
