@@ -129,16 +129,19 @@ def prepare_run(
 
 
 def build_loop(
-    scenario: Scenario, run: RunInputs, *, seed: int, fleet: FleetBuildings | None = None
+    scenario: Scenario, run: RunInputs, *, seed: int, fleet: FleetBuildings | None = None,
+    initial_state_c: tuple[float, float] | None = None,
 ) -> ClosedLoop:
     """The engine of a run: sensor noise and forecast errors seeded by ``seed``; ``fleet``
-    gives many buildings their own parameters (see :class:`ClosedLoop`)."""
+    gives many buildings their own parameters (see :class:`ClosedLoop`); ``initial_state_c``
+    the building's room and mass temperatures at the start [C] (default the scenario's)."""
+    t_r, t_m = (scenario.initial_t_r_c, scenario.initial_t_m_c) if initial_state_c is None else initial_state_c
     return ClosedLoop(
         scenario.sim,
         run.series,
         spec=scenario.control_spec(),
-        initial_t_r_c=scenario.initial_t_r_c,
-        initial_t_m_c=scenario.initial_t_m_c,
+        initial_t_r_c=t_r,
+        initial_t_m_c=t_m,
         seed=seed,
         forecast_errors=scenario.forecast,
         forecast_seed=[seed, _FORECAST_ERROR_STREAM],
@@ -212,7 +215,8 @@ def _actuator_series(rec: LoopRecord, counted: slice) -> dict[str, np.ndarray]:
 
 
 def free_records(
-    scenario: Scenario, run: RunInputs, *, seed: int, fleet: FleetBuildings | None = None
+    scenario: Scenario, run: RunInputs, *, seed: int, fleet: FleetBuildings | None = None,
+    initial_state_c: tuple[float, float] | None = None,
 ) -> tuple[LoopRecord, ...]:
     """Each building's record of ``run`` with its actuator asked for nothing after the warm-up.
 
@@ -221,14 +225,15 @@ def free_records(
     :func:`run_closed_loop` (a ``fleet``: as the fleet runs) does, so the counted days start
     from the same state, then steps every interval with the actuator off (its lower bound,
     0 W): the building free-running, its backup thermostat still acting. Its too-warm discomfort (a cooling machine: too cold) is
-    the part no controller could avoid (:func:`scenarios.running.kpis.compute_kpis`)."""
+    the part no controller could avoid (:func:`scenarios.running.kpis.compute_kpis`);
+    ``initial_state_c``: the run's start (:func:`build_loop`)."""
     spec = scenario.control_spec()
     n = 1 if fleet is None else len(fleet)
     thermostats = [Thermostat(spec) for _ in range(n)]
     for thermostat in thermostats:
         thermostat.reset(seed)
     off = np.array([a.lower_w for a in spec.actuators]) if spec.n_actuators > 1 else spec.actuator.on_off(False)
-    with build_loop(scenario, run, seed=seed, fleet=fleet) as loop:
+    with build_loop(scenario, run, seed=seed, fleet=fleet, initial_state_c=initial_state_c) as loop:
         for k in range(run.total):
             if k >= run.warmup:
                 loop.step(off if fleet is None else np.full((n, *np.shape(off)), off))

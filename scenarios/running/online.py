@@ -26,8 +26,18 @@ Champion/challenger: both models predict the held-out last day, from each of its
 leaves :data:`ERROR_HORIZON_STEPS` steps (12 h) inside it, on the measured power and weather;
 the error is ``evaluate``'s, the mean |error| of the ensemble mean's T_r that many steps ahead.
 The challenger replaces the champion only when its error is smaller (the first model, with no
-champion, takes over the RC). Each night is one JSON line of the log (``log.jsonl``): the data
+champion, takes over the RC), and not when its guard, shown the last :data:`WARM_H` hours at
+the takeover, would hand its first decision to the RC fallback while the champion's trusts the
+champion (:data:`GUARD_REFUSED`): a model better over the held-out day can still be wrong
+where the building is now. Each night is one JSON line of the log (``log.jsonl``): the data
 span seen, the held-out day, both errors, the verdict.
+
+The run's building starts where the data at hand end: its room at their last measured
+temperature, its mass at their last ``T_m`` where they have one (a simulator's data), else at
+the room's (an EnergyPlus building is warmed up at that room temperature). Started at the
+scenario's initial state instead, the room jumped by up to 3 K between the data's last row and
+the run's first, and the few rows across that jump weighed more in the refits' least squares
+than all the others (on the small office, 7.0 of 11.9 K2 of a fortnight's one-step residuals).
 
 State (``out_dir``): ``observed.csv`` (every interval so far in the data format, with the
 trajectory's extra columns and ``own``), ``loop.npz`` (the exact demands, decision times and
@@ -89,6 +99,7 @@ from scenarios.running.engine import ClosedLoop, LoopRecord, decide
 
 __all__ = [
     "ERROR_HORIZON_STEPS",
+    "GUARD_REFUSED",
     "MODEL_DAYS",
     "REFIT_HOUR",
     "TAKEOVER_H",
@@ -110,6 +121,9 @@ TAKEOVER_H = 3.0
 WARM_H = 12.0
 #: Steps ahead of the champion/challenger error (``evaluate``'s horizon; 12 h at 30 min).
 ERROR_HORIZON_STEPS = 24
+#: The verdict on a challenger that predicted the held-out day better but whose guard would hand
+#: its first decision over while the champion's trusts the champion (``_Online.run_verdict``).
+GUARD_REFUSED = "refused by the guard"
 _STATE, _LOG, _OBSERVED, _ARRAYS, _VERSIONS = "state.json", "log.jsonl", "observed.csv", "loop.npz", "versions"
 
 
@@ -215,8 +229,8 @@ def data_before_run(
     On an EnergyPlus plant whose training weather ends the day before ``first_time`` (a TMY3
     window, the run starting on the test part's first day) the training part's last ``days``
     days, simulated by EnergyPlus on those very dates (their weather, weekdays and holidays):
-    :func:`retimed` leaves them in place and the seam is the building's state only (the data's
-    EnergyPlus run is not the run's). Otherwise (the package's RC plants, or a run starting
+    :func:`retimed` leaves them in place, and the run starts at their last room temperature
+    (:func:`run_online`). Otherwise (the package's RC plants, or a run starting
     later in its test part) the scenario's usual draw of ``days`` days, which :func:`retimed`
     moves by whole days to end right before the run."""
     from scenarios.inputs.exogenous import TMY3Weather
@@ -231,6 +245,17 @@ def data_before_run(
     last.attrs = dict(longer.attrs)
     ends = pd.Timestamp(last["time"].iloc[-1]) + pd.Timedelta(seconds=float(scenario.sim.dt_s))
     return last if ends == first_time else generate(scenario, days=days, seed=seed, policy=policy)
+
+
+def _start_state(before: pd.DataFrame | None) -> tuple[float, float] | None:
+    """Where the run's building starts, given the data at hand ``before`` (None: none, the
+    scenario's initial state): its room at their last measured temperature and its mass at
+    their last ``T_m`` where they have a finite one (a simulator's data), else at the room's."""
+    if before is None or len(before) == 0:
+        return None
+    t_r = float(before["T_r"].iloc[-1])
+    t_m = float(before["T_m"].iloc[-1]) if "T_m" in before.columns else float("nan")
+    return t_r, t_m if np.isfinite(t_m) else t_r
 
 
 def _fit_frame(frames: list[pd.DataFrame], dt_s: float) -> pd.DataFrame:
@@ -419,6 +444,35 @@ class _Online:
                 decide(self.controller, loop.observation(at=j), loop.forecast(at=j), loop.spec)
         return time.perf_counter() - started
 
+    def trusted(self) -> bool:
+        """Whether the controller's guard, after its warming, lets its model decide (True
+        without a guard)."""
+        monitor = getattr(self.controller, "monitor", None)
+        return monitor is None or bool(monitor.state.trusted)
+
+    def run_verdict(self, state: _State, loop: ClosedLoop, previous: str | None) -> None:
+        """Build the controller of the versions the night's verdict (``state.log[-1]``) left
+        running, ``previous`` the champion before it. A challenger that won on the held-out day
+        but whose guard, shown the last :data:`WARM_H` hours (:meth:`warm`), would hand its
+        first decision to the RC fallback while the champion's trusts the champion, is refused
+        (:data:`GUARD_REFUSED`) and the champion runs on; where neither is trusted the
+        challenger runs. Logs the wall time of the warmings (``warm_s``)."""
+        carried = getattr(self.controller, "last_plan", None)
+        entry = state.log[-1]
+        self.build(state, loop, carried)
+        warm_s = self.warm_s
+        if entry["verdict"] == "swap" and previous is not None and not self.trusted():
+            challenger, state.champion = state.champion, previous
+            self.build(state, loop, carried)
+            warm_s += self.warm_s
+            if self.trusted():
+                entry["verdict"] = GUARD_REFUSED
+            else:
+                state.champion = challenger
+                self.build(state, loop, carried)
+                warm_s += self.warm_s
+        entry["warm_s"] = warm_s
+
     def advance(self, loop: ClosedLoop, k: int, warmup: Thermostat) -> None:
         if k < self.run.warmup:
             loop.advance(warmup)
@@ -521,7 +575,7 @@ def run_online(
     context = multiprocessing.get_context("spawn")
     pool = context.Pool(1, initializer=_worker_init)
     try:
-        with build_loop(scenario, run, seed=seed) as loop:
+        with build_loop(scenario, run, seed=seed, initial_state_c=_start_state(before)) as loop:
             carried = None
             if resume:
                 carried = _replay(loop, online, out, state.step)
@@ -556,10 +610,10 @@ def run_online(
                         version_dir=str(out / _VERSIONS / version), with_model=with_model,
                     )), version)
                 if pending is not None and k == pending[0] + takeover:
+                    previous = state.champion
                     _take_over(pending, k, state, online)
                     pending = None
-                    online.build(state, loop)
-                    state.log[-1]["warm_s"] = online.warm_s
+                    online.run_verdict(state, loop, previous)
                     online.checkpoint(loop, state)
                 online.advance(loop, k, warmup)
             online.checkpoint(loop, state)
@@ -570,7 +624,8 @@ def run_online(
         raise
     pool.close()  # every refit started was taken over: the worker is idle
     pool.join()
-    return _result(scenario, run, rec, online, state, days=days, seed=seed, weather_part=weather_part)
+    return _result(scenario, run, rec, online, state, days=days, seed=seed, weather_part=weather_part,
+                   initial_state_c=_start_state(before))
 
 
 def _take_over(pending: tuple[int, Any, str], k: int, state: _State, online: _Online) -> None:
@@ -610,11 +665,12 @@ def _replay(loop: ClosedLoop, online: _Online, out: Path, steps: int) -> np.ndar
 
 
 def _result(scenario: Scenario, run: RunInputs, rec: LoopRecord, online: _Online, state: _State,
-            *, days: int, seed: int, weather_part: str) -> OnlineResult:
+            *, days: int, seed: int, weather_part: str,
+            initial_state_c: tuple[float, float] | None) -> OnlineResult:
     """The closed loop's record of the run, with ``online``: per day of service its
     objective, discomfort, own decisions, the running model's error on it (judged the night
     after) and the nights' verdicts."""
-    free = free_records(scenario, run, seed=seed)[0]
+    free = free_records(scenario, run, seed=seed, initial_state_c=initial_state_c)[0]
     trajectory = run_trajectory(scenario, run, rec)
     trajectory["own"] = online.own[run.counted].astype(int)
     kpis = run_kpis(
@@ -637,6 +693,7 @@ def _result(scenario: Scenario, run: RunInputs, rec: LoopRecord, online: _Online
         "days": per_day,
         "swaps": sum(e["verdict"] == "swap" for e in state.log),
         "refusals": sum(e["verdict"] == "refused" for e in state.log),
+        "guard_refusals": sum(e["verdict"] == GUARD_REFUSED for e in state.log),
         "late_refits": state.late_refits,
         "own_decisions_share": float(np.mean(online.own[run.counted])),
         "refit_wall_s": [round(e["wall_s"], 3) for e in state.log if "wall_s" in e],
