@@ -480,15 +480,16 @@ def fit_arx(
     exactly. The model is the same ARX of 3 day types (each one's coefficients the weekend's
     plus its deviation); ``pool`` 0 is the plain least squares."""
     return _fit(df, lags=lags, day_types=day_types, interaction=interaction, inputs=inputs,
-                block_h=block_h, rows=rows, wind=wind, pool=pool)[0]
+                block_h=block_h, rows=rows, wind=wind, pool=pool, effective_dof=False)[0]
 
 
 def _fit(
     df: pd.DataFrame, *, lags: int, day_types: int, interaction: bool, inputs: tuple[str, ...],
-    block_h: float, rows: np.ndarray | None, wind: bool, pool: float,
-) -> tuple[ARXModel, float]:
-    """:func:`fit_arx`, and the fit's effective number of coefficients (the trace of its hat
-    matrix: the number of coefficients for a least-squares fit, fewer for a pooled one)."""
+    block_h: float, rows: np.ndarray | None, wind: bool, pool: float, effective_dof: bool,
+) -> tuple[ARXModel, float | None]:
+    """:func:`fit_arx`, and with ``effective_dof`` the fit's effective number of coefficients
+    (the trace of its hat matrix: the number of coefficients for a least-squares fit, fewer for
+    a pooled one), else None."""
     if lags < 1:
         raise ValueError(f"ARX model: lags must be >= 1, got {lags}")
     if day_types not in (2, 3):
@@ -536,7 +537,7 @@ def _fit(
     solved = np.linalg.solve(system, x.T @ y)
     mae = float(np.mean(np.abs(x @ solved - y))) / _SCALE["T_r"]
     coef = _unpooled(solved, n_lag, n_design, interaction) if pooled else solved
-    dof = float(np.trace(np.linalg.solve(system, gram)))  # the hat matrix's trace
+    dof = float(np.trace(np.linalg.solve(system, gram))) if effective_dof else None  # the hat matrix's trace
     return dataclasses.replace(model, coef=coef, train_mae_c=mae), dof
 
 
@@ -665,7 +666,7 @@ def _physics_informed_fit(df: pd.DataFrame, *, lags: int, eta: float) -> ARXMode
     if model.day_types == 3:  # how far to pool Saturdays and Sundays (POOL_CHOICES)
         pooled = [
             _fit(df, lags=lags, day_types=3, interaction=True, inputs=inputs, block_h=model.block_h,
-                 rows=None, wind=wind, pool=pool)
+                 rows=None, wind=wind, pool=pool, effective_dof=True)
             for pool in (0.0, *POOL_CHOICES)
         ]
         settles = max(1.0, model.offset_response(horizon, wind_m_s))
