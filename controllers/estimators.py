@@ -32,7 +32,7 @@ from pinn_mpc.observer import (
     KalmanObserver,
     MultiZoneObserver,
 )
-from pinn_mpc.physics import RCParams
+from pinn_mpc.physics import RCParams, gain_schedule_index
 
 if TYPE_CHECKING:
     from pinn_mpc.models.fleet import FleetModels
@@ -86,6 +86,7 @@ class KalmanEstimator:
         actuator: Actuator | None = None,
         **observer_options: Any,
     ) -> None:
+        self.params = params
         self.observer = KalmanObserver(params, dt_s, **observer_options)
         self.actuator = Actuator() if actuator is None else actuator
         self.reset()
@@ -113,7 +114,8 @@ class KalmanEstimator:
             self.observer.reset(obs.t_r_c)
         else:
             heat_w = last.u_phys * float(self.actuator.gain(last.T_a))
-            self.observer.predict(heat_w, last.T_a, last.G, last.I_g)
+            gains_w = float(self.params.gains_w(last.I_g, last.time_of_day_h, last.day_of_week))
+            self.observer.predict(heat_w, last.T_a, last.G, gains_w)
             self.observer.update(obs.t_r_c)
         self._k_seen = obs.k
         return self.observer.state[0]
@@ -133,8 +135,13 @@ class FleetKalmanEstimator:
     updated together: the same arithmetic, building by building, as B estimators (each its own
     covariance and its own restart rule), in one vectorised pass instead of B Python calls."""
 
-    def __init__(self, ad: np.ndarray, bd: np.ndarray, spec: ControlSpec) -> None:
+    def __init__(
+        self, ad: np.ndarray, bd: np.ndarray, spec: ControlSpec, *, schedules: np.ndarray | None = None
+    ) -> None:
+        """``schedules`` (B, :data:`~pinn_mpc.physics.GAIN_SCHEDULE_LENGTH`) each building's
+        unmeasured gains [W] (:func:`pinn_mpc.simulator.unmeasured_gains`), None for none."""
         ad, bd = np.asarray(ad, dtype=float), np.asarray(bd, dtype=float)
+        self.schedules = schedules
         if ad.ndim != 3 or ad.shape[1:] != (2, 2) or bd.shape != (ad.shape[0], 2, 4):
             raise InternalError(f"FleetKalmanEstimator: ad (B, 2, 2) and bd (B, 2, 4), got {ad.shape}, {bd.shape}")
         process, measurement = observer_noise(spec)
@@ -173,6 +180,12 @@ class FleetKalmanEstimator:
                 [(v.u_phys, v.T_a, v.G, v.I_g) if v is not None else (0.0, 0.0, 0.0, 0.0) for v in lasts]
             )
             d[:, 0] *= np.asarray(self.actuator.gain(d[:, 1]), dtype=float)
+            if self.schedules is not None:
+                index = gain_schedule_index(
+                    np.array([v.time_of_day_h if v is not None else 0.0 for v in lasts]),
+                    np.array([v.day_of_week if v is not None else math.nan for v in lasts]),
+                )
+                d[:, 3] += self.schedules[np.arange(b), index]
             x = np.einsum("bij,bj->bi", self.ad, self._x) + np.einsum("bij,bj->bi", self.bd, d)
             p = self.ad @ self._p @ self.ad.transpose(0, 2, 1) + self.q
             s = p[:, 0, 0] + self.r

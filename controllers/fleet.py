@@ -44,8 +44,8 @@ from controllers.rc_mpc.osqp import CANDIDATE_OPTIONS, OSQP_OPTIONS, QPBlocks
 from controllers.rc_mpc.problem import DEFAULT_REGULARISATION
 from controllers.rc_mpc.qp import BOX, qp_vectors
 from pinn_mpc.errors import InternalError
-from pinn_mpc.physics import RCParams
-from pinn_mpc.simulator import fleet_matrices
+from pinn_mpc.physics import RCParams, gain_schedule_index
+from pinn_mpc.simulator import fleet_matrices, unmeasured_gains
 
 __all__ = ["CANDIDATE_OPTIONS", "FleetDecision", "FleetPlan", "FleetPlanner", "FleetQPMPC"]
 
@@ -166,6 +166,7 @@ class FleetQPMPC:
         self.solver_options = {**OSQP_OPTIONS, **(solver_options or {})}
         ad, bd = fleet_matrices(self.fleet, spec.dt_s)  # (B, 2, 2), (B, 2, 4)
         self._ad, self._bd = ad, bd
+        self._schedules = unmeasured_gains(self.fleet)
         try:
             self._solver = QPBlocks(
                 ad, bd[:, :, 0] * 1000.0, h, 2.0 * spec.dt_h * self.rho, BOX, self.solver_options,
@@ -173,7 +174,7 @@ class FleetQPMPC:
             )
         except ValueError as exc:
             raise ValueError(f"FleetQPMPC.{exc}") from exc
-        self.estimator = FleetKalmanEstimator(ad, bd, spec)
+        self.estimator = FleetKalmanEstimator(ad, bd, spec, schedules=self._schedules)
         self.fallbacks = [Fallback(spec, reuse_plan=True) for _ in self.fleet]
         self.reset()
 
@@ -213,6 +214,12 @@ class FleetQPMPC:
         h = self._h
         exog = np.stack([first_values(a, h) for a in (forecast.T_a, forecast.G, forecast.I_g)], axis=1)
         drift = np.einsum("hc,brc->bhr", exog, self._bd[:, :, 1:])
+        if self._schedules is not None:  # each building's unmeasured gains
+            index = gain_schedule_index(
+                first_values(forecast.time_of_day_h, h),
+                None if forecast.day_of_week is None else first_values(forecast.day_of_week, h),
+            )
+            drift += np.einsum("bh,br->bhr", self._schedules[:, index], self._bd[:, :, 3])
         drift[:, 0] += np.einsum("brc,bc->br", self._ad, x0)
         self._stage = _Stage(
             observations=tuple(observations),

@@ -274,6 +274,7 @@ class RCReplay(_Replay):
     ``r`` steps ago under the power that was delivered and the measured weather."""
 
     def __init__(self, rc: RCParams, spec: ControlSpec, replay_steps: int) -> None:
+        self.rc = rc
         self.matrices = discretise(rc, spec.dt_s)
         super().__init__(spec, replay_steps)
 
@@ -290,6 +291,12 @@ class RCReplay(_Replay):
         t_a, g, i_g = (
             np.asarray(hist.get(n, zeros), dtype=float)[-r - 1 : -1] for n in ("T_a", "G", "I_g")
         )
+        if self.rc.unmeasured_gains_w:
+            tod, dow = (
+                np.asarray(hist[n], dtype=float)[-r - 1 : -1] if n in hist else None
+                for n in ("time_of_day_h", "day_of_week")
+            )
+            i_g = self.rc.gains_w(i_g, np.zeros(r) if tod is None else tod, dow)
         d = np.stack([u_phys * self.spec.actuator.gain(t_a), t_a, g, i_g], axis=1)  # (r, 4)
         x = start[None]
         for j in range(r):

@@ -30,7 +30,7 @@ import json
 import math
 import os
 from collections.abc import Mapping
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass, fields, replace
 from pathlib import Path
 from typing import Any, cast
 
@@ -42,6 +42,8 @@ from pinn_mpc.records import RcSummary
 
 __all__ = [
     "DT_RANGE_S",
+    "GAIN_BLOCK_H",
+    "GAIN_SCHEDULE_LENGTH",
     "INPUT_NAMES",
     "MAX_POWER_W",
     "N_INPUTS",
@@ -56,6 +58,7 @@ __all__ = [
     "discretise",
     "discretise_euler",
     "from_coefficients",
+    "gain_schedule_index",
     "params_from_summary",
     "rc_summary",
     "read_rc_json",
@@ -100,6 +103,23 @@ MAX_POWER_W = 1.0e7
 #: Plausible control interval [s]: 1 min (the simulator's substep) to 6 h. Outside it a time
 #: column is usually in the wrong unit (a row index read as seconds, or hours, or ms).
 DT_RANGE_S = (60.0, 6 * 3600.0)
+#: Hours of a block of the unmeasured-gain schedule, and the schedule's length: a workday's
+#: blocks, then a weekend day's or holiday's.
+GAIN_BLOCK_H = 2.0
+GAIN_SCHEDULE_LENGTH = 2 * round(24 / GAIN_BLOCK_H)
+
+
+def gain_schedule_index(time_of_day_h: Any, day_of_week: Any | None) -> np.ndarray:
+    """Each interval's block of :attr:`RCParams.unmeasured_gains_w`: its two-hour block of the
+    day, a weekend day's (``day_of_week`` 5 or 6, 0 = Monday; 6 for a holiday) after the
+    workdays'. An unknown day (None or NaN) counts as a workday."""
+    hours = np.asarray(time_of_day_h, dtype=float)
+    per_day = GAIN_SCHEDULE_LENGTH // 2
+    block = np.clip((np.mod(hours, 24.0) // GAIN_BLOCK_H).astype(int), 0, per_day - 1)
+    if day_of_week is None:
+        return block
+    dow = np.broadcast_to(np.asarray(day_of_week, dtype=float), hours.shape)
+    return block + per_day * (np.nan_to_num(dow, nan=0.0) >= 5).astype(int)
 
 
 def check_plausible(field: str, value: Any, *, name: str | None = None) -> float:
@@ -148,18 +168,56 @@ class RCParams:
     solar_aperture_m2: float = 0.0
     solar_to_air_fraction: float = 0.0
     gain_to_air_fraction: float = 1.0
+    #: Unmeasured internal gains [W] by the hour (:func:`gain_schedule_index`): empty, or one
+    #: value per two-hour block of a workday, then of a weekend day or holiday. Identified from
+    #: data without an ``I_g`` column (occupants, lights, equipment); a model's, not a plant's.
+    unmeasured_gains_w: tuple[float, ...] = ()
 
     def __post_init__(self) -> None:
         for f in fields(self):
-            check_plausible(f.name, getattr(self, f.name), name=f"RCParams.{f.name}")
+            if f.name != "unmeasured_gains_w":
+                check_plausible(f.name, getattr(self, f.name), name=f"RCParams.{f.name}")
+        gains = tuple(float(g) for g in self.unmeasured_gains_w)
+        if gains and (
+            len(gains) != GAIN_SCHEDULE_LENGTH
+            or not all(math.isfinite(g) and 0.0 <= g <= MAX_POWER_W for g in gains)
+        ):
+            raise InputError(
+                f"RCParams.unmeasured_gains_w: expected {GAIN_SCHEDULE_LENGTH} gains in "
+                f"0 .. {MAX_POWER_W:g} W (two-hour blocks of a workday, then of a weekend day), "
+                f"got {len(gains)} values"
+            )
+        object.__setattr__(self, "unmeasured_gains_w", gains)
+
+    def gains_w(
+        self, i_g_w: Any, time_of_day_h: Any, day_of_week: Any | None
+    ) -> np.ndarray:
+        """The internal gains the model takes [W]: the measured ``i_g_w`` plus the unmeasured
+        gains of each interval's block (:func:`gain_schedule_index`); arrays of one shape.
+        Where the calendar is unknown (``day_of_week`` None or NaN) a workday's."""
+        measured = np.asarray(i_g_w, dtype=float)
+        if not self.unmeasured_gains_w:
+            return measured
+        index = gain_schedule_index(time_of_day_h, day_of_week)
+        return measured + np.asarray(self.unmeasured_gains_w)[index]
+
+    def without_unmeasured_gains(self) -> RCParams:
+        """The same building with no unmeasured-gain schedule (what a plant simulates)."""
+        return replace(self, unmeasured_gains_w=())
 
     @property
     def heating(self) -> bool:
         """True when the actuator heats (eta > 0), False for cooling."""
         return self.eta > 0
 
-    def to_dict(self) -> dict[str, float]:
-        return asdict(self)
+    def to_dict(self) -> dict[str, Any]:
+        """The fields by name; the unmeasured gains only where there are some (as a list)."""
+        out: dict[str, Any] = asdict(self)
+        if self.unmeasured_gains_w:
+            out["unmeasured_gains_w"] = list(self.unmeasured_gains_w)
+        else:
+            del out["unmeasured_gains_w"]
+        return out
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> RCParams:
@@ -167,7 +225,9 @@ class RCParams:
         unknown = set(data) - names
         if unknown:
             raise InputError(f"unknown RC parameter(s) {sorted(unknown)}; expected {sorted(names)}")
-        return cls(**{k: check_plausible(k, v) for k, v in data.items()})
+        gains = data.get("unmeasured_gains_w", ())
+        values = {k: check_plausible(k, v) for k, v in data.items() if k != "unmeasured_gains_w"}
+        return cls(**values, unmeasured_gains_w=tuple(gains))
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -362,6 +422,7 @@ def rc_summary(p: RCParams, *, source: str) -> RcSummary:
     fast, slow = time_constants_h(p)
     summary = {
         **{key: getattr(p, field) for key, field in SUMMARY_KEYS.items()},
+        **({"unmeasured_gains_W": list(p.unmeasured_gains_w)} if p.unmeasured_gains_w else {}),
         "coefficients_per_s": coef.to_dict(),
         "time_constants_h": {"fast": fast, "slow": slow},
         "source": source,
@@ -381,7 +442,12 @@ def params_from_summary(data: Mapping[str, Any]) -> RCParams:
         for key, field in SUMMARY_KEYS.items()
         if key in data
     }
-    return RCParams(**values)
+    gains = data.get("unmeasured_gains_W", [])
+    if not isinstance(gains, list) or not all(
+        isinstance(g, int | float) and not isinstance(g, bool) for g in gains
+    ):
+        raise InputError(f"unmeasured_gains_W: expected a list of numbers [W], got {gains!r}")
+    return RCParams(**values, unmeasured_gains_w=tuple(gains))
 
 
 def read_rc_json(path: str | os.PathLike[str]) -> tuple[RCParams, dict[str, Any]]:

@@ -48,6 +48,9 @@ class RcSummary(TypedDict):
     """Share of the solar gain that reaches the room air [-]."""
     gain_to_air_fraction: float
     """Share of the internal gains that reaches the room air [-]."""
+    unmeasured_gains_W: NotRequired[list[float]]
+    """Unmeasured internal gains [W] of each two-hour block of a workday, then of a weekend day
+    or holiday (:attr:`pinn_mpc.physics.RCParams.unmeasured_gains_w`), where identified."""
     coefficients_per_s: dict[str, float]
     """The continuous-time coefficients (``a11`` ... ``c22``) [1/s, K/(W s), ...]."""
     time_constants_h: TimeConstants

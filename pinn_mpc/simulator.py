@@ -29,10 +29,12 @@ import scipy.linalg
 
 from pinn_mpc.actuator import Actuator, ActuatorSpec
 from pinn_mpc.errors import InputError, InternalError, setting
-from pinn_mpc.physics import N_INPUTS, PAPER_HOUSEHOLD, RCParams
+from pinn_mpc.physics import GAIN_SCHEDULE_LENGTH, N_INPUTS, PAPER_HOUSEHOLD, RCParams
 from pinn_mpc.plant import Plant, plant_matrices
 
-__all__ = ["MAX_ACTUATOR_W", "SimConfig", "Simulator", "StepResult", "backup_power"]
+__all__ = [
+    "MAX_ACTUATOR_W", "SimConfig", "Simulator", "StepResult", "backup_power", "unmeasured_gains",
+]
 
 #: The largest plausible actuator of one building [W] (a hospital's heating plant is a few MW):
 #: above it a power was given in the wrong unit.
@@ -151,6 +153,14 @@ def draw_fleet(
         )
         for row in factors
     )
+
+
+def unmeasured_gains(params: Sequence[RCParams]) -> np.ndarray | None:
+    """(B, :data:`~pinn_mpc.physics.GAIN_SCHEDULE_LENGTH`) each building's unmeasured-gain
+    schedule [W] (zeros where it has none), or None where no building has one."""
+    if not any(p.unmeasured_gains_w for p in params):
+        return None
+    return np.array([p.unmeasured_gains_w or (0.0,) * GAIN_SCHEDULE_LENGTH for p in params])
 
 
 def fleet_matrices(

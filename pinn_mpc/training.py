@@ -195,12 +195,13 @@ def data_summary(df: pd.DataFrame) -> dict[str, Any]:
     return out
 
 
-def _identify(df: pd.DataFrame, eta: float) -> IdentifyResult | None:
-    """The grey-box identification of the training data, or None where it fails."""
+def _identify(df: pd.DataFrame, eta: float, *, unmeasured_gains: bool) -> IdentifyResult | None:
+    """The grey-box identification of the training data (with ``unmeasured_gains`` as
+    :func:`~pinn_mpc.identify.identify_rc` takes it), or None where it fails."""
     from pinn_mpc.identify import identify_rc
 
     try:
-        return identify_rc(df, eta=eta)
+        return identify_rc(df, eta=eta, unmeasured_gains=unmeasured_gains)
     except InputError:
         return None
 
@@ -313,7 +314,11 @@ def train_model(
     features = fit_feature_config(
         df, depth=config.depth, calendar=architecture.calendar, optional=architecture.optional_exog
     )
-    identified = _identify(df, config.eta)
+    # The RC that seeds the physics has no gain schedule; the RC kept for the planner's fallback does.
+    identified = _identify(df, config.eta, unmeasured_gains=False)
+    from pinn_mpc.identify import gain_schedule_applies
+
+    kept_rc = _identify(df, config.eta, unmeasured_gains=True) if gain_schedule_applies(df) else identified
     cop_curve = CopCurve.fit(df["T_a"].to_numpy(float), df["cop"].to_numpy(float)) if "cop" in df else None
     prior = architecture.training_prior(config, df, identified)
     m = config.n_seeds
@@ -398,10 +403,10 @@ def train_model(
         # The fallback of the planners over this model: the RC MPC on these parameters.
         identified_rc=(
             {
-                **physics.rc_summary(identified.params, source="identify (training data)"),
-                "fit": identified.fit_statistics(),
+                **physics.rc_summary(kept_rc.params, source="identify (training data)"),
+                "fit": kept_rc.fit_statistics(),
             }
-            if identified is not None
+            if kept_rc is not None
             else None
         ),
         data_warnings=data_warnings(df),

@@ -202,3 +202,76 @@ def test_a_fit_a_2r2c_cannot_give_is_noted_with_what_to_do(solar_frame: pd.DataF
     for advice in ("room temperature and the heating power delivered", "more days",
                    "`pinn-mpc train`", "physics-informed ARX"):
         assert advice in note
+
+
+def _office_gains_w(times: pd.DatetimeIndex) -> np.ndarray:
+    """An office's unmeasured gains [W]: 900 W on workdays 08-18 h, 150 W otherwise."""
+    hours = times.hour + times.minute / 60.0
+    return np.where((times.day_of_week < 5) & (hours >= 8) & (hours < 18), 900.0, 150.0)
+
+
+@pytest.fixture(scope="module")
+def office_frame() -> pd.DataFrame:
+    """28 days from a Monday of a 2R2C with office gains that the data do not hold (no I_g)."""
+    rng = np.random.default_rng(3)
+    n = 28 * 48
+    times = pd.date_range("2024-01-01", periods=n, freq="30min")
+    hours = np.arange(n) * 0.5
+    t_a = 2.0 + 4.0 * np.sin(2 * np.pi * (hours - 9.0) / 24.0) + 0.3 * np.cumsum(rng.normal(0, 0.2, n))
+    cloud = rng.uniform(0.2, 1.0, 28).repeat(48)
+    g = 400.0 * cloud * np.clip(np.sin(2 * np.pi * (hours - 6.0) / 24.0), 0.0, None)
+    u = np.where(rng.random(n) < 0.5, 5000.0, 0.0) * rng.uniform(0.3, 1.0, n)
+    gains = _office_gains_w(times)
+    ad, bd = discretise(SOLAR, 1800.0)
+    x = simulate_rc(ad, bd, np.array([19.0, 18.0]), np.stack([u, t_a, g, gains], axis=1)[:-1])
+    frame = pd.DataFrame({"time": times, "T_r": x[:, 0], "u_phys": u, "T_a": t_a, "G": g})
+    return validate_timeseries(frame)
+
+
+def test_identifies_the_unmeasured_gain_schedule(office_frame: pd.DataFrame) -> None:
+    from pinn_mpc.physics import gain_schedule_index
+
+    result = identify_rc(office_frame)
+    p = result.params
+    assert len(p.unmeasured_gains_w) == 24 and result.fit_statistics()["unmeasured_gains"]
+    # every block against the true gains (the 08-18 h blocks of a workday are whole blocks)
+    hours = np.arange(0, 24, 2.0) + 1.0
+    truth = np.concatenate([_office_gains_w(pd.DatetimeIndex(pd.Timestamp("2024-01-01") + pd.to_timedelta(hours, "h"))),
+                            _office_gains_w(pd.DatetimeIndex(pd.Timestamp("2024-01-06") + pd.to_timedelta(hours, "h")))])
+    index = gain_schedule_index(np.concatenate([hours, hours]), np.repeat([0.0, 5.0], 12))
+    np.testing.assert_allclose(np.asarray(p.unmeasured_gains_w)[index], truth, atol=60.0)
+    assert _rel(p.r_ra_k_per_w, SOLAR.r_ra_k_per_w) < 0.05
+    assert _rel(p.c_r_j_per_k, SOLAR.c_r_j_per_k) < 0.10
+    assert _rel(p.solar_aperture_m2, SOLAR.solar_aperture_m2) < 0.10
+    assert abs(p.gain_to_air_fraction - SOLAR.gain_to_air_fraction) < 0.1
+    assert result.rmse_c < 0.05
+    # without the schedule the same data fit far worse and read the office's gains as sun
+    plain = identify_rc(office_frame, unmeasured_gains=False)
+    assert plain.params.unmeasured_gains_w == () and plain.rmse_c > 5 * result.rmse_c
+
+
+def test_gain_schedule_needs_days_of_both_kinds_and_no_measured_gains(
+    office_frame: pd.DataFrame, solar_frame: pd.DataFrame
+) -> None:
+    from pinn_mpc.identify import MIN_SCHEDULE_DAYS, gain_schedule_applies
+
+    assert gain_schedule_applies(office_frame)
+    short = validate_timeseries(office_frame.iloc[: (MIN_SCHEDULE_DAYS - 1) * 48])
+    assert not gain_schedule_applies(short) and identify_rc(short).params.unmeasured_gains_w == ()
+    assert gain_schedule_applies(validate_timeseries(office_frame.iloc[: 12 * 48]))  # one weekend
+    holidays = office_frame.iloc[: 12 * 48].assign(holiday=1.0)  # every day a holiday: no workday
+    assert not gain_schedule_applies(validate_timeseries(holidays))
+    assert not gain_schedule_applies(solar_frame)  # measured I_g and no calendar
+
+
+def test_rc_json_keeps_the_gain_schedule(office_frame: pd.DataFrame, tmp_path: Path) -> None:
+    from pinn_mpc.physics import rc_summary, read_rc_json
+
+    params = identify_rc(office_frame).params
+    path = tmp_path / "rc.json"
+    path.write_text(json.dumps(rc_summary(params, source="test")))
+    assert read_rc_json(path)[0] == params
+    bad = {**rc_summary(params, source="test"), "unmeasured_gains_W": [1.0, 2.0]}
+    path.write_text(json.dumps(bad))
+    with pytest.raises(InputError, match="unmeasured_gains_w: expected 24 gains"):
+        read_rc_json(path)

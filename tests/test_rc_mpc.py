@@ -443,3 +443,47 @@ def test_the_fleets_qp_is_the_buildings_qps_block_by_block(layout_name: str) -> 
         one = qp_vectors(drift[i : i + 1], price[i], bounds, objective, layout)
         for got, want in zip(stacked, one, strict=True):
             np.testing.assert_array_equal(got[i], want[0])
+
+
+def test_an_rcs_unmeasured_gains_act_as_the_same_gains_measured() -> None:
+    """An RC with an unmeasured-gain schedule plans, observes and predicts as the RC without
+    one to which the forecast and the history give those gains as ``I_g``: qp-mpc's free
+    response, the fleet's drift and the observer's estimate agree to rounding."""
+    from controllers.estimators import KalmanEstimator
+    from controllers.fleet import FleetQPMPC
+    from pinn_mpc.physics import gain_schedule_index
+
+    schedule = tuple(float(v) for v in np.linspace(0.0, 2300.0, 24))
+    scheduled = dataclasses.replace(PARAMS, gain_to_air_fraction=0.7, unmeasured_gains_w=schedule)
+    plain = dataclasses.replace(scheduled, unmeasured_gains_w=())
+    h = SPEC.horizon_steps
+    base = _forecast(h, start=30)._replace(day_of_week=np.repeat([4.0, 5.0], [20, h - 20]))
+    gains = np.asarray(schedule)[gain_schedule_index(base.time_of_day_h, base.day_of_week)]
+    assert np.ptp(gains) > 1000.0  # the forecast spans blocks of both day kinds
+    measured = base._replace(I_g=gains)
+    x0 = np.array([19.0, 18.0])
+    np.testing.assert_allclose(
+        RCProblem(params=scheduled, spec=SPEC, horizon_steps=h).stage(x0, base).free_c,
+        RCProblem(params=plain, spec=SPEC, horizon_steps=h).stage(x0, measured).free_c,
+        atol=1e-12,
+    )
+    drifts = []
+    for params, forecast in ((scheduled, base), (plain, measured)):
+        fleet = FleetQPMPC([params], SPEC)
+        fleet.observe([_first_obs(19.0, 18.0)], forecast)
+        assert fleet._stage is not None
+        drifts.append(fleet._stage.drift_c)
+    np.testing.assert_allclose(drifts[0], drifts[1], atol=1e-12)
+    estimates = []
+    for params, i_g in ((scheduled, np.zeros(4)), (plain, gains[:4])):
+        estimator = KalmanEstimator.for_spec(params, SPEC)
+        history = {
+            "T_r": np.array([19.0, 19.4, 19.9, 20.1]), "u_phys": np.array([3000.0, 2000.0, 0.0]),
+            "T_a": np.full(4, 2.0), "G": np.zeros(4), "I_g": i_g,
+            "time_of_day_h": base.time_of_day_h[:4], "day_of_week": base.day_of_week[:4],
+        }
+        for k in range(4):
+            cut = {name: values[: k + 1] if name != "u_phys" else values[:k] for name, values in history.items()}
+            estimate = estimator.update(Observation.from_history(k, cut))
+        estimates.append(estimate)
+    np.testing.assert_allclose(estimates[0], estimates[1], atol=1e-12)

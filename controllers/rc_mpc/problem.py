@@ -117,6 +117,10 @@ class RCProblem:
         h = self.horizon_steps
         _, bd = self.matrices
         exog = np.stack([first_values(a, h) for a in (forecast.T_a, forecast.G, forecast.I_g)], axis=1)
+        exog[:, 2] = self.params.gains_w(
+            exog[:, 2], first_values(forecast.time_of_day_h, h),
+            None if forecast.day_of_week is None else first_values(forecast.day_of_week, h),
+        )
         cop = self.spec.actuator.gain(exog[:, 0])
         objective = HorizonObjective.from_forecast(forecast, self.spec, h)
         if n_active is not None:

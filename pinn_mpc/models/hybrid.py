@@ -605,7 +605,7 @@ class Hybrid(Architecture):
             return identified.params
         from pinn_mpc.identify import identify_rc
 
-        return identify_rc(df, eta=config.eta).params  # raises what made it fail
+        return identify_rc(df, eta=config.eta, unmeasured_gains=False).params  # raises what made it fail
 
     def loss_fn(
         self, module: EnsembleModule, data: TrainingSet, config: TrainConfig, lam: float

@@ -75,7 +75,7 @@ def building_settling(df: pd.DataFrame, eta: float) -> RoomSettling | None:
     from pinn_mpc.physics import discretise, time_constants_h
 
     try:
-        identified = identify_rc(df, eta=eta)
+        identified = identify_rc(df, eta=eta, unmeasured_gains=False)
     except InputError:
         return None
     dt_s = float(df.attrs.get("dt_s", 1800.0))

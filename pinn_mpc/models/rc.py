@@ -53,6 +53,8 @@ class RCBatchModel(BatchDynamics):
         self.actuator, self._dt_s = actuator, dt_s
         self.backup_low_c, self.backup_high_c = backup_low_c, backup_high_c
         self.ad, self.bd = discretise(params, dt_s)
+        if params.unmeasured_gains_w:  # the schedule's blocks need the calendar
+            self.exog_names = ("T_a", "G", "I_g", "time_of_day_h", "day_of_week")
 
     @property
     def eta(self) -> float:
@@ -76,9 +78,14 @@ class RCBatchModel(BatchDynamics):
         d = np.array(
             [
                 np.asarray(history["u_phys"], dtype=float)[-1] * float(self.actuator.gain(t_a_last)),
-                *(np.asarray(history.get(name, zeros), dtype=float)[-2] for name in self.exog_names),
+                *(np.asarray(history.get(name, zeros), dtype=float)[-2] for name in self.exog_names[:3]),
             ]
         )
+        if self.params.unmeasured_gains_w:
+            d[3] = self.params.gains_w(
+                d[3], np.asarray(history.get("time_of_day_h", zeros), dtype=float)[-2],
+                np.asarray(history["day_of_week"], dtype=float)[-2] if "day_of_week" in history else None,
+            )
         (a00, a01), (a10, a11) = self.ad
         t_m_prev = (t_r[-1] - a00 * t_r[-2] - self.bd[0] @ d) / a01
         return float(t_r[-1]), float(a10 * t_r[-2] + a11 * t_m_prev + self.bd[1] @ d)
@@ -90,7 +97,12 @@ class RCBatchModel(BatchDynamics):
         and the delivered power (1, N, H)."""
         n, h = u_w.shape
         t_r0, t_m0 = self.state_now(history)
-        d = np.stack([np.asarray(exog[k], dtype=float)[:h] for k in self.exog_names], axis=1)
+        d = np.stack([np.asarray(exog[k], dtype=float)[:h] for k in self.exog_names[:3]], axis=1)
+        if self.params.unmeasured_gains_w:
+            d[:, 2] = self.params.gains_w(
+                d[:, 2], np.asarray(exog["time_of_day_h"], dtype=float)[:h],
+                np.asarray(exog["day_of_week"], dtype=float)[:h],
+            )
         drift = torch.as_tensor(d @ self.bd[:, 1:].T, dtype=u_w.dtype)  # (H, 2)
         (a00, a01), (a10, a11) = self.ad.tolist()
         b0, b1 = self.bd[:, 0].tolist()

@@ -26,6 +26,7 @@ import pandas as pd
 from controllers.estimators import RC_MPC_PROCESS_STD_C
 from pinn_mpc.actuator import Actuator
 from pinn_mpc.evaluation import recursive_t_r
+from pinn_mpc.identify import frame_gains_w
 from pinn_mpc.models import LearnedModel
 from pinn_mpc.models.arx import ARXModel
 from pinn_mpc.observer import KalmanObserver
@@ -53,7 +54,7 @@ def rc_recursive_t_r(
             df["u_phys"].to_numpy(dtype=float) * actuator.gain(t_a),
             t_a,
             df["G"].to_numpy(dtype=float) if "G" in df else zeros,
-            df["I_g"].to_numpy(dtype=float) if "I_g" in df else zeros,
+            frame_gains_w(params, df),
         ],
         axis=1,
     )

@@ -389,7 +389,10 @@ def scenario_from_dict(data: dict[str, Any], *, base: Path, default_name: str) -
     if isinstance(building, dict) and "rc" not in building:
         from pinn_mpc.physics import RCParams
 
-        absent = [f.name for f in dataclasses.fields(RCParams) if f.name not in building]
+        absent = [
+            f.name for f in dataclasses.fields(RCParams)
+            if f.name not in building and f.name != "unmeasured_gains_w"
+        ]
         if absent:
             raise InputError(
                 f"building.{absent[0]}: missing (the building is not defaulted: a deleted "
@@ -413,7 +416,8 @@ def scenario_from_dict(data: dict[str, Any], *, base: Path, default_name: str) -
             params = read_rc(base / building["rc"])
         except InputError as exc:
             raise InputError(f"building.rc: {exc.marked}") from None
-        data["building"] = params.to_dict()
+        # the plant takes its internal gains from the scenario, not an identified schedule
+        data["building"] = params.without_unmeasured_gains().to_dict()
     for section, content in data.items():
         if section in {p.split(".")[0] for p in SECTIONS.values()} and not isinstance(content, dict):
             raise InputError(f"{section}: expected a table, got {content!r}")
