@@ -26,7 +26,6 @@ file, column, row and fix.
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import os
 import re
@@ -534,7 +533,7 @@ def write_fleet_params(data: str | os.PathLike[str], params: Sequence[RCParams],
     staged in the same :func:`~pinn_mpc.io.written_together` block: the file records its
     hash) next to it, atomically; the path written."""
     path = fleet_params_path(data)
-    atomic_write_json(path, {"spread": spread, "params": [dataclasses.asdict(p) for p in params],
+    atomic_write_json(path, {"spread": spread, "params": [p.to_dict() for p in params],
                              "data_sha256": file_sha256(staged(data))})
     return path
 

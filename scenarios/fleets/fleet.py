@@ -392,7 +392,7 @@ def fleet_json(result: FleetResult, scenario_arg: str) -> FleetJson:
         ],
         "step_time": result.step_time,
         "buildings": [
-            {**kpis, "params": dataclasses.asdict(params)}
+            {**kpis, "params": params.to_dict() if isinstance(params, RCParams) else dataclasses.asdict(params)}
             for kpis, params in zip(result.kpis, buildings, strict=True)
         ],
     }

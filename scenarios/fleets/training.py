@@ -167,7 +167,7 @@ def train_per_building(
         "kept": sorted(done),
         "train_seconds": {},
         "wall_seconds": 0.0,
-        "params": None if params is None else [dataclasses.asdict(p) for p in params],
+        "params": None if params is None else [p.to_dict() for p in params],
     }
     if previous is not None and previous.get("params") and params is None:
         summary["params"] = previous["params"]
