@@ -170,7 +170,7 @@ def test_cli_fleet_writes_totals_step_times_and_every_building(tmp_path, capsys)
     again = run_fleet_closed_loop(
         get_scenario("paper_household"), "qp-mpc", n_buildings=3, days=1, seed=2, spread=0.1
     )
-    assert [b["params"] for b in data["buildings"]] == [dataclasses.asdict(p) for p in again.params]
+    assert [b["params"] for b in data["buildings"]] == [p.to_dict() for p in again.params]
     assert data["totals"]["energy_kwh"] == pytest.approx(again.totals["energy_kwh"], rel=1e-9)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["fleet.json"]
 
