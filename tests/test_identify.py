@@ -250,6 +250,24 @@ def test_identifies_the_unmeasured_gain_schedule(office_frame: pd.DataFrame) -> 
     assert plain.params.unmeasured_gains_w == () and plain.rmse_c > 5 * result.rmse_c
 
 
+def test_a_building_without_unmeasured_gains_gets_no_schedule() -> None:
+    """The same office without its gains: a schedule would fit noise only, so none is kept,
+    and the fit is the one without a schedule, to the bit."""
+    n = 14 * 48
+    rng = np.random.default_rng(4)
+    times = pd.date_range("2024-01-01", periods=n, freq="30min")
+    hours = np.arange(n) * 0.5
+    t_a = 2.0 + 4.0 * np.sin(2 * np.pi * (hours - 9.0) / 24.0)
+    u = np.where(rng.random(n) < 0.5, 5000.0, 0.0) * rng.uniform(0.3, 1.0, n)
+    ad, bd = discretise(PAPER_HOUSEHOLD, 1800.0)
+    x = simulate_rc(ad, bd, np.array([19.0, 18.0]), np.stack([u, t_a, 0 * u, 0 * u], axis=1)[:-1])
+    t_r = x[:, 0] + rng.normal(0.0, 0.02, n)  # a sensor's noise, which a schedule could chase
+    frame = validate_timeseries(pd.DataFrame({"time": times, "T_r": t_r, "u_phys": u, "T_a": t_a}))
+    result = identify_rc(frame)
+    assert result.params.unmeasured_gains_w == ()
+    assert result == identify_rc(frame, unmeasured_gains=False)
+
+
 def test_gain_schedule_needs_days_of_both_kinds_and_no_measured_gains(
     office_frame: pd.DataFrame, solar_frame: pd.DataFrame
 ) -> None:
