@@ -519,9 +519,16 @@ def identify(a: argparse.Namespace) -> str:
             warn(note)
     atomic_write_json(a.out, summary)
     p = result.params
+    gains = ""
+    if p.unmeasured_gains_w:
+        half = len(p.unmeasured_gains_w) // 2
+        gains = (
+            f"; unmeasured gains up to {max(p.unmeasured_gains_w[:half]) / 1000:.3g} kW on a "
+            f"workday, {max(p.unmeasured_gains_w[half:]) / 1000:.3g} kW on a weekend day"
+        )
     return (
         f"identified R_ra={p.r_ra_k_per_w:.4g} K/W R_rm={p.r_rm_k_per_w:.4g} K/W "
-        f"C_r={p.c_r_j_per_k:.4g} J/K C_m={p.c_m_j_per_k:.4g} J/K "
+        f"C_r={p.c_r_j_per_k:.4g} J/K C_m={p.c_m_j_per_k:.4g} J/K{gains} "
         f"(rmse {result.rmse_c:.3f} C over {result.n_rows} rows) -> {a.out}"
     )
 

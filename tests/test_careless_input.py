@@ -497,7 +497,8 @@ def test_identify_on_the_energyplus_office_warns_that_a_2r2c_does_not_fit(tmp_pa
     assert main(["identify", "--data", str(data), "--out", str(rc)]) == 0
     written = json.loads(rc.read_text())
     assert written["fit"]["rmse_c"] < 1.0 and len(written["unmeasured_gains_W"]) == 24
-    assert "reproduces the data" not in capsys.readouterr().err
+    out, err = capsys.readouterr()
+    assert "reproduces the data" not in err and "kW on a workday" in out
     frame = pd.read_csv(data)
     frame["I_g"] = 100.0 * (np.arange(len(frame)) % 2)  # gains that explain nothing
     frame.to_csv(data, index=False)
