@@ -62,6 +62,8 @@ __all__ = [
     "parse_times",
     "read_fleet_params",
     "read_timeseries",
+    "schedule_index",
+    "schedule_one_hot",
     "validate_timeseries",
     "write_fleet_params",
     "write_timeseries",
@@ -112,6 +114,34 @@ def day_of_week(times: np.ndarray, holiday: np.ndarray | None = None) -> np.ndar
     if holiday is not None:
         dow[np.asarray(holiday, dtype=float) > 0] = 6.0
     return dow
+
+
+def schedule_index(
+    time_of_day_h: np.ndarray, day_of_week: np.ndarray, day_types: int = 2, block_h: float = 2.0
+) -> np.ndarray:
+    """(N,) each interval's schedule coefficient: its block of ``block_h`` hours of the day, the
+    weekend's after the workdays' (day_of_week 0 = Monday, 6 = Sunday or a holiday); with 3
+    ``day_types`` Saturday's, then Sunday's (the physics-informed ARX's schedule, and the RC's
+    unmeasured gains)."""
+    block = (np.asarray(time_of_day_h, dtype=float) // block_h).astype(int)
+    dow = np.asarray(day_of_week)
+    day = (dow >= 5).astype(int) if day_types == 2 else np.clip(dow - 4, 0, 2).astype(int)
+    return block + int(round(24 / block_h)) * day
+
+
+def schedule_one_hot(df: pd.DataFrame, day_types: int = 2, block_h: float = 2.0) -> np.ndarray:
+    """(N, day_types * blocks per day) one-hot of each row's schedule coefficient
+    (:func:`schedule_index`) in a frame in the data format (its ``holiday`` column, if any, run
+    as Sundays)."""
+    t = pd.to_datetime(df["time"])
+    index = schedule_index(
+        (t.dt.hour + t.dt.minute / 60.0).to_numpy(),
+        day_of_week(t.to_numpy(), df["holiday"].to_numpy() if "holiday" in df else None),
+        day_types, block_h,
+    )
+    out = np.zeros((len(t), day_types * int(round(24 / block_h))))
+    out[np.arange(len(t)), index] = 1.0
+    return out
 
 
 def parse_column_map(text: str | None) -> dict[str, str]:

@@ -36,15 +36,15 @@ import numpy as np
 import pandas as pd
 import scipy.optimize
 
-from pinn_mpc.data import day_of_week
+from pinn_mpc.data import day_of_week, schedule_one_hot
 from pinn_mpc.errors import InputError, InternalError, PinnMpcWarning, setting
 from pinn_mpc.physics import (
+    GAIN_BLOCK_H,
     GAIN_SCHEDULE_LENGTH,
     PLAUSIBLE_RANGES,
     RCParams,
     check_plausible,
     discretise,
-    gain_schedule_index,
 )
 
 __all__ = [
@@ -150,30 +150,18 @@ def gain_schedule_applies(df: pd.DataFrame) -> bool:
     return len(kinds) >= MIN_SCHEDULE_DAYS and int(kinds.sum()) >= 1 and int((~kinds).sum()) >= 1
 
 
-def _schedule_rows(df: pd.DataFrame) -> np.ndarray:
-    """(N,) each row's block of the unmeasured-gain schedule (:func:`gain_schedule_index`)."""
-    t = pd.to_datetime(df["time"])
-    return gain_schedule_index(
-        (t.dt.hour + t.dt.minute / 60.0).to_numpy(),
-        day_of_week(t.to_numpy(), df["holiday"].to_numpy() if "holiday" in df else None),
-    )
-
-
 def frame_gains_w(params: RCParams, df: pd.DataFrame) -> np.ndarray:
     """(N,) the internal gains [W] the RC ``params`` takes on each row of ``df`` (a frame in the
     data format): its ``I_g`` (0 without one) plus the unmeasured gains of the row's block."""
     measured = df["I_g"].to_numpy(float) if "I_g" in df.columns else np.zeros(len(df))
     if not params.unmeasured_gains_w:
         return measured
-    return measured + np.asarray(params.unmeasured_gains_w)[_schedule_rows(df)]
+    return measured + _schedule_one_hot(df) @ np.asarray(params.unmeasured_gains_w)
 
 
-def _schedule_basis(df: pd.DataFrame) -> np.ndarray:
-    """(N-1, GAIN_SCHEDULE_LENGTH) one-hot of each interval's block of the gain schedule."""
-    index = _schedule_rows(df)[:-1]
-    out = np.zeros((len(index), GAIN_SCHEDULE_LENGTH))
-    out[np.arange(len(index)), index] = 1.0
-    return out
+def _schedule_one_hot(df: pd.DataFrame) -> np.ndarray:
+    """(N, GAIN_SCHEDULE_LENGTH) one-hot of each row's block of the gain schedule."""
+    return schedule_one_hot(df, 2, GAIN_BLOCK_H)
 
 
 def _gain_responses(ad: np.ndarray, bd: np.ndarray, basis: np.ndarray) -> np.ndarray:
@@ -405,7 +393,8 @@ class _Problem:
         self.t_r = df["T_r"].to_numpy(float)
 
     def fit(self, basis: np.ndarray | None) -> IdentifyResult:
-        """The fit; with ``basis`` (:func:`_schedule_basis`) also the unmeasured-gain schedule."""
+        """The fit; with ``basis`` ((N-1, K) each interval's block, one-hot) also the
+        unmeasured-gain schedule."""
         dt_s, d, t_r, n_rows = self.dt_s, self.d, self.t_r, len(self.t_r)
         layout = _Layout(solar=self.solar, gains=self.gains or basis is not None, eta=self.eta)
         lower, upper = layout.bounds()
@@ -506,12 +495,13 @@ def identify_rc(
     problem = _Problem(df, dt_s, eta=eta, solar=solar, gains=gains)
     if not (unmeasured_gains and gain_schedule_applies(df)):
         return problem.fit(None)
+    basis = _schedule_one_hot(df)[:-1]  # each interval's block
     try:
         plain = problem.fit(None)
     except InputError:
-        return problem.fit(_schedule_basis(df))  # raises where neither fits
+        return problem.fit(basis)  # raises where neither fits
     try:
-        scheduled = problem.fit(_schedule_basis(df))
+        scheduled = problem.fit(basis)
     except InputError:
         return plain
     return scheduled if _schedule_pays(plain, scheduled) else plain

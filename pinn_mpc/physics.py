@@ -110,16 +110,17 @@ GAIN_SCHEDULE_LENGTH = 2 * round(24 / GAIN_BLOCK_H)
 
 
 def gain_schedule_index(time_of_day_h: Any, day_of_week: Any | None) -> np.ndarray:
-    """Each interval's block of :attr:`RCParams.unmeasured_gains_w`: its two-hour block of the
-    day, a weekend day's (``day_of_week`` 5 or 6, 0 = Monday; 6 for a holiday) after the
-    workdays'. An unknown day (None or NaN) counts as a workday."""
-    hours = np.asarray(time_of_day_h, dtype=float)
-    per_day = GAIN_SCHEDULE_LENGTH // 2
-    block = np.clip((np.mod(hours, 24.0) // GAIN_BLOCK_H).astype(int), 0, per_day - 1)
-    if day_of_week is None:
-        return block
-    dow = np.broadcast_to(np.asarray(day_of_week, dtype=float), hours.shape)
-    return block + per_day * (np.nan_to_num(dow, nan=0.0) >= 5).astype(int)
+    """Each interval's block of :attr:`RCParams.unmeasured_gains_w`
+    (:func:`pinn_mpc.data.schedule_index` of two day types and :data:`GAIN_BLOCK_H`): its
+    two-hour block of the day, a weekend day's (``day_of_week`` 5 or 6, 0 = Monday; 6 for a
+    holiday) after the workdays'. An unknown day (None or NaN) counts as a workday."""
+    from pinn_mpc.data import schedule_index  # pinn_mpc.data imports this module
+
+    hours = np.mod(np.asarray(time_of_day_h, dtype=float), 24.0)
+    dow = np.zeros(hours.shape) if day_of_week is None else np.broadcast_to(
+        np.nan_to_num(np.asarray(day_of_week, dtype=float), nan=0.0), hours.shape
+    )
+    return schedule_index(hours, dow, 2, GAIN_BLOCK_H)
 
 
 def check_plausible(field: str, value: Any, *, name: str | None = None) -> float:

@@ -55,7 +55,9 @@ import numpy as np
 import pandas as pd
 import torch
 
-from pinn_mpc.data import WIND, day_of_week
+from pinn_mpc.data import WIND
+from pinn_mpc.data import schedule_index as _schedule_index
+from pinn_mpc.data import schedule_one_hot as _schedule
 from pinn_mpc.errors import InputError, InternalError, setting
 from pinn_mpc.features import check_interval
 from pinn_mpc.io import DirectoryLayout
@@ -147,31 +149,6 @@ def _n_coef(
     """Coefficients of an ARX model: its lags of every column, then its schedule (and as many
     interaction weights, if any), then the wind's weight (if any)."""
     return lags * n_columns + day_types * _blocks(block_h) * (2 if interaction else 1) + int(wind)
-
-
-def _schedule_index(
-    time_of_day_h: np.ndarray, day_of_week: np.ndarray, day_types: int = 2, block_h: float = BLOCK_H
-) -> np.ndarray:
-    """(N,) each interval's schedule coefficient: its block of the day, the weekend's after
-    the workdays' (day_of_week 0 = Monday, 6 = Sunday or a holiday); with 3 ``day_types``
-    Saturday's, then Sunday's."""
-    block = (np.asarray(time_of_day_h, dtype=float) // block_h).astype(int)
-    dow = np.asarray(day_of_week)
-    day = (dow >= 5).astype(int) if day_types == 2 else np.clip(dow - 4, 0, 2).astype(int)
-    return block + _blocks(block_h) * day
-
-
-def _schedule(df: pd.DataFrame, day_types: int = 2, block_h: float = BLOCK_H) -> np.ndarray:
-    """(N, day_types * blocks per day) one-hot of each row's schedule coefficient."""
-    t = pd.to_datetime(df["time"])
-    index = _schedule_index(
-        (t.dt.hour + t.dt.minute / 60.0).to_numpy(),
-        day_of_week(t.to_numpy(), df["holiday"].to_numpy() if "holiday" in df else None),
-        day_types, block_h,
-    )
-    out = np.zeros((len(t), day_types * _blocks(block_h)))
-    out[np.arange(len(t)), index] = 1.0
-    return out
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)
