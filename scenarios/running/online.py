@@ -27,9 +27,8 @@ leaves :data:`ERROR_HORIZON_STEPS` steps (12 h) inside it, on the measured power
 the error is ``evaluate``'s, the mean |error| of the ensemble mean's T_r that many steps ahead.
 Where ``auto`` chose another family than the physics-informed ARX, the ARX (a least-squares
 fit of seconds) is fitted on the same rows as well and is the night's challenger where it
-predicts the held-out day better by ``auto``'s own rule between the two (:func:`_arx_ratio`):
-``auto`` judges on the last quarter of the rows, and the family that predicted that best need
-not predict the next day best. The challenger replaces the champion only when its error is smaller (the first model, with no
+predicts the held-out day better: ``auto`` judges on the last quarter of the rows, and the
+family that predicted it best need not predict the next day best. The challenger replaces the champion only when its error is smaller (the first model, with no
 champion, takes over the RC), and not when its guard, shown the last :data:`WARM_H` hours at
 the takeover, would hand its first decision to the RC fallback while the champion's trusts the
 champion (:data:`GUARD_REFUSED`): a model better over the held-out day can still be wrong
@@ -314,17 +313,6 @@ def _arx_challenger(df: pd.DataFrame, arch: str, chosen: str, config: TrainConfi
         return None
 
 
-def _arx_ratio(chosen: str) -> float:
-    """How much less than ``chosen`` (auto's choice) the physics-informed ARX must err on the
-    held-out day to be the challenger: ``auto``'s own rule between them
-    (:data:`~pinn_mpc.model_choice.AUTO_RATIO` against the hybrid, any less against the
-    consistent ARX, which ``auto`` takes only where it errs less than the ARX)."""
-    from pinn_mpc.model_choice import AUTO_RATIO
-    from pinn_mpc.models.registry import DEFAULT_ARCH
-
-    return AUTO_RATIO if chosen == DEFAULT_ARCH else 1.0
-
-
 def _refit(
     frame: pd.DataFrame, *, dt_s: float, steps_per_day: int, arch: str, config: TrainConfig,
     champion: str | None, version_dir: str, with_model: bool, hold_out: bool = True,
@@ -369,9 +357,9 @@ def _refit(
     if choice is not None and hold_out:
         errors = {choice.chosen: _held_out_error(choice.model, frame, cut)}
         arx = _arx_challenger(fitted_on, arch, choice.chosen, config)
-        if arx is not None:  # the night's challenger: auto's rule, judged on the held-out day
+        if arx is not None:  # the night's challenger: the one that predicts the held-out day best
             errors[arx.chosen] = _held_out_error(arx.model, frame, cut)
-            if errors[arx.chosen] <= _arx_ratio(choice.chosen) * errors[choice.chosen]:
+            if errors[arx.chosen] < errors[choice.chosen]:
                 choice = arx
         record.update(
             held_out_day=[str(frame["time"].iloc[cut]), str(frame["time"].iloc[-1])],
