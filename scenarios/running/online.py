@@ -25,10 +25,7 @@ a worker not finished by then is waited for there and the wait counted (``late_r
 Champion/challenger: both models predict the held-out last day, from each of its starts that
 leaves :data:`ERROR_HORIZON_STEPS` steps (12 h) inside it, on the measured power and weather;
 the error is ``evaluate``'s, the mean |error| of the ensemble mean's T_r that many steps ahead.
-Where ``auto`` chose another family than the physics-informed ARX, the ARX (a least-squares
-fit of seconds) is fitted on the same rows as well and is the night's challenger where it
-predicts the held-out day better: ``auto`` judges on the last quarter of the rows, and the
-family that predicted it best need not predict the next day best. The challenger replaces the champion only when its error is smaller (the first model, with no
+The challenger replaces the champion only when its error is smaller (the first model, with no
 champion, takes over the RC), and not when its guard, shown the last :data:`WARM_H` hours at
 the takeover, would hand its first decision to the RC fallback while the champion's trusts the
 champion (:data:`GUARD_REFUSED`): a model better over the held-out day can still be wrong
@@ -298,21 +295,6 @@ def _held_out_error(model: Any, frame: pd.DataFrame, cut: int) -> float:
     return float(np.mean(np.abs(pred - t_r[starts + h])))
 
 
-def _arx_challenger(df: pd.DataFrame, arch: str, chosen: str, config: TrainConfig) -> Any:
-    """The physics-informed ARX fitted on ``df`` (``fit``'s result), a second challenger beside
-    what ``arch`` chose where that is ``auto`` and it chose another family; None otherwise, or
-    where the data do not fit one (``fit``'s InputError)."""
-    from pinn_mpc import fitted
-    from pinn_mpc.models.registry import AUTO, PHYSICS_ARX
-
-    if arch != AUTO or chosen == PHYSICS_ARX.name:
-        return None
-    try:
-        return fitted.fit(df, arch=PHYSICS_ARX.name, config=config)
-    except InputError:
-        return None
-
-
 def _refit(
     frame: pd.DataFrame, *, dt_s: float, steps_per_day: int, arch: str, config: TrainConfig,
     champion: str | None, version_dir: str, with_model: bool, hold_out: bool = True,
@@ -354,24 +336,17 @@ def _refit(
             choice = fitted.fit(fitted_on, arch=arch, config=config)
         except InputError as exc:
             record["model_error"] = str(exc)
-    if choice is not None and hold_out:
-        errors = {choice.chosen: _held_out_error(choice.model, frame, cut)}
-        arx = _arx_challenger(fitted_on, arch, choice.chosen, config)
-        if arx is not None:  # the night's challenger: the one that predicts the held-out day best
-            errors[arx.chosen] = _held_out_error(arx.model, frame, cut)
-            if errors[arx.chosen] < errors[choice.chosen]:
-                choice = arx
-        record.update(
-            held_out_day=[str(frame["time"].iloc[cut]), str(frame["time"].iloc[-1])],
-            fitted_span=[str(fitted_on["time"].iloc[0]), str(fitted_on["time"].iloc[-1])],
-            challenger_error_c=errors[choice.chosen],
-            candidate_errors_c=errors,
-        )
-        if champion is not None:
-            record["champion_error_c"] = _held_out_error(fitted.load(champion), frame, cut)
     if choice is not None:
         fitted.save(choice.model, tmp / "model")
         record.update(model="model", family=choice.chosen)
+    if choice is not None and hold_out:
+        record.update(
+            held_out_day=[str(frame["time"].iloc[cut]), str(frame["time"].iloc[-1])],
+            fitted_span=[str(fitted_on["time"].iloc[0]), str(fitted_on["time"].iloc[-1])],
+            challenger_error_c=_held_out_error(choice.model, frame, cut),
+        )
+        if champion is not None:
+            record["champion_error_c"] = _held_out_error(fitted.load(champion), frame, cut)
     record["wall_s"] = time.perf_counter() - started
     record["load_1min"] = os.getloadavg()[0] if hasattr(os, "getloadavg") else None
     shutil.rmtree(target, ignore_errors=True)
