@@ -57,6 +57,7 @@ def recursive_paths(
     frame is too short for one start.
     """
     k, f = model.depth, model.features
+    df = f.complete_frame(df)
     n = len(df)
     starts = np.arange(k + 1, n - horizon)
     if len(starts) == 0:

@@ -40,7 +40,7 @@ import pandas as pd
 
 from pinn_mpc.data import WIND, day_of_week
 from pinn_mpc.errors import InputError, setting
-from pinn_mpc.physics import DT_RANGE_S
+from pinn_mpc.physics import DT_RANGE_S, gain_schedule_index
 from pinn_mpc.solar import FACADE_COLUMNS
 
 __all__ = [
@@ -158,6 +158,9 @@ class FeatureConfig:
     delta_t_r: Standard  # T_r,i+1 - T_r,i, the regression target [K]
     exog: dict[str, Standard] = field(default_factory=dict)  # T_a, G, I_g
     calendar: bool = False  # the calendar's columns after the time of day (module docstring)
+    # The unmeasured gains [W] the model adds to I_g by block of the day and day type (the
+    # RC's schedule, :attr:`pinn_mpc.physics.RCParams.unmeasured_gains_w`); empty: none.
+    gain_schedule_w: tuple[float, ...] = ()
 
     def __post_init__(self) -> None:
         if not 1 <= self.depth <= MAX_DEPTH:
@@ -198,7 +201,29 @@ class FeatureConfig:
     def model_exog_names(self) -> tuple[str, ...]:
         """What a forecast must give a model of these features: :attr:`exog_names`, and
         ``day_of_week`` with the calendar."""
-        return self.exog_names + (("day_of_week",) if self.calendar else ())
+        return self.exog_names + (("day_of_week",) if self.calendar or self.gain_schedule_w else ())
+
+    def gains_w(self, i_g_w: Any, time_of_day_h: Any, day_of_week_: Any | None) -> np.ndarray:
+        """The internal gains the model reads [W]: the measured ``i_g_w`` plus
+        :attr:`gain_schedule_w`'s gains of each interval's block (a workday's where the day is
+        unknown)."""
+        measured = np.asarray(i_g_w, dtype=float)
+        if not self.gain_schedule_w:
+            return measured
+        return measured + np.asarray(self.gain_schedule_w)[gain_schedule_index(time_of_day_h, day_of_week_)]
+
+    def complete_frame(self, df: pd.DataFrame) -> pd.DataFrame:
+        """``df`` with its ``I_g`` as the model reads it (:meth:`gains_w`): itself without a
+        gain schedule."""
+        if not self.gain_schedule_w:
+            return df
+        holiday = df["holiday"].to_numpy() if "holiday" in df else None
+        dow = day_of_week(pd.to_datetime(df["time"]).to_numpy(), holiday)
+        measured = df["I_g"].to_numpy(float) if "I_g" in df.columns else np.zeros(len(df))
+        out = df.copy()
+        out.attrs = dict(df.attrs)
+        out["I_g"] = self.gains_w(measured, time_of_day_h(df["time"]), dow)
+        return out
 
     @property
     def u_index(self) -> int:
@@ -271,6 +296,7 @@ class FeatureConfig:
             "delta_t_r": self.delta_t_r.to_dict(),
             "exog": {k: v.to_dict() for k, v in self.exog.items()},
             **({"calendar": True} if self.calendar else {}),
+            **({"gain_schedule_w": list(self.gain_schedule_w)} if self.gain_schedule_w else {}),
         }
 
     @classmethod
@@ -284,6 +310,7 @@ class FeatureConfig:
             delta_t_r=Standard(**data["delta_t_r"]),
             exog={k: Standard(**v) for k, v in data["exog"].items()},
             calendar=data.get("calendar", False) is True,
+            gain_schedule_w=tuple(float(g) for g in data.get("gain_schedule_w", ())),
         )
 
 
@@ -350,7 +377,10 @@ def _infer_dt_s(df: pd.DataFrame) -> float:
 
 def make_windows(df: pd.DataFrame, cfg: FeatureConfig, *, min_samples: int = 1) -> Windows:
     """All samples of a frame as scaled feature rows; raises InputError when too short."""
-    missing = [EXOG_COLUMNS[n] for n in cfg.exog_names if EXOG_COLUMNS[n] not in df.columns]
+    missing = [
+        EXOG_COLUMNS[n] for n in cfg.exog_names
+        if EXOG_COLUMNS[n] not in df.columns and not (n == "I_g" and cfg.gain_schedule_w)
+    ]
     missing += [c for c in ("T_r", "u_phys") if c not in df.columns]
     if missing:
         raise InputError(
@@ -358,6 +388,7 @@ def make_windows(df: pd.DataFrame, cfg: FeatureConfig, *, min_samples: int = 1) 
             f"(exogenous inputs {list(cfg.exog_names)}); add them or map them with {setting('columns')}"
         )
     _check_rows(df, cfg.depth, min_samples, "features")
+    df = cfg.complete_frame(df)
     k = cfg.depth
     n = len(df)
     t_r = df["T_r"].to_numpy(dtype=float)

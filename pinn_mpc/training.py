@@ -311,14 +311,25 @@ def train_model(
     df = validate_timeseries(df, source="training data", u_max_w=config.u_max_w)
     check_power_sign(df, config.eta, what=arch)  # the physics prior and planners take its sign
     hp = config.resolved()
-    features = fit_feature_config(
-        df, depth=config.depth, calendar=architecture.calendar, optional=architecture.optional_exog
-    )
-    # The RC that seeds the physics has no gain schedule; the RC kept for the planner's fallback does.
-    identified = _identify(df, config.eta, unmeasured_gains=False)
     from pinn_mpc.identify import gain_schedule_applies
 
-    kept_rc = _identify(df, config.eta, unmeasured_gains=True) if gain_schedule_applies(df) else identified
+    # The RC kept for the planner's fallback has the unmeasured gains' schedule where the data
+    # call for one; a hybrid takes the same schedule as its internal gains (I_g): its features
+    # and the RC that seeds its physics are fitted on the data with those gains.
+    scheduled = _identify(df, config.eta, unmeasured_gains=True) if gain_schedule_applies(df) else None
+    schedule = () if scheduled is None else scheduled.params.unmeasured_gains_w
+    seen = df
+    if schedule and architecture.gain_schedule and "I_g" not in df.columns:
+        bare = fit_feature_config(df, depth=config.depth, calendar=architecture.calendar, optional=architecture.optional_exog)
+        seen = replace(bare, gain_schedule_w=schedule).complete_frame(df)
+    features = fit_feature_config(
+        seen, depth=config.depth, calendar=architecture.calendar, optional=architecture.optional_exog
+    )
+    if seen is not df:
+        features = replace(features, gain_schedule_w=schedule)
+    # The RC that seeds the physics has no gain schedule of its own.
+    identified = _identify(seen, config.eta, unmeasured_gains=False)
+    kept_rc = scheduled if scheduled is not None else identified
     cop_curve = CopCurve.fit(df["T_a"].to_numpy(float), df["cop"].to_numpy(float)) if "cop" in df else None
     prior = architecture.training_prior(config, df, identified)
     m = config.n_seeds

@@ -143,6 +143,10 @@ class Architecture(ABC):
     #: where the data has them (:mod:`pinn_mpc.features`).
     calendar = False
     optional_exog: tuple[str, ...] = ()
+    #: Whether it takes the unmeasured gains' schedule of the RC identified from its data as
+    #: its internal gains (``I_g``) where the data has none (:attr:`pinn_mpc.features.
+    #: FeatureConfig.gain_schedule_w`).
+    gain_schedule = False
 
     def __init__(self, spec: ArchSpec):
         self.spec = spec

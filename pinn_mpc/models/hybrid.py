@@ -582,6 +582,7 @@ class Hybrid(Architecture):
 
     physics_lr_factor = 0.1
     format_versions = (2,)
+    gain_schedule = True
 
     def build_net(self, parts: NetParts) -> nn.Module:
         assert parts.physics_block is not None
@@ -651,9 +652,12 @@ class Hybrid(Architecture):
         assert isinstance(net, HybridNet)
         return net.rollout_constants()
 
-    def stack_key(self, model: LearnedModel) -> Hashable:
+    def stack_key(self, model: LearnedModel) -> Hashable | None:
         """Hybrids of one depth, exogenous inputs and interval stack (each building its own
-        weights, scaling, COP curve and backup thermostat)."""
+        weights, scaling, COP curve and backup thermostat); one with a gain schedule rolls
+        out alone (its gains come from the calendar)."""
+        if model.features.gain_schedule_w:
+            return None
         return (self.name, model.depth, model.exog_names, model.dt_s)
 
     def stacked(self, models: Sequence[LearnedModel], members: int) -> StackedDynamics:

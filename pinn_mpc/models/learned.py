@@ -267,6 +267,10 @@ class LearnedModel(FittedModel):
             n: np.concatenate([hist[n][-k1:-1], np.asarray(exog[n], dtype=float)[:h_len]])
             for n in f.exog_series
         }
+        if f.gain_schedule_w:  # the measured gains (0 where none) plus the schedule's
+            past = {n: np.asarray(history[n], dtype=float)[-k1:-1] for n in ("time_of_day_h", "day_of_week")}
+            clock = {n: np.concatenate([past[n], np.asarray(exog[n], dtype=float)[:h_len]]) for n in past}
+            seq["I_g"] = f.gains_w(seq["I_g"], clock["time_of_day_h"], clock["day_of_week"])
         return self.rollout_scaled(
             torch.as_tensor(t_win, dtype=torch.float32)[None],
             torch.as_tensor(p_win, dtype=torch.float32)[None],
