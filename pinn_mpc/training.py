@@ -314,8 +314,9 @@ def train_model(
     from pinn_mpc.identify import gain_schedule_applies
 
     # The RC kept for the planner's fallback has the unmeasured gains' schedule where the data
-    # call for one; a hybrid takes the same schedule as its internal gains (I_g): its features
-    # and the RC that seeds its physics are fitted on the data with those gains.
+    # call for one; an architecture whose 2R2C reads internal gains (the hybrid, pcnn) takes the
+    # same schedule as its I_g: its features and the RC that seeds its physics are fitted on
+    # the data with those gains.
     scheduled = _identify(df, config.eta, unmeasured_gains=True) if gain_schedule_applies(df) else None
     schedule = () if scheduled is None else scheduled.params.unmeasured_gains_w
     seen = df

@@ -133,6 +133,7 @@ class Pcnn(ConsistentArchitecture):
     anchored there (``anchor_weight``, as the hybrid's)."""
 
     physics_lr_factor = 0.1
+    gain_schedule = True
 
     def build_net(self, parts: NetParts) -> nn.Module:
         assert parts.physics_block is not None
