@@ -1,7 +1,7 @@
-"""The hybrid takes the unmeasured gains' schedule of the RC identified from its data: on a 2R2C
-office whose gains the data do not hold, its 2R2C reads the identified schedule as I_g, in
-training, on frames and in the closed loop's rollouts alike, and predicts the office as the
-hybrid given the true gains does."""
+"""The hybrid and pcnn take the unmeasured gains' schedule of the RC identified from their data:
+on a 2R2C office whose gains the data do not hold, their 2R2C reads the identified schedule as
+I_g, in training, on frames and in the closed loop's rollouts alike, and predicts the office as
+the same model given the true gains does."""
 
 from __future__ import annotations
 
@@ -19,6 +19,7 @@ from pinn_mpc.export import export_rc
 from pinn_mpc.features import FeatureConfig
 from pinn_mpc.identify import identify_rc, simulate_rc
 from pinn_mpc.models.hybrid import Hybrid
+from pinn_mpc.models.pcnn import Pcnn
 from pinn_mpc.physics import PAPER_HOUSEHOLD, discretise, params_from_summary
 
 PLANT = dataclasses.replace(PAPER_HOUSEHOLD, solar_aperture_m2=3.0, gain_to_air_fraction=0.6)
@@ -64,30 +65,34 @@ def _error_c(model, frame: pd.DataFrame) -> float:
     return float(np.mean(np.abs(paths.mean(axis=0) - truth)))
 
 
-@pytest.fixture(scope="module")
-def scheduled(office: pd.DataFrame):
+ARCHITECTURES = {"hybrid": Hybrid, "pcnn": Pcnn}
+
+
+@pytest.fixture(scope="module", params=sorted(ARCHITECTURES))
+def scheduled(office: pd.DataFrame, request):
     train, _ = _parts(office)
-    return fit(train, arch="hybrid", config=CONFIG).model
+    return fit(train, arch=request.param, config=CONFIG).model
 
 
-def test_the_hybrid_reads_the_identified_schedule_and_predicts_as_with_the_true_gains(office, scheduled, monkeypatch) -> None:
+def test_the_model_reads_the_identified_schedule_and_predicts_as_with_the_true_gains(office, scheduled, monkeypatch) -> None:
     train, test = _parts(office)
+    arch = scheduled.arch
     identified = identify_rc(train)
     assert scheduled.features.gain_schedule_w == identified.params.unmeasured_gains_w
     assert len(scheduled.features.gain_schedule_w) == 24
     # the reference: the same hybrid given the true gains as a measured column
     given = office.rename(columns={"true_I_g": "I_g"})
-    told = fit(given.iloc[: DAYS * 48].reset_index(drop=True), arch="hybrid", config=CONFIG).model
+    told = fit(given.iloc[: DAYS * 48].reset_index(drop=True), arch=arch, config=CONFIG).model
     assert told.features.gain_schedule_w == ()
     told_error = _error_c(told, given.iloc[DAYS * 48 - 24 :].reset_index(drop=True))
-    # the hybrid as it was: no schedule, its residual left to learn the gains
-    monkeypatch.setattr(Hybrid, "gain_schedule", False)
-    plain = fit(train, arch="hybrid", config=CONFIG).model
+    # the model as it was: no schedule, its network left to learn the gains
+    monkeypatch.setattr(ARCHITECTURES[arch], "gain_schedule", False)
+    plain = fit(train, arch=arch, config=CONFIG).model
     assert plain.features.gain_schedule_w == ()
     errors = {"scheduled": _error_c(scheduled, test), "true gains": told_error, "plain": _error_c(plain, test)}
     assert errors["scheduled"] < 1.5 * errors["true gains"] + 0.05, errors
     assert errors["scheduled"] < 0.5 * errors["plain"], errors
-    print(errors)
+    print(arch, errors)
 
 
 def test_a_closed_loop_rollout_adds_the_schedule_as_a_frame_does(office, scheduled) -> None:
@@ -95,8 +100,9 @@ def test_a_closed_loop_rollout_adds_the_schedule_as_a_frame_does(office, schedul
     calendar given) is the prediction on the frame, which has no I_g column."""
     _, test = _parts(office)
     paths, starts = recursive_paths(scheduled, test, H)
-    i = int(starts[30])  # a Friday's start: the horizon crosses into the weekend
-    f = scheduled.features
+    j = 241  # Friday 17:00: the history holds a workday's gains, the horizon its end and Saturday
+    i = int(starts[j])
+    assert pd.Timestamp(test["time"].iloc[i]) == pd.Timestamp("2024-01-26 17:00")
     dow = pd.to_datetime(test["time"]).dt.day_of_week.to_numpy(float)
     tod = (pd.to_datetime(test["time"]).dt.hour + pd.to_datetime(test["time"]).dt.minute / 60.0).to_numpy(float)
     past = slice(0, i + 1)
@@ -110,11 +116,11 @@ def test_a_closed_loop_rollout_adds_the_schedule_as_a_frame_does(office, schedul
         "time_of_day_h": tod[ahead], "T_a": test["T_a"].to_numpy()[ahead], "G": test["G"].to_numpy()[ahead],
         "I_g": np.zeros(H), "day_of_week": dow[ahead],
     }
-    assert "day_of_week" in scheduled.exog_names and f.calendar is False
+    assert "day_of_week" in scheduled.exog_names
     u = torch.tensor(test["u"].to_numpy()[ahead][None], dtype=torch.float32)
     with torch.no_grad():
         roll = scheduled.rollout(history, u, exog)
-    np.testing.assert_allclose(roll.t_r_c[:, 0, :, 0].numpy(), paths[:, 30, :], atol=2e-3)
+    np.testing.assert_allclose(roll.t_r_c[:, 0, :, 0].numpy(), paths[:, j, :], atol=2e-3)
 
 
 def test_the_schedule_is_saved_with_the_model(office, scheduled, tmp_path) -> None:
