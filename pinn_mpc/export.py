@@ -18,7 +18,7 @@ def export_rc(model: LearnedModel, *, source: str) -> RcSummary:
     Keys as :func:`pinn_mpc.physics.rc_summary` (R_ra_K_per_W, R_rm_K_per_W, C_r_J_per_K,
     C_m_J_per_K, eta, gain terms, coefficients_per_s, time_constants_h, source), plus
     ``member_coefficients_per_s``, the coefficients of every member; with the unmeasured gains'
-    schedule a hybrid takes as its internal gains (``unmeasured_gains_W``). mlp, or R/C values
+    schedule a hybrid or pcnn takes as its internal gains (``unmeasured_gains_W``). mlp, or R/C values
     outside :data:`pinn_mpc.physics.PLAUSIBLE_RANGES` -> InputError.
     """
     coef = model.physics_coefficients()
