@@ -37,7 +37,7 @@ import pandas as pd
 
 from pinn_mpc.errors import InputError, setting, warn
 from pinn_mpc.io import atomic_write, atomic_write_json, file_sha256, staged
-from pinn_mpc.physics import DT_RANGE_S, MAX_POWER_W, RCParams
+from pinn_mpc.physics import DT_RANGE_S, GAIN_BLOCK_H, MAX_POWER_W, RCParams
 from pinn_mpc.solar import FACADE_COLUMNS
 from pinn_mpc.zones import ZONE_SERIES, ZoneSpec, parse_zone_column, zone_columns, zones_in
 
@@ -58,6 +58,7 @@ __all__ = [
     "check_celsius",
     "day_of_week",
     "fleet_params_path",
+    "frame_scheduled_gains_w",
     "parse_column_map",
     "parse_times",
     "read_fleet_params",
@@ -142,6 +143,16 @@ def schedule_one_hot(df: pd.DataFrame, day_types: int = 2, block_h: float = 2.0)
     out = np.zeros((len(t), day_types * int(round(24 / block_h))))
     out[np.arange(len(t)), index] = 1.0
     return out
+
+
+def frame_scheduled_gains_w(df: pd.DataFrame, schedule_w: Sequence[float]) -> np.ndarray:
+    """(N,) the internal gains [W] of each row of a frame in the data format: its ``I_g`` (0
+    without one) plus the unmeasured gains of ``schedule_w`` in the row's block
+    (:attr:`pinn_mpc.physics.RCParams.unmeasured_gains_w`'s layout; empty: none)."""
+    measured = df["I_g"].to_numpy(float) if "I_g" in df.columns else np.zeros(len(df))
+    if not schedule_w:
+        return measured
+    return measured + schedule_one_hot(df, 2, GAIN_BLOCK_H) @ np.asarray(schedule_w, dtype=float)
 
 
 def parse_column_map(text: str | None) -> dict[str, str]:

@@ -32,15 +32,16 @@ for schedules of unmeasured gains; and the wind speed, a window like the other s
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any, NamedTuple
 
 import numpy as np
 import pandas as pd
 
-from pinn_mpc.data import WIND, day_of_week
+from pinn_mpc.data import WIND, day_of_week, frame_scheduled_gains_w
 from pinn_mpc.errors import InputError, setting
-from pinn_mpc.physics import DT_RANGE_S, gain_schedule_index
+from pinn_mpc.physics import DT_RANGE_S, scheduled_gains_w
 from pinn_mpc.solar import FACADE_COLUMNS
 
 __all__ = [
@@ -59,6 +60,7 @@ __all__ = [
     "make_windows",
     "time_of_day_h",
     "whole_number",
+    "with_scheduled_gains",
 ]
 
 #: Exogenous inputs a model can use, in this order, with the data column each comes from.
@@ -207,23 +209,14 @@ class FeatureConfig:
         """The internal gains the model reads [W]: the measured ``i_g_w`` plus
         :attr:`gain_schedule_w`'s gains of each interval's block (a workday's where the day is
         unknown)."""
-        measured = np.asarray(i_g_w, dtype=float)
-        if not self.gain_schedule_w:
-            return measured
-        return measured + np.asarray(self.gain_schedule_w)[gain_schedule_index(time_of_day_h, day_of_week_)]
+        return scheduled_gains_w(self.gain_schedule_w, i_g_w, time_of_day_h, day_of_week_)
 
     def complete_frame(self, df: pd.DataFrame) -> pd.DataFrame:
         """``df`` with its ``I_g`` as the model reads it (:meth:`gains_w`): itself without a
         gain schedule."""
         if not self.gain_schedule_w:
             return df
-        holiday = df["holiday"].to_numpy() if "holiday" in df else None
-        dow = day_of_week(pd.to_datetime(df["time"]).to_numpy(), holiday)
-        measured = df["I_g"].to_numpy(float) if "I_g" in df.columns else np.zeros(len(df))
-        out = df.copy()
-        out.attrs = dict(df.attrs)
-        out["I_g"] = self.gains_w(measured, time_of_day_h(df["time"]), dow)
-        return out
+        return with_scheduled_gains(df, self.gain_schedule_w)
 
     @property
     def u_index(self) -> int:
@@ -344,6 +337,14 @@ def _check_rows(df: pd.DataFrame, depth: int, min_samples: int, what: str) -> No
             f"give more data ({setting('train_days', python='more training days')}), or a smaller "
             f"{setting('depth')}"
         )
+
+
+def with_scheduled_gains(df: pd.DataFrame, schedule_w: Sequence[float]) -> pd.DataFrame:
+    """A copy of ``df`` (its ``attrs`` kept) whose ``I_g`` is its measured gains plus those of
+    the unmeasured-gain schedule ``schedule_w`` (:func:`pinn_mpc.data.frame_scheduled_gains_w`)."""
+    out = df.assign(I_g=frame_scheduled_gains_w(df, schedule_w))
+    out.attrs = dict(df.attrs)
+    return out
 
 
 def fit_feature_config(

@@ -36,7 +36,7 @@ import numpy as np
 import pandas as pd
 import scipy.optimize
 
-from pinn_mpc.data import day_of_week, schedule_one_hot
+from pinn_mpc.data import day_of_week, frame_scheduled_gains_w, schedule_one_hot
 from pinn_mpc.errors import InputError, InternalError, PinnMpcWarning, setting
 from pinn_mpc.physics import (
     GAIN_BLOCK_H,
@@ -153,10 +153,7 @@ def gain_schedule_applies(df: pd.DataFrame) -> bool:
 def frame_gains_w(params: RCParams, df: pd.DataFrame) -> np.ndarray:
     """(N,) the internal gains [W] the RC ``params`` takes on each row of ``df`` (a frame in the
     data format): its ``I_g`` (0 without one) plus the unmeasured gains of the row's block."""
-    measured = df["I_g"].to_numpy(float) if "I_g" in df.columns else np.zeros(len(df))
-    if not params.unmeasured_gains_w:
-        return measured
-    return measured + _schedule_one_hot(df) @ np.asarray(params.unmeasured_gains_w)
+    return frame_scheduled_gains_w(df, params.unmeasured_gains_w)
 
 
 def _schedule_one_hot(df: pd.DataFrame) -> np.ndarray:

@@ -29,7 +29,7 @@ from __future__ import annotations
 import json
 import math
 import os
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, fields, replace
 from pathlib import Path
 from typing import Any, cast
@@ -62,6 +62,7 @@ __all__ = [
     "params_from_summary",
     "rc_summary",
     "read_rc_json",
+    "scheduled_gains_w",
     "state_space_entries",
     "steady_state",
     "step",
@@ -121,6 +122,18 @@ def gain_schedule_index(time_of_day_h: Any, day_of_week: Any | None) -> np.ndarr
         np.nan_to_num(np.asarray(day_of_week, dtype=float), nan=0.0), hours.shape
     )
     return schedule_index(hours, dow, 2, GAIN_BLOCK_H)
+
+
+def scheduled_gains_w(
+    schedule_w: Sequence[float], i_g_w: Any, time_of_day_h: Any, day_of_week: Any | None
+) -> np.ndarray:
+    """The measured gains ``i_g_w`` [W] plus the unmeasured gains of ``schedule_w``
+    (:attr:`RCParams.unmeasured_gains_w`'s layout; empty: none) in each interval's block
+    (:func:`gain_schedule_index`); arrays of one shape."""
+    measured = np.asarray(i_g_w, dtype=float)
+    if not schedule_w:
+        return measured
+    return measured + np.asarray(schedule_w, dtype=float)[gain_schedule_index(time_of_day_h, day_of_week)]
 
 
 def check_plausible(field: str, value: Any, *, name: str | None = None) -> float:
@@ -196,11 +209,7 @@ class RCParams:
         """The internal gains the model takes [W]: the measured ``i_g_w`` plus the unmeasured
         gains of each interval's block (:func:`gain_schedule_index`); arrays of one shape.
         Where the calendar is unknown (``day_of_week`` None or NaN) a workday's."""
-        measured = np.asarray(i_g_w, dtype=float)
-        if not self.unmeasured_gains_w:
-            return measured
-        index = gain_schedule_index(time_of_day_h, day_of_week)
-        return measured + np.asarray(self.unmeasured_gains_w)[index]
+        return scheduled_gains_w(self.unmeasured_gains_w, i_g_w, time_of_day_h, day_of_week)
 
     def without_unmeasured_gains(self) -> RCParams:
         """The same building with no unmeasured-gain schedule (what a plant simulates)."""

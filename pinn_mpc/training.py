@@ -43,8 +43,9 @@ from pinn_mpc.features import (
     FeatureConfig,
     fit_feature_config,
     make_windows,
+    with_scheduled_gains,
 )
-from pinn_mpc.identify import check_power_sign
+from pinn_mpc.identify import check_power_sign, gain_schedule_applies
 from pinn_mpc.models.base import HOLD_TOLERANCE_W, Batch, TrainingSet
 from pinn_mpc.models.learned import MAX_MEMBERS, EnsembleModule, LearnedModel, ModelRecord
 from pinn_mpc.models.registry import (
@@ -311,23 +312,21 @@ def train_model(
     df = validate_timeseries(df, source="training data", u_max_w=config.u_max_w)
     check_power_sign(df, config.eta, what=arch)  # the physics prior and planners take its sign
     hp = config.resolved()
-    from pinn_mpc.identify import gain_schedule_applies
-
     # The RC kept for the planner's fallback has the unmeasured gains' schedule where the data
     # call for one; an architecture whose 2R2C reads internal gains (the hybrid, pcnn) takes the
     # same schedule as its I_g: its features and the RC that seeds its physics are fitted on
     # the data with those gains.
     scheduled = _identify(df, config.eta, unmeasured_gains=True) if gain_schedule_applies(df) else None
-    schedule = () if scheduled is None else scheduled.params.unmeasured_gains_w
-    seen = df
-    if schedule and architecture.gain_schedule and "I_g" not in df.columns:
-        bare = fit_feature_config(df, depth=config.depth, calendar=architecture.calendar, optional=architecture.optional_exog)
-        seen = replace(bare, gain_schedule_w=schedule).complete_frame(df)
-    features = fit_feature_config(
-        seen, depth=config.depth, calendar=architecture.calendar, optional=architecture.optional_exog
+    schedule = (
+        scheduled.params.unmeasured_gains_w
+        if scheduled is not None and architecture.gain_schedule and "I_g" not in df.columns
+        else ()
     )
-    if seen is not df:
-        features = replace(features, gain_schedule_w=schedule)
+    seen = with_scheduled_gains(df, schedule) if schedule else df
+    features = replace(
+        fit_feature_config(seen, depth=config.depth, calendar=architecture.calendar, optional=architecture.optional_exog),
+        gain_schedule_w=schedule,
+    )
     # The RC that seeds the physics has no gain schedule of its own.
     identified = _identify(seen, config.eta, unmeasured_gains=False)
     kept_rc = scheduled if scheduled is not None else identified
