@@ -371,5 +371,43 @@ def test_a_challenger_its_guard_would_hand_over_at_once_is_refused(uninterrupted
             state.champion = challenger
             state.log.append({"verdict": "swap", "version": challenger})
             online.run_verdict(state, loop, champion)
-            verdicts.append((state.log[-1]["verdict"], state.champion, online.trusted()))
-    assert verdicts == [(GUARD_REFUSED, "v900", True), ("swap", "v900", True)]
+            verdicts.append((state.log[-1]["verdict"], state.champion, state.deferred, online.trusted()))
+            state.deferred = None
+    assert verdicts == [(GUARD_REFUSED, "v900", "v901", True), ("swap", "v900", None, True)]
+    assert state.log[-1]["running"] == "v900"
+
+
+class _Done:
+    """A refit already finished (what ``_take_over`` reads of a worker's job)."""
+
+    def __init__(self, entry):
+        self.entry = entry
+
+    def ready(self):
+        return True
+
+    def get(self):
+        return dict(self.entry)
+
+
+@pytest.mark.parametrize(("errors", "verdict", "champion"), [
+    ((0.5, 0.2, 0.3), "swap", "v004"),     # the deferred one predicts the new day best: it runs
+    ((0.1, 0.2, 0.3), "swap", "v007"),     # the night's challenger does better still
+    ((0.5, 0.4, 0.3), "refused", "v002"),  # neither beats the champion: the deferred one is dropped
+])
+def test_a_challenger_the_guard_refused_is_judged_again_the_next_night(errors, verdict, champion):
+    """A challenger refused by the guard is deferred, not discarded: the next night the better
+    on the held-out day of it and the night's challenger is judged against the champion, and
+    the deferred one is judged once."""
+    from types import SimpleNamespace
+
+    from scenarios.running.online import _State, _take_over
+
+    challenger, deferred, running = errors
+    state = _State({"step": 0, "champion": "v002", "deferred": "v004", "rc": "v002", "version": 8,
+                    "late_refits": 0, "log": [], "identity": {}})
+    entry = {"rc": "rc.json", "model": "model", "challenger_error_c": challenger,
+             "deferred_error_c": deferred, "champion_error_c": running}
+    online = SimpleNamespace(run=SimpleNamespace(warmup=48), spd=48)
+    _take_over((48 + 6 * 48, _Done(entry), "v007"), 48 + 6 * 48 + 6, state, online)  # type: ignore[arg-type]
+    assert (state.log[-1]["verdict"], state.champion, state.deferred, state.rc) == (verdict, champion, None, "v007")

@@ -29,8 +29,11 @@ The challenger replaces the champion only when its error is smaller (the first m
 champion, takes over the RC), and not when its guard, shown the last :data:`WARM_H` hours at
 the takeover, would hand its first decision to the RC fallback while the champion's trusts the
 champion (:data:`GUARD_REFUSED`): a model better over the held-out day can still be wrong
-where the building is now. Each night is one JSON line of the log (``log.jsonl``): the data
-span seen, the held-out day, both errors, the verdict.
+where the building is now. Such a challenger is deferred, not discarded: the next night it
+predicts the new held-out day too, and the better of it and that night's challenger is the
+one judged against the champion (a guard's verdict holds for the hours at the takeover, not
+for the model). Each night is one JSON line of the log (``log.jsonl``): the data span seen,
+the held-out day, the errors, the verdict and the version running after it.
 
 The run's building starts where the data at hand end: its room at their last measured
 temperature, its mass at their last ``T_m`` where they have one (a simulator's data), else at
@@ -298,11 +301,12 @@ def _held_out_error(model: Any, frame: pd.DataFrame, cut: int) -> float:
 def _refit(
     frame: pd.DataFrame, *, dt_s: float, steps_per_day: int, arch: str, config: TrainConfig,
     champion: str | None, version_dir: str, with_model: bool, hold_out: bool = True,
+    deferred: str | None = None,
 ) -> dict[str, Any]:
     """One refit (in the worker): the RC on every row, a challenger (``with_model``) on every
-    row but the last day's and both models' held-out errors on that day (``hold_out``; else
-    the model on every row, unjudged: the initial version); written into ``version_dir``
-    (through a temporary sibling renamed at the end)."""
+    row but the last day's and the held-out errors on that day of it, the champion and the
+    ``deferred`` challenger (``hold_out``; else the model on every row, unjudged: the initial
+    version); written into ``version_dir`` (through a temporary sibling renamed at the end)."""
     from pinn_mpc import fitted
     from pinn_mpc.identify import identify_rc
     from pinn_mpc.physics import rc_summary
@@ -326,7 +330,8 @@ def _refit(
         summary["fit"] = rc.fit_statistics()
         (tmp / "rc.json").write_text(json.dumps(summary, indent=2))
         record["rc"] = "rc.json"
-    record.update(model=None, family=None, challenger_error_c=None, champion_error_c=None)
+    record.update(model=None, family=None, challenger_error_c=None, champion_error_c=None,
+                  deferred_error_c=None)
     cut = len(frame) - steps_per_day if hold_out else len(frame)  # the held-out day's first row
     fitted_on = frame.iloc[:cut].reset_index(drop=True)
     fitted_on.attrs["dt_s"] = dt_s
@@ -347,6 +352,8 @@ def _refit(
         )
         if champion is not None:
             record["champion_error_c"] = _held_out_error(fitted.load(champion), frame, cut)
+        if deferred is not None:
+            record["deferred_error_c"] = _held_out_error(fitted.load(deferred), frame, cut)
     record["wall_s"] = time.perf_counter() - started
     record["load_1min"] = os.getloadavg()[0] if hasattr(os, "getloadavg") else None
     shutil.rmtree(target, ignore_errors=True)
@@ -361,6 +368,7 @@ class _State:
     def __init__(self, raw: Mapping[str, Any]) -> None:
         self.step: int = int(raw["step"])
         self.champion: str | None = raw["champion"]
+        self.deferred: str | None = raw.get("deferred")  # a challenger the guard refused
         self.rc: str | None = raw["rc"]
         self.version: int = int(raw["version"])
         self.late_refits: int = int(raw["late_refits"])
@@ -368,7 +376,8 @@ class _State:
         self.identity: dict[str, Any] = dict(raw["identity"])
 
     def raw(self) -> dict[str, Any]:
-        return {"step": self.step, "champion": self.champion, "rc": self.rc, "version": self.version,
+        return {"step": self.step, "champion": self.champion, "deferred": self.deferred,
+                "rc": self.rc, "version": self.version,
                 "late_refits": self.late_refits, "log": self.log, "identity": self.identity}
 
 
@@ -455,8 +464,9 @@ class _Online:
         running, ``previous`` the champion before it. A challenger that won on the held-out day
         but whose guard, shown the last :data:`WARM_H` hours (:meth:`warm`), would hand its
         first decision to the RC fallback while the champion's trusts the champion, is refused
-        (:data:`GUARD_REFUSED`) and the champion runs on; where neither is trusted the
-        challenger runs. Logs the wall time of the warmings (``warm_s``)."""
+        (:data:`GUARD_REFUSED`), deferred to the next night, and the champion runs on; where
+        neither is trusted the challenger runs. Logs the wall time of the warmings (``warm_s``)
+        and the version running after the verdict (``running``)."""
         carried = getattr(self.controller, "last_plan", None)
         entry = state.log[-1]
         self.build(state, loop, carried)
@@ -467,11 +477,13 @@ class _Online:
             warm_s += self.warm_s
             if self.trusted():
                 entry["verdict"] = GUARD_REFUSED
+                state.deferred = challenger
             else:
                 state.champion = challenger
                 self.build(state, loop, carried)
                 warm_s += self.warm_s
         entry["warm_s"] = warm_s
+        entry["running"] = state.champion
 
     def advance(self, loop: ClosedLoop, k: int, warmup: Thermostat) -> None:
         if k < self.run.warmup:
@@ -607,6 +619,7 @@ def run_online(
                     pending = (k, pool.apply_async(_refit, (frame,), dict(
                         dt_s=dt_s, steps_per_day=spd, arch=settings.arch, config=config,
                         champion=online.path(state.champion, "model"),
+                        deferred=online.path(state.deferred, "model") if with_model else None,
                         version_dir=str(out / _VERSIONS / version), with_model=with_model,
                     )), version)
                 if pending is not None and k == pending[0] + takeover:
@@ -630,7 +643,8 @@ def run_online(
 
 def _take_over(pending: tuple[int, Any, str], k: int, state: _State, online: _Online) -> None:
     """The refit started at ``pending[0]`` takes over at step ``k``: waited for if late
-    (counted), the RC replaced, the challenger judged; one log entry."""
+    (counted), the RC replaced, the challenger judged (the better on the held-out day of the
+    night's and a deferred one, against the champion); one log entry."""
     started, job, version = pending
     late = not job.ready()
     state.late_refits += int(late)
@@ -639,12 +653,18 @@ def _take_over(pending: tuple[int, Any, str], k: int, state: _State, online: _On
         state.rc = version
     verdict = "no model"
     if entry["model"]:
-        challenger, champion = entry["challenger_error_c"], entry["champion_error_c"]
-        if champion is None or challenger < champion:
+        candidate, error = version, entry["challenger_error_c"]
+        deferred_error = entry.get("deferred_error_c")
+        if state.deferred is not None and deferred_error is not None and deferred_error < error:
+            candidate, error = state.deferred, deferred_error
+        champion = entry["champion_error_c"]
+        if champion is None or error < champion:
             verdict = "swap"
-            state.champion = version
+            state.champion = candidate
         else:
             verdict = "refused"
+        entry["challenger"] = candidate
+    state.deferred = None  # judged this night: it runs, or another did better
     day = (started - online.run.warmup) // online.spd
     state.log.append({"night": day, "step": started, "takeover_step": k, "version": version,
                       "verdict": verdict, "late": late, **entry})
