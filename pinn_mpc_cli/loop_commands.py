@@ -245,7 +245,7 @@ def _online_closed_loop(a: argparse.Namespace) -> str:
     lines = [
         format_kpis({**kpis, "scenario": scenario_label(a.scenario, scenario)}),
         f"online: {online['swaps']} swap(s), {online['refusals']} refusal(s) on the held-out day, "
-        f"{online['guard_refusals']} by the guard, "
+        f"{online['guard_refusals']} by the guard ({online['deferred_swaps']} ran a night later), "
         f"{online['late_refits']} late refit(s); own decisions {100 * online['own_decisions_share']:.0f} %; "
         f"state in {a.online}",
     ]

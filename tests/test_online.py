@@ -411,3 +411,5 @@ def test_a_challenger_the_guard_refused_is_judged_again_the_next_night(errors, v
     online = SimpleNamespace(run=SimpleNamespace(warmup=48), spd=48)
     _take_over((48 + 6 * 48, _Done(entry), "v007"), 48 + 6 * 48 + 6, state, online)  # type: ignore[arg-type]
     assert (state.log[-1]["verdict"], state.champion, state.deferred, state.rc) == (verdict, champion, None, "v007")
+    deferred_swap = state.log[-1].get("challenger") not in (None, "v007") and verdict == "swap"
+    assert deferred_swap == (errors == (0.5, 0.2, 0.3))

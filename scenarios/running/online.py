@@ -714,6 +714,8 @@ def _result(scenario: Scenario, run: RunInputs, rec: LoopRecord, online: _Online
         "swaps": sum(e["verdict"] == "swap" for e in state.log),
         "refusals": sum(e["verdict"] == "refused" for e in state.log),
         "guard_refusals": sum(e["verdict"] == GUARD_REFUSED for e in state.log),
+        "deferred_swaps": sum(e["verdict"] == "swap" and e.get("challenger") not in (None, e["version"])
+                              for e in state.log),
         "late_refits": state.late_refits,
         "own_decisions_share": float(np.mean(online.own[run.counted])),
         "refit_wall_s": [round(e["wall_s"], 3) for e in state.log if "wall_s" in e],
