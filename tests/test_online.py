@@ -398,7 +398,7 @@ class _Done:
 def test_a_challenger_the_guard_refused_is_judged_again_the_next_night(errors, verdict, champion):
     """A challenger refused by the guard is deferred, not discarded: the next night the better
     on the held-out day of it and the night's challenger is judged against the champion, and
-    the deferred one is judged once."""
+    whatever the verdict the deferred one is not judged again (the guard may defer it anew)."""
     from types import SimpleNamespace
 
     from scenarios.running.online import _State, _take_over
