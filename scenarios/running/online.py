@@ -619,7 +619,7 @@ def run_online(
                     pending = (k, pool.apply_async(_refit, (frame,), dict(
                         dt_s=dt_s, steps_per_day=spd, arch=settings.arch, config=config,
                         champion=online.path(state.champion, "model"),
-                        deferred=online.path(state.deferred, "model") if with_model else None,
+                        deferred=online.path(state.deferred, "model"),
                         version_dir=str(out / _VERSIONS / version), with_model=with_model,
                     )), version)
                 if pending is not None and k == pending[0] + takeover:
