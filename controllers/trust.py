@@ -25,7 +25,9 @@ identified from the same training data (``train`` stores it with every model it 
 networks and ARX alike), which runs as a shadow every step so that its observer is current
 when it takes over. It also decides, without a verdict on the model, while the history is too
 short for the model. The model takes over again after ``recover_steps`` decisions within the limits, twice as
-many after each further switch (a model found wrong again is given less benefit of the doubt). The
+many after each further switch (a model found wrong again is given less benefit of the doubt), or
+with ``recover_below_rc`` at the first decision within the limits where its filtered replay error
+is below the RC's (the fallback then predicts worse than the model it stands in for). The
 planner also plans against the comfort band narrowed by the filtered error of its room
 temperature (one step ahead, or with ``margin_from_replay`` also over the replayed hours; never
 less than its ``comfort_margin_k``), so a model that errs more keeps more distance from the
@@ -73,7 +75,8 @@ class TrustSettings:
     ``power_error_frac``: filtered |error| of the delivered power over the actuator's range; ``spread_k``: the members' largest std of T_r
     along the plan [K]; ``filter_gain``: weight of a new error in the filters; ``recover_steps``:
     decisions within the limits before the model drives again (doubled after each further
-    switch, at most ``max_recover_steps``); ``margin_factor``: the band is
+    switch, at most ``max_recover_steps``); ``recover_below_rc``: the model drives again at
+    once when, within the limits, its filtered replay error is below the RC's; ``margin_factor``: the band is
     narrowed by this times the filtered |innovation| (at most ``max_margin_k``), or with
     ``margin_from_replay`` by the larger of that and the filtered replay error: the error a
     plan carries hours ahead, for plants whose measured temperature is noise-free (a noisy
@@ -93,6 +96,7 @@ class TrustSettings:
     filter_gain: float = 0.3
     recover_steps: int = 12
     max_recover_steps: int = 48
+    recover_below_rc: bool = False
     margin_factor: float = 1.0
     max_margin_k: float = 0.5
     margin_from_replay: bool = False
@@ -205,6 +209,17 @@ class TrustMonitor:
             return "ensemble disagreement"
         return None
 
+    def _below_rc(self) -> bool:
+        """With ``recover_below_rc``: whether the model's filtered replay error is below the
+        RC's (both known)."""
+        s = self.state
+        return (
+            self.settings.recover_below_rc
+            and math.isfinite(s.replay_k)
+            and math.isfinite(s.replay_rc_k)
+            and s.replay_k < s.replay_rc_k
+        )
+
     def stand_in(self, reason: str) -> None:
         """Count a decision the fallback made for a model that could not decide (``reason``,
         e.g. too short a history for it), without a verdict on the model: no switch, and its
@@ -225,7 +240,7 @@ class TrustMonitor:
         elif not s.trusted:
             s.calm_steps += 1
             needed = self.settings.recover_steps * 2 ** max(s.switches - 1, 0)
-            if s.calm_steps >= min(needed, self.settings.max_recover_steps):
+            if s.calm_steps >= min(needed, self.settings.max_recover_steps) or self._below_rc():
                 s.trusted = True
         if not s.trusted:
             s.fallback_steps += 1

@@ -296,6 +296,7 @@ def test_a_controller_built_at_a_takeover_has_seen_the_recent_past(uninterrupted
     spd = scenario.steps_per_day
     with build_loop(scenario, run, seed=0) as loop:
         online.build(state, loop)
+        assert online.controller.monitor.settings.recover_below_rc  # back once better than the RC
         fresh = online.controller.monitor.state
         assert not np.isfinite(fresh.replay_k) and not np.isfinite(fresh.replay_rc_k)
         thermostat = Thermostat(scenario.control_spec())

@@ -47,6 +47,24 @@ def test_monitor_switches_after_a_large_error_and_recovers_after_calm_steps() ->
     assert m.reason(float("nan")) == "ensemble disagreement"
 
 
+@pytest.mark.parametrize("below_rc", [True, False])
+def test_a_model_whose_replay_error_falls_below_the_rcs_drives_again_at_once_where_asked(below_rc: bool) -> None:
+    """With ``recover_below_rc`` the first calm decision where the model replays better than
+    the RC hands back to the model; a calm decision where it still replays worse does not,
+    and without the setting the recovery waits its ``recover_steps``."""
+    settings = TrustSettings(filter_gain=1.0, recover_steps=4, recover_below_rc=below_rc)
+    m = TrustMonitor(settings, u_range_w=1.0)
+    m.observe(0.0, 0.0, 1.2, 0.3)  # 4 x the RC's error: distrusted
+    assert not m.decide(m.reason())
+    m.observe(0.0, 0.0, 0.5, 0.3)  # within the limits (below 2 x), but worse than the RC
+    assert m.reason() is None and not m.decide(None)
+    m.observe(0.0, 0.0, 0.2, 0.3)  # better than the RC
+    assert m.decide(m.reason()) is below_rc
+    verdicts = [m.decide(None) for _ in range(2)]
+    assert verdicts == ([True, True] if below_rc else [False, True])  # 4 calm decisions
+    assert m.state.fallback_steps == (2 if below_rc else 4)
+
+
 def test_monitor_narrows_the_band_by_its_filtered_error_within_limits() -> None:
     m = TrustMonitor(TrustSettings(filter_gain=1.0, max_margin_k=0.2), u_range_w=1.0)
     assert m.margin_k(0.01) == 0.01

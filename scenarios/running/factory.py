@@ -69,6 +69,7 @@ __all__ = [
     "cold_fallback_margin",
     "make_controller",
     "model_guard",
+    "planner_guard",
     "read_zone_rc",
     "weather_range_note",
     "zone_backup_limits",
@@ -138,6 +139,16 @@ def model_guard(model: BatchDynamics) -> Guard:
     identified, summary = _trained_on(model)
     rc = params_from_summary(identified) if isinstance(identified, dict) else None
     return Guard(rc=rc, training_ranges=_ranges(summary))
+
+
+def planner_guard(model: BatchDynamics, scenario: Scenario) -> Guard:
+    """The guard of a planner over ``model`` on ``scenario`` (:func:`build_controller`'s):
+    :func:`model_guard`, its fallback planning with a margin where
+    :func:`cold_fallback_margin` says so."""
+    guard = model_guard(model)
+    if cold_fallback_margin(scenario):
+        guard = guard._replace(settings=replace(guard.settings, fallback_margin_when_colder=True))
+    return guard
 
 
 def cold_fallback_margin(scenario: Scenario) -> bool:
@@ -355,10 +366,7 @@ def build_controller(
             )
         from controllers.sampling import CEM, RandomShooting
 
-        guard = model_guard(model)
-        if cold_fallback_margin(scenario):
-            guard = guard._replace(settings=replace(guard.settings, fallback_margin_when_colder=True))
-        options.setdefault("guard", guard)
+        options.setdefault("guard", planner_guard(model, scenario))
         planner = RandomShooting if name == "random-shooting" else CEM
         controller = planner(model, spec, **options)  # checks heating vs cooling and interval
         for note in check_model_fits(model, scenario, checks):
