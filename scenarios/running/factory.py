@@ -141,14 +141,15 @@ def model_guard(model: BatchDynamics) -> Guard:
     return Guard(rc=rc, training_ranges=_ranges(summary))
 
 
-def planner_guard(model: BatchDynamics, scenario: Scenario) -> Guard:
+def planner_guard(model: BatchDynamics, scenario: Scenario, **settings: bool) -> Guard:
     """The guard of a planner over ``model`` on ``scenario`` (:func:`build_controller`'s):
     :func:`model_guard`, its fallback planning with a margin where
-    :func:`cold_fallback_margin` says so."""
+    :func:`cold_fallback_margin` says so, and the :class:`controllers.trust.TrustSettings`
+    fields ``settings`` set besides."""
     guard = model_guard(model)
     if cold_fallback_margin(scenario):
-        guard = guard._replace(settings=replace(guard.settings, fallback_margin_when_colder=True))
-    return guard
+        settings = {"fallback_margin_when_colder": True, **settings}
+    return guard._replace(settings=replace(guard.settings, **settings)) if settings else guard
 
 
 def cold_fallback_margin(scenario: Scenario) -> bool:

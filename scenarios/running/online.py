@@ -424,9 +424,7 @@ class _Online:
 
             model = fitted.load(self.path(state.champion, "model") or "")
             options = dict(self.settings.planner_options)
-            if "guard" not in options:
-                guard = planner_guard(model, scenario)
-                options["guard"] = guard._replace(settings=replace(guard.settings, recover_below_rc=True))
+            options.setdefault("guard", planner_guard(model, scenario, recover_below_rc=True))
             self.controller = build_controller(
                 self.settings.controller, scenario, model=model, n_steps=n, planner_options=options,
             )
