@@ -24,10 +24,11 @@ non-finite prediction, an error), the decision is handed to the fallback: the MP
 identified from the same training data (``train`` stores it with every model it writes,
 networks and ARX alike), which runs as a shadow every step so that its observer is current
 when it takes over. It also decides, without a verdict on the model, while the history is too
-short for the model. The model takes over again after ``recover_steps`` decisions within the limits, twice as
-many after each further switch (a model found wrong again is given less benefit of the doubt), or
-with ``recover_below_rc`` at the first decision within the limits where its filtered replay error
-is below the RC's (the fallback then predicts worse than the model it stands in for). The
+short for the model. The model takes over again at the first decision within the limits where
+its filtered replay error is below the RC's (``recover_below_rc``: the fallback then predicts
+worse than the model it stands in for; the distrust threshold, twice the RC's, keeps the two from
+flapping), and at the latest after ``recover_steps`` decisions within the limits, twice as many
+after each further switch (a model found wrong again is given less benefit of the doubt). The
 planner also plans against the comfort band narrowed by the filtered error of its room
 temperature (one step ahead, or with ``margin_from_replay`` also over the replayed hours; never
 less than its ``comfort_margin_k``), so a model that errs more keeps more distance from the
@@ -76,7 +77,8 @@ class TrustSettings:
     along the plan [K]; ``filter_gain``: weight of a new error in the filters; ``recover_steps``:
     decisions within the limits before the model drives again (doubled after each further
     switch, at most ``max_recover_steps``); ``recover_below_rc``: the model drives again at
-    once when, within the limits, its filtered replay error is below the RC's; ``margin_factor``: the band is
+    once when, within the limits, its filtered replay error is below the RC's (off: only the
+    wait); ``margin_factor``: the band is
     narrowed by this times the filtered |innovation| (at most ``max_margin_k``), or with
     ``margin_from_replay`` by the larger of that and the filtered replay error: the error a
     plan carries hours ahead, for plants whose measured temperature is noise-free (a noisy
@@ -96,7 +98,7 @@ class TrustSettings:
     filter_gain: float = 0.3
     recover_steps: int = 12
     max_recover_steps: int = 48
-    recover_below_rc: bool = False
+    recover_below_rc: bool = True
     margin_factor: float = 1.0
     max_margin_k: float = 0.5
     margin_from_replay: bool = False

@@ -128,8 +128,11 @@ ZONE_LAGGED_MARGIN_K = 0.6
 #: The limits of a zoned planner's trust in its model (:class:`ZoneGuard`): each zone's
 #: band is narrowed by its filtered replay error (``margin_from_replay``), up to 1 K; with
 #: ``ZoneGuard(hand_over=True)`` the model hands over when its zones' mean replay error passes
-#: what that margin covers (``error_floor_k`` 1 K) and twice the RC's.
-ZONE_TRUST = TrustSettings(margin_from_replay=True, max_margin_k=1.0, error_floor_k=1.0)
+#: what that margin covers (``error_floor_k`` 1 K) and twice the RC's, and takes over again
+#: after the fixed wait only (``recover_below_rc`` off: the zoned pages were measured so).
+ZONE_TRUST = TrustSettings(
+    margin_from_replay=True, max_margin_k=1.0, error_floor_k=1.0, recover_below_rc=False
+)
 #: The default hand-over (``ZoneGuard.hand_over`` None) goes to the fallback QP only while its
 #: RC is credible: its replay error, the zones' mean over every full replay of the run so far,
 #: under this [K] (after :data:`ZONE_CREDIBLE_MIN_REPLAYS` of them). On the RC buildings the

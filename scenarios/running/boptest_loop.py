@@ -166,8 +166,9 @@ BOPTEST_FIT_CHECKS = FitChecks(power_slack=1.5, true_building=False)
 
 
 #: The trust settings of every MPC on BOPTEST: it plans inside the band by its replay error
-#: (:attr:`controllers.trust.TrustSettings.margin_from_replay`).
-BOPTEST_TRUST = TrustSettings(margin_from_replay=True)
+#: (:attr:`controllers.trust.TrustSettings.margin_from_replay`); a distrusted model drives again
+#: after the fixed wait only (``recover_below_rc`` off: the BOPTEST pages were measured so).
+BOPTEST_TRUST = TrustSettings(margin_from_replay=True, recover_below_rc=False)
 
 
 def boptest_guard(model: BatchDynamics) -> Guard:

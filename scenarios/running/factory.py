@@ -141,15 +141,14 @@ def model_guard(model: BatchDynamics) -> Guard:
     return Guard(rc=rc, training_ranges=_ranges(summary))
 
 
-def planner_guard(model: BatchDynamics, scenario: Scenario, **settings: bool) -> Guard:
+def planner_guard(model: BatchDynamics, scenario: Scenario) -> Guard:
     """The guard of a planner over ``model`` on ``scenario`` (:func:`build_controller`'s):
     :func:`model_guard`, its fallback planning with a margin where
-    :func:`cold_fallback_margin` says so, and the :class:`controllers.trust.TrustSettings`
-    fields ``settings`` set besides."""
+    :func:`cold_fallback_margin` says so."""
     guard = model_guard(model)
     if cold_fallback_margin(scenario):
-        settings = {"fallback_margin_when_colder": True, **settings}
-    return guard._replace(settings=replace(guard.settings, **settings)) if settings else guard
+        return guard._replace(settings=replace(guard.settings, fallback_margin_when_colder=True))
+    return guard
 
 
 def cold_fallback_margin(scenario: Scenario) -> bool:

@@ -37,9 +37,9 @@ the held-out day, the errors, the verdict and the version running after it.
 
 A planner's guard (:mod:`controllers.trust`) hands its decisions back to the model at the first
 decision within its limits where the model replays the recent hours better than its RC
-(:attr:`~controllers.trust.TrustSettings.recover_below_rc`), not after a fixed wait: a model
-refitted every night, distrusted over a few night hours, otherwise left the morning after them to
-an RC that predicted it worse.
+(:attr:`~controllers.trust.TrustSettings.recover_below_rc`, as everywhere but on BOPTEST and
+over zones), not after a fixed wait: a model refitted every night, distrusted over a few night
+hours, otherwise left the morning after them to an RC that predicted it worse.
 
 The run's building starts where the data at hand end: its room at their last measured
 temperature, its mass at their last ``T_m`` where they have one (a simulator's data), else at
@@ -413,7 +413,7 @@ class _Online:
         :attr:`carried_plan` keeps it): a planner rebuilt at a takeover decides as one that
         had run on, where a planner started without a plan samples around half the actuator's
         range at first."""
-        from scenarios.running.factory import build_controller, planner_guard
+        from scenarios.running.factory import build_controller
 
         if carried is None:
             carried = getattr(self.controller, "last_plan", None)
@@ -423,10 +423,9 @@ class _Online:
             from pinn_mpc import fitted
 
             model = fitted.load(self.path(state.champion, "model") or "")
-            options = dict(self.settings.planner_options)
-            options.setdefault("guard", planner_guard(model, scenario, recover_below_rc=True))
             self.controller = build_controller(
-                self.settings.controller, scenario, model=model, n_steps=n, planner_options=options,
+                self.settings.controller, scenario, model=model, n_steps=n,
+                planner_options=dict(self.settings.planner_options),
             )
             self.kind = "model"
         elif state.rc is not None:
