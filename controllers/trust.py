@@ -77,8 +77,9 @@ class TrustSettings:
     along the plan [K]; ``filter_gain``: weight of a new error in the filters; ``recover_steps``:
     decisions within the limits before the model drives again (doubled after each further
     switch, at most ``max_recover_steps``); ``recover_below_rc``: the model drives again at
-    once when, within the limits, its filtered replay error is below the RC's (off: only the
-    wait); ``margin_factor``: the band is
+    once when, within the limits, its filtered replay error is below ``recover_ratio`` times
+    the RC's (off: only the wait; the ratio below ``error_ratio``, so that a model handed back
+    is not distrusted at its next decision); ``margin_factor``: the band is
     narrowed by this times the filtered |innovation| (at most ``max_margin_k``), or with
     ``margin_from_replay`` by the larger of that and the filtered replay error: the error a
     plan carries hours ahead, for plants whose measured temperature is noise-free (a noisy
@@ -99,6 +100,7 @@ class TrustSettings:
     recover_steps: int = 12
     max_recover_steps: int = 48
     recover_below_rc: bool = True
+    recover_ratio: float = 1.0
     margin_factor: float = 1.0
     max_margin_k: float = 0.5
     margin_from_replay: bool = False
@@ -114,6 +116,11 @@ class TrustSettings:
                 raise ValueError(f"TrustSettings.{name} must be a positive number, got {value!r}")
         if not 0 < self.filter_gain <= 1:
             raise ValueError(f"TrustSettings.filter_gain must lie in (0, 1], got {self.filter_gain}")
+        if not (math.isfinite(self.recover_ratio) and 0 < self.recover_ratio < self.error_ratio):
+            raise ValueError(
+                f"TrustSettings.recover_ratio must lie in (0, error_ratio = {self.error_ratio}), "
+                f"got {self.recover_ratio}"
+            )
         if not (math.isfinite(self.margin_factor) and self.margin_factor >= 0):
             raise ValueError(f"TrustSettings.margin_factor must be >= 0, got {self.margin_factor}")
         if self.replay_steps < 1:
@@ -212,14 +219,14 @@ class TrustMonitor:
         return None
 
     def _below_rc(self) -> bool:
-        """With ``recover_below_rc``: whether the model's filtered replay error is below the
-        RC's (both known)."""
+        """With ``recover_below_rc``: whether the model's filtered replay error is below
+        ``recover_ratio`` times the RC's (both known)."""
         s = self.state
         return (
             self.settings.recover_below_rc
             and math.isfinite(s.replay_k)
             and math.isfinite(s.replay_rc_k)
-            and s.replay_k < s.replay_rc_k
+            and s.replay_k < self.settings.recover_ratio * s.replay_rc_k
         )
 
     def stand_in(self, reason: str) -> None:

@@ -65,6 +65,17 @@ def test_a_model_whose_replay_error_falls_below_the_rcs_drives_again_at_once_whe
     assert m.state.fallback_steps == (2 if below_rc else 4)
 
 
+def test_with_a_larger_recover_ratio_a_model_within_that_ratio_of_the_rcs_error_drives_again() -> None:
+    """``recover_ratio`` 1.5: a calm decision where the model replays 0.4 K against the RC's 0.3
+    (1.33 x) hands back; with the default ratio 1 it does not."""
+    for ratio, back in ((1.5, True), (1.0, False)):
+        m = TrustMonitor(TrustSettings(filter_gain=1.0, recover_steps=4, recover_ratio=ratio), u_range_w=1.0)
+        m.observe(0.0, 0.0, 1.2, 0.3)
+        assert not m.decide(m.reason())
+        m.observe(0.0, 0.0, 0.4, 0.3)
+        assert m.reason() is None and m.decide(None) is back
+
+
 def test_monitor_narrows_the_band_by_its_filtered_error_within_limits() -> None:
     m = TrustMonitor(TrustSettings(filter_gain=1.0, max_margin_k=0.2), u_range_w=1.0)
     assert m.margin_k(0.01) == 0.01
@@ -98,7 +109,11 @@ def test_the_fallback_plans_inside_the_band_by_the_rcs_replay_error_where_asked(
 
 
 @pytest.mark.parametrize(
-    "bad", [{"error_floor_k": 0.0}, {"filter_gain": 1.5}, {"recover_steps": 0}, {"replay_steps": 0}]
+    "bad",
+    [
+        {"error_floor_k": 0.0}, {"filter_gain": 1.5}, {"recover_steps": 0}, {"replay_steps": 0},
+        {"recover_ratio": 2.0}, {"recover_ratio": 0.0},
+    ],
 )
 def test_trust_settings_are_checked(bad: dict) -> None:
     with pytest.raises(ValueError, match=next(iter(bad))):
