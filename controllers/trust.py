@@ -25,9 +25,9 @@ identified from the same training data (``train`` stores it with every model it 
 networks and ARX alike), which runs as a shadow every step so that its observer is current
 when it takes over. It also decides, without a verdict on the model, while the history is too
 short for the model. The model takes over again at the first decision within the limits where
-its filtered replay error is below the RC's (``recover_below_rc``: the fallback then predicts
-worse than the model it stands in for; the distrust threshold, twice the RC's, keeps the two from
-flapping), and at the latest after ``recover_steps`` decisions within the limits, twice as many
+its filtered replay error is below ``recover_ratio`` (1.5) times the RC's
+(``recover_below_rc``: the fallback then predicts little better, or worse, than the model it
+stands in for; the distrust threshold, twice the RC's, keeps the two from flapping), and at the latest after ``recover_steps`` decisions within the limits, twice as many
 after each further switch (a model found wrong again is given less benefit of the doubt). The
 planner also plans against the comfort band narrowed by the filtered error of its room
 temperature (one step ahead, or with ``margin_from_replay`` also over the replayed hours; never
@@ -100,7 +100,7 @@ class TrustSettings:
     recover_steps: int = 12
     max_recover_steps: int = 48
     recover_below_rc: bool = True
-    recover_ratio: float = 1.0
+    recover_ratio: float = 1.5
     margin_factor: float = 1.0
     max_margin_k: float = 0.5
     margin_from_replay: bool = False
@@ -119,7 +119,7 @@ class TrustSettings:
         if not (math.isfinite(self.recover_ratio) and 0 < self.recover_ratio < self.error_ratio):
             raise ValueError(
                 f"TrustSettings.recover_ratio must lie in (0, error_ratio = {self.error_ratio}), "
-                f"got {self.recover_ratio}"
+                f"got {self.recover_ratio}: set recover_ratio below error_ratio"
             )
         if not (math.isfinite(self.margin_factor) and self.margin_factor >= 0):
             raise ValueError(f"TrustSettings.margin_factor must be >= 0, got {self.margin_factor}")

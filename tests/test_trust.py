@@ -26,7 +26,9 @@ HP = Actuator(kind="heat_pump")
 
 
 def test_monitor_switches_after_a_large_error_and_recovers_after_calm_steps() -> None:
-    settings = TrustSettings(error_floor_k=0.2, error_ratio=1.5, filter_gain=1.0, recover_steps=3)
+    settings = TrustSettings(
+        error_floor_k=0.2, error_ratio=1.5, filter_gain=1.0, recover_steps=3, recover_ratio=1.0
+    )
     m = TrustMonitor(settings, u_range_w=5000.0)
     m.observe(0.05, 100.0, 0.1, 0.05)
     assert m.reason(0.1) is None and m.decide(None)
@@ -67,7 +69,7 @@ def test_a_model_whose_replay_error_falls_below_the_rcs_drives_again_at_once_whe
 
 def test_with_a_larger_recover_ratio_a_model_within_that_ratio_of_the_rcs_error_drives_again() -> None:
     """``recover_ratio`` 1.5: a calm decision where the model replays 0.4 K against the RC's 0.3
-    (1.33 x) hands back; with the default ratio 1 it does not."""
+    (1.33 x) hands back; with ratio 1 it does not."""
     for ratio, back in ((1.5, True), (1.0, False)):
         m = TrustMonitor(TrustSettings(filter_gain=1.0, recover_steps=4, recover_ratio=ratio), u_range_w=1.0)
         m.observe(0.0, 0.0, 1.2, 0.3)
