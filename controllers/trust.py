@@ -25,12 +25,12 @@ identified from the same training data (``train`` stores it with every model it 
 networks and ARX alike), which runs as a shadow every step so that its observer is current
 when it takes over. It also decides, without a verdict on the model, while the history is too
 short for the model. The model takes over again at the first decision within the limits where
-its filtered replay error is below ``recover_ratio`` (1.5) times the RC's
-(``recover_below_rc``: the fallback then predicts little better, or worse, than the model it
-stands in for; the distrust threshold, twice the RC's, keeps the two from flapping), and at the latest after ``recover_steps`` decisions within the limits, twice as many
-after each further switch (a model found wrong again is given less benefit of the doubt). The
-planner also plans against the comfort band narrowed by the filtered error of its room
-temperature (one step ahead, or with ``margin_from_replay`` also over the replayed hours; never
+its filtered replay error is below ``recover_ratio`` times the RC's (``recover_below_rc``:
+the fallback then predicts little better, or worse, than the model it stands in for; the
+distrust threshold, twice the RC's, keeps the two from flapping), and at the latest after
+``recover_steps`` decisions within the limits, twice as many after each further switch (a
+model found wrong again is given less benefit of the doubt). The planner also plans against
+the comfort band narrowed by the filtered error of its room temperature (one step ahead, or with ``margin_from_replay`` also over the replayed hours; never
 less than its ``comfort_margin_k``), so a model that errs more keeps more distance from the
 band's edges. With ``margin_from_replay`` the fallback RC MPC is held to the same rule: it
 plans against the band narrowed by the RC's own filtered replay error

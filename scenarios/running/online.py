@@ -36,8 +36,8 @@ for the model). Each night is one JSON line of the log (``log.jsonl``): the data
 the held-out day, the errors, the verdict and the version running after it.
 
 A planner's guard (:mod:`controllers.trust`) hands its decisions back to the model at the first
-decision within its limits where the model replays the recent hours within 1.5 times its RC's
-error (:attr:`~controllers.trust.TrustSettings.recover_below_rc`, as everywhere but on BOPTEST and
+decision within its limits where the model replays the recent hours within ``recover_ratio``
+times its RC's error (:attr:`~controllers.trust.TrustSettings.recover_below_rc`, as everywhere but on BOPTEST and
 over zones), not after a fixed wait: a model refitted every night, distrusted over a few night
 hours, otherwise left the morning after them to an RC that predicted it worse.
 
