@@ -40,7 +40,8 @@ def test_the_data_at_hand_are_the_days_simulated_right_before_the_run():
     """The small office tested in January from the test part's first day (1 January): its 3
     days of data are 29-31 December, on their own dates (so the office's weekday schedules and
     the weather are those days'), the last 3 of a longer draw of the same seed; a run starting
-    later in its test part gets the usual draw instead (rows moved to end before it)."""
+    later in its test part (2 January) gets the training part's days a week before it (23-25
+    December, moved by 7 days: a weekday's rows stay a weekday's)."""
     scenario = get_scenario(JANUARY)
     spd = scenario.steps_per_day
     first = pd.Timestamp("2023-01-01 00:00")
@@ -53,8 +54,14 @@ def test_the_data_at_hand_are_the_days_simulated_right_before_the_run():
     np.testing.assert_array_equal(data["T_r"].to_numpy(), longer["T_r"].to_numpy()[-MODEL_DAYS * spd :])
     later = data_before_run(scenario, days=MODEL_DAYS, seed=0, policy=scenario.data_policy,
                             first_time=pd.Timestamp("2023-01-02 00:00"))
-    usual = generate(scenario, days=MODEL_DAYS, seed=0, policy=scenario.data_policy)
-    assert later["time"].equals(usual["time"])
+    later_times = pd.to_datetime(later["time"])
+    assert later_times.iloc[0] == pd.Timestamp("2022-12-23 00:00") and len(later) == MODEL_DAYS * spd
+    np.testing.assert_array_equal(
+        later["T_r"].to_numpy(), longer["T_r"].to_numpy()[-(MODEL_DAYS + 6) * spd : -6 * spd]
+    )
+    moved = pd.to_datetime(retimed(later, pd.Timestamp("2023-01-02 00:00"), 1800.0)["time"])
+    assert (moved - later_times).eq(pd.Timedelta(days=7)).all()
+    assert moved.iloc[-1] + pd.Timedelta(minutes=30) == pd.Timestamp("2023-01-02 00:00")
 
 
 @pytest.mark.slow

@@ -235,13 +235,16 @@ def data_before_run(
     """``days`` days of ``scenario``'s data under ``policy`` (seed ``seed``) for a run whose
     first interval starts at ``first_time``.
 
-    On an EnergyPlus plant whose training weather ends the day before ``first_time`` (a TMY3
-    window, the run starting on the test part's first day) the training part's last ``days``
-    days, simulated by EnergyPlus on those very dates (their weather, weekdays and holidays):
-    :func:`retimed` leaves them in place, and the run starts at their last room temperature
-    (:func:`run_online`). Otherwise (the package's RC plants, or a run starting
-    later in its test part) the scenario's usual draw of ``days`` days, which :func:`retimed`
-    moves by whole days to end right before the run."""
+    On an EnergyPlus plant (a TMY3 window) whose run starts in its test part, days of the
+    training part simulated by EnergyPlus on their own dates (their weather, weekdays and
+    holidays): where the training part ends the day before ``first_time`` (the run starting
+    on the test part's first day) its last ``days`` days, which :func:`retimed` leaves in
+    place; where the run starts later, the ``days`` days of the training part that end a whole
+    number of weeks before ``first_time``, which :func:`retimed` moves by those weeks, so that
+    a weekday's rows stay a weekday's (an office's schedules follow the week). The run starts
+    at their last room temperature (:func:`run_online`). Otherwise (the package's RC plants,
+    or a training part too short) the scenario's usual draw of ``days`` days, which
+    :func:`retimed` moves by whole days to end right before the run."""
     from scenarios.inputs.exogenous import TMY3Weather
     from scenarios.running.datagen import generate
 
@@ -250,10 +253,15 @@ def data_before_run(
         return generate(scenario, days=days, seed=seed, policy=policy)
     # A draw longer than the training part's core ends on its last day (TMY3Weather's rule).
     longer = generate(scenario, days=max(days, weather.training_core_days + 1), seed=seed, policy=policy)
-    last = longer.iloc[len(longer) - days * spd :].reset_index(drop=True)
+    ends = pd.Timestamp(longer["time"].iloc[-1]) + pd.Timedelta(seconds=float(scenario.sim.dt_s))
+    gap = first_time - ends
+    back = (-(gap // pd.Timedelta(days=1))) % 7  # days before the part's end: a move of whole weeks
+    stop = len(longer) - back * spd
+    if gap < pd.Timedelta(0) or gap % pd.Timedelta(days=1) or stop < days * spd:
+        return generate(scenario, days=days, seed=seed, policy=policy)
+    last = longer.iloc[stop - days * spd : stop].reset_index(drop=True)
     last.attrs = dict(longer.attrs)
-    ends = pd.Timestamp(last["time"].iloc[-1]) + pd.Timedelta(seconds=float(scenario.sim.dt_s))
-    return last if ends == first_time else generate(scenario, days=days, seed=seed, policy=policy)
+    return last
 
 
 def _start_state(before: pd.DataFrame | None) -> tuple[float, float] | None:
