@@ -3,6 +3,7 @@ spans each refit saw, resume after Ctrl-C, nothing half-written, refits that do 
 decisions."""
 
 import json
+import sys
 from dataclasses import replace
 from pathlib import Path
 
@@ -10,6 +11,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from pinn_mpc.errors import InputError
 from pinn_mpc.training import TrainConfig
 from scenarios.inputs.scenario_file import get_scenario
 from scenarios.running.closed_loop import build_loop, prepare_run
@@ -20,6 +22,7 @@ from scenarios.running.online import (
     TAKEOVER_H,
     OnlineSettings,
     _held_out_error,
+    _refit_pool,
     night_steps,
     run_online,
 )
@@ -122,7 +125,6 @@ def test_ctrl_c_and_resume_give_the_uninterrupted_figures(tmp_path, uninterrupte
 
 def test_a_run_folder_is_not_restarted_over(tmp_path):
     (tmp_path / "state.json").write_text("{}")
-    from pinn_mpc.errors import InputError
 
     with pytest.raises(InputError, match="already holds a run"):
         run_online(get_scenario(SCENARIO), None, days=2, seed=0, out_dir=tmp_path, settings=TINY)
@@ -414,3 +416,12 @@ def test_a_challenger_the_guard_refused_is_judged_again_the_next_night(errors, v
     assert (state.log[-1]["verdict"], state.champion, state.deferred, state.rc) == (verdict, champion, None, "v007")
     deferred_swap = state.log[-1].get("challenger") not in (None, "v007") and verdict == "swap"
     assert deferred_swap == (errors == (0.5, 0.2, 0.3))
+
+
+def test_a_refit_worker_that_does_not_start_is_reported_not_waited_for():
+    """A worker that exits as it starts (its initializer here; a script that calls online
+    operation without a main guard, imported again by spawn, does the same) would be started
+    again for ever and the run would wait at its first refit: the pool is refused after its
+    timeout with one line that says what to do."""
+    with pytest.raises(InputError, match=r"did not start within 5 s; a script .*__main__"):
+        _refit_pool(initializer=sys.exit, timeout_s=5)

@@ -128,6 +128,8 @@ REFIT_HOUR = 0
 TAKEOVER_H = 3.0
 #: Hours of service a controller built at a takeover is shown before it decides (``_Online.warm``).
 WARM_H = 12.0
+#: Seconds the refit worker process is given to start (import torch) before the run is refused.
+WORKER_START_S = 120.0
 #: Steps ahead of the champion/challenger error (``evaluate``'s horizon; 12 h at 30 min).
 ERROR_HORIZON_STEPS = 24
 #: The verdict on a challenger that predicted the held-out day better but whose guard would hand
@@ -292,6 +294,31 @@ def _worker_init() -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     torch.set_num_threads(1)
     threadpool_limits(1)
+
+
+def _refit_pool(initializer: Any = None, timeout_s: float | None = None) -> Any:
+    """The refit worker (a ``spawn`` pool of one process, ``initializer`` by default
+    :func:`_worker_init`), once it has answered: a worker that does not start within
+    ``timeout_s`` (default :data:`WORKER_START_S`) is reported, not waited for (its pool would
+    start it again and again, and the run would wait at its first refit for ever)."""
+    context = multiprocessing.get_context("spawn")
+    pool = context.Pool(1, initializer=_worker_init if initializer is None else initializer)
+    try:
+        pool.apply_async(os.getpid).get(WORKER_START_S if timeout_s is None else timeout_s)
+    except multiprocessing.TimeoutError:
+        pool.terminate()
+        pool.join()
+        raise InputError(
+            f"online: the refit worker process did not start within "
+            f"{WORKER_START_S if timeout_s is None else timeout_s:g} s; a script that runs "
+            "online operation must call it under `if __name__ == \"__main__\":` (the worker is "
+            "started with multiprocessing's spawn, which imports the script again)"
+        ) from None
+    except BaseException:
+        pool.terminate()
+        pool.join()
+        raise
+    return pool
 
 
 def _held_out_error(model: Any, frame: pd.DataFrame, cut: int) -> float:
@@ -598,8 +625,7 @@ def run_online(
         out.mkdir(parents=True, exist_ok=True)
         state = _State({"step": 0, "champion": None, "rc": None, "version": 0, "late_refits": 0,
                         "log": [], "identity": identity})
-    context = multiprocessing.get_context("spawn")
-    pool = context.Pool(1, initializer=_worker_init)
+    pool = _refit_pool()
     try:
         with build_loop(scenario, run, seed=seed, initial_state_c=_start_state(before)) as loop:
             carried = None
