@@ -113,6 +113,7 @@ __all__ = [
     "REFIT_HOUR",
     "TAKEOVER_H",
     "WARM_H",
+    "WORKER_START_S",
     "OnlineResult",
     "OnlineSettings",
     "data_before_run",
