@@ -302,22 +302,20 @@ def _refit_pool(initializer: Any = None, timeout_s: float | None = None) -> Any:
     :func:`_worker_init`), once it has answered: a worker that does not start within
     ``timeout_s`` (default :data:`WORKER_START_S`) is reported, not waited for (its pool would
     start it again and again, and the run would wait at its first refit for ever)."""
+    limit = WORKER_START_S if timeout_s is None else timeout_s
     context = multiprocessing.get_context("spawn")
     pool = context.Pool(1, initializer=_worker_init if initializer is None else initializer)
     try:
-        pool.apply_async(os.getpid).get(WORKER_START_S if timeout_s is None else timeout_s)
-    except multiprocessing.TimeoutError:
+        pool.apply_async(os.getpid).get(limit)
+    except BaseException as exc:
         pool.terminate()
         pool.join()
-        raise InputError(
-            f"online: the refit worker process did not start within "
-            f"{WORKER_START_S if timeout_s is None else timeout_s:g} s; a script that runs "
-            "online operation must call it under `if __name__ == \"__main__\":` (the worker is "
-            "started with multiprocessing's spawn, which imports the script again)"
-        ) from None
-    except BaseException:
-        pool.terminate()
-        pool.join()
+        if isinstance(exc, multiprocessing.TimeoutError):
+            raise InputError(
+                f"online: the refit worker process did not start within {limit:g} s; a script "
+                "that runs online operation must call it under `if __name__ == \"__main__\":` "
+                "(the worker is started with multiprocessing's spawn, which imports the script again)"
+            ) from None
         raise
     return pool
 
