@@ -2,6 +2,7 @@
 spans each refit saw, resume after Ctrl-C, nothing half-written, refits that do not hold up
 decisions."""
 
+import functools
 import json
 import sys
 from dataclasses import replace
@@ -425,3 +426,15 @@ def test_a_refit_worker_that_does_not_start_is_reported_not_waited_for():
     timeout with one line that says what to do."""
     with pytest.raises(InputError, match=r"did not start within 5 s; a script .*__main__"):
         _refit_pool(initializer=sys.exit, timeout_s=5)
+
+
+def test_a_run_whose_worker_does_not_start_leaves_no_folder(tmp_path, monkeypatch):
+    """The run is refused before its output folder is made: the user can start it again in
+    the same folder once the script is fixed, and no empty folder is left behind."""
+    import scenarios.running.online as online
+
+    monkeypatch.setattr(online, "_refit_pool", functools.partial(_refit_pool, initializer=sys.exit, timeout_s=2))
+    out = tmp_path / "run"
+    with pytest.raises(InputError, match="did not start within 2 s"):
+        run_online(get_scenario(SCENARIO), None, days=1, seed=0, out_dir=out, settings=TINY)
+    assert not out.exists()

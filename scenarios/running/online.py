@@ -621,10 +621,10 @@ def run_online(
     else:
         if state_file.exists():
             raise InputError(f"online: {out} already holds a run; resume it or give another folder")
-        out.mkdir(parents=True, exist_ok=True)
         state = _State({"step": 0, "champion": None, "rc": None, "version": 0, "late_refits": 0,
                         "log": [], "identity": identity})
-    pool = _refit_pool()
+    pool = _refit_pool()  # before the folder: a worker that does not start leaves nothing behind
+    out.mkdir(parents=True, exist_ok=True)
     try:
         with build_loop(scenario, run, seed=seed, initial_state_c=_start_state(before)) as loop:
             carried = None
