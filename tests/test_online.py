@@ -429,8 +429,7 @@ def test_a_refit_worker_that_does_not_start_is_reported_not_waited_for():
 
 
 def test_a_run_whose_worker_does_not_start_leaves_no_folder(tmp_path, monkeypatch):
-    """The run is refused before its output folder is made: the user can start it again in
-    the same folder once the script is fixed, and no empty folder is left behind."""
+    """The run is refused before its output folder is made: no empty folder is left behind."""
     import scenarios.running.online as online
 
     monkeypatch.setattr(online, "_refit_pool", functools.partial(_refit_pool, initializer=sys.exit, timeout_s=2))
