@@ -292,6 +292,9 @@ NOT_RUN = {
     "(tests/test_online_eplus.py runs the online runner on EnergyPlus and resumes it)",
     "PYTHONPATH=. python benchmarks/bench_online_decisions.py": "a measurement of a few minutes "
     "whose figures the CHANGELOG gives (tests/test_online.py runs the online runner and its refits)",
+    "PYTHONPATH=. python benchmarks/online_morning_error.py": "a measurement of a few minutes on "
+    "EnergyPlus beside a sweep's model, whose figures the page quotes "
+    "(tests/test_online_morning_error.py runs the script on heat_pump_household)",
     "PYTHONPATH=. python benchmarks/merged_vs_zones.py": "a measurement of most of an hour on "
     "EnergyPlus whose figures the page quotes (tests/test_merged.py runs the script on two_zone_house)",
 }
