@@ -113,7 +113,7 @@ def main(argv: list[str] | None = None) -> int:
     first = frame["time"].iloc[0].normalize() + pd.Timedelta(days=1)  # the first day of service
     errors: dict[str, list[float]] = {"running": [], "pretrained": []}
     print(f"{'day':>4} {'running':>8} {'error K':>8} {'pretrained error K':>19}")
-    for day in range(args.from_day, max(log) + 2):
+    for day in range(args.from_day, max(log, default=0) + 2):
         running = log.get(day - 1, {}).get("running")
         at = first + pd.Timedelta(days=day - 1, hours=args.hour)
         rows = np.flatnonzero(frame["time"].to_numpy() == at.to_datetime64())
