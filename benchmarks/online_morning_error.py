@@ -35,8 +35,7 @@ import pandas as pd
 
 from pinn_mpc import fitted
 from pinn_mpc.data import COLUMNS, validate_timeseries
-from pinn_mpc.evaluation import recursive_t_r
-from pinn_mpc.models.arx import ARXModel
+from pinn_mpc.evaluation import t_r_ahead
 
 
 def hour_share(frame: pd.DataFrame) -> float:
@@ -48,15 +47,6 @@ def hour_share(frame: pd.DataFrame) -> float:
     beta, *_ = np.linalg.lstsq(onehot, u, rcond=None)
     var = float(np.var(u))
     return float("nan") if var == 0 else 1.0 - float(np.var(u - onehot @ beta)) / var
-
-
-def predicted(model: Any, frame: pd.DataFrame, start: int, ahead: int) -> float:
-    """``model``'s room temperature ``ahead`` steps after row ``start`` of ``frame`` (the
-    ensemble mean of a learned model)."""
-    if isinstance(model, ARXModel):
-        return float(model.predict_path(frame, ahead, np.array([start]))[0, -1])
-    paths, starts = recursive_t_r(model, frame, ahead)
-    return float(paths.mean(axis=0)[list(starts).index(start)])
 
 
 def refit_columns(online_dir: Path) -> list[str] | None:
@@ -121,13 +111,12 @@ def main(argv: list[str] | None = None) -> int:
             continue
         if running not in versions:
             versions[running] = fitted.load(args.online_dir / "versions" / running / "model")
-        start = int(rows[0])
-        window = frame.iloc[max(0, start - 48):start + args.ahead + 1].reset_index(drop=True)
+        lo = max(0, int(rows[0]) - 48)  # a day of history before the start, the rest cut off
+        window = frame.iloc[lo:int(rows[0]) + args.ahead + 1].reset_index(drop=True)
         window.attrs["dt_s"] = frame.attrs["dt_s"]
-        at_row = start - max(0, start - 48)
-        truth = float(window["T_r"].iloc[at_row + args.ahead])
-        e_run = predicted(versions[running], window, at_row, args.ahead) - truth
-        e_pre = predicted(pretrained, window, at_row, args.ahead) - truth
+        truth = float(window["T_r"].iloc[-1])  # the window's last row: the start's target
+        e_run = float(t_r_ahead(versions[running], window, args.ahead, len(window) - 1 - args.ahead)[0][0]) - truth
+        e_pre = float(t_r_ahead(pretrained, window, args.ahead, len(window) - 1 - args.ahead)[0][0]) - truth
         errors["running"].append(e_run)
         errors["pretrained"].append(e_pre)
         print(f"{day:>4} {running:>8} {e_run:>+8.3f} {e_pre:>+19.3f}")

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
@@ -28,7 +28,7 @@ if TYPE_CHECKING:
     from pinn_mpc.models.multizone_hybrid import MultiZoneHybrid
     from pinn_mpc.models.multizone_paper import MultiZonePaperModel
 
-__all__ = ["evaluate_model", "evaluate_zone_model", "recursive_paths", "recursive_t_r"]
+__all__ = ["evaluate_model", "evaluate_zone_model", "recursive_paths", "recursive_t_r", "t_r_ahead"]
 
 
 def _mae(a: np.ndarray, b: np.ndarray) -> float:
@@ -45,6 +45,25 @@ def recursive_t_r(
     """
     paths, starts = recursive_paths(model, df, horizon)
     return paths[..., horizon - 1], starts
+
+
+def t_r_ahead(
+    model: Any, df: pd.DataFrame, horizon: int, first: int = 0
+) -> tuple[np.ndarray, np.ndarray]:
+    """T_r,i+h of a learned model (its ensemble mean, :func:`recursive_t_r`) or of an ARX
+    (its own rollout) from every start i >= ``first`` that keeps i+h inside ``df``, over the
+    measured demand and exogenous inputs.
+
+    Returns ``(pred (N,) [C], starts (N,) row indices i)``.
+    """
+    from pinn_mpc.models.arx import ARXModel
+
+    if isinstance(model, ARXModel):
+        starts = np.arange(first, len(df) - horizon)
+        return model.predict_path(df, horizon, starts)[:, -1], starts
+    paths, starts = recursive_t_r(model, df, horizon)
+    keep = starts >= first
+    return paths.mean(axis=0)[keep], starts[keep]
 
 
 def recursive_paths(

@@ -323,19 +323,11 @@ def _refit_pool(initializer: Any = None, timeout_s: float | None = None) -> Any:
 def _held_out_error(model: Any, frame: pd.DataFrame, cut: int) -> float:
     """``evaluate``'s T_r error :data:`ERROR_HORIZON_STEPS` ahead from every start in rows
     ``cut ..`` that keeps the target inside the frame (module docstring)."""
-    from pinn_mpc.evaluation import recursive_t_r
-    from pinn_mpc.models.arx import ARXModel
+    from pinn_mpc.evaluation import t_r_ahead
 
     h = ERROR_HORIZON_STEPS
-    t_r = frame["T_r"].to_numpy(dtype=float)
-    if isinstance(model, ARXModel):
-        starts = np.arange(cut, len(frame) - h)
-        pred = model.predict_path(frame, h, starts)[:, -1]
-    else:
-        paths, all_starts = recursive_t_r(model, frame, h)
-        keep = all_starts >= cut
-        pred, starts = paths.mean(axis=0)[keep], all_starts[keep]
-    return float(np.mean(np.abs(pred - t_r[starts + h])))
+    pred, starts = t_r_ahead(model, frame, h, cut)
+    return float(np.mean(np.abs(pred - frame["T_r"].to_numpy(dtype=float)[starts + h])))
 
 
 def _refit(
