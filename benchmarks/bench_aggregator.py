@@ -33,6 +33,7 @@ The machine is shared (the load average is printed): read the medians.
 from __future__ import annotations
 
 import argparse
+import functools
 import os
 import sys
 import time
@@ -129,6 +130,11 @@ def main() -> int:
     return run(args, lambda of, name: of(slice(None)))
 
 
+def _with_spec(factory: Any, spec: Any, fleet: Any) -> Any:
+    """``factory``'s planner of ``fleet`` under the control spec ``spec``."""
+    return factory(fleet, spec)
+
+
 def run(args: argparse.Namespace, wrap: Callable[[Any, str], Any]) -> int:
     """Every timing of the module docstring; ``wrap`` turns the factory of a slice of the
     fleet's buildings into the planner factory timed (partitioned across Ray workers, or the
@@ -144,7 +150,7 @@ def run(args: argparse.Namespace, wrap: Callable[[Any, str], Any]) -> int:
         for n in sizes(args.rc):
             for cap in (None, 0.6):
                 qp = wrap(lambda s: _qp, "qp-mpc")
-                med, p95, built = time_steps(lambda f, m=qp: m(f, spec), n, args.steps, cap)
+                med, p95, built = time_steps(functools.partial(_with_spec, qp, spec), n, args.steps, cap)
                 label = "capped, 4 plans" if cap else "no cap, 1 plan "
                 print(f"  qp-mpc {n:6d} buildings, {label}: median {med:9.1f}  p95 {p95:9.1f}  "
                       f"(built in {built:.1f} s)")
@@ -160,7 +166,7 @@ def run(args: argparse.Namespace, wrap: Callable[[Any, str], Any]) -> int:
                         lambda s, fm=fleet_models, on=cap is not None: learned_fleet_planner(fm[s], rc_candidates=on),
                         "cem",
                     )
-                    med, p95, built = time_steps(lambda f, m=factory: m(f, spec), n, args.steps, cap)
+                    med, p95, built = time_steps(functools.partial(_with_spec, factory, spec), n, args.steps, cap)
                     label = "capped, 4 plans" if cap else "no cap, 1 plan "
                     print(f"  cem    {n:6d} buildings, {label}: median {med:9.1f}  p95 {p95:9.1f}  "
                           f"(built in {built:.1f} s)")

@@ -88,7 +88,7 @@ def bound(scenario: Any, fleet: Any, cap_kw: float) -> dict[str, Any]:
 def closed_loop(scenario: Any, fleet: Any, planner: Any, dual: DualAscent) -> dict[str, Any]:
     """The coordinated fleet uncapped and capped at 60 % of its own uncapped window peak."""
     n = len(fleet)
-    runs = {}
+    runs: dict[str, Any] = {}
     free = run_coordinated_fleet(scenario, planner(), n_buildings=n, days=1, seed=SEED, fleet=fleet)
     in_window = ~np.isnan(cap_in_force(free.times, {"kw": 1.0, "window": WINDOW}))
     cap_kw = SHARE * free.aggregate_u_phys_w[in_window].max() / 1000.0

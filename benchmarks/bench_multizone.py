@@ -42,7 +42,7 @@ def building(n_zones: int, scale: float = 1.0) -> MultiZoneConfig:
         *(ActuatorSpec(upper_w=5000.0, zone=z) for z in range(n_zones)),
         ActuatorSpec(upper_w=3000.0, zone=0, heats=False),
     )
-    params = MultiZoneParams(zones=zones, wall_conductance_w_per_k=walls)
+    params = MultiZoneParams(zones=zones, wall_conductance_w_per_k=tuple(map(tuple, walls.tolist())))
     return MultiZoneConfig(params=params, actuators=actuators, backup_high_c=23.0)
 
 

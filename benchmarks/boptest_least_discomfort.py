@@ -292,6 +292,11 @@ def per_day(run: Run) -> list[tuple[float, float]]:
             for d in range(days)]
 
 
+def _or_inf(value: float | None) -> float:
+    """A KPI BOPTEST may leave empty (None), as infinity."""
+    return np.inf if value is None else float(value)
+
+
 def main() -> None:
     """Parse the arguments, run the four stages and print the figures."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -331,7 +336,7 @@ def main() -> None:
         date = dt.date(2018, 1, 1) + dt.timedelta(days=first + d)
         cells = [days[d] for days in daily]
         print(f"{date} {date:%a}: " + "   ".join(f"{a:.2f} / {b:.2f}" for a, b in cells))
-    best_i = min(range(len(outcomes)), key=lambda i: np.inf if outcomes[i].kpi["tdis_tot"] is None else float(outcomes[i].kpi["tdis_tot"]))
+    best_i = min(range(len(outcomes)), key=lambda i: _or_inf(outcomes[i].kpi["tdis_tot"]))
     best = outcomes[best_i]
     cut = (PERIOD_DAYS - 1) * PER_DAY - 4 * PER_DAY // 24
     kept = daily[best_i]

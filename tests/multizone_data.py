@@ -50,7 +50,7 @@ def two_zone_house(wall_w_per_k: float = 60.0) -> tuple[MultiZoneParams, tuple[A
             ZoneRC(zone=ZoneSpec("south"), rc=south, gain_share=0.6, solar_input="G_south"),
             ZoneRC(zone=ZoneSpec("north"), rc=north, gain_share=0.4),
         ),
-        wall_conductance_w_per_k=[[0.0, wall_w_per_k], [wall_w_per_k, 0.0]],
+        wall_conductance_w_per_k=((0.0, wall_w_per_k), (wall_w_per_k, 0.0)),
     )
     return params, (ActuatorSpec(upper_w=5000.0, zone=0), ActuatorSpec(upper_w=5000.0, zone=1))
 
@@ -75,7 +75,7 @@ def row_of_zones(n_zones: int, seed: int = 0) -> tuple[MultiZoneParams, tuple[Ac
     walls = np.zeros((n_zones, n_zones))
     for z in range(n_zones - 1):
         walls[z, z + 1] = walls[z + 1, z] = float(rng.uniform(40.0, 120.0))
-    params = MultiZoneParams(zones=tuple(zones), wall_conductance_w_per_k=walls)
+    params = MultiZoneParams(zones=tuple(zones), wall_conductance_w_per_k=tuple(map(tuple, walls.tolist())))
     return params, tuple(ActuatorSpec(upper_w=5000.0, zone=z) for z in range(n_zones))
 
 
