@@ -21,7 +21,13 @@ import time
 import numpy as np
 
 from pinn_mpc.actuator import ActuatorSpec
-from pinn_mpc.multizone import MultiZoneConfig, MultiZoneParams, MultiZoneSimulator, ZoneRC
+from pinn_mpc.multizone import (
+    MultiZoneConfig,
+    MultiZoneParams,
+    MultiZoneSimulator,
+    ZoneRC,
+    wall_tuples,
+)
 from pinn_mpc.physics import PAPER_HOUSEHOLD
 from pinn_mpc.simulator import SimConfig, Simulator
 from pinn_mpc.zones import ZoneSpec
@@ -42,7 +48,7 @@ def building(n_zones: int, scale: float = 1.0) -> MultiZoneConfig:
         *(ActuatorSpec(upper_w=5000.0, zone=z) for z in range(n_zones)),
         ActuatorSpec(upper_w=3000.0, zone=0, heats=False),
     )
-    params = MultiZoneParams(zones=zones, wall_conductance_w_per_k=tuple(map(tuple, walls.tolist())))
+    params = MultiZoneParams(zones=zones, wall_conductance_w_per_k=wall_tuples(walls))
     return MultiZoneConfig(params=params, actuators=actuators, backup_high_c=23.0)
 
 

@@ -19,7 +19,13 @@ import numpy as np
 import pandas as pd
 
 from pinn_mpc.actuator import ActuatorSpec
-from pinn_mpc.multizone import MultiZoneConfig, MultiZoneParams, MultiZoneSimulator, ZoneRC
+from pinn_mpc.multizone import (
+    MultiZoneConfig,
+    MultiZoneParams,
+    MultiZoneSimulator,
+    ZoneRC,
+    wall_tuples,
+)
 from pinn_mpc.physics import RCParams
 from pinn_mpc.zones import ZoneSpec, zone_column
 
@@ -75,7 +81,7 @@ def row_of_zones(n_zones: int, seed: int = 0) -> tuple[MultiZoneParams, tuple[Ac
     walls = np.zeros((n_zones, n_zones))
     for z in range(n_zones - 1):
         walls[z, z + 1] = walls[z + 1, z] = float(rng.uniform(40.0, 120.0))
-    params = MultiZoneParams(zones=tuple(zones), wall_conductance_w_per_k=tuple(map(tuple, walls.tolist())))
+    params = MultiZoneParams(zones=tuple(zones), wall_conductance_w_per_k=wall_tuples(walls))
     return params, tuple(ActuatorSpec(upper_w=5000.0, zone=z) for z in range(n_zones))
 
 
