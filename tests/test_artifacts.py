@@ -10,9 +10,9 @@ import pytest
 
 from pinn_mpc.artifacts import CHECKSUM, META, WEIGHTS, load_model, save_model
 from pinn_mpc.errors import ModelFileError, PinnMpcWarning
-from pinn_mpc.models import LearnedModel
+from pinn_mpc.models import HybridNet, LearnedModel
 from pinn_mpc.training import TrainConfig, train_model
-from tests.model_data import household_data
+from tests.model_data import household_data, net_of
 
 
 @pytest.fixture(scope="module")
@@ -61,8 +61,8 @@ def test_hybrid_round_trip_keeps_physics_backup_and_rollouts(tmp_path: Path) -> 
     a, b = hybrid.predict_one_step(df), loaded.predict_one_step(df)
     for key in ("T_r_next", "u_phys", "T_m"):
         np.testing.assert_array_equal(a[key], b[key])
-    net = loaded.module.net
-    assert bool((net.full_power_w == hybrid.module.net.full_power_w).all())
+    net = net_of(loaded, HybridNet)
+    assert bool((net.full_power_w == net_of(hybrid, HybridNet).full_power_w).all())
     assert bool((net.full_power_w > 0).all())
 
 

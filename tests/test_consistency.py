@@ -19,7 +19,7 @@ from pinn_mpc.artifacts import load_model, save_model
 from pinn_mpc.consistency import check_draw, draw
 from pinn_mpc.data import validate_timeseries
 from pinn_mpc.models.learned import LearnedModel
-from pinn_mpc.models.pcnn_parx import building_settling
+from pinn_mpc.models.pcnn_parx import PcnnParxNet, building_settling
 from pinn_mpc.models.positive_arx import (
     MAX_OWN_SUM,
     TOLERANCE,
@@ -35,6 +35,7 @@ from pinn_mpc.physics import discretise
 from pinn_mpc.training import TrainConfig, train_model
 from scenarios.inputs.scenario_file import get_scenario
 from scenarios.running.datagen import generate
+from tests.model_data import ensemble_layers, net_of
 
 HORIZON = 48
 
@@ -224,7 +225,9 @@ def test_heat_pump_house_settles_as_its_identified_rc() -> None:
     warms the room nearer to what it warms the plant (the 2R2C's exact ZOH)."""
     scenario = get_scenario("heat_pump_household")
     df = generate(scenario, days=14, seed=2, policy=scenario.data_policy)
-    curve = CopCurve.fit(df["T_a"].to_numpy(float), df["cop"].to_numpy(float)).monotone(increasing=True)
+    fitted = CopCurve.fit(df["T_a"].to_numpy(float), df["cop"].to_numpy(float))
+    assert fitted is not None
+    curve = fitted.monotone(increasing=True)
     cop = curve(df["T_a"].to_numpy(float))
     ad, bd = discretise(scenario.sim.params, 1800.0)
     plant_mode = float(max(abs(np.linalg.eigvals(ad))))
@@ -326,14 +329,16 @@ def test_pcnn_rolls_out_the_exact_2r2c_on_the_heat_of_a_heat_pump() -> None:
     (pinn_mpc.physics.discretise, the package's one discretisation) driven by COP(T_a) x the
     power, from its estimated T_m."""
     from pinn_mpc.consistency import history_at
+    from pinn_mpc.models.pcnn import PcnnNet
     from pinn_mpc.physics import Coefficients, discretise
 
     df = _data("heat_pump_household")
     model = train_model(df, arch="pcnn", config=TrainConfig(n_seeds=1, epochs=2, eta=get_scenario("heat_pump_household").sim.params.eta), progress=False)
-    net = model.module.net
+    net = net_of(model, PcnnNet)
+    last = ensemble_layers(net.unforced.layers)[-1]
     with torch.no_grad():
-        net.unforced.layers[-1].weight.zero_()
-        net.unforced.layers[-1].bias.zero_()
+        last.weight.zero_()
+        last.bias.zero_()
     curve = CopCurve.from_dict(model.record.cop_curve)
     with torch.no_grad():
         coef = net.coefficients()
@@ -343,6 +348,7 @@ def test_pcnn_rolls_out_the_exact_2r2c_on_the_heat_of_a_heat_pump() -> None:
     plan = np.random.default_rng(0).uniform(0.0, float(df["u_phys"].max()), HORIZON)
     with torch.no_grad():
         out = model.rollout(history, torch.as_tensor(plan[None], dtype=torch.float32), {n: exog[n] for n in model.exog_names})
+    assert out.t_m_c is not None
     x = np.array([df["T_r"].iloc[start], float(out.t_m_c[0, 0, 0, 0])])
     heat = curve(exog["T_a"]) * plan
     expected = []
@@ -515,7 +521,7 @@ def test_pcnn_parx_with_the_wind_stays_consistent() -> None:
     non-decreasing in each power and outdoor temperature on random draws."""
     df = _windy_data()
     model = _windy_model()
-    assert float(model.module.net.wind_loss[0, 0]) > 0.0
+    assert float(net_of(model, PcnnParxNet).wind_loss[0, 0]) > 0.0
     for seed in range(20):
         d = draw(np.random.default_rng(seed), n_rows=len(df), first=64, horizon=HORIZON, u_max_w=float(df["u_phys"].max()))
         assert check_draw(model, df, d) == (True, True), seed
@@ -542,9 +548,9 @@ def test_a_pcnn_parx_saved_before_the_wind_term_loads_without_it(tmp_path) -> No
     meta["weights_sha256"] = file_sha256(tmp_path / "m" / "weights.safetensors")
     (tmp_path / "m" / "model.json").write_text(json.dumps(meta))
     loaded = load_model(tmp_path / "m")
-    assert float(loaded.module.net.wind_loss.abs().max()) == 0.0
+    assert float(net_of(loaded, PcnnParxNet).wind_loss.abs().max()) == 0.0
     with torch.no_grad():
-        model.module.net.wind_loss.zero_()
+        net_of(model, PcnnParxNet).wind_loss.zero_()
     d = draw(np.random.default_rng(3), n_rows=len(df), first=64, horizon=HORIZON, u_max_w=float(df["u_phys"].max()))
     history, exog = history_at(df, d.start, HORIZON)
     plan = torch.as_tensor(d.plan_w[None], dtype=torch.float32)

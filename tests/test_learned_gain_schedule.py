@@ -19,6 +19,7 @@ from pinn_mpc.export import export_rc
 from pinn_mpc.features import FeatureConfig
 from pinn_mpc.identify import identify_rc, simulate_rc
 from pinn_mpc.models.hybrid import Hybrid
+from pinn_mpc.models.learned import LearnedModel
 from pinn_mpc.models.pcnn import Pcnn
 from pinn_mpc.physics import PAPER_HOUSEHOLD, discretise, params_from_summary
 
@@ -68,10 +69,16 @@ def _error_c(model, frame: pd.DataFrame) -> float:
 ARCHITECTURES = {"hybrid": Hybrid, "pcnn": Pcnn}
 
 
+def _fit(df: pd.DataFrame, arch: str) -> LearnedModel:
+    model = fit(df, arch=arch, config=CONFIG).model
+    assert isinstance(model, LearnedModel)
+    return model
+
+
 @pytest.fixture(scope="module", params=sorted(ARCHITECTURES))
 def scheduled(office: pd.DataFrame, request):
     train, _ = _parts(office)
-    return fit(train, arch=request.param, config=CONFIG).model
+    return _fit(train, request.param)
 
 
 def test_the_model_reads_the_identified_schedule_and_predicts_as_with_the_true_gains(office, scheduled, monkeypatch) -> None:
@@ -82,12 +89,12 @@ def test_the_model_reads_the_identified_schedule_and_predicts_as_with_the_true_g
     assert len(scheduled.features.gain_schedule_w) == 24
     # the reference: the same hybrid given the true gains as a measured column
     given = office.rename(columns={"true_I_g": "I_g"})
-    told = fit(given.iloc[: DAYS * 48].reset_index(drop=True), arch=arch, config=CONFIG).model
+    told = _fit(given.iloc[: DAYS * 48].reset_index(drop=True), arch)
     assert told.features.gain_schedule_w == ()
     told_error = _error_c(told, given.iloc[DAYS * 48 - 24 :].reset_index(drop=True))
     # the model as it was: no schedule, its network left to learn the gains
     monkeypatch.setattr(ARCHITECTURES[arch], "gain_schedule", False)
-    plain = fit(train, arch=arch, config=CONFIG).model
+    plain = _fit(train, arch)
     assert plain.features.gain_schedule_w == ()
     errors = {"scheduled": _error_c(scheduled, test), "true gains": told_error, "plain": _error_c(plain, test)}
     assert errors["scheduled"] < 1.5 * errors["true gains"] + 0.05, errors
@@ -127,6 +134,7 @@ def test_the_schedule_is_saved_with_the_model(office, scheduled, tmp_path) -> No
     _, test = _parts(office)
     save(scheduled, tmp_path / "model")
     loaded = load(tmp_path / "model")
+    assert isinstance(loaded, LearnedModel)
     assert loaded.features.gain_schedule_w == scheduled.features.gain_schedule_w
     np.testing.assert_allclose(recursive_paths(loaded, test, H)[0], recursive_paths(scheduled, test, H)[0], atol=1e-5)
     assert FeatureConfig.from_dict(scheduled.features.to_dict()) == scheduled.features

@@ -22,7 +22,7 @@ from pinn_mpc.models import (
     residual_finite_difference,
 )
 from pinn_mpc.training import TrainConfig, train_model
-from tests.model_data import household_data
+from tests.model_data import ensemble_layers, household_data, net_of
 
 
 @pytest.fixture(scope="module", params=["mlp", "physreg", "physnet"])
@@ -59,7 +59,7 @@ def test_physics_block_starts_at_the_prior_and_keeps_the_structure() -> None:
             getattr(coef, name).detach().numpy(), getattr(truth, name), rtol=1e-6
         )
     with torch.no_grad():
-        block.log_a12 += 0.3
+        block.log_a12.add_(0.3)
     coef = block.coefficients()
     torch.testing.assert_close(coef.a11, coef.a12 + coef.c13)
     torch.testing.assert_close(coef.a22, coef.a21)
@@ -241,12 +241,13 @@ def test_hybrid_without_corrections_is_the_exact_2r2c() -> None:
         config=TrainConfig(n_seeds=2, epochs=1, depth=16, prior=truth),
         progress=False,
     )
-    net = model.module.net
+    net, block = net_of(model, HybridNet), model.module.physics
+    assert block is not None
     with torch.no_grad():
-        net.residual_net[-1].weight.zero_()
-        net.residual_net[-1].bias.zero_()
+        ensemble_layers(net.residual_net)[-1].weight.zero_()
+        ensemble_layers(net.residual_net)[-1].bias.zero_()
         net.init_backup(-100.0, 100.0, 5000.0)
-        for p, p0 in zip(model.module.physics.parameters(), Physics(
+        for p, p0 in zip(block.parameters(), Physics(
             truth, n_members=2, exog_names=model.exog_names
         ).parameters(), strict=True):
             p.copy_(p0)
@@ -265,6 +266,7 @@ def test_hybrid_without_corrections_is_the_exact_2r2c() -> None:
     # The one-building fleet is the same 2R2C through the same recursion.
     fleet = FleetModels([model]).rollout([history], u[None], exog)
     for got, want in zip(fleet, roll, strict=True):
+        assert got is not None
         torch.testing.assert_close(got[0], want, atol=1e-4, rtol=1e-6)
 
 
@@ -413,7 +415,7 @@ def test_hybrid_rollout_equals_stepping_the_one_step_model(heating: bool) -> Non
     gen = torch.Generator().manual_seed(0)
     t_mid = float(np.median(df["T_r"]))
     with torch.no_grad():
-        for layer in net.residual_net:  # a residual of a few 0.1 K
+        for layer in ensemble_layers(net.residual_net):  # a residual of a few 0.1 K
             layer.weight.normal_(0.0, 0.3, generator=gen)
             layer.bias.normal_(0.0, 0.3, generator=gen)
         net.init_backup(t_mid - 0.5, t_mid + 0.5, 5000.0)
@@ -444,15 +446,17 @@ def test_hybrid_rollout_equals_stepping_the_one_step_model(heating: bool) -> Non
     ref_p = _reference_hybrid_rollout(net, *cases["N0=N"], bounds)[1]
     demand = (u_s * model.features.power.std + model.features.power.mean).clamp(*model.meta["u_phys_range_w"])
     assert float((ref_p - demand).abs().max()) > 1000.0
+    block = model.module.physics
+    assert block is not None
     with torch.no_grad():
-        model.module.physics.log_a12 += 0.2
-        net.backup_low_c -= 0.3
-        net.residual_net[0].weight.mul_(1.5)
+        block.log_a12.add_(0.2)
+        net.backup_low_c.sub_(0.3)
+        ensemble_layers(net.residual_net)[0].weight.mul_(1.5)
     second = check()
     assert all(float((a - b).abs().max()) > 0.05 for a, b in zip(first, second, strict=True))
     with torch.no_grad():  # without the residual
-        net.residual_net[-1].weight.zero_()
-        net.residual_net[-1].bias.zero_()
+        ensemble_layers(net.residual_net)[-1].weight.zero_()
+        ensemble_layers(net.residual_net)[-1].bias.zero_()
     third = check()
     assert all(float((a - b).abs().max()) > 0.05 for a, b in zip(second, third, strict=True))
 
