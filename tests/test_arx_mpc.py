@@ -77,7 +77,7 @@ def _history_of(params: RCParams, x0: np.ndarray, u_w: np.ndarray, fc: Forecast)
 
 
 def _later(fc: Forecast, k: int) -> Forecast:
-    return Forecast(*(None if a is None else np.asarray(a)[k:] for a in fc))  # no facades
+    return Forecast._make(None if a is None else np.asarray(a)[k:] for a in fc)  # no facades
 
 
 @pytest.mark.parametrize("physics_informed", [False, True])

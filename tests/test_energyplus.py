@@ -768,6 +768,8 @@ def test_a_planners_fallback_on_energyplus_keeps_a_margin_while_colder_than_its_
     simulator, nor on EnergyPlus with a noisy sensor; qp-mpc plans on the band itself."""
     from dataclasses import replace
 
+    from controllers.rc_mpc.problem import RCMPC
+    from controllers.sampling import CEM
     from pinn_mpc.models.rc import RCBatchModel
     from scenarios.running.factory import build_controller, cold_fallback_margin
 
@@ -779,6 +781,9 @@ def test_a_planners_fallback_on_energyplus_keeps_a_margin_while_colder_than_its_
     for scenario, expected in ((office, True), (household, False), (noisy, False)):
         model = RCBatchModel(rc, dt_s=scenario.sim.dt_s, actuator=scenario.control_spec().actuator)
         cem = build_controller("cem", scenario, model=model, n_steps=48)
+        assert isinstance(cem, CEM)
         assert cem.monitor.settings.fallback_margin_when_colder is expected
         assert not cem.monitor.settings.margin_from_replay
-    assert build_controller("qp-mpc", office, rc_params=rc, n_steps=48).replay_report is None
+    qp_mpc = build_controller("qp-mpc", office, rc_params=rc, n_steps=48)
+    assert isinstance(qp_mpc, RCMPC)
+    assert qp_mpc.replay_report is None

@@ -116,6 +116,7 @@ def _independent_qp_first_action(x0: np.ndarray, forecast: Forecast) -> float:
         + DEFAULT_REGULARISATION * cp.sum_squares(p)
     )
     cp.Problem(cp.Minimize(cost), cons).solve(solver=cp.CLARABEL)
+    assert p.value is not None
     return float(p.value[0]) * 1000.0
 
 

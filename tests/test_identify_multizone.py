@@ -29,6 +29,7 @@ from pinn_mpc.multizone import (
     ZoneRC,
     continuous_matrices,
     discretise,
+    wall_tuples,
 )
 from pinn_mpc.physics import RCParams
 from pinn_mpc.zones import ZoneSpec
@@ -149,7 +150,7 @@ def test_given_gain_shares_are_kept() -> None:
 
 
 def test_two_zones_without_a_wall_between_them_fit_none(house_frame: pd.DataFrame) -> None:
-    apart = dataclasses.replace(HOUSE, wall_conductance_w_per_k=np.zeros((2, 2)))
+    apart = dataclasses.replace(HOUSE, wall_conductance_w_per_k=wall_tuples(np.zeros((2, 2))))
     result = _identify(multizone_frame(apart, HEATERS, days=14, seed=0), apart)
     assert result.walls == {} and np.all(result.params.walls == 0)
     assert any("south-north fitted at the smallest conductance" in n for n in result.notes)
@@ -162,7 +163,7 @@ def test_one_zone_is_identify_rcs_answer() -> None:
     rc = RCParams(r_ra_k_per_w=6e-3, r_rm_k_per_w=1.5e-3, c_r_j_per_k=3e6, c_m_j_per_k=2e7,
                   solar_aperture_m2=5.0, solar_to_air_fraction=0.3, gain_to_air_fraction=0.6)
     one = MultiZoneParams(zones=(ZoneRC(zone=ZoneSpec("room"), rc=rc, gain_share=1.0),),
-                          wall_conductance_w_per_k=[[0.0]])
+                          wall_conductance_w_per_k=((0.0,),))
     heater = (ActuatorSpec(upper_w=5000.0),)
     frame = multizone_frame(one, heater, days=14, seed=3)
     result = _identify(frame, one, heater, ["G"])

@@ -20,6 +20,7 @@ from pinn_mpc.multizone import (
     continuous_matrices,
     discretise,
     steady_state,
+    wall_tuples,
 )
 from pinn_mpc.physics import PAPER_HOUSEHOLD, RCParams
 from pinn_mpc.simulator import SimConfig, Simulator
@@ -75,7 +76,7 @@ LOW, HIGH = (19.0, 21.0, 18.0), (21.5, 23.0, 20.5)
 
 
 def _config(walls: np.ndarray, **kw) -> MultiZoneConfig:
-    params = MultiZoneParams(zones=ZONES, wall_conductance_w_per_k=walls)
+    params = MultiZoneParams(zones=ZONES, wall_conductance_w_per_k=wall_tuples(walls))
     return MultiZoneConfig(params=params, actuators=ACTUATORS, backup_low_c=LOW, backup_high_c=HIGH, **kw)
 
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 import dataclasses
 import json
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 import pandas as pd
@@ -231,7 +232,7 @@ def test_a_weight_the_solver_leaves_a_hair_below_its_bound_is_taken_as_zero(monk
     solve = scipy.optimize.lsq_linear
     bounded: list[np.ndarray] = []
 
-    def hair_below(a, b, bounds, **kw):  # type: ignore[no-untyped-def]
+    def hair_below(a, b, bounds, **kw):
         result = solve(a, b, bounds=bounds, **kw)
         at_bound = np.isfinite(bounds[0]) & (result.x <= bounds[0] + 1e-12)
         result.x = np.where(at_bound, bounds[0] - 1e-20, result.x)
@@ -370,7 +371,7 @@ def test_a_zones_heater_and_chiller_share_one_weight_per_lag_recovered_from_a_fe
     dither = np.random.default_rng(5).uniform(-300.0, 300.0, len(frame))
     start = WEATHER_LAGS
     for k in range(start, len(frame) - 1):  # the chiller tracks 21 C on the room it measures
-        powers[k, 2] = chiller.clip(600.0 * (frame.at[k, "T_r[south]"] - 21.0) + dither[k])
+        powers[k, 2] = chiller.clip(600.0 * (cast(float, frame.at[k, "T_r[south]"]) - 21.0) + dither[k])
         # the rooms' equation sees each zone's net heat on its heater's column
         net = powers[: k + 1, :2].copy()
         net[:, 0] -= powers[: k + 1, 2] * chiller.efficiency.gain(t_a[: k + 1])

@@ -111,7 +111,7 @@ def test_rc_mpc_observer_takes_the_sensors_stated_noise_and_tracks_better_with_i
     errors = {}
     for name, spec in (("stated", noisy), ("default", clean)):
         est = KalmanEstimator.for_spec(PARAMS, spec)
-        history = {c: [] for c in ("T_r", "T_m", "T_a", "G", "I_g", "u", "u_phys", "time_of_day_h")}
+        history: dict[str, list[float]] = {c: [] for c in ("T_r", "T_m", "T_a", "G", "I_g", "u", "u_phys", "time_of_day_h")}
         sq = []
         for k in range(481):
             history["T_r"].append(data["t_r"][k])

@@ -2,6 +2,7 @@
 
 import dataclasses
 import json
+from typing import Any
 
 import numpy as np
 import pytest
@@ -105,7 +106,7 @@ def test_bad_plant_settings_name_the_key(change: dict, key: str):
 def test_mismatch_scenario_runs_closed_loop(name: str):
     scenario = get_scenario("mismatch_household")
     assert scenario.plant.kind == "3r3c"
-    kwargs = {"rc_params": scenario.sim.params} if name == "qp-mpc" else {}
+    kwargs: dict[str, Any] = {"rc_params": scenario.sim.params} if name == "qp-mpc" else {}
     controller = build_controller(name, scenario, n_steps=48, **kwargs)
     result = run_closed_loop(scenario, controller, days=1, seed=2, warmup_steps=4)
     assert result.kpis["fallbacks"] == 0 and not result.errors

@@ -5,12 +5,15 @@ simulated and run in closed loop by every layer above the plants without a chang
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 import pytest
 
 import scenarios.plants.kinds as kinds
+from pinn_mpc.physics import RCParams
 from pinn_mpc.plant import Plant
 from scenarios.inputs.scenario_file import get_scenario, load_scenario_file, scenario_to_toml
 from scenarios.plants.kinds import KindSettings, PlantKind, PlantRequest, register
@@ -31,7 +34,7 @@ def _make(settings: KindSettings, request: PlantRequest) -> RCPlant:
     assert isinstance(settings, MirrorSettings)
     return RCPlant(
         request.config, t_a_c=request.t_a_c, g_w_per_m2=request.g_w_per_m2, i_g_w=request.i_g_w,
-        seed=request.seed, fleet=request.fleet, n_buildings=request.n_buildings,
+        seed=request.seed, fleet=cast(Sequence[RCParams] | None, request.fleet), n_buildings=request.n_buildings,
     )
 
 

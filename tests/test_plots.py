@@ -4,6 +4,7 @@ on the matplotlib Figure (which axes, what they show), on real closed-loop traje
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -33,7 +34,7 @@ def _runs(scenario_name: str) -> dict[str, pd.DataFrame]:
         sim.params, dt_s=sim.dt_s, actuator=sim.actuators[0],
         backup_low_c=sim.backup_low_c, backup_high_c=sim.backup_high_c,
     )
-    plan = {
+    plan: dict[str, tuple[str, dict[str, Any]]] = {
         "thermostat": ("thermostat", {}),
         "random-shooting / exact RC": (
             "random-shooting", {"model": exact, "planner_options": {"n_samples": 16}}
@@ -60,7 +61,7 @@ def _band_extent(ax: Axes) -> tuple[float, float] | None:
     bands = [c for c in ax.collections if isinstance(c, PolyCollection)]
     if not bands:
         return None
-    y = np.concatenate([p.vertices[:, 1] for c in bands for p in c.get_paths()])
+    y = np.concatenate([np.asarray(p.vertices)[:, 1] for c in bands for p in c.get_paths()])
     return float(y.min()), float(y.max())
 
 
@@ -89,7 +90,7 @@ def test_every_panel_is_drawn_against_the_oracle(runs: dict[str, pd.DataFrame]) 
         others = [label for label in groups[family] if label != "oracle"]
         assert labels == ["oracle (reference)", *others]
         for line in ax.get_lines():  # every T_r as it was simulated
-            source = runs["oracle" if line.get_label() == "oracle (reference)" else line.get_label()]
+            source = runs["oracle" if line.get_label() == "oracle (reference)" else str(line.get_label())]
             np.testing.assert_array_equal(np.asarray(line.get_ydata(), dtype=float), source["T_r"])
 
 
@@ -121,7 +122,7 @@ def test_one_run_figure_uses_the_same_band_and_power(runs: dict[str, pd.DataFram
     ax_t, ax_u, ax_p = fig.axes
     assert _band_extent(ax_t) == pytest.approx((traj["T_min"].min(), traj["T_max"].max()))
     delivered = next(line for line in ax_u.get_lines() if line.get_label() == "delivered u_phys")
-    np.testing.assert_allclose(delivered.get_ydata(), traj["u_phys"] / 1000.0)
+    np.testing.assert_allclose(np.asarray(delivered.get_ydata()), traj["u_phys"] / 1000.0)
     assert ax_p.get_ylabel().startswith("price")
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+from typing import Any
 
 import numpy as np
 import pytest
@@ -95,6 +96,7 @@ def test_casadi_and_qp_agree_on_first_action_and_objective(t_r_c: float, t_m_c: 
     assert not qp.last_stats.fallback and not ca.last_stats.fallback
     assert abs(a_qp - a_ca) <= 0.01 * SPEC.u_max_w
     stage = qp.problem.stage(qp.state_estimate_c, fc)
+    assert qp.last_plan is not None and ca.last_plan is not None
     j_qp = qp.problem.objective(stage, qp.last_plan / 1000.0)
     j_ca = ca.problem.objective(stage, ca.last_plan / 1000.0)
     assert j_qp == pytest.approx(j_ca, rel=1e-3)
@@ -203,7 +205,7 @@ def _below_band(mpc: RCMPC, n: int = 96) -> tuple[float, np.ndarray]:
 @pytest.mark.parametrize(
     "wrong", [{"r_ra_k_per_w": PARAMS.r_ra_k_per_w * 1.5}, {"eta": PARAMS.eta * 1.3}], ids=["R_ra x1.5", "eta x1.3"]
 )
-def test_planning_with_its_replay_margin_keeps_a_misidentified_rc_in_the_band(wrong: dict[str, float]) -> None:
+def test_planning_with_its_replay_margin_keeps_a_misidentified_rc_in_the_band(wrong: dict[str, Any]) -> None:
     """An RC that believes the house warmer than it is (better insulated, a stronger heater)
     rides T_min and the room falls below it; planning inside the band by the RC's own filtered
     replay error (what BOPTEST's MPC does) keeps it in, with the margin that error, at most
@@ -235,6 +237,7 @@ def test_regulariser_moves_the_objective_by_less_than_a_thousandth() -> None:
     regular.act(obs, fc)
     lp.act(obs, fc)
     stage = lp.problem.stage(lp.state_estimate_c, fc)
+    assert lp.last_plan is not None and regular.last_plan is not None
     j_lp = lp.problem.objective(stage, lp.last_plan / 1000.0)
     j_reg = regular.problem.objective(stage, regular.last_plan / 1000.0)
     assert j_lp <= j_reg <= j_lp * (1 + 1e-3)
@@ -301,7 +304,7 @@ def test_clairvoyant_counts_its_run_from_the_first_decision() -> None:
     plan = at_zero.last_plan
     history = {"T_r": np.array([19.0, 19.5]), "u": plan[:1], "u_phys": plan[:1], "T_a": fc.T_a[:2]}
     second = Observation.from_history(1, history, 17.1)
-    at_zero.act(second, Forecast(*(None if a is None else np.asarray(a)[1:] for a in fc)))
+    at_zero.act(second, Forecast._make(None if a is None else np.asarray(a)[1:] for a in fc))
     assert at_zero.last_plan is not None
     assert at_zero.last_plan[-1] < 1.0  # the last step is after the run end: nothing planned
 
@@ -457,7 +460,8 @@ def test_an_rcs_unmeasured_gains_act_as_the_same_gains_measured() -> None:
     scheduled = dataclasses.replace(PARAMS, gain_to_air_fraction=0.7, unmeasured_gains_w=schedule)
     plain = dataclasses.replace(scheduled, unmeasured_gains_w=())
     h = SPEC.horizon_steps
-    base = _forecast(h, start=30)._replace(day_of_week=np.repeat([4.0, 5.0], [20, h - 20]))
+    days = np.repeat([4.0, 5.0], [20, h - 20])
+    base = _forecast(h, start=30)._replace(day_of_week=days)
     gains = np.asarray(schedule)[gain_schedule_index(base.time_of_day_h, base.day_of_week)]
     assert np.ptp(gains) > 1000.0  # the forecast spans blocks of both day kinds
     measured = base._replace(I_g=gains)
@@ -480,7 +484,7 @@ def test_an_rcs_unmeasured_gains_act_as_the_same_gains_measured() -> None:
         history = {
             "T_r": np.array([19.0, 19.4, 19.9, 20.1]), "u_phys": np.array([3000.0, 2000.0, 0.0]),
             "T_a": np.full(4, 2.0), "G": np.zeros(4), "I_g": i_g,
-            "time_of_day_h": base.time_of_day_h[:4], "day_of_week": base.day_of_week[:4],
+            "time_of_day_h": base.time_of_day_h[:4], "day_of_week": days[:4],
         }
         for k in range(4):
             cut = {name: values[: k + 1] if name != "u_phys" else values[:k] for name, values in history.items()}

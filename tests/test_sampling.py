@@ -203,7 +203,7 @@ def _receding_gaps(controller, n_steps: int, measured: int) -> list[float]:
     gaps = []
     for k in range(n_steps):
         fc = _forecast(start=k)
-        u = controller.act(_obs(*x, t_a_c=float(fc.T_a[0])), fc)
+        u = controller.act(_obs(x[0], x[1], t_a_c=float(fc.T_a[0])), fc)
         assert not controller.last_stats.fallback
         if k >= n_steps - measured:
             gaps.append(controller.last_cost_eur / _lp_optimum(x, fc) - 1.0)

@@ -177,6 +177,7 @@ def _sunlit_room(days: int, seed: int, *, through_facades: bool) -> pd.DataFrame
     n = days * 48
     series = _facade_series(n, seed=seed)
     sun = series.G_south if through_facades else series.G
+    assert sun is not None and series.times is not None
     u = rng.uniform(0, 3000, n)
     t_r = np.empty(n)
     t_r[0] = 20.0

@@ -7,11 +7,13 @@ import copy
 import dataclasses
 import json
 import math
+from typing import Any
 
 import numpy as np
 import pytest
 import torch
 
+from controllers.sampling import CEM
 from controllers.trust import TrustMonitor, TrustSettings
 from pinn_mpc.actuator import Actuator, CopCurve
 from pinn_mpc.errors import InputError
@@ -177,18 +179,21 @@ def test_a_model_that_mispredicts_is_replaced_by_the_rc_mpc_and_counted(winter_m
         config=TrainConfig(n_seeds=3, epochs=20, depth=8, u_max_w=scenario.sim.u_max_w),
         progress=False,
     )
+    block = broken.module.physics
+    assert block is not None
     with torch.no_grad():
-        broken.module.physics.log_b.add_(math.log(1 / 3))
+        block.log_b.add_(math.log(1 / 3))
     n = scenario.steps_per_day
     kpis = {}
-    for label, kwargs in {
+    runs: dict[str, dict[str, Any]] = {
         "cem": {"model": broken},
         "cem, no fallback": {
             "model": broken,
             "planner_options": {"guard": model_guard(broken)._replace(rc=None)},
         },
         "qp-mpc": {"rc_params": model_guard(model).rc},
-    }.items():
+    }
+    for label, kwargs in runs.items():
         name = label.split(",")[0]
         controller = build_controller(name, scenario, n_steps=n, **kwargs)
         kpis[label] = run_closed_loop(scenario, controller, days=1, seed=5).kpis
@@ -221,6 +226,7 @@ def test_a_guarded_planner_calls_a_forecast_colder_than_its_training_data_colder
 
     scenario, model = winter_model
     controller = build_controller("cem", scenario, model=model, n_steps=scenario.steps_per_day)
+    assert isinstance(controller, CEM)
     lo = controller.training_ranges["T_a"][0]
     h = controller.spec.horizon_steps
 
@@ -251,6 +257,7 @@ def test_a_guarded_planner_sets_its_fallbacks_margin_only_where_asked(winter_mod
         controller = build_controller(
             "cem", scenario, model=model, n_steps=scenario.steps_per_day, planner_options={"guard": guard}
         )
+        assert isinstance(controller, CEM) and controller.shadow is not None
         run_closed_loop(scenario, controller, days=1, seed=5)
         margins[from_replay] = controller.shadow.comfort_margin_k
         assert margins[from_replay] == pytest.approx(controller.monitor.fallback_margin_k(), abs=0.05)
