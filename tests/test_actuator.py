@@ -96,7 +96,7 @@ def test_todays_buildings_declare_one_actuator_from_the_scenario():
     assert not get_scenario("cold_storage").control_spec().heating
 
 
-def test_a_control_spec_holds_named_actuators_on_its_zones():
+def test_a_control_spec_holds_named_actuators_on_its_zones() -> None:
     with pytest.raises(ValueError, match=r"names each one, uniquely .* got names \['', ''\]"):
         ControlSpec(actuators=(FLOOR, FLOOR))
     with pytest.raises(ValueError, match=r"zone index\(es\) \[1\] outside"):

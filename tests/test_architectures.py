@@ -3,6 +3,7 @@ and a new architecture added without touching training, artifacts or the planner
 
 from __future__ import annotations
 
+import argparse
 import ast
 import dataclasses
 from collections.abc import Iterator
@@ -58,8 +59,8 @@ def test_the_paper_networks_default_to_the_paper_depth_and_train_help_says_so() 
     assert registry.get_spec("physnet").depth == registry.get_spec("physreg").depth == 8
     assert registry.get_spec("hybrid").depth == 16
     train = next(
-        a for a in build_parser()._actions if a.dest == "command"
-    ).choices["train"]  # type: ignore[attr-defined]
+        a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction)
+    ).choices["train"]
     text = " ".join(train.format_help().split())
     for spec in registry.ARCHITECTURES.values():
         assert f"{spec.name}: " in text and f"depth {spec.depth}, recipe {spec.recipe}" in text
@@ -101,7 +102,7 @@ class HalfTrunk(TrunkNet):
         obs, z = super().forward(x)
         return 0.5 * obs, z
 
-    def rollout_steps(self, inputs, depth):  # type: ignore[no-untyped-def]
+    def rollout_steps(self, inputs, depth):
         step = super().rollout_steps(inputs, depth)
         return lambda tp, h: (0.5 * step(tp, h)[0], None)
 

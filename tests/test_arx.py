@@ -77,7 +77,7 @@ def test_a_planned_prediction_takes_the_demand_from_its_start_and_the_delivered_
     ))))
 
 
-def test_arx_refuses_short_data_and_out_of_range_starts():
+def test_arx_refuses_short_data_and_out_of_range_starts() -> None:
     with pytest.raises(InputError, match="too few"):
         fit_arx(_rc_data(1, seed=0))
     model: ARXModel = fit_arx(_rc_data(14, seed=0))

@@ -6,6 +6,7 @@ a test period's warm-up more: the tests share selected tests where they can.
 
 from __future__ import annotations
 
+import argparse
 import math
 from contextlib import closing
 from pathlib import Path
@@ -529,7 +530,8 @@ def test_cli_closed_loop_days_on_boptest_default_to_the_test_period(
     assert main(["closed-loop", "--scenario", "paper_household", "--controller", "thermostat", *out]) == 2
     assert "closed-loop needs --days N" in capsys.readouterr().err
     assert not list(tmp_path.iterdir())
-    help_text = " ".join(build_parser()._subparsers._group_actions[0].choices["closed-loop"].format_help().split())  # type: ignore[union-attr]
+    commands = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    help_text = " ".join(commands.choices["closed-loop"].format_help().split())
     assert "on a BOPTEST scenario the days of its test period, after BOPTEST's warm-up, default the whole period: 14" in help_text
 
 

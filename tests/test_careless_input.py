@@ -35,6 +35,7 @@ from scenarios.experiments.sweep import Cell, scenario_digest
 from scenarios.experiments.sweep.grid import _label
 from scenarios.experiments.sweep.store import _read_cell
 from scenarios.fleets.training import building_model_dir, frame_digest, train_per_building
+from scenarios.inputs.measured import CSVWeather
 from scenarios.inputs.scenario_file import (
     get_scenario,
     load_scenario_file,
@@ -204,17 +205,18 @@ def test_a_cell_record_of_another_content_is_refused(tmp_path):
 
 
 def _gap_times() -> pd.DatetimeIndex:
-    return HOURS[(HOURS < "2023-01-10") | (HOURS >= "2023-01-16")]
+    return HOURS[(HOURS < pd.Timestamp("2023-01-10")) | (HOURS >= pd.Timestamp("2023-01-16"))]
 
 
-def test_a_gap_in_the_weather_is_refused_unless_max_gap_h_bridges_it(tmp_path):
+def test_a_gap_in_the_weather_is_refused_unless_max_gap_h_bridges_it(tmp_path) -> None:
     _weather(tmp_path / "gap.csv", _gap_times())
     with pytest.raises(InputError, match=r"weather.path: .*gap of 6.0 days between rows 216 .* max_gap_h"):
         load_scenario_file(_scenario(tmp_path, weather="gap.csv"))
     scenario = load_scenario_file(
         _scenario(tmp_path, "bridged.toml", weather="gap.csv", extra="max_gap_h = 150.0")
     )
-    assert scenario.weather.max_gap_h == 150.0  # type: ignore[union-attr]
+    assert isinstance(scenario.weather, CSVWeather)
+    assert scenario.weather.max_gap_h == 150.0
 
 
 @pytest.mark.parametrize(
@@ -245,7 +247,7 @@ DST = pd.date_range("2023-03-01", periods=24 * 40, freq="h")  # Europe switches 
                      id="epoch-seconds"),
     ],
 )
-def test_weather_times_are_instants_in_every_notation(tmp_path, reference, write):
+def test_weather_times_are_instants_in_every_notation(tmp_path, reference, write) -> None:
     """The same instants written with Z, with local offsets across a DST switch and as epoch
     seconds give the same weather as naive UTC times."""
     t_a = np.linspace(0, 10, len(reference))
@@ -253,7 +255,8 @@ def test_weather_times_are_instants_in_every_notation(tmp_path, reference, write
     _weather(tmp_path / "utc.csv", reference, t_a=t_a)
     mine = load_scenario_file(_scenario(tmp_path, "mine.toml", weather="mine.csv"))
     utc = load_scenario_file(_scenario(tmp_path, "utc.toml", weather="utc.csv"))
-    pd.testing.assert_frame_equal(mine.weather.frame(), utc.weather.frame())  # type: ignore[union-attr]
+    assert isinstance(mine.weather, CSVWeather) and isinstance(utc.weather, CSVWeather)
+    pd.testing.assert_frame_equal(mine.weather.frame(), utc.weather.frame())
     assert mine.weather.split_text().split(":")[1] == utc.weather.split_text().split(":")[1]
 
 

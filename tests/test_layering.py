@@ -95,7 +95,7 @@ def _scenarios_part(module: str) -> str | None:
     return parts[1] if len(parts) > 1 else "scenarios"
 
 
-def test_scenarios_subpackages_import_only_those_below():
+def test_scenarios_subpackages_import_only_those_below() -> None:
     bad = []
     for path in sorted((ROOT / "scenarios").rglob("*.py")):
         rel = path.relative_to(ROOT)

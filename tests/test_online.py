@@ -399,7 +399,7 @@ class _Done:
     ((0.1, 0.2, 0.3), "swap", "v007"),     # the night's challenger does better still
     ((0.5, 0.4, 0.3), "refused", "v002"),  # neither beats the champion: the deferred one is dropped
 ])
-def test_a_challenger_the_guard_refused_is_judged_again_the_next_night(errors, verdict, champion):
+def test_a_challenger_the_guard_refused_is_judged_again_the_next_night(errors, verdict, champion) -> None:
     """A challenger refused by the guard is deferred, not discarded: the next night the better
     on the held-out day of it and the night's challenger is judged against the champion, and
     whatever the verdict the deferred one is not judged again (the guard may defer it anew)."""

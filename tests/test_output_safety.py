@@ -91,7 +91,7 @@ def _loop(tmp_path: Path) -> list[str]:
             "--json", str(tmp_path / "k.json"), "--csv", str(tmp_path / "traj.csv"), "--force"]
 
 
-def test_a_full_disk_on_the_last_file_leaves_every_file_as_it_was(tmp_path, capsys, monkeypatch):
+def test_a_full_disk_on_the_last_file_leaves_every_file_as_it_was(tmp_path, capsys, monkeypatch) -> None:
     """closed-loop --json --csv: the KPI JSON cannot be written (no space left); the CSV
     written before it must not replace the old one, and the message names k.json."""
     (tmp_path / "k.json").write_text("old kpis")
@@ -115,7 +115,7 @@ def test_a_full_disk_on_the_last_file_leaves_every_file_as_it_was(tmp_path, caps
     assert json.loads((tmp_path / "k.json").read_text())["days"] == 1
 
 
-def test_a_fleet_file_that_cannot_be_written_leaves_the_fleet_data_as_it_was(tmp_path, capsys, monkeypatch):
+def test_a_fleet_file_that_cannot_be_written_leaves_the_fleet_data_as_it_was(tmp_path, capsys, monkeypatch) -> None:
     """simulate --buildings N writes the CSV and its parameters file: when the second cannot be
     written, the first must not be replaced either (before, the new CSV stood beside the old
     parameters file, whose checksum then refused it)."""

@@ -169,7 +169,7 @@ def test_invalid_random_shooting_settings_are_rejected(kwargs, message):
 
 
 @pytest.mark.parametrize(("x0_value", "p_on"), [(0.0, 0.25), (0.5, 0.5), (1.0, 0.75)])
-def test_binary_cem_starts_between_a_fair_coin_and_the_warm_start(x0_value, p_on):
+def test_binary_cem_starts_between_a_fair_coin_and_the_warm_start(x0_value, p_on) -> None:
     seen: list[torch.Tensor] = []
 
     def objective(u: torch.Tensor) -> torch.Tensor:

@@ -416,7 +416,9 @@ def test_boptest_grid_cells_labels_and_refusals():
             scenarios=parse_names(spec["scenarios"], "scenarios"),
             controllers=parse_names(spec["controllers"], "controllers"),
             seeds=parse_ints(spec["seeds"], "seeds"), train_days=parse_ints(spec["train_days"], "t"),
-            **{k: parse_names(spec[k], k) for k in ("archs", "test_periods", "price_scenarios")},
+            archs=parse_names(spec["archs"], "archs"),
+            test_periods=parse_names(spec["test_periods"], "test_periods"),
+            price_scenarios=parse_names(spec["price_scenarios"], "price_scenarios"),
         )
 
     grid = grid_of("boptest.toml")
@@ -458,7 +460,7 @@ def test_boptest_grid_cells_labels_and_refusals():
     assert all(c.test_period is None for c in own.cells())
 
 
-def test_an_arch_cell_runs_on_the_packages_own_plants():
+def test_an_arch_cell_runs_on_the_packages_own_plants() -> None:
     """A ``cem/<arch>`` cell (``archs`` in a sweep) on a non-BOPTEST scenario runs cem over
     the model of that architecture, labelled with the cell's name and the model it planned
     over (it failed as "unknown controller 'cem/parx'" before)."""

@@ -246,7 +246,7 @@ def test_by_default_the_guard_hands_over_beside_a_credible_rc_only():
     assert alone["objective"] == pytest.approx(kept["objective"], rel=1e-9)  # as if never handing over
 
 
-def test_the_zone_guards_settings_are_checked():
+def test_the_zone_guards_settings_are_checked() -> None:
     with pytest.raises(TypeError, match="hand_over must be None, True or False"):
         ZoneGuard(hand_over="yes")  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="credible_rc_k must be a positive number of kelvin"):

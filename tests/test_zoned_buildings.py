@@ -246,7 +246,7 @@ def test_a_plant_with_only_the_one_zone_true_state_still_gives_the_oracle_its_ma
 
     loop = ClosedLoop(
         scenario.sim, series, spec=scenario.control_spec(), initial_t_r_c=20.0, initial_t_m_c=18.5,
-        plant=OneZoneOnly(),  # type: ignore[arg-type]
+        plant=OneZoneOnly(),
     )
     assert loop.observation().t_m_true_c == 18.5
     loop.step(1000.0)
