@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+from typing import Any
 
 import numpy as np
 import pytest
@@ -14,7 +15,9 @@ from pinn_mpc.choices import ARX, PHYSICS_ARX
 from pinn_mpc.errors import InputError
 from pinn_mpc.models.arx import fit_linear, load_arx, save_arx
 from pinn_mpc.physics import params_from_summary
+from scenarios.inputs.registry import Scenario
 from scenarios.inputs.scenario_file import get_scenario
+from scenarios.records import RunKpis
 from scenarios.reports.report import kpi_table_text
 from scenarios.running.closed_loop import run_closed_loop
 from scenarios.running.datagen import generate
@@ -52,7 +55,7 @@ def test_a_tampered_fallback_rc_in_an_arx_file_is_refused(winter_parx, tmp_path)
         load_arx(tmp_path)
 
 
-def _run(scenario, **kwargs):
+def _run(scenario: Scenario, **kwargs: Any) -> RunKpis:
     controller = build_controller("cem", scenario, n_steps=scenario.steps_per_day, **kwargs)
     return run_closed_loop(scenario, controller, days=1, seed=5).kpis
 
@@ -105,7 +108,7 @@ def test_the_kpi_table_says_who_decided(winter_parx) -> None:
     scenario, parx = winter_parx
     coef = parx.coef.copy()
     coef[1] = 1e6
-    rows = [
+    rows: list[RunKpis] = [
         {**_run(scenario, model=parx), "controller": "cem-parx"},
         {**_run(scenario, model=dataclasses.replace(parx, coef=coef)), "controller": "cem-broken"},
     ]
@@ -140,7 +143,7 @@ def test_trains_caution_promises_the_fallback_only_where_the_model_has_one(winte
     from pinn_mpc.model_choice import ModelChoice
 
     _, parx = winter_parx
-    rough = {"held_out_mae_c": {PHYSICS_ARX.name: 0.8}, "horizon_steps": 24, "why": ""}
+    rough: dict[str, Any] = {"held_out_mae_c": {PHYSICS_ARX.name: 0.8}, "horizon_steps": 24, "why": ""}
     guarded = ModelChoice(chosen=PHYSICS_ARX.name, model=parx, **rough).caution
     bare = ModelChoice(
         chosen=PHYSICS_ARX.name, model=dataclasses.replace(parx, identified_rc=None), **rough

@@ -71,7 +71,8 @@ def test_debug_adds_the_traceback(monkeypatch, capsys):
 
 def test_any_other_unexpected_exception_is_a_bug_too(monkeypatch, capsys):
     def broken() -> str:
-        return str({}["missing"])
+        empty: dict[str, str] = {}
+        return empty["missing"]
 
     _inject(monkeypatch, broken)
     assert main(["scenario", "list"]) == 1

@@ -19,6 +19,7 @@ import tomllib
 from collections import Counter
 from functools import cache
 from pathlib import Path
+from typing import cast
 
 import pytest
 
@@ -648,6 +649,7 @@ def _gen_results():
 
 def test_results_page_states_command_commit_machine_and_cells(tmp_path: Path) -> None:
     """The results generator's page from a sweep directory (two seeds, two controllers)."""
+    from scenarios.records import CellRecord
     from scenarios.reports.sweep_report import summarise
 
     gen = _gen_results()
@@ -667,7 +669,7 @@ def test_results_page_states_command_commit_machine_and_cells(tmp_path: Path) ->
     for i, cell in enumerate(cells):  # cells of two runs at two commits, one from before it was kept
         code = {} if i == 0 else {"code": "def456" if i < 3 else "abc123 + uncommitted changes"}
         (sweep / "cells" / f"{i}.json").write_text(json.dumps({**cell, **code}))
-    summary = {"rows": summarise(cells, baseline="qp-mpc", order=["cem", "qp-mpc"]),
+    summary = {"rows": summarise(cast(list[CellRecord], cells), baseline="qp-mpc", order=["cem", "qp-mpc"]),
                "cells_run": 6, "cells_reused": 0, "models_trained": 4, "settings": {"quick": False}}
     (sweep / "summary.json").write_text(json.dumps(summary))
     spec = ROOT / "sweeps" / "smoke.toml"

@@ -28,7 +28,7 @@ LAYOUT = (ROOT / "docs" / "layout.md").read_text(encoding="utf-8")
 def _type_checking_imports(package: str) -> dict[str, str]:
     """{name: module} imported under ``if TYPE_CHECKING:`` in the package's ``__init__``."""
     tree = ast.parse((ROOT / package / "__init__.py").read_text(encoding="utf-8"))
-    found = {}
+    found: dict[str, str] = {}
     for node in tree.body:
         if isinstance(node, ast.If) and ast.unparse(node.test) == "TYPE_CHECKING":
             for imp in node.body:
