@@ -1,7 +1,11 @@
 """Each stored model's T_r error h intervals ahead on held-out days: the models a sweep trained
 (its ``models/`` folder) predicting days of the test part of the weather that no model saw, by
 family, building and training days (mean over seeds and the worst seed), with each family's
-error over parx's (issue 44's accuracy criterion).
+error over parx's (issue 44's accuracy criterion). A consistent family's model (``pcnn``,
+``pcnn-parx``) is judged twice: as trained, and with its unforced network zeroed (the family
+name followed by ``-net0``: ``pcnn-parx-net0`` is the positive ARX alone, ``pcnn-net0`` the
+2R2C with its schedule and no learned heat), which says what the network adds on days it did
+not see.
 
     PYTHONPATH=. python benchmarks/held_out_errors.py --sweep eplus_consistent \\
         --spec sweeps/eplus_consistent.toml --days 7 --horizon 24
@@ -29,6 +33,7 @@ from collections import defaultdict
 from pathlib import Path
 
 import pandas as pd
+import torch
 
 from pinn_mpc.evaluation import evaluate_model
 from pinn_mpc.fitted import load
@@ -40,6 +45,8 @@ from scenarios.running.datagen import generate
 
 __all__: list[str] = []
 
+#: What a consistent family's model is called with its unforced network zeroed.
+NET0 = "-net0"
 #: A stored model's folder: <scenario>[-<hash>]--<arch>--seed<s>--train<d>.
 MODEL_DIR = re.compile(r"^(?P<scenario>.+?)(?:-[0-9a-f]{12})?--(?P<arch>[a-z0-9-]+)--seed(?P<seed>\d+)--train(?P<days>\d+)$")
 
@@ -73,6 +80,11 @@ def main(argv: list[str] | None = None) -> int:
             mae = model.horizon_mae(df, h, planned=True)
         elif isinstance(model, LearnedModel):
             mae = evaluate_model(model, df, [h])["horizons"][str(h)]["T_r_mae"]
+            if mae is not None and zero_unforced(model):
+                net0 = evaluate_model(model, df, [h])["horizons"][str(h)]["T_r_mae"]
+                if net0 is not None:
+                    errors[name, m["arch"] + NET0, int(m["days"])][seed] = net0
+                    print(f"{folder.name}, its unforced network zeroed: {net0:.3f} C", flush=True)
         else:
             continue
         if mae is None:  # held-out days shorter than the horizon
@@ -88,6 +100,19 @@ def main(argv: list[str] | None = None) -> int:
         ratio = f"{mean / statistics.fmean(parx.values()):.3f}" if parx else ""
         print(f"| {name} | {arch} | {days} | {len(by_seed)} | {mean:.3f} ({max(by_seed.values()):.3f}) | {ratio} |")
     return 0
+
+
+def zero_unforced(model: LearnedModel) -> bool:
+    """Zero the output layer of ``model``'s unforced network (a consistent family's: its
+    learned heat input is then nil in every member), in place; False where it has none."""
+    unforced = getattr(model.module.net, "unforced", None)
+    if unforced is None:
+        return False
+    with torch.no_grad():
+        last = unforced.layers[-1]
+        last.weight.zero_()
+        last.bias.zero_()
+    return True
 
 
 if __name__ == "__main__":
