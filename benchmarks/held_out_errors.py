@@ -33,11 +33,11 @@ from collections import defaultdict
 from pathlib import Path
 
 import pandas as pd
-import torch
 
 from pinn_mpc.evaluation import evaluate_model
 from pinn_mpc.fitted import load
 from pinn_mpc.models.arx import ARXModel
+from pinn_mpc.models.consistent import UnforcedNet
 from pinn_mpc.models.learned import LearnedModel
 from scenarios.experiments.sweep.spec import read_sweep_spec
 from scenarios.inputs.scenario_file import get_scenario
@@ -106,12 +106,9 @@ def zero_unforced(model: LearnedModel) -> bool:
     """Zero the output layer of ``model``'s unforced network (a consistent family's: its
     learned heat input is then nil in every member), in place; False where it has none."""
     unforced = getattr(model.module.net, "unforced", None)
-    if unforced is None:
+    if not isinstance(unforced, UnforcedNet):
         return False
-    with torch.no_grad():
-        last = unforced.layers[-1]
-        last.weight.zero_()
-        last.bias.zero_()
+    unforced.zero_output()
     return True
 
 

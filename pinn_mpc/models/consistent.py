@@ -118,13 +118,18 @@ class UnforcedNet(nn.Module):
         self.series = [j for j, name in enumerate(features.exog_series) if name != "T_a"]
         self.n_clock = 2 + (3 if features.calendar else 0)
         self.layers = mlp_layers((len(self.series) + self.n_clock, *HIDDEN, n_out), n_members, generators)
-        with torch.no_grad():  # start with no unforced heat: the linear part alone
-            last = cast(EnsembleLinear, self.layers[-1])
-            last.weight.zero_()
-            last.bias.zero_()
+        self.zero_output()  # start with no unforced heat: the linear part alone
         self.n_members = n_members
         self.depth = features.depth
         self.scale_k = features.delta_t_r.std
+
+    def zero_output(self) -> None:
+        """Zero the output layer in every member, in place: the network then adds no heat
+        for any input."""
+        with torch.no_grad():
+            last = cast(EnsembleLinear, self.layers[-1])
+            last.weight.zero_()
+            last.bias.zero_()
 
     def forward(self, e_seq: torch.Tensor, tod: torch.Tensor) -> torch.Tensor:
         """``e_seq`` (M|1, N, n_series, k+H) scaled, ``tod`` (M|1, N, H, 2+c) -> (M, N, H, n_out)
