@@ -25,7 +25,10 @@ needs) was tried two ways and is not made: certified on every calendar (response
 block's least ``q``, a calendar's larger ``q`` adding a non-negative response), it erred up to
 7 times more with 14 days (office and retail; chosen on the last quarter of the training data,
 it was rarely taken where it helped); as a non-negative loss of each day type and block on
-``T_a - t_ref`` (the wind's form), it erred more on 18 of the 24 data sets.
+``T_a - t_ref`` (the wind's form), it erred more on 18 of the 24 data sets. A third way, every
+``T_a`` weight non-negative and the power's responses certified on each block's least ``q``,
+helped the office with 14 days only, and a cross-validation on the training data did not pick
+it there (the CHANGELOG has the figures).
 
 **Why it is monotone.** The recursion is linear in the powers and outdoor temperatures, so the
 effect of one more watt at interval k on ``T_r`` m steps later is an impulse response
