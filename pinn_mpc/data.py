@@ -56,6 +56,7 @@ __all__ = [
     "WIND",
     "WIND_RANGE_M_S",
     "check_celsius",
+    "check_clock_change",
     "day_of_week",
     "fleet_params_path",
     "frame_scheduled_gains_w",
@@ -298,11 +299,46 @@ def _warn_power_units(out: pd.DataFrame, source: str, t_r: str = "T_r") -> None:
 _DECIMAL_COMMA = re.compile(r"[-+]?\d+,\d+")
 
 
+#: Text that ends in a UTC offset or ``Z``: an instant, which no clock change moves.
+_UTC_OFFSET = re.compile(r"(Z|[+-]\d\d:?\d\d)$")
+
+
+def check_clock_change(times: pd.Series, raw: pd.Series, steps: np.ndarray, source: str) -> None:
+    """InputError where the first step of ``times`` that is not the usual one (``steps`` [s]
+    between them; ``raw`` the column as given) jumps an hour ahead or back between 23:00 and
+    04:00 in times without a UTC offset, as local clock time does where daylight saving starts
+    or ends: named with the fix, times in UTC or with their offset. Sorting (the fix for a row
+    that goes back) or filling the gap (for skipped rows) would put data an hour out of place."""
+    if steps.size < 2 or pd.api.types.is_numeric_dtype(raw) or isinstance(raw.dtype, pd.DatetimeTZDtype):
+        return
+    dt_s = float(np.median(steps))
+    odd = np.flatnonzero(np.abs(steps - dt_s) > 1e-6)
+    if not odd.size:
+        return
+    row = int(odd[0]) + 1
+    before, now = str(raw.iloc[row - 1]).strip(), str(raw.iloc[row]).strip()
+    if _UTC_OFFSET.search(before) or _UTC_OFFSET.search(now) or times.iloc[row - 1].hour not in (23, 0, 1, 2, 3):
+        return
+    for sign, what, starts, otherwise in (
+        (1.0, "ahead", "starts", "; if rows are missing there instead, fill the gap with rows"),
+        (-1.0, "back", "ends", ""),
+    ):
+        if abs(steps[row - 1] - (dt_s + sign * 3600.0)) < 1e-6:
+            raise InputError(
+                f"{source}: column 'time' jumps an hour {what} at row {row + 1} ({before} then "
+                f"{now}), as local clock time does where daylight saving {starts}; give the "
+                "times in UTC or with their UTC offset (e.g. pandas: df['time'] = "
+                "pd.to_datetime(df['time']).dt.tz_localize('<your time zone>', "
+                f"ambiguous='infer').dt.tz_convert('UTC')){otherwise}"
+            )
+
+
 def _check_steps(times: pd.Series, raw: pd.Series, source: str) -> float:
     """The uniform step [s] of a parsed time column, or InputError: a row that goes backwards or
     repeats a time, a step outside :data:`DT_RANGE_S`, a step that is not uniform."""
     ns = times.to_numpy().astype("datetime64[ns]").astype(np.int64)
     steps = np.diff(ns).astype(float) / 1e9
+    check_clock_change(times, raw, steps, source)
     not_forward = np.flatnonzero(steps <= 0)
     if not_forward.size:
         row = int(not_forward[0]) + 1  # 0-based index of the offending row

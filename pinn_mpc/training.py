@@ -220,7 +220,7 @@ def data_warnings(df: pd.DataFrame) -> list[str]:
     days = len(df) * float(df.attrs.get("dt_s", 1800.0)) / 86400.0
     if days < MIN_TRAIN_DAYS:
         out.append(
-            f"training data cover {days:.1f} days (< {MIN_TRAIN_DAYS:g}): the model sees few "
+            f"training data cover {math.floor(days * 10 + 1e-9) / 10:.1f} days (< {MIN_TRAIN_DAYS:g}): the model sees few "
             "weather situations; more days of data usually help"
         )
     t_a = df["T_a"].to_numpy(dtype=float)

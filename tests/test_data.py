@@ -231,3 +231,45 @@ def test_power_that_looks_like_kw_is_warned_about_once():
     with warnings.catch_warnings():  # training or evaluating the frame read does not repeat it
         warnings.simplefilter("error")
         validate_timeseries(checked.iloc[10:], source="training data")
+
+
+def _local_clock(start: str, n: int, freq: str) -> pd.DatetimeIndex:
+    """``n`` instants ``freq`` apart from ``start`` (UTC), as a Berlin wall clock shows them (naive)."""
+    return pd.date_range(start, periods=n, freq=freq, tz="UTC").tz_convert("Europe/Berlin").tz_localize(None)
+
+
+@pytest.mark.parametrize(
+    ("start", "freq", "match"),
+    [
+        ("2024-03-31 00:00", "30min", r"jumps an hour ahead at row 3 \(2024-03-31 01:30:00 then 2024-03-31 03:00:00\), .*daylight saving starts"),
+        ("2024-03-31 00:00", "1h", r"jumps an hour ahead at row 2 \(2024-03-31 01:00:00 then 2024-03-31 03:00:00\)"),
+        ("2024-10-26 23:00", "30min", r"jumps an hour back at row 5 \(2024-10-27 02:30:00 then 2024-10-27 02:00:00\), .*daylight saving ends"),
+        # With hourly rows the hour repeated reads as a duplicate timestamp, whose fix (drop it) loses an hour.
+        ("2024-10-26 23:00", "1h", r"jumps an hour back at row 3 \(2024-10-27 02:00:00 then 2024-10-27 02:00:00\)"),
+    ],
+)
+def test_local_clock_time_across_a_daylight_saving_change_is_named_with_its_fix(tmp_path, start, freq, match):
+    """Times logged on a local clock jump an hour at a daylight-saving change: sorting or filling
+    the gap (the fixes of a row going back, of missing rows) would misplace an hour of data, so
+    the message says what it is, and its fix (times in UTC) reads back as uniform steps."""
+    data = frame(12).assign(time=_local_clock(start, 12, freq).astype(str))
+    data.to_csv(tmp_path / "local.csv", index=False)
+    with pytest.raises(InputError, match=match):
+        read_timeseries(tmp_path / "local.csv")
+    with pytest.raises(InputError, match="daylight saving"):  # naive datetimes from Python alike
+        validate_timeseries(data.assign(time=pd.to_datetime(data["time"])))
+    data["time"] = pd.to_datetime(data["time"]).dt.tz_localize("Europe/Berlin", ambiguous="infer").dt.tz_convert("UTC")
+    data.to_csv(tmp_path / "utc.csv", index=False)
+    assert read_timeseries(tmp_path / "utc.csv").attrs["dt_s"] == pd.Timedelta(freq).total_seconds()
+
+
+def test_an_hour_missing_by_day_or_with_offsets_is_a_gap_not_a_clock_change(tmp_path):
+    """An hour of rows missing at noon, or where the times carry their UTC offset, is a gap."""
+    noon = frame(12).drop(index=[5, 6]).reset_index(drop=True)
+    with pytest.raises(InputError, match=r"skips 2 interval\(s\) of 1800 s"):
+        validate_timeseries(noon.assign(time=noon["time"] + pd.Timedelta(hours=10)))
+    offsets = frame(12).drop(index=[3, 4]).reset_index(drop=True)
+    offsets["time"] = offsets["time"].dt.tz_localize("Europe/Berlin").astype(str)
+    offsets.to_csv(tmp_path / "offsets.csv", index=False)
+    with pytest.raises(InputError, match=r"skips 2 interval\(s\) of 1800 s before row 4"):
+        read_timeseries(tmp_path / "offsets.csv")

@@ -270,6 +270,10 @@ def test_a_csv_file_scenario_runs_closed_loop(tmp_path):
     ("content", "message"),
     [
         ("time,T_a\n2023-01-01,1\n2023-01-01,2\n", "time must increase; row 2 does not"),
+        # A station's local clock at the spring switch: an hour out of place if bridged.
+        ("time,T_a\n2023-03-26T00:00,1\n2023-03-26T01:00,1\n2023-03-26T03:00,1\n2023-03-26T04:00,1\n",
+         r"jumps an hour ahead at row 3 \(2023-03-26T01:00 then 2023-03-26T03:00\), .*daylight saving starts; "
+         r"give the times in UTC"),
         ("time,T_a\n2023-01-01,1\n2023-01-02,abc\n", "column T_a, row 2: 'abc' is not a number"),
         ("time,temp\n2023-01-01,1\n2023-01-02,2\n", r"lacks column\(s\) \['T_a'\]"),
         # A summer in Fahrenheit or a winter in kelvin: the unit, not the range (issue 46).

@@ -289,6 +289,9 @@ def test_train_warns_about_data_that_cannot_teach_the_model() -> None:
     data = generate(get_scenario("winter_household"), days=5, seed=1, policy="random-level")
     notes = data_warnings(data)
     assert any("5.0 days" in n for n in notes)
+    # A day's last step short of 14 days says 13.9, not 14.0 (< 14).
+    almost = generate(get_scenario("winter_household"), days=14, seed=1, policy="random-level").iloc[:-1]
+    assert any("cover 13.9 days (< 14)" in n for n in data_warnings(almost))
     narrow = data.assign(T_a=5.0 + 0.1 * np.sin(np.arange(len(data))))
     assert any("T_a spans only" in n for n in data_warnings(narrow))
     low = data.assign(u_phys=np.where(np.arange(len(data)) == 3, 9000.0, 1000.0))

@@ -11,7 +11,9 @@
 
 Times are read as data files read them (:func:`pinn_mpc.data.parse_times`): ISO 8601, where
 ``Z`` and UTC offsets (also offsets changing at a daylight-saving switch) are instants given
-in UTC, the scenario's clock; or numeric seconds since 1970-01-01. Rows more than
+in UTC, the scenario's clock; or numeric seconds since 1970-01-01. Times without an offset
+that jump an hour at night, as a local clock does at a daylight-saving switch, are refused
+with the fix (:func:`pinn_mpc.data.check_clock_change`). Rows more than
 ``max_gap_h`` hours apart (default :data:`DEFAULT_MAX_GAP_H`) are refused, not bridged.
 
 Paths are as written in the scenario file, made absolute when the file is read
@@ -28,7 +30,7 @@ from typing import ClassVar
 import numpy as np
 import pandas as pd
 
-from pinn_mpc.data import check_celsius, parse_times
+from pinn_mpc.data import check_celsius, check_clock_change, parse_times
 from pinn_mpc.errors import InputError, warn_once
 from scenarios.inputs.exogenous import (
     SECONDS_PER_DAY,
@@ -87,6 +89,7 @@ def read_series_csv(
         raise InputError(f"{path}: needs at least two rows, has {len(frame)}")
     times = parse_times(frame["time"], path)
     steps = np.diff(times.to_numpy()).astype("timedelta64[ns]").astype(np.int64) / 1e9
+    check_clock_change(times, frame["time"], steps, path)
     if (steps <= 0).any():
         row = int(np.argmax(steps <= 0)) + 2
         raise InputError(f"{path}: time must increase; row {row} does not")
