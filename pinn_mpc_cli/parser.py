@@ -363,7 +363,12 @@ def add_evaluate(sub: Commands) -> None:
 def add_export_rc(sub: Commands) -> None:
     """``export-rc``: a model's learned RC."""
     p = _add(sub, "export-rc", "model_commands:export_rc_json", "export the learned 2R2C parameters of a model")
-    _model(p, "physreg or physnet model directory", required=True)
+    _model(
+        p,
+        "model directory: a physics-informed network's learned R and C (physreg, physnet, "
+        "hybrid, pcnn), or the RC any other model identified from its training data",
+        required=True,
+    )
     p.add_argument("--out", required=True, help="RC JSON file to write (for --rc)")
     _replace(p, "--out file")
 
