@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -246,10 +246,24 @@ def _online_closed_loop(a: argparse.Namespace) -> str:
         format_kpis({**kpis, "scenario": scenario_label(a.scenario, scenario)}),
         f"online: {online['swaps']} swap(s), {online['refusals']} refusal(s) on the held-out day, "
         f"{online['guard_refusals']} by the guard ({online['deferred_swaps']} ran a night later), "
-        f"{online['late_refits']} late refit(s); own decisions {100 * online['own_decisions_share']:.0f} %; "
-        f"state in {a.online}",
+        f"{online['late_refits']} late refit(s); own decisions {100 * online['own_decisions_share']:.0f} %"
+        f"{_without_model(result.log) if settings.learns_model else ''}; state in {a.online}",
     ]
     return "\n".join([*lines, *_wrote(a.json, a.csv, a.plot)])
+
+
+def _without_model(log: Sequence[Mapping[str, Any]]) -> str:
+    """``; N night(s) without a model (why the first)`` for the nights of an online run's
+    ``log`` whose refit gave no model (the initial one included), or nothing."""
+    from scenarios.running.online import MODEL_DAYS
+
+    nights = [e for e in log if not e.get("model")]
+    if not nights:
+        return ""
+    first = nights[0]
+    held_out = "" if first["verdict"] == "initial" else " besides the held-out day"
+    why = first.get("model_error") or f"fewer than {MODEL_DAYS} days of data{held_out}"
+    return f"; {len(nights)} night(s) without a model (night {first['night']}: {why})"
 
 
 def _check_new_outputs(a: argparse.Namespace) -> None:

@@ -131,6 +131,24 @@ def test_a_run_folder_is_not_restarted_over(tmp_path):
         run_online(get_scenario(SCENARIO), None, days=2, seed=0, out_dir=tmp_path, settings=TINY)
 
 
+@pytest.mark.parametrize(
+    ("scenario", "data_of", "match"),
+    [
+        ("heat_pump_household", "winter_household", r"recorded with powers up to \d+ W, but scenario "
+         r"'heat_pump_household''s actuator gives at most 4000 W: it was made for another building"),
+        ("winter_household", "heat_pump_household", r"heat-pump data \(a cop column\), but the controllers of "
+         r"scenario 'winter_household' plan without a COP"),
+    ],
+)
+def test_data_of_another_building_are_refused_before_anything_runs(tmp_path, scenario, data_of, match):
+    """Data a model of this building cannot be trained on (another actuator's, or powers beyond
+    this one's) would leave the run without a model night after night: refused at once."""
+    data = generate(get_scenario(data_of), days=2, seed=0, policy="random-level")
+    with pytest.raises(InputError, match=match):
+        run_online(get_scenario(scenario), data, days=2, seed=0, out_dir=tmp_path / "run", settings=TINY)
+    assert not (tmp_path / "run").exists()
+
+
 @pytest.mark.slow
 def test_decisions_go_on_while_a_refit_runs(tmp_path):
     """Without data the thermostat, then the RC's qp-mpc decide in milliseconds while each
@@ -437,3 +455,18 @@ def test_a_run_whose_worker_does_not_start_leaves_no_folder(tmp_path, monkeypatc
     with pytest.raises(InputError, match="did not start within 2 s"):
         run_online(get_scenario(SCENARIO), None, days=1, seed=0, out_dir=out, settings=TINY)
     assert not out.exists()
+
+
+def test_the_command_says_how_many_nights_ran_without_a_model_and_why():
+    """The summary line names the nights whose refit gave no model and the first one's reason
+    (too few days, or the fit's own message); nothing where every night had one."""
+    from pinn_mpc_cli.loop_commands import _without_model
+
+    assert _without_model([{"night": 0, "verdict": "initial", "model": "model"}]) == ""
+    few = [{"night": 0, "verdict": "initial", "model": None}, {"night": 1, "verdict": "no model", "model": None},
+           {"night": 2, "verdict": "swap", "model": "model"}]
+    assert _without_model(few) == f"; 2 night(s) without a model (night 0: fewer than {MODEL_DAYS} days of data)"
+    later = [{"night": 3, "verdict": "no model", "model": None}]
+    assert _without_model(later).endswith(f"(night 3: fewer than {MODEL_DAYS} days of data besides the held-out day)")
+    failed = [{"night": 4, "verdict": "no model", "model": None, "model_error": "identify: u_phys is constant"}]
+    assert _without_model(failed) == "; 1 night(s) without a model (night 4: identify: u_phys is constant)"

@@ -64,6 +64,7 @@ __all__ = [
     "TRUTH_CONTROLLERS",
     "build_controller",
     "check_zone_model",
+    "check_data_fits",
     "check_model_fits",
     "check_rc_fits",
     "cold_fallback_margin",
@@ -189,6 +190,24 @@ def check_model_fits(
     )
 
 
+def check_data_fits(data: pd.DataFrame, scenario: Scenario, source: str = "the data at hand") -> None:
+    """Refuse, as :func:`check_model_fits` refuses a model, a data set a controller will learn
+    from (``source`` names it) that is another actuator's (a heat pump's ``cop`` column on a
+    scenario without one), went above the scenario's power or was in kW. Its warnings are not
+    given: the controller's own rows extend the data. A data set without a one-zone ``u_phys``
+    column is not checked."""
+    if "u_phys" not in data.columns or len(data) == 0:
+        return
+    _check_fits(
+        source, "recorded with", "give --data", scenario,
+        heat_pump_data="cop" in data.columns,
+        power_max_w=float(data["u_phys"].max()),
+        identified=None,
+        checks=FitChecks(),
+        remedy="give data of this scenario's building",
+    )
+
+
 def check_rc_fits(
     path: str | os.PathLike[str], scenario: Scenario, checks: FitChecks = FitChecks()
 ) -> list[str]:
@@ -226,15 +245,17 @@ def _check_fits(
     power_max_w: float | None,
     identified: RCParams | None,
     checks: FitChecks,
+    remedy: str | None = None,
 ) -> list[str]:
     """The checks of :func:`check_model_fits` for ``what`` (``made`` on data; ``command`` makes
-    another): refusals raised, warnings returned."""
+    another, ``remedy`` says so where given): refusals raised, warnings returned."""
+    remedy = remedy or f"{command} on data of this scenario"
     heat_pump = not scenario.sim.actuator.is_ideal
     if heat_pump_data and not heat_pump:
         raise InputError(
             f"{what} was {made} heat-pump data (a cop column), but the controllers of scenario "
             f"{scenario.name!r} plan without a COP (its actuator an ideal heater or chiller, or "
-            f"an emulator's measured power); {command} on data of this scenario"
+            f"an emulator's measured power); {remedy}"
         )
     notes = []
     if heat_pump and heat_pump_data is False:
@@ -254,8 +275,7 @@ def _check_fits(
     if power_max_w is not None and power_max_w > checks.power_slack * u_max:
         raise InputError(
             f"{what} was {made} powers up to {power_max_w:.0f} W, but scenario {scenario.name!r}'s "
-            f"actuator gives at most {u_max:.0f} W: it was made for another building; "
-            f"{command} on data of this scenario"
+            f"actuator gives at most {u_max:.0f} W: it was made for another building; {remedy}"
         )
     if power_max_w is not None and 0 < power_max_w < 0.5 * u_max:
         notes.append(

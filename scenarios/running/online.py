@@ -105,6 +105,7 @@ from scenarios.running.closed_loop import (
 )
 from scenarios.running.datagen import add_cop
 from scenarios.running.engine import ClosedLoop, LoopRecord, decide
+from scenarios.running.factory import check_data_fits
 
 __all__ = [
     "ERROR_HORIZON_STEPS",
@@ -578,13 +579,16 @@ def run_online(
     ``data``: the validated data set at hand (None: none); ``resume``: continue the run
     ``out_dir`` holds (the same scenario, days, seed, settings and data), else ``out_dir`` must
     hold no run; ``warn_weekdays``: warn when ``data`` are moved by days that change their
-    weekdays (:func:`retimed`). Raises InputError on a mismatch."""
+    weekdays (:func:`retimed`). Raises InputError on a mismatch, and on data of another
+    building (:func:`~scenarios.running.factory.check_data_fits`)."""
     zones = scenario.control_spec().zones
     if len(zones) > 1:  # what the sweep refuses too: its refits fit one zone
         raise InputError(
             f"online: runs on buildings of one zone (the RC plants or EnergyPlus merged); "
             f"{scenario.name!r} has {len(zones)} zones: run it without online operation"
         )
+    if data is not None:
+        check_data_fits(data, scenario)
     out = Path(out_dir)
     run = prepare_run(scenario, days=days, seed=seed, warmup_steps=None, weather_part=weather_part)
     spd, dt_s = scenario.steps_per_day, float(scenario.sim.dt_s)
