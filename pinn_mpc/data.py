@@ -304,33 +304,32 @@ _UTC_OFFSET = re.compile(r"(Z|[+-]\d\d:?\d\d)$")
 
 
 def check_clock_change(times: pd.Series, raw: pd.Series, steps: np.ndarray, source: str) -> None:
-    """InputError where the first step of ``times`` that is not the usual one (``steps`` [s]
-    between them; ``raw`` the column as given) jumps an hour ahead or back between 23:00 and
-    04:00 in times without a UTC offset, as local clock time does where daylight saving starts
-    or ends: named with the fix, times in UTC or with their offset. Sorting (the fix for a row
-    that goes back) or filling the gap (for skipped rows) would put data an hour out of place."""
+    """InputError at the first step of ``times`` (``steps`` [s] between them; ``raw`` the column
+    as given) that jumps an hour ahead of or back from the usual step (the median) between
+    23:00 and 04:00 in times without a UTC offset, as local clock time does where daylight
+    saving starts or ends: named with the fix, times in UTC or with their offset. Sorting (the
+    fix for a row that goes back) or filling the gap (for skipped rows) would put data an hour
+    out of place."""
     if steps.size < 2 or pd.api.types.is_numeric_dtype(raw) or isinstance(raw.dtype, pd.DatetimeTZDtype):
         return
     dt_s = float(np.median(steps))
-    odd = np.flatnonzero(np.abs(steps - dt_s) > 1e-6)
-    if not odd.size:
-        return
-    row = int(odd[0]) + 1
-    before, now = str(raw.iloc[row - 1]).strip(), str(raw.iloc[row]).strip()
-    if _UTC_OFFSET.search(before) or _UTC_OFFSET.search(now) or times.iloc[row - 1].hour not in (23, 0, 1, 2, 3):
-        return
-    for sign, what, starts, otherwise in (
-        (1.0, "ahead", "starts", "; if rows are missing there instead, fill the gap with rows"),
-        (-1.0, "back", "ends", ""),
-    ):
-        if abs(steps[row - 1] - (dt_s + sign * 3600.0)) < 1e-6:
-            raise InputError(
-                f"{source}: column 'time' jumps an hour {what} at row {row + 1} ({before} then "
-                f"{now}), as local clock time does where daylight saving {starts}; give the "
-                "times in UTC or with their UTC offset (e.g. pandas: df['time'] = "
-                "pd.to_datetime(df['time']).dt.tz_localize('<your time zone>', "
-                f"ambiguous='infer').dt.tz_convert('UTC')){otherwise}"
-            )
+    ahead, back = np.abs(steps - (dt_s + 3600.0)) < 1e-6, np.abs(steps - (dt_s - 3600.0)) < 1e-6
+    for index in np.flatnonzero(ahead | back):
+        row = int(index) + 1
+        before, now = str(raw.iloc[row - 1]).strip(), str(raw.iloc[row]).strip()
+        if _UTC_OFFSET.search(before) or _UTC_OFFSET.search(now) or times.iloc[row - 1].hour not in (23, 0, 1, 2, 3):
+            continue
+        what, starts, otherwise = (
+            ("ahead", "starts", "; if rows are missing there instead, fill the gap with rows")
+            if ahead[index] else ("back", "ends", "")
+        )
+        raise InputError(
+            f"{source}: column 'time' jumps an hour {what} at row {row + 1} ({before} then "
+            f"{now}), as local clock time does where daylight saving {starts}; give the "
+            "times in UTC or with their UTC offset (e.g. pandas: df['time'] = "
+            "pd.to_datetime(df['time']).dt.tz_localize('<your time zone>', "
+            f"ambiguous='infer').dt.tz_convert('UTC')){otherwise}"
+        )
 
 
 def _check_steps(times: pd.Series, raw: pd.Series, source: str) -> float:

@@ -274,6 +274,10 @@ def test_a_csv_file_scenario_runs_closed_loop(tmp_path):
         ("time,T_a\n2023-03-26T00:00,1\n2023-03-26T01:00,1\n2023-03-26T03:00,1\n2023-03-26T04:00,1\n",
          r"jumps an hour ahead at row 3 \(2023-03-26T01:00 then 2023-03-26T03:00\), .*daylight saving starts; "
          r"give the times in UTC"),
+        # An irregular step before it does not hide it.
+        ("time,T_a\n" + "".join(f"{t},1\n" for t in ("2023-03-25T20:00", "2023-03-25T21:00", "2023-03-25T21:30",
+         "2023-03-25T22:30", "2023-03-25T23:30", "2023-03-26T00:30", "2023-03-26T01:30", "2023-03-26T03:30",
+         "2023-03-26T04:30")), r"jumps an hour ahead at row 8 \(2023-03-26T01:30 then 2023-03-26T03:30\)"),
         ("time,T_a\n2023-01-01,1\n2023-01-02,abc\n", "column T_a, row 2: 'abc' is not a number"),
         ("time,temp\n2023-01-01,1\n2023-01-02,2\n", r"lacks column\(s\) \['T_a'\]"),
         # A summer in Fahrenheit or a winter in kelvin: the unit, not the range (issue 46).
