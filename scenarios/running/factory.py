@@ -199,7 +199,7 @@ def check_data_fits(data: pd.DataFrame, scenario: Scenario, source: str = "the d
     if "u_phys" not in data.columns or len(data) == 0:
         return
     _check_fits(
-        source, "recorded with", "give --data", scenario,
+        source, "recorded with", "give the data", scenario,
         heat_pump_data="cop" in data.columns,
         power_max_w=float(data["u_phys"].max()),
         identified=None,
