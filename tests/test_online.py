@@ -149,6 +149,16 @@ def test_data_of_another_building_are_refused_before_anything_runs(tmp_path, sce
     assert not (tmp_path / "run").exists()
 
 
+def test_data_whose_power_is_in_kw_are_refused_with_the_conversion(tmp_path):
+    """The building's own data with its power in kW (a thousandth of its heater's): refused
+    with the conversion, nothing written."""
+    data = generate(get_scenario(SCENARIO), days=2, seed=0, policy="random-level")
+    data = data.assign(u=data["u"] / 1000.0, u_phys=data["u_phys"] / 1000.0)
+    with pytest.raises(InputError, match=r"the data's power was in kW; convert its power columns to W \(x 1000\) and give the data again"):
+        run_online(get_scenario(SCENARIO), data, days=2, seed=0, out_dir=tmp_path / "run", settings=TINY)
+    assert not (tmp_path / "run").exists()
+
+
 @pytest.mark.slow
 def test_decisions_go_on_while_a_refit_runs(tmp_path):
     """Without data the thermostat, then the RC's qp-mpc decide in milliseconds while each
