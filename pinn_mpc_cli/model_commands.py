@@ -136,8 +136,7 @@ def _train_one(a: argparse.Namespace) -> str:
     check_output_directory(a.out, output_layout(a.arch, zones=zoned), force=a.force)
     if zoned:
         return _train_zones(a, df)
-    if a.layout is not None:
-        raise InputError("--scenario gives the layout of a building of several zones; the data hold one zone: leave --scenario out")
+    _check_one_zone(a)
     df = read_timeseries(a.data, columns=a.columns)
     if a.arch in BASELINES and "building" in df.columns:
         raise InputError(f"{a.data}: a fleet's data (a building column); train --arch {a.arch} takes one building's")
@@ -437,6 +436,16 @@ def _identified_rc(
     return data
 
 
+def _check_one_zone(a: argparse.Namespace) -> None:
+    """Refuse ``--scenario`` with data of one zone: it only gives the layout of data of several
+    zones (a scenario of one zone, e.g. an EnergyPlus building's merged zones, has none to give)."""
+    if a.layout is not None:
+        raise InputError(
+            f"--scenario {a.layout}: only data of several zones need a layout; {a.data} holds one "
+            "zone (T_r): leave --scenario out"
+        )
+
+
 def _zone_layout(a: argparse.Namespace, df: pd.DataFrame, doing: str) -> Scenario:
     """The scenario of ``--scenario`` that gives the layout of ``df``'s building of several
     zones, checked against the data (its zones, each actuator's power column, its step);
@@ -502,11 +511,7 @@ def identify(a: argparse.Namespace) -> str:
     df = read_timeseries(a.data, columns=a.columns, zones=True)
     if len(zones_in(df.columns)) > 1:
         return _identify_zones(a, df)
-    if a.layout is not None:
-        raise InputError(
-            "--scenario gives the layout of a building of several zones; the data hold one zone: "
-            "leave --scenario out"
-        )
+    _check_one_zone(a)
     df = read_timeseries(a.data, columns=a.columns)
     result = identify_rc(df, eta=_eta(a.eta))
     summary = rc_summary(result.params, source=f"identify:{a.data}")

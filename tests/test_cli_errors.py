@@ -251,6 +251,23 @@ def test_a_training_setting_refused_names_its_flag(capsys, tmp_path):
     assert not (tmp_path / "m").exists()
 
 
+def test_a_layout_given_for_data_of_one_zone_is_refused_as_such(capsys, tmp_path):
+    """``--scenario`` only gives data of several zones their layout: with data of one zone
+    ``train`` and ``identify`` refuse it in one line that says so (not that the scenario has
+    several zones: an EnergyPlus building's merged zones are one), and write nothing."""
+    data = tmp_path / "d.csv"
+    assert main(["simulate", "--scenario", "paper_household", "--days", "2", "--out", str(data)]) == 0
+    capsys.readouterr()
+    for command, out in (("train", tmp_path / "m"), ("identify", tmp_path / "rc.json")):
+        assert main([command, "--data", str(data), "--scenario", "paper_household", "--out", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert err == (
+            f"pinn-mpc {command}: error: --scenario paper_household: only data of several zones need a "
+            f"layout; {data} holds one zone (T_r): leave --scenario out\n"
+        ), err
+        assert not out.exists()
+
+
 def test_scenario_export_judges_the_out_name_before_reading_the_scenario(capsys, tmp_path):
     """``scenario export`` refuses an ``--out`` that is no .toml name first, as it did before the
     command moved to the command line: a scenario file that does not read is not asked."""
