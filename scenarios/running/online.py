@@ -115,6 +115,7 @@ __all__ = [
     "TAKEOVER_H",
     "WARM_H",
     "WORKER_START_S",
+    "WORKER_STARTS",
     "OnlineResult",
     "OnlineSettings",
     "data_before_run",
@@ -132,6 +133,9 @@ TAKEOVER_H = 3.0
 WARM_H = 12.0
 #: Seconds the refit worker process is given to start (import torch) before the run is refused.
 WORKER_START_S = 120.0
+#: Refit worker processes the pool may have started (each exiting as it started) before the
+#: run is refused.
+WORKER_STARTS = 3
 #: Steps ahead of the champion/challenger error (``evaluate``'s horizon; 12 h at 30 min).
 ERROR_HORIZON_STEPS = 24
 #: The verdict on a challenger that predicted the held-out day better but whose guard would hand
@@ -300,22 +304,32 @@ def _worker_init() -> None:
 
 def _refit_pool(initializer: Any = None, timeout_s: float | None = None) -> Any:
     """The refit worker (a ``spawn`` pool of one process, ``initializer`` by default
-    :func:`_worker_init`), once it has answered: a worker that does not start within
-    ``timeout_s`` (default :data:`WORKER_START_S`) is reported, not waited for (its pool would
-    start it again and again, and the run would wait at its first refit for ever)."""
+    :func:`_worker_init`), once it has answered: a worker that exits as it starts (its pool
+    would start it again and again, and the run would wait at its first refit for ever) is
+    reported once the pool has started :data:`WORKER_STARTS` of them, and one that does not
+    answer within ``timeout_s`` (default :data:`WORKER_START_S`) is reported then."""
     limit = WORKER_START_S if timeout_s is None else timeout_s
     context = multiprocessing.get_context("spawn")
+    others = {child.pid for child in multiprocessing.active_children()}
     pool = context.Pool(1, initializer=_worker_init if initializer is None else initializer)
+    answer, started, workers = pool.apply_async(os.getpid), time.monotonic(), set()
     try:
-        pool.apply_async(os.getpid).get(limit)
+        while not answer.ready():
+            workers |= {child.pid for child in multiprocessing.active_children()} - others
+            if len(workers) >= WORKER_STARTS or time.monotonic() - started >= limit:
+                break
+            answer.wait(0.1)
+        answer.get(0)
     except BaseException as exc:
         pool.terminate()
         pool.join()
         if isinstance(exc, multiprocessing.TimeoutError):
+            how = (f"exited as it started ({len(workers)} times)" if len(workers) >= WORKER_STARTS
+                   else f"did not start within {limit:g} s")
             raise InputError(
-                f"online: the refit worker process did not start within {limit:g} s; a script "
-                "that runs online operation must call it under `if __name__ == \"__main__\":` "
-                "(the worker is started with multiprocessing's spawn, which imports the script again)"
+                f"online: the refit worker process {how}; a script that runs online operation "
+                "must call it under `if __name__ == \"__main__\":` (the worker is started with "
+                "multiprocessing's spawn, which imports the script again)"
             ) from None
         raise
     return pool
