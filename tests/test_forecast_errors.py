@@ -142,6 +142,23 @@ def test_unknown_gains_are_the_schedules_expectation_in_forecast_and_past():
         _loop(ForecastErrors(gains_known=False))
 
 
+def test_the_gains_a_controller_observed_are_the_expected_ones_where_it_is_not_given_the_plants():
+    """What a refit learns from holds the gains as the controller saw them: the expectation
+    where the gains are unknown, though the plant had others (its record keeps those)."""
+    truth = _series(100)
+    expected = np.full(100, 250.0)
+    loop = _loop(ForecastErrors(gains_known=False), expected_gains_w=expected)
+    for _ in range(3):
+        seen = loop.advance(Thermostat(SPEC))
+    np.testing.assert_array_equal(loop.observed_gains_w(), expected[:3])
+    np.testing.assert_array_equal(loop.observed_gains_w()[:2], seen.observation.history["I_g"][:2])
+    np.testing.assert_array_equal(loop.record().i_g_w, truth.I_g[:3])
+    assert not np.array_equal(loop.record().i_g_w, expected[:3])
+    known = _loop(ForecastErrors())
+    known.step(0.0)
+    np.testing.assert_array_equal(known.observed_gains_w(), truth.I_g[:1])
+
+
 @pytest.mark.parametrize(
     ("kwargs", "match"),
     [

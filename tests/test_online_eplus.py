@@ -92,3 +92,6 @@ def test_a_resumed_energyplus_run_is_the_uninterrupted_one(tmp_path):
     assert [e["verdict"] for e in resumed.log] == [e["verdict"] for e in expected.log]
     observed = pd.read_csv(out / "observed.csv")
     assert len(observed) == (DAYS + 1) * spd  # warm-up and every day, each interval once
+    # The office's gains are unmeasured: the controllers are never given them, so the data the
+    # refits learn from hold none (EnergyPlus's own would be an input the planner never has).
+    assert "I_g" not in observed.columns and "I_g" in whole.columns

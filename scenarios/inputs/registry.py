@@ -200,6 +200,19 @@ class Scenario:
         return self.sim.params.solar_aperture_m2 > 0
 
     @property
+    def gains_given(self) -> bool:
+        """Whether the controllers are given the building's internal gains (its data carry an
+        ``I_g`` column): a simulated building's own gains, or a plant's measured ones; not an
+        EnergyPlus building's unmeasured gains."""
+        return self.gains.active or self.plant.settings.measured_gains
+
+    @property
+    def gains_hidden(self) -> bool:
+        """Whether the building has internal gains its controllers are not given (an EnergyPlus
+        building's, unmeasured)."""
+        return self.plant.settings.own_gains and not self.plant.settings.measured_gains
+
+    @property
     def weather_split(self) -> str:
         """One sentence: the calendar days of the training and the test part."""
         return self.weather.split_text()

@@ -82,6 +82,13 @@ class KindSettings:
         return False
 
     @property
+    def own_gains(self) -> bool:
+        """Whether the building has internal gains of its own besides the scenario's series (an
+        EnergyPlus building's people, lights and equipment), which its controllers see only
+        where they are measured (:attr:`measured_gains`)."""
+        return False
+
+    @property
     def zone_specs(self) -> tuple[ZoneSpec, ...]:
         """The building's zones (:mod:`pinn_mpc.zones`): one, unless the kind has several."""
         return ONE_ZONE

@@ -310,7 +310,7 @@ def _frame(
     columns |= {c: np.tile(cols[c][:n], n_buildings) for c in ("price", "T_min", "T_max")}
     if scenario.uses_solar:
         columns["G"] = stacked("g_w_per_m2")
-    if scenario.gains.active or scenario.plant.settings.measured_gains:  # as they happened
+    if scenario.gains_given:  # as they happened
         columns["I_g"] = stacked("i_g_w")
     for name in (*SITE_COLUMNS, "holiday"):  # the weather file's facades and wind, the calendar
         if name in exo:

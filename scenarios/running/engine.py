@@ -309,6 +309,17 @@ class ClosedLoop:
             return plant.true_zone_states()[:, 1, :]
         return plant.true_state()[:, 1:2]
 
+    def observed_gains_w(self, building: int = 0) -> np.ndarray:
+        """(k,) the internal gains [W] of the intervals run so far as ``building``'s controller
+        observed them (:meth:`observation`'s past ``I_g``): the plant's with measured gains,
+        else the series' (the expected ones where ``gains_known = false``), not the gains the
+        plant had where the controllers are not given them."""
+        self._check_building(building)
+        k = self.k
+        if self.measured_gains:
+            return self._means[:k, building, 2].copy()
+        return np.array(self._seen_gains_w[self.start : self.start + k], dtype=float)
+
     def measured(self) -> np.ndarray:
         """(B, Z) every building's measured room temperatures now [C] (:meth:`measure`)."""
         self.measure()

@@ -546,9 +546,19 @@ class _Online:
         self.mode[k] = self.kind
 
     def observed(self, loop: ClosedLoop) -> pd.DataFrame:
+        """The run's intervals so far as the data format holds them for a refit: the loop's
+        trajectory, its ``I_g`` the gains the controller observed (none where it is given
+        none, as :func:`~scenarios.running.datagen.generate`'s data), the heat pump's COP and
+        ``own`` (the decisions the controller made itself)."""
         k = loop.k
         sofar = RunInputs(exo=self.run.exo, series=self.run.series, warmup=0, total=k)
         frame = run_trajectory(self.scenario, sofar, loop.record())
+        # The gains as the controller saw them, where it sees any (a simulated data set's rule):
+        # a model fitted on gains it is never given would plan without them.
+        if self.scenario.gains_given:
+            frame["I_g"] = loop.observed_gains_w()
+        else:
+            frame = frame.drop(columns="I_g", errors="ignore")
         add_cop(self.scenario, frame)  # a heat pump's: its refits fit on the delivered heat
         frame["own"] = self.own[:k].astype(int)
         return frame

@@ -370,6 +370,10 @@ class EnergyPlusSettings(KindSettings):
         return self.gains == "measured"
 
     @property
+    def own_gains(self) -> bool:
+        return True
+
+    @property
     def sized_when_read(self) -> bool:
         return self.heater_w == "auto" or self.chiller_w == "auto"
 
