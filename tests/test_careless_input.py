@@ -824,3 +824,41 @@ def test_power_in_kw_is_warned_about_and_its_models_refused_on_the_scenario(care
         refused([*loop, *given], capsys, "a thousand times more: the data's power was in kW",
                 f"convert its power columns to W (x 1000) and {made} again")
     assert not (tmp_path / "k.json").exists()
+
+
+def test_a_model_trained_on_gains_the_controllers_are_not_given_is_refused(identified_rcs, tmp_path):
+    """A closed-loop record of an EnergyPlus building carries the internal gains the plant had,
+    which its controllers are never given (unmeasured): a model or an RC fitted on such a
+    record would plan with 0 W of them. Refused where the building has gains its controllers
+    are not given; taken where they are given, where the building has none, and once the
+    data's I_g column is dropped."""
+    from pinn_mpc import fitted
+    from scenarios.running.datagen import generate
+    from scenarios.running.factory import (
+        FitChecks,
+        check_data_fits,
+        check_model_fits,
+        check_rc_fits,
+    )
+
+    data = generate(get_scenario("winter_household"), days=3, seed=0, policy="random-level")
+    assert data["I_g"].max() > 0
+    with_gains = fitted.fit(data, arch="arx", config=TrainConfig()).model
+    office = get_scenario("eplus_small_office")
+    assert office.gains_hidden and not get_scenario("paper_household").gains_hidden
+    with pytest.raises(InputError, match=r"the model was trained on internal gains \(I_g up to 0\.\d+ kW\), "
+                       r"but the controllers of scenario 'eplus_small_office' are not given its internal "
+                       r"gains \(they are unmeasured\).* drop the data's I_g column and train again"):
+        check_model_fits(with_gains, office)
+    check_model_fits(with_gains, get_scenario("winter_household"))  # its own building: given them
+    # A building without gains (5 kW: the power's limit widened, the gains alone judged).
+    check_model_fits(with_gains, get_scenario("paper_household"), FitChecks(power_slack=2.5))
+    without = data.drop(columns="I_g")
+    without.attrs = dict(data.attrs)
+    check_model_fits(fitted.fit(without, arch="arx", config=TrainConfig()).model, office)
+    with pytest.raises(InputError, match=r"the RC of winter_household.json was identified on measured "
+                       r"internal gains \(an I_g column\).* drop the data's I_g column and identify again"):
+        check_rc_fits(identified_rcs / "winter_household.json", office)
+    with pytest.raises(InputError, match=r"the data at hand was recorded with internal gains .* not given"):
+        check_data_fits(data, office)  # an online run's data at hand: its refits would learn them
+    check_data_fits(without, office)

@@ -181,23 +181,28 @@ def check_model_fits(
     else:
         return []
     columns = summary.get("columns", [])
+    gains = summary.get("I_g_range")
     return _check_fits(
         "the model", "trained on", "train", scenario,
         heat_pump_data="cop" in columns if columns else None,
         power_max_w=power_max_w,
         identified=params_from_summary(rc) if isinstance(rc, dict) else None,
         checks=checks,
+        gains=f"internal gains (I_g up to {float(gains[1]) / 1000:.3g} kW)"
+        if isinstance(gains, list) and len(gains) == 2 and float(gains[1]) > 0 else None,
     )
 
 
 def check_data_fits(data: pd.DataFrame, scenario: Scenario, source: str = "the data at hand") -> None:
     """Refuse, as :func:`check_model_fits` refuses a model, a data set a controller will learn
     from (``source`` names it) that is another actuator's (a heat pump's ``cop`` column on a
-    scenario without one), went above the scenario's power or was in kW. Its warnings are not
+    scenario without one), went above the scenario's power, was in kW or holds internal gains
+    its controllers are not given (:attr:`Scenario.gains_hidden`). Its warnings are not
     given: the controller's own rows extend the data. A data set without a one-zone ``u_phys``
     column is not checked."""
     if "u_phys" not in data.columns or len(data) == 0:
         return
+    gains = float(data["I_g"].max()) if "I_g" in data.columns else 0.0
     _check_fits(
         source, "recorded with", "give the data", scenario,
         heat_pump_data="cop" in data.columns,
@@ -205,6 +210,7 @@ def check_data_fits(data: pd.DataFrame, scenario: Scenario, source: str = "the d
         identified=None,
         checks=FitChecks(),
         remedy="give data of this scenario's building",
+        gains=f"internal gains (I_g up to {gains / 1000:.3g} kW)" if gains > 0 else None,
     )
 
 
@@ -226,12 +232,15 @@ def _rc_fit_notes(
     """:func:`check_rc_fits` of the RC JSON ``name``, already read as ``params`` and ``data``."""
     power = data.get("power_range_w")
     hp = data.get("heat_pump_data")
+    fit = data.get("fit")
+    measured_gains = isinstance(fit, dict) and fit.get("identified_gains") is True and fit.get("unmeasured_gains") is False
     return _check_fits(
         f"the RC of {name}", "identified on", "identify", scenario,
         heat_pump_data=hp if isinstance(hp, bool) else None,
         power_max_w=float(power[1]) if isinstance(power, list) and len(power) == 2 else None,
         identified=params,
         checks=checks,
+        gains="measured internal gains (an I_g column)" if measured_gains else None,
     )
 
 
@@ -246,9 +255,19 @@ def _check_fits(
     identified: RCParams | None,
     checks: FitChecks,
     remedy: str | None = None,
+    gains: str | None = None,
 ) -> list[str]:
     """The checks of :func:`check_model_fits` for ``what`` (``made`` on data; ``command`` makes
-    another, ``remedy`` says so where given): refusals raised, warnings returned."""
+    another, ``remedy`` says so where given; ``gains`` names the internal gains the data had,
+    None: none): refusals raised, warnings returned. Data with gains are refused where the
+    building has gains its controllers are not given (:attr:`Scenario.gains_hidden`): the
+    model would be given 0 W for them."""
+    if gains is not None and scenario.gains_hidden:
+        raise InputError(
+            f"{what} was {made} {gains}, but the controllers of scenario {scenario.name!r} are "
+            "not given its internal gains (they are unmeasured): it would plan as if there were "
+            f"none; drop the data's I_g column and {command} again"
+        )
     remedy = remedy or f"{command} on data of this scenario"
     heat_pump = not scenario.sim.actuator.is_ideal
     if heat_pump_data and not heat_pump:
