@@ -168,8 +168,9 @@ def check_model_fits(
     model: BatchDynamics, scenario: Scenario, checks: FitChecks = FitChecks()
 ) -> list[str]:
     """Refuse a model made for another actuator (a heat pump's data has a ``cop`` column), for
-    a larger one (training power above the scenario's limit, :class:`FitChecks`) or on power in
-    kW (peaking a thousandth of the scenario's limit); return warnings for a model whose data
+    a larger one (training power above the scenario's limit, :class:`FitChecks`), on power in
+    kW (peaking a thousandth of the scenario's limit) or on internal gains the scenario's
+    controllers are not given (:attr:`Scenario.gains_hidden`); return warnings for a model whose data
     never came near the scenario's full power or whose identified time constants differ from
     the scenario's building (where it has true parameters) by more than a factor of 3."""
     rc, summary = _trained_on(model)
@@ -218,7 +219,8 @@ def check_rc_fits(
     path: str | os.PathLike[str], scenario: Scenario, checks: FitChecks = FitChecks()
 ) -> list[str]:
     """:func:`check_model_fits` for an RC JSON (``identify``, ``export-rc``): refused when its
-    data were another actuator's, went above the scenario's power or were in kW; warnings when they stayed
+    data were another actuator's, went above the scenario's power, were in kW or held measured
+    gains the scenario's controllers are not given; warnings when they stayed
     under half of it or its time constants differ from the scenario's building by more than a
     factor of 3. An RC JSON without the data's power range (written by hand, or before it was
     recorded) is checked for its time constants only."""
