@@ -189,9 +189,13 @@ def check_model_fits(
         power_max_w=power_max_w,
         identified=params_from_summary(rc) if isinstance(rc, dict) else None,
         checks=checks,
-        gains=f"internal gains (I_g up to {float(gains[1]) / 1000:.3g} kW)"
-        if isinstance(gains, list) and len(gains) == 2 and float(gains[1]) > 0 else None,
+        gains=_gains_text(float(gains[1]) if isinstance(gains, list) and len(gains) == 2 else None),
     )
+
+
+def _gains_text(largest_w: float | None) -> str | None:
+    """The internal gains data had, for :func:`_check_fits` (None: none, or 0 W at most)."""
+    return None if largest_w is None or largest_w <= 0 else f"internal gains (I_g up to {largest_w / 1000:.3g} kW)"
 
 
 def check_data_fits(data: pd.DataFrame, scenario: Scenario, source: str = "the data at hand") -> None:
@@ -203,7 +207,6 @@ def check_data_fits(data: pd.DataFrame, scenario: Scenario, source: str = "the d
     column is not checked."""
     if "u_phys" not in data.columns or len(data) == 0:
         return
-    gains = float(data["I_g"].max()) if "I_g" in data.columns else 0.0
     _check_fits(
         source, "recorded with", "give the data", scenario,
         heat_pump_data="cop" in data.columns,
@@ -211,7 +214,7 @@ def check_data_fits(data: pd.DataFrame, scenario: Scenario, source: str = "the d
         identified=None,
         checks=FitChecks(),
         remedy="give data of this scenario's building",
-        gains=f"internal gains (I_g up to {gains / 1000:.3g} kW)" if gains > 0 else None,
+        gains=_gains_text(float(data["I_g"].max()) if "I_g" in data.columns else None),
     )
 
 
